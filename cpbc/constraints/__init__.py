@@ -1,0 +1,21 @@
+"""Constraint layer: configuration constraints φ(x) > 0 and velocity constraints ψ(x, ẋ) > 0."""
+
+from cpbc.constraints.base import ConfigurationConstraint, VelocityConstraint
+from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
+from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
+from cpbc.constraints.linear_limit import LinearLimit, joint_position_limit
+from cpbc.constraints.point_outside_sphere import PointOutsideSphere
+from cpbc.constraints.rate_limit import RateLimit, joint_rate_limit
+
+__all__ = [
+    "BarrierTerms",
+    "ConfigurationConstraint",
+    "ConstraintSet",
+    "KineticEnergyLimit",
+    "LinearLimit",
+    "PointOutsideSphere",
+    "RateLimit",
+    "VelocityConstraint",
+    "joint_position_limit",
+    "joint_rate_limit",
+]

@@ -1,0 +1,70 @@
+"""Constraint interfaces (Assumptions 6.4 and 6.6).
+
+A constraint object may describe several scalar constraints at once (one per joint, say),
+so that the hot path is vectorised; ``names`` has one entry per scalar constraint.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cpbc.model.robot_model import DynamicsTerms
+
+Array = NDArray[np.float64]
+
+
+class ConfigurationConstraint(ABC):
+    """φ_i(x) = h_i(x) − Δ_i > 0 (eq. 6.16), with gradient ∇φ_i(x)."""
+
+    names: tuple[str, ...]
+
+    @abstractmethod
+    def value(self, x: Array) -> Array:
+        """φ(x), shape (k,)."""
+
+    @abstractmethod
+    def gradient(self, x: Array) -> Array:
+        """∂φ/∂x, shape (k, n)."""
+
+    def evaluate(self, x: Array) -> tuple[Array, Array]:
+        """φ(x) and ∂φ/∂x together (subclasses share kinematics here)."""
+        return self.value(x), self.gradient(x)
+
+
+class VelocityConstraint(ABC):
+    """ψ_j(x, ẋ) = Ω_j(x) − ½ ẋᵀ Q_j(x) ẋ > 0 with Q_j ⪰ 0 (eq. 6.17).
+
+    ``needs_dynamics`` says whether the constraint reads D or C from the dynamics terms.
+    """
+
+    names: tuple[str, ...]
+    needs_dynamics: bool = False
+
+    @abstractmethod
+    def value(self, x: Array, dx: Array, dyn: DynamicsTerms | None) -> Array:
+        """ψ(x, ẋ), shape (k,)."""
+
+    @abstractmethod
+    def weights(self, x: Array, dyn: DynamicsTerms | None) -> Array:
+        """Q_j(x), shape (k, n, n)."""
+
+    @abstractmethod
+    def gradient(self, x: Array, dx: Array, dyn: DynamicsTerms | None) -> Array:
+        """∂ψ/∂x at fixed ẋ, shape (k, n)."""
+
+    def barrier_terms(
+        self, x: Array, dx: Array, dyn: DynamicsTerms | None
+    ) -> tuple[Array, Array, Array | None]:
+        """ψ, Π = Σ Q_j/ψ_j (n, n) and b = Σ (∂ψ_j/∂x)/ψ_j (n,) — the log-barrier form of DESIGN §3.
+
+        b may be None when it is identically zero (constant Q and Ω). Subclasses override
+        this with a cheaper closed form.
+        """
+        psi = self.value(x, dx, dyn)
+        inv = 1.0 / psi
+        pi = np.einsum("k,kij->ij", inv, self.weights(x, dyn))
+        b = self.gradient(x, dx, dyn).T @ inv
+        return psi, pi, b

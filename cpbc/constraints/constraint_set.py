@@ -1,0 +1,98 @@
+"""A set of constraints: the admissible set S (eq. 6.18) and its log-barrier sums."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+
+from cpbc.constraints.base import Array, ConfigurationConstraint, VelocityConstraint
+from cpbc.errors import ConstraintViolation, CpbcError, InadmissibleStateError
+from cpbc.model.robot_model import DynamicsTerms
+
+
+def _raise_violation(names: Sequence[str], margins: Array) -> None:
+    i = int(np.argmin(np.nan_to_num(margins, nan=-np.inf)))
+    raise ConstraintViolation(names[i], float(margins[i]))
+
+
+class BarrierTerms(NamedTuple):
+    """Log-barrier sums of DESIGN §3 at one state.
+
+    Attributes:
+        log_phi: Σ log φ_i = log Φ.
+        log_psi: Σ log ψ_j = log Ψ.
+        gradient: b_φ + b_ψ = Σ ∇φ_i/φ_i + Σ ∂_xψ_j/ψ_j, shape (n,), or None when zero.
+        weight: Π = Σ Q_j/ψ_j, shape (n, n), or None without velocity constraints.
+    """
+
+    log_phi: float
+    log_psi: float
+    gradient: Array | None
+    weight: Array | None
+
+
+class ConstraintSet:
+    """Configuration and velocity constraints that together define S."""
+
+    def __init__(
+        self,
+        n: int,
+        configuration: Sequence[ConfigurationConstraint] = (),
+        velocity: Sequence[VelocityConstraint] = (),
+    ) -> None:
+        self.n = n
+        self.configuration = tuple(configuration)
+        self.velocity = tuple(velocity)
+        self.names: tuple[str, ...] = tuple(
+            name for c in (*self.configuration, *self.velocity) for name in c.names
+        )
+        if len(set(self.names)) != len(self.names):
+            dup = sorted({x for x in self.names if self.names.count(x) > 1})
+            raise CpbcError(f"duplicate constraint names: {dup}; give each constraint its own name")
+        self.needs_dynamics = any(c.needs_dynamics for c in self.velocity)
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    @property
+    def empty(self) -> bool:
+        return not self.names
+
+    def margins(self, x: Array, dx: Array, dyn: DynamicsTerms | None = None) -> Array:
+        """Every φ_i and ψ_j, in the order of ``names``."""
+        parts = [c.value(x) for c in self.configuration]
+        parts += [c.value(x, dx, dyn) for c in self.velocity]
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def check_admissible(self, x: Array, dx: Array, what: str) -> None:
+        """Raise InadmissibleStateError if (x, ẋ) is not in S (Assumption 6.8)."""
+        m = self.margins(x, dx)
+        if m.size and not np.all(m > 0):
+            i = int(np.argmin(np.where(np.isnan(m), -np.inf, m)))
+            raise InadmissibleStateError(what, self.names[i], float(m[i]))
+
+    def barrier(self, x: Array, dx: Array, dyn: DynamicsTerms) -> BarrierTerms:
+        """Log-barrier sums at (x, ẋ); raises ConstraintViolation outside S."""
+        log_phi, gradient, weight = 0.0, None, None
+        for c in self.configuration:
+            phi, grad = c.evaluate(x)
+            values = phi.tolist()
+            if not min(values) > 0:  # also catches NaN
+                _raise_violation(c.names, phi)
+            log_phi += math.fsum(map(math.log, values))
+            b = (1.0 / phi) @ grad
+            gradient = b if gradient is None else gradient + b
+        log_psi = 0.0
+        for c in self.velocity:
+            psi, pi, b = c.barrier_terms(x, dx, dyn)
+            values = psi.tolist()
+            if not min(values) > 0:
+                _raise_violation(c.names, psi)
+            log_psi += math.fsum(map(math.log, values))
+            if b is not None:
+                gradient = b if gradient is None else gradient + b
+            weight = pi if weight is None else weight + pi
+        return BarrierTerms(log_phi, log_psi, gradient, weight)

@@ -1,0 +1,46 @@
+"""A bound on the arm's kinetic energy (eq. 6.66, 7.33)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cpbc.constraints.base import Array, VelocityConstraint
+from cpbc.errors import CpbcError
+from cpbc.model.robot_model import DynamicsTerms, RobotModel
+
+
+class KineticEnergyLimit(VelocityConstraint):
+    """ψ = Ω − ½ ẋᵀ D(x) ẋ > 0, so Q = D(x) and ∂ψ/∂x = −Cᵀ ẋ (C in Christoffel form).
+
+    Args:
+        model: the controller's robot model (for D and C when no dynamics terms are given).
+        limit: Ω > 0 [J].
+        name: label of the constraint.
+    """
+
+    needs_dynamics = True
+
+    def __init__(self, model: RobotModel, limit: float, name: str = "kinetic_energy") -> None:
+        if not (np.isfinite(limit) and limit > 0):
+            raise CpbcError(f"kinetic energy limit must be finite and > 0, got {limit}")
+        self.model = model
+        self.limit = float(limit)
+        self.names = (name,)
+
+    def value(self, x: Array, dx: Array, dyn: DynamicsTerms | None = None) -> Array:
+        d = dyn.inertia if dyn is not None else self.model.inertia(x)
+        return np.array([self.limit - 0.5 * dx @ d @ dx])
+
+    def weights(self, x: Array, dyn: DynamicsTerms | None = None) -> Array:
+        d = dyn.inertia if dyn is not None else self.model.inertia(x)
+        return d[None, :, :]
+
+    def gradient(self, x: Array, dx: Array, dyn: DynamicsTerms | None = None) -> Array:
+        return -(self.model.coriolis(x, dx).T @ dx)[None, :]
+
+    def barrier_terms(
+        self, x: Array, dx: Array, dyn: DynamicsTerms | None
+    ) -> tuple[Array, Array, Array]:
+        d = dyn.inertia if dyn is not None else self.model.inertia(x)
+        psi = self.limit - 0.5 * dx @ d @ dx
+        return np.array([psi]), d / psi, -(self.model.coriolis(x, dx).T @ dx) / psi

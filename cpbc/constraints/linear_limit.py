@@ -1,0 +1,75 @@
+"""Two-sided limits on linear combinations of coordinates: joint limits and relative-joint limits."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from cpbc.constraints.base import Array, ConfigurationConstraint
+from cpbc.errors import CpbcError
+
+
+class LinearLimit(ConfigurationConstraint):
+    """lower_i < a_iᵀ x < upper_i, written as one smooth constraint per row:
+
+        φ_i(x) = (a_iᵀx − lower_i)(upper_i − a_iᵀx) = w_i² − (a_iᵀx − c_i)²
+
+    with centre c_i and half-width w_i. For a row of the identity this is the thesis's joint
+    limit of Case 2 (eq. 6.50, up to the constant factor ½ that no law depends on); for
+    a = (−1, 1) and bounds ±17π/18 it is the relative-joint limit φ₂ of Section 6.4.
+
+    Args:
+        rows: the a_i, shape (k, n).
+        lower, upper: bounds, shape (k,), lower < upper.
+        names: one per row.
+    """
+
+    def __init__(
+        self, rows: Array, lower: Array, upper: Array, names: Sequence[str]
+    ) -> None:
+        rows = np.atleast_2d(np.asarray(rows, dtype=float))
+        lower = np.atleast_1d(np.asarray(lower, dtype=float))
+        upper = np.atleast_1d(np.asarray(upper, dtype=float))
+        k = rows.shape[0]
+        if lower.shape != (k,) or upper.shape != (k,) or len(names) != k:
+            raise CpbcError(
+                f"linear limit: rows {rows.shape}, lower {lower.shape}, upper {upper.shape} "
+                f"and {len(names)} names do not agree"
+            )
+        if not np.all(np.isfinite(lower)) or not np.all(np.isfinite(upper)):
+            raise CpbcError("linear limit bounds must be finite")
+        if np.any(lower >= upper):
+            raise CpbcError("linear limit needs lower < upper on every row")
+        self.rows = rows
+        self.lower = lower
+        self.upper = upper
+        self.names = tuple(names)
+        self.centre = 0.5 * (lower + upper)
+        self.half_width = 0.5 * (upper - lower)
+        for a in (self.rows, self.lower, self.upper, self.centre, self.half_width):
+            a.setflags(write=False)
+
+    def value(self, x: Array) -> Array:
+        y = self.rows @ x
+        return (y - self.lower) * (self.upper - y)
+
+    def gradient(self, x: Array) -> Array:
+        y = self.rows @ x
+        return (self.lower + self.upper - 2.0 * y)[:, None] * self.rows
+
+
+def joint_position_limit(
+    lower: Array, upper: Array, joint_names: Sequence[str], joints: Sequence[int] | None = None
+) -> LinearLimit:
+    """Asymmetric joint position limits lower_i < x_i < upper_i on the given joints.
+
+    Args:
+        lower, upper: bounds of the selected joints [rad or m].
+        joint_names: names of all n coordinates (for labels).
+        joints: indices of the limited joints; all when omitted.
+    """
+    n = len(joint_names)
+    idx = list(range(n)) if joints is None else list(joints)
+    rows = np.eye(n)[idx]
+    return LinearLimit(rows, lower, upper, [f"position[{joint_names[i]}]" for i in idx])

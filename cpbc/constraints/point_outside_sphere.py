@@ -1,0 +1,55 @@
+"""A point of the robot kept outside a sphere (a circle for a planar arm): the thesis's obstacle."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cpbc.constraints.base import Array, ConfigurationConstraint
+from cpbc.errors import CpbcError
+from cpbc.model.robot_model import RobotModel
+
+
+class PointOutsideSphere(ConfigurationConstraint):
+    """φ(x) = ‖p(x) − c‖² − r² > 0, with ∇φ = 2 (p − c)ᵀ J_p(x).
+
+    This is φ₁ of Section 6.4, where p is the end point of the 2-link arm, c = (0, 2) and
+    r = 0.5. The squared distance keeps φ smooth everywhere.
+
+    Args:
+        model: the controller's robot model (for kinematics).
+        frame: name of the frame that carries the point.
+        centre: sphere centre in world coordinates, shape (3,) [m].
+        radius: sphere radius [m], > 0.
+        offset: the point in the frame's coordinates, shape (3,) [m].
+        name: label of the constraint.
+    """
+
+    def __init__(
+        self,
+        model: RobotModel,
+        frame: str,
+        centre: Array,
+        radius: float,
+        offset: Array | None = None,
+        name: str | None = None,
+    ) -> None:
+        if not radius > 0:
+            raise CpbcError(f"obstacle radius must be > 0, got {radius}")
+        self.model = model
+        self.frame_id = model.frame_id(frame)
+        self.centre = np.asarray(centre, dtype=float).reshape(3)
+        self.radius = float(radius)
+        self.offset = None if offset is None else np.asarray(offset, dtype=float).reshape(3)
+        self.names = (name or f"clearance[{frame}]",)
+
+    def value(self, x: Array) -> Array:
+        d = self.model.point_position(self.frame_id, x, self.offset) - self.centre
+        return np.array([d @ d - self.radius**2])
+
+    def gradient(self, x: Array) -> Array:
+        return self.evaluate(x)[1]
+
+    def evaluate(self, x: Array) -> tuple[Array, Array]:
+        d = self.model.point_position(self.frame_id, x, self.offset) - self.centre
+        jac = self.model.point_jacobian(self.frame_id, x, self.offset)
+        return np.array([d @ d - self.radius**2]), (2.0 * d @ jac)[None, :]

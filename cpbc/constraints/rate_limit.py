@@ -1,0 +1,88 @@
+"""Symmetric bounds on joint rates, or on linear combinations of them (Remark 6.7, eq. 7.9)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from cpbc.constraints.base import Array, VelocityConstraint
+from cpbc.errors import CpbcError
+from cpbc.model.robot_model import DynamicsTerms
+
+
+class RateLimit(VelocityConstraint):
+    """|a_jᵀ ẋ| < B_j, written as ψ_j = ½(B_j² − (a_jᵀẋ)²) with Q_j = a_j a_jᵀ, Ω_j = B_j²/2.
+
+    For a_j = e_j this is the per-joint bound of Remark 6.7 and eq. 7.9. Q and Ω are constant,
+    so ∂ψ/∂x = 0 and the barrier terms are Π = Aᵀ diag(1/ψ) A, b = 0.
+
+    Args:
+        rows: the a_j, shape (k, n).
+        bounds: B_j > 0, shape (k,) [rad/s].
+        names: one per row.
+    """
+
+    def __init__(self, rows: Array, bounds: Array, names: Sequence[str]) -> None:
+        rows = np.atleast_2d(np.asarray(rows, dtype=float))
+        bounds = np.atleast_1d(np.asarray(bounds, dtype=float))
+        if bounds.shape != (rows.shape[0],) or len(names) != rows.shape[0]:
+            raise CpbcError(f"rate limit: {rows.shape[0]} rows but bounds of shape {bounds.shape}")
+        if not np.all(np.isfinite(bounds)) or np.any(bounds <= 0):
+            raise CpbcError("rate limit bounds must be finite and > 0")
+        self.rows = rows
+        self.bounds = bounds
+        self.names = tuple(names)
+        self._omega = 0.5 * bounds**2
+        n_cols = rows.shape[1]
+        # A row of the identity needs no matrix product in the hot path.
+        unit = (np.count_nonzero(rows, axis=1) == 1) & np.isclose(np.abs(rows).sum(axis=1), 1.0)
+        self._joint_index = np.argmax(np.abs(rows), axis=1) if np.all(unit) else None
+        if self._joint_index is not None and len(set(self._joint_index.tolist())) != len(bounds):
+            raise CpbcError("rate limit: a joint is bounded twice in one constraint")
+        # Every joint bounded, in order: Π is diagonal and needs no scatter.
+        self._all_joints_in_order = self._joint_index is not None and np.array_equal(
+            self._joint_index, np.arange(n_cols)
+        )
+        for a in (self.rows, self.bounds):
+            a.setflags(write=False)
+
+    @property
+    def is_per_joint(self) -> bool:
+        """True when every row bounds a single coordinate."""
+        return self._joint_index is not None
+
+    def value(self, x: Array, dx: Array, dyn: DynamicsTerms | None = None) -> Array:
+        y = dx[self._joint_index] if self._joint_index is not None else self.rows @ dx
+        return self._omega - 0.5 * y * y
+
+    def weights(self, x: Array, dyn: DynamicsTerms | None = None) -> Array:
+        return np.einsum("ki,kj->kij", self.rows, self.rows)
+
+    def gradient(self, x: Array, dx: Array, dyn: DynamicsTerms | None = None) -> Array:
+        return np.zeros((self.rows.shape[0], x.shape[0]))
+
+    def barrier_terms(
+        self, x: Array, dx: Array, dyn: DynamicsTerms | None
+    ) -> tuple[Array, Array, Array | None]:
+        psi = self.value(x, dx)
+        n = x.shape[0]
+        if self._all_joints_in_order:
+            pi = np.zeros((n, n))
+            pi.flat[:: n + 1] = 1.0 / psi
+        elif self._joint_index is not None:
+            pi = np.zeros((n, n))
+            idx = self._joint_index
+            pi[idx, idx] = 1.0 / psi  # indices are distinct (checked in __init__)
+        else:
+            pi = self.rows.T @ (self.rows / psi[:, None])
+        return psi, pi, None
+
+
+def joint_rate_limit(
+    bounds: Array, joint_names: Sequence[str], joints: Sequence[int] | None = None
+) -> RateLimit:
+    """|ẋ_i| < B_i on the given joints (all when omitted)."""
+    n = len(joint_names)
+    idx = list(range(n)) if joints is None else list(joints)
+    return RateLimit(np.eye(n)[idx], bounds, [f"rate[{joint_names[i]}]" for i in idx])

@@ -1,0 +1,30 @@
+"""Controller layer: closed-form laws τ = k(x, ẋ) of Chapters 6–7 and the PD baselines."""
+
+from cpbc.controllers.base import Controller
+from cpbc.controllers.bpbc import BPBC
+from cpbc.controllers.bpbc_ke import BPBCKineticEnergy
+from cpbc.controllers.cpbc import CPBC
+from cpbc.controllers.cpbc_ke import CPBCKineticEnergy
+from cpbc.controllers.pd import PD, PDGravity
+from cpbc.controllers.recentred import RecentredBarrier
+from cpbc.controllers.shaping import Identity, Power, Tanh
+
+CONTROLLERS: dict[str, type[Controller]] = {
+    c.type_name: c
+    for c in (PD, PDGravity, CPBC, CPBCKineticEnergy, RecentredBarrier, BPBC, BPBCKineticEnergy)
+}
+
+__all__ = [
+    "BPBC",
+    "CONTROLLERS",
+    "CPBC",
+    "BPBCKineticEnergy",
+    "CPBCKineticEnergy",
+    "Controller",
+    "Identity",
+    "PD",
+    "PDGravity",
+    "Power",
+    "RecentredBarrier",
+    "Tanh",
+]

@@ -1,0 +1,69 @@
+"""The controller interface: a pure function of the state and the controller's model."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import ClassVar
+
+import numpy as np
+
+from cpbc.constraints.base import Array
+from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.errors import CpbcError
+from cpbc.model.robot_model import RobotModel
+
+
+def positive_vector(value: object, n: int, field: str) -> Array:
+    """A gain or parameter as a read-only vector of n strictly positive entries.
+
+    A scalar is broadcast; anything else must have shape (n,).
+    """
+    a = np.asarray(value, dtype=float)
+    if a.ndim == 0:
+        a = np.full(n, float(a))
+    if a.shape != (n,):
+        raise CpbcError(f"{field} must be a number or a list of {n} numbers, got shape {a.shape}")
+    if not np.all(np.isfinite(a)) or np.any(a <= 0):
+        raise CpbcError(f"{field} must be finite and > 0 in every entry, got {a.tolist()}")
+    a.setflags(write=False)
+    return a
+
+
+class Controller(ABC):
+    """A set-point controller τ = k(x, ẋ) in the model's controller coordinates.
+
+    It knows nothing of the simulator: the same object could drive a real arm.
+
+    Attributes:
+        type_name: the scenario ``type`` of this law.
+        model: the controller's robot model.
+        target: the set point x_d, shape (n,).
+        constraints: the constraints this law enforces (empty for the baselines).
+        torque_bound: an explicit bound on ‖τ‖ from the theory, or None.
+    """
+
+    type_name: ClassVar[str]
+    torque_bound: float | None = None
+
+    def __init__(
+        self, model: RobotModel, target: Array, constraints: ConstraintSet | None = None
+    ) -> None:
+        target = np.asarray(target, dtype=float)
+        if target.shape != (model.n,):
+            raise CpbcError(f"target must have {model.n} entries, got shape {target.shape}")
+        self.model = model
+        self.target = target
+        self.target.setflags(write=False)
+        self.constraints = constraints or ConstraintSet(model.n)
+
+    @abstractmethod
+    def torque(self, x: Array, dx: Array) -> Array:
+        """Generalised force τ, shape (n,), in controller coordinates."""
+
+    @abstractmethod
+    def lyapunov(self, x: Array, dx: Array) -> float:
+        """The law's Lyapunov function V(x, ẋ) (non-increasing along the closed loop)."""
+
+    def check_admissible(self, x: Array, dx: Array, what: str) -> None:
+        """Raise InadmissibleStateError if (x, ẋ) is outside this law's admissible set."""
+        self.constraints.check_admissible(x, dx, what)

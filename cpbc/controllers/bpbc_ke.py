@@ -1,0 +1,54 @@
+"""Bounded-torque PBC with a kinetic-energy bound (Corollary 7.8)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cpbc.constraints.base import Array
+from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.controllers.base import positive_vector
+from cpbc.controllers.cpbc_ke import CPBCKineticEnergy
+from cpbc.controllers.shaping import Shaping
+from cpbc.controllers.terms import LogCoshPotential, TanhDamping
+from cpbc.errors import CpbcError
+from cpbc.model.bounds import ModelBounds, estimate_bounds
+from cpbc.model.robot_model import RobotModel
+
+
+class BPBCKineticEnergy(CPBCKineticEnergy):
+    """Corollary 7.8 (eq. 7.34) with shaping s:
+
+        τ = g − [K_P tanh(Ξx̃) + K_D tanh(Γẋ)] / (1 + ρ/ψ)
+
+    bounded by (7.40): ‖τ‖ ≤ ζ_g + λmax(K_P) + λmax(K_D) (``torque_bound``, as stated) or
+    ζ_g + ‖diag K_P‖₂ + ‖diag K_D‖₂ (``torque_bound_norm``; see BPBC).
+    """
+
+    type_name = "bpbc_ke"
+
+    def __init__(
+        self,
+        model: RobotModel,
+        target: Array,
+        constraints: ConstraintSet,
+        kp: object,
+        kd: object,
+        xi: object = 1.0,
+        gamma: object = 1.0,
+        shaping: Shaping | None = None,
+        model_bounds: ModelBounds | None = None,
+    ) -> None:
+        super().__init__(model, target, constraints, kp, kd, shaping)
+        if constraints.configuration:
+            raise CpbcError(
+                "bpbc_ke (Corollary 7.8) enforces only a kinetic-energy limit; remove the "
+                "position and obstacle constraints from its list or use cpbc_ke"
+            )
+        self.xi = positive_vector(xi, model.n, "xi")
+        self.gamma = positive_vector(gamma, model.n, "gamma")
+        self.potential = LogCoshPotential(self.kp, self.xi)  # type: ignore[assignment]
+        self.damping = TanhDamping(self.kd, self.gamma)
+        self.model_bounds = model_bounds or estimate_bounds(model)
+        g = self.model_bounds.gravity
+        self.torque_bound = g + float(self.kp.max() + self.kd.max())
+        self.torque_bound_norm = g + float(np.linalg.norm(self.kp) + np.linalg.norm(self.kd))

@@ -1,0 +1,36 @@
+"""The baselines: PD (the thesis's comparison) and PD + gravity (eq. 6.10)."""
+
+from __future__ import annotations
+
+from cpbc.constraints.base import Array
+from cpbc.controllers.base import Controller, positive_vector
+from cpbc.controllers.terms import QuadraticPotential
+from cpbc.model.robot_model import RobotModel
+
+
+class PD(Controller):
+    """τ = −K_P x̃ − K_D ẋ, as compared against in Sections 6.4 and 7.3."""
+
+    type_name = "pd"
+
+    def __init__(self, model: RobotModel, target: Array, kp: object, kd: object) -> None:
+        super().__init__(model, target)
+        self.kp = positive_vector(kp, model.n, "kp")
+        self.kd = positive_vector(kd, model.n, "kd")
+        self._potential = QuadraticPotential(self.kp)
+
+    def torque(self, x: Array, dx: Array) -> Array:
+        return -self.kp * (x - self.target) - self.kd * dx
+
+    def lyapunov(self, x: Array, dx: Array) -> float:
+        """L = ½ ẋᵀDẋ + ½ x̃ᵀK_P x̃ (eq. 6.7); non-increasing when gravity does no work."""
+        return self.model.kinetic_energy(x, dx) + self._potential.value(x - self.target)
+
+
+class PDGravity(PD):
+    """τ = g(x) − K_P x̃ − K_D ẋ (eq. 6.10), with L̇ = −ẋᵀ(K_D ẋ + f) ≤ 0 (eq. 6.11)."""
+
+    type_name = "pd_gravity"
+
+    def torque(self, x: Array, dx: Array) -> Array:
+        return self.model.gravity(x) - self.kp * (x - self.target) - self.kd * dx

@@ -1,0 +1,81 @@
+"""Linear changes of generalised coordinates (DESIGN §4).
+
+The thesis's planar arm (eq. 6.69) is written in absolute link angles θ while MuJoCo and
+URDF joints are relative angles q. With θ = T q and T constant, the Euler–Lagrange
+structure is kept:
+
+    D_θ = T⁻ᵀ D_q T⁻¹,   C_θ = T⁻ᵀ C_q T⁻¹,   g_θ = T⁻ᵀ g_q,   τ_q = Tᵀ τ_θ
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cpbc.errors import ModelError
+
+Array = NDArray[np.float64]
+
+
+def _frozen(a: Array) -> Array:
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True)
+class LinearCoordinates:
+    """Controller coordinates x = T q, with T constant and invertible.
+
+    Args:
+        matrix: T, shape (n, n).
+        name: a label for summaries (e.g. ``"absolute"``).
+    """
+
+    matrix: Array
+    name: str = "custom"
+    inverse: Array = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.matrix, dtype=float)
+        if t.ndim != 2 or t.shape[0] != t.shape[1]:
+            raise ModelError(f"coordinate matrix must be square, got shape {t.shape}")
+        if abs(np.linalg.det(t)) < 1e-12:
+            raise ModelError("coordinate matrix T must be invertible")
+        object.__setattr__(self, "matrix", _frozen(t))
+        object.__setattr__(self, "inverse", _frozen(np.linalg.inv(t)))
+
+    @classmethod
+    def identity(cls, n: int) -> LinearCoordinates:
+        return cls(np.eye(n), name="joint")
+
+    @classmethod
+    def absolute_link_angles(cls, n: int) -> LinearCoordinates:
+        """θ_k = q_1 + … + q_k: absolute angle of link k for a planar serial chain."""
+        return cls(np.tril(np.ones((n, n))), name="absolute")
+
+    @property
+    def is_identity(self) -> bool:
+        return bool(np.array_equal(self.matrix, np.eye(self.matrix.shape[0])))
+
+    def from_joint(self, q: Array) -> Array:
+        """x = T q (also for velocities)."""
+        return self.matrix @ q
+
+    def to_joint(self, x: Array) -> Array:
+        """q = T⁻¹ x (also for velocities)."""
+        return self.inverse @ x
+
+    def torque_to_joint(self, tau_x: Array) -> Array:
+        """τ_q = Tᵀ τ_x: joint torques that do the same work as τ_x."""
+        return self.matrix.T @ tau_x
+
+    def torque_from_joint(self, tau_q: Array) -> Array:
+        """τ_x = T⁻ᵀ τ_q."""
+        return self.inverse.T @ tau_q
+
+    def matrix_from_joint(self, m_q: Array) -> Array:
+        """T⁻ᵀ M T⁻¹ for an (n, n) matrix M of the joint coordinates (D, C, F_d)."""
+        return self.inverse.T @ m_q @ self.inverse

@@ -1,0 +1,189 @@
+"""The controller's model of the arm: Pinocchio dynamics and kinematics in controller coordinates."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from cpbc.errors import ModelError
+from cpbc.model.coordinates import LinearCoordinates
+
+Array = NDArray[np.float64]
+
+
+class DynamicsTerms(NamedTuple):
+    """The terms of D(q) q̈ + C(q, q̇) q̇ + g(q) + f(q̇) = τ (eq. 6.1) at one state.
+
+    Attributes:
+        inertia: D, shape (n, n).
+        coriolis_force: C(q, q̇) q̇, shape (n,) (from RNEA; the matrix C is
+            ``RobotModel.coriolis``).
+        gravity: g, shape (n,).
+        dissipation: f(q̇) = F_d q̇, shape (n,).
+    """
+
+    inertia: Array
+    coriolis_force: Array
+    gravity: Array
+    dissipation: Array
+
+
+class RobotModel:
+    """Rigid-body dynamics of a serial arm from Pinocchio, in controller coordinates x = T q.
+
+    All methods take and return controller coordinates. With the identity map they are the
+    model's own joint coordinates.
+
+    Args:
+        model: a Pinocchio model whose configuration and velocity spaces coincide (nq == nv).
+        coordinates: the linear map x = T q; identity when omitted.
+        viscous_friction: joint viscous friction F_d in the *joint* coordinates, shape (n,)
+            (diagonal) or (n, n); zero when omitted.
+        name: a label for summaries.
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        coordinates: LinearCoordinates | None = None,
+        viscous_friction: Array | None = None,
+        name: str = "robot",
+    ) -> None:
+        if model.nq != model.nv:
+            raise ModelError(
+                f"model '{name}' has nq={model.nq} != nv={model.nv}; only arms with revolute "
+                "or prismatic joints (no continuous/free joints) are supported"
+            )
+        self.name = name
+        self.model = model
+        self.data = model.createData()
+        self.n = model.nv
+        self.coordinates = coordinates or LinearCoordinates.identity(self.n)
+        if self.coordinates.matrix.shape != (self.n, self.n):
+            raise ModelError(
+                f"coordinates matrix has shape {self.coordinates.matrix.shape}, "
+                f"expected ({self.n}, {self.n}) for model '{name}'"
+            )
+        self._identity = self.coordinates.is_identity
+        self._t_inv = self.coordinates.inverse
+        self._t_inv_t = np.ascontiguousarray(self.coordinates.inverse.T)
+        fd = np.zeros((self.n, self.n)) if viscous_friction is None else np.asarray(
+            viscous_friction, dtype=float
+        )
+        if fd.shape == (self.n,):
+            fd = np.diag(fd)
+        if fd.shape != (self.n, self.n):
+            raise ModelError(f"viscous_friction must have shape ({self.n},) or ({self.n}, {self.n})")
+        self.viscous_friction = self.coordinates.matrix_from_joint(fd)  # F_d in x-coordinates
+        self._has_friction = bool(np.any(fd))
+        self._no_dissipation = np.zeros(self.n)
+        self._no_dissipation.setflags(write=False)
+        self.joint_names: tuple[str, ...] = tuple(model.names[1:])
+        # Older Pinocchio releases fill only the upper triangle of the CRBA result.
+        probe = pin.crba(model, self.data, np.linspace(0.3, 1.1, self.n)) if self.n > 1 else None
+        self._crba_upper_only = probe is not None and not np.allclose(probe, probe.T)
+        self._lower = np.tril_indices(self.n, -1)
+
+    @classmethod
+    def from_mjcf(cls, path: str | Path, **kwargs: object) -> RobotModel:
+        path = Path(path)
+        if not path.is_file():
+            raise ModelError(f"model file not found: {path}")
+        return cls(pin.buildModelFromMJCF(str(path)), name=path.stem, **kwargs)  # type: ignore[arg-type]
+
+    # -- coordinates -------------------------------------------------------------------------
+    def _q(self, x: Array) -> Array:
+        return x if self._identity else self.coordinates.inverse @ x
+
+    def _back(self, m: Array) -> Array:
+        """T⁻ᵀ M T⁻¹."""
+        return m if self._identity else self.coordinates.matrix_from_joint(m)
+
+    def _back_vec(self, v: Array) -> Array:
+        """T⁻ᵀ v (a generalised force)."""
+        return v if self._identity else self.coordinates.inverse.T @ v
+
+    # -- dynamics ----------------------------------------------------------------------------
+    def inertia(self, x: Array) -> Array:
+        """D(x), shape (n, n)."""
+        m = pin.crba(self.model, self.data, self._q(x)).copy()
+        if self._crba_upper_only:
+            m[self._lower] = m.T[self._lower]
+        return self._back(m)
+
+    def coriolis(self, x: Array, dx: Array) -> Array:
+        """C(x, ẋ) in Christoffel form, shape (n, n)."""
+        c = pin.computeCoriolisMatrix(self.model, self.data, self._q(x), self._q(dx))
+        return self._back(c.copy())
+
+    def gravity(self, x: Array) -> Array:
+        """g(x), shape (n,)."""
+        return self._back_vec(pin.computeGeneralizedGravity(self.model, self.data, self._q(x)).copy())
+
+    def dissipation(self, dx: Array) -> Array:
+        """f(ẋ) = F_d ẋ, shape (n,)."""
+        if not self._has_friction:
+            return self._no_dissipation
+        return self.viscous_friction @ dx
+
+    def dynamics(self, x: Array, dx: Array) -> DynamicsTerms:
+        """D, C ẋ, g and f at one state: three Pinocchio passes (CRBA, RNEA, gravity)."""
+        model, data = self.model, self.data
+        if self._identity:
+            q, dq = x, dx
+        else:
+            q, dq = self._t_inv @ x, self._t_inv @ dx
+        m = pin.crba(model, data, q)
+        if self._crba_upper_only:
+            m[self._lower] = m.T[self._lower]
+        nle = pin.nonLinearEffects(model, data, q, dq)
+        g = pin.computeGeneralizedGravity(model, data, q)
+        f = self.dissipation(dx)
+        if self._identity:
+            return DynamicsTerms(m.copy(), nle - g, g.copy(), f)
+        t_inv_t = self._t_inv_t
+        return DynamicsTerms(t_inv_t @ m @ self._t_inv, t_inv_t @ (nle - g), t_inv_t @ g, f)
+
+    def kinetic_energy(self, x: Array, dx: Array) -> float:
+        """½ ẋᵀ D(x) ẋ [J]."""
+        return 0.5 * float(dx @ self.inertia(x) @ dx)
+
+    def forward_dynamics(self, x: Array, dx: Array, tau: Array) -> Array:
+        """ẍ from D ẍ = τ − C ẋ − g − f (generalised forces τ in x-coordinates)."""
+        q, dq = self._q(x), self._q(dx)
+        tau_q = tau if self._identity else self.coordinates.torque_to_joint(tau)
+        if self._has_friction:
+            tau_q = tau_q - self.coordinates.torque_to_joint(self.viscous_friction @ dx)
+        ddq = pin.aba(self.model, self.data, q, dq, tau_q)
+        return ddq if self._identity else self.coordinates.from_joint(ddq)
+
+    # -- kinematics --------------------------------------------------------------------------
+    def frame_id(self, frame: str) -> int:
+        if not self.model.existFrame(frame):
+            names = ", ".join(f.name for f in self.model.frames[1:])
+            raise ModelError(f"model '{self.name}' has no frame '{frame}'; frames: {names}")
+        return self.model.getFrameId(frame)
+
+    def point_position(self, frame_id: int, x: Array, offset: Array | None = None) -> Array:
+        """World position of a point fixed in a frame, shape (3,) [m]."""
+        pin.framesForwardKinematics(self.model, self.data, self._q(x))
+        placement = self.data.oMf[frame_id]
+        if offset is None:
+            return placement.translation.copy()
+        return placement.act(np.asarray(offset, dtype=float))
+
+    def point_jacobian(self, frame_id: int, x: Array, offset: Array | None = None) -> Array:
+        """∂p/∂x of a point fixed in a frame, shape (3, n). Call after point_position(x)."""
+        q = self._q(x)
+        j = pin.computeFrameJacobian(
+            self.model, self.data, q, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        )
+        jv = j[:3]
+        if offset is not None:
+            r = self.data.oMf[frame_id].rotation @ np.asarray(offset, dtype=float)
+            jv = jv - np.cross(r, j[3:].T).T  # v_p = v_o + ω × r
+        return jv if self._identity else jv @ self.coordinates.inverse

@@ -1,0 +1,168 @@
+"""What a run did, judged from its data: status, settle time, peaks, margins, V."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cpbc.constraints.base import Array
+from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.controllers.base import Controller
+from cpbc.simulation.trajectory import Trajectory
+
+STATUSES = ("converged", "stalled", "not_settled", "constraint_violated", "diverged")
+
+
+@dataclass(frozen=True)
+class SettleCriteria:
+    """When a run counts as settled.
+
+    Attributes:
+        position_tolerance: ‖x − x_d‖∞ below this counts as on target [rad].
+        velocity_tolerance: ‖ẋ‖∞ below this counts as at rest [rad/s].
+        stall_window: fraction of the run at its end in which a stalled arm stays at rest
+            without its error shrinking by more than ``stall_progress``.
+        stall_progress: relative error decrease that still counts as no progress.
+    """
+
+    position_tolerance: float = 0.01
+    velocity_tolerance: float = 0.005
+    stall_window: float = 0.2
+    stall_progress: float = 0.02
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """One controller on one case. All rates and torques in the controller's coordinates."""
+
+    controller: str
+    controller_type: str
+    case: str
+    backend: str
+    status: str
+    end_time: float
+    violated_constraint: str | None
+    final_error: float
+    settle_time: float | None
+    peak_joint_rates: list[float]
+    rate_bounds: list[float | None]
+    peak_torques: list[float]
+    peak_torque_norm: float
+    torque_bound: float | None
+    min_margins: dict[str, float]
+    crossed_constraints: list[str]
+    enforced_constraints: list[str]
+    max_lyapunov_increase: float
+    initial_lyapunov: float
+    max_contacts: int
+    saturated_steps: int
+    wall_time: float
+    control_steps: int
+    steps_per_second: float
+    extra: dict[str, float] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, object]:
+        return {k: _plain(v) for k, v in self.__dict__.items()}
+
+
+def _plain(v: object) -> object:
+    if isinstance(v, float):
+        return None if math.isnan(v) else v
+    if isinstance(v, dict):
+        return {k: _plain(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_plain(x) for x in v]
+    return v
+
+
+def margin_history(monitor: ConstraintSet, traj: Trajectory) -> Array:
+    """Every monitored constraint's margin at every sample, shape (N, m)."""
+    out = np.full((len(traj.time), len(monitor)), np.nan)
+    for k, (x, dx) in enumerate(zip(traj.position, traj.velocity, strict=True)):
+        if np.all(np.isfinite(x)) and np.all(np.isfinite(dx)):
+            out[k] = monitor.margins(x, dx)
+    return out
+
+
+def lyapunov_history(controller: Controller, traj: Trajectory) -> Array:
+    """V(t) of the controller along the trajectory (NaN where undefined)."""
+    out = np.full(len(traj.time), np.nan)
+    for k, (x, dx) in enumerate(zip(traj.position, traj.velocity, strict=True)):
+        try:
+            out[k] = controller.lyapunov(x, dx)
+        except Exception:  # noqa: BLE001 - outside S the function is undefined
+            out[k] = np.nan
+    return out
+
+
+def judge_status(traj: Trajectory, target: Array, criteria: SettleCriteria) -> tuple[str, float | None]:
+    """Status and settle time from the data (not from what the theory promises)."""
+    if traj.outcome in ("diverged", "constraint_violated"):
+        return traj.outcome, None
+    err = np.max(np.abs(traj.position - target), axis=1)
+    speed = np.max(np.abs(traj.velocity), axis=1)
+    inside = err < criteria.position_tolerance
+    settle: float | None = None
+    if inside[-1]:
+        outside = np.nonzero(~inside)[0]
+        settle = float(traj.time[outside[-1] + 1]) if outside.size else 0.0
+    if inside[-1] and speed[-1] < criteria.velocity_tolerance:
+        return "converged", settle
+    window = max(2, int(len(err) * criteria.stall_window))
+    at_rest = np.all(speed[-window:] < criteria.velocity_tolerance)
+    progress = (err[-window] - err[-1]) / max(err[-window], 1e-12)
+    if at_rest and progress < criteria.stall_progress:
+        return "stalled", None
+    return "not_settled", settle
+
+
+def summarise(
+    name: str,
+    case: str,
+    controller: Controller,
+    monitor: ConstraintSet,
+    traj: Trajectory,
+    criteria: SettleCriteria,
+    rate_bounds: list[float | None],
+    margins: Array | None = None,
+    lyapunov: Array | None = None,
+) -> RunSummary:
+    """Condense a trajectory into a RunSummary."""
+    margins = margin_history(monitor, traj) if margins is None else margins
+    lyapunov = lyapunov_history(controller, traj) if lyapunov is None else lyapunov
+    status, settle = judge_status(traj, controller.target, criteria)
+    finite_tau = np.where(np.isfinite(traj.torque), traj.torque, 0.0)
+    min_margins = {
+        n: float(np.nanmin(margins[:, i])) if np.any(np.isfinite(margins[:, i])) else float("nan")
+        for i, n in enumerate(monitor.names)
+    }
+    dv = np.diff(lyapunov)
+    dv = dv[np.isfinite(dv)]
+    return RunSummary(
+        controller=name,
+        controller_type=controller.type_name,
+        case=case,
+        backend=traj.backend,
+        status=status,
+        end_time=traj.end_time,
+        violated_constraint=traj.violated,
+        final_error=float(np.max(np.abs(traj.position[-1] - controller.target))),
+        settle_time=settle,
+        peak_joint_rates=np.max(np.abs(traj.velocity), axis=0).tolist(),
+        rate_bounds=rate_bounds,
+        peak_torques=np.max(np.abs(finite_tau), axis=0).tolist(),
+        peak_torque_norm=float(np.max(np.linalg.norm(finite_tau, axis=1))),
+        torque_bound=controller.torque_bound,
+        min_margins=min_margins,
+        crossed_constraints=[n for n, v in min_margins.items() if v <= 0],
+        enforced_constraints=list(controller.constraints.names),
+        max_lyapunov_increase=float(max(dv.max(), 0.0)) if dv.size else 0.0,
+        initial_lyapunov=float(lyapunov[0]) if lyapunov.size else float("nan"),
+        max_contacts=traj.max_contacts,
+        saturated_steps=traj.saturated_steps,
+        wall_time=traj.wall_time,
+        control_steps=traj.control_steps,
+        steps_per_second=traj.steps_per_second,
+    )

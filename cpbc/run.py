@@ -1,0 +1,138 @@
+"""``python -m cpbc.run SCENARIO [--out DIR]``: run a scenario, print a summary, write results.
+
+Exit codes: 0 when the scenario ran (whatever the controllers did), 2 for bad input
+(the message names the field), 130 when interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from cpbc.errors import CpbcError
+from cpbc.results import staged_output, write_summaries, write_trajectory
+from cpbc.results.metrics import RunSummary
+from cpbc.scenario import build, load_scenario
+from cpbc.scenario.runner import RunResult, run_all
+
+STATUS_STYLE = {
+    "converged": "green",
+    "stalled": "yellow",
+    "not_settled": "yellow",
+    "constraint_violated": "red",
+    "diverged": "red",
+}
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m cpbc.run",
+        description="Run a cpbc scenario: every controller on every case, in MuJoCo.",
+    )
+    p.add_argument("scenario", help="scenario YAML file, or the name of a shipped scenario")
+    p.add_argument("--out", type=Path, help="output folder (default: runs/<scenario name>)")
+    p.add_argument(
+        "--backend", choices=("mujoco", "reference"),
+        help="override the scenario's backend: MuJoCo, or the continuous-time reference",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def _fmt(values: Sequence[float | None], digits: int = 3) -> str:
+    return ", ".join("-" if v is None else f"{v:.{digits}g}" for v in values)
+
+
+def _rates(s: RunSummary) -> str:
+    parts = []
+    for peak, bound in zip(s.peak_joint_rates, s.rate_bounds, strict=True):
+        if bound is None:
+            parts.append(f"{peak:.3g}")
+        else:
+            mark = "≤" if peak < bound else "[red]>[/red]"
+            parts.append(f"{peak:.3g}{mark}{bound:.3g}")
+    return ", ".join(parts)
+
+
+def _table(results: Sequence[RunResult], coordinate_names: Sequence[str]) -> Table:
+    t = Table(title="cpbc summary", show_lines=False)
+    for col in ("case", "controller", "status", "final err", "settle [s]",
+                f"peak |rate| ({', '.join(coordinate_names)})", "peak |τ| / ‖τ‖ (bound)",
+                "min margin (constraint)", "V rise", "steps/s"):
+        t.add_column(col)
+    for r in results:
+        s = r.summary
+        finite = {k: v for k, v in s.min_margins.items() if v == v}
+        if finite:
+            worst = min(finite, key=finite.__getitem__)
+            colour = "red" if finite[worst] <= 0 else ("" if worst not in s.enforced_constraints
+                                                        else "green")
+            margin = f"[{colour}]{finite[worst]:.3g}[/{colour}] ({worst})" if colour else (
+                f"{finite[worst]:.3g} ({worst})")
+        else:
+            margin = "-"
+        bound = "" if s.torque_bound is None else f" ({s.torque_bound:.4g})"
+        style = STATUS_STYLE[s.status]
+        status = s.status + (f" @{s.end_time:.3g}s: {s.violated_constraint}"
+                             if s.violated_constraint else "")
+        t.add_row(
+            s.case, s.controller, f"[{style}]{status}[/{style}]", f"{s.final_error:.3g}",
+            "-" if s.settle_time is None else f"{s.settle_time:.3g}", _rates(s),
+            f"{_fmt(s.peak_torques)} / {s.peak_torque_norm:.4g}{bound}", margin,
+            f"{s.max_lyapunov_increase:.2g}", f"{s.steps_per_second:,.0f}",
+        )
+    return t
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    console = Console(stderr=False, width=None if sys.stdout.isatty() else 200)
+    err = Console(stderr=True)
+    try:
+        scenario, file = load_scenario(args.scenario)
+        setup = build(scenario, file)
+        out = args.out or Path("runs") / scenario.name
+        with staged_output(out) as scratch:
+            if args.quiet:
+                results = run_all(setup, args.backend)
+            else:
+                with Progress(
+                    TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
+                    console=err, transient=True,
+                ) as bar:
+                    tasks: dict[str, int] = {}
+
+                    def progress(label: str, frac: float) -> None:
+                        if label not in tasks:
+                            tasks[label] = bar.add_task(label, total=1.0)
+                        bar.update(tasks[label], completed=frac)
+
+                    results = run_all(setup, args.backend, progress)
+            for r in results:
+                folder = scratch / r.case / r.controller
+                folder.mkdir(parents=True, exist_ok=True)
+                write_trajectory(
+                    folder / "trajectory.npz", r.trajectory, r.margins, setup.monitor.names,
+                    r.lyapunov, setup.target, setup.coordinate_names,
+                )
+            write_summaries(scratch, [r.summary for r in results])
+    except CpbcError as exc:
+        err.print(f"[bold red]error:[/bold red] {exc}", highlight=False)
+        return 2
+    except KeyboardInterrupt:
+        err.print("interrupted; nothing written")
+        return 130
+    console.print(_table(results, setup.coordinate_names))
+    backend = args.backend or scenario.simulation.backend
+    console.print(f"backend: {backend}; results written to {out}/")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

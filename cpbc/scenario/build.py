@@ -1,0 +1,344 @@
+"""From a validated Scenario to runnable objects: model, plant, constraints, controllers."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from cpbc.constraints import (
+    ConfigurationConstraint,
+    ConstraintSet,
+    KineticEnergyLimit,
+    LinearLimit,
+    PointOutsideSphere,
+    RateLimit,
+    VelocityConstraint,
+    joint_position_limit,
+    joint_rate_limit,
+)
+from cpbc.constraints.base import Array
+from cpbc.controllers import CONTROLLERS, Controller, Identity, Power, Tanh
+from cpbc.controllers.shaping import Shaping
+from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
+from cpbc.model import LinearCoordinates, RobotModel
+from cpbc.model.bounds import ModelBounds, estimate_bounds
+from cpbc.resources import builtin_models
+from cpbc.results.metrics import SettleCriteria
+from cpbc.scenario import schema as s
+from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, substeps_per_control
+
+
+@dataclass(frozen=True)
+class ControllerEntry:
+    name: str
+    controller: Controller
+
+
+@dataclass(frozen=True)
+class CaseEntry:
+    name: str
+    position: Array
+    velocity: Array
+
+
+@dataclass(frozen=True)
+class ObstacleGeom:
+    """A sphere placed in the MuJoCo scene (and later drawn by the viewer)."""
+
+    name: str
+    centre: Array
+    radius: float
+    collides: bool
+
+
+@dataclass
+class ScenarioSetup:
+    """Everything needed to run a scenario; each layer stays usable on its own."""
+
+    scenario: s.Scenario
+    model_path: Path
+    model: RobotModel
+    monitor: ConstraintSet
+    controllers: list[ControllerEntry]
+    cases: list[CaseEntry]
+    target: Array
+    plant_settings: PlantSettings
+    loop_settings: LoopSettings
+    criteria: SettleCriteria
+    rate_bounds: list[float | None]
+    obstacles: list[ObstacleGeom]
+    coordinate_names: tuple[str, ...]
+
+    def make_plant(self) -> MujocoPlant:
+        """A fresh MuJoCo plant of the scenario's robot with its obstacles in the scene."""
+        spec = mujoco.MjSpec.from_file(str(self.model_path))
+        for ob in self.obstacles:
+            g = spec.worldbody.add_geom()
+            g.name = ob.name
+            g.type = mujoco.mjtGeom.mjGEOM_SPHERE
+            g.size = [ob.radius, 0.0, 0.0]
+            g.pos = ob.centre.tolist()
+            g.rgba = [0.85, 0.25, 0.2, 0.5]
+            g.contype = 1 if ob.collides else 0
+            g.conaffinity = 1 if ob.collides else 0
+        model = spec.compile()
+        if self.model.viscous_friction.any():
+            fd = np.diag(
+                self.model.coordinates.matrix.T
+                @ self.model.viscous_friction
+                @ self.model.coordinates.matrix
+            )
+            model.dof_damping[:] = fd
+        return MujocoPlant(model, self.plant_settings)
+
+    def make_reference_plant(self) -> RobotModel:
+        """A Pinocchio model of the plant, separate from the controller's model."""
+        return _robot_model(self.model_path, self.scenario.robot, self.model.n)
+
+
+def _model_path(robot: s.RobotSpec, base: Path) -> Path:
+    models = builtin_models()
+    if robot.model in models:
+        return models[robot.model]
+    p = Path(robot.model)
+    p = p if p.is_absolute() else (base / p)
+    if p.is_file():
+        return p
+    raise ScenarioError(
+        "robot.model",
+        f"'{robot.model}' is neither a built-in robot ({', '.join(models)}) nor an existing "
+        f"model file (looked for {p})",
+    )
+
+
+def _coordinates(robot: s.RobotSpec, n: int) -> LinearCoordinates:
+    try:
+        if robot.coordinates == "joint":
+            return LinearCoordinates.identity(n)
+        if robot.coordinates == "absolute":
+            return LinearCoordinates.absolute_link_angles(n)
+        return LinearCoordinates(np.array(robot.coordinates, dtype=float))
+    except (CpbcError, ValueError) as exc:
+        raise ScenarioError("robot.coordinates", str(exc)) from None
+
+
+def _robot_model(path: Path, robot: s.RobotSpec, n_expected: int | None = None) -> RobotModel:
+    probe = RobotModel.from_mjcf(path)
+    coords = _coordinates(robot, probe.n)
+    fd = np.asarray(robot.viscous_friction, dtype=float)
+    if fd.ndim == 0:
+        fd = np.full(probe.n, float(fd))
+    if fd.shape != (probe.n,):
+        raise ScenarioError(
+            "robot.viscous_friction", f"needs 1 or {probe.n} entries, got {fd.size}"
+        )
+    return RobotModel(probe.model, coords, fd, name=probe.name)
+
+
+def _vector(value: list[float] | None, n: int, field: str, default: float | None = None) -> Array:
+    if value is None and default is not None:
+        return np.full(n, default)
+    a = np.asarray(value, dtype=float)
+    if a.shape != (n,):
+        raise ScenarioError(field, f"needs {n} entries (one per coordinate), got {a.size}")
+    return a
+
+
+def _coordinate_names(robot: s.RobotSpec, model: RobotModel) -> tuple[str, ...]:
+    if robot.coordinates == "joint":
+        return model.joint_names
+    if robot.coordinates == "absolute":
+        return tuple(f"theta{i + 1}" for i in range(model.n))
+    return tuple(f"x{i + 1}" for i in range(model.n))
+
+
+def _indices(joints: list[str] | None, names: tuple[str, ...], field: str) -> list[int] | None:
+    if joints is None:
+        return None
+    missing = [j for j in joints if j not in names]
+    if missing:
+        raise ScenarioError(field, f"unknown coordinates {missing}; the robot has {list(names)}")
+    return [names.index(j) for j in joints]
+
+
+def _rows(coefficients: list[list[float]], n: int, field: str) -> Array:
+    rows = np.asarray(coefficients, dtype=float)
+    if rows.ndim != 2 or rows.shape[1] != n:
+        raise ScenarioError(field, f"needs rows of {n} coefficients, got shape {rows.shape}")
+    return rows
+
+
+def _build_constraint(
+    spec: s.ConstraintSpec, model: RobotModel, names: tuple[str, ...], field: str
+) -> ConfigurationConstraint | VelocityConstraint:
+    n = model.n
+    if isinstance(spec, s.JointPositionLimitSpec):
+        idx = _indices(spec.joints, names, f"{field}.joints")
+        k = n if idx is None else len(idx)
+        c = joint_position_limit(
+            _vector(spec.lower, k, f"{field}.lower"), _vector(spec.upper, k, f"{field}.upper"),
+            names, idx,
+        )
+        return c
+    if isinstance(spec, s.LinearLimitSpec):
+        rows = _rows(spec.coefficients, n, f"{field}.coefficients")
+        k = rows.shape[0]
+        labels = [spec.name] if k == 1 else [f"{spec.name}[{i}]" for i in range(k)]
+        return LinearLimit(
+            rows, _vector(spec.lower, k, f"{field}.lower"), _vector(spec.upper, k, f"{field}.upper"),
+            labels,
+        )
+    if isinstance(spec, s.PointOutsideSphereSpec):
+        centre = np.zeros(3)
+        if len(spec.centre) not in (2, 3):
+            raise ScenarioError(f"{field}.centre", "needs 2 (planar) or 3 coordinates")
+        centre[: len(spec.centre)] = spec.centre
+        offset = None if spec.offset is None else _vector(spec.offset, 3, f"{field}.offset")
+        return PointOutsideSphere(model, spec.frame, centre, spec.radius, offset, spec.name)
+    if isinstance(spec, s.JointRateLimitSpec):
+        idx = _indices(spec.joints, names, f"{field}.joints")
+        k = n if idx is None else len(idx)
+        c = joint_rate_limit(_vector(spec.bounds, k, f"{field}.bounds"), names, idx)
+        return c
+    if isinstance(spec, s.RateLimitSpec):
+        rows = _rows(spec.coefficients, n, f"{field}.coefficients")
+        k = rows.shape[0]
+        labels = [spec.name] if k == 1 else [f"{spec.name}[{i}]" for i in range(k)]
+        return RateLimit(rows, _vector(spec.bounds, k, f"{field}.bounds"), labels)
+    if isinstance(spec, s.KineticEnergyLimitSpec):
+        return KineticEnergyLimit(model, spec.limit, spec.name)
+    raise ScenarioError(field, f"unsupported constraint type {spec.type}")  # pragma: no cover
+
+
+def _shaping(spec: s.ShapingSpec | None) -> Shaping:
+    if spec is None or isinstance(spec, s.IdentityShapingSpec):
+        return Identity()
+    if isinstance(spec, s.PowerShapingSpec):
+        return Power(spec.alpha)
+    return Tanh(spec.sigma)
+
+
+def _build_controller(
+    spec: s.ControllerSpec,
+    model: RobotModel,
+    target: Array,
+    constraints: dict[str, ConfigurationConstraint | VelocityConstraint],
+    model_bounds: Callable[[], ModelBounds],
+    field: str,
+) -> Controller:
+    cls = CONTROLLERS[spec.type]
+    kwargs: dict[str, object] = {"kp": spec.kp, "kd": spec.kd}
+    if not isinstance(spec, s.PDSpec):
+        chosen = list(constraints) if spec.constraints is None else spec.constraints
+        unknown = [c for c in chosen if c not in constraints]
+        if unknown:
+            raise ScenarioError(
+                f"{field}.constraints",
+                f"unknown constraint names {unknown}; the scenario defines {list(constraints)}",
+            )
+        objs = [constraints[c] for c in chosen]
+        kwargs["constraints"] = ConstraintSet(
+            model.n,
+            [o for o in objs if isinstance(o, ConfigurationConstraint)],
+            [o for o in objs if isinstance(o, VelocityConstraint)],
+        )
+        if not isinstance(spec, s.RecentredSpec):
+            kwargs["shaping"] = _shaping(spec.shaping)
+    if isinstance(spec, s.BPBCSpec):
+        kwargs.update(xi=spec.xi, gamma=spec.gamma, model_bounds=model_bounds())
+    try:
+        return cls(model, target, **kwargs)  # type: ignore[arg-type]
+    except InadmissibleStateError:
+        raise
+    except CpbcError as exc:
+        raise ScenarioError(field, str(exc)) from None
+
+
+def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
+    """Check a scenario against its robot and build every object it describes."""
+    path = _model_path(scenario.robot, scenario_file.parent)
+    try:
+        model = _robot_model(path, scenario.robot)
+    except ScenarioError:
+        raise
+    except CpbcError as exc:
+        raise ScenarioError("robot.model", str(exc)) from None
+    n = model.n
+    names = _coordinate_names(scenario.robot, model)
+    sim = scenario.simulation
+    plant_settings = PlantSettings(sim.timestep, sim.integrator)
+    control_period = sim.control_period or sim.timestep
+    try:
+        substeps_per_control(control_period, sim.timestep)
+    except CpbcError as exc:
+        raise ScenarioError("simulation.control_period", str(exc)) from None
+    limit = None
+    if sim.torque_limit is not None:
+        limit = _vector(
+            sim.torque_limit if isinstance(sim.torque_limit, list) else [sim.torque_limit] * n,
+            n, "simulation.torque_limit",
+        )
+    loop = LoopSettings(sim.duration, control_period, limit, sim.log_every)
+
+    built: dict[str, ConfigurationConstraint | VelocityConstraint] = {}
+    obstacles: list[ObstacleGeom] = []
+    rate_bounds: list[float | None] = [None] * n
+    for i, cs in enumerate(scenario.constraints):
+        field = f"constraints[{i}]"
+        if cs.name in built:
+            raise ScenarioError(f"{field}.name", f"duplicate constraint name '{cs.name}'")
+        try:
+            built[cs.name] = _build_constraint(cs, model, names, field)
+        except ScenarioError:
+            raise
+        except CpbcError as exc:
+            raise ScenarioError(field, str(exc)) from None
+        c = built[cs.name]
+        if isinstance(c, RateLimit) and c.is_per_joint:
+            for j, b in zip(c._joint_index, c.bounds, strict=True):  # type: ignore[union-attr]
+                rate_bounds[int(j)] = float(b)
+        if isinstance(cs, s.PointOutsideSphereSpec):
+            obstacles.append(
+                ObstacleGeom(cs.name, c.centre, cs.radius, cs.collides)  # type: ignore[union-attr]
+            )
+    monitor = ConstraintSet(
+        n,
+        [c for c in built.values() if isinstance(c, ConfigurationConstraint)],
+        [c for c in built.values() if isinstance(c, VelocityConstraint)],
+    )
+
+    target = _vector(scenario.target, n, "target")
+    monitor.check_admissible(target, np.zeros(n), "target")
+    cases = []
+    for i, case in enumerate(scenario.cases):
+        x0 = _vector(case.position, n, f"cases[{i}].position")
+        dx0 = _vector(case.velocity, n, f"cases[{i}].velocity", default=0.0)
+        monitor.check_admissible(x0, dx0, f"initial state of case '{case.name}' (cases[{i}])")
+        cases.append(CaseEntry(case.name, x0, dx0))
+    if len({c.name for c in cases}) != len(cases):
+        raise ScenarioError("cases", "case names must be unique")
+
+    bounds_cache: list[ModelBounds] = []
+
+    def model_bounds() -> ModelBounds:
+        if not bounds_cache:
+            bounds_cache.append(estimate_bounds(model))
+        return bounds_cache[0]
+
+    controllers = []
+    for i, cspec in enumerate(scenario.controllers):
+        field = f"controllers[{i}]"
+        ctrl = _build_controller(cspec, model, target, built, model_bounds, field)
+        controllers.append(ControllerEntry(cspec.name or cspec.type, ctrl))
+    if len({c.name for c in controllers}) != len(controllers):
+        raise ScenarioError("controllers", "controller names must be unique; set 'name' on each")
+
+    criteria = SettleCriteria(sim.position_tolerance, sim.velocity_tolerance)
+    return ScenarioSetup(
+        scenario, path, model, monitor, controllers, cases, target, plant_settings, loop,
+        criteria, rate_bounds, obstacles, names,
+    )

@@ -1,0 +1,75 @@
+"""Reading a scenario file into a validated Scenario, with errors that name the field."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+from pydantic import ValidationError
+
+from cpbc.errors import ScenarioError
+from cpbc.resources import scenarios_dir
+from cpbc.scenario.schema import Scenario
+
+
+def _path(loc: tuple[object, ...]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        elif isinstance(part, str) and part.startswith(("function-", "tagged-union", "list[")):
+            continue  # pydantic's internal union branch labels
+        else:
+            out += f".{part}" if out else str(part)
+    return out or "(top level)"
+
+
+def _message(err: dict) -> str:  # type: ignore[type-arg]
+    kind, msg = err["type"], err["msg"]
+    if kind == "extra_forbidden":
+        return "unknown key; remove it or check its spelling against the scenario format in README.md"
+    if kind == "missing":
+        return "required key is missing"
+    if kind == "union_tag_invalid":
+        expected = err.get("ctx", {}).get("expected_tags", "")
+        return f"unknown type {err.get('input')!r}; registered types: {expected}"
+    if kind == "union_tag_not_found":
+        return "needs a 'type' key"
+    return msg.removeprefix("Value error, ")
+
+
+def format_validation_error(exc: ValidationError) -> ScenarioError:
+    errors = exc.errors()
+    first = errors[0]
+    lines = [f"{_path(e['loc'])}: {_message(e)}" for e in errors[:10]]
+    more = f"\n  … and {len(errors) - 10} more" if len(errors) > 10 else ""
+    err = ScenarioError(_path(first["loc"]), _message(first))
+    err.args = ("invalid scenario:\n  " + "\n  ".join(lines) + more,)
+    return err
+
+
+def resolve_scenario_path(name: str | Path) -> Path:
+    """A path as given, or the name of a shipped scenario (``thesis_ch7``)."""
+    p = Path(name)
+    if p.is_file():
+        return p
+    shipped = scenarios_dir() / (p.name if p.suffix else f"{p.name}.yaml")
+    if shipped.is_file():
+        return shipped
+    available = ", ".join(sorted(s.stem for s in scenarios_dir().glob("*.yaml")))
+    raise ScenarioError("", f"scenario file not found: {name} (shipped scenarios: {available})")
+
+
+def load_scenario(path: str | Path) -> tuple[Scenario, Path]:
+    """Parse and validate a YAML scenario; returns it with its resolved path."""
+    file = resolve_scenario_path(path)
+    try:
+        raw = yaml.safe_load(file.read_text())
+    except yaml.YAMLError as exc:
+        raise ScenarioError("", f"{file} is not valid YAML: {exc}") from None
+    if not isinstance(raw, dict):
+        raise ScenarioError("", f"{file} must hold a mapping of scenario keys at the top level")
+    try:
+        return Scenario.model_validate(raw), file
+    except ValidationError as exc:
+        raise format_validation_error(exc) from None

@@ -1,0 +1,79 @@
+"""The logged closed-loop trajectory of one run."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cpbc.constraints.base import Array
+
+OUTCOMES = ("completed", "diverged", "constraint_violated")
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Samples at the control instants, in the controller's coordinates.
+
+    Attributes:
+        time: (N,) [s].
+        position, velocity: (N, n) [rad, rad/s].
+        torque: (N, n) generalised forces the controller asked for.
+        joint_torque: (N, n) joint torques applied to the plant (after any saturation).
+        outcome: how the run ended: one of OUTCOMES.
+        end_time: simulated time at the end [s].
+        violated: name of the enforced constraint that crossed zero, if any.
+        wall_time: wall-clock time of the loop [s].
+        control_steps: number of controller calls.
+        saturated_steps: control steps in which a torque limit clipped the command.
+        max_contacts: largest number of MuJoCo contacts seen (0 for the reference backend).
+        backend: "mujoco" or "reference".
+    """
+
+    time: Array
+    position: Array
+    velocity: Array
+    torque: Array
+    joint_torque: Array
+    outcome: str
+    end_time: float
+    violated: str | None
+    wall_time: float
+    control_steps: int
+    saturated_steps: int
+    max_contacts: int
+    backend: str
+
+    @property
+    def steps_per_second(self) -> float:
+        return self.control_steps / self.wall_time if self.wall_time > 0 else float("nan")
+
+
+class TrajectoryLog:
+    """Preallocated log that grows by doubling; decimated by ``every``."""
+
+    def __init__(self, n: int, capacity: int, every: int = 1) -> None:
+        self.every = max(1, every)
+        cap = max(16, capacity // self.every + 2)
+        self._t = np.empty(cap)
+        self._arrays = [np.empty((cap, n)) for _ in range(4)]
+        self._k = 0
+        self._calls = 0
+
+    def record(self, t: float, *rows: Array, force: bool = False) -> None:
+        if not force and self._calls % self.every:
+            self._calls += 1
+            return
+        self._calls += 1
+        if self._k == self._t.shape[0]:
+            self._t = np.resize(self._t, 2 * self._k)
+            self._arrays = [np.resize(a, (2 * self._k, a.shape[1])) for a in self._arrays]
+        self._t[self._k] = t
+        for a, r in zip(self._arrays, rows, strict=True):
+            a[self._k] = r
+        self._k += 1
+
+    def arrays(self) -> tuple[Array, Array, Array, Array, Array]:
+        k = self._k
+        x, dx, tau, tau_q = (a[:k].copy() for a in self._arrays)
+        return self._t[:k].copy(), x, dx, tau, tau_q
