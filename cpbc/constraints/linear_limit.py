@@ -1,4 +1,4 @@
-"""Two-sided limits on linear combinations of coordinates: joint limits and relative-joint limits."""
+"""Two-sided limits on linear combinations of coordinates: joint and relative-joint limits."""
 
 from __future__ import annotations
 

@@ -6,7 +6,6 @@ import numpy as np
 
 from cpbc.constraints.base import Array
 
-
 _LN2 = float(np.log(2.0))
 
 

@@ -1,4 +1,4 @@
-"""The controller's model of the arm: Pinocchio dynamics and kinematics in controller coordinates."""
+"""The controller's model of the arm: Pinocchio dynamics and kinematics in its coordinates."""
 
 from __future__ import annotations
 
@@ -77,7 +77,9 @@ class RobotModel:
         if fd.shape == (self.n,):
             fd = np.diag(fd)
         if fd.shape != (self.n, self.n):
-            raise ModelError(f"viscous_friction must have shape ({self.n},) or ({self.n}, {self.n})")
+            raise ModelError(
+                f"viscous_friction must have shape ({self.n},) or ({self.n}, {self.n})"
+            )
         self.viscous_friction = self.coordinates.matrix_from_joint(fd)  # F_d in x-coordinates
         self._has_friction = bool(np.any(fd))
         self._no_dissipation = np.zeros(self.n)
@@ -122,7 +124,8 @@ class RobotModel:
 
     def gravity(self, x: Array) -> Array:
         """g(x), shape (n,)."""
-        return self._back_vec(pin.computeGeneralizedGravity(self.model, self.data, self._q(x)).copy())
+        g = pin.computeGeneralizedGravity(self.model, self.data, self._q(x))
+        return self._back_vec(g.copy())
 
     def dissipation(self, dx: Array) -> Array:
         """f(ẋ) = F_d ẋ, shape (n,)."""

@@ -92,12 +92,14 @@ def lyapunov_history(controller: Controller, traj: Trajectory) -> Array:
     for k, (x, dx) in enumerate(zip(traj.position, traj.velocity, strict=True)):
         try:
             out[k] = controller.lyapunov(x, dx)
-        except Exception:  # noqa: BLE001 - outside S the function is undefined
+        except Exception:
             out[k] = np.nan
     return out
 
 
-def judge_status(traj: Trajectory, target: Array, criteria: SettleCriteria) -> tuple[str, float | None]:
+def judge_status(
+    traj: Trajectory, target: Array, criteria: SettleCriteria
+) -> tuple[str, float | None]:
     """Status and settle time from the data (not from what the theory promises)."""
     if traj.outcome in ("diverged", "constraint_violated"):
         return traj.outcome, None

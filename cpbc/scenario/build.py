@@ -180,8 +180,10 @@ def _build_constraint(
         idx = _indices(spec.joints, names, f"{field}.joints")
         k = n if idx is None else len(idx)
         c = joint_position_limit(
-            _vector(spec.lower, k, f"{field}.lower"), _vector(spec.upper, k, f"{field}.upper"),
-            names, idx,
+            _vector(spec.lower, k, f"{field}.lower"),
+            _vector(spec.upper, k, f"{field}.upper"),
+            names,
+            idx,
         )
         return c
     if isinstance(spec, s.LinearLimitSpec):
@@ -189,7 +191,9 @@ def _build_constraint(
         k = rows.shape[0]
         labels = [spec.name] if k == 1 else [f"{spec.name}[{i}]" for i in range(k)]
         return LinearLimit(
-            rows, _vector(spec.lower, k, f"{field}.lower"), _vector(spec.upper, k, f"{field}.upper"),
+            rows,
+            _vector(spec.lower, k, f"{field}.lower"),
+            _vector(spec.upper, k, f"{field}.upper"),
             labels,
         )
     if isinstance(spec, s.PointOutsideSphereSpec):
@@ -280,7 +284,8 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     if sim.torque_limit is not None:
         limit = _vector(
             sim.torque_limit if isinstance(sim.torque_limit, list) else [sim.torque_limit] * n,
-            n, "simulation.torque_limit",
+            n,
+            "simulation.torque_limit",
         )
     loop = LoopSettings(sim.duration, control_period, limit, sim.log_every)
 
@@ -339,6 +344,17 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
 
     criteria = SettleCriteria(sim.position_tolerance, sim.velocity_tolerance)
     return ScenarioSetup(
-        scenario, path, model, monitor, controllers, cases, target, plant_settings, loop,
-        criteria, rate_bounds, obstacles, names,
+        scenario,
+        path,
+        model,
+        monitor,
+        controllers,
+        cases,
+        target,
+        plant_settings,
+        loop,
+        criteria,
+        rate_bounds,
+        obstacles,
+        names,
     )

@@ -27,7 +27,9 @@ def _path(loc: tuple[object, ...]) -> str:
 def _message(err: dict) -> str:  # type: ignore[type-arg]
     kind, msg = err["type"], err["msg"]
     if kind == "extra_forbidden":
-        return "unknown key; remove it or check its spelling against the scenario format in README.md"
+        return (
+            "unknown key; remove it or check its spelling against the scenario format in README.md"
+        )
     if kind == "missing":
         return "required key is missing"
     if kind == "union_tag_invalid":
