@@ -56,7 +56,7 @@ def _rates(s: RunSummary) -> str:
             parts.append(f"{peak:.3g}")
         else:
             mark = "≤" if peak < bound else "[red]>[/red]"
-            parts.append(f"{peak:.3g}{mark}{bound:.3g}")
+            parts.append(f"{peak:.4g}{mark}{bound:.4g}")
     return ", ".join(parts)
 
 

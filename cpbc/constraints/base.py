@@ -33,6 +33,10 @@ class ConfigurationConstraint(ABC):
         """φ(x) and ∂φ/∂x together (subclasses share kinematics here)."""
         return self.value(x), self.gradient(x)
 
+    def values_along(self, xs: Array) -> Array:
+        """φ at each row of xs, shape (N, k); vectorised by subclasses where they can."""
+        return np.array([self.value(x) for x in xs]).reshape(len(xs), len(self.names))
+
 
 class VelocityConstraint(ABC):
     """ψ_j(x, ẋ) = Ω_j(x) − ½ ẋᵀ Q_j(x) ẋ > 0 with Q_j ⪰ 0 (eq. 6.17).
@@ -46,6 +50,11 @@ class VelocityConstraint(ABC):
     @abstractmethod
     def value(self, x: Array, dx: Array, dyn: DynamicsTerms | None) -> Array:
         """ψ(x, ẋ), shape (k,)."""
+
+    def values_along(self, xs: Array, dxs: Array) -> Array:
+        """ψ at each sample, shape (N, k); vectorised by subclasses where they can."""
+        out = [self.value(x, dx, None) for x, dx in zip(xs, dxs, strict=True)]
+        return np.array(out).reshape(len(xs), len(self.names))
 
     @abstractmethod
     def weights(self, x: Array, dyn: DynamicsTerms | None) -> Array:

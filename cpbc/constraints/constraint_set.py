@@ -67,6 +67,16 @@ class ConstraintSet:
         parts += [c.value(x, dx, dyn) for c in self.velocity]
         return np.concatenate(parts) if parts else np.zeros(0)
 
+    def margins_along(self, xs: Array, dxs: Array) -> Array:
+        """Every margin at every sample, shape (N, m); NaN rows where the state is not finite."""
+        out = np.full((len(xs), len(self.names)), np.nan)
+        ok = np.all(np.isfinite(xs), axis=1) & np.all(np.isfinite(dxs), axis=1)
+        parts = [c.values_along(xs[ok]) for c in self.configuration]
+        parts += [c.values_along(xs[ok], dxs[ok]) for c in self.velocity]
+        if parts:
+            out[ok] = np.concatenate(parts, axis=1)
+        return out
+
     def check_admissible(self, x: Array, dx: Array, what: str) -> None:
         """Raise InadmissibleStateError if (x, ẋ) is not in S (Assumption 6.8)."""
         m = self.margins(x, dx)

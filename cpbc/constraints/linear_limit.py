@@ -54,6 +54,10 @@ class LinearLimit(ConfigurationConstraint):
         y = self.rows @ x
         return (y - self.lower) * (self.upper - y)
 
+    def values_along(self, xs: Array) -> Array:
+        y = xs @ self.rows.T
+        return (y - self.lower) * (self.upper - y)
+
     def gradient(self, x: Array) -> Array:
         y = self.rows @ x
         return (self.lower + self.upper - 2.0 * y)[:, None] * self.rows

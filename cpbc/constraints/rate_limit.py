@@ -56,6 +56,10 @@ class RateLimit(VelocityConstraint):
         y = dx[self._joint_index] if self._joint_index is not None else self.rows @ dx
         return self._omega - 0.5 * y * y
 
+    def values_along(self, xs: Array, dxs: Array) -> Array:
+        y = dxs @ self.rows.T
+        return self._omega - 0.5 * y * y
+
     def weights(self, x: Array, dyn: DynamicsTerms | None = None) -> Array:
         return np.einsum("ki,kj->kij", self.rows, self.rows)
 

@@ -64,6 +64,10 @@ class Controller(ABC):
     def lyapunov(self, x: Array, dx: Array) -> float:
         """The law's Lyapunov function V(x, ẋ) (non-increasing along the closed loop)."""
 
+    def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
+        """τ and V together; laws that share the work override this."""
+        return self.torque(x, dx), self.lyapunov(x, dx)
+
     def check_admissible(self, x: Array, dx: Array, what: str) -> None:
         """Raise InadmissibleStateError if (x, ẋ) is outside this law's admissible set."""
         self.constraints.check_admissible(x, dx, what)

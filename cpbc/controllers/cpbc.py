@@ -10,7 +10,6 @@ from cpbc.controllers.base import Controller, positive_vector
 from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import LinearDamping, QuadraticPotential
-from cpbc.errors import CpbcError
 from cpbc.model.robot_model import DynamicsTerms, RobotModel
 
 
@@ -56,32 +55,43 @@ class CPBC(Controller):
     def _shaped_terms(
         self, x: Array, dx: Array
     ) -> tuple[DynamicsTerms, BarrierTerms, Array, float]:
+        """Dynamics, barrier sums, −∂U/∂x̃ and L at one state."""
         dyn = self.model.dynamics(x, dx)
         bar = self.constraints.barrier(x, dx, dyn)
-        err = x - self.target
-        lag = 0.5 * float(dx @ (dyn.inertia @ dx)) + self.potential.value(err)
-        return dyn, bar, err, lag
+        potential, grad = self.potential.evaluate(x - self.target)
+        lag = 0.5 * float(dx @ (dyn.inertia @ dx)) + potential
+        return dyn, bar, grad, lag
 
     def torque(self, x: Array, dx: Array) -> Array:
-        dyn, bar, err, lag = self._shaped_terms(x, dx)
-        a = -self.potential.gradient(err) - self.damping.force(dx)  # type: ignore[attr-defined]
+        return self._law(dx, *self._shaped_terms(x, dx))
+
+    def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
+        terms = self._shaped_terms(x, dx)
+        return self._law(dx, *terms), self._shaped_value(terms[1], terms[3])
+
+    def _shaped_value(self, bar: BarrierTerms, lag: float) -> float:
+        if lag <= 0.0:
+            return 0.0
+        return math.exp(math.log(lag) - self.shaping.log_s(bar.log_phi + bar.log_psi))
+
+    def _law(
+        self, dx: Array, dyn: DynamicsTerms, bar: BarrierTerms, grad: Array, lag: float
+    ) -> Array:
+        """The law of the class docstring from precomputed terms."""
+        a = -grad - self.damping.force(dx)  # type: ignore[attr-defined]
         rho = self.shaping.ratio(bar.log_phi + bar.log_psi) * lag
         if bar.gradient is not None:
             a += rho * bar.gradient
         if bar.weight is None:
             return dyn.gravity + a
-        c = dyn.coriolis_force + dyn.dissipation
+        c = dyn.coriolis_force + dyn.dissipation if self.model.has_friction else (
+            dyn.coriolis_force
+        )
         y = solve_spd(dyn.inertia + rho * bar.weight, a - c)
         return dyn.gravity + c + dyn.inertia @ y
 
     def lyapunov(self, x: Array, dx: Array) -> float:
         """V = L / s(ΦΨ), evaluated in logs."""
         _, bar, _, lag = self._shaped_terms(x, dx)
-        if lag <= 0.0:
-            return 0.0
-        return math.exp(math.log(lag) - self.shaping.log_s(bar.log_phi + bar.log_psi))
+        return self._shaped_value(bar, lag)
 
-
-def require_constraints(constraints: ConstraintSet, law: str) -> None:
-    if constraints.empty:
-        raise CpbcError(f"{law} needs at least one constraint to enforce")

@@ -66,7 +66,18 @@ class CPBCKineticEnergy(Controller):
         return lag, psi, bar.log_phi + math.log(psi), bar.gradient, err
 
     def torque(self, x: Array, dx: Array) -> Array:
-        lag, psi, log_x, b_phi, err = self._terms(x, dx)
+        return self._law(x, dx, *self._terms(x, dx))
+
+    def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
+        terms = self._terms(x, dx)
+        lag, _, log_x = terms[:3]
+        v = 0.0 if lag <= 0 else math.exp(math.log(lag) - self.shaping.log_s(log_x))
+        return self._law(x, dx, *terms), v
+
+    def _law(
+        self, x: Array, dx: Array, lag: float, psi: float, log_x: float, b_phi: Array | None,
+        err: Array,
+    ) -> Array:
         rho = self.shaping.ratio(log_x) * lag
         shaped = -(self.potential.gradient(err) + self.damping.force(dx))  # type: ignore[attr-defined]
         if b_phi is not None:

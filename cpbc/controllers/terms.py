@@ -26,6 +26,11 @@ class QuadraticPotential:
     def gradient(self, err: Array) -> Array:
         return self.kp * err
 
+    def evaluate(self, err: Array) -> tuple[float, Array]:
+        """U and ∂U/∂x̃ together."""
+        grad = self.kp * err
+        return 0.5 * float(err @ grad), grad
+
 
 class LogCoshPotential:
     """U = Σ (K_Pi/ξ_i) ln cosh(ξ_i x̃_i) (eq. 7.18), ∂U/∂x̃ = K_P tanh(Ξ x̃)."""
@@ -42,6 +47,11 @@ class LogCoshPotential:
 
     def gradient(self, err: Array) -> Array:
         return self.kp * np.tanh(self.xi * err)
+
+    def evaluate(self, err: Array) -> tuple[float, Array]:
+        """U and ∂U/∂x̃ together."""
+        y = self.xi * err
+        return float(self._weight @ np.logaddexp(y, -y)) - self._offset, self.kp * np.tanh(y)
 
 
 class LinearDamping:

@@ -71,6 +71,8 @@ class RobotModel:
         self._identity = self.coordinates.is_identity
         self._t_inv = self.coordinates.inverse
         self._t_inv_t = np.ascontiguousarray(self.coordinates.inverse.T)
+        # vec(T⁻ᵀ M T⁻¹) = (T⁻ᵀ ⊗ T⁻ᵀ) vec(M): one product instead of two in the hot path.
+        self._congruence = np.kron(self._t_inv_t, self._t_inv_t)
         fd = np.zeros((self.n, self.n)) if viscous_friction is None else np.asarray(
             viscous_friction, dtype=float
         )
@@ -96,6 +98,11 @@ class RobotModel:
         if not path.is_file():
             raise ModelError(f"model file not found: {path}")
         return cls(pin.buildModelFromMJCF(str(path)), name=path.stem, **kwargs)  # type: ignore[arg-type]
+
+    @property
+    def has_friction(self) -> bool:
+        """Whether the model has viscous friction (f ≠ 0)."""
+        return self._has_friction
 
     # -- coordinates -------------------------------------------------------------------------
     def _q(self, x: Array) -> Array:
@@ -149,7 +156,8 @@ class RobotModel:
         if self._identity:
             return DynamicsTerms(m.copy(), nle - g, g.copy(), f)
         t_inv_t = self._t_inv_t
-        return DynamicsTerms(t_inv_t @ m @ self._t_inv, t_inv_t @ (nle - g), t_inv_t @ g, f)
+        inertia = (self._congruence @ m.reshape(-1)).reshape(self.n, self.n)
+        return DynamicsTerms(inertia, t_inv_t @ (nle - g), t_inv_t @ g, f)
 
     def kinetic_energy(self, x: Array, dx: Array) -> float:
         """½ ẋᵀ D(x) ẋ [J]."""

@@ -79,22 +79,7 @@ def _plain(v: object) -> object:
 
 def margin_history(monitor: ConstraintSet, traj: Trajectory) -> Array:
     """Every monitored constraint's margin at every sample, shape (N, m)."""
-    out = np.full((len(traj.time), len(monitor)), np.nan)
-    for k, (x, dx) in enumerate(zip(traj.position, traj.velocity, strict=True)):
-        if np.all(np.isfinite(x)) and np.all(np.isfinite(dx)):
-            out[k] = monitor.margins(x, dx)
-    return out
-
-
-def lyapunov_history(controller: Controller, traj: Trajectory) -> Array:
-    """V(t) of the controller along the trajectory (NaN where undefined)."""
-    out = np.full(len(traj.time), np.nan)
-    for k, (x, dx) in enumerate(zip(traj.position, traj.velocity, strict=True)):
-        try:
-            out[k] = controller.lyapunov(x, dx)
-        except Exception:
-            out[k] = np.nan
-    return out
+    return monitor.margins_along(traj.position, traj.velocity)
 
 
 def judge_status(
@@ -129,11 +114,10 @@ def summarise(
     criteria: SettleCriteria,
     rate_bounds: list[float | None],
     margins: Array | None = None,
-    lyapunov: Array | None = None,
 ) -> RunSummary:
     """Condense a trajectory into a RunSummary."""
     margins = margin_history(monitor, traj) if margins is None else margins
-    lyapunov = lyapunov_history(controller, traj) if lyapunov is None else lyapunov
+    lyapunov = traj.lyapunov
     status, settle = judge_status(traj, controller.target, criteria)
     finite_tau = np.where(np.isfinite(traj.torque), traj.torque, 0.0)
     min_margins = {

@@ -6,7 +6,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from cpbc.constraints.base import Array
-from cpbc.results.metrics import RunSummary, lyapunov_history, margin_history, summarise
+from cpbc.results.metrics import RunSummary, margin_history, summarise
 from cpbc.scenario.build import ScenarioSetup
 from cpbc.simulation import Trajectory, run_mujoco, run_reference
 
@@ -52,10 +52,10 @@ def run_all(
                 )
             report(1.0)
             margins = margin_history(setup.monitor, traj)
-            lyap = lyapunov_history(entry.controller, traj)
+            lyap = traj.lyapunov
             summary = summarise(
                 entry.name, case.name, entry.controller, setup.monitor, traj, setup.criteria,
-                setup.rate_bounds, margins, lyap,
+                setup.rate_bounds, margins,
             )
             results.append(RunResult(entry.name, case.name, traj, margins, lyap, summary))
     return results

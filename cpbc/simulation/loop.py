@@ -85,21 +85,21 @@ def run_mujoco(
             break
         try:
             calls += 1
-            tau = controller.torque(x, dx)
+            tau, v = controller.evaluate(x, dx)
         except ConstraintViolation as exc:
             outcome, violated = "constraint_violated", exc.constraint
-            log.record(t, x, dx, np.full(n, np.nan), np.full(n, np.nan), force=True)
+            log.record(t, np.nan, x, dx, np.full(n, np.nan), np.full(n, np.nan), force=True)
             break
         if not np.all(np.isfinite(tau)):
             outcome = "diverged"
-            log.record(t, x, dx, tau, np.full(n, np.nan), force=True)
+            log.record(t, v, x, dx, tau, np.full(n, np.nan), force=True)
             break
         tau_q = tau if identity else t_mat.T @ tau
         if limit is not None:
             clipped = np.clip(tau_q, -limit, limit)
             saturated += int(np.any(clipped != tau_q))
             tau_q = clipped
-        log.record(t, x, dx, tau, tau_q, force=(k == steps))
+        log.record(t, v, x, dx, tau, tau_q, force=(k == steps))
         if k == steps:
             break
         plant.apply(tau_q)
@@ -108,11 +108,11 @@ def run_mujoco(
         if progress is not None and k % report_every == 0:
             progress(k / steps)
     wall = _time.perf_counter() - start
-    tt, xs, dxs, taus, tau_qs = log.arrays()
+    tt, xs, dxs, taus, tau_qs, vs = log.arrays()
     end_time = float(tt[-1]) if tt.size else 0.0
     if outcome == "diverged":
         end_time = k * settings.control_period
     return Trajectory(
-        tt, xs, dxs, taus, tau_qs, outcome, end_time, violated, wall, calls, saturated,
+        tt, xs, dxs, taus, tau_qs, vs, outcome, end_time, violated, wall, calls, saturated,
         int(contacts), "mujoco",
     )

@@ -40,10 +40,11 @@ def run_reference(
 
     def applied(x: Array, dx: Array) -> tuple[Array, Array]:
         tau = controller.torque(x, dx)
-        if limit is None:
-            return tau, coords.torque_to_joint(tau)
-        tau_q = np.clip(coords.torque_to_joint(tau), -limit, limit)
-        return tau, tau_q
+        return tau, saturate(tau)
+
+    def saturate(tau: Array) -> Array:
+        tau_q = coords.torque_to_joint(tau)
+        return tau_q if limit is None else np.clip(tau_q, -limit, limit)
 
     def rhs(_t: float, y: Array) -> Array:
         nonlocal calls
@@ -67,10 +68,15 @@ def run_reference(
     )
     wall = _time.perf_counter() - start
     xs, dxs = sol.y[:n].T.copy(), sol.y[n:].T.copy()
-    taus = np.empty_like(xs)
-    tau_qs = np.empty_like(xs)
+    taus = np.full_like(xs, np.nan)
+    tau_qs = np.full_like(xs, np.nan)
+    vs = np.full(len(sol.t), np.nan)
     for i in range(len(sol.t)):
-        taus[i], tau_qs[i] = applied(xs[i], dxs[i])
+        try:
+            taus[i], vs[i] = controller.evaluate(xs[i], dxs[i])
+        except ConstraintViolation:
+            continue
+        tau_qs[i] = saturate(taus[i])
     if sol.status == 0:
         outcome, violated = "completed", None
     elif violation:
@@ -81,6 +87,6 @@ def run_reference(
         outcome = "diverged"
     end_time = float(sol.t[-1]) if sol.t.size else 0.0
     return Trajectory(
-        sol.t.copy(), xs, dxs, taus, tau_qs, outcome, end_time, violated, wall, calls, 0, 0,
+        sol.t.copy(), xs, dxs, taus, tau_qs, vs, outcome, end_time, violated, wall, calls, 0, 0,
         "reference",
     )

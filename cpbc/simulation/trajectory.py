@@ -20,6 +20,7 @@ class Trajectory:
         position, velocity: (N, n) [rad, rad/s].
         torque: (N, n) generalised forces the controller asked for.
         joint_torque: (N, n) joint torques applied to the plant (after any saturation).
+        lyapunov: (N,) the controller's V at each sample (NaN where undefined).
         outcome: how the run ended: one of OUTCOMES.
         end_time: simulated time at the end [s].
         violated: name of the enforced constraint that crossed zero, if any.
@@ -35,6 +36,7 @@ class Trajectory:
     velocity: Array
     torque: Array
     joint_torque: Array
+    lyapunov: Array
     outcome: str
     end_time: float
     violated: str | None
@@ -56,24 +58,28 @@ class TrajectoryLog:
         self.every = max(1, every)
         cap = max(16, capacity // self.every + 2)
         self._t = np.empty(cap)
+        self._v = np.empty(cap)
         self._arrays = [np.empty((cap, n)) for _ in range(4)]
         self._k = 0
         self._calls = 0
 
-    def record(self, t: float, *rows: Array, force: bool = False) -> None:
+    def record(self, t: float, v: float, *rows: Array, force: bool = False) -> None:
         if not force and self._calls % self.every:
             self._calls += 1
             return
         self._calls += 1
         if self._k == self._t.shape[0]:
             self._t = np.resize(self._t, 2 * self._k)
+            self._v = np.resize(self._v, 2 * self._k)
             self._arrays = [np.resize(a, (2 * self._k, a.shape[1])) for a in self._arrays]
         self._t[self._k] = t
+        self._v[self._k] = v
         for a, r in zip(self._arrays, rows, strict=True):
             a[self._k] = r
         self._k += 1
 
-    def arrays(self) -> tuple[Array, Array, Array, Array, Array]:
+    def arrays(self) -> tuple[Array, Array, Array, Array, Array, Array]:
+        """time, position, velocity, torque, joint torque, V."""
         k = self._k
         x, dx, tau, tau_q = (a[:k].copy() for a in self._arrays)
-        return self._t[:k].copy(), x, dx, tau, tau_q
+        return self._t[:k].copy(), x, dx, tau, tau_q, self._v[:k].copy()
