@@ -33,6 +33,15 @@ class ConfigurationConstraint(ABC):
         """φ(x) and ∂φ/∂x together (subclasses share kinematics here)."""
         return self.value(x), self.gradient(x)
 
+    def barrier_terms(self, x: Array) -> tuple[Array, Array]:
+        """φ(x) and Σ_i ∇φ_i/φ_i, shape (n,): what the laws need (DESIGN §3).
+
+        Outside S (some φ_i ≤ 0) the second value is meaningless; callers check φ first.
+        Subclasses override this with a cheaper closed form.
+        """
+        phi, grad = self.evaluate(x)
+        return phi, (1.0 / phi) @ grad
+
     def values_along(self, xs: Array) -> Array:
         """φ at each row of xs, shape (N, k); vectorised by subclasses where they can."""
         return np.array([self.value(x) for x in xs]).reshape(len(xs), len(self.names))

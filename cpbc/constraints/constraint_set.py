@@ -88,12 +88,11 @@ class ConstraintSet:
         """Log-barrier sums at (x, ẋ); raises ConstraintViolation outside S."""
         log_phi, gradient, weight = 0.0, None, None
         for c in self.configuration:
-            phi, grad = c.evaluate(x)
+            phi, b = c.barrier_terms(x)
             values = phi.tolist()
             if not min(values) > 0:  # also catches NaN
                 _raise_violation(c.names, phi)
             log_phi += math.fsum(map(math.log, values))
-            b = (1.0 / phi) @ grad
             gradient = b if gradient is None else gradient + b
         log_psi = 0.0
         for c in self.velocity:

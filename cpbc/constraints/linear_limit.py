@@ -47,12 +47,18 @@ class LinearLimit(ConfigurationConstraint):
         self.names = tuple(names)
         self.centre = 0.5 * (lower + upper)
         self.half_width = 0.5 * (upper - lower)
-        for a in (self.rows, self.lower, self.upper, self.centre, self.half_width):
+        self._sum = lower + upper
+        for a in (self.rows, self.lower, self.upper, self.centre, self.half_width, self._sum):
             a.setflags(write=False)
 
     def value(self, x: Array) -> Array:
         y = self.rows @ x
         return (y - self.lower) * (self.upper - y)
+
+    def barrier_terms(self, x: Array) -> tuple[Array, Array]:
+        y = self.rows @ x
+        phi = (y - self.lower) * (self.upper - y)
+        return phi, self.rows.T @ ((self._sum - 2.0 * y) / phi)
 
     def values_along(self, xs: Array) -> Array:
         y = xs @ self.rows.T
@@ -60,7 +66,7 @@ class LinearLimit(ConfigurationConstraint):
 
     def gradient(self, x: Array) -> Array:
         y = self.rows @ x
-        return (self.lower + self.upper - 2.0 * y)[:, None] * self.rows
+        return (self._sum - 2.0 * y)[:, None] * self.rows
 
 
 def joint_position_limit(

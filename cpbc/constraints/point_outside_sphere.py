@@ -39,6 +39,7 @@ class PointOutsideSphere(ConfigurationConstraint):
         self.frame_id = model.frame_id(frame)
         self.centre = np.asarray(centre, dtype=float).reshape(3)
         self.radius = float(radius)
+        self._r2 = self.radius**2
         self.offset = None if offset is None else np.asarray(offset, dtype=float).reshape(3)
         self.names = (name or f"clearance[{frame}]",)
 
@@ -50,6 +51,12 @@ class PointOutsideSphere(ConfigurationConstraint):
         return self.evaluate(x)[1]
 
     def evaluate(self, x: Array) -> tuple[Array, Array]:
-        d = self.model.point_position(self.frame_id, x, self.offset) - self.centre
-        jac = self.model.point_jacobian(self.frame_id, x, self.offset)
-        return np.array([d @ d - self.radius**2]), (2.0 * d @ jac)[None, :]
+        p, jac = self.model.point_kinematics(self.frame_id, x, self.offset)
+        d = p - self.centre
+        return np.array([d @ d - self._r2]), (2.0 * d @ jac)[None, :]
+
+    def barrier_terms(self, x: Array) -> tuple[Array, Array]:
+        p, jac = self.model.point_kinematics(self.frame_id, x, self.offset)
+        d = p - self.centre
+        phi = float(d @ d) - self._r2
+        return np.array([phi]), (d @ jac) * (2.0 / phi)

@@ -179,6 +179,22 @@ class RobotModel:
             raise ModelError(f"model '{self.name}' has no frame '{frame}'; frames: {names}")
         return self.model.getFrameId(frame)
 
+    def point_kinematics(
+        self, frame_id: int, x: Array, offset: Array | None = None
+    ) -> tuple[Array, Array]:
+        """Position (3,) and Jacobian ∂p/∂x (3, n) of a point fixed in a frame, in one pass."""
+        j = pin.computeFrameJacobian(
+            self.model, self.data, self._q(x), frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        )
+        placement = self.data.oMf[frame_id]  # updated by computeFrameJacobian
+        if offset is None:
+            p, jv = placement.translation.copy(), j[:3]
+        else:
+            r = placement.rotation @ offset
+            p = placement.translation + r
+            jv = j[:3] - np.cross(r, j[3:].T).T  # v_p = v_o + ω × r
+        return p, (jv if self._identity else jv @ self._t_inv)
+
     def point_position(self, frame_id: int, x: Array, offset: Array | None = None) -> Array:
         """World position of a point fixed in a frame, shape (3,) [m]."""
         pin.framesForwardKinematics(self.model, self.data, self._q(x))

@@ -1,0 +1,152 @@
+"""``python -m cpbc.bench [--robot NAME] [--json] [--check]``: what one control step costs.
+
+Prints, for each controller, the median wall time of one ``torque`` call (µs) and the
+closed-loop rate (control steps per second, MuJoCo physics included). Medians over repeated
+blocks; nothing here is asserted inside the unit tests. ``--check`` exits 1 when CPBC costs
+more than 3× PD + gravity measured in the same run (a ratio, so it holds across machines).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from cpbc.constraints import (
+    ConstraintSet,
+    KineticEnergyLimit,
+    LinearLimit,
+    PointOutsideSphere,
+    joint_position_limit,
+    joint_rate_limit,
+)
+from cpbc.constraints.base import Array
+from cpbc.controllers import (
+    BPBC,
+    CPBC,
+    PD,
+    BPBCKineticEnergy,
+    Controller,
+    CPBCKineticEnergy,
+    PDGravity,
+    Power,
+    RecentredBarrier,
+)
+from cpbc.model import LinearCoordinates, RobotModel
+from cpbc.resources import models_dir
+from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, run_mujoco
+
+
+@dataclass(frozen=True)
+class BenchSetup:
+    """Controllers of one robot, the states to time them on, and a plant for the loop."""
+
+    robot: str
+    controllers: dict[str, Controller]
+    states: list[tuple[Array, Array]]
+    make_plant: Callable[[], MujocoPlant]
+    coordinates: LinearCoordinates
+    start: tuple[Array, Array]
+    notes: str
+
+
+def planar_2link() -> BenchSetup:
+    """The thesis's arm in absolute link angles, with the thesis's constraints (Section 6.4)."""
+    path = models_dir() / "planar_2link.xml"
+    coords = LinearCoordinates.absolute_link_angles(2)
+    model = RobotModel.from_mjcf(path, coordinates=coords)
+    names = ["theta1", "theta2"]
+    rates = joint_rate_limit([0.3, 0.2], names)
+    obstacle = PointOutsideSphere(model, "end_point", [0, 2, 0], 0.5)
+    relative = LinearLimit([[-1, 1]], [-17 * np.pi / 18], [17 * np.pi / 18], ["relative"])
+    energy = KineticEnergyLimit(model, 0.5)
+    limits = joint_position_limit([-0.5, -0.5], [3.5, 3.5], names)
+    target = np.array([np.pi, 2 * np.pi / 3])
+    kp, kd = 4.0, 20.0
+    controllers: dict[str, Controller] = {
+        "pd": PD(model, target, kp, kd),
+        "pd_gravity": PDGravity(model, target, kp, kd),
+        "cpbc": CPBC(model, target, ConstraintSet(2, [obstacle, relative], [rates]), kp, kd,
+                     Power(0.2)),
+        "cpbc_ke": CPBCKineticEnergy(
+            model, target, ConstraintSet(2, [obstacle, relative], [energy]), kp, kd, Power(0.2)
+        ),
+        "recentred": RecentredBarrier(model, target, ConstraintSet(2, [limits], [rates]), kp, kd),
+        "bpbc": BPBC(model, target, ConstraintSet(2, [], [rates]), [2, 10], [4, 20], 1, 1,
+                     Power(0.2)),
+        "bpbc_ke": BPBCKineticEnergy(model, target, ConstraintSet(2, [], [energy]), [2, 10],
+                                     [4, 20], 1, 1, Power(0.2)),
+    }
+    rng = np.random.default_rng(0)
+    states = [(rng.uniform(-0.4, 0.4, 2), rng.uniform(-0.1, 0.1, 2)) for _ in range(64)]
+    return BenchSetup(
+        "planar_2link", controllers, states,
+        lambda: MujocoPlant.from_file(path, PlantSettings(0.001, "RK4")),
+        coords, (np.zeros(2), np.zeros(2)),
+        "thesis constraints (obstacle, relative angle, 2 rate limits); RK4, 1 kHz control",
+    )
+
+
+ROBOTS: dict[str, Callable[[], BenchSetup]] = {"planar_2link": planar_2link}
+
+
+def time_torque(ctrl: Controller, states: Sequence[tuple[Array, Array]], repeats: int) -> float:
+    """Median over ``repeats`` blocks of the mean cost of one torque call [µs]."""
+    blocks = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for x, dx in states:
+            ctrl.torque(x, dx)
+        blocks.append((time.perf_counter() - start) / len(states) * 1e6)
+    return statistics.median(blocks)
+
+
+def time_loop(setup: BenchSetup, ctrl: Controller, seconds: float, repeats: int) -> float:
+    """Median closed-loop control steps per second (controller + MuJoCo + logging)."""
+    plant = setup.make_plant()
+    rates = []
+    for _ in range(repeats):
+        traj = run_mujoco(plant, ctrl, setup.coordinates, *setup.start,
+                          LoopSettings(seconds, 0.001))
+        rates.append(traj.steps_per_second)
+    return statistics.median(rates)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m cpbc.bench", description=__doc__)
+    p.add_argument("--robot", choices=sorted(ROBOTS), default="planar_2link")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--repeats", type=int, default=15, help="timed blocks per figure")
+    p.add_argument("--loop-seconds", type=float, default=2.0, help="simulated s per loop run")
+    p.add_argument("--check", action="store_true",
+                   help="exit 1 if CPBC costs more than 3x PD + gravity")
+    args = p.parse_args(argv)
+    setup = ROBOTS[args.robot]()
+    for ctrl in setup.controllers.values():  # warm up caches and lazy imports
+        time_torque(ctrl, setup.states[:8], 1)
+    torque_us = {k: time_torque(c, setup.states, args.repeats)
+                 for k, c in setup.controllers.items()}
+    loop = {k: time_loop(setup, c, args.loop_seconds, max(3, args.repeats // 3))
+            for k, c in setup.controllers.items()}
+    ratio = torque_us["cpbc"] / torque_us["pd_gravity"]
+    if args.json:
+        print(json.dumps({"robot": setup.robot, "torque_us": torque_us,
+                          "closed_loop_steps_per_second": loop,
+                          "cpbc_over_pd_gravity": ratio, "notes": setup.notes}))
+    else:
+        print(f"robot: {setup.robot} ({setup.notes})")
+        print(f"{'controller':<12} {'torque [µs]':>12} {'loop [steps/s]':>15}")
+        for k in setup.controllers:
+            print(f"{k:<12} {torque_us[k]:>12.1f} {loop[k]:>15,.0f}")
+        print(f"cpbc / pd_gravity cost ratio: {ratio:.2f} (target ≤ 3)")
+    return 1 if args.check and ratio > 3.0 else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
