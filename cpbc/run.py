@@ -93,7 +93,7 @@ def _table(results: Sequence[RunResult], coordinate_names: Sequence[str]) -> Tab
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     console = Console(stderr=False, width=None if sys.stdout.isatty() else 200)
-    err = Console(stderr=True)
+    err = Console(stderr=True, width=None if sys.stderr.isatty() else 200)
     try:
         scenario, file = load_scenario(args.scenario)
         setup = build(scenario, file)
