@@ -1,0 +1,63 @@
+"""Shared fixtures: the thesis's 2-link arm (eq. 6.69) in joint and absolute coordinates,
+a seeded random generator and a central finite-difference helper."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cpbc.model import LinearCoordinates, RobotModel
+from cpbc.resources import models_dir
+
+FiniteDifference = Callable[..., np.ndarray]
+
+
+@pytest.fixture(scope="session")
+def planar_path() -> Path:
+    """The MJCF of the thesis's horizontal 2-link arm, loaded by MuJoCo and Pinocchio."""
+    path = models_dir() / "planar_2link.xml"
+    assert path.is_file()
+    return path
+
+
+@pytest.fixture
+def joint_model(planar_path: Path) -> RobotModel:
+    """The arm in its own (relative) joint coordinates q."""
+    return RobotModel.from_mjcf(planar_path)
+
+
+@pytest.fixture
+def absolute_model(planar_path: Path) -> RobotModel:
+    """The arm in the thesis's absolute link angles θ = T q, T = [[1, 0], [1, 1]]."""
+    return RobotModel.from_mjcf(
+        planar_path, coordinates=LinearCoordinates.absolute_link_angles(2)
+    )
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    """A seeded generator: every run draws the same states."""
+    return np.random.default_rng(20070601)
+
+
+def _central_difference(
+    f: Callable[[np.ndarray], np.ndarray | float], x: np.ndarray, h: float = 1e-6
+) -> np.ndarray:
+    """∂f/∂x by central differences, shape f(x).shape + (n,)."""
+    x = np.asarray(x, dtype=float)
+    cols = []
+    for k in range(x.size):
+        e = np.zeros_like(x)
+        e[k] = h
+        cols.append((np.asarray(f(x + e), dtype=float) - np.asarray(f(x - e), dtype=float))
+                    / (2 * h))
+    return np.stack(cols, axis=-1)
+
+
+@pytest.fixture(scope="session")
+def central_difference() -> FiniteDifference:
+    """``central_difference(f, x, h=1e-6)``: ∂f/∂x, shape f(x).shape + (n,)."""
+    return _central_difference
