@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -67,6 +68,7 @@ def run_mujoco(
     steps = round(settings.duration / settings.control_period)
     n = plant.n
     t_mat, t_inv = coordinates.matrix, coordinates.inverse
+    t_mat_t = np.ascontiguousarray(t_mat.T)
     identity = coordinates.is_identity
     limit = settings.torque_limit
     plant.reset(t_inv @ x0, t_inv @ dx0)
@@ -80,7 +82,7 @@ def run_mujoco(
         t = k * settings.control_period
         x = qpos.copy() if identity else t_mat @ qpos
         dx = qvel.copy() if identity else t_mat @ qvel
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(dx))):
+        if not math.isfinite(x @ x + dx @ dx):  # NaN or overflow in the state
             outcome = "diverged"
             break
         try:
@@ -90,11 +92,11 @@ def run_mujoco(
             outcome, violated = "constraint_violated", exc.constraint
             log.record(t, np.nan, x, dx, np.full(n, np.nan), np.full(n, np.nan), force=True)
             break
-        if not np.all(np.isfinite(tau)):
+        if not math.isfinite(tau @ tau):
             outcome = "diverged"
             log.record(t, v, x, dx, tau, np.full(n, np.nan), force=True)
             break
-        tau_q = tau if identity else t_mat.T @ tau
+        tau_q = tau if identity else t_mat_t @ tau
         if limit is not None:
             clipped = np.clip(tau_q, -limit, limit)
             saturated += int(np.any(clipped != tau_q))

@@ -67,6 +67,10 @@ class MujocoPlant:
             self._act_dof = np.array(
                 [model.jnt_dofadr[model.actuator_trnid[i, 0]] for i in range(model.nu)]
             )
+            # Motors with unit gear on joints 0..n-1 in order take τ as it is.
+            self._direct = bool(
+                np.array_equal(self._act_dof, np.arange(self.n)) and np.all(self._gear == 1.0)
+            )
             self.model.actuator_ctrllimited[:] = 0
             self.model.actuator_forcelimited[:] = 0
 
@@ -97,7 +101,7 @@ class MujocoPlant:
     def apply(self, tau_joint: Array) -> None:
         """Hold joint torques τ_q until the next call (zero-order hold)."""
         if self._use_actuators:
-            self.data.ctrl[:] = tau_joint[self._act_dof] / self._gear
+            self.data.ctrl[:] = tau_joint if self._direct else tau_joint[self._act_dof] / self._gear
         else:
             self.data.qfrc_applied[:] = tau_joint
 
