@@ -1,0 +1,504 @@
+"""Scenario layer: every shipped scenario loads and builds; bad input is a ScenarioError (or an
+InadmissibleStateError) that names the offending field, never a traceback from deep inside."""
+
+from __future__ import annotations
+
+import copy
+import math
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import yaml
+
+from cpbc.constraints import KineticEnergyLimit, LinearLimit, PointOutsideSphere, RateLimit
+from cpbc.controllers import CONTROLLERS
+from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
+from cpbc.resources import models_dir, scenarios_dir
+from cpbc.scenario import Scenario, ScenarioSetup, build, load_scenario
+from cpbc.scenario.expressions import parse_number
+
+SHIPPED = sorted(scenarios_dir().glob("*.yaml"))
+T = np.array([[1.0, 0.0], [1.0, 1.0]])
+REL = 17 * math.pi / 18
+
+# A small valid scenario: the thesis's Chapter 6 setting with a target away from the obstacle.
+MINIMAL: dict = {
+    "name": "minimal",
+    "robot": {"model": "planar_2link", "coordinates": "absolute"},
+    "simulation": {"duration": 0.05, "timestep": 0.001},
+    "target": [1.0, 1.5],
+    "cases": [{"name": "rest", "position": [0, 0]}],
+    "constraints": [
+        {
+            "type": "point_outside_sphere",
+            "name": "obstacle",
+            "frame": "end_point",
+            "centre": [0, 2],
+            "radius": 0.5,
+        },
+        {
+            "type": "linear_limit",
+            "name": "relative_angle",
+            "coefficients": [[-1, 1]],
+            "lower": ["-17*pi/18"],
+            "upper": ["17*pi/18"],
+        },
+        {"type": "joint_rate_limit", "name": "link_rates", "bounds": [0.3, 0.2]},
+    ],
+    "controllers": [
+        {"type": "pd", "name": "PD", "kp": 4, "kd": 20},
+        {
+            "type": "cpbc",
+            "name": "CPBC",
+            "kp": 4,
+            "kd": 20,
+            "shaping": {"type": "power", "alpha": 0.2},
+        },
+    ],
+}
+
+
+@pytest.fixture
+def minimal() -> dict:
+    """A fresh deep copy of the minimal valid scenario, to be edited by each test."""
+    return copy.deepcopy(MINIMAL)
+
+
+@pytest.fixture
+def load_dict(tmp_path: Path) -> Callable[[dict], ScenarioSetup]:
+    """Write a scenario dict to YAML in tmp_path, load and build it."""
+    counter = iter(range(1000))
+
+    def _load(data: dict) -> ScenarioSetup:
+        path = tmp_path / f"scenario_{next(counter)}.yaml"
+        path.write_text(yaml.safe_dump(data, sort_keys=False))
+        scenario, file = load_scenario(path)
+        return build(scenario, file)
+
+    return _load
+
+
+def edit(data: dict, path: str, value: object) -> dict:
+    """Set data[a][b][i]… = value for path 'a.b.i' (integers index lists)."""
+    keys = [int(k) if k.isdigit() else k for k in path.split(".")]
+    node = data
+    for k in keys[:-1]:
+        node = node[k]
+    node[keys[-1]] = value
+    return data
+
+
+def expect_error(load_dict, data: dict, field: str, *words: str) -> ScenarioError:
+    """Loading must fail with a ScenarioError whose field and message name ``field``."""
+    with pytest.raises(ScenarioError) as info:
+        load_dict(data)
+    err = info.value
+    assert isinstance(err, CpbcError)
+    assert field in err.field, f"field {err.field!r} does not name {field!r}"
+    assert field.split(".")[-1].split("[")[0] in str(err)
+    for w in words:
+        assert w in str(err), f"{w!r} not in message {str(err)!r}"
+    return err
+
+
+# == shipped scenarios ===========================================================================
+def test_there_are_shipped_scenarios():
+    names = {p.stem for p in SHIPPED}
+    assert {"thesis_ch6", "thesis_ch7"} <= names
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=[p.stem for p in SHIPPED])
+def test_shipped_scenario_loads_and_builds(path):
+    scenario, file = load_scenario(path)
+    assert isinstance(scenario, Scenario)
+    assert file == path
+    assert scenario.name == path.stem  # the output folder is named after it
+    setup = build(scenario, file)
+    n = setup.model.n
+    assert setup.target.shape == (n,)
+    assert len(setup.controllers) == len(scenario.controllers) >= 1
+    assert len(setup.cases) == len(scenario.cases) >= 1
+    for entry in setup.controllers:
+        assert entry.controller.type_name in CONTROLLERS
+        assert entry.controller.target.shape == (n,)
+        # every law can be evaluated at every initial state: each is inside its admissible set
+        for case in setup.cases:
+            entry.controller.check_admissible(case.position, case.velocity, case.name)
+            tau, v = entry.controller.evaluate(case.position, case.velocity)
+            assert tau.shape == (n,) and np.all(np.isfinite(tau))
+            assert math.isfinite(v)
+    for case in setup.cases:
+        assert np.all(setup.monitor.margins(case.position, case.velocity) > 0)
+    assert np.all(setup.monitor.margins(setup.target, np.zeros(n)) > 0)
+    assert setup.make_plant().n == n
+
+
+def test_shipped_scenario_can_be_named_without_path():
+    scenario, file = load_scenario("thesis_ch7")
+    assert file == scenarios_dir() / "thesis_ch7.yaml"
+    assert scenario.name == "thesis_ch7"
+
+
+def test_thesis_ch6_is_the_thesis_experiment():
+    """Section 6.4: target (π, 2π/3) from rest at 0, φ₁, φ₂, |θ̇| < (0.3, 0.2), K_P = 4, K_D = 20."""
+    setup = build(*load_scenario("thesis_ch6"))
+    np.testing.assert_allclose(setup.target, [math.pi, 2 * math.pi / 3], rtol=1e-15)
+    np.testing.assert_array_equal(setup.model.coordinates.matrix, T)
+    assert [c.name for c in setup.cases] == ["rest"]
+    np.testing.assert_array_equal(setup.cases[0].position, [0, 0])
+    np.testing.assert_array_equal(setup.cases[0].velocity, [0, 0])
+    by_type = {type(c): c for c in (*setup.monitor.configuration, *setup.monitor.velocity)}
+    obs = by_type[PointOutsideSphere]
+    np.testing.assert_array_equal(obs.centre, [0, 2, 0])
+    assert obs.radius == 0.5
+    rel = by_type[LinearLimit]
+    np.testing.assert_array_equal(rel.rows, [[-1, 1]])
+    np.testing.assert_allclose([rel.lower[0], rel.upper[0]], [-REL, REL], rtol=1e-15)
+    np.testing.assert_array_equal(by_type[RateLimit].bounds, [0.3, 0.2])
+    assert setup.rate_bounds == [0.3, 0.2]
+    types = {e.controller.type_name: e.controller for e in setup.controllers}
+    assert {"pd", "cpbc"} <= set(types)
+    for ctrl in (types["pd"], types["cpbc"]):
+        np.testing.assert_array_equal(ctrl.kp, [4, 4])
+        np.testing.assert_array_equal(ctrl.kd, [20, 20])
+    assert len(types["cpbc"].constraints) == 4
+
+
+def test_thesis_ch7_is_the_thesis_experiment():
+    """Section 7.3: target (π, π), two initial rates, K_P = diag(2, 10), K_D = diag(4, 20)."""
+    setup = build(*load_scenario("thesis_ch7"))
+    np.testing.assert_allclose(setup.target, [math.pi, math.pi], rtol=1e-15)
+    np.testing.assert_array_equal(setup.model.coordinates.matrix, T)
+    velocities = sorted(tuple(c.velocity) for c in setup.cases)
+    assert velocities == [(-0.2, -0.1), (0.0, 0.0)]
+    assert setup.rate_bounds == [0.3, 0.2]
+    types = {e.controller.type_name: e.controller for e in setup.controllers}
+    assert {"pd", "bpbc"} <= set(types)
+    for ctrl in (types["pd"], types["bpbc"]):
+        np.testing.assert_array_equal(ctrl.kp, [2, 10])
+        np.testing.assert_array_equal(ctrl.kd, [4, 20])
+    # (7.32) with ζ_g = 0 (horizontal), ζ_c = m₂l₁l_c₂ = 0.5, ζ_f = 0: 0.5·0.13 + 10 + 20
+    assert types["bpbc"].torque_bound == pytest.approx(30.065, abs=1e-3)
+
+
+# == the minimal scenario and what build makes of it =============================================
+def test_minimal_scenario_builds(load_dict, minimal):
+    setup = load_dict(minimal)
+    assert setup.coordinate_names == ("theta1", "theta2")
+    assert setup.monitor.names == ("obstacle", "relative_angle", "rate[theta1]", "rate[theta2]")
+    np.testing.assert_allclose(setup.target, [1.0, 1.5])
+    np.testing.assert_array_equal(setup.cases[0].velocity, [0.0, 0.0])  # default
+    assert [e.name for e in setup.controllers] == ["PD", "CPBC"]
+    assert setup.loop_settings.control_period == 0.001  # defaults to the timestep
+    assert setup.loop_settings.duration == 0.05
+    assert setup.loop_settings.torque_limit is None
+    assert [o.name for o in setup.obstacles] == ["obstacle"]
+    assert not setup.obstacles[0].collides
+
+
+def test_expressions_of_pi_parse(load_dict, minimal):
+    edit(minimal, "target", ["pi", "2*pi/3"])
+    edit(minimal, "cases.0.position", ["-pi/4", "(1 + 2) * pi / 12"])
+    setup = load_dict(minimal)
+    np.testing.assert_allclose(setup.target, [math.pi, 2 * math.pi / 3], rtol=1e-15)
+    np.testing.assert_allclose(setup.cases[0].position, [-math.pi / 4, math.pi / 4], rtol=1e-15)
+    rel = setup.monitor.configuration[1]
+    assert rel.lower[0] == -17 * math.pi / 18
+    assert rel.upper[0] == 17 * math.pi / 18
+
+
+@pytest.mark.parametrize(
+    ("text", "value"),
+    [
+        ("2*pi/3", 2 * math.pi / 3),
+        ("-17*pi/18", -17 * math.pi / 18),
+        (" pi ", math.pi),
+        ("2**-1", 0.5),
+        ("+3", 3.0),
+        ("1e-3", 1e-3),
+    ],
+)
+def test_parse_number(text, value):
+    assert parse_number(text) == value
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "__import__('os')",
+        "__import__('os').system('true')",
+        "pi.__class__",
+        "open('x')",
+        "(lambda: 1)()",
+        "[1][0]",
+        "1 if pi else 2",
+        "e",
+        "nan",
+        "1/0",
+        "",
+    ],
+)
+def test_parse_number_rejects_anything_but_arithmetic(text):
+    with pytest.raises(ValueError, match="cannot read"):
+        parse_number(text)
+
+
+def test_parse_number_passes_non_strings_through():
+    assert parse_number(1.5) == 1.5
+    assert parse_number([1]) == [1]
+
+
+def test_malicious_expression_is_a_scenario_error(load_dict, minimal):
+    edit(minimal, "target", ["__import__('os').system('touch pwned')", 1.0])
+    expect_error(load_dict, minimal, "target[0]", "cannot read")
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="parse_number catches SyntaxError, ValueError and ZeroDivisionError but not "
+    "OverflowError: '10.0**400' escapes load_scenario as a raw OverflowError",
+)
+def test_overflowing_expression_is_a_scenario_error(load_dict, minimal):
+    edit(minimal, "simulation.duration", "10.0**400")
+    expect_error(load_dict, minimal, "simulation.duration")
+
+
+def test_model_by_relative_path_and_custom_coordinates(tmp_path, load_dict, minimal):
+    (tmp_path / "robots").mkdir()
+    shutil.copy(models_dir() / "planar_2link.xml", tmp_path / "robots" / "arm.xml")
+    edit(minimal, "robot", {"model": "robots/arm.xml", "coordinates": [[1, 0], [1, 1]]})
+    setup = load_dict(minimal)
+    assert setup.model_path == tmp_path / "robots" / "arm.xml"
+    np.testing.assert_array_equal(setup.model.coordinates.matrix, T)
+    assert setup.coordinate_names == ("x1", "x2")
+
+
+def test_joint_coordinates_and_selected_joints(load_dict, minimal):
+    minimal["robot"]["coordinates"] = "joint"
+    minimal["constraints"] = [
+        {"type": "joint_rate_limit", "name": "r", "joints": ["joint2"], "bounds": [0.4]},
+        {
+            "type": "joint_position_limit",
+            "name": "p",
+            "joints": ["joint1"],
+            "lower": [-1],
+            "upper": [2],
+        },
+    ]
+    setup = load_dict(minimal)
+    assert setup.coordinate_names == ("joint1", "joint2")
+    assert setup.monitor.names == ("position[joint1]", "rate[joint2]")
+    assert setup.rate_bounds == [None, 0.4]
+
+
+def test_friction_reaches_model_and_plant(load_dict, minimal):
+    edit(minimal, "robot.viscous_friction", [0.4, 1.3])
+    setup = load_dict(minimal)
+    t_inv = np.linalg.inv(T)
+    np.testing.assert_allclose(
+        setup.model.viscous_friction, t_inv.T @ np.diag([0.4, 1.3]) @ t_inv, atol=1e-15
+    )
+    np.testing.assert_allclose(setup.make_plant().model.dof_damping, [0.4, 1.3], atol=1e-15)
+
+
+def test_obstacle_is_placed_in_the_plant(load_dict, minimal):
+    plant = load_dict(minimal).make_plant()
+    gid = mujoco.mj_name2id(plant.model, mujoco.mjtObj.mjOBJ_GEOM, "obstacle")
+    assert gid >= 0
+    np.testing.assert_allclose(plant.model.geom_pos[gid], [0, 2, 0])
+    assert plant.model.geom_size[gid, 0] == 0.5
+    assert plant.model.geom_contype[gid] == 0
+
+
+def test_controller_constraint_subset(load_dict, minimal):
+    minimal["controllers"][1]["constraints"] = ["link_rates"]
+    setup = load_dict(minimal)
+    assert setup.controllers[1].controller.constraints.names == ("rate[theta1]", "rate[theta2]")
+    assert setup.controllers[0].controller.constraints.empty  # PD enforces nothing
+
+
+def test_kinetic_energy_scenario_builds(load_dict, minimal):
+    minimal["constraints"] = [{"type": "kinetic_energy_limit", "name": "ke", "limit": 0.05}]
+    minimal["controllers"] = [
+        {"type": "cpbc_ke", "kp": 4, "kd": 6},
+        {"type": "bpbc_ke", "kp": [2, 10], "kd": [4, 20]},
+    ]
+    setup = load_dict(minimal)
+    assert [e.name for e in setup.controllers] == ["cpbc_ke", "bpbc_ke"]  # named by type
+    assert isinstance(setup.monitor.velocity[0], KineticEnergyLimit)
+
+
+# == bad input: each names its field ==============================================================
+@pytest.mark.parametrize(
+    ("path", "value", "field", "words"),
+    [
+        ("colour", "red", "colour", ("unknown key",)),
+        ("controllers.1.kpp", 1, "kpp", ("unknown key",)),
+        ("constraints.0.colour", "red", "colour", ("unknown key",)),
+        ("simulation.dt", 0.01, "dt", ("unknown key",)),
+        ("target", [1, 2, 3], "target", ("2 entries",)),
+        ("target", "pi", "target", ()),
+        ("cases.0.position", [1], "cases[0].position", ("2 entries",)),
+        ("cases.0.velocity", [0, 0, 0], "cases[0].velocity", ("2 entries",)),
+        ("controllers.1.kp", [1, 2, 3], "controllers[1]", ("kp",)),
+        ("controllers.1.kd", 0, "kd", ("greater than 0",)),
+        ("controllers.0.kp", -4, "kp", ("greater than 0",)),
+        ("controllers.1.kp", [4, 0], "kp", ("greater than 0",)),
+        ("controllers.1.shaping", {"type": "power", "alpha": 0}, "alpha", ()),
+        ("constraints.2.bounds", [0.3, 0], "bounds", ("greater than 0",)),
+        ("constraints.2.bounds", [0.3, -0.2], "bounds", ("greater than 0",)),
+        ("constraints.2.bounds", [0.3], "constraints[2].bounds", ("2 entries",)),
+        ("constraints.0.radius", 0, "radius", ("greater than 0",)),
+        ("constraints.0.radius", -0.5, "radius", ("greater than 0",)),
+        ("constraints.0.centre", [0], "constraints[0].centre", ()),
+        ("constraints.1.lower", ["17*pi/18"], "constraints[1]", ("lower < upper",)),
+        ("constraints.1.lower", [-1, -2], "constraints[1].lower", ()),
+        ("constraints.1.coefficients", [[1, 2, 3]], "constraints[1].coefficients", ()),
+        ("simulation.duration", 0, "simulation.duration", ("greater than 0",)),
+        ("simulation.duration", -1.0, "simulation.duration", ("greater than 0",)),
+        ("simulation.timestep", 0, "simulation.timestep", ("greater than 0",)),
+        ("simulation.timestep", float("nan"), "simulation.timestep", ("finite",)),
+        ("target", [float("nan"), 1.0], "target[0]", ("finite",)),
+        ("target", [float("inf"), 1.0], "target[0]", ("finite",)),
+        ("cases.0.velocity", [0.0, "nan"], "cases[0].velocity[1]", ("cannot read",)),
+        ("simulation.duration", "1/0", "simulation.duration", ("cannot read",)),
+        ("simulation.control_period", 0.0015, "simulation.control_period", ("multiple",)),
+        ("simulation.control_period", 0.0005, "simulation.control_period", ("multiple",)),
+        ("simulation.log_every", 0, "simulation.log_every", ()),
+        ("simulation.torque_limit", [1, 2, 3], "simulation.torque_limit", ()),
+        ("simulation.integrator", "leapfrog", "simulation.integrator", ()),
+        ("robot.model", "no_such_robot", "robot.model", ("planar_2link",)),
+        ("robot.coordinates", [[1, 2], [2, 4]], "robot.coordinates", ("invertible",)),
+        ("robot.viscous_friction", [1, 2, 3], "robot.viscous_friction", ()),
+        ("constraints.0.frame", "tool", "constraints[0]", ("tool", "end_point")),
+        ("constraints.2.joints", ["joint1"], "constraints[2].joints", ("theta1",)),
+        ("constraints.2.joints", ["theta1", "theta1"], "constraints[2]", ("twice",)),
+        ("constraints.1.name", "obstacle", "constraints[1].name", ("duplicate",)),
+        ("controllers.1.name", "PD", "controllers", ("unique",)),
+        ("name", "has space", "name", ()),
+        ("cases", [], "cases", ()),
+        ("controllers", [], "controllers", ()),
+    ],
+)
+def test_bad_value_names_its_field(load_dict, minimal, path, value, field, words):
+    expect_error(load_dict, edit(minimal, path, value), field, *words)
+
+
+def test_missing_required_key(load_dict, minimal):
+    del minimal["simulation"]
+    expect_error(load_dict, minimal, "simulation", "missing")
+
+
+def test_duplicate_case_names(load_dict, minimal):
+    minimal["cases"].append(copy.deepcopy(minimal["cases"][0]))
+    expect_error(load_dict, minimal, "cases", "unique")
+
+
+def test_unknown_controller_type_lists_registered_types(load_dict, minimal):
+    edit(minimal, "controllers.1.type", "lqr")
+    err = expect_error(load_dict, minimal, "controllers[1]", "lqr")
+    for name in CONTROLLERS:
+        assert repr(name) in str(err)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="load._message prints err['input'] (the whole controller mapping) for an unknown "
+    "type instead of the tag err['ctx']['tag']",
+)
+def test_unknown_type_message_quotes_the_type_only(load_dict, minimal):
+    edit(minimal, "controllers.1.type", "lqr")
+    with pytest.raises(ScenarioError) as info:
+        load_dict(minimal)
+    assert "unknown type 'lqr'" in str(info.value)
+
+
+def test_unknown_constraint_type_lists_registered_types(load_dict, minimal):
+    edit(minimal, "constraints.0.type", "box")
+    err = expect_error(load_dict, minimal, "constraints[0]", "box")
+    for name in ("joint_position_limit", "linear_limit", "point_outside_sphere",
+                 "joint_rate_limit", "rate_limit", "kinetic_energy_limit"):
+        assert repr(name) in str(err)
+
+
+def test_constraint_without_type(load_dict, minimal):
+    del minimal["constraints"][0]["type"]
+    expect_error(load_dict, minimal, "constraints[0]", "type")
+
+
+def test_unknown_constraint_name_in_a_controller(load_dict, minimal):
+    minimal["controllers"][1]["constraints"] = ["obstacle", "walls"]
+    expect_error(load_dict, minimal, "controllers[1].constraints", "walls", "link_rates")
+
+
+def test_bpbc_refuses_an_obstacle(load_dict, minimal):
+    edit(minimal, "controllers.1.type", "bpbc")
+    expect_error(load_dict, minimal, "controllers[1]", "bpbc", "rate limits only")
+
+
+def test_bpbc_needs_a_rate_limit_on_every_joint(load_dict, minimal):
+    minimal["constraints"][2]["joints"] = ["theta1"]
+    minimal["constraints"][2]["bounds"] = [0.3]
+    minimal["controllers"][1].update(type="bpbc", constraints=["link_rates"])
+    expect_error(load_dict, minimal, "controllers[1]", "every joint")
+
+
+def test_cpbc_ke_needs_a_kinetic_energy_limit(load_dict, minimal):
+    edit(minimal, "controllers.1.type", "cpbc_ke")
+    expect_error(load_dict, minimal, "controllers[1]", "kinetic_energy_limit")
+
+
+def test_recentred_needs_joint_limits(load_dict, minimal):
+    minimal["controllers"][1] = {"type": "recentred", "kp": 1, "kd": 1}
+    with pytest.raises(ScenarioError) as info:
+        load_dict(minimal)
+    assert info.value.field == "controllers[1]"
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "what", "constraint"),
+    [
+        ("cases.0.velocity", [0.35, 0.0], "cases[0]", "rate[theta1]"),
+        ("cases.0.velocity", [0.0, -0.2], "cases[0]", "rate[theta2]"),  # on the bound
+        ("target", ["pi/2", "pi/2"], "target", "obstacle"),  # end point at the centre
+        ("target", ["2*pi/3", "-17*pi/18"], "target", "relative_angle"),
+        ("cases.0.position", [0.0, 3.0], "cases[0]", "relative_angle"),
+    ],
+)
+def test_state_outside_the_admissible_set(load_dict, minimal, path, value, what, constraint):
+    with pytest.raises(InadmissibleStateError) as info:
+        load_dict(edit(minimal, path, value))
+    err = info.value
+    assert isinstance(err, CpbcError)
+    assert err.constraint == constraint
+    assert err.margin <= 0
+    assert what in err.what
+    assert constraint in str(err)
+
+
+def test_constraints_not_enforced_by_any_controller_still_define_s(load_dict, minimal):
+    """The monitor holds every scenario constraint, so the initial state is checked against it
+    even when only PD runs."""
+    minimal["controllers"] = [minimal["controllers"][0]]
+    with pytest.raises(InadmissibleStateError, match="obstacle"):
+        load_dict(edit(minimal, "target", ["pi/2", "pi/2"]))
+
+
+def test_missing_scenario_file_lists_shipped_ones(tmp_path):
+    with pytest.raises(ScenarioError, match="thesis_ch7"):
+        load_scenario(tmp_path / "nothing_here.yaml")
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [("name: [unclosed\n", "not valid YAML"), ("- 1\n- 2\n", "mapping"), ("", "mapping")],
+)
+def test_file_that_is_not_a_scenario_mapping(tmp_path, text, match):
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(ScenarioError, match=match):
+        load_scenario(path)
