@@ -1,0 +1,140 @@
+"""The MuJoCo closed loop and the continuous-time reference backend."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cpbc.constraints import ConstraintSet, joint_rate_limit
+from cpbc.controllers import BPBC, PD, Controller, Power
+from cpbc.errors import ConstraintViolation, CpbcError
+from cpbc.model import LinearCoordinates, RobotModel
+from cpbc.resources import models_dir
+from cpbc.simulation import (
+    LoopSettings,
+    MujocoPlant,
+    PlantSettings,
+    run_mujoco,
+    run_reference,
+    substeps_per_control,
+)
+
+PATH = models_dir() / "planar_2link.xml"
+ABSOLUTE = LinearCoordinates.absolute_link_angles(2)
+
+
+@pytest.fixture(scope="module")
+def model() -> RobotModel:
+    return RobotModel.from_mjcf(PATH, coordinates=ABSOLUTE)
+
+
+@pytest.fixture(scope="module")
+def bpbc(model: RobotModel) -> BPBC:
+    rates = ConstraintSet(2, velocity=[joint_rate_limit([0.3, 0.2], ["t1", "t2"])])
+    return BPBC(model, np.array([np.pi, np.pi]), rates, [2, 10], [4, 20], 1, 1, Power(0.2))
+
+
+def plant(integrator: str = "RK4", timestep: float = 0.001) -> MujocoPlant:
+    return MujocoPlant.from_file(PATH, PlantSettings(timestep, integrator))
+
+
+def test_mujoco_and_reference_agree(model: RobotModel, bpbc: BPBC) -> None:
+    settings = LoopSettings(3.0, 0.001)
+    x0, dx0 = np.zeros(2), np.array([-0.2, -0.1])
+    mj = run_mujoco(plant(), bpbc, ABSOLUTE, x0, dx0, settings)
+    ref = run_reference(RobotModel.from_mjcf(PATH, coordinates=ABSOLUTE), bpbc, x0, dx0,
+                        settings)
+    assert mj.outcome == ref.outcome == "completed"
+    assert mj.time.shape == ref.time.shape
+    # 1 kHz zero-order hold against continuous control: close, not identical.
+    np.testing.assert_allclose(mj.position, ref.position, atol=2e-4)
+    np.testing.assert_allclose(mj.velocity, ref.velocity, atol=2e-4)
+    assert np.max(np.abs(mj.position - ref.position)) > 0  # two different integrations
+
+
+def test_lyapunov_is_logged_and_does_not_increase(bpbc: BPBC) -> None:
+    traj = run_mujoco(plant(), bpbc, ABSOLUTE, np.zeros(2), np.zeros(2), LoopSettings(2.0, 0.001))
+    assert traj.lyapunov.shape == traj.time.shape
+    np.testing.assert_allclose(traj.lyapunov[0], bpbc.lyapunov(np.zeros(2), np.zeros(2)))
+    assert np.max(np.diff(traj.lyapunov)) <= 1e-9 * traj.lyapunov[0]
+
+
+def test_joint_torque_is_transpose_map_of_controller_torque(bpbc: BPBC) -> None:
+    traj = run_mujoco(plant(), bpbc, ABSOLUTE, np.zeros(2), np.zeros(2), LoopSettings(0.2, 0.001))
+    np.testing.assert_allclose(traj.joint_torque, traj.torque @ ABSOLUTE.matrix)
+
+
+def test_torque_limit_saturates_and_is_counted(model: RobotModel) -> None:
+    pd = PD(model, np.array([np.pi, np.pi]), [2, 10], [4, 20])
+    limit = np.array([5.0, 5.0])
+    traj = run_mujoco(plant(), pd, ABSOLUTE, np.zeros(2), np.zeros(2),
+                      LoopSettings(1.0, 0.001, torque_limit=limit))
+    assert traj.saturated_steps > 0
+    assert np.max(np.abs(traj.joint_torque)) <= 5.0 + 1e-12
+    assert np.max(np.abs(traj.torque @ ABSOLUTE.matrix)) > 5.0  # what was asked for
+
+
+def test_control_period_must_be_whole_multiple_of_timestep() -> None:
+    assert substeps_per_control(0.004, 0.001) == 4
+    with pytest.raises(CpbcError, match="whole multiple"):
+        substeps_per_control(0.0025, 0.001)
+
+
+def test_zero_order_hold_holds_torque_between_control_instants(model: RobotModel) -> None:
+    pd = PD(model, np.array([1.0, 1.0]), 5, 1)
+    traj = run_mujoco(plant("Euler"), pd, ABSOLUTE, np.zeros(2), np.zeros(2),
+                      LoopSettings(0.1, 0.01))
+    assert len(traj.time) == 11
+    assert traj.control_steps == 11
+
+
+class Exploding(Controller):
+    type_name = "exploding"
+
+    def torque(self, x: np.ndarray, dx: np.ndarray) -> np.ndarray:
+        return np.full(2, np.nan) if x[0] > 0.05 else np.array([50.0, 0.0])
+
+    def lyapunov(self, x: np.ndarray, dx: np.ndarray) -> float:
+        return 0.0
+
+
+class Refusing(Controller):
+    type_name = "refusing"
+
+    def torque(self, x: np.ndarray, dx: np.ndarray) -> np.ndarray:
+        if x[0] > 0.05:
+            raise ConstraintViolation("wall", 0.05 - float(x[0]))
+        return np.array([50.0, 0.0])
+
+    def lyapunov(self, x: np.ndarray, dx: np.ndarray) -> float:
+        return 0.0
+
+
+def test_nan_torque_ends_run_as_diverged(model: RobotModel) -> None:
+    traj = run_mujoco(plant(), Exploding(model, np.zeros(2)), ABSOLUTE, np.zeros(2),
+                      np.zeros(2), LoopSettings(2.0, 0.001))
+    assert traj.outcome == "diverged"
+    assert 0 < traj.end_time < 2.0
+    assert np.all(np.isfinite(traj.position))
+
+
+def test_constraint_crossing_ends_run_with_time_and_name(model: RobotModel) -> None:
+    traj = run_mujoco(plant(), Refusing(model, np.zeros(2)), ABSOLUTE, np.zeros(2),
+                      np.zeros(2), LoopSettings(2.0, 0.001))
+    assert traj.outcome == "constraint_violated"
+    assert traj.violated == "wall"
+    assert 0 < traj.end_time < 2.0
+    assert traj.position[-1, 0] > 0.05
+
+
+def test_log_decimation_keeps_every_kth_sample_and_the_last(bpbc: BPBC) -> None:
+    traj = run_mujoco(plant(), bpbc, ABSOLUTE, np.zeros(2), np.zeros(2),
+                      LoopSettings(1.0, 0.001, log_every=10))
+    assert traj.control_steps == 1001
+    assert len(traj.time) == 101
+    assert traj.time[-1] == pytest.approx(1.0)
+
+
+def test_plant_rejects_unknown_integrator() -> None:
+    with pytest.raises(CpbcError, match="integrator"):
+        PlantSettings(0.001, "Verlet")
