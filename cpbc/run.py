@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
@@ -19,7 +20,7 @@ from cpbc.errors import CpbcError
 from cpbc.results import staged_output, write_summaries, write_trajectory
 from cpbc.results.metrics import RunSummary
 from cpbc.scenario import build, load_scenario
-from cpbc.scenario.runner import RunResult, run_all
+from cpbc.scenario.runner import RunResult, default_workers, run_all
 
 STATUS_STYLE = {
     "converged": "green",
@@ -42,6 +43,10 @@ def _parser() -> argparse.ArgumentParser:
         help="override the scenario's backend: MuJoCo, or the continuous-time reference",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--workers", type=int, default=None,
+        help="processes for independent runs (default: one per core, at most one per run)",
+    )
     return p
 
 
@@ -73,8 +78,9 @@ def _table(results: Sequence[RunResult], coordinate_names: Sequence[str]) -> Tab
             worst = min(finite, key=finite.__getitem__)
             colour = "red" if finite[worst] <= 0 else ("" if worst not in s.enforced_constraints
                                                         else "green")
-            margin = f"[{colour}]{finite[worst]:.3g}[/{colour}] ({worst})" if colour else (
-                f"{finite[worst]:.3g} ({worst})")
+            label = escape(f"({worst})")
+            margin = f"[{colour}]{finite[worst]:.3g}[/{colour}] {label}" if colour else (
+                f"{finite[worst]:.3g} {label}")
         else:
             margin = "-"
         bound = "" if s.torque_bound is None else f" ({s.torque_bound:.4g})"
@@ -82,7 +88,8 @@ def _table(results: Sequence[RunResult], coordinate_names: Sequence[str]) -> Tab
         status = s.status + (f" @{s.end_time:.3g}s: {s.violated_constraint}"
                              if s.violated_constraint else "")
         t.add_row(
-            s.case, s.controller, f"[{style}]{status}[/{style}]", f"{s.final_error:.3g}",
+            escape(s.case), escape(s.controller), f"[{style}]{escape(status)}[/{style}]",
+            f"{s.final_error:.3g}",
             "-" if s.settle_time is None else f"{s.settle_time:.3g}", _rates(s),
             f"{_fmt(s.peak_torques)} / {s.peak_torque_norm:.4g}{bound}", margin,
             f"{s.max_lyapunov_increase:.2g}", f"{s.steps_per_second:,.0f}",
@@ -99,8 +106,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         setup = build(scenario, file)
         out = args.out or Path("runs") / scenario.name
         with staged_output(out) as scratch:
+            workers = args.workers or default_workers(len(setup.cases) * len(setup.controllers))
             if args.quiet:
-                results = run_all(setup, args.backend)
+                results = run_all(setup, args.backend, workers=workers)
             else:
                 with Progress(
                     TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
@@ -113,7 +121,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                             tasks[label] = bar.add_task(label, total=1.0)
                         bar.update(tasks[label], completed=frac)
 
-                    results = run_all(setup, args.backend, progress)
+                    results = run_all(setup, args.backend, progress, workers)
             for r in results:
                 folder = scratch / r.case / r.controller
                 folder.mkdir(parents=True, exist_ok=True)
@@ -123,7 +131,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 )
             write_summaries(scratch, [r.summary for r in results])
     except CpbcError as exc:
-        err.print(f"[bold red]error:[/bold red] {exc}", highlight=False)
+        err.print(f"[bold red]error:[/bold red] {escape(str(exc))}", highlight=False)
         return 2
     except KeyboardInterrupt:
         err.print("interrupted; nothing written")

@@ -501,11 +501,6 @@ def test_barrier_outside_the_energy_bound_names_it(absolute_model):
     assert info.value.margin == pytest.approx(0.01 - 0.5 * dth @ thesis_inertia(th) @ dth)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="ConstraintSet.barrier tests `min(values) > 0`, and Python's min skips a NaN that "
-    "is not in first position, so a NaN margin after a finite one is not caught",
-)
 def test_barrier_rejects_a_nan_margin_in_any_position(absolute_model):
     cs = ConstraintSet(2, velocity=[joint_rate_limit(B, ("theta1", "theta2"))])
     x, dx = np.zeros(2), np.array([0.1, np.nan])

@@ -224,11 +224,6 @@ def test_subprocess_bad_input_exits_2_without_traceback(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["tiny.yaml"]
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="run.main prints the error through rich markup unescaped: '[joint1]' in "
-    "'rate[joint1]' is taken for a style tag and dropped, so the message says 'rate'",
-)
 def test_error_message_keeps_bracketed_constraint_names(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     changes, _ = BAD_INPUTS["inadmissible_start"]
@@ -236,11 +231,6 @@ def test_error_message_keeps_bracketed_constraint_names(tmp_path, monkeypatch, c
     assert "'rate[joint1]'" in capsys.readouterr().err
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the summary table is rich markup too: the min-margin column shows '(rate)' for "
-    "the constraint 'rate[joint2]'",
-)
 def test_summary_table_keeps_bracketed_constraint_names(tmp_path, capsys):
     path = tiny(
         tmp_path,
@@ -251,11 +241,6 @@ def test_summary_table_keeps_bracketed_constraint_names(tmp_path, capsys):
 
 
 # == output paths come from names in the scenario: they must stay inside the output ================
-@pytest.mark.xfail(
-    strict=True,
-    reason="the scenario name '..' passes the schema pattern ^[A-Za-z0-9_.-]+$; the default "
-    "output runs/.. is the working directory, which staged_output rmtree's",
-)
 def test_scenario_name_dotdot_does_not_delete_the_working_directory(tmp_path, monkeypatch):
     sandbox = tmp_path / "cwd"  # confined: whatever the bug deletes lies inside tmp_path
     sandbox.mkdir()
@@ -267,11 +252,6 @@ def test_scenario_name_dotdot_does_not_delete_the_working_directory(tmp_path, mo
     assert (tmp_path / "cwd" / "precious.txt").read_text() == "keep"
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the scenario name '.' gives the default output runs/. == runs, so the run "
-    "replaces the whole runs/ folder and deletes other scenarios' results",
-)
 def test_scenario_name_dot_does_not_replace_all_runs(tmp_path, monkeypatch):
     sandbox = tmp_path / "cwd"
     (sandbox / "runs" / "other").mkdir(parents=True)
@@ -281,11 +261,6 @@ def test_scenario_name_dot_does_not_replace_all_runs(tmp_path, monkeypatch):
     assert (tmp_path / "cwd" / "runs" / "other" / "summary.json").is_file()
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="case and controller names become folder names unchecked: a case named "
-    "'../escaped' writes its trajectory.npz outside the --out folder",
-)
 def test_case_names_cannot_write_outside_the_output(tmp_path):
     sandbox = tmp_path / "cwd"
     sandbox.mkdir()
@@ -294,11 +269,6 @@ def test_case_names_cannot_write_outside_the_output(tmp_path):
     assert sorted(p.name for p in sandbox.iterdir()) in (["out", "tiny.yaml"], ["tiny.yaml"])
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="staged_output rmtree's any existing --out folder before moving the results in, "
-    "also one that is not a cpbc output (with --out . that is the working directory)",
-)
 def test_existing_folder_that_is_not_a_cpbc_output_is_not_wiped(tmp_path):
     sandbox = tmp_path / "cwd"
     (sandbox / "mine").mkdir(parents=True)

@@ -257,11 +257,6 @@ def test_malicious_expression_is_a_scenario_error(load_dict, minimal):
     expect_error(load_dict, minimal, "target[0]", "cannot read")
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="parse_number catches SyntaxError, ValueError and ZeroDivisionError but not "
-    "OverflowError: '10.0**400' escapes load_scenario as a raw OverflowError",
-)
 def test_overflowing_expression_is_a_scenario_error(load_dict, minimal):
     edit(minimal, "simulation.duration", "10.0**400")
     expect_error(load_dict, minimal, "simulation.duration")
@@ -405,11 +400,6 @@ def test_unknown_controller_type_lists_registered_types(load_dict, minimal):
         assert repr(name) in str(err)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="load._message prints err['input'] (the whole controller mapping) for an unknown "
-    "type instead of the tag err['ctx']['tag']",
-)
 def test_unknown_type_message_quotes_the_type_only(load_dict, minimal):
     edit(minimal, "controllers.1.type", "lqr")
     with pytest.raises(ScenarioError) as info:

@@ -13,9 +13,16 @@ from cpbc.errors import ConstraintViolation, CpbcError, InadmissibleStateError
 from cpbc.model.robot_model import DynamicsTerms
 
 
-def _raise_violation(names: Sequence[str], margins: Array) -> None:
-    i = int(np.argmin(np.nan_to_num(margins, nan=-np.inf)))
-    raise ConstraintViolation(names[i], float(margins[i]))
+def _log_sum(names: Sequence[str], margins: Array) -> float:
+    """Σ log margins; ConstraintViolation if any margin is ≤ 0 or NaN."""
+    try:
+        total = math.fsum(map(math.log, margins.tolist()))
+    except ValueError:  # a margin ≤ 0
+        total = math.nan
+    if total != total:  # a margin ≤ 0 or NaN (math.log(nan) is nan)
+        i = int(np.argmin(np.nan_to_num(margins, nan=-np.inf)))
+        raise ConstraintViolation(names[i], float(margins[i]))
+    return total
 
 
 class BarrierTerms(NamedTuple):
@@ -89,18 +96,12 @@ class ConstraintSet:
         log_phi, gradient, weight = 0.0, None, None
         for c in self.configuration:
             phi, b = c.barrier_terms(x)
-            values = phi.tolist()
-            if not min(values) > 0:  # also catches NaN
-                _raise_violation(c.names, phi)
-            log_phi += math.fsum(map(math.log, values))
+            log_phi += _log_sum(c.names, phi)
             gradient = b if gradient is None else gradient + b
         log_psi = 0.0
         for c in self.velocity:
             psi, pi, b = c.barrier_terms(x, dx, dyn)
-            values = psi.tolist()
-            if not min(values) > 0:
-                _raise_violation(c.names, psi)
-            log_psi += math.fsum(map(math.log, values))
+            log_psi += _log_sum(c.names, psi)
             if b is not None:
                 gradient = b if gradient is None else gradient + b
             weight = pi if weight is None else weight + pi

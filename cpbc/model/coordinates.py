@@ -42,8 +42,8 @@ class LinearCoordinates:
         t = np.asarray(self.matrix, dtype=float)
         if t.ndim != 2 or t.shape[0] != t.shape[1]:
             raise ModelError(f"coordinate matrix must be square, got shape {t.shape}")
-        if abs(np.linalg.det(t)) < 1e-12:
-            raise ModelError("coordinate matrix T must be invertible")
+        if not np.all(np.isfinite(t)) or np.linalg.cond(t) > 1e12:
+            raise ModelError("coordinate matrix T must be invertible (condition number ≤ 1e12)")
         object.__setattr__(self, "matrix", _frozen(t))
         object.__setattr__(self, "inverse", _frozen(np.linalg.inv(t)))
 

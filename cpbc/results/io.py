@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from cpbc.constraints.base import Array
+from cpbc.errors import CpbcError
 from cpbc.results.metrics import RunSummary
 from cpbc.simulation.trajectory import Trajectory
 
@@ -79,8 +80,16 @@ def staged_output(out: Path) -> Iterator[Path]:
     """Write into a scratch folder next to ``out``; move it into place only on success.
 
     Nothing half-written is left behind: on any error the scratch folder is removed and an
-    existing ``out`` is untouched.
+    existing ``out`` is untouched. An existing ``out`` is replaced only if it is an earlier
+    cpbc output (it holds a summary.json) or empty; anything else is refused.
     """
+    if out.exists() and not (
+        out.is_dir() and ((out / "summary.json").is_file() or not any(out.iterdir()))
+    ):
+        raise CpbcError(
+            f"--out {out} exists and is not an earlier cpbc output (no summary.json); "
+            "choose another folder"
+        )
     out.parent.mkdir(parents=True, exist_ok=True)
     scratch = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:

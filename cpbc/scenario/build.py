@@ -72,6 +72,7 @@ class ScenarioSetup:
     rate_bounds: list[float | None]
     obstacles: list[ObstacleGeom]
     coordinate_names: tuple[str, ...]
+    source: Path  # the scenario file, so worker processes can rebuild the setup
 
     def make_plant(self) -> MujocoPlant:
         """A fresh MuJoCo plant of the scenario's robot with its obstacles in the scene."""
@@ -357,4 +358,5 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         rate_bounds,
         obstacles,
         names,
+        scenario_file,
     )

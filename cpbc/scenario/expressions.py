@@ -34,6 +34,6 @@ def parse_number(value: object) -> object:
     if isinstance(value, str):
         try:
             return _eval(ast.parse(value.strip(), mode="eval").body)
-        except (SyntaxError, ValueError, ZeroDivisionError) as exc:
+        except (SyntaxError, ValueError, ZeroDivisionError, OverflowError, TypeError) as exc:
             raise ValueError(f"cannot read {value!r} as a number: {exc}") from None
     return value

@@ -30,11 +30,15 @@ def _message(err: dict) -> str:  # type: ignore[type-arg]
         return (
             "unknown key; remove it or check its spelling against the scenario format in README.md"
         )
+    if kind == "string_pattern_mismatch":
+        return (f"{err.get('input')!r} is not a valid name: use letters, digits and _ . + -, "
+                "starting with a letter or digit")
     if kind == "missing":
         return "required key is missing"
     if kind == "union_tag_invalid":
         expected = err.get("ctx", {}).get("expected_tags", "")
-        return f"unknown type {err.get('input')!r}; registered types: {expected}"
+        tag = err.get("ctx", {}).get("tag", err.get("input"))
+        return f"unknown type {tag!r}; registered types: {expected}"
     if kind == "union_tag_not_found":
         return "needs a 'type' key"
     return msg.removeprefix("Value error, ")

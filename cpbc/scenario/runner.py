@@ -1,14 +1,23 @@
-"""Run every controller of a scenario on every case and collect the results."""
+"""Run every controller of a scenario on every case and collect the results.
+
+Runs are independent, so with ``workers > 1`` they go to separate processes; each process
+rebuilds the setup from the scenario (Pinocchio and MuJoCo objects are not shared).
+"""
 
 from __future__ import annotations
 
+import multiprocessing
+import os
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
+from pathlib import Path
 
 from cpbc.constraints.base import Array
 from cpbc.results.metrics import RunSummary, margin_history, summarise
-from cpbc.scenario.build import ScenarioSetup
-from cpbc.simulation import Trajectory, run_mujoco, run_reference
+from cpbc.scenario.build import CaseEntry, ControllerEntry, ScenarioSetup, build
+from cpbc.scenario.schema import Scenario
+from cpbc.simulation import MujocoPlant, Trajectory, run_mujoco, run_reference
 
 RunProgress = Callable[[str, float], None]
 
@@ -23,39 +32,87 @@ class RunResult:
     summary: RunSummary
 
 
+def run_one(
+    setup: ScenarioSetup,
+    case: CaseEntry,
+    entry: ControllerEntry,
+    backend: str,
+    plant: MujocoPlant | None = None,
+    progress: RunProgress | None = None,
+) -> RunResult:
+    """One controller on one case."""
+    label = f"{case.name} / {entry.name}"
+
+    def report(frac: float) -> None:
+        if progress is not None:
+            progress(label, frac)
+
+    if backend == "mujoco":
+        traj = run_mujoco(
+            plant or setup.make_plant(), entry.controller, setup.model.coordinates,
+            case.position, case.velocity, setup.loop_settings, report,
+        )
+    else:
+        traj = run_reference(
+            setup.make_reference_plant(), entry.controller, case.position, case.velocity,
+            setup.loop_settings,
+        )
+    report(1.0)
+    margins = margin_history(setup.monitor, traj)
+    summary = summarise(
+        entry.name, case.name, entry.controller, setup.monitor, traj, setup.criteria,
+        setup.rate_bounds, margins,
+    )
+    return RunResult(entry.name, case.name, traj, margins, traj.lyapunov, summary)
+
+
+def _run_in_worker(
+    scenario: Scenario, source: Path, case: str, controller: str, backend: str
+) -> RunResult:
+    """Worker entry: rebuild the setup from its scenario, then run one pair."""
+    setup = build(scenario, source)
+    case_entry = next(c for c in setup.cases if c.name == case)
+    entry = next(c for c in setup.controllers if c.name == controller)
+    return run_one(setup, case_entry, entry, backend)
+
+
+def default_workers(runs: int) -> int:
+    """One process per run, at most one per core (serial for a single run)."""
+    return max(1, min(runs, os.cpu_count() or 1))
+
+
 def run_all(
-    setup: ScenarioSetup, backend: str | None = None, progress: RunProgress | None = None
+    setup: ScenarioSetup,
+    backend: str | None = None,
+    progress: RunProgress | None = None,
+    workers: int = 1,
 ) -> list[RunResult]:
-    """Simulate each (case, controller) pair; ``backend`` overrides the scenario's."""
+    """Simulate each (case, controller) pair; ``backend`` overrides the scenario's.
+
+    Results come in case-major order whatever the number of workers.
+    """
     backend = backend or setup.scenario.simulation.backend
-    results = []
-    plant = setup.make_plant() if backend == "mujoco" else None
-    reference = setup.make_reference_plant() if backend == "reference" else None
-    for case in setup.cases:
-        for entry in setup.controllers:
-            label = f"{case.name} / {entry.name}"
+    pairs = [(case, entry) for case in setup.cases for entry in setup.controllers]
+    if workers <= 1 or len(pairs) <= 1:
+        plant = setup.make_plant() if backend == "mujoco" else None
+        return [run_one(setup, c, e, backend, plant, progress) for c, e in pairs]
+    # Ship only the validated scenario and its file; each worker builds its own objects.
+    context = multiprocessing.get_context("spawn")
+    results: dict[tuple[str, str], RunResult] = {}
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+        futures = {
+            pool.submit(
+                _run_in_worker, setup.scenario, setup.source, c.name, e.name, backend
+            ): (c.name, e.name)
+            for c, e in pairs
+        }
+        if progress is not None:
+            for c, e in pairs:
+                progress(f"{c.name} / {e.name}", 0.0)
+        for done in as_completed(futures):
+            case, name = futures[done]
+            results[case, name] = done.result()
+            if progress is not None:
+                progress(f"{case} / {name}", 1.0)
+    return [results[c.name, e.name] for c, e in pairs]
 
-            def report(frac: float, label: str = label) -> None:
-                if progress is not None:
-                    progress(label, frac)
-
-            if plant is not None:
-                traj = run_mujoco(
-                    plant, entry.controller, setup.model.coordinates, case.position,
-                    case.velocity, setup.loop_settings, report,
-                )
-            else:
-                assert reference is not None
-                traj = run_reference(
-                    reference, entry.controller, case.position, case.velocity,
-                    setup.loop_settings,
-                )
-            report(1.0)
-            margins = margin_history(setup.monitor, traj)
-            lyap = traj.lyapunov
-            summary = summarise(
-                entry.name, case.name, entry.controller, setup.monitor, traj, setup.criteria,
-                setup.rate_bounds, margins,
-            )
-            results.append(RunResult(entry.name, case.name, traj, margins, lyap, summary))
-    return results

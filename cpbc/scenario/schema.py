@@ -21,6 +21,8 @@ Positive = Annotated[Number, Field(gt=0)]
 NonNegative = Annotated[Number, Field(ge=0)]
 Vector = list[Number]
 Gain = Positive | list[Positive]
+# Names become folder names of the output: one path component, no "." or "..".
+SafeName = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")]
 
 
 class Strict(BaseModel):
@@ -51,7 +53,7 @@ class SimulationSpec(Strict):
 
 
 class CaseSpec(Strict):
-    name: str
+    name: SafeName
     position: Vector
     velocity: Vector | None = None
 
@@ -136,14 +138,14 @@ ShapingSpec = Annotated[
 
 class PDSpec(Strict):
     type: Literal["pd", "pd_gravity"]
-    name: str | None = None
+    name: SafeName | None = None
     kp: Gain
     kd: Gain
 
 
 class CPBCSpec(Strict):
     type: Literal["cpbc", "cpbc_ke"]
-    name: str | None = None
+    name: SafeName | None = None
     kp: Gain
     kd: Gain
     shaping: ShapingSpec | None = None
@@ -152,7 +154,7 @@ class CPBCSpec(Strict):
 
 class RecentredSpec(Strict):
     type: Literal["recentred"]
-    name: str | None = None
+    name: SafeName | None = None
     kp: Gain
     kd: Gain
     constraints: list[str] | None = None
@@ -160,7 +162,7 @@ class RecentredSpec(Strict):
 
 class BPBCSpec(Strict):
     type: Literal["bpbc", "bpbc_ke"]
-    name: str | None = None
+    name: SafeName | None = None
     kp: Gain
     kd: Gain
     xi: Gain = 1.0
@@ -177,7 +179,7 @@ ControllerSpec = Annotated[
 class Scenario(Strict):
     """A whole scenario: robot, simulation, target, cases, constraints, controllers."""
 
-    name: Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]+$")]
+    name: SafeName
     description: str = ""
     robot: RobotSpec = RobotSpec()
     simulation: SimulationSpec
