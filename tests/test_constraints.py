@@ -241,10 +241,16 @@ def test_obstacle_default_name_and_values_along(absolute_model, rng):
     )
 
 
-@pytest.mark.parametrize("radius", [0.0, -0.5, float("nan")])
+@pytest.mark.parametrize("radius", [0.0, -0.5, float("nan"), float("inf")])
 def test_obstacle_rejects_non_positive_radius(absolute_model, radius):
     with pytest.raises(CpbcError, match="radius"):
         PointOutsideSphere(absolute_model, "end_point", X_OBS, radius)
+
+
+@pytest.mark.parametrize("centre", [[0.0, 2.0], [0.0, float("inf"), 0.0]])
+def test_obstacle_rejects_bad_centre(absolute_model, centre):
+    with pytest.raises(CpbcError, match="centre"):
+        PointOutsideSphere(absolute_model, "end_point", centre, R_OBS)
 
 
 def test_obstacle_rejects_unknown_frame(absolute_model):

@@ -105,6 +105,12 @@ def expect_error(load_dict, data: dict, field: str, *words: str) -> ScenarioErro
     return err
 
 
+@pytest.mark.parametrize("value", [True, "yes"])
+def test_boolean_is_not_a_number(load_dict, minimal, value):
+    data = yaml.safe_load(yaml.safe_dump(edit(minimal, "simulation.duration", value)))
+    expect_error(load_dict, data, "simulation.duration")
+
+
 # == shipped scenarios ===========================================================================
 def test_there_are_shipped_scenarios():
     names = {p.stem for p in SHIPPED}

@@ -33,11 +33,14 @@ class PointOutsideSphere(ConfigurationConstraint):
         offset: Array | None = None,
         name: str | None = None,
     ) -> None:
-        if not radius > 0:
-            raise CpbcError(f"obstacle radius must be > 0, got {radius}")
+        if not (np.isfinite(radius) and radius > 0):
+            raise CpbcError(f"obstacle radius must be finite and > 0, got {radius}")
+        centre = np.asarray(centre, dtype=float)
+        if centre.shape != (3,) or not np.all(np.isfinite(centre)):
+            raise CpbcError(f"obstacle centre must be 3 finite numbers, got {centre.tolist()}")
         self.model = model
         self.frame_id = model.frame_id(frame)
-        self.centre = np.asarray(centre, dtype=float).reshape(3)
+        self.centre = centre
         self.radius = float(radius)
         self._r2 = self.radius**2
         self.offset = None if offset is None else np.asarray(offset, dtype=float).reshape(3)

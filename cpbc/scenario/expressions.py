@@ -31,6 +31,8 @@ def _eval(node: ast.AST) -> float:
 
 def parse_number(value: object) -> object:
     """Turn '2*pi/3' into a float; leave other values for pydantic to check."""
+    if isinstance(value, bool):  # YAML's yes/true would otherwise pass as 1.0
+        raise ValueError("must be a number, not true/false")
     if isinstance(value, str):
         try:
             return _eval(ast.parse(value.strip(), mode="eval").body)
