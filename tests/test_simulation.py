@@ -138,3 +138,25 @@ def test_log_decimation_keeps_every_kth_sample_and_the_last(bpbc: BPBC) -> None:
 def test_plant_rejects_unknown_integrator() -> None:
     with pytest.raises(CpbcError, match="integrator"):
         PlantSettings(0.001, "Verlet")
+
+
+class Violent(Controller):
+    """Finite but absurd torque: MuJoCo's state blows up and MuJoCo resets it."""
+
+    type_name = "violent"
+
+    def torque(self, x: np.ndarray, dx: np.ndarray) -> np.ndarray:
+        return np.array([1e12, -1e12])
+
+    def lyapunov(self, x: np.ndarray, dx: np.ndarray) -> float:
+        return 0.0
+
+
+def test_mujoco_reset_after_blow_up_is_reported_as_divergence(
+    model: RobotModel, tmp_path, monkeypatch
+) -> None:
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes MUJOCO_LOG.TXT into the working directory
+    traj = run_mujoco(plant(), Violent(model, np.zeros(2)), ABSOLUTE, np.zeros(2), np.zeros(2),
+                      LoopSettings(1.0, 0.001))
+    assert traj.outcome == "diverged"
+    assert traj.end_time < 0.01

@@ -106,6 +106,9 @@ def run_mujoco(
             break
         plant.apply(tau_q)
         plant.step(substeps)
+        if plant.unstable():  # MuJoCo reset the state or dropped the control
+            outcome = "diverged"
+            break
         contacts = max(contacts, plant.data.ncon)
         if progress is not None and k % report_every == 0:
             progress(k / steps)

@@ -19,6 +19,13 @@ INTEGRATORS = {
 }
 
 
+_INSTABILITY_WARNINGS = tuple(
+    int(getattr(mujoco.mjtWarning, name))
+    for name in ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC", "mjWARN_BADCTRL")
+    if hasattr(mujoco.mjtWarning, name)
+)
+
+
 @dataclass(frozen=True)
 class PlantSettings:
     """Physics settings.
@@ -107,6 +114,15 @@ class MujocoPlant:
 
     def step(self, substeps: int) -> None:
         mujoco.mj_step(self.model, self.data, nstep=substeps)
+
+    def unstable(self) -> bool:
+        """Whether MuJoCo met a NaN/Inf/huge state, acceleration or control since reset.
+
+        MuJoCo then resets the state (bad qpos/qvel/qacc) or zeroes the control (bad ctrl)
+        and carries on, so the loop must ask.
+        """
+        warnings = self.data.warning
+        return any(warnings[i].number for i in _INSTABILITY_WARNINGS)
 
     def contact_count(self) -> int:
         return int(self.data.ncon)
