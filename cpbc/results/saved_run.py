@@ -1,0 +1,184 @@
+"""A run folder read back: the scene it was simulated in and every trajectory it logged.
+
+``python -m cpbc.run`` writes, next to ``summary.json`` and the ``<case>/<controller>/``
+folders of ``trajectory.npz`` files, the scene the runs happened in:
+
+* ``scene.mjb``: the compiled MuJoCo model with the scenario's obstacles (binary MJB, so a
+  replay needs no model or mesh files; it loads with the same MuJoCo version);
+* ``scene.json``: the controller's coordinates ``x = T q`` and the frame whose path is traced.
+
+The figures and the viewer read a run only through :func:`load_run`.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from cpbc.constraints.base import Array
+from cpbc.errors import CpbcError
+
+SCENE_MODEL = "scene.mjb"
+SCENE_INFO = "scene.json"
+SUMMARY = "summary.json"
+TRAJECTORY = "trajectory.npz"
+
+
+@dataclass(frozen=True)
+class SceneInfo:
+    """What a replay needs besides the MuJoCo model.
+
+    Attributes:
+        coordinates: T of the controller's coordinates x = T q, shape (n, n).
+        trace_frame: MuJoCo site or body whose path is drawn (the end point).
+        scenario: name of the scenario.
+    """
+
+    coordinates: Array
+    trace_frame: str
+    scenario: str = ""
+
+    def to_json(self) -> str:
+        return json.dumps(
+            {
+                "coordinates": np.asarray(self.coordinates, dtype=float).tolist(),
+                "trace_frame": self.trace_frame,
+                "scenario": self.scenario,
+            },
+            indent=2,
+        )
+
+    @classmethod
+    def from_json(cls, text: str) -> SceneInfo:
+        d = json.loads(text)
+        return cls(np.array(d["coordinates"], dtype=float), d["trace_frame"], d.get("scenario", ""))
+
+
+@dataclass(frozen=True)
+class SavedTrajectory:
+    """One controller on one case, as logged (controller coordinates).
+
+    Attributes:
+        controller, case: names.
+        time: (N,) [s].
+        position, velocity: (N, n) [rad, rad/s].
+        torque: (N, n) generalised forces asked for.
+        joint_torque: (N, n) joint torques applied.
+        margins: (N, m) margin of every monitored constraint.
+        margin_names: (m,) their names.
+        lyapunov: (N,) V.
+        target: (n,).
+        coordinate_names: (n,).
+        outcome: "completed", "diverged" or "constraint_violated".
+        summary: this run's entry of summary.json.
+    """
+
+    controller: str
+    case: str
+    time: Array
+    position: Array
+    velocity: Array
+    torque: Array
+    joint_torque: Array
+    margins: Array
+    margin_names: tuple[str, ...]
+    lyapunov: Array
+    target: Array
+    coordinate_names: tuple[str, ...]
+    outcome: str
+    summary: dict[str, object]
+
+
+@dataclass(frozen=True)
+class SavedCase:
+    """Every controller's run on one case, in the scenario's order."""
+
+    name: str
+    runs: tuple[SavedTrajectory, ...]
+
+    @property
+    def controllers(self) -> tuple[str, ...]:
+        return tuple(r.controller for r in self.runs)
+
+
+@dataclass(frozen=True)
+class SavedRun:
+    """A whole run folder."""
+
+    folder: Path
+    model: mujoco.MjModel
+    info: SceneInfo
+    cases: tuple[SavedCase, ...]
+
+    def case(self, name: str) -> SavedCase:
+        for c in self.cases:
+            if c.name == name:
+                return c
+        raise CpbcError(
+            f"run '{self.folder}' has no case '{name}'; cases: {[c.name for c in self.cases]}"
+        )
+
+
+def write_scene(
+    folder: Path,
+    model: mujoco.MjModel,
+    coordinates: Array,
+    trace_frame: str,
+    scenario: str = "",
+) -> None:
+    """Write ``scene.mjb`` and ``scene.json`` into a run folder."""
+    mujoco.mj_saveModel(model, str(folder / SCENE_MODEL), None)
+    (folder / SCENE_INFO).write_text(SceneInfo(coordinates, trace_frame, scenario).to_json())
+
+
+def _trajectory(path: Path, summary: dict[str, object]) -> SavedTrajectory:
+    with np.load(path) as d:
+        return SavedTrajectory(
+            controller=str(summary["controller"]),
+            case=str(summary["case"]),
+            time=d["time"],
+            position=d["position"],
+            velocity=d["velocity"],
+            torque=d["torque"],
+            joint_torque=d["joint_torque"],
+            margins=d["margins"],
+            margin_names=tuple(str(s) for s in d["margin_names"]),
+            lyapunov=d["lyapunov"],
+            target=d["target"],
+            coordinate_names=tuple(str(s) for s in d["coordinate_names"]),
+            outcome=str(d["outcome"]),
+            summary=summary,
+        )
+
+
+def load_run(folder: Path | str) -> SavedRun:
+    """Read a run folder written by ``python -m cpbc.run``.
+
+    Raises:
+        CpbcError: when the folder lacks summary.json, the scene files or a trajectory.
+    """
+    folder = Path(folder)
+    missing = [n for n in (SUMMARY, SCENE_MODEL, SCENE_INFO) if not (folder / n).is_file()]
+    if missing:
+        raise CpbcError(
+            f"'{folder}' is not a complete run folder: missing {', '.join(missing)} "
+            "(run the scenario again with python -m cpbc.run to write them)"
+        )
+    try:
+        model = mujoco.MjModel.from_binary_path(str(folder / SCENE_MODEL))
+    except ValueError as exc:
+        raise CpbcError(f"cannot load {folder / SCENE_MODEL}: {exc}") from exc
+    info = SceneInfo.from_json((folder / SCENE_INFO).read_text())
+    summaries = json.loads((folder / SUMMARY).read_text())
+    by_case: dict[str, list[SavedTrajectory]] = {}
+    for s in summaries:
+        path = folder / str(s["case"]) / str(s["controller"]) / TRAJECTORY
+        if not path.is_file():
+            raise CpbcError(f"run folder '{folder}' lacks {path.relative_to(folder)}")
+        by_case.setdefault(str(s["case"]), []).append(_trajectory(path, s))
+    cases = tuple(SavedCase(name, tuple(runs)) for name, runs in by_case.items())
+    return SavedRun(folder, model, info, cases)
