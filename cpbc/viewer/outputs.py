@@ -1,0 +1,50 @@
+"""What a scenario run leaves besides its data: the scene files, the figures, ``view.html``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+
+from cpbc.results.plots import write_plots
+from cpbc.results.saved_run import load_run, write_scene
+from cpbc.results.sweep import SceneKinematics, default_trace_frame
+from cpbc.scenario.build import ScenarioSetup
+from cpbc.viewer.export import write_views
+from cpbc.viewer.scene import ViewSettings
+
+
+def trace_frame(setup: ScenarioSetup, model: mujoco.MjModel) -> str:
+    """The frame whose path is drawn: the first constrained point's frame (the thesis's
+    end point, carried by an obstacle constraint) when the MuJoCo model has a site or body
+    of that name, else :func:`default_trace_frame`."""
+    for spec in setup.scenario.constraints:
+        frame = getattr(spec, "frame", None)
+        if isinstance(frame, str) and (
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, frame) >= 0
+            or mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, frame) >= 0
+        ):
+            return frame
+    return default_trace_frame(model)
+
+
+def scene_kinematics(setup: ScenarioSetup) -> SceneKinematics:
+    """Kinematics of the scenario's scene (the plant's model, with its obstacles)."""
+    model = setup.make_plant().model
+    return SceneKinematics(model, setup.model.coordinates.matrix, trace_frame(setup, model))
+
+
+def write_run_outputs(
+    folder: Path, setup: ScenarioSetup, plots: bool = True, settings: ViewSettings | None = None
+) -> list[Path]:
+    """Into a run folder that already holds its trajectories and summary.json: the scene
+    (scene.mjb, scene.json), every case's figures (unless ``plots`` is False) and view.html.
+
+    Returns:
+        The figures and pages written.
+    """
+    kin = scene_kinematics(setup)
+    write_scene(folder, kin.model, kin.coordinates, kin.trace_frame, setup.scenario.name)
+    run = load_run(folder)
+    written = write_plots(run) if plots else []
+    return written + write_views(run, settings=settings)
