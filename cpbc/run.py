@@ -21,6 +21,8 @@ from cpbc.results import staged_output, write_summaries, write_trajectory
 from cpbc.results.metrics import RunSummary
 from cpbc.scenario import build, load_scenario
 from cpbc.scenario.runner import RunResult, default_workers, run_all
+from cpbc.viewer.live import LiveView, start_live_view
+from cpbc.viewer.outputs import write_run_outputs
 
 STATUS_STYLE = {
     "converged": "green",
@@ -46,6 +48,16 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--workers", type=int, default=None,
         help="processes for independent runs (default: one per core, at most one per run)",
+    )
+    p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
+    p.add_argument(
+        "--view", action="store_true",
+        help="stream the simulation to a meshcat viewer on 127.0.0.1 and print its URL "
+        "(runs serially; keeps serving the replay until Ctrl-C)",
+    )
+    p.add_argument(
+        "--view-speed", type=float, default=1.0, metavar="X",
+        help="with --view: simulated seconds per wall-clock second (0: as fast as possible)",
     )
     return p
 
@@ -101,14 +113,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     console = Console(stderr=False, width=None if sys.stdout.isatty() else 200)
     err = Console(stderr=True, width=None if sys.stderr.isatty() else 200)
+    live: LiveView | None = None
     try:
         scenario, file = load_scenario(args.scenario)
         setup = build(scenario, file)
         out = args.out or Path("runs") / scenario.name
+        if args.view:
+            live = start_live_view(setup, args.view_speed)
+            console.print(f"meshcat viewer (live): {live.url}")
         with staged_output(out) as scratch:
             workers = args.workers or default_workers(len(setup.cases) * len(setup.controllers))
             if args.quiet:
-                results = run_all(setup, args.backend, workers=workers)
+                results = (live.run(setup, args.backend) if live else
+                           run_all(setup, args.backend, workers=workers))
             else:
                 with Progress(
                     TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
@@ -121,7 +138,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                             tasks[label] = bar.add_task(label, total=1.0)
                         bar.update(tasks[label], completed=frac)
 
-                    results = run_all(setup, args.backend, progress, workers)
+                    results = (live.run(setup, args.backend, progress) if live else
+                               run_all(setup, args.backend, progress, workers))
             for r in results:
                 folder = scratch / r.case / r.controller
                 folder.mkdir(parents=True, exist_ok=True)
@@ -130,15 +148,22 @@ def main(argv: Sequence[str] | None = None) -> int:
                     r.lyapunov, setup.target, setup.coordinate_names,
                 )
             write_summaries(scratch, [r.summary for r in results])
+            write_run_outputs(scratch, setup, plots=not args.no_plots)
     except CpbcError as exc:
+        if live:
+            live.close()
         err.print(f"[bold red]error:[/bold red] {escape(str(exc))}", highlight=False)
         return 2
     except KeyboardInterrupt:
+        if live:
+            live.close()
         err.print("interrupted; nothing written")
         return 130
     console.print(_table(results, setup.coordinate_names))
     backend = args.backend or scenario.simulation.backend
     console.print(f"backend: {backend}; results written to {out}/")
+    if live:
+        live.hold(out)
     return 0
 
 

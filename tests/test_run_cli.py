@@ -152,7 +152,9 @@ def test_a_second_run_replaces_the_previous_output(tmp_path):
     assert main([str(first), "--out", str(out), "--quiet"]) == 0
     second = tiny(tmp_path, cases=[{"name": "second", "position": [0.1, 0]}])
     assert main([str(second), "--out", str(out), "--quiet"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["second", "summary.csv", "summary.json"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        "scene.json", "scene.mjb", "second", "summary.csv", "summary.json"
+    ]
     assert [r["case"] for r in json.loads((out / "summary.json").read_text())] == ["second"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "tiny.yaml"]
 
