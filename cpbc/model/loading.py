@@ -1,0 +1,395 @@
+"""One URDF arm, loaded into Pinocchio (the controller's model) and MuJoCo (the plant).
+
+Both engines read the *same* URDF text, in which every mesh URI (``package://``, ``file://``
+or relative) has been replaced by an absolute path, so that they see the same links, inertias
+and collision meshes. What this module adds on top of the two parsers:
+
+* **Locked joints.** Grippers and other joints the controller should not drive are frozen at
+  a value: ``pin.buildReducedModel`` in Pinocchio; in MuJoCo the joint is deleted from the
+  spec and its child body is moved to where the joint at that value would put it, so both
+  engines weld the same subtree at the same place.
+* **The same joint order.** After locking, MuJoCo's ``qpos`` order must equal Pinocchio's
+  joint order; this is checked, not assumed.
+* **A clean plant.** One ``motor`` (gear 1, no control or force limit) per remaining joint;
+  gravity (0, 0, −9.81) in both engines; URDF ``<dynamics damping/friction>`` and armature
+  set to zero in MuJoCo because the controller's model does not contain them (use the
+  scenario's ``robot.viscous_friction`` to model viscous friction in both engines). The URDF
+  joint ranges stay in MuJoCo as hard stops. Collision meshes of links that can move collide
+  with obstacles only (``contype=1, conaffinity=0``: no self-contacts, nothing for links
+  welded to the world), so MuJoCo's contact count is a witness of robot–obstacle contact.
+* **Limits.** Joint position, velocity and effort limits of the reduced model, as read from
+  the URDF ``<limit>`` tags.
+
+``example-robot-data`` ships URDFs and meshes but not its Python loader; :data:`ARMS` lists
+the arms of that package that this module knows, with their gripper joints locked by default.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from cpbc.errors import ModelError
+
+Array = NDArray[np.float64]
+
+GRAVITY = np.array([0.0, 0.0, -9.81])
+
+
+@dataclass(frozen=True)
+class ArmEntry:
+    """An arm shipped by ``example-robot-data``.
+
+    Attributes:
+        urdf: URDF path relative to the package's ``robots/`` folder.
+        locked_joints: joints frozen by default (grippers), with their values [rad or m].
+        summary: one line for listings.
+    """
+
+    urdf: str
+    locked_joints: Mapping[str, float] = field(default_factory=dict)
+    summary: str = ""
+
+
+ARMS: dict[str, ArmEntry] = {
+    "panda": ArmEntry(
+        "panda_description/urdf/panda.urdf",
+        {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0},
+        "Franka Emika Panda, 7 DOF (fingers locked closed)",
+    ),
+    "ur3": ArmEntry("ur_description/urdf/ur3_robot.urdf", {}, "Universal Robots UR3, 6 DOF"),
+    "ur5": ArmEntry("ur_description/urdf/ur5_robot.urdf", {}, "Universal Robots UR5, 6 DOF"),
+    "ur10": ArmEntry("ur_description/urdf/ur10_robot.urdf", {}, "Universal Robots UR10, 6 DOF"),
+    "xarm7": ArmEntry("xarm_description/urdf/xarm7.urdf", {}, "UFactory xArm 7, 7 DOF"),
+    "z1": ArmEntry(
+        "z1_description/urdf/z1.urdf", {"jointGripper": 0.0}, "Unitree Z1, 6 DOF (gripper locked)"
+    ),
+}
+
+_MESH_URI = re.compile(r'(<mesh\b[^>]*?\bfilename\s*=\s*)(["\'])(.*?)\2', re.DOTALL)
+
+
+def example_robot_data_share() -> Path | None:
+    """The ``share`` folder that holds ``example-robot-data/robots``, or None if not installed."""
+    try:
+        import cmeel  # type: ignore[import-not-found]
+
+        roots = [Path(cmeel.__file__).resolve().parent.parent / "cmeel.prefix" / "share"]
+    except ImportError:  # pragma: no cover - cmeel comes with pin
+        roots = []
+    roots += [Path(p) / "cmeel.prefix" / "share" for p in _site_packages()]
+    for root in roots:
+        if (root / "example-robot-data" / "robots").is_dir():
+            return root
+    return None
+
+
+def _site_packages() -> list[str]:
+    import site
+    import sysconfig
+
+    paths = [sysconfig.get_paths()["purelib"], sysconfig.get_paths()["platlib"]]
+    try:
+        paths += site.getsitepackages()
+    except AttributeError:  # pragma: no cover - virtualenv's old site module
+        pass
+    return list(dict.fromkeys(paths))
+
+
+def available_arms() -> list[str]:
+    """Names of the ``example-robot-data`` arms that :func:`load_arm` accepts."""
+    return sorted(ARMS)
+
+
+def arm_urdf(name: str) -> Path:
+    """The URDF file of a named ``example-robot-data`` arm."""
+    if name not in ARMS:
+        raise ModelError(f"unknown robot '{name}'; available: {', '.join(available_arms())}")
+    share = example_robot_data_share()
+    if share is None:
+        raise ModelError(
+            f"robot '{name}' comes from the example-robot-data package, which is not installed "
+            "(pip install example-robot-data)"
+        )
+    path = share / "example-robot-data" / "robots" / ARMS[name].urdf
+    if not path.is_file():
+        raise ModelError(f"example-robot-data is installed but lacks {path}")
+    return path
+
+
+def _package_dirs(urdf: Path, extra: Sequence[str | Path]) -> list[Path]:
+    """Folders in which ``package://NAME/...`` is looked up as ``folder/NAME/...``."""
+    dirs = [Path(p) for p in extra]
+    dirs += [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
+    share = example_robot_data_share()
+    if share is not None:
+        dirs.append(share)
+    dirs += list(urdf.resolve().parents)
+    return list(dict.fromkeys(dirs))
+
+
+def resolve_mesh_uri(uri: str, urdf: Path, package_dirs: Sequence[Path]) -> Path:
+    """Absolute path of a URDF mesh reference; ModelError naming the URI if it is missing."""
+    looked: list[Path] = []
+    if uri.startswith("package://"):
+        package, _, rest = uri[len("package://"):].partition("/")
+        for d in package_dirs:
+            looked.append(d / package / rest)
+            if d.name == package:
+                looked.append(d / rest)
+    elif uri.startswith("file://"):
+        looked.append(Path(uri[len("file://"):]))
+    else:
+        p = Path(uri)
+        looked.append(p if p.is_absolute() else urdf.resolve().parent / p)
+    for p in looked:
+        if p.is_file():
+            return p.resolve()
+    where = ", ".join(str(p) for p in looked[:4]) + (" …" if len(looked) > 4 else "")
+    raise ModelError(f"mesh '{uri}' referenced by {urdf} not found (looked in {where})")
+
+
+def resolve_urdf_meshes(
+    urdf: Path, text: str | None = None, package_dirs: Sequence[str | Path] = ()
+) -> str:
+    """The URDF text with every mesh filename replaced by an absolute path."""
+    text = urdf.read_text() if text is None else text
+    dirs = _package_dirs(urdf, package_dirs)
+
+    def sub(m: re.Match[str]) -> str:
+        path = resolve_mesh_uri(m.group(3), urdf, dirs)
+        return f"{m.group(1)}{m.group(2)}{path}{m.group(2)}"
+
+    return _MESH_URI.sub(sub, text)
+
+
+def _quat_axis_angle(axis: Array, angle: float) -> Array:
+    q = np.zeros(4)
+    mujoco.mju_axisAngle2Quat(q, np.asarray(axis, dtype=float), float(angle))
+    return q
+
+
+def lock_mujoco_joint(spec: mujoco.MjSpec, joint_name: str, value: float) -> None:
+    """Delete a hinge/slide joint from a spec, welding its body where the joint puts it at
+    ``value``: X_parent,body ← X_parent,body · T(p_j) · M(value − ref) · T(−p_j)."""
+    joint = spec.joint(joint_name)
+    if joint is None:
+        raise ModelError(f"MuJoCo model has no joint '{joint_name}'")
+    body = joint.parent
+    pos, quat = np.array(body.pos, dtype=float), np.array(body.quat, dtype=float)
+    quat /= np.linalg.norm(quat)
+    axis = np.array(joint.axis, dtype=float)
+    axis /= np.linalg.norm(axis)
+    anchor = np.array(joint.pos, dtype=float)
+    v = float(value) - float(joint.ref)
+    if joint.type == mujoco.mjtJoint.mjJNT_HINGE:
+        rot = _quat_axis_angle(axis, v)
+        moved = np.zeros(3)
+        mujoco.mju_rotVecQuat(moved, anchor, rot)
+        shift = np.zeros(3)
+        mujoco.mju_rotVecQuat(shift, anchor - moved, quat)
+        new_quat = np.zeros(4)
+        mujoco.mju_mulQuat(new_quat, quat, rot)
+        body.pos, body.quat = pos + shift, new_quat
+    elif joint.type == mujoco.mjtJoint.mjJNT_SLIDE:
+        shift = np.zeros(3)
+        mujoco.mju_rotVecQuat(shift, v * axis, quat)
+        body.pos = pos + shift
+    else:
+        raise ModelError(f"joint '{joint_name}' is not a hinge or slide joint; cannot lock it")
+    spec.delete(joint)
+
+
+@dataclass
+class LoadedArm:
+    """An arm loaded from URDF: the reduced Pinocchio model and a recipe for its MuJoCo twin.
+
+    Attributes:
+        name: label (robot name or URDF stem).
+        urdf_path: the source file.
+        urdf_text: the URDF with absolute mesh paths (what both engines read).
+        model: Pinocchio model of the driven joints (locked joints removed), gravity on.
+        collision_model: collision geometry of ``model`` (coal shapes, one per URDF element).
+        locked_joints: frozen joints and their values.
+        joint_names: driven joints, in the order of q (same in both engines).
+        position_lower, position_upper: joint position limits from the URDF, shape (n,);
+            ±inf where the URDF has none.
+        velocity_limit: joint rate limits [rad/s or m/s], shape (n,); inf where none.
+        effort_limit: joint effort limits [N·m or N], shape (n,); inf where none.
+    """
+
+    name: str
+    urdf_path: Path
+    urdf_text: str
+    model: pin.Model
+    collision_model: pin.GeometryModel
+    locked_joints: dict[str, float]
+    joint_names: tuple[str, ...]
+    position_lower: Array
+    position_upper: Array
+    velocity_limit: Array
+    effort_limit: Array
+
+    @property
+    def n(self) -> int:
+        return len(self.joint_names)
+
+    def mujoco_spec(self) -> mujoco.MjSpec:
+        """A fresh MjSpec of the arm (locked joints welded, motors, gravity, no dissipation)."""
+        try:
+            spec = mujoco.MjSpec.from_string(self.urdf_text)
+        except ValueError as exc:
+            raise ModelError(f"MuJoCo could not read {self.urdf_path}: {exc}") from None
+        spec.option.gravity = GRAVITY.tolist()
+        for joint_name, value in self.locked_joints.items():
+            lock_mujoco_joint(spec, joint_name, value)
+        for eq in list(spec.equalities):  # e.g. a mimic of a locked finger
+            spec.delete(eq)
+        for joint in spec.joints:
+            joint.damping = np.zeros_like(np.asarray(joint.damping, dtype=float))
+            joint.frictionloss = 0.0
+            joint.armature = 0.0
+        for geom in spec.geoms:
+            geom.contype, geom.conaffinity = 1, 0
+        for joint_name in self.joint_names:
+            spec.add_actuator(
+                name=f"{joint_name}_motor", target=joint_name,
+                trntype=mujoco.mjtTrn.mjTRN_JOINT, gear=[1.0, 0, 0, 0, 0, 0],
+                ctrllimited=0, forcelimited=0,
+            )
+        return spec
+
+    def mujoco_model(self, spec: mujoco.MjSpec | None = None) -> mujoco.MjModel:
+        """Compile a spec of this arm (``mujoco_spec()`` when omitted) and check it."""
+        spec = self.mujoco_spec() if spec is None else spec
+        try:
+            model = spec.compile()
+        except ValueError as exc:
+            raise ModelError(f"MuJoCo could not compile {self.urdf_path}: {exc}") from None
+        finish_mujoco_model(model, self.joint_names)
+        return model
+
+
+def finish_mujoco_model(model: mujoco.MjModel, joint_names: Sequence[str]) -> None:
+    """Check the joint order and silence geoms welded to the world (they cannot move)."""
+    names = tuple(model.joint(i).name for i in range(model.njnt))
+    if names != tuple(joint_names) or model.nq != len(joint_names):
+        raise ModelError(
+            f"MuJoCo and Pinocchio disagree on the joints: MuJoCo has {list(names)}, "
+            f"Pinocchio {list(joint_names)}"
+        )
+    static = model.body_weldid[model.geom_bodyid] == 0
+    robot = model.geom_conaffinity == 0  # obstacles added by the scenario have conaffinity 1
+    model.geom_contype[static & robot] = 0
+
+
+def _limits(model: pin.Model) -> tuple[Array, Array, Array, Array]:
+    lower = np.array(model.lowerPositionLimit, dtype=float)
+    upper = np.array(model.upperPositionLimit, dtype=float)
+    bad = ~(np.isfinite(lower) & np.isfinite(upper) & (lower < upper))
+    lower[bad], upper[bad] = -np.inf, np.inf
+    vel = np.array(model.velocityLimit, dtype=float)
+    eff = np.array(model.effortLimit, dtype=float)
+    vel[~(vel > 0)] = np.inf
+    eff[~(eff > 0)] = np.inf
+    return lower, upper, vel, eff
+
+
+def load_urdf(
+    path: str | Path,
+    locked_joints: Mapping[str, float] | None = None,
+    name: str | None = None,
+    package_dirs: Sequence[str | Path] = (),
+) -> LoadedArm:
+    """Load a fixed-base URDF arm into Pinocchio, ready for MuJoCo.
+
+    Args:
+        path: the URDF file.
+        locked_joints: joints to freeze, with their values [rad or m].
+        name: label; the file's stem when omitted.
+        package_dirs: extra folders to look up ``package://`` URIs in (besides
+            ``ROS_PACKAGE_PATH``, example-robot-data and the URDF's parent folders).
+
+    Raises:
+        ModelError: missing file or mesh, unknown or out-of-range locked joint, a joint type
+            other than revolute/prismatic among the driven joints.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ModelError(f"URDF file not found: {path}")
+    text = resolve_urdf_meshes(path, package_dirs=package_dirs)
+    try:
+        full = pin.buildModelFromXML(text)
+        geoms = pin.buildGeomFromUrdfString(full, text, pin.GeometryType.COLLISION)
+    except (RuntimeError, ValueError) as exc:
+        raise ModelError(f"Pinocchio could not load {path}: {exc}") from None
+    locked = {k: float(v) for k, v in (locked_joints or {}).items()}
+    joints = list(full.names[1:])
+    unknown = [j for j in locked if j not in joints]
+    if unknown:
+        raise ModelError(f"locked joints {unknown} are not in {path.name}; its joints: {joints}")
+    q_ref = pin.neutral(full)
+    ids = []
+    for joint_name, value in locked.items():
+        jid = full.getJointId(joint_name)
+        jm = full.joints[jid]
+        if jm.nq != 1:
+            raise ModelError(f"cannot lock joint '{joint_name}': it is not a 1-DOF joint")
+        lo, hi = full.lowerPositionLimit[jm.idx_q], full.upperPositionLimit[jm.idx_q]
+        if np.isfinite(lo) and np.isfinite(hi) and lo < hi and not lo <= value <= hi:
+            raise ModelError(
+                f"locked joint '{joint_name}' = {value} is outside its range [{lo}, {hi}]"
+            )
+        q_ref[jm.idx_q] = value
+        ids.append(jid)
+    if ids:
+        try:
+            model, collision = pin.buildReducedModel(full, geoms, ids, q_ref)
+        except (RuntimeError, ValueError) as exc:
+            raise ModelError(f"Pinocchio could not lock {list(locked)} in {path}: {exc}") from None
+    else:
+        model, collision = full, geoms
+    model.gravity = pin.Motion(GRAVITY, np.zeros(3))
+    if model.nq != model.nv:
+        odd = [model.names[i] for i in range(1, model.njoints)
+               if model.joints[i].nq != model.joints[i].nv]
+        raise ModelError(
+            f"{path.name}: joints {odd} are continuous or multi-DOF; only revolute and "
+            "prismatic joints can be driven (lock them, or give them limits in the URDF)"
+        )
+    lower, upper, vel, eff = _limits(model)
+    return LoadedArm(
+        name or path.stem, path, text, model, collision, locked, tuple(model.names[1:]),
+        lower, upper, vel, eff,
+    )
+
+
+def load_arm(
+    name_or_path: str | Path,
+    locked_joints: Mapping[str, float] | None = None,
+    package_dirs: Sequence[str | Path] = (),
+) -> LoadedArm:
+    """Load a named ``example-robot-data`` arm (see :data:`ARMS`) or a URDF file.
+
+    For a named arm the default locked joints (its gripper) apply; ``locked_joints`` adds to
+    or overrides them.
+    """
+    if isinstance(name_or_path, str) and name_or_path in ARMS:
+        entry = ARMS[name_or_path]
+        locked = {**entry.locked_joints, **(locked_joints or {})}
+        return load_urdf(arm_urdf(name_or_path), locked, name_or_path, package_dirs)
+    path = Path(name_or_path)
+    if path.suffix.lower() != ".urdf":
+        raise ModelError(
+            f"unknown robot '{name_or_path}'; available: {', '.join(available_arms())}, "
+            "or a path to a .urdf file"
+        )
+    return load_urdf(path, locked_joints, package_dirs=package_dirs)

@@ -1,0 +1,164 @@
+"""URDF arms in both engines: same joints, same dynamics, same kinematics; clear errors."""
+
+from __future__ import annotations
+
+from functools import cache
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from cpbc.errors import ModelError
+from cpbc.model.loading import (
+    ARMS,
+    LoadedArm,
+    arm_urdf,
+    available_arms,
+    load_arm,
+    load_urdf,
+    resolve_mesh_uri,
+)
+
+
+@cache
+def _arm(name: str) -> tuple[LoadedArm, mujoco.MjModel]:
+    arm = load_arm(name)
+    return arm, arm.mujoco_model()
+
+
+def _random_states(arm: LoadedArm, rng: np.random.Generator, count: int = 4):
+    lo = np.where(np.isfinite(arm.position_lower), arm.position_lower, -np.pi)
+    hi = np.where(np.isfinite(arm.position_upper), arm.position_upper, np.pi)
+    for _ in range(count):
+        yield rng.uniform(lo, hi), rng.normal(size=arm.n)
+
+
+def _agreement(arm: LoadedArm, mj: mujoco.MjModel, rng: np.random.Generator) -> None:
+    data = mujoco.MjData(mj)
+    pdata = arm.model.createData()
+    for q, v in _random_states(arm, rng):
+        data.qpos[:], data.qvel[:] = q, v
+        mujoco.mj_forward(mj, data)
+        m_mj = np.zeros((mj.nv, mj.nv))
+        mujoco.mj_fullM(mj, data, m_mj)
+        m_pin = pin.crba(arm.model, pdata, q)
+        m_pin = np.triu(m_pin) + np.triu(m_pin, 1).T
+        np.testing.assert_allclose(m_pin, m_mj, atol=1e-10)
+        bias = pin.rnea(arm.model, pdata, q, v, np.zeros(arm.n))
+        np.testing.assert_allclose(bias, data.qfrc_bias, atol=1e-9)
+        pin.framesForwardKinematics(arm.model, pdata, q)
+        compared = 0
+        for b in range(1, mj.nbody):
+            name = mj.body(b).name
+            if arm.model.existFrame(name):
+                placement = pdata.oMf[arm.model.getFrameId(name)]
+                np.testing.assert_allclose(placement.translation, data.xpos[b], atol=1e-10)
+                np.testing.assert_allclose(placement.rotation,
+                                           data.xmat[b].reshape(3, 3), atol=1e-10)
+                compared += 1
+        assert compared >= arm.n - 1
+
+
+@pytest.mark.parametrize("name", available_arms())
+def test_pinocchio_and_mujoco_agree(name: str, rng: np.random.Generator) -> None:
+    arm, mj = _arm(name)
+    names = tuple(mj.joint(i).name for i in range(mj.njnt))
+    assert names == arm.joint_names
+    assert mj.nu == arm.n  # one motor per driven joint
+    np.testing.assert_allclose(mj.opt.gravity, [0, 0, -9.81])
+    assert np.all(mj.dof_damping == 0) and np.all(mj.dof_frictionloss == 0)
+    _agreement(arm, mj, rng)
+
+
+def test_at_least_panda_ur5_and_another_arm() -> None:
+    assert {"panda", "ur5"} <= set(available_arms())
+    assert len(available_arms()) >= 3
+
+
+def test_locked_joints_at_a_value_agree(rng: np.random.Generator) -> None:
+    arm = load_arm("panda", {"panda_finger_joint1": 0.03, "panda_finger_joint2": 0.01})
+    assert arm.n == 7 and "panda_finger_joint1" not in arm.joint_names
+    _agreement(arm, arm.mujoco_model(), rng)
+    # a revolute joint locked away from zero: the UR5's wrist 3
+    ur = load_arm("ur5", {"wrist_3_joint": 0.7, "elbow_joint": -1.1})
+    assert ur.n == 4
+    _agreement(ur, ur.mujoco_model(), rng)
+
+
+def test_limits_come_from_the_urdf() -> None:
+    arm, mj = _arm("panda")
+    np.testing.assert_allclose(arm.effort_limit, [87, 87, 87, 87, 12, 12, 12])
+    np.testing.assert_allclose(arm.velocity_limit, [2.175] * 4 + [2.61] * 3)
+    assert arm.position_lower[3] == pytest.approx(-3.0718)
+    assert arm.position_upper[5] == pytest.approx(3.7525)
+    np.testing.assert_allclose(mj.jnt_range[:, 0], arm.position_lower)  # hard stops in MuJoCo
+
+
+def test_robot_geoms_do_not_touch_each_other_or_the_world() -> None:
+    _, mj = _arm("panda")
+    data = mujoco.MjData(mj)
+    for q in (np.zeros(7), np.array([0, -0.3, 0, -2.2, 0, 2.0, 0.8])):
+        data.qpos[:] = q
+        mujoco.mj_forward(mj, data)
+        assert data.ncon == 0
+
+
+def test_unknown_robot_lists_the_available_ones() -> None:
+    with pytest.raises(ModelError, match=r"available: .*panda.*ur5"):
+        load_arm("nao")
+
+
+def test_missing_urdf(tmp_path: Path) -> None:
+    with pytest.raises(ModelError, match="URDF file not found"):
+        load_urdf(tmp_path / "nope.urdf")
+
+
+_ONE_LINK = """<robot name="one">
+  <link name="base"/>
+  <link name="arm">
+    <inertial><mass value="1"/><origin xyz="0 0 0.1"/>
+      <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><geometry><mesh filename="{mesh}"/></geometry></collision>
+  </link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="arm"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="5" velocity="2"/></joint>
+</robot>
+"""
+
+
+def test_missing_mesh_is_named(tmp_path: Path) -> None:
+    urdf = tmp_path / "one.urdf"
+    urdf.write_text(_ONE_LINK.format(mesh="package://nowhere/meshes/arm.stl"))
+    with pytest.raises(ModelError, match=r"package://nowhere/meshes/arm\.stl"):
+        load_urdf(urdf)
+
+
+def test_relative_and_package_meshes_resolve(tmp_path: Path) -> None:
+    share = arm_urdf("panda").parents[4]  # .../share
+    mesh = share / "example-robot-data/robots/panda_description/meshes/collision/link1.stl"
+    found = resolve_mesh_uri(
+        "package://example-robot-data/robots/panda_description/meshes/collision/link1.stl",
+        tmp_path / "x.urdf", [share],
+    )
+    assert found == mesh.resolve()
+    (tmp_path / "meshes").mkdir()
+    (tmp_path / "meshes" / "arm.stl").write_bytes(mesh.read_bytes())
+    urdf = tmp_path / "one.urdf"
+    urdf.write_text(_ONE_LINK.format(mesh="meshes/arm.stl"))
+    arm = load_urdf(urdf)
+    assert arm.joint_names == ("j1",)
+    assert arm.mujoco_model().nu == 1
+
+
+def test_locked_joint_errors() -> None:
+    with pytest.raises(ModelError, match=r"not in panda\.urdf; its joints"):
+        load_arm("panda", {"wrist": 0.0})
+    with pytest.raises(ModelError, match="outside its range"):
+        load_arm("panda", {"panda_finger_joint1": 0.5})
+
+
+def test_registry_entries_exist() -> None:
+    for name in ARMS:
+        assert arm_urdf(name).is_file()
