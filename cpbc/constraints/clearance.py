@@ -1,0 +1,624 @@
+"""Clearance between the whole arm and the obstacles (and between its own links).
+
+One scalar configuration constraint per (robot primitive, obstacle) pair and per
+self-collision pair, all evaluated together so that the hot path is a fixed, small number of
+vectorised operations whatever the number of pairs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from itertools import pairwise
+
+import numpy as np
+import pinocchio as pin
+
+from cpbc.constraints.base import Array, ConfigurationConstraint
+from cpbc.constraints.covering import LinkPrimitive
+from cpbc.constraints.geometry import (
+    BoxObstacle,
+    CapsuleObstacle,
+    Obstacle,
+    PlaneObstacle,
+    SphereObstacle,
+    segment_box,
+    segment_point,
+    segment_segment,
+)
+from cpbc.errors import CpbcError
+from cpbc.model.robot_model import RobotModel
+
+# vec(p ⊗ n) @ _CROSS = p × n
+_CROSS = np.zeros((9, 3))
+for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+    _CROSS[3 * _j + _k, _i] = 1.0
+    _CROSS[3 * _k + _j, _i] = -1.0
+_CROSS.setflags(write=False)
+
+_FAR = 1e9  # clearance given to the missing second end of a sphere against a plane
+_TINY = 1e-300
+
+
+@dataclass
+class _Spheres:
+    """Sphere primitives against every obstacle (as rounded boxes) and each other.
+
+    For pair p of sphere centre s and an obstacle with centre c, rotation R, core half-extents
+    h and rounding ρ: u_p = Rᵀ(s − c) is linear in Pinocchio's static regressor Y, so all
+    u_p come out of one product vec(Y) @ w + c; then d_p = ‖max(|u_p| − h, 0)‖ − ρ. A self
+    pair is the same with c the other sphere's centre (R = I, h = 0).
+    """
+
+    start: int
+    stop: int
+    w: Array  # (3P, 12 nj): u = (w @ vec(Y) + c).reshape(P, 3)
+    c: Array  # (3P,)
+    half: Array  # (P, 3)
+    rsum: Array  # sphere radius + rounding (+ other radius) + margin, (P,)
+    rot: Array  # (P, 3, 3)
+    centres: Array  # (4 nj, P): first sphere centre of each pair
+    mask: Array  # (P, n)
+    n_obstacle: int  # pairs [0, n_obstacle) are against obstacles, the rest are self pairs
+    centres2: Array  # (4 nj, S) second sphere of each self pair
+    mask2: Array  # (S, n)
+    packed: Array  # (P, 9 + 4 nj + n): rot, centre column, mask — one gather per step
+    starts: Array  # first pair of each reported constraint (a link against an obstacle/link)
+    group: Array  # (P,) the constraint of each pair, counted from ``start``
+
+
+@dataclass
+class _Group:
+    """Capsule primitives against obstacles of one kind (or capsule self pairs).
+
+    Segment ends of every pair: a = (Y @ ea).T, b = (Y @ eb).T.
+    """
+
+    kind: str
+    start: int
+    stop: int
+    ea: Array
+    eb: Array
+    mask: Array  # (P, n) support of the robot body of each pair (1 where q_k moves it)
+    rsum: Array  # radii + margin, (P,)
+    ea2: Array | None = None  # self pairs: the other primitive
+    eb2: Array | None = None
+    mask2: Array | None = None
+    other: Array | None = None  # sphere centres / capsule starts / box centres / plane normals
+    other2: Array | None = None  # capsule ends / box half-extents / plane offsets
+    rot: Array | None = None  # box rotations (P, 3, 3)
+    has_b: Array | None = None  # planes: 1 where the primitive has a distinct second end
+
+
+class Clearance(ConfigurationConstraint):
+    """φ_p(x) = d_p(x) − Δ > 0 for every pair p of a robot primitive and an obstacle (or of
+    two robot primitives on different links), d_p the exact distance between the two shapes
+    (cpbc.constraints.geometry) and Δ the margin.
+
+    Gradient (envelope theorem): ∇φ_p = n̂ᵀ J_P(x), with P the closest point of the robot
+    primitive held fixed on its link, n̂ the unit vector from the obstacle's closest point to
+    P, and J_P the Jacobian of that point, assembled for all pairs at once from Pinocchio's
+    world joint Jacobians: column k of J_P is v_k + ω_k × P (zero for joints that do not move
+    the link). For a self pair both points move: ∇φ = n̂ᵀ (J_P − J_Q).
+
+    **Spheres are the fast path.** Every obstacle is a rounded box (geometry.RoundedBox), so a
+    sphere primitive's distance to any obstacle is one formula, exact and C¹ outside the
+    obstacle; the centres of all spheres, in every obstacle's frame, come out of a single
+    matrix product with Pinocchio's static regressor (all joint placements in one call).
+    Capsule primitives are supported too (segment–sphere, segment–segment, segment–box and
+    segment–plane, each exact; see the smoothness notes in cpbc.constraints.geometry), at a
+    higher cost per step. A capsule above a plane enters the barrier as the product of its
+    two end spheres' clearances (each smooth, where min(n·a, n·b) is not); its reported value
+    is the smaller of the two.
+
+    **Localised barrier.** Theorem 6.9 sums ∇φ_p/φ_p over every pair, so an obstacle far
+    away still pulls (weakly) on the arm and every pair enters every step. With an
+    ``influence`` distance ℓ the law is given instead the constraint functions
+
+        φ̃_p = ℓ σ(φ_p/ℓ),   σ(u) = 1 − (1 − u)³ for u < 1,   σ(u) = 1 for u ≥ 1,
+
+    which are C² wherever φ_p is, positive exactly where φ_p is (the same admissible set S),
+    equal to 3φ_p + O(φ_p²) at the boundary (the same barrier there) and constant, with zero
+    gradient, once the pair is farther apart than ℓ. This is Theorem 6.9 applied to the
+    constraints φ̃_p, so its guarantees hold unchanged, and a pair beyond ℓ is *exactly*
+    inactive: when no pair is within ℓ the barrier costs the distance computation only, and
+    capsule groups are skipped after a conservative bounding-sphere test. With
+    ``influence=None`` the barrier is φ_p itself (the plain thesis form).
+
+    ``value`` and ``gradient`` report the clearance φ_p itself [m] (what the run summary
+    shows); ``barrier_terms`` gives the law φ̃_p and Σ ∇φ̃_p/φ̃_p.
+
+    Args:
+        model: the controller's robot model.
+        primitives: robot primitives (spheres or capsules fixed in link frames).
+        obstacles: fixed obstacles.
+        margin: Δ ≥ 0 [m].
+        influence: ℓ > 0 [m], or None for the non-localised barrier.
+        self_pairs: pairs of link (frame) names to keep apart; every primitive of the one
+            against every primitive of the other.
+        name: prefix of the constraint names, ``name[primitive|obstacle]``.
+    """
+
+    def __init__(
+        self,
+        model: RobotModel,
+        primitives: Sequence[LinkPrimitive],
+        obstacles: Sequence[Obstacle],
+        margin: float = 0.0,
+        influence: float | None = 0.1,
+        self_pairs: Sequence[tuple[str, str]] = (),
+        name: str = "clearance",
+    ) -> None:
+        if not (np.isfinite(margin) and margin >= 0):
+            raise CpbcError(f"clearance margin must be ≥ 0, got {margin}")
+        if influence is not None and not (np.isfinite(influence) and influence > 0):
+            raise CpbcError(f"clearance influence distance must be > 0, got {influence}")
+        if not primitives:
+            raise CpbcError("clearance needs at least one robot primitive")
+        prim_names = [p.name for p in primitives]
+        if len(set(prim_names)) != len(prim_names):
+            raise CpbcError(f"primitive names must be unique, got {prim_names}")
+        obs_names = [o.name for o in obstacles]
+        if len(set(obs_names)) != len(obs_names):
+            raise CpbcError(f"obstacle names must be unique, got {obs_names}")
+        frames = sorted({p.frame for p in primitives})
+        for a, b in self_pairs:
+            for f in (a, b):
+                if f not in frames:
+                    raise CpbcError(
+                        f"self-collision pair ({a}, {b}): no primitive on link '{f}'; "
+                        f"links with primitives: {frames}"
+                    )
+            if a == b:
+                raise CpbcError(f"self-collision pair ({a}, {b}) names one link twice")
+        if not obstacles and not self_pairs:
+            raise CpbcError("clearance needs at least one obstacle or self-collision pair")
+        self.model = model
+        self.primitives = tuple(primitives)
+        self.obstacles = tuple(obstacles)
+        self.margin = float(margin)
+        self.influence = None if influence is None else float(influence)
+        self.self_pairs = tuple((str(a), str(b)) for a, b in self_pairs)
+        self._pin = model.model
+        self._data = model.model.createData()
+        self._n = model.n
+        self._identity = model.coordinates.is_identity
+        self._t_inv = model.coordinates.inverse
+        self._setup_kinematics()
+        self._setup_pairs(name)
+        self._far_phi = np.full(len(self.names), self.influence or 1.0)
+        self._far_phi.setflags(write=False)
+        self._zero = np.zeros(self._n)
+        self._zero.setflags(write=False)
+
+    # -- set-up ------------------------------------------------------------------------------
+    def _setup_kinematics(self) -> None:
+        """Points fixed on links as columns over Pinocchio's static regressor.
+
+        ``computeStaticRegressor`` returns, in one call, Y = [t_1 R_1 … t_n R_n]/M (3 × 4n):
+        every joint placement, divided by the total mass M. A point l fixed in joint j's frame
+        is then at M·Y[:, 4(j−1):4j] @ [1, l]: Y times a constant column.
+        """
+        pm, data = self._pin, self._data
+        self._nj = pm.njoints - 1
+        q = pin.neutral(pm) + 0.3
+        y = pin.computeStaticRegressor(pm, data, q)
+        pin.forwardKinematics(pm, data, q)
+        scale = np.sqrt(3.0) / np.linalg.norm(y[:, 1:4])
+        rebuilt = np.hstack(
+            [np.column_stack([data.oMi[j].translation, data.oMi[j].rotation])
+             for j in range(1, pm.njoints)]
+        )
+        if not np.allclose(scale * y, rebuilt, atol=1e-9):  # pragma: no cover
+            raise CpbcError("unexpected layout of Pinocchio's static regressor")
+        self._scale = float(scale)
+        self._supports = np.zeros((pm.njoints, self._n))
+        for j in range(1, pm.njoints):
+            for k in pm.supports[j].tolist()[1:]:
+                jm = pm.joints[k]
+                self._supports[j, jm.idx_v: jm.idx_v + jm.nv] = 1.0
+        self._joint: list[int] = []
+        self._local: list[tuple[Array, Array]] = []
+        for p in self.primitives:
+            frame = pm.frames[self.model.frame_id(p.frame)]
+            if frame.parentJoint == 0:
+                raise CpbcError(
+                    f"primitive '{p.name}' is on '{p.frame}', which is welded to the world: "
+                    "its clearance cannot change; leave it out"
+                )
+            self._joint.append(frame.parentJoint)
+            self._local.append((frame.placement.act(p.start), frame.placement.act(p.end)))
+
+    def _column(self, i: int, end: int | None) -> Array:
+        """The column giving primitive i's start (0), end (1) or midpoint (None) from Y."""
+        a, b = self._local[i]
+        local = 0.5 * (a + b) if end is None else (a if end == 0 else b)
+        j = self._joint[i]
+        col = np.zeros(4 * self._nj)
+        col[4 * (j - 1)] = self._scale
+        col[4 * (j - 1) + 1: 4 * j] = self._scale * local
+        return col
+
+    def _columns(self, prims: Sequence[int], end: int | None) -> Array:
+        return np.ascontiguousarray(np.column_stack([self._column(i, end) for i in prims]))
+
+    def _masks(self, prims: Sequence[int]) -> Array:
+        return self._supports[[self._joint[i] for i in prims]]
+
+    def _setup_pairs(self, name: str) -> None:
+        prims = self.primitives
+        spheres = [i for i, p in enumerate(prims) if p.kind == "sphere"]
+        capsules = [i for i, p in enumerate(prims) if p.kind == "capsule"]
+        by_frame: dict[str, list[int]] = {}
+        for i, p in enumerate(prims):
+            by_frame.setdefault(p.frame, []).append(i)
+        self_pairs = [(i, j) for a, b in self.self_pairs for i in by_frame[a] for j in by_frame[b]]
+        names: list[str] = []
+        # sphere primitives: one fast group, reported per (link, obstacle) and (link, link)
+        sphere_frames = list(dict.fromkeys(prims[i].frame for i in spheres))
+        obs_pairs, group = [], []
+        for o in self.obstacles:
+            for f in sphere_frames:
+                obs_pairs += [(i, o) for i in by_frame[f] if prims[i].kind == "sphere"]
+                group += [len(names)] * (len(obs_pairs) - len(group))
+                names.append(f"{name}[{f}|{o.name}]")
+        sphere_self = []
+        for a, b in self.self_pairs:
+            pairs = [(i, j) for i in by_frame[a] for j in by_frame[b]
+                     if prims[i].kind == "sphere" and prims[j].kind == "sphere"]
+            if pairs:
+                sphere_self += pairs
+                group += [len(names)] * len(pairs)
+                names.append(f"{name}[{a}|{b}]")
+        self._spheres: _Spheres | None = None
+        if obs_pairs or sphere_self:
+            self._spheres = self._sphere_group(obs_pairs, sphere_self, 0, group)
+        # capsule primitives: one group per obstacle kind
+        self._groups: list[_Group] = []
+        broad: list[tuple[Array, float]] = []  # (column over vec(Y), constant)
+        thresholds: list[float] = []  # reach² per bounded pair
+        span = self.influence or 0.0
+        half_len = [0.5 * p.length for p in prims]
+
+        def bounded(i: int, col: Array, centre: Array, reach: float) -> None:
+            for c in range(3):  # Δ = mid − centre, component c, over vec(Y)
+                w = np.zeros((3, 4 * self._nj))
+                w[c] = col
+                broad.append((w.reshape(-1), -float(centre[c])))
+            thresholds.append(reach * reach)
+
+        for kind, cls in (("sphere", SphereObstacle), ("capsule", CapsuleObstacle),
+                          ("box", BoxObstacle)):
+            pairs = [(i, o) for o in self.obstacles if isinstance(o, cls) for i in capsules]
+            if not pairs:
+                continue
+            start = len(names)
+            names += [f"{name}[{prims[i].name}|{o.name}]" for i, o in pairs]
+            for i, o in pairs:
+                centre, rad = o.bounding_sphere()
+                reach = half_len[i] + prims[i].radius + rad + self.margin + span
+                bounded(i, self._column(i, None), centre, reach)
+            pi = [i for i, _ in pairs]
+            g = _Group(kind, start, len(names), self._columns(pi, 0), self._columns(pi, 1),
+                       self._masks(pi), np.array([prims[i].radius for i in pi]) + self.margin)
+            if kind == "sphere":
+                g.other = np.array([o.centre for _, o in pairs])  # type: ignore[attr-defined]
+                g.rsum = g.rsum + np.array([o.radius for _, o in pairs])  # type: ignore[attr-defined]
+            elif kind == "capsule":
+                g.other = np.array([o.start for _, o in pairs])  # type: ignore[attr-defined]
+                g.other2 = np.array([o.end for _, o in pairs])  # type: ignore[attr-defined]
+                g.rsum = g.rsum + np.array([o.radius for _, o in pairs])  # type: ignore[attr-defined]
+            else:
+                g.other = np.array([o.centre for _, o in pairs])  # type: ignore[attr-defined]
+                g.other2 = np.array([o.half_extents for _, o in pairs])  # type: ignore[attr-defined]
+                g.rot = np.array([o.rotation for _, o in pairs])  # type: ignore[attr-defined]
+            self._groups.append(g)
+        capsule_self = [(i, j) for i, j in self_pairs if (i, j) not in set(sphere_self)]
+        if capsule_self:
+            start = len(names)
+            names += [f"{name}[{prims[i].name}|{prims[j].name}]" for i, j in capsule_self]
+            for i, j in capsule_self:
+                reach = (half_len[i] + half_len[j] + prims[i].radius + prims[j].radius
+                         + self.margin + span)
+                bounded(i, self._column(i, None) - self._column(j, None), np.zeros(3), reach)
+            pi, pj = [i for i, _ in capsule_self], [j for _, j in capsule_self]
+            self._groups.append(_Group(
+                "self", start, len(names), self._columns(pi, 0), self._columns(pi, 1),
+                self._masks(pi),
+                np.array([prims[i].radius + prims[j].radius for i, j in capsule_self])
+                + self.margin,
+                ea2=self._columns(pj, 0), eb2=self._columns(pj, 1), mask2=self._masks(pj),
+            ))
+        self._n_bounded = len(broad) // 3
+        planes = [(i, o) for o in self.obstacles if isinstance(o, PlaneObstacle) for i in capsules]
+        plane_cols: list[tuple[Array, float]] = []
+        if planes:
+            start = len(names)
+            names += [f"{name}[{prims[i].name}|{o.name}]" for i, o in planes]
+            pi = [i for i, _ in planes]
+            g = _Group("plane", start, len(names), self._columns(pi, 0), self._columns(pi, 1),
+                       self._masks(pi), np.array([prims[i].radius for i in pi]) + self.margin)
+            g.other = np.array([o.normal for _, o in planes])  # type: ignore[attr-defined]
+            g.other2 = np.array([o.offset for _, o in planes])  # type: ignore[attr-defined]
+            g.has_b = np.array([float(prims[i].kind == "capsule") for i in pi])
+            for e in (g.ea, g.eb):  # heights n·a − offset − r − Δ and n·b − …, over vec(Y)
+                for p in range(len(planes)):
+                    plane_cols.append((np.outer(g.other[p], e[:, p]).reshape(-1),
+                                       -(g.other2[p] + g.rsum[p])))
+            self._groups.append(g)
+        if len(set(names)) != len(names):
+            dup = sorted({n for n in names if names.count(n) > 1})
+            raise CpbcError(f"clearance pairs {dup} appear twice: give primitives on one link "
+                            "one kind, or distinct names")
+        self.names = tuple(names)
+        cols = [c for c, _ in broad] + [c for c, _ in plane_cols]
+        self._broad_w = (np.ascontiguousarray(np.column_stack(cols)) if cols
+                         else np.zeros((12 * self._nj, 0)))
+        self._broad_c = np.array([k for _, k in broad] + [k for _, k in plane_cols])
+        self._broad_thr = np.array(thresholds)
+        starts, pos = [], 0
+        for g in self._groups:
+            starts.append(pos)
+            pos += 2 * (g.stop - g.start) if g.kind == "plane" else g.stop - g.start
+        self._reduce_at = np.array(starts, dtype=np.intp)
+
+    def _sphere_group(
+        self, obs_pairs: list[tuple[int, Obstacle]], self_pairs: list[tuple[int, int]],
+        start: int, group: list[int],
+    ) -> _Spheres:
+        cols, consts, half, rsum, rots = [], [], [], [], []
+        for i, o in obs_pairs:
+            core = o.core()
+            s = self._column(i, 0)
+            for c in range(3):  # u_c = R[:, c]·(Y s − centre)
+                cols.append(np.outer(core.rotation[:, c], s).reshape(-1))
+            consts.extend((-(core.rotation.T @ core.centre)).tolist())
+            half.append(core.half_extents)
+            rsum.append(self.primitives[i].radius + core.rounding + self.margin)
+            rots.append(core.rotation)
+        for i, j in self_pairs:
+            s = self._column(i, 0) - self._column(j, 0)
+            for c in range(3):
+                w = np.zeros((3, 4 * self._nj))
+                w[c] = s
+                cols.append(w.reshape(-1))
+            consts.extend([0.0, 0.0, 0.0])
+            half.append(np.zeros(3))
+            rsum.append(self.primitives[i].radius + self.primitives[j].radius + self.margin)
+            rots.append(np.eye(3))
+        first = [i for i, _ in obs_pairs] + [i for i, _ in self_pairs]
+        second = [j for _, j in self_pairs]
+        empty = np.zeros((4 * self._nj, 0))
+        centres, masks = self._columns(first, 0), self._masks(first)
+        rot = np.array(rots)
+        grp = np.array(group, dtype=np.intp)
+        starts = np.flatnonzero(np.diff(grp, prepend=-1)).astype(np.intp)
+        return _Spheres(
+            start, start + int(grp[-1]) + 1, np.ascontiguousarray(np.vstack(cols)),
+            np.array(consts), np.array(half), np.array(rsum), rot, centres, masks,
+            len(obs_pairs),
+            self._columns(second, 0) if second else empty,
+            self._masks(second) if second else np.zeros((0, self._n)),
+            np.ascontiguousarray(np.hstack([rot.reshape(-1, 9), centres.T, masks])),
+            starts, grp,
+        )
+
+    # -- shared kinematics ---------------------------------------------------------------
+    def _q(self, x: Array) -> Array:
+        return x if self._identity else self._t_inv @ x
+
+    def _regressor(self, q: Array) -> Array:
+        """Y (3, 4n): every joint placement, scaled, in one Pinocchio call."""
+        return pin.computeStaticRegressor(self._pin, self._data, q)
+
+    def _rows_times_jacobians(
+        self, q: Array, points: Array, normals: Array, masks: Array
+    ) -> Array:
+        """Rows n_rᵀ J(p_r) with J(p) the Jacobian of a point fixed on its link, shape (r, n),
+        joint coordinates."""
+        pin.computeJointJacobians(self._pin, self._data, q)
+        jac = self._data.J
+        outer = (points[:, :, None] * normals[:, None, :]).reshape(-1, 9)
+        return (normals @ jac[:3] + outer @ (_CROSS @ jac[3:])) * masks
+
+    # -- distances ---------------------------------------------------------------------------
+    def _sphere_distances(self, y: Array) -> tuple[Array, Array, Array, Array]:
+        """Sphere pairs: φ (P,), the core distance d (P,), u (P, 3), max(|u| − h, 0) (P, 3)."""
+        s = self._spheres
+        assert s is not None
+        u = (s.w @ y.reshape(-1) + s.c).reshape(-1, 3)
+        excess = np.abs(u) - s.half
+        outside = np.maximum(excess, 0.0)
+        d = np.sqrt((outside * outside).sum(axis=1))
+        return d - s.rsum, d, u, outside
+
+    def _sphere_rows(
+        self, y: Array, u: Array, outside: Array, scale: Array
+    ) -> list[tuple[Array, Array, Array]]:
+        """(points, normals × scale·d, masks) of the sphere pairs' gradient rows: pass
+        ``scale`` already divided by the core distance d."""
+        s = self._spheres
+        assert s is not None
+        local = np.copysign(outside, u) * scale[:, None]
+        normal = (s.rot @ local[:, :, None])[:, :, 0]
+        rows = [((y @ s.centres).T, normal, s.mask)]
+        if s.n_obstacle < len(s.group):
+            rows.append(((y @ s.centres2).T, -normal[s.n_obstacle:], s.mask2))
+        return rows
+
+    def _sphere_active_rows(
+        self, y: Array, act: Array, u: Array, outside: Array, scale: Array
+    ) -> list[tuple[Array, Array, Array]]:
+        """Like _sphere_rows for the pairs ``act`` only (``scale`` given for those)."""
+        s = self._spheres
+        assert s is not None
+        nj4 = 4 * self._nj
+        block = s.packed[act]
+        local = np.copysign(outside[act], u[act]) * scale[:, None]
+        normal = (block[:, :9].reshape(-1, 3, 3) @ local[:, :, None])[:, :, 0]
+        rows = [(block[:, 9:9 + nj4] @ y.T, normal, block[:, 9 + nj4:])]
+        if s.n_obstacle < len(s.group):
+            own = act >= s.n_obstacle
+            if own.any():
+                other = act[own] - s.n_obstacle
+                rows.append(((y @ s.centres2[:, other]).T, -normal[own], s.mask2[other]))
+        return rows
+
+    def _narrow(
+        self, g: _Group, y: Array
+    ) -> tuple[Array, list[tuple[Array, Array, Array]], Array | None]:
+        """Exact clearances of a capsule group and its gradient rows (points, unit normals,
+        masks). For planes: φ of the a ends then the b ends (2P,), and min(φ_a, φ_b)."""
+        a = (y @ g.ea).T
+        b = (y @ g.eb).T
+        if g.kind == "sphere":
+            d, p, n = segment_point(a, b, g.other)  # type: ignore[arg-type]
+            return d - g.rsum, [(p, n, g.mask)], None
+        if g.kind == "capsule":
+            d, p, _, n = segment_segment(a, b, g.other, g.other2)  # type: ignore[arg-type]
+            return d - g.rsum, [(p, n, g.mask)], None
+        if g.kind == "box":
+            d, p, _, n = segment_box(a, b, g.other, g.rot, g.other2)  # type: ignore[arg-type]
+            return d - g.rsum, [(p, n, g.mask)], None
+        if g.kind == "self":
+            d, p, q, n = segment_segment(a, b, (y @ g.ea2).T, (y @ g.eb2).T)
+            return d - g.rsum, [(p, n, g.mask), (q, -n, g.mask2)], None  # type: ignore[list-item]
+        normal = g.other
+        phi_a = (a * normal).sum(axis=1) - g.other2 - g.rsum  # type: ignore[operator]
+        phi_b = (b * normal).sum(axis=1) - g.other2 - g.rsum  # type: ignore[operator]
+        phi_b_term = phi_b + (1.0 - g.has_b) * _FAR  # type: ignore[operator]
+        rows = [(a, normal, g.mask), (b, normal, g.mask)]
+        return np.concatenate([phi_a, phi_b_term]), rows, np.minimum(phi_a, phi_b)  # type: ignore[return-value]
+
+    # -- ConfigurationConstraint ----------------------------------------------------------
+    def value(self, x: Array) -> Array:
+        y = self._regressor(self._q(x))
+        out = np.empty(len(self.names))
+        s = self._spheres
+        if s is not None:
+            phi, _, u, outside = self._sphere_distances(y)
+            inside = ~np.any(outside > 0, axis=1)
+            if inside.any():  # signed distance inside the core box
+                depth = np.max(np.abs(u) - s.half, axis=1) - s.rsum
+                phi = np.where(inside, depth, phi)
+            out[s.start:s.stop] = np.minimum.reduceat(phi, s.starts)
+        for g in self._groups:
+            phi, _, pair = self._narrow(g, y)
+            out[g.start:g.stop] = phi if pair is None else pair
+        return out
+
+    def evaluate(self, x: Array) -> tuple[Array, Array]:
+        q = self._q(x)
+        y = self._regressor(q)
+        k = len(self.names)
+        grad = np.empty((k, self._n))
+        out = self.value(x)
+        s = self._spheres
+        if s is not None:
+            phi, d, u, outside = self._sphere_distances(y)
+            rows = self._sphere_rows(y, u, outside, 1.0 / np.maximum(d, _TINY))
+            g0 = self._rows_times_jacobians(q, *rows[0])
+            if len(rows) > 1:
+                g0[s.n_obstacle:] += self._rows_times_jacobians(q, *rows[1])
+            # each reported constraint is its closest sphere pair
+            bounds = [*s.starts.tolist(), len(phi)]
+            closest = [lo + int(np.argmin(phi[lo:hi])) for lo, hi in pairwise(bounds)]
+            grad[s.start:s.stop] = g0[closest]
+        for g in self._groups:
+            phi, rows, _ = self._narrow(g, y)
+            size = g.stop - g.start
+            if g.kind == "plane":
+                (pa, n, mask), (pb, _, _) = rows
+                use_b = (phi[size:] < phi[:size])[:, None]
+                grad[g.start:g.stop] = self._rows_times_jacobians(
+                    q, np.where(use_b, pb, pa), n, mask)
+            else:
+                grad[g.start:g.stop] = sum(
+                    self._rows_times_jacobians(q, p, n, mask) for p, n, mask in rows)
+        if not self._identity:
+            grad = grad @ self._t_inv
+        return out, grad
+
+    def gradient(self, x: Array) -> Array:
+        return self.evaluate(x)[1]
+
+    def _shape(self, phi: Array) -> tuple[Array, Array]:
+        """φ̃ and (dφ̃/dφ)/φ̃ of the class docstring (φ and 1/φ without an influence)."""
+        ell = self.influence
+        if ell is None:
+            return phi, 1.0 / phi
+        v = 1.0 - np.minimum(phi * (1.0 / ell), 1.0)
+        v2 = v * v
+        shaped = ell - ell * (v2 * v)
+        return shaped, 3.0 * v2 / shaped
+
+    def _near_groups(self, y: Array) -> list[_Group]:
+        """Capsule groups with a pair that may be within the influence distance."""
+        if not self._groups:
+            return []
+        if self.influence is None:
+            return self._groups
+        z = y.reshape(-1) @ self._broad_w + self._broad_c
+        n3 = 3 * self._n_bounded
+        delta = z[:n3].reshape(-1, 3)
+        slack = np.concatenate([(delta * delta).sum(axis=1) - self._broad_thr,
+                                z[n3:] - self.influence])
+        low = (np.minimum.reduceat(slack, self._reduce_at) < 0.0).tolist()
+        return [g for g, hit in zip(self._groups, low, strict=True) if hit]
+
+    def barrier_terms(self, x: Array) -> tuple[Array, Array]:
+        q = self._q(x)
+        y = self._regressor(q)
+        ell = self.influence
+        rows: list[tuple[Array, Array, Array]] = []
+        phi_out: Array | None = None
+        s = self._spheres
+        if s is not None:
+            phi, d, u, outside = self._sphere_distances(y)
+            low = phi.min()
+            if low <= 0.0:  # outside S: report it, the constraint set raises
+                phi_out = self._far_phi.copy()
+                phi_out[s.start:s.stop] = np.minimum.reduceat(phi, s.starts)
+                return phi_out, self._zero
+            # a link's barrier is the product of its spheres' terms (their log-barriers add)
+            if ell is None:
+                shaped, inv = self._shape(phi)
+                phi_out = self._far_phi.copy()
+                phi_out[s.start:s.stop] = np.multiply.reduceat(shaped, s.starts)
+                rows += self._sphere_rows(y, u, outside, inv / d)
+            elif low < ell:  # only the pairs within ℓ enter the law
+                act = np.flatnonzero(phi < ell)
+                shaped, inv = self._shape(phi[act])
+                phi_out = self._far_phi.copy()
+                np.multiply.at(phi_out, s.start + s.group[act], shaped * (1.0 / ell))
+                rows += self._sphere_active_rows(y, act, u, outside, inv / d[act])
+        for g in self._near_groups(y):
+            phi, grows, _ = self._narrow(g, y)
+            if phi.min() <= 0.0:
+                phi_out = self._far_phi.copy() if phi_out is None else phi_out
+                phi_out[g.start:g.stop] = phi[: g.stop - g.start]
+                return phi_out, self._zero
+            shaped, inv = self._shape(phi)
+            phi_out = self._far_phi.copy() if phi_out is None else phi_out
+            size = g.stop - g.start
+            if g.kind == "plane":  # the pair's barrier is the product of its end terms
+                (pa, n, mask), (pb, _, _) = grows
+                keep_b = shaped[size:] if ell is not None else np.where(
+                    g.has_b > 0, shaped[size:], 1.0)  # type: ignore[operator]
+                phi_out[g.start:g.stop] = shaped[:size] * (keep_b / (ell or 1.0))
+                rows += [(pa, n * inv[:size, None], mask),
+                         (pb, n * (inv[size:] * g.has_b)[:, None], mask)]  # type: ignore[operator]
+            else:
+                phi_out[g.start:g.stop] = shaped
+                rows += [(p, n * inv[:, None], mask) for p, n, mask in grows]
+        if phi_out is None:
+            return self._far_phi, self._zero
+        if len(rows) == 1:
+            b = self._rows_times_jacobians(q, *rows[0]).sum(axis=0)
+        else:
+            b = self._rows_times_jacobians(
+                q, *(np.concatenate(part) for part in zip(*rows, strict=True))
+            ).sum(axis=0)
+        if not self._identity:
+            b = b @ self._t_inv
+        return phi_out, b

@@ -1,0 +1,184 @@
+"""Clearance constraints of the whole arm: values, gradients, the localised barrier."""
+
+from __future__ import annotations
+
+from functools import cache
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from cpbc.constraints import ConstraintSet
+from cpbc.constraints.clearance import Clearance
+from cpbc.constraints.covering import LinkPrimitive, cover_links
+from cpbc.constraints.geometry import (
+    BoxObstacle,
+    CapsuleObstacle,
+    PlaneObstacle,
+    SphereObstacle,
+)
+from cpbc.errors import ConstraintViolation, CpbcError, ModelError
+from cpbc.model import LinearCoordinates, RobotModel
+from cpbc.model.loading import LoadedArm, load_arm
+
+HOME = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
+OBSTACLES = (
+    SphereObstacle("ball", [0.5, 0.0, 0.5], 0.1),
+    BoxObstacle("crate", [0.4, -0.4, 0.2], [0.1, 0.15, 0.2], [0.0, 0.0, 0.3]),
+    PlaneObstacle("table", [0.0, 0.0, -0.05]),
+    CapsuleObstacle("pole", [0.3, 0.5, 0.0], [0.3, 0.5, 1.0], 0.04, kind="cylinder"),
+)
+SELF = (("panda_link1", "panda_hand"), ("panda_link2", "panda_link6"))
+
+
+@cache
+def _panda() -> tuple[LoadedArm, RobotModel]:
+    arm = load_arm("panda")
+    return arm, RobotModel(arm.model, name="panda")
+
+
+@cache
+def _cover(kind: str) -> tuple[LinkPrimitive, ...]:
+    arm, _ = _panda()
+    if kind == "mixed":
+        caps = cover_links(arm.model, arm.collision_model, kind="capsules")[:5]
+        rest = cover_links(arm.model, arm.collision_model,
+                           links=["panda_link6", "panda_link7", "panda_hand"])
+        return tuple(caps + rest)
+    return tuple(cover_links(arm.model, arm.collision_model, kind=kind))
+
+
+def _clearance(kind: str = "spheres", influence: float | None = 0.3, **kw) -> Clearance:
+    _, model = _panda()
+    kw.setdefault("self_pairs", SELF)
+    return Clearance(model, _cover(kind), OBSTACLES, margin=0.01, influence=influence, **kw)
+
+
+def _states(rng: np.random.Generator, count: int = 12):
+    return [HOME + rng.normal(scale=0.5, size=7) for _ in range(count)]
+
+
+@pytest.mark.parametrize("kind", ["spheres", "capsules", "mixed"])
+def test_gradient_matches_finite_differences(kind, rng, central_difference) -> None:
+    c = _clearance(kind)
+    for x in _states(rng):
+        phi, grad = c.evaluate(x)
+        np.testing.assert_allclose(phi, c.value(x))
+        np.testing.assert_allclose(grad, c.gradient(x))
+        fd = central_difference(c.value, x)
+        ok = phi > 0
+        np.testing.assert_allclose(grad[ok], fd[ok], atol=2e-7)
+
+
+@pytest.mark.parametrize("influence", [None, 0.3])
+@pytest.mark.parametrize("kind", ["spheres", "capsules", "mixed"])
+def test_barrier_terms_are_the_gradient_of_the_log_barrier(
+    kind, influence, rng, central_difference
+) -> None:
+    c = _clearance(kind, influence)
+    checked = 0
+    for x in _states(rng, 16):
+        if not np.all(c.value(x) > 0):
+            continue
+        phi_tilde, b = c.barrier_terms(x)
+        assert np.all(phi_tilde > 0)
+        fd = central_difference(lambda z: np.log(c.barrier_terms(z)[0]).sum(), x)
+        np.testing.assert_allclose(b, fd, atol=1e-6 * max(1.0, np.abs(b).max()))
+        checked += 1
+    assert checked >= 5
+
+
+@pytest.mark.parametrize("kind", ["spheres", "capsules"])
+def test_skipping_far_pairs_is_exact(kind, rng) -> None:
+    """The broad phase and the active-pair selection change nothing in the barrier."""
+    c = _clearance(kind, 0.15)
+    reference = _clearance(kind, 0.15)
+    reference._near_groups = lambda y: reference._groups  # type: ignore[method-assign]
+    s = reference._spheres
+    for x in _states(rng, 30):
+        if not np.all(c.value(x) > 0):
+            continue
+        phi, b = c.barrier_terms(x)
+        if s is not None:  # evaluate every sphere pair, the slow way
+            phi_all = reference._sphere_distances(reference._regressor(x))[0]
+            shaped = reference._shape(phi_all)[0]
+            expect = np.multiply.reduceat(shaped / 0.15, s.starts) * 0.15
+            np.testing.assert_allclose(phi[s.start:s.stop], expect, rtol=1e-12)
+        phi_r, b_r = reference.barrier_terms(x)
+        np.testing.assert_allclose(phi, phi_r, rtol=1e-12)
+        np.testing.assert_allclose(b, b_r, atol=1e-12)
+
+
+def test_localised_barrier_shape() -> None:
+    c = _clearance(influence=0.2)
+    phi = np.array([1e-6, 0.05, 0.1999, 0.2, 0.5])
+    shaped, ratio = c._shape(phi)
+    np.testing.assert_allclose(shaped[0], 3e-6, rtol=1e-5)  # 3φ at the boundary
+    np.testing.assert_allclose(ratio[0], 1 / 1e-6, rtol=1e-5)  # the same barrier force
+    assert shaped[3] == shaped[4] == 0.2 and ratio[3] == ratio[4] == 0.0
+    assert np.all(np.diff(shaped) >= 0)
+    # C¹ at the cut-off: the slope tends to zero
+    assert ratio[2] < 1e-5
+
+
+def test_far_from_everything_costs_no_gradient() -> None:
+    _, model = _panda()
+    far = [SphereObstacle("far", [3.0, 3.0, 3.0], 0.1)]
+    c = Clearance(model, _cover("spheres"), far, influence=0.1)
+    phi, b = c.barrier_terms(HOME)
+    assert np.all(phi == 0.1) and np.all(b == 0)
+    assert np.all(c.value(HOME) > 2.0)
+
+
+def test_penetration_is_negative_and_the_law_refuses_it() -> None:
+    _, model = _panda()
+    arm, _ = _panda()
+    pdata = arm.model.createData()
+    pin.framesForwardKinematics(arm.model, pdata, HOME)
+    hand = pdata.oMf[arm.model.getFrameId("panda_hand")].translation
+    inside = [SphereObstacle("on_hand", hand, 0.05),
+              BoxObstacle("box_on_hand", hand, [0.05, 0.05, 0.05])]
+    c = Clearance(model, _cover("spheres"), inside, influence=0.1, name="hit")
+    values = dict(zip(c.names, c.value(HOME), strict=True))
+    assert values["hit[panda_hand|on_hand]"] < 0
+    assert values["hit[panda_hand|box_on_hand]"] < 0
+    with pytest.raises(ConstraintViolation):
+        ConstraintSet(7, [c]).barrier(HOME, np.zeros(7), model.dynamics(HOME, np.zeros(7)))
+
+
+def test_names_are_per_link_and_obstacle() -> None:
+    c = _clearance()
+    assert "clearance[panda_hand|ball]" in c.names
+    assert "clearance[panda_link1|panda_hand]" in c.names
+    assert len(c.names) == 10 * len(OBSTACLES) + len(SELF)
+    assert len(set(c.names)) == len(c.names)
+
+
+def test_controller_coordinates(rng, central_difference) -> None:
+    arm, _ = _panda()
+    t = np.eye(7) + np.tril(rng.normal(scale=0.3, size=(7, 7)), -1)
+    model = RobotModel(arm.model, LinearCoordinates(t), name="panda")
+    c = Clearance(model, _cover("spheres"), OBSTACLES[:2], margin=0.01, influence=0.3)
+    plain = _clearance(self_pairs=())
+    x = t @ HOME
+    np.testing.assert_allclose(c.value(x)[:20], plain.value(HOME)[:20])
+    np.testing.assert_allclose(c.gradient(x), central_difference(c.value, x), atol=2e-7)
+
+
+def test_constructor_validates() -> None:
+    _, model = _panda()
+    prims = _cover("spheres")
+    with pytest.raises(CpbcError, match="margin"):
+        Clearance(model, prims, OBSTACLES, margin=-0.1)
+    with pytest.raises(CpbcError, match="influence"):
+        Clearance(model, prims, OBSTACLES, influence=0.0)
+    with pytest.raises(CpbcError, match="no primitive on link 'panda_link9'"):
+        Clearance(model, prims, OBSTACLES, self_pairs=[("panda_link1", "panda_link9")])
+    with pytest.raises(CpbcError, match="welded to the world"):
+        Clearance(model, [LinkPrimitive("base", "panda_link0", np.zeros(3), np.zeros(3), 0.1)],
+                  OBSTACLES)
+    with pytest.raises(ModelError, match="no frame 'nope'"):
+        Clearance(model, [LinkPrimitive("x", "nope", np.zeros(3), np.zeros(3), 0.1)],
+                  OBSTACLES)
+    with pytest.raises(CpbcError, match="obstacle names must be unique"):
+        Clearance(model, prims, [OBSTACLES[0], OBSTACLES[0]])
