@@ -18,7 +18,7 @@ from cpbc.errors import ModelError
 
 #: MuJoCo's default visible geom groups; higher groups usually hold collision-only copies.
 DRAWN_GROUPS = (0, 1, 2)
-_NOT_OBSTACLES = (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD)
+_NOT_OBSTACLES = (int(mujoco.mjtGeom.mjGEOM_PLANE), int(mujoco.mjtGeom.mjGEOM_HFIELD))
 DEFAULT_TRACE_SITE = "end_point"
 
 
@@ -99,7 +99,7 @@ class SceneKinematics:
         self.obstacle_geoms = tuple(
             g
             for g in drawn
-            if model.geom_bodyid[g] == 0 and model.geom_type[g] not in _NOT_OBSTACLES
+            if model.geom_bodyid[g] == 0 and int(model.geom_type[g]) not in _NOT_OBSTACLES
         )
         self.body_names = tuple(
             _name(model, mujoco.mjtObj.mjOBJ_BODY, b, "body") for b in range(model.nbody)

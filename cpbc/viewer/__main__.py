@@ -24,7 +24,7 @@ from cpbc.results.saved_run import SavedRun, load_run
 from cpbc.results.sweep import SceneKinematics
 from cpbc.viewer.browser import HeadlessChromium
 from cpbc.viewer.export import VIEW_FILE, write_views
-from cpbc.viewer.scene import ROOT, CaseScene, ViewSettings
+from cpbc.viewer.scene import ROOT, CaseScene, ViewSettings, set_animation
 from cpbc.viewer.server import MeshcatServer
 
 
@@ -64,7 +64,7 @@ def serve(run: SavedRun, first: str, frame: str | None, settings: ViewSettings) 
                               root=f"{ROOT}/{case.name}")
             anim.clips.update(scene.draw_runs(vis, case.runs).clips)
             vis[f"{ROOT}/{case.name}"].set_property("visible", case.name == first)
-        vis.set_animation(anim, play=True, repetitions=1)
+        set_animation(vis, anim, play=True)
         print(f"meshcat viewer of {run.folder} (case '{first}'): {server.web_url}", flush=True)
         print("other cases: tick them under Scene > meshcat > cpbc; Ctrl-C to stop", flush=True)
         try:

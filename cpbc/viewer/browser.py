@@ -64,10 +64,12 @@ class PageLog:
         errors: uncaught exceptions, ``console.error``/``assert`` calls and browser log
             entries of level error (failed loads, WebGL errors), as text.
         messages: every other console call and log entry, as text.
+        requests: the URL of every request the page made.
     """
 
     errors: list[str] = field(default_factory=list)
     messages: list[str] = field(default_factory=list)
+    requests: list[str] = field(default_factory=list)
 
 
 _TRAMPOLINE = (
@@ -147,7 +149,7 @@ class HeadlessChromium:
             self._session = self.call(
                 "Target.attachToTarget", {"targetId": target, "flatten": True}
             )["sessionId"]
-            for domain in ("Page", "Runtime", "Log"):
+            for domain in ("Page", "Runtime", "Log", "Network"):
                 self.call(f"{domain}.enable")
             self.call(
                 "Emulation.setDeviceMetricsOverride",
@@ -233,6 +235,8 @@ class HeadlessChromium:
             (
                 self.log.errors if params.get("type") in ("error", "assert") else self.log.messages
             ).append(text)
+        elif method == "Network.requestWillBeSent":
+            self.log.requests.append(str(params.get("request", {}).get("url", "")))
         elif method == "Log.entryAdded":
             e = params.get("entry", {})
             text = f"{e.get('source')} {e.get('level')}: {e.get('text')} {e.get('url', '')}".strip()

@@ -19,7 +19,7 @@ import meshcat
 from cpbc.results.saved_run import SavedCase, SavedRun
 from cpbc.results.sweep import SceneKinematics
 from cpbc.viewer.recorder import CommandRecorder
-from cpbc.viewer.scene import CaseScene, ViewSettings
+from cpbc.viewer.scene import CaseScene, ViewSettings, set_animation
 
 VIEW_FILE = "view.html"
 
@@ -128,7 +128,7 @@ def case_view(
     recorder = CommandRecorder()
     vis = recorder.visualizer()
     anim = scene.draw_runs(vis, case.runs)
-    vis.set_animation(anim, play=True, repetitions=1)
+    set_animation(vis, anim, play=True)
     duration = max(float(r.time[-1]) for r in case.runs)
     return scene, recorder, duration
 

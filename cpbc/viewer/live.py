@@ -26,7 +26,7 @@ from cpbc.scenario.build import ScenarioSetup
 from cpbc.scenario.runner import RunProgress, RunResult, run_one
 from cpbc.simulation.plant import MujocoPlant, PlantSettings
 from cpbc.viewer.outputs import scene_kinematics
-from cpbc.viewer.scene import ROOT, CaseScene, ViewSettings
+from cpbc.viewer.scene import ROOT, CaseScene, ViewSettings, set_animation
 from cpbc.viewer.server import MeshcatServer
 
 _COLOUR_LEVELS = 8  # clearance colours are redrawn only when they change this coarsely
@@ -152,7 +152,7 @@ class LiveView:
             return
         now = time.perf_counter()
         cur.wall_start, cur.last_trace = now, now
-        cur.levels = np.full(self.scenes[cur.case].kin.model.nbody, -1.0)
+        cur.levels = np.zeros(0)
         cur.trace = []
         self._frame(data, force=True)
 
@@ -175,12 +175,13 @@ class LiveView:
         assert cur is not None and cur.trace is not None
         scene = self.scenes[cur.case]
         x = self._t @ data.qpos
-        clearance = scene.pose_arm(self.vis, cur.controller, x)
+        bodies, obstacles = scene.pose_arm(self.vis, cur.controller, x)
         cur.trace.append(scene.kin.traced_point())
         warn = scene.settings.warn_distance
-        levels = np.round(_COLOUR_LEVELS * np.clip(1 - clearance / warn, 0, 1))
+        levels = np.round(_COLOUR_LEVELS * np.clip(1 - np.r_[bodies, obstacles] / warn, 0, 1))
         if scene.kin.obstacle_geoms and not np.array_equal(levels, cur.levels):
-            scene.recolour_arm(self.vis, cur.controller, clearance)
+            scene.recolour_arm(self.vis, cur.controller, bodies)
+            scene.recolour_obstacles(self.vis, obstacles)
             cur.levels = levels
         now = time.perf_counter()
         cur.last_frame = now
@@ -207,18 +208,22 @@ class LiveView:
             if case.name not in self._drawn:
                 self._show_case(case.name)
             sweeps = scene.sweeps(case.runs)
+            nearest = np.full(len(scene.kin.obstacle_geoms), np.inf)
             for r in case.runs:
                 s = sweeps[r.controller]
                 scene.draw_trace(self.vis, r.controller, s.trace)
                 final = r.position[np.all(np.isfinite(r.position), axis=1)][-1]
-                clearance = scene.pose_arm(self.vis, r.controller, final)
+                bodies, obstacles = scene.pose_arm(self.vis, r.controller, final)
+                nearest = np.minimum(nearest, obstacles)
                 if scene.kin.obstacle_geoms:
-                    scene.recolour_arm(self.vis, r.controller, clearance)
+                    scene.recolour_arm(self.vis, r.controller, bodies)
+            if scene.kin.obstacle_geoms:
+                scene.recolour_obstacles(self.vis, nearest)
             anim.clips.update(scene.animation(self.vis, sweeps).clips)
             last = case.name
         if last is not None:
             self._show_case(last)
-        self.vis.set_animation(anim, play=False, repetitions=1)
+        set_animation(self.vis, anim, play=False)
 
     # -- lifetime ------------------------------------------------------------------------------
     def hold(self, run_folder: Path) -> None:

@@ -23,6 +23,7 @@ import meshcat.geometry as mg
 import mujoco
 import numpy as np
 from meshcat.animation import Animation, AnimationClip, AnimationTrack
+from meshcat.commands import SetAnimation
 
 from cpbc.constraints.base import Array
 from cpbc.results.palette import (
@@ -249,15 +250,21 @@ class CaseScene:
         tip.set_object(mg.Sphere(self.marker_radius), _material(colour))
         self.pose_arm(vis, controller, self.start if x is None else x)
 
-    def pose_arm(self, vis: meshcat.Visualizer, controller: str, x: Array) -> Array:
-        """Move the controller's arm to x; returns the per-body clearances (nbody,) [m]."""
+    def pose_arm(
+        self, vis: meshcat.Visualizer, controller: str, x: Array
+    ) -> tuple[Array, Array]:
+        """Move the controller's arm to x.
+
+        Returns:
+            Clearances [m] of every body (nbody,) and of every obstacle (nobstacle,).
+        """
         d = self.kin.pose(x)
         for b in self.bodies:
             vis[self._body_path(controller, b)].set_transform(_matrix(d.xpos[b], d.xquat[b]))
         vis[f"{self.controller_path(controller)}/tip"].set_transform(
             _translation(self.kin.traced_point())
         )
-        return self.kin.clearances(self.settings.warn_distance)[0]
+        return self.kin.clearances(self.settings.warn_distance)
 
     def recolour_arm(self, vis: meshcat.Visualizer, controller: str, clearance: Array) -> None:
         """Redraw the controller's bodies in their clearance colours (used by the live view)."""
@@ -265,6 +272,14 @@ class CaseScene:
         for b in self.bodies:
             colour = _hex(clearance_colour(base, clearance[b], self.settings.warn_distance))
             self._draw_body(vis, self._body_path(controller, b), b, colour, self.settings.opacity)
+
+    def recolour_obstacles(self, vis: meshcat.Visualizer, clearance: Array) -> None:
+        """Redraw the obstacles in their clearance colours (used by the live view)."""
+        for j, g in enumerate(self.kin.obstacle_geoms):
+            shape = self._shapes[g]
+            if shape is not None:
+                rgb = clearance_colour(OBSTACLE_COLOUR, clearance[j], self.settings.warn_distance)
+                vis[self._obstacle_path(g)].set_object(shape, _material(_hex(rgb), 0.55))
 
     def draw_trace(self, vis: meshcat.Visualizer, controller: str, points: Array) -> None:
         """The traced frame's path as a tube in the controller's colour."""
@@ -355,7 +370,7 @@ class CaseScene:
     def draw_runs(self, vis: meshcat.Visualizer, runs: Sequence[RunPath]) -> Animation:
         """Draw the environment and every run's arm and trace; returns their animation.
 
-        The caller sets the animation (``vis.set_animation``), possibly merged with those of
+        The caller sets the animation (:func:`set_animation`), possibly merged with those of
         other cases: meshcat holds one animation per scene.
         """
         self.draw_environment(vis)
@@ -364,6 +379,25 @@ class CaseScene:
             self.draw_arm(vis, r.controller)
             self.draw_trace(vis, r.controller, sweeps[r.controller].trace)
         return self.animation(vis, sweeps)
+
+
+class _SetAnimationLast(SetAnimation):
+    """meshcat's set_animation command, filed under its own top-level node of the server's
+    scene tree. The server files animations at the root and replays its tree root first to a
+    browser that connects later, so the animation would arrive before the objects it moves
+    and colours; filed last, it arrives after them. (The page ignores the command's path.)"""
+
+    __slots__ = ()
+
+    def lower(self) -> dict[str, object]:
+        data = super().lower()
+        data["path"] = "/zz_cpbc_animation"
+        return data
+
+
+def set_animation(vis: meshcat.Visualizer, animation: Animation, play: bool = True) -> None:
+    """Load ``animation`` in the viewer (played once when ``play``; it stops on its last frame)."""
+    vis.window.send(_SetAnimationLast(animation, play=play, repetitions=1))
 
 
 def _translation(p: Array) -> Array:

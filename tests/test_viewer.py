@@ -1,0 +1,364 @@
+"""The meshcat viewer, checked as a person would: the exported view.html and the live and
+replay pages are opened in headless Chromium, which must draw the scene (the canvas changes
+when the run's objects are hidden) without logging an error. Also: every MuJoCo geom type
+is drawn, clearances and colours are the geometry's, the server listens on 127.0.0.1 only.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import umsgpack
+import yaml
+from PIL import Image
+
+from cpbc.results.palette import clearance_colour
+from cpbc.results.saved_run import load_run
+from cpbc.results.sweep import SceneKinematics
+from cpbc.run import main
+from cpbc.viewer.browser import HeadlessChromium, find_chromium
+from cpbc.viewer.recorder import CommandRecorder
+from cpbc.viewer.scene import CaseScene, ViewSettings
+from cpbc.viewer.shapes import geom_geometry, tube
+
+needs_chromium = pytest.mark.skipif(
+    find_chromium() is None,
+    reason="Debian's chromium is not installed (bash scripts/install.sh --test installs it)",
+)
+READY = "window.cpbc && window.cpbc.ready"
+DURATION = 2.0
+OBSTACLE = ([1.7, 1.0], 0.3)
+
+SHAPES_XML = """
+<mujoco>
+  <asset><mesh name="tet" vertex="0 0 0  0.3 0 0  0 0.3 0  0 0 0.3"/></asset>
+  <worldbody>
+    <geom name="floor" type="plane" size="3 3 0.1"/>
+    <geom name="ball" type="sphere" size="0.2" pos="1 1 0.5"/>
+    <geom name="crate" type="box" size="0.1 0.2 0.3" pos="-1 1 0.5"/>
+    <geom name="post" type="cylinder" size="0.1 0.4" pos="1 -1 0.5"/>
+    <geom name="egg" type="ellipsoid" size="0.1 0.2 0.3" pos="-1 -1 0.5"/>
+    <geom name="rock" type="mesh" mesh="tet" pos="0 1.5 0.2"/>
+    <body name="arm">
+      <joint name="j" type="hinge" axis="0 0 1"/>
+      <geom name="bar" type="capsule" fromto="0 0 0 1 0 0" size="0.05"/>
+      <site name="tip" pos="1 0 0"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def scenario(folder: Path) -> Path:
+    """Two seconds of the planar arm: PD runs its end point into an obstacle, CPBC keeps
+    clear of it; two cases."""
+    data = {
+        "name": "viewer_short",
+        "robot": {"model": "planar_2link", "coordinates": "absolute"},
+        "simulation": {"duration": DURATION},
+        "target": ["pi", "2*pi/3"],
+        "cases": [
+            {"name": "rest", "position": [0, 0]},
+            {"name": "moving", "position": [0, 0], "velocity": [0.1, 0.05]},
+        ],
+        "constraints": [
+            {"type": "point_outside_sphere", "name": "obstacle", "frame": "end_point",
+             "centre": OBSTACLE[0], "radius": OBSTACLE[1]},
+            {"type": "joint_rate_limit", "name": "link_rates", "bounds": [0.3, 0.2]},
+        ],
+        "controllers": [
+            {"type": "pd", "name": "PD", "kp": 4, "kd": 20},
+            {"type": "cpbc", "name": "CPBC", "kp": 4, "kd": 20,
+             "shaping": {"type": "power", "alpha": 0.2}},
+        ],
+    }
+    path = folder / "viewer_short.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+@pytest.fixture(scope="module")
+def run_folder(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("viewer")
+    out = folder / "out"
+    code = main([str(scenario(folder)), "--out", str(out), "--quiet", "--workers", "1",
+                 "--no-plots"])
+    assert code == 0
+    return out
+
+
+def _pixels(png: bytes) -> np.ndarray:
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=float)
+
+
+def _assert_scene_drawn(browser: HeadlessChromium, shot: Path, root: str = "cpbc") -> None:
+    """Screenshot, then hide the run's objects: the picture must change where they were."""
+    browser.next_frames(3)
+    with_scene = _pixels(browser.screenshot(shot))
+    browser.evaluate(
+        f'viewer.scene_tree.find(["meshcat", "{root}"]).object.visible = false; '
+        "viewer.set_dirty(); true"
+    )
+    browser.next_frames(3)
+    without = _pixels(browser.screenshot())
+    changed = np.any(np.abs(with_scene - without) > 12, axis=2).mean()
+    assert changed > 0.005, f"the scene covers only {changed:.2%} of the canvas"
+    assert with_scene.std() > 10  # not a blank canvas
+
+
+def _meshes(root: str) -> str:
+    """JS: number of meshes under the meshcat node ``root`` (0 while it does not exist)."""
+    return (
+        "(() => { const node = viewer.scene.getObjectByName('meshcat'); if (!node) return 0;"
+        f" const r = node.getObjectByName('{root}'); if (!r) return 0; let n = 0;"
+        " r.traverse(o => { if (o.isMesh && o.visible) n++; }); return n; })()"
+    )
+
+
+# -- geometry -----------------------------------------------------------------------------------
+def test_every_geom_type_is_drawn_and_planes_are_not():
+    model = mujoco.MjModel.from_xml_string(SHAPES_XML)
+    kin = SceneKinematics(model, np.eye(1), "tip")
+    names = {kin.geom_names[g] for g in kin.obstacle_geoms}
+    assert names == {"ball", "crate", "post", "egg", "rock"}
+    assert [kin.geom_names[g] for g in kin.robot_geoms] == ["bar"]
+    for g in range(model.ngeom):
+        shape = geom_geometry(model, g)
+        assert (shape is None) == (kin.geom_names[g] == "floor")
+    bar = geom_geometry(model, model.geom("bar").id)
+    # A capsule of radius 0.05 and half-length 0.5 along its local z-axis.
+    assert np.ptp(bar.vertices, axis=0) == pytest.approx([0.1, 0.1, 1.1], abs=1e-6)
+    rock = model.geom("rock").id
+    assert len(geom_geometry(model, rock).vertices) == model.mesh_vertnum[model.geom_dataid[rock]]
+
+    recorder = CommandRecorder()
+    scene = CaseScene(kin, ["A", "B"], np.array([1.0]), np.array([0.0]))
+    anim = scene.draw_runs(recorder.visualizer(), [])
+    assert not anim.clips
+    objects = [umsgpack.unpackb(c)["path"] for c in recorder.commands
+               if umsgpack.unpackb(c)["type"] == "set_object"]
+    for name in ("ball", "crate", "post", "egg", "rock"):
+        assert f"/meshcat/cpbc/obstacles/{name}" in objects
+    assert not any("floor" in p.rsplit("/", 1)[-1] for p in objects if "obstacles" in p)
+    scene.draw_arm(recorder.visualizer(), "A")
+    assert "/meshcat/cpbc/A/robot/arm/bar" in [
+        umsgpack.unpackb(c)["path"] for c in recorder.commands
+    ]
+
+
+def test_clearance_is_the_distance_between_link_and_obstacle():
+    model = mujoco.MjModel.from_xml_string(SHAPES_XML)
+    kin = SceneKinematics(model, np.eye(1), "tip")
+    kin.pose(np.array([0.0]))
+    body, obstacle = kin.clearances(distmax=5.0)
+    ball = [kin.geom_names[g] for g in kin.obstacle_geoms].index("ball")
+    # Capsule axis from (0,0,0) to (1,0,0), radius 0.05; ball at (1,1,0.5), radius 0.2.
+    assert obstacle[ball] == pytest.approx(np.sqrt(1.25) - 0.05 - 0.2, abs=1e-6)
+    assert body[model.body("arm").id] == pytest.approx(obstacle.min())
+    assert np.allclose(kin.traced_point(), [1, 0, 0])
+    kin.pose(np.array([np.pi / 2]))
+    assert np.allclose(kin.traced_point(), [0, 1, 0], atol=1e-12)
+    capped = kin.clearances(distmax=0.1)[1]
+    assert np.all(capped <= 0.1)
+
+
+def test_tube_follows_the_path_at_its_radius():
+    t = np.linspace(0, np.pi, 200)
+    path = np.column_stack([np.cos(t), np.sin(t), np.zeros_like(t)])
+    shape = tube(path, 0.01)
+    v = shape.vertices.astype(float)
+    # Every vertex lies 0.01 from the unit circle in the plane z = 0.
+    dist = np.hypot(np.hypot(v[:, 0], v[:, 1]) - 1.0, v[:, 2])
+    assert dist == pytest.approx(0.01, abs=1e-5)
+    assert shape.faces.max() < len(v)
+    assert tube(np.zeros((5, 3)), 0.01) is None
+
+
+# -- the exported page --------------------------------------------------------------------------
+def test_every_case_has_a_self_contained_view(run_folder):
+    for case in ("rest", "moving"):
+        page = (run_folder / case / "view.html").read_text()
+        assert "MeshCat.Viewer" in page
+        assert not re.search(r"""<(script|link|img)[^>]+(src|href)=["']?https?:""", page)
+        assert 100_000 < len(page) < 5_000_000
+
+
+@needs_chromium
+def test_exported_view_renders_in_chromium_without_errors(run_folder, tmp_path):
+    run = load_run(run_folder)
+    case = run.case("rest")
+    page = run_folder / "rest" / "view.html"
+    with HeadlessChromium(width=1000, height=700) as browser:
+        browser.open(page.as_uri(), READY, timeout=60)
+        assert browser.evaluate("viewer.animator.duration") == pytest.approx(DURATION)
+        # Two links per arm, two arms and the target pose, the obstacle, traces and markers.
+        assert browser.evaluate(_meshes("cpbc")) >= 2 * 3 + 1 + 2 + 3
+
+        # At the frame where PD's outer link is nearest the obstacle, the page colours it as
+        # the clearance says (red when touching, its own blue far away).
+        kin = SceneKinematics(run.model, run.info.coordinates, run.info.trace_frame)
+        settings = ViewSettings()
+        pd = case.runs[0]
+        frames = np.arange(int(DURATION * settings.fps) + 1) / settings.fps
+        sweep = kin.sweep(pd.time, pd.position, frames, settings.warn_distance)
+        link2 = run.model.body("link2").id
+        k = int(np.argmin(sweep.body_clearance[:, link2]))
+        assert sweep.body_clearance[k, link2] < 0.5 * settings.warn_distance  # PD gets close
+        expected = clearance_colour("#1f77b4", sweep.body_clearance[k, link2],
+                                    settings.warn_distance)
+        browser.evaluate(f"viewer.animator.pause(); viewer.animator.seek({frames[k]}); true")
+        colour = browser.evaluate(
+            'const c = viewer.scene_tree.find(["meshcat", "cpbc", "PD", "robot", "link2", '
+            '"link2_geom", "<object>"]).object.material.color; [c.r, c.g, c.b]'
+        )
+        assert colour == pytest.approx(expected.tolist(), abs=0.02)
+        assert colour[0] > colour[2]  # reddened
+
+        _assert_scene_drawn(browser, tmp_path / "view.png")
+        assert not browser.log.errors, browser.log.errors
+        local = [u for u in browser.log.requests if not u.startswith(("file:", "data:", "blob:"))]
+        assert not local, f"the page fetched {local}"
+
+
+# -- servers ------------------------------------------------------------------------------------
+def _listeners(port: int) -> set[str]:
+    """Addresses listening on TCP ``port``, from /proc/net/tcp and tcp6 (Linux)."""
+    out = set()
+    for table, width in (("/proc/net/tcp", 8), ("/proc/net/tcp6", 32)):
+        for line in Path(table).read_text().splitlines()[1:]:
+            local, state = line.split()[1], line.split()[3]
+            address, hex_port = local.split(":")
+            if state == "0A" and int(hex_port, 16) == port:
+                out.add(address if len(address) == width else "?")
+    return out
+
+
+def _read_url(proc: subprocess.Popen, pattern: str, timeout: float = 120) -> str:
+    deadline = time.monotonic() + timeout
+    assert proc.stdout is not None
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        m = re.search(pattern, line)
+        if m:
+            return m.group(1)
+    proc.kill()
+    raise AssertionError(f"no URL printed; stderr:\n{proc.stderr.read() if proc.stderr else ''}")
+
+
+def _wait_for_line(proc: subprocess.Popen, text: str, timeout: float = 120) -> None:
+    deadline = time.monotonic() + timeout
+    assert proc.stdout is not None
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if text in line:
+            return
+        if not line and proc.poll() is not None:
+            break
+    raise AssertionError(f"'{text}' never printed")
+
+
+def _stop(proc: subprocess.Popen) -> int:
+    proc.send_signal(signal.SIGINT)
+    try:
+        return proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
+@needs_chromium
+def test_live_view_streams_the_run_on_loopback(tmp_path):
+    out = tmp_path / "out"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "cpbc.run", str(scenario(tmp_path)), "--out", str(out), "--view",
+         "--quiet", "--no-plots"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        url = _read_url(proc, r"meshcat viewer \(live\): (http://\S+)")
+        assert url.startswith("http://127.0.0.1:")
+        port = int(url.split(":")[2].split("/")[0])
+        # The web server and meshcat's ZeroMQ socket (the next ports up from 6000) listen on
+        # the loopback interface only.
+        if Path("/proc/net/tcp").is_file():
+            assert _listeners(port) == {"0100007F"}
+        with HeadlessChromium(width=1000, height=700) as browser:
+            # Arms of both controllers appear while the first runs are streamed.
+            browser.open(url, _meshes("cpbc") + " >= 8", timeout=60)
+            started = browser.evaluate(
+                'viewer.scene_tree.find(["meshcat", "cpbc", "rest", "PD", "trace"])'
+                ".object.children.length"
+            )
+            assert started >= 1
+            _wait_for_line(proc, "still serving")
+            browser.pump(0.5)
+            # The replay animation of the finished runs is loaded.
+            assert browser.evaluate("viewer.animator.duration") == pytest.approx(DURATION)
+            _assert_scene_drawn(browser, tmp_path / "live.png")
+            assert not browser.log.errors, browser.log.errors
+        assert _stop(proc) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert (out / "rest" / "view.html").is_file()
+    assert not list(out.rglob("*.png"))
+
+
+@needs_chromium
+def test_replay_serves_a_saved_run(run_folder, tmp_path):
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "cpbc.viewer", str(run_folder), "--case", "moving"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        url = _read_url(proc, r"\(case 'moving'\): (http://127\.0\.0\.1:\S+)")
+        with HeadlessChromium(width=900, height=600) as browser:
+            browser.open(url, _meshes("cpbc") + " >= 8", timeout=60)
+            visible = browser.evaluate(
+                "['rest', 'moving'].map(c => viewer.scene_tree.find(['meshcat', 'cpbc', c])"
+                ".object.visible)"
+            )
+            assert visible == [False, True]
+            assert browser.evaluate("viewer.animator.duration") == pytest.approx(DURATION)
+            _assert_scene_drawn(browser, tmp_path / "replay.png")
+            assert not browser.log.errors, browser.log.errors
+        assert _stop(proc) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
+@needs_chromium
+def test_replay_cli_exports_and_screenshots(run_folder, tmp_path):
+    page = run_folder / "rest" / "view.html"
+    before = page.stat().st_mtime_ns
+    cli = [sys.executable, "-m", "cpbc.viewer", str(run_folder)]
+    subprocess.run([*cli, "--export", "--warn-distance", "0.3"], check=True, capture_output=True)
+    assert page.stat().st_mtime_ns > before
+    assert "from 0.3 m to 0" in page.read_text()
+    png = tmp_path / "shot.png"
+    subprocess.run([*cli, "--screenshot", str(png), "--at", "1.0", "--size", "640x400"],
+                   check=True, capture_output=True)
+    with Image.open(png) as im:
+        assert im.size == (640, 400)
+    bad = subprocess.run([*cli, "--case", "nope", "--export"], capture_output=True, text=True)
+    assert bad.returncode == 2
+    assert "no case 'nope'" in bad.stderr
+
+
+def test_replay_cli_rejects_a_folder_that_is_not_a_run(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "cpbc.viewer", str(tmp_path), "--export"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2
+    assert "summary.json" in r.stderr
