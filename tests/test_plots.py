@@ -24,7 +24,6 @@ from cpbc.results.plots import (
     torques_figure,
 )
 from cpbc.results.saved_run import load_run
-from cpbc.results.sweep import SceneKinematics
 from cpbc.run import main
 
 FIGURES = ("positions", "rates", "torques", "lyapunov", "margins", "path")
@@ -182,7 +181,7 @@ def test_margins_figure_has_every_constraint_and_its_minimum(run, summaries):
 
 def test_path_figure_is_the_end_point_path_with_the_obstacle(run):
     case = run.case("rest")
-    kin = SceneKinematics(run.model, run.info.coordinates, run.info.trace_frame)
+    kin = run.info.kinematics(run.model)
     ax = path_figure(case, kin).axes[0]
     (circle,) = [p for p in ax.patches if isinstance(p, Circle)]
     assert circle.center == pytest.approx(OBSTACLE[0])

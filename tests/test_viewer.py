@@ -21,6 +21,7 @@ import umsgpack
 import yaml
 from PIL import Image
 
+from cpbc.errors import ModelError
 from cpbc.results.palette import clearance_colour
 from cpbc.results.saved_run import load_run
 from cpbc.results.sweep import SceneKinematics
@@ -155,6 +156,18 @@ def test_every_geom_type_is_drawn_and_planes_are_not():
     ]
 
 
+def test_named_obstacles_leave_other_world_geoms_as_scenery():
+    model = mujoco.MjModel.from_xml_string(SHAPES_XML)
+    kin = SceneKinematics(model, np.eye(1), "tip", obstacles=["ball", "rock"])
+    assert [kin.geom_names[g] for g in kin.obstacle_geoms] == ["ball", "rock"]
+    assert {kin.geom_names[g] for g in kin.static_geoms} == {"crate", "post", "egg"}
+    assert kin.clearances(1.0)[1].shape == (2,)
+    with pytest.raises(ModelError, match="world geoms"):
+        SceneKinematics(model, np.eye(1), "tip", obstacles=["boulder"])
+    with pytest.raises(ModelError, match="sites: \\['tip'\\]"):
+        SceneKinematics(model, np.eye(1), "hand")
+
+
 def test_clearance_is_the_distance_between_link_and_obstacle():
     model = mujoco.MjModel.from_xml_string(SHAPES_XML)
     kin = SceneKinematics(model, np.eye(1), "tip")
@@ -205,7 +218,7 @@ def test_exported_view_renders_in_chromium_without_errors(run_folder, tmp_path):
 
         # At the frame where PD's outer link is nearest the obstacle, the page colours it as
         # the clearance says (red when touching, its own blue far away).
-        kin = SceneKinematics(run.model, run.info.coordinates, run.info.trace_frame)
+        kin = run.info.kinematics(run.model)
         settings = ViewSettings()
         pd = case.runs[0]
         frames = np.arange(int(DURATION * settings.fps) + 1) / settings.fps

@@ -333,7 +333,7 @@ def write_plots(run: SavedRun, folder: Path | None = None) -> list[Path]:
         folder: where to write; the run's own folder when omitted.
     """
     folder = run.folder if folder is None else Path(folder)
-    kin = SceneKinematics(run.model, run.info.coordinates, run.info.trace_frame)
+    kin = run.info.kinematics(run.model)
     written = []
     for case in run.cases:
         out = folder / case.name

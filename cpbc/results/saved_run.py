@@ -21,6 +21,7 @@ import numpy as np
 
 from cpbc.constraints.base import Array
 from cpbc.errors import CpbcError
+from cpbc.results.sweep import SceneKinematics
 
 SCENE_MODEL = "scene.mjb"
 SCENE_INFO = "scene.json"
@@ -36,11 +37,14 @@ class SceneInfo:
         coordinates: T of the controller's coordinates x = T q, shape (n, n).
         trace_frame: MuJoCo site or body whose path is drawn (the end point).
         scenario: name of the scenario.
+        obstacles: names of the world geoms that are the scenario's obstacles (None: every
+            world geom but planes).
     """
 
     coordinates: Array
     trace_frame: str
     scenario: str = ""
+    obstacles: tuple[str, ...] | None = None
 
     def to_json(self) -> str:
         return json.dumps(
@@ -48,6 +52,7 @@ class SceneInfo:
                 "coordinates": np.asarray(self.coordinates, dtype=float).tolist(),
                 "trace_frame": self.trace_frame,
                 "scenario": self.scenario,
+                "obstacles": None if self.obstacles is None else list(self.obstacles),
             },
             indent=2,
         )
@@ -55,7 +60,17 @@ class SceneInfo:
     @classmethod
     def from_json(cls, text: str) -> SceneInfo:
         d = json.loads(text)
-        return cls(np.array(d["coordinates"], dtype=float), d["trace_frame"], d.get("scenario", ""))
+        obstacles = d.get("obstacles")
+        return cls(
+            np.array(d["coordinates"], dtype=float),
+            d["trace_frame"],
+            d.get("scenario", ""),
+            None if obstacles is None else tuple(obstacles),
+        )
+
+    def kinematics(self, model: mujoco.MjModel) -> SceneKinematics:
+        """The scene's kinematics with this run's coordinates, traced frame and obstacles."""
+        return SceneKinematics(model, self.coordinates, self.trace_frame, self.obstacles)
 
 
 @dataclass(frozen=True)
@@ -123,16 +138,10 @@ class SavedRun:
         )
 
 
-def write_scene(
-    folder: Path,
-    model: mujoco.MjModel,
-    coordinates: Array,
-    trace_frame: str,
-    scenario: str = "",
-) -> None:
+def write_scene(folder: Path, model: mujoco.MjModel, info: SceneInfo) -> None:
     """Write ``scene.mjb`` and ``scene.json`` into a run folder."""
     mujoco.mj_saveModel(model, str(folder / SCENE_MODEL), None)
-    (folder / SCENE_INFO).write_text(SceneInfo(coordinates, trace_frame, scenario).to_json())
+    (folder / SCENE_INFO).write_text(info.to_json())
 
 
 def _trajectory(path: Path, summary: dict[str, object]) -> SavedTrajectory:

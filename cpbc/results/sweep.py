@@ -8,6 +8,7 @@ coordinates are mapped to joint positions ``q = T⁻¹ x`` and the model is pose
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import mujoco
@@ -61,17 +62,24 @@ def default_trace_frame(model: mujoco.MjModel) -> str:
 class SceneKinematics:
     """Poses, traced point and clearances of a MuJoCo arm at positions in controller coordinates.
 
-    Robot geoms are the drawn geoms (groups 0–2) of every body but the world; obstacles are
-    the drawn geoms of the world body except planes and height fields.
+    Robot geoms are the drawn geoms (groups 0–2) of every body but the world. Obstacles are
+    the world body's geoms named in ``obstacles``; when it is None, every drawn world geom
+    but planes and height fields. The other drawn world geoms are scenery (``static_geoms``):
+    drawn, never measured — e.g. an arm's base link, which MuJoCo fuses into the world.
 
     Args:
         model: the compiled scene (arm and obstacles).
         coordinates: T of x = T q, shape (nq, nq).
         trace_frame: a site or body name; see :func:`default_trace_frame` when omitted.
+        obstacles: names of the obstacle geoms, or None.
     """
 
     def __init__(
-        self, model: mujoco.MjModel, coordinates: Array, trace_frame: str | None = None
+        self,
+        model: mujoco.MjModel,
+        coordinates: Array,
+        trace_frame: str | None = None,
+        obstacles: Sequence[str] | None = None,
     ) -> None:
         t = np.asarray(coordinates, dtype=float)
         if t.shape != (model.nq, model.nq):
@@ -95,18 +103,29 @@ class SceneKinematics:
             for g in range(model.ngeom)
             if model.geom_group[g] in DRAWN_GROUPS and model.geom_rgba[g, 3] > 0
         ]
-        self.robot_geoms = tuple(g for g in drawn if model.geom_bodyid[g] != 0)
-        self.obstacle_geoms = tuple(
-            g
-            for g in drawn
-            if model.geom_bodyid[g] == 0 and int(model.geom_type[g]) not in _NOT_OBSTACLES
-        )
         self.body_names = tuple(
             _name(model, mujoco.mjtObj.mjOBJ_BODY, b, "body") for b in range(model.nbody)
         )
         self.geom_names = tuple(
             _name(model, mujoco.mjtObj.mjOBJ_GEOM, g, "geom") for g in range(model.ngeom)
         )
+        self.robot_geoms = tuple(g for g in drawn if model.geom_bodyid[g] != 0)
+        world = [
+            g
+            for g in drawn
+            if model.geom_bodyid[g] == 0 and int(model.geom_type[g]) not in _NOT_OBSTACLES
+        ]
+        if obstacles is None:
+            self.obstacle_geoms = tuple(world)
+        else:
+            named = {self.geom_names[g]: g for g in range(model.ngeom) if model.geom_bodyid[g] == 0}
+            unknown = [o for o in obstacles if o not in named]
+            if unknown:
+                raise ModelError(
+                    f"no world geoms {unknown} to take for obstacles; world geoms: {list(named)}"
+                )
+            self.obstacle_geoms = tuple(named[o] for o in obstacles)
+        self.static_geoms = tuple(g for g in world if g not in self.obstacle_geoms)
 
     def joint_positions(self, x: Array) -> Array:
         """q = T⁻¹ x, shape (nq,)."""

@@ -12,6 +12,7 @@ Exit codes: 0 done, 2 bad input (not a run folder, unknown case, no Chromium).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from collections.abc import Sequence
@@ -21,7 +22,6 @@ from meshcat.animation import Animation
 
 from cpbc.errors import CpbcError
 from cpbc.results.saved_run import SavedRun, load_run
-from cpbc.results.sweep import SceneKinematics
 from cpbc.viewer.browser import HeadlessChromium
 from cpbc.viewer.export import VIEW_FILE, write_views
 from cpbc.viewer.scene import ROOT, CaseScene, ViewSettings, set_animation
@@ -54,7 +54,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def serve(run: SavedRun, first: str, frame: str | None, settings: ViewSettings) -> None:
     """Draw every case on a loopback server and keep serving until interrupted."""
-    kin = SceneKinematics(run.model, run.info.coordinates, frame or run.info.trace_frame)
+    info = run.info if frame is None else dataclasses.replace(run.info, trace_frame=frame)
+    kin = info.kinematics(run.model)
     with MeshcatServer() as server:
         vis = server.visualizer()
         anim = Animation()

@@ -17,7 +17,6 @@ from pathlib import Path
 import meshcat
 
 from cpbc.results.saved_run import SavedCase, SavedRun
-from cpbc.results.sweep import SceneKinematics
 from cpbc.viewer.recorder import CommandRecorder
 from cpbc.viewer.scene import CaseScene, ViewSettings, set_animation
 
@@ -122,7 +121,7 @@ def case_view(
     run: SavedRun, case: SavedCase, settings: ViewSettings | None = None
 ) -> tuple[CaseScene, CommandRecorder, float]:
     """Draw a case of a saved run into a recorder; returns the scene, commands and duration."""
-    kin = SceneKinematics(run.model, run.info.coordinates, run.info.trace_frame)
+    kin = run.info.kinematics(run.model)
     first = case.runs[0]
     scene = CaseScene(kin, case.controllers, first.target, first.position[0], settings)
     recorder = CommandRecorder()

@@ -7,7 +7,7 @@ from pathlib import Path
 import mujoco
 
 from cpbc.results.plots import write_plots
-from cpbc.results.saved_run import load_run, write_scene
+from cpbc.results.saved_run import SceneInfo, load_run, write_scene
 from cpbc.results.sweep import SceneKinematics, default_trace_frame
 from cpbc.scenario.build import ScenarioSetup
 from cpbc.viewer.export import write_views
@@ -28,10 +28,18 @@ def trace_frame(setup: ScenarioSetup, model: mujoco.MjModel) -> str:
     return default_trace_frame(model)
 
 
+def scene_info(setup: ScenarioSetup, model: mujoco.MjModel) -> SceneInfo:
+    """Coordinates, traced frame and obstacle geoms of a scenario's scene."""
+    obstacles = tuple(ob.name for ob in getattr(setup, "obstacles", ()))
+    return SceneInfo(
+        setup.model.coordinates.matrix, trace_frame(setup, model), setup.scenario.name, obstacles
+    )
+
+
 def scene_kinematics(setup: ScenarioSetup) -> SceneKinematics:
     """Kinematics of the scenario's scene (the plant's model, with its obstacles)."""
     model = setup.make_plant().model
-    return SceneKinematics(model, setup.model.coordinates.matrix, trace_frame(setup, model))
+    return scene_info(setup, model).kinematics(model)
 
 
 def write_run_outputs(
@@ -43,8 +51,8 @@ def write_run_outputs(
     Returns:
         The figures and pages written.
     """
-    kin = scene_kinematics(setup)
-    write_scene(folder, kin.model, kin.coordinates, kin.trace_frame, setup.scenario.name)
+    model = setup.make_plant().model
+    write_scene(folder, model, scene_info(setup, model))
     run = load_run(folder)
     written = write_plots(run) if plots else []
     return written + write_views(run, settings=settings)

@@ -2,7 +2,8 @@
 
 Scene tree under ``<root>`` (``cpbc`` by default)::
 
-    obstacles/<geom>                 world geoms (not planes); grey, reddening as an arm nears
+    obstacles/<geom>                 the obstacles; grey, reddening as an arm nears
+    static/<geom>                    other world geoms (an arm's fused base link), as modelled
     target/<body>/<geom>, target/tip the arm posed at the target, translucent, and its end point
     <controller>/robot/<body>/<geom> the controller's arm in its colour; a body reddens as its
                                      clearance to the nearest obstacle falls to zero
@@ -132,7 +133,8 @@ class CaseScene:
             for b in self.bodies
         }
         self._shapes = {
-            g: geom_geometry(m, g) for g in (*kinematics.robot_geoms, *kinematics.obstacle_geoms)
+            g: geom_geometry(m, g)
+            for g in (*kinematics.robot_geoms, *kinematics.obstacle_geoms, *kinematics.static_geoms)
         }
         self.extent = self._extent()
 
@@ -186,6 +188,7 @@ class CaseScene:
             "position", [float(eye[0]), float(eye[2]), float(-eye[1])]
         )
         self._draw_floor(vis)
+        m = self.kin.model
         d = self.kin.pose(self.start)
         for g in self.kin.obstacle_geoms:
             shape = self._shapes[g]
@@ -193,6 +196,15 @@ class CaseScene:
                 continue
             node = vis[self._obstacle_path(g)]
             node.set_object(shape, _material(int(OBSTACLE_COLOUR[1:], 16), 0.55))
+            node.set_transform(_matrix(d.geom_xpos[g], _quat_of(d.geom_xmat[g])))
+        for g in self.kin.static_geoms:
+            shape = self._shapes[g]
+            if shape is None:
+                continue
+            mat = m.geom_matid[g]
+            rgba = m.mat_rgba[mat] if mat >= 0 else m.geom_rgba[g]
+            node = vis[f"{self.root}/static/{_segment(self.kin.geom_names[g])}"]
+            node.set_object(shape, _material(_hex(rgba[:3]), float(rgba[3])))
             node.set_transform(_matrix(d.geom_xpos[g], _quat_of(d.geom_xmat[g])))
         d = self.kin.pose(self.target)
         for b in self.bodies:
@@ -250,9 +262,7 @@ class CaseScene:
         tip.set_object(mg.Sphere(self.marker_radius), _material(colour))
         self.pose_arm(vis, controller, self.start if x is None else x)
 
-    def pose_arm(
-        self, vis: meshcat.Visualizer, controller: str, x: Array
-    ) -> tuple[Array, Array]:
+    def pose_arm(self, vis: meshcat.Visualizer, controller: str, x: Array) -> tuple[Array, Array]:
         """Move the controller's arm to x.
 
         Returns:
