@@ -29,6 +29,7 @@ from cpbc.run import main
 from cpbc.viewer.browser import HeadlessChromium, find_chromium
 from cpbc.viewer.recorder import CommandRecorder
 from cpbc.viewer.scene import CaseScene, ViewSettings
+from cpbc.viewer.server import MeshcatServer
 from cpbc.viewer.shapes import geom_geometry, tube
 
 needs_chromium = pytest.mark.skipif(
@@ -302,8 +303,7 @@ def test_live_view_streams_the_run_on_loopback(tmp_path):
         url = _read_url(proc, r"meshcat viewer \(live\): (http://\S+)")
         assert url.startswith("http://127.0.0.1:")
         port = int(url.split(":")[2].split("/")[0])
-        # The web server and meshcat's ZeroMQ socket (the next ports up from 6000) listen on
-        # the loopback interface only.
+        # The web server listens on the loopback interface only (no 0.0.0.0 or :: socket).
         if Path("/proc/net/tcp").is_file():
             assert _listeners(port) == {"0100007F"}
         with HeadlessChromium(width=1000, height=700) as browser:
@@ -375,3 +375,17 @@ def test_replay_cli_rejects_a_folder_that_is_not_a_run(tmp_path):
                        capture_output=True, text=True)
     assert r.returncode == 2
     assert "summary.json" in r.stderr
+
+
+def test_server_listens_on_loopback_only():
+    if not Path("/proc/net/tcp").is_file():
+        pytest.skip("needs Linux's /proc/net/tcp to list listening sockets")
+    with MeshcatServer() as server:
+        web = int(server.web_url.split(":")[2].split("/")[0])
+        zmq = int(server.zmq_url.rsplit(":", 1)[1])
+        assert server.web_url.startswith("http://127.0.0.1:")
+        assert _listeners(web) == {"0100007F"}
+        assert _listeners(zmq) == {"0100007F"}
+        pid = server.pid
+    assert pid is not None
+    assert not Path(f"/proc/{pid}").exists() or "zombie" in Path(f"/proc/{pid}/status").read_text()
