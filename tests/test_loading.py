@@ -52,8 +52,8 @@ def _agreement(arm: LoadedArm, mj: mujoco.MjModel, rng: np.random.Generator) -> 
         compared = 0
         for b in range(1, mj.nbody):
             name = mj.body(b).name
-            if arm.model.existFrame(name):
-                placement = pdata.oMf[arm.model.getFrameId(name)]
+            if arm.model.existFrame(name, pin.FrameType.BODY):
+                placement = pdata.oMf[arm.model.getFrameId(name, pin.FrameType.BODY)]
                 np.testing.assert_allclose(placement.translation, data.xpos[b], atol=1e-10)
                 np.testing.assert_allclose(placement.rotation,
                                            data.xmat[b].reshape(3, 3), atol=1e-10)

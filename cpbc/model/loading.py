@@ -249,6 +249,12 @@ class LoadedArm:
         except ValueError as exc:
             raise ModelError(f"MuJoCo could not read {self.urdf_path}: {exc}") from None
         spec.option.gravity = GRAVITY.tolist()
+        # The URDF's visual elements were skipped while parsing; keep every geom added later
+        # (non-colliding obstacles have contype = conaffinity = 0, which MuJoCo would discard
+        # as "visual"), and keep bodies welded to others (the viewer tells links from the
+        # world by body).
+        spec.compiler.discardvisual = False
+        spec.compiler.fusestatic = False
         for joint_name, value in self.locked_joints.items():
             lock_mujoco_joint(spec, joint_name, value)
         for eq in list(spec.equalities):  # e.g. a mimic of a locked finger
