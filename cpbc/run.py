@@ -16,6 +16,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from cpbc.constraints.clearance import Clearance
 from cpbc.errors import CpbcError
 from cpbc.results import staged_output, write_summaries, write_trajectory
 from cpbc.results.metrics import RunSummary
@@ -77,11 +78,28 @@ def _rates(s: RunSummary) -> str:
     return ", ".join(parts)
 
 
-def _table(results: Sequence[RunResult], coordinate_names: Sequence[str]) -> Table:
+def _clearance(s: RunSummary, names: Sequence[str]) -> str:
+    """Smallest clearance over the run [m] with its pair, and MuJoCo's peak contact count."""
+    values = {k: s.min_margins[k] for k in names if s.min_margins.get(k) == s.min_margins.get(k)}
+    if not values:
+        return f"- / {s.max_contacts}"
+    worst = min(values, key=values.__getitem__)
+    colour = "red" if values[worst] <= 0 or s.max_contacts else "green"
+    pair = escape(f"({worst[worst.find('[') + 1:-1] if '[' in worst else worst})")
+    return f"[{colour}]{values[worst]:.3g} {pair} / {s.max_contacts}[/{colour}]"
+
+
+def _table(
+    results: Sequence[RunResult], coordinate_names: Sequence[str],
+    clearance_names: Sequence[str] = (),
+) -> Table:
     t = Table(title="cpbc summary", show_lines=False)
-    for col in ("case", "controller", "status", "final err", "settle [s]",
-                f"peak |rate| ({', '.join(coordinate_names)})", "peak |τ| / ‖τ‖ (bound)",
-                "min margin (constraint)", "V rise", "steps/s"):
+    columns = ["case", "controller", "status", "final err", "settle [s]",
+               f"peak |rate| ({', '.join(coordinate_names)})", "peak |τ| / ‖τ‖ (bound)",
+               "min margin (constraint)"]
+    if clearance_names:
+        columns.append("min clearance [m] (pair) / contacts")
+    for col in (*columns, "V rise", "steps/s"):
         t.add_column(col)
     for r in results:
         s = r.summary
@@ -99,13 +117,15 @@ def _table(results: Sequence[RunResult], coordinate_names: Sequence[str]) -> Tab
         style = STATUS_STYLE[s.status]
         status = s.status + (f" @{s.end_time:.3g}s: {s.violated_constraint}"
                              if s.violated_constraint else "")
-        t.add_row(
+        cells = [
             escape(s.case), escape(s.controller), f"[{style}]{escape(status)}[/{style}]",
             f"{s.final_error:.3g}",
             "-" if s.settle_time is None else f"{s.settle_time:.3g}", _rates(s),
             f"{_fmt(s.peak_torques)} / {s.peak_torque_norm:.4g}{bound}", margin,
-            f"{s.max_lyapunov_increase:.2g}", f"{s.steps_per_second:,.0f}",
-        )
+        ]
+        if clearance_names:
+            cells.append(_clearance(s, clearance_names))
+        t.add_row(*cells, f"{s.max_lyapunov_increase:.2g}", f"{s.steps_per_second:,.0f}")
     return t
 
 
@@ -159,7 +179,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             live.close()
         err.print("interrupted; nothing written")
         return 130
-    console.print(_table(results, setup.coordinate_names))
+    clearance = [n for c in setup.monitor.configuration if isinstance(c, Clearance)
+                 for n in c.names]
+    console.print(_table(results, setup.coordinate_names, clearance))
     backend = args.backend or scenario.simulation.backend
     console.print(f"backend: {backend}; results written to {out}/")
     if live:

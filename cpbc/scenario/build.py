@@ -8,6 +8,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 
 from cpbc.constraints import (
     ConfigurationConstraint,
@@ -21,13 +22,16 @@ from cpbc.constraints import (
     joint_rate_limit,
 )
 from cpbc.constraints.base import Array
+from cpbc.constraints.geometry import Obstacle, SceneGeom
 from cpbc.controllers import CONTROLLERS, Controller, Identity, Power, Tanh
 from cpbc.controllers.shaping import Shaping
 from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
 from cpbc.model import LinearCoordinates, RobotModel
 from cpbc.model.bounds import ModelBounds, estimate_bounds
+from cpbc.model.loading import ARMS, LoadedArm, finish_mujoco_model
 from cpbc.resources import builtin_models
 from cpbc.results.metrics import SettleCriteria
+from cpbc.scenario import robots
 from cpbc.scenario import schema as s
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, substeps_per_control
 
@@ -47,12 +51,14 @@ class CaseEntry:
 
 @dataclass(frozen=True)
 class ObstacleGeom:
-    """A sphere placed in the MuJoCo scene (and later drawn by the viewer)."""
+    """An obstacle placed in the MuJoCo scene (and drawn by the viewer): a sphere of
+    ``radius`` at ``centre``, or ``geom`` (a capsule, cylinder, box or plane)."""
 
     name: str
     centre: Array
     radius: float
     collides: bool
+    geom: SceneGeom | None = None
 
 
 @dataclass
@@ -73,11 +79,19 @@ class ScenarioSetup:
     obstacles: list[ObstacleGeom]
     coordinate_names: tuple[str, ...]
     source: Path  # the scenario file, so worker processes can rebuild the setup
+    arm: LoadedArm | None = None  # a URDF robot (None for an MJCF model)
 
     def make_plant(self) -> MujocoPlant:
         """A fresh MuJoCo plant of the scenario's robot with its obstacles in the scene."""
-        spec = mujoco.MjSpec.from_file(str(self.model_path))
+        if self.arm is not None:
+            spec = self.arm.mujoco_spec()
+        else:
+            spec = mujoco.MjSpec.from_file(str(self.model_path))
         for ob in self.obstacles:
+            if ob.geom is not None:
+                robots.add_scene_geom(spec, ob.name, ob.geom, ob.collides,
+                                      [0.85, 0.25, 0.2, 0.5])
+                continue
             g = spec.worldbody.add_geom()
             g.name = ob.name
             g.type = mujoco.mjtGeom.mjGEOM_SPHERE
@@ -87,6 +101,8 @@ class ScenarioSetup:
             g.contype = 1 if ob.collides else 0
             g.conaffinity = 1 if ob.collides else 0
         model = spec.compile()
+        if self.arm is not None:
+            finish_mujoco_model(model, self.arm.joint_names)
         if self.model.viscous_friction.any():
             fd = np.diag(
                 self.model.coordinates.matrix.T
@@ -98,7 +114,7 @@ class ScenarioSetup:
 
     def make_reference_plant(self) -> RobotModel:
         """A Pinocchio model of the plant, separate from the controller's model."""
-        return _robot_model(self.model_path, self.scenario.robot, self.model.n)
+        return _robot_model(self.model_path, self.scenario.robot, self.model.n, self.arm)
 
 
 def _model_path(robot: s.RobotSpec, base: Path) -> Path:
@@ -111,8 +127,9 @@ def _model_path(robot: s.RobotSpec, base: Path) -> Path:
         return p
     raise ScenarioError(
         "robot.model",
-        f"'{robot.model}' is neither a built-in robot ({', '.join(models)}) nor an existing "
-        f"model file (looked for {p})",
+        f"'{robot.model}' is neither a built-in robot ({', '.join(models)}), an "
+        f"example-robot-data arm ({', '.join(sorted(ARMS))}) nor an existing model file "
+        f"(looked for {p})",
     )
 
 
@@ -127,8 +144,13 @@ def _coordinates(robot: s.RobotSpec, n: int) -> LinearCoordinates:
         raise ScenarioError("robot.coordinates", str(exc)) from None
 
 
-def _robot_model(path: Path, robot: s.RobotSpec, n_expected: int | None = None) -> RobotModel:
-    probe = RobotModel.from_mjcf(path)
+def _robot_model(
+    path: Path, robot: s.RobotSpec, n_expected: int | None = None, arm: LoadedArm | None = None
+) -> RobotModel:
+    if arm is not None:  # a copy: the reference plant must not share the controller's model
+        probe = RobotModel(pin.Model(arm.model), name=arm.name)
+    else:
+        probe = RobotModel.from_mjcf(path)
     coords = _coordinates(robot, probe.n)
     fd = np.asarray(robot.viscous_friction, dtype=float)
     if fd.ndim == 0:
@@ -173,20 +195,38 @@ def _rows(coefficients: list[list[float]], n: int, field: str) -> Array:
     return rows
 
 
+def _limit(
+    value: list[float] | str, model: RobotModel, kind: str, side: int, idx: list[int] | None,
+    k: int, field: str,
+) -> Array:
+    """A limit vector as given, or ``from_model`` (side 0 lower, 1 upper) on joints idx."""
+    if isinstance(value, str):
+        limits = robots.model_limits(model, kind, field)[side]
+        return limits if idx is None else limits[idx]
+    return _vector(value, k, field)
+
+
 def _build_constraint(
-    spec: s.ConstraintSpec, model: RobotModel, names: tuple[str, ...], field: str
+    spec: s.ConstraintSpec,
+    model: RobotModel,
+    names: tuple[str, ...],
+    field: str,
+    arm: LoadedArm | None = None,
+    obstacles: dict[str, Obstacle] | None = None,
 ) -> ConfigurationConstraint | VelocityConstraint:
     n = model.n
     if isinstance(spec, s.JointPositionLimitSpec):
         idx = _indices(spec.joints, names, f"{field}.joints")
         k = n if idx is None else len(idx)
         c = joint_position_limit(
-            _vector(spec.lower, k, f"{field}.lower"),
-            _vector(spec.upper, k, f"{field}.upper"),
+            _limit(spec.lower, model, "position", 0, idx, k, f"{field}.lower"),
+            _limit(spec.upper, model, "position", 1, idx, k, f"{field}.upper"),
             names,
             idx,
         )
         return c
+    if isinstance(spec, s.ClearanceSpec):
+        return robots.clearance(spec, model, arm, obstacles or {}, field)
     if isinstance(spec, s.LinearLimitSpec):
         rows = _rows(spec.coefficients, n, f"{field}.coefficients")
         k = rows.shape[0]
@@ -207,7 +247,8 @@ def _build_constraint(
     if isinstance(spec, s.JointRateLimitSpec):
         idx = _indices(spec.joints, names, f"{field}.joints")
         k = n if idx is None else len(idx)
-        c = joint_rate_limit(_vector(spec.bounds, k, f"{field}.bounds"), names, idx)
+        bounds = _limit(spec.bounds, model, "velocity", 1, idx, k, f"{field}.bounds")
+        c = joint_rate_limit(spec.scale * bounds, names, idx)
         return c
     if isinstance(spec, s.RateLimitSpec):
         rows = _rows(spec.coefficients, n, f"{field}.coefficients")
@@ -265,9 +306,10 @@ def _build_controller(
 
 def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     """Check a scenario against its robot and build every object it describes."""
-    path = _model_path(scenario.robot, scenario_file.parent)
+    arm = robots.load_scenario_arm(scenario.robot, scenario_file.parent)
+    path = arm.urdf_path if arm is not None else _model_path(scenario.robot, scenario_file.parent)
     try:
-        model = _robot_model(path, scenario.robot)
+        model = _robot_model(path, scenario.robot, arm=arm)
     except ScenarioError:
         raise
     except CpbcError as exc:
@@ -282,8 +324,11 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     except CpbcError as exc:
         raise ScenarioError("simulation.control_period", str(exc)) from None
     limit = None
-    if sim.torque_limit is not None:
-        limit = _vector(
+    if sim.torque_limit == "from_model":
+        limit = sim.torque_limit_scale * robots.model_limits(
+            model, "effort", "simulation.torque_limit")[1]
+    elif sim.torque_limit is not None:
+        limit = sim.torque_limit_scale * _vector(
             sim.torque_limit if isinstance(sim.torque_limit, list) else [sim.torque_limit] * n,
             n,
             "simulation.torque_limit",
@@ -292,13 +337,20 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
 
     built: dict[str, ConfigurationConstraint | VelocityConstraint] = {}
     obstacles: list[ObstacleGeom] = []
+    scene: dict[str, Obstacle] = {}
+    for i, ospec in enumerate(scenario.obstacles):
+        if ospec.name in scene:
+            raise ScenarioError(f"obstacles[{i}].name", f"duplicate obstacle name '{ospec.name}'")
+        ob = scene[ospec.name] = robots.obstacle(ospec, f"obstacles[{i}]")
+        geom = ob.scene_geom()
+        obstacles.append(ObstacleGeom(ob.name, geom.pos, float(geom.size[0]), ob.collides, geom))
     rate_bounds: list[float | None] = [None] * n
     for i, cs in enumerate(scenario.constraints):
         field = f"constraints[{i}]"
         if cs.name in built:
             raise ScenarioError(f"{field}.name", f"duplicate constraint name '{cs.name}'")
         try:
-            built[cs.name] = _build_constraint(cs, model, names, field)
+            built[cs.name] = _build_constraint(cs, model, names, field, arm, scene)
         except ScenarioError:
             raise
         except CpbcError as exc:
@@ -359,4 +411,5 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         obstacles,
         names,
         scenario_file,
+        arm,
     )

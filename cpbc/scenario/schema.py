@@ -30,14 +30,19 @@ class Strict(BaseModel):
 
 
 class RobotSpec(Strict):
-    """The arm. ``model`` is a built-in name (see cpbc.resources) or a path to an MJCF file,
-    relative to the scenario file. ``coordinates`` are the controller's: ``joint`` (the
-    model's own), ``absolute`` (absolute link angles θ = T q of a planar chain) or a matrix T.
-    ``viscous_friction`` is F_d (diagonal, joint coordinates) in the plant and the model."""
+    """The arm. ``model`` is a built-in name (see cpbc.resources), an example-robot-data arm
+    (``panda``, ``ur5``, … see cpbc.model.loading.ARMS) or a path to an MJCF (.xml) or URDF
+    (.urdf) file, relative to the scenario file. ``coordinates`` are the controller's:
+    ``joint`` (the model's own), ``absolute`` (absolute link angles θ = T q of a planar chain)
+    or a matrix T. ``viscous_friction`` is F_d (diagonal, joint coordinates) in the plant and
+    the model. URDF arms only: ``locked_joints`` freezes joints at values (a named arm's
+    gripper is locked by default), ``package_dirs`` are extra folders for ``package://``."""
 
     model: str = "planar_2link"
     coordinates: Literal["joint", "absolute"] | list[Vector] = "joint"
     viscous_friction: NonNegative | list[NonNegative] = 0.0
+    locked_joints: dict[str, Number] = {}
+    package_dirs: list[str] = []
 
 
 class SimulationSpec(Strict):
@@ -46,7 +51,9 @@ class SimulationSpec(Strict):
     control_period: Positive | None = None
     integrator: Literal["Euler", "RK4", "implicit", "implicitfast"] = "RK4"
     backend: Literal["mujoco", "reference"] = "mujoco"
-    torque_limit: Positive | list[Positive] | None = None
+    # symmetric actuator limits; "from_model": the URDF's effort limits (× torque_limit_scale)
+    torque_limit: Positive | list[Positive] | Literal["from_model"] | None = None
+    torque_limit_scale: Positive = 1.0
     log_every: Annotated[int, Field(ge=1)] = 1
     position_tolerance: Positive = 0.01
     velocity_tolerance: Positive = 0.005
@@ -59,12 +66,15 @@ class CaseSpec(Strict):
 
 
 # -- constraints --------------------------------------------------------------------------
+FromModel = Literal["from_model"]  # a limit read from the robot's URDF/MJCF
+
+
 class JointPositionLimitSpec(Strict):
     type: Literal["joint_position_limit"]
     name: str = "joint_position_limit"
     joints: list[str] | None = None
-    lower: Vector
-    upper: Vector
+    lower: Vector | FromModel
+    upper: Vector | FromModel
 
 
 class LinearLimitSpec(Strict):
@@ -89,7 +99,8 @@ class JointRateLimitSpec(Strict):
     type: Literal["joint_rate_limit"]
     name: str = "joint_rate_limit"
     joints: list[str] | None = None
-    bounds: list[Positive]
+    bounds: list[Positive] | FromModel
+    scale: Positive = 1.0  # multiplies the bounds (e.g. 0.5 of the URDF's velocity limits)
 
 
 class RateLimitSpec(Strict):
@@ -105,13 +116,92 @@ class KineticEnergyLimitSpec(Strict):
     limit: Positive
 
 
+class PrimitiveSpec(Strict):
+    """A sphere (``centre``) or capsule (``start``, ``end``) fixed in a link's frame [m]."""
+
+    link: str
+    name: str | None = None
+    centre: Vector | None = None
+    start: Vector | None = None
+    end: Vector | None = None
+    radius: Positive
+
+
+class ClearanceSpec(Strict):
+    """Every link (covered by spheres or capsules) against obstacles, and link pairs.
+
+    ``links``: links covered automatically from their collision meshes (all moving links
+    with collision geometry when omitted, none with []); ``primitives`` are declared and
+    replace the automatic cover of their links. φ = distance − ``margin`` > 0 per
+    (link, obstacle) pair; pairs farther than ``influence`` exert no force (null: the plain
+    barrier of every pair, see cpbc.constraints.clearance)."""
+
+    type: Literal["clearance"]
+    name: str = "clearance"
+    obstacles: list[str] | None = None
+    links: list[str] | None = None
+    cover: Literal["spheres", "capsules"] = "spheres"
+    cover_tolerance: Positive = 0.01
+    padding: NonNegative = 0.0
+    primitives: list[PrimitiveSpec] | None = None
+    margin: NonNegative = 0.0
+    influence: Positive | None = 0.1
+    self_collision: list[Annotated[list[str], Field(min_length=2, max_length=2)]] = []
+
+
 ConstraintSpec = Annotated[
     JointPositionLimitSpec
     | LinearLimitSpec
     | PointOutsideSphereSpec
     | JointRateLimitSpec
     | RateLimitSpec
-    | KineticEnergyLimitSpec,
+    | KineticEnergyLimitSpec
+    | ClearanceSpec,
+    Field(discriminator="type"),
+]
+
+
+# -- obstacles ----------------------------------------------------------------------------
+class SphereObstacleSpec(Strict):
+    type: Literal["sphere"]
+    name: SafeName
+    centre: Vector
+    radius: Positive
+    collides: bool = True
+
+
+class CapsuleObstacleSpec(Strict):
+    """A pole from ``start`` to ``end``; a cylinder's clearance uses its capsule."""
+
+    type: Literal["capsule", "cylinder"]
+    name: SafeName
+    start: Vector
+    end: Vector
+    radius: Positive
+    collides: bool = True
+
+
+class BoxObstacleSpec(Strict):
+    type: Literal["box"]
+    name: SafeName
+    centre: Vector
+    half_extents: list[Positive]
+    rpy: Vector = [0.0, 0.0, 0.0]
+    collides: bool = True
+
+
+class PlaneObstacleSpec(Strict):
+    """A floor or table top: the half-space below the plane through ``point``."""
+
+    type: Literal["plane"]
+    name: SafeName
+    point: Vector = [0.0, 0.0, 0.0]
+    normal: Vector = [0.0, 0.0, 1.0]
+    collides: bool = True
+
+
+ObstacleSpec = Annotated[
+    SphereObstacleSpec | CapsuleObstacleSpec | BoxObstacleSpec | PlaneObstacleSpec,
     Field(discriminator="type"),
 ]
 
@@ -185,5 +275,6 @@ class Scenario(Strict):
     simulation: SimulationSpec
     target: Vector
     cases: Annotated[list[CaseSpec], Field(min_length=1)]
+    obstacles: list[ObstacleSpec] = []
     constraints: list[ConstraintSpec] = []
     controllers: Annotated[list[ControllerSpec], Field(min_length=1)]

@@ -1,0 +1,173 @@
+"""Scenario support for URDF arms: loading by name or path, model limits, obstacles, clearance.
+
+The scenario builder (cpbc.scenario.build) calls these; every error is a ScenarioError that
+names the offending field.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from cpbc.constraints.base import Array
+from cpbc.constraints.clearance import Clearance
+from cpbc.constraints.covering import LinkPrimitive, cover_links
+from cpbc.constraints.geometry import (
+    BoxObstacle,
+    CapsuleObstacle,
+    Obstacle,
+    PlaneObstacle,
+    SceneGeom,
+    SphereObstacle,
+)
+from cpbc.errors import CpbcError, ScenarioError
+from cpbc.model.loading import ARMS, LoadedArm, load_arm, load_urdf
+from cpbc.model.robot_model import RobotModel
+from cpbc.scenario import schema as s
+
+GEOM_TYPES = {
+    "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
+    "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE,
+    "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
+    "box": mujoco.mjtGeom.mjGEOM_BOX,
+    "plane": mujoco.mjtGeom.mjGEOM_PLANE,
+}
+
+
+def is_urdf_robot(robot: s.RobotSpec) -> bool:
+    """Whether the scenario's robot is an example-robot-data arm or a URDF file."""
+    return robot.model in ARMS or robot.model.lower().endswith(".urdf")
+
+
+def load_scenario_arm(robot: s.RobotSpec, base: Path) -> LoadedArm | None:
+    """The URDF arm of a scenario, or None when its robot is an MJCF model."""
+    if not is_urdf_robot(robot):
+        if robot.locked_joints:
+            raise ScenarioError(
+                "robot.locked_joints", "locking joints needs a URDF robot (a name or .urdf path)"
+            )
+        return None
+    dirs = [p if Path(p).is_absolute() else base / p for p in robot.package_dirs]
+    try:
+        if robot.model in ARMS:
+            return load_arm(robot.model, robot.locked_joints, dirs)
+        path = Path(robot.model)
+        return load_urdf(path if path.is_absolute() else base / path, robot.locked_joints,
+                         package_dirs=dirs)
+    except CpbcError as exc:
+        field = "robot.locked_joints" if "locked joint" in str(exc) else "robot.model"
+        raise ScenarioError(field, str(exc)) from None
+
+
+def model_limits(model: RobotModel, kind: str, field: str) -> tuple[Array, Array]:
+    """Limits the robot's model declares: ``position`` (lower, upper), ``velocity`` or
+    ``effort`` (−limit, limit), in joint coordinates. ScenarioError if a joint has none or
+    the controller does not use joint coordinates."""
+    if not model.coordinates.is_identity:
+        raise ScenarioError(field, "'from_model' limits need robot.coordinates: joint")
+    pm = model.model
+    if kind == "position":
+        lo = np.array(pm.lowerPositionLimit, dtype=float)
+        hi = np.array(pm.upperPositionLimit, dtype=float)
+    else:
+        hi = np.array(pm.velocityLimit if kind == "velocity" else pm.effortLimit, dtype=float)
+        lo = -hi
+    bad = [model.joint_names[i] for i in range(model.n)
+           if not (np.isfinite(lo[i]) and np.isfinite(hi[i]) and lo[i] < hi[i])]
+    if bad:
+        raise ScenarioError(field, f"the model has no {kind} limit for joints {bad}; give values")
+    return lo, hi
+
+
+def obstacle(spec: s.ObstacleSpec, field: str) -> Obstacle:
+    """An obstacle from its scenario entry."""
+    try:
+        if isinstance(spec, s.SphereObstacleSpec):
+            return SphereObstacle(spec.name, spec.centre, spec.radius, spec.collides)
+        if isinstance(spec, s.CapsuleObstacleSpec):
+            return CapsuleObstacle(spec.name, spec.start, spec.end, spec.radius, spec.collides,
+                                   kind=spec.type)
+        if isinstance(spec, s.BoxObstacleSpec):
+            return BoxObstacle(spec.name, spec.centre, spec.half_extents, spec.rpy,
+                               spec.collides)
+        return PlaneObstacle(spec.name, spec.point, spec.normal, spec.collides)
+    except CpbcError as exc:
+        raise ScenarioError(field, str(exc)) from None
+
+
+def add_scene_geom(
+    spec: mujoco.MjSpec, name: str, geom: SceneGeom, collides: bool, colour: list[float]
+) -> None:
+    """Place an obstacle in a MuJoCo scene (colliding with the robot if ``collides``)."""
+    g = spec.worldbody.add_geom()
+    g.name = name
+    g.type = GEOM_TYPES[geom.kind]
+    size = np.zeros(3)
+    size[: len(geom.size)] = geom.size
+    if geom.kind == "plane":
+        size = np.array([3.0, 3.0, 0.05])  # drawn extent; the plane itself is infinite
+    g.size = size.tolist()
+    g.pos = np.asarray(geom.pos, dtype=float).tolist()
+    g.quat = np.asarray(geom.quat, dtype=float).tolist()
+    g.rgba = colour
+    g.contype = 1 if collides else 0
+    g.conaffinity = 1 if collides else 0
+
+
+def _primitives(spec: s.ClearanceSpec, arm: LoadedArm | None, model: RobotModel,
+                field: str) -> list[LinkPrimitive]:
+    declared = []
+    per_link: dict[str, int] = {}
+    for p in spec.primitives or []:
+        per_link[p.link] = per_link.get(p.link, 0) + 1
+    for i, p in enumerate(spec.primitives or []):
+        f = f"{field}.primitives[{i}]"
+        if p.link not in {fr.name for fr in model.model.frames}:
+            frames = [fr.name for fr in model.model.frames if fr.parentJoint > 0]
+            raise ScenarioError(f"{f}.link", f"the robot has no link '{p.link}'; links: {frames}")
+        start = p.centre if p.centre is not None else p.start
+        end = p.centre if p.centre is not None else p.end
+        if start is None or end is None:
+            raise ScenarioError(f, "give 'centre' (a sphere) or 'start' and 'end' (a capsule)")
+        try:
+            label = p.name or (p.link if per_link[p.link] == 1 else f"{p.link}#{i}")
+            declared.append(LinkPrimitive(label, p.link, start, end, p.radius))
+        except CpbcError as exc:
+            raise ScenarioError(f, str(exc)) from None
+    if spec.links == [] or (spec.links is None and spec.primitives and arm is None):
+        return declared
+    if arm is None:
+        raise ScenarioError(f"{field}.links", "automatic covers need a URDF robot with "
+                            "collision meshes; declare 'primitives' for an MJCF robot")
+    links = spec.links
+    taken = {p.frame for p in declared}
+    try:
+        auto = cover_links(arm.model, arm.collision_model, links, spec.padding, spec.cover,
+                           spec.cover_tolerance)
+    except CpbcError as exc:
+        raise ScenarioError(f"{field}.links", str(exc)) from None
+    return declared + [p for p in auto if p.frame not in taken]
+
+
+def clearance(
+    spec: s.ClearanceSpec,
+    model: RobotModel,
+    arm: LoadedArm | None,
+    obstacles: dict[str, Obstacle],
+    field: str,
+) -> Clearance:
+    """The clearance constraint of a scenario entry."""
+    names = list(obstacles) if spec.obstacles is None else spec.obstacles
+    unknown = [o for o in names if o not in obstacles]
+    if unknown:
+        raise ScenarioError(f"{field}.obstacles",
+                            f"unknown obstacles {unknown}; the scenario has {list(obstacles)}")
+    prims = _primitives(spec, arm, model, field)
+    try:
+        return Clearance(model, prims, [obstacles[o] for o in names], spec.margin,
+                         spec.influence, [tuple(p) for p in spec.self_collision], spec.name)
+    except CpbcError as exc:
+        key = "self_collision" if "self-collision" in str(exc) else None
+        raise ScenarioError(f"{field}.{key}" if key else field, str(exc)) from None
