@@ -93,7 +93,14 @@ def planar_2link() -> BenchSetup:
     )
 
 
-ROBOTS: dict[str, Callable[[], BenchSetup]] = {"planar_2link": planar_2link}
+def panda() -> BenchSetup:
+    """The Panda with URDF limits and three obstacles (cpbc.bench_arms; imported lazily)."""
+    from cpbc.bench_arms import panda as setup
+
+    return setup()
+
+
+ROBOTS: dict[str, Callable[[], BenchSetup]] = {"planar_2link": planar_2link, "panda": panda}
 
 
 def time_torque(ctrl: Controller, states: Sequence[tuple[Array, Array]], repeats: int) -> float:

@@ -182,3 +182,13 @@ def test_constructor_validates() -> None:
                   OBSTACLES)
     with pytest.raises(CpbcError, match="obstacle names must be unique"):
         Clearance(model, prims, [OBSTACLES[0], OBSTACLES[0]])
+
+
+def test_pairs_that_cannot_move_leave_the_hot_path() -> None:
+    """Link 1 turns about the vertical: its height above the table never changes."""
+    c = _clearance(influence=0.1, self_pairs=())
+    full, moving = c._spheres, c._moving
+    assert full is not None and moving is not None
+    static = set(full.group.tolist()) - set(moving.group.tolist())
+    assert {c.names[i] for i in static} == {"clearance[panda_link1|table]"}
+    assert len(moving.group) == len(full.group) - 4  # link 1's four spheres

@@ -64,7 +64,7 @@ class _Spheres:
     mask2: Array  # (S, n)
     packed: Array  # (P, 9 + 4 nj + n): rot, centre column, mask — one gather per step
     starts: Array  # first pair of each reported constraint (a link against an obstacle/link)
-    group: Array  # (P,) the constraint of each pair, counted from ``start``
+    group: Array  # (P,) the constraint (index in ``names``) of each pair
 
 
 @dataclass
@@ -187,6 +187,7 @@ class Clearance(ConfigurationConstraint):
         self._setup_kinematics()
         self._setup_pairs(name)
         self._far_phi = np.full(len(self.names), self.influence or 1.0)
+        self._moving = self._split_static()
         self._far_phi.setflags(write=False)
         self._zero = np.zeros(self._n)
         self._zero.setflags(write=False)
@@ -271,6 +272,7 @@ class Clearance(ConfigurationConstraint):
                 group += [len(names)] * len(pairs)
                 names.append(f"{name}[{a}|{b}]")
         self._spheres: _Spheres | None = None
+        self._sphere_lists = (obs_pairs, sphere_self, group)
         if obs_pairs or sphere_self:
             self._spheres = self._sphere_group(obs_pairs, sphere_self, 0, group)
         # capsule primitives: one group per obstacle kind
@@ -362,6 +364,49 @@ class Clearance(ConfigurationConstraint):
             pos += 2 * (g.stop - g.start) if g.kind == "plane" else g.stop - g.start
         self._reduce_at = np.array(starts, dtype=np.intp)
 
+    def _split_static(self, samples: int = 8) -> _Spheres | None:
+        """The sphere pairs whose clearance can change, as their own group.
+
+        A sphere on the first link of an arm whose first axis is vertical keeps its height
+        above a table: its clearance is constant, its barrier gradient zero. Such pairs are
+        found by their gradient, which vanishes at every one of ``samples`` random
+        configurations (an analytic function of q that vanishes on random samples is zero);
+        their constant factor φ̃ goes into ``_far_phi`` once, and the hot path skips them.
+        """
+        s = self._spheres
+        if s is None:
+            return None
+        pm = self._pin
+        lo = np.where(np.isfinite(pm.lowerPositionLimit), pm.lowerPositionLimit, -np.pi)
+        hi = np.where(np.isfinite(pm.upperPositionLimit), pm.upperPositionLimit, np.pi)
+        rng = np.random.default_rng(0)
+        slope = np.zeros(len(s.group))
+        for _ in range(samples):
+            q = rng.uniform(lo, hi)
+            _, d, u, outside = self._sphere_distances(self._regressor(q))
+            rows = self._sphere_rows(self._regressor(q), u, outside,
+                                     1.0 / np.maximum(d, _TINY))
+            g = self._rows_times_jacobians(q, *rows[0])
+            if len(rows) > 1:
+                g[s.n_obstacle:] += self._rows_times_jacobians(q, *rows[1])
+            slope = np.maximum(slope, np.abs(g).max(axis=1))
+        static = slope < 1e-12
+        if not static.any():
+            return s
+        phi = self._sphere_distances(self._regressor(pin.neutral(pm)))[0][static]
+        shaped = phi if self.influence is None else self._shape(phi)[0] / self.influence
+        np.multiply.at(self._far_phi, s.group[static], shaped)
+        if static.all():
+            return None
+        obs_pairs, self_pairs, group = self._sphere_lists
+        keep = ~static
+        n_obs = len(obs_pairs)
+        return self._sphere_group(
+            [p for p, k in zip(obs_pairs, keep[:n_obs], strict=True) if k],
+            [p for p, k in zip(self_pairs, keep[n_obs:], strict=True) if k],
+            0, [gi for gi, k in zip(group, keep, strict=True) if k],
+        )
+
     def _sphere_group(
         self, obs_pairs: list[tuple[int, Obstacle]], self_pairs: list[tuple[int, int]],
         start: int, group: list[int],
@@ -422,9 +467,12 @@ class Clearance(ConfigurationConstraint):
         return (normals @ jac[:3] + outer @ (_CROSS @ jac[3:])) * masks
 
     # -- distances ---------------------------------------------------------------------------
-    def _sphere_distances(self, y: Array) -> tuple[Array, Array, Array, Array]:
-        """Sphere pairs: φ (P,), the core distance d (P,), u (P, 3), max(|u| − h, 0) (P, 3)."""
-        s = self._spheres
+    def _sphere_distances(
+        self, y: Array, s: _Spheres | None = None
+    ) -> tuple[Array, Array, Array, Array]:
+        """Sphere pairs (all of them unless ``s`` is given): φ (P,), the core distance d (P,),
+        u (P, 3) and max(|u| − h, 0) (P, 3)."""
+        s = self._spheres if s is None else s
         assert s is not None
         u = (s.w @ y.reshape(-1) + s.c).reshape(-1, 3)
         excess = np.abs(u) - s.half
@@ -433,11 +481,11 @@ class Clearance(ConfigurationConstraint):
         return d - s.rsum, d, u, outside
 
     def _sphere_rows(
-        self, y: Array, u: Array, outside: Array, scale: Array
+        self, y: Array, u: Array, outside: Array, scale: Array, s: _Spheres | None = None
     ) -> list[tuple[Array, Array, Array]]:
         """(points, normals × scale·d, masks) of the sphere pairs' gradient rows: pass
         ``scale`` already divided by the core distance d."""
-        s = self._spheres
+        s = self._spheres if s is None else s
         assert s is not None
         local = np.copysign(outside, u) * scale[:, None]
         normal = (s.rot @ local[:, :, None])[:, :, 0]
@@ -449,8 +497,8 @@ class Clearance(ConfigurationConstraint):
     def _sphere_active_rows(
         self, y: Array, act: Array, u: Array, outside: Array, scale: Array
     ) -> list[tuple[Array, Array, Array]]:
-        """Like _sphere_rows for the pairs ``act`` only (``scale`` given for those)."""
-        s = self._spheres
+        """Like _sphere_rows for the moving pairs ``act`` only (``scale`` given for those)."""
+        s = self._moving
         assert s is not None
         nj4 = 4 * self._nj
         block = s.packed[act]
@@ -496,11 +544,10 @@ class Clearance(ConfigurationConstraint):
         out = np.empty(len(self.names))
         s = self._spheres
         if s is not None:
-            phi, _, u, outside = self._sphere_distances(y)
-            inside = ~np.any(outside > 0, axis=1)
-            if inside.any():  # signed distance inside the core box
+            phi, d, u, _ = self._sphere_distances(y)
+            if not d.min() > 0.0:  # a centre inside a core box: signed distance there
                 depth = np.max(np.abs(u) - s.half, axis=1) - s.rsum
-                phi = np.where(inside, depth, phi)
+                phi = np.where(d > 0.0, phi, depth)
             out[s.start:s.stop] = np.minimum.reduceat(phi, s.starts)
         for g in self._groups:
             phi, _, pair = self._narrow(g, y)
@@ -572,32 +619,29 @@ class Clearance(ConfigurationConstraint):
         ell = self.influence
         rows: list[tuple[Array, Array, Array]] = []
         phi_out: Array | None = None
-        s = self._spheres
+        s = self._moving
         if s is not None:
-            phi, d, u, outside = self._sphere_distances(y)
+            phi, d, u, outside = self._sphere_distances(y, s)
             low = phi.min()
             if low <= 0.0:  # outside S: report it, the constraint set raises
-                phi_out = self._far_phi.copy()
-                phi_out[s.start:s.stop] = np.minimum.reduceat(phi, s.starts)
-                return phi_out, self._zero
-            # a link's barrier is the product of its spheres' terms (their log-barriers add)
+                return self.value(x), self._zero
+            # a link's barrier is the product of its spheres' terms (their log-barriers add);
+            # spheres that cannot move relative to an obstacle give a constant factor
             if ell is None:
                 shaped, inv = self._shape(phi)
                 phi_out = self._far_phi.copy()
-                phi_out[s.start:s.stop] = np.multiply.reduceat(shaped, s.starts)
-                rows += self._sphere_rows(y, u, outside, inv / d)
+                phi_out[s.group[s.starts]] *= np.multiply.reduceat(shaped, s.starts)
+                rows += self._sphere_rows(y, u, outside, inv / d, s)
             elif low < ell:  # only the pairs within ℓ enter the law
                 act = np.flatnonzero(phi < ell)
                 shaped, inv = self._shape(phi[act])
                 phi_out = self._far_phi.copy()
-                np.multiply.at(phi_out, s.start + s.group[act], shaped * (1.0 / ell))
+                np.multiply.at(phi_out, s.group[act], shaped * (1.0 / ell))
                 rows += self._sphere_active_rows(y, act, u, outside, inv / d[act])
         for g in self._near_groups(y):
             phi, grows, _ = self._narrow(g, y)
             if phi.min() <= 0.0:
-                phi_out = self._far_phi.copy() if phi_out is None else phi_out
-                phi_out[g.start:g.stop] = phi[: g.stop - g.start]
-                return phi_out, self._zero
+                return self.value(x), self._zero
             shaped, inv = self._shape(phi)
             phi_out = self._far_phi.copy() if phi_out is None else phi_out
             size = g.stop - g.start
