@@ -1,7 +1,16 @@
 """Constraint layer: configuration constraints φ(x) > 0 and velocity constraints ψ(x, ẋ) > 0."""
 
 from cpbc.constraints.base import ConfigurationConstraint, VelocityConstraint
+from cpbc.constraints.clearance import Clearance
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
+from cpbc.constraints.covering import LinkPrimitive, cover_links
+from cpbc.constraints.geometry import (
+    BoxObstacle,
+    CapsuleObstacle,
+    Obstacle,
+    PlaneObstacle,
+    SphereObstacle,
+)
 from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.constraints.linear_limit import LinearLimit, joint_position_limit
 from cpbc.constraints.point_outside_sphere import PointOutsideSphere
@@ -9,13 +18,21 @@ from cpbc.constraints.rate_limit import RateLimit, joint_rate_limit
 
 __all__ = [
     "BarrierTerms",
+    "BoxObstacle",
+    "CapsuleObstacle",
+    "Clearance",
     "ConfigurationConstraint",
     "ConstraintSet",
     "KineticEnergyLimit",
     "LinearLimit",
+    "LinkPrimitive",
+    "Obstacle",
+    "PlaneObstacle",
     "PointOutsideSphere",
     "RateLimit",
+    "SphereObstacle",
     "VelocityConstraint",
+    "cover_links",
     "joint_position_limit",
     "joint_rate_limit",
 ]
