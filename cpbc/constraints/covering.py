@@ -33,12 +33,18 @@ from pathlib import Path
 import coal
 import numpy as np
 import pinocchio as pin
-import trimesh
 from numpy.typing import NDArray
 
 from cpbc.errors import CpbcError, ModelError
 
 Array = NDArray[np.float64]
+
+
+def _trimesh():  # type: ignore[no-untyped-def]
+    """trimesh, imported on first use (it takes most of a second to import)."""
+    import trimesh
+
+    return trimesh
 
 
 @dataclass(frozen=True)
@@ -94,7 +100,7 @@ class LinkPrimitive:
 def _circle(points2: Array) -> tuple[Array, float]:
     """Smallest circle containing 2-D points."""
     try:
-        centre, radius = trimesh.nsphere.minimum_nsphere(points2)
+        centre, radius = _trimesh().nsphere.minimum_nsphere(points2)
         return np.asarray(centre, dtype=float), float(radius)
     except Exception:  # degenerate (collinear) input: fall back to the bounding box circle
         lo, hi = points2.min(axis=0), points2.max(axis=0)
@@ -112,6 +118,7 @@ def fit_capsule(points: Array, radius_factors: Sequence[float] = ()) -> tuple[Ar
     Returns:
         start, end (3,) and radius of the capsule; start == end for a sphere.
     """
+    trimesh = _trimesh()
     pts = np.asarray(points, dtype=float).reshape(-1, 3)
     if len(pts) == 0:
         raise CpbcError("cannot fit a capsule to no points")
@@ -169,7 +176,7 @@ def _polygon(radius: float, sections: int) -> Array:
 
 
 def _sphere_points(radius: float) -> Array:
-    ico = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+    ico = _trimesh().creation.icosphere(subdivisions=2, radius=1.0)
     # the icosphere's facets lie inside the unit sphere; push them out to circumscribe it
     inner = float(np.min(np.abs(np.einsum("ij,ij->i", ico.face_normals,
                                           ico.vertices[ico.faces[:, 0]]))))
@@ -201,6 +208,7 @@ def geometry_points(geom: pin.GeometryObject) -> Array:
         scale = tuple(float(x) for x in np.asarray(geom.meshScale).reshape(-1))
         key = (path, scale)
         if key not in _MESH_CACHE:
+            trimesh = _trimesh()
             try:
                 mesh = trimesh.load(path, force="mesh")
             except Exception as exc:
