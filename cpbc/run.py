@@ -99,7 +99,7 @@ def _table(
                "min margin (constraint)"]
     if clearance_names:
         columns.append("min clearance [m] (pair) / contacts")
-    for col in (*columns, "V rise", "steps/s"):
+    for col in (*columns, "V rise", "safeguard", "steps/s"):
         t.add_column(col)
     for r in results:
         s = r.summary
@@ -117,6 +117,9 @@ def _table(
         style = STATUS_STYLE[s.status]
         status = s.status + (f" @{s.end_time:.3g}s: {s.violated_constraint}"
                              if s.violated_constraint else "")
+        if s.status == "diverged":
+            status += f" @{s.end_time:.3g}s"
+        status += _notes(s)
         cells = [
             escape(s.case), escape(s.controller), f"[{style}]{escape(status)}[/{style}]",
             f"{s.final_error:.3g}",
@@ -125,8 +128,27 @@ def _table(
         ]
         if clearance_names:
             cells.append(_clearance(s, clearance_names))
-        t.add_row(*cells, f"{s.max_lyapunov_increase:.2g}", f"{s.steps_per_second:,.0f}")
+        t.add_row(*cells, f"{s.max_lyapunov_increase:.2g}", _safeguard(s),
+                  f"{s.steps_per_second:,.0f}")
     return t
+
+
+def _notes(s: RunSummary) -> str:
+    """What went on outside the proof: saturated torque, refused noisy measurements."""
+    notes = []
+    if s.saturated_steps:
+        notes.append(f"torque saturated in {s.saturated_steps} steps")
+    if s.rejected_samples:
+        notes.append(f"{s.rejected_samples} noisy samples outside S held the last torque")
+    return "".join(f"; {n}" for n in notes)
+
+
+def _safeguard(s: RunSummary) -> str:
+    """Control steps at which the sampled-data safeguard changed the law's torque."""
+    if not s.safeguard_steps:
+        return "-" if s.enforced_constraints else ""
+    late = f" ({s.safeguard_infeasible} infeasible)" if s.safeguard_infeasible else ""
+    return f"{s.safeguard_steps} steps{late}"
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -97,7 +97,12 @@ class RobotModel:
         path = Path(path)
         if not path.is_file():
             raise ModelError(f"model file not found: {path}")
-        return cls(pin.buildModelFromMJCF(str(path)), name=path.stem, **kwargs)  # type: ignore[arg-type]
+        try:
+            parsed = pin.buildModelFromMJCF(str(path))
+        except (RuntimeError, ValueError) as exc:  # Pinocchio's parser on a malformed file
+            detail = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+            raise ModelError(f"{path} is not an MJCF model Pinocchio can read: {detail}") from None
+        return cls(parsed, name=path.stem, **kwargs)  # type: ignore[arg-type]
 
     @property
     def has_friction(self) -> bool:

@@ -62,6 +62,9 @@ class RunSummary:
     control_steps: int
     steps_per_second: float
     extra: dict[str, float] = field(default_factory=dict)
+    safeguard_steps: int = 0
+    safeguard_infeasible: int = 0
+    rejected_samples: int = 0
 
     def as_dict(self) -> dict[str, object]:
         return {k: _plain(v) for k, v in self.__dict__.items()}
@@ -69,7 +72,7 @@ class RunSummary:
 
 def _plain(v: object) -> object:
     if isinstance(v, float):
-        return None if math.isnan(v) else v
+        return v if math.isfinite(v) else None  # JSON has no NaN or infinity
     if isinstance(v, dict):
         return {k: _plain(x) for k, x in v.items()}
     if isinstance(v, list):
@@ -151,4 +154,7 @@ def summarise(
         wall_time=traj.wall_time,
         control_steps=traj.control_steps,
         steps_per_second=traj.steps_per_second,
+        safeguard_steps=traj.safeguard_steps,
+        safeguard_infeasible=traj.safeguard_infeasible,
+        rejected_samples=traj.rejected_samples,
     )

@@ -34,6 +34,8 @@ from cpbc.results.metrics import SettleCriteria
 from cpbc.scenario import robots
 from cpbc.scenario import schema as s
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, substeps_per_control
+from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
+from cpbc.simulation.loop import DEFAULT_SAFEGUARD
 
 
 @dataclass(frozen=True)
@@ -110,11 +112,43 @@ class ScenarioSetup:
                 @ self.model.coordinates.matrix
             )
             model.dof_damping[:] = fd
+        mismatch = _mismatch(self.scenario.robot.plant)
+        if mismatch is not None:
+            mismatch.apply(model)  # the plant only: the controller's model stays nominal
         return MujocoPlant(model, self.plant_settings)
 
     def make_reference_plant(self) -> RobotModel:
         """A Pinocchio model of the plant, separate from the controller's model."""
         return _robot_model(self.model_path, self.scenario.robot, self.model.n, self.arm)
+
+
+def _mismatch(spec: s.PlantMismatchSpec | None) -> PlantMismatch | None:
+    if spec is None:
+        return None
+
+    def value(v: float | list[float]) -> float | tuple[float, ...]:
+        return tuple(v) if isinstance(v, list) else v
+
+    return PlantMismatch(
+        value(spec.mass_scale), value(spec.inertia_scale), value(spec.damping),
+        value(spec.armature), value(spec.frictionloss),
+    )
+
+
+def _check_disturbances(setup: ScenarioSetup) -> None:
+    """Sizes of the plant overrides and of the noise, against the compiled models."""
+    if setup.scenario.robot.plant is not None:
+        try:
+            setup.make_plant()  # applies the overrides, which check their sizes
+        except CpbcError as exc:
+            key = str(exc).split(" ", 1)[0]
+            raise ScenarioError(f"robot.plant.{key}", str(exc)) from None
+    noise = setup.loop_settings.noise
+    if noise is not None:
+        try:
+            noise.sigmas(setup.model.n)
+        except CpbcError as exc:
+            raise ScenarioError(f"simulation.{str(exc).split(' ', 1)[0]}", str(exc)) from None
 
 
 def _model_path(robot: s.RobotSpec, base: Path) -> Path:
@@ -333,7 +367,20 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
             n,
             "simulation.torque_limit",
         )
-    loop = LoopSettings(sim.duration, control_period, limit, sim.log_every)
+    noise = None
+    if sim.noise is not None:
+        noise = MeasurementNoise(
+            tuple(sim.noise.position) if isinstance(sim.noise.position, list)
+            else sim.noise.position,
+            tuple(sim.noise.velocity) if isinstance(sim.noise.velocity, list)
+            else sim.noise.velocity,
+            sim.noise.seed,
+        )
+    loop = LoopSettings(
+        sim.duration, control_period, limit, sim.log_every,
+        safeguard=DEFAULT_SAFEGUARD if sim.safeguard else None, noise=noise,
+        max_log_samples=sim.max_log_samples,
+    )
 
     built: dict[str, ConfigurationConstraint | VelocityConstraint] = {}
     obstacles: list[ObstacleGeom] = []
@@ -396,7 +443,7 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         raise ScenarioError("controllers", "controller names must be unique; set 'name' on each")
 
     criteria = SettleCriteria(sim.position_tolerance, sim.velocity_tolerance)
-    return ScenarioSetup(
+    setup = ScenarioSetup(
         scenario,
         path,
         model,
@@ -413,3 +460,5 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         scenario_file,
         arm,
     )
+    _check_disturbances(setup)
+    return setup

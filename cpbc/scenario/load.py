@@ -3,13 +3,29 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import get_args
 
 import yaml
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from cpbc.errors import ScenarioError
 from cpbc.resources import scenarios_dir
+from cpbc.scenario import schema
 from cpbc.scenario.schema import Scenario
+
+
+def _union_tags() -> frozenset[str]:
+    """The ``type`` values of the discriminated unions: pydantic puts the tag in the error
+    location (``controllers[1].cpbc.kp``), but it is no key of the scenario."""
+    tags: set[str] = set()
+    for obj in vars(schema).values():
+        if isinstance(obj, type) and issubclass(obj, BaseModel) and "type" in obj.model_fields:
+            tags.update(t for t in get_args(obj.model_fields["type"].annotation)
+                        if isinstance(t, str))
+    return frozenset(tags)
+
+
+_TAGS = _union_tags()
 
 
 def _path(loc: tuple[object, ...]) -> str:
@@ -17,7 +33,9 @@ def _path(loc: tuple[object, ...]) -> str:
     for part in loc:
         if isinstance(part, int):
             out += f"[{part}]"
-        elif isinstance(part, str) and part.startswith(("function-", "tagged-union", "list[")):
+        elif isinstance(part, str) and (
+            part.startswith(("function-", "tagged-union", "list[", "literal[")) or part in _TAGS
+        ):
             continue  # pydantic's internal union branch labels
         else:
             out += f".{part}" if out else str(part)

@@ -29,6 +29,18 @@ class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
+class PlantMismatchSpec(Strict):
+    """How the MuJoCo plant differs from the controller's model (the plant only): factors on
+    each body's mass and inertia (one number, or one per body below the world), and joint
+    damping, armature and dry friction added to the plant (one number, or one per joint)."""
+
+    mass_scale: Positive | list[Positive] = 1.0
+    inertia_scale: Positive | list[Positive] = 1.0
+    damping: NonNegative | list[NonNegative] = 0.0
+    armature: NonNegative | list[NonNegative] = 0.0
+    frictionloss: NonNegative | list[NonNegative] = 0.0
+
+
 class RobotSpec(Strict):
     """The arm. ``model`` is a built-in name (see cpbc.resources), an example-robot-data arm
     (``panda``, ``ur5``, … see cpbc.model.loading.ARMS) or a path to an MJCF (.xml) or URDF
@@ -43,6 +55,15 @@ class RobotSpec(Strict):
     viscous_friction: NonNegative | list[NonNegative] = 0.0
     locked_joints: dict[str, Number] = {}
     package_dirs: list[str] = []
+    plant: PlantMismatchSpec | None = None
+
+
+class NoiseSpec(Strict):
+    """Gaussian noise on the state the controller sees (controller coordinates), seeded."""
+
+    position: NonNegative | list[NonNegative] = 0.0
+    velocity: NonNegative | list[NonNegative] = 0.0
+    seed: Annotated[int, Field(ge=0, strict=True)] = 0
 
 
 class SimulationSpec(Strict):
@@ -55,6 +76,9 @@ class SimulationSpec(Strict):
     torque_limit: Positive | list[Positive] | Literal["from_model"] | None = None
     torque_limit_scale: Positive = 1.0
     log_every: Annotated[int, Field(ge=1)] = 1
+    max_log_samples: Annotated[int, Field(ge=2)] = 100_000
+    safeguard: Annotated[bool, Field(strict=True)] = True  # the sampled-data safeguard
+    noise: NoiseSpec | None = None
     position_tolerance: Positive = 0.01
     velocity_tolerance: Positive = 0.005
 

@@ -11,12 +11,15 @@ import numpy as np
 
 from cpbc.constraints.base import Array
 from cpbc.controllers.base import Controller
+from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model.coordinates import LinearCoordinates
+from cpbc.simulation.disturbances import MeasurementNoise
 from cpbc.simulation.plant import MujocoPlant
 from cpbc.simulation.trajectory import Trajectory, TrajectoryLog
 
 Progress = Callable[[float], None]
+DEFAULT_SAFEGUARD = SafeguardSettings()  # on by default (frozen, so one shared instance)
 
 
 @dataclass(frozen=True)
@@ -28,18 +31,28 @@ class LoopSettings:
         control_period: controller period [s]; a whole multiple of the physics timestep.
         torque_limit: symmetric joint torque limits |τ_q,i| ≤ limit_i [N·m], or None.
         log_every: keep every k-th control sample (long runs).
+        safeguard: the sampled-data safeguard wrapped around every law that enforces
+            constraints (cpbc.controllers.safeguard), or None to run the bare law.
+        noise: Gaussian noise on the state the controller sees, or None.
+        max_log_samples: the log never holds more samples than this: when full, it drops
+            every other sample and halves its rate (memory stays bounded on long runs).
     """
 
     duration: float
     control_period: float
     torque_limit: Array | None = None
     log_every: int = 1
+    safeguard: SafeguardSettings | None = DEFAULT_SAFEGUARD
+    noise: MeasurementNoise | None = None
+    max_log_samples: int = 100_000
 
     def __post_init__(self) -> None:
         if not self.duration > 0:
             raise CpbcError(f"duration must be > 0, got {self.duration}")
         if not self.control_period > 0:
             raise CpbcError(f"control_period must be > 0, got {self.control_period}")
+        if self.max_log_samples < 2:
+            raise CpbcError(f"max_log_samples must be ≥ 2, got {self.max_log_samples}")
 
 
 def substeps_per_control(control_period: float, timestep: float) -> int:
@@ -63,7 +76,16 @@ def run_mujoco(
     settings: LoopSettings,
     progress: Progress | None = None,
 ) -> Trajectory:
-    """Simulate the closed loop from (x0, ẋ0), given in controller coordinates."""
+    """Simulate the closed loop from (x0, ẋ0), given in controller coordinates.
+
+    The controller sees the state through ``settings.noise`` (if any) and, when it enforces
+    constraints, through ``settings.safeguard``. A measured state outside S is refused by the
+    law (ConstraintViolation); the loop then asks the plant: if the true state is inside S,
+    the sample is *rejected* — the previous torque is held (gravity compensation at the first
+    sample), as a real controller that cannot know the true state would do — and counted in
+    ``Trajectory.rejected_samples``; if the true state is outside S too, the run ends as
+    ``constraint_violated``.
+    """
     substeps = substeps_per_control(settings.control_period, plant.model.opt.timestep)
     steps = round(settings.duration / settings.control_period)
     n = plant.n
@@ -72,7 +94,19 @@ def run_mujoco(
     identity = coordinates.is_identity
     limit = settings.torque_limit
     plant.reset(t_inv @ x0, t_inv @ dx0)
-    log = TrajectoryLog(n, steps + 1, settings.log_every)
+    log = TrajectoryLog(n, steps + 1, settings.log_every, settings.max_log_samples)
+    law: Controller = controller
+    guard: Safeguard | None = None
+    if settings.safeguard is not None and not controller.constraints.empty:
+        joint_limit = None if limit is None else np.broadcast_to(limit, (n,))
+        guard = Safeguard(controller, settings.control_period, settings.safeguard, joint_limit)
+        law = guard
+    noisy = settings.noise is not None and settings.noise.active
+    if noisy:
+        sigma_x, sigma_dx = settings.noise.sigmas(n)  # type: ignore[union-attr]
+        rng = np.random.default_rng(settings.noise.seed)  # type: ignore[union-attr]
+    rejected = 0
+    tau = np.zeros(n)
     outcome, violated, saturated, contacts = "completed", None, 0, 0
     report_every = max(1, steps // 50)
     start = _time.perf_counter()
@@ -85,13 +119,23 @@ def run_mujoco(
         if not math.isfinite(x @ x + dx @ dx):  # NaN or overflow in the state
             outcome = "diverged"
             break
+        xm, dxm = x, dx
+        if noisy:
+            xm = x + sigma_x * rng.standard_normal(n)
+            dxm = dx + sigma_dx * rng.standard_normal(n)
         try:
             calls += 1
-            tau, v = controller.evaluate(x, dx)
+            tau, v = law.evaluate(xm, dxm)
+            if noisy:
+                v = _true_lyapunov(controller, x, dx)
         except ConstraintViolation as exc:
-            outcome, violated = "constraint_violated", exc.constraint
-            log.record(t, np.nan, x, dx, np.full(n, np.nan), np.full(n, np.nan), force=True)
-            break
+            if not noisy or not _inside(controller, x, dx):
+                outcome, violated = "constraint_violated", exc.constraint
+                log.record(t, np.nan, x, dx, np.full(n, np.nan), np.full(n, np.nan), force=True)
+                break
+            rejected += 1  # the measurement left S, the arm did not: hold the last torque
+            tau = tau if k else controller.model.gravity(xm)
+            v = _true_lyapunov(controller, x, dx)
         if not math.isfinite(tau @ tau):
             outcome = "diverged"
             log.record(t, v, x, dx, tau, np.full(n, np.nan), force=True)
@@ -120,4 +164,20 @@ def run_mujoco(
     return Trajectory(
         tt, xs, dxs, taus, tau_qs, vs, outcome, end_time, violated, wall, calls, saturated,
         int(contacts), "mujoco",
+        safeguard_steps=guard.acted if guard else 0,
+        safeguard_infeasible=guard.infeasible if guard else 0,
+        rejected_samples=rejected,
     )
+
+
+def _inside(controller: Controller, x: Array, dx: Array) -> bool:
+    """Whether the true state is inside the law's admissible set."""
+    m = controller.constraints.margins(x, dx)
+    return bool(np.all(m > 0))
+
+
+def _true_lyapunov(controller: Controller, x: Array, dx: Array) -> float:
+    try:
+        return controller.lyapunov(x, dx)
+    except ConstraintViolation:
+        return math.nan

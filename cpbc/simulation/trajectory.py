@@ -29,6 +29,12 @@ class Trajectory:
         saturated_steps: control steps in which a torque limit clipped the command.
         max_contacts: largest number of MuJoCo contacts seen (0 for the reference backend).
         backend: "mujoco" or "reference".
+        safeguard_steps: control steps at which the sampled-data safeguard replaced the law's
+            torque (0 without a safeguard).
+        safeguard_infeasible: of those, steps at which even its braking torque could not
+            keep every margin above its floor.
+        rejected_samples: noisy measurements outside S (true state inside) that the law
+            refused; the previous torque was held.
     """
 
     time: Array
@@ -45,6 +51,9 @@ class Trajectory:
     saturated_steps: int
     max_contacts: int
     backend: str
+    safeguard_steps: int = 0
+    safeguard_infeasible: int = 0
+    rejected_samples: int = 0
 
     @property
     def steps_per_second(self) -> float:
@@ -52,11 +61,20 @@ class Trajectory:
 
 
 class TrajectoryLog:
-    """Preallocated log that grows by doubling; decimated by ``every``."""
+    """Preallocated log that grows by doubling; decimated by ``every``.
 
-    def __init__(self, n: int, capacity: int, every: int = 1) -> None:
+    With ``limit``, it never holds more than ``limit`` samples: when full, it keeps every
+    other sample and doubles ``every``, so a run of any length logs on a uniform grid in
+    bounded memory (forced samples, such as the last one, are always taken).
+    """
+
+    def __init__(self, n: int, capacity: int, every: int = 1, limit: int | None = None) -> None:
         self.every = max(1, every)
+        # An even limit keeps the compacted samples on the grid of the doubled ``every``.
+        self.limit = None if limit is None else max(2, limit - limit % 2)
         cap = max(16, capacity // self.every + 2)
+        if self.limit is not None:
+            cap = min(cap, self.limit)
         self._t = np.empty(cap)
         self._v = np.empty(cap)
         self._arrays = [np.empty((cap, n)) for _ in range(4)]
@@ -68,6 +86,8 @@ class TrajectoryLog:
             self._calls += 1
             return
         self._calls += 1
+        if self.limit is not None and self._k >= self.limit:
+            self._compact()
         if self._k == self._t.shape[0]:
             self._t = np.resize(self._t, 2 * self._k)
             self._v = np.resize(self._v, 2 * self._k)
@@ -77,6 +97,21 @@ class TrajectoryLog:
         for a, r in zip(self._arrays, rows, strict=True):
             a[self._k] = r
         self._k += 1
+
+    def _compact(self) -> None:
+        """Keep samples 0, 2, 4, … and log at half the rate from now on."""
+        keep = (self._k + 1) // 2
+        self._t[:keep] = self._t[: self._k : 2]
+        self._v[:keep] = self._v[: self._k : 2]
+        for a in self._arrays:
+            a[:keep] = a[: self._k : 2]
+        self._k = keep
+        self.every *= 2
+
+    @property
+    def nbytes(self) -> int:
+        """Memory held by the log's buffers [bytes]."""
+        return self._t.nbytes + self._v.nbytes + sum(a.nbytes for a in self._arrays)
 
     def arrays(self) -> tuple[Array, Array, Array, Array, Array, Array]:
         """time, position, velocity, torque, joint torque, V."""

@@ -1,0 +1,269 @@
+"""A sampled-data safeguard for the constrained laws: keep S invariant under zero-order hold.
+
+The theorems of Chapters 6–7 hold in continuous time. A real controller holds its torque
+for a control period h; near a barrier the shaped law is stiff, and one held torque can carry
+the state across ∂S, where every log and division of the law is undefined. The safeguard
+wraps a constrained law and, at every control instant,
+
+1. asks the law for τ₀ = k(x, ẋ);
+2. predicts the state half a period and one period ahead under the held τ with the
+   controller's own model, in closed form with the dynamics frozen at the sample,
+
+       a = D⁻¹(τ − C ẋ − g − f),   x(t) = x + t ẋ + ½t² a,   ẋ(t) = ẋ + t a
+
+   (or with ``substeps`` semi-implicit Euler steps of the model's forward dynamics);
+3. accepts τ₀ when every predicted margin keeps its share of the present one — a discrete-time
+   barrier condition on margins tightened by a cushion δ_i,
+
+       m_i(h) − δ_i ≥ e^{−κh} (m_i − δ_i)       for every φ_i and ψ_j              (S1)
+       φ_i(h/2) − δ_i ≥ e^{−κh/2} (φ_i − δ_i)   for every φ_i (between the samples)
+
+   so no margin may shrink faster than at the rate κ [1/s], and below the cushion a margin
+   must grow. The cushion δ_i = η (h / 10 ms) m_i(x_d, 0) is a fraction of the margin at the
+   target at rest: a tightening scaled to the period that absorbs what the frozen prediction
+   gets wrong (it is what keeps a margin from being driven to zero where a prediction error
+   of 10⁻⁸ would cross it);
+4. otherwise blends toward a braking torque that stops the model's motion in one period,
+
+       τ_b = C ẋ + g + f − λ D ẋ / h,     τ(β) = (1 − β) τ₀ + β τ_b,   β ∈ [0, 1]
+
+   and takes the smallest β that satisfies (S1), found by a fixed number of Illinois
+   (regula falsi) steps on F(β) = min_i [m_i(β)/floor_i] − 1 between β = 0 (the law) and
+   β = 1 (the brake): no QP, no optimiser, a bounded number of closed-form predictions.
+
+With λ = 1 the braking prediction has ẋ⁺ = 0 and x⁺ = x + ½hẋ: every rate and kinetic-energy
+margin grows, and configuration margins change by at most half the coasting motion. When
+that is not enough, the brake becomes λ = 2, which predicts x⁺ = x and ẋ⁺ = −ẋ with the
+smallest excursion towards ∂S that keeps the speed (¼hẋ, at mid-period). If neither brake
+satisfies (S1) the step is counted as *infeasible* and the candidate that comes closest is
+used. A state whose distance to a configuration boundary is less than ¼h of its approach
+speed cannot be kept inside by any held torque that respects the rate bounds
+(:func:`viable`); such states are outside what sampled-data control can promise.
+
+The wrapper returns the law's torque unchanged whenever the prediction satisfies (S1). It is
+pure (no simulator) like the laws it wraps, so the same object could drive a real arm at its
+control rate. The law's torque bound (Theorem 7.7, Corollary 7.8) does not cover τ_b; the
+wrapper's ``torque_bound`` is None.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from cpbc.constraints.base import Array
+from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.controllers.base import Controller
+from cpbc.controllers.linalg import solve_spd
+from cpbc.errors import CpbcError
+
+
+@dataclass(frozen=True)
+class SafeguardSettings:
+    """Parameters of the sampled-data safeguard.
+
+    Attributes:
+        decay_rate: κ [1/s] of (S1): over one period h a tightened margin keeps at least
+            e^{−κh} of its value. Larger is more permissive.
+        cushion: η, the cushion as a fraction of each margin's value at the target at rest,
+            for a 10 ms period (it scales linearly with the period).
+        braking: λ > 0 of the braking torque (λ = 1 stops the model's motion in one period).
+        substeps: 1 for the closed-form prediction with the dynamics frozen at the sample;
+            k > 1 for k semi-implicit Euler steps of the model's forward dynamics.
+        backoffs: Illinois steps on β when the law's torque fails (S1) (≥ 1).
+    """
+
+    decay_rate: float = 50.0
+    cushion: float = 1e-3
+    braking: float = 1.0
+    substeps: int = 1
+    backoffs: int = 6
+
+    def __post_init__(self) -> None:
+        for name in ("decay_rate", "braking"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise CpbcError(f"safeguard {name} must be > 0, got {v}")
+        if not (math.isfinite(self.cushion) and 0 <= self.cushion < 1):
+            raise CpbcError(f"safeguard cushion must be in [0, 1), got {self.cushion}")
+        if self.substeps < 1 or self.backoffs < 1:
+            raise CpbcError("safeguard substeps and backoffs must be ≥ 1")
+
+    def keep_fraction(self, period: float) -> float:
+        """e^{−κh}: the share of each tightened margin (S1) requires after one period."""
+        return math.exp(-self.decay_rate * period)
+
+
+def viable(constraints: ConstraintSet, x: Array, dx: Array, period: float) -> bool:
+    """Whether some held torque that keeps every speed can keep (x, ẋ) inside S over one
+    period, to first order: the configuration margins at x + ¼hẋ — the least excursion
+    towards ∂S of a constant deceleration that ends at speed |ẋ| (reversal, λ = 2) — are > 0.
+
+    A state that fails this is in S but cannot be kept in S by sampled-data control at
+    period h; the reliability campaigns count such states apart.
+    """
+    if not constraints.configuration:
+        return True
+    probe = x + 0.25 * period * dx
+    return bool(np.all(np.concatenate([c.value(probe) for c in constraints.configuration]) > 0))
+
+
+class Safeguard(Controller):
+    """Wraps a constrained law so that (S1) holds under zero-order hold at period h.
+
+    Args:
+        law: the constrained law (its ``constraints`` and ``model`` are used).
+        period: control period h [s].
+        settings: κ, λ, prediction sub-steps, back-off steps.
+        torque_limit: joint torque limits |τ_q| ≤ limit (the plant's saturation), shape (n,),
+            applied inside the prediction so that it predicts what the plant receives.
+
+    Attributes:
+        calls: control instants seen.
+        acted: instants at which the law's torque was replaced (β > 0).
+        infeasible: instants at which even the braking torque failed (S1).
+    """
+
+    type_name = "safeguard"
+
+    def __init__(
+        self,
+        law: Controller,
+        period: float,
+        settings: SafeguardSettings | None = None,
+        torque_limit: Array | None = None,
+    ) -> None:
+        if not (math.isfinite(period) and period > 0):
+            raise CpbcError(f"safeguard period must be > 0, got {period}")
+        super().__init__(law.model, law.target, law.constraints)
+        self.law = law
+        self.period = float(period)
+        self.settings = settings or SafeguardSettings()
+        self.keep = self.settings.keep_fraction(self.period)
+        self.keep_half = math.sqrt(self.keep)
+        at_target = law.constraints.margins(law.target, np.zeros(law.model.n))
+        scale = self.settings.cushion * self.period / 0.01
+        self.cushion = scale * at_target  # δ_i
+        self._n_config = sum(len(c.names) for c in law.constraints.configuration)
+        self.torque_limit = None if torque_limit is None else np.asarray(torque_limit, float)
+        coords = law.model.coordinates
+        self._t_mat_t = coords.matrix.T  # τ_q = Tᵀ τ
+        self._t_inv_t = coords.inverse.T  # τ = T⁻ᵀ τ_q
+        self._identity = coords.is_identity
+        self.calls = 0
+        self.acted = 0
+        self.infeasible = 0
+
+    def reset_counts(self) -> None:
+        self.calls = self.acted = self.infeasible = 0
+
+    # -- the Controller interface ------------------------------------------------------------
+    def torque(self, x: Array, dx: Array) -> Array:
+        return self.evaluate(x, dx)[0]
+
+    def lyapunov(self, x: Array, dx: Array) -> float:
+        return self.law.lyapunov(x, dx)
+
+    def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
+        """The guarded torque and the law's V at (x, ẋ); ConstraintViolation outside S."""
+        tau, v = self.law.evaluate(x, dx)  # raises outside S
+        self.calls += 1
+        if self.constraints.empty:
+            return tau, v
+        return self.guard(x, dx, tau), v
+
+    # -- the guard ---------------------------------------------------------------------------
+    def _saturate(self, tau: Array) -> Array:
+        if self.torque_limit is None:
+            return tau
+        tau_q = tau if self._identity else self._t_mat_t @ tau
+        clipped = np.clip(tau_q, -self.torque_limit, self.torque_limit)
+        return clipped if self._identity else self._t_inv_t @ clipped
+
+    def _margins(self, x: Array, dx: Array) -> Array:
+        m = self.constraints.margins(x, dx)
+        return np.where(np.isnan(m), -np.inf, m)
+
+    def _config_margins(self, x: Array) -> Array:
+        m = np.concatenate([c.value(x) for c in self.constraints.configuration])
+        return np.where(np.isnan(m), -np.inf, m)
+
+    def guard(self, x: Array, dx: Array, tau: Array) -> Array:
+        """τ if it satisfies (S1), else the smallest blend toward braking that does."""
+        h = self.period
+        dyn = self.model.dynamics(x, dx)
+        bias = dyn.coriolis_force + dyn.gravity + dyn.dissipation
+        if self.settings.substeps == 1:
+
+            def predict(t: Array) -> tuple[Array, Array, Array]:
+                acc = solve_spd(dyn.inertia, self._saturate(t) - bias)
+                mid = x + (0.5 * h) * dx + (0.125 * h * h) * acc
+                return mid, x + h * dx + (0.5 * h * h) * acc, dx + h * acc
+        else:
+            k = self.settings.substeps
+            dt = h / k
+
+            def predict(t: Array) -> tuple[Array, Array, Array]:
+                t = self._saturate(t)
+                xs, vs, mid = x.copy(), dx.copy(), x
+                for i in range(k):
+                    vs = vs + dt * self.model.forward_dynamics(xs, vs, t)
+                    xs = xs + dt * vs
+                    if 2 * (i + 1) == k or (k % 2 and 2 * i + 1 == k):
+                        mid = xs
+                return mid, xs, vs
+
+        now = self._margins(x, dx)
+        delta = self.cushion
+        floor = delta + self.keep * (now - delta)
+        config = self._n_config > 0
+        if config:
+            floor_mid = delta[: self._n_config] + self.keep_half * (
+                now[: self._n_config] - delta[: self._n_config]
+            )
+
+        def slack(t: Array) -> float:
+            """F = min_i m_i/floor_i − 1 over the end and mid-period checks (≥ 0: passes)."""
+            mid, x1, v1 = predict(t)
+            f = float(np.min(self._margins(x1, v1) / floor))
+            if config:
+                f = min(f, float(np.min(self._config_margins(mid) / floor_mid)))
+            return f - 1.0
+
+        f0 = slack(tau)
+        if f0 >= 0.0:
+            return tau
+        self.acted += 1
+        stop = (dyn.inertia @ dx) / h
+        brake = bias - self.settings.braking * stop
+        f1 = slack(brake)
+        if f1 < 0.0:
+            # Reverse instead of stop: x⁺ = x, ẋ⁺ = −ẋ, the least excursion at this speed.
+            reverse = bias - 2.0 * stop
+            f_rev = slack(reverse)
+            if f_rev < 0.0:
+                self.infeasible += 1
+                best = max((f0, 0), (f1, 1), (f_rev, 2))[1]
+                return (tau, brake, reverse)[best]
+            brake, f1 = reverse, f_rev
+        # Illinois steps for the smallest β with F(β) ≥ 0, bracketed by F(0) < 0 ≤ F(1).
+        lo, f_lo, hi, f_hi = 0.0, f0, 1.0, f1
+        side = 0
+        for _ in range(self.settings.backoffs):
+            beta = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+            if not lo < beta < hi:
+                beta = 0.5 * (lo + hi)
+            f = slack((1.0 - beta) * tau + beta * brake)
+            if f >= 0.0:
+                hi, f_hi = beta, f
+                if side == 1:
+                    f_lo *= 0.5
+                side = 1
+            else:
+                lo, f_lo = beta, f
+                if side == -1:
+                    f_hi *= 0.5
+                side = -1
+        return (1.0 - hi) * tau + hi * brake

@@ -1,0 +1,133 @@
+"""What the proofs leave out: measurement noise and a plant that differs from the model.
+
+* :class:`MeasurementNoise` — seeded Gaussian noise on the position and rate the controller
+  sees (controller coordinates). The plant and the log keep the true state.
+* :class:`PlantMismatch` — edits of the MuJoCo plant only (masses and inertias scaled per
+  body, joint damping, armature, dry friction), so that the controller's Pinocchio model and
+  the physics differ.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from cpbc.constraints.base import Array
+from cpbc.errors import CpbcError
+
+
+def _per_entry(value: float | Array, k: int, what: str, positive: bool) -> Array:
+    a = np.asarray(value, dtype=float)
+    if a.ndim == 0:
+        a = np.full(k, float(a))
+    if a.shape != (k,):
+        raise CpbcError(f"{what} needs 1 or {k} entries, got {a.size}")
+    ok = a > 0 if positive else a >= 0
+    if not np.all(np.isfinite(a)) or not np.all(ok):
+        sign = "> 0" if positive else "≥ 0"
+        raise CpbcError(f"{what} must be finite and {sign}, got {a.tolist()}")
+    return a
+
+
+@dataclass(frozen=True)
+class MeasurementNoise:
+    """x_meas = x + σ_x ε, ẋ_meas = ẋ + σ_ẋ ε', ε, ε' ~ N(0, I), drawn from a seeded generator.
+
+    Attributes:
+        position: σ_x [rad], a number or one per coordinate, ≥ 0.
+        velocity: σ_ẋ [rad/s], a number or one per coordinate, ≥ 0.
+        seed: seed of the generator (the same seed draws the same noise).
+    """
+
+    position: float | tuple[float, ...] = 0.0
+    velocity: float | tuple[float, ...] = 0.0
+    seed: int = 0
+
+    def sigmas(self, n: int) -> tuple[Array, Array]:
+        """σ_x and σ_ẋ as (n,) arrays."""
+        return (
+            _per_entry(self.position, n, "noise.position", positive=False),
+            _per_entry(self.velocity, n, "noise.velocity", positive=False),
+        )
+
+    @property
+    def active(self) -> bool:
+        return bool(np.any(np.asarray(self.position)) or np.any(np.asarray(self.velocity)))
+
+
+@dataclass(frozen=True)
+class PlantMismatch:
+    """How the MuJoCo plant differs from the controller's model.
+
+    Attributes:
+        mass_scale: factor on each body's mass (a number, or one per body below the world,
+            in MuJoCo's body order).
+        inertia_scale: factor on each body's rotational inertia about its centre of mass.
+        damping: joint viscous damping added to the plant [N·m·s/rad], number or per joint.
+        armature: rotor inertia added to each joint [kg·m²], number or per joint.
+        frictionloss: dry (Coulomb) friction of each joint [N·m], number or per joint.
+    """
+
+    mass_scale: float | tuple[float, ...] = 1.0
+    inertia_scale: float | tuple[float, ...] = 1.0
+    damping: float | tuple[float, ...] = 0.0
+    armature: float | tuple[float, ...] = 0.0
+    frictionloss: float | tuple[float, ...] = 0.0
+
+    @property
+    def is_nominal(self) -> bool:
+        return (
+            np.all(np.asarray(self.mass_scale) == 1.0)
+            and np.all(np.asarray(self.inertia_scale) == 1.0)
+            and not np.any(np.asarray(self.damping))
+            and not np.any(np.asarray(self.armature))
+            and not np.any(np.asarray(self.frictionloss))
+        )
+
+    def check(self, nbody: int, ndof: int) -> None:
+        """Raise CpbcError naming the entry if a value does not fit the model."""
+        self._arrays(nbody, ndof)
+
+    def _arrays(self, nbody: int, ndof: int) -> tuple[Array, Array, Array, Array, Array]:
+        return (
+            _per_entry(self.mass_scale, nbody, "mass_scale", positive=True),
+            _per_entry(self.inertia_scale, nbody, "inertia_scale", positive=True),
+            _per_entry(self.damping, ndof, "damping", positive=False),
+            _per_entry(self.armature, ndof, "armature", positive=False),
+            _per_entry(self.frictionloss, ndof, "frictionloss", positive=False),
+        )
+
+    def apply(self, model: mujoco.MjModel) -> None:
+        """Edit a compiled MjModel in place (bodies 1..nbody−1; every dof)."""
+        mass, inertia, damping, armature, friction = self._arrays(model.nbody - 1, model.nv)
+        model.body_mass[1:] *= mass
+        model.body_inertia[1:] *= inertia[:, None]
+        model.dof_damping[:] += damping
+        model.dof_armature[:] += armature
+        model.dof_frictionloss[:] += friction
+        mujoco.mj_setConst(model, mujoco.MjData(model))  # derived quantities of the new inertia
+
+    @classmethod
+    def random(
+        cls,
+        rng: np.random.Generator,
+        nbody: int,
+        ndof: int,
+        mass: float = 0.2,
+        inertia: float = 0.2,
+        damping: float = 0.0,
+        armature: float = 0.0,
+        frictionloss: float = 0.0,
+    ) -> PlantMismatch:
+        """Masses and inertias scaled by factors uniform in [1 − mass, 1 + mass] (resp.
+        inertia) per body; damping, armature and dry friction uniform in [0, value] per
+        joint."""
+        return cls(
+            tuple(rng.uniform(1 - mass, 1 + mass, nbody).tolist()),
+            tuple(rng.uniform(1 - inertia, 1 + inertia, nbody).tolist()),
+            tuple(rng.uniform(0, damping, ndof).tolist()),
+            tuple(rng.uniform(0, armature, ndof).tolist()),
+            tuple(rng.uniform(0, frictionloss, ndof).tolist()),
+        )
