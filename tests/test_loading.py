@@ -162,3 +162,11 @@ def test_locked_joint_errors() -> None:
 def test_registry_entries_exist() -> None:
     for name in ARMS:
         assert arm_urdf(name).is_file()
+
+
+def test_named_arms_mark_their_tool_centre_point() -> None:
+    arm, mj = _arm("panda")
+    site = mj.site("end_point")
+    assert mj.body(int(site.bodyid[0])).name == "panda_hand_tcp" == arm.tip
+    _, ur = _arm("ur5")
+    assert ur.body(int(ur.site("end_point").bodyid[0])).name == "tool0"

@@ -52,25 +52,33 @@ class ArmEntry:
         urdf: URDF path relative to the package's ``robots/`` folder.
         locked_joints: joints frozen by default (grippers), with their values [rad or m].
         summary: one line for listings.
+        tip: the link at the tool centre point; the MuJoCo model gets a site ``end_point``
+            there (the point the viewer traces).
     """
 
     urdf: str
     locked_joints: Mapping[str, float] = field(default_factory=dict)
     summary: str = ""
+    tip: str | None = None
 
 
 ARMS: dict[str, ArmEntry] = {
     "panda": ArmEntry(
         "panda_description/urdf/panda.urdf",
         {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0},
-        "Franka Emika Panda, 7 DOF (fingers locked closed)",
+        "Franka Emika Panda, 7 DOF (fingers locked closed)", "panda_hand_tcp",
     ),
-    "ur3": ArmEntry("ur_description/urdf/ur3_robot.urdf", {}, "Universal Robots UR3, 6 DOF"),
-    "ur5": ArmEntry("ur_description/urdf/ur5_robot.urdf", {}, "Universal Robots UR5, 6 DOF"),
-    "ur10": ArmEntry("ur_description/urdf/ur10_robot.urdf", {}, "Universal Robots UR10, 6 DOF"),
-    "xarm7": ArmEntry("xarm_description/urdf/xarm7.urdf", {}, "UFactory xArm 7, 7 DOF"),
+    "ur3": ArmEntry("ur_description/urdf/ur3_robot.urdf", {}, "Universal Robots UR3, 6 DOF",
+                    "tool0"),
+    "ur5": ArmEntry("ur_description/urdf/ur5_robot.urdf", {}, "Universal Robots UR5, 6 DOF",
+                    "tool0"),
+    "ur10": ArmEntry("ur_description/urdf/ur10_robot.urdf", {}, "Universal Robots UR10, 6 DOF",
+                     "tool0"),
+    "xarm7": ArmEntry("xarm_description/urdf/xarm7.urdf", {}, "UFactory xArm 7, 7 DOF",
+                      "link_eef"),
     "z1": ArmEntry(
-        "z1_description/urdf/z1.urdf", {"jointGripper": 0.0}, "Unitree Z1, 6 DOF (gripper locked)"
+        "z1_description/urdf/z1.urdf", {"jointGripper": 0.0}, "Unitree Z1, 6 DOF (gripper locked)",
+        "gripperStator",
     ),
 }
 
@@ -224,6 +232,7 @@ class LoadedArm:
             ±inf where the URDF has none.
         velocity_limit: joint rate limits [rad/s or m/s], shape (n,); inf where none.
         effort_limit: joint effort limits [N·m or N], shape (n,); inf where none.
+        tip: link carrying the MuJoCo site ``end_point`` (the tool centre point), or None.
     """
 
     name: str
@@ -237,6 +246,7 @@ class LoadedArm:
     position_upper: Array
     velocity_limit: Array
     effort_limit: Array
+    tip: str | None = None
 
     @property
     def n(self) -> int:
@@ -265,6 +275,8 @@ class LoadedArm:
             joint.armature = 0.0
         for geom in spec.geoms:
             geom.contype, geom.conaffinity = 1, 0
+        if self.tip is not None and spec.body(self.tip) is not None:
+            spec.body(self.tip).add_site(name="end_point", size=[0.01, 0, 0])
         for joint_name in self.joint_names:
             spec.add_actuator(
                 name=f"{joint_name}_motor", target=joint_name,
@@ -391,7 +403,9 @@ def load_arm(
     if isinstance(name_or_path, str) and name_or_path in ARMS:
         entry = ARMS[name_or_path]
         locked = {**entry.locked_joints, **(locked_joints or {})}
-        return load_urdf(arm_urdf(name_or_path), locked, name_or_path, package_dirs)
+        arm = load_urdf(arm_urdf(name_or_path), locked, name_or_path, package_dirs)
+        arm.tip = entry.tip
+        return arm
     path = Path(name_or_path)
     if path.suffix.lower() != ".urdf":
         raise ModelError(
