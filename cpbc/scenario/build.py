@@ -335,7 +335,9 @@ def _build_controller(
     except InadmissibleStateError:
         raise
     except CpbcError as exc:
-        raise ScenarioError(field, str(exc)) from None
+        key = str(exc).split(" ", 1)[0]  # "kp must be …": name the key when there is one
+        where = f"{field}.{key}" if key in type(spec).model_fields else field
+        raise ScenarioError(where, str(exc)) from None
 
 
 def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:

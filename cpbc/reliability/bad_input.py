@@ -1,0 +1,367 @@
+"""Invalid scenarios, generated from one valid scenario, and how the CLI answers each.
+
+Every variant must end with exit code 2, a message on stderr that names the offending field,
+no traceback, and nothing written: no output folder and no scratch folder next to it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import io
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from cpbc.run import main
+
+# A small valid scenario that uses every part of the format the variants touch: an obstacle,
+# a relative-angle limit, rate limits, a kinetic-energy limit, noise, plant mismatch, and
+# each kind of controller.
+BASE: dict = {
+    "name": "base",
+    "robot": {
+        "model": "planar_2link",
+        "coordinates": "absolute",
+        "plant": {"mass_scale": [1.1, 0.9], "damping": 0.01},
+    },
+    "simulation": {
+        "duration": 0.02, "timestep": 0.001, "control_period": 0.002, "integrator": "Euler",
+        "noise": {"position": 0.0001, "velocity": 0.001, "seed": 1}, "safeguard": True,
+        "torque_limit": 50,
+    },
+    "target": [1.0, 1.5],
+    "cases": [{"name": "rest", "position": [0, 0], "velocity": [0.1, 0.05]}],
+    "constraints": [
+        {"type": "point_outside_sphere", "name": "obstacle", "frame": "end_point",
+         "centre": [0, 2], "radius": 0.5},
+        {"type": "linear_limit", "name": "relative_angle", "coefficients": [[-1, 1]],
+         "lower": ["-17*pi/18"], "upper": ["17*pi/18"]},
+        {"type": "joint_rate_limit", "name": "link_rates", "bounds": [0.3, 0.2]},
+        {"type": "kinetic_energy_limit", "name": "energy", "limit": 0.5},
+    ],
+    "controllers": [
+        {"type": "pd", "name": "PD", "kp": 4, "kd": 20},
+        {"type": "cpbc", "name": "CPBC", "kp": 4, "kd": 20,
+         "shaping": {"type": "power", "alpha": 0.2},
+         "constraints": ["obstacle", "relative_angle", "link_rates"]},
+        {"type": "bpbc", "name": "BPBC", "kp": [2, 10], "kd": [4, 20], "xi": 1, "gamma": 1,
+         "constraints": ["link_rates"]},
+        {"type": "bpbc_ke", "name": "BPBC-KE", "kp": 2, "kd": 4, "constraints": ["energy"]},
+    ],
+}
+
+Make = Callable[[dict, Path], str]
+
+
+@dataclass(frozen=True)
+class BadInput:
+    """One invalid scenario.
+
+    Attributes:
+        name: short label.
+        category: wrong type, wrong shape, unknown key, non-positive, non-finite,
+            inadmissible, model file, structure.
+        field: what the error message must name.
+        make: builds the scenario text from a copy of BASE (and may write files in the
+            folder, e.g. a broken model).
+    """
+
+    name: str
+    category: str
+    field: str
+    make: Make
+
+
+def _path(data: dict, dotted: str) -> tuple[object, object]:
+    keys = [int(k) if k.lstrip("-").isdigit() else k for k in dotted.split(".")]
+    node = data
+    for k in keys[:-1]:
+        node = node[k]  # type: ignore[index]
+    return node, keys[-1]
+
+
+def setting(dotted: str, value: object) -> Make:
+    """data[a][b][i] = value."""
+
+    def make(data: dict, _folder: Path) -> str:
+        node, key = _path(data, dotted)
+        node[key] = value  # type: ignore[index]
+        return yaml.safe_dump(data, sort_keys=False)
+
+    return make
+
+
+def removing(dotted: str) -> Make:
+    def make(data: dict, _folder: Path) -> str:
+        node, key = _path(data, dotted)
+        del node[key]  # type: ignore[attr-defined]
+        return yaml.safe_dump(data, sort_keys=False)
+
+    return make
+
+
+def raw(text: str) -> Make:
+    return lambda _data, _folder: text
+
+
+def model_file(content: str | None, name: str = "arm.xml") -> Make:
+    """robot.model points at a file in the folder with this content (None: no file)."""
+
+    def make(data: dict, folder: Path) -> str:
+        if content is not None:
+            (folder / name).write_text(content)
+        data["robot"]["model"] = name
+        return yaml.safe_dump(data, sort_keys=False)
+
+    return make
+
+
+NAN, INF = float("nan"), float("inf")
+
+VARIANTS: list[BadInput] = [
+    # -- wrong types -----------------------------------------------------------------------
+    BadInput("duration_text", "wrong type", "simulation.duration",
+             setting("simulation.duration", "long")),
+    BadInput("target_text", "wrong type", "target", setting("target", "home")),
+    BadInput("target_mapping", "wrong type", "target", setting("target", {"x": 1})),
+    BadInput("cases_mapping", "wrong type", "cases", setting("cases", {"rest": [0, 0]})),
+    BadInput("gain_text_entry", "wrong type", "controllers[1].kp",
+             setting("controllers.1.kp", [4, "four"])),
+    BadInput("gain_boolean", "wrong type", "controllers[1].kd",
+             setting("controllers.1.kd", True)),
+    BadInput("safeguard_text", "wrong type", "simulation.safeguard",
+             setting("simulation.safeguard", "maybe")),
+    BadInput("safeguard_number", "wrong type", "simulation.safeguard",
+             setting("simulation.safeguard", 1)),
+    BadInput("log_every_fraction", "wrong type", "simulation.log_every",
+             setting("simulation.log_every", 1.5)),
+    BadInput("noise_seed_fraction", "wrong type", "simulation.noise.seed",
+             setting("simulation.noise.seed", 1.5)),
+    BadInput("coordinates_number", "wrong type", "robot.coordinates",
+             setting("robot.coordinates", 5)),
+    BadInput("bounds_boolean", "wrong type", "constraints[2].bounds",
+             setting("constraints.2.bounds", True)),
+    BadInput("radius_list", "wrong type", "constraints[0].radius",
+             setting("constraints.0.radius", [0.5])),
+    BadInput("plant_list", "wrong type", "robot.plant", setting("robot.plant", [1.1, 0.9])),
+    BadInput("name_number", "wrong type", "name", setting("name", 7)),
+    BadInput("top_level_list", "wrong type", "mapping", raw("- name: x\n- duration: 1\n")),
+    BadInput("empty_file", "wrong type", "mapping", raw("")),
+    BadInput("not_yaml", "wrong type", "YAML", raw("name: [unclosed\n  target: {")),
+    # -- wrong shapes ----------------------------------------------------------------------
+    BadInput("target_three", "wrong shape", "target", setting("target", [1, 2, 3])),
+    BadInput("target_one", "wrong shape", "target", setting("target", [1])),
+    BadInput("position_one", "wrong shape", "cases[0].position",
+             setting("cases.0.position", [0])),
+    BadInput("velocity_three", "wrong shape", "cases[0].velocity",
+             setting("cases.0.velocity", [0, 0, 0])),
+    BadInput("bounds_three", "wrong shape", "constraints[2].bounds",
+             setting("constraints.2.bounds", [0.3, 0.2, 0.1])),
+    BadInput("gain_three", "wrong shape", "controllers[1]",
+             setting("controllers.1.kp", [1, 2, 3])),
+    BadInput("xi_three", "wrong shape", "controllers[2]",
+             setting("controllers.2.xi", [1, 1, 1])),
+    BadInput("torque_limit_three", "wrong shape", "simulation.torque_limit",
+             setting("simulation.torque_limit", [1, 2, 3])),
+    BadInput("coordinates_ragged", "wrong shape", "robot.coordinates",
+             setting("robot.coordinates", [[1, 0], [1]])),
+    BadInput("coordinates_singular", "wrong shape", "robot.coordinates",
+             setting("robot.coordinates", [[1, 1], [1, 1]])),
+    BadInput("coefficients_short", "wrong shape", "constraints[1].coefficients",
+             setting("constraints.1.coefficients", [[-1]])),
+    BadInput("centre_four", "wrong shape", "constraints[0].centre",
+             setting("constraints.0.centre", [0, 2, 0, 1])),
+    BadInput("mass_scale_three", "wrong shape", "robot.plant.mass_scale",
+             setting("robot.plant.mass_scale", [1, 1, 1])),
+    BadInput("damping_three", "wrong shape", "robot.plant.damping",
+             setting("robot.plant.damping", [0, 0, 0])),
+    BadInput("noise_three", "wrong shape", "simulation.noise.position",
+             setting("simulation.noise.position", [0.1, 0.1, 0.1])),
+    BadInput("viscous_friction_three", "wrong shape", "robot.viscous_friction",
+             setting("robot.viscous_friction", [0.1, 0.1, 0.1])),
+    # -- unknown keys ----------------------------------------------------------------------
+    BadInput("top_level_key", "unknown key", "colour", setting("colour", "red")),
+    BadInput("simulation_key", "unknown key", "simulation.dt", setting("simulation.dt", 0.1)),
+    BadInput("controller_key", "unknown key", "gain", setting("controllers.1.gain", 3)),
+    BadInput("constraint_key", "unknown key", "margin", setting("constraints.2.margin", 1)),
+    BadInput("plant_key", "unknown key", "robot.plant.mass", setting("robot.plant.mass", 2)),
+    BadInput("noise_key", "unknown key", "simulation.noise.sigma",
+             setting("simulation.noise.sigma", 0.1)),
+    BadInput("controller_type", "unknown key", "controllers[1]",
+             setting("controllers.1.type", "lqr")),
+    BadInput("constraint_type", "unknown key", "constraints[2]",
+             setting("constraints.2.type", "joint_speed_limit")),
+    BadInput("integrator", "unknown key", "simulation.integrator",
+             setting("simulation.integrator", "Verlet")),
+    BadInput("shaping_type", "unknown key", "shaping",
+             setting("controllers.1.shaping", {"type": "cubic"})),
+    BadInput("unknown_constraint_name", "unknown key", "controllers[1].constraints",
+             setting("controllers.1.constraints", ["obstacle", "wall"])),
+    BadInput("unknown_frame", "unknown key", "constraints[0]",
+             setting("constraints.0.frame", "gripper")),
+    BadInput("unknown_joint", "unknown key", "constraints[2].joints",
+             setting("constraints.2.joints", ["theta1", "theta9"])),
+    # -- zero or negative gains and bounds -------------------------------------------------
+    BadInput("kp_zero", "non-positive", "controllers[1].kp", setting("controllers.1.kp", 0)),
+    BadInput("kd_negative", "non-positive", "controllers[1].kd",
+             setting("controllers.1.kd", -20)),
+    BadInput("kp_entry_negative", "non-positive", "controllers[2].kp",
+             setting("controllers.2.kp", [2, -10])),
+    BadInput("xi_zero", "non-positive", "controllers[2].xi", setting("controllers.2.xi", 0)),
+    BadInput("gamma_negative", "non-positive", "controllers[2].gamma",
+             setting("controllers.2.gamma", -1)),
+    BadInput("alpha_zero", "non-positive", "alpha",
+             setting("controllers.1.shaping", {"type": "power", "alpha": 0})),
+    BadInput("sigma_negative", "non-positive", "sigma",
+             setting("controllers.1.shaping", {"type": "tanh", "sigma": -1})),
+    BadInput("rate_bound_zero", "non-positive", "constraints[2].bounds",
+             setting("constraints.2.bounds", [0.3, 0])),
+    BadInput("energy_zero", "non-positive", "constraints[3].limit",
+             setting("constraints.3.limit", 0)),
+    BadInput("radius_negative", "non-positive", "constraints[0].radius",
+             setting("constraints.0.radius", -0.5)),
+    BadInput("limits_reversed", "non-positive", "constraints[1]",
+             setting("constraints.1.lower", [3])),
+    BadInput("duration_zero", "non-positive", "simulation.duration",
+             setting("simulation.duration", 0)),
+    BadInput("duration_negative", "non-positive", "simulation.duration",
+             setting("simulation.duration", -1)),
+    BadInput("timestep_zero", "non-positive", "simulation.timestep",
+             setting("simulation.timestep", 0)),
+    BadInput("period_negative", "non-positive", "simulation.control_period",
+             setting("simulation.control_period", -0.002)),
+    BadInput("period_not_multiple", "non-positive", "simulation.control_period",
+             setting("simulation.control_period", 0.0015)),
+    BadInput("torque_limit_zero", "non-positive", "simulation.torque_limit",
+             setting("simulation.torque_limit", 0)),
+    BadInput("log_every_zero", "non-positive", "simulation.log_every",
+             setting("simulation.log_every", 0)),
+    BadInput("max_log_samples_one", "non-positive", "simulation.max_log_samples",
+             setting("simulation.max_log_samples", 1)),
+    BadInput("noise_negative", "non-positive", "simulation.noise.velocity",
+             setting("simulation.noise.velocity", -0.1)),
+    BadInput("noise_seed_negative", "non-positive", "simulation.noise.seed",
+             setting("simulation.noise.seed", -3)),
+    BadInput("mass_scale_zero", "non-positive", "robot.plant.mass_scale",
+             setting("robot.plant.mass_scale", 0)),
+    BadInput("armature_negative", "non-positive", "robot.plant.armature",
+             setting("robot.plant.armature", -0.1)),
+    BadInput("friction_negative", "non-positive", "robot.viscous_friction",
+             setting("robot.viscous_friction", -1)),
+    BadInput("tolerance_zero", "non-positive", "simulation.position_tolerance",
+             setting("simulation.position_tolerance", 0)),
+    # -- NaN, infinity, bad expressions ----------------------------------------------------
+    BadInput("target_nan", "non-finite", "target", setting("target", [NAN, 0])),
+    BadInput("position_nan", "non-finite", "cases[0].position",
+             setting("cases.0.position", [0, NAN])),
+    BadInput("velocity_inf", "non-finite", "cases[0].velocity",
+             setting("cases.0.velocity", [INF, 0])),
+    BadInput("kp_inf", "non-finite", "controllers[1].kp", setting("controllers.1.kp", INF)),
+    BadInput("duration_nan", "non-finite", "simulation.duration",
+             setting("simulation.duration", NAN)),
+    BadInput("bound_text_inf", "non-finite", "constraints[2].bounds",
+             setting("constraints.2.bounds", ["inf", 0.2])),
+    BadInput("radius_nan", "non-finite", "constraints[0].radius",
+             setting("constraints.0.radius", NAN)),
+    BadInput("mass_scale_inf", "non-finite", "robot.plant.mass_scale",
+             setting("robot.plant.mass_scale", INF)),
+    BadInput("noise_nan", "non-finite", "simulation.noise.position",
+             setting("simulation.noise.position", NAN)),
+    BadInput("division_by_zero", "non-finite", "target", setting("target", ["pi/0", 0])),
+    BadInput("overflow", "non-finite", "target", setting("target", ["10**400", 0])),
+    BadInput("code_injection", "non-finite", "target",
+             setting("target", ["__import__('os').getcwd()", 0])),
+    # -- a target or initial state outside S -----------------------------------------------
+    BadInput("target_in_obstacle", "inadmissible", "target",
+             setting("target", ["pi/2", "pi/2"])),
+    BadInput("target_past_relative_limit", "inadmissible", "target",
+             setting("target", [0, 3.0])),
+    BadInput("start_in_obstacle", "inadmissible", "cases[0]",
+             setting("cases.0.position", ["pi/2", "pi/2"])),
+    BadInput("start_too_fast", "inadmissible", "cases[0]",
+             setting("cases.0.velocity", [0.5, 0])),
+    BadInput("start_on_rate_bound", "inadmissible", "cases[0]",
+             setting("cases.0.velocity", [0.3, 0])),
+    BadInput("start_over_energy", "inadmissible", "cases[0]",
+             setting("constraints.3.limit", 0.001)),
+    # -- the model file --------------------------------------------------------------------
+    BadInput("model_missing", "model file", "robot.model", model_file(None, "missing.xml")),
+    BadInput("model_not_xml", "model file", "robot.model", model_file("this is not XML")),
+    BadInput("model_bad_mjcf", "model file", "robot.model",
+             model_file("<mujoco><worldbody><body><joint type='ball'/></body></worldbody>"
+                        "</mujoco>")),
+    BadInput("model_empty", "model file", "robot.model", model_file("")),
+    BadInput("model_directory", "model file", "robot.model", setting("robot.model", ".")),
+    # -- structure -------------------------------------------------------------------------
+    BadInput("no_cases", "structure", "cases", setting("cases", [])),
+    BadInput("no_controllers", "structure", "controllers", setting("controllers", [])),
+    BadInput("missing_duration", "structure", "simulation.duration",
+             removing("simulation.duration")),
+    BadInput("missing_target", "structure", "target", removing("target")),
+    BadInput("duplicate_case", "structure", "cases",
+             setting("cases", [{"name": "a", "position": [0, 0]},
+                               {"name": "a", "position": [0.1, 0]}])),
+    BadInput("duplicate_controller", "structure", "controllers",
+             setting("controllers.1.name", "PD")),
+    BadInput("duplicate_constraint", "structure", "constraints[3].name",
+             setting("constraints.3.name", "obstacle")),
+    BadInput("name_escapes", "structure", "name", setting("name", "../elsewhere")),
+    BadInput("case_name_escapes", "structure", "cases[0].name",
+             setting("cases.0.name", "../../x")),
+    BadInput("bpbc_with_obstacle", "structure", "controllers[2]",
+             setting("controllers.2.constraints", ["obstacle", "link_rates"])),
+    BadInput("ke_law_without_energy", "structure", "controllers[3]",
+             setting("controllers.3.constraints", ["link_rates"])),
+]
+
+
+@dataclass(frozen=True)
+class Answer:
+    """How the CLI answered one variant."""
+
+    variant: BadInput
+    exit_code: int | None
+    message: str
+    names_field: bool
+    traceback: bool
+    left_behind: list[str]
+
+    @property
+    def ok(self) -> bool:
+        return (self.exit_code == 2 and self.names_field and not self.traceback
+                and not self.left_behind)
+
+
+def answer(variant: BadInput, folder: Path) -> Answer:
+    """Write the variant into an empty ``folder``, run the CLI on it, and judge the answer."""
+    folder.mkdir(parents=True, exist_ok=True)
+    text = variant.make(copy.deepcopy(BASE), folder)
+    scenario = folder / "scenario.yaml"
+    scenario.write_text(text)
+    before = {p.name for p in folder.iterdir()}
+    out = folder / "out"
+    err, std = io.StringIO(), io.StringIO()
+    code: int | None
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(std):
+        try:
+            code = main([str(scenario), "--out", str(out), "--quiet"])
+        except SystemExit as exc:  # argparse
+            code = int(exc.code) if isinstance(exc.code, int) else None
+        except BaseException:  # a crash: the finding this check exists for
+            code = None
+            traceback.print_exc(file=err)
+    message = err.getvalue().strip()
+    left = sorted({p.name for p in folder.iterdir()} - before)
+    return Answer(
+        variant, code, message, variant.field in message,
+        "Traceback" in message or "Traceback" in std.getvalue(), left,
+    )
+
+
+def answer_all(folder: Path, variants: list[BadInput] | None = None) -> list[Answer]:
+    """Every variant in its own sub-folder of ``folder``."""
+    return [answer(v, folder / v.name) for v in (variants or VARIANTS)]
