@@ -126,7 +126,14 @@ class Clearance(ConfigurationConstraint):
     ``influence=None`` the barrier is φ_p itself (the plain thesis form).
 
     ``value`` and ``gradient`` report the clearance φ_p itself [m] (what the run summary
-    shows); ``barrier_terms`` gives the law φ̃_p and Σ ∇φ̃_p/φ̃_p.
+    shows); ``barrier_terms`` gives the law φ̃_p and Σ ∇φ̃_p/φ̃_p. Sphere primitives are
+    reported per link: ``name[link|obstacle]`` is the smallest clearance of the link's
+    spheres (its gradient that of the closest sphere), and the law's function for it is the
+    product of the spheres' φ̃ — one log-barrier term per sphere pair, exactly as if each
+    were its own constraint, with the same zero set as the minimum but smooth. Capsule
+    primitives are reported per primitive. Sphere pairs whose clearance cannot change (a
+    link turning about the normal of a plane, say) are detected once, by their vanishing
+    gradient at random configurations, and leave the hot path.
 
     Args:
         model: the controller's robot model.
