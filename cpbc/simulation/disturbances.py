@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 
 from cpbc.constraints.base import Array
+from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.errors import CpbcError
 
 
@@ -55,6 +56,26 @@ class MeasurementNoise:
     @property
     def active(self) -> bool:
         return bool(np.any(np.asarray(self.position)) or np.any(np.asarray(self.velocity)))
+
+
+def rate_into_set(
+    constraints: ConstraintSet, x: Array, dx: Array, fraction: float = 1e-3
+) -> Array | None:
+    """ẋ scaled by the largest c ≤ 1 that leaves every velocity margin ≥ ``fraction`` of its
+    value at rest, or None if a configuration margin at x is ≤ 0 (then no rate helps).
+
+    Each ψ_j = Ω_j(x) − ½ẋᵀQ_j(x)ẋ is quadratic in ẋ, so ψ_j(cẋ) = Ω_j − c²(Ω_j − ψ_j(ẋ))
+    and c follows in closed form.
+    """
+    k = sum(len(c.names) for c in constraints.configuration)
+    now = constraints.margins(x, dx)
+    if not np.all(now[:k] > 0):
+        return None
+    rest = constraints.margins(x, np.zeros_like(dx))[k:]
+    used = rest - now[k:]  # ½ẋᵀQẋ ≥ 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c2 = np.where(used > 0, (1.0 - fraction) * rest / used, np.inf)
+    return dx * min(1.0, float(np.sqrt(np.min(c2, initial=np.inf))))
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ from cpbc.controllers.base import Controller
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model.coordinates import LinearCoordinates
-from cpbc.simulation.disturbances import MeasurementNoise
+from cpbc.simulation.disturbances import MeasurementNoise, rate_into_set
 from cpbc.simulation.plant import MujocoPlant
 from cpbc.simulation.trajectory import Trajectory, TrajectoryLog
 
@@ -81,10 +81,11 @@ def run_mujoco(
     The controller sees the state through ``settings.noise`` (if any) and, when it enforces
     constraints, through ``settings.safeguard``. A measured state outside S is refused by the
     law (ConstraintViolation); the loop then asks the plant: if the true state is inside S,
-    the sample is *rejected* — the previous torque is held (gravity compensation at the first
-    sample), as a real controller that cannot know the true state would do — and counted in
-    ``Trajectory.rejected_samples``; if the true state is outside S too, the run ends as
-    ``constraint_violated``.
+    the sample is *rejected* and counted in ``Trajectory.rejected_samples``: the law is
+    evaluated at the measured rate scaled back just inside S (rate_into_set), or, when a
+    configuration margin was measured ≤ 0, the previous torque is held (gravity compensation
+    at the first sample) — what a real controller, which cannot know the true state, can do.
+    If the true state is outside S too, the run ends as ``constraint_violated``.
     """
     substeps = substeps_per_control(settings.control_period, plant.model.opt.timestep)
     steps = round(settings.duration / settings.control_period)
@@ -133,8 +134,8 @@ def run_mujoco(
                 outcome, violated = "constraint_violated", exc.constraint
                 log.record(t, np.nan, x, dx, np.full(n, np.nan), np.full(n, np.nan), force=True)
                 break
-            rejected += 1  # the measurement left S, the arm did not: hold the last torque
-            tau = tau if k else controller.model.gravity(xm)
+            rejected += 1  # the measurement left S, the arm did not
+            tau = _fallback(law, xm, dxm, tau if k else controller.model.gravity(xm))
             v = _true_lyapunov(controller, x, dx)
         if not math.isfinite(tau @ tau):
             outcome = "diverged"
@@ -168,6 +169,18 @@ def run_mujoco(
         safeguard_infeasible=guard.infeasible if guard else 0,
         rejected_samples=rejected,
     )
+
+
+def _fallback(law: Controller, xm: Array, dxm: Array, held: Array) -> Array:
+    """The torque for a measurement the law refused: the law at the measured rate scaled
+    back into S (when only velocity constraints are broken), else the held torque."""
+    dxp = rate_into_set(law.constraints, xm, dxm)
+    if dxp is None:
+        return held
+    try:
+        return law.evaluate(xm, dxp)[0]
+    except ConstraintViolation:
+        return held
 
 
 def _inside(controller: Controller, x: Array, dx: Array) -> bool:
