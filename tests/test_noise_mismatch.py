@@ -67,9 +67,9 @@ def test_noise_is_seeded_and_seen_only_by_the_controller(bpbc: BPBC, plant) -> N
 
 
 def test_noise_sizes_are_checked() -> None:
-    with pytest.raises(CpbcError, match="noise.velocity"):
+    with pytest.raises(CpbcError, match=r"noise\.velocity"):
         MeasurementNoise(0.0, (0.1, 0.1, 0.1)).sigmas(2)
-    with pytest.raises(CpbcError, match="noise.position"):
+    with pytest.raises(CpbcError, match=r"noise\.position"):
         MeasurementNoise(-1.0, 0.0).sigmas(2)
 
 
