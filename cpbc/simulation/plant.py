@@ -80,6 +80,9 @@ class MujocoPlant:
             )
             self.model.actuator_ctrllimited[:] = 0
             self.model.actuator_forcelimited[:] = 0
+        # A URDF's effort limits become joint actuator-force ranges in MuJoCo, which would
+        # clip the torque silently; saturation is the loop's job (torque_limit, counted).
+        self.model.jnt_actfrclimited[:] = 0
 
     @classmethod
     def from_file(cls, path: str | Path, settings: PlantSettings) -> MujocoPlant:
