@@ -11,7 +11,8 @@ wraps a constrained law and, at every control instant,
 
        a = D⁻¹(τ − C ẋ − g − f),   x(t) = x + t ẋ + ½t² a,   ẋ(t) = ẋ + t a
 
-   (or with ``substeps`` semi-implicit Euler steps of the model's forward dynamics);
+   or, for periods longer than ``max_step`` (1 ms), in ⌈h/max_step⌉ semi-implicit Euler
+   steps of the model's forward dynamics;
 3. accepts τ₀ when every predicted margin keeps its share of the present one — a discrete-time
    barrier condition on margins tightened by a cushion δ_i,
 
@@ -72,6 +73,9 @@ class SafeguardSettings:
         braking: λ > 0 of the braking torque (λ = 1 stops the model's motion in one period).
         substeps: 1 for the closed-form prediction with the dynamics frozen at the sample;
             k > 1 for k semi-implicit Euler steps of the model's forward dynamics.
+        max_step: the longest prediction step [s]: a period longer than this is predicted
+            in ⌈h / max_step⌉ sub-steps whatever ``substeps`` says (over 10 ms a 7-joint
+            arm's acceleration changes too much for the frozen prediction).
         backoffs: Illinois steps on β when the law's torque fails (S1) (≥ 1).
     """
 
@@ -79,6 +83,7 @@ class SafeguardSettings:
     cushion: float = 1e-3
     braking: float = 1.0
     substeps: int = 1
+    max_step: float = 0.001
     backoffs: int = 6
 
     def __post_init__(self) -> None:
@@ -90,6 +95,12 @@ class SafeguardSettings:
             raise CpbcError(f"safeguard cushion must be in [0, 1), got {self.cushion}")
         if self.substeps < 1 or self.backoffs < 1:
             raise CpbcError("safeguard substeps and backoffs must be ≥ 1")
+        if not (math.isfinite(self.max_step) and self.max_step > 0):
+            raise CpbcError(f"safeguard max_step must be > 0, got {self.max_step}")
+
+    def steps_for(self, period: float) -> int:
+        """Prediction sub-steps for a control period."""
+        return max(self.substeps, math.ceil(period / self.max_step - 1e-9))
 
     def keep_fraction(self, period: float) -> float:
         """e^{−κh}: the share of each tightened margin (S1) requires after one period."""
@@ -143,6 +154,7 @@ class Safeguard(Controller):
         self.settings = settings or SafeguardSettings()
         self.keep = self.settings.keep_fraction(self.period)
         self.keep_half = math.sqrt(self.keep)
+        self.substeps = self.settings.steps_for(self.period)
         at_target = law.constraints.margins(law.target, np.zeros(law.model.n))
         scale = self.settings.cushion * self.period / 0.01
         self.cushion = scale * at_target  # δ_i
@@ -195,14 +207,14 @@ class Safeguard(Controller):
         h = self.period
         dyn = self.model.dynamics(x, dx)
         bias = dyn.coriolis_force + dyn.gravity + dyn.dissipation
-        if self.settings.substeps == 1:
+        if self.substeps == 1:
 
             def predict(t: Array) -> tuple[Array, Array, Array]:
                 acc = solve_spd(dyn.inertia, self._saturate(t) - bias)
                 mid = x + (0.5 * h) * dx + (0.125 * h * h) * acc
                 return mid, x + h * dx + (0.5 * h * h) * acc, dx + h * acc
         else:
-            k = self.settings.substeps
+            k = self.substeps
             dt = h / k
 
             def predict(t: Array) -> tuple[Array, Array, Array]:
