@@ -21,7 +21,8 @@ CSV_COLUMNS = (
     "controller", "controller_type", "case", "backend", "status", "end_time", "final_error",
     "settle_time", "peak_joint_rates", "rate_bounds", "peak_torques", "peak_torque_norm",
     "torque_bound", "min_margin", "min_margin_constraint", "crossed_constraints",
-    "max_lyapunov_increase", "max_contacts", "saturated_steps", "wall_time", "steps_per_second",
+    "max_lyapunov_increase", "max_contacts", "saturated_steps", "safeguard_steps",
+    "safeguard_infeasible", "rejected_samples", "wall_time", "steps_per_second",
 )
 
 
