@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import statistics
 from collections import Counter, defaultdict
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 Data = dict[str, object]
 
@@ -21,7 +21,7 @@ def _hz(period: float) -> str:
 
 
 def _ms(period: float | None) -> str:
-    return "none ≥ 1 ms" if period is None else f"{period * 1e3:g} ms"
+    return "< 1 ms" if period is None else f"{period * 1e3:g} ms"
 
 
 def _g(v: object, digits: int = 3) -> str:
@@ -76,12 +76,23 @@ def _sampled(data: Data) -> tuple[str, dict[float, list[int]]]:
     return text + extra, totals
 
 
+def _longest(trail: Sequence[Data], ok: Callable[[Data], bool]) -> float | None:
+    best = None
+    for r in sorted(trail, key=lambda r: r["period"]):
+        if not ok(r):
+            break
+        best = r["period"]
+    return best
+
+
 def _periods(data: Data) -> str:
     rows = []
     for scenario, recs in data.items():
         longest = {r["controller"]: r["longest_safe"] for r in recs if "longest_safe" in r}
         for ctrl, best in longest.items():
             trail = [r for r in recs if r.get("controller") == ctrl and "period" in r]
+            cases = _longest(trail, lambda r: not r["cases_violated"])
+            states = _longest(trail, lambda r: r["states_violated"] == 0)
             first_bad = next((r for r in trail if not r["safe"]), None)
             why = "–"
             if first_bad is not None:
@@ -92,12 +103,17 @@ def _periods(data: Data) -> str:
                     parts.append(f"{first_bad['states_violated']}/{first_bad['states']} "
                                  "sampled states")
                 why = f"{_ms(first_bad['period'])}: " + "; ".join(parts)
+            worst = trail[-1] if trail else None
+            at_worst = (f"{worst['states_violated']}/{worst['states']}"
+                        if worst is not None else "–")
             contact = sum(r["contact"] for r in trail)
-            rows.append([scenario, ctrl, f"**{_ms(best)}**", why,
-                         trail[0]["states"] if trail else 0, contact or "–"])
+            rows.append([scenario, ctrl, f"**{_ms(best)}**", _ms(cases), _ms(states), why,
+                         at_worst, contact or "–"])
     return _table(["scenario", "law", "longest safe period (bare law)",
-                   "first failing period: what failed", "sampled states (at 1 ms)",
-                   "runs with a physical contact (not counted)"], rows)
+                   "from the scenario's cases", "from sampled states",
+                   "first failing period: what failed", "sampled states violated at "
+                   "the longest period tried", "runs with a physical contact (not counted)"],
+                  rows)
 
 
 def _status_counts(rs: Sequence[Data]) -> str:
