@@ -12,6 +12,7 @@ an interrupted run keeps what it finished and sections can be re-run one at a ti
 from __future__ import annotations
 
 import argparse
+import fcntl
 import json
 import sys
 import time
@@ -111,6 +112,35 @@ def _methods(config: suite.Config) -> dict[str, str]:
     }
 
 
+def _store(path: Path, section: str, result: dict[str, object], wall: int,
+           config: suite.Config) -> dict[str, object]:
+    """Merge one finished section into the data file; returns the whole data.
+
+    Sections keyed by scenario are merged scenario by scenario, so that runs of different
+    ``--scenarios`` (in parallel processes too: the file is locked while it is rewritten)
+    add up to one report.
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path.with_suffix(".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        data: dict[str, object] = json.loads(path.read_text()) if path.is_file() else {}
+        old = data.get(section)
+        if config.scenarios and isinstance(old, dict) and section in suite.BY_SCENARIO:
+            result = old | result
+        data[section] = result
+        wall_s = data.setdefault("wall_s", {})
+        key = section if not config.scenarios else f"{section}:{','.join(config.scenarios)}"
+        wall_s[key] = wall  # type: ignore[index]
+        data["environment"] = suite.environment()
+        data["config"] = {k: v for k, v in asdict(config).items()
+                          if k not in ("safeguard", "scenarios")} | {
+            "safeguard": asdict(config.safeguard)}
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(json.dumps(data, indent=1, default=str))
+        tmp.replace(path)
+    return data
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--sections", default=",".join(suite.SECTIONS),
@@ -138,14 +168,10 @@ def main(argv: list[str] | None = None) -> int:
         for name in args.sections.split(","):
             start = time.perf_counter()
             _log(f"section {name} …")
-            data[name] = suite.SECTIONS[name](config, _log)
-            data.setdefault("wall_s", {})[name] = round(time.perf_counter() - start)  # type: ignore[index]
-            data["environment"] = suite.environment()
-            data["config"] = {k: v for k, v in asdict(config).items() if k != "safeguard"} | {
-                "safeguard": asdict(config.safeguard)}
-            args.data.parent.mkdir(parents=True, exist_ok=True)
-            args.data.write_text(json.dumps(data, indent=1, default=str))
-            _log(f"section {name} done in {time.perf_counter() - start:.0f} s")
+            result = suite.SECTIONS[name](config, _log)
+            wall = round(time.perf_counter() - start)
+            data = _store(args.data, name, result, wall, config)
+            _log(f"section {name} done in {wall} s")
     data.update(_methods(config))
     from cpbc.reliability.findings import findings, ke_verdict
 

@@ -48,7 +48,7 @@ class Config:
     seed: int = 2007
     periods: tuple[float, ...] = (0.001, 0.002, 0.01)
     states: int = 1000
-    arm_states: int = 100
+    arm_states: int = 1000
     horizon: float = 1.0
     arm_horizon: float = 0.5
     nonviable_runs: int = 100
@@ -270,6 +270,9 @@ def _diverged_run() -> dict[str, object]:
             "nan_in_summary": any(isinstance(v, float) and not math.isfinite(v)
                                   for v in run.values())}
 
+
+# sections whose result is a dict keyed by scenario (merged scenario by scenario)
+BY_SCENARIO = frozenset({"periods", "noise", "saturation", "mismatch", "sampled"})
 
 SECTIONS: dict[str, Callable[[Config, Log], dict[str, object]]] = {
     "bad_input": bad_input,
