@@ -192,3 +192,16 @@ def test_pairs_that_cannot_move_leave_the_hot_path() -> None:
     static = set(full.group.tolist()) - set(moving.group.tolist())
     assert {c.names[i] for i in static} == {"clearance[panda_link1|table]"}
     assert len(moving.group) == len(full.group) - 4  # link 1's four spheres
+
+
+def test_margins_after_the_barrier_are_clearances_not_the_shaped_barrier(rng) -> None:
+    c = _clearance("spheres", influence=0.3)
+    cs = ConstraintSet(7, [c])
+    _, model = _panda()
+    for x in _states(rng, 4):
+        dx = np.zeros(7)
+        try:
+            cs.barrier(x, dx, model.dynamics(x, dx))
+        except ConstraintViolation:
+            continue
+        np.testing.assert_allclose(cs.margins(x, dx), c.value(x), rtol=0, atol=0)

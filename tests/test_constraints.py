@@ -555,3 +555,14 @@ def test_margins_along_marks_non_finite_rows(thesis_ch6_set, rng):
 def test_duplicate_constraint_names_are_rejected(absolute_model):
     with pytest.raises(CpbcError, match="duplicate"):
         ConstraintSet(2, [obstacle(absolute_model), obstacle(absolute_model)])
+
+
+def test_margins_at_the_last_barrier_state_equal_fresh_margins(thesis_ch6_set, absolute_model,
+                                                               rng):
+    for th, dth in admissible_states(thesis_ch6_set, rng, 5):
+        fresh = thesis_ch6_set.margins(th, dth)
+        thesis_ch6_set.barrier(th, dth, absolute_model.dynamics(th, dth))
+        np.testing.assert_allclose(thesis_ch6_set.margins(th, dth), fresh, rtol=1e-12,
+                                   atol=1e-15)
+        moved = thesis_ch6_set.margins(th + 1e-3, dth)  # another state: not the kept ones
+        assert moved[0] != pytest.approx(fresh[0], rel=1e-12, abs=0)

@@ -20,6 +20,8 @@ class ConfigurationConstraint(ABC):
     """φ_i(x) = h_i(x) − Δ_i > 0 (eq. 6.16), with gradient ∇φ_i(x)."""
 
     names: tuple[str, ...]
+    # whether barrier_terms returns φ itself (a localised barrier returns a reshaped φ̃)
+    barrier_is_margin: bool = True
 
     @abstractmethod
     def value(self, x: Array) -> Array:

@@ -146,6 +146,8 @@ class Clearance(ConfigurationConstraint):
         name: prefix of the constraint names, ``name[primitive|obstacle]``.
     """
 
+    barrier_is_margin = False  # the law's φ̃ (and per-link products), not the clearance
+
     def __init__(
         self,
         model: RobotModel,

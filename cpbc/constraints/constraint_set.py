@@ -60,6 +60,10 @@ class ConstraintSet:
             dup = sorted({x for x in self.names if self.names.count(x) > 1})
             raise CpbcError(f"duplicate constraint names: {dup}; give each constraint its own name")
         self.needs_dynamics = any(c.needs_dynamics for c in self.velocity)
+        # the margins found by the last barrier call, when its terms are the margins
+        self._keeps_margins = all(c.barrier_is_margin for c in self.configuration)
+        self._last_key: bytes = b""
+        self._last_parts: list[Array] = []
 
     def __len__(self) -> int:
         return len(self.names)
@@ -69,7 +73,13 @@ class ConstraintSet:
         return not self.names
 
     def margins(self, x: Array, dx: Array, dyn: DynamicsTerms | None = None) -> Array:
-        """Every φ_i and ψ_j, in the order of ``names``."""
+        """Every φ_i and ψ_j, in the order of ``names``.
+
+        At the state of the last ``barrier`` call the margins it found are reused (a law's
+        safeguard asks for them at the sample the law has just evaluated).
+        """
+        if self._last_parts and self._last_key == x.tobytes() + dx.tobytes():
+            return np.concatenate(self._last_parts)
         parts = [c.value(x) for c in self.configuration]
         parts += [c.value(x, dx, dyn) for c in self.velocity]
         return np.concatenate(parts) if parts else np.zeros(0)
@@ -94,10 +104,12 @@ class ConstraintSet:
     def barrier(self, x: Array, dx: Array, dyn: DynamicsTerms) -> BarrierTerms:
         """Log-barrier sums at (x, ẋ); raises ConstraintViolation outside S."""
         log_phi, gradient, weight = 0.0, None, None
+        parts = []
         for c in self.configuration:
             phi, b = c.barrier_terms(x)
             log_phi += _log_sum(c.names, phi)
             gradient = b if gradient is None else gradient + b
+            parts.append(phi)
         log_psi = 0.0
         for c in self.velocity:
             psi, pi, b = c.barrier_terms(x, dx, dyn)
@@ -105,4 +117,7 @@ class ConstraintSet:
             if b is not None:
                 gradient = b if gradient is None else gradient + b
             weight = pi if weight is None else weight + pi
+            parts.append(psi)
+        if self._keeps_margins:
+            self._last_key, self._last_parts = x.tobytes() + dx.tobytes(), parts
         return BarrierTerms(log_phi, log_psi, gradient, weight)

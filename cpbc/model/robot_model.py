@@ -91,6 +91,8 @@ class RobotModel:
         probe = pin.crba(model, self.data, np.linspace(0.3, 1.1, self.n)) if self.n > 1 else None
         self._crba_upper_only = probe is not None and not np.allclose(probe, probe.T)
         self._lower = np.tril_indices(self.n, -1)
+        self._last_key: bytes = b""
+        self._last_dynamics: DynamicsTerms | None = None
 
     @classmethod
     def from_mjcf(cls, path: str | Path, **kwargs: object) -> RobotModel:
@@ -146,7 +148,21 @@ class RobotModel:
         return self.viscous_friction @ dx
 
     def dynamics(self, x: Array, dx: Array) -> DynamicsTerms:
-        """D, C ẋ, g and f at one state: three Pinocchio passes (CRBA, RNEA, gravity)."""
+        """D, C ẋ, g and f at one state: three Pinocchio passes (CRBA, RNEA, gravity).
+
+        The terms of the last state asked for are kept and returned again for the same state
+        (a law and its safeguard evaluate the same sample), read-only since they are shared.
+        """
+        key = x.tobytes() + dx.tobytes()
+        if key == self._last_key:
+            return self._last_dynamics  # type: ignore[return-value]
+        terms = self._dynamics(x, dx)
+        for a in terms:
+            a.flags.writeable = False
+        self._last_key, self._last_dynamics = key, terms
+        return terms
+
+    def _dynamics(self, x: Array, dx: Array) -> DynamicsTerms:
         model, data = self.model, self.data
         if self._identity:
             q, dq = x, dx
