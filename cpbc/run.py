@@ -7,9 +7,11 @@ Exit codes: 0 when the scenario ran (whatever the controllers did), 2 for bad in
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.markup import escape
@@ -21,9 +23,11 @@ from cpbc.errors import CpbcError
 from cpbc.results import staged_output, write_summaries, write_trajectory
 from cpbc.results.metrics import RunSummary
 from cpbc.scenario import build, load_scenario
-from cpbc.scenario.runner import RunResult, default_workers, run_all
-from cpbc.viewer.live import LiveView, start_live_view
+from cpbc.scenario.runner import RunResult, default_workers, run_all, worker_pool
 from cpbc.viewer.outputs import write_run_outputs
+
+if TYPE_CHECKING:
+    from cpbc.viewer.live import LiveView
 
 STATUS_STYLE = {
     "converged": "green",
@@ -161,13 +165,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         setup = build(scenario, file)
         out = args.out or Path("runs") / scenario.name
         if args.view:
+            from cpbc.viewer.live import start_live_view  # meshcat only when asked for
+
             live = start_live_view(setup, args.view_speed)
             console.print(f"meshcat viewer (live): {live.url}")
-        with staged_output(out) as scratch:
-            workers = args.workers or default_workers(len(setup.cases) * len(setup.controllers))
+        workers = args.workers or default_workers(len(setup.cases) * len(setup.controllers))
+        # one pool for the runs and then the figures (its processes import cpbc once)
+        pool = worker_pool(workers) if workers > 1 and not live else None
+        with staged_output(out) as scratch, pool or contextlib.nullcontext():
             if args.quiet:
                 results = (live.run(setup, args.backend) if live else
-                           run_all(setup, args.backend, workers=workers))
+                           run_all(setup, args.backend, workers=workers, pool=pool))
             else:
                 with Progress(
                     TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
@@ -181,7 +189,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         bar.update(tasks[label], completed=frac)
 
                     results = (live.run(setup, args.backend, progress) if live else
-                               run_all(setup, args.backend, progress, workers))
+                               run_all(setup, args.backend, progress, workers, pool))
             for r in results:
                 folder = scratch / r.case / r.controller
                 folder.mkdir(parents=True, exist_ok=True)
@@ -190,7 +198,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     r.lyapunov, setup.target, setup.coordinate_names,
                 )
             write_summaries(scratch, [r.summary for r in results])
-            write_run_outputs(scratch, setup, plots=not args.no_plots)
+            write_run_outputs(scratch, setup, plots=not args.no_plots, pool=pool)
     except CpbcError as exc:
         if live:
             live.close()

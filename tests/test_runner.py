@@ -8,17 +8,24 @@ import numpy as np
 import yaml
 
 from cpbc.resources import scenarios_dir
+from cpbc.results import write_summaries, write_trajectory
 from cpbc.scenario import build, load_scenario
-from cpbc.scenario.runner import default_workers, run_all
+from cpbc.scenario.build import ScenarioSetup
+from cpbc.scenario.runner import default_workers, run_all, worker_pool
+from cpbc.viewer.outputs import write_run_outputs
 
 
-def test_parallel_runs_equal_serial_runs(tmp_path: Path) -> None:
+def _short_ch7(tmp_path: Path) -> ScenarioSetup:
     raw = yaml.safe_load((scenarios_dir() / "thesis_ch7.yaml").read_text())
     raw["simulation"]["duration"] = 0.5
     path = tmp_path / "short.yaml"
     path.write_text(yaml.safe_dump(raw))
     scenario, file = load_scenario(path)
-    setup = build(scenario, file)
+    return build(scenario, file)
+
+
+def test_parallel_runs_equal_serial_runs(tmp_path: Path) -> None:
+    setup = _short_ch7(tmp_path)
     serial = run_all(setup, workers=1)
     parallel = run_all(setup, workers=2)
     assert [(r.case, r.controller) for r in serial] == [(r.case, r.controller) for r in parallel]
@@ -34,3 +41,27 @@ def test_parallel_runs_equal_serial_runs(tmp_path: Path) -> None:
 def test_default_workers_never_exceeds_runs_or_cores() -> None:
     assert default_workers(1) == 1
     assert 1 <= default_workers(100) <= 100
+
+
+def test_a_shared_pool_runs_and_then_draws_the_figures(tmp_path: Path) -> None:
+    setup = _short_ch7(tmp_path)
+    serial = run_all(setup, workers=1)
+    folders = {}
+    with worker_pool(2) as pool:
+        pooled = run_all(setup, pool=pool)
+        for label, use in (("pool", pool), ("serial", None)):
+            folder = folders[label] = tmp_path / label
+            for r in pooled:
+                (folder / r.case / r.controller).mkdir(parents=True)
+                write_trajectory(folder / r.case / r.controller / "trajectory.npz",
+                                 r.trajectory, r.margins, setup.monitor.names, r.lyapunov,
+                                 setup.target, setup.coordinate_names)
+            write_summaries(folder, [r.summary for r in pooled])
+            write_run_outputs(folder, setup, pool=use)
+    for a, b in zip(serial, pooled, strict=True):
+        np.testing.assert_array_equal(a.trajectory.position, b.trajectory.position)
+    drawn = {label: sorted(p.relative_to(f) for p in f.rglob("*.png"))
+             for label, f in folders.items()}
+    assert drawn["pool"] == drawn["serial"]
+    assert {p.name for p in drawn["pool"]} >= {"rates.png", "torques.png", "path.png"}
+    assert {p.parts[0] for p in drawn["pool"]} == {"rest", "moving"}

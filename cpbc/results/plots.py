@@ -24,7 +24,7 @@ matplotlib is imported here only, with the Agg canvas and no pyplot state.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import mujoco
@@ -325,17 +325,22 @@ def case_figures(case: SavedCase, kin: SceneKinematics | None) -> dict[str, Figu
     return out
 
 
-def write_plots(run: SavedRun, folder: Path | None = None) -> list[Path]:
+def write_plots(
+    run: SavedRun, folder: Path | None = None, cases: Sequence[str] | None = None
+) -> list[Path]:
     """Write every case's figures as ``<folder>/<case>/<name>.png``; returns the paths.
 
     Args:
         run: a run folder read back with :func:`cpbc.results.saved_run.load_run`.
         folder: where to write; the run's own folder when omitted.
+        cases: the names of the cases to draw; all when omitted.
     """
     folder = run.folder if folder is None else Path(folder)
     kin = run.info.kinematics(run.model)
     written = []
     for case in run.cases:
+        if cases is not None and case.name not in cases:
+            continue
         out = folder / case.name
         out.mkdir(parents=True, exist_ok=True)
         for name, fig in case_figures(case, kin).items():

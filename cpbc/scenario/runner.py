@@ -6,10 +6,11 @@ rebuilds the setup from the scenario (Pinocchio and MuJoCo objects are not share
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -66,11 +67,23 @@ def run_one(
     return RunResult(entry.name, case.name, traj, margins, traj.lyapunov, summary)
 
 
+_BUILT: dict[tuple[str, str], ScenarioSetup] = {}  # per worker process: setups built so far
+
+
+def _setup_in_worker(scenario: Scenario, source: Path) -> ScenarioSetup:
+    """The setup of a scenario, built once per worker process (a worker runs several pairs)."""
+    key = (scenario.model_dump_json(), str(source))
+    if key not in _BUILT:
+        _BUILT.clear()  # one scenario at a time
+        _BUILT[key] = build(scenario, source)
+    return _BUILT[key]
+
+
 def _run_in_worker(
     scenario: Scenario, source: Path, case: str, controller: str, backend: str
 ) -> RunResult:
-    """Worker entry: rebuild the setup from its scenario, then run one pair."""
-    setup = build(scenario, source)
+    """Worker entry: the setup from its scenario (built once per process), then one pair."""
+    setup = _setup_in_worker(scenario, source)
     case_entry = next(c for c in setup.cases if c.name == case)
     entry = next(c for c in setup.controllers if c.name == controller)
     return run_one(setup, case_entry, entry, backend)
@@ -81,38 +94,55 @@ def default_workers(runs: int) -> int:
     return max(1, min(runs, os.cpu_count() or 1))
 
 
+def worker_pool(workers: int) -> ProcessPoolExecutor:
+    """Processes for independent runs (and figures): spawned, so no simulator state is
+    inherited; each builds its own Pinocchio and MuJoCo objects."""
+    return ProcessPoolExecutor(max_workers=workers,
+                               mp_context=multiprocessing.get_context("spawn"))
+
+
+def _expected_cost(entry: ControllerEntry) -> int:
+    """A rough relative cost of a run, to start the longest first: a step costs more the
+    more constraints the law (and its safeguard) evaluates; a baseline enforces none."""
+    return len(entry.controller.constraints.names)
+
+
 def run_all(
     setup: ScenarioSetup,
     backend: str | None = None,
     progress: RunProgress | None = None,
     workers: int = 1,
+    pool: Executor | None = None,
 ) -> list[RunResult]:
     """Simulate each (case, controller) pair; ``backend`` overrides the scenario's.
 
-    Results come in case-major order whatever the number of workers.
+    With ``workers > 1`` (or a ``pool`` to reuse) the pairs run in separate processes,
+    the most expensive first. Results come in case-major order whatever the number of
+    workers.
     """
     backend = backend or setup.scenario.simulation.backend
     pairs = [(case, entry) for case in setup.cases for entry in setup.controllers]
-    if workers <= 1 or len(pairs) <= 1:
+    if pool is None and (workers <= 1 or len(pairs) <= 1):
         plant = setup.make_plant() if backend == "mujoco" else None
         return [run_one(setup, c, e, backend, plant, progress) for c, e in pairs]
-    # Ship only the validated scenario and its file; each worker builds its own objects.
-    context = multiprocessing.get_context("spawn")
-    results: dict[tuple[str, str], RunResult] = {}
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+    with contextlib.ExitStack() as stack:
+        if pool is None:
+            pool = stack.enter_context(worker_pool(workers))
+        # Ship only the validated scenario and its file; each worker builds its own objects.
+        order = sorted(pairs, key=lambda p: -_expected_cost(p[1]))
         futures = {
             pool.submit(
                 _run_in_worker, setup.scenario, setup.source, c.name, e.name, backend
             ): (c.name, e.name)
-            for c, e in pairs
+            for c, e in order
         }
         if progress is not None:
             for c, e in pairs:
                 progress(f"{c.name} / {e.name}", 0.0)
+        results: dict[tuple[str, str], RunResult] = {}
         for done in as_completed(futures):
             case, name = futures[done]
             results[case, name] = done.result()
             if progress is not None:
                 progress(f"{case} / {name}", 1.0)
     return [results[c.name, e.name] for c, e in pairs]
-

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from concurrent.futures import Executor
 from pathlib import Path
 
 import mujoco
@@ -42,17 +44,33 @@ def scene_kinematics(setup: ScenarioSetup) -> SceneKinematics:
     return scene_info(setup, model).kinematics(model)
 
 
+def _plot_cases(folder: Path, cases: Sequence[str]) -> list[Path]:
+    """Worker entry: read a run folder back and draw the figures of some of its cases."""
+    return write_plots(load_run(folder), cases=cases)
+
+
 def write_run_outputs(
-    folder: Path, setup: ScenarioSetup, plots: bool = True, settings: ViewSettings | None = None
+    folder: Path,
+    setup: ScenarioSetup,
+    plots: bool = True,
+    settings: ViewSettings | None = None,
+    pool: Executor | None = None,
 ) -> list[Path]:
     """Into a run folder that already holds its trajectories and summary.json: the scene
     (scene.mjb, scene.json), every case's figures (unless ``plots`` is False) and view.html.
+
+    With a ``pool`` of worker processes the figures of each case are drawn there, while
+    this process writes the pages.
 
     Returns:
         The figures and pages written.
     """
     model = setup.make_plant().model
     write_scene(folder, model, scene_info(setup, model))
+    if plots and pool is not None:
+        futures = [pool.submit(_plot_cases, folder, [case.name]) for case in setup.cases]
+        pages = write_views(load_run(folder), settings=settings)
+        return [path for f in futures for path in f.result()] + pages
     run = load_run(folder)
     written = write_plots(run) if plots else []
     return written + write_views(run, settings=settings)
