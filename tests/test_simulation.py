@@ -160,3 +160,18 @@ def test_mujoco_reset_after_blow_up_is_reported_as_divergence(
                       LoopSettings(1.0, 0.001))
     assert traj.outcome == "diverged"
     assert traj.end_time < 0.01
+
+
+def test_plant_reports_instability_until_reset() -> None:
+    p = plant("Euler")
+    p.reset(np.zeros(2), np.zeros(2))
+    p.step(3)
+    assert not p.unstable()
+    p.apply(np.array([1e12, 0.0]))  # MuJoCo refuses a control this large (bad ctrl)
+    p.step(1)
+    assert p.unstable()
+    p.reset(np.zeros(2), np.zeros(2))
+    assert not p.unstable()
+    p.data.qvel[:] = [np.nan, 0.0]  # and resets a NaN state (bad qvel)
+    p.step(1)
+    assert p.unstable()

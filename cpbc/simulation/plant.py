@@ -63,6 +63,8 @@ class MujocoPlant:
         self.model.opt.timestep = settings.timestep
         self.model.opt.integrator = INTEGRATORS[settings.integrator]
         self.data = mujoco.MjData(model)
+        # live views of the warning counters (indexing data.warning builds them anew: slow)
+        self._warnings = [self.data.warning[i] for i in _INSTABILITY_WARNINGS]
         self.n = model.nv
         self._use_actuators = model.nu == self.n and all(
             model.actuator_trntype[i] == mujoco.mjtTrn.mjTRN_JOINT for i in range(model.nu)
@@ -124,8 +126,7 @@ class MujocoPlant:
         MuJoCo then resets the state (bad qpos/qvel/qacc) or zeroes the control (bad ctrl)
         and carries on, so the loop must ask.
         """
-        warnings = self.data.warning
-        return any(warnings[i].number for i in _INSTABILITY_WARNINGS)
+        return any(w.number for w in self._warnings)
 
     def contact_count(self) -> int:
         return int(self.data.ncon)
