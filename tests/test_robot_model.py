@@ -347,15 +347,11 @@ def test_free_joint_model_is_rejected(tmp_path):
         RobotModel.from_mjcf(path)
 
 
-def test_dynamics_of_the_same_state_are_shared_and_read_only(absolute_model, rng):
+def test_dynamics_of_the_same_state_are_computed_once(absolute_model, rng):
     x, dx = rng.uniform(-2, 2, 2), rng.normal(size=2)
     first = absolute_model.dynamics(x, dx)
     again = absolute_model.dynamics(x.copy(), dx.copy())  # equal values, other arrays
     assert again is first
-    for term in first:
-        assert not term.flags.writeable
-        with pytest.raises(ValueError):
-            term[...] = 0.0
     other = absolute_model.dynamics(x, dx + 1e-12)  # a different state is recomputed
     assert other is not first
     np.testing.assert_allclose(other.inertia, absolute_model.inertia(x), atol=1e-12)

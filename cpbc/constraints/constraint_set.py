@@ -13,13 +13,20 @@ from cpbc.errors import ConstraintViolation, CpbcError, InadmissibleStateError
 from cpbc.model.robot_model import DynamicsTerms
 
 
-def _log_sum(names: Sequence[str], margins: Array) -> float:
-    """Σ log margins; ConstraintViolation if any margin is ≤ 0 or NaN."""
+def _log_sum(parts: Sequence[Array], owners: Sequence[ConfigurationConstraint | VelocityConstraint]
+             ) -> float:
+    """Σ log of every margin in ``parts``; ConstraintViolation naming the worst one if any
+    margin is ≤ 0 or NaN."""
+    values: list[float] = []
+    for m in parts:
+        values += m.tolist()
     try:
-        total = math.fsum(map(math.log, margins.tolist()))
+        total = math.fsum(map(math.log, values))
     except ValueError:  # a margin ≤ 0
         total = math.nan
     if total != total:  # a margin ≤ 0 or NaN (math.log(nan) is nan)
+        names = [name for c in owners for name in c.names]
+        margins = np.asarray(values)
         i = int(np.argmin(np.nan_to_num(margins, nan=-np.inf)))
         raise ConstraintViolation(names[i], float(margins[i]))
     return total
@@ -103,21 +110,21 @@ class ConstraintSet:
 
     def barrier(self, x: Array, dx: Array, dyn: DynamicsTerms) -> BarrierTerms:
         """Log-barrier sums at (x, ẋ); raises ConstraintViolation outside S."""
-        log_phi, gradient, weight = 0.0, None, None
-        parts = []
+        gradient, weight = None, None
+        phis = []
         for c in self.configuration:
             phi, b = c.barrier_terms(x)
-            log_phi += _log_sum(c.names, phi)
+            phis.append(phi)
             gradient = b if gradient is None else gradient + b
-            parts.append(phi)
-        log_psi = 0.0
+        psis = []
         for c in self.velocity:
             psi, pi, b = c.barrier_terms(x, dx, dyn)
-            log_psi += _log_sum(c.names, psi)
+            psis.append(psi)
             if b is not None:
                 gradient = b if gradient is None else gradient + b
             weight = pi if weight is None else weight + pi
-            parts.append(psi)
+        log_phi = _log_sum(phis, self.configuration) if phis else 0.0
+        log_psi = _log_sum(psis, self.velocity) if psis else 0.0
         if self._keeps_margins:
-            self._last_key, self._last_parts = x.tobytes() + dx.tobytes(), parts
+            self._last_key, self._last_parts = x.tobytes() + dx.tobytes(), phis + psis
         return BarrierTerms(log_phi, log_psi, gradient, weight)

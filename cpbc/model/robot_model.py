@@ -151,14 +151,13 @@ class RobotModel:
         """D, C ẋ, g and f at one state: three Pinocchio passes (CRBA, RNEA, gravity).
 
         The terms of the last state asked for are kept and returned again for the same state
-        (a law and its safeguard evaluate the same sample), read-only since they are shared.
+        (a law and its safeguard evaluate the same sample): callers share them and must not
+        modify them in place (marking them read-only would cost a tenth of the law here).
         """
         key = x.tobytes() + dx.tobytes()
         if key == self._last_key:
             return self._last_dynamics  # type: ignore[return-value]
         terms = self._dynamics(x, dx)
-        for a in terms:
-            a.flags.writeable = False
         self._last_key, self._last_dynamics = key, terms
         return terms
 
