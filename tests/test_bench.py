@@ -1,0 +1,19 @@
+"""The benchmark's command line: the JSON the issue specifies, with every controller timed."""
+
+from __future__ import annotations
+
+import json
+
+from cpbc.bench import main
+
+
+def test_bench_json_has_every_controller(capsys) -> None:
+    assert main(["--json", "--repeats", "1", "--loop-seconds", "0.02"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["robot"] == "planar_2link"
+    types = {"pd", "pd_gravity", "cpbc", "cpbc_ke", "recentred", "bpbc", "bpbc_ke"}
+    assert set(out["torque_us"]) == types
+    assert set(out["closed_loop_steps_per_second"]) == types
+    assert set(out["closed_loop_bare_law_steps_per_second"]) == types - {"pd", "pd_gravity"}
+    assert all(v > 0 for v in out["torque_us"].values())
+    assert out["cpbc_over_pd_gravity"] > 0
