@@ -71,7 +71,12 @@ def _fmt(values: Sequence[float | None], digits: int = 3) -> str:
     return ", ".join("-" if v is None else f"{v:.{digits}g}" for v in values)
 
 
-def _rates(s: RunSummary) -> str:
+WIDE = 3  # more coordinates than this: the table shows the one nearest its bound
+
+
+def _rates(s: RunSummary, names: Sequence[str]) -> str:
+    if len(names) > WIDE:
+        return _widest_rate(s, names)
     parts = []
     for peak, bound in zip(s.peak_joint_rates, s.rate_bounds, strict=True):
         if bound is None:
@@ -80,6 +85,29 @@ def _rates(s: RunSummary) -> str:
             mark = "≤" if peak < bound else "[red]>[/red]"
             parts.append(f"{peak:.4g}{mark}{bound:.4g}")
     return ", ".join(parts)
+
+
+def _widest_rate(s: RunSummary, names: Sequence[str]) -> str:
+    """For a many-joint arm: the coordinate whose peak rate came nearest its bound (or the
+    fastest, without bounds), and how many went past theirs."""
+    bounded = [(peak / bound, i) for i, (peak, bound) in
+               enumerate(zip(s.peak_joint_rates, s.rate_bounds, strict=True)) if bound]
+    if not bounded:
+        i = max(range(len(names)), key=lambda k: s.peak_joint_rates[k])
+        return f"{s.peak_joint_rates[i]:.3g} ({escape(names[i])})"
+    _, i = max(bounded)
+    peak, bound = s.peak_joint_rates[i], s.rate_bounds[i]
+    over = sum(r >= 1.0 for r, _ in bounded)
+    mark = "≤" if peak < bound else "[red]>[/red]"
+    tail = f"; [red]{over} of {len(bounded)} over[/red]" if over else f"; all {len(bounded)} within"
+    return f"{peak:.4g}{mark}{bound:.4g} ({escape(names[i])}){tail}"
+
+
+def _torques(s: RunSummary, names: Sequence[str]) -> str:
+    if len(names) <= WIDE:
+        return _fmt(s.peak_torques)
+    i = max(range(len(s.peak_torques)), key=lambda k: s.peak_torques[k])
+    return f"{s.peak_torques[i]:.3g} ({escape(names[i])})"
 
 
 def _clearance(s: RunSummary, names: Sequence[str]) -> str:
@@ -98,8 +126,11 @@ def _table(
     clearance_names: Sequence[str] = (),
 ) -> Table:
     t = Table(title="cpbc summary", show_lines=False)
-    columns = ["case", "controller", "status", "final err", "settle [s]",
-               f"peak |rate| ({', '.join(coordinate_names)})", "peak |τ| / ‖τ‖ (bound)",
+    wide = len(coordinate_names) > WIDE
+    rates = ("peak |rate|, nearest its bound" if wide
+             else f"peak |rate| ({', '.join(coordinate_names)})")
+    columns = ["case", "controller", "status", "final err", "settle [s]", rates,
+               "largest peak |τ_i| / ‖τ‖ (bound)" if wide else "peak |τ| / ‖τ‖ (bound)",
                "min margin (constraint)"]
     if clearance_names:
         columns.append("min clearance [m] (pair) / contacts")
@@ -127,8 +158,9 @@ def _table(
         cells = [
             escape(s.case), escape(s.controller), f"[{style}]{escape(status)}[/{style}]",
             f"{s.final_error:.3g}",
-            "-" if s.settle_time is None else f"{s.settle_time:.3g}", _rates(s),
-            f"{_fmt(s.peak_torques)} / {s.peak_torque_norm:.4g}{bound}", margin,
+            "-" if s.settle_time is None else f"{s.settle_time:.3g}",
+            _rates(s, coordinate_names),
+            f"{_torques(s, coordinate_names)} / {s.peak_torque_norm:.4g}{bound}", margin,
         ]
         if clearance_names:
             cells.append(_clearance(s, clearance_names))
@@ -143,7 +175,7 @@ def _notes(s: RunSummary) -> str:
     if s.saturated_steps:
         notes.append(f"torque saturated in {s.saturated_steps} steps")
     if s.rejected_samples:
-        notes.append(f"{s.rejected_samples} noisy samples outside S held the last torque")
+        notes.append(f"{s.rejected_samples} noisy samples outside S refused")
     return "".join(f"; {n}" for n in notes)
 
 

@@ -3,6 +3,7 @@ closed-loop runs of the Panda and UR5 scenarios, and bad input that exits 2 writ
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import mujoco
@@ -10,11 +11,12 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import yaml
+from rich.console import Console
 
 from cpbc.constraints.clearance import Clearance
 from cpbc.errors import InadmissibleStateError, ScenarioError
 from cpbc.resources import scenarios_dir
-from cpbc.run import main
+from cpbc.run import _table, main
 from cpbc.scenario import build, load_scenario
 from cpbc.scenario.runner import run_all
 
@@ -150,6 +152,28 @@ def test_ur5_bpbc_keeps_its_rate_limits_under_gravity(tmp_path: Path) -> None:
     assert np.any(np.array(results["PD+g"].peak_joint_rates) > bounds)
     assert results["BPBC"].saturated_steps == 0
     assert results["PD+g"].saturated_steps > 0
+
+
+def test_ur5_table_names_the_joint_nearest_its_rate_bound(tmp_path: Path) -> None:
+    data = _shipped("ur5_bpbc")
+    data["simulation"]["duration"] = 0.6
+    setup = _build(tmp_path, data)
+    results = run_all(setup)
+    console = Console(width=400, record=True, file=io.StringIO())
+    console.print(_table(results, setup.coordinate_names))
+    table = console.export_text()
+    assert "peak |rate|, nearest its bound" in table
+    for r in results:
+        s = r.summary
+        ratios = [p / b for p, b in zip(s.peak_joint_rates, s.rate_bounds, strict=True)]
+        i = int(np.argmax(ratios))
+        over = sum(x >= 1 for x in ratios)
+        row = next(line for line in table.splitlines() if f" {r.controller} " in line)
+        assert f"({setup.coordinate_names[i]})" in row
+        assert (f"{over} of 6 over" if over else "all 6 within") in row
+    assert {r.controller: sum(p >= b for p, b in zip(r.summary.peak_joint_rates,
+                                                       r.summary.rate_bounds, strict=True))
+            > 0 for r in results} == {"PD+g": True, "BPBC": False}
 
 
 # -- bad input ----------------------------------------------------------------------------
