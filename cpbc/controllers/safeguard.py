@@ -50,6 +50,7 @@ wrapper's ``torque_bound`` is None.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -77,6 +78,8 @@ class SafeguardSettings:
             in ⌈h / max_step⌉ sub-steps whatever ``substeps`` says (over 10 ms a 7-joint
             arm's acceleration changes too much for the frozen prediction).
         backoffs: Illinois steps on β when the law's torque fails (S1) (≥ 1).
+        brake_search: predictions spent searching the braking factor λ between stopping
+            and reversing when neither satisfies (S1) (0: none).
     """
 
     decay_rate: float = 50.0
@@ -85,6 +88,7 @@ class SafeguardSettings:
     substeps: int = 1
     max_step: float = 0.001
     backoffs: int = 6
+    brake_search: int = 5
 
     def __post_init__(self) -> None:
         for name in ("decay_rate", "braking"):
@@ -95,6 +99,8 @@ class SafeguardSettings:
             raise CpbcError(f"safeguard cushion must be in [0, 1), got {self.cushion}")
         if self.substeps < 1 or self.backoffs < 1:
             raise CpbcError("safeguard substeps and backoffs must be ≥ 1")
+        if self.brake_search < 0:
+            raise CpbcError(f"safeguard brake_search must be ≥ 0, got {self.brake_search}")
         if not (math.isfinite(self.max_step) and self.max_step > 0):
             raise CpbcError(f"safeguard max_step must be > 0, got {self.max_step}")
 
@@ -187,6 +193,64 @@ class Safeguard(Controller):
         return self.guard(x, dx, tau), v
 
     # -- the guard ---------------------------------------------------------------------------
+    def _search_braking(
+        self, bias: Array, stop: Array, slack: Callable[[Array], float], f_stop: float,
+        f_reverse: float,
+    ) -> tuple[float, float]:
+        """Golden-section search of λ ∈ (λ₀, 2) for the braking torque bias − λ D ẋ / h with
+        the largest F, stopping at the first λ with F ≥ 0. Between stopping (excursion ½hẋ)
+        and reversing (excursion ¼hẋ, speed kept) lies a λ whose excursion h ẋ / (2λ) fits
+        the configuration margin while the end speed |1 − λ|·|ẋ| keeps the velocity ones."""
+        a, b = self.settings.braking, 2.0
+        best = max((f_stop, a), (f_reverse, b))
+        budget = self.settings.brake_search if a < b else 0
+        ratio = 0.5 * (math.sqrt(5.0) - 1.0)
+        c, d = b - ratio * (b - a), a + ratio * (b - a)
+        fc = fd = -math.inf
+        for i in range(budget):
+            at_c = i == 0 or (i > 1 and fc > fd)
+            if at_c:  # a new point c: the larger F lies in [a, d]
+                if i > 1:
+                    b, d, fd = d, c, fc
+                    c = b - ratio * (b - a)
+                lam = c
+            else:  # a new point d: the larger F lies in [c, b]
+                if i > 1:
+                    a, c, fc = c, d, fd
+                    d = a + ratio * (b - a)
+                lam = d
+            f = slack(bias - lam * stop)
+            if at_c:
+                fc = f
+            else:
+                fd = f
+            best = max(best, (f, lam))
+            if f >= 0.0:
+                break
+        return best[1], best[0]
+
+    def _fallback(
+        self, bias: Array, stop: Array, positivity: Callable[[Array], float]
+    ) -> Array:
+        """When no torque satisfies (S1): the calmest braking torque that keeps every margin
+        above its cushion (S0) — the smallest λ ≥ λ₀, so that the arm is not bounced off
+        the boundary period after period — or, when none does, the λ closest to it."""
+        lam0 = self.settings.braking
+        f_stop = positivity(bias - lam0 * stop)
+        if f_stop >= 0.0:
+            return bias - lam0 * stop
+        lam, f_lam = self._search_braking(bias, stop, positivity, f_stop,
+                                          positivity(bias - 2.0 * stop))
+        if f_lam >= 0.0:  # bisect down towards the smallest λ that keeps (S0)
+            lo = lam0
+            for _ in range(self.settings.brake_search):
+                mid = 0.5 * (lo + lam)
+                if positivity(bias - mid * stop) >= 0.0:
+                    lam = mid
+                else:
+                    lo = mid
+        return bias - lam * stop
+
     def _saturate(self, tau: Array) -> Array:
         if self.torque_limit is None:
             return tau
@@ -244,6 +308,14 @@ class Safeguard(Controller):
                 f = min(f, float(np.min(self._config_margins(mid) / floor_mid)))
             return f - 1.0
 
+        def positivity(t: Array) -> float:
+            """Like F with the cushion alone as floor: (S0) m_i ≥ δ_i, the fallback."""
+            mid, x1, v1 = predict(t)
+            f = float(np.min(self._margins(x1, v1) / delta))
+            if config:
+                f = min(f, float(np.min(self._config_margins(mid) / delta[: self._n_config])))
+            return f - 1.0
+
         f0 = slack(tau)
         if f0 >= 0.0:
             return tau
@@ -256,9 +328,13 @@ class Safeguard(Controller):
             reverse = bias - 2.0 * stop
             f_rev = slack(reverse)
             if f_rev < 0.0:
-                self.infeasible += 1
-                best = max((f0, 0), (f1, 1), (f_rev, 2))[1]
-                return (tau, brake, reverse)[best]
+                # Stopping goes too far and reversing at full speed breaks a velocity
+                # margin: search the deceleration λ in between.
+                lam, f_lam = self._search_braking(bias, stop, slack, f1, f_rev)
+                if f_lam < 0.0:
+                    self.infeasible += 1
+                    return self._fallback(bias, stop, positivity)
+                reverse, f_rev = bias - lam * stop, f_lam
             brake, f1 = reverse, f_rev
         # Illinois steps for the smallest β with F(β) ≥ 0, bracketed by F(0) < 0 ≤ F(1).
         lo, f_lo, hi, f_hi = 0.0, f0, 1.0, f1

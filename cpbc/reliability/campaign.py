@@ -56,6 +56,9 @@ def constrained(setup: ScenarioSetup) -> list[ControllerEntry]:
     return [e for e in setup.controllers if not e.controller.constraints.empty]
 
 
+_LIMIT_JOINT = int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT)
+
+
 class RecordingPlant(MujocoPlant):
     """A MuJoCo plant that keeps its state after every physics step, so that constraints
     can be checked between control instants. ``rows`` holds (qpos, qvel) per step."""
@@ -63,16 +66,20 @@ class RecordingPlant(MujocoPlant):
     def __init__(self, model: mujoco.MjModel, settings: PlantSettings) -> None:
         super().__init__(model, settings)
         self.rows: list[Array] = []
+        self.joint_stops = 0  # physics steps at which a joint was against its range limit
 
     def reset(self, q: Array, dq: Array) -> None:
         super().reset(q, dq)
         self.rows = [np.concatenate([self.data.qpos, self.data.qvel])]
+        self.joint_stops = 0
 
     def step(self, substeps: int) -> None:
         model, data = self.model, self.data
         for _ in range(substeps):
             mujoco.mj_step(model, data)
             self.rows.append(np.concatenate([data.qpos, data.qvel]))
+            if data.nefc and np.any(data.efc_type[: data.nefc] == _LIMIT_JOINT):
+                self.joint_stops += 1
 
     def fine_states(self, t_mat: Array) -> tuple[Array, Array]:
         """(x, ẋ) at every physics step, in controller coordinates x = T q."""
@@ -135,9 +142,51 @@ def checked_run(
 
 
 # -- sampled-data safety -------------------------------------------------------------------
+def physically_possible(setup: ScenarioSetup) -> Callable[[Array], bool]:
+    """Whether the arm can be at a position (controller coordinates): inside the plant's
+    joint ranges — MuJoCo enforces a URDF's limits with constraint forces the laws do not
+    know of — and touching nothing (no MuJoCo contact: not inside an obstacle, the floor or
+    itself)."""
+    plant = setup.make_plant()
+    model, data = plant.model, plant.data
+    dofs = [int(model.jnt_qposadr[j]) for j in range(model.njnt) if model.jnt_limited[j]]
+    lo = np.array([model.jnt_range[j, 0] for j in range(model.njnt) if model.jnt_limited[j]])
+    hi = np.array([model.jnt_range[j, 1] for j in range(model.njnt) if model.jnt_limited[j]])
+    t_inv = setup.model.coordinates.inverse
+
+    def possible(x: Array) -> bool:
+        q = t_inv @ x
+        if not (np.all(q[dofs] > lo) and np.all(q[dofs] < hi)):
+            return False
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_collision(model, data)
+        return data.ncon == 0
+
+    return possible
+
+
+def state_sampler(setup: ScenarioSetup, seed: int) -> StateSampler:
+    """The seeded sampler of the admissible set S of the scenario's constrained laws (when
+    they share one; else of every constraint of the scenario), at positions the arm can
+    take (:func:`physically_possible`) and that keep every configuration constraint of the
+    scenario. States are pushed towards the boundaries the laws enforce, not towards those
+    only monitored (a clearance the UR5's BPBC does not know of, say)."""
+    sets = [e.controller.constraints for e in constrained(setup)]
+    shared = bool(sets) and all(c.names == sets[0].names for c in sets)
+    target_set = sets[0] if shared else setup.monitor
+    possible = physically_possible(setup)
+    monitored = setup.monitor.configuration
+
+    def reachable(x: Array) -> bool:
+        return possible(x) and all(bool(np.all(c.value(x) > 0)) for c in monitored)
+
+    return StateSampler(target_set, setup.target, seed=seed, reachable=reachable)
+
+
 def sample_states(setup: ScenarioSetup, count: int, seed: int) -> list[SampledState]:
     """``count`` admissible initial states of the scenario (all its constraints), seeded."""
-    return StateSampler(setup.monitor, setup.target, seed=seed).draw_many(count)
+    return state_sampler(setup, seed).draw_many(count)
 
 
 def sampled_data_campaign(
@@ -179,7 +228,9 @@ def sampled_data_campaign(
                         "end_time": traj.end_time, "constraint": check.constraint,
                         "min_margin": check.min_margin, "acted": traj.safeguard_steps,
                         "infeasible": traj.safeguard_infeasible,
-                        "control_steps": traj.control_steps, "contacts": traj.max_contacts,
+                        "control_steps": traj.control_steps,
+                        # touching something the law does not know of: a contact or a stop
+                        "contacts": traj.max_contacts + base.joint_stops,
                     })
                 log(f"{scenario} {entry.name} h={period * 1e3:g} ms "
                     f"safeguard={'on' if guarded else 'off'}: {bad}/{len(states)} violated "
@@ -214,14 +265,14 @@ def longest_safe_period(
             case_bad = []
             for case in setup.cases:
                 check = checked_run(base, setup, entry, case.position, case.velocity, settings)
-                if check.violated and not check.trajectory.max_contacts:
+                if check.violated and not (check.trajectory.max_contacts or base.joint_stops):
                     case_bad.append(case.name)
             short = replace(settings, duration=horizon)
             usable = [s for s in states if viable(cons, s.position, s.velocity, period)]
             state_bad = contact = 0
             for s in usable:
                 check = checked_run(base, setup, entry, s.position, s.velocity, short)
-                if check.violated and check.trajectory.max_contacts:
+                if check.violated and (check.trajectory.max_contacts or base.joint_stops):
                     contact += 1
                 elif check.violated:
                     state_bad += 1

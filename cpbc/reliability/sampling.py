@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,6 +54,8 @@ class StateSampler:
         near: share of draws placed near ∂S.
         closest, farthest: range of the closeness fraction.
         speed: velocity range without velocity constraints [rad/s].
+        reachable: whether the arm can take a position at all (the plant's joint ranges,
+            say, where the constraints do not bound a joint); every draw satisfies it.
     """
 
     def __init__(
@@ -65,8 +68,10 @@ class StateSampler:
         closest: float = 1e-4,
         farthest: float = 0.1,
         speed: float = 1.0,
+        reachable: Callable[[Array], bool] | None = None,
     ) -> None:
         self.constraints = constraints
+        self.reachable = reachable
         self.n = constraints.n
         self.rng = np.random.default_rng(seed)
         lo = np.asarray(centre, float) - half_width
@@ -168,6 +173,8 @@ class StateSampler:
         """One admissible state."""
         for _ in range(10_000):
             x = self.rng.uniform(self.lo, self.hi)
+            if self.reachable is not None and not self.reachable(x):
+                continue
             if self.constraints.configuration and not np.all(self._config_margins(x) > 0):
                 continue
             kind, close = "interior", 1.0
@@ -196,7 +203,7 @@ class StateSampler:
                     top = self._scale_to(x, dx, 0.0)
                     dx = dx * min(1.0, 0.999 * top)
             m = self._margins(x, dx)
-            if m.size == 0 or np.all(m > 0):
+            if (m.size == 0 or np.all(m > 0)) and (self.reachable is None or self.reachable(x)):
                 return SampledState(x, dx, kind, close)
         raise CpbcError("could not draw an admissible state in 10 000 attempts")
 

@@ -26,7 +26,7 @@ import yaml
 from cpbc.controllers.safeguard import SafeguardSettings, viable
 from cpbc.reliability import campaign as cp
 from cpbc.reliability.bad_input import BASE, answer_all
-from cpbc.reliability.sampling import SampledState, StateSampler
+from cpbc.reliability.sampling import SampledState
 from cpbc.resources import scenarios_dir
 from cpbc.run import main as run_cli
 
@@ -75,7 +75,7 @@ class Config:
 def _draw(setup: cp.ScenarioSetup, count: int, period: float, seed: int,
           keep_nonviable: int) -> tuple[list[SampledState], list[SampledState], int]:
     """``count`` states of S viable at ``period``; the non-viable ones met on the way."""
-    sampler = StateSampler(setup.monitor, setup.target, seed=seed)
+    sampler = cp.state_sampler(setup, seed)
     good: list[SampledState] = []
     bad: list[SampledState] = []
     rejected = 0
