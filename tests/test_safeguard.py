@@ -119,9 +119,63 @@ def test_torque_limit_is_inside_the_prediction(recentred: RecentredBarrier) -> N
     assert guard.acted == 1 and guard.infeasible == 1
 
 
+def _lambda_of(t: np.ndarray) -> float:
+    """The braking factor of a candidate τ = bias − λ·stop with bias = 0, stop = 1."""
+    return -float(t[0])
+
+
+def test_braking_search_finds_a_factor_between_stop_and_reverse(
+    recentred: RecentredBarrier,
+) -> None:
+    """Stopping (λ = 1) and reversing (λ = 2) both fail; some λ between passes."""
+    guard = Safeguard(recentred, 0.01)
+    seen: list[float] = []
+
+    def slack(t: np.ndarray) -> float:
+        lam = _lambda_of(t)
+        seen.append(lam)
+        return 0.01 - (lam - 1.5) ** 2  # passes for λ in (1.4, 1.6)
+
+    lam, f = guard._search_braking(np.zeros(1), np.ones(1), slack, slack(-np.ones(1)),
+                                   slack(-2 * np.ones(1)))
+    assert f >= 0 and 1.4 < lam < 1.6
+    assert len(seen) <= 2 + guard.settings.brake_search
+
+
+def test_braking_search_returns_the_best_when_none_passes(recentred: RecentredBarrier) -> None:
+    guard = Safeguard(recentred, 0.01)
+
+    def slack(t: np.ndarray) -> float:
+        return -0.5 - (_lambda_of(t) - 1.3) ** 2  # best at λ = 1.3, never ≥ 0
+
+    lam, f = guard._search_braking(np.zeros(1), np.ones(1), slack, slack(-np.ones(1)),
+                                   slack(-2 * np.ones(1)))
+    assert f < 0 and abs(lam - 1.3) < 0.1  # five golden-section steps on [1, 2]
+    assert f == pytest.approx(slack(-lam * np.ones(1)))
+    off = Safeguard(recentred, 0.01, SafeguardSettings(brake_search=0))
+    lam0, _ = off._search_braking(np.zeros(1), np.ones(1), slack, slack(-np.ones(1)),
+                                  slack(-2 * np.ones(1)))
+    assert lam0 == 1.0  # no search: the better of stopping and reversing
+
+
+def test_fallback_is_the_calmest_brake_that_keeps_the_cushion(
+    recentred: RecentredBarrier,
+) -> None:
+    """With no torque meeting (S1) the fallback keeps the margins above the cushion (S0)
+    with the smallest braking factor (least reversal of the motion) it can find."""
+    guard = Safeguard(recentred, 0.01)
+
+    def positivity(t: np.ndarray) -> float:
+        return _lambda_of(t) - 1.4  # (S0) holds for λ ≥ 1.4
+
+    lam = _lambda_of(guard._fallback(np.zeros(1), np.ones(1), positivity))
+    assert 1.4 <= lam < 1.45
+    assert _lambda_of(guard._fallback(np.zeros(1), np.ones(1), lambda t: 1.0)) == 1.0
+
+
 @pytest.mark.parametrize(
     "kwargs", [{"decay_rate": 0}, {"braking": -1}, {"cushion": 1.0}, {"substeps": 0},
-               {"backoffs": 0}, {"decay_rate": float("nan")}],
+               {"backoffs": 0}, {"decay_rate": float("nan")}, {"brake_search": -1}],
 )
 def test_settings_are_checked(kwargs: dict) -> None:
     with pytest.raises(CpbcError):
