@@ -3,14 +3,17 @@ boundaries its law enforces, and what the recording plant counts."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import cache
 
 import mujoco
 import numpy as np
 
+from cpbc.constraints import ConstraintSet, LinearLimit
 from cpbc.reliability.campaign import (
     RecordingPlant,
     campaign_setup,
+    checked_run,
     constrained,
     physically_possible,
     state_sampler,
@@ -66,3 +69,41 @@ def test_recording_plant_counts_joint_stops() -> None:
     assert len(plant.rows) == 21
     plant.reset(np.array(setup.target, dtype=float), np.zeros(6))
     assert plant.joint_stops == 0
+
+
+def _first_law(setup: ScenarioSetup, constrained_law: bool):
+    return next(e for e in setup.controllers
+                if (not e.controller.constraints.empty) == constrained_law)
+
+
+def test_a_joint_stop_met_before_any_violation_is_a_touch() -> None:
+    """The UR5's BPBC bounds rates only; driven into the elbow's stop, whatever breaks
+    after is the stop's doing, not the law's sampling."""
+    setup = _ur5()
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    q = np.array(setup.target, dtype=float)
+    q[2] = np.pi - 2e-3
+    dq = np.zeros(6)
+    dq[2] = 0.9  # inside the 0.945 rad/s bound, heading into the stop
+    settings = replace(setup.loop_settings, duration=0.05, safeguard=None)
+    check = checked_run(plant, setup, _first_law(setup, True), q, dq, settings)
+    assert plant.first_touch is not None
+    assert check.touched
+
+
+def test_a_stop_met_only_after_the_limit_is_crossed_is_not_a_touch() -> None:
+    """The Panda's position limits are its URDF ranges: a run that crosses one meets the stop
+    only at or after the crossing, and that counts as the violation it is."""
+    setup = campaign_setup("panda_cpbc_sphere")
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    limits = ConstraintSet(7, [c for c in setup.monitor.configuration
+                               if isinstance(c, LinearLimit)])
+    model = plant.model
+    q = np.array(setup.target, dtype=float)
+    q[3] = model.jnt_range[3, 1] - 1e-4
+    dq = np.zeros(7)
+    dq[3] = 1.0
+    settings = replace(setup.loop_settings, duration=0.02, safeguard=None)
+    check = checked_run(plant, setup, _first_law(setup, False), q, dq, settings, limits)
+    assert check.violated and check.constraint == "position[panda_joint4]"
+    assert plant.first_touch is not None and not check.touched

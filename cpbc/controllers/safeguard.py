@@ -258,25 +258,33 @@ class Safeguard(Controller):
         clipped = np.clip(tau_q, -self.torque_limit, self.torque_limit)
         return clipped if self._identity else self._t_inv_t @ clipped
 
+    @staticmethod
+    def _no_nan(m: Array) -> Array:
+        """NaN margins (a prediction gone wild) count as −∞; one sum tells if there are any."""
+        total = m.sum()
+        return np.where(np.isnan(m), -np.inf, m) if total != total else m
+
     def _margins(self, x: Array, dx: Array) -> Array:
-        m = self.constraints.margins(x, dx)
-        return np.where(np.isnan(m), -np.inf, m)
+        return self._no_nan(self.constraints.margins(x, dx))
 
     def _config_margins(self, x: Array) -> Array:
-        m = np.concatenate([c.value(x) for c in self.constraints.configuration])
-        return np.where(np.isnan(m), -np.inf, m)
+        return self._no_nan(np.concatenate([c.value(x) for c in self.constraints.configuration]))
 
     def guard(self, x: Array, dx: Array, tau: Array) -> Array:
         """τ if it satisfies (S1), else the smallest blend toward braking that does."""
         h = self.period
         dyn = self.model.dynamics(x, dx)
-        bias = dyn.coriolis_force + dyn.gravity + dyn.dissipation
+        bias = dyn.coriolis_force + dyn.gravity
+        if self.model.has_friction:
+            bias = bias + dyn.dissipation
+        config = self._n_config > 0
         if self.substeps == 1:
+            coast_mid, coast = x + (0.5 * h) * dx, x + h * dx  # the motion without torque
 
             def predict(t: Array) -> tuple[Array, Array, Array]:
                 acc = solve_spd(dyn.inertia, self._saturate(t) - bias)
-                mid = x + (0.5 * h) * dx + (0.125 * h * h) * acc
-                return mid, x + h * dx + (0.5 * h * h) * acc, dx + h * acc
+                mid = coast_mid + (0.125 * h * h) * acc if config else x
+                return mid, coast + (0.5 * h * h) * acc, dx + h * acc
         else:
             k = self.substeps
             dt = h / k
@@ -294,7 +302,6 @@ class Safeguard(Controller):
         now = self._margins(x, dx)
         delta = self.cushion
         floor = delta + self.keep * (now - delta)
-        config = self._n_config > 0
         if config:
             floor_mid = delta[: self._n_config] + self.keep_half * (
                 now[: self._n_config] - delta[: self._n_config]

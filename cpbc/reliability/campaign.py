@@ -67,19 +67,25 @@ class RecordingPlant(MujocoPlant):
         super().__init__(model, settings)
         self.rows: list[Array] = []
         self.joint_stops = 0  # physics steps at which a joint was against its range limit
+        self.first_touch: int | None = None  # the row of the first contact or joint stop
 
     def reset(self, q: Array, dq: Array) -> None:
         super().reset(q, dq)
         self.rows = [np.concatenate([self.data.qpos, self.data.qvel])]
         self.joint_stops = 0
+        self.first_touch = None
 
     def step(self, substeps: int) -> None:
         model, data = self.model, self.data
         for _ in range(substeps):
             mujoco.mj_step(model, data)
+            # mj_step finds contacts and active limits at the state it starts from (the last
+            # row), then integrates: a touch there acts during this step
+            stop = bool(data.nefc) and bool(np.any(data.efc_type[: data.nefc] == _LIMIT_JOINT))
+            self.joint_stops += stop
+            if self.first_touch is None and (stop or data.ncon):
+                self.first_touch = len(self.rows) - 1
             self.rows.append(np.concatenate([data.qpos, data.qvel]))
-            if data.nefc and np.any(data.efc_type[: data.nefc] == _LIMIT_JOINT):
-                self.joint_stops += 1
 
     def fine_states(self, t_mat: Array) -> tuple[Array, Array]:
         """(x, ẋ) at every physics step, in controller coordinates x = T q."""
@@ -88,14 +94,18 @@ class RecordingPlant(MujocoPlant):
         return a[:, :n] @ t_mat.T, a[:, n:] @ t_mat.T
 
 
-def _min_margin(constraints: ConstraintSet, xs: Array, dxs: Array) -> tuple[float, str | None]:
+def _min_margin(
+    constraints: ConstraintSet, xs: Array, dxs: Array
+) -> tuple[float, str | None, int | None]:
+    """The smallest margin, its constraint and the first row at which a margin is ≤ 0."""
     if constraints.empty or not len(xs):
-        return math.inf, None
+        return math.inf, None, None
     m = constraints.margins_along(xs, dxs)
     m = np.where(np.isnan(m), -np.inf, m)
     flat = int(np.argmin(m))
     i, j = divmod(flat, m.shape[1])
-    return float(m[i, j]), constraints.names[j]
+    crossed = np.flatnonzero(m.min(axis=1) <= 0)
+    return float(m[i, j]), constraints.names[j], int(crossed[0]) if crossed.size else None
 
 
 @dataclass(frozen=True)
@@ -108,6 +118,9 @@ class RunCheck:
         at_samples: the violation was seen at a control instant (the law's own check).
         min_margin: the smallest enforced margin over every physics step.
         constraint: the constraint of ``min_margin``.
+        touched: the arm touched something the law does not know of — a MuJoCo contact or a
+            joint's range stop — strictly before the first violation (or at all, without
+            one): what broke then was not the law's sampling.
     """
 
     trajectory: Trajectory
@@ -115,6 +128,7 @@ class RunCheck:
     at_samples: bool
     min_margin: float
     constraint: str | None
+    touched: bool = False
 
 
 def checked_run(
@@ -130,15 +144,17 @@ def checked_run(
     traj = run_mujoco(plant, entry.controller, setup.model.coordinates, x0, dx0, settings)
     cons = constraints if constraints is not None else entry.controller.constraints
     xs, dxs = plant.fine_states(setup.model.coordinates.matrix)
-    low, name = _min_margin(cons, xs, dxs)
+    low, name, first = _min_margin(cons, xs, dxs)
     at_samples = traj.outcome in ("constraint_violated", "diverged")
     if not at_samples and not cons.empty:
-        sample_low, _ = _min_margin(cons, traj.position, traj.velocity)
+        sample_low, _, _ = _min_margin(cons, traj.position, traj.velocity)
         at_samples = sample_low <= 0
     violated = at_samples or low <= 0
     if traj.outcome == "constraint_violated" and traj.violated is not None:
         name = traj.violated
-    return RunCheck(traj, violated, at_samples, low, name)
+    touch = plant.first_touch
+    touched = touch is not None and (first is None or touch < first)
+    return RunCheck(traj, violated, at_samples, low, name, touched)
 
 
 # -- sampled-data safety -------------------------------------------------------------------
@@ -229,8 +245,9 @@ def sampled_data_campaign(
                         "min_margin": check.min_margin, "acted": traj.safeguard_steps,
                         "infeasible": traj.safeguard_infeasible,
                         "control_steps": traj.control_steps,
-                        # touching something the law does not know of: a contact or a stop
-                        "contacts": traj.max_contacts + base.joint_stops,
+                        # touched something the law does not know of (a contact or a joint
+                        # stop) before any violation
+                        "contacts": int(check.touched),
                     })
                 log(f"{scenario} {entry.name} h={period * 1e3:g} ms "
                     f"safeguard={'on' if guarded else 'off'}: {bad}/{len(states)} violated "
@@ -265,14 +282,14 @@ def longest_safe_period(
             case_bad = []
             for case in setup.cases:
                 check = checked_run(base, setup, entry, case.position, case.velocity, settings)
-                if check.violated and not (check.trajectory.max_contacts or base.joint_stops):
+                if check.violated and not check.touched:
                     case_bad.append(case.name)
             short = replace(settings, duration=horizon)
             usable = [s for s in states if viable(cons, s.position, s.velocity, period)]
             state_bad = contact = 0
             for s in usable:
                 check = checked_run(base, setup, entry, s.position, s.velocity, short)
-                if check.violated and (check.trajectory.max_contacts or base.joint_stops):
+                if check.violated and check.touched:
                     contact += 1
                 elif check.violated:
                     state_bad += 1
