@@ -32,10 +32,15 @@ def _sampled(d: Data) -> list[str]:
                 nonviable[2] += r["violated"]
             else:
                 nonviable[1] += r["violated"]
-    parts = [f"{_hz(p)}: **{t[2]}** with the safeguard"
-             + (f" (all {t[3]} with a physical contact the law does not enforce)"
-                if t[2] and t[2] == t[3] else "")
-             + f", {t[1]} without" for p, t in sorted(per.items())]
+    def touched(t: list[int]) -> str:
+        if not t[3]:
+            return ""
+        which = "all" if t[3] == t[2] else f"{t[3]} of them"
+        return (f" ({which} after a contact or joint stop the law does not enforce; "
+                f"{t[2] - t[3]} otherwise)")
+
+    parts = [f"{_hz(p)}: **{t[2]}** with the safeguard" + touched(t) + f", {t[1]} without"
+             for p, t in sorted(per.items())]
     return [
         f"- **Sampled data.** Over {states} sampled-data-admissible initial states "
         f"({len(d)} scenarios, every constrained law), runs that broke a constraint: "

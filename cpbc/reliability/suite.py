@@ -13,6 +13,7 @@ import json
 import math
 import os
 import platform
+import subprocess
 import tempfile
 import time
 from collections import Counter, defaultdict
@@ -292,4 +293,15 @@ def environment() -> dict[str, object]:
 
     return {"python": platform.python_version(), "mujoco": mujoco.__version__,
             "pinocchio": pinocchio.__version__, "numpy": np.__version__,
-            "machine": platform.machine(), "date": time.strftime("%Y-%m-%d")}
+            "machine": platform.machine(), "date": time.strftime("%Y-%m-%d"),
+            "commit": _commit()}
+
+
+def _commit() -> str | None:
+    """The git commit of the code that ran (None outside a checkout)."""
+    try:
+        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                             text=True, cwd=Path(__file__).parent, check=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip() or None
