@@ -35,11 +35,17 @@ wraps a constrained law and, at every control instant,
 With λ = 1 the braking prediction has ẋ⁺ = 0 and x⁺ = x + ½hẋ: every rate and kinetic-energy
 margin grows, and configuration margins change by at most half the coasting motion. When
 that is not enough, the brake becomes λ = 2, which predicts x⁺ = x and ẋ⁺ = −ẋ with the
-smallest excursion towards ∂S that keeps the speed (¼hẋ, at mid-period). If neither brake
-satisfies (S1) the step is counted as *infeasible* and the candidate that comes closest is
-used. A state whose distance to a configuration boundary is less than ¼h of its approach
-speed cannot be kept inside by any held torque that respects the rate bounds
-(:func:`viable`); such states are outside what sampled-data control can promise.
+smallest excursion towards ∂S that keeps the speed (¼hẋ, at mid-period). Stopping can go
+too far while reversing at full speed breaks a velocity margin (a model error of a few
+percent in the energy is enough); then a golden-section search of λ ∈ (1, 2) (excursion
+hẋ/(2λ), end speed |1 − λ|·|ẋ|) looks for a brake in between. If no brake satisfies (S1)
+the step is counted as *infeasible*, and the safeguard takes the smallest λ that keeps
+every margin above its cushion (S0: m_i ≥ δ_i at mid-period and at the end) — the calmest
+brake, so that the arm is not bounced off the boundary period after period — or, when no
+λ does, the one that comes closest. A state whose distance to a configuration boundary is
+less than ¼h of its approach speed cannot be kept inside by any held torque that respects
+the rate bounds (:func:`viable`); such states are outside what sampled-data control can
+promise.
 
 The wrapper returns the law's torque unchanged whenever the prediction satisfies (S1). It is
 pure (no simulator) like the laws it wraps, so the same object could drive a real arm at its
