@@ -7,6 +7,7 @@ rebuilds the setup from the scenario (Pinocchio and MuJoCo objects are not share
 from __future__ import annotations
 
 import contextlib
+import functools
 import multiprocessing
 import os
 from collections.abc import Callable
@@ -67,23 +68,17 @@ def run_one(
     return RunResult(entry.name, case.name, traj, margins, traj.lyapunov, summary)
 
 
-_BUILT: dict[tuple[str, str], ScenarioSetup] = {}  # per worker process: setups built so far
-
-
-def _setup_in_worker(scenario: Scenario, source: Path) -> ScenarioSetup:
+@functools.lru_cache(maxsize=1)
+def _setup_in_worker(scenario_json: str, source: Path) -> ScenarioSetup:
     """The setup of a scenario, built once per worker process (a worker runs several pairs)."""
-    key = (scenario.model_dump_json(), str(source))
-    if key not in _BUILT:
-        _BUILT.clear()  # one scenario at a time
-        _BUILT[key] = build(scenario, source)
-    return _BUILT[key]
+    return build(Scenario.model_validate_json(scenario_json), source)
 
 
 def _run_in_worker(
     scenario: Scenario, source: Path, case: str, controller: str, backend: str
 ) -> RunResult:
     """Worker entry: the setup from its scenario (built once per process), then one pair."""
-    setup = _setup_in_worker(scenario, source)
+    setup = _setup_in_worker(scenario.model_dump_json(), source)
     case_entry = next(c for c in setup.cases if c.name == case)
     entry = next(c for c in setup.controllers if c.name == controller)
     return run_one(setup, case_entry, entry, backend)
