@@ -75,8 +75,9 @@ def test_fuzzed_numeric_fields_exit_2_naming_the_field(
     dotted, shown = field
     if value is None and dotted in ("simulation.control_period", "simulation.torque_limit"):
         return  # null is the documented default of these two
-    if dotted.startswith("simulation.noise.") and type(value) in (int, float) and value == 0:
-        return  # zero noise is valid (the noise σ are non-negative)
+    non_negative = dotted.startswith("simulation.noise.") or dotted == "robot.plant.damping"
+    if non_negative and type(value) in (int, float) and value == 0:
+        return  # zero noise or plant damping is valid (those fields are non-negative)
     variant = BadInput("fuzz", "fuzz", shown, setting(dotted, value))
     a = answer(variant, tmp_path_factory.mktemp("fuzz"))
     assert a.exit_code == 2, (dotted, value, a.message)
