@@ -56,7 +56,7 @@ def test_physically_possible_refuses_a_joint_beyond_its_range_and_a_collision() 
     assert not possible(floor)
 
 
-def test_recording_plant_counts_joint_stops() -> None:
+def test_recording_plant_notes_the_first_joint_stop() -> None:
     setup = _ur5()
     plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
     q = np.array(setup.target, dtype=float)
@@ -65,10 +65,10 @@ def test_recording_plant_counts_joint_stops() -> None:
     dq[2] = 2.0  # into the elbow's stop
     plant.reset(q, dq)
     plant.step(20)
-    assert plant.joint_stops > 0
+    assert plant.first_touch is not None and 0 <= plant.first_touch < 20
     assert len(plant.rows) == 21
     plant.reset(np.array(setup.target, dtype=float), np.zeros(6))
-    assert plant.joint_stops == 0
+    assert plant.first_touch is None
 
 
 def _first_law(setup: ScenarioSetup, constrained_law: bool):

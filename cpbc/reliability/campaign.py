@@ -41,13 +41,13 @@ def _quiet(_: str) -> None:
 
 # -- set-up --------------------------------------------------------------------------------
 def campaign_setup(
-    scenario: str | Path, integrator: str = "Euler", timestep: float = 0.001
+    scenario: str | Path, integrator: str | None = "Euler", timestep: float = 0.001
 ) -> ScenarioSetup:
     """A shipped or given scenario, with MuJoCo's default integrator (semi-implicit Euler)
-    at ``timestep`` unless told otherwise."""
+    at ``timestep`` unless told otherwise; ``integrator=None`` keeps the scenario's own."""
     spec, file = load_scenario(scenario)
     setup = build(spec, file)
-    setup.plant_settings = PlantSettings(timestep, integrator)
+    setup.plant_settings = PlantSettings(timestep, integrator or spec.simulation.integrator)
     return setup
 
 
@@ -66,13 +66,11 @@ class RecordingPlant(MujocoPlant):
     def __init__(self, model: mujoco.MjModel, settings: PlantSettings) -> None:
         super().__init__(model, settings)
         self.rows: list[Array] = []
-        self.joint_stops = 0  # physics steps at which a joint was against its range limit
         self.first_touch: int | None = None  # the row of the first contact or joint stop
 
     def reset(self, q: Array, dq: Array) -> None:
         super().reset(q, dq)
         self.rows = [np.concatenate([self.data.qpos, self.data.qvel])]
-        self.joint_stops = 0
         self.first_touch = None
 
     def step(self, substeps: int) -> None:
@@ -81,9 +79,8 @@ class RecordingPlant(MujocoPlant):
             mujoco.mj_step(model, data)
             # mj_step finds contacts and active limits at the state it starts from (the last
             # row), then integrates: a touch there acts during this step
-            stop = bool(data.nefc) and bool(np.any(data.efc_type[: data.nefc] == _LIMIT_JOINT))
-            self.joint_stops += stop
-            if self.first_touch is None and (stop or data.ncon):
+            if self.first_touch is None and (data.ncon or (data.nefc and np.any(
+                    data.efc_type[: data.nefc] == _LIMIT_JOINT))):
                 self.first_touch = len(self.rows) - 1
             self.rows.append(np.concatenate([data.qpos, data.qvel]))
 

@@ -15,6 +15,18 @@ from cpbc.constraints.rate_limit import RateLimit
 from cpbc.errors import CpbcError
 
 
+def _last_above(rel: Callable[[float], float], fraction: float, lo: float, hi: float) -> float:
+    """Bisection (sampling only): the largest t in [lo, hi] found with rel(t) > fraction,
+    given rel(lo) > fraction ≥ rel(hi)."""
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if rel(mid) > fraction:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
 @dataclass(frozen=True)
 class SampledState:
     """One initial state and how it was drawn.
@@ -121,14 +133,7 @@ class StateSampler:
         hi = 1.0
         while rel(hi) > fraction and hi < 1e6:
             hi *= 2.0
-        lo = 0.0
-        for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            if rel(mid) > fraction:
-                lo = mid
-            else:
-                hi = mid
-        return lo
+        return _last_above(rel, fraction, 0.0, hi)
 
     def _velocity_margins(self, x: Array, dx: Array) -> Array:
         parts = [c.value(x, dx, None) for c in self.constraints.velocity]
@@ -160,14 +165,7 @@ class StateSampler:
             t += step
             if t > 2 * np.pi:
                 return None
-        lo, hi = t - step, t
-        for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            if rel(mid) > fraction:
-                lo = mid
-            else:
-                hi = mid
-        return x + lo * d, d
+        return x + _last_above(rel, fraction, t - step, t) * d, d
 
     def draw(self) -> SampledState:
         """One admissible state."""

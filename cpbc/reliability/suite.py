@@ -170,9 +170,7 @@ def mismatch(config: Config, log: Log) -> dict[str, object]:
     out: dict[str, object] = {}
     for name in config.all_scenarios():
         arm = config.is_arm(name)
-        setup = cp.campaign_setup(name)
-        setup.plant_settings = replace(setup.plant_settings, integrator=cp.load_scenario(
-            name)[0].simulation.integrator)  # the scenario's own integrator here
+        setup = cp.campaign_setup(name, integrator=None)  # the scenario's own integrator
         out[name] = cp.mismatch_campaign(
             setup, name, ARM_LEVELS if arm else PLANAR_LEVELS,
             config.arm_mismatch_draws if arm else config.mismatch_draws, config.seed, log=log)
@@ -183,9 +181,7 @@ def mismatch(config: Config, log: Log) -> dict[str, object]:
 def noise(config: Config, log: Log) -> dict[str, object]:
     out: dict[str, object] = {}
     for name in config.all_scenarios():
-        setup = cp.campaign_setup(name)
-        setup.plant_settings = replace(setup.plant_settings, integrator=cp.load_scenario(
-            name)[0].simulation.integrator)
+        setup = cp.campaign_setup(name, integrator=None)  # the scenario's own integrator
         out[name] = cp.noise_campaign(setup, name, config.noise_levels, config.seed, log=log)
     return out
 
@@ -193,9 +189,7 @@ def noise(config: Config, log: Log) -> dict[str, object]:
 def saturation(config: Config, log: Log) -> dict[str, object]:
     out: dict[str, object] = {}
     for name in config.all_scenarios():
-        setup = cp.campaign_setup(name)
-        setup.plant_settings = replace(setup.plant_settings, integrator=cp.load_scenario(
-            name)[0].simulation.integrator)
+        setup = cp.campaign_setup(name, integrator=None)  # the scenario's own integrator
         out[name] = cp.saturation_campaign(setup, name, config.saturation, log=log)
     return out
 
