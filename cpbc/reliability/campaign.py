@@ -162,9 +162,9 @@ def physically_possible(setup: ScenarioSetup) -> Callable[[Array], bool]:
     itself)."""
     plant = setup.make_plant()
     model, data = plant.model, plant.data
-    dofs = [int(model.jnt_qposadr[j]) for j in range(model.njnt) if model.jnt_limited[j]]
-    lo = np.array([model.jnt_range[j, 0] for j in range(model.njnt) if model.jnt_limited[j]])
-    hi = np.array([model.jnt_range[j, 1] for j in range(model.njnt) if model.jnt_limited[j]])
+    limited = model.jnt_limited.astype(bool)
+    dofs = model.jnt_qposadr[limited]
+    lo, hi = model.jnt_range[limited].T
     t_inv = setup.model.coordinates.inverse
 
     def possible(x: Array) -> bool:
