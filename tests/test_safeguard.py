@@ -173,6 +173,33 @@ def test_fallback_is_the_calmest_brake_that_keeps_the_cushion(
     assert _lambda_of(guard._fallback(np.zeros(1), np.ones(1), lambda t: 1.0)) == 1.0
 
 
+@pytest.mark.parametrize("d1, v1, d2, v2", [(1.5e-4, 0.04, 2e-4, 0.05),
+                                            (1e-4, 0.03, 1e-4, 0.3)])
+def test_escape_pushes_off_one_limit_and_stops_the_joint_leaving_another(
+    recentred: RecentredBarrier, d1: float, v1: float, d2: float, v2: float
+) -> None:
+    """Joint 1 heads into its upper limit, joint 2 leaves its lower one, both closer than
+    their cushion at 100 Hz: no uniform brake meets (S1) or (S0) — reversing all of the
+    motion sends joint 2 back at its limit. The escape pushes joint 1 off (its margin grows
+    over the period and dips mid-period by no more than the decay share) and only stops
+    joint 2 (judged by the closed-form prediction: one step of 10 ms)."""
+    guard = Safeguard(recentred, 0.01, SafeguardSettings(max_step=0.01))
+    cons = recentred.constraints
+    x, dx = np.array([1.4 - d1, -1.3 + d2]), np.array([v1, v2])
+    assert viable(cons, x, dx, 0.01)
+    now = cons.margins(x, dx)
+    assert np.all(now[:2] < guard.cushion[:2])
+    tau = guard.torque(x, dx)
+    assert guard.infeasible == 1
+    x_mid, _ = predicted(guard, x, dx, tau, 0.005)
+    x_end, dx_end = predicted(guard, x, dx, tau, 0.01)
+    mid, end = cons.margins(x_mid, dx), cons.margins(x_end, dx_end)
+    assert mid[0] >= guard.keep_half * now[0] * (1 - 1e-9)
+    assert end[0] > 2 * now[0] and end[1] > now[1]
+    assert dx_end[0] < 0 and abs(dx_end[1]) < 1e-6 * v2
+    assert np.all(end[2:] > 0)
+
+
 @pytest.mark.parametrize(
     "kwargs", [{"decay_rate": 0}, {"braking": -1}, {"cushion": 1.0}, {"substeps": 0},
                {"backoffs": 0}, {"decay_rate": float("nan")}, {"brake_search": -1}],

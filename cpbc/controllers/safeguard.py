@@ -41,16 +41,21 @@ percent in the energy is enough); then a golden-section search of λ ∈ (1, 2) 
 hẋ/(2λ), end speed |1 − λ|·|ẋ|) looks for a brake in between. If no brake satisfies (S1)
 the step is counted as *infeasible*, and the safeguard takes the smallest λ that keeps
 every margin above its cushion (S0: m_i ≥ δ_i at mid-period and at the end) — the calmest
-brake, so that the arm is not bounced off the boundary period after period — or, when no
-λ does, the one that comes closest. A state whose distance to a configuration boundary is
-less than ¼h of its approach speed cannot be kept inside by any held torque that respects
-the rate bounds (:func:`viable`); such states are outside what sampled-data control can
-promise.
+brake, so that the arm is not bounced off the boundary period after period. One λ for
+every joint fails where a joint is closer to its limit than its cushion and heading in
+while another leaves its own: reversal sends the second back at its limit. Then an
+*escape* brake, which ends the period at a velocity that pushes off the nearby configuration
+boundaries and merely stops the rest (:meth:`Safeguard._escape`), is taken if it keeps
+(S−): configuration margins recover as (S1) asks at the end of the period, and shrink
+at mid-period by no more than the decay share. Otherwise the λ that comes closest to (S0).
+A state whose distance to a configuration boundary is less than ¼h of its approach speed
+cannot be kept inside by any held torque that respects the rate bounds (:func:`viable`);
+such states are outside what sampled-data control can promise.
 
-The wrapper returns the law's torque unchanged whenever the prediction satisfies (S1). It is
-pure (no simulator) like the laws it wraps, so the same object could drive a real arm at its
-control rate. The law's torque bound (Theorem 7.7, Corollary 7.8) does not cover τ_b; the
-wrapper's ``torque_bound`` is None.
+The wrapper returns the law's torque unchanged whenever the prediction satisfies (S1). It
+is pure (no simulator) like the laws it wraps, so the same object could drive a real arm
+at its control rate. The law's torque bound (Theorem 7.7, Corollary 7.8) does not cover
+τ_b; the wrapper's ``torque_bound`` is None.
 """
 
 from __future__ import annotations
@@ -236,11 +241,15 @@ class Safeguard(Controller):
         return best[1], best[0]
 
     def _fallback(
-        self, bias: Array, stop: Array, positivity: Callable[[Array], float]
+        self, bias: Array, stop: Array, positivity: Callable[[Array], float],
+        escape: tuple[Array, Array] | None = None,
+        holding: Callable[[Array], float] | None = None,
     ) -> Array:
         """When no torque satisfies (S1): the calmest braking torque that keeps every margin
         above its cushion (S0) — the smallest λ ≥ λ₀, so that the arm is not bounced off
-        the boundary period after period — or, when none does, the λ closest to it."""
+        the boundary period after period; else the first escape torque τ_e + s·τ_v,
+        s = 1, 1.5, 2, that holds (S−) (the larger s for the curvature of φ that the
+        first-order escape misses); else the λ that comes closest to (S0)."""
         lam0 = self.settings.braking
         f_stop = positivity(bias - lam0 * stop)
         if f_stop >= 0.0:
@@ -255,7 +264,50 @@ class Safeguard(Controller):
                     lam = mid
                 else:
                     lo = mid
+        elif escape is not None and holding is not None:
+            start, push = escape
+            for s in (1.0, 1.5, 2.0):
+                if holding(start + s * push) >= 0.0:
+                    return start + s * push
         return bias - lam * stop
+
+    def _escape(
+        self, x: Array, dx: Array, inertia: Array, bias: Array, now: Array, end_floor: Array,
+        mid_floor: Array,
+    ) -> tuple[Array, Array]:
+        """A braking torque that ends the period at a velocity v pushing off the nearby
+        configuration boundaries — for when one factor λ for every joint cannot both keep
+        one joint off its limit and let another move away from its own.
+
+        Under τ = C ẋ + g + f + D (v − ẋ)/h the frozen prediction ends at x + ½h(ẋ + v) and
+        passes x + ⅛h(3ẋ + v) at mid-period, so to first order a floor φ̲ at the end and
+        φ̲ᵐ at mid-period ask of each configuration margin φ_i
+
+            ∇φ_i · v ≥ r_i = max(2(φ̲_i − φ_i)/h − ∇φ_i·ẋ,  8(φ̲ᵐ_i − φ_i)/h − 3∇φ_i·ẋ).
+
+        v starts at rest and is projected onto the most violated of these half-spaces, at
+        most twice per constraint (joint limits are orthogonal to each other, so one
+        projection meets each): a closed-form construction, not an optimisation. A joint
+        heading away from its limit just stops. Returns τ_e = C ẋ + g + f − D ẋ/h (stop) and
+        τ_v = D v/h; the caller checks τ_e + s·τ_v with the full prediction.
+        """
+        h = self.period
+        nc = self._n_config
+        grads = np.concatenate([c.gradient(x) for c in self.constraints.configuration])
+        rate = grads @ dx
+        need = np.maximum(2.0 * (end_floor[:nc] - now[:nc]) / h - rate,
+                          8.0 * (mid_floor - now[:nc]) / h - 3.0 * rate)
+        norms = np.einsum("ij,ij->i", grads, grads)
+        movable = norms > 1e-300
+        scale = np.sqrt(np.where(movable, norms, 1.0))
+        v = np.zeros_like(dx)
+        for _ in range(2 * nc):
+            short = np.where(movable, need - grads @ v, -np.inf)
+            i = int(np.argmax(short / scale))
+            if not short[i] > 0.0:
+                break
+            v = v + (short[i] / norms[i]) * grads[i]
+        return bias - inertia @ dx / h, inertia @ v / h
 
     def _saturate(self, tau: Array) -> Array:
         if self.torque_limit is None:
@@ -308,26 +360,25 @@ class Safeguard(Controller):
         now = self._margins(x, dx)
         delta = self.cushion
         floor = delta + self.keep * (now - delta)
+        nc = self._n_config
         if config:
-            floor_mid = delta[: self._n_config] + self.keep_half * (
-                now[: self._n_config] - delta[: self._n_config]
-            )
+            floor_mid = delta[:nc] + self.keep_half * (now[:nc] - delta[:nc])
 
-        def slack(t: Array) -> float:
-            """F = min_i m_i/floor_i − 1 over the end and mid-period checks (≥ 0: passes)."""
-            mid, x1, v1 = predict(t)
-            f = float(np.min(self._margins(x1, v1) / floor))
-            if config:
-                f = min(f, float(np.min(self._config_margins(mid) / floor_mid)))
-            return f - 1.0
+        def check(end_floor: Array, mid_floor: Array | None) -> Callable[[Array], float]:
+            """F(τ) = min_i m_i/floor_i − 1 over the predicted end (and mid-period
+            configuration) margins: ≥ 0 when τ keeps every margin above its floor."""
 
-        def positivity(t: Array) -> float:
-            """Like F with the cushion alone as floor: (S0) m_i ≥ δ_i, the fallback."""
-            mid, x1, v1 = predict(t)
-            f = float(np.min(self._margins(x1, v1) / delta))
-            if config:
-                f = min(f, float(np.min(self._config_margins(mid) / delta[: self._n_config])))
-            return f - 1.0
+            def f(t: Array) -> float:
+                mid, x1, v1 = predict(t)
+                out = float(np.min(self._margins(x1, v1) / end_floor))
+                if mid_floor is not None:
+                    out = min(out, float(np.min(self._config_margins(mid) / mid_floor)))
+                return out - 1.0
+
+            return f
+
+        slack = check(floor, floor_mid if config else None)  # (S1)
+        positivity = check(delta, delta[:nc] if config else None)  # (S0) m_i ≥ δ_i
 
         f0 = slack(tau)
         if f0 >= 0.0:
@@ -346,7 +397,17 @@ class Safeguard(Controller):
                 lam, f_lam = self._search_braking(bias, stop, slack, f1, f_rev)
                 if f_lam < 0.0:
                     self.infeasible += 1
-                    return self._fallback(bias, stop, positivity)
+                    if not config:
+                        return self._fallback(bias, stop, positivity)
+                    # (S−), for the escape: configuration margins recover as (S1) asks at
+                    # the end but, below their cushion, may shrink at mid-period by the
+                    # decay share; velocity margins may be spent down to their cushion.
+                    hold_end = np.minimum(delta, self.keep * now)
+                    hold_end[:nc] = floor[:nc]
+                    hold_mid = np.minimum(floor_mid, self.keep_half * now[:nc])
+                    escape = self._escape(x, dx, dyn.inertia, bias, now, hold_end, hold_mid)
+                    return self._fallback(bias, stop, positivity, escape,
+                                          check(hold_end, hold_mid))
                 reverse, f_rev = bias - lam * stop, f_lam
             brake, f1 = reverse, f_rev
         # Illinois steps for the smallest β with F(β) ≥ 0, bracketed by F(0) < 0 ≤ F(1).
