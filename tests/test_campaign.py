@@ -66,9 +66,24 @@ def test_recording_plant_notes_the_first_joint_stop() -> None:
     plant.reset(q, dq)
     plant.step(20)
     assert plant.first_touch is not None and 0 <= plant.first_touch < 20
+    assert plant.touched == "joint stop elbow_joint"
     assert len(plant.rows) == 21
     plant.reset(np.array(setup.target, dtype=float), np.zeros(6))
-    assert plant.first_touch is None
+    assert plant.first_touch is None and plant.touched is None
+
+
+def test_recording_plant_names_the_obstacle_it_touched() -> None:
+    setup = _ur5()
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    q = np.array(setup.target, dtype=float)
+    q[1] = -0.8  # clear of the floor, swinging down at it
+    assert physically_possible(setup)(q)
+    dq = np.zeros(6)
+    dq[1] = 3.0
+    plant.reset(q, dq)
+    plant.step(400)
+    assert plant.first_touch is not None and plant.first_touch > 0
+    assert plant.touched == "floor"
 
 
 def _first_law(setup: ScenarioSetup, constrained_law: bool):
@@ -88,7 +103,7 @@ def test_a_joint_stop_met_before_any_violation_is_a_touch() -> None:
     settings = replace(setup.loop_settings, duration=0.05, safeguard=None)
     check = checked_run(plant, setup, _first_law(setup, True), q, dq, settings)
     assert plant.first_touch is not None
-    assert check.touched
+    assert check.touched and check.touch == "joint stop elbow_joint"
 
 
 def test_a_stop_met_only_after_the_limit_is_crossed_is_not_a_touch() -> None:
@@ -106,4 +121,4 @@ def test_a_stop_met_only_after_the_limit_is_crossed_is_not_a_touch() -> None:
     settings = replace(setup.loop_settings, duration=0.02, safeguard=None)
     check = checked_run(plant, setup, _first_law(setup, False), q, dq, settings, limits)
     assert check.violated and check.constraint == "position[panda_joint4]"
-    assert plant.first_touch is not None and not check.touched
+    assert plant.first_touch is not None and not check.touched and check.touch is None

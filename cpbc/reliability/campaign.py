@@ -61,17 +61,20 @@ _LIMIT_JOINT = int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT)
 
 class RecordingPlant(MujocoPlant):
     """A MuJoCo plant that keeps its state after every physics step, so that constraints
-    can be checked between control instants. ``rows`` holds (qpos, qvel) per step."""
+    can be checked between control instants. ``rows`` holds (qpos, qvel) per step;
+    ``first_touch`` the row of the first contact or joint stop and ``touched`` what it was:
+    the obstacle's name, ``self`` (two links), or ``joint stop <joint>``."""
 
     def __init__(self, model: mujoco.MjModel, settings: PlantSettings) -> None:
         super().__init__(model, settings)
         self.rows: list[Array] = []
-        self.first_touch: int | None = None  # the row of the first contact or joint stop
+        self.first_touch: int | None = None
+        self.touched: str | None = None
 
     def reset(self, q: Array, dq: Array) -> None:
         super().reset(q, dq)
         self.rows = [np.concatenate([self.data.qpos, self.data.qvel])]
-        self.first_touch = None
+        self.first_touch = self.touched = None
 
     def step(self, substeps: int) -> None:
         model, data = self.model, self.data
@@ -82,7 +85,19 @@ class RecordingPlant(MujocoPlant):
             if self.first_touch is None and (data.ncon or (data.nefc and np.any(
                     data.efc_type[: data.nefc] == _LIMIT_JOINT))):
                 self.first_touch = len(self.rows) - 1
+                self.touched = self._what_touched()
             self.rows.append(np.concatenate([data.qpos, data.qvel]))
+
+    def _what_touched(self) -> str:
+        model, data = self.model, self.data
+        if data.ncon:
+            for g in data.contact[0].geom:
+                if model.geom_bodyid[g] == 0:  # the scene's obstacles hang on the world body
+                    return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or "world"
+            return "self"
+        row = int(np.flatnonzero(data.efc_type[: data.nefc] == _LIMIT_JOINT)[0])
+        joint = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, int(data.efc_id[row]))
+        return f"joint stop {joint}"
 
     def fine_states(self, t_mat: Array) -> tuple[Array, Array]:
         """(x, ẋ) at every physics step, in controller coordinates x = T q."""
@@ -118,6 +133,7 @@ class RunCheck:
         touched: the arm touched something the law does not know of — a MuJoCo contact or a
             joint's range stop — strictly before the first violation (or at all, without
             one): what broke then was not the law's sampling.
+        touch: what it touched first (RecordingPlant.touched), when ``touched``.
     """
 
     trajectory: Trajectory
@@ -126,6 +142,7 @@ class RunCheck:
     min_margin: float
     constraint: str | None
     touched: bool = False
+    touch: str | None = None
 
 
 def checked_run(
@@ -151,7 +168,8 @@ def checked_run(
         name = traj.violated
     touch = plant.first_touch
     touched = touch is not None and (first is None or touch < first)
-    return RunCheck(traj, violated, at_samples, low, name, touched)
+    return RunCheck(traj, violated, at_samples, low, name, touched,
+                    plant.touched if touched else None)
 
 
 # -- sampled-data safety -------------------------------------------------------------------
@@ -244,7 +262,7 @@ def sampled_data_campaign(
                         "control_steps": traj.control_steps,
                         # touched something the law does not know of (a contact or a joint
                         # stop) before any violation
-                        "contacts": int(check.touched),
+                        "contacts": int(check.touched), "touched": check.touch,
                     })
                 log(f"{scenario} {entry.name} h={period * 1e3:g} ms "
                     f"safeguard={'on' if guarded else 'off'}: {bad}/{len(states)} violated "

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import statistics
-from collections import defaultdict
+from collections import Counter, defaultdict
 
 Data = dict[str, object]
 
@@ -14,6 +14,7 @@ def _hz(p: float) -> str:
 
 def _sampled(d: Data) -> list[str]:
     per: dict[float, list[int]] = defaultdict(lambda: [0, 0, 0, 0])
+    what: dict[float, Counter[str]] = defaultdict(Counter)
     nonviable = [0, 0, 0]
     states = 0
     for sc in d.values():
@@ -24,6 +25,7 @@ def _sampled(d: Data) -> list[str]:
                 t[0] += r["runs"]
                 t[2] += r["violated"]
                 t[3] += r["with_contact"]
+                what[r["period"]].update(r.get("touched") or {})
             else:
                 t[1] += r["violated"]
         nonviable[0] += int(sc["nonviable_drawn"])
@@ -32,14 +34,15 @@ def _sampled(d: Data) -> list[str]:
                 nonviable[2] += r["violated"]
             else:
                 nonviable[1] += r["violated"]
-    def touched(t: list[int]) -> str:
+    def touched(p: float, t: list[int]) -> str:
         if not t[3]:
             return ""
         which = "all" if t[3] == t[2] else f"{t[3]} of them"
-        return (f" ({which} after a contact or joint stop the law does not enforce; "
-                f"{t[2] - t[3]} otherwise)")
+        kinds = ", ".join(f"{k} {v}" for k, v in what[p].most_common())
+        return (f" ({which} after touching something the law does not enforce"
+                + (f" — {kinds}" if kinds else "") + f"; {t[2] - t[3]} otherwise)")
 
-    parts = [f"{_hz(p)}: **{t[2]}** with the safeguard" + touched(t) + f", {t[1]} without"
+    parts = [f"{_hz(p)}: **{t[2]}** with the safeguard" + touched(p, t) + f", {t[1]} without"
              for p, t in sorted(per.items())]
     return [
         f"- **Sampled data.** Over {states} sampled-data-admissible initial states "

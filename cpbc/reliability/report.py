@@ -32,6 +32,16 @@ def _g(v: object, digits: int = 3) -> str:
     return str(v)
 
 
+def _after_touch(row: Data) -> str:
+    """' (75 after a touch: floor 62, joint stop elbow_joint 13)' or ''."""
+    if not row["with_contact"]:
+        return ""
+    what = row.get("touched") or {}
+    detail = ": " + ", ".join(f"{k} {v}" for k, v in sorted(what.items(),
+                                                          key=lambda kv: -kv[1]))
+    return f" ({row['with_contact']} after a touch{detail if what else ''})"
+
+
 # -- sections ------------------------------------------------------------------------------
 def _sampled(data: Data) -> tuple[str, dict[float, list[int]]]:
     totals: dict[float, list[int]] = defaultdict(lambda: [0, 0, 0, 0])
@@ -48,10 +58,8 @@ def _sampled(data: Data) -> tuple[str, dict[float, list[int]]]:
             share = on["acted_steps"] / max(on["steps"], 1)
             rows.append([
                 scenario, ctrl, _hz(period), on["runs"],
-                f"**{off['violated']}**" + (f" ({off['with_contact']} contact)"
-                                            if off["with_contact"] else ""),
-                f"**{on['violated']}**" + (f" ({on['with_contact']} contact)"
-                                           if on["with_contact"] else ""),
+                f"**{off['violated']}**" + _after_touch(off),
+                f"**{on['violated']}**" + _after_touch(on),
                 f"{on['runs_acted']} runs, {100 * share:.2g} % of steps",
                 on["infeasible_steps"],
                 ", ".join(f"{k} {v}" for k, v in off["constraints"].items()) or "–",

@@ -110,6 +110,7 @@ def _aggregate(records: list[cp.Record]) -> list[dict[str, object]]:
             "min_margin": min(float(r["min_margin"]) for r in rs),
             "kinds": dict(Counter(str(r["kind"]) for r in violated)),
             "constraints": dict(Counter(str(r["constraint"]) for r in violated)),
+            "touched": dict(Counter(str(r["touched"]) for r in contact)),
         })
     return rows
 
