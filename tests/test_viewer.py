@@ -315,8 +315,9 @@ def test_live_view_streams_the_run_on_loopback(tmp_path):
             )
             assert started >= 1
             _wait_for_line(proc, "still serving")
-            browser.pump(0.5)
-            # The replay animation of the finished runs is loaded.
+            # The replay animation of the finished runs is loaded (a loaded machine may take
+            # a while to parse it).
+            browser.wait_until("viewer.animator.duration > 0", timeout=60)
             assert browser.evaluate("viewer.animator.duration") == pytest.approx(DURATION)
             _assert_scene_drawn(browser, tmp_path / "live.png")
             assert not browser.log.errors, browser.log.errors

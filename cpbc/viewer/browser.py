@@ -284,12 +284,17 @@ class HeadlessChromium:
     def open(self, url: str, ready: str, timeout: float | None = None) -> None:
         """Navigate to ``url`` and wait until the JavaScript expression ``ready`` is truthy."""
         self.call("Page.navigate", {"url": url})
+        self.wait_until(ready, timeout, what=url)
+
+    def wait_until(self, condition: str, timeout: float | None = None, what: str = "page"
+                   ) -> None:
+        """Let the page run until the JavaScript expression ``condition`` is truthy."""
         deadline = time.monotonic() + (timeout or self.timeout)
-        probe = f"(() => {{ try {{ return !!({ready}); }} catch (e) {{ return false; }} }})()"
+        probe = f"(() => {{ try {{ return !!({condition}); }} catch (e) {{ return false; }} }})()"
         while not self.evaluate(probe):
             if time.monotonic() > deadline:
                 raise BrowserError(
-                    f"{url} was not ready ({ready}) within {timeout or self.timeout} s"
+                    f"{what} was not ready ({condition}) within {timeout or self.timeout} s"
                 )
             self.pump(0.2)
 
