@@ -17,7 +17,13 @@ from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings, viable
 from cpbc.errors import CpbcError
 from cpbc.model import RobotModel
-from cpbc.reliability.campaign import campaign_setup, sample_states, sampled_data_campaign
+from cpbc.reliability.campaign import (
+    RecordingPlant,
+    campaign_setup,
+    sample_states,
+    sampled_data_campaign,
+)
+from cpbc.scenario import build, load_scenario
 from cpbc.scenario.runner import run_all
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, run_mujoco
 
@@ -258,6 +264,47 @@ def test_loop_reports_the_safeguard_and_can_switch_it_off(recentred: RecentredBa
                      LoopSettings(0.2, 0.01, safeguard=None))
     assert on.outcome == "completed" and on.safeguard_steps > 0
     assert off.safeguard_steps == 0
+
+
+@pytest.mark.parametrize("period", [0.001, 0.01])
+def test_also_keeps_a_constraint_the_law_only_monitors(bpbc: BPBC, planar_path,
+                                                       period: float) -> None:
+    """BPBC bounds rates only; heading at a joint limit it does not know of, it crosses it.
+    Told to keep that limit too, the safeguard brakes the arm short of it."""
+    wall = joint_position_limit(np.array([-1.0, -10.0]), np.array([0.3, 10.0]), ["t1", "t2"])
+    settings = PlantSettings(0.001, "Euler")
+    plant = RecordingPlant(MujocoPlant.from_file(planar_path, settings).model, settings)
+    coords = bpbc.model.coordinates
+    x0, dx0 = np.array([0.2, 0.2]), np.array([0.29, 0.15])
+    low = {}
+    for keep in ((), (wall,)):
+        traj = run_mujoco(plant, bpbc, coords, x0, dx0,
+                          LoopSettings(1.0, period, also_keep=keep))
+        assert traj.outcome == "completed"
+        xs, dxs = plant.fine_states(coords.matrix)
+        low[len(keep)] = float(wall.values_along(xs).min())
+        assert np.all(bpbc.constraints.margins_along(xs, dxs) > 0)
+        assert (traj.safeguard_steps > 0) == bool(keep)
+    assert low[0] < 0 < low[1]
+
+
+def test_an_extra_constraint_already_broken_does_not_break_the_guard(bpbc: BPBC) -> None:
+    wall = joint_position_limit(np.array([-1.0, -10.0]), np.array([0.3, 10.0]), ["t1", "t2"])
+    guard = Safeguard(bpbc, 0.01, also_keep=(wall,))
+    tau = guard.torque(np.array([0.31, 0.2]), np.array([0.1, 0.0]))  # past the wall
+    assert np.all(np.isfinite(tau)) and guard.acted == 1
+    assert len(Safeguard(bpbc, 0.01, also_keep=bpbc.constraints.configuration).guarded) == 2
+
+
+def test_scenarios_keep_their_monitored_constraints_unless_told_not_to() -> None:
+    setup = campaign_setup("ur5_bpbc")
+    assert setup.loop_settings.also_keep == setup.monitor.configuration
+    names = [n for c in setup.loop_settings.also_keep for n in c.names]
+    assert "position[elbow_joint]" in names and "clearance[wrist_3_link|floor]" in names
+    spec, file = load_scenario("ur5_bpbc")
+    off = spec.model_copy(update={"simulation": spec.simulation.model_copy(
+        update={"safeguard_monitored": False})})
+    assert build(off, file).loop_settings.also_keep == ()
 
 
 def test_summary_and_scenario_key(tmp_path) -> None:

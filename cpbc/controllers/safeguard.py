@@ -61,12 +61,12 @@ at its control rate. The law's torque bound (Theorem 7.7, Corollary 7.8) does no
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from cpbc.constraints.base import Array
+from cpbc.constraints.base import Array, ConfigurationConstraint
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.controllers.base import Controller
 from cpbc.controllers.linalg import solve_spd
@@ -147,6 +147,10 @@ class Safeguard(Controller):
         settings: κ, λ, prediction sub-steps, back-off steps.
         torque_limit: joint torque limits |τ_q| ≤ limit (the plant's saturation), shape (n,),
             applied inside the prediction so that it predicts what the plant receives.
+        also_keep: configuration constraints the law does not enforce (obstacles it does
+            not know of, the plant's joint ranges) that the safeguard keeps as well: (S1)
+            on them makes it brake before the arm reaches them. Those the law enforces
+            already are skipped.
 
     Attributes:
         calls: control instants seen.
@@ -162,6 +166,7 @@ class Safeguard(Controller):
         period: float,
         settings: SafeguardSettings | None = None,
         torque_limit: Array | None = None,
+        also_keep: Sequence[ConfigurationConstraint] = (),
     ) -> None:
         if not (math.isfinite(period) and period > 0):
             raise CpbcError(f"safeguard period must be > 0, got {period}")
@@ -172,10 +177,16 @@ class Safeguard(Controller):
         self.keep = self.settings.keep_fraction(self.period)
         self.keep_half = math.sqrt(self.keep)
         self.substeps = self.settings.steps_for(self.period)
-        at_target = law.constraints.margins(law.target, np.zeros(law.model.n))
+        own = law.constraints
+        extra = [c for c in also_keep if not any(c is k for k in own.configuration)]
+        # the constraints the guard keeps: the law's own, and the extra configuration ones
+        self.guarded = own if not extra or own.empty else ConstraintSet(
+            own.n, (*own.configuration, *extra), own.velocity)
+        self._extra = self.guarded is not own
+        at_target = self.guarded.margins(law.target, np.zeros(law.model.n))
         scale = self.settings.cushion * self.period / 0.01
         self.cushion = scale * at_target  # δ_i
-        self._n_config = sum(len(c.names) for c in law.constraints.configuration)
+        self._n_config = sum(len(c.names) for c in self.guarded.configuration)
         self.torque_limit = None if torque_limit is None else np.asarray(torque_limit, float)
         coords = law.model.coordinates
         self._t_mat_t = coords.matrix.T  # τ_q = Tᵀ τ
@@ -293,7 +304,7 @@ class Safeguard(Controller):
         """
         h = self.period
         nc = self._n_config
-        grads = np.concatenate([c.gradient(x) for c in self.constraints.configuration])
+        grads = np.concatenate([c.gradient(x) for c in self.guarded.configuration])
         rate = grads @ dx
         need = np.maximum(2.0 * (end_floor[:nc] - now[:nc]) / h - rate,
                           8.0 * (mid_floor - now[:nc]) / h - 3.0 * rate)
@@ -323,10 +334,10 @@ class Safeguard(Controller):
         return np.where(np.isnan(m), -np.inf, m) if total != total else m
 
     def _margins(self, x: Array, dx: Array) -> Array:
-        return self._no_nan(self.constraints.margins(x, dx))
+        return self._no_nan(self.guarded.margins(x, dx))
 
     def _config_margins(self, x: Array) -> Array:
-        return self._no_nan(np.concatenate([c.value(x) for c in self.constraints.configuration]))
+        return self._no_nan(np.concatenate([c.value(x) for c in self.guarded.configuration]))
 
     def guard(self, x: Array, dx: Array, tau: Array) -> Array:
         """τ if it satisfies (S1), else the smallest blend toward braking that does."""
@@ -363,6 +374,8 @@ class Safeguard(Controller):
         nc = self._n_config
         if config:
             floor_mid = delta[:nc] + self.keep_half * (now[:nc] - delta[:nc])
+            if self._extra:  # an extra margin may already be ≤ 0: then it must turn positive
+                floor, floor_mid = np.maximum(floor, 1e-300), np.maximum(floor_mid, 1e-300)
 
         def check(end_floor: Array, mid_floor: Array | None) -> Callable[[Array], float]:
             """F(τ) = min_i m_i/floor_i − 1 over the predicted end (and mid-period

@@ -532,7 +532,7 @@ def safeguard_cost(
     period: float, repeats: int = 5,
 ) -> Record:
     """Median µs per call of the bare law and of the guarded law over the same states."""
-    guard = Safeguard(entry.controller, period)
+    guard = Safeguard(entry.controller, period, also_keep=setup.loop_settings.also_keep)
     law = entry.controller
 
     def timed(f: Callable[[Array, Array], object]) -> float:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import mujoco
@@ -418,6 +418,8 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         [c for c in built.values() if isinstance(c, VelocityConstraint)],
     )
 
+    if sim.safeguard and sim.safeguard_monitored:
+        loop = replace(loop, also_keep=monitor.configuration)
     target = _vector(scenario.target, n, "target")
     monitor.check_admissible(target, np.zeros(n), "target")
     cases = []

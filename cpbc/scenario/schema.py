@@ -78,6 +78,9 @@ class SimulationSpec(Strict):
     log_every: Annotated[int, Field(ge=1)] = 1
     max_log_samples: Annotated[int, Field(ge=2)] = 100_000
     safeguard: Annotated[bool, Field(strict=True)] = True  # the sampled-data safeguard
+    # ... which also keeps the configuration constraints a law only monitors (obstacles it
+    # does not know of, joint ranges): it brakes before the arm reaches them
+    safeguard_monitored: Annotated[bool, Field(strict=True)] = True
     noise: NoiseSpec | None = None
     position_tolerance: Positive = 0.01
     velocity_tolerance: Positive = 0.005

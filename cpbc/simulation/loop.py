@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cpbc.constraints.base import Array
+from cpbc.constraints.base import Array, ConfigurationConstraint
 from cpbc.controllers.base import Controller
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
 from cpbc.errors import ConstraintViolation, CpbcError
@@ -33,6 +33,8 @@ class LoopSettings:
         log_every: keep every k-th control sample (long runs).
         safeguard: the sampled-data safeguard wrapped around every law that enforces
             constraints (cpbc.controllers.safeguard), or None to run the bare law.
+        also_keep: configuration constraints the safeguard keeps besides each law's own
+            (the scenario's monitored obstacles and joint ranges); unused without it.
         noise: Gaussian noise on the state the controller sees, or None.
         max_log_samples: the log never holds more samples than this: when full, it drops
             every other sample and halves its rate (memory stays bounded on long runs).
@@ -43,6 +45,7 @@ class LoopSettings:
     torque_limit: Array | None = None
     log_every: int = 1
     safeguard: SafeguardSettings | None = DEFAULT_SAFEGUARD
+    also_keep: tuple[ConfigurationConstraint, ...] = ()
     noise: MeasurementNoise | None = None
     max_log_samples: int = 100_000
 
@@ -100,7 +103,8 @@ def run_mujoco(
     guard: Safeguard | None = None
     if settings.safeguard is not None and not controller.constraints.empty:
         joint_limit = None if limit is None else np.broadcast_to(limit, (n,))
-        guard = Safeguard(controller, settings.control_period, settings.safeguard, joint_limit)
+        guard = Safeguard(controller, settings.control_period, settings.safeguard, joint_limit,
+                          settings.also_keep)
         law = guard
     noisy = settings.noise is not None and settings.noise.active
     if noisy:
