@@ -26,6 +26,16 @@ class PD(Controller):
         """L = ½ ẋᵀDẋ + ½ x̃ᵀK_P x̃ (eq. 6.7); non-increasing when gravity does no work."""
         return self.model.kinetic_energy(x, dx) + self._potential.value(x - self.target)
 
+    def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
+        err = x - self.target
+        spring = self.kp * err
+        tau = self._bias(x) - spring - self.kd * dx
+        return tau, self.model.kinetic_energy(x, dx) + 0.5 * float(err @ spring)
+
+    def _bias(self, x: Array) -> Array | float:
+        """The torque's state-only feed-forward: none for PD."""
+        return 0.0
+
 
 class PDGravity(PD):
     """τ = g(x) − K_P x̃ − K_D ẋ (eq. 6.10), with L̇ = −ẋᵀ(K_D ẋ + f) ≤ 0 (eq. 6.11)."""
@@ -34,3 +44,6 @@ class PDGravity(PD):
 
     def torque(self, x: Array, dx: Array) -> Array:
         return self.model.gravity(x) - self.kp * (x - self.target) - self.kd * dx
+
+    def _bias(self, x: Array) -> Array:
+        return self.model.gravity(x)

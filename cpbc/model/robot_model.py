@@ -180,8 +180,9 @@ class RobotModel:
         return DynamicsTerms(inertia, t_inv_t @ (nle - g), t_inv_t @ g, f)
 
     def kinetic_energy(self, x: Array, dx: Array) -> float:
-        """½ ẋᵀ D(x) ẋ [J]."""
-        return 0.5 * float(dx @ self.inertia(x) @ dx)
+        """½ ẋᵀ D(x) ẋ [J], computed in joint coordinates (the energy does not depend on
+        them) by one Pinocchio pass, without forming D."""
+        return float(pin.computeKineticEnergy(self.model, self.data, self._q(x), self._q(dx)))
 
     def forward_dynamics(self, x: Array, dx: Array, tau: Array) -> Array:
         """ẍ from D ẍ = τ − C ẋ − g − f (generalised forces τ in x-coordinates)."""

@@ -64,7 +64,13 @@ class MujocoPlant:
         self.model.opt.integrator = INTEGRATORS[settings.integrator]
         self.data = mujoco.MjData(model)
         # live views of the warning counters (indexing data.warning builds them anew: slow)
-        self._warnings = [self.data.warning[i] for i in _INSTABILITY_WARNINGS]
+        # A live view of the instability warnings' counters (BADQPOS … BADCTRL are
+        # contiguous), compared with zeros as bytes: the cheapest test per step.
+        lo, hi = min(_INSTABILITY_WARNINGS), max(_INSTABILITY_WARNINGS) + 1
+        if hi - lo != len(_INSTABILITY_WARNINGS):
+            raise CpbcError("MuJoCo's instability warnings are no longer contiguous")
+        self._instability = self.data.warning.number[lo:hi]
+        self._stable = bytes(self._instability.nbytes)
         self.n = model.nv
         self._use_actuators = model.nu == self.n and all(
             model.actuator_trntype[i] == mujoco.mjtTrn.mjTRN_JOINT for i in range(model.nu)
@@ -126,7 +132,7 @@ class MujocoPlant:
         MuJoCo then resets the state (bad qpos/qvel/qacc) or zeroes the control (bad ctrl)
         and carries on, so the loop must ask.
         """
-        return any(w.number for w in self._warnings)
+        return self._instability.tobytes() != self._stable
 
     def contact_count(self) -> int:
         return int(self.data.ncon)
