@@ -74,8 +74,15 @@ def _methods(config: suite.Config) -> dict[str, str]:
             f"condition, {c.safeguard.brake_search} golden-section steps search λ in between) "
             f"by the smallest factor it finds in {c.safeguard.backoffs} Illinois steps. "
             "*Infeasible* steps are those at which no candidate met the condition; the "
-            "safeguard then takes the smallest λ that keeps every margin above its cushion, "
-            "or the λ that comes closest. The runs and steps at which it acted are counted."),
+            "safeguard then takes the smallest λ that keeps every margin above its cushion; "
+            "failing that, an *escape* brake that ends the period at a velocity pushing off "
+            "the nearby configuration boundaries (and only stops the joints leaving theirs), "
+            "if its configuration margins recover as the condition asks by the end of the "
+            "period; failing that, the λ that comes closest. Besides the law's own "
+            "constraints it keeps those the scenario only monitors "
+            "(`simulation.safeguard_monitored`): for the UR5, the floor clearance and the "
+            "URDF joint ranges, which BPBC does not enforce. The runs and steps at which it "
+            "acted are counted."),
         "periods_method": (
             "The bare law (no safeguard), same integrator, at control periods of "
             + ", ".join(f"{p * 1e3:g}" for p in c.period_grid)
