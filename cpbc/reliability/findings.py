@@ -51,7 +51,8 @@ def _sampled(d: Data) -> list[str]:
         f"{nonviable[0]} further draws were admissible but not viable at 100 Hz (closer to a "
         "configuration boundary than a quarter period of their approach); of those run, "
         f"{nonviable[2]} runs broke a constraint with the safeguard and {nonviable[1]} "
-        "without — no held torque can save them."]
+        "without — no held torque that keeps their speed can keep them inside "
+        "(`safeguard.viable`); a harder reversal saves some of them."]
 
 
 def _periods(d: Data) -> list[str]:
