@@ -294,6 +294,10 @@ def test_an_extra_constraint_already_broken_does_not_break_the_guard(bpbc: BPBC)
     tau = guard.torque(np.array([0.31, 0.2]), np.array([0.1, 0.0]))  # past the wall
     assert np.all(np.isfinite(tau)) and guard.acted == 1
     assert len(Safeguard(bpbc, 0.01, also_keep=bpbc.constraints.configuration).guarded) == 2
+    same_names = joint_position_limit(np.array([-1.0, -10.0]), np.array([0.3, 10.0]),
+                                      ["t1", "t2"])
+    twice = Safeguard(bpbc, 0.01, also_keep=(wall, same_names))  # one copy is kept
+    assert len(twice.guarded) == 2 + 2
 
 
 def test_scenarios_keep_their_monitored_constraints_unless_told_not_to() -> None:

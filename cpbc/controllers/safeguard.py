@@ -178,7 +178,12 @@ class Safeguard(Controller):
         self.keep_half = math.sqrt(self.keep)
         self.substeps = self.settings.steps_for(self.period)
         own = law.constraints
-        extra = [c for c in also_keep if not any(c is k for k in own.configuration)]
+        seen = set(own.names)  # a constraint the law enforces already, or a repeat, is skipped
+        extra = []
+        for c in also_keep:
+            if seen.isdisjoint(c.names):
+                extra.append(c)
+                seen.update(c.names)
         # the constraints the guard keeps: the law's own, and the extra configuration ones
         self.guarded = own if not extra or own.empty else ConstraintSet(
             own.n, (*own.configuration, *extra), own.velocity)
