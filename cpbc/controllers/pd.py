@@ -20,7 +20,7 @@ class PD(Controller):
         self._potential = QuadraticPotential(self.kp)
 
     def torque(self, x: Array, dx: Array) -> Array:
-        return -self.kp * (x - self.target) - self.kd * dx
+        return self._bias(x) - self.kp * (x - self.target) - self.kd * dx
 
     def lyapunov(self, x: Array, dx: Array) -> float:
         """L = ½ ẋᵀDẋ + ½ x̃ᵀK_P x̃ (eq. 6.7); non-increasing when gravity does no work."""
@@ -41,9 +41,6 @@ class PDGravity(PD):
     """τ = g(x) − K_P x̃ − K_D ẋ (eq. 6.10), with L̇ = −ẋᵀ(K_D ẋ + f) ≤ 0 (eq. 6.11)."""
 
     type_name = "pd_gravity"
-
-    def torque(self, x: Array, dx: Array) -> Array:
-        return self.model.gravity(x) - self.kp * (x - self.target) - self.kd * dx
 
     def _bias(self, x: Array) -> Array:
         return self.model.gravity(x)

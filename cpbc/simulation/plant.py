@@ -63,7 +63,6 @@ class MujocoPlant:
         self.model.opt.timestep = settings.timestep
         self.model.opt.integrator = INTEGRATORS[settings.integrator]
         self.data = mujoco.MjData(model)
-        # live views of the warning counters (indexing data.warning builds them anew: slow)
         # A live view of the instability warnings' counters (BADQPOS … BADCTRL are
         # contiguous), compared with zeros as bytes: the cheapest test per step.
         lo, hi = min(_INSTABILITY_WARNINGS), max(_INSTABILITY_WARNINGS) + 1
