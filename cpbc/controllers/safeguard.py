@@ -258,14 +258,15 @@ class Safeguard(Controller):
 
     def _fallback(
         self, bias: Array, stop: Array, positivity: Callable[[Array], float],
-        escape: tuple[Array, Array] | None = None,
+        escape: Array | None = None,
         holding: Callable[[Array], float] | None = None,
     ) -> Array:
         """When no torque satisfies (S1): the calmest braking torque that keeps every margin
         above its cushion (S0) — the smallest λ ≥ λ₀, so that the arm is not bounced off
-        the boundary period after period; else the first escape torque τ_e + s·τ_v,
-        s = 1, 1.5, 2, that holds (S−) (the larger s for the curvature of φ that the
-        first-order escape misses); else the λ that comes closest to (S0)."""
+        the boundary period after period; else the first escape torque
+        C ẋ + g + f − D ẋ/h + s·D v/h, s = 1, 1.5, 2, that holds (S−) (the larger s for
+        the curvature of φ that the first-order escape misses); else the λ that comes
+        closest to (S0)."""
         lam0 = self.settings.braking
         f_stop = positivity(bias - lam0 * stop)
         if f_stop >= 0.0:
@@ -281,19 +282,19 @@ class Safeguard(Controller):
                 else:
                     lo = mid
         elif escape is not None and holding is not None:
-            start, push = escape
-            for s in (1.0, 1.5, 2.0):
-                if holding(start + s * push) >= 0.0:
-                    return start + s * push
+            start = bias - stop  # ends the period at rest ...
+            for s in (1.0, 1.5, 2.0):  # ... plus the push to the end velocity s·v
+                if holding(start + s * escape) >= 0.0:
+                    return start + s * escape
         return bias - lam * stop
 
     def _escape(
-        self, x: Array, dx: Array, inertia: Array, bias: Array, now: Array, end_floor: Array,
+        self, x: Array, dx: Array, inertia: Array, now: Array, end_floor: Array,
         mid_floor: Array,
-    ) -> tuple[Array, Array]:
-        """A braking torque that ends the period at a velocity v pushing off the nearby
-        configuration boundaries — for when one factor λ for every joint cannot both keep
-        one joint off its limit and let another move away from its own.
+    ) -> Array:
+        """The push D v/h of a braking torque that ends the period at a velocity v pushing
+        off the nearby configuration boundaries — for when one factor λ for every joint
+        cannot both keep one joint off its limit and let another move away from its own.
 
         Under τ = C ẋ + g + f + D (v − ẋ)/h the frozen prediction ends at x + ½h(ẋ + v) and
         passes x + ⅛h(3ẋ + v) at mid-period, so to first order a floor φ̲ at the end and
@@ -304,8 +305,8 @@ class Safeguard(Controller):
         v starts at rest and is projected onto the most violated of these half-spaces, at
         most twice per constraint (joint limits are orthogonal to each other, so one
         projection meets each): a closed-form construction, not an optimisation. A joint
-        heading away from its limit just stops. Returns τ_e = C ẋ + g + f − D ẋ/h (stop) and
-        τ_v = D v/h; the caller checks τ_e + s·τ_v with the full prediction.
+        heading away from its limit just stops. The caller adds the push to the stopping
+        torque C ẋ + g + f − D ẋ/h and checks the sum with the full prediction.
         """
         h = self.period
         nc = self._n_config
@@ -323,7 +324,7 @@ class Safeguard(Controller):
             if not short[i] > 0.0:
                 break
             v = v + (short[i] / norms[i]) * grads[i]
-        return bias - inertia @ dx / h, inertia @ v / h
+        return inertia @ v / h
 
     def _saturate(self, tau: Array) -> Array:
         if self.torque_limit is None:
@@ -423,7 +424,7 @@ class Safeguard(Controller):
                     hold_end = np.minimum(delta, self.keep * now)
                     hold_end[:nc] = floor[:nc]
                     hold_mid = np.minimum(floor_mid, self.keep_half * now[:nc])
-                    escape = self._escape(x, dx, dyn.inertia, bias, now, hold_end, hold_mid)
+                    escape = self._escape(x, dx, dyn.inertia, now, hold_end, hold_mid)
                     return self._fallback(bias, stop, positivity, escape,
                                           check(hold_end, hold_mid))
                 reverse, f_rev = bias - lam * stop, f_lam
