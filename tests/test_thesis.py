@@ -13,6 +13,13 @@ from cpbc.scenario import build, load_scenario
 from cpbc.scenario.runner import run_all
 
 
+def assert_lyapunov_never_increases(result) -> None:
+    """V[k+1] ≤ V[k] up to its rounding: V = exp(log L − log s(ΦΨ)) is good to a few ulps,
+    and starting from rest its true decrease over the first period is O(h³), below that."""
+    v0 = float(result.trajectory.lyapunov[0])
+    assert result.summary.max_lyapunov_increase <= 8 * np.finfo(float).eps * v0
+
+
 def run(name: str, backend: str | None = None, controllers: list[str] | None = None):
     scenario, file = load_scenario(name)
     setup = build(scenario, file)
@@ -43,7 +50,7 @@ def test_ch6_cpbc_holds_every_constraint(ch6) -> None:
     s = ch6["rest", "CPBC"].summary
     assert all(v > 0 for v in s.min_margins.values())
     assert s.peak_joint_rates[0] < 0.3 and s.peak_joint_rates[1] < 0.2
-    assert s.max_lyapunov_increase == 0.0
+    assert_lyapunov_never_increases(ch6["rest", "CPBC"])
 
 
 def test_ch6_cpbc_stalls_where_the_thesis_claims_convergence(ch6) -> None:
@@ -83,4 +90,4 @@ def test_ch7_bpbc_rates_bound_and_convergence(ch7, case: str) -> None:
     assert s.torque_bound == pytest.approx(30.065, abs=1e-3)  # eq. 7.42
     assert s.peak_torque_norm < s.torque_bound / 10  # Remark 7.11: far below the bound
     assert s.status == "converged"
-    assert s.max_lyapunov_increase == 0.0
+    assert_lyapunov_never_increases(ch7[case, "BPBC"])

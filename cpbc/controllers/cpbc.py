@@ -10,6 +10,7 @@ from cpbc.controllers.base import Controller, positive_vector
 from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import LinearDamping, QuadraticPotential
+from cpbc.controllers.unrolled import Kernel, unrolled_law
 from cpbc.model.robot_model import DynamicsTerms, RobotModel
 
 
@@ -51,6 +52,9 @@ class CPBC(Controller):
         self.potential: QuadraticPotential = QuadraticPotential(self.kp)
         self.damping: object = LinearDamping(self.kd)
         self._uses_velocity = bool(constraints.velocity)
+        # the law as straight-line scalar code on a small arm (cpbc.controllers.unrolled),
+        # built at the first call, when subclasses have set their potential and damping
+        self._unrolled: Kernel | bool | None = False
 
     def _shaped_terms(
         self, x: Array, dx: Array
@@ -62,10 +66,28 @@ class CPBC(Controller):
         lag = 0.5 * float(dx @ (dyn.inertia @ dx)) + potential
         return dyn, bar, grad, lag
 
+    def unrolled(self, x: Array, dx: Array) -> tuple[Array, float] | None:
+        """τ and V from the unrolled scalar code, or None where the array code must run
+        (no scalar form of this law, or a state it has something to say about)."""
+        kernel = self._unrolled
+        if kernel is False:
+            kernel = self._unrolled = unrolled_law(self)
+        return None if kernel is None else kernel(x, dx)  # type: ignore[operator]
+
     def torque(self, x: Array, dx: Array) -> Array:
+        fast = self.unrolled(x, dx)
+        if fast is not None:
+            return fast[0]
         return self._law(dx, *self._shaped_terms(x, dx))
 
     def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
+        fast = self.unrolled(x, dx)
+        if fast is not None:
+            return fast
+        return self.evaluate_arrays(x, dx)
+
+    def evaluate_arrays(self, x: Array, dx: Array) -> tuple[Array, float]:
+        """τ and V from the array code (the reference for the unrolled one)."""
         terms = self._shaped_terms(x, dx)
         return self._law(dx, *terms), self._shaped_value(terms[1], terms[3])
 

@@ -70,6 +70,7 @@ from cpbc.constraints.base import Array, ConfigurationConstraint
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.controllers.base import Controller
 from cpbc.controllers.linalg import solve_spd
+from cpbc.controllers.unrolled import Kernel, unrolled_guard
 from cpbc.errors import CpbcError
 
 
@@ -200,6 +201,9 @@ class Safeguard(Controller):
         self.calls = 0
         self.acted = 0
         self.infeasible = 0
+        # the law and test (S1) of its torque as scalar code (cpbc.controllers.unrolled),
+        # built at the first call
+        self._unrolled: Kernel | bool | None = False
 
     def reset_counts(self) -> None:
         self.calls = self.acted = self.infeasible = 0
@@ -213,6 +217,14 @@ class Safeguard(Controller):
 
     def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
         """The guarded torque and the law's V at (x, ẋ); ConstraintViolation outside S."""
+        kernel = self._unrolled
+        if kernel is False:
+            kernel = self._unrolled = unrolled_guard(self)
+        if kernel is not None:
+            accepted = kernel(x, dx)  # type: ignore[operator]
+            if accepted is not None:  # the law's torque passes (S1)
+                self.calls += 1
+                return accepted
         tau, v = self.law.evaluate(x, dx)  # raises outside S
         self.calls += 1
         if self.constraints.empty:

@@ -1,0 +1,165 @@
+"""The unrolled scalar law and safeguard test agree with the array code they replace."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+from cpbc.constraints import (
+    ConstraintSet,
+    KineticEnergyLimit,
+    LinearLimit,
+    PointOutsideSphere,
+    joint_position_limit,
+    joint_rate_limit,
+)
+from cpbc.constraints.rate_limit import RateLimit
+from cpbc.controllers import BPBC, CPBC, Identity, Power, Tanh
+from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
+from cpbc.errors import ConstraintViolation
+from cpbc.model import LinearCoordinates, RobotModel
+
+NAMES = ["theta1", "theta2"]
+TARGET = np.array([np.pi, 2 * np.pi / 3])
+
+
+def thesis_constraints(model: RobotModel, offset: list[float] | None = None) -> ConstraintSet:
+    """Section 6.4: end-point obstacle, relative angle, two rate limits."""
+    return ConstraintSet(
+        2,
+        [PointOutsideSphere(model, "end_point", [0, 2, 0], 0.5, offset),
+         LinearLimit([[-1, 1]], [-17 * np.pi / 18], [17 * np.pi / 18], ["relative"])],
+        [joint_rate_limit([0.3, 0.2], NAMES)],
+    )
+
+
+Build = Callable[[RobotModel], CPBC]
+LAWS: dict[str, Build] = {
+    "thesis_power": lambda m: CPBC(m, TARGET, thesis_constraints(m), 4.0, 20.0, Power(0.2)),
+    "identity_shaping": lambda m: CPBC(m, TARGET, thesis_constraints(m), [4.0, 3.0], 20.0,
+                                       Identity()),
+    "tanh_shaping_offset_point": lambda m: CPBC(
+        m, TARGET, thesis_constraints(m, [0.05, 0.02, 0.0]), 4.0, [20.0, 9.0], Tanh(5.0)),
+    "no_velocity_constraint": lambda m: CPBC(
+        m, TARGET, ConstraintSet(2, [joint_position_limit([-0.5, -0.5], [3.5, 3.5], NAMES)]),
+        4.0, 20.0, Power(0.5)),
+    "combined_rate_rows": lambda m: CPBC(
+        m, TARGET, ConstraintSet(2, [], [RateLimit([[1.0, 0.0], [-1.0, 1.0]], [0.3, 0.25],
+                                                   ["r1", "r12"])]), 4.0, 20.0),
+    "bpbc": lambda m: BPBC(m, TARGET, ConstraintSet(2, [], [joint_rate_limit([0.3, 0.2], NAMES)]),
+                           [2, 10], [4, 20], [1.0, 2.0], [1.0, 0.5], Power(0.2)),
+}
+
+
+def models(planar_path) -> dict[str, RobotModel]:
+    return {
+        "absolute": RobotModel.from_mjcf(
+            planar_path, coordinates=LinearCoordinates.absolute_link_angles(2)),
+        "joint": RobotModel.from_mjcf(planar_path),
+        "friction": RobotModel.from_mjcf(
+            planar_path, coordinates=LinearCoordinates.absolute_link_angles(2),
+            viscous_friction=[0.3, 0.1]),
+    }
+
+
+def admissible_states(law: CPBC, rng: np.random.Generator, count: int,
+                      near_bound: bool = False) -> list[tuple[np.ndarray, np.ndarray]]:
+    """States of S; with ``near_bound`` every rate is within 10⁻⁷–10⁻¹ of its bound, where
+    the law is stiff and the safeguard often refuses its torque."""
+    out = []
+    while len(out) < count:
+        x = rng.uniform([-0.4, -0.4], [3.4, 3.4])
+        dx = rng.uniform(-0.99, 0.99, 2)
+        if near_bound:
+            dx = np.sign(dx) * (1.0 - 10.0 ** rng.uniform(-7, -1, 2))
+        dx *= np.array([0.3, 0.2])
+        if np.all(law.constraints.margins(x, dx) > 0):
+            out.append((x, dx))
+    return out
+
+
+@pytest.mark.parametrize("coords", ["absolute", "joint", "friction"])
+@pytest.mark.parametrize("name", sorted(LAWS))
+def test_unrolled_law_equals_the_array_law(planar_path, rng, name: str, coords: str) -> None:
+    law = LAWS[name](models(planar_path)[coords])
+    states = admissible_states(law, rng, 200)
+    assert law.unrolled(*states[0]) is not None  # the scalar code runs for this law
+    for x, dx in states:
+        tau, v = law.unrolled(x, dx)  # type: ignore[misc]
+        tau_ref, v_ref = law.evaluate_arrays(x, dx)
+        scale = max(1.0, float(np.abs(tau_ref).max()))
+        np.testing.assert_allclose(tau, tau_ref, rtol=1e-12, atol=1e-12 * scale)
+        assert v == pytest.approx(v_ref, rel=1e-12, abs=1e-300)
+        np.testing.assert_array_equal(law.torque(x, dx), tau)
+
+
+def test_outside_the_set_the_array_law_names_the_constraint(absolute_model) -> None:
+    law = LAWS["thesis_power"](absolute_model)
+    x = np.array([0.3, 0.5])
+    for dx in (np.array([0.31, 0.0]), np.array([np.nan, 0.0])):
+        assert law.unrolled(x, dx) is None
+        with pytest.raises(ConstraintViolation, match=r"rate\[theta1\]"):
+            law.evaluate(x, dx)
+
+
+def test_laws_without_a_scalar_form_keep_the_array_code(absolute_model) -> None:
+    energy = ConstraintSet(2, [], [KineticEnergyLimit(absolute_model, 0.5)])
+    law = CPBC(absolute_model, TARGET, energy, 4.0, 20.0)
+    x, dx = np.array([0.3, 0.5]), np.array([0.05, -0.02])
+    assert law.unrolled(x, dx) is None
+    assert np.all(np.isfinite(law.torque(x, dx)))
+
+
+def guard_decisions(guard: Safeguard, states) -> tuple[int, int]:
+    """(accepted, refused) by the unrolled test, each checked against the array guard."""
+    guard.evaluate(*states[0])  # builds the scalar code
+    kernel = guard._unrolled
+    assert callable(kernel)
+    counts = [0, 0]
+    for x, dx in states:
+        fast = kernel(x, dx)
+        tau, v = guard.law.evaluate_arrays(x, dx)  # type: ignore[attr-defined]
+        acted = guard.acted
+        out = guard.guard(x, dx, tau)
+        passed = guard.acted == acted  # the array guard kept the law's torque
+        assert passed == (fast is not None)
+        if fast is not None:
+            np.testing.assert_allclose(fast[0], out, rtol=1e-12, atol=1e-12)
+            assert fast[1] == pytest.approx(v, rel=1e-12)
+        counts[fast is None] += 1
+    return counts[0], counts[1]
+
+
+@pytest.mark.parametrize("name", ["thesis_power", "tanh_shaping_offset_point", "bpbc",
+                                  "combined_rate_rows"])
+@pytest.mark.parametrize("period", [0.001, 0.005])
+def test_unrolled_guard_decides_as_the_array_guard(planar_path, rng, name: str,
+                                                   period: float) -> None:
+    """Near the rate bounds the law's torque is refused often enough that both answers
+    are exercised; 5 ms is predicted in one step here (max_step)."""
+    law = LAWS[name](models(planar_path)["absolute"])
+    guard = Safeguard(law, period, SafeguardSettings(max_step=0.01))
+    accepted, refused = guard_decisions(guard, admissible_states(law, rng, 200, True))
+    assert accepted > 20 and refused > 20
+
+
+def test_unrolled_guard_with_torque_limits_and_an_extra_constraint(planar_path, rng) -> None:
+    model = models(planar_path)["absolute"]
+    law = LAWS["bpbc"](model)
+    extra = [PointOutsideSphere(model, "end_point", [0, 2, 0], 0.5, name="obstacle"),
+             joint_position_limit([-0.5, -0.5], [3.5, 3.5], NAMES)]
+    guard = Safeguard(law, 0.005, SafeguardSettings(max_step=0.01),
+                      torque_limit=np.array([0.5, 0.3]), also_keep=extra)
+    states = [s for s in admissible_states(law, rng, 300, True)
+              if all(np.all(c.value(s[0]) > 0) for c in extra)]
+    accepted, refused = guard_decisions(guard, states)
+    assert accepted > 20 and refused > 20
+
+
+def test_longer_periods_keep_the_sub_stepped_array_guard(absolute_model) -> None:
+    law = LAWS["thesis_power"](absolute_model)
+    guard = Safeguard(law, 0.005)  # 5 sub-steps of 1 ms
+    guard.evaluate(np.array([0.3, 0.5]), np.array([0.05, -0.02]))
+    assert guard._unrolled is None
