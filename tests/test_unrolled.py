@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from cpbc.constraints import (
@@ -16,8 +17,19 @@ from cpbc.constraints import (
     joint_rate_limit,
 )
 from cpbc.constraints.rate_limit import RateLimit
-from cpbc.controllers import BPBC, CPBC, Identity, Power, Tanh
+from cpbc.controllers import (
+    BPBC,
+    CPBC,
+    BPBCKineticEnergy,
+    Controller,
+    CPBCKineticEnergy,
+    Identity,
+    Power,
+    RecentredBarrier,
+    Tanh,
+)
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
+from cpbc.controllers.unrolled import MAX_JOINTS
 from cpbc.errors import ConstraintViolation
 from cpbc.model import LinearCoordinates, RobotModel
 
@@ -35,7 +47,7 @@ def thesis_constraints(model: RobotModel, offset: list[float] | None = None) -> 
     )
 
 
-Build = Callable[[RobotModel], CPBC]
+Build = Callable[[RobotModel], Controller]
 LAWS: dict[str, Build] = {
     "thesis_power": lambda m: CPBC(m, TARGET, thesis_constraints(m), 4.0, 20.0, Power(0.2)),
     "identity_shaping": lambda m: CPBC(m, TARGET, thesis_constraints(m), [4.0, 3.0], 20.0,
@@ -50,6 +62,18 @@ LAWS: dict[str, Build] = {
                                                    ["r1", "r12"])]), 4.0, 20.0),
     "bpbc": lambda m: BPBC(m, TARGET, ConstraintSet(2, [], [joint_rate_limit([0.3, 0.2], NAMES)]),
                            [2, 10], [4, 20], [1.0, 2.0], [1.0, 0.5], Power(0.2)),
+    "cpbc_ke": lambda m: CPBCKineticEnergy(
+        m, TARGET, ConstraintSet(2, thesis_constraints(m).configuration,
+                                 [KineticEnergyLimit(m, 0.05)]), 4.0, [20.0, 9.0], Power(0.2)),
+    "bpbc_ke": lambda m: BPBCKineticEnergy(
+        m, TARGET, ConstraintSet(2, [], [KineticEnergyLimit(m, 0.05)]), [2, 10], [4, 20],
+        [1.0, 2.0], [1.0, 0.5], Tanh(3.0)),
+    "recentred": lambda m: RecentredBarrier(
+        m, TARGET, ConstraintSet(2, [joint_position_limit([-0.5, -0.6], [3.5, 3.6], NAMES)],
+                                 [joint_rate_limit([0.3, 0.2], NAMES)]), [4.0, 3.0], 20.0),
+    "recentred_no_rates": lambda m: RecentredBarrier(
+        m, TARGET, ConstraintSet(2, [joint_position_limit([-0.5, -0.6], [3.5, 3.6], NAMES)]),
+        [4.0, 3.0], 20.0),
 }
 
 
@@ -64,17 +88,31 @@ def models(planar_path) -> dict[str, RobotModel]:
     }
 
 
-def admissible_states(law: CPBC, rng: np.random.Generator, count: int,
+def largest_speed(law: Controller, x: np.ndarray, direction: np.ndarray) -> float:
+    """The s at which s·direction reaches the boundary of the velocity constraints."""
+    def inside(s: float) -> bool:
+        return all(np.all(c.value(x, s * direction, None) > 0) for c in law.constraints.velocity)
+
+    lo, hi = 0.0, 1.0
+    while inside(hi):
+        lo, hi = hi, 2.0 * hi
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if inside(mid) else (lo, mid)
+    return lo
+
+
+def admissible_states(law: Controller, rng: np.random.Generator, count: int,
                       near_bound: bool = False) -> list[tuple[np.ndarray, np.ndarray]]:
-    """States of S; with ``near_bound`` every rate is within 10⁻⁷–10⁻¹ of its bound, where
-    the law is stiff and the safeguard often refuses its torque."""
+    """States of S; with ``near_bound`` the velocity is 10⁻⁷–10⁻¹ (relative) short of the
+    boundary of the velocity constraints, where a law is stiff and the safeguard often refuses
+    its torque."""
     out = []
     while len(out) < count:
         x = rng.uniform([-0.4, -0.4], [3.4, 3.4])
-        dx = rng.uniform(-0.99, 0.99, 2)
+        dx = rng.uniform(-0.99, 0.99, 2) * np.array([0.3, 0.2])
         if near_bound:
-            dx = np.sign(dx) * (1.0 - 10.0 ** rng.uniform(-7, -1, 2))
-        dx *= np.array([0.3, 0.2])
+            dx *= largest_speed(law, x, dx) * (1.0 - 10.0 ** rng.uniform(-7, -1))
         if np.all(law.constraints.margins(x, dx) > 0):
             out.append((x, dx))
     return out
@@ -110,6 +148,10 @@ def test_laws_without_a_scalar_form_keep_the_array_code(absolute_model) -> None:
     x, dx = np.array([0.3, 0.5]), np.array([0.05, -0.02])
     assert law.unrolled(x, dx) is None
     assert np.all(np.isfinite(law.torque(x, dx)))
+    six = RobotModel(pin.buildSampleModelManipulator(), name="sample")  # beyond MAX_JOINTS
+    rates = joint_rate_limit(np.ones(6), [f"j{i}" for i in range(6)])
+    law = CPBC(six, np.zeros(6), ConstraintSet(6, [], [rates]), 1.0, 1.0)
+    assert six.n > MAX_JOINTS and law.unrolled(np.full(6, 0.1), np.zeros(6)) is None
 
 
 def guard_decisions(guard: Safeguard, states) -> tuple[int, int]:
@@ -126,14 +168,19 @@ def guard_decisions(guard: Safeguard, states) -> tuple[int, int]:
         passed = guard.acted == acted  # the array guard kept the law's torque
         assert passed == (fast is not None)
         if fast is not None:
-            np.testing.assert_allclose(fast[0], out, rtol=1e-12, atol=1e-12)
-            assert fast[1] == pytest.approx(v, rel=1e-12)
+            # ψ = Ω − ½ẋᵀQẋ keeps only the digits of its share of Ω: both codes round it
+            # differently, and τ and V inherit that relative error
+            tol = 1e-12 / min([1.0] + [
+                float(np.min(c.value(x, dx, None) / c.value(x, 0 * dx, None)))
+                for c in guard.law.constraints.velocity])
+            np.testing.assert_allclose(fast[0], out, rtol=tol, atol=1e-12)
+            assert fast[1] == pytest.approx(v, rel=tol)
         counts[fast is None] += 1
     return counts[0], counts[1]
 
 
 @pytest.mark.parametrize("name", ["thesis_power", "tanh_shaping_offset_point", "bpbc",
-                                  "combined_rate_rows"])
+                                  "combined_rate_rows", "cpbc_ke", "bpbc_ke", "recentred"])
 @pytest.mark.parametrize("period", [0.001, 0.005])
 def test_unrolled_guard_decides_as_the_array_guard(planar_path, rng, name: str,
                                                    period: float) -> None:
@@ -163,3 +210,40 @@ def test_longer_periods_keep_the_sub_stepped_array_guard(absolute_model) -> None
     guard = Safeguard(law, 0.005)  # 5 sub-steps of 1 ms
     guard.evaluate(np.array([0.3, 0.5]), np.array([0.05, -0.02]))
     assert guard._unrolled is None
+
+
+def three_joint_arm() -> RobotModel:
+    """Pinocchio's sample manipulator with its first and wrist joints locked (3 joints left),
+    in coordinates x = T q with a dense T, friction on."""
+    full = pin.buildSampleModelManipulator()
+    reduced = pin.buildReducedModel(full, [1, 5, 6], np.array([0.2, 0, 0, 0, 0.3, -0.1]))
+    coords = LinearCoordinates(np.array([[1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.5, -1.0, 1.0]]))
+    return RobotModel(reduced, coordinates=coords, viscous_friction=[0.2, 0.1, 0.05],
+                      name="three")
+
+
+def test_three_joint_arm_law_and_guard_agree_with_the_arrays(rng) -> None:
+    model = three_joint_arm()
+    assert model.n == MAX_JOINTS
+    names = ["a", "b", "c"]
+    target = np.array([0.1, -0.2, 0.3])
+    constraints = ConstraintSet(
+        3, [joint_position_limit([-1.0, -1.2, -1.1], [1.1, 1.0, 1.3], names),
+            PointOutsideSphere(model, "effector_body", [0.3, 0.3, 0.6], 0.15,
+                               offset=[0.0, 0.0, 0.05])],
+        [joint_rate_limit([0.5, 0.6, 0.7], names)])
+    law = CPBC(model, target, constraints, [30.0, 20.0, 10.0], 5.0, Power(0.3))
+    states: list[tuple[np.ndarray, np.ndarray]] = []
+    while len(states) < 150:
+        x = rng.uniform(-1.0, 1.0, 3)
+        dx = rng.uniform(-1.0, 1.0, 3)
+        if all(np.all(c.value(x) > 0) for c in constraints.configuration):
+            dx *= largest_speed(law, x, dx) * (1.0 - 10.0 ** rng.uniform(-7, 0))
+            states.append((x, dx))
+    for x, dx in states:
+        tau, v = law.unrolled(x, dx)  # type: ignore[misc]
+        tau_ref, v_ref = law.evaluate_arrays(x, dx)
+        np.testing.assert_allclose(tau, tau_ref, rtol=1e-12, atol=1e-12)
+        assert v == pytest.approx(v_ref, rel=1e-12)
+    accepted, refused = guard_decisions(Safeguard(law, 0.001), states)
+    assert accepted > 20 and refused > 20

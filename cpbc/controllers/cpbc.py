@@ -10,11 +10,11 @@ from cpbc.controllers.base import Controller, positive_vector
 from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import LinearDamping, QuadraticPotential
-from cpbc.controllers.unrolled import Kernel, unrolled_law
+from cpbc.controllers.unrolled import Unrolled
 from cpbc.model.robot_model import DynamicsTerms, RobotModel
 
 
-class CPBC(Controller):
+class CPBC(Unrolled, Controller):
     """Constrained PBC for configuration and velocity constraints (Theorem 6.9, eq. 6.24/6.70).
 
     With V = L / s(ΦΨ), L = ½ẋᵀDẋ + U(x̃), dividing (6.24) by s gives the equivalent
@@ -52,9 +52,6 @@ class CPBC(Controller):
         self.potential: QuadraticPotential = QuadraticPotential(self.kp)
         self.damping: object = LinearDamping(self.kd)
         self._uses_velocity = bool(constraints.velocity)
-        # the law as straight-line scalar code on a small arm (cpbc.controllers.unrolled),
-        # built at the first call, when subclasses have set their potential and damping
-        self._unrolled: Kernel | bool | None = False
 
     def _shaped_terms(
         self, x: Array, dx: Array
@@ -66,16 +63,8 @@ class CPBC(Controller):
         lag = 0.5 * float(dx @ (dyn.inertia @ dx)) + potential
         return dyn, bar, grad, lag
 
-    def unrolled(self, x: Array, dx: Array) -> tuple[Array, float] | None:
-        """τ and V from the unrolled scalar code, or None where the array code must run
-        (no scalar form of this law, or a state it has something to say about)."""
-        kernel = self._unrolled
-        if kernel is False:
-            kernel = self._unrolled = unrolled_law(self)
-        return None if kernel is None else kernel(x, dx)  # type: ignore[operator]
-
     def torque(self, x: Array, dx: Array) -> Array:
-        fast = self.unrolled(x, dx)
+        fast = self.unrolled(x, dx)  # the same law as scalar code (cpbc.controllers.unrolled)
         if fast is not None:
             return fast[0]
         return self._law(dx, *self._shaped_terms(x, dx))

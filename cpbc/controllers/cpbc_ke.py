@@ -10,6 +10,7 @@ from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.controllers.base import Controller, positive_vector
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import LinearDamping, QuadraticPotential
+from cpbc.controllers.unrolled import Unrolled
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model.robot_model import RobotModel
 
@@ -26,7 +27,7 @@ def single_energy_limit(constraints: ConstraintSet, law: str) -> KineticEnergyLi
     return ke[0]
 
 
-class CPBCKineticEnergy(Controller):
+class CPBCKineticEnergy(Unrolled, Controller):
     """Corollary 6.11 (eq. 6.67) with shaping s, in log-barrier form:
 
         τ = g + [−(K_P x̃ + K_D ẋ) + ρ b_φ] / (1 + ρ/ψ),   ρ = r(ΦΨ)·L
@@ -66,9 +67,19 @@ class CPBCKineticEnergy(Controller):
         return lag, psi, bar.log_phi + math.log(psi), bar.gradient, err
 
     def torque(self, x: Array, dx: Array) -> Array:
+        fast = self.unrolled(x, dx)  # the same law as scalar code (cpbc.controllers.unrolled)
+        if fast is not None:
+            return fast[0]
         return self._law(x, dx, *self._terms(x, dx))
 
     def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
+        fast = self.unrolled(x, dx)
+        if fast is not None:
+            return fast
+        return self.evaluate_arrays(x, dx)
+
+    def evaluate_arrays(self, x: Array, dx: Array) -> tuple[Array, float]:
+        """τ and V from the array code (the reference for the unrolled one)."""
         terms = self._terms(x, dx)
         lag, _, log_x = terms[:3]
         v = 0.0 if lag <= 0 else math.exp(math.log(lag) - self.shaping.log_s(log_x))

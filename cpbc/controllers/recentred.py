@@ -29,11 +29,12 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.linear_limit import LinearLimit
 from cpbc.controllers.base import Controller, positive_vector
 from cpbc.controllers.linalg import solve_spd
+from cpbc.controllers.unrolled import Unrolled
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model.robot_model import RobotModel
 
 
-class RecentredBarrier(Controller):
+class RecentredBarrier(Unrolled, Controller):
     """Re-centred barrier law for joint limits, optionally with velocity constraints."""
 
     type_name = "recentred"
@@ -85,6 +86,22 @@ class RecentredBarrier(Controller):
         return 0.5 * energy * inv_phi, kz * inv_phi
 
     def torque(self, x: Array, dx: Array) -> Array:
+        fast = self.unrolled(x, dx)  # the same law as scalar code (cpbc.controllers.unrolled)
+        if fast is not None:
+            return fast[0]
+        return self._torque(x, dx)
+
+    def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
+        fast = self.unrolled(x, dx)
+        if fast is not None:
+            return fast
+        return self.evaluate_arrays(x, dx)
+
+    def evaluate_arrays(self, x: Array, dx: Array) -> tuple[Array, float]:
+        """τ and V from the array code (the reference for the unrolled one)."""
+        return self._torque(x, dx), self.lyapunov(x, dx)
+
+    def _torque(self, x: Array, dx: Array) -> Array:
         dyn = self.model.dynamics(x, dx)
         _, grad = self._barrier_potential(x)
         a = -self.kd * dx

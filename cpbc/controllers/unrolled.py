@@ -1,18 +1,20 @@
-"""The CPBC law (and its safeguard's acceptance test) unrolled into straight-line scalar code.
+"""The constrained laws (and the safeguard's acceptance test) unrolled into straight-line
+scalar code for small arms.
 
 On a small arm every numpy call costs more than the arithmetic it does: here about 1 µs per
 call against some 40 ns per float operation, so the array law of cpbc.controllers.cpbc
-spends most of a 2-link step in call overhead. At construction this module writes the same
+spends most of a 2-link step in call overhead. At a law's first call this module writes the same
 formulas out over Python floats — every loop over n unrolled, every product with a constant
 (the coordinate map, constraint rows, gains, cushions) folded in, zero coefficients dropped —
 and compiles the source once. Pinocchio still computes D, C ẋ, g and the kinematics.
 
 What is unrolled, for n ≤ ``MAX_JOINTS``:
 
-- the law of CPBC and BPBC (Theorem 6.9 in the form of the class docstring of CPBC;
-  Theorem 7.7) with quadratic or log-cosh potential, linear or tanh damping, any shaping;
-- the constraints ``LinearLimit``, ``PointOutsideSphere`` (on the law's own model) and
-  ``RateLimit``;
+- the laws CPBC and BPBC (Theorem 6.9 in the form of CPBC's class docstring; Theorem 7.7),
+  CPBC-KE and BPBC-KE (Corollaries 6.11, 7.8) with quadratic or log-cosh potential, linear
+  or tanh damping and any shaping, and the re-centred barrier (6.57)/(6.63);
+- the constraints ``LinearLimit``, ``PointOutsideSphere`` (on the law's own model),
+  ``RateLimit`` and, for the KE laws, their ``KineticEnergyLimit``;
 - the safeguard's test (S1) of the law's torque with the one-step frozen prediction
   (cpbc.controllers.safeguard, ``substeps == 1``).
 
@@ -33,6 +35,7 @@ import numpy as np
 import pinocchio as pin
 
 from cpbc.constraints.base import Array
+from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.constraints.linear_limit import LinearLimit
 from cpbc.constraints.point_outside_sphere import PointOutsideSphere
 from cpbc.constraints.rate_limit import RateLimit
@@ -41,10 +44,10 @@ from cpbc.controllers.terms import LinearDamping, LogCoshPotential, QuadraticPot
 
 if TYPE_CHECKING:
     from cpbc.constraints.base import ConfigurationConstraint
-    from cpbc.controllers.cpbc import CPBC
+    from cpbc.controllers.base import Controller
     from cpbc.controllers.safeguard import Safeguard
 
-MAX_JOINTS = 3  # beyond this the unrolled Cholesky and congruence outgrow their gain
+MAX_JOINTS = 3  # the generated code is tested on 2- and 3-joint arms
 Kernel = Callable[[Array, Array], "tuple[Array, float] | None"]
 
 
@@ -101,13 +104,19 @@ class _Source:
         return fn  # type: ignore[return-value]
 
 
-def _supported(law: CPBC, configuration: Sequence[ConfigurationConstraint]) -> bool:
+def _supported(law: Controller, configuration: Sequence[ConfigurationConstraint]) -> bool:
+    """Whether the law, its constraints and ``configuration`` all have a scalar form here."""
+    from cpbc.controllers.cpbc import CPBC
+    from cpbc.controllers.cpbc_ke import CPBCKineticEnergy
+    from cpbc.controllers.recentred import RecentredBarrier
+
     model = law.model
-    if model.n > MAX_JOINTS:
+    if model.n > MAX_JOINTS or not isinstance(law, CPBC | CPBCKineticEnergy | RecentredBarrier):
         return False
-    if type(law.potential) not in (QuadraticPotential, LogCoshPotential):
-        return False
-    if type(law.damping) not in (LinearDamping, TanhDamping):
+    if not isinstance(law, RecentredBarrier) and (
+        type(law.potential) not in (QuadraticPotential, LogCoshPotential)
+        or type(law.damping) not in (LinearDamping, TanhDamping)
+    ):
         return False
     for c in configuration:
         if type(c) is PointOutsideSphere:
@@ -115,6 +124,8 @@ def _supported(law: CPBC, configuration: Sequence[ConfigurationConstraint]) -> b
                 return False
         elif type(c) is not LinearLimit:
             return False
+    if isinstance(law, CPBCKineticEnergy):
+        return type(law.energy) is KineticEnergyLimit and law.energy.model is model
     return all(type(c) is RateLimit for c in law.constraints.velocity)
 
 
@@ -149,7 +160,7 @@ def _cholesky_solve(src: _Source, a: list[list[str]], rhs: list[str], tag: str) 
 class _Emitter:
     """Writes the law's scalar code into a _Source."""
 
-    def __init__(self, law: CPBC, src: _Source) -> None:
+    def __init__(self, law: Controller, src: _Source) -> None:
         self.law = law
         self.src = src
         model = law.model
@@ -180,10 +191,13 @@ class _Emitter:
         return [_lin([self.t_inv[i][a] for i in range(n)], joint) for a in range(n)]
 
     # -- dynamics ----------------------------------------------------------------------------
-    def dynamics(self, q: str, dq: str | None) -> tuple[list[list[str]], list[str], list[str]]:
-        """D (symmetric, names), g and C ẋ + f in x-coordinates (C ẋ + f only with dq)."""
+    def dynamics(self, q: str, dq: str | None, gravity: bool = True
+                 ) -> tuple[list[list[str]], list[str], list[str]]:
+        """D (symmetric, names), g and C ẋ + f in x-coordinates (g only with ``gravity``,
+        C ẋ + f only with dq)."""
         src, n, ti = self.src, self.n, self.t_inv
         m = src.fresh("M")
+        tag = src.fresh("D")
         src(f"{m} = _crba(_model, _data, {q}).tolist()")
         mij = [[f"{m}[{min(i, j)}][{max(i, j)}]" for j in range(n)] for i in range(n)]
         d = [[""] * n for _ in range(n)]
@@ -195,9 +209,11 @@ class _Emitter:
                         c = ti[i][a] * ti[j][b]
                         if c:
                             coeff[mij[i][j]] = coeff.get(mij[i][j], 0.0) + c
-                name = f"D{a}{b}"
+                name = f"{tag}_{a}{b}"
                 src(f"{name} = {_lin(list(coeff.values()), list(coeff.keys()))}")
                 d[a][b] = d[b][a] = name
+        if not gravity:
+            return d, [], []
         g_q = [f"g{i}" for i in range(n)]
         src(f"{', '.join(g_q)}, = _grav(_model, _data, {q}).tolist()")
         g = [f"gx{a}" for a in range(n)]
@@ -324,26 +340,43 @@ class _Emitter:
             src(f"if not ({' and '.join(f'{m} > 0.0' for m in margins)}):")
             src("    return None")
 
-    # -- the law -----------------------------------------------------------------------------
-    def emit_law(self) -> tuple[list[str], list[list[str]], list[str], list[str], str]:
-        """Emit τ (names) and V; returns τ, D, g + c (the bias), the margins and V."""
-        src, n, law = self.src, self.n, self.law
-        src(f"{', '.join(self.x)}, = x.tolist()")
-        src(f"{', '.join(self.v)}, = dx.tolist()")
+    def velocity_values(self, cons: Sequence[object], q: Callable[[], str], v: list[str]
+                        ) -> list[str]:
+        """ψ of rate and kinetic-energy limits at a state (``q()`` places Pinocchio's q)."""
+        out: list[str] = []
+        for con in cons:
+            if isinstance(con, RateLimit):
+                out += self.rate_limit(con, v, None)
+            else:
+                out.append(self.kinetic_energy_limit(con, q(), v))  # type: ignore[arg-type]
+        return out
+
+    def kinetic_energy_limit(self, con: KineticEnergyLimit, q: str, v: list[str]) -> str:
+        d, _, _ = self.dynamics(q, None, gravity=False)
+        psi = self.src.fresh("psi")
+        self.src(f"{psi} = {_num(con.limit)} - {self.kinetic(d, v)}")
+        return psi
+
+    def kinetic(self, d: list[list[str]], v: list[str]) -> str:
+        """½ vᵀ D v as an expression."""
+        n = self.n
+        terms = [f"{d[a][a]} * {v[a]} * {v[a]}" for a in range(n)]
+        terms += [f"2.0 * {d[a][b]} * {v[a]} * {v[b]}" for a in range(n) for b in range(a + 1, n)]
+        return "0.5 * (" + " + ".join(terms) + ")"
+
+    # -- the laws ----------------------------------------------------------------------------
+    def begin(self, coriolis: bool) -> tuple[str, list[list[str]], list[str], list[str]]:
+        """Unpack the state and emit the dynamics: q, D, g and (with ``coriolis``) C ẋ + f."""
+        self.src(f"{', '.join(self.x)}, = x.tolist()")
+        self.src(f"{', '.join(self.v)}, = dx.tolist()")
         q = self.joint_array(self.x, "x")
-        dq = self.joint_array(self.v, "dx")
+        dq = self.joint_array(self.v, "dx") if coriolis else None
         d, g, c = self.dynamics(q, dq)
-        grad: list[list[str]] = [[] for _ in range(n)]
-        weight: list[list[list[str]]] = [[[] for _ in range(n)] for _ in range(n)]
-        phis = self.configuration(law.constraints.configuration, self.x, q, grad)
-        psis: list[str] = []
-        for con in law.constraints.velocity:
-            psis += self.rate_limit(con, self.v, weight)  # type: ignore[arg-type]
-        self.all_positive(src, phis + psis)
-        logs = f"_fsum(({', '.join(f'log({m})' for m in phis + psis)},))" if phis or psis \
-            else "0.0"
-        src(f"lsum = {logs}")
-        # potential, damping and L
+        return q, d, g, c
+
+    def potential_and_damping(self) -> tuple[str, list[str], list[str]]:
+        """U, ∂U/∂x̃ and the damping force as expressions (errors e_i emitted)."""
+        src, n, law = self.src, self.n, self.law
         kp, kd, xd = law.kp.tolist(), law.kd.tolist(), law.target.tolist()
         e = [f"e{i}" for i in range(n)]
         for i in range(n):
@@ -353,66 +386,183 @@ class _Emitter:
             pot = " + ".join(
                 f"{_num(kp[i] / xi[i])} * (abs({_num(xi[i])} * {e[i]}) + "
                 f"log1p(exp(-2.0 * abs({_num(xi[i])} * {e[i]}))) - _LN2)" for i in range(n))
-            dU = [f"{_num(kp[i])} * tanh({_num(xi[i])} * {e[i]})" for i in range(n)]
+            grad_u = [f"{_num(kp[i])} * tanh({_num(xi[i])} * {e[i]})" for i in range(n)]
         else:
             pot = "0.5 * (" + " + ".join(f"{_num(kp[i])} * {e[i]} * {e[i]}" for i in range(n)) + ")"
-            dU = [f"{_num(kp[i])} * {e[i]}" for i in range(n)]
+            grad_u = [f"{_num(kp[i])} * {e[i]}" for i in range(n)]
         if isinstance(law.damping, TanhDamping):
             gam = law.damping.gamma.tolist()
             damp = [f"{_num(kd[i])} * tanh({_num(gam[i])} * v{i})" for i in range(n)]
         else:
             damp = [f"{_num(kd[i])} * v{i}" for i in range(n)]
-        dv = [f"dv{a}" for a in range(n)]
-        for a in range(n):
-            src(f"{dv[a]} = " + " + ".join(f"{d[a][b]} * v{b}" for b in range(n)))
-        src("lag = 0.5 * (" + " + ".join(f"v{a} * {dv[a]}" for a in range(n)) + f") + {pot}")
-        shaping = law.shaping
+        return pot, grad_u, damp
+
+    def shaped(self, lsum: str) -> tuple[str, str]:
+        """r(ΦΨ) and log s(ΦΨ) as expressions of lsum = log ΦΨ."""
+        shaping = self.law.shaping
         if type(shaping) is Identity:
-            src("rho = lag")
-        elif type(shaping) is Power:
-            src(f"rho = {_num(shaping.alpha)} * lag")
-        else:
-            src.env["_ratio"] = shaping.ratio
-            src("rho = _ratio(lsum) * lag")
-        a_terms = []
+            return "1.0", lsum
+        if type(shaping) is Power:
+            return _num(shaping.alpha), f"{_num(shaping.alpha)} * {lsum}"
+        self.src.env["_ratio"], self.src.env["_log_s"] = shaping.ratio, shaping.log_s
+        return f"_ratio({lsum})", f"_log_s({lsum})"
+
+    def log_sum(self, margins: list[str]) -> str:
+        if not margins:
+            return "0.0"
+        return f"_fsum(({', '.join(f'log({m})' for m in margins)},))"
+
+    def solve_law(self, d: list[list[str]], g: list[str], c: list[str], a: list[str],
+                  scale: str, weight: list[list[list[str]]]) -> list[str]:
+        """τ = g + c + D (D + scale·Π)⁻¹ (a − c)."""
+        n, src = self.n, self.src
+        rhs = [f"r{i}" for i in range(n)]
+        for i in range(n):
+            src(f"{rhs[i]} = {a[i]} - {c[i]}")
+        mat = [[d[i][j] + (f" + {scale} * ({' + '.join(weight[i][j])})" if weight[i][j] else "")
+                for j in range(n)] for i in range(n)]
+        y = _cholesky_solve(src, mat, rhs, "k")
+        tau = [f"tau{i}" for i in range(n)]
+        for i in range(n):
+            src(f"{tau[i]} = {g[i]} + {c[i]} + " + " + ".join(
+                f"{d[i][j]} * {y[j]}" for j in range(n)))
+        return tau
+
+    def emit_law(self, coriolis: bool) -> tuple[list[str], list[list[str]], list[str], list[str]]:
+        """Emit τ and V (named ``V``); returns τ, D, the bias C ẋ + g + f (with
+        ``coriolis``) and the margins in the constraint set's order."""
+        from cpbc.controllers.cpbc_ke import CPBCKineticEnergy
+        from cpbc.controllers.recentred import RecentredBarrier
+
+        if isinstance(self.law, CPBCKineticEnergy):
+            return self.emit_energy_law(coriolis)
+        if isinstance(self.law, RecentredBarrier):
+            return self.emit_recentred()
+        return self.emit_cpbc()
+
+    def emit_cpbc(self) -> tuple[list[str], list[list[str]], list[str], list[str]]:
+        """Theorem 6.9 / 7.7 in the form of CPBC's class docstring."""
+        src, n, law = self.src, self.n, self.law
+        q, d, g, c = self.begin(coriolis=True)
+        grad: list[list[str]] = [[] for _ in range(n)]
+        weight: list[list[list[str]]] = [[[] for _ in range(n)] for _ in range(n)]
+        phis = self.configuration(law.constraints.configuration, self.x, q, grad)
+        psis: list[str] = []
+        for con in law.constraints.velocity:
+            psis += self.rate_limit(con, self.v, weight)  # type: ignore[arg-type]
+        self.all_positive(src, phis + psis)
+        src(f"lsum = {self.log_sum(phis + psis)}")
+        pot, grad_u, damp = self.potential_and_damping()
+        src(f"lag = {self.kinetic(d, self.v)} + {pot}")
+        ratio, log_s = self.shaped("lsum")
+        src(f"rho = {ratio} * lag")
+        a = []
         for i in range(n):
             b = f" + rho * ({' + '.join(grad[i])})" if grad[i] else ""
-            a_terms.append(f"-({dU[i]}) - {damp[i]}{b}")
-        tau = [f"tau{i}" for i in range(n)]
-        if not law.constraints.velocity:
-            for i in range(n):
-                src(f"{tau[i]} = {g[i]} + {a_terms[i]}")
+            a.append(f"-({grad_u[i]}) - {damp[i]}{b}")
+        if law.constraints.velocity:
+            tau = self.solve_law(d, g, c, a, "rho", weight)
         else:
-            rhs = [f"r{i}" for i in range(n)]
+            tau = [f"tau{i}" for i in range(n)]
             for i in range(n):
-                src(f"{rhs[i]} = {a_terms[i]} - {c[i]}")
-            mat = [[d[i][j] + (f" + rho * ({' + '.join(weight[i][j])})" if weight[i][j] else "")
-                    for j in range(n)] for i in range(n)]
-            y = _cholesky_solve(src, mat, rhs, "k")
-            for i in range(n):
-                src(f"{tau[i]} = {g[i]} + {c[i]} + " + " + ".join(
-                    f"{d[i][j]} * {y[j]}" for j in range(n)))
-        if type(shaping) is Identity:
-            log_s = "lsum"
-        elif type(shaping) is Power:
-            log_s = f"{_num(shaping.alpha)} * lsum"
-        else:
-            src.env["_log_s"] = shaping.log_s
-            log_s = "_log_s(lsum)"
+                src(f"{tau[i]} = {g[i]} + {a[i]}")
         src(f"V = exp(log(lag) - {log_s}) if lag > 0.0 else 0.0")
-        bias = [f"({g[i]} + {c[i]})" if c else g[i] for i in range(n)]
-        return tau, d, bias, phis + psis, "V"
+        return tau, d, [f"({g[i]} + {c[i]})" for i in range(n)], phis + psis
+
+    def emit_energy_law(self, coriolis: bool
+                        ) -> tuple[list[str], list[list[str]], list[str], list[str]]:
+        """Corollary 6.11 / 7.8: τ = g + [−(∂U/∂x̃ + damping) + ρ b_φ] / (1 + ρ/ψ)."""
+        src, n, law = self.src, self.n, self.law
+        q, d, g, c = self.begin(coriolis)
+        src(f"kin = {self.kinetic(d, self.v)}")
+        src(f"psi = {_num(law.energy.limit)} - kin")  # type: ignore[attr-defined]
+        grad: list[list[str]] = [[] for _ in range(n)]
+        phis = self.configuration(law.constraints.configuration, self.x, q, grad)
+        self.all_positive(src, [*phis, "psi"])
+        src(f"lsum = {self.log_sum(phis)} + log(psi)" if phis else "lsum = log(psi)")
+        pot, grad_u, damp = self.potential_and_damping()
+        src(f"lag = kin + {pot}")
+        ratio, log_s = self.shaped("lsum")
+        src(f"rho = {ratio} * lag")
+        src("den = 1.0 + rho / psi")
+        tau = [f"tau{i}" for i in range(n)]
+        for i in range(n):
+            b = f" + rho * ({' + '.join(grad[i])})" if grad[i] else ""
+            src(f"{tau[i]} = {g[i]} + (-({grad_u[i]}) - {damp[i]}{b}) / den")
+        src(f"V = exp(log(lag) - {log_s}) if lag > 0.0 else 0.0")
+        bias = [f"({g[i]} + {c[i]})" for i in range(n)] if coriolis else []
+        return tau, d, bias, [*phis, "psi"]
+
+    def emit_recentred(self) -> tuple[list[str], list[list[str]], list[str], list[str]]:
+        """The re-centred barrier law (6.57)/(6.63) and its V (6.61)."""
+        src, n, law = self.src, self.n, self.law
+        q, d, g, c = self.begin(coriolis=True)
+        phis = self.configuration(law.constraints.configuration, self.x, q, None)
+        weight: list[list[list[str]]] = [[[] for _ in range(n)] for _ in range(n)]
+        psis: list[str] = []
+        for con in law.constraints.velocity:
+            psis += self.rate_limit(con, self.v, weight)  # type: ignore[arg-type]
+        joints = law.joints.tolist()  # type: ignore[attr-defined]
+        centre = law.centre.tolist()  # type: ignore[attr-defined]
+        width2 = (law.half_width**2).tolist()  # type: ignore[attr-defined]
+        kp, kd = law.kp.tolist(), law.kd.tolist()
+        z = [f"z{k}" for k in range(len(joints))]
+        gap = [f"gap{k}" for k in range(len(joints))]
+        for k, j in enumerate(joints):
+            src(f"{z[k]} = x{j} - {_num(centre[k])}")
+            src(f"{gap[k]} = {_num(width2[k])} - {z[k]} * {z[k]}")
+        self.all_positive(src, gap + phis + psis)
+        # f = ½ zᵀK z / Φ and ∇f (6.54)–(6.55), Φ = Π gap_k / w_k²
+        src("inv_phi = exp(-_fsum((" + ", ".join(
+            f"log({gap[k]} / {_num(width2[k])})" for k in range(len(joints))) + ",)))")
+        src("energy = " + " + ".join(f"{_num(kp[j])} * {z[k]} * {z[k]}"
+                                      for k, j in enumerate(joints)))
+        grad = ["0.0"] * n
+        for k, j in enumerate(joints):
+            grad[j] = f"({_num(kp[j])} * {z[k]} + energy * {z[k]} / {gap[k]}) * inv_phi"
+        target = law._grad_target.tolist()  # type: ignore[attr-defined]
+        xd = law.target.tolist()
+        tau = [f"tau{i}" for i in range(n)]
+        if psis:
+            src(f"kin = {self.kinetic(d, self.v)}")
+            src(f"lsum = {self.log_sum(psis)}")
+            src("big_psi = exp(lsum)")
+            a = [f"-{_num(kd[i])} * v{i} - big_psi * ({grad[i]} - {_num(target[i])})"
+                 for i in range(n)]
+            tau = self.solve_law(d, g, c, a, "kin", weight)
+            src("kin = kin / big_psi")
+        else:
+            for i in range(n):
+                src(f"{tau[i]} = {g[i]} - {_num(kd[i])} * v{i} - {grad[i]} + {_num(target[i])}")
+            src(f"kin = {self.kinetic(d, self.v)}")
+        src(f"V = kin + 0.5 * energy * inv_phi - {_num(law._f_target)} - ("  # type: ignore[attr-defined]
+            + " + ".join(f"{_num(target[i])} * (x{i} - {_num(xd[i])})" for i in range(n)) + ")")
+        return tau, d, [f"({g[i]} + {c[i]})" for i in range(n)], phis + psis
 
 
-def unrolled_law(law: CPBC) -> Kernel | None:
-    """``f(x, ẋ) -> (τ, V)`` for CPBC/BPBC on a small arm, or None when something in the law
-    has no scalar form (the law then keeps its array code)."""
+class Unrolled:
+    """Mixin for the laws above: ``unrolled(x, ẋ)``, built at the first call (when
+    subclasses have set their potential and damping)."""
+
+    _unrolled: Kernel | bool | None = False
+
+    def unrolled(self, x: Array, dx: Array) -> tuple[Array, float] | None:
+        """τ and V from the scalar code, or None where the array code must run."""
+        kernel = self._unrolled
+        if kernel is False:
+            kernel = self._unrolled = unrolled_law(self)  # type: ignore[arg-type]
+        return None if kernel is None else kernel(x, dx)  # type: ignore[operator]
+
+
+def unrolled_law(law: Controller) -> Kernel | None:
+    """``f(x, ẋ) -> (τ, V)`` for CPBC, BPBC, CPBC-KE, BPBC-KE or the re-centred barrier on a
+    small arm, or None when something in the law has no scalar form (the law then keeps its
+    array code)."""
     if not _supported(law, law.constraints.configuration):
         return None
     src = _Source(law.model.n)
-    em = _Emitter(law, src)
-    tau, _, _, _, v = em.emit_law()
-    src(f"return _array(({', '.join(tau)},)), {v}")
+    tau, _, _, _ = _Emitter(law, src).emit_law(coriolis=False)
+    src(f"return _array(({', '.join(tau)},)), V")
     return src.compile("unrolled_law")
 
 
@@ -421,18 +571,14 @@ def unrolled_guard(guard: Safeguard) -> Kernel | None:
     (S1) on the one-step frozen prediction, else None (the safeguard then runs its full
     search). Only for laws ``unrolled_law`` covers, ``substeps == 1`` and extra constraints
     that have a scalar form."""
-    from cpbc.controllers.cpbc import CPBC  # the laws import this module
-
     law = guard.law
-    if not isinstance(law, CPBC) or guard.substeps != 1:
-        return None
     extra = guard.guarded.configuration[len(law.constraints.configuration):]
-    if not _supported(law, (*law.constraints.configuration, *extra)):
+    if guard.substeps != 1 or not _supported(law, (*law.constraints.configuration, *extra)):
         return None
     n = law.model.n
     src = _Source(n)
     em = _Emitter(law, src)
-    tau, d, bias, margins, v = em.emit_law()
+    tau, d, bias, margins = em.emit_law(coriolis=True)
     if extra:  # their margins at x, between the law's configuration and velocity ones
         cfg_law = sum(len(c.names) for c in law.constraints.configuration)
         now = em.configuration(extra, em.x, em.joint_array(em.x, "x"), None)
@@ -483,21 +629,20 @@ def unrolled_guard(guard: Safeguard) -> Kernel | None:
         src(f"{x1[i]} = (x{i} + {_num(h)} * v{i}) + {_num(hh)} * {acc[i]}")
         src(f"{v1[i]} = v{i} + {_num(h)} * {acc[i]}")
     configuration = (*law.constraints.configuration, *extra)
-    def placed(xs: list[str]) -> str:  # Pinocchio's q only where a point needs it
-        points = any(type(c) is PointOutsideSphere for c in configuration)
-        return em.joint_array(xs, None) if points else ""
-
-    ends = em.configuration(configuration, x1, placed(x1), None)
-    for con in law.constraints.velocity:
-        ends += em.rate_limit(con, v1, None)  # type: ignore[arg-type]
+    points = any(type(c) is PointOutsideSphere for c in configuration)
+    q1 = em.joint_array(x1, None) if points else ""  # Pinocchio's q where a point needs it
+    ends = em.configuration(configuration, x1, q1, None)
+    ends += em.velocity_values(law.constraints.velocity, lambda: q1 or em.joint_array(x1, None),
+                               v1)
     checks = [f"{m} / {f} >= 1.0" for m, f in zip(ends, floor, strict=True)]
     if nc:
         xm = [src.fresh("xm") for _ in range(n)]
         for i in range(n):
             src(f"{xm[i]} = (x{i} + {_num(half)} * v{i}) + {_num(eighth)} * {acc[i]}")
-        mids = em.configuration(configuration, xm, placed(xm), None)
+        mids = em.configuration(configuration, xm, em.joint_array(xm, None) if points else "",
+                                None)
         checks += [f"{m} / {f} >= 1.0" for m, f in zip(mids, floor_mid, strict=True)]
     src(f"if not ({' and '.join(checks)}):")
     src("    return None")
-    src(f"return _array(({', '.join(tau)},)), {v}")
+    src(f"return _array(({', '.join(tau)},)), V")
     return src.compile("unrolled_guard")
