@@ -52,20 +52,20 @@ class LinearLimit(ConfigurationConstraint):
             a.setflags(write=False)
 
     def value(self, x: Array) -> Array:
-        y = self.rows @ x
+        y = self.rows.dot(x)
         return (y - self.lower) * (self.upper - y)
 
     def barrier_terms(self, x: Array) -> tuple[Array, Array]:
-        y = self.rows @ x
+        y = self.rows.dot(x)
         phi = (y - self.lower) * (self.upper - y)
-        return phi, self.rows.T @ ((self._sum - 2.0 * y) / phi)
+        return phi, ((self._sum - 2.0 * y) / phi).dot(self.rows)
 
     def values_along(self, xs: Array) -> Array:
         y = xs @ self.rows.T
         return (y - self.lower) * (self.upper - y)
 
     def gradient(self, x: Array) -> Array:
-        y = self.rows @ x
+        y = self.rows.dot(x)
         return (self._sum - 2.0 * y)[:, None] * self.rows
 
 

@@ -53,7 +53,7 @@ class RateLimit(VelocityConstraint):
         return self._joint_index is not None
 
     def value(self, x: Array, dx: Array, dyn: DynamicsTerms | None = None) -> Array:
-        y = dx[self._joint_index] if self._joint_index is not None else self.rows @ dx
+        y = dx[self._joint_index] if self._joint_index is not None else self.rows.dot(dx)
         return self._omega - 0.5 * y * y
 
     def values_along(self, xs: Array, dxs: Array) -> Array:

@@ -60,7 +60,7 @@ class CPBC(Unrolled, Controller):
         dyn = self.model.dynamics(x, dx)
         bar = self.constraints.barrier(x, dx, dyn)
         potential, grad = self.potential.evaluate(x - self.target)
-        lag = 0.5 * float(dx @ (dyn.inertia @ dx)) + potential
+        lag = 0.5 * float(dx.dot(dyn.inertia.dot(dx))) + potential
         return dyn, bar, grad, lag
 
     def torque(self, x: Array, dx: Array) -> Array:
@@ -99,7 +99,7 @@ class CPBC(Unrolled, Controller):
             dyn.coriolis_force
         )
         y = solve_spd(dyn.inertia + rho * bar.weight, a - c)
-        return dyn.gravity + c + dyn.inertia @ y
+        return dyn.gravity + c + dyn.inertia.dot(y)
 
     def lyapunov(self, x: Array, dx: Array) -> float:
         """V = L / s(ΦΨ), evaluated in logs."""

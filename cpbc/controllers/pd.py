@@ -30,7 +30,7 @@ class PD(Controller):
         err = x - self.target
         spring = self.kp * err
         tau = self._bias(x) - spring - self.kd * dx
-        return tau, self.model.kinetic_energy(x, dx) + 0.5 * float(err @ spring)
+        return tau, self.model.kinetic_energy(x, dx) + 0.5 * float(err.dot(spring))
 
     def _bias(self, x: Array) -> Array | float:
         """The torque's state-only feed-forward: none for PD."""

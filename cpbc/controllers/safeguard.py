@@ -341,9 +341,9 @@ class Safeguard(Controller):
     def _saturate(self, tau: Array) -> Array:
         if self.torque_limit is None:
             return tau
-        tau_q = tau if self._identity else self._t_mat_t @ tau
+        tau_q = tau if self._identity else self._t_mat_t.dot(tau)
         clipped = np.clip(tau_q, -self.torque_limit, self.torque_limit)
-        return clipped if self._identity else self._t_inv_t @ clipped
+        return clipped if self._identity else self._t_inv_t.dot(clipped)
 
     @staticmethod
     def _no_nan(m: Array) -> Array:
@@ -415,7 +415,7 @@ class Safeguard(Controller):
         if f0 >= 0.0:
             return tau
         self.acted += 1
-        stop = (dyn.inertia @ dx) / h
+        stop = dyn.inertia.dot(dx) / h
         brake = bias - self.settings.braking * stop
         f1 = slack(brake)
         if f1 < 0.0:

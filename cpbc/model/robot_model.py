@@ -113,7 +113,7 @@ class RobotModel:
 
     # -- coordinates -------------------------------------------------------------------------
     def _q(self, x: Array) -> Array:
-        return x if self._identity else self.coordinates.inverse @ x
+        return x if self._identity else self._t_inv.dot(x)
 
     def _back(self, m: Array) -> Array:
         """T⁻ᵀ M T⁻¹."""
@@ -121,7 +121,7 @@ class RobotModel:
 
     def _back_vec(self, v: Array) -> Array:
         """T⁻ᵀ v (a generalised force)."""
-        return v if self._identity else self.coordinates.inverse.T @ v
+        return v if self._identity else self._t_inv_t.dot(v)
 
     # -- dynamics ----------------------------------------------------------------------------
     def inertia(self, x: Array) -> Array:
@@ -145,7 +145,7 @@ class RobotModel:
         """f(ẋ) = F_d ẋ, shape (n,)."""
         if not self._has_friction:
             return self._no_dissipation
-        return self.viscous_friction @ dx
+        return self.viscous_friction.dot(dx)
 
     def dynamics(self, x: Array, dx: Array) -> DynamicsTerms:
         """D, C ẋ, g and f at one state: three Pinocchio passes (CRBA, RNEA, gravity).
@@ -166,7 +166,7 @@ class RobotModel:
         if self._identity:
             q, dq = x, dx
         else:
-            q, dq = self._t_inv @ x, self._t_inv @ dx
+            q, dq = self._t_inv.dot(x), self._t_inv.dot(dx)
         m = pin.crba(model, data, q)
         if self._crba_upper_only:
             m[self._lower] = m.T[self._lower]
@@ -176,8 +176,8 @@ class RobotModel:
         if self._identity:
             return DynamicsTerms(m.copy(), nle - g, g.copy(), f)
         t_inv_t = self._t_inv_t
-        inertia = (self._congruence @ m.reshape(-1)).reshape(self.n, self.n)
-        return DynamicsTerms(inertia, t_inv_t @ (nle - g), t_inv_t @ g, f)
+        inertia = self._congruence.dot(m.reshape(-1)).reshape(self.n, self.n)
+        return DynamicsTerms(inertia, t_inv_t.dot(nle - g), t_inv_t.dot(g), f)
 
     def kinetic_energy(self, x: Array, dx: Array) -> float:
         """½ ẋᵀ D(x) ẋ [J], computed in joint coordinates (the energy does not depend on
@@ -214,7 +214,7 @@ class RobotModel:
             r = placement.rotation @ offset
             p = placement.translation + r
             jv = j[:3] - np.cross(r, j[3:].T).T  # v_p = v_o + ω × r
-        return p, (jv if self._identity else jv @ self._t_inv)
+        return p, (jv if self._identity else jv.dot(self._t_inv))
 
     def point_position(self, frame_id: int, x: Array, offset: Array | None = None) -> Array:
         """World position of a point fixed in a frame, shape (3,) [m]."""
