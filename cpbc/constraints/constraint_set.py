@@ -67,8 +67,10 @@ class ConstraintSet:
             dup = sorted({x for x in self.names if self.names.count(x) > 1})
             raise CpbcError(f"duplicate constraint names: {dup}; give each constraint its own name")
         self.needs_dynamics = any(c.needs_dynamics for c in self.velocity)
-        # the margins found by the last barrier call, when its terms are the margins
-        self._keeps_margins = all(c.barrier_is_margin for c in self.configuration)
+        # the margins found by the last barrier call, where its terms are the margins (a
+        # localised barrier such as Clearance's gives the law φ̃, so its margins are redone)
+        self._reusable = [c.barrier_is_margin for c in self.configuration] + [True] * len(
+            self.velocity)
         self._last_key: bytes = b""
         self._last_parts: list[Array] = []
 
@@ -86,7 +88,10 @@ class ConstraintSet:
         safeguard asks for them at the sample the law has just evaluated).
         """
         if self._last_parts and self._last_key == x.tobytes() + dx.tobytes():
-            return np.concatenate(self._last_parts)
+            parts = [m if keep else c.value(x)  # type: ignore[call-arg]
+                     for m, keep, c in zip(self._last_parts, self._reusable,
+                                           self.configuration, strict=False)]
+            return np.concatenate(parts + self._last_parts[len(self.configuration):])
         parts = [c.value(x) for c in self.configuration]
         parts += [c.value(x, dx, dyn) for c in self.velocity]
         return np.concatenate(parts) if parts else np.zeros(0)
@@ -125,6 +130,5 @@ class ConstraintSet:
             weight = pi if weight is None else weight + pi
         log_phi = _log_sum(phis, self.configuration) if phis else 0.0
         log_psi = _log_sum(psis, self.velocity) if psis else 0.0
-        if self._keeps_margins:
-            self._last_key, self._last_parts = x.tobytes() + dx.tobytes(), phis + psis
+        self._last_key, self._last_parts = x.tobytes() + dx.tobytes(), phis + psis
         return BarrierTerms(log_phi, log_psi, gradient, weight)
