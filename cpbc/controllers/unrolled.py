@@ -52,8 +52,9 @@ Kernel = Callable[[Array, Array], "tuple[Array, float] | None"]
 
 
 def _num(c: float) -> str:
-    """A float literal that reads back exactly."""
-    return repr(float(c))
+    """A float literal that reads back exactly (an expression for ±inf)."""
+    c = float(c)
+    return repr(c) if math.isfinite(c) else f"float('{c}')"
 
 
 def _lin(coeffs: Sequence[float], names: Sequence[str]) -> str:
@@ -96,6 +97,8 @@ class _Source:
         return f"{prefix}{self._count}"
 
     def compile(self, name: str) -> Kernel:
+        # The text holds only this module's names and float literals of the law's numbers
+        # (never a string from a scenario), so compiling it runs nothing but the law.
         text = f"def {name}(x, dx):\n" + "\n".join(self.lines) + "\n"
         namespace = dict(self.env)
         exec(compile(text, f"<cpbc unrolled {name}>", "exec"), namespace)
@@ -542,7 +545,8 @@ class _Emitter:
 
 class Unrolled:
     """Mixin for the laws above: ``unrolled(x, ẋ)``, built at the first call (when
-    subclasses have set their potential and damping)."""
+    subclasses have set their potential and damping) from the law's numbers then: a law is
+    not changed after it is built (its gains and target are read-only arrays)."""
 
     _unrolled: Kernel | bool | None = False
 
