@@ -63,58 +63,54 @@ class Trajectory:
 class TrajectoryLog:
     """Preallocated log that grows by doubling; decimated by ``every``.
 
-    With ``limit``, it never holds more than ``limit`` samples: when full, it keeps every
-    other sample and doubles ``every``, so a run of any length logs on a uniform grid in
-    bounded memory (forced samples, such as the last one, are always taken).
+    One row per sample, [t, V, x, ẋ, τ, τ_q], written in a single assignment (cheaper per
+    control step than one per quantity). With ``limit``, it never holds more than ``limit``
+    samples: when full, it keeps every other sample and doubles ``every``, so a run of any
+    length logs on a uniform grid in bounded memory (forced samples, such as the last one,
+    are always taken).
     """
 
     def __init__(self, n: int, capacity: int, every: int = 1, limit: int | None = None) -> None:
+        self.n = n
         self.every = max(1, every)
         # An even limit keeps the compacted samples on the grid of the doubled ``every``.
         self.limit = None if limit is None else max(2, limit - limit % 2)
         cap = max(16, capacity // self.every + 2)
         if self.limit is not None:
             cap = min(cap, self.limit)
-        self._t = np.empty(cap)
-        self._v = np.empty(cap)
-        self._arrays = [np.empty((cap, n)) for _ in range(4)]
+        self._rows = np.empty((cap, 2 + 4 * n))
         self._k = 0
         self._calls = 0
 
-    def record(self, t: float, v: float, *rows: Array, force: bool = False) -> None:
+    def record(self, t: float, v: float, x: Array, dx: Array, tau: Array, tau_q: Array,
+               force: bool = False) -> None:
         if not force and self._calls % self.every:
             self._calls += 1
             return
         self._calls += 1
         if self.limit is not None and self._k >= self.limit:
             self._compact()
-        if self._k == self._t.shape[0]:
-            self._t = np.resize(self._t, 2 * self._k)
-            self._v = np.resize(self._v, 2 * self._k)
-            self._arrays = [np.resize(a, (2 * self._k, a.shape[1])) for a in self._arrays]
-        self._t[self._k] = t
-        self._v[self._k] = v
-        for a, r in zip(self._arrays, rows, strict=True):
-            a[self._k] = r
+        if self._k == self._rows.shape[0]:
+            grown = np.empty((2 * self._k, self._rows.shape[1]))
+            grown[: self._k] = self._rows
+            self._rows = grown
+        self._rows[self._k] = (t, v, *x.tolist(), *dx.tolist(), *tau.tolist(), *tau_q.tolist())
         self._k += 1
 
     def _compact(self) -> None:
         """Keep samples 0, 2, 4, … and log at half the rate from now on."""
         keep = (self._k + 1) // 2
-        self._t[:keep] = self._t[: self._k : 2]
-        self._v[:keep] = self._v[: self._k : 2]
-        for a in self._arrays:
-            a[:keep] = a[: self._k : 2]
+        self._rows[:keep] = self._rows[: self._k : 2]
         self._k = keep
         self.every *= 2
 
     @property
     def nbytes(self) -> int:
-        """Memory held by the log's buffers [bytes]."""
-        return self._t.nbytes + self._v.nbytes + sum(a.nbytes for a in self._arrays)
+        """Memory held by the log's buffer [bytes]."""
+        return self._rows.nbytes
 
     def arrays(self) -> tuple[Array, Array, Array, Array, Array, Array]:
         """time, position, velocity, torque, joint torque, V."""
-        k = self._k
-        x, dx, tau, tau_q = (a[:k].copy() for a in self._arrays)
-        return self._t[:k].copy(), x, dx, tau, tau_q, self._v[:k].copy()
+        rows, n = self._rows[: self._k], self.n
+        x, dx, tau, tau_q = (rows[:, 2 + i * n: 2 + (i + 1) * n].copy() for i in range(4))
+        return rows[:, 0].copy(), x, dx, tau, tau_q, rows[:, 1].copy()
