@@ -29,7 +29,7 @@ from cpbc.controllers import (
     Tanh,
 )
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
-from cpbc.controllers.unrolled import MAX_JOINTS
+from cpbc.controllers.unrolled import MAX_JOINTS, SCALAR_SOLVE
 from cpbc.errors import ConstraintViolation
 from cpbc.model import LinearCoordinates, RobotModel
 
@@ -148,10 +148,25 @@ def test_laws_without_a_scalar_form_keep_the_array_code(absolute_model) -> None:
     x, dx = np.array([0.3, 0.5]), np.array([0.05, -0.02])
     assert law.unrolled(x, dx) is None
     assert np.all(np.isfinite(law.torque(x, dx)))
-    six = RobotModel(pin.buildSampleModelManipulator(), name="sample")  # beyond MAX_JOINTS
-    rates = joint_rate_limit(np.ones(6), [f"j{i}" for i in range(6)])
-    law = CPBC(six, np.zeros(6), ConstraintSet(6, [], [rates]), 1.0, 1.0)
-    assert six.n > MAX_JOINTS and law.unrolled(np.full(6, 0.1), np.zeros(6)) is None
+    n = MAX_JOINTS + 1
+    long_chain = RobotModel(chain(n), name="chain")
+    rates = joint_rate_limit(np.ones(n), [f"j{i}" for i in range(n)])
+    law = CPBC(long_chain, np.zeros(n), ConstraintSet(n, [], [rates]), 1.0, 1.0)
+    x, dx = np.full(n, 0.1), np.full(n, 0.2)
+    assert law.unrolled(x, dx) is None
+    assert np.all(np.isfinite(law.torque(x, dx)))
+
+
+def chain(n: int) -> pin.Model:
+    """n revolute joints in a row, alternating axes, a 1 kg ball on each link."""
+    model = pin.Model()
+    parent = 0
+    for i in range(n):
+        axis = pin.JointModelRY() if i % 2 else pin.JointModelRZ()
+        parent = model.addJoint(parent, axis, pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.1])),
+                                f"j{i}")
+        model.appendBodyToJoint(parent, pin.Inertia.FromSphere(1.0, 0.05), pin.SE3.Identity())
+    return model
 
 
 def guard_decisions(guard: Safeguard, states) -> tuple[int, int]:
@@ -224,7 +239,7 @@ def three_joint_arm() -> RobotModel:
 
 def test_three_joint_arm_law_and_guard_agree_with_the_arrays(rng) -> None:
     model = three_joint_arm()
-    assert model.n == MAX_JOINTS
+    assert model.n == SCALAR_SOLVE  # the largest unrolled Cholesky factorisation
     names = ["a", "b", "c"]
     target = np.array([0.1, -0.2, 0.3])
     constraints = ConstraintSet(
@@ -247,3 +262,30 @@ def test_three_joint_arm_law_and_guard_agree_with_the_arrays(rng) -> None:
         assert v == pytest.approx(v_ref, rel=1e-12)
     accepted, refused = guard_decisions(Safeguard(law, 0.001), states)
     assert accepted > 20 and refused > 20
+
+
+@pytest.fixture(scope="module")
+def panda():
+    """The Panda of ``python -m cpbc.bench --robot panda``: joint and rate limits, a table, a
+    ball and a crate against 33 link spheres (Clearance runs its own array code inside)."""
+    from cpbc.bench_arms import panda as setup
+
+    return setup(states=48)
+
+
+@pytest.mark.parametrize("name", ["cpbc", "cpbc_ke", "bpbc"])
+def test_panda_laws_and_guard_agree_with_the_arrays(panda, rng, name: str) -> None:
+    law = panda.controllers[name]
+    states = []
+    for x, dx in panda.states:  # half as sampled, half close to the velocity boundary
+        states.append((x, dx))
+        states.append((x, dx * largest_speed(law, x, dx) * (1.0 - 10.0 ** rng.uniform(-7, -1))))
+    for x, dx in states:
+        tau, v = law.unrolled(x, dx)
+        tau_ref, v_ref = law.evaluate_arrays(x, dx)
+        tol = 1e-12 / min([1.0] + [float(np.min(c.value(x, dx, None) / c.value(x, 0 * dx, None)))
+                                   for c in law.constraints.velocity])
+        np.testing.assert_allclose(tau, tau_ref, rtol=tol, atol=tol * np.abs(tau_ref).max())
+        assert v == pytest.approx(v_ref, rel=tol)
+    accepted, refused = guard_decisions(Safeguard(law, 0.001), states)
+    assert accepted > 10 and refused > 10

@@ -8,21 +8,25 @@ formulas out over Python floats — every loop over n unrolled, every product wi
 (the coordinate map, constraint rows, gains, cushions) folded in, zero coefficients dropped —
 and compiles the source once. Pinocchio still computes D, C ẋ, g and the kinematics.
 
-What is unrolled, for n ≤ ``MAX_JOINTS``:
+What is unrolled, for arms of n ≤ ``MAX_JOINTS`` joints:
 
 - the laws CPBC and BPBC (Theorem 6.9 in the form of CPBC's class docstring; Theorem 7.7),
   CPBC-KE and BPBC-KE (Corollaries 6.11, 7.8) with quadratic or log-cosh potential, linear
   or tanh damping and any shaping, and the re-centred barrier (6.57)/(6.63);
 - the constraints ``LinearLimit``, ``PointOutsideSphere`` (on the law's own model),
-  ``RateLimit`` and, for the KE laws, their ``KineticEnergyLimit``;
+  ``RateLimit`` and, for the KE laws, their ``KineticEnergyLimit``; any other configuration
+  constraint (``Clearance``, with its vectorised pairs) is called as it is, its arrays
+  unpacked into the scalar code;
 - the safeguard's test (S1) of the law's torque with the one-step frozen prediction
   (cpbc.controllers.safeguard, ``substeps == 1``).
 
-Anything else keeps the array code, which stays the reference: the tests check that both
-give the same torque, V and acceptance on random states. The generated function returns
-None wherever the array code has something to say — a margin ≤ 0 or NaN (it raises the
-named ConstraintViolation), a factorisation that is not positive definite (it falls back to
-LU), a torque the safeguard must modify — and the caller then runs the array code.
+Linear solves are unrolled Cholesky factorisations up to ``SCALAR_SOLVE`` joints and LAPACK
+beyond. Other laws keep their array code, which stays the reference: the tests check that
+both give the same torque, V and acceptance on random states (2-, 3- and 7-joint arms).
+The generated function returns None wherever the array code has something to say — a
+margin ≤ 0 or NaN (it raises the named ConstraintViolation), a factorisation that is not
+positive definite (it falls back to LU), a torque the safeguard must modify — and the
+caller then runs the array code.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.constraints.linear_limit import LinearLimit
 from cpbc.constraints.point_outside_sphere import PointOutsideSphere
 from cpbc.constraints.rate_limit import RateLimit
+from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.shaping import Identity, Power
 from cpbc.controllers.terms import LinearDamping, LogCoshPotential, QuadraticPotential, TanhDamping
 
@@ -47,7 +52,8 @@ if TYPE_CHECKING:
     from cpbc.controllers.base import Controller
     from cpbc.controllers.safeguard import Safeguard
 
-MAX_JOINTS = 3  # the generated code is tested on 2- and 3-joint arms
+MAX_JOINTS = 7  # the generated code is tested on 2-, 3- and 7-joint arms
+SCALAR_SOLVE = 3  # unrolled Cholesky up to this many joints, LAPACK beyond
 Kernel = Callable[[Array, Array], "tuple[Array, float] | None"]
 
 
@@ -107,6 +113,29 @@ class _Source:
         return fn  # type: ignore[return-value]
 
 
+class _Arrays:
+    """ndarrays of one state for Pinocchio (q = T⁻¹x) and for array constraints (x), each
+    emitted once, when first asked for."""
+
+    def __init__(self, emitter: _Emitter, xs: list[str], q: str | None = None,
+                 x: str | None = None) -> None:
+        self.emitter, self.xs, self._q, self._x = emitter, xs, q, x
+
+    def q(self) -> str:
+        if self._q is None:
+            self._q = self.emitter.joint_array(self.xs, self._x)
+        return self._q
+
+    def x(self) -> str:
+        if self._x is None:
+            if self.emitter.identity:
+                self._x = self.q()
+            else:
+                self._x = self.emitter.src.fresh("xa")
+                self.emitter.src(f"{self._x} = _array(({', '.join(self.xs)},))")
+        return self._x
+
+
 def _supported(law: Controller, configuration: Sequence[ConfigurationConstraint]) -> bool:
     """Whether the law, its constraints and ``configuration`` all have a scalar form here."""
     from cpbc.controllers.cpbc import CPBC
@@ -121,12 +150,9 @@ def _supported(law: Controller, configuration: Sequence[ConfigurationConstraint]
         or type(law.damping) not in (LinearDamping, TanhDamping)
     ):
         return False
-    for c in configuration:
-        if type(c) is PointOutsideSphere:
-            if c.model is not model:
-                return False
-        elif type(c) is not LinearLimit:
-            return False
+    # a configuration constraint without a scalar form runs its own array code inside
+    if any(type(c) is PointOutsideSphere and c.model is not model for c in configuration):
+        return False
     if isinstance(law, CPBCKineticEnergy):
         return type(law.energy) is KineticEnergyLimit and law.energy.model is model
     return all(type(c) is RateLimit for c in law.constraints.velocity)
@@ -134,8 +160,16 @@ def _supported(law: Controller, configuration: Sequence[ConfigurationConstraint]
 
 def _cholesky_solve(src: _Source, a: list[list[str]], rhs: list[str], tag: str) -> list[str]:
     """Emit y = A⁻¹ rhs for symmetric A (lower entries a[i][j], i ≥ j) by Cholesky; the
-    function returns None on a pivot that is not > 0 (the array code then uses LU)."""
+    function returns None on a pivot that is not > 0 (the array code then uses LU). Beyond
+    ``SCALAR_SOLVE`` unknowns LAPACK's (solve_spd) beats the unrolled factorisation."""
     n = len(rhs)
+    if n > SCALAR_SOLVE:
+        src.env["_solve"] = solve_spd
+        rows = ", ".join("(" + ", ".join(a[max(i, j)][min(i, j)] for j in range(n)) + ",)"
+                         for i in range(n))
+        y = [f"{tag}y{i}" for i in range(n)]
+        src(f"{', '.join(y)}, = _solve(_array(({rows},)), _array(({', '.join(rhs)},))).tolist()")
+        return y
     low = [[""] * n for _ in range(n)]
     for j in range(n):
         s = a[j][j] + "".join(f" - {low[j][k]} * {low[j][k]}" for k in range(j))
@@ -326,15 +360,37 @@ class _Emitter:
             out.append(psi)
         return out
 
-    def configuration(self, cons: Sequence[ConfigurationConstraint], x: list[str], q: str,
-                      grad: list[list[str]] | None) -> list[str]:
+    def configuration(self, cons: Sequence[ConfigurationConstraint], x: list[str],
+                      arrays: _Arrays, grad: list[list[str]] | None) -> list[str]:
+        """φ of each constraint at x (with ``grad``: the barrier's φ, its gradient terms
+        appended to ``grad``)."""
         out: list[str] = []
         for c in cons:
-            if isinstance(c, LinearLimit):
+            if type(c) is LinearLimit:
                 out += self.linear_limit(c, x, grad)
+            elif type(c) is PointOutsideSphere:
+                out += self.point_outside_sphere(c, arrays.q(), grad)
             else:
-                out += self.point_outside_sphere(c, q, grad)  # type: ignore[arg-type]
+                out += self.array_constraint(c, arrays.x(), grad)
         return out
+
+    def array_constraint(self, con: ConfigurationConstraint, x: str,
+                         grad: list[list[str]] | None) -> list[str]:
+        """A constraint without a scalar form (Clearance): its own array code, unpacked."""
+        src = self.src
+        obj = src.fresh("_con")
+        src.env[obj] = con
+        names = [src.fresh("phi") for _ in con.names]
+        if grad is None:
+            src(f"{', '.join(names)}, = {obj}.value({x}).tolist()")
+            return names
+        arr, b = src.fresh("pa"), src.fresh("b")
+        src(f"{arr}, {b} = {obj}.barrier_terms({x})")
+        src(f"{', '.join(names)}, = {arr}.tolist()")
+        src(f"{b} = {b}.tolist()")
+        for a in range(self.n):
+            grad[a].append(f"{b}[{a}]")
+        return names
 
     @staticmethod
     def all_positive(src: _Source, margins: list[str]) -> None:
@@ -449,7 +505,8 @@ class _Emitter:
         q, d, g, c = self.begin(coriolis=True)
         grad: list[list[str]] = [[] for _ in range(n)]
         weight: list[list[list[str]]] = [[[] for _ in range(n)] for _ in range(n)]
-        phis = self.configuration(law.constraints.configuration, self.x, q, grad)
+        here = _Arrays(self, self.x, q, "x")
+        phis = self.configuration(law.constraints.configuration, self.x, here, grad)
         psis: list[str] = []
         for con in law.constraints.velocity:
             psis += self.rate_limit(con, self.v, weight)  # type: ignore[arg-type]
@@ -480,7 +537,8 @@ class _Emitter:
         src(f"kin = {self.kinetic(d, self.v)}")
         src(f"psi = {_num(law.energy.limit)} - kin")  # type: ignore[attr-defined]
         grad: list[list[str]] = [[] for _ in range(n)]
-        phis = self.configuration(law.constraints.configuration, self.x, q, grad)
+        here = _Arrays(self, self.x, q, "x")
+        phis = self.configuration(law.constraints.configuration, self.x, here, grad)
         self.all_positive(src, [*phis, "psi"])
         src(f"lsum = {self.log_sum(phis)} + log(psi)" if phis else "lsum = log(psi)")
         pot, grad_u, damp = self.potential_and_damping()
@@ -500,7 +558,8 @@ class _Emitter:
         """The re-centred barrier law (6.57)/(6.63) and its V (6.61)."""
         src, n, law = self.src, self.n, self.law
         q, d, g, c = self.begin(coriolis=True)
-        phis = self.configuration(law.constraints.configuration, self.x, q, None)
+        here = _Arrays(self, self.x, q, "x")
+        phis = self.configuration(law.constraints.configuration, self.x, here, None)
         weight: list[list[list[str]]] = [[[] for _ in range(n)] for _ in range(n)]
         psis: list[str] = []
         for con in law.constraints.velocity:
@@ -582,11 +641,17 @@ def unrolled_guard(guard: Safeguard) -> Kernel | None:
     n = law.model.n
     src = _Source(n)
     em = _Emitter(law, src)
-    tau, d, bias, margins = em.emit_law(coriolis=True)
-    if extra:  # their margins at x, between the law's configuration and velocity ones
-        cfg_law = sum(len(c.names) for c in law.constraints.configuration)
-        now = em.configuration(extra, em.x, em.joint_array(em.x, "x"), None)
-        margins = margins[:cfg_law] + now + margins[cfg_law:]
+    tau, d, bias, barrier = em.emit_law(coriolis=True)
+    # the margins at x: the law's barrier values where they are the margins, else (a
+    # localised barrier, Clearance's φ̃) the constraint's own values; then the extra ones
+    here = _Arrays(em, em.x, None, "x")
+    margins, at = [], 0
+    for c in law.constraints.configuration:
+        k = len(c.names)
+        margins += barrier[at:at + k] if c.barrier_is_margin else em.configuration(
+            [c], em.x, here, None)
+        at += k
+    margins += em.configuration(extra, em.x, here, None) + barrier[at:]
     h = guard.period
     nc = guard._n_config
     cushion = guard.cushion.tolist()
@@ -633,18 +698,15 @@ def unrolled_guard(guard: Safeguard) -> Kernel | None:
         src(f"{x1[i]} = (x{i} + {_num(h)} * v{i}) + {_num(hh)} * {acc[i]}")
         src(f"{v1[i]} = v{i} + {_num(h)} * {acc[i]}")
     configuration = (*law.constraints.configuration, *extra)
-    points = any(type(c) is PointOutsideSphere for c in configuration)
-    q1 = em.joint_array(x1, None) if points else ""  # Pinocchio's q where a point needs it
-    ends = em.configuration(configuration, x1, q1, None)
-    ends += em.velocity_values(law.constraints.velocity, lambda: q1 or em.joint_array(x1, None),
-                               v1)
+    end = _Arrays(em, x1)
+    ends = em.configuration(configuration, x1, end, None)
+    ends += em.velocity_values(law.constraints.velocity, end.q, v1)
     checks = [f"{m} / {f} >= 1.0" for m, f in zip(ends, floor, strict=True)]
     if nc:
         xm = [src.fresh("xm") for _ in range(n)]
         for i in range(n):
             src(f"{xm[i]} = (x{i} + {_num(half)} * v{i}) + {_num(eighth)} * {acc[i]}")
-        mids = em.configuration(configuration, xm, em.joint_array(xm, None) if points else "",
-                                None)
+        mids = em.configuration(configuration, xm, _Arrays(em, xm), None)
         checks += [f"{m} / {f} >= 1.0" for m, f in zip(mids, floor_mid, strict=True)]
     src(f"if not ({' and '.join(checks)}):")
     src("    return None")
