@@ -36,6 +36,14 @@ for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
     _CROSS[3 * _k + _j, _i] = -1.0
 _CROSS.setflags(write=False)
 
+# vec((P; 1) ⊗ n) @ (_WRENCH @ J) = nᵀ J_P for J = [v; ω] Pinocchio's world joint Jacobian
+# (column k of J_P is v_k + ω_k × P): rows 3i + j hold _CROSS @ ω, rows 9 + j hold v
+_WRENCH = np.zeros((12, 6))
+_WRENCH[:9, 3:] = _CROSS
+_WRENCH[9:, :3] = np.eye(3)
+_WRENCH.setflags(write=False)
+_EACH_3 = np.repeat(np.arange(3), 3)  # rows c of a (3, P) array, each three times
+
 _FAR = 1e9  # clearance given to the missing second end of a sphere against a plane
 _TINY = 1e-300
 
@@ -46,23 +54,26 @@ class _Spheres:
 
     For pair p of sphere centre s and an obstacle with centre c, rotation R, core half-extents
     h and rounding ρ: u_p = Rᵀ(s − c) is linear in Pinocchio's static regressor Y, so all
-    u_p come out of one product vec(Y) @ w + c; then d_p = ‖max(|u_p| − h, 0)‖ − ρ. A self
+    u_p come out of one product w @ vec(Y) + c; then d_p = ‖max(|u_p| − h, 0)‖ − ρ. A self
     pair is the same with c the other sphere's centre (R = I, h = 0).
+
+    Per-pair 3-vectors are stored component-major, (3, P): numpy's inner loops then run
+    along the pairs, not along a length-3 axis (several times cheaper per step).
     """
 
     start: int
     stop: int
-    w: Array  # (3P, 12 nj): u = (w @ vec(Y) + c).reshape(P, 3)
+    w: Array  # (3P, 12 nj): u = (w @ vec(Y) + c).reshape(3, P)
     c: Array  # (3P,)
-    half: Array  # (P, 3)
+    half: Array  # (3, P)
     rsum: Array  # sphere radius + rounding (+ other radius) + margin, (P,)
     rot: Array  # (P, 3, 3)
+    rot_r: Array  # (9, P): rot_r[3c + i, p] = rot[p][i, c]
     centres: Array  # (4 nj, P): first sphere centre of each pair
     mask: Array  # (P, n)
     n_obstacle: int  # pairs [0, n_obstacle) are against obstacles, the rest are self pairs
     centres2: Array  # (4 nj, S) second sphere of each self pair
     mask2: Array  # (S, n)
-    packed: Array  # (P, 9 + 4 nj + n): rot, centre column, mask — one gather per step
     starts: Array  # first pair of each reported constraint (a link against an obstacle/link)
     group: Array  # (P,) the constraint (index in ``names``) of each pair
 
@@ -198,6 +209,7 @@ class Clearance(ConfigurationConstraint):
         self._far_phi = np.full(len(self.names), self.influence or 1.0)
         self._moving = self._split_static()
         self._far_phi.setflags(write=False)
+        self._setup_products()
         self._zero = np.zeros(self._n)
         self._zero.setflags(write=False)
 
@@ -222,11 +234,15 @@ class Clearance(ConfigurationConstraint):
         if not np.allclose(scale * y, rebuilt, atol=1e-9):  # pragma: no cover
             raise CpbcError("unexpected layout of Pinocchio's static regressor")
         self._scale = float(scale)
+        # Ŷ_j = [Y_j; (1/scale, 0, 0, 0)]: Ŷ_j ĉ = (point, 1) for a column block ĉ of _column
+        self._yhat = np.zeros((self._nj, 4, 4))
+        self._yhat[:, 3, 0] = 1.0 / self._scale
         self._supports = np.zeros((pm.njoints, self._n))
         for j in range(1, pm.njoints):
             for k in pm.supports[j].tolist()[1:]:
                 jm = pm.joints[k]
                 self._supports[j, jm.idx_v: jm.idx_v + jm.nv] = 1.0
+        self._link_supports = self._supports[1:]
         self._joint: list[int] = []
         self._local: list[tuple[Array, Array]] = []
         for p in self.primitives:
@@ -416,6 +432,24 @@ class Clearance(ConfigurationConstraint):
             0, [gi for gi, k in zip(group, keep, strict=True) if k],
         )
 
+    def _setup_products(self) -> None:
+        """The buffer of ``_link_products``: one segment per sphere constraint g, its head
+        ``_far_phi[g]`` (fixed) followed by the factors of g's moving pairs (rewritten each
+        step), so that one multiply.reduceat gives every constraint's product."""
+        s, full = self._moving, self._spheres
+        ell = self.influence
+        self._unit_exact = ell is None or ell * (1.0 / ell) == 1.0
+        if s is None or full is None:
+            self._factors = self._slots = self._heads = np.zeros(0, dtype=np.intp)
+            return
+        groups = full.stop  # sphere constraints are names[0:groups]; some may have no moving pair
+        counts = np.bincount(s.group, minlength=groups)
+        self._heads = np.arange(groups, dtype=np.intp) + np.concatenate(
+            [[0], np.cumsum(counts)[:-1]]).astype(np.intp)
+        self._slots = np.arange(len(s.group), dtype=np.intp) + s.group + 1  # pairs sorted by g
+        self._factors = np.ones(len(s.group) + groups)
+        self._factors[self._heads] = self._far_phi[:groups]
+
     def _sphere_group(
         self, obs_pairs: list[tuple[int, Obstacle]], self_pairs: list[tuple[int, int]],
         start: int, group: list[int],
@@ -446,14 +480,21 @@ class Clearance(ConfigurationConstraint):
         centres, masks = self._columns(first, 0), self._masks(first)
         rot = np.array(rots)
         grp = np.array(group, dtype=np.intp)
+        n_pairs = len(grp)
+
+        def component_major(a: Array) -> Array:  # rows/entries of pair p, component k → (k, p)
+            return np.ascontiguousarray(a.reshape(n_pairs, 3, -1).transpose(1, 0, 2)
+                                        .reshape(a.shape))
+
         starts = np.flatnonzero(np.diff(grp, prepend=-1)).astype(np.intp)
         return _Spheres(
-            start, start + int(grp[-1]) + 1, np.ascontiguousarray(np.vstack(cols)),
-            np.array(consts), np.array(half), np.array(rsum), rot, centres, masks,
+            start, start + int(grp[-1]) + 1, component_major(np.vstack(cols)),
+            component_major(np.array(consts)), np.ascontiguousarray(np.array(half).T),
+            np.array(rsum), rot, np.ascontiguousarray(rot.transpose(2, 1, 0).reshape(9, -1)),
+            centres, masks,
             len(obs_pairs),
             self._columns(second, 0) if second else empty,
             self._masks(second) if second else np.zeros((0, self._n)),
-            np.ascontiguousarray(np.hstack([rot.reshape(-1, 9), centres.T, masks])),
             starts, grp,
         )
 
@@ -465,13 +506,17 @@ class Clearance(ConfigurationConstraint):
         """Y (3, 4n): every joint placement, scaled, in one Pinocchio call."""
         return pin.computeStaticRegressor(self._pin, self._data, q)
 
+    def _jacobians(self, q: Array) -> Array:
+        """Pinocchio's world joint Jacobians J = [v; ω] (6, n)."""
+        pin.computeJointJacobians(self._pin, self._data, q)
+        return self._data.J
+
     def _rows_times_jacobians(
-        self, q: Array, points: Array, normals: Array, masks: Array
+        self, q: Array, points: Array, normals: Array, masks: Array, jac: Array | None = None
     ) -> Array:
         """Rows n_rᵀ J(p_r) with J(p) the Jacobian of a point fixed on its link, shape (r, n),
-        joint coordinates."""
-        pin.computeJointJacobians(self._pin, self._data, q)
-        jac = self._data.J
+        joint coordinates (``jac``: the joint Jacobians at q, if already computed)."""
+        jac = self._jacobians(q) if jac is None else jac
         outer = (points[:, :, None] * normals[:, None, :]).reshape(-1, 9)
         return (normals @ jac[:3] + outer @ (_CROSS @ jac[3:])) * masks
 
@@ -480,13 +525,13 @@ class Clearance(ConfigurationConstraint):
         self, y: Array, s: _Spheres | None = None
     ) -> tuple[Array, Array, Array, Array]:
         """Sphere pairs (all of them unless ``s`` is given): φ (P,), the core distance d (P,),
-        u (P, 3) and max(|u| − h, 0) (P, 3)."""
+        u (3, P) and max(|u| − h, 0) (3, P)."""
         s = self._spheres if s is None else s
         assert s is not None
-        u = (s.w @ y.reshape(-1) + s.c).reshape(-1, 3)
+        u = (np.dot(s.w, y.reshape(-1)) + s.c).reshape(3, -1)
         excess = np.abs(u) - s.half
         outside = np.maximum(excess, 0.0)
-        d = np.sqrt((outside * outside).sum(axis=1))
+        d = np.sqrt(np.add.reduce(outside * outside, axis=0))
         return d - s.rsum, d, u, outside
 
     def _sphere_rows(
@@ -496,30 +541,50 @@ class Clearance(ConfigurationConstraint):
         ``scale`` already divided by the core distance d."""
         s = self._spheres if s is None else s
         assert s is not None
-        local = np.copysign(outside, u) * scale[:, None]
+        local = np.ascontiguousarray((np.copysign(outside, u) * scale).T)
         normal = (s.rot @ local[:, :, None])[:, :, 0]
         rows = [((y @ s.centres).T, normal, s.mask)]
         if s.n_obstacle < len(s.group):
             rows.append(((y @ s.centres2).T, -normal[s.n_obstacle:], s.mask2))
         return rows
 
-    def _sphere_active_rows(
-        self, y: Array, act: Array, u: Array, outside: Array, scale: Array
-    ) -> list[tuple[Array, Array, Array]]:
-        """Like _sphere_rows for the moving pairs ``act`` only (``scale`` given for those)."""
-        s = self._moving
-        assert s is not None
-        nj4 = 4 * self._nj
-        block = s.packed[act]
-        local = np.copysign(outside[act], u[act]) * scale[:, None]
-        normal = (block[:, :9].reshape(-1, 3, 3) @ local[:, :, None])[:, :, 0]
-        rows = [(block[:, 9:9 + nj4] @ y.T, normal, block[:, 9 + nj4:])]
+    def _sphere_force(self, y: Array, s: _Spheres, local: Array, jac: Array) -> Array:
+        """Σ_p mask_p ⊙ J(c_p)ᵀ n_p over the pairs of ``s`` (c_p the first sphere's centre,
+        n_p = R_p local_p), minus the same at the second sphere of each self pair; (n,).
+
+        Dense over all the pairs (a pair out of the law has local_p = 0): cheaper than picking
+        the active ones. The wrench of pair p, (n_p, c_p × n_p), is summed per link j first:
+        c_p = Y_j ĉ_p with ĉ_p its constant column block (``_column``), so all the sums
+        K_j = Σ_p ĉ_p n_pᵀ are one product K = C nᵀ, and Σ_p (c_p; 1) ⊗ n_p = Ŷ_j K_j; only
+        the nj link wrenches meet the Jacobian (through _WRENCH), each on the joints that move
+        its link. (np.dot: less call overhead than ``@`` on these small 2-d products.)
+        """
+        normal = np.add.reduce(
+            (s.rot_r * local.take(_EACH_3, axis=0)).reshape(3, 3, -1), axis=0)
+        k = np.dot(s.centres, normal.T)  # (4 nj, 3)
         if s.n_obstacle < len(s.group):
-            own = act >= s.n_obstacle
-            if own.any():
-                other = act[own] - s.n_obstacle
-                rows.append(((y @ s.centres2[:, other]).T, -normal[own], s.mask2[other]))
-        return rows
+            k -= np.dot(s.centres2, normal[:, s.n_obstacle:].T)
+        yhat = self._yhat
+        yhat[:, :3] = y.reshape(3, self._nj, 4).transpose(1, 0, 2)
+        wrench = (yhat @ k.reshape(self._nj, 4, 3)).reshape(self._nj, 12)
+        torques = np.dot(wrench, np.dot(_WRENCH, jac)) * self._link_supports
+        return np.add.reduce(torques, axis=0)
+
+    def _link_products(self, phi: Array, shaped: Array) -> Array:
+        """The law's function of every constraint: far_phi times the φ̃/ℓ of its moving sphere
+        pairs within ℓ, multiplied left to right (the order of the sparse product it replaces,
+        so the same bits); capsule constraints get their far value."""
+        assert self.influence is not None
+        factors = shaped * (1.0 / self.influence)
+        if not self._unit_exact:  # a pair beyond ℓ must contribute exactly 1
+            factors = np.where(phi < self.influence, factors, 1.0)
+        self._factors[self._slots] = factors
+        sph = np.multiply.reduceat(self._factors, self._heads)
+        if len(sph) == len(self.names):
+            return sph
+        out = self._far_phi.copy()
+        out[:len(sph)] = sph
+        return out
 
     def _narrow(
         self, g: _Group, y: Array
@@ -550,14 +615,18 @@ class Clearance(ConfigurationConstraint):
     # -- ConfigurationConstraint ----------------------------------------------------------
     def value(self, x: Array) -> Array:
         y = self._regressor(self._q(x))
-        out = np.empty(len(self.names))
         s = self._spheres
-        if s is not None:
+        if s is None:
+            out = np.empty(len(self.names))
+        else:
             phi, d, u, _ = self._sphere_distances(y)
             if not d.min() > 0.0:  # a centre inside a core box: signed distance there
-                depth = np.max(np.abs(u) - s.half, axis=1) - s.rsum
+                depth = np.max(np.abs(u) - s.half, axis=0) - s.rsum
                 phi = np.where(d > 0.0, phi, depth)
-            out[s.start:s.stop] = np.minimum.reduceat(phi, s.starts)
+            out = np.minimum.reduceat(phi, s.starts)  # the sphere constraints come first
+            if not self._groups:
+                return out
+            out = np.concatenate([out, np.empty(len(self.names) - s.stop)])
         for g in self._groups:
             phi, _, pair = self._narrow(g, y)
             out[g.start:g.stop] = phi if pair is None else pair
@@ -628,6 +697,7 @@ class Clearance(ConfigurationConstraint):
         ell = self.influence
         rows: list[tuple[Array, Array, Array]] = []
         phi_out: Array | None = None
+        sphere_local: Array | None = None  # the pairs' normals × (dφ̃/dφ)/φ̃, obstacle frames
         s = self._moving
         if s is not None:
             phi, d, u, outside = self._sphere_distances(y, s)
@@ -640,13 +710,11 @@ class Clearance(ConfigurationConstraint):
                 shaped, inv = self._shape(phi)
                 phi_out = self._far_phi.copy()
                 phi_out[s.group[s.starts]] *= np.multiply.reduceat(shaped, s.starts)
-                rows += self._sphere_rows(y, u, outside, inv / d, s)
-            elif low < ell:  # only the pairs within ℓ enter the law
-                act = np.flatnonzero(phi < ell)
-                shaped, inv = self._shape(phi[act])
-                phi_out = self._far_phi.copy()
-                np.multiply.at(phi_out, s.group[act], shaped * (1.0 / ell))
-                rows += self._sphere_active_rows(y, act, u, outside, inv / d[act])
+                sphere_local = np.copysign(outside, u) * (inv / d)
+            elif low < ell:  # only the pairs within ℓ enter the law: the others have φ̃ = ℓ
+                shaped, inv = self._shape(phi)  # and inv = 0, so all pairs go through densely
+                phi_out = self._link_products(phi, shaped)
+                sphere_local = np.copysign(outside, u) * (inv / d)
         for g in self._near_groups(y):
             phi, grows, _ = self._narrow(g, y)
             if phi.min() <= 0.0:
@@ -666,11 +734,14 @@ class Clearance(ConfigurationConstraint):
                 rows += [(p, n * inv[:, None], mask) for p, n, mask in grows]
         if phi_out is None:
             return self._far_phi, self._zero
-        if len(rows) == 1:
-            b = self._rows_times_jacobians(q, *rows[0]).sum(axis=0)
-        else:
-            b = self._rows_times_jacobians(
-                q, *(np.concatenate(part) for part in zip(*rows, strict=True))
+        jac = self._jacobians(q)
+        b = self._zero
+        if sphere_local is not None:
+            assert s is not None
+            b = self._sphere_force(y, s, sphere_local, jac)
+        if rows:
+            b = b + self._rows_times_jacobians(
+                q, *(np.concatenate(part) for part in zip(*rows, strict=True)), jac=jac
             ).sum(axis=0)
         if not self._identity:
             b = b @ self._t_inv
