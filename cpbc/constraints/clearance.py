@@ -44,6 +44,9 @@ _WRENCH[9:, :3] = np.eye(3)
 _WRENCH.setflags(write=False)
 _EACH_3 = np.repeat(np.arange(3), 3)  # rows c of a (3, P) array, each three times
 
+# 0-d arrays: numpy takes them faster than Python floats as ufunc operands
+_ZERO, _ONE, _THREE = np.array(0.0), np.array(1.0), np.array(3.0)
+
 _FAR = 1e9  # clearance given to the missing second end of a sphere against a plane
 _TINY = 1e-300
 
@@ -198,6 +201,8 @@ class Clearance(ConfigurationConstraint):
         self.obstacles = tuple(obstacles)
         self.margin = float(margin)
         self.influence = None if influence is None else float(influence)
+        self._ell = np.array(self.influence or 1.0)  # ℓ and 1/ℓ as 0-d arrays (see _ONE)
+        self._inv_ell = np.array(1.0 / (self.influence or 1.0))
         self.self_pairs = tuple((str(a), str(b)) for a, b in self_pairs)
         self._pin = model.model
         self._data = model.model.createData()
@@ -528,9 +533,12 @@ class Clearance(ConfigurationConstraint):
         u (3, P) and max(|u| − h, 0) (3, P)."""
         s = self._spheres if s is None else s
         assert s is not None
-        u = (np.dot(s.w, y.reshape(-1)) + s.c).reshape(3, -1)
-        excess = np.abs(u) - s.half
-        outside = np.maximum(excess, 0.0)
+        u = np.dot(s.w, y.reshape(-1))
+        u += s.c
+        u = u.reshape(3, -1)
+        outside = np.abs(u)
+        outside -= s.half
+        np.maximum(outside, _ZERO, out=outside)
         d = np.sqrt(np.add.reduce(outside * outside, axis=0))
         return d - s.rsum, d, u, outside
 
@@ -575,7 +583,7 @@ class Clearance(ConfigurationConstraint):
         pairs within ℓ, multiplied left to right (the order of the sparse product it replaces,
         so the same bits); capsule constraints get their far value."""
         assert self.influence is not None
-        factors = shaped * (1.0 / self.influence)
+        factors = shaped * self._inv_ell
         if not self._unit_exact:  # a pair beyond ℓ must contribute exactly 1
             factors = np.where(phi < self.influence, factors, 1.0)
         self._factors[self._slots] = factors
@@ -672,10 +680,18 @@ class Clearance(ConfigurationConstraint):
         ell = self.influence
         if ell is None:
             return phi, 1.0 / phi
-        v = 1.0 - np.minimum(phi * (1.0 / ell), 1.0)
+        # ℓ − ℓ(1 − min(φ/ℓ, 1))³ and 3(1 − …)²/φ̃, operation by operation as ever (the same
+        # bits), in place and with 0-d array constants (cheaper per call than Python floats)
+        v = phi * self._inv_ell
+        np.minimum(v, _ONE, out=v)
+        np.subtract(_ONE, v, out=v)
         v2 = v * v
-        shaped = ell - ell * (v2 * v)
-        return shaped, 3.0 * v2 / shaped
+        shaped = v2 * v
+        shaped *= self._ell
+        np.subtract(self._ell, shaped, out=shaped)
+        v2 *= _THREE
+        v2 /= shaped
+        return shaped, v2
 
     def _near_groups(self, y: Array) -> list[_Group]:
         """Capsule groups with a pair that may be within the influence distance."""
