@@ -42,7 +42,6 @@ _WRENCH = np.zeros((12, 6))
 _WRENCH[:9, 3:] = _CROSS
 _WRENCH[9:, :3] = np.eye(3)
 _WRENCH.setflags(write=False)
-_EACH_3 = np.repeat(np.arange(3), 3)  # rows c of a (3, P) array, each three times
 
 # 0-d arrays: numpy takes them faster than Python floats as ufunc operands
 _ZERO, _ONE, _THREE = np.array(0.0), np.array(1.0), np.array(3.0)
@@ -71,7 +70,6 @@ class _Spheres:
     half: Array  # (3, P)
     rsum: Array  # sphere radius + rounding (+ other radius) + margin, (P,)
     rot: Array  # (P, 3, 3)
-    rot_r: Array  # (9, P): rot_r[3c + i, p] = rot[p][i, c]
     centres: Array  # (4 nj, P): first sphere centre of each pair
     mask: Array  # (P, n)
     n_obstacle: int  # pairs [0, n_obstacle) are against obstacles, the rest are self pairs
@@ -495,8 +493,7 @@ class Clearance(ConfigurationConstraint):
         return _Spheres(
             start, start + int(grp[-1]) + 1, component_major(np.vstack(cols)),
             component_major(np.array(consts)), np.ascontiguousarray(np.array(half).T),
-            np.array(rsum), rot, np.ascontiguousarray(rot.transpose(2, 1, 0).reshape(9, -1)),
-            centres, masks,
+            np.array(rsum), rot, centres, masks,
             len(obs_pairs),
             self._columns(second, 0) if second else empty,
             self._masks(second) if second else np.zeros((0, self._n)),
@@ -556,25 +553,34 @@ class Clearance(ConfigurationConstraint):
             rows.append(((y @ s.centres2).T, -normal[s.n_obstacle:], s.mask2))
         return rows
 
+    @staticmethod
+    def _local_normals(u: Array, outside: Array, ratio: Array, d: Array) -> Array:
+        """Each pair's normal in its obstacle's frame, copysign(max(|u| − h, 0), u)/d, times
+        ``ratio`` (3, P); in place: ``outside`` and ``ratio`` are overwritten."""
+        ratio /= d
+        local = np.copysign(outside, u, out=outside)
+        local *= ratio
+        return local
+
     def _sphere_force(self, y: Array, s: _Spheres, local: Array, jac: Array) -> Array:
-        """Σ_p mask_p ⊙ J(c_p)ᵀ n_p over the pairs of ``s`` (c_p the first sphere's centre,
-        n_p = R_p local_p), minus the same at the second sphere of each self pair; (n,).
+        """Σ_p J(c_p)ᵀ n_p over the pairs of ``s`` (c_p the first sphere's centre, J(c) the
+        Jacobian of a point fixed on its link, n_p = R_p local_p), minus the same at the second
+        sphere of each self pair; (n,).
 
         Dense over all the pairs (a pair out of the law has local_p = 0): cheaper than picking
-        the active ones. The wrench of pair p, (n_p, c_p × n_p), is summed per link j first:
-        c_p = Y_j ĉ_p with ĉ_p its constant column block (``_column``), so all the sums
-        K_j = Σ_p ĉ_p n_pᵀ are one product K = C nᵀ, and Σ_p (c_p; 1) ⊗ n_p = Ŷ_j K_j; only
-        the nj link wrenches meet the Jacobian (through _WRENCH), each on the joints that move
-        its link. (np.dot: less call overhead than ``@`` on these small 2-d products.)
+        the active ones. Σ_p n_p·δc_p = Σ local·δu, and u = w vec(Y) + c, so the pairs' sum
+        is G = localᵀ w, a 3 × 4nj cotangent of Y: one product for every pair, rotation and
+        self pair included. Column block j of Y is joint j's placement [t_j R_j]/scale; its
+        variation is that of points fixed on link j, so with K_j = G_jᵀ and Ŷ_j = [Y_j; e₀ᵀ/scale]
+        the link's wrench about the origin is vec(Ŷ_j K_j) = (Σ c ⊗ n, Σ n), and only the nj
+        link wrenches meet the Jacobian (through _WRENCH), each on the joints that move its link.
+        (np.dot: less call overhead than ``@`` on small 2-d products.)
         """
-        normal = np.add.reduce(
-            (s.rot_r * local.take(_EACH_3, axis=0)).reshape(3, 3, -1), axis=0)
-        k = np.dot(s.centres, normal.T)  # (4 nj, 3)
-        if s.n_obstacle < len(s.group):
-            k -= np.dot(s.centres2, normal[:, s.n_obstacle:].T)
+        nj = self._nj
+        k = np.dot(local.reshape(-1), s.w).reshape(3, nj, 4).transpose(1, 2, 0)  # (nj, 4, 3)
         yhat = self._yhat
-        yhat[:, :3] = y.reshape(3, self._nj, 4).transpose(1, 0, 2)
-        wrench = (yhat @ k.reshape(self._nj, 4, 3)).reshape(self._nj, 12)
+        yhat[:, :3] = y.reshape(3, nj, 4).transpose(1, 0, 2)
+        wrench = (yhat @ k).reshape(nj, 12)
         torques = np.dot(wrench, np.dot(_WRENCH, jac)) * self._link_supports
         return np.add.reduce(torques, axis=0)
 
@@ -726,11 +732,11 @@ class Clearance(ConfigurationConstraint):
                 shaped, inv = self._shape(phi)
                 phi_out = self._far_phi.copy()
                 phi_out[s.group[s.starts]] *= np.multiply.reduceat(shaped, s.starts)
-                sphere_local = np.copysign(outside, u) * (inv / d)
+                sphere_local = self._local_normals(u, outside, inv, d)
             elif low < ell:  # only the pairs within ℓ enter the law: the others have φ̃ = ℓ
                 shaped, inv = self._shape(phi)  # and inv = 0, so all pairs go through densely
                 phi_out = self._link_products(phi, shaped)
-                sphere_local = np.copysign(outside, u) * (inv / d)
+                sphere_local = self._local_normals(u, outside, inv, d)
         for g in self._near_groups(y):
             phi, grows, _ = self._narrow(g, y)
             if phi.min() <= 0.0:
