@@ -245,7 +245,7 @@ class Clearance(ConfigurationConstraint):
             for k in pm.supports[j].tolist()[1:]:
                 jm = pm.joints[k]
                 self._supports[j, jm.idx_v: jm.idx_v + jm.nv] = 1.0
-        self._link_supports = self._supports[1:]
+        self._link_supports_t = np.ascontiguousarray(self._supports[1:].T)  # (n, nj)
         self._joint: list[int] = []
         self._local: list[tuple[Array, Array]] = []
         for p in self.primitives:
@@ -581,8 +581,9 @@ class Clearance(ConfigurationConstraint):
         yhat = self._yhat
         yhat[:, :3] = y.reshape(3, nj, 4).transpose(1, 0, 2)
         wrench = (yhat @ k).reshape(nj, 12)
-        torques = np.dot(wrench, np.dot(_WRENCH, jac)) * self._link_supports
-        return np.add.reduce(torques, axis=0)
+        # Σ_j supports_jk (wrench_j · J12[:, k]): the diagonal of (supportsᵀ wrench) J12
+        per_joint = np.dot(self._link_supports_t, wrench)  # wrenches of the links joint k moves
+        return np.dot(per_joint, np.dot(_WRENCH, jac)).diagonal().copy()
 
     def _link_products(self, phi: Array, shaped: Array) -> Array:
         """The law's function of every constraint: far_phi times the φ̃/ℓ of its moving sphere
@@ -634,7 +635,8 @@ class Clearance(ConfigurationConstraint):
             out = np.empty(len(self.names))
         else:
             phi, d, u, _ = self._sphere_distances(y)
-            if not d.min() > 0.0:  # a centre inside a core box: signed distance there
+            # (x[x.argmin()]: min without a ufunc reduction, several times cheaper)
+            if not d[d.argmin()] > 0.0:  # a centre inside a core box: signed distance there
                 depth = np.max(np.abs(u) - s.half, axis=0) - s.rsum
                 phi = np.where(d > 0.0, phi, depth)
             out = np.minimum.reduceat(phi, s.starts)  # the sphere constraints come first
@@ -723,7 +725,7 @@ class Clearance(ConfigurationConstraint):
         s = self._moving
         if s is not None:
             phi, d, u, outside = self._sphere_distances(y, s)
-            low = phi.min()
+            low = phi[phi.argmin()]  # phi.min(), cheaper
             if low <= 0.0:  # outside S: report it, the constraint set raises
                 return self.value(x), self._zero
             # a link's barrier is the product of its spheres' terms (their log-barriers add);
