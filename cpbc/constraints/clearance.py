@@ -66,6 +66,7 @@ class _Spheres:
     start: int
     stop: int
     w: Array  # (3P, 12 nj): u = (w @ vec(Y) + c).reshape(3, P)
+    w_k: Array  # w, columns reordered (joint j, column a of Y_j, row r): ``_sphere_force``
     c: Array  # (3P,)
     half: Array  # (3, P)
     rsum: Array  # sphere radius + rounding (+ other radius) + margin, (P,)
@@ -490,8 +491,10 @@ class Clearance(ConfigurationConstraint):
                                         .reshape(a.shape))
 
         starts = np.flatnonzero(np.diff(grp, prepend=-1)).astype(np.intp)
+        w = component_major(np.vstack(cols))
         return _Spheres(
-            start, start + int(grp[-1]) + 1, component_major(np.vstack(cols)),
+            start, start + int(grp[-1]) + 1, w, w.reshape(3 * n_pairs, 3, -1)
+            .transpose(0, 2, 1).reshape(w.shape).copy(),
             component_major(np.array(consts)), np.ascontiguousarray(np.array(half).T),
             np.array(rsum), rot, centres, masks,
             len(obs_pairs),
@@ -570,14 +573,15 @@ class Clearance(ConfigurationConstraint):
         Dense over all the pairs (a pair out of the law has local_p = 0): cheaper than picking
         the active ones. Σ_p n_p·δc_p = Σ local·δu, and u = w vec(Y) + c, so the pairs' sum
         is G = localᵀ w, a 3 × 4nj cotangent of Y: one product for every pair, rotation and
-        self pair included. Column block j of Y is joint j's placement [t_j R_j]/scale; its
-        variation is that of points fixed on link j, so with K_j = G_jᵀ and Ŷ_j = [Y_j; e₀ᵀ/scale]
-        the link's wrench about the origin is vec(Ŷ_j K_j) = (Σ c ⊗ n, Σ n), and only the nj
-        link wrenches meet the Jacobian (through _WRENCH), each on the joints that move its link.
+        self pair included (w_k: the same columns ordered so that it comes out as the blocks
+        K_j = G_jᵀ, contiguous). Column block j of Y is joint j's placement [t_j R_j]/scale;
+        its variation is that of points fixed on link j, so with Ŷ_j = [Y_j; e₀ᵀ/scale] the
+        link's wrench about the origin is vec(Ŷ_j K_j) = (Σ c ⊗ n, Σ n), and only the nj link
+        wrenches meet the Jacobian (through _WRENCH), each on the joints that move its link.
         (np.dot: less call overhead than ``@`` on small 2-d products.)
         """
         nj = self._nj
-        k = np.dot(local.reshape(-1), s.w).reshape(3, nj, 4).transpose(1, 2, 0)  # (nj, 4, 3)
+        k = np.dot(local.reshape(-1), s.w_k).reshape(nj, 4, 3)  # K_j, contiguous
         yhat = self._yhat
         yhat[:, :3] = y.reshape(3, nj, 4).transpose(1, 0, 2)
         wrench = (yhat @ k).reshape(nj, 12)
