@@ -135,7 +135,10 @@ class Clearance(ConfigurationConstraint):
     gradient, once the pair is farther apart than ℓ. This is Theorem 6.9 applied to the
     constraints φ̃_p, so its guarantees hold unchanged, and a pair beyond ℓ is *exactly*
     inactive: when no pair is within ℓ the barrier costs the distance computation only, and
-    capsule groups are skipped after a conservative bounding-sphere test. With
+    capsule groups are skipped after a conservative bounding-sphere test. Once one sphere
+    pair is within ℓ, all of them go through the rest densely (those beyond ℓ with factor
+    exactly 1 and zero slope): per numpy call that costs the same as a few, and it needs no
+    picking. With
     ``influence=None`` the barrier is φ_p itself (the plain thesis form).
 
     ``value`` and ``gradient`` report the clearance φ_p itself [m] (what the run summary
@@ -444,7 +447,8 @@ class Clearance(ConfigurationConstraint):
         ell = self.influence
         self._unit_exact = ell is None or ell * (1.0 / ell) == 1.0
         if s is None or full is None:
-            self._factors = self._slots = self._heads = np.zeros(0, dtype=np.intp)
+            self._factors = np.zeros(0)
+            self._slots = self._heads = np.zeros(0, dtype=np.intp)
             return
         groups = full.stop  # sphere constraints are names[0:groups]; some may have no moving pair
         counts = np.bincount(s.group, minlength=groups)
@@ -591,8 +595,8 @@ class Clearance(ConfigurationConstraint):
 
     def _link_products(self, phi: Array, shaped: Array) -> Array:
         """The law's function of every constraint: far_phi times the φ̃/ℓ of its moving sphere
-        pairs within ℓ, multiplied left to right (the order of the sparse product it replaces,
-        so the same bits); capsule constraints get their far value."""
+        pairs within ℓ, multiplied left to right (far_phi first, then pair by pair in order:
+        bit for bit the product taken one pair at a time); capsule constraints get far_phi."""
         assert self.influence is not None
         factors = shaped * self._inv_ell
         if not self._unit_exact:  # a pair beyond ℓ must contribute exactly 1
