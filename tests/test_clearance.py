@@ -109,6 +109,39 @@ def test_skipping_far_pairs_is_exact(kind, rng) -> None:
         np.testing.assert_allclose(b, b_r, atol=1e-12)
 
 
+@pytest.mark.parametrize("influence", [None, 0.3, 0.167])  # 0.167 · (1/0.167) ≠ 1 in doubles
+def test_dense_sphere_barrier_is_the_pairwise_product_and_sum(influence, rng) -> None:
+    """The sphere pairs go through the barrier densely (a pair beyond ℓ: factor 1, no slope)
+    and their force is summed per link: the same as pair by pair, the products bit for bit."""
+    c = _clearance("spheres", influence)  # self pairs and a rotated box included
+    s = c._moving
+    assert s is not None and s.n_obstacle < len(s.group)
+    checked = 0
+    for x in _states(rng, 30):
+        if not np.all(c.value(x) > 0):
+            continue
+        phi_t, b = c.barrier_terms(x)
+        y = c._regressor(x)
+        phi, d, u, outside = c._sphere_distances(y, s)
+        if influence is not None and phi.min() >= influence:
+            continue
+        shaped, ratio = c._shape(phi)
+        expect = np.array(c._far_phi)
+        if influence is None:
+            for g in range(s.stop):
+                expect[g] *= np.prod(shaped[s.group == g])
+            np.testing.assert_allclose(phi_t, expect, rtol=1e-13)
+        else:
+            for p in np.flatnonzero(phi < influence):  # the pair-by-pair product, in order
+                expect[s.group[p]] *= shaped[p] * (1.0 / influence)
+            np.testing.assert_array_equal(phi_t, expect)
+        rows = c._sphere_rows(y, u, outside, ratio / d, s)
+        b_ref = sum(c._rows_times_jacobians(x, *row).sum(axis=0) for row in rows)
+        np.testing.assert_allclose(b, b_ref, rtol=0, atol=1e-12 * max(1.0, np.abs(b_ref).max()))
+        checked += 1
+    assert checked >= 5
+
+
 def test_localised_barrier_shape() -> None:
     c = _clearance(influence=0.2)
     phi = np.array([1e-6, 0.05, 0.1999, 0.2, 0.5])

@@ -36,6 +36,16 @@ for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
     _CROSS[3 * _k + _j, _i] = -1.0
 _CROSS.setflags(write=False)
 
+# vec((P; 1) ⊗ n) @ (_WRENCH @ J) = nᵀ J_P for J = [v; ω] Pinocchio's world joint Jacobian
+# (column k of J_P is v_k + ω_k × P): rows 3i + j hold _CROSS @ ω, rows 9 + j hold v
+_WRENCH = np.zeros((12, 6))
+_WRENCH[:9, 3:] = _CROSS
+_WRENCH[9:, :3] = np.eye(3)
+_WRENCH.setflags(write=False)
+
+# 0-d arrays: numpy takes them faster than Python floats as ufunc operands
+_ZERO, _ONE, _THREE = np.array(0.0), np.array(1.0), np.array(3.0)
+
 _FAR = 1e9  # clearance given to the missing second end of a sphere against a plane
 _TINY = 1e-300
 
@@ -46,15 +56,19 @@ class _Spheres:
 
     For pair p of sphere centre s and an obstacle with centre c, rotation R, core half-extents
     h and rounding ρ: u_p = Rᵀ(s − c) is linear in Pinocchio's static regressor Y, so all
-    u_p come out of one product vec(Y) @ w + c; then d_p = ‖max(|u_p| − h, 0)‖ − ρ. A self
+    u_p come out of one product w @ vec(Y) + c; then d_p = ‖max(|u_p| − h, 0)‖ − ρ. A self
     pair is the same with c the other sphere's centre (R = I, h = 0).
+
+    Per-pair 3-vectors are stored component-major, (3, P): numpy's inner loops then run
+    along the pairs, not along a length-3 axis (several times cheaper per step).
     """
 
     start: int
     stop: int
-    w: Array  # (3P, 12 nj): u = (w @ vec(Y) + c).reshape(P, 3)
+    w: Array  # (3P, 12 nj): u = (w @ vec(Y) + c).reshape(3, P)
+    w_k: Array  # w, columns reordered (joint j, column a of Y_j, row r): ``_sphere_force``
     c: Array  # (3P,)
-    half: Array  # (P, 3)
+    half: Array  # (3, P)
     rsum: Array  # sphere radius + rounding (+ other radius) + margin, (P,)
     rot: Array  # (P, 3, 3)
     centres: Array  # (4 nj, P): first sphere centre of each pair
@@ -62,7 +76,6 @@ class _Spheres:
     n_obstacle: int  # pairs [0, n_obstacle) are against obstacles, the rest are self pairs
     centres2: Array  # (4 nj, S) second sphere of each self pair
     mask2: Array  # (S, n)
-    packed: Array  # (P, 9 + 4 nj + n): rot, centre column, mask — one gather per step
     starts: Array  # first pair of each reported constraint (a link against an obstacle/link)
     group: Array  # (P,) the constraint (index in ``names``) of each pair
 
@@ -122,7 +135,10 @@ class Clearance(ConfigurationConstraint):
     gradient, once the pair is farther apart than ℓ. This is Theorem 6.9 applied to the
     constraints φ̃_p, so its guarantees hold unchanged, and a pair beyond ℓ is *exactly*
     inactive: when no pair is within ℓ the barrier costs the distance computation only, and
-    capsule groups are skipped after a conservative bounding-sphere test. With
+    capsule groups are skipped after a conservative bounding-sphere test. Once one sphere
+    pair is within ℓ, all of them go through the rest densely (those beyond ℓ with factor
+    exactly 1 and zero slope): per numpy call that costs the same as a few, and it needs no
+    picking. With
     ``influence=None`` the barrier is φ_p itself (the plain thesis form).
 
     ``value`` and ``gradient`` report the clearance φ_p itself [m] (what the run summary
@@ -187,6 +203,8 @@ class Clearance(ConfigurationConstraint):
         self.obstacles = tuple(obstacles)
         self.margin = float(margin)
         self.influence = None if influence is None else float(influence)
+        self._ell = np.array(self.influence or 1.0)  # ℓ and 1/ℓ as 0-d arrays (see _ONE)
+        self._inv_ell = np.array(1.0 / (self.influence or 1.0))
         self.self_pairs = tuple((str(a), str(b)) for a, b in self_pairs)
         self._pin = model.model
         self._data = model.model.createData()
@@ -198,6 +216,7 @@ class Clearance(ConfigurationConstraint):
         self._far_phi = np.full(len(self.names), self.influence or 1.0)
         self._moving = self._split_static()
         self._far_phi.setflags(write=False)
+        self._setup_products()
         self._zero = np.zeros(self._n)
         self._zero.setflags(write=False)
 
@@ -222,11 +241,15 @@ class Clearance(ConfigurationConstraint):
         if not np.allclose(scale * y, rebuilt, atol=1e-9):  # pragma: no cover
             raise CpbcError("unexpected layout of Pinocchio's static regressor")
         self._scale = float(scale)
+        # Ŷ_j = [Y_j; (1/scale, 0, 0, 0)]: Ŷ_j ĉ = (point, 1) for a column block ĉ of _column
+        self._yhat = np.zeros((self._nj, 4, 4))
+        self._yhat[:, 3, 0] = 1.0 / self._scale
         self._supports = np.zeros((pm.njoints, self._n))
         for j in range(1, pm.njoints):
             for k in pm.supports[j].tolist()[1:]:
                 jm = pm.joints[k]
                 self._supports[j, jm.idx_v: jm.idx_v + jm.nv] = 1.0
+        self._link_supports_t = np.ascontiguousarray(self._supports[1:].T)  # (n, nj)
         self._joint: list[int] = []
         self._local: list[tuple[Array, Array]] = []
         for p in self.primitives:
@@ -416,6 +439,25 @@ class Clearance(ConfigurationConstraint):
             0, [gi for gi, k in zip(group, keep, strict=True) if k],
         )
 
+    def _setup_products(self) -> None:
+        """The buffer of ``_link_products``: one segment per sphere constraint g, its head
+        ``_far_phi[g]`` (fixed) followed by the factors of g's moving pairs (rewritten each
+        step), so that one multiply.reduceat gives every constraint's product."""
+        s, full = self._moving, self._spheres
+        ell = self.influence
+        self._unit_exact = ell is None or ell * (1.0 / ell) == 1.0
+        if s is None or full is None:
+            self._factors = np.zeros(0)
+            self._slots = self._heads = np.zeros(0, dtype=np.intp)
+            return
+        groups = full.stop  # sphere constraints are names[0:groups]; some may have no moving pair
+        counts = np.bincount(s.group, minlength=groups)
+        self._heads = np.arange(groups, dtype=np.intp) + np.concatenate(
+            [[0], np.cumsum(counts)[:-1]]).astype(np.intp)
+        self._slots = np.arange(len(s.group), dtype=np.intp) + s.group + 1  # pairs sorted by g
+        self._factors = np.ones(len(s.group) + groups)
+        self._factors[self._heads] = self._far_phi[:groups]
+
     def _sphere_group(
         self, obs_pairs: list[tuple[int, Obstacle]], self_pairs: list[tuple[int, int]],
         start: int, group: list[int],
@@ -446,14 +488,22 @@ class Clearance(ConfigurationConstraint):
         centres, masks = self._columns(first, 0), self._masks(first)
         rot = np.array(rots)
         grp = np.array(group, dtype=np.intp)
+        n_pairs = len(grp)
+
+        def component_major(a: Array) -> Array:  # rows/entries of pair p, component k → (k, p)
+            return np.ascontiguousarray(a.reshape(n_pairs, 3, -1).transpose(1, 0, 2)
+                                        .reshape(a.shape))
+
         starts = np.flatnonzero(np.diff(grp, prepend=-1)).astype(np.intp)
+        w = component_major(np.vstack(cols))
         return _Spheres(
-            start, start + int(grp[-1]) + 1, np.ascontiguousarray(np.vstack(cols)),
-            np.array(consts), np.array(half), np.array(rsum), rot, centres, masks,
+            start, start + int(grp[-1]) + 1, w, w.reshape(3 * n_pairs, 3, -1)
+            .transpose(0, 2, 1).reshape(w.shape).copy(),
+            component_major(np.array(consts)), np.ascontiguousarray(np.array(half).T),
+            np.array(rsum), rot, centres, masks,
             len(obs_pairs),
             self._columns(second, 0) if second else empty,
             self._masks(second) if second else np.zeros((0, self._n)),
-            np.ascontiguousarray(np.hstack([rot.reshape(-1, 9), centres.T, masks])),
             starts, grp,
         )
 
@@ -465,13 +515,17 @@ class Clearance(ConfigurationConstraint):
         """Y (3, 4n): every joint placement, scaled, in one Pinocchio call."""
         return pin.computeStaticRegressor(self._pin, self._data, q)
 
+    def _jacobians(self, q: Array) -> Array:
+        """Pinocchio's world joint Jacobians J = [v; ω] (6, n)."""
+        pin.computeJointJacobians(self._pin, self._data, q)
+        return self._data.J
+
     def _rows_times_jacobians(
-        self, q: Array, points: Array, normals: Array, masks: Array
+        self, q: Array, points: Array, normals: Array, masks: Array, jac: Array | None = None
     ) -> Array:
         """Rows n_rᵀ J(p_r) with J(p) the Jacobian of a point fixed on its link, shape (r, n),
-        joint coordinates."""
-        pin.computeJointJacobians(self._pin, self._data, q)
-        jac = self._data.J
+        joint coordinates (``jac``: the joint Jacobians at q, if already computed)."""
+        jac = self._jacobians(q) if jac is None else jac
         outer = (points[:, :, None] * normals[:, None, :]).reshape(-1, 9)
         return (normals @ jac[:3] + outer @ (_CROSS @ jac[3:])) * masks
 
@@ -480,13 +534,16 @@ class Clearance(ConfigurationConstraint):
         self, y: Array, s: _Spheres | None = None
     ) -> tuple[Array, Array, Array, Array]:
         """Sphere pairs (all of them unless ``s`` is given): φ (P,), the core distance d (P,),
-        u (P, 3) and max(|u| − h, 0) (P, 3)."""
+        u (3, P) and max(|u| − h, 0) (3, P)."""
         s = self._spheres if s is None else s
         assert s is not None
-        u = (s.w @ y.reshape(-1) + s.c).reshape(-1, 3)
-        excess = np.abs(u) - s.half
-        outside = np.maximum(excess, 0.0)
-        d = np.sqrt((outside * outside).sum(axis=1))
+        u = np.dot(s.w, y.reshape(-1))
+        u += s.c
+        u = u.reshape(3, -1)
+        outside = np.abs(u)
+        outside -= s.half
+        np.maximum(outside, _ZERO, out=outside)
+        d = np.sqrt(np.add.reduce(outside * outside, axis=0))
         return d - s.rsum, d, u, outside
 
     def _sphere_rows(
@@ -496,30 +553,61 @@ class Clearance(ConfigurationConstraint):
         ``scale`` already divided by the core distance d."""
         s = self._spheres if s is None else s
         assert s is not None
-        local = np.copysign(outside, u) * scale[:, None]
+        local = np.ascontiguousarray((np.copysign(outside, u) * scale).T)
         normal = (s.rot @ local[:, :, None])[:, :, 0]
         rows = [((y @ s.centres).T, normal, s.mask)]
         if s.n_obstacle < len(s.group):
             rows.append(((y @ s.centres2).T, -normal[s.n_obstacle:], s.mask2))
         return rows
 
-    def _sphere_active_rows(
-        self, y: Array, act: Array, u: Array, outside: Array, scale: Array
-    ) -> list[tuple[Array, Array, Array]]:
-        """Like _sphere_rows for the moving pairs ``act`` only (``scale`` given for those)."""
-        s = self._moving
-        assert s is not None
-        nj4 = 4 * self._nj
-        block = s.packed[act]
-        local = np.copysign(outside[act], u[act]) * scale[:, None]
-        normal = (block[:, :9].reshape(-1, 3, 3) @ local[:, :, None])[:, :, 0]
-        rows = [(block[:, 9:9 + nj4] @ y.T, normal, block[:, 9 + nj4:])]
-        if s.n_obstacle < len(s.group):
-            own = act >= s.n_obstacle
-            if own.any():
-                other = act[own] - s.n_obstacle
-                rows.append(((y @ s.centres2[:, other]).T, -normal[own], s.mask2[other]))
-        return rows
+    @staticmethod
+    def _local_normals(u: Array, outside: Array, ratio: Array, d: Array) -> Array:
+        """Each pair's normal in its obstacle's frame, copysign(max(|u| − h, 0), u)/d, times
+        ``ratio`` (3, P); in place: ``outside`` and ``ratio`` are overwritten."""
+        ratio /= d
+        local = np.copysign(outside, u, out=outside)
+        local *= ratio
+        return local
+
+    def _sphere_force(self, y: Array, s: _Spheres, local: Array, jac: Array) -> Array:
+        """Σ_p J(c_p)ᵀ n_p over the pairs of ``s`` (c_p the first sphere's centre, J(c) the
+        Jacobian of a point fixed on its link, n_p = R_p local_p), minus the same at the second
+        sphere of each self pair; (n,).
+
+        Dense over all the pairs (a pair out of the law has local_p = 0): cheaper than picking
+        the active ones. Σ_p n_p·δc_p = Σ local·δu, and u = w vec(Y) + c, so the pairs' sum
+        is G = localᵀ w, a 3 × 4nj cotangent of Y: one product for every pair, rotation and
+        self pair included (w_k: the same columns ordered so that it comes out as the blocks
+        K_j = G_jᵀ, contiguous). Column block j of Y is joint j's placement [t_j R_j]/scale;
+        its variation is that of points fixed on link j, so with Ŷ_j = [Y_j; e₀ᵀ/scale] the
+        link's wrench about the origin is vec(Ŷ_j K_j) = (Σ c ⊗ n, Σ n), and only the nj link
+        wrenches meet the Jacobian (through _WRENCH), each on the joints that move its link.
+        (np.dot: less call overhead than ``@`` on small 2-d products.)
+        """
+        nj = self._nj
+        k = np.dot(local.reshape(-1), s.w_k).reshape(nj, 4, 3)  # K_j, contiguous
+        yhat = self._yhat
+        yhat[:, :3] = y.reshape(3, nj, 4).transpose(1, 0, 2)
+        wrench = (yhat @ k).reshape(nj, 12)
+        # Σ_j supports_jk (wrench_j · J12[:, k]): the diagonal of (supportsᵀ wrench) J12
+        per_joint = np.dot(self._link_supports_t, wrench)  # wrenches of the links joint k moves
+        return np.dot(per_joint, np.dot(_WRENCH, jac)).diagonal().copy()
+
+    def _link_products(self, phi: Array, shaped: Array) -> Array:
+        """The law's function of every constraint: far_phi times the φ̃/ℓ of its moving sphere
+        pairs within ℓ, multiplied left to right (far_phi first, then pair by pair in order:
+        bit for bit the product taken one pair at a time); capsule constraints get far_phi."""
+        assert self.influence is not None
+        factors = shaped * self._inv_ell
+        if not self._unit_exact:  # a pair beyond ℓ must contribute exactly 1
+            factors = np.where(phi < self.influence, factors, 1.0)
+        self._factors[self._slots] = factors
+        sph = np.multiply.reduceat(self._factors, self._heads)
+        if len(sph) == len(self.names):
+            return sph
+        out = self._far_phi.copy()
+        out[:len(sph)] = sph
+        return out
 
     def _narrow(
         self, g: _Group, y: Array
@@ -550,14 +638,19 @@ class Clearance(ConfigurationConstraint):
     # -- ConfigurationConstraint ----------------------------------------------------------
     def value(self, x: Array) -> Array:
         y = self._regressor(self._q(x))
-        out = np.empty(len(self.names))
         s = self._spheres
-        if s is not None:
+        if s is None:
+            out = np.empty(len(self.names))
+        else:
             phi, d, u, _ = self._sphere_distances(y)
-            if not d.min() > 0.0:  # a centre inside a core box: signed distance there
-                depth = np.max(np.abs(u) - s.half, axis=1) - s.rsum
+            # (x[x.argmin()]: min without a ufunc reduction, several times cheaper)
+            if not d[d.argmin()] > 0.0:  # a centre inside a core box: signed distance there
+                depth = np.max(np.abs(u) - s.half, axis=0) - s.rsum
                 phi = np.where(d > 0.0, phi, depth)
-            out[s.start:s.stop] = np.minimum.reduceat(phi, s.starts)
+            out = np.minimum.reduceat(phi, s.starts)  # the sphere constraints come first
+            if not self._groups:
+                return out
+            out = np.concatenate([out, np.empty(len(self.names) - s.stop)])
         for g in self._groups:
             phi, _, pair = self._narrow(g, y)
             out[g.start:g.stop] = phi if pair is None else pair
@@ -603,10 +696,18 @@ class Clearance(ConfigurationConstraint):
         ell = self.influence
         if ell is None:
             return phi, 1.0 / phi
-        v = 1.0 - np.minimum(phi * (1.0 / ell), 1.0)
+        # ℓ − ℓ(1 − min(φ/ℓ, 1))³ and 3(1 − …)²/φ̃, operation by operation as ever (the same
+        # bits), in place and with 0-d array constants (cheaper per call than Python floats)
+        v = phi * self._inv_ell
+        np.minimum(v, _ONE, out=v)
+        np.subtract(_ONE, v, out=v)
         v2 = v * v
-        shaped = ell - ell * (v2 * v)
-        return shaped, 3.0 * v2 / shaped
+        shaped = v2 * v
+        shaped *= self._ell
+        np.subtract(self._ell, shaped, out=shaped)
+        v2 *= _THREE
+        v2 /= shaped
+        return shaped, v2
 
     def _near_groups(self, y: Array) -> list[_Group]:
         """Capsule groups with a pair that may be within the influence distance."""
@@ -628,10 +729,11 @@ class Clearance(ConfigurationConstraint):
         ell = self.influence
         rows: list[tuple[Array, Array, Array]] = []
         phi_out: Array | None = None
+        sphere_local: Array | None = None  # the pairs' normals × (dφ̃/dφ)/φ̃, obstacle frames
         s = self._moving
         if s is not None:
             phi, d, u, outside = self._sphere_distances(y, s)
-            low = phi.min()
+            low = phi[phi.argmin()]  # phi.min(), cheaper
             if low <= 0.0:  # outside S: report it, the constraint set raises
                 return self.value(x), self._zero
             # a link's barrier is the product of its spheres' terms (their log-barriers add);
@@ -640,13 +742,11 @@ class Clearance(ConfigurationConstraint):
                 shaped, inv = self._shape(phi)
                 phi_out = self._far_phi.copy()
                 phi_out[s.group[s.starts]] *= np.multiply.reduceat(shaped, s.starts)
-                rows += self._sphere_rows(y, u, outside, inv / d, s)
-            elif low < ell:  # only the pairs within ℓ enter the law
-                act = np.flatnonzero(phi < ell)
-                shaped, inv = self._shape(phi[act])
-                phi_out = self._far_phi.copy()
-                np.multiply.at(phi_out, s.group[act], shaped * (1.0 / ell))
-                rows += self._sphere_active_rows(y, act, u, outside, inv / d[act])
+                sphere_local = self._local_normals(u, outside, inv, d)
+            elif low < ell:  # only the pairs within ℓ enter the law: the others have φ̃ = ℓ
+                shaped, inv = self._shape(phi)  # and inv = 0, so all pairs go through densely
+                phi_out = self._link_products(phi, shaped)
+                sphere_local = self._local_normals(u, outside, inv, d)
         for g in self._near_groups(y):
             phi, grows, _ = self._narrow(g, y)
             if phi.min() <= 0.0:
@@ -666,11 +766,14 @@ class Clearance(ConfigurationConstraint):
                 rows += [(p, n * inv[:, None], mask) for p, n, mask in grows]
         if phi_out is None:
             return self._far_phi, self._zero
-        if len(rows) == 1:
-            b = self._rows_times_jacobians(q, *rows[0]).sum(axis=0)
-        else:
-            b = self._rows_times_jacobians(
-                q, *(np.concatenate(part) for part in zip(*rows, strict=True))
+        jac = self._jacobians(q)
+        b = self._zero
+        if sphere_local is not None:
+            assert s is not None
+            b = self._sphere_force(y, s, sphere_local, jac)
+        if rows:
+            b = b + self._rows_times_jacobians(
+                q, *(np.concatenate(part) for part in zip(*rows, strict=True)), jac=jac
             ).sum(axis=0)
         if not self._identity:
             b = b @ self._t_inv
