@@ -87,6 +87,8 @@ class MujocoPlant:
             )
             self.model.actuator_ctrllimited[:] = 0
             self.model.actuator_forcelimited[:] = 0
+        # the input arrays as views kept once (MjData builds a new view at every access)
+        self._ctrl, self._qfrc = self.data.ctrl, self.data.qfrc_applied
         # A URDF's effort limits become joint actuator-force ranges in MuJoCo, which would
         # clip the torque silently; saturation is the loop's job (torque_limit, counted).
         self.model.jnt_actfrclimited[:] = 0
@@ -118,12 +120,15 @@ class MujocoPlant:
     def apply(self, tau_joint: Array) -> None:
         """Hold joint torques τ_q until the next call (zero-order hold)."""
         if self._use_actuators:
-            self.data.ctrl[:] = tau_joint if self._direct else tau_joint[self._act_dof] / self._gear
+            self._ctrl[:] = tau_joint if self._direct else tau_joint[self._act_dof] / self._gear
         else:
-            self.data.qfrc_applied[:] = tau_joint
+            self._qfrc[:] = tau_joint
 
     def step(self, substeps: int) -> None:
-        mujoco.mj_step(self.model, self.data, nstep=substeps)
+        if substeps == 1:  # without the keyword: less call overhead, the same step
+            mujoco.mj_step(self.model, self.data)
+        else:
+            mujoco.mj_step(self.model, self.data, nstep=substeps)
 
     def unstable(self) -> bool:
         """Whether MuJoCo met a NaN/Inf/huge state, acceleration or control since reset.
