@@ -92,6 +92,7 @@ class _Source:
         self.env: dict[str, object] = {
             "_array": np.array, "log": math.log, "exp": math.exp, "sqrt": math.sqrt,
             "tanh": math.tanh, "log1p": math.log1p, "_fsum": math.fsum, "_LN2": math.log(2.0),
+            "_maximum": np.maximum,
         }
         self._count = 0
 
@@ -111,6 +112,18 @@ class _Source:
         fn = namespace[name]
         fn.source = text  # type: ignore[attr-defined]
         return fn  # type: ignore[return-value]
+
+
+class _Vec(str):
+    """The name of an ndarray of ``size`` margins (an array constraint's, kept whole)."""
+
+    size: int
+
+    @classmethod
+    def of(cls, name: str, size: int) -> _Vec:
+        vec = cls(name)
+        vec.size = size
+        return vec
 
 
 class _Arrays:
@@ -361,25 +374,36 @@ class _Emitter:
         return out
 
     def configuration(self, cons: Sequence[ConfigurationConstraint], x: list[str],
-                      arrays: _Arrays, grad: list[list[str]] | None) -> list[str]:
+                      arrays: _Arrays, grad: list[list[str]] | None, vectors: bool = False
+                      ) -> list[str]:
         """φ of each constraint at x (with ``grad``: the barrier's φ, its gradient terms
-        appended to ``grad``)."""
+        appended to ``grad``); with ``vectors`` an array constraint's values stay one
+        ndarray (a _Vec name) instead of k scalar names."""
         out: list[str] = []
         for c in cons:
             if type(c) is LinearLimit:
                 out += self.linear_limit(c, x, grad)
             elif type(c) is PointOutsideSphere:
                 out += self.point_outside_sphere(c, arrays.q(), grad)
+            elif vectors:
+                name = _Vec.of(self.src.fresh("phiv"), len(c.names))
+                self.src(f"{name} = {self.constant(c)}.value({arrays.x()})")
+                out.append(name)
             else:
                 out += self.array_constraint(c, arrays.x(), grad)
         return out
+
+    def constant(self, value: object) -> str:
+        """A name for an object the generated code reads."""
+        name = self.src.fresh("_k")
+        self.src.env[name] = value
+        return name
 
     def array_constraint(self, con: ConfigurationConstraint, x: str,
                          grad: list[list[str]] | None) -> list[str]:
         """A constraint without a scalar form (Clearance): its own array code, unpacked."""
         src = self.src
-        obj = src.fresh("_con")
-        src.env[obj] = con
+        obj = self.constant(con)
         names = [src.fresh("phi") for _ in con.names]
         if grad is None:
             src(f"{', '.join(names)}, = {obj}.value({x}).tolist()")
@@ -629,6 +653,14 @@ def unrolled_law(law: Controller) -> Kernel | None:
     return src.compile("unrolled_law")
 
 
+def _kept(margin: str, floor: str) -> str:
+    """The test m ≥ floor of (S1), written as the array guard's m / floor ≥ 1 for a scalar
+    (the same answer for floor > 0, NaN failing both) and elementwise for a _Vec."""
+    if isinstance(margin, _Vec):
+        return f"({margin} >= {floor}).all()"
+    return f"{margin} / {floor} >= 1.0"
+
+
 def unrolled_guard(guard: Safeguard) -> Kernel | None:
     """``f(x, ẋ) -> (τ, V)``: the wrapped law's torque when it passes the safeguard's test
     (S1) on the one-step frozen prediction, else None (the safeguard then runs its full
@@ -644,31 +676,40 @@ def unrolled_guard(guard: Safeguard) -> Kernel | None:
     tau, d, bias, barrier = em.emit_law(coriolis=True)
     # the margins at x: the law's barrier values where they are the margins, else (a
     # localised barrier, Clearance's φ̃) the constraint's own values; then the extra ones
+    # (an array constraint's margins stay one ndarray, a _Vec, through floors and checks)
     here = _Arrays(em, em.x, None, "x")
     margins, at = [], 0
     for c in law.constraints.configuration:
         k = len(c.names)
         margins += barrier[at:at + k] if c.barrier_is_margin else em.configuration(
-            [c], em.x, here, None)
+            [c], em.x, here, None, vectors=True)
         at += k
-    margins += em.configuration(extra, em.x, here, None) + barrier[at:]
+    margins += em.configuration(extra, em.x, here, None, vectors=True) + barrier[at:]
     h = guard.period
     nc = guard._n_config
-    cushion = guard.cushion.tolist()
     keep, keep_half = guard.keep, guard.keep_half
     floor, floor_mid = [], []
-    for i, m in enumerate(margins):
-        f = src.fresh("fl")
-        src(f"{f} = {_num(cushion[i])} + {_num(keep)} * ({m} - {_num(cushion[i])})")
-        if guard._extra:
-            src(f"{f} = max({f}, 1e-300)")
-        floor.append(f)
-        if i < nc:
-            fm = src.fresh("fm")
-            src(f"{fm} = {_num(cushion[i])} + {_num(keep_half)} * ({m} - {_num(cushion[i])})")
-            if guard._extra:
-                src(f"{fm} = max({fm}, 1e-300)")
-            floor_mid.append(fm)
+    at = 0
+    for m in margins:  # the floors of (S1): δ + e^{−κh}(m − δ), and e^{−κh/2} at mid-period
+        k = m.size if isinstance(m, _Vec) else 1
+        shares = [(floor, keep)] + ([(floor_mid, keep_half)] if at < nc else [])
+        if isinstance(m, _Vec):
+            delta = em.constant(guard.cushion[at:at + k].copy())
+            for out, share in shares:
+                f = src.fresh("flv")
+                src(f"{f} = {delta} + {_num(share)} * ({m} - {delta})")
+                if guard._extra:
+                    src(f"{f} = _maximum({f}, 1e-300)")
+                out.append(_Vec.of(f, k))
+        else:
+            delta = _num(float(guard.cushion[at]))
+            for out, share in shares:
+                f = src.fresh("fl")
+                src(f"{f} = {delta} + {_num(share)} * ({m} - {delta})")
+                if guard._extra:
+                    src(f"{f} = max({f}, 1e-300)")
+                out.append(f)
+        at += k
     # the torque the plant receives, and the predicted acceleration D⁻¹(τ − C ẋ − g − f)
     held = tau
     if guard.torque_limit is not None:
@@ -699,15 +740,15 @@ def unrolled_guard(guard: Safeguard) -> Kernel | None:
         src(f"{v1[i]} = v{i} + {_num(h)} * {acc[i]}")
     configuration = (*law.constraints.configuration, *extra)
     end = _Arrays(em, x1)
-    ends = em.configuration(configuration, x1, end, None)
+    ends = em.configuration(configuration, x1, end, None, vectors=True)
     ends += em.velocity_values(law.constraints.velocity, end.q, v1)
-    checks = [f"{m} / {f} >= 1.0" for m, f in zip(ends, floor, strict=True)]
+    checks = [_kept(m, f) for m, f in zip(ends, floor, strict=True)]
     if nc:
         xm = [src.fresh("xm") for _ in range(n)]
         for i in range(n):
             src(f"{xm[i]} = (x{i} + {_num(half)} * v{i}) + {_num(eighth)} * {acc[i]}")
-        mids = em.configuration(configuration, xm, _Arrays(em, xm), None)
-        checks += [f"{m} / {f} >= 1.0" for m, f in zip(mids, floor_mid, strict=True)]
+        mids = em.configuration(configuration, xm, _Arrays(em, xm), None, vectors=True)
+        checks += [_kept(m, f) for m, f in zip(mids, floor_mid, strict=True)]
     src(f"if not ({' and '.join(checks)}):")
     src("    return None")
     src(f"return _array(({', '.join(tau)},)), V")
