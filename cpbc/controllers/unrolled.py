@@ -221,6 +221,7 @@ class _Emitter:
             _model=model.model, _data=model.data, _crba=pin.crba, _nle=pin.nonLinearEffects,
             _grav=pin.computeGeneralizedGravity, _fj=pin.computeFrameJacobian,
             _fk=pin.framesForwardKinematics, _LWA=pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
+            _oMf=model.data.oMf,  # a live view of the frame placements, taken once
         )
         self.x = [f"x{i}" for i in range(n)]
         self.v = [f"v{i}" for i in range(n)]
@@ -304,7 +305,7 @@ class _Emitter:
         """Position names of the constraint's point, after the frame is placed."""
         src = self.src
         place = src.fresh("P")
-        src(f"{place} = _data.oMf[{con.frame_id}]")
+        src(f"{place} = _oMf[{con.frame_id}]")
         p = [src.fresh("p") for _ in range(3)]
         src(f"{', '.join(p)}, = {place}.translation.tolist()")
         if con.offset is None:
