@@ -63,17 +63,9 @@ class CPBC(Unrolled, Controller):
         lag = 0.5 * float(dx.dot(dyn.inertia.dot(dx))) + potential
         return dyn, bar, grad, lag
 
-    def torque(self, x: Array, dx: Array) -> Array:
-        fast = self.unrolled(x, dx)  # the same law as scalar code (cpbc.controllers.unrolled)
-        if fast is not None:
-            return fast[0]
+    def torque_arrays(self, x: Array, dx: Array) -> Array:
+        """τ from the array code (the reference for the unrolled one)."""
         return self._law(dx, *self._shaped_terms(x, dx))
-
-    def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
-        fast = self.unrolled(x, dx)
-        if fast is not None:
-            return fast
-        return self.evaluate_arrays(x, dx)
 
     def evaluate_arrays(self, x: Array, dx: Array) -> tuple[Array, float]:
         """τ and V from the array code (the reference for the unrolled one)."""

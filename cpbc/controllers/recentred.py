@@ -85,23 +85,12 @@ class RecentredBarrier(Unrolled, Controller):
         kz[self.joints] = kz_sel + energy * z / gap
         return 0.5 * energy * inv_phi, kz * inv_phi
 
-    def torque(self, x: Array, dx: Array) -> Array:
-        fast = self.unrolled(x, dx)  # the same law as scalar code (cpbc.controllers.unrolled)
-        if fast is not None:
-            return fast[0]
-        return self._torque(x, dx)
-
-    def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
-        fast = self.unrolled(x, dx)
-        if fast is not None:
-            return fast
-        return self.evaluate_arrays(x, dx)
-
     def evaluate_arrays(self, x: Array, dx: Array) -> tuple[Array, float]:
         """τ and V from the array code (the reference for the unrolled one)."""
-        return self._torque(x, dx), self.lyapunov(x, dx)
+        return self.torque_arrays(x, dx), self.lyapunov(x, dx)
 
-    def _torque(self, x: Array, dx: Array) -> Array:
+    def torque_arrays(self, x: Array, dx: Array) -> Array:
+        """τ from the array code (the reference for the unrolled one)."""
         dyn = self.model.dynamics(x, dx)
         _, grad = self._barrier_potential(x)
         a = -self.kd * dx

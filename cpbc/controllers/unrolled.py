@@ -628,9 +628,11 @@ class _Emitter:
 
 
 class Unrolled:
-    """Mixin for the laws above: ``unrolled(x, ẋ)``, built at the first call (when
-    subclasses have set their potential and damping) from the law's numbers then: a law is
-    not changed after it is built (its gains and target are read-only arrays)."""
+    """Mixin for the laws above: ``torque`` and ``evaluate`` from the scalar code where it
+    runs, else from the law's ``torque_arrays`` and ``evaluate_arrays``. The scalar code is
+    built at the first call (when subclasses have set their potential and damping) from the
+    law's numbers then: a law is not changed after it is built (its gains and target are
+    read-only arrays)."""
 
     _unrolled: Kernel | bool | None = False
 
@@ -640,6 +642,20 @@ class Unrolled:
         if kernel is False:
             kernel = self._unrolled = unrolled_law(self)  # type: ignore[arg-type]
         return None if kernel is None else kernel(x, dx)  # type: ignore[operator]
+
+    def torque(self, x: Array, dx: Array) -> Array:
+        fast = self.unrolled(x, dx)
+        return fast[0] if fast is not None else self.torque_arrays(x, dx)
+
+    def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
+        fast = self.unrolled(x, dx)
+        return fast if fast is not None else self.evaluate_arrays(x, dx)
+
+    def torque_arrays(self, x: Array, dx: Array) -> Array:  # pragma: no cover - per law
+        raise NotImplementedError
+
+    def evaluate_arrays(self, x: Array, dx: Array) -> tuple[Array, float]:  # pragma: no cover
+        raise NotImplementedError
 
 
 def unrolled_law(law: Controller) -> Kernel | None:
