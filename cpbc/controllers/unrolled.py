@@ -86,8 +86,7 @@ def _lin(coeffs: Sequence[float], names: Sequence[str]) -> str:
 class _Source:
     """Lines of one generated function and the constants it reads."""
 
-    def __init__(self, n: int) -> None:
-        self.n = n
+    def __init__(self) -> None:
         self.lines: list[str] = []
         self.env: dict[str, object] = {
             "_array": np.array, "log": math.log, "exp": math.exp, "sqrt": math.sqrt,
@@ -301,15 +300,16 @@ class _Emitter:
             out.append(phi)
         return out
 
-    def _point(self, con: PointOutsideSphere) -> tuple[str, str]:
-        """Position names of the constraint's point, after the frame is placed."""
+    def _point(self, con: PointOutsideSphere) -> tuple[list[str], list[str] | None]:
+        """Names of the constraint's point and of its offset r from the frame's origin
+        (None without an offset), after the frame is placed."""
         src = self.src
         place = src.fresh("P")
         src(f"{place} = _oMf[{con.frame_id}]")
         p = [src.fresh("p") for _ in range(3)]
         src(f"{', '.join(p)}, = {place}.translation.tolist()")
         if con.offset is None:
-            return place, ", ".join(p)
+            return p, None
         rot = src.fresh("R")
         src(f"{rot} = {place}.rotation.tolist()")
         o = con.offset.tolist()
@@ -317,7 +317,7 @@ class _Emitter:
         for k in range(3):
             src(f"{r[k]} = {_lin(o, [f'{rot}[{k}][{m}]' for m in range(3)])}")
             src(f"{p[k]} += {r[k]}")
-        return place, ", ".join(p) + "|" + ", ".join(r)
+        return p, r
 
     def point_outside_sphere(self, con: PointOutsideSphere, q: str,
                              grad: list[list[str]] | None) -> list[str]:
@@ -327,17 +327,15 @@ class _Emitter:
             src(f"{jac} = _fj(_model, _data, {q}, {con.frame_id}, _LWA).tolist()")
         else:
             src(f"_fk(_model, _data, {q})")
-        _, names = self._point(con)
-        p, _, r = names.partition("|")
+        p, rr = self._point(con)
         d = [src.fresh("d") for _ in range(3)]
-        for k, (pk, ck) in enumerate(zip(p.split(", "), con.centre.tolist(), strict=True)):
+        for k, (pk, ck) in enumerate(zip(p, con.centre.tolist(), strict=True)):
             src(f"{d[k]} = {pk} - {_num(ck)}" if ck else f"{d[k]} = {pk}")
         phi = src.fresh("phi")
         src(f"{phi} = {d[0]} * {d[0]} + {d[1]} * {d[1]} + {d[2]} * {d[2]} - {_num(con._r2)}")
         if grad is None:
             return [phi]
         # ∂p/∂q column c: v_c − r × ω_c (with an offset r from the frame's origin)
-        rr = r.split(", ") if r else None
         wq = []
         for col in range(self.n):
             v = [f"{jac}[{k}][{col}]" for k in range(3)]
@@ -664,7 +662,7 @@ def unrolled_law(law: Controller) -> Kernel | None:
     array code)."""
     if not _supported(law, law.constraints.configuration):
         return None
-    src = _Source(law.model.n)
+    src = _Source()
     tau, _, _, _ = _Emitter(law, src).emit_law(coriolis=False)
     src(f"return _array(({', '.join(tau)},)), V")
     return src.compile("unrolled_law")
@@ -681,14 +679,14 @@ def _kept(margin: str, floor: str) -> str:
 def unrolled_guard(guard: Safeguard) -> Kernel | None:
     """``f(x, ẋ) -> (τ, V)``: the wrapped law's torque when it passes the safeguard's test
     (S1) on the one-step frozen prediction, else None (the safeguard then runs its full
-    search). Only for laws ``unrolled_law`` covers, ``substeps == 1`` and extra constraints
-    that have a scalar form."""
+    search). Only for laws ``unrolled_law`` covers and ``substeps == 1``; extra constraints
+    without a scalar form (Clearance) run their own array code inside, like the law's."""
     law = guard.law
     extra = guard.guarded.configuration[len(law.constraints.configuration):]
     if guard.substeps != 1 or not _supported(law, (*law.constraints.configuration, *extra)):
         return None
     n = law.model.n
-    src = _Source(n)
+    src = _Source()
     em = _Emitter(law, src)
     tau, d, bias, barrier = em.emit_law(coriolis=True)
     # the margins at x: the law's barrier values where they are the margins, else (a
