@@ -43,6 +43,15 @@ _WRENCH[:9, 3:] = _CROSS
 _WRENCH[9:, :3] = np.eye(3)
 _WRENCH.setflags(write=False)
 
+# [vec(s ⊗ f); f] (12,) = (_AT_POINT @ [s; 1]) * (_FORCE @ f), for the force f at a point s
+_AT_POINT = np.zeros((12, 4))
+_AT_POINT[np.arange(9), np.arange(9) // 3] = 1.0
+_AT_POINT[9:, 3] = 1.0
+_AT_POINT.setflags(write=False)
+_FORCE = np.vstack([np.eye(3)] * 4)
+_FORCE.setflags(write=False)
+_ONES3, _ONES12 = np.ones(3), np.ones(12)  # sums over a short first axis: a dot is cheaper
+
 # 0-d arrays: numpy takes them faster than Python floats as ufunc operands
 _ZERO, _ONE, _THREE = np.array(0.0), np.array(1.0), np.array(3.0)
 
@@ -54,28 +63,37 @@ _TINY = 1e-300
 class _Spheres:
     """Sphere primitives against every obstacle (as rounded boxes) and each other.
 
-    For pair p of sphere centre s and an obstacle with centre c, rotation R, core half-extents
-    h and rounding ρ: u_p = Rᵀ(s − c) is linear in Pinocchio's static regressor Y, so all
-    u_p come out of one product w @ vec(Y) + c; then d_p = ‖max(|u_p| − h, 0)‖ − ρ. A self
+    For pair p of a sphere with world centre s and an obstacle with centre c, rotation R, core
+    half-extents h and rounding ρ: u_p = Rᵀ(s − c), d_p = ‖max(|u_p| − h, 0)‖ − ρ. A self
     pair is the same with c the other sphere's centre (R = I, h = 0).
 
-    Per-pair 3-vectors are stored component-major, (3, P): numpy's inner loops then run
-    along the pairs, not along a length-3 axis (several times cheaper per step).
+    Pairs are ordered obstacle by obstacle, every sphere against each (the spheres in the
+    same order each time), then the self pairs. The S sphere centres come out of one
+    product with Pinocchio's static regressor, and every obstacle pair's u from one more:
+    rows (k, o) of ``to_obstacle`` @ [centres; 1] are u_k against obstacle o, so the result
+    *is* u in the (3, P) component-major layout (numpy's inner loops then run along the
+    pairs, not along a length-3 axis). Per numpy call this costs the same whatever the
+    number of pairs, and the call count, not the arithmetic, is what a step costs here.
     """
 
     start: int
     stop: int
-    w: Array  # (3P, 12 nj): u = (w @ vec(Y) + c).reshape(3, P)
-    w_k: Array  # w, columns reordered (joint j, column a of Y_j, row r): ``_sphere_force``
-    c: Array  # (3P,)
-    half: Array  # (3, P)
-    rsum: Array  # sphere radius + rounding (+ other radius) + margin, (P,)
-    rot: Array  # (P, 3, 3)
-    centres: Array  # (4 nj, P): first sphere centre of each pair
-    mask: Array  # (P, n)
     n_obstacle: int  # pairs [0, n_obstacle) are against obstacles, the rest are self pairs
-    centres2: Array  # (4 nj, S) second sphere of each self pair
-    mask2: Array  # (S, n)
+    centres: Array  # (4 nj, S): sphere s is at Y @ centres[:, s]
+    scratch: Array  # (4, S): rows 0–2 the centres at the current state, row 3 ones
+    to_obstacle: Array  # (3 O, 4): u of every obstacle pair from the scratch
+    self_map: Array  # (S, Ps): u of the self pairs, centres @ self_map (+1 first, −1 second)
+    half: Array  # (3, P)
+    rsum: Array  # (P,) sphere radius + rounding (+ other radius) + margin
+    rsum_law: Array  # (P,) rsum, −∞ on pairs that cannot move (ℓ given): they leave the law
+    moving: Array  # (P,) 1.0 on pairs whose clearance can change, else 0.0
+    to_world: Array  # (12, 3 O): _FORCE @ (w Σ_o R_o local_o) from local.reshape(3 O, S),
+    # w = 3/ℓ (1 without ℓ): see ``barrier_terms``
+    self_force: Array  # (Ps, S): w (+1 first, −1 second), the self pairs' forces per sphere
+    pair_sphere: Array  # (P,) the (first) sphere of each pair
+    pair_sphere2: Array  # (Ps,) the second sphere of each self pair
+    pair_rot: Array  # (P, 3, 3) the obstacle's rotation R (I for a self pair)
+    sphere_supports: Array  # (S, n) 1 where joint k moves sphere s's link
     starts: Array  # first pair of each reported constraint (a link against an obstacle/link)
     group: Array  # (P,) the constraint (index in ``names``) of each pair
 
@@ -116,8 +134,8 @@ class Clearance(ConfigurationConstraint):
 
     **Spheres are the fast path.** Every obstacle is a rounded box (geometry.RoundedBox), so a
     sphere primitive's distance to any obstacle is one formula, exact and C¹ outside the
-    obstacle; the centres of all spheres, in every obstacle's frame, come out of a single
-    matrix product with Pinocchio's static regressor (all joint placements in one call).
+    obstacle; the centres of all spheres, in every obstacle's frame, come out of two small
+    matrix products with Pinocchio's static regressor (all joint placements in one call).
     Capsule primitives are supported too (segment–sphere, segment–segment, segment–box and
     segment–plane, each exact; see the smoothness notes in cpbc.constraints.geometry), at a
     higher cost per step. A capsule above a plane enters the barrier as the product of its
@@ -149,7 +167,7 @@ class Clearance(ConfigurationConstraint):
     were its own constraint, with the same zero set as the minimum but smooth. Capsule
     primitives are reported per primitive. Sphere pairs whose clearance cannot change (a
     link turning about the normal of a plane, say) are detected once, by their vanishing
-    gradient at random configurations, and leave the hot path.
+    gradient at random configurations, and leave the law (a constant factor).
 
     Args:
         model: the controller's robot model.
@@ -214,9 +232,8 @@ class Clearance(ConfigurationConstraint):
         self._setup_kinematics()
         self._setup_pairs(name)
         self._far_phi = np.full(len(self.names), self.influence or 1.0)
-        self._moving = self._split_static()
+        self._split_static()
         self._far_phi.setflags(write=False)
-        self._setup_products()
         self._zero = np.zeros(self._n)
         self._zero.setflags(write=False)
 
@@ -241,15 +258,11 @@ class Clearance(ConfigurationConstraint):
         if not np.allclose(scale * y, rebuilt, atol=1e-9):  # pragma: no cover
             raise CpbcError("unexpected layout of Pinocchio's static regressor")
         self._scale = float(scale)
-        # Ŷ_j = [Y_j; (1/scale, 0, 0, 0)]: Ŷ_j ĉ = (point, 1) for a column block ĉ of _column
-        self._yhat = np.zeros((self._nj, 4, 4))
-        self._yhat[:, 3, 0] = 1.0 / self._scale
         self._supports = np.zeros((pm.njoints, self._n))
         for j in range(1, pm.njoints):
             for k in pm.supports[j].tolist()[1:]:
                 jm = pm.joints[k]
                 self._supports[j, jm.idx_v: jm.idx_v + jm.nv] = 1.0
-        self._link_supports_t = np.ascontiguousarray(self._supports[1:].T)  # (n, nj)
         self._joint: list[int] = []
         self._local: list[tuple[Array, Array]] = []
         for p in self.primitives:
@@ -289,11 +302,11 @@ class Clearance(ConfigurationConstraint):
         names: list[str] = []
         # sphere primitives: one fast group, reported per (link, obstacle) and (link, link)
         sphere_frames = list(dict.fromkeys(prims[i].frame for i in spheres))
-        obs_pairs, group = [], []
+        order = [i for f in sphere_frames for i in by_frame[f] if prims[i].kind == "sphere"]
+        group: list[int] = []
         for o in self.obstacles:
             for f in sphere_frames:
-                obs_pairs += [(i, o) for i in by_frame[f] if prims[i].kind == "sphere"]
-                group += [len(names)] * (len(obs_pairs) - len(group))
+                group += [len(names)] * sum(prims[i].kind == "sphere" for i in by_frame[f])
                 names.append(f"{name}[{f}|{o.name}]")
         sphere_self = []
         for a, b in self.self_pairs:
@@ -304,9 +317,8 @@ class Clearance(ConfigurationConstraint):
                 group += [len(names)] * len(pairs)
                 names.append(f"{name}[{a}|{b}]")
         self._spheres: _Spheres | None = None
-        self._sphere_lists = (obs_pairs, sphere_self, group)
-        if obs_pairs or sphere_self:
-            self._spheres = self._sphere_group(obs_pairs, sphere_self, 0, group)
+        if group:
+            self._spheres = self._sphere_group(order, sphere_self, group)
         # capsule primitives: one group per obstacle kind
         self._groups: list[_Group] = []
         broad: list[tuple[Array, float]] = []  # (column over vec(Y), constant)
@@ -396,18 +408,20 @@ class Clearance(ConfigurationConstraint):
             pos += 2 * (g.stop - g.start) if g.kind == "plane" else g.stop - g.start
         self._reduce_at = np.array(starts, dtype=np.intp)
 
-    def _split_static(self, samples: int = 8) -> _Spheres | None:
-        """The sphere pairs whose clearance can change, as their own group.
+    def _split_static(self, samples: int = 8) -> None:
+        """Take the sphere pairs whose clearance cannot change out of the law.
 
         A sphere on the first link of an arm whose first axis is vertical keeps its height
         above a table: its clearance is constant, its barrier gradient zero. Such pairs are
         found by their gradient, which vanishes at every one of ``samples`` random
         configurations (an analytic function of q that vanishes on random samples is zero);
-        their constant factor φ̃ goes into ``_far_phi`` once, and the hot path skips them.
+        their constant factor φ̃ goes into ``_far_phi`` once. In the law they then count as
+        beyond ℓ (rsum_law = −∞: φ = ∞, factor 1, no slope), so a link that always sits
+        near the table does not keep the whole barrier awake.
         """
         s = self._spheres
         if s is None:
-            return None
+            return
         pm = self._pin
         lo = np.where(np.isfinite(pm.lowerPositionLimit), pm.lowerPositionLimit, -np.pi)
         hi = np.where(np.isfinite(pm.upperPositionLimit), pm.upperPositionLimit, np.pi)
@@ -415,96 +429,63 @@ class Clearance(ConfigurationConstraint):
         slope = np.zeros(len(s.group))
         for _ in range(samples):
             q = rng.uniform(lo, hi)
-            _, d, u, outside = self._sphere_distances(self._regressor(q))
-            rows = self._sphere_rows(self._regressor(q), u, outside,
-                                     1.0 / np.maximum(d, _TINY))
-            g = self._rows_times_jacobians(q, *rows[0])
-            if len(rows) > 1:
-                g[s.n_obstacle:] += self._rows_times_jacobians(q, *rows[1])
+            g = self._pair_gradients(q, self._regressor(q))[1]
             slope = np.maximum(slope, np.abs(g).max(axis=1))
         static = slope < 1e-12
         if not static.any():
-            return s
-        phi = self._sphere_distances(self._regressor(pin.neutral(pm)))[0][static]
-        shaped = phi if self.influence is None else self._shape(phi)[0] / self.influence
-        np.multiply.at(self._far_phi, s.group[static], shaped)
-        if static.all():
-            return None
-        obs_pairs, self_pairs, group = self._sphere_lists
-        keep = ~static
-        n_obs = len(obs_pairs)
-        return self._sphere_group(
-            [p for p, k in zip(obs_pairs, keep[:n_obs], strict=True) if k],
-            [p for p, k in zip(self_pairs, keep[n_obs:], strict=True) if k],
-            0, [gi for gi, k in zip(group, keep, strict=True) if k],
-        )
-
-    def _setup_products(self) -> None:
-        """The buffer of ``_link_products``: one segment per sphere constraint g, its head
-        ``_far_phi[g]`` (fixed) followed by the factors of g's moving pairs (rewritten each
-        step), so that one multiply.reduceat gives every constraint's product."""
-        s, full = self._moving, self._spheres
-        ell = self.influence
-        self._unit_exact = ell is None or ell * (1.0 / ell) == 1.0
-        if s is None or full is None:
-            self._factors = np.zeros(0)
-            self._slots = self._heads = np.zeros(0, dtype=np.intp)
             return
-        groups = full.stop  # sphere constraints are names[0:groups]; some may have no moving pair
-        counts = np.bincount(s.group, minlength=groups)
-        self._heads = np.arange(groups, dtype=np.intp) + np.concatenate(
-            [[0], np.cumsum(counts)[:-1]]).astype(np.intp)
-        self._slots = np.arange(len(s.group), dtype=np.intp) + s.group + 1  # pairs sorted by g
-        self._factors = np.ones(len(s.group) + groups)
-        self._factors[self._heads] = self._far_phi[:groups]
+        phi = self._sphere_distances(self._regressor(pin.neutral(pm)))[0] - s.rsum
+        shaped = phi if self.influence is None else self._shape(phi)[0] / self.influence
+        np.multiply.at(self._far_phi, s.group[static], shaped[static])
+        s.moving[static] = 0.0
+        if self.influence is not None:
+            s.rsum_law[static] = -np.inf
 
     def _sphere_group(
-        self, obs_pairs: list[tuple[int, Obstacle]], self_pairs: list[tuple[int, int]],
-        start: int, group: list[int],
+        self, spheres: list[int], self_pairs: list[tuple[int, int]], group: list[int]
     ) -> _Spheres:
-        cols, consts, half, rsum, rots = [], [], [], [], []
-        for i, o in obs_pairs:
-            core = o.core()
-            s = self._column(i, 0)
-            for c in range(3):  # u_c = R[:, c]·(Y s − centre)
-                cols.append(np.outer(core.rotation[:, c], s).reshape(-1))
-            consts.extend((-(core.rotation.T @ core.centre)).tolist())
-            half.append(core.half_extents)
-            rsum.append(self.primitives[i].radius + core.rounding + self.margin)
-            rots.append(core.rotation)
-        for i, j in self_pairs:
-            s = self._column(i, 0) - self._column(j, 0)
-            for c in range(3):
-                w = np.zeros((3, 4 * self._nj))
-                w[c] = s
-                cols.append(w.reshape(-1))
-            consts.extend([0.0, 0.0, 0.0])
-            half.append(np.zeros(3))
-            rsum.append(self.primitives[i].radius + self.primitives[j].radius + self.margin)
-            rots.append(np.eye(3))
-        first = [i for i, _ in obs_pairs] + [i for i, _ in self_pairs]
-        second = [j for _, j in self_pairs]
-        empty = np.zeros((4 * self._nj, 0))
-        centres, masks = self._columns(first, 0), self._masks(first)
-        rot = np.array(rots)
+        """The sphere pairs: every sphere in ``spheres`` against every obstacle, then
+        ``self_pairs``; ``group`` gives each pair's constraint."""
+        prims, margin = self.primitives, self.margin
+        index = {i: k for k, i in enumerate(spheres)}
+        cores = [o.core() for o in self.obstacles]
+        n_obs, n_sph = len(cores), len(spheres)
+        radius = np.array([prims[i].radius for i in spheres])
+        to_obstacle = np.zeros((3 * n_obs, 4))
+        to_world = np.zeros((3, 3 * n_obs))
+        slope = 1.0 if self.influence is None else 3.0 / self.influence  # see barrier_terms
+        for o, core in enumerate(cores):
+            for k in range(3):  # row (k, o): u_k = R[:, k]·(s − c)
+                to_obstacle[k * n_obs + o, :3] = core.rotation[:, k]
+                to_obstacle[k * n_obs + o, 3] = -core.rotation[:, k] @ core.centre
+                to_world[:, k * n_obs + o] = slope * core.rotation[:, k]
+        self_map = np.zeros((n_sph, len(self_pairs)))
+        for p, (i, j) in enumerate(self_pairs):
+            self_map[index[i], p] = 1.0
+            self_map[index[j], p] = -1.0
+        rsum = np.concatenate(
+            [radius + core.rounding + margin for core in cores]
+            + [[prims[i].radius + prims[j].radius + margin for i, j in self_pairs]])
+        half = np.zeros((3, len(rsum)))
+        for o, core in enumerate(cores):
+            half[:, o * n_sph:(o + 1) * n_sph] = core.half_extents[:, None]
         grp = np.array(group, dtype=np.intp)
-        n_pairs = len(grp)
-
-        def component_major(a: Array) -> Array:  # rows/entries of pair p, component k → (k, p)
-            return np.ascontiguousarray(a.reshape(n_pairs, 3, -1).transpose(1, 0, 2)
-                                        .reshape(a.shape))
-
-        starts = np.flatnonzero(np.diff(grp, prepend=-1)).astype(np.intp)
-        w = component_major(np.vstack(cols))
         return _Spheres(
-            start, start + int(grp[-1]) + 1, w, w.reshape(3 * n_pairs, 3, -1)
-            .transpose(0, 2, 1).reshape(w.shape).copy(),
-            component_major(np.array(consts)), np.ascontiguousarray(np.array(half).T),
-            np.array(rsum), rot, centres, masks,
-            len(obs_pairs),
-            self._columns(second, 0) if second else empty,
-            self._masks(second) if second else np.zeros((0, self._n)),
-            starts, grp,
+            start=0, stop=int(grp[-1]) + 1, n_obstacle=n_obs * n_sph,
+            centres=self._columns(spheres, 0),
+            scratch=np.ones((4, n_sph)),
+            to_obstacle=to_obstacle, self_map=self_map, half=half,
+            rsum=rsum, rsum_law=rsum.copy(), moving=np.ones(len(rsum)),
+            to_world=_FORCE @ to_world,
+            self_force=np.ascontiguousarray(slope * self_map.T),
+            pair_sphere=np.concatenate([np.tile(np.arange(n_sph), n_obs),
+                                        [index[i] for i, _ in self_pairs]]).astype(np.intp),
+            pair_sphere2=np.array([index[j] for _, j in self_pairs], dtype=np.intp),
+            pair_rot=np.array([core.rotation for core in cores for _ in spheres]
+                              + [np.eye(3)] * len(self_pairs)).reshape(-1, 3, 3),
+            sphere_supports=self._masks(spheres),
+            starts=np.flatnonzero(np.diff(grp, prepend=-1)).astype(np.intp),
+            group=grp,
         )
 
     # -- shared kinematics ---------------------------------------------------------------
@@ -530,84 +511,65 @@ class Clearance(ConfigurationConstraint):
         return (normals @ jac[:3] + outer @ (_CROSS @ jac[3:])) * masks
 
     # -- distances ---------------------------------------------------------------------------
-    def _sphere_distances(
-        self, y: Array, s: _Spheres | None = None
-    ) -> tuple[Array, Array, Array, Array]:
-        """Sphere pairs (all of them unless ``s`` is given): φ (P,), the core distance d (P,),
-        u (3, P) and max(|u| − h, 0) (3, P)."""
-        s = self._spheres if s is None else s
+    def _sphere_distances(self, y: Array) -> tuple[Array, Array, Array]:
+        """Every sphere pair's core distance d (P,), u (3, P) and max(|u| − h, 0) (3, P);
+        the sphere centres at y are left in ``scratch[:3]``."""
+        s = self._spheres
         assert s is not None
-        u = np.dot(s.w, y.reshape(-1))
-        u += s.c
-        u = u.reshape(3, -1)
+        centres = s.scratch
+        np.dot(y, s.centres, out=centres[:3])
+        u = np.dot(s.to_obstacle, centres).reshape(3, s.n_obstacle)
+        if len(s.pair_sphere2):
+            u = np.concatenate((u, np.dot(centres[:3], s.self_map)), axis=1)
         outside = np.abs(u)
         outside -= s.half
         np.maximum(outside, _ZERO, out=outside)
-        d = np.sqrt(np.add.reduce(outside * outside, axis=0))
-        return d - s.rsum, d, u, outside
+        return np.sqrt(np.dot(_ONES3, outside * outside)), u, outside
 
-    def _sphere_rows(
-        self, y: Array, u: Array, outside: Array, scale: Array, s: _Spheres | None = None
-    ) -> list[tuple[Array, Array, Array]]:
-        """(points, normals × scale·d, masks) of the sphere pairs' gradient rows: pass
-        ``scale`` already divided by the core distance d."""
-        s = self._spheres if s is None else s
+    def _pair_gradients(self, q: Array, y: Array) -> tuple[Array, Array]:
+        """Every sphere pair's clearance (P,) and its gradient (P, n), joint coordinates."""
+        s = self._spheres
         assert s is not None
-        local = np.ascontiguousarray((np.copysign(outside, u) * scale).T)
-        normal = (s.rot @ local[:, :, None])[:, :, 0]
-        rows = [((y @ s.centres).T, normal, s.mask)]
-        if s.n_obstacle < len(s.group):
-            rows.append(((y @ s.centres2).T, -normal[s.n_obstacle:], s.mask2))
-        return rows
+        d, u, outside = self._sphere_distances(y)
+        local = np.copysign(outside, u) / np.maximum(d, _TINY)
+        normal = np.einsum("pab,bp->pa", s.pair_rot, local)
+        centres = s.scratch[:3]
+        jac = self._jacobians(q)
+        grad = self._rows_times_jacobians(q, centres[:, s.pair_sphere].T, normal,
+                                          s.sphere_supports[s.pair_sphere], jac)
+        if len(s.pair_sphere2):
+            at = s.n_obstacle
+            grad[at:] -= self._rows_times_jacobians(
+                q, centres[:, s.pair_sphere2].T, normal[at:],
+                s.sphere_supports[s.pair_sphere2], jac)
+        return d - s.rsum, grad
 
-    @staticmethod
-    def _local_normals(u: Array, outside: Array, ratio: Array, d: Array) -> Array:
-        """Each pair's normal in its obstacle's frame, copysign(max(|u| − h, 0), u)/d, times
-        ``ratio`` (3, P); in place: ``outside`` and ``ratio`` are overwritten."""
-        ratio /= d
-        local = np.copysign(outside, u, out=outside)
-        local *= ratio
-        return local
+    def _sphere_force(self, local: Array, jac: Array) -> Array:
+        """Σ_p J(s_p)ᵀ R_p local_p over the sphere pairs (s_p the pair's sphere centre, J(s)
+        the Jacobian of a point fixed on its link, R_p the obstacle's rotation), minus the
+        same at the second sphere of each self pair, times w (``to_world``); (n,).
 
-    def _sphere_force(self, y: Array, s: _Spheres, local: Array, jac: Array) -> Array:
-        """Σ_p J(c_p)ᵀ n_p over the pairs of ``s`` (c_p the first sphere's centre, J(c) the
-        Jacobian of a point fixed on its link, n_p = R_p local_p), minus the same at the second
-        sphere of each self pair; (n,).
-
-        Dense over all the pairs (a pair out of the law has local_p = 0): cheaper than picking
-        the active ones. Σ_p n_p·δc_p = Σ local·δu, and u = w vec(Y) + c, so the pairs' sum
-        is G = localᵀ w, a 3 × 4nj cotangent of Y: one product for every pair, rotation and
-        self pair included (w_k: the same columns ordered so that it comes out as the blocks
-        K_j = G_jᵀ, contiguous). Column block j of Y is joint j's placement [t_j R_j]/scale;
-        its variation is that of points fixed on link j, so with Ŷ_j = [Y_j; e₀ᵀ/scale] the
-        link's wrench about the origin is vec(Ŷ_j K_j) = (Σ c ⊗ n, Σ n), and only the nj link
-        wrenches meet the Jacobian (through _WRENCH), each on the joints that move its link.
-        (np.dot: less call overhead than ``@`` on small 2-d products.)
+        Dense over all the pairs (a pair out of the law has local_p = 0): cheaper than
+        picking the active ones. The pairs' forces are first summed per sphere, f_s, in one
+        product. A force f at a point s fixed on a link drives joint k, if k moves the link,
+        by fᵀ(v_k + ω_k × s) = vec(s ⊗ f)·(_CROSS ω_k) + f·v_k with J = [v; ω] Pinocchio's
+        world joint Jacobian: so the spheres' [vec(s ⊗ f); f] (12, S), summed over the
+        spheres each joint moves (one product), meet the Jacobian through _WRENCH.
+        (np.dot, and no broadcasting: each costs less call overhead here.)
         """
-        nj = self._nj
-        k = np.dot(local.reshape(-1), s.w_k).reshape(nj, 4, 3)  # K_j, contiguous
-        yhat = self._yhat
-        yhat[:, :3] = y.reshape(3, nj, 4).transpose(1, 0, 2)
-        wrench = (yhat @ k).reshape(nj, 12)
-        # Σ_j supports_jk (wrench_j · J12[:, k]): the diagonal of (supportsᵀ wrench) J12
-        per_joint = np.dot(self._link_supports_t, wrench)  # wrenches of the links joint k moves
-        return np.dot(per_joint, np.dot(_WRENCH, jac)).diagonal().copy()
-
-    def _link_products(self, phi: Array, shaped: Array) -> Array:
-        """The law's function of every constraint: far_phi times the φ̃/ℓ of its moving sphere
-        pairs within ℓ, multiplied left to right (far_phi first, then pair by pair in order:
-        bit for bit the product taken one pair at a time); capsule constraints get far_phi."""
-        assert self.influence is not None
-        factors = shaped * self._inv_ell
-        if not self._unit_exact:  # a pair beyond ℓ must contribute exactly 1
-            factors = np.where(phi < self.influence, factors, 1.0)
-        self._factors[self._slots] = factors
-        sph = np.multiply.reduceat(self._factors, self._heads)
-        if len(sph) == len(self.names):
-            return sph
-        out = self._far_phi.copy()
-        out[:len(sph)] = sph
-        return out
+        s = self._spheres
+        assert s is not None
+        n_sph, at = s.scratch.shape[1], s.n_obstacle
+        if at:
+            force = np.dot(s.to_world, local[:, :at].reshape(-1, n_sph))
+        else:
+            force = np.zeros((12, n_sph))
+        if len(s.pair_sphere2):
+            force += np.dot(_FORCE, np.dot(local[:, at:], s.self_force))
+        force *= np.dot(_AT_POINT, s.scratch)
+        per_joint = np.dot(force, s.sphere_supports)  # (12, n)
+        per_joint *= np.dot(_WRENCH, jac)
+        return np.dot(_ONES12, per_joint)
 
     def _narrow(
         self, g: _Group, y: Array
@@ -642,7 +604,8 @@ class Clearance(ConfigurationConstraint):
         if s is None:
             out = np.empty(len(self.names))
         else:
-            phi, d, u, _ = self._sphere_distances(y)
+            d, u, _ = self._sphere_distances(y)
+            phi = d - s.rsum
             # (x[x.argmin()]: min without a ufunc reduction, several times cheaper)
             if not d[d.argmin()] > 0.0:  # a centre inside a core box: signed distance there
                 depth = np.max(np.abs(u) - s.half, axis=0) - s.rsum
@@ -664,11 +627,7 @@ class Clearance(ConfigurationConstraint):
         out = self.value(x)
         s = self._spheres
         if s is not None:
-            phi, d, u, outside = self._sphere_distances(y)
-            rows = self._sphere_rows(y, u, outside, 1.0 / np.maximum(d, _TINY))
-            g0 = self._rows_times_jacobians(q, *rows[0])
-            if len(rows) > 1:
-                g0[s.n_obstacle:] += self._rows_times_jacobians(q, *rows[1])
+            phi, g0 = self._pair_gradients(q, y)
             # each reported constraint is its closest sphere pair
             bounds = [*s.starts.tolist(), len(phi)]
             closest = [lo + int(np.argmin(phi[lo:hi])) for lo, hi in pairwise(bounds)]
@@ -730,23 +689,40 @@ class Clearance(ConfigurationConstraint):
         rows: list[tuple[Array, Array, Array]] = []
         phi_out: Array | None = None
         sphere_local: Array | None = None  # the pairs' normals × (dφ̃/dφ)/φ̃, obstacle frames
-        s = self._moving
+        s = self._spheres
         if s is not None:
-            phi, d, u, outside = self._sphere_distances(y, s)
+            d, u, outside = self._sphere_distances(y)
+            phi = d - s.rsum_law  # pairs that cannot move: ∞ (with ℓ)
             low = phi[phi.argmin()]  # phi.min(), cheaper
             if low <= 0.0:  # outside S: report it, the constraint set raises
                 return self.value(x), self._zero
             # a link's barrier is the product of its spheres' terms (their log-barriers add);
             # spheres that cannot move relative to an obstacle give a constant factor
+            slope: Array | None = None
             if ell is None:
-                shaped, inv = self._shape(phi)
-                phi_out = self._far_phi.copy()
-                phi_out[s.group[s.starts]] *= np.multiply.reduceat(shaped, s.starts)
-                sphere_local = self._local_normals(u, outside, inv, d)
-            elif low < ell:  # only the pairs within ℓ enter the law: the others have φ̃ = ℓ
-                shaped, inv = self._shape(phi)  # and inv = 0, so all pairs go through densely
-                phi_out = self._link_products(phi, shaped)
-                sphere_local = self._local_normals(u, outside, inv, d)
+                factor = np.where(s.moving > 0.0, phi, 1.0)
+                slope = s.moving / phi
+            elif low < ell:  # only the pairs within ℓ enter the law: the others have φ̃ = ℓ,
+                # so factor 1 and slope 0, and all pairs go through densely. In place, with
+                # v = 1 − min(φ/ℓ, 1): φ̃/ℓ = 1 − v³ and (dφ̃/dφ)/φ̃ = (3/ℓ) v²/(1 − v³),
+                # 3/ℓ kept in ``to_world``
+                v = phi * self._inv_ell
+                np.minimum(v, _ONE, out=v)
+                np.subtract(_ONE, v, out=v)
+                slope = v * v
+                factor = slope * v
+                np.subtract(_ONE, factor, out=factor)
+                slope /= factor
+            if slope is not None:
+                products = np.multiply.reduceat(factor, s.starts)
+                if self._groups:
+                    phi_out = self._far_phi.copy()
+                    phi_out[:s.stop] *= products
+                else:
+                    phi_out = np.multiply(products, self._far_phi)
+                slope /= d
+                sphere_local = np.copysign(outside, u, out=outside)
+                sphere_local *= slope
         for g in self._near_groups(y):
             phi, grows, _ = self._narrow(g, y)
             if phi.min() <= 0.0:
@@ -770,7 +746,7 @@ class Clearance(ConfigurationConstraint):
         b = self._zero
         if sphere_local is not None:
             assert s is not None
-            b = self._sphere_force(y, s, sphere_local, jac)
+            b = self._sphere_force(sphere_local, jac)
         if rows:
             b = b + self._rows_times_jacobians(
                 q, *(np.concatenate(part) for part in zip(*rows, strict=True)), jac=jac
