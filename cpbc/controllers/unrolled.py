@@ -170,17 +170,42 @@ def _supported(law: Controller, configuration: Sequence[ConfigurationConstraint]
     return all(type(c) is RateLimit for c in law.constraints.velocity)
 
 
-def _cholesky_solve(src: _Source, a: list[list[str]], rhs: list[str], tag: str) -> list[str]:
+def _matrix(src: _Source, a: list[list[str]], inertia: tuple[str, list[list[str]]] | None
+            ) -> str:
+    """An ndarray of the symmetric A (lower entries a[i][j], i ≥ j). With ``inertia`` = (the
+    name of Pinocchio's D array, D's entry names) and A = D plus terms on the diagonal, a
+    copy of that array with the terms added (the same numbers; building a 7 × 7 array from
+    49 floats costs more than the solve)."""
+    n = len(a)
+    if inertia is not None:
+        array, d = inertia
+        off = all(a[max(i, j)][min(i, j)] == d[i][j] for i in range(n) for j in range(n) if i != j)
+        extra = [a[i][i][len(d[i][i]) + 3:] if a[i][i].startswith(d[i][i] + " + ") else
+                 "0.0" if a[i][i] == d[i][i] else None for i in range(n)]
+        if off and None not in extra:
+            if all(e == "0.0" for e in extra):
+                return array
+            name = src.fresh("A")
+            src(f"{name} = {array}.copy()")
+            src(f"{name}.reshape(-1)[::{n + 1}] += ({', '.join(extra)},)")
+            return name
+    rows = ", ".join("(" + ", ".join(a[max(i, j)][min(i, j)] for j in range(n)) + ",)"
+                     for i in range(n))
+    return f"_array(({rows},))"
+
+
+def _cholesky_solve(src: _Source, a: list[list[str]], rhs: list[str], tag: str,
+                    inertia: tuple[str, list[list[str]]] | None = None) -> list[str]:
     """Emit y = A⁻¹ rhs for symmetric A (lower entries a[i][j], i ≥ j) by Cholesky; the
     function returns None on a pivot that is not > 0 (the array code then uses LU). Beyond
-    ``SCALAR_SOLVE`` unknowns LAPACK's (solve_spd) beats the unrolled factorisation."""
+    ``SCALAR_SOLVE`` unknowns LAPACK's (solve_spd) beats the unrolled factorisation
+    (``inertia``: see _matrix)."""
     n = len(rhs)
     if n > SCALAR_SOLVE:
         src.env["_solve"] = solve_spd
-        rows = ", ".join("(" + ", ".join(a[max(i, j)][min(i, j)] for j in range(n)) + ",)"
-                         for i in range(n))
+        mat = _matrix(src, a, inertia)
         y = [f"{tag}y{i}" for i in range(n)]
-        src(f"{', '.join(y)}, = _solve(_array(({rows},)), _array(({', '.join(rhs)},))).tolist()")
+        src(f"{', '.join(y)}, = _solve({mat}, _array(({', '.join(rhs)},))).tolist()")
         return y
     low = [[""] * n for _ in range(n)]
     for j in range(n):
@@ -224,6 +249,7 @@ class _Emitter:
         )
         self.x = [f"x{i}" for i in range(n)]
         self.v = [f"v{i}" for i in range(n)]
+        self.inertia: tuple[str, list[list[str]]] | None = None  # see _matrix
 
     # -- coordinates -------------------------------------------------------------------------
     def joint_array(self, names: list[str], array_name: str | None) -> str:
@@ -248,7 +274,12 @@ class _Emitter:
         src, n, ti = self.src, self.n, self.t_inv
         m = src.fresh("M")
         tag = src.fresh("D")
-        src(f"{m} = _crba(_model, _data, {q}).tolist()")
+        if self.identity and n > SCALAR_SOLVE:  # D's array is kept for LAPACK (_matrix)
+            array = src.fresh("Ma")
+            src(f"{array} = _crba(_model, _data, {q})")
+            src(f"{m} = {array}.tolist()")
+        else:
+            src(f"{m} = _crba(_model, _data, {q}).tolist()")
         mij = [[f"{m}[{min(i, j)}][{max(i, j)}]" for j in range(n)] for i in range(n)]
         d = [[""] * n for _ in range(n)]
         for a in range(n):
@@ -262,6 +293,8 @@ class _Emitter:
                 name = f"{tag}_{a}{b}"
                 src(f"{name} = {_lin(list(coeff.values()), list(coeff.keys()))}")
                 d[a][b] = d[b][a] = name
+        if self.identity and n > SCALAR_SOLVE:
+            self.inertia = (array, d)
         if not gravity:
             return d, [], []
         g_q = [f"g{i}" for i in range(n)]
@@ -503,7 +536,7 @@ class _Emitter:
             src(f"{rhs[i]} = {a[i]} - {c[i]}")
         mat = [[d[i][j] + (f" + {scale} * ({' + '.join(weight[i][j])})" if weight[i][j] else "")
                 for j in range(n)] for i in range(n)]
-        y = _cholesky_solve(src, mat, rhs, "k")
+        y = _cholesky_solve(src, mat, rhs, "k", self.inertia)
         tau = [f"tau{i}" for i in range(n)]
         for i in range(n):
             src(f"{tau[i]} = {g[i]} + {c[i]} + " + " + ".join(
@@ -746,7 +779,8 @@ def unrolled_guard(guard: Safeguard) -> Kernel | None:
         name = src.fresh("ra")
         src(f"{name} = {held[i]} - {bias[i]}")
         rhs.append(name)
-    acc = _cholesky_solve(src, [[d[i][j] for j in range(n)] for i in range(n)], rhs, "a")
+    acc = _cholesky_solve(src, [[d[i][j] for j in range(n)] for i in range(n)], rhs, "a",
+                          em.inertia)
     half, hh, eighth = 0.5 * h, 0.5 * h * h, 0.125 * h * h
     x1 = [src.fresh("xe") for _ in range(n)]
     v1 = [src.fresh("ve") for _ in range(n)]
