@@ -239,3 +239,35 @@ def test_margins_after_the_barrier_are_clearances_not_the_shaped_barrier(rng) ->
         except ConstraintViolation:
             continue
         np.testing.assert_allclose(cs.margins(x, dx), c.value(x), rtol=0, atol=0)
+
+
+@pytest.mark.parametrize("kind", ["spheres", "mixed"])
+def test_values_along_and_barrier_with_value_are_value_bit_for_bit(kind, rng) -> None:
+    """The batched values and the barrier pass's values are ``value`` row by row, exactly
+    (the safeguard's acceptance test reads them in place of ``value``)."""
+    c = _clearance(kind, 0.3)
+    xs = np.array(_states(rng, 6))
+    along = c.values_along(xs)
+    assert along.shape == (6, len(c.names))
+    for x, row in zip(xs, along, strict=True):
+        np.testing.assert_array_equal(row, c.value(x))
+        phi, b, value = c.barrier_terms_and_value(x)
+        np.testing.assert_array_equal(value, c.value(x))
+        phi_b, b_b = c.barrier_terms(x)
+        np.testing.assert_array_equal(phi, phi_b)
+        np.testing.assert_array_equal(b, b_b)
+
+
+def test_values_along_inside_an_obstacle_core() -> None:
+    """A sphere centre inside a box: the signed depth there, as ``value`` gives it."""
+    _, model = _panda()
+    arm, _ = _panda()
+    pdata = arm.model.createData()
+    pin.framesForwardKinematics(arm.model, pdata, HOME)
+    hand = pdata.oMf[arm.model.getFrameId("panda_hand")].translation
+    c = Clearance(model, _cover("spheres"), [BoxObstacle("box", hand, [0.05, 0.05, 0.05])])
+    xs = np.array([HOME, HOME + 0.3])
+    along = c.values_along(xs)
+    assert along[0].min() < 0
+    for x, row in zip(xs, along, strict=True):
+        np.testing.assert_array_equal(row, c.value(x))

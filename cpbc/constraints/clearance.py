@@ -511,9 +511,9 @@ class Clearance(ConfigurationConstraint):
         return (normals @ jac[:3] + outer @ (_CROSS @ jac[3:])) * masks
 
     # -- distances ---------------------------------------------------------------------------
-    def _sphere_distances(self, y: Array) -> tuple[Array, Array, Array]:
-        """Every sphere pair's core distance d (P,), u (3, P) and max(|u| − h, 0) (3, P);
-        the sphere centres at y are left in ``scratch[:3]``."""
+    def _offsets(self, y: Array) -> Array:
+        """u (3, P) of every sphere pair; the sphere centres at y are left in
+        ``scratch[:3]``."""
         s = self._spheres
         assert s is not None
         centres = s.scratch
@@ -521,6 +521,14 @@ class Clearance(ConfigurationConstraint):
         u = np.dot(s.to_obstacle, centres).reshape(3, s.n_obstacle)
         if len(s.pair_sphere2):
             u = np.concatenate((u, np.dot(centres[:3], s.self_map)), axis=1)
+        return u
+
+    def _sphere_distances(self, y: Array) -> tuple[Array, Array, Array]:
+        """Every sphere pair's core distance d (P,), u (3, P) and max(|u| − h, 0) (3, P);
+        the sphere centres at y are left in ``scratch[:3]``."""
+        s = self._spheres
+        assert s is not None
+        u = self._offsets(y)
         outside = np.abs(u)
         outside -= s.half
         np.maximum(outside, _ZERO, out=outside)
@@ -600,11 +608,18 @@ class Clearance(ConfigurationConstraint):
     # -- ConfigurationConstraint ----------------------------------------------------------
     def value(self, x: Array) -> Array:
         y = self._regressor(self._q(x))
+        if self._spheres is None:
+            return self._value(y, None, None)
+        d, u, _ = self._sphere_distances(y)
+        return self._value(y, d, u)
+
+    def _value(self, y: Array, d: Array | None, u: Array | None) -> Array:
+        """The clearances from the regressor y and (with spheres) their pairs' d and u."""
         s = self._spheres
         if s is None:
             out = np.empty(len(self.names))
         else:
-            d, u, _ = self._sphere_distances(y)
+            assert d is not None and u is not None
             phi = d - s.rsum
             # (x[x.argmin()]: min without a ufunc reduction, several times cheaper)
             if not d[d.argmin()] > 0.0:  # a centre inside a core box: signed distance there
@@ -618,6 +633,25 @@ class Clearance(ConfigurationConstraint):
             phi, _, pair = self._narrow(g, y)
             out[g.start:g.stop] = phi if pair is None else pair
         return out
+
+    def values_along(self, xs: Array) -> Array:
+        """φ at each row of xs, (N, k): with sphere primitives only, the pairs of all rows go
+        through one set of numpy calls (the same numbers as ``value`` row by row)."""
+        s = self._spheres
+        xs = np.asarray(xs, dtype=float)
+        if s is None or self._groups or len(xs) < 2:
+            return super().values_along(xs)
+        rows, pairs = len(xs), len(s.rsum)
+        u = np.concatenate([self._offsets(self._regressor(self._q(x))) for x in xs], axis=1)
+        outside = np.abs(u)
+        outside.reshape(3, rows, pairs)[...] -= s.half[:, None, :]
+        np.maximum(outside, _ZERO, out=outside)
+        d = np.sqrt(np.dot(_ONES3, outside * outside))
+        if not d[d.argmin()] > 0.0:  # a centre inside a core box: row by row
+            return super().values_along(xs)
+        phi = d.reshape(rows, pairs) - s.rsum
+        starts = (s.starts + pairs * np.arange(rows)[:, None]).reshape(-1)
+        return np.minimum.reduceat(phi.reshape(-1), starts).reshape(rows, -1)
 
     def evaluate(self, x: Array) -> tuple[Array, Array]:
         q = self._q(x)
@@ -683,8 +717,16 @@ class Clearance(ConfigurationConstraint):
         return [g for g, hit in zip(self._groups, low, strict=True) if hit]
 
     def barrier_terms(self, x: Array) -> tuple[Array, Array]:
+        return self._barrier(x, False)[:2]
+
+    def barrier_terms_and_value(self, x: Array) -> tuple[Array, Array, Array]:
+        """``barrier_terms(x)`` and ``value(x)`` from one pass (the same numbers)."""
+        return self._barrier(x, True)  # type: ignore[return-value]
+
+    def _barrier(self, x: Array, with_value: bool) -> tuple[Array, Array, Array | None]:
         q = self._q(x)
         y = self._regressor(q)
+        value: Array | None = None
         ell = self.influence
         rows: list[tuple[Array, Array, Array]] = []
         phi_out: Array | None = None
@@ -695,7 +737,10 @@ class Clearance(ConfigurationConstraint):
             phi = d - s.rsum_law  # pairs that cannot move: ∞ (with ℓ)
             low = phi[phi.argmin()]  # phi.min(), cheaper
             if low <= 0.0:  # outside S: report it, the constraint set raises
-                return self.value(x), self._zero
+                value = self._value(y, d, u)
+                return value, self._zero, value
+            if with_value:
+                value = self._value(y, d, u)
             # a link's barrier is the product of its spheres' terms (their log-barriers add);
             # spheres that cannot move relative to an obstacle give a constant factor
             slope: Array | None = None
@@ -726,7 +771,8 @@ class Clearance(ConfigurationConstraint):
         for g in self._near_groups(y):
             phi, grows, _ = self._narrow(g, y)
             if phi.min() <= 0.0:
-                return self.value(x), self._zero
+                value = self.value(x)
+                return value, self._zero, value
             shaped, inv = self._shape(phi)
             phi_out = self._far_phi.copy() if phi_out is None else phi_out
             size = g.stop - g.start
@@ -740,8 +786,10 @@ class Clearance(ConfigurationConstraint):
             else:
                 phi_out[g.start:g.stop] = shaped
                 rows += [(p, n * inv[:, None], mask) for p, n, mask in grows]
+        if with_value and value is None:
+            value = self.value(x)
         if phi_out is None:
-            return self._far_phi, self._zero
+            return self._far_phi, self._zero, value
         jac = self._jacobians(q)
         b = self._zero
         if sphere_local is not None:
@@ -753,4 +801,4 @@ class Clearance(ConfigurationConstraint):
             ).sum(axis=0)
         if not self._identity:
             b = b @ self._t_inv
-        return phi_out, b
+        return phi_out, b, value

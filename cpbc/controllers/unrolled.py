@@ -250,6 +250,9 @@ class _Emitter:
         self.x = [f"x{i}" for i in range(n)]
         self.v = [f"v{i}" for i in range(n)]
         self.inertia: tuple[str, list[list[str]]] | None = None  # see _matrix
+        # with a dict (the safeguard's emitter): the values at x of array constraints that
+        # give them with their barrier terms, by id of the constraint
+        self.sample_values: dict[int, _Vec] | None = None
 
     # -- coordinates -------------------------------------------------------------------------
     def joint_array(self, names: list[str], array_name: str | None) -> str:
@@ -425,6 +428,27 @@ class _Emitter:
                 out += self.array_constraint(c, arrays.x(), grad)
         return out
 
+    def configuration_at_two(self, cons: Sequence[ConfigurationConstraint], xa: list[str],
+                             xb: list[str]) -> tuple[list[str], list[str]]:
+        """``configuration(cons, …, vectors=True)`` at two states; an array constraint's
+        values at both come from one ``values_along`` call."""
+        arrays_a, arrays_b = _Arrays(self, xa), _Arrays(self, xb)
+        out_a: list[str] = []
+        out_b: list[str] = []
+        for c in cons:
+            if type(c) in (LinearLimit, PointOutsideSphere):
+                out_a += self.configuration([c], xa, arrays_a, None)
+                out_b += self.configuration([c], xb, arrays_b, None)
+                continue
+            both = self.src.fresh("pv")
+            states = ", ".join(f"({', '.join(z)},)" for z in (xa, xb))
+            self.src(f"{both} = {self.constant(c)}.values_along(_array(({states},)))")
+            for k, out in enumerate((out_a, out_b)):
+                name = _Vec.of(self.src.fresh("phiv"), len(c.names))
+                self.src(f"{name} = {both}[{k}]")
+                out.append(name)
+        return out_a, out_b
+
     def constant(self, value: object) -> str:
         """A name for an object the generated code reads."""
         name = self.src.fresh("_k")
@@ -441,7 +465,13 @@ class _Emitter:
             src(f"{', '.join(names)}, = {obj}.value({x}).tolist()")
             return names
         arr, b = src.fresh("pa"), src.fresh("b")
-        src(f"{arr}, {b} = {obj}.barrier_terms({x})")
+        if (self.sample_values is not None and x == "x"
+                and hasattr(con, "barrier_terms_and_value")):
+            value = _Vec.of(src.fresh("phiv"), len(con.names))
+            src(f"{arr}, {b}, {value} = {obj}.barrier_terms_and_value({x})")
+            self.sample_values[id(con)] = value
+        else:
+            src(f"{arr}, {b} = {obj}.barrier_terms({x})")
         src(f"{', '.join(names)}, = {arr}.tolist()")
         src(f"{b} = {b}.tolist()")
         for a in range(self.n):
@@ -721,6 +751,7 @@ def unrolled_guard(guard: Safeguard) -> Kernel | None:
     n = law.model.n
     src = _Source()
     em = _Emitter(law, src)
+    em.sample_values = {}
     tau, d, bias, barrier = em.emit_law(coriolis=True)
     # the margins at x: the law's barrier values where they are the margins, else (a
     # localised barrier, Clearance's φ̃) the constraint's own values; then the extra ones
@@ -729,8 +760,12 @@ def unrolled_guard(guard: Safeguard) -> Kernel | None:
     margins, at = [], 0
     for c in law.constraints.configuration:
         k = len(c.names)
-        margins += barrier[at:at + k] if c.barrier_is_margin else em.configuration(
-            [c], em.x, here, None, vectors=True)
+        if c.barrier_is_margin:
+            margins += barrier[at:at + k]
+        elif id(c) in em.sample_values:
+            margins.append(em.sample_values[id(c)])
+        else:
+            margins += em.configuration([c], em.x, here, None, vectors=True)
         at += k
     margins += em.configuration(extra, em.x, here, None, vectors=True) + barrier[at:]
     h = guard.period
@@ -789,15 +824,17 @@ def unrolled_guard(guard: Safeguard) -> Kernel | None:
         src(f"{v1[i]} = v{i} + {_num(h)} * {acc[i]}")
     configuration = (*law.constraints.configuration, *extra)
     end = _Arrays(em, x1)
-    ends = em.configuration(configuration, x1, end, None, vectors=True)
-    ends += em.velocity_values(law.constraints.velocity, end.q, v1)
-    checks = [_kept(m, f) for m, f in zip(ends, floor, strict=True)]
+    mids: list[str] = []
     if nc:
         xm = [src.fresh("xm") for _ in range(n)]
         for i in range(n):
             src(f"{xm[i]} = (x{i} + {_num(half)} * v{i}) + {_num(eighth)} * {acc[i]}")
-        mids = em.configuration(configuration, xm, _Arrays(em, xm), None, vectors=True)
-        checks += [_kept(m, f) for m, f in zip(mids, floor_mid, strict=True)]
+        ends, mids = em.configuration_at_two(configuration, x1, xm)
+    else:
+        ends = []
+    ends += em.velocity_values(law.constraints.velocity, end.q, v1)
+    checks = [_kept(m, f) for m, f in zip(ends, floor, strict=True)]
+    checks += [_kept(m, f) for m, f in zip(mids, floor_mid, strict=True)]
     src(f"if not ({' and '.join(checks)}):")
     src("    return None")
     src(f"return _array(({', '.join(tau)},)), V")
