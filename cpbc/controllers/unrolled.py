@@ -275,16 +275,22 @@ class _Emitter:
         """D (symmetric, names), g and C ẋ + f in x-coordinates (g only with ``gravity``,
         C ẋ + f only with dq)."""
         src, n, ti = self.src, self.n, self.t_inv
-        m = src.fresh("M")
         tag = src.fresh("D")
-        if self.identity and n > SCALAR_SOLVE:  # D's array is kept for LAPACK (_matrix)
+        d = [[""] * n for _ in range(n)]
+        if self.identity:  # D's upper triangle unpacked in one statement
             array = src.fresh("Ma")
             src(f"{array} = _crba(_model, _data, {q})")
-            src(f"{m} = {array}.tolist()")
-        else:
-            src(f"{m} = _crba(_model, _data, {q}).tolist()")
+            for a in range(n):
+                for b in range(a, n):
+                    d[a][b] = d[b][a] = f"{tag}_{a}{b}"
+            names = [d[i][j] if j >= i else "_" for i in range(n) for j in range(n)]
+            src(f"{', '.join(names)}, = {array}.reshape(-1).tolist()")
+            if n > SCALAR_SOLVE:  # D's array is kept for LAPACK (_matrix)
+                self.inertia = (array, d)
+            return self._gravity_and_bias(q, dq, gravity, d)
+        m = src.fresh("M")
+        src(f"{m} = _crba(_model, _data, {q}).tolist()")
         mij = [[f"{m}[{min(i, j)}][{max(i, j)}]" for j in range(n)] for i in range(n)]
-        d = [[""] * n for _ in range(n)]
         for a in range(n):
             for b in range(a, n):
                 coeff: dict[str, float] = {}
@@ -296,8 +302,11 @@ class _Emitter:
                 name = f"{tag}_{a}{b}"
                 src(f"{name} = {_lin(list(coeff.values()), list(coeff.keys()))}")
                 d[a][b] = d[b][a] = name
-        if self.identity and n > SCALAR_SOLVE:
-            self.inertia = (array, d)
+        return self._gravity_and_bias(q, dq, gravity, d)
+
+    def _gravity_and_bias(self, q: str, dq: str | None, gravity: bool, d: list[list[str]]
+                          ) -> tuple[list[list[str]], list[str], list[str]]:
+        src, n = self.src, self.n
         if not gravity:
             return d, [], []
         g_q = [f"g{i}" for i in range(n)]
