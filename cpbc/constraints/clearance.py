@@ -236,6 +236,7 @@ class Clearance(ConfigurationConstraint):
         self._far_phi.setflags(write=False)
         self._zero = np.zeros(self._n)
         self._zero.setflags(write=False)
+        self._along: dict[int, tuple[Array, Array, Array]] = {}  # see values_along
 
     # -- set-up ------------------------------------------------------------------------------
     def _setup_kinematics(self) -> None:
@@ -641,17 +642,21 @@ class Clearance(ConfigurationConstraint):
         xs = np.asarray(xs, dtype=float)
         if s is None or self._groups or len(xs) < 2:
             return super().values_along(xs)
-        rows, pairs = len(xs), len(s.rsum)
+        rows = len(xs)
+        if rows not in self._along:  # h, rsum and the constraints' first pairs, row after row
+            pairs = len(s.rsum)
+            self._along[rows] = (np.tile(s.half, rows), np.tile(s.rsum, rows),
+                                 (s.starts + pairs * np.arange(rows)[:, None]).reshape(-1))
+        half, rsum, starts = self._along[rows]
         u = np.concatenate([self._offsets(self._regressor(self._q(x))) for x in xs], axis=1)
         outside = np.abs(u)
-        outside.reshape(3, rows, pairs)[...] -= s.half[:, None, :]
+        outside -= half
         np.maximum(outside, _ZERO, out=outside)
         d = np.sqrt(np.dot(_ONES3, outside * outside))
         if not d[d.argmin()] > 0.0:  # a centre inside a core box: row by row
             return super().values_along(xs)
-        phi = d.reshape(rows, pairs) - s.rsum
-        starts = (s.starts + pairs * np.arange(rows)[:, None]).reshape(-1)
-        return np.minimum.reduceat(phi.reshape(-1), starts).reshape(rows, -1)
+        d -= rsum
+        return np.minimum.reduceat(d, starts).reshape(rows, -1)
 
     def evaluate(self, x: Array) -> tuple[Array, Array]:
         q = self._q(x)
