@@ -5,7 +5,7 @@ its 14 URDF joint position limits (one two-sided limit per joint), 7 joint rate 
 three obstacles (a table plane, a ball and a crate) against every link, each link covered by
 spheres from its collision mesh (33 spheres, 99 sphere–obstacle pairs, 30 reported
 constraints). Torque calls are timed on states spread along the reach from start to target
-(about half of them have a link within the 10 cm influence distance of an obstacle); the
+(52 of the 64 have a link sphere within the 10 cm influence distance of an obstacle); the
 closed loop runs the reach itself in MuJoCo.
 """
 
