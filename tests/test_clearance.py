@@ -153,12 +153,16 @@ def test_far_from_everything_costs_no_gradient() -> None:
     assert np.all(c.value(HOME) > 2.0)
 
 
-def test_penetration_is_negative_and_the_law_refuses_it() -> None:
-    _, model = _panda()
+def _hand_at_home() -> np.ndarray:
     arm, _ = _panda()
     pdata = arm.model.createData()
     pin.framesForwardKinematics(arm.model, pdata, HOME)
-    hand = pdata.oMf[arm.model.getFrameId("panda_hand")].translation
+    return pdata.oMf[arm.model.getFrameId("panda_hand")].translation.copy()
+
+
+def test_penetration_is_negative_and_the_law_refuses_it() -> None:
+    _, model = _panda()
+    hand = _hand_at_home()
     inside = [SphereObstacle("on_hand", hand, 0.05),
               BoxObstacle("box_on_hand", hand, [0.05, 0.05, 0.05])]
     c = Clearance(model, _cover("spheres"), inside, influence=0.1, name="hit")
@@ -261,10 +265,7 @@ def test_values_along_and_barrier_with_value_are_value_bit_for_bit(kind, rng) ->
 def test_values_along_inside_an_obstacle_core() -> None:
     """A sphere centre inside a box: the signed depth there, as ``value`` gives it."""
     _, model = _panda()
-    arm, _ = _panda()
-    pdata = arm.model.createData()
-    pin.framesForwardKinematics(arm.model, pdata, HOME)
-    hand = pdata.oMf[arm.model.getFrameId("panda_hand")].translation
+    hand = _hand_at_home()
     c = Clearance(model, _cover("spheres"), [BoxObstacle("box", hand, [0.05, 0.05, 0.05])])
     xs = np.array([HOME, HOME + 0.3])
     along = c.values_along(xs)
