@@ -140,6 +140,17 @@ def test_outside_the_set_the_array_law_names_the_constraint(absolute_model) -> N
         assert law.unrolled(x, dx) is None
         with pytest.raises(ConstraintViolation, match=r"rate\[theta1\]"):
             law.evaluate(x, dx)
+        with pytest.raises(ConstraintViolation, match=r"rate\[theta1\]"):
+            law.torque(x, dx)  # the torque-only code keeps the check
+
+
+def test_torque_alone_skips_what_only_v_needs(absolute_model) -> None:
+    law = LAWS["thesis_power"](absolute_model)
+    x, dx = np.array([0.3, 0.5]), np.array([0.05, -0.02])
+    np.testing.assert_array_equal(law.torque(x, dx), law.unrolled(x, dx)[0])  # type: ignore[index]
+    full, alone = law._unrolled.source, law._unrolled_torque.source  # type: ignore[union-attr]
+    assert "lsum" in full and "V = " in full
+    assert "lsum" not in alone and "V = " not in alone and "if not (" in alone
 
 
 def test_laws_without_a_scalar_form_keep_the_array_code(absolute_model) -> None:
@@ -287,5 +298,6 @@ def test_panda_laws_and_guard_agree_with_the_arrays(panda, rng, name: str) -> No
                                    for c in law.constraints.velocity])
         np.testing.assert_allclose(tau, tau_ref, rtol=tol, atol=tol * np.abs(tau_ref).max())
         assert v == pytest.approx(v_ref, rel=tol)
+        np.testing.assert_array_equal(law.torque(x, dx), tau)
     accepted, refused = guard_decisions(Safeguard(law, 0.001), states)
     assert accepted > 10 and refused > 10

@@ -32,6 +32,7 @@ caller then runs the array code.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
@@ -83,6 +84,11 @@ def _lin(coeffs: Sequence[float], names: Sequence[str]) -> str:
     return text[2:] if text.startswith("+ ") else "-" + text[2:]
 
 
+_ASSIGN = re.compile(r"^    ([A-Za-z_]\w*) = (.*)$")  # a top-level single-name assignment
+_ATTRIBUTE = re.compile(r"[A-Za-z_]\w*\.[A-Za-z_]")
+_NAME = re.compile(r"[A-Za-z_]\w*")
+
+
 class _Source:
     """Lines of one generated function and the constants it reads."""
 
@@ -101,6 +107,20 @@ class _Source:
     def fresh(self, prefix: str) -> str:
         self._count += 1
         return f"{prefix}{self._count}"
+
+    def prune(self) -> None:
+        """Drop assignments whose name nothing after them reads (walking back from the
+        return), when their right side is pure arithmetic on names (no attribute: no
+        Pinocchio or constraint call). Control flow and tuple unpacking always stay."""
+        used: set[str] = set()
+        kept: list[str] = []
+        for line in reversed(self.lines):
+            match = _ASSIGN.match(line)
+            if match and match[1] not in used and not _ATTRIBUTE.search(match[2]):
+                continue
+            used.update(_NAME.findall(line))
+            kept.append(line)
+        self.lines = kept[::-1]
 
     def compile(self, name: str) -> Kernel:
         # The text holds only this module's names and float literals of the law's numbers
@@ -705,6 +725,7 @@ class Unrolled:
     read-only arrays)."""
 
     _unrolled: Kernel | bool | None = False
+    _unrolled_torque: Kernel | bool | None = False  # the same without V (``torque``)
 
     def unrolled(self, x: Array, dx: Array) -> tuple[Array, float] | None:
         """τ and V from the scalar code, or None where the array code must run."""
@@ -714,8 +735,11 @@ class Unrolled:
         return None if kernel is None else kernel(x, dx)  # type: ignore[operator]
 
     def torque(self, x: Array, dx: Array) -> Array:
-        fast = self.unrolled(x, dx)
-        return fast[0] if fast is not None else self.torque_arrays(x, dx)
+        kernel = self._unrolled_torque
+        if kernel is False:
+            kernel = self._unrolled_torque = unrolled_law(self, False)  # type: ignore[arg-type]
+        fast = None if kernel is None else kernel(x, dx)  # type: ignore[operator]
+        return fast if fast is not None else self.torque_arrays(x, dx)
 
     def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
         fast = self.unrolled(x, dx)
@@ -728,16 +752,20 @@ class Unrolled:
         raise NotImplementedError
 
 
-def unrolled_law(law: Controller) -> Kernel | None:
+def unrolled_law(law: Controller, lyapunov: bool = True) -> Kernel | None:
     """``f(x, ẋ) -> (τ, V)`` for CPBC, BPBC, CPBC-KE, BPBC-KE or the re-centred barrier on a
-    small arm, or None when something in the law has no scalar form (the law then keeps its
-    array code)."""
+    small arm (without ``lyapunov``: τ alone, and nothing computed only for V), or None when
+    something in the law has no scalar form (the law then keeps its array code)."""
     if not _supported(law, law.constraints.configuration):
         return None
     src = _Source()
     tau, _, _, _ = _Emitter(law, src).emit_law(coriolis=False)
-    src(f"return _array(({', '.join(tau)},)), V")
-    return src.compile("unrolled_law")
+    if lyapunov:
+        src(f"return _array(({', '.join(tau)},)), V")
+        return src.compile("unrolled_law")
+    src(f"return _array(({', '.join(tau)},))")
+    src.prune()
+    return src.compile("unrolled_torque")
 
 
 def _kept(margin: str, floor: str) -> str:
