@@ -59,6 +59,14 @@ _FAR = 1e9  # clearance given to the missing second end of a sphere against a pl
 _TINY = 1e-300
 
 
+def _core_distances(u: Array, half: Array) -> tuple[Array, Array]:
+    """‖max(|u| − h, 0)‖ per column of u (3, P), and max(|u| − h, 0) itself."""
+    outside = np.abs(u)
+    outside -= half
+    np.maximum(outside, _ZERO, out=outside)
+    return np.sqrt(np.dot(_ONES3, outside * outside)), outside
+
+
 @dataclass
 class _Spheres:
     """Sphere primitives against every obstacle (as rounded boxes) and each other.
@@ -530,10 +538,8 @@ class Clearance(ConfigurationConstraint):
         s = self._spheres
         assert s is not None
         u = self._offsets(y)
-        outside = np.abs(u)
-        outside -= s.half
-        np.maximum(outside, _ZERO, out=outside)
-        return np.sqrt(np.dot(_ONES3, outside * outside)), u, outside
+        d, outside = _core_distances(u, s.half)
+        return d, u, outside
 
     def _pair_gradients(self, q: Array, y: Array) -> tuple[Array, Array]:
         """Every sphere pair's clearance (P,) and its gradient (P, n), joint coordinates."""
@@ -649,10 +655,7 @@ class Clearance(ConfigurationConstraint):
                                  (s.starts + pairs * np.arange(rows)[:, None]).reshape(-1))
         half, rsum, starts = self._along[rows]
         u = np.concatenate([self._offsets(self._regressor(self._q(x))) for x in xs], axis=1)
-        outside = np.abs(u)
-        outside -= half
-        np.maximum(outside, _ZERO, out=outside)
-        d = np.sqrt(np.dot(_ONES3, outside * outside))
+        d, _ = _core_distances(u, half)
         if not d[d.argmin()] > 0.0:  # a centre inside a core box: row by row
             return super().values_along(xs)
         d -= rsum
