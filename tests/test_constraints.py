@@ -156,6 +156,16 @@ def test_joint_position_limit_selects_joints_and_names_them(joint_model, rng):
         assert_generic_configuration_terms(both, x)
 
 
+def test_barrier_terms_and_value_default(rng):
+    c = LinearLimit([[1.0, 0.0], [-1.0, 1.0]], [-1, -2], [2, 2], ["a", "b"])
+    x = rng.uniform(-0.5, 0.5, 2)
+    phi, b, value = c.barrier_terms_and_value(x)
+    phi_b, b_b = c.barrier_terms(x)
+    np.testing.assert_array_equal(phi, phi_b)
+    np.testing.assert_array_equal(b, b_b)
+    np.testing.assert_array_equal(value, c.value(x))
+
+
 def test_linear_limit_values_along_equals_value(rng):
     c = LinearLimit([[1.0, 0.0], [-1.0, 1.0]], [-1, -2], [2, 2], ["a", "b"])
     xs = rng.uniform(-1, 1, (7, 2))

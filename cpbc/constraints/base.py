@@ -44,6 +44,12 @@ class ConfigurationConstraint(ABC):
         phi, grad = self.evaluate(x)
         return phi, (1.0 / phi) @ grad
 
+    def barrier_terms_and_value(self, x: Array) -> tuple[Array, Array, Array]:
+        """``barrier_terms(x)`` and ``value(x)``; subclasses whose barrier is not the margin
+        override this to get both from one pass."""
+        phi, b = self.barrier_terms(x)
+        return phi, b, phi if self.barrier_is_margin else self.value(x)
+
     def values_along(self, xs: Array) -> Array:
         """φ at each row of xs, shape (N, k); vectorised by subclasses where they can."""
         return np.array([self.value(x) for x in xs]).reshape(len(xs), len(self.names))

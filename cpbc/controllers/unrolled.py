@@ -168,6 +168,11 @@ class _Arrays:
         return self._x
 
 
+# configuration constraints the emitter writes as scalar code; the others run their own
+# array code inside it
+_SCALAR_FORMS = (LinearLimit, PointOutsideSphere)
+
+
 def _supported(law: Controller, configuration: Sequence[ConfigurationConstraint]) -> bool:
     """Whether the law, its constraints and ``configuration`` all have a scalar form here."""
     from cpbc.controllers.cpbc import CPBC
@@ -270,8 +275,8 @@ class _Emitter:
         self.x = [f"x{i}" for i in range(n)]
         self.v = [f"v{i}" for i in range(n)]
         self.inertia: tuple[str, list[list[str]]] | None = None  # see _matrix
-        # with a dict (the safeguard's emitter): the values at x of array constraints that
-        # give them with their barrier terms, by id of the constraint
+        # with a dict (the safeguard's emitter): the values at x of array constraints, taken
+        # with their barrier terms (barrier_terms_and_value), by id of the constraint
         self.sample_values: dict[int, _Vec] | None = None
 
     # -- coordinates -------------------------------------------------------------------------
@@ -465,7 +470,7 @@ class _Emitter:
         out_a: list[str] = []
         out_b: list[str] = []
         for c in cons:
-            if type(c) in (LinearLimit, PointOutsideSphere):
+            if type(c) in _SCALAR_FORMS:
                 out_a += self.configuration([c], xa, arrays_a, None)
                 out_b += self.configuration([c], xb, arrays_b, None)
                 continue
@@ -494,8 +499,7 @@ class _Emitter:
             src(f"{', '.join(names)}, = {obj}.value({x}).tolist()")
             return names
         arr, b = src.fresh("pa"), src.fresh("b")
-        if (self.sample_values is not None and x == "x"
-                and hasattr(con, "barrier_terms_and_value")):
+        if self.sample_values is not None and x == "x":
             value = _Vec.of(src.fresh("phiv"), len(con.names))
             src(f"{arr}, {b}, {value} = {obj}.barrier_terms_and_value({x})")
             self.sample_values[id(con)] = value
