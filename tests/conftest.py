@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cpbc.model import LinearCoordinates, RobotModel
+from cpbc.model import ArmState, LinearCoordinates, RobotModel
 from cpbc.resources import models_dir
 
 FiniteDifference = Callable[..., np.ndarray]
@@ -61,3 +61,15 @@ def _central_difference(
 def central_difference() -> FiniteDifference:
     """``central_difference(f, x, h=1e-6)``: ∂f/∂x, shape f(x).shape + (n,)."""
     return _central_difference
+
+
+def state_at(x: np.ndarray, dx: np.ndarray | None = None, model: RobotModel | None = None
+             ) -> ArmState:
+    """The per-step state a law hands its constraints: the model's, with kinematics, or —
+    for constraints that read only x and ẋ — the state alone (no dynamics terms)."""
+    x = np.asarray(x, dtype=float)
+    dx = np.zeros_like(x) if dx is None else np.asarray(dx, dtype=float)
+    if model is not None:
+        return model.state(x, dx, kinematics=True)
+    nothing = np.full(0, np.nan)
+    return ArmState(x, dx, x, dx, nothing, nothing, nothing, nothing)

@@ -58,6 +58,12 @@ def _states(rng: np.random.Generator, count: int = 12):
     return [HOME + rng.normal(scale=0.5, size=7) for _ in range(count)]
 
 
+def _terms(c: Clearance, x: np.ndarray, margins: bool = False
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Clearance's barrier terms as a law reads them: from the per-step state at (x, 0)."""
+    return c.barrier_terms(c.model.state(x, np.zeros(len(x)), kinematics=True), margins)
+
+
 @pytest.mark.parametrize("kind", ["spheres", "capsules", "mixed"])
 def test_gradient_matches_finite_differences(kind, rng, central_difference) -> None:
     c = _clearance(kind)
@@ -80,9 +86,9 @@ def test_barrier_terms_are_the_gradient_of_the_log_barrier(
     for x in _states(rng, 16):
         if not np.all(c.value(x) > 0):
             continue
-        phi_tilde, b = c.barrier_terms(x)
+        phi_tilde, b = _terms(c, x)[:2]
         assert np.all(phi_tilde > 0)
-        fd = central_difference(lambda z: np.log(c.barrier_terms(z)[0]).sum(), x)
+        fd = central_difference(lambda z: np.log(_terms(c, z)[0]).sum(), x)
         np.testing.assert_allclose(b, fd, atol=1e-6 * max(1.0, np.abs(b).max()))
         checked += 1
     assert checked >= 5
@@ -96,8 +102,8 @@ def test_skipping_far_capsule_groups_is_exact(rng) -> None:
     for x in _states(rng, 30):
         if not np.all(c.value(x) > 0):
             continue
-        phi, b = c.barrier_terms(x)
-        phi_r, b_r = reference.barrier_terms(x)
+        phi, b = _terms(c, x)[:2]
+        phi_r, b_r = _terms(reference, x)[:2]
         np.testing.assert_allclose(phi, phi_r, rtol=1e-12)
         np.testing.assert_allclose(b, b_r, atol=1e-12)
 
@@ -115,7 +121,7 @@ def test_dense_sphere_barrier_is_the_pairwise_product_and_sum(influence, rng) ->
     for x in _states(rng, 30):
         if not np.all(c.value(x) > 0):
             continue
-        phi_t, b = c.barrier_terms(x)
+        phi_t, b = _terms(c, x)[:2]
         phi, grad = c._pair_gradients(x, c._regressor(x))
         shaped, ratio = c._shape(phi)
         expect = np.array(c._far_phi)
@@ -148,7 +154,7 @@ def test_far_from_everything_costs_no_gradient() -> None:
     _, model = _panda()
     far = [SphereObstacle("far", [3.0, 3.0, 3.0], 0.1)]
     c = Clearance(model, _cover("spheres"), far, influence=0.1)
-    phi, b = c.barrier_terms(HOME)
+    phi, b = _terms(c, HOME)[:2]
     assert np.all(phi == 0.1) and np.all(b == 0)
     assert np.all(c.value(HOME) > 2.0)
 
@@ -170,7 +176,7 @@ def test_penetration_is_negative_and_the_law_refuses_it() -> None:
     assert values["hit[panda_hand|on_hand]"] < 0
     assert values["hit[panda_hand|box_on_hand]"] < 0
     with pytest.raises(ConstraintViolation):
-        ConstraintSet(7, [c]).barrier(HOME, np.zeros(7), model.dynamics(HOME, np.zeros(7)))
+        ConstraintSet(7, [c]).barrier(model.state(HOME, np.zeros(7), kinematics=True))
 
 
 def test_names_are_per_link_and_obstacle() -> None:
@@ -228,7 +234,7 @@ def test_pairs_that_cannot_move_leave_the_law() -> None:
     values = dict(zip(low_table.names, low_table.value(x), strict=True))
     assert 0 < values["clearance[panda_link1|table]"] < 0.1
     assert min(v for k, v in values.items() if "link1" not in k) > 0.1
-    phi, b = low_table.barrier_terms(x)
+    phi, b = _terms(low_table, x)[:2]
     assert np.all(b == 0.0) and phi is low_table._far_phi
 
 
@@ -239,10 +245,10 @@ def test_margins_after_the_barrier_are_clearances_not_the_shaped_barrier(rng) ->
     for x in _states(rng, 4):
         dx = np.zeros(7)
         try:
-            cs.barrier(x, dx, model.dynamics(x, dx))
+            bar = cs.barrier(model.state(x, dx, kinematics=True), margins=True)
         except ConstraintViolation:
             continue
-        np.testing.assert_allclose(cs.margins(x, dx), c.value(x), rtol=0, atol=0)
+        np.testing.assert_array_equal(bar.margins, c.value(x))
 
 
 @pytest.mark.parametrize("kind", ["spheres", "mixed"])
@@ -255,9 +261,9 @@ def test_values_along_and_barrier_with_value_are_value_bit_for_bit(kind, rng) ->
     assert along.shape == (6, len(c.names))
     for x, row in zip(xs, along, strict=True):
         np.testing.assert_array_equal(row, c.value(x))
-        phi, b, value = c.barrier_terms_and_value(x)
+        phi, b, value = _terms(c, x, margins=True)
         np.testing.assert_array_equal(value, c.value(x))
-        phi_b, b_b = c.barrier_terms(x)
+        phi_b, b_b = _terms(c, x)[:2]
         np.testing.assert_array_equal(phi, phi_b)
         np.testing.assert_array_equal(b, b_b)
 

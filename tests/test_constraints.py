@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import state_at
 
 from cpbc.constraints import (
     BarrierTerms,
@@ -79,8 +80,10 @@ def relative_limit() -> LinearLimit:
 
 def assert_generic_configuration_terms(c: ConfigurationConstraint, x: np.ndarray) -> None:
     """The subclass's closed-form barrier terms equal the base class's generic formula."""
-    phi, b = c.barrier_terms(x)
-    phi_ref, b_ref = ConfigurationConstraint.barrier_terms(c, x)
+    st = state_at(x, model=getattr(c, "model", None))
+    phi, b, value = c.barrier_terms(st, margins=True)
+    phi_ref, b_ref, _ = ConfigurationConstraint.barrier_terms(c, st)
+    np.testing.assert_array_equal(value, phi)
     np.testing.assert_allclose(phi, phi_ref, rtol=1e-13, atol=0)
     np.testing.assert_allclose(b, b_ref, rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(phi, c.value(x), rtol=1e-13, atol=0)
@@ -89,8 +92,9 @@ def assert_generic_configuration_terms(c: ConfigurationConstraint, x: np.ndarray
 
 
 def assert_generic_velocity_terms(c: VelocityConstraint, x, dx, dyn) -> None:
-    psi, pi, b = c.barrier_terms(x, dx, dyn)
-    psi_ref, pi_ref, b_ref = VelocityConstraint.barrier_terms(c, x, dx, dyn)
+    st = state_at(x, dx) if dyn is None else dyn
+    psi, pi, b = c.barrier_terms(st)
+    psi_ref, pi_ref, b_ref = VelocityConstraint.barrier_terms(c, st)
     np.testing.assert_allclose(psi, psi_ref, rtol=1e-13, atol=0)
     np.testing.assert_allclose(pi, pi_ref, rtol=1e-12, atol=1e-12)
     if b is None:
@@ -156,13 +160,13 @@ def test_joint_position_limit_selects_joints_and_names_them(joint_model, rng):
         assert_generic_configuration_terms(both, x)
 
 
-def test_barrier_terms_and_value_default(rng):
+def test_barrier_terms_give_the_margins_when_asked(rng):
     c = LinearLimit([[1.0, 0.0], [-1.0, 1.0]], [-1, -2], [2, 2], ["a", "b"])
     x = rng.uniform(-0.5, 0.5, 2)
-    phi, b, value = c.barrier_terms_and_value(x)
-    phi_b, b_b = c.barrier_terms(x)
+    phi, b, value = c.barrier_terms(state_at(x), margins=True)
+    phi_b, b_b, _ = ConfigurationConstraint.barrier_terms(c, state_at(x))
     np.testing.assert_array_equal(phi, phi_b)
-    np.testing.assert_array_equal(b, b_b)
+    np.testing.assert_allclose(b, b_b, rtol=1e-13)
     np.testing.assert_array_equal(value, c.value(x))
 
 
@@ -302,7 +306,7 @@ def test_rate_limit_value_weights_gradient(case, joint_model, rng, central_diffe
         np.testing.assert_array_equal(fd, 0.0)
         np.testing.assert_array_equal(c.gradient(x, dx, None), np.zeros((len(bounds), 2)))
         assert_generic_velocity_terms(c, x, dx, None)
-        assert c.barrier_terms(x, dx, None)[2] is None
+        assert c.barrier_terms(state_at(x, dx))[2] is None
     dxs = rng.uniform(-0.1, 0.1, (5, 2))
     np.testing.assert_allclose(
         c.values_along(np.zeros((5, 2)), dxs), np.array([c.value(np.zeros(2), d) for d in dxs])
@@ -317,7 +321,7 @@ def test_thesis_rate_limits_give_psi(joint_model, rng):
         psi = c.value(x, dx, None)
         big_psi = 0.25 * (B[0] ** 2 - dx[0] ** 2) * (B[1] ** 2 - dx[1] ** 2)
         assert psi.prod() == pytest.approx(big_psi, rel=1e-12)
-        _, pi, _ = c.barrier_terms(x, dx, None)
+        _, pi, _ = c.barrier_terms(state_at(x, dx))
         np.testing.assert_allclose(pi, np.diag(1.0 / psi))
 
 
@@ -327,7 +331,7 @@ def test_joint_rate_limit_on_selected_joints(joint_model):
     assert c.is_per_joint
     x, dx = np.zeros(2), np.array([5.0, 0.5])  # joint 1 is not limited
     assert c.value(x, dx)[0] == pytest.approx(0.5 * (0.49 - 0.25))
-    _, pi, _ = c.barrier_terms(x, dx, None)
+    _, pi, _ = c.barrier_terms(state_at(x, dx))
     np.testing.assert_allclose(pi, [[0.0, 0.0], [0.0, 1.0 / c.value(x, dx)[0]]])
 
 
@@ -373,7 +377,7 @@ def test_kinetic_energy_limit_against_the_thesis_inertia(absolute_model, rng, ce
             np.testing.assert_allclose(
                 grad[0], -(absolute_model.coriolis(th, dth).T @ dth), atol=1e-14
             )
-            assert_generic_velocity_terms(c, th, dth, given)
+            assert_generic_velocity_terms(c, th, dth, dyn)
 
 
 def test_kinetic_energy_gradient_is_not_trivially_zero(absolute_model):
@@ -431,8 +435,7 @@ def test_constraint_set_names_and_margins(thesis_ch6_set, absolute_model, rng):
 def test_constraint_set_barrier_is_the_sum_of_logs(thesis_ch6_set, absolute_model, rng,
                                                    central_difference):
     for th, dth in admissible_states(thesis_ch6_set, rng):
-        dyn = absolute_model.dynamics(th, dth)
-        bar = thesis_ch6_set.barrier(th, dth, dyn)
+        bar = thesis_ch6_set.barrier(absolute_model.state(th, dth, kinematics=True))
         assert isinstance(bar, BarrierTerms)
         phi = np.array([thesis_phi1(th), thesis_phi2(th)])
         psi_rates = 0.5 * (B**2 - dth**2)
@@ -464,7 +467,7 @@ def test_constraint_set_barrier_is_the_sum_of_logs(thesis_ch6_set, absolute_mode
 def test_barrier_without_velocity_constraints(absolute_model, rng):
     cs = ConstraintSet(2, [obstacle(absolute_model), relative_limit()])
     for th, dth in admissible_states(cs, rng, 5):
-        bar = cs.barrier(th, dth, absolute_model.dynamics(th, dth))
+        bar = cs.barrier(absolute_model.state(th, dth, kinematics=True))
         assert bar.weight is None
         assert bar.log_psi == 0.0
         assert bar.log_phi == pytest.approx(math.log(thesis_phi1(th) * thesis_phi2(th)))
@@ -473,7 +476,7 @@ def test_barrier_without_velocity_constraints(absolute_model, rng):
 def test_barrier_with_only_rate_limits_has_no_gradient(absolute_model):
     cs = ConstraintSet(2, velocity=[joint_rate_limit(B, ("theta1", "theta2"))])
     x, dx = np.array([0.3, 0.1]), np.array([0.1, -0.1])
-    bar = cs.barrier(x, dx, absolute_model.dynamics(x, dx))
+    bar = cs.barrier(absolute_model.state(x, dx, kinematics=True))
     assert bar.gradient is None
     assert bar.log_phi == 0.0
     np.testing.assert_allclose(bar.weight, np.diag(1 / (0.5 * (B**2 - dx**2))))
@@ -484,7 +487,8 @@ def test_empty_constraint_set(absolute_model):
     assert cs.empty
     assert len(cs) == 0
     x = np.array([0.3, 0.1])
-    assert cs.barrier(x, x, absolute_model.dynamics(x, x)) == BarrierTerms(0.0, 0.0, None, None)
+    empty = BarrierTerms(0.0, 0.0, None, None)
+    assert cs.barrier(absolute_model.state(x, x, kinematics=True)) == empty
     assert cs.margins(x, x).shape == (0,)
     cs.check_admissible(x, 100 * x, "anything")  # no constraint, nothing to violate
 
@@ -503,7 +507,7 @@ def test_barrier_outside_s_raises_naming_the_constraint(thesis_ch6_set, absolute
                                                         dth, name):
     th, dth = np.array(th), np.array(dth)
     with pytest.raises(ConstraintViolation) as info:
-        thesis_ch6_set.barrier(th, dth, absolute_model.dynamics(th, dth))
+        thesis_ch6_set.barrier(absolute_model.state(th, dth, kinematics=True))
     assert info.value.constraint == name
     assert info.value.margin <= 0
     assert name in str(info.value)
@@ -513,7 +517,7 @@ def test_barrier_outside_the_energy_bound_names_it(absolute_model):
     cs = ConstraintSet(2, velocity=[KineticEnergyLimit(absolute_model, 0.01, name="energy")])
     th, dth = np.zeros(2), np.array([0.2, 0.2])
     with pytest.raises(ConstraintViolation, match="energy") as info:
-        cs.barrier(th, dth, absolute_model.dynamics(th, dth))
+        cs.barrier(absolute_model.state(th, dth, kinematics=True))
     assert info.value.margin == pytest.approx(0.01 - 0.5 * dth @ thesis_inertia(th) @ dth)
 
 
@@ -521,7 +525,7 @@ def test_barrier_rejects_a_nan_margin_in_any_position(absolute_model):
     cs = ConstraintSet(2, velocity=[joint_rate_limit(B, ("theta1", "theta2"))])
     x, dx = np.zeros(2), np.array([0.1, np.nan])
     with pytest.raises(ConstraintViolation, match=r"rate\[theta2\]"):
-        cs.barrier(x, dx, absolute_model.dynamics(x, np.zeros(2)))
+        cs.barrier(state_at(x, dx))
 
 
 def test_check_admissible_names_the_constraint(thesis_ch6_set):
@@ -567,12 +571,12 @@ def test_duplicate_constraint_names_are_rejected(absolute_model):
         ConstraintSet(2, [obstacle(absolute_model), obstacle(absolute_model)])
 
 
-def test_margins_at_the_last_barrier_state_equal_fresh_margins(thesis_ch6_set, absolute_model,
-                                                               rng):
+def test_barrier_margins_are_the_margins(thesis_ch6_set, absolute_model, rng):
+    """The margins the law's barrier pass reports are those ``margins`` computes afresh."""
     for th, dth in admissible_states(thesis_ch6_set, rng, 5):
-        fresh = thesis_ch6_set.margins(th, dth)
-        thesis_ch6_set.barrier(th, dth, absolute_model.dynamics(th, dth))
-        np.testing.assert_allclose(thesis_ch6_set.margins(th, dth), fresh, rtol=1e-12,
+        bar = thesis_ch6_set.barrier(absolute_model.state(th, dth, kinematics=True),
+                                     margins=True)
+        np.testing.assert_allclose(bar.margins, thesis_ch6_set.margins(th, dth), rtol=1e-12,
                                    atol=1e-15)
-        moved = thesis_ch6_set.margins(th + 1e-3, dth)  # another state: not the kept ones
-        assert moved[0] != pytest.approx(fresh[0], rel=1e-12, abs=0)
+        assert thesis_ch6_set.barrier(absolute_model.state(th, dth, kinematics=True)
+                                      ).margins is None

@@ -29,6 +29,7 @@ from cpbc.controllers import (
     RecentredBarrier,
     Tanh,
 )
+from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model import LinearCoordinates, RobotModel
 from cpbc.resources import models_dir
@@ -246,8 +247,7 @@ def expected_rate(name: str, ctrl, model: RobotModel, x, dx, divisor) -> float:
     if divisor == "psi":
         psi = np.prod(ctrl._velocity.margins(x, dx))
         return -dx @ (damping + f) / psi
-    dyn = model.dynamics(x, dx)
-    bar = ctrl.constraints.barrier(x, dx, dyn)
+    bar = ctrl.constraints.barrier(model.state(x, dx, kinematics=True))
     log_x = bar.log_phi + bar.log_psi
     s = math.exp(ctrl.shaping.log_s(log_x))
     if divisor == "s":
@@ -337,3 +337,42 @@ def test_law_specific_constraint_checks(absolute_model: RobotModel) -> None:
         CPBCKineticEnergy(absolute_model, np.zeros(2), ch6, 1, 1)
     with pytest.raises(CpbcError, match="joint position limits"):
         RecentredBarrier(absolute_model, np.zeros(2), ch6, 1, 1)
+
+
+def _offset_law(law):
+    """The same law as an instance of a subclass whose formula ``_law`` adds a constant
+    torque: how a user extends a law (BPBC extends CPBC the same way)."""
+    base = type(law)
+    extra = np.array([1.0, -1.0])
+
+    class Shifted(base):  # type: ignore[misc, valid-type]
+        def _law(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+            return super()._law(*args, **kwargs) + extra
+
+    law.__class__ = Shifted  # the same object, now of the subclass
+    return law, extra
+
+
+@pytest.mark.parametrize("index", range(8))
+def test_overriding_a_laws_formula_changes_its_torque(tilted: RobotModel, index: int) -> None:
+    """torque(), evaluate() and the safeguarded torque all come from the one formula: a
+    subclass that overrides it gets its own torque, for every law."""
+    name, law, _ = tilted_laws(tilted)[index]
+    shifted, extra = _offset_law(tilted_laws(tilted)[index][1])
+    rng = np.random.default_rng(index)
+    checked = 0
+    for _ in range(20):
+        x, dx = rng.uniform(-0.5, 0.5, 2), rng.uniform(-0.3, 0.3, 2)
+        if not np.all(law.constraints.margins(x, dx) > 0):
+            continue
+        tau = law.torque(x, dx)
+        np.testing.assert_allclose(shifted.torque(x, dx), tau + extra, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(shifted.evaluate(x, dx)[0], tau + extra, rtol=1e-12,
+                                   atol=1e-12)
+        assert shifted.evaluate(x, dx)[1] == law.evaluate(x, dx)[1]
+        if not law.constraints.empty:  # the guard asks the subclass, not the base class
+            guarded = Safeguard(shifted, 0.001, SafeguardSettings(decay_rate=1e6))
+            np.testing.assert_allclose(guarded.torque(x, dx), tau + extra, rtol=1e-12,
+                                       atol=1e-12)
+        checked += 1
+    assert checked >= 5, name

@@ -1,6 +1,6 @@
 """Long runs keep memory bounded: the log never holds more than ``max_log_samples`` samples,
 decimating itself on a uniform grid, so its size does not grow with the duration. (The full
-10-minute, 1 kHz run is in scripts/reliability_report.py; here short runs show the scaling.)"""
+10-minute, 1 kHz run is in tools/reliability_report.py; here short runs show the scaling.)"""
 
 from __future__ import annotations
 

@@ -14,8 +14,9 @@ import yaml
 
 from cpbc.constraints import ConstraintSet, joint_rate_limit
 from cpbc.controllers import BPBC, Controller, Power
+from cpbc.controllers.base import Evaluation
 from cpbc.errors import ConstraintViolation, CpbcError
-from cpbc.model import RobotModel
+from cpbc.model import ArmState, RobotModel
 from cpbc.reliability.bad_input import BASE
 from cpbc.reliability.campaign import (
     MismatchLevel,
@@ -88,15 +89,12 @@ class Pushing(Controller):
 
     type_name = "pushing"
 
-    def torque(self, x: np.ndarray, dx: np.ndarray) -> np.ndarray:
-        m = self.constraints.margins(x, dx)
+    def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
+        m = self.constraints.margins(state.x, state.dx)
         if np.any(m <= 0):
             i = int(np.argmin(m))
             raise ConstraintViolation(self.constraints.names[i], float(m[i]))
-        return np.array([20.0, 0.0])
-
-    def lyapunov(self, x: np.ndarray, dx: np.ndarray) -> float:
-        return 0.0
+        return Evaluation(np.array([20.0, 0.0]), 0.0, m if margins else None)
 
 
 def test_true_state_outside_S_ends_the_run_as_violated(absolute_model, plant) -> None:

@@ -3,8 +3,8 @@ the law does not enforce are counted apart, and what was touched is named."""
 
 from __future__ import annotations
 
-from cpbc.reliability.findings import _sampled
-from cpbc.reliability.report import _after_touch
+from tools.reliability.findings import _sampled
+from tools.reliability.report import _after_touch
 
 
 def _scenario(touched: dict[str, int]) -> dict[str, object]:

@@ -347,12 +347,28 @@ def test_free_joint_model_is_rejected(tmp_path):
         RobotModel.from_mjcf(path)
 
 
-def test_dynamics_of_the_same_state_are_computed_once(absolute_model, rng):
+def test_state_is_computed_afresh_and_keeps_nothing(absolute_model, rng):
+    """No state is kept between calls: the same state gives equal, separate arrays, and a
+    caller that changes one state's arrays changes nothing another call returns."""
     x, dx = rng.uniform(-2, 2, 2), rng.normal(size=2)
-    first = absolute_model.dynamics(x, dx)
-    again = absolute_model.dynamics(x.copy(), dx.copy())  # equal values, other arrays
-    assert again is first
-    other = absolute_model.dynamics(x, dx + 1e-12)  # a different state is recomputed
-    assert other is not first
-    np.testing.assert_allclose(other.inertia, absolute_model.inertia(x), atol=1e-12)
-    np.testing.assert_allclose(absolute_model.dynamics(x, dx).inertia, first.inertia, atol=0)
+    first = absolute_model.state(x, dx)
+    again = absolute_model.state(x.copy(), dx.copy())
+    for a, b in zip(first, again, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert first.inertia is not again.inertia
+    first.inertia[:] = 0.0
+    np.testing.assert_array_equal(absolute_model.state(x, dx).inertia, again.inertia)
+    np.testing.assert_allclose(again.inertia, absolute_model.inertia(x), atol=1e-12)
+
+
+@pytest.mark.parametrize("offset", [None, np.array([0.1, -0.2, 0.05])])
+def test_state_kinematics_give_the_point_of_one_pass(absolute_model, rng, offset):
+    """A point read from the state's kinematics is the one-pass point kinematics."""
+    fid = absolute_model.frame_id(absolute_model.model.frames[-1].name)
+    for _ in range(5):
+        x, dx = rng.uniform(-3, 3, 2), rng.normal(size=2)
+        absolute_model.state(x, dx, kinematics=True)
+        p, jac = absolute_model.state_point(fid, offset)
+        p_ref, jac_ref = absolute_model.point_kinematics(fid, x, offset)
+        np.testing.assert_allclose(p, p_ref, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(jac, jac_ref, rtol=0, atol=1e-14)

@@ -7,8 +7,9 @@ import pytest
 
 from cpbc.constraints import ConstraintSet, joint_rate_limit
 from cpbc.controllers import BPBC, PD, Controller, Power
+from cpbc.controllers.base import Evaluation
 from cpbc.errors import ConstraintViolation, CpbcError
-from cpbc.model import LinearCoordinates, RobotModel
+from cpbc.model import ArmState, LinearCoordinates, RobotModel
 from cpbc.resources import models_dir
 from cpbc.simulation import (
     LoopSettings,
@@ -91,23 +92,18 @@ def test_zero_order_hold_holds_torque_between_control_instants(model: RobotModel
 class Exploding(Controller):
     type_name = "exploding"
 
-    def torque(self, x: np.ndarray, dx: np.ndarray) -> np.ndarray:
-        return np.full(2, np.nan) if x[0] > 0.05 else np.array([50.0, 0.0])
-
-    def lyapunov(self, x: np.ndarray, dx: np.ndarray) -> float:
-        return 0.0
+    def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
+        return Evaluation(np.full(2, np.nan) if state.x[0] > 0.05 else np.array([50.0, 0.0]),
+                          0.0)
 
 
 class Refusing(Controller):
     type_name = "refusing"
 
-    def torque(self, x: np.ndarray, dx: np.ndarray) -> np.ndarray:
-        if x[0] > 0.05:
-            raise ConstraintViolation("wall", 0.05 - float(x[0]))
-        return np.array([50.0, 0.0])
-
-    def lyapunov(self, x: np.ndarray, dx: np.ndarray) -> float:
-        return 0.0
+    def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
+        if state.x[0] > 0.05:
+            raise ConstraintViolation("wall", 0.05 - float(state.x[0]))
+        return Evaluation(np.array([50.0, 0.0]), 0.0)
 
 
 def test_nan_torque_ends_run_as_diverged(model: RobotModel) -> None:
@@ -145,11 +141,8 @@ class Violent(Controller):
 
     type_name = "violent"
 
-    def torque(self, x: np.ndarray, dx: np.ndarray) -> np.ndarray:
-        return np.array([1e12, -1e12])
-
-    def lyapunov(self, x: np.ndarray, dx: np.ndarray) -> float:
-        return 0.0
+    def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
+        return Evaluation(np.array([1e12, -1e12]), 0.0)
 
 
 def test_mujoco_reset_after_blow_up_is_reported_as_divergence(

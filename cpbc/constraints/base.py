@@ -1,27 +1,34 @@
 """Constraint interfaces (Assumptions 6.4 and 6.6).
 
 A constraint object may describe several scalar constraints at once (one per joint, say),
-so that the hot path is vectorised; ``names`` has one entry per scalar constraint.
+so that the hot path is vectorised; ``names`` has one entry per scalar constraint. The laws
+read a constraint at the per-step state (:class:`cpbc.model.ArmState`) computed once per
+control step; ``value`` and ``values_along`` evaluate it at any other configuration.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 
-from cpbc.model.robot_model import DynamicsTerms
-
-Array = NDArray[np.float64]
+from cpbc.arrays import Array
+from cpbc.model.robot_model import ArmState
 
 
 class ConfigurationConstraint(ABC):
-    """φ_i(x) = h_i(x) − Δ_i > 0 (eq. 6.16), with gradient ∇φ_i(x)."""
+    """φ_i(x) = h_i(x) − Δ_i > 0 (eq. 6.16), with gradient ∇φ_i(x).
+
+    Attributes:
+        names: one per scalar constraint.
+        needs_kinematics: whether ``barrier_terms`` reads the state's placements and
+            Jacobians from the model's Pinocchio data (``RobotModel.state(kinematics=True)``).
+    """
 
     names: tuple[str, ...]
-    # whether barrier_terms returns φ itself (a localised barrier returns a reshaped φ̃)
-    barrier_is_margin: bool = True
+    needs_kinematics: bool = False
+    stacks: bool = False  # whether neighbours of this class are evaluated as one (stacked)
 
     @abstractmethod
     def value(self, x: Array) -> Array:
@@ -35,62 +42,75 @@ class ConfigurationConstraint(ABC):
         """φ(x) and ∂φ/∂x together (subclasses share kinematics here)."""
         return self.value(x), self.gradient(x)
 
-    def barrier_terms(self, x: Array) -> tuple[Array, Array]:
-        """φ(x) and Σ_i ∇φ_i/φ_i, shape (n,): what the laws need (DESIGN §3).
+    def barrier_terms(self, state: ArmState, margins: bool = False
+                      ) -> tuple[Array, Array, Array | None]:
+        """What the laws need (DESIGN §3): the barrier values φ̃ (k,) whose logs enter V,
+        Σ_i ∇φ̃_i/φ̃_i, shape (n,), and — with ``margins`` — φ itself (None without).
 
-        Outside S (some φ_i ≤ 0) the second value is meaningless; callers check φ first.
+        φ̃ = φ except for a localised barrier (Clearance with an influence distance). Outside
+        S (some φ_i ≤ 0) the second value is meaningless; callers check the first.
         Subclasses override this with a cheaper closed form.
         """
-        phi, grad = self.evaluate(x)
-        return phi, (1.0 / phi) @ grad
-
-    def barrier_terms_and_value(self, x: Array) -> tuple[Array, Array, Array]:
-        """``barrier_terms(x)`` and ``value(x)``; subclasses whose barrier is not the margin
-        override this to get both from one pass."""
-        phi, b = self.barrier_terms(x)
-        return phi, b, phi if self.barrier_is_margin else self.value(x)
+        phi, grad = self.evaluate(state.x)
+        return phi, (1.0 / phi) @ grad, phi
 
     def values_along(self, xs: Array) -> Array:
         """φ at each row of xs, shape (N, k); vectorised by subclasses where they can."""
         return np.array([self.value(x) for x in xs]).reshape(len(xs), len(self.names))
 
+    @classmethod
+    def stacked(cls, parts: Sequence[ConfigurationConstraint]) -> ConfigurationConstraint:
+        """One constraint that evaluates ``parts`` (all of this class) together, with their
+        names in order; classes with rows to stack override this."""
+        if len(parts) != 1:
+            raise TypeError(f"{cls.__name__} does not stack")
+        return parts[0]
+
 
 class VelocityConstraint(ABC):
     """ψ_j(x, ẋ) = Ω_j(x) − ½ ẋᵀ Q_j(x) ẋ > 0 with Q_j ⪰ 0 (eq. 6.17).
 
-    ``needs_dynamics`` says whether the constraint reads D or C from the dynamics terms.
+    ``needs_dynamics`` says whether the constraint reads D from the state; without a state
+    (at a predicted configuration) such a constraint asks the model.
     """
 
     names: tuple[str, ...]
     needs_dynamics: bool = False
+    stacks: bool = False  # whether neighbours of this class are evaluated as one (stacked)
 
     @abstractmethod
-    def value(self, x: Array, dx: Array, dyn: DynamicsTerms | None) -> Array:
+    def value(self, x: Array, dx: Array, state: ArmState | None = None) -> Array:
         """ψ(x, ẋ), shape (k,)."""
 
     def values_along(self, xs: Array, dxs: Array) -> Array:
         """ψ at each sample, shape (N, k); vectorised by subclasses where they can."""
-        out = [self.value(x, dx, None) for x, dx in zip(xs, dxs, strict=True)]
+        out = [self.value(x, dx) for x, dx in zip(xs, dxs, strict=True)]
         return np.array(out).reshape(len(xs), len(self.names))
 
     @abstractmethod
-    def weights(self, x: Array, dyn: DynamicsTerms | None) -> Array:
+    def weights(self, x: Array, state: ArmState | None = None) -> Array:
         """Q_j(x), shape (k, n, n)."""
 
     @abstractmethod
-    def gradient(self, x: Array, dx: Array, dyn: DynamicsTerms | None) -> Array:
+    def gradient(self, x: Array, dx: Array, state: ArmState | None = None) -> Array:
         """∂ψ/∂x at fixed ẋ, shape (k, n)."""
 
-    def barrier_terms(
-        self, x: Array, dx: Array, dyn: DynamicsTerms | None
-    ) -> tuple[Array, Array, Array | None]:
+    def barrier_terms(self, state: ArmState) -> tuple[Array, Array, Array | None]:
         """ψ, Π = Σ Q_j/ψ_j (n, n) and b = Σ (∂ψ_j/∂x)/ψ_j (n,) — the log-barrier form of DESIGN §3.
 
         b may be None when it is identically zero (constant Q and Ω). Subclasses override
         this with a cheaper closed form.
         """
-        psi = self.value(x, dx, dyn)
+        x, dx = state.x, state.dx
+        psi = self.value(x, dx, state)
         inv = 1.0 / psi
-        pi = np.einsum("k,kij->ij", inv, self.weights(x, dyn))
-        b = self.gradient(x, dx, dyn).T @ inv
+        pi = np.einsum("k,kij->ij", inv, self.weights(x, state))
+        b = self.gradient(x, dx, state).T @ inv
         return psi, pi, b
+
+    @classmethod
+    def stacked(cls, parts: Sequence[VelocityConstraint]) -> VelocityConstraint:
+        """One constraint that evaluates ``parts`` (all of this class) together."""
+        if len(parts) != 1:
+            raise TypeError(f"{cls.__name__} does not stack")
+        return parts[0]

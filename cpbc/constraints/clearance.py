@@ -14,7 +14,8 @@ from itertools import pairwise
 import numpy as np
 import pinocchio as pin
 
-from cpbc.constraints.base import Array, ConfigurationConstraint
+from cpbc.arrays import Array
+from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.constraints.covering import LinkPrimitive
 from cpbc.constraints.geometry import (
     BoxObstacle,
@@ -27,7 +28,7 @@ from cpbc.constraints.geometry import (
     segment_segment,
 )
 from cpbc.errors import CpbcError
-from cpbc.model.robot_model import RobotModel
+from cpbc.model.robot_model import ArmState, RobotModel
 
 # vec(p ⊗ n) @ _CROSS = p × n
 _CROSS = np.zeros((9, 3))
@@ -188,7 +189,7 @@ class Clearance(ConfigurationConstraint):
         name: prefix of the constraint names, ``name[primitive|obstacle]``.
     """
 
-    barrier_is_margin = False  # the law's φ̃ (and per-link products), not the clearance
+    needs_kinematics = True  # the law's pass reads the state's joint Jacobians
 
     def __init__(
         self,
@@ -233,7 +234,7 @@ class Clearance(ConfigurationConstraint):
         self._inv_ell = np.array(1.0 / (self.influence or 1.0))
         self.self_pairs = tuple((str(a), str(b)) for a, b in self_pairs)
         self._pin = model.model
-        self._data = model.model.createData()
+        self._data = model.data  # the model's: the per-step state leaves its Jacobians there
         self._n = model.n
         self._identity = model.coordinates.is_identity
         self._t_inv = model.coordinates.inverse
@@ -724,15 +725,14 @@ class Clearance(ConfigurationConstraint):
         low = (np.minimum.reduceat(slack, self._reduce_at) < 0.0).tolist()
         return [g for g, hit in zip(self._groups, low, strict=True) if hit]
 
-    def barrier_terms(self, x: Array) -> tuple[Array, Array]:
-        return self._barrier(x, False)[:2]
+    def barrier_terms(self, state: ArmState, margins: bool = False
+                      ) -> tuple[Array, Array, Array | None]:
+        """φ̃, Σ ∇φ̃/φ̃ and (with ``margins``) the clearances φ, from one pass that reads
+        the state's joint Jacobians."""
+        return self._barrier(state.x, state.q, margins)
 
-    def barrier_terms_and_value(self, x: Array) -> tuple[Array, Array, Array]:
-        """``barrier_terms(x)`` and ``value(x)`` from one pass (the same numbers)."""
-        return self._barrier(x, True)  # type: ignore[return-value]
-
-    def _barrier(self, x: Array, with_value: bool) -> tuple[Array, Array, Array | None]:
-        q = self._q(x)
+    def _barrier(self, x: Array, q: Array, with_value: bool
+                 ) -> tuple[Array, Array, Array | None]:
         y = self._regressor(q)
         value: Array | None = None
         ell = self.influence
@@ -798,7 +798,7 @@ class Clearance(ConfigurationConstraint):
             value = self.value(x)
         if phi_out is None:
             return self._far_phi, self._zero, value
-        jac = self._jacobians(q)
+        jac = self._data.J  # the state's joint Jacobians (RobotModel.state, kinematics=True)
         b = self._zero
         if sphere_local is not None:
             assert s is not None

@@ -4,17 +4,20 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import NamedTuple
+from itertools import groupby
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 
-from cpbc.constraints.base import Array, ConfigurationConstraint, VelocityConstraint
+from cpbc.arrays import Array
+from cpbc.constraints.base import ConfigurationConstraint, VelocityConstraint
 from cpbc.errors import ConstraintViolation, CpbcError, InadmissibleStateError
-from cpbc.model.robot_model import DynamicsTerms
+from cpbc.model.robot_model import ArmState
+
+Constraint = TypeVar("Constraint", ConfigurationConstraint, VelocityConstraint)
 
 
-def _log_sum(parts: Sequence[Array], owners: Sequence[ConfigurationConstraint | VelocityConstraint]
-             ) -> float:
+def _log_sum(parts: Sequence[Array], names: Sequence[str]) -> float:
     """Σ log of every margin in ``parts``; ConstraintViolation naming the worst one if any
     margin is ≤ 0 or NaN."""
     values: list[float] = []
@@ -25,31 +28,53 @@ def _log_sum(parts: Sequence[Array], owners: Sequence[ConfigurationConstraint | 
     except ValueError:  # a margin ≤ 0
         total = math.nan
     if total != total:  # a margin ≤ 0 or NaN (math.log(nan) is nan)
-        names = [name for c in owners for name in c.names]
         margins = np.asarray(values)
         i = int(np.argmin(np.nan_to_num(margins, nan=-np.inf)))
         raise ConstraintViolation(names[i], float(margins[i]))
     return total
 
 
+def _stack(items: Sequence[Constraint]) -> tuple[Constraint, ...]:
+    """Neighbours of one class that stacks, evaluated as one constraint (the same names in
+    the same order); a group that cannot stack (a joint bounded twice) stays as it is."""
+    out: list[Constraint] = []
+    for cls, group in groupby(items, key=type):
+        run = list(group)
+        if len(run) > 1 and cls.stacks:
+            try:
+                out.append(cls.stacked(run))  # type: ignore[arg-type]
+                continue
+            except CpbcError:
+                pass
+        out.extend(run)
+    return tuple(out)
+
+
 class BarrierTerms(NamedTuple):
     """Log-barrier sums of DESIGN §3 at one state.
 
     Attributes:
-        log_phi: Σ log φ_i = log Φ.
+        log_phi: Σ log φ̃_i = log Φ.
         log_psi: Σ log ψ_j = log Ψ.
-        gradient: b_φ + b_ψ = Σ ∇φ_i/φ_i + Σ ∂_xψ_j/ψ_j, shape (n,), or None when zero.
+        gradient: b_φ + b_ψ = Σ ∇φ̃_i/φ̃_i + Σ ∂_xψ_j/ψ_j, shape (n,), or None when zero.
         weight: Π = Σ Q_j/ψ_j, shape (n, n), or None without velocity constraints.
+        margins: every φ_i and ψ_j in the order of ``ConstraintSet.names`` when asked for,
+            else None.
     """
 
     log_phi: float
     log_psi: float
     gradient: Array | None
     weight: Array | None
+    margins: Array | None = None
 
 
 class ConstraintSet:
-    """Configuration and velocity constraints that together define S."""
+    """Configuration and velocity constraints that together define S.
+
+    Neighbouring constraints of a kind that stacks (linear limits, rate limits) are
+    evaluated together, as one constraint with all their rows.
+    """
 
     def __init__(
         self,
@@ -67,12 +92,10 @@ class ConstraintSet:
             dup = sorted({x for x in self.names if self.names.count(x) > 1})
             raise CpbcError(f"duplicate constraint names: {dup}; give each constraint its own name")
         self.needs_dynamics = any(c.needs_dynamics for c in self.velocity)
-        # the margins found by the last barrier call, where its terms are the margins (a
-        # localised barrier such as Clearance's gives the law φ̃, so its margins are redone)
-        self._reusable = [c.barrier_is_margin for c in self.configuration] + [True] * len(
-            self.velocity)
-        self._last_key: bytes = b""
-        self._last_parts: list[Array] = []
+        self.needs_kinematics = any(c.needs_kinematics for c in self.configuration)
+        self._config = _stack(self.configuration)
+        self._velocity = _stack(self.velocity)
+        self.n_configuration = sum(len(c.names) for c in self.configuration)
 
     def __len__(self) -> int:
         return len(self.names)
@@ -81,27 +104,33 @@ class ConstraintSet:
     def empty(self) -> bool:
         return not self.names
 
-    def margins(self, x: Array, dx: Array, dyn: DynamicsTerms | None = None) -> Array:
-        """Every φ_i and ψ_j, in the order of ``names``.
-
-        At the state of the last ``barrier`` call the margins it found are reused (a law's
-        safeguard asks for them at the sample the law has just evaluated).
-        """
-        if self._last_parts and self._last_key == x.tobytes() + dx.tobytes():
-            parts = [m if keep else c.value(x)  # type: ignore[call-arg]
-                     for m, keep, c in zip(self._last_parts, self._reusable,
-                                           self.configuration, strict=False)]
-            return np.concatenate(parts + self._last_parts[len(self.configuration):])
-        parts = [c.value(x) for c in self.configuration]
-        parts += [c.value(x, dx, dyn) for c in self.velocity]
+    def margins(self, x: Array, dx: Array, state: ArmState | None = None) -> Array:
+        """Every φ_i and ψ_j at (x, ẋ), in the order of ``names``."""
+        parts = [c.value(x) for c in self._config]
+        parts += [c.value(x, dx, state) for c in self._velocity]
         return np.concatenate(parts) if parts else np.zeros(0)
+
+    def configuration_margins(self, x: Array) -> Array:
+        """Every φ_i at x, in the order of ``names``."""
+        parts = [c.value(x) for c in self._config]
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def velocity_margins(self, x: Array, dx: Array, state: ArmState | None = None) -> Array:
+        """Every ψ_j at (x, ẋ), in the order of ``names``."""
+        parts = [c.value(x, dx, state) for c in self._velocity]
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def configuration_margins_along(self, xs: Array) -> Array:
+        """Every φ_i at every row of xs, shape (N, number of φ_i)."""
+        parts = [c.values_along(xs) for c in self._config]
+        return np.concatenate(parts, axis=1) if parts else np.zeros((len(xs), 0))
 
     def margins_along(self, xs: Array, dxs: Array) -> Array:
         """Every margin at every sample, shape (N, m); NaN rows where the state is not finite."""
         out = np.full((len(xs), len(self.names)), np.nan)
         ok = np.all(np.isfinite(xs), axis=1) & np.all(np.isfinite(dxs), axis=1)
-        parts = [c.values_along(xs[ok]) for c in self.configuration]
-        parts += [c.values_along(xs[ok], dxs[ok]) for c in self.velocity]
+        parts = [c.values_along(xs[ok]) for c in self._config]
+        parts += [c.values_along(xs[ok], dxs[ok]) for c in self._velocity]
         if parts:
             out[ok] = np.concatenate(parts, axis=1)
         return out
@@ -113,22 +142,28 @@ class ConstraintSet:
             i = int(np.argmin(np.where(np.isnan(m), -np.inf, m)))
             raise InadmissibleStateError(what, self.names[i], float(m[i]))
 
-    def barrier(self, x: Array, dx: Array, dyn: DynamicsTerms) -> BarrierTerms:
-        """Log-barrier sums at (x, ẋ); raises ConstraintViolation outside S."""
+    def barrier(self, state: ArmState, margins: bool = False) -> BarrierTerms:
+        """Log-barrier sums at the per-step state (with ``margins``, every margin too);
+        raises ConstraintViolation outside S."""
         gradient, weight = None, None
-        phis = []
-        for c in self.configuration:
-            phi, b = c.barrier_terms(x)
+        phis, values = [], []
+        for c in self._config:
+            phi, b, value = c.barrier_terms(state, margins)
             phis.append(phi)
+            values.append(value)
             gradient = b if gradient is None else gradient + b
         psis = []
-        for c in self.velocity:
-            psi, pi, b = c.barrier_terms(x, dx, dyn)
+        for v in self._velocity:
+            psi, pi, b_psi = v.barrier_terms(state)
             psis.append(psi)
-            if b is not None:
-                gradient = b if gradient is None else gradient + b
+            if b_psi is not None:
+                gradient = b_psi if gradient is None else gradient + b_psi
             weight = pi if weight is None else weight + pi
-        log_phi = _log_sum(phis, self.configuration) if phis else 0.0
-        log_psi = _log_sum(psis, self.velocity) if psis else 0.0
-        self._last_key, self._last_parts = x.tobytes() + dx.tobytes(), phis + psis
-        return BarrierTerms(log_phi, log_psi, gradient, weight)
+        nc = self.n_configuration
+        log_phi = _log_sum(phis, self.names[:nc]) if phis else 0.0
+        log_psi = _log_sum(psis, self.names[nc:]) if psis else 0.0
+        found = None
+        if margins:
+            parts = values + psis
+            found = np.concatenate(parts) if parts else np.zeros(0)  # type: ignore[arg-type]
+        return BarrierTerms(log_phi, log_psi, gradient, weight, found)

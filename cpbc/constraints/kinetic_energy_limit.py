@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from cpbc.constraints.base import Array, VelocityConstraint
+from cpbc.arrays import Array
+from cpbc.constraints.base import VelocityConstraint
 from cpbc.errors import CpbcError
-from cpbc.model.robot_model import DynamicsTerms, RobotModel
+from cpbc.model.robot_model import ArmState, RobotModel
 
 
 class KineticEnergyLimit(VelocityConstraint):
@@ -27,20 +28,19 @@ class KineticEnergyLimit(VelocityConstraint):
         self.limit = float(limit)
         self.names = (name,)
 
-    def value(self, x: Array, dx: Array, dyn: DynamicsTerms | None = None) -> Array:
-        d = dyn.inertia if dyn is not None else self.model.inertia(x)
+    def value(self, x: Array, dx: Array, state: ArmState | None = None) -> Array:
+        d = state.inertia if state is not None else self.model.inertia(x)
         return np.array([self.limit - 0.5 * dx @ d @ dx])
 
-    def weights(self, x: Array, dyn: DynamicsTerms | None = None) -> Array:
-        d = dyn.inertia if dyn is not None else self.model.inertia(x)
+    def weights(self, x: Array, state: ArmState | None = None) -> Array:
+        d = state.inertia if state is not None else self.model.inertia(x)
         return d[None, :, :]
 
-    def gradient(self, x: Array, dx: Array, dyn: DynamicsTerms | None = None) -> Array:
+    def gradient(self, x: Array, dx: Array, state: ArmState | None = None) -> Array:
         return -(self.model.coriolis(x, dx).T @ dx)[None, :]
 
-    def barrier_terms(
-        self, x: Array, dx: Array, dyn: DynamicsTerms | None
-    ) -> tuple[Array, Array, Array]:
-        d = dyn.inertia if dyn is not None else self.model.inertia(x)
+    def barrier_terms(self, state: ArmState) -> tuple[Array, Array, Array]:
+        """ψ, Π = D/ψ and b = −Cᵀẋ/ψ."""
+        d, dx = state.inertia, state.dx
         psi = self.limit - 0.5 * dx @ d @ dx
-        return np.array([psi]), d / psi, -(self.model.coriolis(x, dx).T @ dx) / psi
+        return np.array([psi]), d / psi, -(self.model.coriolis(state.x, dx).T @ dx) / psi

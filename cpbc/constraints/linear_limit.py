@@ -6,8 +6,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from cpbc.constraints.base import Array, ConfigurationConstraint
+from cpbc.arrays import Array
+from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.errors import CpbcError
+from cpbc.model.robot_model import ArmState
 
 
 class LinearLimit(ConfigurationConstraint):
@@ -24,6 +26,8 @@ class LinearLimit(ConfigurationConstraint):
         lower, upper: bounds, shape (k,), lower < upper.
         names: one per row.
     """
+
+    stacks = True
 
     def __init__(
         self, rows: Array, lower: Array, upper: Array, names: Sequence[str]
@@ -55,10 +59,22 @@ class LinearLimit(ConfigurationConstraint):
         y = self.rows.dot(x)
         return (y - self.lower) * (self.upper - y)
 
-    def barrier_terms(self, x: Array) -> tuple[Array, Array]:
-        y = self.rows.dot(x)
+    def barrier_terms(self, state: ArmState, margins: bool = False
+                      ) -> tuple[Array, Array, Array | None]:
+        """φ, Σ ∇φ_i/φ_i = Σ a_i (l_i + u_i − 2a_iᵀx)/φ_i and φ again."""
+        y = self.rows.dot(state.x)
         phi = (y - self.lower) * (self.upper - y)
-        return phi, ((self._sum - 2.0 * y) / phi).dot(self.rows)
+        return phi, ((self._sum - 2.0 * y) / phi).dot(self.rows), phi
+
+    @classmethod
+    def stacked(cls, parts: Sequence[ConfigurationConstraint]) -> LinearLimit:
+        """All rows of ``parts`` as one LinearLimit (one product per step instead of one
+        per constraint)."""
+        limits = [p for p in parts if isinstance(p, LinearLimit)]
+        return LinearLimit(np.vstack([p.rows for p in limits]),
+                           np.concatenate([p.lower for p in limits]),
+                           np.concatenate([p.upper for p in limits]),
+                           [name for p in limits for name in p.names])
 
     def values_along(self, xs: Array) -> Array:
         y = xs @ self.rows.T

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from cpbc.constraints.base import Array, ConfigurationConstraint
+from cpbc.arrays import Array
+from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.errors import CpbcError
-from cpbc.model.robot_model import RobotModel
+from cpbc.model.robot_model import ArmState, RobotModel
 
 
 class PointOutsideSphere(ConfigurationConstraint):
@@ -23,6 +24,8 @@ class PointOutsideSphere(ConfigurationConstraint):
         offset: the point in the frame's coordinates, shape (3,) [m].
         name: label of the constraint.
     """
+
+    needs_kinematics = True
 
     def __init__(
         self,
@@ -58,8 +61,10 @@ class PointOutsideSphere(ConfigurationConstraint):
         d = p - self.centre
         return np.array([d @ d - self._r2]), (2.0 * d @ jac)[None, :]
 
-    def barrier_terms(self, x: Array) -> tuple[Array, Array]:
-        p, jac = self.model.point_kinematics(self.frame_id, x, self.offset)
+    def barrier_terms(self, state: ArmState, margins: bool = False
+                      ) -> tuple[Array, Array, Array | None]:
+        """φ, ∇φ/φ = 2 (p − c)ᵀ J_p / φ and φ again, from the state's kinematics."""
+        p, jac = self.model.state_point(self.frame_id, self.offset)
         d = p - self.centre
-        phi = float(d @ d) - self._r2
-        return np.array([phi]), (d @ jac) * (2.0 / phi)
+        phi = np.array([float(d @ d) - self._r2])
+        return phi, (d @ jac) * (2.0 / phi[0]), phi

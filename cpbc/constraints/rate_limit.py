@@ -6,9 +6,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from cpbc.constraints.base import Array, VelocityConstraint
+from cpbc.arrays import Array
+from cpbc.constraints.base import VelocityConstraint
 from cpbc.errors import CpbcError
-from cpbc.model.robot_model import DynamicsTerms
+from cpbc.model.robot_model import ArmState
 
 
 class RateLimit(VelocityConstraint):
@@ -22,6 +23,8 @@ class RateLimit(VelocityConstraint):
         bounds: B_j > 0, shape (k,) [rad/s].
         names: one per row.
     """
+
+    stacks = True
 
     def __init__(self, rows: Array, bounds: Array, names: Sequence[str]) -> None:
         rows = np.atleast_2d(np.asarray(rows, dtype=float))
@@ -52,7 +55,20 @@ class RateLimit(VelocityConstraint):
         """True when every row bounds a single coordinate."""
         return self._joint_index is not None
 
-    def value(self, x: Array, dx: Array, dyn: DynamicsTerms | None = None) -> Array:
+    @property
+    def joint_index(self) -> Array | None:
+        """The coordinate each row bounds (per-joint limits), else None."""
+        return self._joint_index
+
+    @classmethod
+    def stacked(cls, parts: Sequence[VelocityConstraint]) -> RateLimit:
+        """All rows of ``parts`` as one RateLimit (CpbcError if a joint is bounded twice)."""
+        limits = [p for p in parts if isinstance(p, RateLimit)]
+        return RateLimit(np.vstack([p.rows for p in limits]),
+                         np.concatenate([p.bounds for p in limits]),
+                         [name for p in limits for name in p.names])
+
+    def value(self, x: Array, dx: Array, state: ArmState | None = None) -> Array:
         y = dx[self._joint_index] if self._joint_index is not None else self.rows.dot(dx)
         return self._omega - 0.5 * y * y
 
@@ -60,17 +76,16 @@ class RateLimit(VelocityConstraint):
         y = dxs @ self.rows.T
         return self._omega - 0.5 * y * y
 
-    def weights(self, x: Array, dyn: DynamicsTerms | None = None) -> Array:
+    def weights(self, x: Array, state: ArmState | None = None) -> Array:
         return np.einsum("ki,kj->kij", self.rows, self.rows)
 
-    def gradient(self, x: Array, dx: Array, dyn: DynamicsTerms | None = None) -> Array:
+    def gradient(self, x: Array, dx: Array, state: ArmState | None = None) -> Array:
         return np.zeros((self.rows.shape[0], x.shape[0]))
 
-    def barrier_terms(
-        self, x: Array, dx: Array, dyn: DynamicsTerms | None
-    ) -> tuple[Array, Array, Array | None]:
-        psi = self.value(x, dx)
-        n = x.shape[0]
+    def barrier_terms(self, state: ArmState) -> tuple[Array, Array, Array | None]:
+        """ψ, Π = Aᵀ diag(1/ψ) A and b = 0 (None)."""
+        psi = self.value(state.x, state.dx)
+        n = state.x.shape[0]
         if self._all_joints_in_order:
             pi = np.zeros((n, n))
             pi.flat[:: n + 1] = 1.0 / psi

@@ -3,14 +3,29 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 
-from cpbc.constraints.base import Array
+from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.errors import CpbcError
-from cpbc.model.robot_model import RobotModel
+from cpbc.model.robot_model import ArmState, RobotModel
+
+
+class Evaluation(NamedTuple):
+    """A law at one per-step state.
+
+    Attributes:
+        torque: τ, shape (n,), controller coordinates.
+        lyapunov: V at the state.
+        margins: every margin of the law's constraints (in the order of their names) when
+            asked for, else None.
+    """
+
+    torque: Array
+    lyapunov: float
+    margins: Array | None = None
 
 
 def positive_vector(value: object, n: int, field: str) -> Array:
@@ -56,17 +71,28 @@ class Controller(ABC):
         self.target.setflags(write=False)
         self.constraints = constraints or ConstraintSet(model.n)
 
+    def state(self, x: Array, dx: Array) -> ArmState:
+        """The per-step state this law reads: the model's dynamics terms and, when a
+        constraint needs them, its kinematics — computed once, read by law and constraints."""
+        return self.model.state(x, dx, kinematics=self.constraints.needs_kinematics)
+
     @abstractmethod
+    def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
+        """τ, V and (with ``margins``) every constraint margin at a per-step state; raises
+        ConstraintViolation outside the admissible set."""
+
     def torque(self, x: Array, dx: Array) -> Array:
         """Generalised force τ, shape (n,), in controller coordinates."""
+        return self.evaluate_state(self.state(x, dx)).torque
 
-    @abstractmethod
     def lyapunov(self, x: Array, dx: Array) -> float:
         """The law's Lyapunov function V(x, ẋ) (non-increasing along the closed loop)."""
+        return self.evaluate_state(self.state(x, dx)).lyapunov
 
     def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
-        """τ and V together; laws that share the work override this."""
-        return self.torque(x, dx), self.lyapunov(x, dx)
+        """τ and V together."""
+        out = self.evaluate_state(self.state(x, dx))
+        return out.torque, out.lyapunov
 
     def check_admissible(self, x: Array, dx: Array, what: str) -> None:
         """Raise InadmissibleStateError if (x, ẋ) is outside this law's admissible set."""

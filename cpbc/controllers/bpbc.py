@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cpbc.constraints.base import Array
+from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.rate_limit import RateLimit
 from cpbc.controllers.base import positive_vector
@@ -51,18 +51,19 @@ class BPBC(CPBC):
                 "bpbc (Theorem 7.7) enforces per-joint rate limits only: give it "
                 "joint_rate_limit constraints and no position, obstacle or energy constraints"
             )
-        limited = np.concatenate([c._joint_index for c in constraints.velocity])  # type: ignore[attr-defined]
+        rates = [c for c in constraints.velocity if isinstance(c, RateLimit)]
+        limited = np.concatenate([c.joint_index for c in rates if c.joint_index is not None])
         if sorted(limited.tolist()) != list(range(model.n)):
             raise CpbcError(
                 "bpbc needs exactly one rate limit on every joint for its torque bound (7.32)"
             )
         self.xi = positive_vector(xi, model.n, "xi")
         self.gamma = positive_vector(gamma, model.n, "gamma")
-        self.potential = LogCoshPotential(self.kp, self.xi)  # type: ignore[assignment]
+        self.potential = LogCoshPotential(self.kp, self.xi)
         self.damping = TanhDamping(self.kd, self.gamma)
         bounds = np.zeros(model.n)
-        for c in constraints.velocity:
-            bounds[c._joint_index] = c.bounds  # type: ignore[attr-defined]
+        for c in rates:
+            bounds[c.joint_index] = c.bounds
         self.rate_bounds = bounds
         self.model_bounds = model_bounds or estimate_bounds(model)
         zb = self.model_bounds

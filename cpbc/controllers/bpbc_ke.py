@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cpbc.constraints.base import Array
+from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.controllers.base import positive_vector
 from cpbc.controllers.cpbc_ke import CPBCKineticEnergy
@@ -46,7 +46,7 @@ class BPBCKineticEnergy(CPBCKineticEnergy):
             )
         self.xi = positive_vector(xi, model.n, "xi")
         self.gamma = positive_vector(gamma, model.n, "gamma")
-        self.potential = LogCoshPotential(self.kp, self.xi)  # type: ignore[assignment]
+        self.potential = LogCoshPotential(self.kp, self.xi)
         self.damping = TanhDamping(self.kd, self.gamma)
         self.model_bounds = model_bounds or estimate_bounds(model)
         g = self.model_bounds.gravity

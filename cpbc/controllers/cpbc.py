@@ -4,17 +4,16 @@ from __future__ import annotations
 
 import math
 
-from cpbc.constraints.base import Array
+from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
-from cpbc.controllers.base import Controller, positive_vector
+from cpbc.controllers.base import Controller, Evaluation, positive_vector
 from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.shaping import Identity, Shaping
-from cpbc.controllers.terms import LinearDamping, QuadraticPotential
-from cpbc.controllers.unrolled import Unrolled
-from cpbc.model.robot_model import DynamicsTerms, RobotModel
+from cpbc.controllers.terms import Damping, LinearDamping, Potential, QuadraticPotential
+from cpbc.model.robot_model import ArmState, RobotModel
 
 
-class CPBC(Unrolled, Controller):
+class CPBC(Controller):
     """Constrained PBC for configuration and velocity constraints (Theorem 6.9, eq. 6.24/6.70).
 
     With V = L / s(ΦΨ), L = ½ẋᵀDẋ + U(x̃), dividing (6.24) by s gives the equivalent
@@ -49,52 +48,33 @@ class CPBC(Unrolled, Controller):
         self.kp = positive_vector(kp, model.n, "kp")
         self.kd = positive_vector(kd, model.n, "kd")
         self.shaping: Shaping = shaping or Identity()
-        self.potential: QuadraticPotential = QuadraticPotential(self.kp)
-        self.damping: object = LinearDamping(self.kd)
-        self._uses_velocity = bool(constraints.velocity)
+        self.potential: Potential = QuadraticPotential(self.kp)
+        self.damping: Damping = LinearDamping(self.kd)
 
-    def _shaped_terms(
-        self, x: Array, dx: Array
-    ) -> tuple[DynamicsTerms, BarrierTerms, Array, float]:
-        """Dynamics, barrier sums, −∂U/∂x̃ and L at one state."""
-        dyn = self.model.dynamics(x, dx)
-        bar = self.constraints.barrier(x, dx, dyn)
-        potential, grad = self.potential.evaluate(x - self.target)
-        lag = 0.5 * float(dx.dot(dyn.inertia.dot(dx))) + potential
-        return dyn, bar, grad, lag
-
-    def torque_arrays(self, x: Array, dx: Array) -> Array:
-        """τ from the array code (the reference for the unrolled one)."""
-        return self._law(dx, *self._shaped_terms(x, dx))
-
-    def evaluate_arrays(self, x: Array, dx: Array) -> tuple[Array, float]:
-        """τ and V from the array code (the reference for the unrolled one)."""
-        terms = self._shaped_terms(x, dx)
-        return self._law(dx, *terms), self._shaped_value(terms[1], terms[3])
+    def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
+        bar = self.constraints.barrier(state, margins)  # raises outside S
+        potential, grad = self.potential.evaluate(state.x - self.target)
+        dx = state.dx
+        lag = 0.5 * float(dx.dot(state.inertia.dot(dx))) + potential
+        tau = self._law(state, bar, grad, lag)
+        return Evaluation(tau, self._shaped_value(bar, lag), bar.margins)
 
     def _shaped_value(self, bar: BarrierTerms, lag: float) -> float:
+        """V = L / s(ΦΨ), evaluated in logs."""
         if lag <= 0.0:
             return 0.0
         return math.exp(math.log(lag) - self.shaping.log_s(bar.log_phi + bar.log_psi))
 
-    def _law(
-        self, dx: Array, dyn: DynamicsTerms, bar: BarrierTerms, grad: Array, lag: float
-    ) -> Array:
-        """The law of the class docstring from precomputed terms."""
-        a = -grad - self.damping.force(dx)  # type: ignore[attr-defined]
+    def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float) -> Array:
+        """The law of the class docstring: τ from ∂U/∂x̃ (``grad``), L and the barrier sums."""
+        a = -grad - self.damping.force(state.dx)
         rho = self.shaping.ratio(bar.log_phi + bar.log_psi) * lag
         if bar.gradient is not None:
             a += rho * bar.gradient
         if bar.weight is None:
-            return dyn.gravity + a
-        c = dyn.coriolis_force + dyn.dissipation if self.model.has_friction else (
-            dyn.coriolis_force
+            return state.gravity + a
+        c = state.coriolis_force + state.dissipation if self.model.has_friction else (
+            state.coriolis_force
         )
-        y = solve_spd(dyn.inertia + rho * bar.weight, a - c)
-        return dyn.gravity + c + dyn.inertia.dot(y)
-
-    def lyapunov(self, x: Array, dx: Array) -> float:
-        """V = L / s(ΦΨ), evaluated in logs."""
-        _, bar, _, lag = self._shaped_terms(x, dx)
-        return self._shaped_value(bar, lag)
-
+        y = solve_spd(state.inertia + rho * bar.weight, a - c)
+        return state.gravity + c + state.inertia.dot(y)

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from cpbc.constraints.base import Array
-from cpbc.controllers.base import Controller, positive_vector
+from cpbc.arrays import Array
+from cpbc.controllers.base import Controller, Evaluation, positive_vector
 from cpbc.controllers.terms import QuadraticPotential
-from cpbc.model.robot_model import RobotModel
+from cpbc.model.robot_model import ArmState, RobotModel
 
 
 class PD(Controller):
@@ -20,7 +20,7 @@ class PD(Controller):
         self._potential = QuadraticPotential(self.kp)
 
     def torque(self, x: Array, dx: Array) -> Array:
-        return self._bias(x) - self.kp * (x - self.target) - self.kd * dx
+        return self._law(x - self.target, dx, self._bias(x))
 
     def lyapunov(self, x: Array, dx: Array) -> float:
         """L = ½ ẋᵀDẋ + ½ x̃ᵀK_P x̃ (eq. 6.7); non-increasing when gravity does no work."""
@@ -28,12 +28,26 @@ class PD(Controller):
 
     def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
         err = x - self.target
-        spring = self.kp * err
-        tau = self._bias(x) - spring - self.kd * dx
-        return tau, self.model.kinetic_energy(x, dx) + 0.5 * float(err.dot(spring))
+        tau = self._law(err, dx, self._bias(x))
+        return tau, self.model.kinetic_energy(x, dx) + self._potential.value(err)
+
+    def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
+        err = state.x - self.target
+        dx = state.dx
+        tau = self._law(err, dx, self._state_bias(state))
+        value = 0.5 * float(dx @ state.inertia @ dx) + self._potential.value(err)
+        found = self.constraints.margins(state.x, dx, state) if margins else None
+        return Evaluation(tau, value, found)
+
+    def _law(self, err: Array, dx: Array, bias: Array | float) -> Array:
+        """τ = bias − K_P x̃ − K_D ẋ."""
+        return bias - self.kp * err - self.kd * dx
 
     def _bias(self, x: Array) -> Array | float:
         """The torque's state-only feed-forward: none for PD."""
+        return 0.0
+
+    def _state_bias(self, state: ArmState) -> Array | float:
         return 0.0
 
 
@@ -44,3 +58,6 @@ class PDGravity(PD):
 
     def _bias(self, x: Array) -> Array:
         return self.model.gravity(x)
+
+    def _state_bias(self, state: ArmState) -> Array:
+        return state.gravity

@@ -24,17 +24,16 @@ import math
 
 import numpy as np
 
-from cpbc.constraints.base import Array
-from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.arrays import Array
+from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
 from cpbc.constraints.linear_limit import LinearLimit
-from cpbc.controllers.base import Controller, positive_vector
+from cpbc.controllers.base import Controller, Evaluation, positive_vector
 from cpbc.controllers.linalg import solve_spd
-from cpbc.controllers.unrolled import Unrolled
 from cpbc.errors import ConstraintViolation, CpbcError
-from cpbc.model.robot_model import RobotModel
+from cpbc.model.robot_model import ArmState, RobotModel
 
 
-class RecentredBarrier(Unrolled, Controller):
+class RecentredBarrier(Controller):
     """Re-centred barrier law for joint limits, optionally with velocity constraints."""
 
     type_name = "recentred"
@@ -51,22 +50,22 @@ class RecentredBarrier(Unrolled, Controller):
         self.kp = positive_vector(kp, model.n, "kp")
         self.kd = positive_vector(kd, model.n, "kd")
         limits = constraints.configuration
-        unit_rows = all(
-            isinstance(c, LinearLimit)
+        joint_limits = [
+            c for c in limits
+            if isinstance(c, LinearLimit)
             and np.all(np.count_nonzero(c.rows, axis=1) == 1)
             and np.allclose(np.abs(c.rows).sum(axis=1), 1.0)
-            for c in limits
-        )
-        if not limits or not unit_rows:
+        ]
+        if not limits or len(joint_limits) != len(limits):
             raise CpbcError(
                 "recentred (Cases 2–3) enforces joint position limits (joint_position_limit) "
                 "and optionally velocity constraints; obstacle and combination limits need cpbc"
             )
-        self.joints = np.concatenate([np.argmax(np.abs(c.rows), axis=1) for c in limits])  # type: ignore[attr-defined]
+        self.joints = np.concatenate([np.argmax(np.abs(c.rows), axis=1) for c in joint_limits])
         if len(set(self.joints.tolist())) != len(self.joints):
             raise CpbcError("recentred: a joint has more than one position limit")
-        self.centre = np.concatenate([c.centre for c in limits])  # type: ignore[attr-defined]
-        self.half_width = np.concatenate([c.half_width for c in limits])  # type: ignore[attr-defined]
+        self.centre = np.concatenate([c.centre for c in joint_limits])
+        self.half_width = np.concatenate([c.half_width for c in joint_limits])
         self._limit_names = [name for c in limits for name in c.names]
         self._velocity = ConstraintSet(model.n, velocity=constraints.velocity)
         self._f_target, self._grad_target = self._barrier_potential(self.target)
@@ -85,30 +84,27 @@ class RecentredBarrier(Unrolled, Controller):
         kz[self.joints] = kz_sel + energy * z / gap
         return 0.5 * energy * inv_phi, kz * inv_phi
 
-    def evaluate_arrays(self, x: Array, dx: Array) -> tuple[Array, float]:
-        """τ and V from the array code (the reference for the unrolled one)."""
-        return self.torque_arrays(x, dx), self.lyapunov(x, dx)
+    def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
+        f, grad = self._barrier_potential(state.x)  # raises outside the limits
+        x, dx = state.x, state.dx
+        bar = self._velocity.barrier(state) if self._velocity.velocity else None
+        kinetic = 0.5 * float(dx @ state.inertia @ dx)
+        tau = self._law(state, grad, kinetic, bar)
+        shift = f - self._f_target - float(self._grad_target @ (x - self.target))
+        psi = 1.0 if bar is None else math.exp(bar.log_psi)
+        found = self.constraints.margins(x, dx, state) if margins else None
+        return Evaluation(tau, kinetic / psi + shift, found)
 
-    def torque_arrays(self, x: Array, dx: Array) -> Array:
-        """τ from the array code (the reference for the unrolled one)."""
-        dyn = self.model.dynamics(x, dx)
-        _, grad = self._barrier_potential(x)
-        a = -self.kd * dx
-        if not self._velocity.velocity:
-            return dyn.gravity + a - grad + self._grad_target
-        bar = self._velocity.barrier(x, dx, dyn)
-        kinetic = 0.5 * float(dx @ dyn.inertia @ dx)
-        psi = math.exp(bar.log_psi)
-        a = a - psi * (grad - self._grad_target)
+    def _law(self, state: ArmState, grad: Array, kinetic: float, bar: BarrierTerms | None
+             ) -> Array:
+        """(6.57) without velocity constraints, (6.63) with them (module docstring)."""
+        a = -self.kd * state.dx
+        if bar is None:
+            return state.gravity + a - grad + self._grad_target
+        a = a - math.exp(bar.log_psi) * (grad - self._grad_target)
         if bar.gradient is not None:
             a += kinetic * bar.gradient
-        c = dyn.coriolis_force + dyn.dissipation
-        y = solve_spd(dyn.inertia + kinetic * bar.weight, a - c)  # type: ignore[operator]
-        return dyn.gravity + c + dyn.inertia @ y
-
-    def lyapunov(self, x: Array, dx: Array) -> float:
-        f, _ = self._barrier_potential(x)
-        kinetic = self.model.kinetic_energy(x, dx)
-        if self._velocity.velocity:
-            kinetic /= math.exp(self._velocity.barrier(x, dx, self.model.dynamics(x, dx)).log_psi)
-        return kinetic + f - self._f_target - float(self._grad_target @ (x - self.target))
+        c = state.coriolis_force + state.dissipation
+        assert bar.weight is not None  # velocity constraints give Π
+        y = solve_spd(state.inertia + kinetic * bar.weight, a - c)
+        return state.gravity + c + state.inertia @ y

@@ -66,12 +66,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cpbc.constraints.base import Array, ConfigurationConstraint
+from cpbc.arrays import Array
+from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.controllers.base import Controller
+from cpbc.controllers.base import Controller, Evaluation
 from cpbc.controllers.linalg import solve_spd
-from cpbc.controllers.unrolled import Kernel, unrolled_guard
 from cpbc.errors import CpbcError
+from cpbc.model.robot_model import ArmState, RobotModel
+
+Predictor = Callable[[Array], "tuple[Array, Array, Array]"]
 
 
 @dataclass(frozen=True)
@@ -136,7 +139,7 @@ def viable(constraints: ConstraintSet, x: Array, dx: Array, period: float) -> bo
     if not constraints.configuration:
         return True
     probe = x + 0.25 * period * dx
-    return bool(np.all(np.concatenate([c.value(probe) for c in constraints.configuration]) > 0))
+    return bool(np.all(constraints.configuration_margins(probe) > 0))
 
 
 class Safeguard(Controller):
@@ -188,11 +191,12 @@ class Safeguard(Controller):
         # the constraints the guard keeps: the law's own, and the extra configuration ones
         self.guarded = own if not extra or own.empty else ConstraintSet(
             own.n, (*own.configuration, *extra), own.velocity)
-        self._extra = self.guarded is not own
+        self._extra = ConstraintSet(own.n, extra) if extra and not own.empty else None
         at_target = self.guarded.margins(law.target, np.zeros(law.model.n))
         scale = self.settings.cushion * self.period / 0.01
         self.cushion = scale * at_target  # δ_i
-        self._n_config = sum(len(c.names) for c in self.guarded.configuration)
+        self._n_config = self.guarded.n_configuration
+        self._n_own_config = own.n_configuration
         self.torque_limit = None if torque_limit is None else np.asarray(torque_limit, float)
         coords = law.model.coordinates
         self._t_mat_t = coords.matrix.T  # τ_q = Tᵀ τ
@@ -201,35 +205,29 @@ class Safeguard(Controller):
         self.calls = 0
         self.acted = 0
         self.infeasible = 0
-        # the law and test (S1) of its torque as scalar code (cpbc.controllers.unrolled),
-        # built at the first call
-        self._unrolled: Kernel | bool | None = False
 
     def reset_counts(self) -> None:
         self.calls = self.acted = self.infeasible = 0
 
     # -- the Controller interface ------------------------------------------------------------
-    def torque(self, x: Array, dx: Array) -> Array:
-        return self.evaluate(x, dx)[0]
+    def state(self, x: Array, dx: Array) -> ArmState:
+        return self.law.state(x, dx)
 
-    def lyapunov(self, x: Array, dx: Array) -> float:
-        return self.law.lyapunov(x, dx)
-
-    def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
-        """The guarded torque and the law's V at (x, ẋ); ConstraintViolation outside S."""
-        kernel = self._unrolled
-        if kernel is False:
-            kernel = self._unrolled = unrolled_guard(self)
-        if kernel is not None:
-            accepted = kernel(x, dx)  # type: ignore[operator]
-            if accepted is not None:  # the law's torque passes (S1)
-                self.calls += 1
-                return accepted
-        tau, v = self.law.evaluate(x, dx)  # raises outside S
+    def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
+        """The guarded torque and the law's V at the per-step state; ConstraintViolation
+        outside S."""
+        out = self.law.evaluate_state(state, margins=True)  # raises outside S
         self.calls += 1
         if self.constraints.empty:
-            return tau, v
-        return self.guard(x, dx, tau), v
+            return out
+        assert out.margins is not None  # asked for
+        tau = self._guard(state, out.torque, out.margins)
+        return Evaluation(tau, out.lyapunov, out.margins if margins else None)
+
+    def guard(self, x: Array, dx: Array, tau: Array) -> Array:
+        """τ if it satisfies (S1) at (x, ẋ), else the smallest blend toward braking that does."""
+        state = self.law.state(x, dx)
+        return self._guard(state, tau, self.constraints.margins(x, dx, state))
 
     # -- the guard ---------------------------------------------------------------------------
     def _search_braking(
@@ -351,71 +349,68 @@ class Safeguard(Controller):
         total = m.sum()
         return np.where(np.isnan(m), -np.inf, m) if total != total else m
 
-    def _margins(self, x: Array, dx: Array) -> Array:
-        return self._no_nan(self.guarded.margins(x, dx))
+    def _now(self, x: Array, law_margins: Array) -> Array:
+        """Every guarded margin at the sample: the law's, with the extra configuration
+        constraints' after its own configuration margins."""
+        if self._extra is None:
+            return self._no_nan(law_margins)
+        k = self._n_own_config
+        return self._no_nan(np.concatenate(
+            (law_margins[:k], self._extra.configuration_margins(x), law_margins[k:])))
 
-    def _config_margins(self, x: Array) -> Array:
-        return self._no_nan(np.concatenate([c.value(x) for c in self.guarded.configuration]))
-
-    def guard(self, x: Array, dx: Array, tau: Array) -> Array:
-        """τ if it satisfies (S1), else the smallest blend toward braking that does."""
-        h = self.period
-        dyn = self.model.dynamics(x, dx)
-        bias = dyn.coriolis_force + dyn.gravity
-        if self.model.has_friction:
-            bias = bias + dyn.dissipation
-        config = self._n_config > 0
+    def _predictor(self, state: ArmState, bias: Array) -> Predictor:
+        """(mid-period x, end x, end ẋ) under a held τ: the frozen closed form with the
+        dynamics of the sample, or ``substeps`` semi-implicit Euler steps of the model."""
+        x, dx, h = state.x, state.dx, self.period
         if self.substeps == 1:
             coast_mid, coast = x + (0.5 * h) * dx, x + h * dx  # the motion without torque
+            inertia = state.inertia
+            config = self._n_config > 0
 
-            def predict(t: Array) -> tuple[Array, Array, Array]:
-                acc = solve_spd(dyn.inertia, self._saturate(t) - bias)
+            def frozen(t: Array) -> tuple[Array, Array, Array]:
+                acc = solve_spd(inertia, self._saturate(t) - bias)
                 mid = coast_mid + (0.125 * h * h) * acc if config else x
                 return mid, coast + (0.5 * h * h) * acc, dx + h * acc
-        else:
-            k = self.substeps
-            dt = h / k
 
-            def predict(t: Array) -> tuple[Array, Array, Array]:
-                t = self._saturate(t)
-                xs, vs, mid = x.copy(), dx.copy(), x
-                for i in range(k):
-                    vs = vs + dt * self.model.forward_dynamics(xs, vs, t)
-                    xs = xs + dt * vs
-                    if 2 * (i + 1) == k or (k % 2 and 2 * i + 1 == k):
-                        mid = xs
-                return mid, xs, vs
+            return frozen
+        return _substepped(self.model, x, dx, h, self.substeps, self._saturate)
 
-        now = self._margins(x, dx)
-        delta = self.cushion
+    def _check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None
+               ) -> Callable[[Array], float]:
+        """F(τ) = min_i m_i/floor_i − 1 over the predicted end (and mid-period
+        configuration) margins: ≥ 0 when τ keeps every margin above its floor."""
+        guarded, no_nan = self.guarded, self._no_nan
+
+        def f(t: Array) -> float:
+            mid, x1, v1 = predict(t)
+            if mid_floor is None:
+                return float((no_nan(guarded.margins(x1, v1)) / end_floor).min()) - 1.0
+            config = no_nan(guarded.configuration_margins_along(np.array((mid, x1))))
+            end = np.concatenate((config[1], no_nan(guarded.velocity_margins(x1, v1))))
+            return min(float((end / end_floor).min()), float((config[0] / mid_floor).min())) - 1.0
+
+        return f
+
+    def _guard(self, state: ArmState, tau: Array, law_margins: Array) -> Array:
+        """τ if it satisfies (S1), else the smallest blend toward braking that does."""
+        bias = state.coriolis_force + state.gravity
+        if self.model.has_friction:
+            bias = bias + state.dissipation
+        predict = self._predictor(state, bias)
+        now = self._now(state.x, law_margins)
+        delta, nc = self.cushion, self._n_config
         floor = delta + self.keep * (now - delta)
-        nc = self._n_config
-        if config:
+        floor_mid = None
+        if nc:
             floor_mid = delta[:nc] + self.keep_half * (now[:nc] - delta[:nc])
-            if self._extra:  # an extra margin may already be ≤ 0: then it must turn positive
+            if self._extra is not None:  # an extra margin may be ≤ 0: then it must turn positive
                 floor, floor_mid = np.maximum(floor, 1e-300), np.maximum(floor_mid, 1e-300)
-
-        def check(end_floor: Array, mid_floor: Array | None) -> Callable[[Array], float]:
-            """F(τ) = min_i m_i/floor_i − 1 over the predicted end (and mid-period
-            configuration) margins: ≥ 0 when τ keeps every margin above its floor."""
-
-            def f(t: Array) -> float:
-                mid, x1, v1 = predict(t)
-                out = float(np.min(self._margins(x1, v1) / end_floor))
-                if mid_floor is not None:
-                    out = min(out, float(np.min(self._config_margins(mid) / mid_floor)))
-                return out - 1.0
-
-            return f
-
-        slack = check(floor, floor_mid if config else None)  # (S1)
-        positivity = check(delta, delta[:nc] if config else None)  # (S0) m_i ≥ δ_i
-
+        slack = self._check(predict, floor, floor_mid)  # (S1)
         f0 = slack(tau)
         if f0 >= 0.0:
             return tau
         self.acted += 1
-        stop = dyn.inertia.dot(dx) / h
+        stop = state.inertia.dot(state.dx) / self.period
         brake = bias - self.settings.braking * stop
         f1 = slack(brake)
         if f1 < 0.0:
@@ -428,20 +423,32 @@ class Safeguard(Controller):
                 lam, f_lam = self._search_braking(bias, stop, slack, f1, f_rev)
                 if f_lam < 0.0:
                     self.infeasible += 1
-                    if not config:
-                        return self._fallback(bias, stop, positivity)
-                    # (S−), for the escape: configuration margins recover as (S1) asks at
-                    # the end but, below their cushion, may shrink at mid-period by the
-                    # decay share; velocity margins may be spent down to their cushion.
-                    hold_end = np.minimum(delta, self.keep * now)
-                    hold_end[:nc] = floor[:nc]
-                    hold_mid = np.minimum(floor_mid, self.keep_half * now[:nc])
-                    escape = self._escape(x, dx, dyn.inertia, now, hold_end, hold_mid)
-                    return self._fallback(bias, stop, positivity, escape,
-                                          check(hold_end, hold_mid))
+                    return self._infeasible(state, bias, stop, predict, now, floor, floor_mid)
                 reverse, f_rev = bias - lam * stop, f_lam
             brake, f1 = reverse, f_rev
-        # Illinois steps for the smallest β with F(β) ≥ 0, bracketed by F(0) < 0 ≤ F(1).
+        return self._blend(tau, brake, f0, f1, slack)
+
+    def _infeasible(self, state: ArmState, bias: Array, stop: Array, predict: Predictor,
+                    now: Array, floor: Array, floor_mid: Array | None) -> Array:
+        """When no brake satisfies (S1): the fallback, with the escape where there are
+        configuration constraints."""
+        delta, nc = self.cushion, self._n_config
+        positivity = self._check(predict, delta, delta[:nc] if nc else None)  # (S0) m ≥ δ
+        if floor_mid is None:
+            return self._fallback(bias, stop, positivity)
+        # (S−), for the escape: configuration margins recover as (S1) asks at the end but,
+        # below their cushion, may shrink at mid-period by the decay share; velocity
+        # margins may be spent down to their cushion.
+        hold_end = np.minimum(delta, self.keep * now)
+        hold_end[:nc] = floor[:nc]
+        hold_mid = np.minimum(floor_mid, self.keep_half * now[:nc])
+        escape = self._escape(state.x, state.dx, state.inertia, now, hold_end, hold_mid)
+        return self._fallback(bias, stop, positivity, escape,
+                              self._check(predict, hold_end, hold_mid))
+
+    def _blend(self, tau: Array, brake: Array, f0: float, f1: float,
+               slack: Callable[[Array], float]) -> Array:
+        """Illinois steps for the smallest β with F(β) ≥ 0, bracketed by F(0) < 0 ≤ F(1)."""
         lo, f_lo, hi, f_hi = 0.0, f0, 1.0, f1
         side = 0
         for _ in range(self.settings.backoffs):
@@ -460,3 +467,21 @@ class Safeguard(Controller):
                     f_hi *= 0.5
                 side = -1
         return (1.0 - hi) * tau + hi * brake
+
+
+def _substepped(model: RobotModel, x: Array, dx: Array, h: float, k: int,
+                saturate: Callable[[Array], Array]) -> Predictor:
+    """The prediction in k semi-implicit Euler steps of the model's forward dynamics."""
+    dt = h / k
+
+    def predict(t: Array) -> tuple[Array, Array, Array]:
+        t = saturate(t)
+        xs, vs, mid = x.copy(), dx.copy(), x
+        for i in range(k):
+            vs = vs + dt * model.forward_dynamics(xs, vs, t)
+            xs = xs + dt * vs
+            if 2 * (i + 1) == k or (k % 2 and 2 * i + 1 == k):
+                mid = xs
+        return mid, xs, vs
+
+    return predict

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 
-from cpbc.constraints.base import Array
+from cpbc.arrays import Array
 
 _LN2 = float(np.log(2.0))
 
@@ -12,6 +14,30 @@ _LN2 = float(np.log(2.0))
 def log_cosh(x: Array) -> Array:
     """ln cosh x without overflow: ln(eˣ + e⁻ˣ) − ln 2, via logaddexp."""
     return np.logaddexp(x, -x) - _LN2
+
+
+class Potential(Protocol):
+    """U(x̃) ≥ 0 with its minimum at x̃ = 0."""
+
+    def value(self, err: Array) -> float:
+        """U(x̃)."""
+        ...
+
+    def gradient(self, err: Array) -> Array:
+        """∂U/∂x̃, shape (n,)."""
+        ...
+
+    def evaluate(self, err: Array) -> tuple[float, Array]:
+        """U and ∂U/∂x̃ together."""
+        ...
+
+
+class Damping(Protocol):
+    """The damping force of a law, with ẋᵀ force(ẋ) > 0 for ẋ ≠ 0."""
+
+    def force(self, dx: Array) -> Array:
+        """The force, shape (n,)."""
+        ...
 
 
 class QuadraticPotential:
@@ -27,7 +53,6 @@ class QuadraticPotential:
         return self.kp * err
 
     def evaluate(self, err: Array) -> tuple[float, Array]:
-        """U and ∂U/∂x̃ together."""
         grad = self.kp * err
         return 0.5 * float(err @ grad), grad
 
@@ -49,7 +74,6 @@ class LogCoshPotential:
         return self.kp * np.tanh(self.xi * err)
 
     def evaluate(self, err: Array) -> tuple[float, Array]:
-        """U and ∂U/∂x̃ together."""
         y = self.xi * err
         return float(self._weight @ np.logaddexp(y, -y)) - self._offset, self.kp * np.tanh(y)
 

@@ -1,6 +1,6 @@
 """Model layer: Pinocchio dynamics and kinematics, coordinates, model-derived bounds."""
 
 from cpbc.model.coordinates import LinearCoordinates
-from cpbc.model.robot_model import DynamicsTerms, RobotModel
+from cpbc.model.robot_model import ArmState, RobotModel
 
-__all__ = ["DynamicsTerms", "LinearCoordinates", "RobotModel"]
+__all__ = ["ArmState", "LinearCoordinates", "RobotModel"]

@@ -7,25 +7,36 @@ from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
-from numpy.typing import NDArray
 
+from cpbc.arrays import Array
 from cpbc.errors import ModelError
 from cpbc.model.coordinates import LinearCoordinates
 
-Array = NDArray[np.float64]
 
+class ArmState(NamedTuple):
+    """Everything a law and its constraints read at one control step, computed once by
+    :meth:`RobotModel.state`: the state and the terms of D(q) q̈ + C(q, q̇) q̇ + g(q) + f(q̇) = τ
+    (eq. 6.1), in controller coordinates.
 
-class DynamicsTerms(NamedTuple):
-    """The terms of D(q) q̈ + C(q, q̇) q̇ + g(q) + f(q̇) = τ (eq. 6.1) at one state.
+    With ``kinematics=True`` the model's Pinocchio data also holds this state's joint and
+    frame placements and joint Jacobians (``RobotModel.data``), which constraints read
+    instead of running their own kinematics; they stay valid until the next model call at
+    another configuration.
 
     Attributes:
+        x, dx: the state, shape (n,).
+        q, dq: the same in the model's joint coordinates (the same arrays with the identity map).
         inertia: D, shape (n, n).
-        coriolis_force: C(q, q̇) q̇, shape (n,) (from RNEA; the matrix C is
+        coriolis_force: C(x, ẋ) ẋ, shape (n,) (from RNEA; the matrix C is
             ``RobotModel.coriolis``).
         gravity: g, shape (n,).
-        dissipation: f(q̇) = F_d q̇, shape (n,).
+        dissipation: f(ẋ) = F_d ẋ, shape (n,).
     """
 
+    x: Array
+    dx: Array
+    q: Array
+    dq: Array
     inertia: Array
     coriolis_force: Array
     gravity: Array
@@ -91,8 +102,6 @@ class RobotModel:
         probe = pin.crba(model, self.data, np.linspace(0.3, 1.1, self.n)) if self.n > 1 else None
         self._crba_upper_only = probe is not None and not np.allclose(probe, probe.T)
         self._lower = np.tril_indices(self.n, -1)
-        self._last_key: bytes = b""
-        self._last_dynamics: DynamicsTerms | None = None
 
     @classmethod
     def from_mjcf(cls, path: str | Path, **kwargs: object) -> RobotModel:
@@ -147,21 +156,11 @@ class RobotModel:
             return self._no_dissipation
         return self.viscous_friction.dot(dx)
 
-    def dynamics(self, x: Array, dx: Array) -> DynamicsTerms:
-        """D, C ẋ, g and f at one state: three Pinocchio passes (CRBA, RNEA, gravity).
-
-        The terms of the last state asked for are kept and returned again for the same state
-        (a law and its safeguard evaluate the same sample): callers share them and must not
-        modify them in place (marking them read-only would cost a tenth of the law here).
-        """
-        key = x.tobytes() + dx.tobytes()
-        if key == self._last_key:
-            return self._last_dynamics  # type: ignore[return-value]
-        terms = self._dynamics(x, dx)
-        self._last_key, self._last_dynamics = key, terms
-        return terms
-
-    def _dynamics(self, x: Array, dx: Array) -> DynamicsTerms:
+    def state(self, x: Array, dx: Array, kinematics: bool = False) -> ArmState:
+        """The per-step state at (x, ẋ): D, C ẋ, g and f from three Pinocchio passes (CRBA,
+        RNEA, gravity) and, with ``kinematics``, one pass for every joint and frame
+        placement and joint Jacobian (left in ``self.data``). Fresh arrays every call:
+        nothing is kept between calls."""
         model, data = self.model, self.data
         if self._identity:
             q, dq = x, dx
@@ -173,11 +172,18 @@ class RobotModel:
         nle = pin.nonLinearEffects(model, data, q, dq)
         g = pin.computeGeneralizedGravity(model, data, q)
         f = self.dissipation(dx)
+        if kinematics:  # after the dynamics passes, which may leave other placements behind
+            pin.computeJointJacobians(model, data, q)
+            pin.updateFramePlacements(model, data)
         if self._identity:
-            return DynamicsTerms(m.copy(), nle - g, g.copy(), f)
+            return ArmState(x, dx, q, dq, m.copy(), nle - g, g.copy(), f)
         t_inv_t = self._t_inv_t
         inertia = self._congruence.dot(m.reshape(-1)).reshape(self.n, self.n)
-        return DynamicsTerms(inertia, t_inv_t.dot(nle - g), t_inv_t.dot(g), f)
+        return ArmState(x, dx, q, dq, inertia, t_inv_t.dot(nle - g), t_inv_t.dot(g), f)
+
+    def dynamics(self, x: Array, dx: Array) -> ArmState:
+        """The per-step state without kinematics (:meth:`state`)."""
+        return self.state(x, dx)
 
     def kinetic_energy(self, x: Array, dx: Array) -> float:
         """½ ẋᵀ D(x) ẋ [J], computed in joint coordinates (the energy does not depend on
@@ -194,6 +200,10 @@ class RobotModel:
         return ddq if self._identity else self.coordinates.from_joint(ddq)
 
     # -- kinematics --------------------------------------------------------------------------
+    def joint_coordinates(self, x: Array) -> Array:
+        """q = T⁻¹ x (x itself with the identity map)."""
+        return self._q(x)
+
     def frame_id(self, frame: str) -> int:
         if not self.model.existFrame(frame):
             names = ", ".join(f.name for f in self.model.frames[1:])
@@ -206,8 +216,19 @@ class RobotModel:
         """Position (3,) and Jacobian ∂p/∂x (3, n) of a point fixed in a frame, in one pass."""
         j = pin.computeFrameJacobian(
             self.model, self.data, self._q(x), frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        )
-        placement = self.data.oMf[frame_id]  # updated by computeFrameJacobian
+        )  # also updates the frame's placement
+        return self._point(frame_id, j, offset)
+
+    def state_point(self, frame_id: int, offset: Array | None = None) -> tuple[Array, Array]:
+        """Position (3,) and Jacobian ∂p/∂x (3, n) of a point fixed in a frame, read from the
+        kinematics of the last :meth:`state` with ``kinematics=True`` (no new pass)."""
+        j = pin.getFrameJacobian(
+            self.model, self.data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        return self._point(frame_id, j, offset)
+
+    def _point(self, frame_id: int, j: Array, offset: Array | None) -> tuple[Array, Array]:
+        """The point's position and Jacobian from its frame's placement and Jacobian j (6, n)."""
+        placement = self.data.oMf[frame_id]
         if offset is None:
             p, jv = placement.translation.copy(), j[:3]
         else:

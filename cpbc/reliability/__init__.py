@@ -1,3 +1,3 @@
 """Reliability campaigns: what holds outside the proofs (sampled data, model mismatch, noise,
-torque limits, bad input, long runs). ``scripts/reliability_report.py`` runs them and writes
+torque limits, bad input, long runs). ``tools/reliability_report.py`` runs them and writes
 docs/RELIABILITY.md."""

@@ -1,7 +1,7 @@
 """The campaigns of docs/RELIABILITY.md, section by section, with their settings.
 
-Each section returns a JSON-able dict; ``scripts/reliability_report.py`` stores them in
-docs/reliability_data.json and ``cpbc.reliability.report`` renders the Markdown.
+Each section returns a JSON-able dict; ``tools/reliability_report.py`` stores them in
+docs/reliability_data.json and ``tools.reliability.report`` renders the Markdown.
 """
 
 from __future__ import annotations

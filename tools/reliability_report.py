@@ -1,9 +1,9 @@
 """Run the reliability campaigns and write docs/RELIABILITY.md.
 
-    python scripts/reliability_report.py                  # every section (about 2 h, 1 core)
-    python scripts/reliability_report.py --sections cost,bad_input
-    python scripts/reliability_report.py --render-only    # re-render from the stored data
-    python scripts/reliability_report.py --quick --data /tmp/r.json --out /tmp/R.md
+    python -m tools.reliability_report                  # every section (about 2 h, 1 core)
+    python -m tools.reliability_report --sections cost,bad_input
+    python -m tools.reliability_report --render-only    # re-render from the stored data
+    python -m tools.reliability_report --quick --data /tmp/r.json --out /tmp/R.md
 
 Each finished section is merged into the data file (docs/reliability_data.json) at once, so
 an interrupted run keeps what it finished and sections can be re-run one at a time.
@@ -19,8 +19,8 @@ import time
 from dataclasses import asdict, replace
 from pathlib import Path
 
-from cpbc.reliability import suite
-from cpbc.reliability.report import render
+from tools.reliability import suite
+from tools.reliability.report import render
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -191,11 +191,11 @@ def main(argv: list[str] | None = None) -> int:
             data = _store(args.data, name, result, wall, config)
             _log(f"section {name} done in {wall} s")
     data.update(_methods(config))
-    from cpbc.reliability.findings import findings, ke_verdict
+    from tools.reliability.findings import findings, ke_verdict
 
     data["summary_text"] = findings(data)
     data["ke_verdict"] = ke_verdict(data)
-    command = "python scripts/reliability_report.py" + (" --quick" if args.quick else "")
+    command = "python -m tools.reliability_report" + (" --quick" if args.quick else "")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(render(data, command))
     _log(f"wrote {args.out}")

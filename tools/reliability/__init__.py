@@ -1,0 +1,1 @@
+"""The reliability report (docs/RELIABILITY.md): its suite of campaigns, findings and renderer."""
