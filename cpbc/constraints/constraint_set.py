@@ -38,11 +38,11 @@ def _stack(items: Sequence[Constraint]) -> tuple[Constraint, ...]:
     """Neighbours of one class that stacks, evaluated as one constraint (the same names in
     the same order); a group that cannot stack (a joint bounded twice) stays as it is."""
     out: list[Constraint] = []
-    for cls, group in groupby(items, key=type):
+    for _, group in groupby(items, key=type):
         run = list(group)
-        if len(run) > 1 and cls.stacks:
+        if len(run) > 1 and run[0].stacks:
             try:
-                out.append(cls.stacked(run))  # type: ignore[arg-type]
+                out.append(run[0].stacked(run))
                 continue
             except CpbcError:
                 pass
@@ -86,8 +86,8 @@ class ConstraintSet:
         self.configuration = tuple(configuration)
         self.velocity = tuple(velocity)
         self.names: tuple[str, ...] = tuple(
-            name for c in (*self.configuration, *self.velocity) for name in c.names
-        )
+            [name for c in self.configuration for name in c.names]
+            + [name for v in self.velocity for name in v.names])
         if len(set(self.names)) != len(self.names):
             dup = sorted({x for x in self.names if self.names.count(x) > 1})
             raise CpbcError(f"duplicate constraint names: {dup}; give each constraint its own name")

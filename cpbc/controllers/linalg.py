@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 from scipy.linalg import lapack
 
-from cpbc.constraints.base import Array
+from cpbc.arrays import Array
 
 
 def solve_spd(a: Array, b: Array) -> Array:
@@ -16,5 +18,5 @@ def solve_spd(a: Array, b: Array) -> Array:
     """
     _, y, info = lapack.dposv(a, b)
     if info != 0:
-        return np.linalg.solve(a, b)
-    return y
+        return cast(Array, np.linalg.solve(a, b))
+    return cast(Array, y)

@@ -19,7 +19,8 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.errors import CpbcError
 
 
-def _per_entry(value: float | Array, k: int, what: str, positive: bool) -> Array:
+def _per_entry(
+    value: float | tuple[float, ...] | Array, k: int, what: str, positive: bool) -> Array:
     a = np.asarray(value, dtype=float)
     if a.ndim == 0:
         a = np.full(k, float(a))
@@ -99,7 +100,7 @@ class PlantMismatch:
 
     @property
     def is_nominal(self) -> bool:
-        return (
+        return bool(
             np.all(np.asarray(self.mass_scale) == 1.0)
             and np.all(np.asarray(self.inertia_scale) == 1.0)
             and not np.any(np.asarray(self.damping))
