@@ -38,6 +38,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from cpbc.errors import ModelError
+from cpbc.model.meshes import mujoco_mesh
 
 Array = NDArray[np.float64]
 
@@ -62,6 +63,13 @@ class ArmEntry:
     tip: str | None = None
 
 
+# Baxter is two 7-DOF arms on a fixed torso: each is an arm of its own, the rest locked.
+_BAXTER_OTHERS = {"head_pan": 0.0, "l_gripper_l_finger_joint": 0.0,
+                  "l_gripper_r_finger_joint": 0.0, "r_gripper_l_finger_joint": 0.0,
+                  "r_gripper_r_finger_joint": 0.0}
+_BAXTER_LEFT = {f"left_{j}": 0.0 for j in ("s0", "s1", "e0", "e1", "w0", "w1", "w2")}
+_BAXTER_RIGHT = {f"right_{j}": 0.0 for j in ("s0", "s1", "e0", "e1", "w0", "w1", "w2")}
+
 ARMS: dict[str, ArmEntry] = {
     "panda": ArmEntry(
         "panda_description/urdf/panda.urdf",
@@ -80,9 +88,45 @@ ARMS: dict[str, ArmEntry] = {
         "z1_description/urdf/z1.urdf", {"jointGripper": 0.0}, "Unitree Z1, 6 DOF (gripper locked)",
         "gripperStator",
     ),
+    "kinova": ArmEntry(
+        "kinova_description/robots/kinova.urdf", {},
+        "Kinova Jaco2 (j2s6s200), 6 DOF, joints 1, 4, 6 continuous; Collada meshes",
+        "j2s6s200_end_effector",
+    ),
+    # The SO-ARM100's jaw joint and its link are both named "gripper", which Pinocchio's
+    # buildReducedModel cannot tell apart: the jaw stays a driven joint.
+    "so100": ArmEntry(
+        "so_arm_description/urdf/so100.urdf", {}, "SO-ARM100, 5 DOF and the jaw", "jaw",
+    ),
+    "so101": ArmEntry(
+        "so_arm_description/urdf/so101.urdf", {"gripper": 0.0},
+        "SO-ARM101, 5 DOF (jaw locked)", "gripper_frame_link",
+    ),
+    "talos_arm": ArmEntry(
+        "talos_data/robots/talos_left_arm.urdf", {"gripper_left_joint": 0.0},
+        "PAL TALOS left arm, 6 DOF (gripper locked)", "wrist_left_ft_tool_link",
+    ),
+    "baxter_left": ArmEntry(
+        "baxter_description/urdf/baxter.urdf", {**_BAXTER_OTHERS, **_BAXTER_RIGHT},
+        "Rethink Baxter's left arm, 7 DOF (head, right arm and grippers locked)",
+        "left_gripper",
+    ),
+    "baxter_right": ArmEntry(
+        "baxter_description/urdf/baxter.urdf", {**_BAXTER_OTHERS, **_BAXTER_LEFT},
+        "Rethink Baxter's right arm, 7 DOF (head, left arm and grippers locked)",
+        "right_gripper",
+    ),
 }
 
 _MESH_URI = re.compile(r'(<mesh\b[^>]*?\bfilename\s*=\s*)(["\'])(.*?)\2', re.DOTALL)
+# A <joint> element of the kinematic tree (self-closing or with children); <transmission>'s
+# <joint name=…> has no type and is left alone.
+_JOINT = re.compile(r"<joint\b[^>]*?/>|<joint\b[^>]*?[^/]>.*?</joint>", re.DOTALL)
+_JOINT_HEAD = re.compile(r"<joint\b[^>]*>", re.DOTALL)
+_CONTINUOUS = re.compile(r"""\btype\s*=\s*(["'])continuous\1""")
+_NAME = re.compile(r"""\bname\s*=\s*(["'])(.*?)\1""")
+_LIMIT = re.compile(r"<limit\b[^>]*>", re.DOTALL)
+_LOWER_UPPER = re.compile(r"""\s(lower|upper)\s*=\s*(["']).*?\2""")
 
 
 def example_robot_data_share() -> Path | None:
@@ -173,10 +217,35 @@ def resolve_urdf_meshes(
     dirs = _package_dirs(urdf, package_dirs)
 
     def sub(m: re.Match[str]) -> str:
-        path = resolve_mesh_uri(m.group(3), urdf, dirs)
+        path = mujoco_mesh(resolve_mesh_uri(m.group(3), urdf, dirs))
         return f"{m.group(1)}{m.group(2)}{path}{m.group(2)}"
 
     return _MESH_URI.sub(sub, text)
+
+
+def unbound_continuous_joints(text: str) -> tuple[str, tuple[str, ...]]:
+    """The URDF text with every ``continuous`` joint made ``revolute`` without position
+    limits, and the names of those joints.
+
+    Pinocchio models a continuous joint by (cos q, sin q) (nq = 2, nv = 1), MuJoCo by the
+    angle (nq = nv = 1); as an unbounded revolute joint both use the angle, so q means the
+    same in both engines and the controllers' x = q holds. The ``<limit>`` keeps its effort
+    and velocity; its lower/upper (meaningless for a continuous joint) are dropped, and the
+    loader marks the joint unbounded in both engines.
+    """
+    names: list[str] = []
+
+    def sub(m: re.Match[str]) -> str:
+        block = m.group(0)
+        head = _JOINT_HEAD.match(block)
+        if head is None or not _CONTINUOUS.search(head.group(0)):
+            return block
+        name = _NAME.search(head.group(0))
+        names.append(name.group(2) if name else "?")
+        block = _CONTINUOUS.sub('type="revolute"', block, count=1)
+        return _LIMIT.sub(lambda lim: _LOWER_UPPER.sub("", lim.group(0)), block)
+
+    return _JOINT.sub(sub, text), tuple(names)
 
 
 def _quat_axis_angle(axis: Array, angle: float) -> Array:
@@ -233,6 +302,8 @@ class LoadedArm:
         velocity_limit: joint rate limits [rad/s or m/s], shape (n,); inf where none.
         effort_limit: joint effort limits [N·m or N], shape (n,); inf where none.
         tip: link carrying the MuJoCo site ``end_point`` (the tool centre point), or None.
+        continuous_joints: joints the URDF declares ``continuous``, driven as unbounded
+            revolute joints (see :func:`unbound_continuous_joints`).
     """
 
     name: str
@@ -247,6 +318,7 @@ class LoadedArm:
     velocity_limit: Array
     effort_limit: Array
     tip: str | None = None
+    continuous_joints: tuple[str, ...] = ()
 
     @property
     def n(self) -> int:
@@ -269,6 +341,9 @@ class LoadedArm:
             lock_mujoco_joint(spec, joint_name, value)
         for eq in list(spec.equalities):  # e.g. a mimic of a locked finger
             spec.delete(eq)
+        for joint_name in self.continuous_joints:
+            if spec.joint(joint_name) is not None:
+                spec.joint(joint_name).limited = mujoco.mjtLimited.mjLIMITED_FALSE
         for joint in spec.joints:
             joint.damping = np.zeros_like(np.asarray(joint.damping, dtype=float))
             joint.frictionloss = 0.0
@@ -343,7 +418,8 @@ def load_urdf(
     path = Path(path)
     if not path.is_file():
         raise ModelError(f"URDF file not found: {path}")
-    text = resolve_urdf_meshes(path, package_dirs=package_dirs)
+    text, continuous = unbound_continuous_joints(
+        resolve_urdf_meshes(path, package_dirs=package_dirs))
     try:
         full = pin.buildModelFromXML(text)
         geoms = pin.buildGeomFromUrdfString(full, text, pin.GeometryType.COLLISION)
@@ -354,6 +430,9 @@ def load_urdf(
     unknown = [j for j in locked if j not in joints]
     if unknown:
         raise ModelError(f"locked joints {unknown} are not in {path.name}; its joints: {joints}")
+    for joint_name in continuous:  # unbounded: no stop in MuJoCo, ±inf in Pinocchio
+        idx = full.joints[full.getJointId(joint_name)].idx_q
+        full.lowerPositionLimit[idx], full.upperPositionLimit[idx] = -np.inf, np.inf
     q_ref = pin.neutral(full)
     ids = []
     for joint_name, value in locked.items():
@@ -380,13 +459,14 @@ def load_urdf(
         odd = [model.names[i] for i in range(1, model.njoints)
                if model.joints[i].nq != model.joints[i].nv]
         raise ModelError(
-            f"{path.name}: joints {odd} are continuous or multi-DOF; only revolute and "
-            "prismatic joints can be driven (lock them, or give them limits in the URDF)"
+            f"{path.name}: joints {odd} are multi-DOF (spherical, planar or floating); "
+            "only revolute, continuous and prismatic joints can be driven: lock them with "
+            "robot.locked_joints or change their type in the URDF"
         )
     lower, upper, vel, eff = _limits(model)
     return LoadedArm(
         name or path.stem, path, text, model, collision, locked, tuple(model.names[1:]),
-        lower, upper, vel, eff,
+        lower, upper, vel, eff, continuous_joints=continuous,
     )
 
 
