@@ -429,7 +429,8 @@ def load_urdf(
     joints = list(full.names[1:])
     unknown = [j for j in locked if j not in joints]
     if unknown:
-        raise ModelError(f"locked joints {unknown} are not in {path.name}; its joints: {joints}")
+        raise ModelError(f"locked joints {unknown} are not in {path.name}; its joints: {joints}",
+                         "locked_joints")
     for joint_name in continuous:  # unbounded: no stop in MuJoCo, ±inf in Pinocchio
         idx = full.joints[full.getJointId(joint_name)].idx_q
         full.lowerPositionLimit[idx], full.upperPositionLimit[idx] = -np.inf, np.inf
@@ -439,11 +440,13 @@ def load_urdf(
         jid = full.getJointId(joint_name)
         jm = full.joints[jid]
         if jm.nq != 1:
-            raise ModelError(f"cannot lock joint '{joint_name}': it is not a 1-DOF joint")
+            raise ModelError(f"cannot lock joint '{joint_name}': it is not a 1-DOF joint",
+                             "locked_joints")
         lo, hi = full.lowerPositionLimit[jm.idx_q], full.upperPositionLimit[jm.idx_q]
         if np.isfinite(lo) and np.isfinite(hi) and lo < hi and not lo <= value <= hi:
             raise ModelError(
-                f"locked joint '{joint_name}' = {value} is outside its range [{lo}, {hi}]"
+                f"locked joint '{joint_name}' = {value} is outside its range [{lo}, {hi}]",
+                "locked_joints",
             )
         q_ref[jm.idx_q] = value
         ids.append(jid)
@@ -451,7 +454,8 @@ def load_urdf(
         try:
             model, collision = pin.buildReducedModel(full, geoms, ids, q_ref)
         except (RuntimeError, ValueError) as exc:
-            raise ModelError(f"Pinocchio could not lock {list(locked)} in {path}: {exc}") from None
+            raise ModelError(f"Pinocchio could not lock {list(locked)} in {path}: {exc}",
+                             "locked_joints") from None
     else:
         model, collision = full, geoms
     model.gravity = pin.Motion(GRAVITY, np.zeros(3))

@@ -33,6 +33,7 @@ from cpbc.resources import builtin_models
 from cpbc.results.metrics import SettleCriteria
 from cpbc.scenario import robots
 from cpbc.scenario import schema as s
+from cpbc.scenario.gains import physical_gains, unstable_coordinates
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, substeps_per_control
 from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
 from cpbc.simulation.loop import DEFAULT_SAFEGUARD
@@ -135,20 +136,28 @@ def _mismatch(spec: s.PlantMismatchSpec | None) -> PlantMismatch | None:
     )
 
 
+def _per_entry(value: float | list[float], k: int, field: str, what: str) -> None:
+    """A number, or a list of k entries (one per ``what``)."""
+    if isinstance(value, list) and len(value) != k:
+        raise ScenarioError(field, f"needs 1 or {k} entries (one per {what}), got {len(value)}")
+
+
 def _check_disturbances(setup: ScenarioSetup) -> None:
     """Sizes of the plant overrides and of the noise, against the compiled models."""
-    if setup.scenario.robot.plant is not None:
-        try:
-            setup.make_plant()  # applies the overrides, which check their sizes
-        except CpbcError as exc:
-            key = str(exc).split(" ", 1)[0]
-            raise ScenarioError(f"robot.plant.{key}", str(exc)) from None
-    noise = setup.loop_settings.noise
+    plant = setup.scenario.robot.plant
+    if plant is not None:
+        mj = (setup.arm.mujoco_model() if setup.arm is not None
+              else mujoco.MjModel.from_xml_path(str(setup.model_path)))
+        for key in ("mass_scale", "inertia_scale"):
+            _per_entry(getattr(plant, key), mj.nbody - 1, f"robot.plant.{key}",
+                       "body below the world")
+        for key in ("damping", "armature", "frictionloss"):
+            _per_entry(getattr(plant, key), mj.nv, f"robot.plant.{key}", "joint")
+    noise = setup.scenario.simulation.noise
     if noise is not None:
-        try:
-            noise.sigmas(setup.model.n)
-        except CpbcError as exc:
-            raise ScenarioError(f"simulation.{str(exc).split(' ', 1)[0]}", str(exc)) from None
+        for key in ("position", "velocity"):
+            _per_entry(getattr(noise, key), setup.model.n, f"simulation.noise.{key}",
+                       "coordinate")
 
 
 def _model_path(robot: s.RobotSpec, base: Path) -> Path:
@@ -302,30 +311,87 @@ def _shaping(spec: s.ShapingSpec | None) -> Shaping:
     return Tanh(spec.sigma)
 
 
+def _gain_vector(value: float | list[float], n: int, field: str) -> Array:
+    a = np.asarray(value, dtype=float)
+    if a.ndim == 0:
+        return np.full(n, float(a))
+    if a.shape != (n,):
+        raise ScenarioError(field, f"needs 1 or {n} entries (one per coordinate), got {a.size}")
+    return a
+
+
+@dataclass(frozen=True)
+class _Gains:
+    """K_P, K_D of a law, and its linear stiffness and damping near the target."""
+
+    kp: Array
+    kd: Array
+    stiffness: Array
+    damping: Array
+
+
+def _gains(spec: s.ControllerSpec, model: RobotModel, target: Array, field: str) -> _Gains:
+    """K_P, K_D as given, or from ω_n and ζ with D_ii at the target (cpbc.scenario.gains)."""
+    n = model.n
+    xi = gamma = np.ones(n)
+    if isinstance(spec, s.BPBCSpec):  # K_P tanh(Ξx̃), K_D tanh(Γẋ): slopes K_P Ξ, K_D Γ
+        xi = _gain_vector(spec.xi, n, f"{field}.xi")
+        gamma = _gain_vector(spec.gamma, n, f"{field}.gamma")
+    if spec.kp is not None and spec.kd is not None:
+        kp, kd = _gain_vector(spec.kp, n, f"{field}.kp"), _gain_vector(spec.kd, n, f"{field}.kd")
+    else:
+        omega = _gain_vector(spec.omega_n, n, f"{field}.omega_n")  # type: ignore[arg-type]
+        zeta = _gain_vector(spec.zeta, n, f"{field}.zeta")  # type: ignore[arg-type]
+        kp, kd = physical_gains(omega, zeta, np.diag(model.inertia(target)))
+        kp, kd = kp / xi, kd / gamma
+    return _Gains(kp, kd, kp * xi, kd * gamma)
+
+
+def _check_zoh(
+    gains: _Gains, model: RobotModel, states: list[Array], period: float,
+    names: tuple[str, ...], field: str,
+) -> None:
+    """Refuse gains whose held loop is unstable at the control period (cpbc.scenario.gains)."""
+    inertia = np.min([np.diag(model.inertia(x)) for x in states], axis=0)
+    bad = unstable_coordinates(gains.stiffness, gains.damping, inertia, period, names)
+    if bad:
+        raise ScenarioError(field, bad[0].advice() + (
+            f" ({len(bad) - 1} more coordinates too)" if len(bad) > 1 else "")
+            + "; simulation.check_gains: false runs it anyway")
+
+
+def _controller_constraints(
+    spec: s.CPBCSpec | s.RecentredSpec | s.BPBCSpec, n: int,
+    constraints: dict[str, ConfigurationConstraint | VelocityConstraint], field: str,
+) -> ConstraintSet:
+    chosen = list(constraints) if spec.constraints is None else spec.constraints
+    unknown = [c for c in chosen if c not in constraints]
+    if unknown:
+        raise ScenarioError(
+            f"{field}.constraints",
+            f"unknown constraint names {unknown}; the scenario defines {list(constraints)}",
+        )
+    objs = [constraints[c] for c in chosen]
+    return ConstraintSet(
+        n,
+        [o for o in objs if isinstance(o, ConfigurationConstraint)],
+        [o for o in objs if isinstance(o, VelocityConstraint)],
+    )
+
+
 def _build_controller(
     spec: s.ControllerSpec,
     model: RobotModel,
     target: Array,
+    gains: _Gains,
     constraints: dict[str, ConfigurationConstraint | VelocityConstraint],
     model_bounds: Callable[[], ModelBounds],
     field: str,
 ) -> Controller:
     cls = CONTROLLERS[spec.type]
-    kwargs: dict[str, object] = {"kp": spec.kp, "kd": spec.kd}
+    kwargs: dict[str, object] = {"kp": gains.kp, "kd": gains.kd}
     if not isinstance(spec, s.PDSpec):
-        chosen = list(constraints) if spec.constraints is None else spec.constraints
-        unknown = [c for c in chosen if c not in constraints]
-        if unknown:
-            raise ScenarioError(
-                f"{field}.constraints",
-                f"unknown constraint names {unknown}; the scenario defines {list(constraints)}",
-            )
-        objs = [constraints[c] for c in chosen]
-        kwargs["constraints"] = ConstraintSet(
-            model.n,
-            [o for o in objs if isinstance(o, ConfigurationConstraint)],
-            [o for o in objs if isinstance(o, VelocityConstraint)],
-        )
+        kwargs["constraints"] = _controller_constraints(spec, model.n, constraints, field)
         if not isinstance(spec, s.RecentredSpec):
             kwargs["shaping"] = _shaping(spec.shaping)
     if isinstance(spec, s.BPBCSpec):
@@ -335,30 +401,50 @@ def _build_controller(
     except InadmissibleStateError:
         raise
     except CpbcError as exc:
-        key = str(exc).split(" ", 1)[0]  # "kp must be …": name the key when there is one
-        where = f"{field}.{key}" if key in type(spec).model_fields else field
+        parameter = getattr(exc, "parameter", None)  # set by a ParameterError
+        where = f"{field}.{parameter}" if parameter in type(spec).model_fields else field
         raise ScenarioError(where, str(exc)) from None
 
 
-def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
-    """Check a scenario against its robot and build every object it describes."""
+def _load_robot(scenario: s.Scenario, scenario_file: Path) -> tuple[
+        LoadedArm | None, Path, RobotModel]:
     arm = robots.load_scenario_arm(scenario.robot, scenario_file.parent)
     path = arm.urdf_path if arm is not None else _model_path(scenario.robot, scenario_file.parent)
     try:
-        model = _robot_model(path, scenario.robot, arm=arm)
+        return arm, path, _robot_model(path, scenario.robot, arm=arm)
     except ScenarioError:
         raise
     except CpbcError as exc:
         raise ScenarioError("robot.model", str(exc)) from None
-    n = model.n
-    names = _coordinate_names(scenario.robot, model)
-    sim = scenario.simulation
-    plant_settings = PlantSettings(sim.timestep, sim.integrator)
-    control_period = sim.control_period or sim.timestep
+
+
+def _check_length(sim: s.SimulationSpec, control_period: float) -> None:
+    """At least one control period, and no more physics steps than ``max_steps``."""
+    period_key = "control_period" if sim.control_period else "timestep"
+    if sim.duration < control_period * (1 - 1e-9):
+        raise ScenarioError(
+            "simulation.duration",
+            f"{sim.duration:g} s is shorter than one control period (simulation.{period_key} "
+            f"= {control_period:g} s): lengthen the duration or shorten the period",
+        )
     try:
         substeps_per_control(control_period, sim.timestep)
     except CpbcError as exc:
         raise ScenarioError("simulation.control_period", str(exc)) from None
+    steps = sim.duration / sim.timestep
+    if steps > sim.max_steps:
+        raise ScenarioError(
+            "simulation.duration",
+            f"{sim.duration:g} s at a timestep of {sim.timestep:g} s is {steps:.3g} physics "
+            f"steps per run, more than simulation.max_steps = {sim.max_steps:,}: shorten the "
+            "duration, lengthen the timestep, or raise simulation.max_steps if you mean it",
+        )
+
+
+def _loop_settings(sim: s.SimulationSpec, model: RobotModel) -> LoopSettings:
+    n = model.n
+    control_period = sim.control_period or sim.timestep
+    _check_length(sim, control_period)
     limit = None
     if sim.torque_limit == "from_model":
         limit = sim.torque_limit_scale * robots.model_limits(
@@ -378,33 +464,45 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
             else sim.noise.velocity,
             sim.noise.seed,
         )
-    loop = LoopSettings(
+    return LoopSettings(
         sim.duration, control_period, limit, sim.log_every,
         safeguard=DEFAULT_SAFEGUARD if sim.safeguard else None, noise=noise,
         max_log_samples=sim.max_log_samples,
     )
 
-    built: dict[str, ConfigurationConstraint | VelocityConstraint] = {}
+
+def _obstacles(specs: list[s.ObstacleSpec]) -> tuple[list[ObstacleGeom], dict[str, Obstacle]]:
     obstacles: list[ObstacleGeom] = []
     scene: dict[str, Obstacle] = {}
-    for i, ospec in enumerate(scenario.obstacles):
+    for i, ospec in enumerate(specs):
         if ospec.name in scene:
             raise ScenarioError(f"obstacles[{i}].name", f"duplicate obstacle name '{ospec.name}'")
         ob = scene[ospec.name] = robots.obstacle(ospec, f"obstacles[{i}]")
         geom = ob.scene_geom()
         obstacles.append(ObstacleGeom(ob.name, geom.pos, float(geom.size[0]), ob.collides, geom))
-    rate_bounds: list[float | None] = [None] * n
+    return obstacles, scene
+
+
+def _constraints(
+    scenario: s.Scenario, model: RobotModel, names: tuple[str, ...], arm: LoadedArm | None,
+    scene: dict[str, Obstacle], obstacles: list[ObstacleGeom],
+) -> tuple[dict[str, ConfigurationConstraint | VelocityConstraint], list[float | None]]:
+    """Every scenario constraint by name, and the per-coordinate rate bounds (for the table);
+    point obstacles are appended to ``obstacles``."""
+    built: dict[str, ConfigurationConstraint | VelocityConstraint] = {}
+    rate_bounds: list[float | None] = [None] * model.n
     for i, cs in enumerate(scenario.constraints):
         field = f"constraints[{i}]"
         if cs.name in built:
             raise ScenarioError(f"{field}.name", f"duplicate constraint name '{cs.name}'")
         try:
-            built[cs.name] = _build_constraint(cs, model, names, field, arm, scene)
+            c = built[cs.name] = _build_constraint(cs, model, names, field, arm, scene)
         except ScenarioError:
             raise
         except CpbcError as exc:
-            raise ScenarioError(field, str(exc)) from None
-        c = built[cs.name]
+            parameter = getattr(exc, "parameter", None)
+            raise ScenarioError(f"{field}.{parameter}" if parameter else field,
+                                str(exc)) from None
         if isinstance(c, RateLimit) and c.is_per_joint:
             for j, b in zip(c._joint_index, c.bounds, strict=True):  # type: ignore[union-attr]
                 rate_bounds[int(j)] = float(b)
@@ -412,25 +510,63 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
             obstacles.append(
                 ObstacleGeom(cs.name, c.centre, cs.radius, cs.collides)  # type: ignore[union-attr]
             )
-    monitor = ConstraintSet(
-        n,
-        [c for c in built.values() if isinstance(c, ConfigurationConstraint)],
-        [c for c in built.values() if isinstance(c, VelocityConstraint)],
-    )
+    return built, rate_bounds
 
-    if sim.safeguard and sim.safeguard_monitored:
-        loop = replace(loop, also_keep=monitor.configuration)
+
+def joint_ranges(model: RobotModel, arm: LoadedArm | None, path: Path) -> tuple[Array, Array]:
+    """The position ranges the plant enforces (MuJoCo's joint stops), joint coordinates;
+    ±inf where a joint has none."""
+    if arm is not None:
+        return arm.position_lower, arm.position_upper
+    mj = mujoco.MjModel.from_xml_path(str(path))
+    limited = mj.jnt_limited.astype(bool)
+    lo = np.where(limited, mj.jnt_range[:, 0], -np.inf)
+    hi = np.where(limited, mj.jnt_range[:, 1], np.inf)
+    return lo[: model.n], hi[: model.n]
+
+
+def _check_in_range(
+    x: Array, model: RobotModel, ranges: tuple[Array, Array], field: str, what: str
+) -> None:
+    """A state the joint stops would refuse is bad input, limits declared or not."""
+    q = x if model.coordinates.is_identity else np.linalg.solve(model.coordinates.matrix, x)
+    lo, hi = ranges
+    for i in np.nonzero((q < lo) | (q > hi))[0]:
+        raise ScenarioError(
+            field,
+            f"{what}: joint '{model.joint_names[i]}' = {q[i]:.6g} is outside its range "
+            f"[{lo[i]:.6g}, {hi[i]:.6g}] (the model's joint limits, where the plant has a hard "
+            "stop): move it inside the range",
+        )
+
+
+def _states(
+    scenario: s.Scenario, model: RobotModel, monitor: ConstraintSet,
+    ranges: tuple[Array, Array],
+) -> tuple[Array, list[CaseEntry]]:
+    """The target and the initial states: the right size, inside the joint ranges and S."""
+    n = model.n
     target = _vector(scenario.target, n, "target")
+    _check_in_range(target, model, ranges, "target", "the target")
     monitor.check_admissible(target, np.zeros(n), "target")
     cases = []
     for i, case in enumerate(scenario.cases):
         x0 = _vector(case.position, n, f"cases[{i}].position")
         dx0 = _vector(case.velocity, n, f"cases[{i}].velocity", default=0.0)
+        _check_in_range(x0, model, ranges, f"cases[{i}].position",
+                        f"the initial position of case '{case.name}'")
         monitor.check_admissible(x0, dx0, f"initial state of case '{case.name}' (cases[{i}])")
         cases.append(CaseEntry(case.name, x0, dx0))
     if len({c.name for c in cases}) != len(cases):
         raise ScenarioError("cases", "case names must be unique")
+    return target, cases
 
+
+def _controllers(
+    scenario: s.Scenario, model: RobotModel, target: Array, cases: list[CaseEntry],
+    built: dict[str, ConfigurationConstraint | VelocityConstraint], names: tuple[str, ...],
+    period: float,
+) -> list[ControllerEntry]:
     bounds_cache: list[ModelBounds] = []
 
     def model_bounds() -> ModelBounds:
@@ -438,31 +574,45 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
             bounds_cache.append(estimate_bounds(model))
         return bounds_cache[0]
 
+    sim = scenario.simulation
+    check = sim.check_gains and sim.backend == "mujoco"  # the reference holds nothing
+    states = [target] + [c.position for c in cases]
     controllers = []
     for i, cspec in enumerate(scenario.controllers):
         field = f"controllers[{i}]"
-        ctrl = _build_controller(cspec, model, target, built, model_bounds, field)
+        gains = _gains(cspec, model, target, field)
+        if check:
+            _check_zoh(gains, model, states, period, names, field)
+        ctrl = _build_controller(cspec, model, target, gains, built, model_bounds, field)
         controllers.append(ControllerEntry(cspec.name or cspec.type, ctrl))
     if len({c.name for c in controllers}) != len(controllers):
         raise ScenarioError("controllers", "controller names must be unique; set 'name' on each")
+    return controllers
 
-    criteria = SettleCriteria(sim.position_tolerance, sim.velocity_tolerance)
+
+def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
+    """Check a scenario against its robot and build every object it describes."""
+    arm, path, model = _load_robot(scenario, scenario_file)
+    names = _coordinate_names(scenario.robot, model)
+    sim = scenario.simulation
+    loop = _loop_settings(sim, model)
+    obstacles, scene = _obstacles(scenario.obstacles)
+    built, rate_bounds = _constraints(scenario, model, names, arm, scene, obstacles)
+    monitor = ConstraintSet(
+        model.n,
+        [c for c in built.values() if isinstance(c, ConfigurationConstraint)],
+        [c for c in built.values() if isinstance(c, VelocityConstraint)],
+    )
+    if sim.safeguard and sim.safeguard_monitored:
+        loop = replace(loop, also_keep=monitor.configuration)
+    target, cases = _states(scenario, model, monitor, joint_ranges(model, arm, path))
+    controllers = _controllers(scenario, model, target, cases, built, names,
+                               loop.control_period)
     setup = ScenarioSetup(
-        scenario,
-        path,
-        model,
-        monitor,
-        controllers,
-        cases,
-        target,
-        plant_settings,
-        loop,
-        criteria,
-        rate_bounds,
-        obstacles,
-        names,
-        scenario_file,
-        arm,
+        scenario, path, model, monitor, controllers, cases, target,
+        PlantSettings(sim.timestep, sim.integrator),
+        loop, SettleCriteria(sim.position_tolerance, sim.velocity_tolerance), rate_bounds,
+        obstacles, names, scenario_file, arm,
     )
     _check_disturbances(setup)
     return setup

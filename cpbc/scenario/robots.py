@@ -57,8 +57,8 @@ def load_scenario_arm(robot: s.RobotSpec, base: Path) -> LoadedArm | None:
         return load_urdf(path if path.is_absolute() else base / path, robot.locked_joints,
                          package_dirs=dirs)
     except CpbcError as exc:
-        field = "robot.locked_joints" if "locked joint" in str(exc) else "robot.model"
-        raise ScenarioError(field, str(exc)) from None
+        parameter = getattr(exc, "parameter", None)
+        raise ScenarioError(f"robot.{parameter or 'model'}", str(exc)) from None
 
 
 def model_limits(model: RobotModel, kind: str, field: str) -> tuple[Array, Array]:
@@ -165,9 +165,16 @@ def clearance(
         raise ScenarioError(f"{field}.obstacles",
                             f"unknown obstacles {unknown}; the scenario has {list(obstacles)}")
     prims = _primitives(spec, arm, model, field)
+    covered = sorted({p.frame for p in prims})
+    for i, (a, b) in enumerate(spec.self_collision):
+        missing = [f for f in (a, b) if f not in covered]
+        if missing or a == b:
+            why = (f"no primitive on link '{missing[0]}'; links with primitives: {covered}"
+                   if missing else "names one link twice")
+            raise ScenarioError(f"{field}.self_collision[{i}]", f"pair ({a}, {b}): {why}")
     try:
         return Clearance(model, prims, [obstacles[o] for o in names], spec.margin,
                          spec.influence, [tuple(p) for p in spec.self_collision], spec.name)
     except CpbcError as exc:
-        key = "self_collision" if "self-collision" in str(exc) else None
-        raise ScenarioError(f"{field}.{key}" if key else field, str(exc)) from None
+        parameter = getattr(exc, "parameter", None)
+        raise ScenarioError(f"{field}.{parameter}" if parameter else field, str(exc)) from None

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field, model_validator
 
 from cpbc.scenario.expressions import parse_number
 
@@ -84,6 +84,11 @@ class SimulationSpec(Strict):
     noise: NoiseSpec | None = None
     position_tolerance: Positive = 0.01
     velocity_tolerance: Positive = 0.005
+    # physics steps per run above which the run is refused (raise it to run longer)
+    max_steps: Annotated[int, Field(ge=1, strict=True)] = 10_000_000
+    # refuse gains whose zero-order-hold loop is unstable at control_period
+    # (cpbc.scenario.gains); false lets a deliberately unstable run go ahead
+    check_gains: Annotated[bool, Field(strict=True)] = True
 
 
 class CaseSpec(Strict):
@@ -253,35 +258,49 @@ ShapingSpec = Annotated[
 ]
 
 
-class PDSpec(Strict):
+class GainsSpec(Strict):
+    """K_P, K_D directly (``kp``, ``kd``), or in physical terms: a natural frequency
+    ``omega_n`` [rad/s] and damping ratio ``zeta`` per coordinate (or one for all), scaled by
+    the arm's inertia at the target: K_P,i = D_ii(x_d) ω_n,i², K_D,i = 2 ζ_i ω_n,i D_ii(x_d)
+    (see cpbc.scenario.gains)."""
+
+    kp: Gain | None = None
+    kd: Gain | None = None
+    omega_n: Gain | None = None
+    zeta: Gain | None = None
+
+    @model_validator(mode="after")
+    def _one_form(self) -> GainsSpec:
+        direct = (self.kp is not None, self.kd is not None)
+        physical = (self.omega_n is not None, self.zeta is not None)
+        if any(direct) and any(physical):
+            raise ValueError("give either kp and kd, or omega_n and zeta, not both")
+        if direct != (True, True) and physical != (True, True):
+            raise ValueError("needs gains: kp and kd, or omega_n [rad/s] and zeta")
+        return self
+
+
+class PDSpec(GainsSpec):
     type: Literal["pd", "pd_gravity"]
     name: SafeName | None = None
-    kp: Gain
-    kd: Gain
 
 
-class CPBCSpec(Strict):
+class CPBCSpec(GainsSpec):
     type: Literal["cpbc", "cpbc_ke"]
     name: SafeName | None = None
-    kp: Gain
-    kd: Gain
     shaping: ShapingSpec | None = None
     constraints: list[str] | None = None  # names of scenario constraints; all when omitted
 
 
-class RecentredSpec(Strict):
+class RecentredSpec(GainsSpec):
     type: Literal["recentred"]
     name: SafeName | None = None
-    kp: Gain
-    kd: Gain
     constraints: list[str] | None = None
 
 
-class BPBCSpec(Strict):
+class BPBCSpec(GainsSpec):
     type: Literal["bpbc", "bpbc_ke"]
     name: SafeName | None = None
-    kp: Gain
-    kd: Gain
     xi: Gain = 1.0
     gamma: Gain = 1.0
     shaping: ShapingSpec | None = None
