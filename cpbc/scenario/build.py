@@ -33,7 +33,7 @@ from cpbc.resources import builtin_models
 from cpbc.results.metrics import SettleCriteria
 from cpbc.scenario import robots
 from cpbc.scenario import schema as s
-from cpbc.scenario.gains import physical_gains, unstable_coordinates
+from cpbc.scenario.gains import physical_gains, unstable_loop
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, substeps_per_control
 from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
 from cpbc.simulation.loop import DEFAULT_SAFEGUARD
@@ -352,12 +352,11 @@ def _check_zoh(
     names: tuple[str, ...], field: str,
 ) -> None:
     """Refuse gains whose held loop is unstable at the control period (cpbc.scenario.gains)."""
-    inertia = np.min([np.diag(model.inertia(x)) for x in states], axis=0)
-    bad = unstable_coordinates(gains.stiffness, gains.damping, inertia, period, names)
-    if bad:
-        raise ScenarioError(field, bad[0].advice() + (
-            f" ({len(bad) - 1} more coordinates too)" if len(bad) > 1 else "")
-            + "; simulation.check_gains: false runs it anyway")
+    bad = unstable_loop(gains.stiffness, gains.damping, [model.inertia(x) for x in states],
+                        period, names)
+    if bad is not None:
+        raise ScenarioError(field, bad.advice() + "; simulation.check_gains: false runs it "
+                            "anyway")
 
 
 def _controller_constraints(

@@ -24,13 +24,26 @@ eigenvalues inside the unit circle) **if and only if**
 
 In physical terms: ζ ω_n h < 1 and ω_n h < 4ζ. Too much damping for the period makes the
 rate flip sign every sample and grow; too little (for the stiffness) lets the held torque
-pump energy in. The check applies the condition to each coordinate with m = D_ii — the
-diagonal of D at the target and at every initial position, taking the smallest (the
-stiffest case) — and with the linear stiffness and damping of the law near the target. It
-is exact for a decoupled arm; for a coupled D it screens the gains coordinate by coordinate
-(the barrier terms of the constrained laws come on top of it). It holds for a plant that
-integrates the held torque exactly (MuJoCo's RK4 does for this model); it says nothing of the
-physics integrator's own step.
+pump energy in.
+
+**The arm.** The joints are coupled: near the target at rest, with gravity compensated, the
+arm is D ẍ = u, and over one period (x̃, ẋ) ↦ A (x̃, ẋ) with
+
+    A = [[I − (h²/2) D⁻¹K_P,  h I − (h²/2) D⁻¹K_D],
+         [−h D⁻¹K_P,           I − h D⁻¹K_D     ]].
+
+The held loop is stable iff the spectral radius of A is < 1 — for one coordinate this is the
+condition above. The check evaluates it with D at the target and at every initial position
+(the loop must be stable along the way), with the linear stiffness and damping of the law
+near the target. Coupling matters: with the physical gains above, D⁻¹K_P and D⁻¹K_D share
+eigenvectors, and a mode of eigenvalue λ of D⁻¹ diag(D) needs ω_n h < 4ζ and λ ζ ω_n h < 1,
+with λ up to 3.3 on the thesis's planar arm: the damping limit is several times tighter
+than one joint alone suggests. The report names the coordinate that moves most in the
+unstable mode, its effective inertia 1/(D⁻¹)_ii, and the longest control period at which
+the gains are stable. The check ignores what the linearisation leaves out (the barrier terms
+of the constrained laws, gravity held over a period, Coriolis terms, ∂g/∂q for laws without
+gravity compensation). It holds for a plant that integrates the held torque exactly
+(MuJoCo's RK4 does for D ẍ = u); it says nothing of the physics integrator's own step.
 """
 
 from __future__ import annotations
@@ -48,65 +61,97 @@ def physical_gains(omega_n: Array, zeta: Array, inertia_diag: Array) -> tuple[Ar
     return inertia_diag * omega_n**2, 2.0 * zeta * omega_n * inertia_diag
 
 
-@dataclass(frozen=True)
-class UnstableCoordinate:
-    """A coordinate whose held PD loop diverges or oscillates at the control period.
-
-    Attributes:
-        index: the coordinate's index.
-        name: its name.
-        inertia: m = D_ii used [kg·m²].
-        kp, kd: its linear stiffness and damping.
-        period: the control period h [s].
-    """
-
-    index: int
-    name: str
-    inertia: float
-    kp: float
-    kd: float
-    period: float
-
-    @property
-    def too_damped(self) -> bool:
-        """k_d h ≥ 2m: the rate overshoots its own correction every sample."""
-        return self.kd * self.period >= 2.0 * self.inertia
-
-    def advice(self) -> str:
-        """What is wrong and the ways out, in numbers."""
-        m, h, kp, kd = self.inertia, self.period, self.kp, self.kd
-        longest = min(2.0 * m / kd, 2.0 * kd / kp)
-        if self.too_damped:
-            why = (f"K_D h = {kd * h:.3g} ≥ 2 D_ii = {2 * m:.3g}: lower kd below "
-                   f"{2 * m / h:.4g}")
-        else:
-            why = (f"K_P h = {kp * h:.3g} ≥ 2 K_D = {2 * kd:.3g}: raise kd above "
-                   f"{kp * h / 2:.4g} or lower kp below {2 * kd / h:.4g}")
-        return (f"coordinate '{self.name}' (D_ii = {m:.3g}, K_P = {kp:.4g}, K_D = {kd:.4g}) is "
-                f"unstable under the zero-order hold at h = {h:.3g} s ({why}), or shorten "
-                f"simulation.control_period below {longest:.3g} s; stable iff K_D h < 2 D_ii "
-                "and K_P h < 2 K_D (in physical terms ζ ω_n h < 1 and ω_n h < 4ζ)")
-
-
 def zoh_stable(kp: float, kd: float, inertia: float, period: float) -> bool:
     """Whether k_d h < 2m and k_p h < 2 k_d (the held PD loop of one coordinate)."""
     return kd * period < 2.0 * inertia and kp * period < 2.0 * kd
 
 
+def held_loop(kp: Array, kd: Array, inertia: Array, period: float) -> Array:
+    """The map A of (x̃, ẋ) over one period (module docstring), shape (2n, 2n)."""
+    n, h = len(kp), period
+    stiff = np.linalg.solve(inertia, np.diag(kp))
+    damp = np.linalg.solve(inertia, np.diag(kd))
+    eye = np.eye(n)
+    return np.block([[eye - h * h / 2 * stiff, h * eye - h * h / 2 * damp],
+                     [-h * stiff, eye - h * damp]])
+
+
 def zoh_spectral_radius(kp: float, kd: float, inertia: float, period: float) -> float:
-    """Largest |eigenvalue| of the one-coordinate map of the module docstring."""
-    a, b = kp * period**2 / inertia, kd * period / inertia
-    step = np.array([[1 - a / 2, 1 - b / 2], [-a, 1 - b]])
-    return float(np.max(np.abs(np.linalg.eigvals(step))))
+    """Largest |eigenvalue| of one coordinate's held loop."""
+    return spectral_radius(np.array([kp]), np.array([kd]), np.array([[inertia]]), period)
 
 
-def unstable_coordinates(
-    kp: Array, kd: Array, inertia_diag: Array, period: float, names: Sequence[str]
-) -> list[UnstableCoordinate]:
-    """Coordinates whose held loop fails :func:`zoh_stable`, in order."""
-    return [
-        UnstableCoordinate(i, names[i], float(inertia_diag[i]), float(kp[i]), float(kd[i]),
-                           period)
-        for i in range(len(kp))
-        if not zoh_stable(float(kp[i]), float(kd[i]), float(inertia_diag[i]), period)
-    ]
+def spectral_radius(kp: Array, kd: Array, inertia: Array, period: float) -> float:
+    """Largest |eigenvalue| of the arm's held loop; < 1 iff stable."""
+    return float(np.max(np.abs(np.linalg.eigvals(held_loop(kp, kd, inertia, period)))))
+
+
+def longest_stable_period(kp: Array, kd: Array, inertia: Array, period: float) -> float:
+    """The longest h ≤ ``period`` at which the held loop is stable (bisection)."""
+    lo, hi = 0.0, period
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        if spectral_radius(kp, kd, inertia, mid) < 1.0:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@dataclass(frozen=True)
+class UnstableLoop:
+    """Gains whose held loop diverges or oscillates at the control period.
+
+    Attributes:
+        name: the coordinate that moves most in the unstable mode.
+        index: its index.
+        inertia: its effective inertia 1/(D⁻¹)_ii [kg·m²].
+        kp, kd: its linear stiffness and damping.
+        period: the control period h [s].
+        radius: spectral radius of the held loop (≥ 1).
+        longest_period: the longest period at which these gains are stable [s].
+    """
+
+    name: str
+    index: int
+    inertia: float
+    kp: float
+    kd: float
+    period: float
+    radius: float
+    longest_period: float
+
+    def advice(self) -> str:
+        """What is wrong and the ways out, in numbers."""
+        m, h, kp, kd = self.inertia, self.period, self.kp, self.kd
+        if kd * h >= 2.0 * m:
+            fix = f"K_D h ≥ 2 D_eff: lower kd below {2 * m / h:.4g}"
+        elif kp * h >= 2.0 * kd:
+            fix = f"K_P h ≥ 2 K_D: raise kd above {kp * h / 2:.4g} or lower kp"
+        else:
+            fix = "a coupled mode: lower kd (or omega_n, zeta)"
+        return (f"the gains are unstable under the zero-order hold at control period "
+                f"h = {h:.3g} s (spectral radius {self.radius:.4g} ≥ 1), mostly in coordinate "
+                f"'{self.name}' (effective inertia {m:.3g}, K_P = {kp:.4g}, K_D = {kd:.4g}; "
+                f"{fix}), or shorten simulation.control_period to below "
+                f"{self.longest_period:.3g} s. One coordinate alone is stable iff "
+                "K_D h < 2 D and K_P h < 2 K_D (ζ ω_n h < 1 and ω_n h < 4ζ)")
+
+
+def unstable_loop(
+    kp: Array, kd: Array, inertias: Sequence[Array], period: float, names: Sequence[str]
+) -> UnstableLoop | None:
+    """The first inertia D (of ``inertias``) at which the held loop is unstable, described;
+    None when it is stable at every one."""
+    n = len(kp)
+    for inertia in inertias:
+        values, vectors = np.linalg.eig(held_loop(kp, kd, inertia, period))
+        k = int(np.argmax(np.abs(values)))
+        if abs(values[k]) < 1.0:
+            continue
+        i = int(np.argmax(np.abs(vectors[:n, k]) + np.abs(vectors[n:, k]) * period))
+        m_eff = 1.0 / float(np.linalg.inv(inertia)[i, i])
+        return UnstableLoop(names[i], i, m_eff, float(kp[i]), float(kd[i]), period,
+                            float(abs(values[k])),
+                            longest_stable_period(kp, kd, inertia, period))
+    return None
