@@ -244,7 +244,7 @@ def _limit(
 ) -> Array:
     """A limit vector as given, or ``from_model`` (side 0 lower, 1 upper) on joints idx."""
     if isinstance(value, str):
-        limits = robots.model_limits(model, kind, field)[side]
+        limits = robots.model_limits(model, kind, field, idx)[side]
         return limits if idx is None else limits[idx]
     return _vector(value, k, field)
 

@@ -61,10 +61,13 @@ def load_scenario_arm(robot: s.RobotSpec, base: Path) -> LoadedArm | None:
         raise ScenarioError(f"robot.{parameter or 'model'}", str(exc)) from None
 
 
-def model_limits(model: RobotModel, kind: str, field: str) -> tuple[Array, Array]:
+def model_limits(
+    model: RobotModel, kind: str, field: str, joints: list[int] | None = None
+) -> tuple[Array, Array]:
     """Limits the robot's model declares: ``position`` (lower, upper), ``velocity`` or
-    ``effort`` (−limit, limit), in joint coordinates. ScenarioError if a joint has none or
-    the controller does not use joint coordinates."""
+    ``effort`` (−limit, limit), in joint coordinates, of every joint (or of ``joints``).
+    ScenarioError if one of them has none or the controller does not use joint
+    coordinates."""
     if not model.coordinates.is_identity:
         raise ScenarioError(field, "'from_model' limits need robot.coordinates: joint")
     pm = model.model
@@ -74,10 +77,14 @@ def model_limits(model: RobotModel, kind: str, field: str) -> tuple[Array, Array
     else:
         hi = np.array(pm.velocityLimit if kind == "velocity" else pm.effortLimit, dtype=float)
         lo = -hi
-    bad = [model.joint_names[i] for i in range(model.n)
+    chosen = range(model.n) if joints is None else joints
+    bad = [model.joint_names[i] for i in chosen
            if not (np.isfinite(lo[i]) and np.isfinite(hi[i]) and lo[i] < hi[i])]
     if bad:
-        raise ScenarioError(field, f"the model has no {kind} limit for joints {bad}; give values")
+        others = [model.joint_names[i] for i in chosen if model.joint_names[i] not in bad]
+        hint = f", or list only the joints that have one ('joints': {others})" if others else ""
+        raise ScenarioError(field, f"the model has no {kind} limit for joints {bad} "
+                            f"(continuous or undeclared): give values{hint}")
     return lo, hi
 
 
