@@ -366,7 +366,11 @@ class LoadedArm:
         try:
             model = spec.compile()
         except ValueError as exc:
-            raise ModelError(f"MuJoCo could not compile {self.urdf_path}: {exc}") from None
+            hint = ("; MuJoCo, unlike Pinocchio, refuses unphysical inertias: correct that "
+                    "link's <inertial> in the URDF" if "inertia" in str(exc) else "")
+            raise ModelError(
+                f"MuJoCo could not compile {self.urdf_path}: {str(exc).strip()}{hint}"
+            ) from None
         finish_mujoco_model(model, self.joint_names)
         return model
 
@@ -463,9 +467,9 @@ def load_urdf(
         odd = [model.names[i] for i in range(1, model.njoints)
                if model.joints[i].nq != model.joints[i].nv]
         raise ModelError(
-            f"{path.name}: joints {odd} are multi-DOF (spherical, planar or floating); "
-            "only revolute, continuous and prismatic joints can be driven: lock them with "
-            "robot.locked_joints or change their type in the URDF"
+            f"{path.name}: joints {odd} are multi-DOF (spherical, planar or floating), which "
+            "cpbc can neither drive nor lock: make them fixed, revolute, continuous or "
+            "prismatic in the URDF"
         )
     lower, upper, vel, eff = _limits(model)
     return LoadedArm(

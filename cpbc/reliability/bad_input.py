@@ -156,6 +156,29 @@ def arm(model: str, target: list[object], position: list[object], **extra: objec
     return make
 
 
+def urdf(joint_type: str = "revolute", inertia: str = 'ixx="0.01" iyy="0.01" izz="0.01"',
+         mesh: tuple[str, str] | None = None) -> Make:
+    """robot.model is a one-joint URDF in the folder (with a mesh file ``mesh`` = (name,
+    content) on its link, if given)."""
+
+    def make(data: dict, folder: Path) -> str:
+        geometry = ""
+        if mesh is not None:
+            (folder / mesh[0]).write_text(mesh[1])
+            geometry = (f'<collision><geometry><mesh filename="{mesh[0]}"/></geometry>'
+                        "</collision>")
+        (folder / "arm.urdf").write_text(
+            f'<robot name="one"><link name="base"/><link name="arm"><inertial>'
+            f'<mass value="1"/><inertia {inertia} ixy="0" ixz="0" iyz="0"/></inertial>'
+            f'{geometry}</link><joint name="j1" type="{joint_type}"><parent link="base"/>'
+            '<child link="arm"/><axis xyz="0 0 1"/>'
+            '<limit lower="-1" upper="1" effort="5" velocity="2"/></joint></robot>')
+        data["robot"].update(model="arm.urdf", coordinates="joint")
+        return yaml.safe_dump(data, sort_keys=False)
+
+    return make
+
+
 NAN, INF = float("nan"), float("inf")
 
 VARIANTS: list[BadInput] = [
@@ -396,6 +419,12 @@ VARIANTS: list[BadInput] = [
              setting("controllers.0", {"type": "pd", "omega_n": [1, 2, 3], "zeta": 1})),
     BadInput("check_gains_text", "wrong type", "simulation.check_gains",
              setting("simulation.check_gains", "no")),
+    # -- URDF models MuJoCo refuses though Pinocchio reads them ----------------------------
+    BadInput("urdf_unphysical_inertia", "model file", "robot.model",
+             urdf(inertia='ixx="0.01" iyy="0.01" izz="0.5"')),
+    BadInput("urdf_unreadable_collada", "model file", "robot.model",
+             urdf(mesh=("arm.dae", "<COLLADA>half a file"))),
+    BadInput("urdf_floating_joint", "model file", "robot.model", urdf("floating")),
     # -- URDF arms: joint ranges and joints ------------------------------------------------
     BadInput("target_past_joint_stop", "inadmissible", "target",
              arm("ur5", [0, -1, 4.0, 0, 0, 0], [0, -1, 1, 0, 0, 0])),

@@ -142,22 +142,19 @@ def _per_entry(value: float | list[float], k: int, field: str, what: str) -> Non
         raise ScenarioError(field, f"needs 1 or {k} entries (one per {what}), got {len(value)}")
 
 
-def _check_disturbances(setup: ScenarioSetup) -> None:
+def _check_disturbances(scenario: s.Scenario, plant: mujoco.MjModel, n: int) -> None:
     """Sizes of the plant overrides and of the noise, against the compiled models."""
-    plant = setup.scenario.robot.plant
-    if plant is not None:
-        mj = (setup.arm.mujoco_model() if setup.arm is not None
-              else mujoco.MjModel.from_xml_path(str(setup.model_path)))
+    mismatch = scenario.robot.plant
+    if mismatch is not None:
         for key in ("mass_scale", "inertia_scale"):
-            _per_entry(getattr(plant, key), mj.nbody - 1, f"robot.plant.{key}",
+            _per_entry(getattr(mismatch, key), plant.nbody - 1, f"robot.plant.{key}",
                        "body below the world")
         for key in ("damping", "armature", "frictionloss"):
-            _per_entry(getattr(plant, key), mj.nv, f"robot.plant.{key}", "joint")
-    noise = setup.scenario.simulation.noise
+            _per_entry(getattr(mismatch, key), plant.nv, f"robot.plant.{key}", "joint")
+    noise = scenario.simulation.noise
     if noise is not None:
         for key in ("position", "velocity"):
-            _per_entry(getattr(noise, key), setup.model.n, f"simulation.noise.{key}",
-                       "coordinate")
+            _per_entry(getattr(noise, key), n, f"simulation.noise.{key}", "coordinate")
 
 
 def _model_path(robot: s.RobotSpec, base: Path) -> Path:
@@ -406,15 +403,21 @@ def _build_controller(
 
 
 def _load_robot(scenario: s.Scenario, scenario_file: Path) -> tuple[
-        LoadedArm | None, Path, RobotModel]:
+        LoadedArm | None, Path, RobotModel, mujoco.MjModel]:
+    """The arm, its file, the controller's model and the plant's MuJoCo model — compiled
+    here, so that what only MuJoCo refuses (unreadable meshes, unphysical inertias) is bad
+    input now rather than a traceback in a worker."""
     arm = robots.load_scenario_arm(scenario.robot, scenario_file.parent)
     path = arm.urdf_path if arm is not None else _model_path(scenario.robot, scenario_file.parent)
     try:
-        return arm, path, _robot_model(path, scenario.robot, arm=arm)
+        model = _robot_model(path, scenario.robot, arm=arm)
+        plant = (arm.mujoco_model() if arm is not None
+                 else mujoco.MjModel.from_xml_path(str(path)))
     except ScenarioError:
         raise
-    except CpbcError as exc:
+    except (CpbcError, ValueError) as exc:
         raise ScenarioError("robot.model", str(exc)) from None
+    return arm, path, model, plant
 
 
 def _check_length(sim: s.SimulationSpec, control_period: float) -> None:
@@ -512,28 +515,26 @@ def _constraints(
     return built, rate_bounds
 
 
-def joint_ranges(model: RobotModel, arm: LoadedArm | None, path: Path) -> tuple[Array, Array]:
-    """The position ranges the plant enforces (MuJoCo's joint stops), joint coordinates;
+def joint_ranges(model: RobotModel, plant: mujoco.MjModel) -> tuple[Array, Array]:
+    """The position ranges the plant enforces (MuJoCo's joint stops), in joint coordinates;
     ±inf where a joint has none."""
-    if arm is not None:
-        return arm.position_lower, arm.position_upper
-    mj = mujoco.MjModel.from_xml_path(str(path))
-    limited = mj.jnt_limited.astype(bool)
-    lo = np.where(limited, mj.jnt_range[:, 0], -np.inf)
-    hi = np.where(limited, mj.jnt_range[:, 1], np.inf)
-    return lo[: model.n], hi[: model.n]
+    n = model.n
+    limited = plant.jnt_limited[:n].astype(bool)
+    return (np.where(limited, plant.jnt_range[:n, 0], -np.inf),
+            np.where(limited, plant.jnt_range[:n, 1], np.inf))
 
 
 def _check_in_range(
     x: Array, model: RobotModel, ranges: tuple[Array, Array], field: str, what: str
 ) -> None:
-    """A state the joint stops would refuse is bad input, limits declared or not."""
+    """A state the joint stops would refuse is bad input, limits declared or not (``what``
+    prefixes the message)."""
     q = x if model.coordinates.is_identity else np.linalg.solve(model.coordinates.matrix, x)
     lo, hi = ranges
     for i in np.nonzero((q < lo) | (q > hi))[0]:
         raise ScenarioError(
             field,
-            f"{what}: joint '{model.joint_names[i]}' = {q[i]:.6g} is outside its range "
+            f"{what}joint '{model.joint_names[i]}' = {q[i]:.6g} is outside its range "
             f"[{lo[i]:.6g}, {hi[i]:.6g}] (the model's joint limits, where the plant has a hard "
             "stop): move it inside the range",
         )
@@ -546,14 +547,13 @@ def _states(
     """The target and the initial states: the right size, inside the joint ranges and S."""
     n = model.n
     target = _vector(scenario.target, n, "target")
-    _check_in_range(target, model, ranges, "target", "the target")
+    _check_in_range(target, model, ranges, "target", "")
     monitor.check_admissible(target, np.zeros(n), "target")
     cases = []
     for i, case in enumerate(scenario.cases):
         x0 = _vector(case.position, n, f"cases[{i}].position")
         dx0 = _vector(case.velocity, n, f"cases[{i}].velocity", default=0.0)
-        _check_in_range(x0, model, ranges, f"cases[{i}].position",
-                        f"the initial position of case '{case.name}'")
+        _check_in_range(x0, model, ranges, f"cases[{i}].position", f"case '{case.name}': ")
         monitor.check_admissible(x0, dx0, f"initial state of case '{case.name}' (cases[{i}])")
         cases.append(CaseEntry(case.name, x0, dx0))
     if len({c.name for c in cases}) != len(cases):
@@ -591,7 +591,7 @@ def _controllers(
 
 def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     """Check a scenario against its robot and build every object it describes."""
-    arm, path, model = _load_robot(scenario, scenario_file)
+    arm, path, model, plant = _load_robot(scenario, scenario_file)
     names = _coordinate_names(scenario.robot, model)
     sim = scenario.simulation
     loop = _loop_settings(sim, model)
@@ -604,7 +604,7 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     )
     if sim.safeguard and sim.safeguard_monitored:
         loop = replace(loop, also_keep=monitor.configuration)
-    target, cases = _states(scenario, model, monitor, joint_ranges(model, arm, path))
+    target, cases = _states(scenario, model, monitor, joint_ranges(model, plant))
     controllers = _controllers(scenario, model, target, cases, built, names,
                                loop.control_period)
     setup = ScenarioSetup(
@@ -613,5 +613,5 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         loop, SettleCriteria(sim.position_tolerance, sim.velocity_tolerance), rate_bounds,
         obstacles, names, scenario_file, arm,
     )
-    _check_disturbances(setup)
+    _check_disturbances(scenario, plant, model.n)
     return setup

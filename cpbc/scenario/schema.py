@@ -5,7 +5,16 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field, model_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from cpbc.scenario.expressions import parse_number
 
@@ -264,19 +273,31 @@ class GainsSpec(Strict):
     the arm's inertia at the target: K_P,i = D_ii(x_d) ω_n,i², K_D,i = 2 ζ_i ω_n,i D_ii(x_d)
     (see cpbc.scenario.gains)."""
 
-    kp: Gain | None = None
-    kd: Gain | None = None
+    # omega_n and zeta come first so that kp's and kd's checks see them (info.data)
     omega_n: Gain | None = None
     zeta: Gain | None = None
+    kp: Gain | None = None
+    kd: Gain | None = None
+
+    @field_validator("kp", "kd", mode="before")
+    @classmethod
+    def _not_null(cls, v: object, info: ValidationInfo) -> object:
+        # kp: null is a slip, unless the gains are given as omega_n, zeta (as a dumped
+        # scenario has them)
+        if v is None and info.data.get("omega_n") is None:
+            raise ValueError("must be a number or a list of numbers, not null")
+        return v
 
     @model_validator(mode="after")
     def _one_form(self) -> GainsSpec:
-        direct = (self.kp is not None, self.kd is not None)
-        physical = (self.omega_n is not None, self.zeta is not None)
-        if any(direct) and any(physical):
+        given = {k for k in ("kp", "kd", "omega_n", "zeta") if getattr(self, k) is not None}
+        if given & {"kp", "kd"} and given & {"omega_n", "zeta"}:
             raise ValueError("give either kp and kd, or omega_n and zeta, not both")
-        if direct != (True, True) and physical != (True, True):
-            raise ValueError("needs gains: kp and kd, or omega_n [rad/s] and zeta")
+        if given not in ({"kp", "kd"}, {"omega_n", "zeta"}):
+            missing = ({"kp", "kd"} - given) if given & {"kp", "kd"} else (
+                {"omega_n", "zeta"} - given if given else {"kp", "kd"})
+            raise ValueError(f"{' and '.join(sorted(missing))} missing: give kp and kd, or "
+                             "omega_n [rad/s] and zeta")
         return self
 
 
