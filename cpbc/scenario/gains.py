@@ -37,7 +37,8 @@ condition above. The check evaluates it with D at the target and at every initia
 (the loop must be stable along the way), with the linear stiffness and damping of the law
 near the target. Coupling matters: with the physical gains above, D⁻¹K_P and D⁻¹K_D share
 eigenvectors, and a mode of eigenvalue λ of D⁻¹ diag(D) needs ω_n h < 4ζ and λ ζ ω_n h < 1,
-with λ up to 3.3 on the thesis's planar arm: the damping limit is several times tighter
+with λ = 3.3 on the thesis's planar arm at q₂ = 0.8 (joint coordinates) and λ ≈ 100 on the
+xArm 7 at its zero pose (two vertical axes aligned): the damping limit can be far tighter
 than one joint alone suggests. The report names the coordinate that moves most in the
 unstable mode, its effective inertia 1/(D⁻¹)_ii, and the longest control period at which
 the gains are stable. The check ignores what the linearisation leaves out (the barrier terms
