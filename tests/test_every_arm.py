@@ -22,7 +22,8 @@ DURATION = 0.05  # s: 50 control steps, enough to see both engines move the arm 
 
 def test_the_arms_of_issue_14_are_known() -> None:
     assert {"panda", "ur3", "ur5", "ur10", "xarm7", "z1", "kinova", "so100", "so101",
-            "talos_arm", "baxter_left", "baxter_right"} <= set(available_arms())
+            "talos_arm", "baxter_left", "baxter_right", "ur5_limited", "ur5_gripper"} <= set(
+        available_arms())
 
 
 @pytest.mark.parametrize("name", available_arms())

@@ -82,6 +82,18 @@ ARMS: dict[str, ArmEntry] = {
                     "tool0"),
     "ur10": ArmEntry("ur_description/urdf/ur10_robot.urdf", {}, "Universal Robots UR10, 6 DOF",
                      "tool0"),
+    # the same arms with joint ranges of ±π (the "joint limited" descriptions) or a gripper
+    # welded to the flange
+    "ur3_limited": ArmEntry("ur_description/urdf/ur3_joint_limited_robot.urdf", {},
+                            "Universal Robots UR3, 6 DOF, joints limited to ±π", "tool0"),
+    "ur5_limited": ArmEntry("ur_description/urdf/ur5_joint_limited_robot.urdf", {},
+                            "Universal Robots UR5, 6 DOF, joints limited to ±π", "tool0"),
+    "ur10_limited": ArmEntry("ur_description/urdf/ur10_joint_limited_robot.urdf", {},
+                             "Universal Robots UR10, 6 DOF, joints limited to ±π", "tool0"),
+    "ur3_gripper": ArmEntry("ur_description/urdf/ur3_gripper.urdf", {},
+                            "Universal Robots UR3 with a fixed gripper, 6 DOF", "tool0"),
+    "ur5_gripper": ArmEntry("ur_description/urdf/ur5_gripper.urdf", {},
+                            "Universal Robots UR5 with a fixed gripper, 6 DOF", "tool0"),
     "xarm7": ArmEntry("xarm_description/urdf/xarm7.urdf", {}, "UFactory xArm 7, 7 DOF",
                       "link_eef"),
     "z1": ArmEntry(
