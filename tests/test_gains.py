@@ -30,7 +30,7 @@ def _setup(tmp_path: Path, data: dict) -> ScenarioSetup:
 
 
 def _scenario(robot: str, controller: dict, period: float, duration: float,
-              check: bool = True) -> dict:
+              check: bool = True, integrator: str = "RK4", timestep: float = 0.001) -> dict:
     if robot == "panda":
         target = HOME
         start = [q + 0.05 for q in HOME]
@@ -38,8 +38,8 @@ def _scenario(robot: str, controller: dict, period: float, duration: float,
         target, start = [0.5, 0.8], [0.45, 0.85]
     return {
         "name": "gains", "robot": {"model": robot},
-        "simulation": {"duration": duration, "timestep": 0.001, "control_period": period,
-                       "safeguard": False, "check_gains": check},
+        "simulation": {"duration": duration, "timestep": timestep, "control_period": period,
+                       "safeguard": False, "check_gains": check, "integrator": integrator},
         "target": target, "cases": [{"name": "near", "position": start}],
         "controllers": [{"type": "pd_gravity", "name": "PDg", **controller}],
     }
@@ -57,6 +57,17 @@ def test_the_condition_is_the_spectral_radius(rng: np.random.Generator) -> None:
         assert zoh_stable(kp, kd, m, h) == (rho < 1), (kp, kd, m, h, rho)
         checked += 1
     assert checked > 3900
+
+
+def test_euler_with_one_step_per_period(rng: np.random.Generator) -> None:
+    """δ = h: stable iff k_p h²/m + 2 k_d h/m < 4 (module docstring)."""
+    for _ in range(2000):
+        m, h = rng.uniform(0.01, 5), rng.uniform(1e-4, 0.05)
+        kp, kd = 10 ** rng.uniform(-1, 6), 10 ** rng.uniform(-2, 4)
+        a, b = kp * h * h / m, kd * h / m
+        rho = zoh_spectral_radius(kp, kd, m, h, euler_step=h)
+        if abs(rho - 1) > 1e-6:
+            assert (a + 2 * b < 4) == (rho < 1), (a, b, rho)
 
 
 def test_physical_gains_scale_with_the_inertia_at_the_target(tmp_path: Path) -> None:
@@ -104,12 +115,26 @@ CASES = [
 ]
 
 
+# (integrator, control period = timestep): the same gains, exact under RK4, not under Euler
+INTEGRATORS = [("RK4", True), ("Euler", False)]
+
+
+@pytest.mark.parametrize(("integrator", "stable"), INTEGRATORS)
+def test_the_check_knows_the_integrator(tmp_path: Path, integrator: str, stable: bool) -> None:
+    gains = {"omega_n": 40, "zeta": 0.7}  # ρ = 0.85 (RK4), 1.13 (Euler) at h = δ = 10 ms
+    data = _scenario("planar_2link", gains, 0.01, 1.0, integrator=integrator, timestep=0.01)
+    _the_check_predicts_what_mujoco_does(tmp_path, data, stable)
+
+
 @pytest.mark.parametrize(("robot", "gains", "period", "stable"), CASES,
                          ids=[f"{c[0]}-{'-'.join(map(str, c[1].values()))}-{c[2]}" for c in CASES])
 def test_the_check_predicts_what_mujoco_does(
     tmp_path: Path, robot: str, gains: dict, period: float, stable: bool
 ) -> None:
-    data = _scenario(robot, gains, period, 1.0)
+    _the_check_predicts_what_mujoco_does(tmp_path, _scenario(robot, gains, period, 1.0), stable)
+
+
+def _the_check_predicts_what_mujoco_does(tmp_path: Path, data: dict, stable: bool) -> None:
     if stable:
         setup = _setup(tmp_path, data)  # accepted
         status, first, last = _grew(setup)
@@ -119,7 +144,8 @@ def test_the_check_predicts_what_mujoco_does(
         _setup(tmp_path, data)
     assert info.value.field == "controllers[0]"
     assert "coordinate '" in str(info.value) and "control_period" in str(info.value)
-    setup = _setup(tmp_path, _scenario(robot, gains, period, 1.0, check=False))
+    data["simulation"]["check_gains"] = False
+    setup = _setup(tmp_path, data)
     status, first, last = _grew(setup)
     assert status == "diverged" or last > first, (status, first, last)
 

@@ -345,12 +345,13 @@ def _gains(spec: s.ControllerSpec, model: RobotModel, target: Array, field: str)
 
 
 def _check_zoh(
-    gains: _Gains, model: RobotModel, states: list[Array], period: float,
+    gains: _Gains, model: RobotModel, states: list[Array], sim: s.SimulationSpec,
     names: tuple[str, ...], field: str,
 ) -> None:
     """Refuse gains whose held loop is unstable at the control period (cpbc.scenario.gains)."""
+    euler_step = 0.0 if sim.integrator == "RK4" else sim.timestep
     bad = unstable_loop(gains.stiffness, gains.damping, [model.inertia(x) for x in states],
-                        period, names)
+                        sim.control_period or sim.timestep, names, euler_step)
     if bad is not None:
         raise ScenarioError(field, bad.advice() + "; simulation.check_gains: false runs it "
                             "anyway")
@@ -564,7 +565,6 @@ def _states(
 def _controllers(
     scenario: s.Scenario, model: RobotModel, target: Array, cases: list[CaseEntry],
     built: dict[str, ConfigurationConstraint | VelocityConstraint], names: tuple[str, ...],
-    period: float,
 ) -> list[ControllerEntry]:
     bounds_cache: list[ModelBounds] = []
 
@@ -581,7 +581,7 @@ def _controllers(
         field = f"controllers[{i}]"
         gains = _gains(cspec, model, target, field)
         if check:
-            _check_zoh(gains, model, states, period, names, field)
+            _check_zoh(gains, model, states, sim, names, field)
         ctrl = _build_controller(cspec, model, target, gains, built, model_bounds, field)
         controllers.append(ControllerEntry(cspec.name or cspec.type, ctrl))
     if len({c.name for c in controllers}) != len(controllers):
@@ -605,8 +605,7 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     if sim.safeguard and sim.safeguard_monitored:
         loop = replace(loop, also_keep=monitor.configuration)
     target, cases = _states(scenario, model, monitor, joint_ranges(model, plant))
-    controllers = _controllers(scenario, model, target, cases, built, names,
-                               loop.control_period)
+    controllers = _controllers(scenario, model, target, cases, built, names)
     setup = ScenarioSetup(
         scenario, path, model, monitor, controllers, cases, target,
         PlantSettings(sim.timestep, sim.integrator),

@@ -43,8 +43,16 @@ than one joint alone suggests. The report names the coordinate that moves most i
 unstable mode, its effective inertia 1/(D⁻¹)_ii, and the longest control period at which
 the gains are stable. The check ignores what the linearisation leaves out (the barrier terms
 of the constrained laws, gravity held over a period, Coriolis terms, ∂g/∂q for laws without
-gravity compensation). It holds for a plant that integrates the held torque exactly
-(MuJoCo's RK4 does for D ẍ = u); it says nothing of the physics integrator's own step.
+gravity compensation).
+
+**The integrator.** RK4 integrates D ẍ = u with u held exactly, as above. MuJoCo's Euler
+(semi-implicit: v ← v + δ ẍ, then x ← x + δ v) over the k = h/δ physics steps of a period
+gives ẋ_{k+1} = ẋ_k + h D⁻¹u and x̃_{k+1} = x̃_k + h ẋ_k + ½ h (h + δ) D⁻¹u: the h²/2 of the
+first row of A becomes h(h + δ)/2. The implicit integrators treat velocity-dependent forces
+implicitly and, with none in D ẍ = u, move the same way. With δ = h one coordinate is then
+stable iff a + 2b < 4 (a, b as above): the bound on damping drops from k_d h < 2m
+to k_d h < 2m − k_p h²/2. The check takes δ = the scenario's timestep for those
+integrators and δ = 0 for RK4.
 """
 
 from __future__ import annotations
@@ -67,32 +75,40 @@ def zoh_stable(kp: float, kd: float, inertia: float, period: float) -> bool:
     return kd * period < 2.0 * inertia and kp * period < 2.0 * kd
 
 
-def held_loop(kp: Array, kd: Array, inertia: Array, period: float) -> Array:
-    """The map A of (x̃, ẋ) over one period (module docstring), shape (2n, 2n)."""
+def held_loop(kp: Array, kd: Array, inertia: Array, period: float,
+              euler_step: float = 0.0) -> Array:
+    """The map A of (x̃, ẋ) over one period (module docstring), shape (2n, 2n);
+    ``euler_step`` is δ of an Euler-type physics integrator (0: exact, as RK4)."""
     n, h = len(kp), period
     stiff = np.linalg.solve(inertia, np.diag(kp))
     damp = np.linalg.solve(inertia, np.diag(kd))
     eye = np.eye(n)
-    return np.block([[eye - h * h / 2 * stiff, h * eye - h * h / 2 * damp],
+    c = h * (h + euler_step) / 2
+    return np.block([[eye - c * stiff, h * eye - c * damp],
                      [-h * stiff, eye - h * damp]])
 
 
-def zoh_spectral_radius(kp: float, kd: float, inertia: float, period: float) -> float:
+def zoh_spectral_radius(kp: float, kd: float, inertia: float, period: float,
+                        euler_step: float = 0.0) -> float:
     """Largest |eigenvalue| of one coordinate's held loop."""
-    return spectral_radius(np.array([kp]), np.array([kd]), np.array([[inertia]]), period)
+    return spectral_radius(np.array([kp]), np.array([kd]), np.array([[inertia]]), period,
+                           euler_step)
 
 
-def spectral_radius(kp: Array, kd: Array, inertia: Array, period: float) -> float:
+def spectral_radius(kp: Array, kd: Array, inertia: Array, period: float,
+                    euler_step: float = 0.0) -> float:
     """Largest |eigenvalue| of the arm's held loop; < 1 iff stable."""
-    return float(np.max(np.abs(np.linalg.eigvals(held_loop(kp, kd, inertia, period)))))
+    loop = held_loop(kp, kd, inertia, period, euler_step)
+    return float(np.max(np.abs(np.linalg.eigvals(loop))))
 
 
-def longest_stable_period(kp: Array, kd: Array, inertia: Array, period: float) -> float:
+def longest_stable_period(kp: Array, kd: Array, inertia: Array, period: float,
+                          euler_step: float = 0.0) -> float:
     """The longest h ≤ ``period`` at which the held loop is stable (bisection)."""
     lo, hi = 0.0, period
     for _ in range(50):
         mid = 0.5 * (lo + hi)
-        if spectral_radius(kp, kd, inertia, mid) < 1.0:
+        if spectral_radius(kp, kd, inertia, mid, euler_step) < 1.0:
             lo = mid
         else:
             hi = mid
@@ -140,13 +156,14 @@ class UnstableLoop:
 
 
 def unstable_loop(
-    kp: Array, kd: Array, inertias: Sequence[Array], period: float, names: Sequence[str]
+    kp: Array, kd: Array, inertias: Sequence[Array], period: float, names: Sequence[str],
+    euler_step: float = 0.0,
 ) -> UnstableLoop | None:
     """The first inertia D (of ``inertias``) at which the held loop is unstable, described;
     None when it is stable at every one."""
     n = len(kp)
     for inertia in inertias:
-        values, vectors = np.linalg.eig(held_loop(kp, kd, inertia, period))
+        values, vectors = np.linalg.eig(held_loop(kp, kd, inertia, period, euler_step))
         k = int(np.argmax(np.abs(values)))
         if abs(values[k]) < 1.0:
             continue
@@ -154,5 +171,5 @@ def unstable_loop(
         m_eff = 1.0 / float(np.linalg.inv(inertia)[i, i])
         return UnstableLoop(names[i], i, m_eff, float(kp[i]), float(kd[i]), period,
                             float(abs(values[k])),
-                            longest_stable_period(kp, kd, inertia, period))
+                            longest_stable_period(kp, kd, inertia, period, euler_step))
     return None
