@@ -26,6 +26,7 @@ from cpbc.errors import CpbcError, ModelError
 from cpbc.model.loading import ARMS, load_arm
 from cpbc.resources import builtin_models
 from cpbc.scenario.gains import physical_gains, spectral_radius
+from cpbc.scenario.robots import xml_root
 from cpbc.scenario.skeleton import JointLimits, home, skeleton
 
 
@@ -97,11 +98,15 @@ def describe(name_or_path: str) -> RobotDescription:
     if name_or_path not in ARMS:
         if path.is_dir():
             raise ModelError(f"{name_or_path} is a directory: give a .urdf or .xml file in it")
+        if path.name.lower().endswith(".xacro"):
+            raise ModelError(f"{name_or_path} is xacro source, not a URDF: expand it first "
+                             "(xacro FILE > arm.urdf)")
         if path.suffix.lower() == ".xml":
             if not path.is_file():
                 raise ModelError(f"model file not found: {name_or_path}")
-            return _describe_mjcf(path, str(path.resolve()))
-        if path.suffix.lower() != ".urdf":
+            if xml_root(path) != "robot":  # a URDF saved as .xml is read as one
+                return _describe_mjcf(path, str(path.resolve()))
+        if path.suffix.lower() not in (".urdf", ".xml"):
             raise ModelError(
                 f"unknown robot '{name_or_path}': give a built-in model "
                 f"({', '.join(builtin)}), an example-robot-data arm "

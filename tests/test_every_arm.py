@@ -92,8 +92,20 @@ def test_robot_cli_builtin_mjcf() -> None:
     (".", "is a directory"),
     ("missing.urdf", "URDF file not found"),
     ("missing.xml", "model file not found"),
+    ("arm.urdf.xacro", "xacro source"),
 ])
 def test_robot_cli_bad_names_exit_2(arg: str, words: str) -> None:
     code, out, err = _cli(arg)
     assert code == 2 and out == ""
     assert words in err and "Traceback" not in err
+
+
+def test_a_urdf_saved_as_xml_is_read_as_urdf(tmp_path: Path) -> None:
+    from cpbc.model.loading import arm_urdf
+
+    path = tmp_path / "ur5.xml"
+    path.write_text(arm_urdf("ur5").read_text())
+    code, out, _ = _cli(str(path), "--duration", "0.02")
+    assert code == 0 and "shoulder_pan_joint" in out
+    (tmp_path / "s.yaml").write_text(out)
+    assert build(*load_scenario(tmp_path / "s.yaml")).arm is not None

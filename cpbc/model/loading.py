@@ -507,7 +507,7 @@ def load_arm(
         arm.tip = entry.tip
         return arm
     path = Path(name_or_path)
-    if path.suffix.lower() != ".urdf":
+    if path.suffix.lower() not in (".urdf", ".xml"):  # a URDF saved as .xml is common
         raise ModelError(
             f"unknown robot '{name_or_path}'; available: {', '.join(available_arms())}, "
             "or a path to a .urdf file"

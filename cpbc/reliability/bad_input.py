@@ -425,6 +425,9 @@ VARIANTS: list[BadInput] = [
     BadInput("urdf_unreadable_collada", "model file", "robot.model",
              urdf(mesh=("arm.dae", "<COLLADA>half a file"))),
     BadInput("urdf_floating_joint", "model file", "robot.model", urdf("floating")),
+    BadInput("xacro_source", "model file", "robot.model",
+             model_file('<robot xmlns:xacro="http://ros.org/wiki/xacro" name="a">'
+                        '<xacro:include filename="arm.xacro"/></robot>', "arm.urdf.xacro")),
     # -- URDF arms: joint ranges and joints ------------------------------------------------
     BadInput("target_past_joint_stop", "inadmissible", "target",
              arm("ur5", [0, -1, 4.0, 0, 0, 0], [0, -1, 1, 0, 0, 0])),

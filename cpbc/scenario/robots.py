@@ -7,6 +7,7 @@ names the offending field.
 from __future__ import annotations
 
 from pathlib import Path
+from xml.etree import ElementTree
 
 import mujoco
 import numpy as np
@@ -36,14 +37,38 @@ GEOM_TYPES = {
 }
 
 
-def is_urdf_robot(robot: s.RobotSpec) -> bool:
-    """Whether the scenario's robot is an example-robot-data arm or a URDF file."""
-    return robot.model in ARMS or robot.model.lower().endswith(".urdf")
+def xml_root(path: Path) -> str | None:
+    """The name of the XML root element of a file (None if it is no readable XML)."""
+    try:
+        for _, element in ElementTree.iterparse(path, events=("start",)):
+            return element.tag
+    except (ElementTree.ParseError, OSError):
+        return None
+    return None
+
+
+def is_urdf_robot(robot: s.RobotSpec, base: Path | None = None) -> bool:
+    """Whether the scenario's robot is an example-robot-data arm or a URDF file (by its
+    suffix or, for any other existing file, by its ``<robot>`` root element).
+
+    Raises:
+        ScenarioError: the file is xacro source, which needs expanding first.
+    """
+    if robot.model in ARMS or robot.model.lower().endswith(".urdf"):
+        return True
+    path = Path(robot.model)
+    path = path if path.is_absolute() or base is None else base / path
+    if not path.is_file():
+        return False
+    if path.name.lower().endswith(".xacro"):
+        raise ScenarioError("robot.model", f"{robot.model} is xacro source, not a URDF: expand "
+                            "it first (xacro FILE > arm.urdf) and give the .urdf")
+    return xml_root(path) == "robot"
 
 
 def load_scenario_arm(robot: s.RobotSpec, base: Path) -> LoadedArm | None:
     """The URDF arm of a scenario, or None when its robot is an MJCF model."""
-    if not is_urdf_robot(robot):
+    if not is_urdf_robot(robot, base):
         if robot.locked_joints:
             raise ScenarioError(
                 "robot.locked_joints", "locking joints needs a URDF robot (a name or .urdf path)"
