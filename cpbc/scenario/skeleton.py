@@ -8,7 +8,6 @@ declares one, half its rate limits.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -93,7 +92,3 @@ def _safe_name(model: str) -> str:
     name = "".join(c if c.isalnum() or c in "_.+-" else "_" for c in stem).lstrip("_.+-")
     return (name or "arm") + "_start"
 
-
-def commented(names: Sequence[str]) -> str:
-    """A YAML comment line listing the coordinates in order (target and cases follow it)."""
-    return "# coordinates: " + ", ".join(names) + "\n"
