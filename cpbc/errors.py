@@ -45,12 +45,16 @@ class InadmissibleStateError(CpbcError):
         what: which state ("target", "initial state of case 'x'", ...).
         constraint: name of the first violated constraint.
         margin: its value (<= 0).
+        field: the scenario entry of the state (``target``, ``cases[0]``), set by the
+            scenario builder; None elsewhere.
     """
 
-    def __init__(self, what: str, constraint: str, margin: float) -> None:
+    def __init__(self, what: str, constraint: str, margin: float,
+                 field: str | None = None) -> None:
         self.what = what
         self.constraint = constraint
         self.margin = margin
+        self.field = field
         super().__init__(
             f"{what} is outside the admissible set: constraint '{constraint}' has margin "
             f"{margin:.6g} (must be > 0). Move the state inside every constraint, or relax "

@@ -627,3 +627,10 @@ def test_locked_joint_errors_carry_their_field(load_dict) -> None:
     data = _ur5([0] * 5, [0] * 5)
     data["robot"]["locked_joints"] = {"wrist_9_joint": 0.0}
     expect_error(load_dict, data, "robot.locked_joints", "wrist_9_joint")
+
+
+def test_an_inadmissible_state_carries_its_field(load_dict, minimal) -> None:
+    edit(minimal, "cases.0.position", ["pi/2", "pi/2"])  # the end point in the obstacle
+    with pytest.raises(InadmissibleStateError) as info:
+        load_dict(minimal)
+    assert info.value.field == "cases[0]" and info.value.constraint == "obstacle"

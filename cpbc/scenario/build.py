@@ -541,6 +541,15 @@ def _check_in_range(
         )
 
 
+def _check_admissible(monitor: ConstraintSet, x: Array, dx: Array, what: str,
+                      field: str) -> None:
+    try:
+        monitor.check_admissible(x, dx, what)
+    except InadmissibleStateError as exc:
+        exc.field = field  # the scenario entry, for callers that map errors to the file
+        raise
+
+
 def _states(
     scenario: s.Scenario, model: RobotModel, monitor: ConstraintSet,
     ranges: tuple[Array, Array],
@@ -549,13 +558,14 @@ def _states(
     n = model.n
     target = _vector(scenario.target, n, "target")
     _check_in_range(target, model, ranges, "target", "")
-    monitor.check_admissible(target, np.zeros(n), "target")
+    _check_admissible(monitor, target, np.zeros(n), "target", "target")
     cases = []
     for i, case in enumerate(scenario.cases):
         x0 = _vector(case.position, n, f"cases[{i}].position")
         dx0 = _vector(case.velocity, n, f"cases[{i}].velocity", default=0.0)
         _check_in_range(x0, model, ranges, f"cases[{i}].position", f"case '{case.name}': ")
-        monitor.check_admissible(x0, dx0, f"initial state of case '{case.name}' (cases[{i}])")
+        _check_admissible(monitor, x0, dx0, f"initial state of case '{case.name}' (cases[{i}])",
+                          f"cases[{i}]")
         cases.append(CaseEntry(case.name, x0, dx0))
     if len({c.name for c in cases}) != len(cases):
         raise ScenarioError("cases", "case names must be unique")
