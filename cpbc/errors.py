@@ -8,7 +8,34 @@ class CpbcError(Exception):
 
 
 class ModelError(CpbcError):
-    """A robot model file is missing, malformed, or lacks a named joint/frame."""
+    """A robot model file is missing, malformed, or lacks a named joint/frame.
+
+    Attributes:
+        parameter: the loader's argument at fault (``locked_joints``), or None when it is
+            the model file itself.
+    """
+
+    def __init__(self, message: str, parameter: str | None = None) -> None:
+        self.parameter = parameter
+        super().__init__(message)
+
+    def __reduce__(self) -> tuple[object, ...]:  # survives pickling to and from workers
+        return type(self), (str(self), self.parameter)
+
+
+class ParameterError(CpbcError):
+    """A named constructor argument is invalid (``kp``, ``mass_scale``, …).
+
+    Attributes:
+        parameter: the argument's name, so that a caller can map it to its own field.
+    """
+
+    def __init__(self, parameter: str, message: str) -> None:
+        self.parameter = parameter
+        super().__init__(message)
+
+    def __reduce__(self) -> tuple[object, ...]:
+        return type(self), (self.parameter, str(self))
 
 
 class InadmissibleStateError(CpbcError):
@@ -18,12 +45,16 @@ class InadmissibleStateError(CpbcError):
         what: which state ("target", "initial state of case 'x'", ...).
         constraint: name of the first violated constraint.
         margin: its value (<= 0).
+        field: the scenario entry of the state (``target``, ``cases[0]``), set by the
+            scenario builder; None elsewhere.
     """
 
-    def __init__(self, what: str, constraint: str, margin: float) -> None:
+    def __init__(self, what: str, constraint: str, margin: float,
+                 field: str | None = None) -> None:
         self.what = what
         self.constraint = constraint
         self.margin = margin
+        self.field = field
         super().__init__(
             f"{what} is outside the admissible set: constraint '{constraint}' has margin "
             f"{margin:.6g} (must be > 0). Move the state inside every constraint, or relax "
@@ -47,3 +78,12 @@ class ScenarioError(CpbcError):
         self.field = field
         self.message = message
         super().__init__(f"{field}: {message}" if field else message)
+
+    def __reduce__(self) -> tuple[object, ...]:
+        return _rebuild_scenario_error, (self.field, self.message, self.args)
+
+
+def _rebuild_scenario_error(field: str, message: str, args: tuple[object, ...]) -> ScenarioError:
+    err = ScenarioError(field, message)
+    err.args = args  # format_validation_error replaces the text with every error's line
+    return err

@@ -170,3 +170,99 @@ def test_named_arms_mark_their_tool_centre_point() -> None:
     assert mj.body(int(site.bodyid[0])).name == "panda_hand_tcp" == arm.tip
     _, ur = _arm("ur5")
     assert ur.body(int(ur.site("end_point").bodyid[0])).name == "tool0"
+
+
+# -- continuous joints and Collada meshes (issue 14) ---------------------------------------
+_CONTINUOUS = """<robot name="two">
+  <link name="base"/>
+  <link name="l1">
+    <inertial><mass value="1"/><origin xyz="0.2 0 0"/>
+      <inertia ixx="0.01" iyy="0.02" izz="0.03" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <link name="l2">
+    <inertial><mass value="0.5"/><origin xyz="0.1 0 0"/>
+      <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <joint name="j1" type='continuous'><parent link="base"/><child link="l1"/>
+    <axis xyz="0 1 0"/><limit effort="7" velocity="3" lower="-1" upper="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
+    <origin xyz="0.4 0 0"/><axis xyz="0 1 0"/>
+    <limit lower="-2" upper="2" effort="5" velocity="2"/></joint>
+</robot>
+"""
+
+
+def test_continuous_joints_are_unbounded_revolute_in_both_engines(
+    tmp_path: Path, rng: np.random.Generator
+) -> None:
+    urdf = tmp_path / "two.urdf"
+    urdf.write_text(_CONTINUOUS)
+    arm = load_urdf(urdf)
+    assert arm.continuous_joints == ("j1",)
+    assert arm.model.nq == arm.model.nv == 2  # the angle, not (cos, sin)
+    assert arm.position_lower[0] == -np.inf and arm.position_upper[0] == np.inf
+    assert (arm.position_lower[1], arm.position_upper[1]) == (-2, 2)  # revolute untouched
+    assert arm.effort_limit[0] == 7 and arm.velocity_limit[0] == 3
+    mj = arm.mujoco_model()
+    assert list(mj.jnt_limited) == [0, 1]
+    _agreement(arm, mj, rng)
+    # far past the ±1 the URDF wrote (which a continuous joint ignores): the same pose
+    data = mujoco.MjData(mj)
+    for q1 in (5.0, -40.0):
+        data.qpos[:] = [q1, 0.3]
+        mujoco.mj_forward(mj, data)
+        pdata = arm.model.createData()
+        pin.framesForwardKinematics(arm.model, pdata, np.array([q1, 0.3]))
+        fid = arm.model.getFrameId("l2", pin.FrameType.BODY)
+        np.testing.assert_allclose(pdata.oMf[fid].translation, data.xpos[mj.body("l2").id],
+                                   atol=1e-10)
+
+
+def test_a_continuous_joint_can_be_locked(tmp_path: Path, rng: np.random.Generator) -> None:
+    urdf = tmp_path / "two.urdf"
+    urdf.write_text(_CONTINUOUS)
+    arm = load_urdf(urdf, {"j1": 4.0})  # no range to check against
+    assert arm.joint_names == ("j2",)
+    _agreement(arm, arm.mujoco_model(), rng)
+
+
+def test_kinova_loads_with_continuous_joints_and_collada_meshes() -> None:
+    arm, mj = _arm("kinova")
+    assert set(arm.continuous_joints) == {"j2s6s200_joint_1", "j2s6s200_joint_4",
+                                          "j2s6s200_joint_6"}
+    assert ".dae" not in arm.urdf_text.lower()  # both engines read the converted meshes
+    assert mj.nmesh > 0 and mj.nq == mj.nv == 6
+    limited = dict(zip(arm.joint_names, mj.jnt_limited, strict=True))
+    assert not limited["j2s6s200_joint_1"] and limited["j2s6s200_joint_2"]
+
+
+def test_collada_conversion_keeps_the_triangles(tmp_path: Path, monkeypatch) -> None:
+    import coal
+
+    from cpbc.model.meshes import mujoco_mesh
+
+    monkeypatch.setenv("CPBC_CACHE_DIR", str(tmp_path / "cache"))
+    source = arm_urdf("kinova").parents[1] / "meshes" / "forearm.dae"
+    converted = mujoco_mesh(source)
+    assert converted.suffix == ".stl" and converted.parent == tmp_path / "cache" / "meshes"
+    assert mujoco_mesh(source) == converted  # cached: the same file, not converted again
+
+    def read(p: Path) -> np.ndarray:
+        bvh = coal.MeshLoader().load(str(p), np.ones(3))
+        return np.asarray(bvh.vertices())
+
+    a, b = read(source), read(converted)
+    np.testing.assert_allclose(a.min(0), b.min(0), atol=1e-6)
+    np.testing.assert_allclose(a.max(0), b.max(0), atol=1e-6)
+    spec = mujoco.MjSpec()  # and MuJoCo decodes it
+    spec.add_mesh(name="m", file=str(converted))
+    spec.worldbody.add_body().add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname="m")
+    assert spec.compile().nmeshvert > 0
+
+
+def test_an_unreadable_mesh_is_a_model_error(tmp_path: Path) -> None:
+    (tmp_path / "arm.dae").write_text("<COLLADA>not really</COLLADA>")
+    urdf = tmp_path / "one.urdf"
+    urdf.write_text(_ONE_LINK.format(mesh="arm.dae"))
+    with pytest.raises(ModelError, match=r"arm\.dae"):
+        load_urdf(urdf)

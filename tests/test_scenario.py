@@ -498,3 +498,139 @@ def test_file_that_is_not_a_scenario_mapping(tmp_path, text, match):
     path.write_text(text)
     with pytest.raises(ScenarioError, match=match):
         load_scenario(path)
+
+
+# -- input that failed before issue 14 -----------------------------------------------------
+def test_duplicate_key_names_the_key_and_both_lines(tmp_path: Path) -> None:
+    path = tmp_path / "dup.yaml"
+    path.write_text("name: d\nsimulation: {duration: 1}\ntarget: [1, 1]\n"
+                    "cases: [{name: a, position: [0, 0]}]\n"
+                    "controllers: [{type: pd, kp: 1, kd: 1}]\ntarget: [2, 2]\n")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    assert info.value.field == "target"
+    assert "line 6" in str(info.value) and "line 3" in str(info.value)
+
+
+def test_yaml_anchors_and_merge_keys_still_work(tmp_path: Path) -> None:
+    path = tmp_path / "merge.yaml"
+    path.write_text("name: m\nsimulation: {duration: 0.01}\ntarget: [1, 1]\n"
+                    "cases: [{name: a, position: [0, 0]}]\ncontrollers:\n"
+                    "  - &pd {type: pd, name: PD, kp: 4, kd: 20}\n"
+                    "  - {<<: *pd, name: PD2, kd: 10}\n")  # overriding a merged key is fine
+    scenario, _ = load_scenario(path)
+    assert [c.name for c in scenario.controllers] == ["PD", "PD2"]
+    assert scenario.controllers[1].kd == 10 and scenario.controllers[1].kp == 4
+
+
+def test_a_file_that_is_not_utf8_is_named(tmp_path: Path) -> None:
+    path = tmp_path / "latin.yaml"
+    path.write_bytes("name: t\ndescription: caf\xe9\n".encode("latin-1"))
+    with pytest.raises(ScenarioError, match=r"not UTF-8 text: byte 0xe9 on line 2"):
+        load_scenario(path)
+
+
+def test_a_directory_named_yaml_is_called_a_directory(tmp_path: Path) -> None:
+    folder = tmp_path / "run.yaml"
+    folder.mkdir()
+    (folder / "inner.yaml").write_text("name: x\n")
+    with pytest.raises(ScenarioError, match=r"is a directory.*inner\.yaml"):
+        load_scenario(folder)
+
+
+def test_a_byte_order_mark_is_fine(tmp_path: Path, minimal) -> None:
+    path = tmp_path / "bom.yaml"
+    path.write_bytes(b"\xef\xbb\xbf" + yaml.safe_dump(minimal).encode())
+    assert load_scenario(path)[0].name == minimal["name"]
+
+
+def test_duration_shorter_than_a_period(load_dict, minimal) -> None:
+    edit(minimal, "simulation.duration", 0.0005)
+    expect_error(load_dict, minimal, "simulation.duration", "shorter than one control period",
+                 "simulation.timestep")
+
+
+def test_absurd_step_count_needs_max_steps(load_dict, minimal) -> None:
+    edit(minimal, "simulation.duration", 1e7)
+    err = expect_error(load_dict, minimal, "simulation.duration", "1e+10", "max_steps")
+    assert "shorten the duration" in str(err)
+    edit(minimal, "simulation.duration", 20.0)
+    edit(minimal, "simulation.max_steps", 10_000)
+    expect_error(load_dict, minimal, "simulation.duration", "2e+04")
+    edit(minimal, "simulation.max_steps", 20_000)
+    assert load_dict(minimal).loop_settings.duration == 20.0
+
+
+def _ur5(target: list[float], start: list[float]) -> dict:
+    return {"name": "ur", "robot": {"model": "ur5"}, "simulation": {"duration": 0.01},
+            "target": target, "cases": [{"name": "s", "position": start}],
+            "controllers": [{"type": "pd_gravity", "kp": 50, "kd": 10}]}
+
+
+def test_target_outside_the_joint_range_without_a_declared_limit(load_dict) -> None:
+    err = expect_error(load_dict, _ur5([0, -1, 4.0, 0, 0, 0], [0, -1, 1, 0, 0, 0]), "target",
+                       "elbow_joint", "= 4", "[-3.14159, 3.14159]")
+    assert "move it inside the range" in str(err)
+    expect_error(load_dict, _ur5([0, -1, 1, 0, 0, 0], [0, -1, 1, 0, 7, 0]),
+                 "cases[0].position", "wrist_2_joint", "= 7", "[-6.28319, 6.28319]")
+    assert load_dict(_ur5([0, -1, 1, 0, 0, 0], [0, -1, 1.2, 0, 6, 0])).model.n == 6
+
+
+def test_continuous_joints_take_any_angle(load_dict) -> None:
+    data = _ur5([10.0, 3.0, 2.0, 0, 3.0, -9.0], [10.2, 3.0, 2.0, 0, 3.0, -9.0])
+    data["robot"]["model"] = "kinova"  # joints 1, 4, 6 are continuous
+    data["controllers"] = [{"type": "pd_gravity", "omega_n": 5, "zeta": 1}]  # light wrist
+    setup = load_dict(data)
+    assert setup.arm is not None and setup.arm.continuous_joints[0] == "j2s6s200_joint_1"
+
+
+def test_locking_a_continuous_joint(load_dict) -> None:
+    data = _ur5([3.0, 2.0, 0, 3.0, 0.5], [3.0, 2.0, 0, 3.0, 0.4])
+    data["robot"].update(model="kinova", locked_joints={"j2s6s200_joint_1": 0.3})
+    data["controllers"] = [{"type": "pd_gravity", "omega_n": 5, "zeta": 1}]
+    assert load_dict(data).model.n == 5
+
+
+def test_from_model_position_limits_name_the_unbounded_joints(load_dict) -> None:
+    data = _ur5([0, 3.0, 2.0, 0, 3.0, 0], [0, 3.0, 2.1, 0, 3.0, 0])
+    data["robot"]["model"] = "kinova"
+    data["constraints"] = [{"type": "joint_position_limit", "lower": "from_model",
+                            "upper": "from_model"}]
+    expect_error(load_dict, data, "constraints[0].lower", "j2s6s200_joint_1",
+                 "'joints': ['j2s6s200_joint_2', 'j2s6s200_joint_3', 'j2s6s200_joint_5']")
+
+
+def test_physical_gains_and_their_errors(load_dict, minimal) -> None:
+    minimal["controllers"] = [{"type": "pd", "omega_n": [1, 2], "zeta": 1}]
+    setup = load_dict(minimal)
+    d = np.diag(setup.model.inertia(setup.target))
+    np.testing.assert_allclose(setup.controllers[0].controller.kp, d * [1, 4])
+    minimal["controllers"] = [{"type": "pd", "omega_n": 1, "zeta": 1, "kd": 1}]
+    expect_error(load_dict, minimal, "controllers[0]", "not both")
+    minimal["controllers"] = [{"type": "cpbc", "kp": 1}]
+    expect_error(load_dict, minimal, "controllers[0]", "omega_n")
+
+
+def test_unstable_gains_name_the_coordinate_and_check_gains_overrides(load_dict,
+                                                                      minimal) -> None:
+    minimal["controllers"] = [{"type": "pd", "kp": 4, "kd": 5000}]
+    err = expect_error(load_dict, minimal, "controllers[0]", "zero-order hold", "lower kd",
+                       "control_period")
+    assert "coordinate '" in str(err)
+    minimal["simulation"]["check_gains"] = False
+    assert load_dict(minimal).controllers[0].controller.kd[0] == 5000
+    minimal["simulation"].update(check_gains=True, backend="reference")  # continuous control
+    assert load_dict(minimal).controllers[0].controller.kd[0] == 5000
+
+
+def test_locked_joint_errors_carry_their_field(load_dict) -> None:
+    data = _ur5([0] * 5, [0] * 5)
+    data["robot"]["locked_joints"] = {"wrist_9_joint": 0.0}
+    expect_error(load_dict, data, "robot.locked_joints", "wrist_9_joint")
+
+
+def test_an_inadmissible_state_carries_its_field(load_dict, minimal) -> None:
+    edit(minimal, "cases.0.position", ["pi/2", "pi/2"])  # the end point in the obstacle
+    with pytest.raises(InadmissibleStateError) as info:
+        load_dict(minimal)
+    assert info.value.field == "cases[0]" and info.value.constraint == "obstacle"

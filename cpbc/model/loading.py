@@ -38,6 +38,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from cpbc.errors import ModelError
+from cpbc.model.meshes import mujoco_mesh
 
 Array = NDArray[np.float64]
 
@@ -62,6 +63,13 @@ class ArmEntry:
     tip: str | None = None
 
 
+# Baxter is two 7-DOF arms on a fixed torso: each is an arm of its own, the rest locked.
+_BAXTER_OTHERS = {"head_pan": 0.0, "l_gripper_l_finger_joint": 0.0,
+                  "l_gripper_r_finger_joint": 0.0, "r_gripper_l_finger_joint": 0.0,
+                  "r_gripper_r_finger_joint": 0.0}
+_BAXTER_LEFT = {f"left_{j}": 0.0 for j in ("s0", "s1", "e0", "e1", "w0", "w1", "w2")}
+_BAXTER_RIGHT = {f"right_{j}": 0.0 for j in ("s0", "s1", "e0", "e1", "w0", "w1", "w2")}
+
 ARMS: dict[str, ArmEntry] = {
     "panda": ArmEntry(
         "panda_description/urdf/panda.urdf",
@@ -74,15 +82,63 @@ ARMS: dict[str, ArmEntry] = {
                     "tool0"),
     "ur10": ArmEntry("ur_description/urdf/ur10_robot.urdf", {}, "Universal Robots UR10, 6 DOF",
                      "tool0"),
+    # the same arms with joint ranges of ±π (the "joint limited" descriptions) or a gripper
+    # welded to the flange
+    "ur3_limited": ArmEntry("ur_description/urdf/ur3_joint_limited_robot.urdf", {},
+                            "Universal Robots UR3, 6 DOF, joints limited to ±π", "tool0"),
+    "ur5_limited": ArmEntry("ur_description/urdf/ur5_joint_limited_robot.urdf", {},
+                            "Universal Robots UR5, 6 DOF, joints limited to ±π", "tool0"),
+    "ur10_limited": ArmEntry("ur_description/urdf/ur10_joint_limited_robot.urdf", {},
+                             "Universal Robots UR10, 6 DOF, joints limited to ±π", "tool0"),
+    "ur3_gripper": ArmEntry("ur_description/urdf/ur3_gripper.urdf", {},
+                            "Universal Robots UR3 with a fixed gripper, 6 DOF", "tool0"),
+    "ur5_gripper": ArmEntry("ur_description/urdf/ur5_gripper.urdf", {},
+                            "Universal Robots UR5 with a fixed gripper, 6 DOF", "tool0"),
     "xarm7": ArmEntry("xarm_description/urdf/xarm7.urdf", {}, "UFactory xArm 7, 7 DOF",
                       "link_eef"),
     "z1": ArmEntry(
         "z1_description/urdf/z1.urdf", {"jointGripper": 0.0}, "Unitree Z1, 6 DOF (gripper locked)",
         "gripperStator",
     ),
+    "kinova": ArmEntry(
+        "kinova_description/robots/kinova.urdf", {},
+        "Kinova Jaco2 (j2s6s200), 6 DOF, joints 1, 4, 6 continuous; Collada meshes",
+        "j2s6s200_end_effector",
+    ),
+    # The SO-ARM100's jaw joint and its link are both named "gripper", which Pinocchio's
+    # buildReducedModel cannot tell apart: the jaw stays a driven joint.
+    "so100": ArmEntry(
+        "so_arm_description/urdf/so100.urdf", {}, "SO-ARM100, 5 DOF and the jaw", "jaw",
+    ),
+    "so101": ArmEntry(
+        "so_arm_description/urdf/so101.urdf", {"gripper": 0.0},
+        "SO-ARM101, 5 DOF (jaw locked)", "gripper_frame_link",
+    ),
+    "talos_arm": ArmEntry(
+        "talos_data/robots/talos_left_arm.urdf", {"gripper_left_joint": 0.0},
+        "PAL TALOS left arm, 6 DOF (gripper locked)", "wrist_left_ft_tool_link",
+    ),
+    "baxter_left": ArmEntry(
+        "baxter_description/urdf/baxter.urdf", {**_BAXTER_OTHERS, **_BAXTER_RIGHT},
+        "Rethink Baxter's left arm, 7 DOF (head, right arm and grippers locked)",
+        "left_gripper",
+    ),
+    "baxter_right": ArmEntry(
+        "baxter_description/urdf/baxter.urdf", {**_BAXTER_OTHERS, **_BAXTER_LEFT},
+        "Rethink Baxter's right arm, 7 DOF (head, left arm and grippers locked)",
+        "right_gripper",
+    ),
 }
 
 _MESH_URI = re.compile(r'(<mesh\b[^>]*?\bfilename\s*=\s*)(["\'])(.*?)\2', re.DOTALL)
+# A <joint> element of the kinematic tree (self-closing or with children); <transmission>'s
+# <joint name=…> has no type and is left alone.
+_JOINT = re.compile(r"<joint\b[^>]*?/>|<joint\b[^>]*?[^/]>.*?</joint>", re.DOTALL)
+_JOINT_HEAD = re.compile(r"<joint\b[^>]*>", re.DOTALL)
+_CONTINUOUS = re.compile(r"""\btype\s*=\s*(["'])continuous\1""")
+_NAME = re.compile(r"""\bname\s*=\s*(["'])(.*?)\1""")
+_LIMIT = re.compile(r"<limit\b[^>]*>", re.DOTALL)
+_LOWER_UPPER = re.compile(r"""\s(lower|upper)\s*=\s*(["']).*?\2""")
 
 
 def example_robot_data_share() -> Path | None:
@@ -173,10 +229,35 @@ def resolve_urdf_meshes(
     dirs = _package_dirs(urdf, package_dirs)
 
     def sub(m: re.Match[str]) -> str:
-        path = resolve_mesh_uri(m.group(3), urdf, dirs)
+        path = mujoco_mesh(resolve_mesh_uri(m.group(3), urdf, dirs))
         return f"{m.group(1)}{m.group(2)}{path}{m.group(2)}"
 
     return _MESH_URI.sub(sub, text)
+
+
+def unbound_continuous_joints(text: str) -> tuple[str, tuple[str, ...]]:
+    """The URDF text with every ``continuous`` joint made ``revolute`` without position
+    limits, and the names of those joints.
+
+    Pinocchio models a continuous joint by (cos q, sin q) (nq = 2, nv = 1), MuJoCo by the
+    angle (nq = nv = 1); as an unbounded revolute joint both use the angle, so q means the
+    same in both engines and the controllers' x = q holds. The ``<limit>`` keeps its effort
+    and velocity; its lower/upper (meaningless for a continuous joint) are dropped, and the
+    loader marks the joint unbounded in both engines.
+    """
+    names: list[str] = []
+
+    def sub(m: re.Match[str]) -> str:
+        block = m.group(0)
+        head = _JOINT_HEAD.match(block)
+        if head is None or not _CONTINUOUS.search(head.group(0)):
+            return block
+        name = _NAME.search(head.group(0))
+        names.append(name.group(2) if name else "?")
+        block = _CONTINUOUS.sub('type="revolute"', block, count=1)
+        return _LIMIT.sub(lambda lim: _LOWER_UPPER.sub("", lim.group(0)), block)
+
+    return _JOINT.sub(sub, text), tuple(names)
 
 
 def _quat_axis_angle(axis: Array, angle: float) -> Array:
@@ -233,6 +314,8 @@ class LoadedArm:
         velocity_limit: joint rate limits [rad/s or m/s], shape (n,); inf where none.
         effort_limit: joint effort limits [N·m or N], shape (n,); inf where none.
         tip: link carrying the MuJoCo site ``end_point`` (the tool centre point), or None.
+        continuous_joints: joints the URDF declares ``continuous``, driven as unbounded
+            revolute joints (see :func:`unbound_continuous_joints`).
     """
 
     name: str
@@ -247,6 +330,7 @@ class LoadedArm:
     velocity_limit: Array
     effort_limit: Array
     tip: str | None = None
+    continuous_joints: tuple[str, ...] = ()
 
     @property
     def n(self) -> int:
@@ -269,6 +353,9 @@ class LoadedArm:
             lock_mujoco_joint(spec, joint_name, value)
         for eq in list(spec.equalities):  # e.g. a mimic of a locked finger
             spec.delete(eq)
+        for joint_name in self.continuous_joints:
+            if spec.joint(joint_name) is not None:
+                spec.joint(joint_name).limited = mujoco.mjtLimited.mjLIMITED_FALSE
         for joint in spec.joints:
             joint.damping = np.zeros_like(np.asarray(joint.damping, dtype=float))
             joint.frictionloss = 0.0
@@ -291,7 +378,11 @@ class LoadedArm:
         try:
             model = spec.compile()
         except ValueError as exc:
-            raise ModelError(f"MuJoCo could not compile {self.urdf_path}: {exc}") from None
+            hint = ("; MuJoCo, unlike Pinocchio, refuses unphysical inertias: correct that "
+                    "link's <inertial> in the URDF" if "inertia" in str(exc) else "")
+            raise ModelError(
+                f"MuJoCo could not compile {self.urdf_path}: {str(exc).strip()}{hint}"
+            ) from None
         finish_mujoco_model(model, self.joint_names)
         return model
 
@@ -343,7 +434,8 @@ def load_urdf(
     path = Path(path)
     if not path.is_file():
         raise ModelError(f"URDF file not found: {path}")
-    text = resolve_urdf_meshes(path, package_dirs=package_dirs)
+    text, continuous = unbound_continuous_joints(
+        resolve_urdf_meshes(path, package_dirs=package_dirs))
     try:
         full = pin.buildModelFromXML(text)
         geoms = pin.buildGeomFromUrdfString(full, text, pin.GeometryType.COLLISION)
@@ -353,18 +445,24 @@ def load_urdf(
     joints = list(full.names[1:])
     unknown = [j for j in locked if j not in joints]
     if unknown:
-        raise ModelError(f"locked joints {unknown} are not in {path.name}; its joints: {joints}")
+        raise ModelError(f"locked joints {unknown} are not in {path.name}; its joints: {joints}",
+                         "locked_joints")
+    for joint_name in continuous:  # unbounded: no stop in MuJoCo, ±inf in Pinocchio
+        idx = full.joints[full.getJointId(joint_name)].idx_q
+        full.lowerPositionLimit[idx], full.upperPositionLimit[idx] = -np.inf, np.inf
     q_ref = pin.neutral(full)
     ids = []
     for joint_name, value in locked.items():
         jid = full.getJointId(joint_name)
         jm = full.joints[jid]
         if jm.nq != 1:
-            raise ModelError(f"cannot lock joint '{joint_name}': it is not a 1-DOF joint")
+            raise ModelError(f"cannot lock joint '{joint_name}': it is not a 1-DOF joint",
+                             "locked_joints")
         lo, hi = full.lowerPositionLimit[jm.idx_q], full.upperPositionLimit[jm.idx_q]
         if np.isfinite(lo) and np.isfinite(hi) and lo < hi and not lo <= value <= hi:
             raise ModelError(
-                f"locked joint '{joint_name}' = {value} is outside its range [{lo}, {hi}]"
+                f"locked joint '{joint_name}' = {value} is outside its range [{lo}, {hi}]",
+                "locked_joints",
             )
         q_ref[jm.idx_q] = value
         ids.append(jid)
@@ -372,7 +470,8 @@ def load_urdf(
         try:
             model, collision = pin.buildReducedModel(full, geoms, ids, q_ref)
         except (RuntimeError, ValueError) as exc:
-            raise ModelError(f"Pinocchio could not lock {list(locked)} in {path}: {exc}") from None
+            raise ModelError(f"Pinocchio could not lock {list(locked)} in {path}: {exc}",
+                             "locked_joints") from None
     else:
         model, collision = full, geoms
     model.gravity = pin.Motion(GRAVITY, np.zeros(3))
@@ -380,13 +479,14 @@ def load_urdf(
         odd = [model.names[i] for i in range(1, model.njoints)
                if model.joints[i].nq != model.joints[i].nv]
         raise ModelError(
-            f"{path.name}: joints {odd} are continuous or multi-DOF; only revolute and "
-            "prismatic joints can be driven (lock them, or give them limits in the URDF)"
+            f"{path.name}: joints {odd} are multi-DOF (spherical, planar or floating), which "
+            "cpbc can neither drive nor lock: make them fixed, revolute, continuous or "
+            "prismatic in the URDF"
         )
     lower, upper, vel, eff = _limits(model)
     return LoadedArm(
         name or path.stem, path, text, model, collision, locked, tuple(model.names[1:]),
-        lower, upper, vel, eff,
+        lower, upper, vel, eff, continuous_joints=continuous,
     )
 
 
@@ -407,7 +507,7 @@ def load_arm(
         arm.tip = entry.tip
         return arm
     path = Path(name_or_path)
-    if path.suffix.lower() != ".urdf":
+    if path.suffix.lower() not in (".urdf", ".xml"):  # a URDF saved as .xml is common
         raise ModelError(
             f"unknown robot '{name_or_path}'; available: {', '.join(available_arms())}, "
             "or a path to a .urdf file"

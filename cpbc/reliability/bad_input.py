@@ -54,7 +54,9 @@ BASE: dict = {
     ],
 }
 
-Make = Callable[[dict, Path], str]
+# Builds the scenario file's content from a copy of BASE; bytes for a file that is not
+# text, None when it has put something at ``folder/scenario.yaml`` itself (a directory).
+Make = Callable[[dict, Path], "str | bytes | None"]
 
 
 @dataclass(frozen=True)
@@ -64,7 +66,7 @@ class BadInput:
     Attributes:
         name: short label.
         category: wrong type, wrong shape, unknown key, non-positive, non-finite,
-            inadmissible, model file, structure.
+            inadmissible, model file, structure, file, duplicate key, length, gains.
         field: what the error message must name.
         make: builds the scenario text from a copy of BASE (and may write files in the
             folder, e.g. a broken model).
@@ -115,6 +117,63 @@ def model_file(content: str | None, name: str = "arm.xml") -> Make:
         if content is not None:
             (folder / name).write_text(content)
         data["robot"]["model"] = name
+        return yaml.safe_dump(data, sort_keys=False)
+
+    return make
+
+
+def raw_bytes(data: bytes) -> Make:
+    return lambda _data, _folder: data
+
+
+def directory(_data: dict, folder: Path) -> None:
+    """``scenario.yaml`` is a folder (holding a scenario, to tempt a loader)."""
+    (folder / "scenario.yaml").mkdir()
+    (folder / "scenario.yaml" / "inner.yaml").write_text(yaml.safe_dump(BASE, sort_keys=False))
+    return None
+
+
+def with_yaml(text: str) -> Make:
+    """BASE with ``text`` (YAML lines) appended at the end of the file."""
+    return lambda data, _folder: yaml.safe_dump(data, sort_keys=False) + text
+
+
+def arm(model: str, target: list[object], position: list[object], **extra: object) -> Make:
+    """A short PD + gravity scenario of a URDF arm, in its own joint coordinates."""
+
+    def make(_data: dict, _folder: Path) -> str:
+        data = {
+            "name": "arm", "robot": {"model": model},
+            "simulation": {"duration": 0.01},
+            "target": target, "cases": [{"name": "start", "position": position}],
+            "controllers": [{"type": "pd_gravity", "kp": 50, "kd": 10}],
+        }
+        for dotted, value in extra.items():
+            node, key = _path(data, dotted.replace("__", "."))
+            node[key] = value  # type: ignore[index]
+        return yaml.safe_dump(data, sort_keys=False)
+
+    return make
+
+
+def urdf(joint_type: str = "revolute", inertia: str = 'ixx="0.01" iyy="0.01" izz="0.01"',
+         mesh: tuple[str, str] | None = None) -> Make:
+    """robot.model is a one-joint URDF in the folder (with a mesh file ``mesh`` = (name,
+    content) on its link, if given)."""
+
+    def make(data: dict, folder: Path) -> str:
+        geometry = ""
+        if mesh is not None:
+            (folder / mesh[0]).write_text(mesh[1])
+            geometry = (f'<collision><geometry><mesh filename="{mesh[0]}"/></geometry>'
+                        "</collision>")
+        (folder / "arm.urdf").write_text(
+            f'<robot name="one"><link name="base"/><link name="arm"><inertial>'
+            f'<mass value="1"/><inertia {inertia} ixy="0" ixz="0" iyz="0"/></inertial>'
+            f'{geometry}</link><joint name="j1" type="{joint_type}"><parent link="base"/>'
+            '<child link="arm"/><axis xyz="0 0 1"/>'
+            '<limit lower="-1" upper="1" effort="5" velocity="2"/></joint></robot>')
+        data["robot"].update(model="arm.urdf", coordinates="joint")
         return yaml.safe_dump(data, sort_keys=False)
 
     return make
@@ -316,6 +375,71 @@ VARIANTS: list[BadInput] = [
              setting("controllers.2.constraints", ["obstacle", "link_rates"])),
     BadInput("ke_law_without_energy", "structure", "controllers[3]",
              setting("controllers.3.constraints", ["link_rates"])),
+    # -- the file itself (issue 14) --------------------------------------------------------
+    BadInput("not_utf8", "file", "UTF-8", raw_bytes("name: caf\xe9\n".encode("latin-1"))),
+    BadInput("utf16", "file", "UTF-8",
+             lambda data, _f: yaml.safe_dump(data, sort_keys=False).encode("utf-16")),
+    BadInput("yaml_directory", "file", "directory", directory),
+    BadInput("duplicate_target", "duplicate key", "target",
+             with_yaml("target: [0.5, 0.5]\n")),
+    BadInput("duplicate_nested_key", "duplicate key", "simulation.timestep",
+             raw("name: d\nsimulation:\n  duration: 1\n  timestep: 0.001\n  timestep: 0.01\n"
+                 "target: [1, 1]\ncases: [{name: a, position: [0, 0]}]\n"
+                 "controllers: [{type: pd, kp: 1, kd: 1}]\n")),
+    BadInput("duplicate_in_list_item", "duplicate key", "cases[0].position",
+             raw("name: d\nsimulation: {duration: 1}\ntarget: [1, 1]\n"
+                 "cases:\n  - name: a\n    position: [0, 0]\n    position: [1, 0]\n"
+                 "controllers: [{type: pd, kp: 1, kd: 1}]\n")),
+    # -- run length ------------------------------------------------------------------------
+    BadInput("timestep_longer_than_duration", "length", "simulation.duration",
+             setting("simulation.duration", 0.001)),
+    BadInput("period_longer_than_duration", "length", "simulation.control_period",
+             setting("simulation.control_period", 0.04)),
+    BadInput("ten_billion_steps", "length", "simulation.max_steps",
+             setting("simulation.duration", 1e7)),
+    BadInput("max_steps_zero", "non-positive", "simulation.max_steps",
+             setting("simulation.max_steps", 0)),
+    BadInput("max_steps_fraction", "wrong type", "simulation.max_steps",
+             setting("simulation.max_steps", 2.5)),
+    # -- gains -----------------------------------------------------------------------------
+    BadInput("kd_unstable_at_period", "gains", "controllers[0]",
+             setting("controllers.0.kd", 5000)),
+    BadInput("kp_unstable_at_period", "gains", "controllers[0]",
+             setting("controllers.0.kp", 50000)),
+    BadInput("omega_unstable_at_period", "gains", "controllers[0]",
+             setting("controllers.0", {"type": "pd", "omega_n": 2000, "zeta": 0.7})),
+    BadInput("kp_and_omega", "gains", "controllers[0]",
+             setting("controllers.0.omega_n", 2)),
+    BadInput("omega_without_zeta", "gains", "controllers[0]",
+             setting("controllers.0", {"type": "pd", "omega_n": 2})),
+    BadInput("no_gains", "gains", "controllers[0]", setting("controllers.0", {"type": "pd"})),
+    BadInput("zeta_negative", "non-positive", "controllers[0].zeta",
+             setting("controllers.0", {"type": "pd", "omega_n": 2, "zeta": -1})),
+    BadInput("omega_three", "wrong shape", "controllers[0].omega_n",
+             setting("controllers.0", {"type": "pd", "omega_n": [1, 2, 3], "zeta": 1})),
+    BadInput("check_gains_text", "wrong type", "simulation.check_gains",
+             setting("simulation.check_gains", "no")),
+    # -- URDF models MuJoCo refuses though Pinocchio reads them ----------------------------
+    BadInput("urdf_unphysical_inertia", "model file", "robot.model",
+             urdf(inertia='ixx="0.01" iyy="0.01" izz="0.5"')),
+    BadInput("urdf_unreadable_collada", "model file", "robot.model",
+             urdf(mesh=("arm.dae", "<COLLADA>half a file"))),
+    BadInput("urdf_floating_joint", "model file", "robot.model", urdf("floating")),
+    BadInput("xacro_source", "model file", "robot.model",
+             model_file('<robot xmlns:xacro="http://ros.org/wiki/xacro" name="a">'
+                        '<xacro:include filename="arm.xacro"/></robot>', "arm.urdf.xacro")),
+    # -- URDF arms: joint ranges and joints ------------------------------------------------
+    BadInput("target_past_joint_stop", "inadmissible", "target",
+             arm("ur5", [0, -1, 4.0, 0, 0, 0], [0, -1, 1, 0, 0, 0])),
+    BadInput("start_past_joint_stop", "inadmissible", "cases[0].position",
+             arm("ur5", [0, -1, 1, 0, 0, 0], [0, -1, 1, 0, -7, 0])),
+    BadInput("kinova_start_below_range", "inadmissible", "cases[0].position",
+             arm("kinova", [0, 3, 2, 0, 3, 0], [0, 0, 2, 0, 3, 0])),
+    BadInput("locked_joint_unknown", "model file", "robot.locked_joints",
+             arm("ur5", [0] * 5, [0] * 5, robot__locked_joints={"wrist_9_joint": 0.0})),
+    BadInput("locked_joint_out_of_range", "model file", "robot.locked_joints",
+             arm("panda", [0, 0, 0, -1.5, 0, 1.5, 0], [0, 0, 0, -1.5, 0, 1.5, 0],
+                 robot__locked_joints={"panda_finger_joint1": 0.5})),
 ]
 
 
@@ -341,7 +465,10 @@ def answer(variant: BadInput, folder: Path) -> Answer:
     folder.mkdir(parents=True, exist_ok=True)
     text = variant.make(copy.deepcopy(BASE), folder)
     scenario = folder / "scenario.yaml"
-    scenario.write_text(text)
+    if isinstance(text, bytes):
+        scenario.write_bytes(text)
+    elif text is not None:
+        scenario.write_text(text, encoding="utf-8")
     before = {p.name for p in folder.iterdir()}
     out = folder / "out"
     err, std = io.StringIO(), io.StringIO()

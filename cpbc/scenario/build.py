@@ -33,6 +33,7 @@ from cpbc.resources import builtin_models
 from cpbc.results.metrics import SettleCriteria
 from cpbc.scenario import robots
 from cpbc.scenario import schema as s
+from cpbc.scenario.gains import physical_gains, unstable_loop
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, substeps_per_control
 from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
 from cpbc.simulation.loop import DEFAULT_SAFEGUARD
@@ -135,20 +136,25 @@ def _mismatch(spec: s.PlantMismatchSpec | None) -> PlantMismatch | None:
     )
 
 
-def _check_disturbances(setup: ScenarioSetup) -> None:
+def _per_entry(value: float | list[float], k: int, field: str, what: str) -> None:
+    """A number, or a list of k entries (one per ``what``)."""
+    if isinstance(value, list) and len(value) != k:
+        raise ScenarioError(field, f"needs 1 or {k} entries (one per {what}), got {len(value)}")
+
+
+def _check_disturbances(scenario: s.Scenario, plant: mujoco.MjModel, n: int) -> None:
     """Sizes of the plant overrides and of the noise, against the compiled models."""
-    if setup.scenario.robot.plant is not None:
-        try:
-            setup.make_plant()  # applies the overrides, which check their sizes
-        except CpbcError as exc:
-            key = str(exc).split(" ", 1)[0]
-            raise ScenarioError(f"robot.plant.{key}", str(exc)) from None
-    noise = setup.loop_settings.noise
+    mismatch = scenario.robot.plant
+    if mismatch is not None:
+        for key in ("mass_scale", "inertia_scale"):
+            _per_entry(getattr(mismatch, key), plant.nbody - 1, f"robot.plant.{key}",
+                       "body below the world")
+        for key in ("damping", "armature", "frictionloss"):
+            _per_entry(getattr(mismatch, key), plant.nv, f"robot.plant.{key}", "joint")
+    noise = scenario.simulation.noise
     if noise is not None:
-        try:
-            noise.sigmas(setup.model.n)
-        except CpbcError as exc:
-            raise ScenarioError(f"simulation.{str(exc).split(' ', 1)[0]}", str(exc)) from None
+        for key in ("position", "velocity"):
+            _per_entry(getattr(noise, key), n, f"simulation.noise.{key}", "coordinate")
 
 
 def _model_path(robot: s.RobotSpec, base: Path) -> Path:
@@ -235,7 +241,7 @@ def _limit(
 ) -> Array:
     """A limit vector as given, or ``from_model`` (side 0 lower, 1 upper) on joints idx."""
     if isinstance(value, str):
-        limits = robots.model_limits(model, kind, field)[side]
+        limits = robots.model_limits(model, kind, field, idx)[side]
         return limits if idx is None else limits[idx]
     return _vector(value, k, field)
 
@@ -302,30 +308,87 @@ def _shaping(spec: s.ShapingSpec | None) -> Shaping:
     return Tanh(spec.sigma)
 
 
+def _gain_vector(value: float | list[float], n: int, field: str) -> Array:
+    a = np.asarray(value, dtype=float)
+    if a.ndim == 0:
+        return np.full(n, float(a))
+    if a.shape != (n,):
+        raise ScenarioError(field, f"needs 1 or {n} entries (one per coordinate), got {a.size}")
+    return a
+
+
+@dataclass(frozen=True)
+class _Gains:
+    """K_P, K_D of a law, and its linear stiffness and damping near the target."""
+
+    kp: Array
+    kd: Array
+    stiffness: Array
+    damping: Array
+
+
+def _gains(spec: s.ControllerSpec, model: RobotModel, target: Array, field: str) -> _Gains:
+    """K_P, K_D as given, or from ω_n and ζ with D_ii at the target (cpbc.scenario.gains)."""
+    n = model.n
+    xi = gamma = np.ones(n)
+    if isinstance(spec, s.BPBCSpec):  # K_P tanh(Ξx̃), K_D tanh(Γẋ): slopes K_P Ξ, K_D Γ
+        xi = _gain_vector(spec.xi, n, f"{field}.xi")
+        gamma = _gain_vector(spec.gamma, n, f"{field}.gamma")
+    if spec.kp is not None and spec.kd is not None:
+        kp, kd = _gain_vector(spec.kp, n, f"{field}.kp"), _gain_vector(spec.kd, n, f"{field}.kd")
+    else:
+        omega = _gain_vector(spec.omega_n, n, f"{field}.omega_n")  # type: ignore[arg-type]
+        zeta = _gain_vector(spec.zeta, n, f"{field}.zeta")  # type: ignore[arg-type]
+        kp, kd = physical_gains(omega, zeta, np.diag(model.inertia(target)))
+        kp, kd = kp / xi, kd / gamma
+    return _Gains(kp, kd, kp * xi, kd * gamma)
+
+
+def _check_zoh(
+    gains: _Gains, model: RobotModel, states: list[Array], sim: s.SimulationSpec,
+    names: tuple[str, ...], field: str,
+) -> None:
+    """Refuse gains whose held loop is unstable at the control period (cpbc.scenario.gains)."""
+    euler_step = 0.0 if sim.integrator == "RK4" else sim.timestep
+    bad = unstable_loop(gains.stiffness, gains.damping, [model.inertia(x) for x in states],
+                        sim.control_period or sim.timestep, names, euler_step)
+    if bad is not None:
+        raise ScenarioError(field, bad.advice() + "; simulation.check_gains: false runs it "
+                            "anyway")
+
+
+def _controller_constraints(
+    spec: s.CPBCSpec | s.RecentredSpec | s.BPBCSpec, n: int,
+    constraints: dict[str, ConfigurationConstraint | VelocityConstraint], field: str,
+) -> ConstraintSet:
+    chosen = list(constraints) if spec.constraints is None else spec.constraints
+    unknown = [c for c in chosen if c not in constraints]
+    if unknown:
+        raise ScenarioError(
+            f"{field}.constraints",
+            f"unknown constraint names {unknown}; the scenario defines {list(constraints)}",
+        )
+    objs = [constraints[c] for c in chosen]
+    return ConstraintSet(
+        n,
+        [o for o in objs if isinstance(o, ConfigurationConstraint)],
+        [o for o in objs if isinstance(o, VelocityConstraint)],
+    )
+
+
 def _build_controller(
     spec: s.ControllerSpec,
     model: RobotModel,
     target: Array,
+    gains: _Gains,
     constraints: dict[str, ConfigurationConstraint | VelocityConstraint],
     model_bounds: Callable[[], ModelBounds],
     field: str,
 ) -> Controller:
     cls = CONTROLLERS[spec.type]
-    kwargs: dict[str, object] = {"kp": spec.kp, "kd": spec.kd}
+    kwargs: dict[str, object] = {"kp": gains.kp, "kd": gains.kd}
     if not isinstance(spec, s.PDSpec):
-        chosen = list(constraints) if spec.constraints is None else spec.constraints
-        unknown = [c for c in chosen if c not in constraints]
-        if unknown:
-            raise ScenarioError(
-                f"{field}.constraints",
-                f"unknown constraint names {unknown}; the scenario defines {list(constraints)}",
-            )
-        objs = [constraints[c] for c in chosen]
-        kwargs["constraints"] = ConstraintSet(
-            model.n,
-            [o for o in objs if isinstance(o, ConfigurationConstraint)],
-            [o for o in objs if isinstance(o, VelocityConstraint)],
-        )
+        kwargs["constraints"] = _controller_constraints(spec, model.n, constraints, field)
         if not isinstance(spec, s.RecentredSpec):
             kwargs["shaping"] = _shaping(spec.shaping)
     if isinstance(spec, s.BPBCSpec):
@@ -335,30 +398,56 @@ def _build_controller(
     except InadmissibleStateError:
         raise
     except CpbcError as exc:
-        key = str(exc).split(" ", 1)[0]  # "kp must be …": name the key when there is one
-        where = f"{field}.{key}" if key in type(spec).model_fields else field
+        parameter = getattr(exc, "parameter", None)  # set by a ParameterError
+        where = f"{field}.{parameter}" if parameter in type(spec).model_fields else field
         raise ScenarioError(where, str(exc)) from None
 
 
-def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
-    """Check a scenario against its robot and build every object it describes."""
+def _load_robot(scenario: s.Scenario, scenario_file: Path) -> tuple[
+        LoadedArm | None, Path, RobotModel, mujoco.MjModel]:
+    """The arm, its file, the controller's model and the plant's MuJoCo model — compiled
+    here, so that what only MuJoCo refuses (unreadable meshes, unphysical inertias) is bad
+    input now rather than a traceback in a worker."""
     arm = robots.load_scenario_arm(scenario.robot, scenario_file.parent)
     path = arm.urdf_path if arm is not None else _model_path(scenario.robot, scenario_file.parent)
     try:
         model = _robot_model(path, scenario.robot, arm=arm)
+        plant = (arm.mujoco_model() if arm is not None
+                 else mujoco.MjModel.from_xml_path(str(path)))
     except ScenarioError:
         raise
-    except CpbcError as exc:
+    except (CpbcError, ValueError) as exc:
         raise ScenarioError("robot.model", str(exc)) from None
-    n = model.n
-    names = _coordinate_names(scenario.robot, model)
-    sim = scenario.simulation
-    plant_settings = PlantSettings(sim.timestep, sim.integrator)
-    control_period = sim.control_period or sim.timestep
+    return arm, path, model, plant
+
+
+def _check_length(sim: s.SimulationSpec, control_period: float) -> None:
+    """At least one control period, and no more physics steps than ``max_steps``."""
+    period_key = "control_period" if sim.control_period else "timestep"
+    if sim.duration < control_period * (1 - 1e-9):
+        raise ScenarioError(
+            "simulation.duration",
+            f"{sim.duration:g} s is shorter than one control period (simulation.{period_key} "
+            f"= {control_period:g} s): lengthen the duration or shorten the period",
+        )
     try:
         substeps_per_control(control_period, sim.timestep)
     except CpbcError as exc:
         raise ScenarioError("simulation.control_period", str(exc)) from None
+    steps = sim.duration / sim.timestep
+    if steps > sim.max_steps:
+        raise ScenarioError(
+            "simulation.duration",
+            f"{sim.duration:g} s at a timestep of {sim.timestep:g} s is {steps:.3g} physics "
+            f"steps per run, more than simulation.max_steps = {sim.max_steps:,}: shorten the "
+            "duration, lengthen the timestep, or raise simulation.max_steps if you mean it",
+        )
+
+
+def _loop_settings(sim: s.SimulationSpec, model: RobotModel) -> LoopSettings:
+    n = model.n
+    control_period = sim.control_period or sim.timestep
+    _check_length(sim, control_period)
     limit = None
     if sim.torque_limit == "from_model":
         limit = sim.torque_limit_scale * robots.model_limits(
@@ -378,33 +467,45 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
             else sim.noise.velocity,
             sim.noise.seed,
         )
-    loop = LoopSettings(
+    return LoopSettings(
         sim.duration, control_period, limit, sim.log_every,
         safeguard=DEFAULT_SAFEGUARD if sim.safeguard else None, noise=noise,
         max_log_samples=sim.max_log_samples,
     )
 
-    built: dict[str, ConfigurationConstraint | VelocityConstraint] = {}
+
+def _obstacles(specs: list[s.ObstacleSpec]) -> tuple[list[ObstacleGeom], dict[str, Obstacle]]:
     obstacles: list[ObstacleGeom] = []
     scene: dict[str, Obstacle] = {}
-    for i, ospec in enumerate(scenario.obstacles):
+    for i, ospec in enumerate(specs):
         if ospec.name in scene:
             raise ScenarioError(f"obstacles[{i}].name", f"duplicate obstacle name '{ospec.name}'")
         ob = scene[ospec.name] = robots.obstacle(ospec, f"obstacles[{i}]")
         geom = ob.scene_geom()
         obstacles.append(ObstacleGeom(ob.name, geom.pos, float(geom.size[0]), ob.collides, geom))
-    rate_bounds: list[float | None] = [None] * n
+    return obstacles, scene
+
+
+def _constraints(
+    scenario: s.Scenario, model: RobotModel, names: tuple[str, ...], arm: LoadedArm | None,
+    scene: dict[str, Obstacle], obstacles: list[ObstacleGeom],
+) -> tuple[dict[str, ConfigurationConstraint | VelocityConstraint], list[float | None]]:
+    """Every scenario constraint by name, and the per-coordinate rate bounds (for the table);
+    point obstacles are appended to ``obstacles``."""
+    built: dict[str, ConfigurationConstraint | VelocityConstraint] = {}
+    rate_bounds: list[float | None] = [None] * model.n
     for i, cs in enumerate(scenario.constraints):
         field = f"constraints[{i}]"
         if cs.name in built:
             raise ScenarioError(f"{field}.name", f"duplicate constraint name '{cs.name}'")
         try:
-            built[cs.name] = _build_constraint(cs, model, names, field, arm, scene)
+            c = built[cs.name] = _build_constraint(cs, model, names, field, arm, scene)
         except ScenarioError:
             raise
         except CpbcError as exc:
-            raise ScenarioError(field, str(exc)) from None
-        c = built[cs.name]
+            parameter = getattr(exc, "parameter", None)
+            raise ScenarioError(f"{field}.{parameter}" if parameter else field,
+                                str(exc)) from None
         if isinstance(c, RateLimit) and c.is_per_joint:
             for j, b in zip(c._joint_index, c.bounds, strict=True):  # type: ignore[union-attr]
                 rate_bounds[int(j)] = float(b)
@@ -412,25 +513,69 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
             obstacles.append(
                 ObstacleGeom(cs.name, c.centre, cs.radius, cs.collides)  # type: ignore[union-attr]
             )
-    monitor = ConstraintSet(
-        n,
-        [c for c in built.values() if isinstance(c, ConfigurationConstraint)],
-        [c for c in built.values() if isinstance(c, VelocityConstraint)],
-    )
+    return built, rate_bounds
 
-    if sim.safeguard and sim.safeguard_monitored:
-        loop = replace(loop, also_keep=monitor.configuration)
+
+def joint_ranges(model: RobotModel, plant: mujoco.MjModel) -> tuple[Array, Array]:
+    """The position ranges the plant enforces (MuJoCo's joint stops), in joint coordinates;
+    ±inf where a joint has none."""
+    n = model.n
+    limited = plant.jnt_limited[:n].astype(bool)
+    return (np.where(limited, plant.jnt_range[:n, 0], -np.inf),
+            np.where(limited, plant.jnt_range[:n, 1], np.inf))
+
+
+def _check_in_range(
+    x: Array, model: RobotModel, ranges: tuple[Array, Array], field: str, what: str
+) -> None:
+    """A state the joint stops would refuse is bad input, limits declared or not (``what``
+    prefixes the message)."""
+    q = x if model.coordinates.is_identity else np.linalg.solve(model.coordinates.matrix, x)
+    lo, hi = ranges
+    for i in np.nonzero((q < lo) | (q > hi))[0]:
+        raise ScenarioError(
+            field,
+            f"{what}joint '{model.joint_names[i]}' = {q[i]:.6g} is outside its range "
+            f"[{lo[i]:.6g}, {hi[i]:.6g}] (the model's joint limits, where the plant has a hard "
+            "stop): move it inside the range",
+        )
+
+
+def _check_admissible(monitor: ConstraintSet, x: Array, dx: Array, what: str,
+                      field: str) -> None:
+    try:
+        monitor.check_admissible(x, dx, what)
+    except InadmissibleStateError as exc:
+        exc.field = field  # the scenario entry, for callers that map errors to the file
+        raise
+
+
+def _states(
+    scenario: s.Scenario, model: RobotModel, monitor: ConstraintSet,
+    ranges: tuple[Array, Array],
+) -> tuple[Array, list[CaseEntry]]:
+    """The target and the initial states: the right size, inside the joint ranges and S."""
+    n = model.n
     target = _vector(scenario.target, n, "target")
-    monitor.check_admissible(target, np.zeros(n), "target")
+    _check_in_range(target, model, ranges, "target", "")
+    _check_admissible(monitor, target, np.zeros(n), "target", "target")
     cases = []
     for i, case in enumerate(scenario.cases):
         x0 = _vector(case.position, n, f"cases[{i}].position")
         dx0 = _vector(case.velocity, n, f"cases[{i}].velocity", default=0.0)
-        monitor.check_admissible(x0, dx0, f"initial state of case '{case.name}' (cases[{i}])")
+        _check_in_range(x0, model, ranges, f"cases[{i}].position", f"case '{case.name}': ")
+        _check_admissible(monitor, x0, dx0, f"initial state of case '{case.name}' (cases[{i}])",
+                          f"cases[{i}]")
         cases.append(CaseEntry(case.name, x0, dx0))
     if len({c.name for c in cases}) != len(cases):
         raise ScenarioError("cases", "case names must be unique")
+    return target, cases
 
+
+def _controllers(
+    scenario: s.Scenario, model: RobotModel, target: Array, cases: list[CaseEntry],
+    built: dict[str, ConfigurationConstraint | VelocityConstraint], names: tuple[str, ...],
+) -> list[ControllerEntry]:
     bounds_cache: list[ModelBounds] = []
 
     def model_bounds() -> ModelBounds:
@@ -438,31 +583,44 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
             bounds_cache.append(estimate_bounds(model))
         return bounds_cache[0]
 
+    sim = scenario.simulation
+    check = sim.check_gains and sim.backend == "mujoco"  # the reference holds nothing
+    states = [target] + [c.position for c in cases]
     controllers = []
     for i, cspec in enumerate(scenario.controllers):
         field = f"controllers[{i}]"
-        ctrl = _build_controller(cspec, model, target, built, model_bounds, field)
+        gains = _gains(cspec, model, target, field)
+        if check:
+            _check_zoh(gains, model, states, sim, names, field)
+        ctrl = _build_controller(cspec, model, target, gains, built, model_bounds, field)
         controllers.append(ControllerEntry(cspec.name or cspec.type, ctrl))
     if len({c.name for c in controllers}) != len(controllers):
         raise ScenarioError("controllers", "controller names must be unique; set 'name' on each")
+    return controllers
 
-    criteria = SettleCriteria(sim.position_tolerance, sim.velocity_tolerance)
-    setup = ScenarioSetup(
-        scenario,
-        path,
-        model,
-        monitor,
-        controllers,
-        cases,
-        target,
-        plant_settings,
-        loop,
-        criteria,
-        rate_bounds,
-        obstacles,
-        names,
-        scenario_file,
-        arm,
+
+def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
+    """Check a scenario against its robot and build every object it describes."""
+    arm, path, model, plant = _load_robot(scenario, scenario_file)
+    names = _coordinate_names(scenario.robot, model)
+    sim = scenario.simulation
+    loop = _loop_settings(sim, model)
+    obstacles, scene = _obstacles(scenario.obstacles)
+    built, rate_bounds = _constraints(scenario, model, names, arm, scene, obstacles)
+    monitor = ConstraintSet(
+        model.n,
+        [c for c in built.values() if isinstance(c, ConfigurationConstraint)],
+        [c for c in built.values() if isinstance(c, VelocityConstraint)],
     )
-    _check_disturbances(setup)
+    if sim.safeguard and sim.safeguard_monitored:
+        loop = replace(loop, also_keep=monitor.configuration)
+    target, cases = _states(scenario, model, monitor, joint_ranges(model, plant))
+    controllers = _controllers(scenario, model, target, cases, built, names)
+    setup = ScenarioSetup(
+        scenario, path, model, monitor, controllers, cases, target,
+        PlantSettings(sim.timestep, sim.integrator),
+        loop, SettleCriteria(sim.position_tolerance, sim.velocity_tolerance), rate_bounds,
+        obstacles, names, scenario_file, arm,
+    )
+    _check_disturbances(scenario, plant, model.n)
     return setup

@@ -77,6 +77,11 @@ def resolve_scenario_path(name: str | Path) -> Path:
     p = Path(name)
     if p.is_file():
         return p
+    if p.is_dir():
+        inside = sorted(x.name for x in p.glob("*.y*ml"))[:8]
+        hint = f" (YAML files in it: {', '.join(inside)})" if inside else ""
+        raise ScenarioError("", f"{name} is a directory, not a scenario file: give the path "
+                            f"of a YAML file{hint}")
     shipped = scenarios_dir() / (p.name if p.suffix else f"{p.name}.yaml")
     if shipped.is_file():
         return shipped
@@ -84,13 +89,60 @@ def resolve_scenario_path(name: str | Path) -> Path:
     raise ScenarioError("", f"scenario file not found: {name} (shipped scenarios: {available})")
 
 
+def read_text(file: Path) -> str:
+    """The file's text, decoded as UTF-8 (a byte-order mark is allowed)."""
+    try:
+        data = file.read_bytes()
+    except OSError as exc:
+        raise ScenarioError("", f"cannot read {file}: {exc.strerror or exc}") from None
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise ScenarioError(
+            "", f"{file} is not UTF-8 text: byte 0x{data[exc.start]:02x} on line {line} cannot "
+            "be decoded; save the file as UTF-8"
+        ) from None
+
+
+def _yaml_path(path: str, key: object) -> str:
+    return f"{path}[{key}]" if isinstance(key, int) else (f"{path}.{key}" if path else str(key))
+
+
+def _check_duplicate_keys(node: yaml.Node | None, path: str = "") -> None:
+    """YAML lets a repeated key silently replace the first; a scenario must not."""
+    if isinstance(node, yaml.MappingNode):
+        seen: dict[object, int] = {}
+        for key_node, value_node in node.value:
+            key = key_node.value if isinstance(key_node, yaml.ScalarNode) else None
+            if key is not None and key != "<<":
+                field = _yaml_path(path, key)
+                line = key_node.start_mark.line + 1
+                if key in seen:
+                    raise ScenarioError(
+                        field, f"duplicate key on line {line} (first given on line "
+                        f"{seen[key]}); YAML would silently keep the second: remove one"
+                    )
+                seen[key] = line
+            _check_duplicate_keys(value_node, _yaml_path(path, key) if key else path)
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            _check_duplicate_keys(item, _yaml_path(path, i))
+
+
+def parse_yaml(text: str, file: Path) -> object:
+    """The YAML document in ``text``, refusing duplicate keys (named with their line)."""
+    try:
+        _check_duplicate_keys(yaml.compose(text, Loader=yaml.SafeLoader))
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ScenarioError("", f"{file} is not valid YAML: {exc}") from None
+
+
 def load_scenario(path: str | Path) -> tuple[Scenario, Path]:
     """Parse and validate a YAML scenario; returns it with its resolved path."""
     file = resolve_scenario_path(path)
-    try:
-        raw = yaml.safe_load(file.read_text())
-    except yaml.YAMLError as exc:
-        raise ScenarioError("", f"{file} is not valid YAML: {exc}") from None
+    raw = parse_yaml(read_text(file), file)
     if not isinstance(raw, dict):
         raise ScenarioError("", f"{file} must hold a mapping of scenario keys at the top level")
     try:

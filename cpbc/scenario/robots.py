@@ -7,6 +7,7 @@ names the offending field.
 from __future__ import annotations
 
 from pathlib import Path
+from xml.etree import ElementTree
 
 import mujoco
 import numpy as np
@@ -36,14 +37,38 @@ GEOM_TYPES = {
 }
 
 
-def is_urdf_robot(robot: s.RobotSpec) -> bool:
-    """Whether the scenario's robot is an example-robot-data arm or a URDF file."""
-    return robot.model in ARMS or robot.model.lower().endswith(".urdf")
+def xml_root(path: Path) -> str | None:
+    """The name of the XML root element of a file (None if it is no readable XML)."""
+    try:
+        for _, element in ElementTree.iterparse(path, events=("start",)):
+            return element.tag
+    except (ElementTree.ParseError, OSError):
+        return None
+    return None
+
+
+def is_urdf_robot(robot: s.RobotSpec, base: Path | None = None) -> bool:
+    """Whether the scenario's robot is an example-robot-data arm or a URDF file (by its
+    suffix or, for any other existing file, by its ``<robot>`` root element).
+
+    Raises:
+        ScenarioError: the file is xacro source, which needs expanding first.
+    """
+    if robot.model in ARMS or robot.model.lower().endswith(".urdf"):
+        return True
+    path = Path(robot.model)
+    path = path if path.is_absolute() or base is None else base / path
+    if not path.is_file():
+        return False
+    if path.name.lower().endswith(".xacro"):
+        raise ScenarioError("robot.model", f"{robot.model} is xacro source, not a URDF: expand "
+                            "it first (xacro FILE > arm.urdf) and give the .urdf")
+    return xml_root(path) == "robot"
 
 
 def load_scenario_arm(robot: s.RobotSpec, base: Path) -> LoadedArm | None:
     """The URDF arm of a scenario, or None when its robot is an MJCF model."""
-    if not is_urdf_robot(robot):
+    if not is_urdf_robot(robot, base):
         if robot.locked_joints:
             raise ScenarioError(
                 "robot.locked_joints", "locking joints needs a URDF robot (a name or .urdf path)"
@@ -57,14 +82,17 @@ def load_scenario_arm(robot: s.RobotSpec, base: Path) -> LoadedArm | None:
         return load_urdf(path if path.is_absolute() else base / path, robot.locked_joints,
                          package_dirs=dirs)
     except CpbcError as exc:
-        field = "robot.locked_joints" if "locked joint" in str(exc) else "robot.model"
-        raise ScenarioError(field, str(exc)) from None
+        parameter = getattr(exc, "parameter", None)
+        raise ScenarioError(f"robot.{parameter or 'model'}", str(exc)) from None
 
 
-def model_limits(model: RobotModel, kind: str, field: str) -> tuple[Array, Array]:
+def model_limits(
+    model: RobotModel, kind: str, field: str, joints: list[int] | None = None
+) -> tuple[Array, Array]:
     """Limits the robot's model declares: ``position`` (lower, upper), ``velocity`` or
-    ``effort`` (−limit, limit), in joint coordinates. ScenarioError if a joint has none or
-    the controller does not use joint coordinates."""
+    ``effort`` (−limit, limit), in joint coordinates, of every joint (or of ``joints``).
+    ScenarioError if one of them has none or the controller does not use joint
+    coordinates."""
     if not model.coordinates.is_identity:
         raise ScenarioError(field, "'from_model' limits need robot.coordinates: joint")
     pm = model.model
@@ -74,10 +102,14 @@ def model_limits(model: RobotModel, kind: str, field: str) -> tuple[Array, Array
     else:
         hi = np.array(pm.velocityLimit if kind == "velocity" else pm.effortLimit, dtype=float)
         lo = -hi
-    bad = [model.joint_names[i] for i in range(model.n)
+    chosen = range(model.n) if joints is None else joints
+    bad = [model.joint_names[i] for i in chosen
            if not (np.isfinite(lo[i]) and np.isfinite(hi[i]) and lo[i] < hi[i])]
     if bad:
-        raise ScenarioError(field, f"the model has no {kind} limit for joints {bad}; give values")
+        others = [model.joint_names[i] for i in chosen if model.joint_names[i] not in bad]
+        hint = f", or list only the joints that have one ('joints': {others})" if others else ""
+        raise ScenarioError(field, f"the model has no {kind} limit for joints {bad} "
+                            f"(continuous or undeclared): give values{hint}")
     return lo, hi
 
 
@@ -165,9 +197,16 @@ def clearance(
         raise ScenarioError(f"{field}.obstacles",
                             f"unknown obstacles {unknown}; the scenario has {list(obstacles)}")
     prims = _primitives(spec, arm, model, field)
+    covered = sorted({p.frame for p in prims})
+    for i, (a, b) in enumerate(spec.self_collision):
+        missing = [f for f in (a, b) if f not in covered]
+        if missing or a == b:
+            why = (f"no primitive on link '{missing[0]}'; links with primitives: {covered}"
+                   if missing else "names one link twice")
+            raise ScenarioError(f"{field}.self_collision[{i}]", f"pair ({a}, {b}): {why}")
     try:
         return Clearance(model, prims, [obstacles[o] for o in names], spec.margin,
                          spec.influence, [tuple(p) for p in spec.self_collision], spec.name)
     except CpbcError as exc:
-        key = "self_collision" if "self-collision" in str(exc) else None
-        raise ScenarioError(f"{field}.{key}" if key else field, str(exc)) from None
+        parameter = getattr(exc, "parameter", None)
+        raise ScenarioError(f"{field}.{parameter}" if parameter else field, str(exc)) from None

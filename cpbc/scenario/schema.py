@@ -5,7 +5,16 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from cpbc.scenario.expressions import parse_number
 
@@ -84,6 +93,11 @@ class SimulationSpec(Strict):
     noise: NoiseSpec | None = None
     position_tolerance: Positive = 0.01
     velocity_tolerance: Positive = 0.005
+    # physics steps per run above which the run is refused (raise it to run longer)
+    max_steps: Annotated[int, Field(ge=1, strict=True)] = 10_000_000
+    # refuse gains whose zero-order-hold loop is unstable at control_period
+    # (cpbc.scenario.gains); false lets a deliberately unstable run go ahead
+    check_gains: Annotated[bool, Field(strict=True)] = True
 
 
 class CaseSpec(Strict):
@@ -253,35 +267,61 @@ ShapingSpec = Annotated[
 ]
 
 
-class PDSpec(Strict):
+class GainsSpec(Strict):
+    """K_P, K_D directly (``kp``, ``kd``), or in physical terms: a natural frequency
+    ``omega_n`` [rad/s] and damping ratio ``zeta`` per coordinate (or one for all), scaled by
+    the arm's inertia at the target: K_P,i = D_ii(x_d) ω_n,i², K_D,i = 2 ζ_i ω_n,i D_ii(x_d)
+    (see cpbc.scenario.gains)."""
+
+    # omega_n and zeta come first so that kp's and kd's checks see them (info.data)
+    omega_n: Gain | None = None
+    zeta: Gain | None = None
+    kp: Gain | None = None
+    kd: Gain | None = None
+
+    @field_validator("kp", "kd", mode="before")
+    @classmethod
+    def _not_null(cls, v: object, info: ValidationInfo) -> object:
+        # kp: null is a slip, unless the gains are given as omega_n, zeta (as a dumped
+        # scenario has them)
+        if v is None and info.data.get("omega_n") is None:
+            raise ValueError("must be a number or a list of numbers, not null")
+        return v
+
+    @model_validator(mode="after")
+    def _one_form(self) -> GainsSpec:
+        given = {k for k in ("kp", "kd", "omega_n", "zeta") if getattr(self, k) is not None}
+        if given & {"kp", "kd"} and given & {"omega_n", "zeta"}:
+            raise ValueError("give either kp and kd, or omega_n and zeta, not both")
+        if given not in ({"kp", "kd"}, {"omega_n", "zeta"}):
+            missing = ({"kp", "kd"} - given) if given & {"kp", "kd"} else (
+                {"omega_n", "zeta"} - given if given else {"kp", "kd"})
+            raise ValueError(f"{' and '.join(sorted(missing))} missing: give kp and kd, or "
+                             "omega_n [rad/s] and zeta")
+        return self
+
+
+class PDSpec(GainsSpec):
     type: Literal["pd", "pd_gravity"]
     name: SafeName | None = None
-    kp: Gain
-    kd: Gain
 
 
-class CPBCSpec(Strict):
+class CPBCSpec(GainsSpec):
     type: Literal["cpbc", "cpbc_ke"]
     name: SafeName | None = None
-    kp: Gain
-    kd: Gain
     shaping: ShapingSpec | None = None
     constraints: list[str] | None = None  # names of scenario constraints; all when omitted
 
 
-class RecentredSpec(Strict):
+class RecentredSpec(GainsSpec):
     type: Literal["recentred"]
     name: SafeName | None = None
-    kp: Gain
-    kd: Gain
     constraints: list[str] | None = None
 
 
-class BPBCSpec(Strict):
+class BPBCSpec(GainsSpec):
     type: Literal["bpbc", "bpbc_ke"]
     name: SafeName | None = None
-    kp: Gain
-    kd: Gain
     xi: Gain = 1.0
     gamma: Gain = 1.0
     shaping: ShapingSpec | None = None

@@ -1,0 +1,200 @@
+"""``python -m cpbc.robot NAME_OR_PATH``: what cpbc sees of an arm, and a scenario to start from.
+
+Prints the driven joints in order with their position ranges, rate and effort limits, the
+locked and continuous joints, the frames (for ``point_outside_sphere.frame`` and clearance
+primitives) and the links with collision geometry (what ``clearance`` covers by default),
+all as YAML comments, followed by a valid scenario (PD + gravity and CPBC on the arm's own
+limits). So ``python -m cpbc.robot kinova > kinova.yaml`` gives a file that
+``python -m cpbc.run kinova.yaml`` runs. Exit code 2 for a name or path it cannot load.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import textwrap
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import yaml
+
+from cpbc.errors import CpbcError, ModelError
+from cpbc.model.loading import ARMS, load_arm
+from cpbc.resources import builtin_models
+from cpbc.scenario.gains import physical_gains, spectral_radius
+from cpbc.scenario.robots import xml_root
+from cpbc.scenario.skeleton import JointLimits, home, skeleton
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """An arm as a scenario refers to it.
+
+    Attributes:
+        model: what to write in ``robot.model`` (a name, or an absolute path).
+        summary: one line about the arm.
+        limits: the driven joints and their declared limits.
+        frames: every frame of the Pinocchio model below the world.
+        covered_links: moving links with collision geometry (URDF arms only).
+        locked: joints frozen by default, with their values.
+        continuous: joints driven as unbounded revolute joints.
+        pin_model: Pinocchio model of the driven joints (for the inertia of the gains).
+    """
+
+    model: str
+    summary: str
+    limits: JointLimits
+    frames: tuple[str, ...]
+    covered_links: tuple[str, ...] = ()
+    locked: dict[str, float] = field(default_factory=dict)
+    continuous: tuple[str, ...] = ()
+    pin_model: pin.Model | None = field(default=None, compare=False, repr=False)
+
+
+def _frames(model: pin.Model) -> tuple[str, ...]:
+    return tuple(dict.fromkeys(f.name for f in model.frames if f.name != "universe"))
+
+
+def _describe_urdf(name_or_path: str) -> RobotDescription:
+    arm = load_arm(name_or_path)
+    model = name_or_path if name_or_path in ARMS else str(Path(name_or_path).resolve())
+    covered = tuple(dict.fromkeys(
+        arm.model.frames[g.parentFrame].name for g in arm.collision_model.geometryObjects
+        if g.parentJoint > 0))
+    summary = ARMS[name_or_path].summary if name_or_path in ARMS else f"URDF {arm.urdf_path}"
+    limits = JointLimits(arm.joint_names, arm.position_lower, arm.position_upper,
+                         arm.velocity_limit, arm.effort_limit)
+    return RobotDescription(model, summary, limits, _frames(arm.model), covered,
+                            dict(arm.locked_joints), arm.continuous_joints, arm.model)
+
+
+def _describe_mjcf(path: Path, model_name: str) -> RobotDescription:
+    try:
+        mj = mujoco.MjModel.from_xml_path(str(path))
+        pm = pin.buildModelFromMJCF(str(path))
+    except (ValueError, RuntimeError) as exc:
+        raise ModelError(f"could not load {path}: {exc}") from None
+    n = pm.nq
+    limited = mj.jnt_limited[:n].astype(bool)
+    lower = np.where(limited, mj.jnt_range[:n, 0], -np.inf)
+    upper = np.where(limited, mj.jnt_range[:n, 1], np.inf)
+    ctrl = np.where(mj.actuator_forcelimited.astype(bool), mj.actuator_forcerange[:, 1], np.inf)
+    effort = np.full(n, np.inf)
+    effort[mj.actuator_trnid[:, 0]] = ctrl
+    limits = JointLimits(tuple(pm.names[1:]), lower, upper, np.full(n, np.inf), effort)
+    return RobotDescription(model_name, f"MJCF {path}", limits, _frames(pm), pin_model=pm)
+
+
+def describe(name_or_path: str) -> RobotDescription:
+    """The description of a built-in model, an example-robot-data arm, or a model file."""
+    builtin = builtin_models()
+    if name_or_path in builtin:
+        return _describe_mjcf(builtin[name_or_path], name_or_path)
+    path = Path(name_or_path)
+    if name_or_path not in ARMS:
+        if path.is_dir():
+            raise ModelError(f"{name_or_path} is a directory: give a .urdf or .xml file in it")
+        if path.name.lower().endswith(".xacro"):
+            raise ModelError(f"{name_or_path} is xacro source, not a URDF: expand it first "
+                             "(xacro FILE > arm.urdf)")
+        if path.suffix.lower() == ".xml":
+            if not path.is_file():
+                raise ModelError(f"model file not found: {name_or_path}")
+            if xml_root(path) != "robot":  # a URDF saved as .xml is read as one
+                return _describe_mjcf(path, str(path.resolve()))
+        if path.suffix.lower() not in (".urdf", ".xml"):
+            raise ModelError(
+                f"unknown robot '{name_or_path}': give a built-in model "
+                f"({', '.join(builtin)}), an example-robot-data arm "
+                f"({', '.join(sorted(ARMS))}) or a path to a .urdf or .xml file")
+    return _describe_urdf(name_or_path)
+
+
+OMEGAS = (10.0, 5.0, 2.0, 1.0)  # rad/s, tried in turn for the skeleton's gains
+
+
+def stable_omega(d: RobotDescription, states: Sequence[np.ndarray], period: float = 0.001,
+                 zeta: float = 1.0) -> float:
+    """The largest of :data:`OMEGAS` whose physical gains (at the first state's D_ii) keep the
+    held loop stable at twice ``period`` at every state (cpbc.scenario.gains): arms near a
+    singular pose couple their joints strongly."""
+    if d.pin_model is None:
+        return OMEGAS[-1]
+    data = d.pin_model.createData()
+
+    def inertia(q: np.ndarray) -> np.ndarray:
+        m = pin.crba(d.pin_model, data, q)
+        return np.triu(m) + np.triu(m, 1).T
+
+    ds = [inertia(np.asarray(q, dtype=float)) for q in states]
+    n = len(d.limits.names)
+    for omega in OMEGAS:
+        kp, kd = physical_gains(np.full(n, omega), np.full(n, zeta), np.diag(ds[0]))
+        if all(spectral_radius(kp, kd, m, 2 * period) < 1.0 for m in ds):
+            return omega
+    return OMEGAS[-1]
+
+
+def scenario_for(d: RobotDescription, duration: float = 5.0) -> dict:
+    """The skeleton scenario of an arm, with gains its held loop tolerates at 1 kHz."""
+    target, start = home(d.limits)
+    return skeleton(d.model, d.limits, duration, omega_n=stable_omega(d, [target, start]))
+
+
+def _number(v: float, unit: str = "") -> str:
+    return "-" if not np.isfinite(v) else f"{v:.4g}{unit}"
+
+
+def report(d: RobotDescription) -> str:
+    """The description as YAML comment lines."""
+    lim = d.limits
+    lines = [f"{d.model}: {d.summary}", f"{len(lim.names)} driven joints, in the order of x:"]
+    width = max(len(n) for n in lim.names)
+    lines.append(f"  {'joint':<{width}}  {'range':>20}  {'rate':>8}  {'effort':>8}")
+    for i, name in enumerate(lim.names):
+        rng = ("unbounded" if not np.isfinite(lim.lower[i]) else
+               f"[{lim.lower[i]:.4g}, {lim.upper[i]:.4g}]")
+        tag = " (continuous)" if name in d.continuous else ""
+        lines.append(f"  {name:<{width}}  {rng:>20}  {_number(lim.velocity[i]):>8}  "
+                     f"{_number(lim.effort[i]):>8}{tag}")
+    if d.locked:
+        lines.append("locked by default: " + ", ".join(f"{k} = {v:g}" for k, v in
+                                                       d.locked.items()))
+    lines += textwrap.wrap("frames: " + ", ".join(d.frames), 96, subsequent_indent="  ")
+    lines += textwrap.wrap("links with collision geometry (clearance covers these): " + (
+        ", ".join(d.covered_links) if d.covered_links else "none (declare primitives)"), 96,
+        subsequent_indent="  ")
+    return "".join(f"# {line}\n" for line in lines)
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m cpbc.robot",
+        description="Describe an arm (joints, limits, frames, collision links) and print a "
+                    "scenario to start from.")
+    p.add_argument("robot", help="a built-in model, an example-robot-data arm "
+                   f"({', '.join(sorted(ARMS))}), or a path to a .urdf or .xml file")
+    p.add_argument("--duration", type=float, default=5.0, help="of the scenario [s]")
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        d = describe(args.robot)
+    except CpbcError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    scenario = scenario_for(d, args.duration)
+    sys.stdout.write(report(d) + "# --- scenario (python -m cpbc.run FILE) ---\n"
+                     + yaml.safe_dump(scenario, sort_keys=False, default_flow_style=None,
+                                      width=100))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,94 @@
+"""A scenario to start from, for any arm: its joint ranges and limits, PD + gravity and CPBC.
+
+The target is the middle of every joint's range (0 where a joint has none), the case starts a
+little off it, the gains are physical (ω_n, ζ; see cpbc.scenario.gains), and the admissible
+set is the arm's own: the position ranges of the joints that have one and, when every joint
+declares one, half its rate limits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cpbc.constraints.base import Array
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """What a model declares about its driven joints, in their order.
+
+    Attributes:
+        names: joint names, shape (n,).
+        lower, upper: position range [rad or m], ±inf where there is none.
+        velocity: rate limit [rad/s or m/s], inf where there is none.
+        effort: effort limit [N·m or N], inf where there is none.
+    """
+
+    names: tuple[str, ...]
+    lower: Array
+    upper: Array
+    velocity: Array
+    effort: Array
+
+    @property
+    def bounded(self) -> list[int]:
+        """Indices of the joints with a position range."""
+        return [i for i in range(len(self.names))
+                if np.isfinite(self.lower[i]) and np.isfinite(self.upper[i])]
+
+
+def _round(values: Array) -> list[float]:
+    return [round(float(v), 4) for v in values]
+
+
+def home(limits: JointLimits) -> tuple[Array, Array]:
+    """A target (mid-range, 0 where unbounded) and a start 0.1 rad (at most a quarter of the
+    range) below it on every joint."""
+    lo, hi = limits.lower, limits.upper
+    finite = np.isfinite(lo) & np.isfinite(hi)
+    target = np.where(finite, 0.5 * (np.where(finite, lo, 0) + np.where(finite, hi, 0)), 0.0)
+    width = np.where(finite, hi - lo, np.inf)
+    start = target - np.minimum(0.1, 0.25 * width)
+    return np.array(_round(target)), np.array(_round(start))
+
+
+def skeleton(model: str, limits: JointLimits, duration: float = 5.0,
+             omega_n: float = 10.0, zeta: float = 1.0) -> dict:
+    """A valid scenario (as a dict for YAML) of the arm ``model`` (a name or a path)."""
+    target, start = home(limits)
+    constraints: list[dict] = []
+    bounded = limits.bounded
+    if bounded:
+        entry: dict = {"type": "joint_position_limit", "name": "joint_ranges",
+                       "lower": "from_model", "upper": "from_model"}
+        if len(bounded) < len(limits.names):
+            entry["joints"] = [limits.names[i] for i in bounded]
+        constraints.append(entry)
+    if np.all(np.isfinite(limits.velocity)):
+        constraints.append({"type": "joint_rate_limit", "name": "joint_rates",
+                            "bounds": "from_model", "scale": 0.5})
+    controllers: list[dict] = [
+        {"type": "pd_gravity", "name": "PD_gravity", "omega_n": omega_n, "zeta": zeta},
+    ]
+    if constraints:
+        controllers.append({"type": "cpbc", "name": "CPBC", "omega_n": omega_n, "zeta": zeta,
+                            "shaping": {"type": "power", "alpha": 0.2}})
+    return {
+        "name": _safe_name(model),
+        "description": f"starting point for {model}: edit the target, cases and gains",
+        "robot": {"model": model},
+        "simulation": {"duration": duration, "timestep": 0.001},
+        "target": _round(target),
+        "cases": [{"name": "start", "position": _round(start)}],
+        "constraints": constraints,
+        "controllers": controllers,
+    }
+
+
+def _safe_name(model: str) -> str:
+    stem = model.replace("\\", "/").rsplit("/", 1)[-1].rsplit(".", 1)[0]
+    name = "".join(c if c.isalnum() or c in "_.+-" else "_" for c in stem).lstrip("_.+-")
+    return (name or "arm") + "_start"
+
