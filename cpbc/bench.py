@@ -18,6 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from cpbc.arrays import Array
 from cpbc.constraints import (
     ConstraintSet,
     KineticEnergyLimit,
@@ -26,7 +27,6 @@ from cpbc.constraints import (
     joint_position_limit,
     joint_rate_limit,
 )
-from cpbc.constraints.base import Array
 from cpbc.controllers import (
     BPBC,
     CPBC,

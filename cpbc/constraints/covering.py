@@ -33,11 +33,9 @@ from pathlib import Path
 import coal
 import numpy as np
 import pinocchio as pin
-from numpy.typing import NDArray
 
+from cpbc.arrays import Array
 from cpbc.errors import CpbcError, ModelError
-
-Array = NDArray[np.float64]
 
 
 def _trimesh():  # type: ignore[no-untyped-def]

@@ -36,11 +36,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
+from cpbc.arrays import Array
 from cpbc.errors import CpbcError
-
-Array = NDArray[np.float64]
 
 _EPS = 1e-12
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from cpbc.constraints.base import Array
+from cpbc.arrays import Array
 from cpbc.model.robot_model import RobotModel
 
 

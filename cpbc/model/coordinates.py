@@ -12,11 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
+from cpbc.arrays import Array
 from cpbc.errors import ModelError
-
-Array = NDArray[np.float64]
 
 
 def _frozen(a: Array) -> Array:

@@ -35,12 +35,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pinocchio as pin
-from numpy.typing import NDArray
 
+from cpbc.arrays import Array
 from cpbc.errors import ModelError
 from cpbc.model.meshes import mujoco_mesh
-
-Array = NDArray[np.float64]
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
 

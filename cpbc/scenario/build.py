@@ -10,6 +10,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from cpbc.arrays import Array
 from cpbc.constraints import (
     ConfigurationConstraint,
     ConstraintSet,
@@ -21,7 +22,6 @@ from cpbc.constraints import (
     joint_position_limit,
     joint_rate_limit,
 )
-from cpbc.constraints.base import Array
 from cpbc.constraints.geometry import Obstacle, SceneGeom
 from cpbc.controllers import CONTROLLERS, Controller, Identity, Power, Tanh
 from cpbc.controllers.shaping import Shaping

@@ -62,7 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cpbc.constraints.base import Array
+from cpbc.arrays import Array
 
 
 def physical_gains(omega_n: Array, zeta: Array, inertia_diag: Array) -> tuple[Array, Array]:

@@ -12,7 +12,7 @@ from xml.etree import ElementTree
 import mujoco
 import numpy as np
 
-from cpbc.constraints.base import Array
+from cpbc.arrays import Array
 from cpbc.constraints.clearance import Clearance
 from cpbc.constraints.covering import LinkPrimitive, cover_links
 from cpbc.constraints.geometry import (

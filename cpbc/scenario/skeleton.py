@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cpbc.constraints.base import Array
+from cpbc.arrays import Array
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cpbc.constraints.base import Array, ConfigurationConstraint
+from cpbc.arrays import Array
+from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.controllers.base import Controller
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
 from cpbc.errors import ConstraintViolation, CpbcError

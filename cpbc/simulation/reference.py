@@ -11,7 +11,7 @@ import time as _time
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from cpbc.constraints.base import Array
+from cpbc.arrays import Array
 from cpbc.controllers.base import Controller
 from cpbc.errors import ConstraintViolation
 from cpbc.model.robot_model import RobotModel

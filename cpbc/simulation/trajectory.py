@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cpbc.constraints.base import Array
+from cpbc.arrays import Array
 
 OUTCOMES = ("completed", "diverged", "constraint_violated")
 
