@@ -7,6 +7,7 @@ u = k(x) on a plant in MuJoCo (zero-order hold at the control period) or on the 
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -77,15 +78,15 @@ def run_ode(
     grid = np.linspace(0.0, duration, round(duration / dt) + 1)
     cuts = [0.0, *[b for b in plant.breakpoints() if 0.0 < b < duration], duration]
     xs, x = [], np.asarray(x0, dtype=float)
-    for lo, hi in zip(cuts[:-1], cuts[1:], strict=True):
+    for lo, hi in itertools.pairwise(cuts):
         last = hi == duration
         sel = grid[(grid >= lo) & ((grid <= hi) if last else (grid < hi))]
-        sol = solve_ivp(rhs, (lo, hi), x, method=method, t_eval=sel, rtol=rtol, atol=atol)
+        ts = sel if last else np.append(sel, hi)  # the end of a piece starts the next one
+        sol = solve_ivp(rhs, (lo, hi), x, method=method, t_eval=ts, rtol=rtol, atol=atol)
         if sol.status != 0:
             raise RuntimeError(f"solve_ivp failed on [{lo}, {hi}]: {sol.message}")
-        xs.append(sol.y.T)
-        end = solve_ivp(rhs, (lo, hi), x, method=method, rtol=rtol, atol=atol)
-        x = end.y[:, -1]
+        xs.append(sol.y.T if last else sol.y.T[:-1])
+        x = sol.y[:, -1]
     xa = np.vstack(xs)
     ua = np.array([law(tuple(float(v) for v in row)) for row in xa])
     return Trajectory(grid[: len(xa)], xa, ua)

@@ -97,7 +97,7 @@ class Plant(ABC):
     def write_input(self, model: mujoco.MjModel, data: mujoco.MjData, u: float) -> None:
         """Write the law's input u into ``data.ctrl``."""
 
-    def before_step(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    def before_step(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:  # noqa: B027
         """Set prescribed (exogenous) inputs for the coming physics step; none by default."""
 
     @abstractmethod
@@ -112,4 +112,6 @@ class Plant(ABC):
 def check_close(what: str, model_value: float, expected: float, rtol: float = 1e-6) -> None:
     """:class:`ModelError` unless the model's value matches the description's."""
     if not math.isclose(model_value, expected, rel_tol=rtol):
-        raise ModelError(f"{what}: the MJCF gives {model_value:.9g}, the plant expects {expected:.9g}")
+        raise ModelError(
+            f"{what}: the MJCF gives {model_value:.9g}, the plant expects {expected:.9g}"
+        )

@@ -94,7 +94,7 @@ class QuarterCar(Plant):
         data.ctrl[_ROAD] = self.road.height_at(data.time + 0.5 * model.opt.timestep)
 
     def rhs(self, x: State, u: float, t: float) -> State:
-        x1, x2, x3, x4 = x
+        x1, x2, _, x4 = x
         c = self.constants
         return (x2 - self.road.velocity_at(t), -(c.omega**2) * x1 + c.rho * u, -x2 + x4, -u)
 

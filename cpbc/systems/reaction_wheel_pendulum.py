@@ -79,7 +79,7 @@ class ReactionWheelPendulum(Plant):
 
     def rhs(self, x: State, u: float, t: float) -> State:
         c = self.constants
-        q1, dq1, dq2 = x
+        q1, dq1, _ = x
         det = c.d11 * c.d22 - c.d12 * c.d12
         g = c.d0 * np.sin(q1)
         ddq1 = (c.d22 * g - c.d12 * u) / det
