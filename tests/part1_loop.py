@@ -18,7 +18,7 @@ from scipy.integrate import solve_ivp
 
 from cpbc.systems import Plant
 
-Law = Callable[[tuple[float, ...]], float]
+Law = Callable[[tuple[float, ...], float], float]  # u = k(x, t)
 Array = NDArray[np.float64]
 
 
@@ -55,7 +55,7 @@ def run_mujoco(
     ts, xs, us = np.empty(n + 1), np.empty((n + 1, len(x0))), np.empty(n + 1)
     for k in range(n + 1):
         x = plant.read_state(model, data)
-        u = law(x)
+        u = law(x, data.time)
         ts[k], xs[k], us[k] = data.time, x, u
         if k == n:
             break
@@ -73,7 +73,7 @@ def run_ode(
     """Integrate ẋ = f(x, law(x), t) in continuous time; sample every ``dt``."""
     def rhs(t: float, x: Array) -> list[float]:
         state = tuple(float(v) for v in x)
-        return list(plant.rhs(state, law(state), t))
+        return list(plant.rhs(state, law(state, t), t))
 
     grid = np.linspace(0.0, duration, round(duration / dt) + 1)
     cuts = [0.0, *[b for b in plant.breakpoints() if 0.0 < b < duration], duration]
@@ -88,5 +88,6 @@ def run_ode(
         xs.append(sol.y.T if last else sol.y.T[:-1])
         x = sol.y[:, -1]
     xa = np.vstack(xs)
-    ua = np.array([law(tuple(float(v) for v in row)) for row in xa])
-    return Trajectory(grid[: len(xa)], xa, ua)
+    ts = grid[: len(xa)]
+    ua = np.array([law(tuple(float(v) for v in row), t) for row, t in zip(xa, ts, strict=True)])
+    return Trajectory(ts, xa, ua)

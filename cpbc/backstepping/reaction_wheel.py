@@ -171,6 +171,10 @@ class ReactionWheelController:
         growth = Growth(b.alpha1_dot[1], g.k2 / math.sqrt(3.0), self.cascade.ac)
         self.law = TwoConstraintLaw(self.cascade, LogBarrier(g.k4, g.k3), c1=g.c2, growth=growth)
 
+    def __call__(self, x: State, t: float = 0.0) -> float:
+        """The law as state feedback u = k(x, t) (time-invariant): τ [N m]."""
+        return self.control(x)
+
     def coordinates(self, x: State) -> tuple[State, State]:
         """(η, ξ) of (3.138)–(3.140) from x = (q1, q̇1, q̇2)."""
         q1, dq1, dq2 = x
@@ -191,13 +195,15 @@ class ReactionWheelController:
         return self.law.errors(*self.coordinates(x))
 
     @staticmethod
-    def at_downward_equilibrium(x: State) -> bool:
-        """q1 ≡ π (mod 2π) with q̇ = 0: a closed-loop equilibrium (sin q1 = 0 gives τ ≡ 0).
+    def at_downward_equilibrium(x: State, tol: float = 1e-12) -> bool:
+        """q1 ≡ π (mod 2π) within ``tol`` [rad], with q̇ = 0: a closed-loop equilibrium.
 
-        (3.154)'s LaSalle set contains it, so the thesis's "(π, 0, 0)" run cannot leave it.
+        sin q1 = 0 gives α1 = 0, z = 0 and τ ≡ 0, and (3.154)'s LaSalle set contains the point,
+        so the thesis's "(π, 0, 0)" run cannot leave it (float64 π is off by 1.2e-16, below
+        the ulp of q1, and stays put too). The equilibrium is unstable (eigenvalue ≈ +0.90 s⁻¹).
         """
         q1, dq1, dq2 = x
-        return math.sin(q1) == 0.0 and math.cos(q1) < 0.0 and dq1 == 0.0 and dq2 == 0.0
+        return abs(math.sin(q1)) <= tol and math.cos(q1) < 0.0 and dq1 == 0.0 and dq2 == 0.0
 
     def bounds(self) -> WheelPendulumBounds:
         """(3.148), (3.157), (3.158), (3.159), printed and corrected."""

@@ -148,6 +148,10 @@ class SuspensionController:
         """k2 + c1, the bound of (3.84) on |x3| (for the log barrier)."""
         return self.gains.k2 + self.gains.c1
 
+    def __call__(self, x: State, t: float = 0.0) -> float:
+        """The law as state feedback u = k(x, t) (time-invariant): u [m/s²]."""
+        return self.control(x)
+
     def coordinates(self, x: State) -> tuple[State, State]:
         """(η, ξ) of (3.64) from x = (x1, x2, x3, x4)."""
         x1, x2, x3, x4 = x
