@@ -20,7 +20,7 @@ class CascadeLaw(Protocol):
     def lyapunov(self, x: State, xi: State) -> float: ...
 
 
-def split(s: Sequence[float], n: int) -> tuple[State, State]:
+def split(s: Sequence[float] | np.ndarray, n: int) -> tuple[State, State]:
     """(x, ξ) from a stacked state."""
     return tuple(float(v) for v in s[:n]), tuple(float(v) for v in s[n:])
 

@@ -101,7 +101,7 @@ class TwoConstraintLaw:
     def xi_bounds(self) -> tuple[tuple[float, float], ...]:
         """The achieved bounds on ξ1 (3.104) and, for m = 2, on ξ2 (3.128)."""
         d = self.cascade.delta
-        out = ((self.barrier1.lower - d, self.barrier1.upper + d),)
+        out: tuple[tuple[float, float], ...] = ((self.barrier1.lower - d, self.barrier1.upper + d),)
         if self.barrier2 is not None and self.cascade.m == 2:
             a = self.alpha2_bound
             out += ((self.barrier2.lower - a, self.barrier2.upper + a),)
