@@ -14,7 +14,8 @@ State = tuple[float, ...]
 
 
 class CascadeLaw(Protocol):
-    cascade: Cascade
+    @property
+    def cascade(self) -> Cascade: ...
 
     def control(self, x: State, xi: State) -> float: ...
     def lyapunov(self, x: State, xi: State) -> float: ...

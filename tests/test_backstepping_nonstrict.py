@@ -26,10 +26,12 @@ def _law(m: int, barrier=None) -> NonStrictClfLaw:
     return NonStrictClfLaw(ToyCascade(2), barrier, c1=2.0, c2=3.0, k2=0.7)
 
 
-def _states(law: NonStrictClfLaw, rng: np.random.Generator, n: int = 25):
+def _states(
+    law: NonStrictClfLaw, rng: np.random.Generator, n: int = 25
+) -> list[tuple[tuple[float, ...], tuple[float, ...]]]:
     """Random (x, ξ) with z1 well inside the barrier's interval."""
     b = law.barrier
-    out = []
+    out: list[tuple[tuple[float, ...], tuple[float, ...]]] = []
     while len(out) < n:
         x = (float(rng.uniform(-2, 2)),)
         z1 = float(rng.uniform(0.9 * b.lower, 0.9 * b.upper))

@@ -38,7 +38,7 @@ def _printed_tau(x: tuple[float, ...]) -> float:
 
 def _random_states(n: int = 30) -> list[tuple[float, ...]]:
     rng = np.random.default_rng(11)
-    out = []
+    out: list[tuple[float, ...]] = []
     while len(out) < n:
         x = (float(rng.uniform(-np.pi, np.pi)), float(rng.uniform(-1, 1)),
              float(rng.uniform(-3e4, 3e4)))

@@ -12,6 +12,7 @@ import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import mujoco
 
@@ -35,7 +36,7 @@ class ConstrainedQuantity:
     name: str
     lower: float
     upper: float
-    source: str = "state"
+    source: Literal["state", "input"] = "state"
     index: int = 0
     unit: str = ""
 
