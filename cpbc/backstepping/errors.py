@@ -1,0 +1,40 @@
+"""Errors of the backstepping designs; both derive from :class:`cpbc.errors.CpbcError`."""
+
+from __future__ import annotations
+
+from cpbc.errors import CpbcError
+
+
+class DesignError(CpbcError):
+    """A design constant is invalid (not finite, not positive, or breaks a design condition).
+
+    Attributes:
+        parameter: the name of the offending constant, as the thesis writes it.
+        value: the value given.
+    """
+
+    def __init__(self, parameter: str, value: float, reason: str) -> None:
+        self.parameter = parameter
+        self.value = value
+        self.reason = reason
+        super().__init__(f"design constant {parameter} = {value!r}: {reason}")
+
+
+class OutsideDomainError(CpbcError):
+    """A state lies outside the domain D on which a barrier law is defined.
+
+    Attributes:
+        variable: the error variable that left its interval ("z1", "z2").
+        value: its value at the state.
+        lower, upper: the open interval it must lie in.
+    """
+
+    def __init__(self, variable: str, value: float, lower: float, upper: float, why: str) -> None:
+        self.variable = variable
+        self.value = value
+        self.lower = lower
+        self.upper = upper
+        super().__init__(
+            f"{variable} = {value:.6g} is outside the controller's domain ({lower:.6g}, "
+            f"{upper:.6g}): {why}"
+        )

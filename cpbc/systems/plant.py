@@ -1,0 +1,118 @@
+"""What a Part-I system is to the rest of the product: a plant description.
+
+A :class:`Plant` names the law's state x, reads it from MuJoCo (qpos, qvel and time), writes the
+law's input u into MuJoCo's ``ctrl`` (and any prescribed exogenous input before every physics
+step), lists its constrained quantities with their bounds, and gives the ODE ẋ = f(x, u, t) as a
+continuous-time reference. It holds no simulator state of its own.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import mujoco
+
+from cpbc.errors import CpbcError, ModelError
+
+State = tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class ConstrainedQuantity:
+    """A state or input component that must stay in (lower, upper).
+
+    Attributes:
+        name: e.g. "x3" or "tau".
+        lower, upper: the open interval of allowed values.
+        source: "state" (x[index]) or "input" (u).
+        index: component of x (ignored for inputs).
+        unit: for reports.
+    """
+
+    name: str
+    lower: float
+    upper: float
+    source: Literal["state", "input"] = "state"
+    index: int = 0
+    unit: str = ""
+
+    def __post_init__(self) -> None:
+        if self.source not in ("state", "input"):
+            raise CpbcError(f"source must be 'state' or 'input', not {self.source!r}")
+        if not self.lower < self.upper:
+            raise CpbcError(f"{self.name}: empty interval ({self.lower}, {self.upper})")
+
+    def value(self, x: State, u: float) -> float:
+        """The quantity at state x and input u."""
+        return u if self.source == "input" else x[self.index]
+
+    def margin(self, x: State, u: float) -> float:
+        """Distance to the nearer bound (> 0 inside)."""
+        v = self.value(x, u)
+        return min(v - self.lower, self.upper - v)
+
+
+class Plant(ABC):
+    """A Part-I system: its MJCF, its state map, input map, constraints and reference ODE."""
+
+    #: names of the components of the law's state x
+    state_names: tuple[str, ...]
+    #: name and unit of the law's input u
+    input_name: str
+
+    @property
+    @abstractmethod
+    def constrained(self) -> tuple[ConstrainedQuantity, ...]:
+        """The constrained quantities with their bounds."""
+
+    @property
+    @abstractmethod
+    def mjcf(self) -> Path:
+        """The MJCF file."""
+
+    def load(self) -> mujoco.MjModel:
+        """Compile the MJCF and check that it matches this description."""
+        if not self.mjcf.is_file():
+            raise ModelError(f"model file {self.mjcf} is missing")
+        model = mujoco.MjModel.from_xml_path(str(self.mjcf))
+        self.verify(model)
+        return model
+
+    @abstractmethod
+    def verify(self, model: mujoco.MjModel) -> None:
+        """Raise :class:`~cpbc.errors.ModelError` unless ``model`` matches this plant."""
+
+    @abstractmethod
+    def read_state(self, model: mujoco.MjModel, data: mujoco.MjData) -> State:
+        """The law's state x from ``data.qpos``, ``data.qvel`` and ``data.time``."""
+
+    @abstractmethod
+    def write_state(self, model: mujoco.MjModel, data: mujoco.MjData, x: State) -> None:
+        """Set qpos/qvel so that :meth:`read_state` gives x at ``data.time``."""
+
+    @abstractmethod
+    def write_input(self, model: mujoco.MjModel, data: mujoco.MjData, u: float) -> None:
+        """Write the law's input u into ``data.ctrl``."""
+
+    def before_step(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:  # noqa: B027
+        """Set prescribed (exogenous) inputs for the coming physics step; none by default."""
+
+    @abstractmethod
+    def rhs(self, x: State, u: float, t: float) -> State:
+        """ẋ = f(x, u, t), the continuous-time reference."""
+
+    def breakpoints(self) -> tuple[float, ...]:
+        """Times where f has a kink in t (integrate an ODE piecewise there); none by default."""
+        return ()
+
+
+def check_close(what: str, model_value: float, expected: float, rtol: float = 1e-6) -> None:
+    """:class:`ModelError` unless the model's value matches the description's."""
+    if not math.isclose(model_value, expected, rel_tol=rtol):
+        raise ModelError(
+            f"{what}: the MJCF gives {model_value:.9g}, the plant expects {expected:.9g}"
+        )
