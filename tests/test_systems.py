@@ -126,3 +126,11 @@ def test_model_mismatch_is_reported(tmp_path: Path) -> None:
         QuarterCar(path=bad).load()
     with pytest.raises(ModelError, match="missing"):
         ReactionWheelPendulum(path=tmp_path / "none.xml").load()
+
+
+def test_part_one_models_are_not_offered_as_arms() -> None:
+    """The quarter car and the pendulum live in models/systems/, apart from the arms that
+    a scenario's ``robot.model`` may name."""
+    from cpbc.resources import builtin_models
+
+    assert not {"quarter_car", "reaction_wheel_pendulum"} & set(builtin_models())

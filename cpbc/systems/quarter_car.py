@@ -1,4 +1,4 @@
-"""The active quarter car of §3.3 as a plant: MJCF ``models/quarter_car.xml`` and ODE (3.62).
+"""The active quarter car of §3.3 as a plant: MJCF ``models/systems/quarter_car.xml`` and ODE (3.62).
 
     ẋ1 = x2 − d(t),  ẋ2 = −ω² x1 + ρ u,  ẋ3 = −x2 + x4,  ẋ4 = −u,   |x3| < Ξ  (3.63)
 
@@ -43,7 +43,7 @@ class QuarterCar(Plant):
     road: HaversineBump = field(default_factory=lambda: HaversineBump(0.0))
     constants: QuarterCarConstants = field(default_factory=QuarterCarConstants)
     travel_limit: float = 0.1
-    path: Path = field(default_factory=lambda: models_dir() / "quarter_car.xml")
+    path: Path = field(default_factory=lambda: models_dir() / "systems" / "quarter_car.xml")
 
     state_names = ("x1", "x2", "x3", "x4")
     input_name = "u [m/s²]"
