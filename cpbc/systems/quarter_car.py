@@ -1,4 +1,5 @@
-"""The active quarter car of §3.3 as a plant: MJCF ``models/systems/quarter_car.xml`` and ODE (3.62).
+"""The active quarter car of §3.3 as a plant: MJCF ``models/systems/quarter_car.xml``
+and ODE (3.62).
 
     ẋ1 = x2 − d(t),  ẋ2 = −ω² x1 + ρ u,  ẋ3 = −x2 + x4,  ẋ4 = −u,   |x3| < Ξ  (3.63)
 

@@ -1,5 +1,5 @@
-"""The Reaction Wheel Pendulum of §3.5 as a plant: MJCF ``models/systems/reaction_wheel_pendulum.xml``
-and ODE (3.137).
+"""The Reaction Wheel Pendulum of §3.5 as a plant: MJCF
+``models/systems/reaction_wheel_pendulum.xml`` and ODE (3.137).
 
     d11 q̈1 + d12 q̈2 − d0 sin q1 = 0,   d21 q̈1 + d22 q̈2 = τ,   |q̇1| ≤ 1 rad/s, |τ| ≤ 0.4 N m
 
@@ -36,7 +36,8 @@ class ReactionWheelPendulum(Plant):
     constants: WheelPendulumConstants = field(default_factory=WheelPendulumConstants)
     rate_limit: float = 1.0
     torque_limit: float = 0.4
-    path: Path = field(default_factory=lambda: models_dir() / "systems" / "reaction_wheel_pendulum.xml")
+    path: Path = field(
+        default_factory=lambda: models_dir() / "systems" / "reaction_wheel_pendulum.xml")
 
     state_names = ("q1", "dq1", "dq2")
     input_name = "tau [N m]"
