@@ -7,12 +7,15 @@ vectorised operations whatever the number of pairs.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from functools import partial
 from itertools import pairwise
+from typing import TypeVar
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import NDArray
 
 from cpbc.arrays import Array
 from cpbc.constraints.base import ConfigurationConstraint
@@ -56,8 +59,15 @@ _ONES3, _ONES12 = np.ones(3), np.ones(12)  # sums over a short first axis: a dot
 # 0-d arrays: numpy takes them faster than Python floats as ufunc operands
 _ZERO, _ONE, _THREE = np.array(0.0), np.array(1.0), np.array(3.0)
 
-_FAR = 1e9  # clearance given to the missing second end of a sphere against a plane
 _TINY = 1e-300
+
+_Index = NDArray[np.intp]
+_O = TypeVar("_O", bound=Obstacle)
+
+
+def _only(kind: type[_O], obstacles: Sequence[Obstacle]) -> list[_O]:
+    """The obstacles of one kind, in their order."""
+    return [o for o in obstacles if isinstance(o, kind)]
 
 
 def _core_distances(u: Array, half: Array) -> tuple[Array, Array]:
@@ -68,7 +78,7 @@ def _core_distances(u: Array, half: Array) -> tuple[Array, Array]:
     return np.sqrt(np.dot(_ONES3, outside * outside)), outside
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class _Spheres:
     """Sphere primitives against every obstacle (as rounded boxes) and each other.
 
@@ -97,37 +107,234 @@ class _Spheres:
     rsum_law: Array  # (P,) rsum, −∞ on pairs that cannot move (ℓ given): they leave the law
     moving: Array  # (P,) 1.0 on pairs whose clearance can change, else 0.0
     to_world: Array  # (12, 3 O): _FORCE @ (w Σ_o R_o local_o) from local.reshape(3 O, S),
-    # w = 3/ℓ (1 without ℓ): see ``barrier_terms``
+    # w = 3/ℓ (1 without ℓ): see ``_sphere_factors``
     self_force: Array  # (Ps, S): w (+1 first, −1 second), the self pairs' forces per sphere
-    pair_sphere: Array  # (P,) the (first) sphere of each pair
-    pair_sphere2: Array  # (Ps,) the second sphere of each self pair
+    pair_sphere: _Index  # (P,) the (first) sphere of each pair
+    pair_sphere2: _Index  # (Ps,) the second sphere of each self pair
     pair_rot: Array  # (P, 3, 3) the obstacle's rotation R (I for a self pair)
     sphere_supports: Array  # (S, n) 1 where joint k moves sphere s's link
-    starts: Array  # first pair of each reported constraint (a link against an obstacle/link)
-    group: Array  # (P,) the constraint (index in ``names``) of each pair
+    starts: _Index  # first pair of each reported constraint (a link against an obstacle/link)
+    group: _Index  # (P,) the constraint (index in ``names``) of each pair
+
+
+_Rows = tuple[Array, Array, Array]  # points p (m, 3), unit normals n̂ (m, 3), supports (m, n)
+_JacobianRows = Callable[[Array, Array, Array], Array]  # (p, n̂, supports) ↦ rows n̂ᵀ J(p)
+
+
+@dataclass(frozen=True, eq=False)
+class _CapsuleGroup:
+    """Capsule primitives paired with shapes of one kind, one pair per row.
+
+    Pair p's primitive is the segment [a_p, b_p] with a = (Y @ ea).T and b = (Y @ eb).T (Y
+    the static regressor), its radius plus the margin (and the other shape's radius) in
+    ``rsum``. The base gives one clearance per pair, reported and in the law as it is;
+    ``_CapsulePlane`` changes that. A subclass says how far its pairs are (``narrow``); the
+    base itself only carries the capsule side of the pairs to a subclass's ``against``.
+    """
+
+    start: int  # the group's constraints are names[start:stop]
+    stop: int
+    ea: Array  # (4 nj, P)
+    eb: Array
+    mask: Array  # (P, n) 1 where joint k moves the primitive's link
+    rsum: Array  # (P,)
+
+    @property
+    def terms(self) -> int:
+        """How many clearances ``narrow`` gives the law."""
+        return self.stop - self.start
+
+    def ends(self, y: Array) -> tuple[Array, Array]:
+        """The segment ends a, b (P, 3) of the primitives at the regressor y."""
+        return (y @ self.ea).T, (y @ self.eb).T
+
+    def narrow(self, y: Array) -> tuple[Array, list[_Rows]]:
+        """The exact clearances φ and the rows of their gradient: ∇φ = Σ_rows n̂ᵀ J(p)."""
+        raise NotImplementedError
+
+    def reported(self, phi: Array) -> Array:
+        """The reported clearance of each pair from ``narrow``'s φ."""
+        return phi
+
+    def gradient(self, phi: Array, rows: list[_Rows], jacobian_rows: _JacobianRows) -> Array:
+        """The gradients (P, n) of the reported clearances, from ``narrow``'s φ and rows
+        (summed from 0, as ever: the same bits, signed zeros included)."""
+        return np.asarray(sum(jacobian_rows(p, n, mask) for p, n, mask in rows), dtype=float)
+
+    def law(self, shaped: Array, ratio: Array, rows: list[_Rows], influence: float | None
+            ) -> tuple[Array, list[_Rows]]:
+        """The law's φ̃ of the group's constraints and the rows of its force, from φ̃ and
+        (dφ̃/dφ)/φ̃ of ``narrow``'s clearances (``Clearance._shape``)."""
+        return shaped, [(p, n * ratio[:, None], mask) for p, n, mask in rows]
+
+
+@dataclass(frozen=True, eq=False)
+class _AgainstObstacle(_CapsuleGroup):
+    """Capsules against fixed obstacles: φ = d − rsum, d, p and n̂ from ``distance``."""
+
+    def narrow(self, y: Array) -> tuple[Array, list[_Rows]]:
+        d, p, n = self.distance(*self.ends(y))
+        return d - self.rsum, [(p, n, self.mask)]
+
+    def distance(self, a: Array, b: Array) -> tuple[Array, Array, Array]:
+        """The distance d (P,) from the segments [a, b] to the obstacles' cores, the closest
+        points p (P, 3) on the segments and the unit normals n̂ (P, 3) towards them."""
+        raise NotImplementedError
+
+
+@dataclass(frozen=True, eq=False)
+class _CapsuleSphere(_AgainstObstacle):
+    """Capsules against spheres (the sphere's radius in ``rsum``)."""
+
+    centre: Array  # (P, 3)
+
+    @classmethod
+    def against(cls, caps: _CapsuleGroup, obstacles: Sequence[SphereObstacle]) -> _CapsuleSphere:
+        return cls(caps.start, caps.stop, caps.ea, caps.eb, caps.mask,
+                   caps.rsum + np.array([o.radius for o in obstacles]),
+                   centre=np.array([o.centre for o in obstacles]))
+
+    def distance(self, a: Array, b: Array) -> tuple[Array, Array, Array]:
+        return segment_point(a, b, self.centre)
+
+
+@dataclass(frozen=True, eq=False)
+class _CapsuleCapsule(_AgainstObstacle):
+    """Capsules against capsule obstacles (the obstacle's radius in ``rsum``)."""
+
+    axis_start: Array  # (P, 3)
+    axis_end: Array
+
+    @classmethod
+    def against(cls, caps: _CapsuleGroup, obstacles: Sequence[CapsuleObstacle]
+                ) -> _CapsuleCapsule:
+        return cls(caps.start, caps.stop, caps.ea, caps.eb, caps.mask,
+                   caps.rsum + np.array([o.radius for o in obstacles]),
+                   axis_start=np.array([o.start for o in obstacles]),
+                   axis_end=np.array([o.end for o in obstacles]))
+
+    def distance(self, a: Array, b: Array) -> tuple[Array, Array, Array]:
+        d, p, _, n = segment_segment(a, b, self.axis_start, self.axis_end)
+        return d, p, n
+
+
+@dataclass(frozen=True, eq=False)
+class _CapsuleBox(_AgainstObstacle):
+    """Capsules against oriented boxes."""
+
+    centre: Array  # (P, 3)
+    rotation: Array  # (P, 3, 3) box to world
+    half: Array  # (P, 3) half-extents
+
+    @classmethod
+    def against(cls, caps: _CapsuleGroup, obstacles: Sequence[BoxObstacle]) -> _CapsuleBox:
+        return cls(caps.start, caps.stop, caps.ea, caps.eb, caps.mask, caps.rsum,
+                   centre=np.array([o.centre for o in obstacles]),
+                   rotation=np.array([o.rotation for o in obstacles]),
+                   half=np.array([o.half_extents for o in obstacles]))
+
+    def distance(self, a: Array, b: Array) -> tuple[Array, Array, Array]:
+        d, p, _, n = segment_box(a, b, self.centre, self.rotation, self.half)
+        return d, p, n
+
+
+@dataclass(frozen=True, eq=False)
+class _CapsuleSelf(_CapsuleGroup):
+    """Self pairs with a capsule: both segments move, so ∇φ = n̂ᵀ (J_P − J_Q)."""
+
+    ea2: Array  # the other primitive's ends and supports, as ea, eb, mask
+    eb2: Array
+    mask2: Array
+
+    def narrow(self, y: Array) -> tuple[Array, list[_Rows]]:
+        a, b = self.ends(y)
+        d, p, q, n = segment_segment(a, b, (y @ self.ea2).T, (y @ self.eb2).T)
+        return d - self.rsum, [(p, n, self.mask), (q, -n, self.mask2)]
+
+
+@dataclass(frozen=True, eq=False)
+class _CapsulePlane(_CapsuleGroup):
+    """Capsules above planes. ``narrow`` gives the law the heights of both ends, φ_a then φ_b
+    (2P,): the pair's barrier is the product of its two end terms (each smooth, where
+    min(φ_a, φ_b) is not); the reported clearance is the smaller one."""
+
+    normal: Array  # (P, 3) unit normals
+    offset: Array  # (P,) n̂·x on the plane
+
+    @classmethod
+    def against(cls, caps: _CapsuleGroup, obstacles: Sequence[PlaneObstacle]) -> _CapsulePlane:
+        return cls(caps.start, caps.stop, caps.ea, caps.eb, caps.mask, caps.rsum,
+                   normal=np.array([o.normal for o in obstacles]),
+                   offset=np.array([o.offset for o in obstacles]))
+
+    @property
+    def terms(self) -> int:
+        return 2 * (self.stop - self.start)
+
+    def narrow(self, y: Array) -> tuple[Array, list[_Rows]]:
+        a, b = self.ends(y)
+        phi_a = (a * self.normal).sum(axis=1) - self.offset - self.rsum
+        phi_b = (b * self.normal).sum(axis=1) - self.offset - self.rsum
+        return np.concatenate([phi_a, phi_b]), [(a, self.normal, self.mask),
+                                                (b, self.normal, self.mask)]
+
+    def reported(self, phi: Array) -> Array:
+        size = self.stop - self.start
+        return np.minimum(phi[:size], phi[size:])
+
+    def gradient(self, phi: Array, rows: list[_Rows], jacobian_rows: _JacobianRows) -> Array:
+        """The gradient of the lower end's height."""
+        size = self.stop - self.start
+        (pa, n, mask), (pb, _, _) = rows
+        use_b = (phi[size:] < phi[:size])[:, None]
+        return jacobian_rows(np.where(use_b, pb, pa), n, mask)
+
+    def law(self, shaped: Array, ratio: Array, rows: list[_Rows], influence: float | None
+            ) -> tuple[Array, list[_Rows]]:
+        """φ̃_a φ̃_b/ℓ (φ_a φ_b without ℓ) and both ends' force rows."""
+        size = self.stop - self.start
+        (pa, n, mask), (pb, _, _) = rows
+        return (shaped[:size] * (shaped[size:] / (influence or 1.0)),
+                [(pa, n * ratio[:size, None], mask), (pb, n * ratio[size:, None], mask)])
 
 
 @dataclass
-class _Group:
-    """Capsule primitives against obstacles of one kind (or capsule self pairs).
+class _Layout:
+    """What set-up lays out pair by pair: the constraint names, and the capsule groups'
+    broad phase ``Clearance._near_groups``, z = vec(Y) @ w + c.
 
-    Segment ends of every pair: a = (Y @ ea).T, b = (Y @ eb).T.
+    A bounded pair adds three columns, the offset Δ (3,) of its primitive's midpoint from
+    the centre of a sphere bounding the other shape, and the square of its reach (the pair
+    may be within ℓ only if ‖Δ‖ < reach); a pair above a plane adds the heights of its two
+    ends above plane + radius + margin, a column each (within ℓ only if one is < ℓ).
     """
 
-    kind: str
-    start: int
-    stop: int
-    ea: Array
-    eb: Array
-    mask: Array  # (P, n) support of the robot body of each pair (1 where q_k moves it)
-    rsum: Array  # radii + margin, (P,)
-    ea2: Array | None = None  # self pairs: the other primitive
-    eb2: Array | None = None
-    mask2: Array | None = None
-    other: Array | None = None  # sphere centres / capsule starts / box centres / plane normals
-    other2: Array | None = None  # capsule ends / box half-extents / plane offsets
-    rot: Array | None = None  # box rotations (P, 3, 3)
-    has_b: Array | None = None  # planes: 1 where the primitive has a distinct second end
+    prefix: str  # the constraint names are prefix[…]
+    names: list[str] = field(default_factory=list)
+    columns: list[Array] = field(default_factory=list)  # over vec(Y)
+    constants: list[float] = field(default_factory=list)
+    thresholds: list[float] = field(default_factory=list)  # reach² per bounded pair
+
+    def add(self, labels: Sequence[str]) -> tuple[int, int]:
+        """Name constraints ``prefix[label]``; their first index and one past the last."""
+        start = len(self.names)
+        self.names += [f"{self.prefix}[{label}]" for label in labels]
+        return start, len(self.names)
+
+    def bound(self, column: Array, centre: Array, reach: float) -> None:
+        """A bounded pair: Y @ column is its primitive's midpoint (or offset from the other
+        primitive's), to be compared with ``centre`` (3,)."""
+        for c in range(3):  # Δ = mid − centre, component c, over vec(Y)
+            w = np.zeros((3, len(column)))
+            w[c] = column
+            self.columns.append(w.reshape(-1))
+            self.constants.append(-float(centre[c]))
+        self.thresholds.append(reach * reach)
+
+    def height(self, column: Array, constant: float) -> None:
+        """A height above a plane: vec(Y) @ column + constant."""
+        self.columns.append(column)
+        self.constants.append(constant)
 
 
 class Clearance(ConfigurationConstraint):
@@ -245,7 +452,7 @@ class Clearance(ConfigurationConstraint):
         self._far_phi.setflags(write=False)
         self._zero = np.zeros(self._n)
         self._zero.setflags(write=False)
-        self._along: dict[int, tuple[Array, Array, Array]] = {}  # see values_along
+        self._along: dict[int, tuple[Array, Array, _Index]] = {}  # see values_along
 
     # -- set-up ------------------------------------------------------------------------------
     def _setup_kinematics(self) -> None:
@@ -302,121 +509,125 @@ class Clearance(ConfigurationConstraint):
         return self._supports[[self._joint[i] for i in prims]]
 
     def _setup_pairs(self, name: str) -> None:
-        prims = self.primitives
-        spheres = [i for i, p in enumerate(prims) if p.kind == "sphere"]
-        capsules = [i for i, p in enumerate(prims) if p.kind == "capsule"]
+        """Every pair, in the order of ``names``: the sphere primitives' pairs first (one fast
+        group, ``_spheres``), then the capsule primitives' groups (``_groups``): against the
+        sphere, capsule and box obstacles, in self pairs, above the planes; with the capsule
+        groups' broad phase (``_near_groups``)."""
         by_frame: dict[str, list[int]] = {}
-        for i, p in enumerate(prims):
+        for i, p in enumerate(self.primitives):
             by_frame.setdefault(p.frame, []).append(i)
-        self_pairs = [(i, j) for a, b in self.self_pairs for i in by_frame[a] for j in by_frame[b]]
-        names: list[str] = []
-        # sphere primitives: one fast group, reported per (link, obstacle) and (link, link)
-        sphere_frames = list(dict.fromkeys(prims[i].frame for i in spheres))
-        order = [i for f in sphere_frames for i in by_frame[f] if prims[i].kind == "sphere"]
-        group: list[int] = []
-        for o in self.obstacles:
-            for f in sphere_frames:
-                group += [len(names)] * sum(prims[i].kind == "sphere" for i in by_frame[f])
-                names.append(f"{name}[{f}|{o.name}]")
-        sphere_self = []
-        for a, b in self.self_pairs:
-            pairs = [(i, j) for i in by_frame[a] for j in by_frame[b]
-                     if prims[i].kind == "sphere" and prims[j].kind == "sphere"]
-            if pairs:
-                sphere_self += pairs
-                group += [len(names)] * len(pairs)
-                names.append(f"{name}[{a}|{b}]")
-        self._spheres: _Spheres | None = None
-        if group:
-            self._spheres = self._sphere_group(order, sphere_self, group)
-        # capsule primitives: one group per obstacle kind
-        self._groups: list[_Group] = []
-        broad: list[tuple[Array, float]] = []  # (column over vec(Y), constant)
-        thresholds: list[float] = []  # reach² per bounded pair
-        span = self.influence or 0.0
-        half_len = [0.5 * p.length for p in prims]
-
-        def bounded(i: int, col: Array, centre: Array, reach: float) -> None:
-            for c in range(3):  # Δ = mid − centre, component c, over vec(Y)
-                w = np.zeros((3, 4 * self._nj))
-                w[c] = col
-                broad.append((w.reshape(-1), -float(centre[c])))
-            thresholds.append(reach * reach)
-
-        for kind, cls in (("sphere", SphereObstacle), ("capsule", CapsuleObstacle),
-                          ("box", BoxObstacle)):
-            pairs = [(i, o) for o in self.obstacles if isinstance(o, cls) for i in capsules]
-            if not pairs:
-                continue
-            start = len(names)
-            names += [f"{name}[{prims[i].name}|{o.name}]" for i, o in pairs]
-            for i, o in pairs:
-                centre, rad = o.bounding_sphere()
-                reach = half_len[i] + prims[i].radius + rad + self.margin + span
-                bounded(i, self._column(i, None), centre, reach)
-            pi = [i for i, _ in pairs]
-            g = _Group(kind, start, len(names), self._columns(pi, 0), self._columns(pi, 1),
-                       self._masks(pi), np.array([prims[i].radius for i in pi]) + self.margin)
-            if kind == "sphere":
-                g.other = np.array([o.centre for _, o in pairs])  # type: ignore[attr-defined]
-                g.rsum = g.rsum + np.array([o.radius for _, o in pairs])  # type: ignore[attr-defined]
-            elif kind == "capsule":
-                g.other = np.array([o.start for _, o in pairs])  # type: ignore[attr-defined]
-                g.other2 = np.array([o.end for _, o in pairs])  # type: ignore[attr-defined]
-                g.rsum = g.rsum + np.array([o.radius for _, o in pairs])  # type: ignore[attr-defined]
-            else:
-                g.other = np.array([o.centre for _, o in pairs])  # type: ignore[attr-defined]
-                g.other2 = np.array([o.half_extents for _, o in pairs])  # type: ignore[attr-defined]
-                g.rot = np.array([o.rotation for _, o in pairs])  # type: ignore[attr-defined]
-            self._groups.append(g)
-        capsule_self = [(i, j) for i, j in self_pairs if (i, j) not in set(sphere_self)]
-        if capsule_self:
-            start = len(names)
-            names += [f"{name}[{prims[i].name}|{prims[j].name}]" for i, j in capsule_self]
-            for i, j in capsule_self:
-                reach = (half_len[i] + half_len[j] + prims[i].radius + prims[j].radius
-                         + self.margin + span)
-                bounded(i, self._column(i, None) - self._column(j, None), np.zeros(3), reach)
-            pi, pj = [i for i, _ in capsule_self], [j for _, j in capsule_self]
-            self._groups.append(_Group(
-                "self", start, len(names), self._columns(pi, 0), self._columns(pi, 1),
-                self._masks(pi),
-                np.array([prims[i].radius + prims[j].radius for i, j in capsule_self])
-                + self.margin,
-                ea2=self._columns(pj, 0), eb2=self._columns(pj, 1), mask2=self._masks(pj),
-            ))
-        self._n_bounded = len(broad) // 3
-        planes = [(i, o) for o in self.obstacles if isinstance(o, PlaneObstacle) for i in capsules]
-        plane_cols: list[tuple[Array, float]] = []
-        if planes:
-            start = len(names)
-            names += [f"{name}[{prims[i].name}|{o.name}]" for i, o in planes]
-            pi = [i for i, _ in planes]
-            g = _Group("plane", start, len(names), self._columns(pi, 0), self._columns(pi, 1),
-                       self._masks(pi), np.array([prims[i].radius for i in pi]) + self.margin)
-            g.other = np.array([o.normal for _, o in planes])  # type: ignore[attr-defined]
-            g.other2 = np.array([o.offset for _, o in planes])  # type: ignore[attr-defined]
-            g.has_b = np.array([float(prims[i].kind == "capsule") for i in pi])
-            for e in (g.ea, g.eb):  # heights n·a − offset − r − Δ and n·b − …, over vec(Y)
-                for p in range(len(planes)):
-                    plane_cols.append((np.outer(g.other[p], e[:, p]).reshape(-1),
-                                       -(g.other2[p] + g.rsum[p])))
-            self._groups.append(g)
+        layout = _Layout(name)
+        sphere_self = self._setup_spheres(by_frame, layout)
+        capsules = [i for i, p in enumerate(self.primitives) if p.kind == "capsule"]
+        obstacles = self.obstacles
+        groups = [
+            self._obstacle_group(_CapsuleSphere.against, _only(SphereObstacle, obstacles),
+                                 capsules, layout),
+            self._obstacle_group(_CapsuleCapsule.against, _only(CapsuleObstacle, obstacles),
+                                 capsules, layout),
+            self._obstacle_group(_CapsuleBox.against, _only(BoxObstacle, obstacles),
+                                 capsules, layout),
+            self._self_group(by_frame, sphere_self, layout),
+            self._plane_group(capsules, layout),  # last: its tests follow the bounded ones
+        ]
+        self._groups: list[_CapsuleGroup] = [g for g in groups if g is not None]
+        names = layout.names
         if len(set(names)) != len(names):
             dup = sorted({n for n in names if names.count(n) > 1})
             raise CpbcError(f"clearance pairs {dup} appear twice: give primitives on one link "
                             "one kind, or distinct names")
         self.names = tuple(names)
-        cols = [c for c, _ in broad] + [c for c, _ in plane_cols]
-        self._broad_w = (np.ascontiguousarray(np.column_stack(cols)) if cols
+        self._broad_w = (np.ascontiguousarray(np.column_stack(layout.columns)) if layout.columns
                          else np.zeros((12 * self._nj, 0)))
-        self._broad_c = np.array([k for _, k in broad] + [k for _, k in plane_cols])
-        self._broad_thr = np.array(thresholds)
-        starts, pos = [], 0
-        for g in self._groups:
-            starts.append(pos)
-            pos += 2 * (g.stop - g.start) if g.kind == "plane" else g.stop - g.start
-        self._reduce_at = np.array(starts, dtype=np.intp)
+        self._broad_c = np.array(layout.constants)
+        self._broad_thr = np.array(layout.thresholds)
+        self._n_bounded = len(layout.thresholds)
+        self._reduce_at = np.cumsum([0] + [g.terms for g in self._groups])[:-1].astype(np.intp)
+
+    def _setup_spheres(self, by_frame: dict[str, list[int]], layout: _Layout
+                       ) -> list[tuple[int, int]]:
+        """The sphere primitives' pairs (``_spheres``), reported per link: every link against
+        each obstacle, then each self pair of links with spheres on both; the sphere self
+        pairs (primitive indices)."""
+        prims = self.primitives
+        on = {f: [i for i in ids if prims[i].kind == "sphere"] for f, ids in by_frame.items()}
+        frames = list(dict.fromkeys(p.frame for p in prims if p.kind == "sphere"))
+        group: list[int] = []  # the constraint of each pair
+        for o in self.obstacles:
+            for f in frames:
+                group += [len(layout.names)] * len(on[f])
+                layout.add([f"{f}|{o.name}"])
+        sphere_self: list[tuple[int, int]] = []
+        for a, b in self.self_pairs:
+            pairs = [(i, j) for i in on[a] for j in on[b]]
+            if pairs:
+                sphere_self += pairs
+                group += [len(layout.names)] * len(pairs)
+                layout.add([f"{a}|{b}"])
+        order = [i for f in frames for i in on[f]]
+        self._spheres = self._sphere_group(order, sphere_self, group) if group else None
+        return sphere_self
+
+    def _capsules(self, start: int, stop: int, prims: Sequence[int]) -> _CapsuleGroup:
+        """The capsule side of pairs: primitive ``prims[p]`` in pair p, radius + margin."""
+        return _CapsuleGroup(start, stop, self._columns(prims, 0), self._columns(prims, 1),
+                             self._masks(prims),
+                             np.array([self.primitives[i].radius for i in prims]) + self.margin)
+
+    def _obstacle_group(
+        self,
+        against: Callable[[_CapsuleGroup, list[_O]], _CapsuleGroup],
+        obstacles: list[_O],
+        capsules: list[int],
+        layout: _Layout,
+    ) -> _CapsuleGroup | None:
+        """Every capsule primitive against each of the obstacles (of one kind), each pair
+        bounded in the broad phase by the obstacle's bounding sphere."""
+        pairs = [(i, o) for o in obstacles for i in capsules]
+        if not pairs:
+            return None
+        prims, span = self.primitives, self.influence or 0.0
+        start, stop = layout.add([f"{prims[i].name}|{o.name}" for i, o in pairs])
+        for i, o in pairs:
+            centre, rad = o.bounding_sphere()
+            reach = 0.5 * prims[i].length + prims[i].radius + rad + self.margin + span
+            layout.bound(self._column(i, None), centre, reach)
+        return against(self._capsules(start, stop, [i for i, _ in pairs]),
+                       [o for _, o in pairs])
+
+    def _self_group(self, by_frame: dict[str, list[int]], sphere_self: list[tuple[int, int]],
+                    layout: _Layout) -> _CapsuleSelf | None:
+        """The self pairs not both spheres, each bounded by the reach between midpoints."""
+        prims, span, taken = self.primitives, self.influence or 0.0, set(sphere_self)
+        pairs = [(i, j) for a, b in self.self_pairs for i in by_frame[a] for j in by_frame[b]
+                 if (i, j) not in taken]
+        if not pairs:
+            return None
+        start, stop = layout.add([f"{prims[i].name}|{prims[j].name}" for i, j in pairs])
+        for i, j in pairs:
+            reach = (0.5 * prims[i].length + 0.5 * prims[j].length + prims[i].radius
+                     + prims[j].radius + self.margin + span)
+            layout.bound(self._column(i, None) - self._column(j, None), np.zeros(3), reach)
+        pi, pj = [i for i, _ in pairs], [j for _, j in pairs]
+        return _CapsuleSelf(
+            start, stop, self._columns(pi, 0), self._columns(pi, 1), self._masks(pi),
+            np.array([prims[i].radius + prims[j].radius for i, j in pairs]) + self.margin,
+            ea2=self._columns(pj, 0), eb2=self._columns(pj, 1), mask2=self._masks(pj),
+        )
+
+    def _plane_group(self, capsules: list[int], layout: _Layout) -> _CapsulePlane | None:
+        """Every capsule primitive above each plane; in the broad phase, its ends' heights."""
+        pairs = [(i, o) for o in _only(PlaneObstacle, self.obstacles) for i in capsules]
+        if not pairs:
+            return None
+        start, stop = layout.add([f"{self.primitives[i].name}|{o.name}" for i, o in pairs])
+        g = _CapsulePlane.against(self._capsules(start, stop, [i for i, _ in pairs]),
+                                  [o for _, o in pairs])
+        for e in (g.ea, g.eb):  # heights n·a − offset − r − Δ and n·b − …, over vec(Y)
+            for p in range(len(pairs)):
+                layout.height(np.outer(g.normal[p], e[:, p]).reshape(-1),
+                              -(g.offset[p] + g.rsum[p]))
+        return g
 
     def _split_static(self, samples: int = 8) -> None:
         """Take the sphere pairs whose clearance cannot change out of the law.
@@ -463,7 +674,7 @@ class Clearance(ConfigurationConstraint):
         radius = np.array([prims[i].radius for i in spheres])
         to_obstacle = np.zeros((3 * n_obs, 4))
         to_world = np.zeros((3, 3 * n_obs))
-        slope = 1.0 if self.influence is None else 3.0 / self.influence  # see barrier_terms
+        slope = 1.0 if self.influence is None else 3.0 / self.influence  # see _sphere_factors
         for o, core in enumerate(cores):
             for k in range(3):  # row (k, o): u_k = R[:, k]·(s − c)
                 to_obstacle[k * n_obs + o, :3] = core.rotation[:, k]
@@ -587,32 +798,6 @@ class Clearance(ConfigurationConstraint):
         per_joint *= np.dot(_WRENCH, jac)
         return np.dot(_ONES12, per_joint)
 
-    def _narrow(
-        self, g: _Group, y: Array
-    ) -> tuple[Array, list[tuple[Array, Array, Array]], Array | None]:
-        """Exact clearances of a capsule group and its gradient rows (points, unit normals,
-        masks). For planes: φ of the a ends then the b ends (2P,), and min(φ_a, φ_b)."""
-        a = (y @ g.ea).T
-        b = (y @ g.eb).T
-        if g.kind == "sphere":
-            d, p, n = segment_point(a, b, g.other)  # type: ignore[arg-type]
-            return d - g.rsum, [(p, n, g.mask)], None
-        if g.kind == "capsule":
-            d, p, _, n = segment_segment(a, b, g.other, g.other2)  # type: ignore[arg-type]
-            return d - g.rsum, [(p, n, g.mask)], None
-        if g.kind == "box":
-            d, p, _, n = segment_box(a, b, g.other, g.rot, g.other2)  # type: ignore[arg-type]
-            return d - g.rsum, [(p, n, g.mask)], None
-        if g.kind == "self":
-            d, p, q, n = segment_segment(a, b, (y @ g.ea2).T, (y @ g.eb2).T)
-            return d - g.rsum, [(p, n, g.mask), (q, -n, g.mask2)], None  # type: ignore[list-item]
-        normal = g.other
-        phi_a = (a * normal).sum(axis=1) - g.other2 - g.rsum  # type: ignore[operator]
-        phi_b = (b * normal).sum(axis=1) - g.other2 - g.rsum  # type: ignore[operator]
-        phi_b_term = phi_b + (1.0 - g.has_b) * _FAR  # type: ignore[operator]
-        rows = [(a, normal, g.mask), (b, normal, g.mask)]
-        return np.concatenate([phi_a, phi_b_term]), rows, np.minimum(phi_a, phi_b)  # type: ignore[return-value]
-
     # -- ConfigurationConstraint ----------------------------------------------------------
     def value(self, x: Array) -> Array:
         y = self._regressor(self._q(x))
@@ -638,8 +823,7 @@ class Clearance(ConfigurationConstraint):
                 return out
             out = np.concatenate([out, np.empty(len(self.names) - s.stop)])
         for g in self._groups:
-            phi, _, pair = self._narrow(g, y)
-            out[g.start:g.stop] = phi if pair is None else pair
+            out[g.start:g.stop] = g.reported(g.narrow(y)[0])
         return out
 
     def values_along(self, xs: Array) -> Array:
@@ -675,17 +859,9 @@ class Clearance(ConfigurationConstraint):
             bounds = [*s.starts.tolist(), len(phi)]
             closest = [lo + int(np.argmin(phi[lo:hi])) for lo, hi in pairwise(bounds)]
             grad[s.start:s.stop] = g0[closest]
+        jacobian_rows = partial(self._rows_times_jacobians, q)
         for g in self._groups:
-            phi, rows, _ = self._narrow(g, y)
-            size = g.stop - g.start
-            if g.kind == "plane":
-                (pa, n, mask), (pb, _, _) = rows
-                use_b = (phi[size:] < phi[:size])[:, None]
-                grad[g.start:g.stop] = self._rows_times_jacobians(
-                    q, np.where(use_b, pb, pa), n, mask)
-            else:
-                grad[g.start:g.stop] = sum(
-                    self._rows_times_jacobians(q, p, n, mask) for p, n, mask in rows)
+            grad[g.start:g.stop] = g.gradient(*g.narrow(y), jacobian_rows)
         if not self._identity:
             grad = grad @ self._t_inv
         return out, grad
@@ -711,7 +887,7 @@ class Clearance(ConfigurationConstraint):
         v2 /= shaped
         return shaped, v2
 
-    def _near_groups(self, y: Array) -> list[_Group]:
+    def _near_groups(self, y: Array) -> list[_CapsuleGroup]:
         """Capsule groups with a pair that may be within the influence distance."""
         if not self._groups:
             return []
@@ -733,10 +909,11 @@ class Clearance(ConfigurationConstraint):
 
     def _barrier(self, x: Array, q: Array, with_value: bool
                  ) -> tuple[Array, Array, Array | None]:
+        """The sphere pairs' factors of φ̃ and their normals, then the terms of the capsule
+        groups that may be within ℓ, then the force of both (``_force``). Outside S: the
+        clearances φ for φ̃ and no force (the constraint set raises)."""
         y = self._regressor(q)
         value: Array | None = None
-        ell = self.influence
-        rows: list[tuple[Array, Array, Array]] = []
         phi_out: Array | None = None
         sphere_local: Array | None = None  # the pairs' normals × (dφ̃/dφ)/φ̃, obstacle frames
         s = self._spheres
@@ -749,64 +926,85 @@ class Clearance(ConfigurationConstraint):
                 return value, self._zero, value
             if with_value:
                 value = self._value(y, d, u)
-            # a link's barrier is the product of its spheres' terms (their log-barriers add);
-            # spheres that cannot move relative to an obstacle give a constant factor
-            slope: Array | None = None
-            if ell is None:
-                factor = np.where(s.moving > 0.0, phi, 1.0)
-                slope = s.moving / phi
-            elif low < ell:  # only the pairs within ℓ enter the law: the others have φ̃ = ℓ,
-                # so factor 1 and slope 0, and all pairs go through densely. In place, with
-                # v = 1 − min(φ/ℓ, 1): φ̃/ℓ = 1 − v³ and (dφ̃/dφ)/φ̃ = (3/ℓ) v²/(1 − v³),
-                # 3/ℓ kept in ``to_world``
-                v = phi * self._inv_ell
-                np.minimum(v, _ONE, out=v)
-                np.subtract(_ONE, v, out=v)
-                slope = v * v
-                factor = slope * v
-                np.subtract(_ONE, factor, out=factor)
-                slope /= factor
-            if slope is not None:
-                products = np.multiply.reduceat(factor, s.starts)
-                if self._groups:
-                    phi_out = self._far_phi.copy()
-                    phi_out[:s.stop] *= products
-                else:
-                    phi_out = np.multiply(products, self._far_phi)
-                slope /= d
-                sphere_local = np.copysign(outside, u, out=outside)
-                sphere_local *= slope
-        for g in self._near_groups(y):
-            phi, grows, _ = self._narrow(g, y)
-            if phi.min() <= 0.0:
-                value = self.value(x)
-                return value, self._zero, value
-            shaped, inv = self._shape(phi)
-            phi_out = self._far_phi.copy() if phi_out is None else phi_out
-            size = g.stop - g.start
-            if g.kind == "plane":  # the pair's barrier is the product of its end terms
-                (pa, n, mask), (pb, _, _) = grows
-                keep_b = shaped[size:] if ell is not None else np.where(
-                    g.has_b > 0, shaped[size:], 1.0)  # type: ignore[operator]
-                phi_out[g.start:g.stop] = shaped[:size] * (keep_b / (ell or 1.0))
-                rows += [(pa, n * inv[:size, None], mask),
-                         (pb, n * (inv[size:] * g.has_b)[:, None], mask)]  # type: ignore[operator]
-            else:
-                phi_out[g.start:g.stop] = shaped
-                rows += [(p, n * inv[:, None], mask) for p, n, mask in grows]
+            phi_out, sphere_local = self._sphere_law(s, phi, low, d, u, outside)
+        capsules = self._capsule_law(y, phi_out)
+        if capsules is None:  # a capsule pair outside S
+            value = self.value(x)
+            return value, self._zero, value
+        phi_out, rows = capsules
         if with_value and value is None:
             value = self.value(x)
         if phi_out is None:
             return self._far_phi, self._zero, value
-        jac = self._data.J  # the state's joint Jacobians (RobotModel.state, kinematics=True)
+        return phi_out, self._force(q, sphere_local, rows), value
+
+    def _sphere_law(self, s: _Spheres, phi: Array, low: Array, d: Array, u: Array,
+                    outside: Array) -> tuple[Array | None, Array | None]:
+        """φ̃ of every constraint, its sphere constraints' the product of their pairs'
+        factors (their log-barriers add; a pair that cannot move gives a constant factor),
+        and the pairs' normals × (dφ̃/dφ)/φ̃ in the obstacles' frames (``outside`` is
+        overwritten); (None, None) when no pair is within ℓ."""
+        factors = self._sphere_factors(s, phi, low)
+        if factors is None:
+            return None, None
+        factor, slope = factors
+        products = np.multiply.reduceat(factor, s.starts)
+        if self._groups:
+            phi_out = self._far_phi.copy()
+            phi_out[:s.stop] *= products
+        else:
+            phi_out = np.multiply(products, self._far_phi)
+        slope /= d
+        sphere_local = np.copysign(outside, u, out=outside)
+        sphere_local *= slope
+        return phi_out, sphere_local
+
+    def _sphere_factors(self, s: _Spheres, phi: Array, low: Array
+                        ) -> tuple[Array, Array] | None:
+        """Each sphere pair's factor φ̃/ℓ (φ without ℓ) and (dφ̃/dφ)/φ̃ (without the 3/ℓ kept
+        in ``to_world``); None when no pair is within ℓ (the sphere pairs are all far)."""
+        if self.influence is None:
+            return np.where(s.moving > 0.0, phi, 1.0), s.moving / phi
+        if not low < self.influence:
+            return None
+        # only the pairs within ℓ enter the law: the others have φ̃ = ℓ, so factor 1 and
+        # slope 0, and all pairs go through densely. In place, with v = 1 − min(φ/ℓ, 1):
+        # φ̃/ℓ = 1 − v³ and (dφ̃/dφ)/φ̃ = (3/ℓ) v²/(1 − v³)
+        v = phi * self._inv_ell
+        np.minimum(v, _ONE, out=v)
+        np.subtract(_ONE, v, out=v)
+        slope = v * v
+        factor = slope * v
+        np.subtract(_ONE, factor, out=factor)
+        slope /= factor
+        return factor, slope
+
+    def _capsule_law(self, y: Array, phi_out: Array | None
+                     ) -> tuple[Array | None, list[_Rows]] | None:
+        """The terms of the capsule groups that may be within ℓ: their φ̃ into ``phi_out``
+        (a copy of the far values first if None) and the rows of their force; None when a
+        pair is outside S."""
+        rows: list[_Rows] = []
+        for g in self._near_groups(y):
+            phi, grows = g.narrow(y)
+            if phi.min() <= 0.0:
+                return None
+            shaped, ratio = self._shape(phi)
+            phi_out = self._far_phi.copy() if phi_out is None else phi_out
+            phi_out[g.start:g.stop], g_rows = g.law(shaped, ratio, grows, self.influence)
+            rows += g_rows
+        return phi_out, rows
+
+    def _force(self, q: Array, sphere_local: Array | None, rows: list[_Rows]) -> Array:
+        """Σ ∇φ̃/φ̃: the sphere pairs' (``_sphere_force``) plus the capsule rows', from the
+        state's joint Jacobians (RobotModel.state, kinematics=True)."""
+        jac = self._data.J
         b = self._zero
         if sphere_local is not None:
-            assert s is not None
             b = self._sphere_force(sphere_local, jac)
         if rows:
-            b = b + self._rows_times_jacobians(
-                q, *(np.concatenate(part) for part in zip(*rows, strict=True)), jac=jac
-            ).sum(axis=0)
+            points, normals, masks = (np.concatenate(part) for part in zip(*rows, strict=True))
+            b = b + self._rows_times_jacobians(q, points, normals, masks, jac).sum(axis=0)
         if not self._identity:
             b = b @ self._t_inv
-        return phi_out, b, value
+        return b
