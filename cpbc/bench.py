@@ -14,7 +14,7 @@ import statistics
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -38,6 +38,7 @@ from cpbc.controllers import (
     Power,
     RecentredBarrier,
 )
+from cpbc.controllers.safeguard import SafeguardSettings, guarded
 from cpbc.model import LinearCoordinates, RobotModel
 from cpbc.resources import models_dir
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, run_mujoco
@@ -122,11 +123,10 @@ def time_loop(
     law."""
     plant = setup.make_plant()
     settings = LoopSettings(seconds, 0.001)
-    if not safeguard:
-        settings = replace(settings, safeguard=None)
+    law = guarded(ctrl, settings.control_period, SafeguardSettings() if safeguard else None)
     rates = []
     for _ in range(repeats):
-        traj = run_mujoco(plant, ctrl, setup.coordinates, *setup.start, settings)
+        traj = run_mujoco(plant, law, setup.coordinates, *setup.start, settings)
         rates.append(traj.steps_per_second)
     return statistics.median(rates)
 

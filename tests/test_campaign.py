@@ -100,7 +100,7 @@ def test_a_joint_stop_met_before_any_violation_is_a_touch() -> None:
     q[2] = np.pi - 2e-3
     dq = np.zeros(6)
     dq[2] = 0.9  # inside the 0.945 rad/s bound, heading into the stop
-    settings = replace(setup.loop_settings, duration=0.05, safeguard=None)
+    settings = replace(setup.loop_settings, duration=0.05)
     check = checked_run(plant, setup, _first_law(setup, True), q, dq, settings)
     assert plant.first_touch is not None
     assert check.touched and check.touch == "joint stop elbow_joint"
@@ -118,7 +118,7 @@ def test_a_stop_met_only_after_the_limit_is_crossed_is_not_a_touch() -> None:
     q[3] = model.jnt_range[3, 1] - 1e-4
     dq = np.zeros(7)
     dq[3] = 1.0
-    settings = replace(setup.loop_settings, duration=0.02, safeguard=None)
+    settings = replace(setup.loop_settings, duration=0.02)
     check = checked_run(plant, setup, _first_law(setup, False), q, dq, settings, limits)
     assert check.violated and check.constraint == "position[panda_joint4]"
     assert plant.first_touch is not None and not check.touched and check.touch is None

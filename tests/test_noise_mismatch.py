@@ -100,7 +100,7 @@ class Pushing(Controller):
 def test_true_state_outside_S_ends_the_run_as_violated(absolute_model, plant) -> None:
     rates = ConstraintSet(2, velocity=[joint_rate_limit(RATES, ["t1", "t2"])])
     law = Pushing(absolute_model, np.zeros(2), rates)
-    settings = LoopSettings(1.0, 0.001, safeguard=None,
+    settings = LoopSettings(1.0, 0.001,
                             noise=MeasurementNoise(0.0, 0.01, seed=2))
     traj = run(plant, law, settings)
     assert traj.outcome == "constraint_violated"

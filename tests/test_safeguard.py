@@ -14,7 +14,7 @@ import pytest
 from cpbc.constraints import ConstraintSet, joint_position_limit, joint_rate_limit
 from cpbc.controllers import BPBC, Power, RecentredBarrier
 from cpbc.controllers.linalg import solve_spd
-from cpbc.controllers.safeguard import Safeguard, SafeguardSettings, viable
+from cpbc.controllers.safeguard import Safeguard, SafeguardSettings, guarded, viable
 from cpbc.errors import CpbcError
 from cpbc.model import RobotModel
 from cpbc.reliability.campaign import (
@@ -259,9 +259,11 @@ def test_loop_reports_the_safeguard_and_can_switch_it_off(recentred: RecentredBa
     plant = MujocoPlant.from_file(planar_path, PlantSettings(0.001, "Euler"))
     x0, dx0 = np.array([0.7, -1.29]), np.array([0.09, -0.3])
     coords = recentred.model.coordinates
-    on = run_mujoco(plant, recentred, coords, x0, dx0, LoopSettings(0.2, 0.01))
-    off = run_mujoco(plant, recentred, coords, x0, dx0,
-                     LoopSettings(0.2, 0.01, safeguard=None))
+    on = run_mujoco(plant, guarded(recentred, 0.01, SafeguardSettings()), coords, x0, dx0,
+                    LoopSettings(0.2, 0.01))
+    off = run_mujoco(plant, guarded(recentred, 0.01, None), coords, x0, dx0,
+                     LoopSettings(0.2, 0.01))
+    assert guarded(recentred, 0.01, None) is recentred
     assert on.outcome == "completed" and on.safeguard_steps > 0
     assert off.safeguard_steps == 0
 
@@ -278,8 +280,8 @@ def test_also_keeps_a_constraint_the_law_only_monitors(bpbc: BPBC, planar_path,
     x0, dx0 = np.array([0.2, 0.2]), np.array([0.29, 0.15])
     low = {}
     for keep in ((), (wall,)):
-        traj = run_mujoco(plant, bpbc, coords, x0, dx0,
-                          LoopSettings(1.0, period, also_keep=keep))
+        traj = run_mujoco(plant, guarded(bpbc, period, SafeguardSettings(), also_keep=keep),
+                          coords, x0, dx0, LoopSettings(1.0, period))
         assert traj.outcome == "completed"
         xs, dxs = plant.fine_states(coords.matrix)
         low[len(keep)] = float(wall.values_along(xs).min())
@@ -302,13 +304,13 @@ def test_an_extra_constraint_already_broken_does_not_break_the_guard(bpbc: BPBC)
 
 def test_scenarios_keep_their_monitored_constraints_unless_told_not_to() -> None:
     setup = campaign_setup("ur5_bpbc")
-    assert setup.loop_settings.also_keep == setup.monitor.configuration
-    names = [n for c in setup.loop_settings.also_keep for n in c.names]
+    assert setup.also_keep == setup.monitor.configuration
+    names = [n for c in setup.also_keep for n in c.names]
     assert "position[elbow_joint]" in names and "clearance[wrist_3_link|floor]" in names
     spec, file = load_scenario("ur5_bpbc")
     off = spec.model_copy(update={"simulation": spec.simulation.model_copy(
         update={"safeguard_monitored": False})})
-    assert build(off, file).loop_settings.also_keep == ()
+    assert build(off, file).also_keep == ()
 
 
 def test_summary_and_scenario_key(tmp_path) -> None:
@@ -320,6 +322,6 @@ def test_summary_and_scenario_key(tmp_path) -> None:
     (on,) = run_all(setup)
     assert on.summary.safeguard_steps > 0
     assert on.summary.as_dict()["safeguard_steps"] == on.summary.safeguard_steps
-    setup.loop_settings = replace(setup.loop_settings, safeguard=None)
+    setup.safeguard = None
     (off,) = run_all(setup)
     assert off.summary.safeguard_steps == 0

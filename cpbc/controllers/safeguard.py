@@ -142,6 +142,24 @@ def viable(constraints: ConstraintSet, x: Array, dx: Array, period: float) -> bo
     return bool(np.all(constraints.configuration_margins(probe) > 0))
 
 
+def guarded(
+    law: Controller,
+    period: float,
+    settings: SafeguardSettings | None,
+    torque_limit: Array | float | None = None,
+    also_keep: Sequence[ConfigurationConstraint] = (),
+) -> Controller:
+    """The law as a sampled-data loop at period h should run it: wrapped in a Safeguard with
+    ``settings`` when it enforces constraints, else the law itself (also with no settings).
+
+    ``torque_limit`` is the plant's joint torque saturation (a number or one per joint)."""
+    if settings is None or law.constraints.empty:
+        return law
+    limit = None if torque_limit is None else np.broadcast_to(
+        np.asarray(torque_limit, dtype=float), (law.model.n,))
+    return Safeguard(law, period, settings, limit, also_keep)
+
+
 class Safeguard(Controller):
     """Wraps a constrained law so that (S1) holds under zero-order hold at period h.
 

@@ -21,6 +21,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
+from cpbc.controllers import safeguard as sg
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings, viable
 from cpbc.errors import ConstraintViolation
 from cpbc.reliability.sampling import SampledState, StateSampler
@@ -145,6 +146,18 @@ class RunCheck:
     touch: str | None = None
 
 
+def _run(
+    plant: MujocoPlant, setup: ScenarioSetup, entry: ControllerEntry, x0: Array, dx0: Array,
+    settings: LoopSettings, safeguard: SafeguardSettings | None,
+    progress: Callable[[float], None] | None = None,
+) -> Trajectory:
+    """The entry's law in the loop, wrapped in ``safeguard`` (with the scenario's extra
+    constraints) at the settings' period and torque limit when it is given."""
+    law = sg.guarded(entry.controller, settings.control_period, safeguard,
+                     settings.torque_limit, setup.also_keep)
+    return run_mujoco(plant, law, setup.model.coordinates, x0, dx0, settings, progress)
+
+
 def checked_run(
     plant: RecordingPlant,
     setup: ScenarioSetup,
@@ -153,9 +166,11 @@ def checked_run(
     dx0: Array,
     settings: LoopSettings,
     constraints: ConstraintSet | None = None,
+    safeguard: SafeguardSettings | None = None,
 ) -> RunCheck:
-    """run_mujoco, then the enforced margins at every physics step of the true plant."""
-    traj = run_mujoco(plant, entry.controller, setup.model.coordinates, x0, dx0, settings)
+    """run_mujoco (the law wrapped in ``safeguard`` if given), then the enforced margins at
+    every physics step of the true plant."""
+    traj = _run(plant, setup, entry, x0, dx0, settings, safeguard)
     cons = constraints if constraints is not None else entry.controller.constraints
     xs, dxs = plant.fine_states(setup.model.coordinates.matrix)
     low, name, first = _min_margin(cons, xs, dxs)
@@ -238,12 +253,13 @@ def sampled_data_campaign(
             for guarded in (False, True):
                 settings = replace(
                     setup.loop_settings, duration=horizon, control_period=period,
-                    torque_limit=None, noise=None, safeguard=safeguard if guarded else None,
+                    torque_limit=None, noise=None,
                 )
                 start = time.perf_counter()
                 bad = 0
                 for i, s in enumerate(states):
-                    check = checked_run(base, setup, entry, s.position, s.velocity, settings)
+                    check = checked_run(base, setup, entry, s.position, s.velocity, settings,
+                                        safeguard=safeguard if guarded else None)
                     traj = check.trajectory
                     bad += check.violated
                     out.append({
@@ -292,7 +308,7 @@ def longest_safe_period(
         for period in sorted(periods):
             settings = replace(
                 setup.loop_settings, control_period=period, torque_limit=None, noise=None,
-                safeguard=None, log_every=1,
+                log_every=1,
             )
             case_bad = []
             for case in setup.cases:
@@ -380,12 +396,7 @@ def mismatch_campaign(
                 if entry.controller.type_name in unguarded_types:
                     variants.append(False)
                 for guarded in variants:
-                    settings = replace(
-                        setup.loop_settings, log_every=log_every, noise=None,
-                        safeguard=setup.loop_settings.safeguard if guarded else None,
-                    )
-                    if guarded and settings.safeguard is None:
-                        settings = replace(settings, safeguard=SafeguardSettings())
+                    settings = replace(setup.loop_settings, log_every=log_every, noise=None)
                     for case in setup.cases:
                         out.append(_mismatch_run(
                             plant, setup, entry, case.name, case.position, case.velocity,
@@ -401,7 +412,8 @@ def _mismatch_run(
     guarded: bool,
 ) -> Record:
     coords = setup.model.coordinates
-    traj = run_mujoco(plant, entry.controller, coords, x0, dx0, settings)
+    safeguard = (setup.safeguard or SafeguardSettings()) if guarded else None
+    traj = _run(plant, setup, entry, x0, dx0, settings, safeguard)
     status, settle = judge_status(traj, entry.controller.target, setup.criteria)
     monitor = setup.monitor
     xs, dxs = traj.position, traj.velocity
@@ -457,12 +469,11 @@ def noise_campaign(
                 settings = replace(
                     setup.loop_settings, log_every=log_every,
                     noise=MeasurementNoise(sx, sv, seed),
-                    safeguard=setup.loop_settings.safeguard or SafeguardSettings(),
                 )
                 out.append(_status_record(
                     plant, setup, entry, case.name, case.position, case.velocity, settings,
                     {"scenario": scenario, "level": name, "sigma_position": sx,
-                     "sigma_velocity": sv},
+                     "sigma_velocity": sv}, setup.safeguard or SafeguardSettings(),
                 ))
         log(f"{scenario} noise {name} done")
     return out
@@ -481,9 +492,9 @@ def saturation_campaign(
     out: list[Record] = []
     for entry in setup.controllers:
         for case in setup.cases:
-            free = run_mujoco(
-                plant, entry.controller, setup.model.coordinates, case.position,
-                case.velocity, replace(setup.loop_settings, log_every=log_every, noise=None),
+            free = _run(
+                plant, setup, entry, case.position, case.velocity,
+                replace(setup.loop_settings, log_every=log_every, noise=None), setup.safeguard,
             )
             peak = np.max(np.abs(np.nan_to_num(free.joint_torque)), axis=0)
             for frac in fractions:
@@ -491,12 +502,13 @@ def saturation_campaign(
                 for guarded in (False, True):
                     settings = replace(
                         setup.loop_settings, log_every=log_every, torque_limit=limit,
-                        noise=None, safeguard=SafeguardSettings() if guarded else None,
+                        noise=None,
                     )
                     out.append(_status_record(
                         plant, setup, entry, case.name, case.position, case.velocity,
                         settings, {"scenario": scenario, "fraction": frac,
                                    "safeguard": guarded, "peak": peak.tolist()},
+                        SafeguardSettings() if guarded else None,
                     ))
         log(f"{scenario} saturation {entry.name} done")
     return out
@@ -504,10 +516,10 @@ def saturation_campaign(
 
 def _status_record(
     plant: MujocoPlant, setup: ScenarioSetup, entry: ControllerEntry, case: str, x0: Array,
-    dx0: Array, settings: LoopSettings, extra: Record,
+    dx0: Array, settings: LoopSettings, extra: Record, safeguard: SafeguardSettings | None,
 ) -> Record:
     try:
-        traj = run_mujoco(plant, entry.controller, setup.model.coordinates, x0, dx0, settings)
+        traj = _run(plant, setup, entry, x0, dx0, settings, safeguard)
     except Exception as exc:  # the point of the campaign: any crash is a finding
         return {**extra, "controller": entry.name, "case": case, "status": "crashed",
                 "error": f"{type(exc).__name__}: {exc}"}
@@ -532,7 +544,7 @@ def safeguard_cost(
     period: float, repeats: int = 5,
 ) -> Record:
     """Median µs per call of the bare law and of the guarded law over the same states."""
-    guard = Safeguard(entry.controller, period, also_keep=setup.loop_settings.also_keep)
+    guard = Safeguard(entry.controller, period, also_keep=setup.also_keep)
     law = entry.controller
 
     def timed(f: Callable[[Array, Array], object]) -> float:
@@ -576,8 +588,8 @@ def long_run(setup: ScenarioSetup, entry: ControllerEntry, duration: float,
     plant = setup.make_plant()
     before = _rss_kib()
     start = time.perf_counter()
-    traj = run_mujoco(plant, entry.controller, setup.model.coordinates, case.position,
-                      case.velocity, settings, progress=lambda _f: rss.append(_rss_kib()))
+    traj = _run(plant, setup, entry, case.position, case.velocity, settings, setup.safeguard,
+                progress=lambda _f: rss.append(_rss_kib()))
     wall = time.perf_counter() - start
     status, _ = judge_status(traj, entry.controller.target, setup.criteria)
     log_bytes = sum(a.nbytes for a in (traj.time, traj.position, traj.velocity, traj.torque,

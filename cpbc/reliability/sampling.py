@@ -114,8 +114,8 @@ class StateSampler:
             # Uniform in the box of per-coordinate bounds where the rows are per joint.
             bounds = np.full(n, np.inf)
             for c in self._rates:
-                if c.is_per_joint:
-                    bounds[c._joint_index] = np.minimum(bounds[c._joint_index], c.bounds)
+                if c.joint_index is not None:
+                    bounds[c.joint_index] = np.minimum(bounds[c.joint_index], c.bounds)
             if np.all(np.isfinite(bounds)):
                 return dx * bounds
         # Otherwise scale to the largest admissible multiple, then to a uniform fraction.
@@ -167,6 +167,18 @@ class StateSampler:
                 return None
         return x + _last_above(rel, fraction, t - step, t) * d, d
 
+    def _near_kind(self) -> str:
+        """Which boundary a near-boundary state approaches: velocity, configuration or
+        both (a third of the time when there are both)."""
+        kinds = []
+        if self.constraints.velocity:
+            kinds.append("near_velocity")
+        if self.constraints.configuration:
+            kinds.append("near_configuration")
+        if len(kinds) == 2 and self.rng.uniform() < 1 / 3:
+            kinds = ["near_both"]
+        return kinds[int(self.rng.integers(len(kinds)))] if kinds else "interior"
+
     def draw(self) -> SampledState:
         """One admissible state."""
         for _ in range(10_000):
@@ -180,14 +192,7 @@ class StateSampler:
             if self.rng.uniform() < self.near:
                 close = float(np.exp(self.rng.uniform(np.log(self.closest),
                                                       np.log(self.farthest))))
-                kinds = []
-                if self.constraints.velocity:
-                    kinds.append("near_velocity")
-                if self.constraints.configuration:
-                    kinds.append("near_configuration")
-                if len(kinds) == 2 and self.rng.uniform() < 1 / 3:
-                    kinds = ["near_both"]
-                kind = kinds[int(self.rng.integers(len(kinds)))] if kinds else "interior"
+                kind = self._near_kind()
                 if kind in ("near_configuration", "near_both"):
                     pushed = self._push_configuration(x, close)
                     if pushed is None:

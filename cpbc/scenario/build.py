@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
@@ -24,6 +24,7 @@ from cpbc.constraints import (
 )
 from cpbc.constraints.geometry import Obstacle, SceneGeom
 from cpbc.controllers import CONTROLLERS, Controller, Identity, Power, Tanh
+from cpbc.controllers.safeguard import SafeguardSettings, guarded
 from cpbc.controllers.shaping import Shaping
 from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
 from cpbc.model import LinearCoordinates, RobotModel
@@ -36,7 +37,6 @@ from cpbc.scenario import schema as s
 from cpbc.scenario.gains import physical_gains, unstable_loop
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, substeps_per_control
 from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
-from cpbc.simulation.loop import DEFAULT_SAFEGUARD
 
 
 @dataclass(frozen=True)
@@ -83,6 +83,17 @@ class ScenarioSetup:
     coordinate_names: tuple[str, ...]
     source: Path  # the scenario file, so worker processes can rebuild the setup
     arm: LoadedArm | None = None  # a URDF robot (None for an MJCF model)
+    # the sampled-data safeguard around every constrained law (None: the bare laws), and the
+    # configuration constraints it keeps besides each law's own (the monitored ones)
+    safeguard: SafeguardSettings | None = None
+    also_keep: tuple[ConfigurationConstraint, ...] = ()
+
+    def controller(self, entry: ControllerEntry) -> Controller:
+        """The entry's law as the scenario runs it in the sampled-data loop: wrapped in the
+        safeguard at the loop's control period and torque limit, when it has one."""
+        loop = self.loop_settings
+        return guarded(entry.controller, loop.control_period, self.safeguard,
+                       loop.torque_limit, self.also_keep)
 
     def make_plant(self) -> MujocoPlant:
         """A fresh MuJoCo plant of the scenario's robot with its obstacles in the scene."""
@@ -469,7 +480,7 @@ def _loop_settings(sim: s.SimulationSpec, model: RobotModel) -> LoopSettings:
         )
     return LoopSettings(
         sim.duration, control_period, limit, sim.log_every,
-        safeguard=DEFAULT_SAFEGUARD if sim.safeguard else None, noise=noise,
+        noise=noise,
         max_log_samples=sim.max_log_samples,
     )
 
@@ -612,8 +623,6 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         [c for c in built.values() if isinstance(c, ConfigurationConstraint)],
         [c for c in built.values() if isinstance(c, VelocityConstraint)],
     )
-    if sim.safeguard and sim.safeguard_monitored:
-        loop = replace(loop, also_keep=monitor.configuration)
     target, cases = _states(scenario, model, monitor, joint_ranges(model, plant))
     controllers = _controllers(scenario, model, target, cases, built, names)
     setup = ScenarioSetup(
@@ -621,6 +630,8 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         PlantSettings(sim.timestep, sim.integrator),
         loop, SettleCriteria(sim.position_tolerance, sim.velocity_tolerance), rate_bounds,
         obstacles, names, scenario_file, arm,
+        safeguard=SafeguardSettings() if sim.safeguard else None,
+        also_keep=monitor.configuration if sim.safeguard and sim.safeguard_monitored else (),
     )
     _check_disturbances(scenario, plant, model.n)
     return setup

@@ -51,7 +51,7 @@ def run_one(
 
     if backend == "mujoco":
         traj = run_mujoco(
-            plant or setup.make_plant(), entry.controller, setup.model.coordinates,
+            plant or setup.make_plant(), setup.controller(entry), setup.model.coordinates,
             case.position, case.velocity, setup.loop_settings, report,
         )
     else:

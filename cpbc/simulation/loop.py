@@ -10,9 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.controllers.base import Controller
-from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
+from cpbc.controllers.safeguard import Safeguard
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model.coordinates import LinearCoordinates
 from cpbc.simulation.disturbances import MeasurementNoise, rate_into_set
@@ -20,7 +19,6 @@ from cpbc.simulation.plant import MujocoPlant
 from cpbc.simulation.trajectory import Trajectory, TrajectoryLog
 
 Progress = Callable[[float], None]
-DEFAULT_SAFEGUARD = SafeguardSettings()  # on by default (frozen, so one shared instance)
 
 
 @dataclass(frozen=True)
@@ -32,10 +30,6 @@ class LoopSettings:
         control_period: controller period [s]; a whole multiple of the physics timestep.
         torque_limit: symmetric joint torque limits |τ_q,i| ≤ limit_i [N·m], or None.
         log_every: keep every k-th control sample (long runs).
-        safeguard: the sampled-data safeguard wrapped around every law that enforces
-            constraints (cpbc.controllers.safeguard), or None to run the bare law.
-        also_keep: configuration constraints the safeguard keeps besides each law's own
-            (the scenario's monitored obstacles and joint ranges); unused without it.
         noise: Gaussian noise on the state the controller sees, or None.
         max_log_samples: the log never holds more samples than this: when full, it drops
             every other sample and halves its rate (memory stays bounded on long runs).
@@ -45,8 +39,6 @@ class LoopSettings:
     control_period: float
     torque_limit: Array | None = None
     log_every: int = 1
-    safeguard: SafeguardSettings | None = DEFAULT_SAFEGUARD
-    also_keep: tuple[ConfigurationConstraint, ...] = ()
     noise: MeasurementNoise | None = None
     max_log_samples: int = 100_000
 
@@ -71,6 +63,37 @@ def substeps_per_control(control_period: float, timestep: float) -> int:
     return k
 
 
+class _Sampler:
+    """The controller at one control instant, as it sees the state: through the measurement
+    noise, if any; a measured state it refuses while the true one is inside S is a
+    *rejected* sample, answered by ``_fallback``."""
+
+    def __init__(self, controller: Controller, noise: MeasurementNoise | None, n: int) -> None:
+        self.controller = controller
+        self.noise = noise if noise is not None and noise.active else None
+        if self.noise is not None:
+            self.sigma_x, self.sigma_dx = self.noise.sigmas(n)
+            self.rng = np.random.default_rng(self.noise.seed)
+        self.n = n
+        self.rejected = 0
+
+    def __call__(self, x: Array, dx: Array, held: Array | None) -> tuple[Array, float]:
+        """τ and the true V; ConstraintViolation when the true state has left S too."""
+        if self.noise is None:
+            return self.controller.evaluate(x, dx)
+        xm = x + self.sigma_x * self.rng.standard_normal(self.n)
+        dxm = dx + self.sigma_dx * self.rng.standard_normal(self.n)
+        ctrl = self.controller
+        try:
+            tau = ctrl.evaluate(xm, dxm)[0]
+        except ConstraintViolation:
+            if not _inside(ctrl, x, dx):
+                raise
+            self.rejected += 1  # the measurement left S, the arm did not
+            tau = _fallback(ctrl, xm, dxm, ctrl.model.gravity(xm) if held is None else held)
+        return tau, _true_lyapunov(ctrl, x, dx)
+
+
 def run_mujoco(
     plant: MujocoPlant,
     controller: Controller,
@@ -82,14 +105,16 @@ def run_mujoco(
 ) -> Trajectory:
     """Simulate the closed loop from (x0, ẋ0), given in controller coordinates.
 
-    The controller sees the state through ``settings.noise`` (if any) and, when it enforces
-    constraints, through ``settings.safeguard``. A measured state outside S is refused by the
-    law (ConstraintViolation); the loop then asks the plant: if the true state is inside S,
-    the sample is *rejected* and counted in ``Trajectory.rejected_samples``: the law is
-    evaluated at the measured rate scaled back just inside S (rate_into_set), or, when a
-    configuration margin was measured ≤ 0, the previous torque is held (gravity compensation
-    at the first sample) — what a real controller, which cannot know the true state, can do.
-    If the true state is outside S too, the run ends as ``constraint_violated``.
+    The loop runs ``controller`` as it is given: a law, or a law the scenario builder has
+    wrapped in its sampled-data safeguard (cpbc.controllers.safeguard.guarded), whose counts
+    the trajectory reports. The controller sees the state through ``settings.noise`` (if
+    any). A measured state outside S is refused by the law (ConstraintViolation); the loop
+    then asks the plant: if the true state is inside S, the sample is *rejected* and counted
+    in ``Trajectory.rejected_samples``: the law is evaluated at the measured rate scaled back
+    just inside S (rate_into_set), or, when a configuration margin was measured ≤ 0, the
+    previous torque is held (gravity compensation at the first sample) — what a real
+    controller, which cannot know the true state, can do. If the true state is outside S
+    too, the run ends as ``constraint_violated``.
     """
     substeps = substeps_per_control(settings.control_period, plant.model.opt.timestep)
     steps = round(settings.duration / settings.control_period)
@@ -100,29 +125,16 @@ def run_mujoco(
     limit = settings.torque_limit
     plant.reset(t_inv @ x0, t_inv @ dx0)
     log = TrajectoryLog(n, steps + 1, settings.log_every, settings.max_log_samples)
-    law: Controller = controller
-    guard: Safeguard | None = None
-    if settings.safeguard is not None and not controller.constraints.empty:
-        joint_limit = None if limit is None else np.broadcast_to(limit, (n,))
-        guard = Safeguard(controller, settings.control_period, settings.safeguard, joint_limit,
-                          settings.also_keep)
-        law = guard
-    noisy = settings.noise is not None and settings.noise.active
-    if noisy:
-        sigma_x, sigma_dx = settings.noise.sigmas(n)  # type: ignore[union-attr]
-        rng = np.random.default_rng(settings.noise.seed)  # type: ignore[union-attr]
-    rejected = 0
-    tau = np.zeros(n)
+    sample = _Sampler(controller, settings.noise, n)
+    tau: Array | None = None
     outcome, violated, saturated, contacts = "completed", None, 0, 0
     report_every = max(1, steps // 50)
     start = _time.perf_counter()
-    calls = 0
     data, h = plant.data, settings.control_period
     qpos, qvel = data.qpos, data.qvel
     # The step's calls bound once; ndarray.dot and sums of lists: on 2-vectors numpy's @
-    # costs twice as much here. A control step of a 2-link arm is some 30 µs all told.
-    evaluate, record, apply, step, unstable = (
-        law.evaluate, log.record, plant.apply, plant.step, plant.unstable)
+    # costs twice as much here.
+    record, apply, step, unstable = log.record, plant.apply, plant.step, plant.unstable
     for k in range(steps + 1):
         t = k * h
         x = qpos.copy() if identity else t_mat.dot(qpos)
@@ -130,23 +142,12 @@ def run_mujoco(
         if not math.isfinite(sum(x.tolist()) + sum(dx.tolist())):  # NaN or overflow
             outcome = "diverged"
             break
-        xm, dxm = x, dx
-        if noisy:
-            xm = x + sigma_x * rng.standard_normal(n)
-            dxm = dx + sigma_dx * rng.standard_normal(n)
         try:
-            calls += 1
-            tau, v = evaluate(xm, dxm)
-            if noisy:
-                v = _true_lyapunov(controller, x, dx)
+            tau, v = sample(x, dx, tau)
         except ConstraintViolation as exc:
-            if not noisy or not _inside(controller, x, dx):
-                outcome, violated = "constraint_violated", exc.constraint
-                log.record(t, np.nan, x, dx, np.full(n, np.nan), np.full(n, np.nan), force=True)
-                break
-            rejected += 1  # the measurement left S, the arm did not
-            tau = _fallback(law, xm, dxm, tau if k else controller.model.gravity(xm))
-            v = _true_lyapunov(controller, x, dx)
+            outcome, violated = "constraint_violated", exc.constraint
+            log.record(t, np.nan, x, dx, np.full(n, np.nan), np.full(n, np.nan), force=True)
+            break
         if not math.isfinite(sum(tau.tolist())):
             outcome = "diverged"
             log.record(t, v, x, dx, tau, np.full(n, np.nan), force=True)
@@ -164,8 +165,7 @@ def run_mujoco(
         if unstable():  # MuJoCo reset the state or dropped the control
             outcome = "diverged"
             break
-        if data.ncon > contacts:
-            contacts = data.ncon
+        contacts = max(contacts, data.ncon)
         if progress is not None and k % report_every == 0:
             progress(k / steps)
     wall = _time.perf_counter() - start
@@ -173,12 +173,13 @@ def run_mujoco(
     end_time = float(tt[-1]) if tt.size else 0.0
     if outcome == "diverged":
         end_time = k * settings.control_period
+    guard = controller if isinstance(controller, Safeguard) else None
     return Trajectory(
-        tt, xs, dxs, taus, tau_qs, vs, outcome, end_time, violated, wall, calls, saturated,
+        tt, xs, dxs, taus, tau_qs, vs, outcome, end_time, violated, wall, k + 1, saturated,
         int(contacts), "mujoco",
         safeguard_steps=guard.acted if guard else 0,
         safeguard_infeasible=guard.infeasible if guard else 0,
-        rejected_samples=rejected,
+        rejected_samples=sample.rejected,
     )
 
 

@@ -204,7 +204,9 @@ def cost(config: Config, log: Log) -> dict[str, object]:
         for entry in cp.constrained(setup):
             # states along the scenario's own run: what the safeguard meets in operation
             case = setup.cases[0]
-            traj = cp.run_mujoco(setup.make_plant(), entry.controller,
+            traj = cp.run_mujoco(setup.make_plant(), cp.sg.guarded(
+                                     entry.controller, setup.loop_settings.control_period,
+                                     setup.safeguard, None, setup.also_keep),
                                  setup.model.coordinates, case.position, case.velocity,
                                  replace(setup.loop_settings, duration=min(
                                      5.0, setup.loop_settings.duration), log_every=25,
