@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 Array = NDArray[np.float64]
+
+__all__ = ["Array", "ArrayLike"]  # ArrayLike: what constructors accept and convert

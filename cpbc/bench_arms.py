@@ -32,9 +32,9 @@ from cpbc.simulation import MujocoPlant, PlantSettings
 START = np.array([-0.179, 0.172, -0.497, -2.085, 0.103, 2.233, 0.785])
 TARGET = np.array([0.179, 0.172, 0.497, -2.085, -0.103, 2.233, 0.785])
 OBSTACLES = (
-    PlaneObstacle("table", [0.0, 0.0, 0.0]),
-    SphereObstacle("ball", [0.5, 0.0, 0.3], 0.08),
-    BoxObstacle("crate", [0.3, 0.45, 0.1], [0.06, 0.06, 0.1]),
+    PlaneObstacle("table", np.zeros(3)),
+    SphereObstacle("ball", np.array([0.5, 0.0, 0.3]), 0.08),
+    BoxObstacle("crate", np.array([0.3, 0.45, 0.1]), np.array([0.06, 0.06, 0.1])),
 )
 
 

@@ -29,6 +29,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import coal
 import numpy as np
@@ -38,7 +39,7 @@ from cpbc.arrays import Array
 from cpbc.errors import CpbcError, ModelError
 
 
-def _trimesh():  # type: ignore[no-untyped-def]
+def _trimesh() -> Any:
     """trimesh, imported on first use (it takes most of a second to import)."""
     import trimesh
 

@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from cpbc.arrays import Array
+from cpbc.arrays import Array, ArrayLike
 from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.errors import CpbcError
 from cpbc.model.robot_model import ArmState
@@ -30,7 +30,7 @@ class LinearLimit(ConfigurationConstraint):
     stacks = True
 
     def __init__(
-        self, rows: Array, lower: Array, upper: Array, names: Sequence[str]
+        self, rows: ArrayLike, lower: ArrayLike, upper: ArrayLike, names: Sequence[str]
     ) -> None:
         rows = np.atleast_2d(np.asarray(rows, dtype=float))
         lower = np.atleast_1d(np.asarray(lower, dtype=float))
@@ -86,7 +86,8 @@ class LinearLimit(ConfigurationConstraint):
 
 
 def joint_position_limit(
-    lower: Array, upper: Array, joint_names: Sequence[str], joints: Sequence[int] | None = None
+    lower: ArrayLike, upper: ArrayLike, joint_names: Sequence[str],
+    joints: Sequence[int] | None = None
 ) -> LinearLimit:
     """Asymmetric joint position limits lower_i < x_i < upper_i on the given joints.
 

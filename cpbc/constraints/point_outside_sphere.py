@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cpbc.arrays import Array
+from cpbc.arrays import Array, ArrayLike
 from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.errors import CpbcError
 from cpbc.model.robot_model import ArmState, RobotModel
@@ -31,9 +31,9 @@ class PointOutsideSphere(ConfigurationConstraint):
         self,
         model: RobotModel,
         frame: str,
-        centre: Array,
+        centre: ArrayLike,
         radius: float,
-        offset: Array | None = None,
+        offset: ArrayLike | None = None,
         name: str | None = None,
     ) -> None:
         if not (np.isfinite(radius) and radius > 0):

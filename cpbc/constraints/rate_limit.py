@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from cpbc.arrays import Array
+from cpbc.arrays import Array, ArrayLike
 from cpbc.constraints.base import VelocityConstraint
 from cpbc.errors import CpbcError
 from cpbc.model.robot_model import ArmState
@@ -26,7 +26,7 @@ class RateLimit(VelocityConstraint):
 
     stacks = True
 
-    def __init__(self, rows: Array, bounds: Array, names: Sequence[str]) -> None:
+    def __init__(self, rows: ArrayLike, bounds: ArrayLike, names: Sequence[str]) -> None:
         rows = np.atleast_2d(np.asarray(rows, dtype=float))
         bounds = np.atleast_1d(np.asarray(bounds, dtype=float))
         if bounds.shape != (rows.shape[0],) or len(names) != rows.shape[0]:
@@ -99,7 +99,7 @@ class RateLimit(VelocityConstraint):
 
 
 def joint_rate_limit(
-    bounds: Array, joint_names: Sequence[str], joints: Sequence[int] | None = None
+    bounds: ArrayLike, joint_names: Sequence[str], joints: Sequence[int] | None = None
 ) -> RateLimit:
     """|ẋ_i| < B_i on the given joints (all when omitted)."""
     n = len(joint_names)

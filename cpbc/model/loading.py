@@ -142,7 +142,7 @@ _LOWER_UPPER = re.compile(r"""\s(lower|upper)\s*=\s*(["']).*?\2""")
 def example_robot_data_share() -> Path | None:
     """The ``share`` folder that holds ``example-robot-data/robots``, or None if not installed."""
     try:
-        import cmeel  # type: ignore[import-not-found]
+        import cmeel
 
         roots = [Path(cmeel.__file__).resolve().parent.parent / "cmeel.prefix" / "share"]
     except ImportError:  # pragma: no cover - cmeel comes with pin

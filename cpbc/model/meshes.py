@@ -41,9 +41,9 @@ def needs_conversion(path: Path) -> bool:
 def _triangles(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (V, 3) and triangle indices (T, 3) of a mesh, read by coal (assimp)."""
     try:  # comes with pin (hpp-fcl before pin 3.4); imported here: STL-only arms never need it
-        import coal  # type: ignore[import-not-found]
+        import coal
     except ImportError:  # pragma: no cover - older pin
-        import hppfcl as coal  # type: ignore[import-not-found,no-redef]
+        import hppfcl as coal
 
     try:
         bvh = coal.MeshLoader().load(str(path), np.ones(3))

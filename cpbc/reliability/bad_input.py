@@ -82,7 +82,7 @@ def _path(data: dict, dotted: str) -> tuple[object, object]:
     keys = [int(k) if k.lstrip("-").isdigit() else k for k in dotted.split(".")]
     node = data
     for k in keys[:-1]:
-        node = node[k]  # type: ignore[index]
+        node = node[k]
     return node, keys[-1]
 
 

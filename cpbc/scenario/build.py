@@ -299,8 +299,7 @@ def _build_constraint(
         idx = _indices(spec.joints, names, f"{field}.joints")
         k = n if idx is None else len(idx)
         bounds = _limit(spec.bounds, model, "velocity", 1, idx, k, f"{field}.bounds")
-        c = joint_rate_limit(spec.scale * bounds, names, idx)
-        return c
+        return joint_rate_limit(spec.scale * bounds, names, idx)
     if isinstance(spec, s.RateLimitSpec):
         rows = _rows(spec.coefficients, n, f"{field}.coefficients")
         k = rows.shape[0]
@@ -517,8 +516,8 @@ def _constraints(
             parameter = getattr(exc, "parameter", None)
             raise ScenarioError(f"{field}.{parameter}" if parameter else field,
                                 str(exc)) from None
-        if isinstance(c, RateLimit) and c.is_per_joint:
-            for j, b in zip(c._joint_index, c.bounds, strict=True):  # type: ignore[union-attr]
+        if isinstance(c, RateLimit) and c.joint_index is not None:
+            for j, b in zip(c.joint_index, c.bounds, strict=True):
                 rate_bounds[int(j)] = float(b)
         if isinstance(cs, s.PointOutsideSphereSpec):
             obstacles.append(

@@ -5,15 +5,17 @@ from __future__ import annotations
 import ast
 import math
 import operator
+from collections.abc import Callable
 
-_BINARY = {
+_BINARY: dict[type[ast.operator], Callable[[float, float], float]] = {
     ast.Add: operator.add,
     ast.Sub: operator.sub,
     ast.Mult: operator.mul,
     ast.Div: operator.truediv,
     ast.Pow: operator.pow,
 }
-_UNARY = {ast.UAdd: operator.pos, ast.USub: operator.neg}
+_UNARY: dict[type[ast.unaryop], Callable[[float], float]] = {
+    ast.UAdd: operator.pos, ast.USub: operator.neg}
 _NAMES = {"pi": math.pi}
 
 

@@ -7,6 +7,7 @@ from typing import get_args
 
 import yaml
 from pydantic import BaseModel, ValidationError
+from pydantic_core import ErrorDetails
 
 from cpbc.errors import ScenarioError
 from cpbc.resources import scenarios_dir
@@ -42,7 +43,7 @@ def _path(loc: tuple[object, ...]) -> str:
     return out or "(top level)"
 
 
-def _message(err: dict) -> str:  # type: ignore[type-arg]
+def _message(err: ErrorDetails) -> str:
     kind, msg = err["type"], err["msg"]
     if kind == "extra_forbidden":
         return (

@@ -113,18 +113,23 @@ def model_limits(
     return lo, hi
 
 
+def _vec(values: object) -> Array:
+    """A list of numbers from the scenario as a float array."""
+    return np.asarray(values, dtype=float)
+
+
 def obstacle(spec: s.ObstacleSpec, field: str) -> Obstacle:
     """An obstacle from its scenario entry."""
     try:
         if isinstance(spec, s.SphereObstacleSpec):
-            return SphereObstacle(spec.name, spec.centre, spec.radius, spec.collides)
+            return SphereObstacle(spec.name, _vec(spec.centre), spec.radius, spec.collides)
         if isinstance(spec, s.CapsuleObstacleSpec):
-            return CapsuleObstacle(spec.name, spec.start, spec.end, spec.radius, spec.collides,
-                                   kind=spec.type)
+            return CapsuleObstacle(spec.name, _vec(spec.start), _vec(spec.end), spec.radius,
+                                   spec.collides, kind=spec.type)
         if isinstance(spec, s.BoxObstacleSpec):
-            return BoxObstacle(spec.name, spec.centre, spec.half_extents, spec.rpy,
-                               spec.collides)
-        return PlaneObstacle(spec.name, spec.point, spec.normal, spec.collides)
+            return BoxObstacle(spec.name, _vec(spec.centre), _vec(spec.half_extents),
+                               _vec(spec.rpy), spec.collides)
+        return PlaneObstacle(spec.name, _vec(spec.point), _vec(spec.normal), spec.collides)
     except CpbcError as exc:
         raise ScenarioError(field, str(exc)) from None
 
@@ -165,7 +170,7 @@ def _primitives(spec: s.ClearanceSpec, arm: LoadedArm | None, model: RobotModel,
             raise ScenarioError(f, "give 'centre' (a sphere) or 'start' and 'end' (a capsule)")
         try:
             label = p.name or (p.link if per_link[p.link] == 1 else f"{p.link}#{i}")
-            declared.append(LinkPrimitive(label, p.link, start, end, p.radius))
+            declared.append(LinkPrimitive(label, p.link, _vec(start), _vec(end), p.radius))
         except CpbcError as exc:
             raise ScenarioError(f, str(exc)) from None
     if spec.links == [] or (spec.links is None and spec.primitives and arm is None):
@@ -206,7 +211,8 @@ def clearance(
             raise ScenarioError(f"{field}.self_collision[{i}]", f"pair ({a}, {b}): {why}")
     try:
         return Clearance(model, prims, [obstacles[o] for o in names], spec.margin,
-                         spec.influence, [tuple(p) for p in spec.self_collision], spec.name)
+                         spec.influence, [(p[0], p[1]) for p in spec.self_collision],
+                         spec.name)
     except CpbcError as exc:
         parameter = getattr(exc, "parameter", None)
         raise ScenarioError(f"{field}.{parameter}" if parameter else field, str(exc)) from None
