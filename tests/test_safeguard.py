@@ -325,3 +325,66 @@ def test_summary_and_scenario_key(tmp_path) -> None:
     setup.safeguard = None
     (off,) = run_all(setup)
     assert off.summary.safeguard_steps == 0
+
+
+def _joint_accel(law, x, dx, tau):
+    state = law.model.state(x, dx)
+    return solve_spd(state.inertia, tau - state.coriolis_force - state.gravity
+                     - state.dissipation), state
+
+
+def test_every_guarded_torque_fits_the_torque_box_with_its_direction_kept(
+    recentred: RecentredBarrier,
+) -> None:
+    """With actuator limits, the torque the safeguard returns lies in the box, and where the
+    law's torque or a brake had to shrink, the acceleration keeps its direction: it is
+    scaled toward C ẋ + g + f, never clipped joint by joint."""
+    limit = np.array([3.0, 1.0])
+    guard = Safeguard(recentred, 0.01, torque_limit=limit)
+    free = Safeguard(recentred, 0.01)
+    rng = np.random.default_rng(7)
+    shrunk = 0
+    for _ in range(200):
+        x = rng.uniform([-0.95, -1.25], [1.35, 0.95])
+        dx = rng.uniform(-0.55, 0.55, 2)
+        tau = guard.torque(x, dx)
+        assert np.all(np.abs(tau) <= limit * (1 + 1e-12))  # joint coordinates
+        raw = free.torque(x, dx)
+        if np.any(np.abs(raw) > limit):
+            shrunk += 1
+            if guard.acted == free.acted:  # the same decision: the law's torque, scaled
+                a, _ = _joint_accel(recentred, x, dx, tau)
+                a_raw, _ = _joint_accel(recentred, x, dx, raw)
+                cos = a @ a_raw / (np.linalg.norm(a) * np.linalg.norm(a_raw))
+                assert cos == pytest.approx(1.0, abs=1e-9)
+                assert np.linalg.norm(a) <= np.linalg.norm(a_raw) * (1 + 1e-12)
+    assert shrunk > 20 and guard.scaled > 0
+
+
+def test_a_brake_that_does_not_fit_slows_every_joint(joint_model: RobotModel) -> None:
+    """The one-period brake b − D ẋ/h of a joint-1 swing is outside the box. Clipped joint
+    by joint it would speed the joints up (the coupling through D); scaled into the box it
+    decelerates every joint."""
+    names = ["q1", "q2"]
+    cons = ConstraintSet(2, [joint_position_limit(np.array([-3.0, -1.0]),
+                                                  np.array([3.0, 1.0]), names)])
+    law = RecentredBarrier(joint_model, np.zeros(2), cons, 5, 2)
+    limit = np.array([2.9, 5.8])
+    h = 0.01
+    guard = Safeguard(law, h, torque_limit=limit)
+    x, dx = np.array([0.0, 0.45]), np.array([-0.44, -0.03])
+    brake = guard._brake(*_bias_and_stop(law, x, dx, h), 1.0)
+    assert np.all(np.abs(brake) <= limit * (1 + 1e-12))
+    a, _ = _joint_accel(law, x, dx, brake)
+    assert np.all(np.abs(dx + h * a) < np.abs(dx))  # every joint slower
+    clipped = np.clip(_bias_and_stop(law, x, dx, h)[0] - _bias_and_stop(law, x, dx, h)[1],
+                      -limit, limit)
+    a_clip, _ = _joint_accel(law, x, dx, clipped)
+    assert np.any(np.abs(dx + h * a_clip) > np.abs(dx))  # what clipping would have done
+    assert np.all(np.abs(guard.torque(x, dx)) <= limit * (1 + 1e-12))
+
+
+def _bias_and_stop(law, x, dx, h):
+    state = law.model.state(x, dx)
+    bias = state.coriolis_force + state.gravity + state.dissipation
+    return bias, state.inertia @ dx / h

@@ -167,8 +167,10 @@ class Safeguard(Controller):
         law: the constrained law (its ``constraints`` and ``model`` are used).
         period: control period h [s].
         settings: κ, λ, prediction sub-steps, back-off steps.
-        torque_limit: joint torque limits |τ_q| ≤ limit (the plant's saturation), shape (n,),
-            applied inside the prediction so that it predicts what the plant receives.
+        torque_limit: joint torque limits |τ_q| ≤ limit (the actuators'), shape (n,). Every
+            torque the safeguard returns or predicts with lies in this box: the law's torque,
+            the brakes and the escape are scaled toward C ẋ + g + f until they fit
+            (:meth:`_box`), which keeps the direction of the acceleration they ask for.
         also_keep: configuration constraints the law does not enforce (obstacles it does
             not know of, the plant's joint ranges) that the safeguard keeps as well: (S1)
             on them makes it brake before the arm reaches them. Those the law enforces
@@ -178,6 +180,8 @@ class Safeguard(Controller):
         calls: control instants seen.
         acted: instants at which the law's torque was replaced (β > 0).
         infeasible: instants at which even the braking torque failed (S1).
+        scaled: instants at which the law's torque was outside the torque box and was scaled
+            into it (it is then tested as scaled).
     """
 
     type_name = "safeguard"
@@ -223,9 +227,10 @@ class Safeguard(Controller):
         self.calls = 0
         self.acted = 0
         self.infeasible = 0
+        self.scaled = 0
 
     def reset_counts(self) -> None:
-        self.calls = self.acted = self.infeasible = 0
+        self.calls = self.acted = self.infeasible = self.scaled = 0
 
     # -- the Controller interface ------------------------------------------------------------
     def state(self, x: Array, dx: Array) -> ArmState:
@@ -274,7 +279,7 @@ class Safeguard(Controller):
                     a, c, fc = c, d, fd
                     d = a + ratio * (b - a)
                 lam = d
-            f = slack(bias - lam * stop)
+            f = slack(self._brake(bias, stop, lam))
             if at_c:
                 fc = f
             else:
@@ -296,25 +301,26 @@ class Safeguard(Controller):
         the curvature of φ that the first-order escape misses); else the λ that comes
         closest to (S0)."""
         lam0 = self.settings.braking
-        f_stop = positivity(bias - lam0 * stop)
+        f_stop = positivity(self._brake(bias, stop, lam0))
         if f_stop >= 0.0:
-            return bias - lam0 * stop
+            return self._brake(bias, stop, lam0)
         lam, f_lam = self._search_braking(bias, stop, positivity, f_stop,
-                                          positivity(bias - 2.0 * stop))
+                                          positivity(self._brake(bias, stop, 2.0)))
         if f_lam >= 0.0:  # bisect down towards the smallest λ that keeps (S0)
             lo = lam0
             for _ in range(self.settings.brake_search):
                 mid = 0.5 * (lo + lam)
-                if positivity(bias - mid * stop) >= 0.0:
+                if positivity(self._brake(bias, stop, mid)) >= 0.0:
                     lam = mid
                 else:
                     lo = mid
         elif escape is not None and holding is not None:
             start = bias - stop  # ends the period at rest ...
             for s in (1.0, 1.5, 2.0):  # ... plus the push to the end velocity s·v
-                if holding(start + s * escape) >= 0.0:
-                    return start + s * escape
-        return bias - lam * stop
+                push = self._box(bias, start + s * escape)
+                if holding(push) >= 0.0:
+                    return push
+        return self._brake(bias, stop, lam)
 
     def _escape(
         self, x: Array, dx: Array, inertia: Array, now: Array, end_floor: Array,
@@ -353,6 +359,32 @@ class Safeguard(Controller):
                 break
             v = v + (short[i] / norms[i]) * grads[i]
         return inertia @ v / h
+
+    def _box(self, bias: Array, tau: Array) -> Array:
+        """τ scaled toward the bias b = C ẋ + g + f until it fits the torque box:
+        b + t (τ − b) with the largest t ∈ [0, 1] inside |τ_q| ≤ limit. The acceleration
+        D⁻¹(τ − b) keeps its direction and only shrinks, so no joint is spun up by the
+        coupling through D, as clipping each joint would (τ itself when it fits, or when
+        there is no limit). Where b alone exceeds a limit no scaling fits, and τ is clipped.
+        """
+        if self.torque_limit is None:
+            return tau
+        tau_q = tau if self._identity else self._t_mat_t.dot(tau)
+        limit = self.torque_limit
+        if np.all(np.abs(tau_q) <= limit):
+            return tau
+        b_q = bias if self._identity else self._t_mat_t.dot(bias)
+        if np.any(np.abs(b_q) > limit):
+            return self._saturate(tau)
+        d = tau_q - b_q
+        with np.errstate(divide="ignore", invalid="ignore"):
+            room = np.where(d > 0, (limit - b_q) / d, np.where(d < 0, (-limit - b_q) / d, np.inf))
+        t = min(1.0, float(room.min()))
+        return bias + t * (tau - bias)
+
+    def _brake(self, bias: Array, stop: Array, lam: float) -> Array:
+        """The braking torque b − λ D ẋ/h, scaled into the torque box (:meth:`_box`)."""
+        return self._box(bias, bias - lam * stop)
 
     def _saturate(self, tau: Array) -> Array:
         if self.torque_limit is None:
@@ -424,16 +456,20 @@ class Safeguard(Controller):
             if self._extra is not None:  # an extra margin may be ≤ 0: then it must turn positive
                 floor, floor_mid = np.maximum(floor, 1e-300), np.maximum(floor_mid, 1e-300)
         slack = self._check(predict, floor, floor_mid)  # (S1)
+        boxed = self._box(bias, tau)
+        if boxed is not tau:
+            self.scaled += 1
+            tau = boxed
         f0 = slack(tau)
         if f0 >= 0.0:
             return tau
         self.acted += 1
         stop = state.inertia.dot(state.dx) / self.period
-        brake = bias - self.settings.braking * stop
+        brake = self._brake(bias, stop, self.settings.braking)
         f1 = slack(brake)
         if f1 < 0.0:
             # Reverse instead of stop: x⁺ = x, ẋ⁺ = −ẋ, the least excursion at this speed.
-            reverse = bias - 2.0 * stop
+            reverse = self._brake(bias, stop, 2.0)
             f_rev = slack(reverse)
             if f_rev < 0.0:
                 # Stopping goes too far and reversing at full speed breaks a velocity
@@ -442,7 +478,7 @@ class Safeguard(Controller):
                 if f_lam < 0.0:
                     self.infeasible += 1
                     return self._infeasible(state, bias, stop, predict, now, floor, floor_mid)
-                reverse, f_rev = bias - lam * stop, f_lam
+                reverse, f_rev = self._brake(bias, stop, lam), f_lam
             brake, f1 = reverse, f_rev
         return self._blend(tau, brake, f0, f1, slack)
 
