@@ -30,7 +30,7 @@ from cpbc.constraints.geometry import (
     segment_point,
     segment_segment,
 )
-from cpbc.errors import CpbcError
+from cpbc.errors import CpbcError, ParameterError
 from cpbc.model.robot_model import ArmState, RobotModel
 
 # vec(p ⊗ n) @ _CROSS = p × n
@@ -409,9 +409,10 @@ class Clearance(ConfigurationConstraint):
         name: str = "clearance",
     ) -> None:
         if not (np.isfinite(margin) and margin >= 0):
-            raise CpbcError(f"clearance margin must be ≥ 0, got {margin}")
+            raise ParameterError("margin", f"clearance margin must be ≥ 0, got {margin}")
         if influence is not None and not (np.isfinite(influence) and influence > 0):
-            raise CpbcError(f"clearance influence distance must be > 0, got {influence}")
+            raise ParameterError(
+                "influence", f"clearance influence distance must be > 0, got {influence}")
         if not primitives:
             raise CpbcError("clearance needs at least one robot primitive")
         prim_names = [p.name for p in primitives]

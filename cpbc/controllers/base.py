@@ -9,7 +9,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.errors import CpbcError
+from cpbc.errors import CpbcError, ParameterError
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -37,9 +37,11 @@ def positive_vector(value: object, n: int, field: str) -> Array:
     if a.ndim == 0:
         a = np.full(n, float(a))
     if a.shape != (n,):
-        raise CpbcError(f"{field} must be a number or a list of {n} numbers, got shape {a.shape}")
+        raise ParameterError(
+            field, f"{field} must be a number or a list of {n} numbers, got shape {a.shape}")
     if not np.all(np.isfinite(a)) or np.any(a <= 0):
-        raise CpbcError(f"{field} must be finite and > 0 in every entry, got {a.tolist()}")
+        raise ParameterError(
+            field, f"{field} must be finite and > 0 in every entry, got {a.tolist()}")
     a.setflags(write=False)
     return a
 

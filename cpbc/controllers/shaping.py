@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
-from cpbc.errors import CpbcError
+from cpbc.errors import ParameterError
 
 
 class Shaping(Protocol):
@@ -43,7 +43,7 @@ class Power:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.alpha) and self.alpha > 0):
-            raise CpbcError(f"shaping alpha must be > 0, got {self.alpha}")
+            raise ParameterError("alpha", f"shaping alpha must be > 0, got {self.alpha}")
 
     def ratio(self, log_x: float) -> float:
         return self.alpha
@@ -63,7 +63,7 @@ class Tanh:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.sigma) and self.sigma > 0):
-            raise CpbcError(f"shaping sigma must be > 0, got {self.sigma}")
+            raise ParameterError("sigma", f"shaping sigma must be > 0, got {self.sigma}")
 
     def ratio(self, log_x: float) -> float:
         y = 2.0 * self.sigma * math.exp(min(log_x, 700.0))
