@@ -58,6 +58,11 @@ class ConfigurationConstraint(ABC):
         """φ at each row of xs, shape (N, k); vectorised by subclasses where they can."""
         return np.array([self.value(x) for x in xs]).reshape(len(xs), len(self.names))
 
+    def curvature(self, x: Array, dx: Array) -> Array:
+        """ẋᵀ ∇²φ_i ẋ, shape (k,), where a subclass knows it; zeros otherwise, which the
+        stopping test (cpbc.constraints.stopping) then neglects."""
+        return np.zeros(len(self.names))
+
     @classmethod
     def stacked(cls, parts: Sequence[ConfigurationConstraint]) -> ConfigurationConstraint:
         """One constraint that evaluates ``parts`` (all of this class) together, with their

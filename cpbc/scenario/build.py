@@ -23,6 +23,7 @@ from cpbc.constraints import (
     joint_rate_limit,
 )
 from cpbc.constraints.geometry import Obstacle, SceneGeom
+from cpbc.constraints.stopping import stopping_margins
 from cpbc.controllers import CONTROLLERS, Controller, Identity, Power, Tanh
 from cpbc.controllers.safeguard import SafeguardSettings, guarded
 from cpbc.controllers.shaping import Shaping
@@ -582,6 +583,26 @@ def _states(
     return target, cases
 
 
+def _check_stoppable(cases: list[CaseEntry], monitor: ConstraintSet, model: RobotModel,
+                     limit: Array) -> None:
+    """Refuse an initial state that no torque within the limits can stop before a
+    configuration boundary (cpbc.constraints.stopping: first order, each constraint alone)."""
+    for i, case in enumerate(cases):
+        margins, speed, decel = stopping_margins(monitor, model, case.position, case.velocity,
+                                                 limit)
+        if margins.size and not np.all(margins > 0):
+            k = int(np.argmin(margins))
+            phi = monitor.configuration_margins(case.position)[k]
+            raise ScenarioError(
+                f"cases[{i}].velocity",
+                f"case '{case.name}' cannot be stopped before '{monitor.names[k]}' within the "
+                f"torque limits: its margin {phi:.4g} falls at {speed[k]:.4g}/s and the "
+                f"actuators can slow that fall by at most {max(decel[k], 0.0):.4g}/s², so "
+                f"stopping uses up {phi - margins[k]:.4g} of it (cpbc.constraints.stopping). "
+                "Start slower or farther from that boundary, or raise simulation.torque_limit",
+            )
+
+
 def _controllers(
     scenario: s.Scenario, model: RobotModel, target: Array, cases: list[CaseEntry],
     built: dict[str, ConfigurationConstraint | VelocityConstraint], names: tuple[str, ...],
@@ -623,6 +644,8 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         [c for c in built.values() if isinstance(c, VelocityConstraint)],
     )
     target, cases = _states(scenario, model, monitor, joint_ranges(model, plant))
+    if loop.torque_limit is not None:
+        _check_stoppable(cases, monitor, model, loop.torque_limit)
     controllers = _controllers(scenario, model, target, cases, built, names)
     setup = ScenarioSetup(
         scenario, path, model, monitor, controllers, cases, target,
