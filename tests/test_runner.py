@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +37,29 @@ def test_parallel_runs_equal_serial_runs(tmp_path: Path) -> None:
         np.testing.assert_array_equal(a.trajectory.position, b.trajectory.position)
         assert a.summary.status == b.summary.status
         assert a.summary.min_margins == b.summary.min_margins
+
+
+def test_shared_runs_equal_serial_runs_whether_or_not_workers_help(
+    tmp_path: Path, monkeypatch
+) -> None:
+    """run_shared keeps short scenarios in this process and shares long ones; either way
+    the results are the serial ones, in case-major order."""
+    from cpbc.scenario import runner
+
+    setup = _short_ch7(tmp_path)
+    serial = run_all(setup, workers=1)
+    with worker_pool(1) as pool:
+        kept = runner.run_shared(setup, pool, 1)
+        monkeypatch.setattr(runner, "OFFLOAD_AFTER", 0.0)  # every run looks long: share
+        shared = runner.run_shared(setup, pool, 1)
+        helped = pool.submit(os.getpid).result()
+    for results in (kept, shared):
+        assert [(r.case, r.controller) for r in results] == [
+            (r.case, r.controller) for r in serial]
+        for a, b in zip(serial, results, strict=True):
+            np.testing.assert_array_equal(a.trajectory.position, b.trajectory.position)
+            assert a.summary.min_margins == b.summary.min_margins
+    assert helped != os.getpid()
 
 
 def test_default_workers_never_exceeds_runs_or_cores() -> None:

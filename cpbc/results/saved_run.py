@@ -13,7 +13,7 @@ The figures and the viewer read a run only through :func:`load_run`.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import mujoco
@@ -83,13 +83,16 @@ class SavedTrajectory:
         position, velocity: (N, n) [rad, rad/s].
         torque: (N, n) generalised forces asked for.
         joint_torque: (N, n) joint torques applied.
-        margins: (N, m) margin of every monitored constraint.
+        margins: (N, m) margin of every monitored constraint, as a distance to its bound
+            in its type's unit (cpbc.results.margin_types).
         margin_names: (m,) their names.
+        margin_types: (m,) their type keys ("position", "rate", "clearance", …).
         lyapunov: (N,) V.
         target: (n,).
         coordinate_names: (n,).
         outcome: "completed", "diverged" or "constraint_violated".
         summary: this run's entry of summary.json.
+        coordinates: T of x = T q, shape (n, n).
     """
 
     controller: str
@@ -106,6 +109,20 @@ class SavedTrajectory:
     coordinate_names: tuple[str, ...]
     outcome: str
     summary: dict[str, object]
+    margin_types: tuple[str, ...] = ()
+    coordinates: Array = field(default_factory=lambda: np.eye(0))
+
+    def commanded_torque(self, joints: bool = False) -> Array:
+        """What the controller asked for, (N, n): in its coordinates, or per joint
+        (τ_q = Tᵀ τ, row by row τ T)."""
+        return self.torque @ self.coordinates if joints else self.torque
+
+    def applied_torque(self, joints: bool = False) -> Array:
+        """What the plant applied after its torque limit, (N, n): per joint, or in the
+        controller's coordinates (τ = T⁻ᵀ τ_q, row by row τ_q T⁻¹)."""
+        if joints:
+            return self.joint_torque
+        return np.linalg.solve(self.coordinates.T, self.joint_torque.T).T
 
 
 @dataclass(frozen=True)
@@ -144,8 +161,12 @@ def write_scene(folder: Path, model: mujoco.MjModel, info: SceneInfo) -> None:
     (folder / SCENE_INFO).write_text(info.to_json())
 
 
-def _trajectory(path: Path, summary: dict[str, object]) -> SavedTrajectory:
+def _trajectory(path: Path, summary: dict[str, object], coordinates: Array) -> SavedTrajectory:
     with np.load(path) as d:
+        names = tuple(str(s) for s in d["margin_names"])
+        # runs written before margins had types: every margin of an unknown type
+        types = (tuple(str(s) for s in d["margin_types"]) if "margin_types" in d.files
+                 else ("other",) * len(names))
         return SavedTrajectory(
             controller=str(summary["controller"]),
             case=str(summary["case"]),
@@ -155,7 +176,9 @@ def _trajectory(path: Path, summary: dict[str, object]) -> SavedTrajectory:
             torque=d["torque"],
             joint_torque=d["joint_torque"],
             margins=d["margins"],
-            margin_names=tuple(str(s) for s in d["margin_names"]),
+            margin_names=names,
+            margin_types=types,
+            coordinates=coordinates,
             lyapunov=d["lyapunov"],
             target=d["target"],
             coordinate_names=tuple(str(s) for s in d["coordinate_names"]),
@@ -188,6 +211,6 @@ def load_run(folder: Path | str) -> SavedRun:
         path = folder / str(s["case"]) / str(s["controller"]) / TRAJECTORY
         if not path.is_file():
             raise CpbcError(f"run folder '{folder}' lacks {path.relative_to(folder)}")
-        by_case.setdefault(str(s["case"]), []).append(_trajectory(path, s))
+        by_case.setdefault(str(s["case"]), []).append(_trajectory(path, s, info.coordinates))
     cases = tuple(SavedCase(name, tuple(runs)) for name, runs in by_case.items())
     return SavedRun(folder, model, info, cases)

@@ -10,8 +10,9 @@ import contextlib
 import functools
 import multiprocessing
 import os
+import time
 from collections.abc import Callable
-from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -63,7 +64,8 @@ def run_one(
     margins = margin_history(setup.monitor, traj)
     summary = summarise(
         entry.name, case.name, entry.controller, setup.monitor, traj, setup.criteria,
-        setup.rate_bounds, margins,
+        setup.rate_bounds, margins, setup.loop_settings.torque_limit,
+        setup.model.coordinates.matrix,
     )
     return RunResult(entry.name, case.name, traj, margins, traj.lyapunov, summary)
 
@@ -89,17 +91,80 @@ def default_workers(runs: int) -> int:
     return max(1, min(runs, os.cpu_count() or 1))
 
 
-def worker_pool(workers: int) -> ProcessPoolExecutor:
+def default_processes() -> int:
+    """Processes a scenario run may use, this one included: one per core."""
+    return max(1, os.cpu_count() or 1)
+
+
+def _warm_up() -> None:
+    """Worker initialiser: import what its tasks need (figures, runs) while the main
+    process is busy, so that the first task does not wait for it."""
+    import cpbc.results.plots  # noqa: F401
+
+
+def worker_pool(workers: int, warm: bool = False) -> ProcessPoolExecutor:
     """Processes for independent runs (and figures): spawned, so no simulator state is
-    inherited; each builds its own Pinocchio and MuJoCo objects."""
-    return ProcessPoolExecutor(max_workers=workers,
+    inherited; each builds its own Pinocchio and MuJoCo objects. With ``warm`` each starts
+    importing at once (a pool is otherwise started lazily, by its first task)."""
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=_warm_up if warm else None,
                                mp_context=multiprocessing.get_context("spawn"))
+    if warm:
+        for _ in range(workers):
+            pool.submit(int)  # starts the processes now
+    return pool
 
 
 def _expected_cost(entry: ControllerEntry) -> int:
     """A rough relative cost of a run, to start the longest first: a step costs more the
     more constraints the law (and its safeguard) evaluates; a baseline enforces none."""
     return len(entry.controller.constraints.names)
+
+
+#: Estimated seconds of simulation left after the first run above which the rest is shared
+#: with the worker processes (a worker spends about 2 s starting and building the setup).
+OFFLOAD_AFTER = 2.5
+
+
+def run_shared(
+    setup: ScenarioSetup,
+    pool: Executor,
+    workers: int,
+    backend: str | None = None,
+    progress: RunProgress | None = None,
+) -> list[RunResult]:
+    """Every pair, this process running them (cheapest last) and ``workers`` processes of
+    ``pool`` helping only when the rest looks long enough to repay their start.
+
+    The first pair runs here; from its time and the pairs' relative costs the rest is
+    estimated. Below OFFLOAD_AFTER seconds everything stays in this process; above, each
+    worker is handed one pair at a time from the cheap end while this process works from
+    the expensive end. Results come in case-major order.
+    """
+    backend = backend or setup.scenario.simulation.backend
+    pairs = [(case, entry) for case in setup.cases for entry in setup.controllers]
+    pending = sorted(pairs, key=lambda p: -_expected_cost(p[1]))
+    plant = setup.make_plant() if backend == "mujoco" else None
+    results: dict[tuple[str, str], RunResult] = {}
+    futures: dict[Future[RunResult], tuple[str, str]] = {}
+    offload = False
+    while pending:
+        case, entry = pending.pop(0)
+        start = time.perf_counter()
+        results[case.name, entry.name] = run_one(setup, case, entry, backend, plant, progress)
+        if len(results) == 1 and pending:
+            weight = sum(_expected_cost(e) + 1 for _, e in pending) / (_expected_cost(entry) + 1)
+            offload = (time.perf_counter() - start) * weight > OFFLOAD_AFTER
+        for done in [f for f in futures if f.done()]:
+            results[futures.pop(done)] = done.result()
+        while offload and pending and len(futures) < workers:
+            c, e = pending.pop()
+            futures[pool.submit(_run_in_worker, setup.scenario, setup.source, c.name,
+                                e.name, backend)] = (c.name, e.name)
+    for done in as_completed(futures):
+        results[futures[done]] = done.result()
+        if progress is not None:
+            progress(" / ".join(futures[done]), 1.0)
+    return [results[c.name, e.name] for c, e in pairs]
 
 
 def run_all(

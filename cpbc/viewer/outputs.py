@@ -8,11 +8,10 @@ from pathlib import Path
 
 import mujoco
 
-from cpbc.results.plots import write_plots
 from cpbc.results.saved_run import SceneInfo, load_run, write_scene
 from cpbc.results.sweep import SceneKinematics, default_trace_frame
 from cpbc.scenario.build import ScenarioSetup
-from cpbc.viewer.export import write_views
+from cpbc.viewer.export import write_view
 from cpbc.viewer.scene import ViewSettings
 
 
@@ -44,8 +43,12 @@ def scene_kinematics(setup: ScenarioSetup) -> SceneKinematics:
     return scene_info(setup, model).kinematics(model)
 
 
-def _plot_cases(folder: Path, cases: Sequence[str]) -> list[Path]:
-    """Worker entry: read a run folder back and draw the figures of some of its cases."""
+def _plot_cases(folder: Path, cases: Sequence[str] | None = None) -> list[Path]:
+    """Read a run folder back and draw the figures of some of its cases (all when None).
+    matplotlib is imported here, so a process that leaves the figures to others never
+    loads it."""
+    from cpbc.results.plots import write_plots
+
     return write_plots(load_run(folder), cases=cases)
 
 
@@ -69,8 +72,7 @@ def write_run_outputs(
     write_scene(folder, model, scene_info(setup, model))
     if plots and pool is not None:
         futures = [pool.submit(_plot_cases, folder, [case.name]) for case in setup.cases]
-        pages = write_views(load_run(folder), settings=settings)
-        return [path for f in futures for path in f.result()] + pages
-    run = load_run(folder)
-    written = write_plots(run) if plots else []
-    return written + write_views(run, settings=settings)
+        page = write_view(load_run(folder), settings=settings)
+        return [path for f in futures for path in f.result()] + [page]
+    written = _plot_cases(folder) if plots else []
+    return [*written, write_view(load_run(folder), settings=settings)]
