@@ -16,6 +16,7 @@ import numpy as np
 from cpbc.constraints.base import Array
 from cpbc.errors import CpbcError
 from cpbc.results.metrics import RunSummary
+from cpbc.results.saved_run import FIGURES
 from cpbc.simulation.trajectory import Trajectory
 
 CSV_COLUMNS = (
@@ -32,8 +33,7 @@ MANIFEST = ".cpbc-files"
 #: What earlier versions wrote (folders without a manifest), as glob patterns.
 _LEGACY = ("summary.json", "summary.csv", "scene.mjb", "scene.json", "view.html",
            "*/view.html", "*/*/trajectory.npz",
-           *(f"*/{name}.png" for name in ("positions", "rates", "torques", "lyapunov",
-                                          "margins", "path")))
+           *(f"*/{name}.png" for name in FIGURES))
 
 
 def write_trajectory(

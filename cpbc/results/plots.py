@@ -24,7 +24,7 @@ matplotlib is imported here only, with the Agg canvas and no pyplot state.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from pathlib import Path
 
 import mujoco
@@ -43,11 +43,10 @@ from cpbc.results.palette import (
     WARNING_COLOUR,
     controller_colour,
 )
-from cpbc.results.saved_run import SavedCase, SavedRun, SavedTrajectory
+from cpbc.results.saved_run import FIGURES, SavedCase, SavedRun, SavedTrajectory
 from cpbc.results.sweep import SceneKinematics
 from cpbc.results.thinning import envelope
 
-FIGURES = ("positions", "rates", "torques", "lyapunov", "margins", "path")
 _WIDTH = 7.0  # inches
 _PANEL = 2.1  # inches per stacked panel
 _DPI = 110
@@ -78,7 +77,7 @@ def _curve(ax: Axes, t: Array, y: Array, **style: object) -> None:
 
 def _legend(ax: Axes) -> None:
     if ax.get_legend_handles_labels()[0]:
-        ax.legend(loc="best", fontsize=8, framealpha=0.85)
+        ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
 
 
 def _symbol(name: str, rate: bool = False) -> str:
@@ -367,8 +366,10 @@ def path_figure(case: SavedCase, kin: SceneKinematics) -> Figure | None:
     return fig
 
 
-def case_figures(case: SavedCase, kin: SceneKinematics | None) -> dict[str, Figure]:
-    """Every figure of a case by name (see FIGURES); absent ones are left out."""
+def case_figures(
+    case: SavedCase, kin: SceneKinematics | None, names: Collection[str] = FIGURES
+) -> dict[str, Figure]:
+    """The figures of a case by name (all of FIGURES by default); absent ones are left out."""
     makers: dict[str, Callable[[], Figure | None]] = {
         "positions": lambda: positions_figure(case),
         "rates": lambda: rates_figure(case),
@@ -379,6 +380,8 @@ def case_figures(case: SavedCase, kin: SceneKinematics | None) -> dict[str, Figu
     }
     out = {}
     for name, make in makers.items():
+        if name not in names:
+            continue
         fig = make()
         if fig is not None:
             out[name] = fig
@@ -386,7 +389,10 @@ def case_figures(case: SavedCase, kin: SceneKinematics | None) -> dict[str, Figu
 
 
 def write_plots(
-    run: SavedRun, folder: Path | None = None, cases: Sequence[str] | None = None
+    run: SavedRun,
+    folder: Path | None = None,
+    cases: Sequence[str] | None = None,
+    only: Collection[tuple[str, str]] | None = None,
 ) -> list[Path]:
     """Write every case's figures as ``<folder>/<case>/<name>.png``; returns the paths.
 
@@ -394,6 +400,8 @@ def write_plots(
         run: a run folder read back with :func:`cpbc.results.saved_run.load_run`.
         folder: where to write; the run's own folder when omitted.
         cases: the names of the cases to draw; all when omitted.
+        only: (case, figure) pairs to draw; all when omitted (several processes can share
+            a run's figures this way).
     """
     folder = run.folder if folder is None else Path(folder)
     kin = run.info.kinematics(run.model)
@@ -403,7 +411,8 @@ def write_plots(
             continue
         out = folder / case.name
         out.mkdir(parents=True, exist_ok=True)
-        for name, fig in case_figures(case, kin).items():
+        names = FIGURES if only is None else [n for c, n in only if c == case.name]
+        for name, fig in case_figures(case, kin, names).items():
             path = out / f"{name}.png"
             fig.savefig(path, metadata={"Title": fig.get_suptitle(), "Software": "cpbc"})
             written.append(path)

@@ -27,6 +27,8 @@ SCENE_MODEL = "scene.mjb"
 SCENE_INFO = "scene.json"
 SUMMARY = "summary.json"
 TRAJECTORY = "trajectory.npz"
+#: The figures of each case, ``<case>/<name>.png`` (cpbc.results.plots draws them).
+FIGURES = ("positions", "rates", "torques", "lyapunov", "margins", "path")
 
 
 @dataclass(frozen=True)
