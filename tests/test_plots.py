@@ -267,7 +267,7 @@ def test_no_plots_writes_no_figure_but_the_view(tmp_path):
     assert code == 0
     assert not list(out.rglob("*.png"))
     assert (out / "view.html").is_file()
-    assert (out / "scene.mjb").is_file()
+    assert (out / "scene.mjb.gz").is_file()
 
 
 def test_envelope_keeps_every_extreme_and_both_ends(rng):

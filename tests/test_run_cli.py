@@ -177,7 +177,7 @@ def test_a_second_run_replaces_the_previous_output(tmp_path):
     second = tiny(tmp_path, cases=[{"name": "second", "position": [0.1, 0]}])
     assert main([str(second), "--out", str(out), "--quiet"]) == 0
     assert sorted(p.name for p in out.iterdir()) == [
-        ".cpbc-files", "scene.json", "scene.mjb", "second", "summary.csv", "summary.json",
+        ".cpbc-files", "scene.json", "scene.mjb.gz", "second", "summary.csv", "summary.json",
         "view.html",
     ]
     assert [r["case"] for r in json.loads((out / "summary.json").read_text())] == ["second"]

@@ -31,7 +31,7 @@ CSV_COLUMNS = (
 #: the same folder replaces these and nothing else.
 MANIFEST = ".cpbc-files"
 #: What earlier versions wrote (folders without a manifest), as glob patterns.
-_LEGACY = ("summary.json", "summary.csv", "scene.mjb", "scene.json", "view.html",
+_LEGACY = ("summary.json", "summary.csv", "scene.mjb", "scene.mjb.gz", "scene.json", "view.html",
            "*/view.html", "*/*/trajectory.npz",
            *(f"*/{name}.png" for name in FIGURES))
 

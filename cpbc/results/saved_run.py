@@ -3,8 +3,9 @@
 ``python -m cpbc.run`` writes, next to ``summary.json`` and the ``<case>/<controller>/``
 folders of ``trajectory.npz`` files, the scene the runs happened in:
 
-* ``scene.mjb``: the compiled MuJoCo model with the scenario's obstacles (binary MJB, so a
-  replay needs no model or mesh files; it loads with the same MuJoCo version);
+* ``scene.mjb.gz``: the compiled MuJoCo model with the scenario's obstacles (binary MJB,
+  gzipped — meshes halve —, so a replay needs no model or mesh files; it loads with the same
+  MuJoCo version; folders of earlier versions hold it as a plain ``scene.mjb``);
 * ``scene.json``: the controller's coordinates ``x = T q`` and the frame whose path is traced.
 
 The figures and the viewer read a run only through :func:`load_run`.
@@ -12,6 +13,7 @@ The figures and the viewer read a run only through :func:`load_run`.
 
 from __future__ import annotations
 
+import gzip
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,7 +25,8 @@ from cpbc.constraints.base import Array
 from cpbc.errors import CpbcError
 from cpbc.results.sweep import SceneKinematics
 
-SCENE_MODEL = "scene.mjb"
+SCENE_MODEL = "scene.mjb.gz"
+PLAIN_SCENE_MODEL = "scene.mjb"  # what earlier versions wrote
 SCENE_INFO = "scene.json"
 SUMMARY = "summary.json"
 TRAJECTORY = "trajectory.npz"
@@ -158,8 +161,10 @@ class SavedRun:
 
 
 def write_scene(folder: Path, model: mujoco.MjModel, info: SceneInfo) -> None:
-    """Write ``scene.mjb`` and ``scene.json`` into a run folder."""
-    mujoco.mj_saveModel(model, str(folder / SCENE_MODEL), None)
+    """Write ``scene.mjb.gz`` and ``scene.json`` into a run folder."""
+    buffer = np.empty(mujoco.mj_sizeModel(model), dtype=np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    (folder / SCENE_MODEL).write_bytes(gzip.compress(buffer.tobytes(), compresslevel=6))
     (folder / SCENE_INFO).write_text(info.to_json())
 
 
@@ -196,16 +201,21 @@ def load_run(folder: Path | str) -> SavedRun:
         CpbcError: when the folder lacks summary.json, the scene files or a trajectory.
     """
     folder = Path(folder)
-    missing = [n for n in (SUMMARY, SCENE_MODEL, SCENE_INFO) if not (folder / n).is_file()]
+    model_file = folder / (PLAIN_SCENE_MODEL if (folder / PLAIN_SCENE_MODEL).is_file()
+                           else SCENE_MODEL)
+    missing = [n for n in (SUMMARY, model_file.name, SCENE_INFO) if not (folder / n).is_file()]
     if missing:
         raise CpbcError(
             f"'{folder}' is not a complete run folder: missing {', '.join(missing)} "
             "(run the scenario again with python -m cpbc.run to write them)"
         )
     try:
-        model = mujoco.MjModel.from_binary_path(str(folder / SCENE_MODEL))
-    except ValueError as exc:
-        raise CpbcError(f"cannot load {folder / SCENE_MODEL}: {exc}") from exc
+        data = model_file.read_bytes()
+        if model_file.name == SCENE_MODEL:
+            data = gzip.decompress(data)
+        model = mujoco.MjModel.from_binary_path(PLAIN_SCENE_MODEL, {PLAIN_SCENE_MODEL: data})
+    except (ValueError, OSError) as exc:
+        raise CpbcError(f"cannot load {model_file}: {exc}") from exc
     info = SceneInfo.from_json((folder / SCENE_INFO).read_text())
     summaries = json.loads((folder / SUMMARY).read_text())
     by_case: dict[str, list[SavedTrajectory]] = {}

@@ -34,7 +34,7 @@ def _parser() -> argparse.ArgumentParser:
         prog="python -m cpbc.viewer",
         description="Replay a run folder written by python -m cpbc.run in meshcat.",
     )
-    p.add_argument("run", type=Path, help="run folder (holds summary.json, scene.mjb, …)")
+    p.add_argument("run", type=Path, help="run folder (holds summary.json, scene.mjb.gz, …)")
     p.add_argument("--case", help="case to show first (default: the first case)")
     p.add_argument(
         "--frame", help="site or body whose path is traced when serving (default: the run's)"

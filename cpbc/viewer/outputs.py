@@ -65,7 +65,7 @@ def write_run_outputs(
     pool: Executor | None = None,
 ) -> list[Path]:
     """Into a run folder that already holds its trajectories and summary.json: the scene
-    (scene.mjb, scene.json), every case's figures (unless ``plots`` is False) and view.html.
+    (scene.mjb.gz, scene.json), every case's figures (unless ``plots`` is False) and view.html.
 
     With a ``pool`` of worker processes the figures of each case are drawn there, while
     this process writes the pages.
