@@ -48,8 +48,8 @@ def write_trajectory(
 ) -> None:
     """All logged signals of one run, in one .npz that ``numpy.load`` reads.
 
-    Compact: the signals are stored in single precision (time, the target and V stay
-    double), deflated at the fastest level. Single precision keeps 7 significant digits,
+    Compact: the signals are stored in single precision (time and the target stay double),
+    deflated at the fastest level. Single precision keeps 7 significant digits,
     far below what a figure or a comparison between runs can show; the summary's numbers
     are computed from the double-precision log before it is written, and equal the file's
     peaks rounded to single precision.
@@ -63,7 +63,7 @@ def write_trajectory(
         "margins": _single(margins),
         "margin_names": np.array(list(margin_names), dtype=str),
         "margin_types": np.array(list(margin_types), dtype=str),
-        "lyapunov": lyapunov,
+        "lyapunov": _single(lyapunov),
         "target": target,
         "coordinate_names": np.array(list(coordinate_names), dtype=str),
         "outcome": np.array(traj.outcome),

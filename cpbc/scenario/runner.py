@@ -10,9 +10,10 @@ import contextlib
 import functools
 import multiprocessing
 import os
+import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -76,6 +77,12 @@ def _setup_in_worker(scenario_json: str, source: Path) -> ScenarioSetup:
     return build(Scenario.model_validate_json(scenario_json), source)
 
 
+def setups_built() -> int:
+    """How many scenario setups this process has built for worker runs (a check that a
+    worker took part)."""
+    return _setup_in_worker.cache_info().misses
+
+
 def _run_in_worker(
     scenario: Scenario, source: Path, case: str, controller: str, backend: str
 ) -> RunResult:
@@ -121,8 +128,48 @@ def _expected_cost(entry: ControllerEntry) -> int:
 
 
 #: Estimated seconds of simulation left after the first run above which the rest is shared
-#: with the worker processes (a worker spends about 2 s starting and building the setup).
-OFFLOAD_AFTER = 2.5
+#: with the worker processes. The CLI's helpers start importing at once, so by then a
+#: worker only has to build the setup (0.3 s for the planar arm, about 1.5 s for a URDF arm
+#: with a bounded-torque law's model bounds).
+OFFLOAD_AFTER = 1.0
+
+
+class _FirstRun:
+    """Watches the first run's progress and, as soon as the rest of the scenario looks
+    longer than OFFLOAD_AFTER seconds, starts the helpers (once); decides at the end of the
+    first run at the latest (a backend that reports no progress)."""
+
+    _EARLIEST = 0.1  # fraction of the first run after which its pace is trusted
+
+    def __init__(self, pending: list[tuple[CaseEntry, ControllerEntry]],
+                 progress: RunProgress | None, start: Callable[[], None]) -> None:
+        self.pending, self.progress, self.start = pending, progress, start
+        self.decided = False
+        self.began = 0.0
+        self.weight = 1.0
+
+    def watch(self, entry: ControllerEntry) -> RunProgress:
+        self.began = time.perf_counter()
+        rest = sum(_expected_cost(e) + 1 for _, e in self.pending)
+        self.weight = rest / (_expected_cost(entry) + 1)
+
+        def report(label: str, frac: float) -> None:
+            if not self.decided and frac >= self._EARLIEST:
+                self._decide(frac)
+            if self.progress is not None:
+                self.progress(label, frac)
+
+        return report
+
+    def _decide(self, frac: float) -> None:
+        self.decided = True
+        whole = (time.perf_counter() - self.began) / frac
+        if self.pending and whole * self.weight > OFFLOAD_AFTER:
+            self.start()
+
+    def done(self) -> None:
+        if not self.decided:
+            self._decide(1.0)
 
 
 def run_shared(
@@ -132,38 +179,60 @@ def run_shared(
     backend: str | None = None,
     progress: RunProgress | None = None,
 ) -> list[RunResult]:
-    """Every pair, this process running them (cheapest last) and ``workers`` processes of
-    ``pool`` helping only when the rest looks long enough to repay their start.
+    """Every pair, this process running them and ``workers`` processes of ``pool`` helping
+    only when the rest looks long enough to repay building the setup there.
 
-    The first pair runs here; from its time and the pairs' relative costs the rest is
-    estimated. Below OFFLOAD_AFTER seconds everything stays in this process; above, each
-    worker is handed one pair at a time from the cheap end while this process works from
-    the expensive end. Results come in case-major order.
+    The first pair runs here; from its pace (once a tenth of it has run) and the pairs'
+    relative costs the rest is estimated. Below OFFLOAD_AFTER seconds everything stays in
+    this process. Above, one feeder thread per worker hands its worker the cheapest pair
+    left whenever the worker is free, while this process takes the dearest: a pair is
+    committed to a process only when that process starts it, so neither waits while the
+    other has work. Results come in case-major order.
     """
     backend = backend or setup.scenario.simulation.backend
     pairs = [(case, entry) for case in setup.cases for entry in setup.controllers]
     pending = sorted(pairs, key=lambda p: -_expected_cost(p[1]))
     plant = setup.make_plant() if backend == "mujoco" else None
     results: dict[tuple[str, str], RunResult] = {}
-    futures: dict[Future[RunResult], tuple[str, str]] = {}
-    offload = False
-    while pending:
-        case, entry = pending.pop(0)
-        start = time.perf_counter()
-        results[case.name, entry.name] = run_one(setup, case, entry, backend, plant, progress)
-        if len(results) == 1 and pending:
-            weight = sum(_expected_cost(e) + 1 for _, e in pending) / (_expected_cost(entry) + 1)
-            offload = (time.perf_counter() - start) * weight > OFFLOAD_AFTER
-        for done in [f for f in futures if f.done()]:
-            results[futures.pop(done)] = done.result()
-        while offload and pending and len(futures) < workers:
-            c, e = pending.pop()
-            futures[pool.submit(_run_in_worker, setup.scenario, setup.source, c.name,
-                                e.name, backend)] = (c.name, e.name)
-    for done in as_completed(futures):
-        results[futures[done]] = done.result()
-        if progress is not None:
-            progress(" / ".join(futures[done]), 1.0)
+    lock = threading.Lock()
+    failures: list[BaseException] = []
+
+    def feed() -> None:
+        while not failures:
+            with lock:
+                if not pending:
+                    return
+                c, e = pending.pop()
+            try:
+                r = pool.submit(_run_in_worker, setup.scenario, setup.source, c.name, e.name,
+                                backend).result()
+            except BaseException as exc:  # handed to the main thread, which raises it
+                failures.append(exc)
+                return
+            results[c.name, e.name] = r
+            if progress is not None:
+                progress(f"{c.name} / {e.name}", 1.0)
+
+    feeders: list[threading.Thread] = []
+
+    def start_feeders() -> None:
+        feeders.extend(threading.Thread(target=feed, daemon=True) for _ in range(workers))
+        for f in feeders:
+            f.start()
+
+    first = _FirstRun(pending, progress, start_feeders)
+    while not failures:
+        with lock:
+            if not pending:
+                break
+            case, entry = pending.pop(0)
+        report = first.watch(entry) if not results else progress
+        results[case.name, entry.name] = run_one(setup, case, entry, backend, plant, report)
+        first.done()
+    for f in feeders:
+        f.join()
+    if failures:
+        raise failures[0]
     return [results[c.name, e.name] for c, e in pairs]
 
 
