@@ -10,7 +10,6 @@ import argparse
 import contextlib
 import sys
 from collections.abc import Sequence
-from concurrent.futures import Executor
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -27,12 +26,12 @@ from cpbc.results.metrics import RunSummary
 from cpbc.scenario import build, load_scenario
 from cpbc.scenario.build import ScenarioSetup
 from cpbc.scenario.runner import (
+    LazyPool,
     RunProgress,
     RunResult,
     default_processes,
     run_all,
     run_shared,
-    worker_pool,
 )
 from cpbc.viewer.outputs import write_run_outputs
 
@@ -63,8 +62,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--workers", type=int, default=None,
         help="processes, this one included, for the runs and figures (default: one per "
-        "core; runs go to the others only when the scenario is long enough to repay "
-        "starting them)",
+        "core; the others are started only when the scenario is long enough to repay it)",
     )
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
     p.add_argument(
@@ -213,10 +211,10 @@ def _safeguard(s: RunSummary) -> str:
 
 
 def _simulate(setup: ScenarioSetup, backend: str | None, progress: RunProgress | None,
-              pool: Executor | None, workers: int) -> list[RunResult]:
+              pool: LazyPool | None, workers: int) -> list[RunResult]:
     if pool is None:
         return run_all(setup, backend, progress)
-    return run_shared(setup, pool, workers - 1, backend, progress)
+    return run_shared(setup, pool.get, workers - 1, backend, progress)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -234,10 +232,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             live = start_live_view(setup, args.view_speed)
             console.print(f"meshcat viewer (live): {live.url}")
         workers = args.workers or default_processes()
-        # Helpers for the figures, started now so that they import matplotlib while this
-        # process simulates; they take runs too when the scenario is long (run_shared).
-        pool = (worker_pool(workers - 1, warm=not args.no_plots)
-                if workers > 1 and not live else None)
+        # Worker processes only for a scenario long enough to repay starting them
+        # (run_shared decides); once started, they draw most figures too.
+        pool = LazyPool(workers - 1) if workers > 1 and not live else None
         with staged_output(out) as scratch, pool or contextlib.nullcontext():
             if args.quiet:
                 results = (live.run(setup, args.backend) if live else
@@ -265,7 +262,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                     r.lyapunov, setup.target, setup.coordinate_names, margin_types,
                 )
             write_summaries(scratch, [r.summary for r in results])
-            write_run_outputs(scratch, setup, plots=not args.no_plots, pool=pool)
+            write_run_outputs(scratch, setup, plots=not args.no_plots,
+                              pool=pool.started if pool else None)
     except CpbcError as exc:
         if live:
             live.close()

@@ -47,12 +47,15 @@ def test_shared_runs_equal_serial_runs_whether_or_not_workers_help(
 
     setup = _short_ch7(tmp_path)
     serial = run_all(setup, workers=1)
+    with runner.LazyPool(1) as lazy:
+        kept = runner.run_shared(setup, lazy.get, 1)  # 0.5 s runs: not worth sharing
+    assert lazy.started is None  # so no worker process was even started
     with worker_pool(1) as pool:
-        kept = runner.run_shared(setup, pool, 1)  # 0.5 s runs: not worth sharing
+        runner.run_shared(setup, lambda: pool, 1)
         # the worker has never built the setup, so it ran no pair
         assert pool.submit(runner.setups_built).result() == 0
         monkeypatch.setattr(runner, "OFFLOAD_AFTER", 0.0)  # every run looks long: share
-        shared = runner.run_shared(setup, pool, 1)
+        shared = runner.run_shared(setup, lambda: pool, 1)
         assert pool.submit(runner.setups_built).result() == 1
     for results in (kept, shared):
         assert [(r.case, r.controller) for r in results] == [

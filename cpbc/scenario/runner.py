@@ -128,10 +128,30 @@ def _expected_cost(entry: ControllerEntry) -> int:
 
 
 #: Estimated seconds of simulation left after the first run above which the rest is shared
-#: with the worker processes. The CLI's helpers start importing at once, so by then a
-#: worker only has to build the setup (0.3 s for the planar arm, about 1.5 s for a URDF arm
-#: with a bounded-torque law's model bounds).
-OFFLOAD_AFTER = 1.0
+#: with worker processes: a worker first spends 1.5–3 s here importing and building the
+#: setup, and on a shared machine the second core may be busy anyway.
+OFFLOAD_AFTER = 4.0
+
+
+class LazyPool:
+    """Worker processes started only when first asked for (``get``); a context manager
+    that shuts them down if they were started. A short scenario never starts any."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = workers
+        self.started: ProcessPoolExecutor | None = None
+
+    def get(self) -> ProcessPoolExecutor:
+        if self.started is None:
+            self.started = worker_pool(self.workers, warm=True)
+        return self.started
+
+    def __enter__(self) -> LazyPool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.started is not None:
+            self.started.shutdown()
 
 
 class _FirstRun:
@@ -174,13 +194,13 @@ class _FirstRun:
 
 def run_shared(
     setup: ScenarioSetup,
-    pool: Executor,
+    pool: Callable[[], Executor],
     workers: int,
     backend: str | None = None,
     progress: RunProgress | None = None,
 ) -> list[RunResult]:
-    """Every pair, this process running them and ``workers`` processes of ``pool`` helping
-    only when the rest looks long enough to repay building the setup there.
+    """Every pair, this process running them and ``workers`` processes of ``pool()`` (called
+    only then) helping when the rest looks long enough to repay starting them.
 
     The first pair runs here; from its pace (once a tenth of it has run) and the pairs'
     relative costs the rest is estimated. Below OFFLOAD_AFTER seconds everything stays in
@@ -204,7 +224,7 @@ def run_shared(
                     return
                 c, e = pending.pop()
             try:
-                r = pool.submit(_run_in_worker, setup.scenario, setup.source, c.name, e.name,
+                r = executor.submit(_run_in_worker, setup.scenario, setup.source, c.name, e.name,
                                 backend).result()
             except BaseException as exc:  # handed to the main thread, which raises it
                 failures.append(exc)
@@ -214,8 +234,11 @@ def run_shared(
                 progress(f"{c.name} / {e.name}", 1.0)
 
     feeders: list[threading.Thread] = []
+    executor: Executor
 
     def start_feeders() -> None:
+        nonlocal executor
+        executor = pool()
         feeders.extend(threading.Thread(target=feed, daemon=True) for _ in range(workers))
         for f in feeders:
             f.start()
