@@ -130,7 +130,7 @@ def _expected_cost(entry: ControllerEntry) -> int:
 #: Estimated seconds of simulation left after the first run above which the rest is shared
 #: with worker processes: a worker first spends 1.5–3 s here importing and building the
 #: setup, and on a shared machine the second core may be busy anyway.
-OFFLOAD_AFTER = 4.0
+OFFLOAD_AFTER = 2.5
 
 
 class LazyPool:
