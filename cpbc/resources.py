@@ -1,4 +1,4 @@
-"""Where the built-in models and scenarios live, for installed and source checkouts alike."""
+"""Where the built-in models, scenarios and the viewer page live (installed or source)."""
 
 from __future__ import annotations
 
@@ -22,6 +22,11 @@ def models_dir() -> Path:
 def scenarios_dir() -> Path:
     """Folder holding the shipped YAML scenarios."""
     return _data_dir("scenarios")
+
+
+def viewer_dir() -> Path:
+    """Folder holding the run page's HTML, script and style (the top-level ``viewer/``)."""
+    return _data_dir("viewer")
 
 
 def builtin_models() -> dict[str, Path]:

@@ -21,9 +21,18 @@ from rich.table import Table
 from cpbc.constraints.clearance import Clearance
 from cpbc.errors import CpbcError
 from cpbc.results import staged_output, write_summaries, write_trajectory
+from cpbc.results.margin_types import types_of
 from cpbc.results.metrics import RunSummary
 from cpbc.scenario import build, load_scenario
-from cpbc.scenario.runner import RunResult, default_workers, run_all, worker_pool
+from cpbc.scenario.build import ScenarioSetup
+from cpbc.scenario.runner import (
+    LazyPool,
+    RunProgress,
+    RunResult,
+    default_processes,
+    run_all,
+    run_shared,
+)
 from cpbc.viewer.outputs import write_run_outputs
 
 if TYPE_CHECKING:
@@ -52,7 +61,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument(
         "--workers", type=int, default=None,
-        help="processes for independent runs (default: one per core, at most one per run)",
+        help="processes, this one included, for the runs and figures (default: one per "
+        "core; the others are started only when the scenario is long enough to repay it)",
     )
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
     p.add_argument(
@@ -104,87 +114,107 @@ def _widest_rate(s: RunSummary, names: Sequence[str]) -> str:
 
 
 def _torques(s: RunSummary, names: Sequence[str]) -> str:
+    """Peak applied torques; against the plant's limits, per joint, when it has them."""
+    limits = s.torque_limits
+    if limits is None:
+        if len(names) <= WIDE:
+            return _fmt(s.peak_torques)
+        i = max(range(len(s.peak_torques)), key=lambda k: s.peak_torques[k])
+        return f"{s.peak_torques[i]:.3g} ({escape(names[i])})"
+    peaks = s.peak_joint_torques
+    at = [k for k, (p, lim) in enumerate(zip(peaks, limits, strict=True)) if p >= lim]
     if len(names) <= WIDE:
-        return _fmt(s.peak_torques)
-    i = max(range(len(s.peak_torques)), key=lambda k: s.peak_torques[k])
-    return f"{s.peak_torques[i]:.3g} ({escape(names[i])})"
+        return ", ".join(f"{p:.3g}{'=' if k in at else '<'}{lim:.3g}"
+                         for k, (p, lim) in enumerate(zip(peaks, limits, strict=True)))
+    i = max(range(len(peaks)), key=lambda k: peaks[k] / limits[k])
+    tail = f"; [yellow]{len(at)} of {len(peaks)} at the limit[/yellow]" if at else ""
+    return f"{peaks[i]:.3g}{'=' if i in at else '<'}{limits[i]:.3g} (joint {i + 1}){tail}"
 
 
-def _clearance(s: RunSummary, names: Sequence[str]) -> str:
-    """Smallest clearance over the run [m] with its pair, and MuJoCo's peak contact count."""
-    values = {k: s.min_margins[k] for k in names if s.min_margins.get(k) == s.min_margins.get(k)}
-    if not values:
-        return f"- / {s.max_contacts}"
-    worst = min(values, key=values.__getitem__)
-    colour = "red" if values[worst] <= 0 or s.max_contacts else "green"
-    pair = escape(f"({worst[worst.find('[') + 1:-1] if '[' in worst else worst})")
-    return f"[{colour}]{values[worst]:.3g} {pair} / {s.max_contacts}[/{colour}]"
+def _margins(s: RunSummary) -> str:
+    """Per constraint type, the constraint nearest its bound, in the type's unit."""
+    parts = []
+    for w in s.worst_margins():
+        colour = "red" if w.value <= 0 else ("green" if w.constraint in s.enforced_constraints
+                                             else "")
+        value = f"{w.value:.3g} {w.unit}".strip()
+        value = f"[{colour}]{value}[/{colour}]" if colour else value
+        parts.append(f"{w.type} {value} {escape(f'({w.constraint})')}")
+    return "\n".join(parts) or "-"
 
 
-def _table(
-    results: Sequence[RunResult], coordinate_names: Sequence[str],
-    clearance_names: Sequence[str] = (),
-) -> Table:
+def _table(results: Sequence[RunResult], coordinate_names: Sequence[str],
+           contacts: bool = False) -> Table:
     t = Table(title="cpbc summary", show_lines=False)
     wide = len(coordinate_names) > WIDE
     rates = ("peak |rate|, nearest its bound" if wide
              else f"peak |rate| ({', '.join(coordinate_names)})")
     columns = ["case", "controller", "status", "final err", "settle [s]", rates,
-               "largest peak |τ_i| / ‖τ‖ (bound)" if wide else "peak |τ| / ‖τ‖ (bound)",
-               "min margin (constraint)"]
-    if clearance_names:
-        columns.append("min clearance [m] (pair) / contacts")
+               "peak |τ| applied (vs limit) / ‖τ‖ asked (bound)",
+               "nearest its bound, per type"]
+    if contacts:
+        columns.append("contacts")
     for col in (*columns, "V rise", "safeguard", "steps/s"):
         t.add_column(col)
     for r in results:
         s = r.summary
-        finite = {k: v for k, v in s.min_margins.items() if v == v}
-        if finite:
-            worst = min(finite, key=finite.__getitem__)
-            colour = "red" if finite[worst] <= 0 else ("" if worst not in s.enforced_constraints
-                                                        else "green")
-            label = escape(f"({worst})")
-            margin = f"[{colour}]{finite[worst]:.3g}[/{colour}] {label}" if colour else (
-                f"{finite[worst]:.3g} {label}")
-        else:
-            margin = "-"
         bound = "" if s.torque_bound is None else f" ({s.torque_bound:.4g})"
         style = STATUS_STYLE[s.status]
-        status = s.status + (f" @{s.end_time:.3g}s: {s.violated_constraint}"
-                             if s.violated_constraint else "")
-        if s.status == "diverged":
-            status += f" @{s.end_time:.3g}s"
-        status += _notes(s)
         cells = [
-            escape(s.case), escape(s.controller), f"[{style}]{escape(status)}[/{style}]",
+            escape(s.case), escape(s.controller),
+            f"[{style}]{escape(_status(s))}[/{style}]",
             f"{s.final_error:.3g}",
             "-" if s.settle_time is None else f"{s.settle_time:.3g}",
             _rates(s, coordinate_names),
-            f"{_torques(s, coordinate_names)} / {s.peak_torque_norm:.4g}{bound}", margin,
+            f"{_torques(s, coordinate_names)} / {s.peak_torque_norm:.4g}{bound}", _margins(s),
         ]
-        if clearance_names:
-            cells.append(_clearance(s, clearance_names))
+        if contacts:
+            cells.append(f"[red]{s.max_contacts}[/red]" if s.max_contacts else "0")
         t.add_row(*cells, f"{s.max_lyapunov_increase:.2g}", _safeguard(s),
                   f"{s.steps_per_second:,.0f}")
     return t
 
 
+def _status(s: RunSummary) -> str:
+    status = s.status + (f" @{s.end_time:.3g}s: {s.violated_constraint}"
+                         if s.violated_constraint else "")
+    if s.status == "diverged":
+        status += f" @{s.end_time:.3g}s"
+    return status + _notes(s)
+
+
+#: Above this share of steps, the safeguard, not the law, drove the run: the status says so.
+SAFEGUARD_NOTE = 0.5
+
+
 def _notes(s: RunSummary) -> str:
-    """What went on outside the proof: saturated torque, refused noisy measurements."""
+    """What went on outside the proof: saturated torque, a safeguard that did most of the
+    work, refused noisy measurements."""
     notes = []
     if s.saturated_steps:
         notes.append(f"torque saturated in {s.saturated_steps} steps")
+    if s.safeguard_share > SAFEGUARD_NOTE:
+        notes.append(f"safeguard acted on {s.safeguard_share:.0%} of steps")
     if s.rejected_samples:
         notes.append(f"{s.rejected_samples} noisy samples outside S refused")
     return "".join(f"; {n}" for n in notes)
 
 
 def _safeguard(s: RunSummary) -> str:
-    """Control steps at which the sampled-data safeguard changed the law's torque."""
+    """Share of the control steps at which the sampled-data safeguard changed the law's
+    torque."""
     if not s.safeguard_steps:
         return "-" if s.enforced_constraints else ""
-    late = f" ({s.safeguard_infeasible} infeasible)" if s.safeguard_infeasible else ""
-    return f"{s.safeguard_steps} steps{late}"
+    late = f", {s.safeguard_infeasible} infeasible" if s.safeguard_infeasible else ""
+    share = f"{s.safeguard_share:.1%}" if s.safeguard_share >= 0.001 else "<0.1%"
+    return f"{share} ({s.safeguard_steps} steps{late})"
+
+
+def _simulate(setup: ScenarioSetup, backend: str | None, progress: RunProgress | None,
+              pool: LazyPool | None, workers: int) -> list[RunResult]:
+    if pool is None:
+        return run_all(setup, backend, progress)
+    return run_shared(setup, pool.get, workers - 1, backend, progress)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -201,13 +231,14 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             live = start_live_view(setup, args.view_speed)
             console.print(f"meshcat viewer (live): {live.url}")
-        workers = args.workers or default_workers(len(setup.cases) * len(setup.controllers))
-        # one pool for the runs and then the figures (its processes import cpbc once)
-        pool = worker_pool(workers) if workers > 1 and not live else None
+        workers = args.workers or default_processes()
+        # Worker processes only for a scenario long enough to repay starting them
+        # (run_shared decides); once started, they draw most figures too.
+        pool = LazyPool(workers - 1) if workers > 1 and not live else None
         with staged_output(out) as scratch, pool or contextlib.nullcontext():
             if args.quiet:
                 results = (live.run(setup, args.backend) if live else
-                           run_all(setup, args.backend, workers=workers, pool=pool))
+                           _simulate(setup, args.backend, None, pool, workers))
             else:
                 with Progress(
                     TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
@@ -221,16 +252,18 @@ def main(argv: Sequence[str] | None = None) -> int:
                         bar.update(tasks[label], completed=frac)
 
                     results = (live.run(setup, args.backend, progress) if live else
-                               run_all(setup, args.backend, progress, workers, pool))
+                               _simulate(setup, args.backend, progress, pool, workers))
+            margin_types = types_of(setup.monitor)
             for r in results:
                 folder = scratch / r.case / r.controller
                 folder.mkdir(parents=True, exist_ok=True)
                 write_trajectory(
                     folder / "trajectory.npz", r.trajectory, r.margins, setup.monitor.names,
-                    r.lyapunov, setup.target, setup.coordinate_names,
+                    r.lyapunov, setup.target, setup.coordinate_names, margin_types,
                 )
             write_summaries(scratch, [r.summary for r in results])
-            write_run_outputs(scratch, setup, plots=not args.no_plots, pool=pool)
+            write_run_outputs(scratch, setup, plots=not args.no_plots,
+                              pool=pool.started if pool else None)
     except CpbcError as exc:
         if live:
             live.close()
@@ -241,9 +274,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             live.close()
         err.print("interrupted; nothing written")
         return 130
-    clearance = [n for c in setup.monitor.configuration if isinstance(c, Clearance)
-                 for n in c.names]
-    console.print(_table(results, setup.coordinate_names, clearance))
+    contacts = any(isinstance(c, Clearance) for c in setup.monitor.configuration)
+    console.print(_table(results, setup.coordinate_names, contacts))
     backend = args.backend or scenario.simulation.backend
     console.print(f"backend: {backend}; results written to {out}/")
     if live:

@@ -56,3 +56,39 @@ def test_outcome_of_the_loop_wins() -> None:
     pos = np.tile(TARGET, (10, 1))
     status, _ = judge_status(trajectory(pos, np.zeros_like(pos), "diverged"), TARGET, CRITERIA)
     assert status == "diverged"
+
+
+# -- margins in comparable units ------------------------------------------------------------------
+def test_margins_become_distances_to_the_bounds_in_each_types_unit() -> None:
+    from cpbc.constraints import KineticEnergyLimit, LinearLimit, RateLimit
+    from cpbc.constraints.constraint_set import ConstraintSet
+    from cpbc.results.margin_types import physical_history, types_of, worst_by_type
+
+    limit = LinearLimit(np.eye(2), [-1.0, -2.0], [3.0, 2.0], ["p1", "p2"])
+    rate = RateLimit(np.eye(2), [0.5, 2.0], ["r1", "r2"])
+    energy = KineticEnergyLimit.__new__(KineticEnergyLimit)  # no model: values given below
+    energy.names, energy.limit = ("ke",), 4.0
+    monitor = ConstraintSet(2, [limit], [rate, energy])
+    assert types_of(monitor) == ("position", "position", "rate", "rate", "energy")
+    x = np.array([[0.0, 1.5], [2.9, -2.5]])  # the second sample is past p2's lower bound
+    dx = np.array([[0.1, -1.0], [-0.6, 0.0]])  # … and past r1's bound
+    raw = np.column_stack([limit.values_along(x), rate.values_along(x, dx), [3.0, -1.0]])
+    m = physical_history(monitor, raw)
+    np.testing.assert_allclose(m[:, :2], [[1.0, 0.5], [0.1, -0.5]], atol=1e-12)  # rad
+    np.testing.assert_allclose(m[:, 2:4], [[0.4, 1.0], [-0.1, 2.0]], atol=1e-12)  # rad/s
+    np.testing.assert_allclose(m[:, 4], [3.0, -1.0])  # J, as they are
+    mins = dict(zip(monitor.names, m.min(axis=0).tolist(), strict=True))
+    worst = worst_by_type(mins, dict(zip(monitor.names, types_of(monitor), strict=True)))
+    assert [(w.type, w.constraint, w.unit) for w in worst] == [
+        ("position", "p2", "rad"), ("rate", "r1", "rad/s"), ("energy", "ke", "J")]
+
+
+def test_obstacle_margin_is_the_distance_to_its_surface() -> None:
+    from cpbc.constraints import PointOutsideSphere
+    from cpbc.results.margin_types import CLEARANCE, margin_type, physical
+
+    c = PointOutsideSphere.__new__(PointOutsideSphere)
+    c.radius, c.names = 0.5, ("obstacle",)
+    d = np.array([[0.2], [0.5], [0.7], [3.0]])  # distances from the centre [m]
+    assert margin_type(c) is CLEARANCE
+    np.testing.assert_allclose(physical(c, d**2 - 0.25), d - 0.5, atol=1e-15)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -104,26 +105,49 @@ def test_summary_csv_has_one_row_per_run(ch7_run):
         np.testing.assert_allclose(peaks, run["peak_joint_rates"], rtol=1e-5)
 
 
+def single(x: object) -> np.ndarray:
+    """A summary number as the trajectory file stores it (single precision)."""
+    return np.asarray(x, dtype=np.float32)
+
+
 def test_summary_agrees_with_the_trajectories(ch7_run):
+    """The summary is computed in double precision before the file is written in single:
+    its peaks, rounded to single precision, are exactly the file's."""
     _, out, data = ch7_run
     target = np.array([np.pi, np.pi])
     bounds = np.array(data["constraints"][0]["bounds"], dtype=float)
+    coordinates = np.array([[1.0, 0.0], [1.0, 1.0]])  # absolute link angles θ = T q
     for r in json.loads((out / "summary.json").read_text()):
         with np.load(out / r["case"] / r["controller"] / "trajectory.npz") as npz:
             vel, pos, tau = npz["velocity"], npz["position"], npz["torque"]
+            applied_q = npz["joint_torque"]
             margins, names = npz["margins"], list(npz["margin_names"])
+            types = list(npz["margin_types"])
             np.testing.assert_allclose(npz["target"], target, rtol=1e-15)
             assert list(npz["coordinate_names"]) == ["theta1", "theta2"]
             time = npz["time"]
+        assert vel.dtype == np.float32 and time.dtype == np.float64
         assert time[0] == 0.0 and time[-1] == pytest.approx(1.0)
-        np.testing.assert_allclose(r["peak_joint_rates"], np.abs(vel).max(axis=0), rtol=1e-15)
-        np.testing.assert_allclose(r["peak_torques"], np.abs(tau).max(axis=0), rtol=1e-15)
-        assert r["final_error"] == pytest.approx(np.abs(pos[-1] - target).max(), rel=1e-12)
-        # the logged margins are the rate constraints ½(B² − θ̇²) of the logged rates
+        np.testing.assert_array_equal(single(r["peak_joint_rates"]), np.abs(vel).max(axis=0))
+        np.testing.assert_array_equal(single(r["peak_commanded_torques"]),
+                                      np.abs(tau).max(axis=0))
+        # applied joint torques τ_q = Tᵀ τ (no limit here), back in θ: equal to the asked ones
+        np.testing.assert_array_equal(single(r["peak_joint_torques"]),
+                                      np.abs(applied_q).max(axis=0))
+        np.testing.assert_allclose(r["peak_torques"], r["peak_commanded_torques"], rtol=1e-12)
+        np.testing.assert_allclose(applied_q, tau @ coordinates, rtol=1e-6, atol=1e-6)
+        assert r["torque_limits"] is None
+        assert r["final_error"] == pytest.approx(np.abs(pos[-1] - target).max(), rel=1e-6)
+        # the logged margins are the rate headroom B − |θ̇| (rad/s), not ½(B² − θ̇²)
         assert names == ["rate[theta1]", "rate[theta2]"]
-        np.testing.assert_allclose(margins, 0.5 * (bounds**2 - vel**2), rtol=1e-12, atol=1e-15)
+        assert types == ["rate", "rate"]
+        assert r["margin_types"] == dict.fromkeys(names, "rate")
+        np.testing.assert_allclose(margins, bounds - np.abs(vel), rtol=1e-6, atol=1e-6)
         for k, name in enumerate(names):
-            assert r["min_margins"][name] == pytest.approx(margins[:, k].min(), rel=1e-12)
+            assert single(r["min_margins"][name]) == margins[:, k].min()
+        (worst,) = r["worst_margins"]
+        assert worst["type"] == "rate" and worst["unit"] == "rad/s"
+        assert worst["value"] == min(r["min_margins"].values())
 
 
 def test_bpbc_keeps_its_rates_inside_the_bounds(ch7_run):
@@ -153,7 +177,8 @@ def test_a_second_run_replaces_the_previous_output(tmp_path):
     second = tiny(tmp_path, cases=[{"name": "second", "position": [0.1, 0]}])
     assert main([str(second), "--out", str(out), "--quiet"]) == 0
     assert sorted(p.name for p in out.iterdir()) == [
-        "scene.json", "scene.mjb", "second", "summary.csv", "summary.json"
+        ".cpbc-files", "scene.json", "scene.mjb.gz", "second", "summary.csv", "summary.json",
+        "view.html",
     ]
     assert [r["case"] for r in json.loads((out / "summary.json").read_text())] == ["second"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "tiny.yaml"]
@@ -277,3 +302,113 @@ def test_existing_folder_that_is_not_a_cpbc_output_is_not_wiped(tmp_path):
     (sandbox / "mine" / "notes.txt").write_text("keep")
     main([str(tiny(sandbox)), "--out", str(sandbox / "mine"), "--quiet"])
     assert (sandbox / "mine" / "notes.txt").read_text() == "keep"
+
+
+# == re-running into an earlier output keeps what the user added =================================
+def test_a_rerun_keeps_the_files_the_user_added(tmp_path, capsys):
+    out = tmp_path / "out"
+    first = tiny(tmp_path, cases=[{"name": "first", "position": [0, 0]}])
+    assert main([str(first), "--out", str(out), "--quiet", "--no-plots"]) == 0
+    written = (out / ".cpbc-files").read_text().splitlines()
+    assert "summary.json" in written and "first/PD/trajectory.npz" in written
+    (out / "notes.md").write_text("mine")
+    (out / "first" / "sketch.txt").write_text("also mine")
+    second = tiny(tmp_path, cases=[{"name": "second", "position": [0.1, 0]}])
+    assert main([str(second), "--out", str(out), "--quiet", "--no-plots"]) == 0
+    assert (out / "notes.md").read_text() == "mine"
+    assert (out / "first" / "sketch.txt").read_text() == "also mine"
+    # the earlier run's own files are gone, the new run's are in place
+    assert not (out / "first" / "PD").exists()
+    assert (out / "second" / "PD" / "trajectory.npz").is_file()
+    assert [r["case"] for r in json.loads((out / "summary.json").read_text())] == ["second"]
+    assert "notes.md" not in (out / ".cpbc-files").read_text()
+
+
+def test_a_rerun_that_would_overwrite_a_user_file_is_refused(tmp_path, capsys):
+    out = tmp_path / "out"
+    first = tiny(tmp_path, cases=[{"name": "first", "position": [0, 0]}])
+    assert main([str(first), "--out", str(out), "--quiet", "--no-plots"]) == 0
+    mine = out / "second" / "PD" / "trajectory.npz"
+    mine.parent.mkdir(parents=True)
+    mine.write_text("my own file where the next run writes")
+    before = sorted(p.relative_to(out) for p in out.rglob("*"))
+    second = tiny(tmp_path, cases=[{"name": "second", "position": [0.1, 0]}])
+    assert main([str(second), "--out", str(out), "--quiet", "--no-plots"]) == 2
+    err = " ".join(capsys.readouterr().err.split())  # as one line, however it was wrapped
+    assert "second/PD/trajectory.npz" in err and "was not written by cpbc" in err
+    assert "choose another --out" in err
+    assert mine.read_text() == "my own file where the next run writes"
+    assert sorted(p.relative_to(out) for p in out.rglob("*")) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "tiny.yaml"]
+
+
+def test_an_output_of_an_earlier_version_keeps_unknown_files(tmp_path):
+    """Folders written before the manifest: cpbc's files are known by name."""
+    out = tmp_path / "out"
+    (out / "old" / "PD").mkdir(parents=True)
+    (out / "summary.json").write_text("[]")
+    (out / "old" / "PD" / "trajectory.npz").write_bytes(b"")
+    (out / "old" / "rates.png").write_bytes(b"")
+    (out / "old" / "my_plot.png").write_bytes(b"mine")
+    assert main([str(tiny(tmp_path)), "--out", str(out), "--quiet", "--no-plots"]) == 0
+    assert (out / "old" / "my_plot.png").read_bytes() == b"mine"
+    assert not (out / "old" / "rates.png").exists()
+    assert not (out / "old" / "PD").exists()
+
+
+# == the table: margins by type, applied torques against limits, the safeguard's share ===========
+def test_table_reports_margins_by_type_in_their_units(tmp_path, capsys):
+    path = tiny(
+        tmp_path, simulation={"duration": 0.2},
+        constraints=[
+            {"type": "joint_rate_limit", "name": "r", "bounds": [0.3, 0.2]},
+            {"type": "joint_position_limit", "name": "p", "lower": [-3, -3], "upper": [3, 3]},
+            {"type": "kinetic_energy_limit", "name": "ke", "limit": 5.0},
+        ],
+        controllers=[{"type": "cpbc", "name": "CPBC", "kp": 1, "kd": 1}],
+    )
+    assert main([str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    table = capsys.readouterr().out
+    for kind, unit in (("position", "rad"), ("rate", "rad/s"), ("energy", "J")):
+        assert re.search(rf"{kind} [-0-9.e]+ {re.escape(unit)}\b", table), (kind, table)
+    (run,) = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert {w["type"]: w["unit"] for w in run["worst_margins"]} == {
+        "position": "rad", "rate": "rad/s", "energy": "J"}
+    # starting at rest at x = 0: 3 rad from the position limits, the whole energy budget
+    with np.load(tmp_path / "out" / "rest" / "CPBC" / "trajectory.npz") as npz:
+        m, names = npz["margins"], list(npz["margin_names"])
+    assert m[0, names.index("position[joint1]")] == pytest.approx(3.0)
+    assert m[0, names.index("ke")] == pytest.approx(5.0)
+
+
+def test_applied_torque_is_reported_against_the_plant_limit(tmp_path, capsys):
+    path = tiny(tmp_path, simulation={"duration": 0.05, "torque_limit": 0.2},
+                controllers=[{"type": "pd", "name": "PD", "kp": 10, "kd": 1}])
+    assert main([str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    table = capsys.readouterr().out
+    (run,) = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert run["torque_limits"] == [0.2, 0.2]
+    assert max(run["peak_commanded_torques"]) > 0.2  # PD asked for more …
+    assert max(run["peak_joint_torques"]) == pytest.approx(0.2)  # … than the motors gave
+    assert run["saturated_steps"] > 0
+    assert "0.2=0.2" in table and "torque saturated" in table
+
+
+def test_status_says_when_the_safeguard_drove_most_of_the_run(ch7_run):
+    from dataclasses import replace
+
+    from cpbc.results.metrics import RunSummary
+    from cpbc.run import _notes, _safeguard
+
+    _, out, _ = ch7_run
+    fields = {k: v for k, v in json.loads((out / "summary.json").read_text())[0].items()
+              if k in RunSummary.__dataclass_fields__}
+    s = RunSummary(**fields)
+    half = s.control_steps // 2
+    busy = replace(s, safeguard_steps=half + 1)  # just over half of the steps
+    share = (half + 1) / s.control_steps
+    assert f"safeguard acted on {share:.0%} of steps" in _notes(busy)
+    assert _safeguard(busy) == f"{share:.1%} ({half + 1} steps)"
+    calm = replace(s, safeguard_steps=half)
+    assert "safeguard" not in _notes(calm)
+    assert _safeguard(calm) == f"{half / s.control_steps:.1%} ({half} steps)"

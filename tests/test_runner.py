@@ -38,6 +38,33 @@ def test_parallel_runs_equal_serial_runs(tmp_path: Path) -> None:
         assert a.summary.min_margins == b.summary.min_margins
 
 
+def test_shared_runs_equal_serial_runs_whether_or_not_workers_help(
+    tmp_path: Path, monkeypatch
+) -> None:
+    """run_shared keeps short scenarios in this process and shares long ones; either way
+    the results are the serial ones, in case-major order."""
+    from cpbc.scenario import runner
+
+    setup = _short_ch7(tmp_path)
+    serial = run_all(setup, workers=1)
+    with runner.LazyPool(1) as lazy:
+        kept = runner.run_shared(setup, lazy.get, 1)  # 0.5 s runs: not worth sharing
+    assert lazy.started is None  # so no worker process was even started
+    with worker_pool(1) as pool:
+        runner.run_shared(setup, lambda: pool, 1)
+        # the worker has never built the setup, so it ran no pair
+        assert pool.submit(runner.setups_built).result() == 0
+        monkeypatch.setattr(runner, "OFFLOAD_AFTER", 0.0)  # every run looks long: share
+        shared = runner.run_shared(setup, lambda: pool, 1)
+        assert pool.submit(runner.setups_built).result() == 1
+    for results in (kept, shared):
+        assert [(r.case, r.controller) for r in results] == [
+            (r.case, r.controller) for r in serial]
+        for a, b in zip(serial, results, strict=True):
+            np.testing.assert_array_equal(a.trajectory.position, b.trajectory.position)
+            assert a.summary.min_margins == b.summary.min_margins
+
+
 def test_default_workers_never_exceeds_runs_or_cores() -> None:
     assert default_workers(1) == 1
     assert 1 <= default_workers(100) <= 100

@@ -6,7 +6,9 @@ is drawn, clearances and colours are the geometry's, the server listens on 127.0
 
 from __future__ import annotations
 
+import base64
 import io
+import json
 import re
 import signal
 import subprocess
@@ -22,6 +24,7 @@ import yaml
 from PIL import Image
 
 from cpbc.errors import ModelError
+from cpbc.resources import viewer_dir
 from cpbc.results.palette import clearance_colour
 from cpbc.results.saved_run import load_run
 from cpbc.results.sweep import SceneKinematics
@@ -197,28 +200,66 @@ def test_tube_follows_the_path_at_its_radius():
     assert tube(np.zeros((5, 3)), 0.01) is None
 
 
-# -- the exported page --------------------------------------------------------------------------
-def test_every_case_has_a_self_contained_view(run_folder):
-    for case in ("rest", "moving"):
-        page = (run_folder / case / "view.html").read_text()
-        assert "MeshCat.Viewer" in page
-        assert not re.search(r"""<(script|link|img)[^>]+(src|href)=["']?https?:""", page)
-        assert 100_000 < len(page) < 5_000_000
+# -- the run's page ------------------------------------------------------------------------------
+def _page_data(page: Path) -> dict:
+    m = re.search(r"window\.CPBC_DATA = (\{.*?\});\n</script>", page.read_text(), re.S)
+    assert m, "the page holds its data"
+    return json.loads(m.group(1))
+
+
+def _f32(b64: str) -> np.ndarray:
+    return np.frombuffer(base64.b64decode(b64), dtype="<f4")
+
+
+def test_the_run_has_one_self_contained_page_built_from_the_viewer_folder(run_folder):
+    page = run_folder / "view.html"
+    assert not list(run_folder.glob("*/view.html"))  # one page per run, not per case
+    text = page.read_text()
+    assert "MeshCat.Viewer" in text
+    assert not re.search(r"""<(script|link|img)[^>]+(src|href)=["']?""", text)  # all inlined
+    # the page, its script and style are the files of the top-level viewer/ folder
+    for name in ("view.js", "view.css"):
+        source = (viewer_dir() / name).read_text()
+        assert source.strip() in text, name
+    assert 100_000 < len(text) < 3_000_000
+
+
+def test_page_plots_keep_every_peak_of_the_run(run_folder):
+    """The plotted curves are thinned; every extreme of the run stays in them."""
+    data = _page_data(run_folder / "view.html")
+    summaries = {(s["case"], s["controller"]): s
+                 for s in json.loads((run_folder / "summary.json").read_text())}
+    for case in data["cases"]:
+        titles = [g["title"] for g in case["plots"]]
+        assert titles == ["Positions", "Rates", "Torques applied", "Margins by type"]
+        margin_panels = case["plots"][3]["panels"]
+        assert [p["label"] for p in margin_panels] == ["rate limits [rad/s]", "clearance [m]"]
+        for run, series in zip(case["controllers"], case["series"], strict=True):
+            s = summaries[case["name"], run["name"]]
+            time = _f32(series["time"])
+            assert time[0] == 0 and time[-1] == pytest.approx(DURATION)
+            assert len(time) < 2000  # thinned: 2 s at 1 kHz is 2001 samples
+            for k in range(2):
+                rates = np.abs(_f32(series["columns"][f"velocity{k}"]))
+                assert rates.max() == np.float32(s["peak_joint_rates"][k])
+            for i, name in enumerate(("obstacle", "rate[theta1]", "rate[theta2]")):
+                low = _f32(series["columns"][f"m{i}"]).min()
+                assert low == np.float32(s["min_margins"][name])
 
 
 @needs_chromium
-def test_exported_view_renders_in_chromium_without_errors(run_folder, tmp_path):
+def test_page_renders_and_one_timeline_scrubs_scene_and_plots(run_folder, tmp_path):
     run = load_run(run_folder)
     case = run.case("rest")
-    page = run_folder / "rest" / "view.html"
-    with HeadlessChromium(width=1000, height=700) as browser:
-        browser.open(page.as_uri(), READY, timeout=60)
-        assert browser.evaluate("viewer.animator.duration") == pytest.approx(DURATION)
+    with HeadlessChromium(width=1200, height=760) as browser:
+        browser.open((run_folder / "view.html").as_uri(), READY, timeout=90)
+        assert browser.evaluate("cpbc.case") == "rest"
+        assert browser.evaluate("cpbc.duration") == pytest.approx(DURATION)
         # Two links per arm, two arms and the target pose, the obstacle, traces and markers.
-        assert browser.evaluate(_meshes("cpbc")) >= 2 * 3 + 1 + 2 + 3
+        assert browser.evaluate(_meshes("cpbc")) >= 2 * 3 + 1 + 2 + 2
 
-        # At the frame where PD's outer link is nearest the obstacle, the page colours it as
-        # the clearance says (red when touching, its own blue far away).
+        # At the frame where PD's outer link is nearest the obstacle, the page poses it there
+        # and colours it as the clearance says (red when touching, its own blue far away).
         kin = run.info.kinematics(run.model)
         settings = ViewSettings()
         pd = case.runs[0]
@@ -229,18 +270,53 @@ def test_exported_view_renders_in_chromium_without_errors(run_folder, tmp_path):
         assert sweep.body_clearance[k, link2] < 0.5 * settings.warn_distance  # PD gets close
         expected = clearance_colour("#1f77b4", sweep.body_clearance[k, link2],
                                     settings.warn_distance)
-        browser.evaluate(f"viewer.animator.pause(); viewer.animator.seek({frames[k]}); true")
+        assert browser.evaluate(f"cpbc.seek({frames[k]})") == pytest.approx(frames[k])
+        node = 'viewer.scene_tree.find(["meshcat", "cpbc", "rest", "PD", "robot", "link2"])'
+        position = browser.evaluate(f"{node}.object.position.toArray()")
+        assert position == pytest.approx(sweep.body_position[k, link2].tolist(), abs=1e-5)
         colour = browser.evaluate(
-            'const c = viewer.scene_tree.find(["meshcat", "cpbc", "PD", "robot", "link2", '
-            '"link2_geom", "<object>"]).object.material.color; [c.r, c.g, c.b]'
+            f"(() => {{ let c; {node}.object.traverse(o => {{ if (o.isMesh) c = o.material.color;"
+            " }); return [c.r, c.g, c.b]; })()"
         )
         assert colour == pytest.approx(expected.tolist(), abs=0.02)
         assert colour[0] > colour[2]  # reddened
 
+        # The same timeline moves the plots' cursor: a dark line down the plot at t only.
+        browser.evaluate("cpbc.showTab(1)")  # rates
+        assert browser.evaluate("cpbc.panels") == ["theta1 [rad/s]", "theta2 [rad/s]"]
+        height = browser.evaluate("document.querySelector('#panels canvas').clientHeight")
+        for t in (0.5, 1.5):
+            browser.evaluate(f"cpbc.seek({t})")
+            x = browser.evaluate("cpbc.cursorX(0)")
+            assert browser.evaluate(_cursor_rows(x)) > 0.6 * height
+            assert browser.evaluate(_cursor_rows(x + 40)) < 0.2 * height
+
+        browser.evaluate("cpbc.selectCase('moving')")
+        visible = browser.evaluate(
+            "['rest', 'moving'].map(c => viewer.scene_tree.find(['meshcat', 'cpbc', c])"
+            ".object.visible)"
+        )
+        assert visible == [False, True]
+        assert "case 'moving'" in browser.evaluate("document.getElementById('legend').textContent")
+
         _assert_scene_drawn(browser, tmp_path / "view.png")
         assert not browser.log.errors, browser.log.errors
-        local = [u for u in browser.log.requests if not u.startswith(("file:", "data:", "blob:"))]
-        assert not local, f"the page fetched {local}"
+        remote = [u for u in browser.log.requests if not u.startswith(("file:", "data:", "blob:"))]
+        assert not remote, f"the page fetched {remote}"
+
+
+def _cursor_rows(x: float) -> str:
+    """JS: how many pixel rows of column x of the first plot are dark grey (the cursor's
+    colour; the curves are coloured, the grid light)."""
+    return (
+        "(() => { const c = document.querySelector('#panels canvas');"
+        " const d = window.devicePixelRatio || 1;"
+        f" const img = c.getContext('2d').getImageData(Math.round({x} * d), 0, 1, c.height).data;"
+        " let n = 0; for (let i = 0; i < img.length; i += 4) {"
+        " const hi = Math.max(img[i], img[i + 1], img[i + 2]);"
+        " const lo = Math.min(img[i], img[i + 1], img[i + 2]);"
+        " if (img[i + 3] > 200 && hi < 90 && hi - lo < 20) n++; } return n / d; })()"
+    )
 
 
 # -- servers ------------------------------------------------------------------------------------
@@ -325,7 +401,7 @@ def test_live_view_streams_the_run_on_loopback(tmp_path):
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert (out / "rest" / "view.html").is_file()
+    assert (out / "view.html").is_file()
     assert not list(out.rglob("*.png"))
 
 
@@ -355,15 +431,15 @@ def test_replay_serves_a_saved_run(run_folder, tmp_path):
 
 @needs_chromium
 def test_replay_cli_exports_and_screenshots(run_folder, tmp_path):
-    page = run_folder / "rest" / "view.html"
+    page = run_folder / "view.html"
     before = page.stat().st_mtime_ns
     cli = [sys.executable, "-m", "cpbc.viewer", str(run_folder)]
     subprocess.run([*cli, "--export", "--warn-distance", "0.3"], check=True, capture_output=True)
     assert page.stat().st_mtime_ns > before
-    assert "from 0.3 m to 0" in page.read_text()
+    assert _page_data(page)["warnDistance"] == 0.3
     png = tmp_path / "shot.png"
-    subprocess.run([*cli, "--screenshot", str(png), "--at", "1.0", "--size", "640x400"],
-                   check=True, capture_output=True)
+    subprocess.run([*cli, "--screenshot", str(png), "--case", "moving", "--at", "1.0",
+                    "--size", "640x400"], check=True, capture_output=True)
     with Image.open(png) as im:
         assert im.size == (640, 400)
     bad = subprocess.run([*cli, "--case", "nope", "--export"], capture_output=True, text=True)

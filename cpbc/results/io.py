@@ -6,6 +6,7 @@ import csv
 import json
 import shutil
 import tempfile
+import zipfile
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -15,15 +16,24 @@ import numpy as np
 from cpbc.constraints.base import Array
 from cpbc.errors import CpbcError
 from cpbc.results.metrics import RunSummary
+from cpbc.results.saved_run import FIGURES
 from cpbc.simulation.trajectory import Trajectory
 
 CSV_COLUMNS = (
     "controller", "controller_type", "case", "backend", "status", "end_time", "final_error",
-    "settle_time", "peak_joint_rates", "rate_bounds", "peak_torques", "peak_torque_norm",
-    "torque_bound", "min_margin", "min_margin_constraint", "crossed_constraints",
-    "max_lyapunov_increase", "max_contacts", "saturated_steps", "safeguard_steps",
-    "safeguard_infeasible", "rejected_samples", "wall_time", "steps_per_second",
+    "settle_time", "peak_joint_rates", "rate_bounds", "peak_torques", "peak_commanded_torques",
+    "torque_limits", "peak_torque_norm", "torque_bound", "worst_margins",
+    "crossed_constraints", "max_lyapunov_increase", "max_contacts", "saturated_steps",
+    "safeguard_steps", "safeguard_share", "safeguard_infeasible", "rejected_samples",
+    "wall_time", "steps_per_second",
 )
+#: Lists the files a run wrote into its folder, one relative path a line; a later run into
+#: the same folder replaces these and nothing else.
+MANIFEST = ".cpbc-files"
+#: What earlier versions wrote (folders without a manifest), as glob patterns.
+_LEGACY = ("summary.json", "summary.csv", "scene.mjb", "scene.mjb.gz", "scene.json", "view.html",
+           "*/view.html", "*/*/trajectory.npz",
+           *(f"*/{name}.png" for name in FIGURES))
 
 
 def write_trajectory(
@@ -34,34 +44,51 @@ def write_trajectory(
     lyapunov: Array,
     target: Array,
     coordinate_names: Sequence[str],
+    margin_types: Sequence[str] = (),
 ) -> None:
-    """All logged signals of one run, in one .npz — uncompressed: float logs shrink by only
-    about a fifth, and compressing took most of a run's writing time."""
-    np.savez(
-        path,
-        time=traj.time,
-        position=traj.position,
-        velocity=traj.velocity,
-        torque=traj.torque,
-        joint_torque=traj.joint_torque,
-        margins=margins,
-        margin_names=np.array(list(margin_names), dtype=str),
-        lyapunov=lyapunov,
-        target=target,
-        coordinate_names=np.array(list(coordinate_names), dtype=str),
-        outcome=np.array(traj.outcome),
-    )
+    """All logged signals of one run, in one .npz that ``numpy.load`` reads.
+
+    Compact: the signals are stored in single precision (time and the target stay double),
+    deflated at the fastest level. Single precision keeps 7 significant digits,
+    far below what a figure or a comparison between runs can show; the summary's numbers
+    are computed from the double-precision log before it is written, and equal the file's
+    peaks rounded to single precision.
+    """
+    arrays: dict[str, Array] = {
+        "time": traj.time,
+        "position": _single(traj.position),
+        "velocity": _single(traj.velocity),
+        "torque": _single(traj.torque),
+        "joint_torque": _single(traj.joint_torque),
+        "margins": _single(margins),
+        "margin_names": np.array(list(margin_names), dtype=str),
+        "margin_types": np.array(list(margin_types), dtype=str),
+        "lyapunov": _single(lyapunov),
+        "target": target,
+        "coordinate_names": np.array(list(coordinate_names), dtype=str),
+        "outcome": np.array(traj.outcome),
+    }
+    # deflate level 1: as small as level 6 on these logs (±1 %), in a third of the time
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as z:
+        for name, value in arrays.items():
+            with z.open(f"{name}.npy", "w") as fh:
+                np.lib.format.write_array(fh, np.asanyarray(value), allow_pickle=False)
+
+
+def _single(a: Array) -> Array:
+    return np.asarray(a, dtype=np.float32)
 
 
 def _csv_row(s: RunSummary) -> dict[str, object]:
-    finite = {k: v for k, v in s.min_margins.items() if v == v}
-    worst = min(finite, key=finite.__getitem__) if finite else ""
     row = {k: getattr(s, k) for k in CSV_COLUMNS if hasattr(s, k)}
-    row["min_margin"] = finite.get(worst, "")
-    row["min_margin_constraint"] = worst
-    for k in ("peak_joint_rates", "rate_bounds", "peak_torques", "crossed_constraints"):
+    row["worst_margins"] = "; ".join(
+        f"{w.type} {w.value:.6g} {w.unit} ({w.constraint})".replace("  ", " ")
+        for w in s.worst_margins())
+    row["safeguard_share"] = f"{s.safeguard_share:.6g}"
+    for k in ("peak_joint_rates", "rate_bounds", "peak_torques", "peak_commanded_torques",
+              "torque_limits", "crossed_constraints"):
         row[k] = " ".join("-" if v is None else (f"{v:.6g}" if isinstance(v, float) else str(v))
-                          for v in getattr(s, k))
+                          for v in getattr(s, k) or [])
     return row
 
 
@@ -77,28 +104,77 @@ def write_summaries(folder: Path, summaries: Sequence[RunSummary]) -> None:
             writer.writerow(_csv_row(s))
 
 
+def earlier_output(out: Path) -> set[Path]:
+    """The files an earlier run wrote into ``out`` (relative paths); empty for a new or
+    empty folder.
+
+    Raises:
+        CpbcError: ``out`` is a file, or a folder holding files but no earlier cpbc output.
+    """
+    if not out.exists():
+        return set()
+    if not out.is_dir():
+        raise CpbcError(f"--out {out} is a file; choose a folder")
+    if (out / MANIFEST).is_file():
+        listed = (out / MANIFEST).read_text(encoding="utf-8").splitlines()
+        return {Path(p) for p in listed if p and not Path(p).is_absolute() and ".." not in p}
+    if (out / "summary.json").is_file():
+        return {p.relative_to(out) for pattern in _LEGACY for p in out.glob(pattern)
+                if p.is_file()}
+    if any(out.iterdir()):
+        raise CpbcError(
+            f"--out {out} exists and is not an earlier cpbc output (no summary.json); "
+            "choose another folder"
+        )
+    return set()
+
+
+def _place(scratch: Path, out: Path, earlier: set[Path]) -> None:
+    """Replace the earlier run's files in ``out`` by the scratch folder's; every other file
+    in ``out`` (the user's) stays. Refuses, before touching anything, to overwrite one."""
+    new = sorted(p.relative_to(scratch) for p in scratch.rglob("*") if p.is_file())
+    taken = [p for p in new if p not in earlier and (out / p).exists()]
+    if taken:
+        raise CpbcError(
+            f"{out / taken[0]} was not written by cpbc, and this run would overwrite it; "
+            "move it out of the folder or choose another --out"
+        )
+    for p in sorted(earlier, key=lambda q: -len(q.parts)):
+        target = out / p
+        if target.is_file():
+            target.unlink()
+        for parent in target.parents:  # folders the earlier run made, once empty
+            if parent == out or not parent.is_relative_to(out):
+                break
+            if parent.is_dir() and not any(parent.iterdir()):
+                parent.rmdir()
+    for p in new:
+        (out / p).parent.mkdir(parents=True, exist_ok=True)
+        (scratch / p).replace(out / p)
+    (out / MANIFEST).write_text("".join(f"{p.as_posix()}\n" for p in new), encoding="utf-8")
+
+
 @contextmanager
 def staged_output(out: Path) -> Iterator[Path]:
     """Write into a scratch folder next to ``out``; move it into place only on success.
 
     Nothing half-written is left behind: on any error the scratch folder is removed and an
-    existing ``out`` is untouched. An existing ``out`` is replaced only if it is an earlier
-    cpbc output (it holds a summary.json) or empty; anything else is refused.
+    existing ``out`` is untouched. Into an earlier cpbc output, the earlier run's files
+    (listed in its ``.cpbc-files``) are replaced and files the user added are kept; a run
+    that would overwrite one of those is refused. A folder holding files but no earlier
+    cpbc output is refused.
     """
-    if out.exists() and not (
-        out.is_dir() and ((out / "summary.json").is_file() or not any(out.iterdir()))
-    ):
-        raise CpbcError(
-            f"--out {out} exists and is not an earlier cpbc output (no summary.json); "
-            "choose another folder"
-        )
+    earlier = earlier_output(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     scratch = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         yield scratch
-    except BaseException:
+        if not out.exists():
+            (scratch / MANIFEST).write_text("".join(
+                f"{p.relative_to(scratch).as_posix()}\n"
+                for p in sorted(scratch.rglob("*")) if p.is_file()), encoding="utf-8")
+            scratch.rename(out)
+            return
+        _place(scratch, out, earlier)
+    finally:
         shutil.rmtree(scratch, ignore_errors=True)
-        raise
-    if out.exists():
-        shutil.rmtree(out)
-    scratch.rename(out)

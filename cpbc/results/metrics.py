@@ -10,6 +10,7 @@ import numpy as np
 from cpbc.constraints.base import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.controllers.base import Controller
+from cpbc.results.margin_types import WorstMargin, physical_history, types_of, worst_by_type
 from cpbc.simulation.trajectory import Trajectory
 
 STATUSES = ("converged", "stalled", "not_settled", "constraint_violated", "diverged")
@@ -35,7 +36,16 @@ class SettleCriteria:
 
 @dataclass(frozen=True)
 class RunSummary:
-    """One controller on one case. All rates and torques in the controller's coordinates."""
+    """One controller on one case.
+
+    Rates and torques are in the controller's coordinates x = T q, except ``torque_limits``
+    and ``peak_joint_torques``, which are per joint (motor); for arms controlled in joint
+    coordinates (T = I) the two agree. ``peak_torques`` is the torque applied (after the
+    plant's torque limit), ``peak_commanded_torques`` what the controller asked for, and
+    ``peak_torque_norm`` the largest ‖τ‖ commanded (what a theoretical ``torque_bound``
+    bounds). ``min_margins`` are distances to the bounds in each constraint type's unit
+    (``margin_types``; see cpbc.results.margin_types).
+    """
 
     controller: str
     controller_type: str
@@ -49,9 +59,13 @@ class RunSummary:
     peak_joint_rates: list[float]
     rate_bounds: list[float | None]
     peak_torques: list[float]
+    peak_commanded_torques: list[float]
+    peak_joint_torques: list[float]
+    torque_limits: list[float] | None
     peak_torque_norm: float
     torque_bound: float | None
     min_margins: dict[str, float]
+    margin_types: dict[str, str]
     crossed_constraints: list[str]
     enforced_constraints: list[str]
     max_lyapunov_increase: float
@@ -66,8 +80,20 @@ class RunSummary:
     safeguard_infeasible: int = 0
     rejected_samples: int = 0
 
+    @property
+    def safeguard_share(self) -> float:
+        """Fraction of the control steps at which the safeguard changed the law's torque."""
+        return self.safeguard_steps / self.control_steps if self.control_steps else 0.0
+
+    def worst_margins(self) -> list[WorstMargin]:
+        """Per constraint type, the constraint that came nearest its bound."""
+        return worst_by_type(self.min_margins, self.margin_types)
+
     def as_dict(self) -> dict[str, object]:
-        return {k: _plain(v) for k, v in self.__dict__.items()}
+        out = {k: _plain(v) for k, v in self.__dict__.items()}
+        out["safeguard_share"] = self.safeguard_share
+        out["worst_margins"] = [_plain(dict(w.__dict__)) for w in self.worst_margins()]
+        return out
 
 
 def _plain(v: object) -> object:
@@ -81,8 +107,9 @@ def _plain(v: object) -> object:
 
 
 def margin_history(monitor: ConstraintSet, traj: Trajectory) -> Array:
-    """Every monitored constraint's margin at every sample, shape (N, m)."""
-    return monitor.margins_along(traj.position, traj.velocity)
+    """Every monitored constraint's margin at every sample, shape (N, m), as a distance to
+    its bound in its type's unit (cpbc.results.margin_types)."""
+    return physical_history(monitor, monitor.margins_along(traj.position, traj.velocity))
 
 
 def judge_status(
@@ -117,12 +144,26 @@ def summarise(
     criteria: SettleCriteria,
     rate_bounds: list[float | None],
     margins: Array | None = None,
+    torque_limits: Array | None = None,
+    coordinates: Array | None = None,
 ) -> RunSummary:
-    """Condense a trajectory into a RunSummary."""
+    """Condense a trajectory into a RunSummary.
+
+    Args:
+        margins: :func:`margin_history` of the run, when already computed.
+        torque_limits: the plant's joint torque limits, shape (n,), or None.
+        coordinates: T of x = T q (the identity when omitted).
+    """
     margins = margin_history(monitor, traj) if margins is None else margins
     lyapunov = traj.lyapunov
     status, settle = judge_status(traj, controller.target, criteria)
     finite_tau = np.where(np.isfinite(traj.torque), traj.torque, 0.0)
+    applied_q = np.where(np.isfinite(traj.joint_torque), traj.joint_torque, 0.0)
+    # τ_q = Tᵀ τ_x, so the applied torque in the controller's coordinates is τ_q T⁻¹ per row.
+    applied = applied_q if coordinates is None else np.linalg.solve(
+        np.asarray(coordinates, dtype=float).T, applied_q.T).T
+    limits = None if torque_limits is None else np.broadcast_to(
+        np.asarray(torque_limits, dtype=float), (traj.joint_torque.shape[1],)).tolist()
     min_margins = {
         n: float(np.nanmin(margins[:, i])) if np.any(np.isfinite(margins[:, i])) else float("nan")
         for i, n in enumerate(monitor.names)
@@ -141,10 +182,14 @@ def summarise(
         settle_time=settle,
         peak_joint_rates=np.max(np.abs(traj.velocity), axis=0).tolist(),
         rate_bounds=rate_bounds,
-        peak_torques=np.max(np.abs(finite_tau), axis=0).tolist(),
+        peak_torques=_peaks(applied),
+        peak_commanded_torques=_peaks(finite_tau),
+        peak_joint_torques=_peaks(applied_q),
+        torque_limits=limits,
         peak_torque_norm=float(np.max(np.linalg.norm(finite_tau, axis=1))),
         torque_bound=controller.torque_bound,
         min_margins=min_margins,
+        margin_types=dict(zip(monitor.names, types_of(monitor), strict=True)),
         crossed_constraints=[n for n, v in min_margins.items() if v <= 0],
         enforced_constraints=list(controller.constraints.names),
         max_lyapunov_increase=float(max(dv.max(), 0.0)) if dv.size else 0.0,
@@ -158,3 +203,8 @@ def summarise(
         safeguard_infeasible=traj.safeguard_infeasible,
         rejected_samples=traj.rejected_samples,
     )
+
+
+def _peaks(values: Array) -> list[float]:
+    """Largest magnitude of every column (0 for an empty log)."""
+    return np.max(np.abs(values), axis=0).tolist() if len(values) else [0.0] * values.shape[1]

@@ -24,7 +24,7 @@ matplotlib is imported here only, with the Agg canvas and no pyplot state.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from pathlib import Path
 
 import mujoco
@@ -32,30 +32,36 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from matplotlib.patches import Circle, Polygon
+from matplotlib.lines import Line2D
+from matplotlib.patches import Circle, Patch, Polygon
 
 from cpbc.constraints.base import Array
+from cpbc.results.margin_types import grouped, nearest_columns
 from cpbc.results.palette import (
     BOUND_COLOUR,
     OBSTACLE_COLOUR,
     WARNING_COLOUR,
     controller_colour,
 )
-from cpbc.results.saved_run import SavedCase, SavedRun, SavedTrajectory
+from cpbc.results.saved_run import FIGURES, SavedCase, SavedRun, SavedTrajectory
 from cpbc.results.sweep import SceneKinematics
+from cpbc.results.thinning import envelope
 
-FIGURES = ("positions", "rates", "torques", "lyapunov", "margins", "path")
 _WIDTH = 7.0  # inches
 _PANEL = 2.1  # inches per stacked panel
 _DPI = 110
 _PATH_SAMPLES = 4000  # end-point samples drawn per controller in path.png
 _PLANAR_TOL = 1e-6  # [m] spread of the traced point's z below which the arm is planar
-_BUCKETS = 1500  # time buckets of a thinned curve (two samples each)
 
 
-def _figure(rows: int, title: str, height: float | None = None) -> tuple[Figure, list[Axes]]:
-    fig = Figure(figsize=(_WIDTH, height or (0.9 + _PANEL * rows)), dpi=_DPI, layout="constrained")
+def _figure(rows: int, title: str, height: float | None = None, width: float = _WIDTH
+            ) -> tuple[Figure, list[Axes]]:
+    h = height or (0.9 + _PANEL * rows)
+    fig = Figure(figsize=(width, h), dpi=_DPI)
     FigureCanvasAgg(fig)
+    # Fixed margins in inches: matplotlib's constrained layout took most of a figure's time.
+    fig.subplots_adjust(left=1.0 / width, right=1 - 0.2 / width, top=1 - 0.5 / h,
+                        bottom=0.55 / h, hspace=0.3 * _PANEL / (_PANEL - 0.3))
     axes = list(fig.subplots(rows, 1, sharex=True, squeeze=False)[:, 0])
     fig.suptitle(title, fontsize=11)
     for ax in axes:
@@ -64,34 +70,14 @@ def _figure(rows: int, title: str, height: float | None = None) -> tuple[Figure,
     return fig, axes
 
 
-def envelope(y: Array, buckets: int = _BUCKETS) -> Array:
-    """Indices of the samples of ``y`` a thinned curve keeps, in time order.
-
-    The first and last samples and, in each of ``buckets`` equal runs of samples, the
-    smallest and the largest (NaN samples are never preferred). All samples when short.
-    """
-    n = len(y)
-    if n <= 2 * buckets:
-        return np.arange(n)
-    b = -(-n // buckets)
-    padded = np.full(b * (-(-n // b)), np.nan)
-    padded[:n] = y
-    rows = padded.reshape(-1, b)
-    offset = np.arange(rows.shape[0]) * b
-    lo = np.argmin(np.where(np.isnan(rows), np.inf, rows), axis=1) + offset
-    hi = np.argmax(np.where(np.isnan(rows), -np.inf, rows), axis=1) + offset
-    idx = np.unique(np.concatenate([[0, n - 1], lo, hi]))
-    return idx[idx < n]
-
-
 def _curve(ax: Axes, t: Array, y: Array, **style: object) -> None:
     idx = envelope(y)
-    ax.plot(t[idx], y[idx], lw=1.4, **style)
+    ax.plot(t[idx], y[idx], **{"lw": 1.4, **style})
 
 
 def _legend(ax: Axes) -> None:
     if ax.get_legend_handles_labels()[0]:
-        ax.legend(loc="best", fontsize=8, framealpha=0.85)
+        ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
 
 
 def _symbol(name: str, rate: bool = False) -> str:
@@ -142,15 +128,38 @@ def rates_figure(case: SavedCase) -> Figure:
     return fig
 
 
+def _joint_frame(case: SavedCase) -> bool:
+    """Whether torques are drawn per joint: when the plant limits them (the limits are per
+    joint) and the controller's coordinates are not the joints."""
+    first = case.runs[0]
+    limited = first.summary.get("torque_limits") is not None
+    return limited and not np.allclose(first.coordinates, np.eye(len(first.coordinates)))
+
+
 def torques_figure(case: SavedCase) -> Figure:
-    """τ_k(t) per coordinate and ‖τ‖(t), each controller's theoretical ‖τ‖ bound dashed."""
+    """τ_k(t) applied per coordinate (what the controller asked for, where the plant's limit
+    cut it, thin), the plant's limits ±τ_max dashed, and ‖τ‖(t) asked for with each
+    controller's theoretical bound (7.32/7.40) dashed in its colour."""
     first = case.runs[0]
     n = len(first.coordinate_names)
+    joints = _joint_frame(case)
     fig, axes = _figure(n + 1, _title(case, "Torques"))
-    for k, (ax, name) in enumerate(zip(axes[:n], first.coordinate_names, strict=True)):
+    limits = first.summary.get("torque_limits")
+    for k, ax in enumerate(axes[:n]):
         for r, colour in _each(case):
-            _curve(ax, r.time, r.torque[:, k], color=colour, label=r.controller)
-        ax.set_ylabel(f"τ of {_symbol(name)} [N·m]")
+            applied, asked = r.applied_torque(joints), r.commanded_torque(joints)
+            # single-precision logs: equal up to their rounding unless the limit cut in
+            if not np.allclose(applied[:, k], asked[:, k], rtol=1e-5, atol=1e-6,
+                               equal_nan=True):
+                _curve(ax, r.time, asked[:, k], color=colour, lw=0.7, alpha=0.6,
+                       label=f"{r.controller} asked")
+            _curve(ax, r.time, applied[:, k], color=colour, label=r.controller)
+        if limits is not None and (joints or _identity(first)):
+            lim = float(limits[k])
+            ax.axhline(lim, color=BOUND_COLOUR, ls="--", lw=1.0, label=f"limit ±{lim:.4g}")
+            ax.axhline(-lim, color=BOUND_COLOUR, ls="--", lw=1.0)
+        what = f"joint {k + 1}" if joints else _symbol(first.coordinate_names[k])
+        ax.set_ylabel(f"τ of {what} [N·m]")
         _legend(ax)
     ax = axes[n]
     for r, colour in _each(case):
@@ -164,9 +173,13 @@ def torques_figure(case: SavedCase) -> Figure:
                 lw=1.0,
                 label=f"{r.controller} bound {float(bound):.4g}",
             )
-    ax.set_ylabel("‖τ‖ [N·m]")
+    ax.set_ylabel("‖τ‖ asked [N·m]")
     _legend(ax)
     return fig
+
+
+def _identity(r: SavedTrajectory) -> bool:
+    return bool(np.allclose(r.coordinates, np.eye(len(r.coordinates))))
 
 
 def lyapunov_figure(case: SavedCase) -> Figure:
@@ -181,21 +194,67 @@ def lyapunov_figure(case: SavedCase) -> Figure:
     return fig
 
 
+_NAMED = 3  # constraints of a type drawn and named one by one; the rest as a shaded range
+_STYLES = ("-", "--", ":")
+
+
 def margins_figure(case: SavedCase) -> Figure | None:
-    """The margin of every monitored constraint, zero dashed; None when there are none."""
-    names = case.runs[0].margin_names
-    if not names:
+    """Margins grouped by constraint type, one panel per type in its unit (rad, rad/s, m,
+    J; see cpbc.results.margin_types), zero dashed; None when nothing is monitored.
+
+    In a panel, the three constraints that came nearest their bounds are drawn one by one
+    (a line style each, the controller's colour); every other constraint of the type lies
+    in the shaded range between the smallest and the largest of their margins.
+    """
+    first = case.runs[0]
+    groups = grouped(first.margin_names, first.margin_types)
+    if not groups:
         return None
-    fig, axes = _figure(len(names), _title(case, "Constraint margins (> 0 is admissible)"))
-    for i, (ax, name) in enumerate(zip(axes, names, strict=True)):
+    fig, axes = _figure(len(groups), _title(case, "Constraint margins by type (> 0 is admissible)"),
+                        width=_WIDTH + 2.6)
+    fig.subplots_adjust(right=1 - 2.7 / (_WIDTH + 2.6))  # the legends go right of the panels
+    for ax, (kind, columns) in zip(axes, groups, strict=True):
+        named = nearest_columns([r.margins for r in case.runs], columns, _NAMED)
+        rest = [i for i in columns if i not in named]
+        top = 0.0
         for r, colour in _each(case):
-            enforced = name in (r.summary.get("enforced_constraints") or [])
-            label = f"{r.controller} (enforced)" if enforced else r.controller
-            _curve(ax, r.time, r.margins[:, i], color=colour, label=label)
-        ax.axhline(0.0, color=WARNING_COLOUR, ls="--", lw=1.0, label="boundary")
-        ax.set_ylabel(name, fontsize=9)
-    _legend(axes[0])
+            if rest:
+                lo, hi = _range(r.margins[:, rest])
+                keep = np.union1d(envelope(lo), envelope(hi))
+                ax.fill_between(r.time[keep], lo[keep], hi[keep], color=colour, alpha=0.15, lw=0)
+                top = max(top, float(np.nanmax(lo)))
+            for i, style in zip(named, _STYLES, strict=False):
+                _curve(ax, r.time, r.margins[:, i], color=colour, ls=style,
+                       label=f"{r.controller}: {first.margin_names[i]}")
+                top = max(top, float(np.nanmax(r.margins[:, i])))
+        ax.axhline(0.0, color=WARNING_COLOUR, ls="--", lw=1.0)
+        low = ax.get_ylim()[0]
+        if rest and top > 0:  # the far constraints' range would squash the near ones
+            ax.set_ylim(low, top + 0.05 * (top - low))
+        ax.set_ylabel(f"{kind.label} [{kind.unit}]" if kind.unit else kind.label, fontsize=9)
+        _type_legend(ax, case, [first.margin_names[i] for i in named], len(rest))
     return fig
+
+
+def _type_legend(ax: Axes, case: SavedCase, named: Sequence[str], others: int) -> None:
+    """Controllers by colour, constraints by line style, the shaded range of the others."""
+    handles = [Line2D([], [], color=c, lw=2.5, label=r.controller) for r, c in _each(case)]
+    handles += [Line2D([], [], color=BOUND_COLOUR, ls=st, lw=1.4, label=n)
+                for n, st in zip(named, _STYLES, strict=False)]
+    if others:
+        handles.append(Patch(color=BOUND_COLOUR, alpha=0.15, label=f"range of {others} others"))
+    handles.append(Line2D([], [], color=WARNING_COLOUR, ls="--", lw=1.0, label="boundary"))
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7.5,
+              framealpha=0.9, borderaxespad=0.0)
+
+
+def _range(values: Array) -> tuple[Array, Array]:
+    """Smallest and largest of several margins at every sample (NaN where none is finite)."""
+    with np.errstate(all="ignore"):
+        finite = np.isfinite(values).any(axis=1)
+        lo = np.where(finite, np.nanmin(np.where(finite[:, None], values, 0.0), axis=1), np.nan)
+        hi = np.where(finite, np.nanmax(np.where(finite[:, None], values, 0.0), axis=1), np.nan)
+    return lo, hi
 
 
 def _finite(r: SavedTrajectory) -> tuple[Array, Array]:
@@ -307,8 +366,10 @@ def path_figure(case: SavedCase, kin: SceneKinematics) -> Figure | None:
     return fig
 
 
-def case_figures(case: SavedCase, kin: SceneKinematics | None) -> dict[str, Figure]:
-    """Every figure of a case by name (see FIGURES); absent ones are left out."""
+def case_figures(
+    case: SavedCase, kin: SceneKinematics | None, names: Collection[str] = FIGURES
+) -> dict[str, Figure]:
+    """The figures of a case by name (all of FIGURES by default); absent ones are left out."""
     makers: dict[str, Callable[[], Figure | None]] = {
         "positions": lambda: positions_figure(case),
         "rates": lambda: rates_figure(case),
@@ -319,6 +380,8 @@ def case_figures(case: SavedCase, kin: SceneKinematics | None) -> dict[str, Figu
     }
     out = {}
     for name, make in makers.items():
+        if name not in names:
+            continue
         fig = make()
         if fig is not None:
             out[name] = fig
@@ -326,7 +389,10 @@ def case_figures(case: SavedCase, kin: SceneKinematics | None) -> dict[str, Figu
 
 
 def write_plots(
-    run: SavedRun, folder: Path | None = None, cases: Sequence[str] | None = None
+    run: SavedRun,
+    folder: Path | None = None,
+    cases: Sequence[str] | None = None,
+    only: Collection[tuple[str, str]] | None = None,
 ) -> list[Path]:
     """Write every case's figures as ``<folder>/<case>/<name>.png``; returns the paths.
 
@@ -334,6 +400,8 @@ def write_plots(
         run: a run folder read back with :func:`cpbc.results.saved_run.load_run`.
         folder: where to write; the run's own folder when omitted.
         cases: the names of the cases to draw; all when omitted.
+        only: (case, figure) pairs to draw; all when omitted (several processes can share
+            a run's figures this way).
     """
     folder = run.folder if folder is None else Path(folder)
     kin = run.info.kinematics(run.model)
@@ -343,7 +411,8 @@ def write_plots(
             continue
         out = folder / case.name
         out.mkdir(parents=True, exist_ok=True)
-        for name, fig in case_figures(case, kin).items():
+        names = FIGURES if only is None else [n for c, n in only if c == case.name]
+        for name, fig in case_figures(case, kin, names).items():
             path = out / f"{name}.png"
             fig.savefig(path, metadata={"Title": fig.get_suptitle(), "Software": "cpbc"})
             written.append(path)

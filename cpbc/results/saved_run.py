@@ -3,8 +3,9 @@
 ``python -m cpbc.run`` writes, next to ``summary.json`` and the ``<case>/<controller>/``
 folders of ``trajectory.npz`` files, the scene the runs happened in:
 
-* ``scene.mjb``: the compiled MuJoCo model with the scenario's obstacles (binary MJB, so a
-  replay needs no model or mesh files; it loads with the same MuJoCo version);
+* ``scene.mjb.gz``: the compiled MuJoCo model with the scenario's obstacles (binary MJB,
+  gzipped — meshes halve —, so a replay needs no model or mesh files; it loads with the same
+  MuJoCo version; folders of earlier versions hold it as a plain ``scene.mjb``);
 * ``scene.json``: the controller's coordinates ``x = T q`` and the frame whose path is traced.
 
 The figures and the viewer read a run only through :func:`load_run`.
@@ -12,8 +13,9 @@ The figures and the viewer read a run only through :func:`load_run`.
 
 from __future__ import annotations
 
+import gzip
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import mujoco
@@ -23,10 +25,13 @@ from cpbc.constraints.base import Array
 from cpbc.errors import CpbcError
 from cpbc.results.sweep import SceneKinematics
 
-SCENE_MODEL = "scene.mjb"
+SCENE_MODEL = "scene.mjb.gz"
+PLAIN_SCENE_MODEL = "scene.mjb"  # what earlier versions wrote
 SCENE_INFO = "scene.json"
 SUMMARY = "summary.json"
 TRAJECTORY = "trajectory.npz"
+#: The figures of each case, ``<case>/<name>.png`` (cpbc.results.plots draws them).
+FIGURES = ("positions", "rates", "torques", "lyapunov", "margins", "path")
 
 
 @dataclass(frozen=True)
@@ -83,13 +88,16 @@ class SavedTrajectory:
         position, velocity: (N, n) [rad, rad/s].
         torque: (N, n) generalised forces asked for.
         joint_torque: (N, n) joint torques applied.
-        margins: (N, m) margin of every monitored constraint.
+        margins: (N, m) margin of every monitored constraint, as a distance to its bound
+            in its type's unit (cpbc.results.margin_types).
         margin_names: (m,) their names.
+        margin_types: (m,) their type keys ("position", "rate", "clearance", …).
         lyapunov: (N,) V.
         target: (n,).
         coordinate_names: (n,).
         outcome: "completed", "diverged" or "constraint_violated".
         summary: this run's entry of summary.json.
+        coordinates: T of x = T q, shape (n, n).
     """
 
     controller: str
@@ -106,6 +114,20 @@ class SavedTrajectory:
     coordinate_names: tuple[str, ...]
     outcome: str
     summary: dict[str, object]
+    margin_types: tuple[str, ...] = ()
+    coordinates: Array = field(default_factory=lambda: np.eye(0))
+
+    def commanded_torque(self, joints: bool = False) -> Array:
+        """What the controller asked for, (N, n): in its coordinates, or per joint
+        (τ_q = Tᵀ τ, row by row τ T)."""
+        return self.torque @ self.coordinates if joints else self.torque
+
+    def applied_torque(self, joints: bool = False) -> Array:
+        """What the plant applied after its torque limit, (N, n): per joint, or in the
+        controller's coordinates (τ = T⁻ᵀ τ_q, row by row τ_q T⁻¹)."""
+        if joints:
+            return self.joint_torque
+        return np.linalg.solve(self.coordinates.T, self.joint_torque.T).T
 
 
 @dataclass(frozen=True)
@@ -139,13 +161,19 @@ class SavedRun:
 
 
 def write_scene(folder: Path, model: mujoco.MjModel, info: SceneInfo) -> None:
-    """Write ``scene.mjb`` and ``scene.json`` into a run folder."""
-    mujoco.mj_saveModel(model, str(folder / SCENE_MODEL), None)
+    """Write ``scene.mjb.gz`` and ``scene.json`` into a run folder."""
+    buffer = np.empty(mujoco.mj_sizeModel(model), dtype=np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    (folder / SCENE_MODEL).write_bytes(gzip.compress(buffer.tobytes(), compresslevel=6))
     (folder / SCENE_INFO).write_text(info.to_json())
 
 
-def _trajectory(path: Path, summary: dict[str, object]) -> SavedTrajectory:
+def _trajectory(path: Path, summary: dict[str, object], coordinates: Array) -> SavedTrajectory:
     with np.load(path) as d:
+        names = tuple(str(s) for s in d["margin_names"])
+        # runs written before margins had types: every margin of an unknown type
+        types = (tuple(str(s) for s in d["margin_types"]) if "margin_types" in d.files
+                 else ("other",) * len(names))
         return SavedTrajectory(
             controller=str(summary["controller"]),
             case=str(summary["case"]),
@@ -155,7 +183,9 @@ def _trajectory(path: Path, summary: dict[str, object]) -> SavedTrajectory:
             torque=d["torque"],
             joint_torque=d["joint_torque"],
             margins=d["margins"],
-            margin_names=tuple(str(s) for s in d["margin_names"]),
+            margin_names=names,
+            margin_types=types,
+            coordinates=coordinates,
             lyapunov=d["lyapunov"],
             target=d["target"],
             coordinate_names=tuple(str(s) for s in d["coordinate_names"]),
@@ -171,16 +201,21 @@ def load_run(folder: Path | str) -> SavedRun:
         CpbcError: when the folder lacks summary.json, the scene files or a trajectory.
     """
     folder = Path(folder)
-    missing = [n for n in (SUMMARY, SCENE_MODEL, SCENE_INFO) if not (folder / n).is_file()]
+    model_file = folder / (PLAIN_SCENE_MODEL if (folder / PLAIN_SCENE_MODEL).is_file()
+                           else SCENE_MODEL)
+    missing = [n for n in (SUMMARY, model_file.name, SCENE_INFO) if not (folder / n).is_file()]
     if missing:
         raise CpbcError(
             f"'{folder}' is not a complete run folder: missing {', '.join(missing)} "
             "(run the scenario again with python -m cpbc.run to write them)"
         )
     try:
-        model = mujoco.MjModel.from_binary_path(str(folder / SCENE_MODEL))
-    except ValueError as exc:
-        raise CpbcError(f"cannot load {folder / SCENE_MODEL}: {exc}") from exc
+        data = model_file.read_bytes()
+        if model_file.name == SCENE_MODEL:
+            data = gzip.decompress(data)
+        model = mujoco.MjModel.from_binary_path(PLAIN_SCENE_MODEL, {PLAIN_SCENE_MODEL: data})
+    except (ValueError, OSError) as exc:
+        raise CpbcError(f"cannot load {model_file}: {exc}") from exc
     info = SceneInfo.from_json((folder / SCENE_INFO).read_text())
     summaries = json.loads((folder / SUMMARY).read_text())
     by_case: dict[str, list[SavedTrajectory]] = {}
@@ -188,6 +223,6 @@ def load_run(folder: Path | str) -> SavedRun:
         path = folder / str(s["case"]) / str(s["controller"]) / TRAJECTORY
         if not path.is_file():
             raise CpbcError(f"run folder '{folder}' lacks {path.relative_to(folder)}")
-        by_case.setdefault(str(s["case"]), []).append(_trajectory(path, s))
+        by_case.setdefault(str(s["case"]), []).append(_trajectory(path, s, info.coordinates))
     cases = tuple(SavedCase(name, tuple(runs)) for name, runs in by_case.items())
     return SavedRun(folder, model, info, cases)

@@ -10,6 +10,8 @@ import contextlib
 import functools
 import multiprocessing
 import os
+import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
@@ -63,7 +65,8 @@ def run_one(
     margins = margin_history(setup.monitor, traj)
     summary = summarise(
         entry.name, case.name, entry.controller, setup.monitor, traj, setup.criteria,
-        setup.rate_bounds, margins,
+        setup.rate_bounds, margins, setup.loop_settings.torque_limit,
+        setup.model.coordinates.matrix,
     )
     return RunResult(entry.name, case.name, traj, margins, traj.lyapunov, summary)
 
@@ -72,6 +75,12 @@ def run_one(
 def _setup_in_worker(scenario_json: str, source: Path) -> ScenarioSetup:
     """The setup of a scenario, built once per worker process (a worker runs several pairs)."""
     return build(Scenario.model_validate_json(scenario_json), source)
+
+
+def setups_built() -> int:
+    """How many scenario setups this process has built for worker runs (a check that a
+    worker took part)."""
+    return _setup_in_worker.cache_info().misses
 
 
 def _run_in_worker(
@@ -89,17 +98,165 @@ def default_workers(runs: int) -> int:
     return max(1, min(runs, os.cpu_count() or 1))
 
 
-def worker_pool(workers: int) -> ProcessPoolExecutor:
+def default_processes() -> int:
+    """Processes a scenario run may use, this one included: one per core."""
+    return max(1, os.cpu_count() or 1)
+
+
+def _warm_up() -> None:
+    """Worker initialiser: import what its tasks need (figures, runs) while the main
+    process is busy, so that the first task does not wait for it."""
+    import cpbc.results.plots  # noqa: F401
+
+
+def worker_pool(workers: int, warm: bool = False) -> ProcessPoolExecutor:
     """Processes for independent runs (and figures): spawned, so no simulator state is
-    inherited; each builds its own Pinocchio and MuJoCo objects."""
-    return ProcessPoolExecutor(max_workers=workers,
+    inherited; each builds its own Pinocchio and MuJoCo objects. With ``warm`` each starts
+    importing at once (a pool is otherwise started lazily, by its first task)."""
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=_warm_up if warm else None,
                                mp_context=multiprocessing.get_context("spawn"))
+    if warm:
+        for _ in range(workers):
+            pool.submit(int)  # starts the processes now
+    return pool
 
 
 def _expected_cost(entry: ControllerEntry) -> int:
     """A rough relative cost of a run, to start the longest first: a step costs more the
     more constraints the law (and its safeguard) evaluates; a baseline enforces none."""
     return len(entry.controller.constraints.names)
+
+
+#: Estimated seconds of simulation left after the first run above which the rest is shared
+#: with worker processes: a worker first spends 1.5–3 s here importing and building the
+#: setup, and on a shared machine the second core may be busy anyway.
+OFFLOAD_AFTER = 2.5
+
+
+class LazyPool:
+    """Worker processes started only when first asked for (``get``); a context manager
+    that shuts them down if they were started. A short scenario never starts any."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = workers
+        self.started: ProcessPoolExecutor | None = None
+
+    def get(self) -> ProcessPoolExecutor:
+        if self.started is None:
+            self.started = worker_pool(self.workers, warm=True)
+        return self.started
+
+    def __enter__(self) -> LazyPool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.started is not None:
+            self.started.shutdown()
+
+
+class _FirstRun:
+    """Watches the first run's progress and, as soon as the rest of the scenario looks
+    longer than OFFLOAD_AFTER seconds, starts the helpers (once); decides at the end of the
+    first run at the latest (a backend that reports no progress)."""
+
+    _EARLIEST = 0.1  # fraction of the first run after which its pace is trusted
+
+    def __init__(self, pending: list[tuple[CaseEntry, ControllerEntry]],
+                 progress: RunProgress | None, start: Callable[[], None]) -> None:
+        self.pending, self.progress, self.start = pending, progress, start
+        self.decided = False
+        self.began = 0.0
+        self.weight = 1.0
+
+    def watch(self, entry: ControllerEntry) -> RunProgress:
+        self.began = time.perf_counter()
+        rest = sum(_expected_cost(e) + 1 for _, e in self.pending)
+        self.weight = rest / (_expected_cost(entry) + 1)
+
+        def report(label: str, frac: float) -> None:
+            if not self.decided and frac >= self._EARLIEST:
+                self._decide(frac)
+            if self.progress is not None:
+                self.progress(label, frac)
+
+        return report
+
+    def _decide(self, frac: float) -> None:
+        self.decided = True
+        whole = (time.perf_counter() - self.began) / frac
+        if self.pending and whole * self.weight > OFFLOAD_AFTER:
+            self.start()
+
+    def done(self) -> None:
+        if not self.decided:
+            self._decide(1.0)
+
+
+def run_shared(
+    setup: ScenarioSetup,
+    pool: Callable[[], Executor],
+    workers: int,
+    backend: str | None = None,
+    progress: RunProgress | None = None,
+) -> list[RunResult]:
+    """Every pair, this process running them and ``workers`` processes of ``pool()`` (called
+    only then) helping when the rest looks long enough to repay starting them.
+
+    The first pair runs here; from its pace (once a tenth of it has run) and the pairs'
+    relative costs the rest is estimated. Below OFFLOAD_AFTER seconds everything stays in
+    this process. Above, one feeder thread per worker hands its worker the cheapest pair
+    left whenever the worker is free, while this process takes the dearest: a pair is
+    committed to a process only when that process starts it, so neither waits while the
+    other has work. Results come in case-major order.
+    """
+    backend = backend or setup.scenario.simulation.backend
+    pairs = [(case, entry) for case in setup.cases for entry in setup.controllers]
+    pending = sorted(pairs, key=lambda p: -_expected_cost(p[1]))
+    plant = setup.make_plant() if backend == "mujoco" else None
+    results: dict[tuple[str, str], RunResult] = {}
+    lock = threading.Lock()
+    failures: list[BaseException] = []
+
+    def feed() -> None:
+        while not failures:
+            with lock:
+                if not pending:
+                    return
+                c, e = pending.pop()
+            try:
+                r = executor.submit(_run_in_worker, setup.scenario, setup.source, c.name, e.name,
+                                backend).result()
+            except BaseException as exc:  # handed to the main thread, which raises it
+                failures.append(exc)
+                return
+            results[c.name, e.name] = r
+            if progress is not None:
+                progress(f"{c.name} / {e.name}", 1.0)
+
+    feeders: list[threading.Thread] = []
+    executor: Executor
+
+    def start_feeders() -> None:
+        nonlocal executor
+        executor = pool()
+        feeders.extend(threading.Thread(target=feed, daemon=True) for _ in range(workers))
+        for f in feeders:
+            f.start()
+
+    first = _FirstRun(pending, progress, start_feeders)
+    while not failures:
+        with lock:
+            if not pending:
+                break
+            case, entry = pending.pop(0)
+        report = first.watch(entry) if not results else progress
+        results[case.name, entry.name] = run_one(setup, case, entry, backend, plant, report)
+        first.done()
+    for f in feeders:
+        f.join()
+    if failures:
+        raise failures[0]
+    return [results[c.name, e.name] for c, e in pairs]
 
 
 def run_all(

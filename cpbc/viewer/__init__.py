@@ -1,4 +1,4 @@
-"""meshcat viewer of cpbc runs: self-contained HTML export, replay of a run folder, live view.
+"""meshcat viewer of cpbc runs: self-contained run page, replay of a run folder, live view.
 
 meshcat is imported in this package only.
 """
@@ -10,7 +10,7 @@ with warnings.catch_warnings():
     warnings.filterwarnings("ignore", "zmq.eventloop.ioloop is deprecated", DeprecationWarning)
     import meshcat  # noqa: F401
 
-from cpbc.viewer.export import VIEW_FILE, write_case_view, write_views
+from cpbc.viewer.export import VIEW_FILE, write_view
 from cpbc.viewer.scene import CaseScene, ViewSettings
 
-__all__ = ["VIEW_FILE", "CaseScene", "ViewSettings", "write_case_view", "write_views"]
+__all__ = ["VIEW_FILE", "CaseScene", "ViewSettings", "write_view"]

@@ -2,9 +2,9 @@
 
 * default: serve every case of the run on a loopback meshcat server (one case visible at a
   time; toggle cases in the control panel's scene tree), print the URL, wait for Ctrl-C;
-* ``--export``: rewrite every case's self-contained ``view.html`` in the run folder;
-* ``--screenshot PNG``: a picture of a case's ``view.html`` at time ``--at``, taken with
-  headless Chromium.
+* ``--export``: rewrite the run's self-contained page, ``view.html``, in the run folder;
+* ``--screenshot PNG``: a picture of ``view.html`` showing a case at time ``--at``, taken
+  with headless Chromium.
 
 Exit codes: 0 done, 2 bad input (not a run folder, unknown case, no Chromium).
 """
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import sys
 import time
 from collections.abc import Sequence
@@ -23,7 +24,7 @@ from meshcat.animation import Animation
 from cpbc.errors import CpbcError
 from cpbc.results.saved_run import SavedRun, load_run
 from cpbc.viewer.browser import HeadlessChromium
-from cpbc.viewer.export import VIEW_FILE, write_views
+from cpbc.viewer.export import VIEW_FILE, write_view
 from cpbc.viewer.scene import ROOT, CaseScene, ViewSettings, set_animation
 from cpbc.viewer.server import MeshcatServer
 
@@ -33,7 +34,7 @@ def _parser() -> argparse.ArgumentParser:
         prog="python -m cpbc.viewer",
         description="Replay a run folder written by python -m cpbc.run in meshcat.",
     )
-    p.add_argument("run", type=Path, help="run folder (holds summary.json, scene.mjb, …)")
+    p.add_argument("run", type=Path, help="run folder (holds summary.json, scene.mjb.gz, …)")
     p.add_argument("--case", help="case to show first (default: the first case)")
     p.add_argument(
         "--frame", help="site or body whose path is traced when serving (default: the run's)"
@@ -44,9 +45,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="clearance [m] below which links and obstacles redden")
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--export", action="store_true",
-                      help="rewrite every case's view.html instead of serving")
+                      help="rewrite the run's view.html instead of serving")
     mode.add_argument("--screenshot", type=Path, metavar="PNG",
-                      help="save a headless-Chromium screenshot of the case's view.html")
+                      help="save a headless-Chromium screenshot of view.html showing the case")
     p.add_argument("--at", type=float, help="animation time of the screenshot [s] (default: end)")
     p.add_argument("--size", default="1280x800", help="screenshot size WxH [px]")
     return p
@@ -76,8 +77,8 @@ def serve(run: SavedRun, first: str, frame: str | None, settings: ViewSettings) 
 
 
 def screenshot(run: SavedRun, case: str, png: Path, at: float | None, size: str) -> None:
-    """Open ``<run>/<case>/view.html`` headless, seek to ``at`` and save a PNG."""
-    page = run.folder / case / VIEW_FILE
+    """Open ``<run>/view.html`` headless on ``case``, seek to ``at`` and save a PNG."""
+    page = run.folder / VIEW_FILE
     if not page.is_file():
         raise CpbcError(f"{page} does not exist; write it with --export first")
     try:
@@ -86,11 +87,9 @@ def screenshot(run: SavedRun, case: str, png: Path, at: float | None, size: str)
         raise CpbcError(f"--size must look like 1280x800, got '{size}'") from None
     with HeadlessChromium(width=width, height=height) as browser:
         browser.open(page.resolve().as_uri(), "window.cpbc && window.cpbc.ready")
-        t = "window.cpbc.duration" if at is None else repr(float(at))
-        browser.evaluate(
-            f"viewer.animator.pause(); viewer.animator.seek({t}); "
-            f"viewer.animator.display_progress({t}); true"
-        )
+        browser.evaluate(f"cpbc.selectCase({json.dumps(case)})")
+        t = "cpbc.duration" if at is None else repr(float(at))
+        browser.evaluate(f"cpbc.pause(); cpbc.seek({t}); true")
         browser.next_frames(3)
         browser.screenshot(png)
         if browser.log.errors:
@@ -104,8 +103,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         run = load_run(args.run)
         case = run.case(args.case).name if args.case else run.cases[0].name
         if args.export:
-            for path in write_views(run, settings=settings):
-                print(path)
+            print(write_view(run, settings=settings))
         elif args.screenshot:
             screenshot(run, case, args.screenshot, args.at, args.size)
             print(args.screenshot)

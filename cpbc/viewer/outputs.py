@@ -8,11 +8,10 @@ from pathlib import Path
 
 import mujoco
 
-from cpbc.results.plots import write_plots
-from cpbc.results.saved_run import SceneInfo, load_run, write_scene
+from cpbc.results.saved_run import FIGURES, SceneInfo, load_run, write_scene
 from cpbc.results.sweep import SceneKinematics, default_trace_frame
 from cpbc.scenario.build import ScenarioSetup
-from cpbc.viewer.export import write_views
+from cpbc.viewer.export import write_view
 from cpbc.viewer.scene import ViewSettings
 
 
@@ -44,9 +43,18 @@ def scene_kinematics(setup: ScenarioSetup) -> SceneKinematics:
     return scene_info(setup, model).kinematics(model)
 
 
-def _plot_cases(folder: Path, cases: Sequence[str]) -> list[Path]:
-    """Worker entry: read a run folder back and draw the figures of some of its cases."""
-    return write_plots(load_run(folder), cases=cases)
+#: Share of a run's figures a helper process draws while this one writes the page (it
+#: draws the rest after): so both end at about the same time.
+HELPER_SHARE = 0.65
+
+
+def _plot(folder: Path, only: Sequence[tuple[str, str]] | None = None) -> list[Path]:
+    """Read a run folder back and draw its figures ((case, figure) pairs; all when None).
+    matplotlib is imported here, so a process that leaves the figures to others never
+    loads it."""
+    from cpbc.results.plots import write_plots
+
+    return write_plots(load_run(folder), only=only)
 
 
 def write_run_outputs(
@@ -57,7 +65,7 @@ def write_run_outputs(
     pool: Executor | None = None,
 ) -> list[Path]:
     """Into a run folder that already holds its trajectories and summary.json: the scene
-    (scene.mjb, scene.json), every case's figures (unless ``plots`` is False) and view.html.
+    (scene.mjb.gz, scene.json), every case's figures (unless ``plots`` is False) and view.html.
 
     With a ``pool`` of worker processes the figures of each case are drawn there, while
     this process writes the pages.
@@ -68,9 +76,11 @@ def write_run_outputs(
     model = setup.make_plant().model
     write_scene(folder, model, scene_info(setup, model))
     if plots and pool is not None:
-        futures = [pool.submit(_plot_cases, folder, [case.name]) for case in setup.cases]
-        pages = write_views(load_run(folder), settings=settings)
-        return [path for f in futures for path in f.result()] + pages
-    run = load_run(folder)
-    written = write_plots(run) if plots else []
-    return written + write_views(run, settings=settings)
+        jobs = [(case.name, name) for case in setup.cases for name in FIGURES]
+        helper = round(HELPER_SHARE * len(jobs))
+        future = pool.submit(_plot, folder, jobs[:helper])
+        page = write_view(load_run(folder), settings=settings)
+        mine = _plot(folder, jobs[helper:])
+        return [*future.result(), *mine, page]
+    written = _plot(folder) if plots else []
+    return [*written, write_view(load_run(folder), settings=settings)]

@@ -253,6 +253,18 @@ class CaseScene:
             node.set_object(shape, _material(colour, opacity))
             node.set_transform(_matrix(m.geom_pos[g], m.geom_quat[g]))
 
+    def draw_template_body(self, vis: meshcat.Visualizer, path: str, b: int) -> None:
+        """Body ``b``'s geoms under ``path``, in white, for a page to clone and colour."""
+        self._draw_body(vis, path, b, 0xFFFFFF, self.settings.opacity)
+
+    def geom_path(self, body_path: str, g: int) -> str:
+        """Scene path of geom ``g`` under a body drawn at ``body_path``."""
+        return self._geom_path(body_path, g)
+
+    def body_geoms(self, b: int) -> tuple[int, ...]:
+        """The drawn geoms of body ``b`` (those with a shape meshcat can show)."""
+        return tuple(g for g in self._body_geoms[b] if self._shapes[g] is not None)
+
     def draw_arm(self, vis: meshcat.Visualizer, controller: str, x: Array | None = None) -> None:
         """The controller's arm (at the start unless x is given) and its end-point marker."""
         colour = int(self.colours[controller][1:], 16)

@@ -1,0 +1,200 @@
+"""What the run's page (``view.html``) shows, as one JSON-ready dict.
+
+* ``commands``: meshcat commands drawing what every case shares — background, camera, floor,
+  obstacles, other world geoms, the arm at its target — and one hidden *template* arm. The
+  page clones the template's meshes for every controller of every case (the geometry is
+  stored once, however many arms are shown).
+* per case and controller: body poses, the traced point (the page draws its path as a tube)
+  and every body's clearance at the animation's frames;
+* per case: the time plots (positions, rates, applied torques with the plant's limits,
+  margins by constraint type), thinned to the smallest and largest sample of each of a few
+  hundred time buckets, so that every peak of the run stays in the plot.
+
+Arrays travel as base64 of little-endian float32.
+"""
+
+from __future__ import annotations
+
+import base64
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from cpbc.constraints.base import Array
+from cpbc.results.margin_types import grouped, nearest_columns
+from cpbc.results.palette import BOUND_COLOUR, OBSTACLE_COLOUR, WARNING_COLOUR
+from cpbc.results.saved_run import SavedCase, SavedRun, SavedTrajectory
+from cpbc.results.thinning import envelope
+from cpbc.viewer.recorder import CommandRecorder
+from cpbc.viewer.scene import ROOT, CaseScene, ViewSettings, _segment
+
+TEMPLATE = f"{ROOT}/_template"
+_PLOT_BUCKETS = 400  # time buckets of a plotted curve (two samples each)
+
+
+def _b64(a: Array) -> str:
+    return base64.b64encode(np.ascontiguousarray(a, dtype="<f4").tobytes()).decode("ascii")
+
+
+def _encoded(commands: Sequence[bytes]) -> list[str]:
+    return [base64.b64encode(c).decode("ascii") for c in commands]
+
+
+def _shared_scene(run: SavedRun, settings: ViewSettings) -> tuple[CaseScene, dict[str, Any]]:
+    """The environment and the template arm, drawn once for the whole run."""
+    first = run.cases[0].runs[0]
+    kin = run.info.kinematics(run.model)
+    scene = CaseScene(kin, run.cases[0].controllers, first.target, first.position[0], settings)
+    recorder = CommandRecorder()
+    vis = recorder.visualizer()
+    scene.draw_environment(vis)
+    bodies = []
+    for b in scene.bodies:
+        path = f"{TEMPLATE}/{_segment(kin.body_names[b])}"
+        scene.draw_template_body(vis, path, b)
+        bodies.append({"name": kin.body_names[b], "path": path,
+                       "geoms": [scene.geom_path(path, g) for g in scene.body_geoms(b)]})
+    vis[TEMPLATE].set_property("visible", False)
+    obstacles = [f"{ROOT}/obstacles/{_segment(kin.geom_names[g])}"
+                 for g in kin.obstacle_geoms]
+    return scene, {"commands": _encoded(recorder.commands), "bodies": bodies,
+                   "obstacles": obstacles}
+
+
+def _case_scene(run: SavedRun, case: SavedCase, shared: CaseScene) -> dict[str, Any]:
+    """Poses, clearances and traces of every controller of a case."""
+    first = case.runs[0]
+    scene = CaseScene(shared.kin, case.controllers, first.target, first.position[0],
+                      shared.settings, root=f"{ROOT}/{case.name}")
+    sweeps = scene.sweeps(case.runs)
+    controllers = []
+    for r in case.runs:
+        s = sweeps[r.controller]
+        bodies = list(scene.bodies)
+        pose = np.concatenate([s.body_position[:, bodies],
+                               s.body_quaternion[:, bodies][..., [1, 2, 3, 0]]], axis=2)
+        clear = s.body_clearance[:, bodies] if shared.kin.obstacle_geoms else None
+        controllers.append({
+            "name": r.controller, "colour": scene.colours[r.controller],
+            "status": str(r.summary.get("status", "")), "frames": len(s.time),
+            "pose": _b64(pose), "tip": _b64(s.trace),
+            "clearance": None if clear is None else _b64(np.minimum(clear, 1e3)),
+        })
+    nearest = None
+    if shared.kin.obstacle_geoms and sweeps:
+        length = max(len(s.time) for s in sweeps.values())
+        near = np.full((length, len(shared.kin.obstacle_geoms)), 1e3)
+        for s in sweeps.values():
+            pad = np.vstack([s.obstacle_clearance,
+                             np.repeat(s.obstacle_clearance[-1:], length - len(s.time), 0)])
+            near = np.minimum(near, pad)
+        nearest = _b64(near)
+    return {"controllers": controllers, "obstacleClearance": nearest, "root": f"{ROOT}/{case.name}"}
+
+
+def _thinned(r: SavedTrajectory, columns: Sequence[Array]) -> Array:
+    """Sample indices that keep every extreme of every plotted column of a run."""
+    keep = [envelope(np.asarray(c, dtype=float), _PLOT_BUCKETS) for c in columns]
+    return np.unique(np.concatenate(keep)) if keep else np.arange(len(r.time))
+
+
+def _panels(case: SavedCase) -> tuple[list[dict[str, Any]], bool]:
+    """Plot groups of a case (each a title and panels), and whether torques are per joint."""
+    first = case.runs[0]
+    n = len(first.coordinate_names)
+    bounds = first.summary.get("rate_bounds") or [None] * n
+    limits = first.summary.get("torque_limits")
+    identity = bool(np.allclose(first.coordinates, np.eye(n)))
+    joints = limits is not None and not identity
+    names = first.coordinate_names
+
+    def coordinate_panels(key: str, unit: str, extra: Any) -> list[dict[str, Any]]:
+        out = []
+        for k in range(n):
+            label = f"joint {k + 1}" if key == "torque" and joints else names[k]
+            out.append({"label": f"{label} [{unit}]", "key": key, "column": k,
+                        "lines": extra(k)})
+        return out
+
+    def rate_lines(k: int) -> list[dict[str, Any]]:
+        b = bounds[k]
+        return [] if b is None else [{"y": float(b), "label": f"bound ±{float(b):g}"},
+                                     {"y": -float(b), "label": ""}]
+
+    def torque_lines(k: int) -> list[dict[str, Any]]:
+        if limits is None or not (joints or identity):
+            return []
+        lim = float(limits[k])
+        return [{"y": lim, "label": f"limit ±{lim:.4g}"}, {"y": -lim, "label": ""}]
+
+    groups = [
+        {"title": "Positions", "panels": coordinate_panels(
+            "position", "rad", lambda k: [{"y": float(first.target[k]), "label": "target"}])},
+        {"title": "Rates", "panels": coordinate_panels("velocity", "rad/s", rate_lines)},
+        {"title": "Torques applied", "panels": coordinate_panels(
+            "torque", "N·m", torque_lines)},
+    ]
+    margin_panels = []
+    for kind, columns in grouped(first.margin_names, first.margin_types):
+        named = nearest_columns([r.margins for r in case.runs], columns, 3)
+        margin_panels.append({
+            "label": f"{kind.label} [{kind.unit}]" if kind.unit else kind.label,
+            "key": "margins", "named": named,
+            "names": [first.margin_names[i] for i in named],
+            "others": [i for i in columns if i not in named],
+            "lines": [{"y": 0.0, "label": "boundary", "warning": True}],
+        })
+    if margin_panels:
+        groups.append({"title": "Margins by type", "panels": margin_panels})
+    return groups, joints
+
+
+def _series(r: SavedTrajectory, groups: list[dict[str, Any]], joints: bool) -> dict[str, Any]:
+    """The thinned samples of one run for every panel of the case."""
+    torque = r.applied_torque(joints)
+    columns: list[tuple[str, Array]] = []
+    for g in groups:
+        for p in g["panels"]:
+            if p["key"] == "margins":
+                for i in p["named"]:
+                    columns.append((f"m{i}", r.margins[:, i]))
+                if p["others"]:
+                    rest = r.margins[:, p["others"]]
+                    with np.errstate(all="ignore"):
+                        columns.append((f"lo{p['label']}", np.nanmin(rest, axis=1)))
+                        columns.append((f"hi{p['label']}", np.nanmax(rest, axis=1)))
+            else:
+                source = {"position": r.position, "velocity": r.velocity, "torque": torque}
+                columns.append((f"{p['key']}{p['column']}", source[p["key"]][:, p["column"]]))
+    idx = _thinned(r, [c for _, c in columns])
+    return {"time": _b64(r.time[idx]), "columns": {k: _b64(c[idx]) for k, c in columns}}
+
+
+def page_data(run: SavedRun, settings: ViewSettings | None = None) -> dict[str, Any]:
+    """Everything the page shows of a run folder (see the module docstring)."""
+    settings = settings or ViewSettings()
+    shared, data = _shared_scene(run, settings)
+    cases = []
+    for case in run.cases:
+        groups, joints = _panels(case)
+        entry = _case_scene(run, case, shared)
+        entry.update(
+            name=case.name,
+            duration=max(float(r.time[-1]) for r in case.runs),
+            plots=groups,
+            series=[_series(r, groups, joints) for r in case.runs],
+        )
+        cases.append(entry)
+    data.update(
+        title=run.info.scenario or run.folder.name,
+        fps=settings.fps,
+        warnDistance=settings.warn_distance,
+        opacity=settings.opacity,
+        markerRadius=shared.marker_radius,
+        traceRadius=shared.trace_radius,
+        colours={"warning": WARNING_COLOUR, "obstacle": OBSTACLE_COLOUR,
+                 "bound": BOUND_COLOUR},
+        cases=cases,
+    )
+    return data
