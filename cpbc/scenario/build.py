@@ -23,7 +23,7 @@ from cpbc.constraints import (
     joint_rate_limit,
 )
 from cpbc.constraints.geometry import Obstacle, SceneGeom
-from cpbc.controllers import CONTROLLERS, Controller, Identity, Power, Tanh
+from cpbc.controllers import CONTROLLERS, Controller, Identity, Power, RecentredBarrier, Tanh
 from cpbc.controllers.shaping import Shaping
 from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
 from cpbc.model import LinearCoordinates, RobotModel
@@ -599,6 +599,24 @@ def _controllers(
     return controllers
 
 
+def _check_recentred(controllers: list[ControllerEntry], cases: list[CaseEntry],
+                     model: RobotModel, loop: LoopSettings, names: tuple[str, ...]) -> None:
+    """Refuse a ``recentred`` law that cannot be run from a case's start
+    (RecentredBarrier.start_problem: the torque limit; without the safeguard, the first
+    held period against its velocity constraints)."""
+    period = None if loop.safeguard is not None else loop.control_period
+    for i, entry in enumerate(controllers):
+        law = entry.controller
+        if not isinstance(law, RecentredBarrier):
+            continue
+        for case in cases:
+            state = model.state(case.position, case.velocity)
+            problem = law.start_problem(state, names, loop.torque_limit, period)
+            if problem is not None:
+                raise ScenarioError(f"controllers[{i}]",
+                                    f"'{entry.name}' (recentred), case '{case.name}': {problem}")
+
+
 def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     """Check a scenario against its robot and build every object it describes."""
     arm, path, model, plant = _load_robot(scenario, scenario_file)
@@ -616,6 +634,7 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         loop = replace(loop, also_keep=monitor.configuration)
     target, cases = _states(scenario, model, monitor, joint_ranges(model, plant))
     controllers = _controllers(scenario, model, target, cases, built, names)
+    _check_recentred(controllers, cases, model, loop, names)
     setup = ScenarioSetup(
         scenario, path, model, monitor, controllers, cases, target,
         PlantSettings(sim.timestep, sim.integrator),
