@@ -23,7 +23,7 @@ from cpbc.controllers import RecentredBarrier
 from cpbc.errors import ScenarioError
 from cpbc.model import RobotModel
 from cpbc.model.loading import LoadedArm, load_arm
-from cpbc.scenario import build, load_scenario
+from cpbc.scenario import ScenarioSetup, build, load_scenario
 from cpbc.scenario.gains import physical_gains
 
 # a target and starts of the kind a user picks for the UR3 (the UR5 scenario's), far from
@@ -152,7 +152,7 @@ def _write(tmp_path: Path, simulation: dict, cases: list[list[float]], omega: fl
     return path
 
 
-def _build(path: Path):  # type: ignore[no-untyped-def]
+def _build(path: Path) -> ScenarioSetup:
     return build(*load_scenario(path))
 
 

@@ -9,7 +9,8 @@ z = x − c, w = (upper − lower)/2, and each factor normalised to 1 at the cen
     ∇f  = [K_P z + (zᵀK_P z) z / (w² − z²)] / Φ      (elementwise division)      (6.55)
 
 The thesis's factors ½(X_i² − z_i²) differ only by the constants X_i²/2, which rescale
-K_P; normalising keeps K_P's meaning of a PD gain at the centre of the range.
+K_P; normalising keeps K_P's meaning of a PD gain at the centre of the range (without
+velocity constraints: Ψ below rescales it again).
 
     V = ½ẋᵀDẋ / Ψ + f(x) − f(x_d) − ∇f(x_d)ᵀ(x − x_d)                          (6.61)
     τ = g + c + D (D + KΠ)⁻¹ (a − c),  K = ½ẋᵀDẋ,  c = Cẋ + f,
