@@ -24,7 +24,7 @@ from cpbc.constraints import (
 )
 from cpbc.constraints.geometry import Obstacle, SceneGeom
 from cpbc.constraints.stopping import stopping_margins
-from cpbc.controllers import CONTROLLERS, Controller, Identity, Power, Tanh
+from cpbc.controllers import CONTROLLERS, Controller, Identity, Power, RecentredBarrier, Tanh
 from cpbc.controllers.safeguard import SafeguardSettings, guarded
 from cpbc.controllers.shaping import Shaping
 from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
@@ -630,6 +630,25 @@ def _controllers(
     return controllers
 
 
+def _check_recentred(controllers: list[ControllerEntry], cases: list[CaseEntry],
+                     model: RobotModel, loop: LoopSettings, names: tuple[str, ...],
+                     guarded_loop: bool) -> None:
+    """Refuse a ``recentred`` law that cannot be run from a case's start
+    (RecentredBarrier.start_problem: the torque limit; without the safeguard, the first
+    held period against its velocity constraints)."""
+    period = None if guarded_loop else loop.control_period
+    for i, entry in enumerate(controllers):
+        law = entry.controller
+        if not isinstance(law, RecentredBarrier):
+            continue
+        for case in cases:
+            state = model.state(case.position, case.velocity)
+            problem = law.start_problem(state, names, loop.torque_limit, period)
+            if problem is not None:
+                raise ScenarioError(f"controllers[{i}]",
+                                    f"'{entry.name}' (recentred), case '{case.name}': {problem}")
+
+
 def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     """Check a scenario against its robot and build every object it describes."""
     arm, path, model, plant = _load_robot(scenario, scenario_file)
@@ -647,6 +666,7 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     if loop.torque_limit is not None:
         _check_stoppable(cases, monitor, model, loop.torque_limit)
     controllers = _controllers(scenario, model, target, cases, built, names)
+    _check_recentred(controllers, cases, model, loop, names, sim.safeguard)
     setup = ScenarioSetup(
         scenario, path, model, monitor, controllers, cases, target,
         PlantSettings(sim.timestep, sim.integrator),
