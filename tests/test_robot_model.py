@@ -372,3 +372,22 @@ def test_state_kinematics_give_the_point_of_one_pass(absolute_model, rng, offset
         p_ref, jac_ref = absolute_model.point_kinematics(fid, x, offset)
         np.testing.assert_allclose(p, p_ref, rtol=0, atol=1e-14)
         np.testing.assert_allclose(jac, jac_ref, rtol=0, atol=1e-14)
+
+
+def test_a_name_shared_by_a_joint_and_a_link_means_the_link() -> None:
+    """On the Unitree Z1, ``gripperStator`` names a joint's frame and a link's body frame:
+    the name resolves to the link (it crashed with Pinocchio's 'Several frames match'), and a
+    point-outside-sphere constraint on it builds and evaluates."""
+    import pinocchio as pin
+
+    from cpbc.constraints import PointOutsideSphere
+    from cpbc.model.loading import load_arm
+
+    arm = load_arm("z1")
+    model = RobotModel(arm.model, name="z1")
+    frames = [f for f in arm.model.frames if f.name == "gripperStator"]
+    assert len(frames) >= 2
+    fid = model.frame_id("gripperStator")
+    assert arm.model.frames[fid].type == pin.FrameType.BODY
+    c = PointOutsideSphere(model, "gripperStator", np.array([2.0, 0.0, 0.0]), 0.1)
+    assert c.value(np.zeros(model.n))[0] > 0

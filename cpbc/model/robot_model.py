@@ -205,10 +205,14 @@ class RobotModel:
         return self._q(x)
 
     def frame_id(self, frame: str) -> int:
-        if not self.model.existFrame(frame):
+        """The frame named ``frame``. Where several frames share the name (a URDF joint and
+        the link it moves, as on the Unitree Z1), the link's body frame is the one meant."""
+        ids = [i for i, f in enumerate(self.model.frames) if f.name == frame]
+        if not ids:
             names = ", ".join(f.name for f in self.model.frames[1:])
             raise ModelError(f"model '{self.name}' has no frame '{frame}'; frames: {names}")
-        return self.model.getFrameId(frame)
+        bodies = [i for i in ids if self.model.frames[i].type == pin.FrameType.BODY]
+        return (bodies or ids)[0]
 
     def point_kinematics(
         self, frame_id: int, x: Array, offset: Array | None = None
