@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.markup import escape
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from cpbc.constraints.clearance import Clearance
@@ -100,14 +100,14 @@ def _rates(s: RunSummary, names: Sequence[str]) -> str:
 def _widest_rate(s: RunSummary, names: Sequence[str]) -> str:
     """For a many-joint arm: the coordinate whose peak rate came nearest its bound (or the
     fastest, without bounds), and how many went past theirs."""
-    bounded = [(peak / bound, i) for i, (peak, bound) in
+    bounded = [(peak / bound, i, bound) for i, (peak, bound) in
                enumerate(zip(s.peak_joint_rates, s.rate_bounds, strict=True)) if bound]
     if not bounded:
         i = max(range(len(names)), key=lambda k: s.peak_joint_rates[k])
         return f"{s.peak_joint_rates[i]:.3g} ({escape(names[i])})"
-    _, i = max(bounded)
-    peak, bound = s.peak_joint_rates[i], s.rate_bounds[i]
-    over = sum(r >= 1.0 for r, _ in bounded)
+    _, i, bound = max(bounded)  # indices differ: ties never compare the bounds
+    peak = s.peak_joint_rates[i]
+    over = sum(r >= 1.0 for r, _, _ in bounded)
     mark = "≤" if peak < bound else "[red]>[/red]"
     tail = f"; [red]{over} of {len(bounded)} over[/red]" if over else f"; all {len(bounded)} within"
     return f"{peak:.4g}{mark}{bound:.4g} ({escape(names[i])}){tail}"
@@ -244,7 +244,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
                     console=err, transient=True,
                 ) as bar:
-                    tasks: dict[str, int] = {}
+                    tasks: dict[str, TaskID] = {}
 
                     def progress(label: str, frac: float) -> None:
                         if label not in tasks:

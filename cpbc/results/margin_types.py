@@ -89,10 +89,16 @@ def physical(c: ConfigurationConstraint | VelocityConstraint, values: Array) -> 
     return values  # clearance [m] and energy [J] already are
 
 
+def _constraints(
+    monitor: ConstraintSet,
+) -> tuple[ConfigurationConstraint | VelocityConstraint, ...]:
+    """Every monitored constraint, configuration ones first (the order of ``monitor.names``)."""
+    return (*monitor.configuration, *monitor.velocity)
+
+
 def types_of(monitor: ConstraintSet) -> tuple[str, ...]:
     """The type key of every monitored margin, in the order of ``monitor.names``."""
-    return tuple(margin_type(c).key for c in (*monitor.configuration, *monitor.velocity)
-                 for _ in c.names)
+    return tuple(margin_type(c).key for c in _constraints(monitor) for _ in c.names)
 
 
 def physical_history(monitor: ConstraintSet, values: Array) -> Array:
@@ -101,7 +107,7 @@ def physical_history(monitor: ConstraintSet, values: Array) -> Array:
     out = np.array(values, dtype=float, copy=True)
     start = 0
     with np.errstate(invalid="ignore"):
-        for c in (*monitor.configuration, *monitor.velocity):
+        for c in _constraints(monitor):
             k = len(c.names)
             out[:, start:start + k] = physical(c, out[:, start:start + k])
             start += k

@@ -26,6 +26,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Collection, Sequence
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -70,7 +71,7 @@ def _figure(rows: int, title: str, height: float | None = None, width: float = _
     return fig, axes
 
 
-def _curve(ax: Axes, t: Array, y: Array, **style: object) -> None:
+def _curve(ax: Axes, t: Array, y: Array, **style: Any) -> None:  # Line2D properties
     idx = envelope(y)
     ax.plot(t[idx], y[idx], **{"lw": 1.4, **style})
 
@@ -238,7 +239,8 @@ def margins_figure(case: SavedCase) -> Figure | None:
 
 def _type_legend(ax: Axes, case: SavedCase, named: Sequence[str], others: int) -> None:
     """Controllers by colour, constraints by line style, the shaded range of the others."""
-    handles = [Line2D([], [], color=c, lw=2.5, label=r.controller) for r, c in _each(case)]
+    handles: list[Line2D | Patch] = [
+        Line2D([], [], color=c, lw=2.5, label=r.controller) for r, c in _each(case)]
     handles += [Line2D([], [], color=BOUND_COLOUR, ls=st, lw=1.4, label=n)
                 for n, st in zip(named, _STYLES, strict=False)]
     if others:
@@ -251,7 +253,7 @@ def _type_legend(ax: Axes, case: SavedCase, named: Sequence[str], others: int) -
 def _range(values: Array) -> tuple[Array, Array]:
     """Smallest and largest of several margins at every sample (NaN where none is finite)."""
     with np.errstate(all="ignore"):
-        finite = np.isfinite(values).any(axis=1)
+        finite = np.asarray(np.isfinite(values).any(axis=1))
         lo = np.where(finite, np.nanmin(np.where(finite[:, None], values, 0.0), axis=1), np.nan)
         hi = np.where(finite, np.nanmax(np.where(finite[:, None], values, 0.0), axis=1), np.nan)
     return lo, hi

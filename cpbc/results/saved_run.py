@@ -17,6 +17,7 @@ import gzip
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TypedDict
 
 import mujoco
 import numpy as np
@@ -32,6 +33,23 @@ SUMMARY = "summary.json"
 TRAJECTORY = "trajectory.npz"
 #: The figures of each case, ``<case>/<name>.png`` (cpbc.results.plots draws them).
 FIGURES = ("positions", "rates", "torques", "lyapunov", "margins", "path")
+
+
+class _SummaryKeys(TypedDict):
+    controller: str
+    case: str
+
+
+class SummaryEntry(_SummaryKeys, total=False):
+    """One run's object in summary.json (:meth:`cpbc.results.metrics.RunSummary.as_dict`),
+    as far as the figures and the viewer read it: non-finite numbers are null there, and
+    hand-made or earlier entries may lack keys. The entry holds the summary's other keys too.
+    """
+
+    status: str
+    rate_bounds: list[float | None]
+    torque_limits: list[float] | None
+    torque_bound: float | None
 
 
 @dataclass(frozen=True)
@@ -113,7 +131,7 @@ class SavedTrajectory:
     target: Array
     coordinate_names: tuple[str, ...]
     outcome: str
-    summary: dict[str, object]
+    summary: SummaryEntry
     margin_types: tuple[str, ...] = ()
     coordinates: Array = field(default_factory=lambda: np.eye(0))
 
@@ -168,7 +186,7 @@ def write_scene(folder: Path, model: mujoco.MjModel, info: SceneInfo) -> None:
     (folder / SCENE_INFO).write_text(info.to_json())
 
 
-def _trajectory(path: Path, summary: dict[str, object], coordinates: Array) -> SavedTrajectory:
+def _trajectory(path: Path, summary: SummaryEntry, coordinates: Array) -> SavedTrajectory:
     with np.load(path) as d:
         names = tuple(str(s) for s in d["margin_names"])
         # runs written before margins had types: every margin of an unknown type

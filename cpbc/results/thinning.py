@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 from cpbc.constraints.base import Array
 
 BUCKETS = 1500  # time buckets of a thinned curve in the figures (two samples each)
+#: Sample indices into a logged signal.
+Index = NDArray[np.intp]
 
 
-def envelope(y: Array, buckets: int = BUCKETS) -> Array:
+def envelope(y: Array, buckets: int = BUCKETS) -> Index:
     """Indices of the samples of ``y`` a thinned curve keeps, in time order.
 
     The first and last samples and, in each of ``buckets`` equal runs of samples, the

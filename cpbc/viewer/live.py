@@ -179,7 +179,8 @@ class LiveView:
         cur.trace.append(scene.kin.traced_point())
         warn = scene.settings.warn_distance
         levels = np.round(_COLOUR_LEVELS * np.clip(1 - np.r_[bodies, obstacles] / warn, 0, 1))
-        if scene.kin.obstacle_geoms and not np.array_equal(levels, cur.levels):
+        if scene.kin.obstacle_geoms and (cur.levels is None
+                                          or not np.array_equal(levels, cur.levels)):
             scene.recolour_arm(self.vis, cur.controller, bodies)
             scene.recolour_obstacles(self.vis, obstacles)
             cur.levels = levels

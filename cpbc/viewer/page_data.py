@@ -25,7 +25,7 @@ from cpbc.constraints.base import Array
 from cpbc.results.margin_types import grouped, nearest_columns
 from cpbc.results.palette import BOUND_COLOUR, OBSTACLE_COLOUR, WARNING_COLOUR
 from cpbc.results.saved_run import SavedCase, SavedRun, SavedTrajectory
-from cpbc.results.thinning import envelope
+from cpbc.results.thinning import Index, envelope
 from cpbc.viewer.recorder import CommandRecorder
 from cpbc.viewer.scene import ROOT, CaseScene, ViewSettings, _segment
 
@@ -93,7 +93,7 @@ def _case_scene(run: SavedRun, case: SavedCase, shared: CaseScene) -> dict[str, 
     return {"controllers": controllers, "obstacleClearance": nearest, "root": f"{ROOT}/{case.name}"}
 
 
-def _thinned(r: SavedTrajectory, columns: Sequence[Array]) -> Array:
+def _thinned(r: SavedTrajectory, columns: Sequence[Array]) -> Index:
     """Sample indices that keep every extreme of every plotted column of a run."""
     keep = [envelope(np.asarray(c, dtype=float), _PLOT_BUCKETS) for c in columns]
     return np.unique(np.concatenate(keep)) if keep else np.arange(len(r.time))

@@ -2,8 +2,16 @@
 
 from __future__ import annotations
 
+from typing import Any, Protocol
+
 import meshcat
-import umsgpack
+import umsgpack  # type: ignore[import-untyped]  # u-msgpack-python ships no stubs
+
+
+class _Command(Protocol):
+    """A meshcat command (``meshcat.commands.SetObject`` and the like)."""
+
+    def lower(self) -> dict[str, Any]: ...
 
 
 class CommandRecorder:
@@ -17,9 +25,9 @@ class CommandRecorder:
     def __init__(self) -> None:
         self.commands: list[bytes] = []
 
-    def send(self, command: object) -> None:
+    def send(self, command: _Command) -> None:
         """Called by the Visualizer in place of its server window."""
-        lowered = command.lower()  # type: ignore[attr-defined]
+        lowered = command.lower()
         self.commands.append(umsgpack.packb(lowered, force_float_precision="single"))
 
     def visualizer(self) -> meshcat.Visualizer:

@@ -43,11 +43,17 @@ BACKGROUND = ([0.97, 0.97, 0.98], [0.80, 0.83, 0.87])
 
 
 class RunPath(Protocol):
-    """What the scene needs of a run (a SavedTrajectory has it)."""
+    """What the scene needs of a run (a SavedTrajectory has it); read-only, so frozen
+    dataclasses match."""
 
-    controller: str
-    time: Array
-    position: Array
+    @property
+    def controller(self) -> str: ...
+
+    @property
+    def time(self) -> Array: ...
+
+    @property
+    def position(self) -> Array: ...
 
 
 @dataclass(frozen=True)

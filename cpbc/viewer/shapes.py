@@ -80,9 +80,9 @@ def tube(points: Array, radius: float, sides: int = 6) -> mg.TriangularMeshGeome
     cos, sin = np.cos(a)[None, :, None], np.sin(a)[None, :, None]
     ring = cos * normal[:, None, :] + sin * binormal[:, None, :]
     vertices = (p[:, None, :] + radius * ring).reshape(-1, 3)
-    k = np.arange(len(p) - 1)[:, None]
+    seg = np.arange(len(p) - 1)[:, None]
     j = np.arange(sides)[None, :]
-    a0, a1 = k * sides + j, k * sides + (j + 1) % sides
+    a0, a1 = seg * sides + j, seg * sides + (j + 1) % sides
     b0, b1 = a0 + sides, a1 + sides
     faces = np.concatenate(
         [np.stack([a0, a1, b1], -1).reshape(-1, 3), np.stack([a0, b1, b0], -1).reshape(-1, 3)]
