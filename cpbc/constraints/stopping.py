@@ -50,8 +50,8 @@ def stopping_margins(
         return empty, empty, empty
     state = model.state(x, dx)
     bias = state.coriolis_force + state.gravity + state.dissipation
-    phi = np.concatenate([c.value(x) for c in constraints.configuration])
-    grads = np.concatenate([c.gradient(x) for c in constraints.configuration])
+    values, gradients = zip(*(c.evaluate(x) for c in constraints.configuration), strict=True)
+    phi, grads = np.concatenate(values), np.concatenate(gradients)
     curvature = np.concatenate([c.curvature(x, dx) for c in constraints.configuration])
     inv_d_grads = np.linalg.solve(state.inertia, grads.T)  # D⁻¹ ∇φᵀ, (n, k)
     w = model.coordinates.inverse @ inv_d_grads  # T⁻¹ D⁻¹ ∇φᵀ: a torque in joint units

@@ -247,11 +247,6 @@ class Safeguard(Controller):
         tau = self._guard(state, out.torque, out.margins)
         return Evaluation(tau, out.lyapunov, out.margins if margins else None)
 
-    def guard(self, x: Array, dx: Array, tau: Array) -> Array:
-        """τ if it satisfies (S1) at (x, ẋ), else the smallest blend toward braking that does."""
-        state = self.law.state(x, dx)
-        return self._guard(state, tau, self.constraints.margins(x, dx, state))
-
     # -- the guard ---------------------------------------------------------------------------
     def _search_braking(
         self, bias: Array, stop: Array, slack: Callable[[Array], float], f_stop: float,
@@ -301,9 +296,10 @@ class Safeguard(Controller):
         the curvature of φ that the first-order escape misses); else the λ that comes
         closest to (S0)."""
         lam0 = self.settings.braking
-        f_stop = positivity(self._brake(bias, stop, lam0))
+        calmest = self._brake(bias, stop, lam0)
+        f_stop = positivity(calmest)
         if f_stop >= 0.0:
-            return self._brake(bias, stop, lam0)
+            return calmest
         lam, f_lam = self._search_braking(bias, stop, positivity, f_stop,
                                           positivity(self._brake(bias, stop, 2.0)))
         if f_lam >= 0.0:  # bisect down towards the smallest λ that keeps (S0)
