@@ -99,17 +99,22 @@ class RecentredBarrier(Controller):
         self._velocity = ConstraintSet(model.n, velocity=constraints.velocity)
         self._f_target, self._grad_target = self._barrier_potential(self.target)
 
-    def _barrier_potential(self, x: Array) -> tuple[float, Array]:
-        """f(x) and ∇f(x) of (6.54)–(6.55)."""
+    def _pieces(self, x: Array) -> tuple[Array, Array, float, Array, float]:
+        """z, the gaps w² − z², 1/Φ, K_P z and the energy zᵀK_P z of (6.54)–(6.55) on the
+        limited joints; ConstraintViolation outside a limit."""
         z = x[self.joints] - self.centre
         gap = self.half_width**2 - z * z
         if not np.all(gap > 0):
             i = int(np.argmin(gap))
             raise ConstraintViolation(self._limit_names[i], float(gap[i]))
         inv_phi = math.exp(-float(np.sum(np.log(gap / self.half_width**2))))
-        kz = np.zeros_like(x)
         kz_sel = self.kp[self.joints] * z
-        energy = float(z @ kz_sel)
+        return z, gap, inv_phi, kz_sel, float(z @ kz_sel)
+
+    def _barrier_potential(self, x: Array) -> tuple[float, Array]:
+        """f(x) and ∇f(x) of (6.54)–(6.55)."""
+        z, gap, inv_phi, kz_sel, energy = self._pieces(x)
+        kz = np.zeros_like(x)
         kz[self.joints] = kz_sel + energy * z / gap
         return 0.5 * energy * inv_phi, kz * inv_phi
 
@@ -117,14 +122,11 @@ class RecentredBarrier(Controller):
         """The two parts of ∇f(x) = own + shared (module docstring, eq. 6.55) and Φ(x):
         own_i = K_P,i z_i / Φ and shared_i = (zᵀK_P z) z_i / ((w_i² − z_i²) Φ), shape (n,),
         zero on coordinates without a position limit."""
-        z = x[self.joints] - self.centre
-        gap = self.half_width**2 - z * z
-        phi = float(np.prod(gap / self.half_width**2))
+        z, gap, inv_phi, kz_sel, energy = self._pieces(x)
         own, shared = np.zeros_like(x), np.zeros_like(x)
-        kz = self.kp[self.joints] * z
-        own[self.joints] = kz / phi
-        shared[self.joints] = float(z @ kz) * z / (gap * phi)
-        return own, shared, phi
+        own[self.joints] = kz_sel * inv_phi
+        shared[self.joints] = energy * z / gap * inv_phi
+        return own, shared, 1.0 / inv_phi
 
     def start_problem(self, state: ArmState, names: Sequence[str],
                       torque_limit: Array | None = None, period: float | None = None
