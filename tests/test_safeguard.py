@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from cpbc.constraints import ConstraintSet, joint_position_limit, joint_rate_limit
+from cpbc.constraints.stopping import Braking
 from cpbc.controllers import BPBC, Power, RecentredBarrier
 from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings, guarded, viable
@@ -20,6 +21,8 @@ from cpbc.model import RobotModel
 from cpbc.reliability.campaign import (
     RecordingPlant,
     campaign_setup,
+    checked_run,
+    constrained,
     sample_states,
     sampled_data_campaign,
 )
@@ -387,3 +390,60 @@ def _bias_and_stop(law, x, dx, h):
     state = law.model.state(x, dx)
     bias = state.coriolis_force + state.gravity + state.dissipation
     return bias, state.inertia @ dx / h
+
+
+def test_the_braking_margins_keep_states_the_one_period_test_lets_go() -> None:
+    """Panda of panda_cpbc_sphere, URDF torque limits in plant and guard, 1 kHz: from a
+    seeded state near the rate bounds (campaign seed 11, draw 136), in the braking set V,
+    CPBC drives the hand toward the table faster than the box can brake. The one-period
+    test (S1) on the margins alone notices too late and the hand crosses the table's 1 cm
+    margin; with the braking margins σ the guard slows it in time."""
+    setup = campaign_setup("panda_cpbc_sphere")
+    limit = setup.loop_settings.torque_limit
+    assert limit is not None and limit.max() == 87.0
+    entry = constrained(setup)[0]
+    braking = Braking.of(setup.model, limit)
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    settings = replace(setup.loop_settings, duration=0.7, noise=None)
+    for s in sample_states(setup, 137, seed=11)[136:]:
+        sigma, _ = braking.margins(setup.monitor, setup.model, s.position, s.velocity)
+        assert np.all(sigma > 0)
+        kept = checked_run(plant, setup, entry, s.position, s.velocity, settings,
+                           safeguard=SafeguardSettings())
+        assert not kept.violated and kept.trajectory.safeguard_steps > 0
+        guard = setup.controller(entry)
+        assert isinstance(guard, Safeguard)
+        guard.braking = None  # the same guard without σ
+        law = replace(entry, controller=guard)
+        lost = checked_run(plant, setup, law, s.position, s.velocity, settings,
+                           safeguard=None)
+        assert lost.violated and lost.constraint == "clearance[panda_hand|table]"
+
+
+@pytest.mark.parametrize("period", [0.001, 0.01])
+def test_within_the_urdf_torque_limits_no_state_of_the_braking_set_is_lost(period: float
+                                                                         ) -> None:
+    """The Panda of panda_cpbc_sphere with the URDF's torque limits (87 / 12 N·m) in the plant
+    and the guard: of 30 seeded states, most pushed near ∂S, the guarded CPBC keeps every one
+    of the braking set V inside S at every physics step, while states outside V (the brake
+    that slows every joint together cannot stop them in time) are lost — the sample reaches
+    the edge of what the actuators allow."""
+    setup = campaign_setup("panda_cpbc_sphere")
+    limit = setup.loop_settings.torque_limit
+    assert limit is not None and limit.max() == 87.0
+    entry = constrained(setup)[0]
+    braking = Braking.of(setup.model, limit)
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    settings = replace(setup.loop_settings, duration=0.3, control_period=period, noise=None)
+    inside, outside_lost, acted = 0, 0, 0
+    for s in sample_states(setup, 30, seed=11):
+        sigma, _ = braking.margins(setup.monitor, setup.model, s.position, s.velocity)
+        check = checked_run(plant, setup, entry, s.position, s.velocity, settings,
+                            safeguard=SafeguardSettings())
+        if np.all(sigma > 0):
+            inside += 1
+            acted += check.trajectory.safeguard_steps
+            assert not check.violated, (s, check.constraint, check.min_margin)
+        else:
+            outside_lost += check.violated
+    assert inside >= 15 and outside_lost >= 3 and acted > 0

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from cpbc.constraints import ConstraintSet, joint_position_limit
-from cpbc.constraints.stopping import stopping_margins
+from cpbc.constraints.stopping import Braking, stopping_margins
 from cpbc.model import RobotModel
 
 LIMIT = np.array([4.0, 2.0])
@@ -90,5 +90,79 @@ def test_a_scenario_case_that_cannot_be_stopped_is_refused(tmp_path, capsys) -> 
     out = tmp_path / "out"
     assert main([str(path), "--out", str(out), "--quiet", "--no-plots"]) == 2
     err = capsys.readouterr().err
-    assert "cases[0].velocity" in err and "cannot be stopped" in err
+    assert "cases[0].velocity" in err and "outside the braking set" in err
+    assert "no torque within the limits can stop it" in err
     assert "position[panda_joint4]" in err and not out.exists()
+
+
+def test_a_case_only_a_dedicated_brake_could_save_is_refused_and_says_so(tmp_path, capsys
+                                                                       ) -> None:
+    """0.01 rad short of joint 4's stop at 0.6 rad/s while the shoulder (joint 2) swings at
+    1 rad/s: the whole box aimed at joint 4 alone would stop it in time; the brake that
+    slows every joint together must also stop the heavy shoulder and would not."""
+    from cpbc.resources import scenarios_dir
+    from cpbc.run import main
+
+    text = (scenarios_dir() / "panda_cpbc_sphere.yaml").read_text()
+    start = "    position: [-0.179, 0.172, -0.497, -2.085, 0.103, 2.233, 0.785]\n"
+    near = "    position: [-0.179, 0.172, -0.497, -0.0798, 0.103, 2.233, 0.785]\n"
+    case = text.replace(start, near + "    velocity: [0, 1.0, 0, 0.6, 0, 0, 0]\n")
+    path = tmp_path / "tight.yaml"
+    path.write_text(case.replace("duration: 5.0", "duration: 0.01"))
+    out = tmp_path / "out"
+    assert main([str(path), "--out", str(out), "--quiet", "--no-plots"]) == 2
+    err = capsys.readouterr().err
+    assert "outside the braking set" in err and "aimed at that constraint alone" in err
+    assert not out.exists()
+
+
+# -- the braking set -------------------------------------------------------------------------
+def _panda_states(count: int, seed: int) -> tuple[RobotModel, np.ndarray, list]:
+    from cpbc.reliability.campaign import campaign_setup, sample_states
+
+    setup = campaign_setup("panda_cpbc_sphere")
+    limit = setup.loop_settings.torque_limit
+    assert limit is not None
+    return setup.model, limit, sample_states(setup, count, seed)
+
+
+def test_the_uniform_brake_at_its_deceleration_sits_on_the_torque_box() -> None:
+    """τ = b − A D ẋ/|ẋ| touches the box |τ| ≤ L (one joint at its limit, none beyond),
+    and asks for ẍ = −A ẋ/|ẋ|."""
+    model, limit, states = _panda_states(12, seed=5)
+    braking = Braking.of(model, limit)
+    for s in states:
+        st = model.state(s.position, s.velocity)
+        bias = st.coriolis_force + st.gravity + st.dissipation
+        a = braking.deceleration(st.inertia, bias, s.velocity)
+        unit = s.velocity / np.linalg.norm(s.velocity)
+        tau = bias - a * st.inertia @ unit
+        assert np.max(np.abs(tau) / limit) == pytest.approx(1.0, abs=1e-9)
+        acc = np.linalg.solve(st.inertia, tau - bias)
+        np.testing.assert_allclose(acc, -a * unit, atol=1e-9 * a)
+    assert braking.deceleration(st.inertia, bias, np.zeros(7)) == np.inf
+
+
+def test_the_full_brake_stops_the_arm_short_of_the_stopping_point() -> None:
+    """The uniform brake at the full deceleration A of each instant (A re-evaluated as D,
+    g and C ẋ change along the stop, not frozen) stops the Panda within the travel
+    |ẋ|²/(2θA₀) that σ counts on: θ = 0.8 covers how much A falls on the way."""
+    model, limit, states = _panda_states(12, seed=5)
+    braking = Braking.of(model, limit)
+    dt = 2e-4
+    for s in states:
+        x, dx = s.position.copy(), s.velocity.copy()
+        st = model.state(x, dx)
+        k = braking.per_speed(st.inertia, st.coriolis_force + st.gravity, dx)
+        stop = x + k * np.linalg.norm(dx) * dx
+        for _ in range(20000):
+            st = model.state(x, dx)
+            bias = st.coriolis_force + st.gravity + st.dissipation
+            a = braking.deceleration(st.inertia, bias, dx)
+            speed = np.linalg.norm(dx)
+            if a * dt >= speed:
+                break
+            dx = dx - (dt * a / speed) * dx  # ẍ = −A ẋ/|ẋ|: along the segment ahead of ẋ
+            x = x + dt * dx
+        direction = s.velocity / np.linalg.norm(s.velocity)
+        assert (x - s.position) @ direction <= (stop - s.position) @ direction

@@ -26,6 +26,9 @@ as initial states; states that pass it may still be lost.
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+
 import numpy as np
 
 from cpbc.arrays import Array
@@ -63,3 +66,94 @@ def stopping_margins(
     margins = np.where(speed > 0, phi - lost, phi)
     return margins, speed, decel
 
+
+
+# -- the braking set: what the safeguard keeps invariant under bounded torque ----------------
+@dataclass(frozen=True, eq=False)
+class Braking:
+    """The uniform brake within the torque box, and the point where it stops the arm.
+
+    The test above is necessary, not sufficient: it lends every constraint the whole box at
+    once. The safeguard brakes with one torque for all of them, the *uniform brake*
+
+        τ = b − a D ẋ/|ẋ|,   b = C ẋ + g + f,   so that   ẍ = −a ẋ/|ẋ|,
+
+    which slows every coordinate in proportion to its speed: it never spins a joint up
+    through D, it keeps every rate and kinetic-energy margin growing, and with the dynamics
+    frozen it moves the arm along the straight segment ahead of ẋ. The largest deceleration
+    the box |Tᵀτ| ≤ L allows it is, with u = Tᵀ D ẋ/|ẋ| and β = Tᵀ b,
+
+        A(x, ẋ) = min_j (L_j + sign(u_j) β_j) / |u_j|,
+
+    (≤ 0 where b alone does not fit: nothing holds the arm). Braking with a share θ of it,
+    the arm stops at
+
+        x_s = x + ẋ |ẋ| / (2θA),
+
+    and the *braking margins* σ_i = φ_i(x_s) are the configuration margins there. The set
+    V = {(x, ẋ) ∈ S : σ_i > 0 for every i} is the one the safeguard keeps invariant: it
+    holds σ as it holds every margin (its condition (S1)), and the uniform brake at full
+    deceleration A > θA moves x_s back along ẋ, by (1/θ − 1) h (|ẋ| − ½hA) per period
+    (frozen dynamics), so σ can always be kept from shrinking by braking. θ < 1 absorbs
+    what freezing D, b and A over the stop gets wrong. A state outside V is refused as an
+    initial state: the brake the safeguard has cannot stop it in time.
+
+    Attributes:
+        limit: L, the joint torque limits, shape (n,) [N·m].
+        to_joint: Tᵀ of τ_q = Tᵀ τ, or None for joint coordinates.
+        share: θ ∈ (0, 1].
+    """
+
+    limit: Array
+    to_joint: Array | None = None
+    share: float = 0.8
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.share <= 1.0:
+            raise ValueError(f"braking share must be in (0, 1], got {self.share}")
+
+    @classmethod
+    def of(cls, model: RobotModel, limit: Array | float, share: float = 0.8) -> Braking:
+        """The brake of ``model`` (its coordinates) within joint torque limits ``limit``."""
+        coords = model.coordinates
+        full = np.broadcast_to(np.asarray(limit, dtype=float), (model.n,)).copy()
+        return cls(full, None if coords.is_identity else coords.matrix.T.copy(), share)
+
+    def deceleration(self, inertia: Array, bias: Array, dx: Array) -> float:
+        """A: the largest deceleration along ẋ of the uniform brake (inf at rest)."""
+        speed = math.sqrt(float(dx.dot(dx)))
+        if speed == 0.0:
+            return math.inf
+        u = inertia.dot(dx / speed)
+        beta = bias
+        if self.to_joint is not None:
+            u, beta = self.to_joint.dot(u), self.to_joint.dot(beta)
+        lim = self.limit
+        with np.errstate(divide="ignore", invalid="ignore"):
+            room = np.where(u > 0, (lim + beta) / u, np.where(u < 0, (beta - lim) / u, np.inf))
+        return float(room.min())
+
+    def per_speed(self, inertia: Array, bias: Array, dx: Array) -> float:
+        """1/(2θA), so that x_s = x + (|ẋ|/(2θA)) ẋ; 0 at rest, inf where the box leaves
+        no deceleration."""
+        a = self.deceleration(inertia, bias, dx)
+        if a == math.inf:
+            return 0.0
+        if not a > 0.0:
+            return math.inf
+        return 1.0 / (2.0 * self.share * a)
+
+    def margins(self, constraints: ConstraintSet, model: RobotModel, x: Array,
+                dx: Array) -> tuple[Array, float]:
+        """σ_i for every configuration constraint (in the order of their names), and the
+        distance |x_s − x| the brake travels [controller units]."""
+        if not constraints.configuration:
+            return np.zeros(0), 0.0
+        state = model.state(x, dx)
+        bias = state.coriolis_force + state.gravity + state.dissipation
+        per_speed = self.per_speed(state.inertia, bias, dx)
+        if per_speed == math.inf:
+            return np.full(constraints.n_configuration, -math.inf), math.inf
+        speed = math.sqrt(float(dx.dot(dx)))
+        return constraints.configuration_margins(x + (per_speed * speed) * dx), \
+            per_speed * speed * speed

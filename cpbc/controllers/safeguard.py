@@ -52,6 +52,18 @@ A state whose distance to a configuration boundary is less than ¼h of its appro
 cannot be kept inside by any held torque that respects the rate bounds (:func:`viable`);
 such states are outside what sampled-data control can promise.
 
+Under bounded torque (``torque_limit``) a margin can be lost long before one period shows
+it: the arm may be too fast to stop before the boundary. The guard then also holds the
+*braking margins* σ_i = φ_i(x_s) of :class:`cpbc.constraints.stopping.Braking` — the
+configuration margins where the uniform brake, the one the guard blends toward, would stop
+the arm — by the same rule (S1) at the predicted end of the period:
+
+    σ_i(h) − δ_i ≥ e^{−κh} (σ_i − δ_i)                                               (S2)
+
+so the state stays in the braking set V = {σ > 0}, from which the brake within the box can
+stop the arm before every configuration boundary. Initial states outside V are refused by
+the scenario builder; campaigns count them apart.
+
 The wrapper returns the law's torque unchanged whenever the prediction satisfies (S1). It
 is pure (no simulator) like the laws it wraps, so the same object could drive a real arm
 at its control rate. The law's torque bound (Theorem 7.7, Corollary 7.8) does not cover
@@ -69,6 +81,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.stopping import Braking
 from cpbc.controllers.base import Controller, Evaluation
 from cpbc.controllers.linalg import solve_spd
 from cpbc.errors import CpbcError
@@ -220,6 +233,9 @@ class Safeguard(Controller):
         self._n_config = self.guarded.n_configuration
         self._n_own_config = own.n_configuration
         self.torque_limit = None if torque_limit is None else np.asarray(torque_limit, float)
+        # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)
+        self.braking = None if torque_limit is None or not self._n_config else Braking.of(
+            law.model, torque_limit)
         coords = law.model.coordinates
         self._t_mat_t = coords.matrix.T  # τ_q = Tᵀ τ
         self._t_inv_t = coords.inverse.T  # τ = T⁻ᵀ τ_q
@@ -421,21 +437,45 @@ class Safeguard(Controller):
             return frozen
         return _substepped(self.model, x, dx, h, self.substeps, self._saturate)
 
-    def _check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None
-               ) -> Callable[[Array], float]:
+    def _check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None,
+               stop: tuple[float, Array] | None = None) -> Callable[[Array], float]:
         """F(τ) = min_i m_i/floor_i − 1 over the predicted end (and mid-period
-        configuration) margins: ≥ 0 when τ keeps every margin above its floor."""
+        configuration) margins, and with ``stop`` = (1/(2θA), floors) the braking margins
+        σ_i at the predicted end: ≥ 0 when τ keeps every margin above its floor."""
         guarded, no_nan = self.guarded, self._no_nan
 
         def f(t: Array) -> float:
             mid, x1, v1 = predict(t)
             if mid_floor is None:
                 return float((no_nan(guarded.margins(x1, v1)) / end_floor).min()) - 1.0
-            config = no_nan(guarded.configuration_margins_along(np.array((mid, x1))))
+            if stop is None:
+                config = no_nan(guarded.configuration_margins_along(np.array((mid, x1))))
+            else:  # x_s = x₁ + (|ẋ₁|/(2θA)) ẋ₁, A frozen at the sample
+                x_stop = x1 + (stop[0] * math.sqrt(float(v1.dot(v1)))) * v1
+                config = no_nan(guarded.configuration_margins_along(np.array((mid, x1, x_stop))))
             end = np.concatenate((config[1], no_nan(guarded.velocity_margins(x1, v1))))
-            return min(float((end / end_floor).min()), float((config[0] / mid_floor).min())) - 1.0
+            low = min(float((end / end_floor).min()), float((config[0] / mid_floor).min()))
+            if stop is not None:
+                low = min(low, float((config[2] / stop[1]).min()))
+            return low - 1.0
 
         return f
+
+    def _braking_floor(self, state: ArmState, bias: Array) -> tuple[float, Array] | None:
+        """(1/(2θA), the floors of (S1) for the braking margins σ_i at the sample), or None
+        without a torque box, at rest, or where the box leaves no deceleration (then no
+        torque can help and σ is not held)."""
+        if self.braking is None:
+            return None
+        dx = state.dx
+        per_speed = self.braking.per_speed(state.inertia, bias, dx)
+        if per_speed == 0.0 or per_speed == math.inf:
+            return None
+        x_stop = state.x + (per_speed * math.sqrt(float(dx.dot(dx)))) * dx
+        sigma = self._no_nan(self.guarded.configuration_margins(x_stop))
+        delta = self.cushion[: self._n_config]
+        # σ below its cushion must grow; one already ≤ 0 (a state outside V) must turn positive
+        return per_speed, np.maximum(delta + self.keep * (sigma - delta), 1e-300)
 
     def _guard(self, state: ArmState, tau: Array, law_margins: Array) -> Array:
         """τ if it satisfies (S1), else the smallest blend toward braking that does."""
@@ -451,7 +491,7 @@ class Safeguard(Controller):
             floor_mid = delta[:nc] + self.keep_half * (now[:nc] - delta[:nc])
             if self._extra is not None:  # an extra margin may be ≤ 0: then it must turn positive
                 floor, floor_mid = np.maximum(floor, 1e-300), np.maximum(floor_mid, 1e-300)
-        slack = self._check(predict, floor, floor_mid)  # (S1)
+        slack = self._check(predict, floor, floor_mid, self._braking_floor(state, bias))  # (S1)
         boxed = self._box(bias, tau)
         if boxed is not tau:
             self.scaled += 1

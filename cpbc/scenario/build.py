@@ -23,7 +23,7 @@ from cpbc.constraints import (
     joint_rate_limit,
 )
 from cpbc.constraints.geometry import Obstacle, SceneGeom
-from cpbc.constraints.stopping import stopping_margins
+from cpbc.constraints.stopping import Braking, stopping_margins
 from cpbc.controllers import CONTROLLERS, Controller, Identity, Power, RecentredBarrier, Tanh
 from cpbc.controllers.safeguard import SafeguardSettings, guarded
 from cpbc.controllers.shaping import Shaping
@@ -585,22 +585,28 @@ def _states(
 
 def _check_stoppable(cases: list[CaseEntry], monitor: ConstraintSet, model: RobotModel,
                      limit: Array) -> None:
-    """Refuse an initial state that no torque within the limits can stop before a
-    configuration boundary (cpbc.constraints.stopping: first order, each constraint alone)."""
+    """Refuse an initial state outside the braking set V: the safeguard's brake, within the
+    torque limits, would stop the arm past a configuration boundary
+    (cpbc.constraints.stopping.Braking); say whether any torque in the box could."""
+    braking = Braking.of(model, limit)
     for i, case in enumerate(cases):
-        margins, speed, decel = stopping_margins(monitor, model, case.position, case.velocity,
-                                                 limit)
-        if margins.size and not np.all(margins > 0):
-            k = int(np.argmin(margins))
-            phi = monitor.configuration_margins(case.position)[k]
-            raise ScenarioError(
-                f"cases[{i}].velocity",
-                f"case '{case.name}' cannot be stopped before '{monitor.names[k]}' within the "
-                f"torque limits: its margin {phi:.4g} falls at {speed[k]:.4g}/s and the "
-                f"actuators can slow that fall by at most {max(decel[k], 0.0):.4g}/s², so "
-                f"stopping uses up {phi - margins[k]:.4g} of it (cpbc.constraints.stopping). "
-                "Start slower or farther from that boundary, or raise simulation.torque_limit",
-            )
+        sigma, travel = braking.margins(monitor, model, case.position, case.velocity)
+        if not sigma.size or np.all(sigma > 0):
+            continue
+        k = int(np.argmin(sigma))
+        speed = float(np.linalg.norm(case.velocity))
+        lost, _, _ = stopping_margins(monitor, model, case.position, case.velocity, limit)
+        verdict = ("no torque within the limits can stop it in time either" if lost[k] <= 0
+                   else "a brake aimed at that constraint alone might, but the safeguard's "
+                   "brake must slow every joint at once")
+        raise ScenarioError(
+            f"cases[{i}].velocity",
+            f"case '{case.name}' is outside the braking set: at {speed:.4g} rad/s the "
+            f"actuators' torque limits leave a brake that slows every joint together "
+            f"{travel:.4g} rad of travel to stop, which ends past '{monitor.names[k]}' "
+            f"(margin {sigma[k]:.4g} there; cpbc.constraints.stopping.Braking); {verdict}. "
+            "Start slower or farther from that boundary, or raise simulation.torque_limit",
+        )
 
 
 def _controllers(
