@@ -634,3 +634,26 @@ def test_an_inadmissible_state_carries_its_field(load_dict, minimal) -> None:
     with pytest.raises(InadmissibleStateError) as info:
         load_dict(minimal)
     assert info.value.field == "cases[0]" and info.value.constraint == "obstacle"
+
+
+def test_a_urdf_arm_gets_its_motors_torque_limits_unless_told_otherwise(tmp_path) -> None:
+    """Left out, simulation.torque_limit is the URDF's effort limits (the Panda's 87 / 12
+    N·m), scaled by torque_limit_scale; `none` switches it off; the built-in MJCF arm,
+    which declares no efforts, has none."""
+    from cpbc.resources import scenarios_dir
+
+    text = (scenarios_dir() / "panda_cpbc_sphere.yaml").read_text()
+    line = "  torque_limit: from_model     # the URDF's effort limits (87 and 12 N m)\n"
+    assert line in text
+    limits = {}
+    for name, replacement in [("absent", ""), ("none", "  torque_limit: none\n"),
+                              ("half", "  torque_limit_scale: 0.5\n")]:
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(text.replace(line, replacement))
+        spec, file = load_scenario(path)
+        limits[name] = build(spec, file).loop_settings.torque_limit
+    np.testing.assert_array_equal(limits["absent"], [87, 87, 87, 87, 12, 12, 12])
+    np.testing.assert_array_equal(limits["half"], [43.5, 43.5, 43.5, 43.5, 6, 6, 6])
+    assert limits["none"] is None
+    spec, file = load_scenario("thesis_ch7")
+    assert build(spec, file).loop_settings.torque_limit is None

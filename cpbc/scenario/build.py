@@ -455,6 +455,14 @@ def _check_length(sim: s.SimulationSpec, control_period: float) -> None:
         )
 
 
+def _declared_efforts(model: RobotModel) -> Array | None:
+    """The effort limits of every joint when the model declares them all (a URDF arm), in
+    joint coordinates; None otherwise (the built-in MJCF arm declares none)."""
+    effort = np.array(model.model.effortLimit, dtype=float)
+    usable = model.coordinates.is_identity and effort.size == model.n
+    return effort if usable and bool(np.all(np.isfinite(effort) & (effort > 0))) else None
+
+
 def _loop_settings(sim: s.SimulationSpec, model: RobotModel) -> LoopSettings:
     n = model.n
     control_period = sim.control_period or sim.timestep
@@ -463,7 +471,10 @@ def _loop_settings(sim: s.SimulationSpec, model: RobotModel) -> LoopSettings:
     if sim.torque_limit == "from_model":
         limit = sim.torque_limit_scale * robots.model_limits(
             model, "effort", "simulation.torque_limit")[1]
-    elif sim.torque_limit is not None:
+    elif "torque_limit" not in sim.model_fields_set:  # real arms have real motors
+        limit = _declared_efforts(model)
+        limit = None if limit is None else sim.torque_limit_scale * limit
+    elif isinstance(sim.torque_limit, (float, list)):
         limit = sim.torque_limit_scale * _vector(
             sim.torque_limit if isinstance(sim.torque_limit, list) else [sim.torque_limit] * n,
             n,

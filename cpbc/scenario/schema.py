@@ -81,8 +81,10 @@ class SimulationSpec(Strict):
     control_period: Positive | None = None
     integrator: Literal["Euler", "RK4", "implicit", "implicitfast"] = "RK4"
     backend: Literal["mujoco", "reference"] = "mujoco"
-    # symmetric actuator limits; "from_model": the URDF's effort limits (× torque_limit_scale)
-    torque_limit: Positive | list[Positive] | Literal["from_model"] | None = None
+    # symmetric actuator limits; "from_model": the URDF's effort limits (× torque_limit_scale),
+    # also what an arm whose model declares effort limits gets when the key is left out;
+    # "none" (or null): no limit
+    torque_limit: Positive | list[Positive] | Literal["from_model", "none"] | None = None
     torque_limit_scale: Positive = 1.0
     log_every: Annotated[int, Field(ge=1)] = 1
     max_log_samples: Annotated[int, Field(ge=2)] = 100_000
