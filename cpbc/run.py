@@ -41,6 +41,7 @@ if TYPE_CHECKING:
 STATUS_STYLE = {
     "converged": "green",
     "stalled": "yellow",
+    "held": "yellow",
     "not_settled": "yellow",
     "constraint_violated": "red",
     "diverged": "red",

@@ -13,7 +13,8 @@ from cpbc.controllers.base import Controller
 from cpbc.results.margin_types import WorstMargin, physical_history, types_of, worst_by_type
 from cpbc.simulation.trajectory import Trajectory
 
-STATUSES = ("converged", "stalled", "not_settled", "constraint_violated", "diverged")
+STATUSES = ("converged", "stalled", "held", "not_settled", "constraint_violated",
+            "diverged")
 
 
 @dataclass(frozen=True)
@@ -128,6 +129,8 @@ def judge_status(
     if inside[-1] and speed[-1] < criteria.velocity_tolerance:
         return "converged", settle
     window = max(2, int(len(err) * criteria.stall_window))
+    if traj.held_since is not None and traj.held_since <= traj.time[-window]:
+        return "held", settle  # the safeguard, not the law, kept the arm where it ended
     at_rest = np.all(speed[-window:] < criteria.velocity_tolerance)
     progress = (err[-window] - err[-1]) / max(err[-window], 1e-12)
     if at_rest and progress < criteria.stall_progress:

@@ -135,6 +135,9 @@ def run_mujoco(
     # The step's calls bound once; ndarray.dot and sums of lists: on 2-vectors numpy's @
     # costs twice as much here.
     record, apply, step, unstable = log.record, plant.apply, plant.step, plant.unstable
+    guard = controller if isinstance(controller, Safeguard) else None
+    # the guard's count before this step, and since when it has acted at every step
+    acted, held_since = (guard.acted if guard else 0), None
     for k in range(steps + 1):
         t = k * h
         x = qpos.copy() if identity else t_mat.dot(qpos)
@@ -152,6 +155,12 @@ def run_mujoco(
             outcome = "diverged"
             log.record(t, v, x, dx, tau, np.full(n, np.nan), force=True)
             break
+        if guard is not None:
+            if guard.acted != acted:
+                held_since = t if held_since is None else held_since
+                acted = guard.acted
+            else:
+                held_since = None
         tau_q = tau if identity else t_mat_t.dot(tau)
         if limit is not None:
             clipped = np.clip(tau_q, -limit, limit)
@@ -173,13 +182,12 @@ def run_mujoco(
     end_time = float(tt[-1]) if tt.size else 0.0
     if outcome == "diverged":
         end_time = k * settings.control_period
-    guard = controller if isinstance(controller, Safeguard) else None
     return Trajectory(
         tt, xs, dxs, taus, tau_qs, vs, outcome, end_time, violated, wall, k + 1, saturated,
         int(contacts), "mujoco",
         safeguard_steps=guard.acted if guard else 0,
         safeguard_infeasible=guard.infeasible if guard else 0,
-        rejected_samples=sample.rejected,
+        rejected_samples=sample.rejected, held_since=held_since,
     )
 
 
