@@ -20,11 +20,16 @@ wraps a constrained law and, at every control instant,
        φ_i(h/2) − δ_i ≥ e^{−κh/2} (φ_i − δ_i)   for every φ_i (between the samples)
 
    so no margin may shrink faster than at the rate κ [1/s], and below the cushion a margin
-   must grow. The cushion δ_i = η (h / 10 ms) m_i(x_d, 0) is a fraction of the margin at the
-   target at rest: a tightening scaled to the period that absorbs what the frozen prediction
+   must grow. The cushion δ_i = η (h / 10 ms) |m_i(x_d, 0)| is a fraction of the margin at
+   the target at rest (its size, for a constraint only the guard keeps that has the target
+   beyond it): a tightening scaled to the period that absorbs what the frozen prediction
    gets wrong (it is what keeps a margin from being driven to zero where a prediction error
    of 10⁻⁸ would cross it);
-4. otherwise blends toward a braking torque that stops the model's motion in one period,
+4. otherwise, first, blends toward the law's torque less its push into the configuration
+   boundaries (:meth:`Safeguard._slide`: its acceleration projected onto the half-spaces
+   (S1) asks of each margin), so that a law pressing against a boundary goes on along it
+   instead of being braked to rest there; if that fails (S1) too, it
+   blends toward a braking torque that stops the model's motion in one period,
 
        τ_b = C ẋ + g + f − λ D ẋ / h,     τ(β) = (1 − β) τ₀ + β τ_b,   β ∈ [0, 1]
 
@@ -229,7 +234,9 @@ class Safeguard(Controller):
         self._extra = ConstraintSet(own.n, extra) if extra and not own.empty else None
         at_target = self.guarded.margins(law.target, np.zeros(law.model.n))
         scale = self.settings.cushion * self.period / 0.01
-        self.cushion = scale * at_target  # δ_i
+        # δ_i; a constraint only the guard keeps may have the target beyond it (a joint limit
+        # the law does not know of between it and its target): the size of its margin there
+        self.cushion = scale * np.abs(at_target)
         self._n_config = self.guarded.n_configuration
         self._n_own_config = own.n_configuration
         self.torque_limit = None if torque_limit is None else np.asarray(torque_limit, float)
@@ -356,21 +363,55 @@ class Safeguard(Controller):
         """
         h = self.period
         nc = self._n_config
-        grads = np.concatenate([c.gradient(x) for c in self.guarded.configuration])
+        grads = self._gradients(x)
         rate = grads @ dx
         need = np.maximum(2.0 * (end_floor[:nc] - now[:nc]) / h - rate,
                           8.0 * (mid_floor - now[:nc]) / h - 3.0 * rate)
-        norms = np.einsum("ij,ij->i", grads, grads)
-        movable = norms > 1e-300
-        scale = np.sqrt(np.where(movable, norms, 1.0))
-        v = np.zeros_like(dx)
-        for _ in range(2 * nc):
-            short = np.where(movable, need - grads @ v, -np.inf)
-            i = int(np.argmax(short / scale))
-            if not short[i] > 0.0:
-                break
-            v = v + (short[i] / norms[i]) * grads[i]
-        return inertia @ v / h
+        return inertia @ _project(grads, need, np.zeros_like(dx)) / h
+
+    def _gradients(self, x: Array) -> Array:
+        """∇φ_i of every guarded configuration constraint, shape (number of φ_i, n)."""
+        return np.concatenate([c.gradient(x) for c in self.guarded.configuration])
+
+    def _slide(self, state: ArmState, bias: Array, tau: Array, now: Array, end_floor: Array,
+               mid_floor: Array, stop: tuple[float, Array] | None) -> Array:
+        """The law's torque less what drives the arm into the configuration boundaries:
+        its acceleration a = D⁻¹(τ − b) projected onto the half-spaces that (S1) asks of
+        each configuration margin to first order,
+
+            ∇φ_i · a ≥ r_i = max(2(φ̲_i − φ_i − h∇φ_i·ẋ)/h²,  8(φ̲ᵐ_i − φ_i − ½h∇φ_i·ẋ)/h²),
+
+        (φ(h) ≈ φ + h∇φ·ẋ + ½h²∇φ·a, and at mid-period with h/2), as :func:`_project`
+        builds it, then b + D a scaled into the torque box. Blending toward it, not toward a
+        brake, lets the law go on along a boundary it presses against: a law that does not
+        know of a joint limit and whose acceleration, through D, pushes that joint into it
+        would otherwise be braked to rest there for good. Where the result would leave a
+        braking margin σ_i below its floor (``stop``), the arm must also stop approaching
+        that boundary by the end of the period, ∇φ_i · (ẋ + h a) ≥ 0, and a is projected
+        again with that half-space added."""
+        h = self.period
+        nc = self._n_config
+        grads = self._gradients(state.x)
+        rate = grads @ state.dx
+        phi = now[:nc]
+        # aimed a little past each floor (a twentieth of the step, and 10⁻⁴ of the floor for
+        # a margin resting on it): the projection lands on the first-order boundary, which
+        # the curvature of φ may put a hair short of the floor
+        end = end_floor[:nc] + 0.05 * np.abs(end_floor[:nc] - phi) + 1e-4 * np.abs(end_floor[:nc])
+        mid = mid_floor + 0.05 * np.abs(mid_floor - phi) + 1e-4 * np.abs(mid_floor)
+        need = np.maximum(2.0 * (end - phi - h * rate) / (h * h),
+                          8.0 * (mid - phi - 0.5 * h * rate) / (h * h))
+        law = solve_spd(state.inertia, tau - bias)
+        acc = _project(grads, need, law)
+        if stop is not None:
+            v1 = state.dx + h * acc
+            x_stop = state.x + h * state.dx + (0.5 * h * h) * acc + (
+                stop[0] * math.sqrt(float(v1.dot(v1)))) * v1
+            short = self.guarded.configuration_margins(x_stop) < stop[1]
+            if short.any():
+                need = np.where(short, np.maximum(need, -rate / h), need)
+                acc = _project(grads, need, law)
+        return self._box(bias, bias + state.inertia.dot(acc))
 
     def _box(self, bias: Array, tau: Array) -> Array:
         """τ scaled toward the bias b = C ẋ + g + f until it fits the torque box:
@@ -491,7 +532,8 @@ class Safeguard(Controller):
             floor_mid = delta[:nc] + self.keep_half * (now[:nc] - delta[:nc])
             if self._extra is not None:  # an extra margin may be ≤ 0: then it must turn positive
                 floor, floor_mid = np.maximum(floor, 1e-300), np.maximum(floor_mid, 1e-300)
-        slack = self._check(predict, floor, floor_mid, self._braking_floor(state, bias))  # (S1)
+        stop = self._braking_floor(state, bias)
+        slack = self._check(predict, floor, floor_mid, stop)  # (S1)
         boxed = self._box(bias, tau)
         if boxed is not tau:
             self.scaled += 1
@@ -500,6 +542,11 @@ class Safeguard(Controller):
         if f0 >= 0.0:
             return tau
         self.acted += 1
+        if floor_mid is not None:  # first the law less its push into the boundaries
+            slid = self._slide(state, bias, tau, now, floor, floor_mid, stop)
+            f_slid = slack(slid)
+            if f_slid >= 0.0:
+                return self._blend(tau, slid, f0, f_slid, slack)
         stop = state.inertia.dot(state.dx) / self.period
         brake = self._brake(bias, stop, self.settings.braking)
         f1 = slack(brake)
@@ -557,6 +604,24 @@ class Safeguard(Controller):
                     f_hi *= 0.5
                 side = -1
         return (1.0 - hi) * tau + hi * brake
+
+
+def _project(grads: Array, need: Array, start: Array) -> Array:
+    """``start`` moved onto the half-spaces {v : ∇φ_i · v ≥ r_i}: one orthogonal projection
+    at a time onto the most violated, at most twice per constraint (joint limits are
+    orthogonal to each other, so one projection meets each): a closed-form construction,
+    not an optimisation."""
+    norms = np.einsum("ij,ij->i", grads, grads)
+    movable = norms > 1e-300
+    scale = np.sqrt(np.where(movable, norms, 1.0))
+    v = start
+    for _ in range(2 * len(need)):
+        short = np.where(movable, need - grads @ v, -np.inf)
+        i = int(np.argmax(short / scale))
+        if not short[i] > 0.0:
+            break
+        v = v + (short[i] / norms[i]) * grads[i]
+    return v
 
 
 def _substepped(model: RobotModel, x: Array, dx: Array, h: float, k: int,

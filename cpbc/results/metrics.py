@@ -113,6 +113,15 @@ def margin_history(monitor: ConstraintSet, traj: Trajectory) -> Array:
     return physical_history(monitor, monitor.margins_along(traj.position, traj.velocity))
 
 
+def _guard_share(traj: Trajectory, fraction: float) -> float:
+    """The share of the control steps in the last ``fraction`` of the run at which the
+    safeguard replaced the law's torque."""
+    steps = traj.guarded_steps
+    if steps is None or not steps.size:
+        return 0.0
+    return float(steps[int(len(steps) * (1.0 - fraction)):].mean())
+
+
 def judge_status(
     traj: Trajectory, target: Array, criteria: SettleCriteria
 ) -> tuple[str, float | None]:
@@ -129,12 +138,11 @@ def judge_status(
     if inside[-1] and speed[-1] < criteria.velocity_tolerance:
         return "converged", settle
     window = max(2, int(len(err) * criteria.stall_window))
-    if traj.held_since is not None and traj.held_since <= traj.time[-window]:
-        return "held", settle  # the safeguard, not the law, kept the arm where it ended
     at_rest = np.all(speed[-window:] < criteria.velocity_tolerance)
     progress = (err[-window] - err[-1]) / max(err[-window], 1e-12)
     if at_rest and progress < criteria.stall_progress:
-        return "stalled", None
+        # at rest away from the target: the law's own equilibrium, or the safeguard's hold
+        return ("held" if _guard_share(traj, criteria.stall_window) > 0.5 else "stalled"), None
     return "not_settled", settle
 
 

@@ -136,8 +136,8 @@ def run_mujoco(
     # costs twice as much here.
     record, apply, step, unstable = log.record, plant.apply, plant.step, plant.unstable
     guard = controller if isinstance(controller, Safeguard) else None
-    # the guard's count before this step, and since when it has acted at every step
-    acted, held_since = (guard.acted if guard else 0), None
+    acted = guard.acted if guard else 0  # the guard's count before this step
+    guarded_steps = np.zeros(steps + 1 if guard else 0, dtype=bool)
     for k in range(steps + 1):
         t = k * h
         x = qpos.copy() if identity else t_mat.dot(qpos)
@@ -155,12 +155,8 @@ def run_mujoco(
             outcome = "diverged"
             log.record(t, v, x, dx, tau, np.full(n, np.nan), force=True)
             break
-        if guard is not None:
-            if guard.acted != acted:
-                held_since = t if held_since is None else held_since
-                acted = guard.acted
-            else:
-                held_since = None
+        if guard is not None and guard.acted != acted:
+            guarded_steps[k], acted = True, guard.acted
         tau_q = tau if identity else t_mat_t.dot(tau)
         if limit is not None:
             clipped = np.clip(tau_q, -limit, limit)
@@ -187,7 +183,8 @@ def run_mujoco(
         int(contacts), "mujoco",
         safeguard_steps=guard.acted if guard else 0,
         safeguard_infeasible=guard.infeasible if guard else 0,
-        rejected_samples=sample.rejected, held_since=held_since,
+        rejected_samples=sample.rejected,
+        guarded_steps=guarded_steps[: k + 1] if guard else None,
     )
 
 

@@ -35,9 +35,8 @@ class Trajectory:
             keep every margin above its floor.
         rejected_samples: noisy measurements outside S (true state inside) that the law
             refused; the previous torque was held.
-        held_since: the time from which the safeguard replaced the law's torque at every
-            control step to the end of the run (None when it let the law act at the last
-            step): the arm was held by the guard, not driven by the law.
+        guarded_steps: per control step, whether the safeguard replaced the law's torque
+            (None without a safeguard).
     """
 
     time: Array
@@ -57,7 +56,7 @@ class Trajectory:
     safeguard_steps: int = 0
     safeguard_infeasible: int = 0
     rejected_samples: int = 0
-    held_since: float | None = None
+    guarded_steps: Array | None = None
 
     @property
     def steps_per_second(self) -> float:
