@@ -453,8 +453,9 @@ def test_a_run_the_guard_holds_at_a_boundary_is_held_not_stalled(bpbc: BPBC,
                                                                   planar_path) -> None:
     """BPBC heads for θ₁ = π through a joint limit at 0.3 rad that only the safeguard keeps:
     the guard stops link 1 short of it and lets link 2 go on to its target (its torque less
-    the push into the wall), and from then on replaces the law's torque on most steps. The run is judged `held` — the guard, not a
-    spurious equilibrium of the law, keeps the arm there — and without the wall the same
+    the push into the wall), and from then on replaces the law's torque on most steps. The
+    run is judged `held` — the guard, not a spurious equilibrium of the law, keeps the arm
+    there — and without the wall the same
     law converges."""
     from cpbc.results.metrics import SettleCriteria, judge_status
 
