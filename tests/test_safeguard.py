@@ -455,8 +455,7 @@ def test_a_run_the_guard_holds_at_a_boundary_is_held_not_stalled(bpbc: BPBC,
     the guard stops link 1 short of it and lets link 2 go on to its target (its torque less
     the push into the wall), and from then on replaces the law's torque on most steps. The
     run is judged `held` — the guard, not a spurious equilibrium of the law, keeps the arm
-    there — and without the wall the same
-    law converges."""
+    there — and without the wall the same law converges."""
     from cpbc.results.metrics import SettleCriteria, judge_status
 
     wall = joint_position_limit(np.array([-1.0, -10.0]), np.array([0.3, 10.0]), ["t1", "t2"])
