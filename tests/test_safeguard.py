@@ -473,3 +473,29 @@ def test_a_run_the_guard_holds_at_a_boundary_is_held_not_stalled(bpbc: BPBC,
                       LoopSettings(60.0, 0.001))
     assert free.guarded_steps is not None and not free.guarded_steps.any()
     assert judge_status(free, bpbc.target, SettleCriteria())[0] == "converged"
+
+
+def test_the_slide_removes_only_the_push_into_the_boundary(bpbc: BPBC) -> None:
+    """At rest against a wall on θ₁ that only the guard keeps, BPBC's torque accelerates
+    link 1 into the wall: the guard's slide keeps the law's acceleration of link 2 as it is,
+    turns link 1's round so that its margin grows as (S1) asks, and passes (S1)."""
+    wall = joint_position_limit(np.array([-1.0, -10.0]), np.array([0.3, 10.0]), ["t1", "t2"])
+    guard = Safeguard(bpbc, 0.001, also_keep=(wall,))
+    x, dx = np.array([0.3 - 9e-4, 0.5]), np.zeros(2)  # just inside its cushion
+    state = guard.state(x, dx)
+    out = bpbc.evaluate_state(state, margins=True)
+    bias = state.coriolis_force + state.gravity
+    law_acc = solve_spd(state.inertia, out.torque - bias)
+    assert law_acc[0] > 0  # into the wall (θ₁ ≤ 0.3)
+    now = guard._now(x, out.margins)
+    delta, nc = guard.cushion, guard._n_config
+    floor = np.maximum(delta + guard.keep * (now - delta), 1e-300)
+    floor_mid = np.maximum(delta[:nc] + guard.keep_half * (now[:nc] - delta[:nc]), 1e-300)
+    slack = guard._check(guard._predictor(state, bias), floor, floor_mid)
+    assert slack(out.torque) < 0
+    slid = guard._slide(state, bias, out.torque, now, floor, floor_mid, None)
+    acc = solve_spd(state.inertia, slid - bias)
+    assert acc[0] < 0 and acc[1] == pytest.approx(law_acc[1], rel=1e-9)
+    assert slack(slid) >= 0
+    tau = guard.torque(x, dx)
+    assert slack(tau) >= 0 and not np.allclose(tau, bias)  # not a brake to rest
