@@ -124,14 +124,14 @@ class Braking:
         speed = math.sqrt(float(dx.dot(dx)))
         if speed == 0.0:
             return math.inf
-        u = inertia.dot(dx / speed)
+        u = inertia.dot(dx)
         beta = bias
         if self.to_joint is not None:
             u, beta = self.to_joint.dot(u), self.to_joint.dot(beta)
-        lim = self.limit
-        with np.errstate(divide="ignore", invalid="ignore"):
-            room = np.where(u > 0, (lim + beta) / u, np.where(u < 0, (beta - lim) / u, np.inf))
-        return float(room.min())
+        size = np.abs(u)
+        room = np.divide(self.limit + np.sign(u) * beta, size, out=np.full(len(u), math.inf),
+                         where=size > 0)
+        return float(room.min()) * speed  # u was D ẋ, not D ẋ/|ẋ|
 
     def per_speed(self, inertia: Array, bias: Array, dx: Array) -> float:
         """1/(2θA), so that x_s = x + (|ẋ|/(2θA)) ẋ; 0 at rest, inf where the box leaves

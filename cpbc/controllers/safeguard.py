@@ -61,9 +61,9 @@ Under bounded torque (``torque_limit``) a margin can be lost long before one per
 it: the arm may be too fast to stop before the boundary. The guard then also holds the
 *braking margins* σ_i = φ_i(x_s) of :class:`cpbc.constraints.stopping.Braking` — the
 configuration margins where the uniform brake, the one the guard blends toward, would stop
-the arm — by the same rule (S1) at the predicted end of the period:
+the arm — above their cushions at the predicted end of the period:
 
-    σ_i(h) − δ_i ≥ e^{−κh} (σ_i − δ_i)                                               (S2)
+    σ_i(h) ≥ δ_i                                                                      (S2)
 
 so the state stays in the braking set V = {σ > 0}, from which the brake within the box can
 stop the arm before every configuration boundary. Initial states outside V are refused by
@@ -243,6 +243,7 @@ class Safeguard(Controller):
         # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)
         self.braking = None if torque_limit is None or not self._n_config else Braking.of(
             law.model, torque_limit)
+        self._sigma_floor = np.maximum(self.cushion[: self._n_config], 1e-300)
         coords = law.model.coordinates
         self._t_mat_t = coords.matrix.T  # τ_q = Tᵀ τ
         self._t_inv_t = coords.inverse.T  # τ = T⁻ᵀ τ_q
@@ -503,20 +504,17 @@ class Safeguard(Controller):
         return f
 
     def _braking_floor(self, state: ArmState, bias: Array) -> tuple[float, Array] | None:
-        """(1/(2θA), the floors of (S1) for the braking margins σ_i at the sample), or None
+        """(1/(2θA), the floors of the braking margins σ_i: their cushions δ_i), or None
         without a torque box, at rest, or where the box leaves no deceleration (then no
-        torque can help and σ is not held)."""
+        torque can help and σ is not held). σ is held above its cushion, not by the decay
+        rule (S1): that would cost a second evaluation of every constraint per step, at the
+        stopping point of the sample, and φ itself is held by (S1) already."""
         if self.braking is None:
             return None
-        dx = state.dx
-        per_speed = self.braking.per_speed(state.inertia, bias, dx)
+        per_speed = self.braking.per_speed(state.inertia, bias, state.dx)
         if per_speed == 0.0 or per_speed == math.inf:
             return None
-        x_stop = state.x + (per_speed * math.sqrt(float(dx.dot(dx)))) * dx
-        sigma = self._no_nan(self.guarded.configuration_margins(x_stop))
-        delta = self.cushion[: self._n_config]
-        # σ below its cushion must grow; one already ≤ 0 (a state outside V) must turn positive
-        return per_speed, np.maximum(delta + self.keep * (sigma - delta), 1e-300)
+        return per_speed, self._sigma_floor
 
     def _guard(self, state: ArmState, tau: Array, law_margins: Array) -> Array:
         """τ if it satisfies (S1), else the smallest blend toward braking that does."""
