@@ -11,6 +11,7 @@ Violations are judged on the true state at every physics step (reliability.campa
 
     python -m tools.torque_limited_campaign SCENARIO [SCENARIO ...] [--states N]
         [--rates 1000,500,100] [--horizon S] [--seed K] [--json FILE]
+    python -m tools.torque_limited_campaign --render FILE    # the Markdown table
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from cpbc.arrays import Array
 from cpbc.constraints.stopping import Braking, stopping_margins
 from cpbc.controllers.safeguard import SafeguardSettings
 from cpbc.reliability.campaign import (
@@ -32,11 +34,13 @@ from cpbc.reliability.campaign import (
     constrained,
     sample_states,
 )
+from cpbc.scenario import ScenarioSetup
 
 CLASSES = ("viable", "outside", "lost")
 
 
-def classify(setup, braking: Braking, limit, x, dx) -> str:  # type: ignore[no-untyped-def]
+def classify(setup: ScenarioSetup, braking: Braking, limit: Array, x: Array, dx: Array) -> str:
+    """The class of an initial state (the module docstring)."""
     lost, _, _ = stopping_margins(setup.monitor, setup.model, x, dx, limit)
     if lost.size and not np.all(lost > 0):
         return "lost"
@@ -94,15 +98,34 @@ def campaign(scenario: str, count: int, rates: list[float], horizon: float, seed
     return rows
 
 
+def table(rows: list[dict[str, object]]) -> str:
+    """The README's table: violations / states per class, the safeguard's and the torque
+    limit's share of the steps."""
+    out = ["| scenario | law | rate | viable | outside V | lost | safeguard acted | torque on a "
+           "limit |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        cells = [f"{r[f'{k}_violations']} / {r[f'{k}_states']}" for k in CLASSES]
+        cells[0] = f"**{cells[0]}**"
+        out.append(f"| {r['scenario']} | {r['controller']} | {float(r['rate']):g} Hz | "
+                   + " | ".join(cells)
+                   + f" | {float(r['safeguard_share']):.1%} | {float(r['at_limit_share']):.1%} |")
+    return "\n".join(out)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("scenarios", nargs="+")
+    p.add_argument("scenarios", nargs="*")
+    p.add_argument("--render", help="print the Markdown table of a --json file and stop")
     p.add_argument("--states", type=int, default=1000)
     p.add_argument("--rates", default="1000,500,100")
     p.add_argument("--horizon", type=float, default=1.0)
     p.add_argument("--seed", type=int, default=11)
     p.add_argument("--json")
     a = p.parse_args(argv)
+    if a.render:
+        with open(a.render) as f:
+            print(table(json.load(f)))
+        return 0
     rates = [float(r) for r in a.rates.split(",")]
     rows = [r for s in a.scenarios for r in campaign(s, a.states, rates, a.horizon, a.seed)]
     if a.json:
