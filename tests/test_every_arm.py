@@ -29,6 +29,11 @@ def test_the_arms_of_issue_14_are_known() -> None:
 @pytest.mark.parametrize("name", available_arms())
 def test_skeleton_runs_in_both_engines(name: str, tmp_path: Path) -> None:
     data = scenario_for(describe(name), DURATION)
+    # The engines are compared on the laws themselves. With the URDF's effort limits (the
+    # default) the reference backend, which has no safeguard, clips the torque: the Talos
+    # arm's skeleton target needs 21.7 of joint 1's 22.3 N·m for gravity alone, and the
+    # clipped CPBC breaks joint 2's range there (MuJoCo's guarded run keeps it).
+    data["simulation"]["torque_limit"] = "none"
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     setup = build(*load_scenario(path))

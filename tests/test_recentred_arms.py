@@ -172,7 +172,7 @@ def test_refused_where_it_commands_more_than_the_torque_limit(tmp_path: Path) ->
     _build(_write(tmp_path, sim, [REST, FAR], omega=10.0 * factor * 0.99))
     with pytest.raises(ScenarioError, match="torque limit"):
         _build(_write(tmp_path, sim, [REST, FAR], omega=10.0 * factor * 1.01))
-    _build(_write(tmp_path, {}, [REST, FAR]))  # no torque limit, safeguard on: runs
+    _build(_write(tmp_path, {"torque_limit": "none"}, [REST, FAR]))  # no limit, guarded: runs
 
 
 def test_bare_law_refused_where_its_first_period_breaks_a_rate(tmp_path: Path) -> None:
