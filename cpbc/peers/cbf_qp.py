@@ -87,6 +87,7 @@ class CBFQP(SafetyFilter):
         self.kp = positive_vector(kp, model.n, "kp")
         self.kd = positive_vector(kd, model.n, "kd")
         self.gain = float(positive_vector(gain, 1, "gain")[0])
+        self._rate_given = rate_gain
         rate = 0.5 / period if rate_gain is None else rate_gain
         self.rate_gain = float(positive_vector(rate, 1, "rate_gain")[0])
         for v in constraints.velocity:
@@ -104,6 +105,13 @@ class CBFQP(SafetyFilter):
     def restarted(self) -> CBFQP:
         out = copy.copy(self)
         out.acted = out.infeasible = 0
+        return out
+
+    def at_period(self, period: float) -> CBFQP:
+        """The same filter at another control period (its default γ = 1/(2h) follows)."""
+        out = self.restarted()
+        if self._rate_given is None:
+            out.rate_gain = float(positive_vector(0.5 / period, 1, "period")[0])
         return out
 
     def nominal(self, state: ArmState) -> Array:
