@@ -31,7 +31,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.stopping import Braking, stopping_margins
 from cpbc.controllers.base import Controller
-from cpbc.controllers.safeguard import SafeguardSettings, viable
+from cpbc.controllers.safeguard import viable
 from cpbc.peers.cbf_qp import CBFQP
 from cpbc.reliability.campaign import RecordingPlant, checked_run, constrained, state_sampler
 from cpbc.reliability.sampling import SampledState
@@ -161,7 +161,7 @@ def run_block(block: Block) -> list[Record]:
         )
         kind = classify(setup, entry.controller, s.position, s.velocity, period)
         check = checked_run(_plant(setup, plan, seed, base), setup, entry, s.position,
-                            s.velocity, settings, safeguard=setup.safeguard or SafeguardSettings())
+                            s.velocity, settings, safeguard=setup.safeguard)
         traj = check.trajectory
         out.append({
             "controller": entry.name, "type": entry.controller.type_name, "rate": block.rate,
