@@ -132,3 +132,16 @@ def test_the_library_never_imports_a_qp_solver():
     code = ("import sys, cpbc.run, cpbc.scenario, cpbc.controllers, cpbc.reliability.campaign\n"
             "assert 'daqp' not in sys.modules and 'quadprog' not in sys.modules")
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
+
+
+def test_infeasible_step_is_counted_and_answered_without_the_box(tmp_path):
+    spec = copy.deepcopy(ARM)
+    spec["simulation"]["torque_limit"] = 0.01  # no room to stop in
+    law = _peer(_setup(spec, tmp_path))
+    rel = 17 * np.pi / 18 - 0.01  # near the relative-angle limit, closing on it
+    state = law.state(np.array([0.0, rel]), np.array([-0.1, 0.15]))
+    tau = law.evaluate_state(state).torque
+    assert law.infeasible == 1 and law.acted == 1
+    a, lower, upper = law.rows(state)
+    assert np.all(a @ tau >= lower - 1e-7) and np.all(a @ tau <= upper + 1e-7)
+    assert np.max(np.abs(law.model.coordinates.matrix.T @ tau)) > 0.01  # the actuators clip it

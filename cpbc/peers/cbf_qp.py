@@ -170,12 +170,13 @@ class CBFQP(SafetyFilter):
         nominal = self.nominal(state)
         a, lower, upper = self.rows(state)
         tau, flag = self._qp(nominal, a, lower, upper, box=True)
-        if flag != 1:
+        feasible = flag == 1
+        if not feasible:  # counted as a step it acted on, of which it could not meet all
             self.infeasible += 1
             tau, flag = self._qp(nominal, a, lower, upper, box=False)
             if flag != 1:
                 tau = nominal
-        if np.max(np.abs(tau - nominal)) > 1e-9 * (1 + np.max(np.abs(nominal))):
+        if not feasible or np.max(np.abs(tau - nominal)) > 1e-9 * (1 + np.max(np.abs(nominal))):
             self.acted += 1
         err = state.x - self.target
         value = 0.5 * float(state.dx @ state.inertia @ state.dx) + 0.5 * float(
