@@ -4,10 +4,11 @@ and on a Dask cluster (LocalCluster on the loopback interface only), bad argumen
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import pytest
 
-from cpbc.reliability.verification import Plan
+from cpbc.reliability.verification import Mismatch, Plan, blocks, run_block, summarise
 from cpbc.verify import main, run_campaign
 
 # thesis_ch6 runs the bare laws (safeguard: false): at 100 Hz some states near the boundary break
@@ -73,3 +74,15 @@ def test_bad_arguments_exit_2_and_write_nothing(args, tmp_path, capsys):
     assert main([*args, "--workers", "1", "--out", str(out)]) == 2
     assert "error" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_mismatch_and_noise_change_the_runs_and_are_recorded():
+    clean = Plan("thesis_ch6", seed=0, states=3, rates=(100.0,), horizon=0.3)
+    noisy = replace(clean, mismatch=Mismatch(mass=0.3, damping=0.1), noise=(0.001, 0.01))
+    a = run_block(blocks(clean, ["CPBC"], 3)[0])
+    b = run_block(blocks(noisy, ["CPBC"], 3)[0])
+    assert [r["seed"] for r in a] == [r["seed"] for r in b] == [0, 1, 2]
+    assert [r["position"] for r in a] == [r["position"] for r in b]  # the same states
+    assert all(abs(p["final_error"] - q["final_error"]) > 1e-6 for p, q in zip(a, b, strict=True))
+    doc = summarise(noisy, b)
+    assert doc["plan"]["mismatch"]["mass"] == 0.3 and list(doc["plan"]["noise"]) == [0.001, 0.01]

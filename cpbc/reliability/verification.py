@@ -168,6 +168,7 @@ def run_block(block: Block) -> list[Record]:
             "seed": seed, "class": kind, "violated": bool(check.violated),
             "min_margin": float(check.min_margin), "constraint": check.constraint,
             "end_time": float(traj.end_time), "outcome": traj.outcome,
+            "final_error": float(np.max(np.abs(traj.position[-1] - entry.controller.target))),
             "control_steps": int(traj.control_steps), "acted": int(traj.safeguard_steps),
             "infeasible": int(traj.safeguard_infeasible),
             "position": s.position.tolist(), "velocity": s.velocity.tolist(),
