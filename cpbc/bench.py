@@ -39,6 +39,7 @@ from cpbc.controllers import (
     RecentredBarrier,
 )
 from cpbc.controllers.safeguard import SafeguardSettings, guarded
+from cpbc.errors import CpbcError
 from cpbc.model import LinearCoordinates, RobotModel
 from cpbc.resources import models_dir
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, run_mujoco
@@ -55,6 +56,7 @@ class BenchSetup:
     coordinates: LinearCoordinates
     start: tuple[Array, Array]
     notes: str
+    torque_limit: Array | None = None  # the actuators' box for the peer comparison (--peers)
 
 
 def planar_2link() -> BenchSetup:
@@ -131,6 +133,31 @@ def time_loop(
     return statistics.median(rates)
 
 
+def peer_times(setup: BenchSetup, repeats: int) -> dict[str, float]:
+    """--peers: the CPBC law as the loop runs it (with its safeguard) and the CBF-QP filter
+    (cpbc.peers, DAQP) on the same constraint objects, gains, torque box and states [µs]."""
+    from cpbc.peers import CBFQP
+
+    law = setup.controllers["cpbc"]
+    period = 0.001
+    contenders: dict[str, Controller] = {
+        "cpbc_guarded": guarded(law, period, SafeguardSettings(), setup.torque_limit),
+        "cbf_qp": CBFQP(law.model, law.target, law.constraints, law.kp, law.kd,  # type: ignore[attr-defined]
+                        gain=20.0, period=period, torque_limit=setup.torque_limit),
+    }
+    for ctrl in contenders.values():
+        time_torque(ctrl, setup.states[:8], 1)
+    return {k: time_torque(c, setup.states, repeats) for k, c in contenders.items()}
+
+
+def _print_peers(torque_us: dict[str, float]) -> None:
+    qp = torque_us["cbf_qp"]
+    print(f"peers, same states: cbf_qp {qp:.1f} µs, cpbc guarded {torque_us['cpbc_guarded']:.1f}"
+          f" µs, cpbc bare {torque_us['cpbc']:.1f} µs")
+    print(f"cbf_qp / cpbc guarded: {qp / torque_us['cpbc_guarded']:.2f}x; "
+          f"cbf_qp / cpbc bare: {qp / torque_us['cpbc']:.2f}x")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m cpbc.bench", description=__doc__)
     p.add_argument("--robot", choices=sorted(ROBOTS), default="planar_2link")
@@ -139,8 +166,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--loop-seconds", type=float, default=2.0, help="simulated s per loop run")
     p.add_argument("--check", action="store_true",
                    help="exit 1 if CPBC costs more than 3x PD + gravity")
+    p.add_argument("--peers", action="store_true",
+                   help="also time the guarded law and the cbf_qp peer (needs cpbc[peers])")
     args = p.parse_args(argv)
     setup = ROBOTS[args.robot]()
+    try:
+        peers = peer_times(setup, args.repeats) if args.peers else {}
+    except CpbcError as exc:  # the optional solver is missing
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     for ctrl in setup.controllers.values():  # warm up caches and lazy imports
         time_torque(ctrl, setup.states[:8], 1)
     torque_us = {k: time_torque(c, setup.states, args.repeats)
@@ -151,6 +185,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     bare = {k: time_loop(setup, c, args.loop_seconds, blocks, safeguard=False)
             for k, c in setup.controllers.items() if not c.constraints.empty}
     ratio = torque_us["cpbc"] / torque_us["pd_gravity"]
+    torque_us.update(peers)
     if args.json:
         print(json.dumps({"robot": setup.robot, "torque_us": torque_us,
                           "closed_loop_steps_per_second": loop,
@@ -168,6 +203,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"cpbc / pd_gravity cost ratio: {ratio:.2f}"
               + (" (target ≤ 3)" if setup.robot == "planar_2link" else
                  " (the ≤ 3 target is the planar arm's; none is set for this arm)"))
+    if peers and not args.json:
+        _print_peers(torque_us)
     return 1 if args.check and ratio > 3.0 else 0
 
 

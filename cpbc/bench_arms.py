@@ -83,4 +83,5 @@ def panda(states: int = 64, seed: int = 0) -> BenchSetup:
         (START.copy(), np.zeros(7)),
         "14 URDF joint limits, 7 rate limits, table + ball + crate against 10 links "
         "(33 spheres, 99 pairs); implicitfast, 1 kHz control",
+        torque_limit=arm.effort_limit,
     )

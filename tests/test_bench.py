@@ -17,3 +17,10 @@ def test_bench_json_has_every_controller(capsys) -> None:
     assert set(out["closed_loop_bare_law_steps_per_second"]) == types - {"pd", "pd_gravity"}
     assert all(v > 0 for v in out["torque_us"].values())
     assert out["cpbc_over_pd_gravity"] > 0
+
+
+def test_bench_peers_times_guarded_law_and_cbf_qp_on_the_same_states(capsys) -> None:
+    assert main(["--json", "--peers", "--repeats", "1", "--loop-seconds", "0.02"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert {"cpbc", "cpbc_guarded", "cbf_qp"} <= set(out["torque_us"])
+    assert all(out["torque_us"][k] > 0 for k in ("cpbc_guarded", "cbf_qp"))

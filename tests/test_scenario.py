@@ -17,6 +17,7 @@ import yaml
 from cpbc.constraints import KineticEnergyLimit, LinearLimit, PointOutsideSphere, RateLimit
 from cpbc.controllers import CONTROLLERS
 from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
+from cpbc.peers import PEERS
 from cpbc.resources import models_dir, scenarios_dir
 from cpbc.scenario import Scenario, ScenarioSetup, build, load_scenario
 from cpbc.scenario.expressions import parse_number
@@ -129,7 +130,7 @@ def test_shipped_scenario_loads_and_builds(path):
     assert len(setup.controllers) == len(scenario.controllers) >= 1
     assert len(setup.cases) == len(scenario.cases) >= 1
     for entry in setup.controllers:
-        assert entry.controller.type_name in CONTROLLERS
+        assert entry.controller.type_name in {**CONTROLLERS, **PEERS}
         assert entry.controller.target.shape == (n,)
         # every law can be evaluated at every initial state: each is inside its admissible set
         for case in setup.cases:

@@ -99,3 +99,21 @@ class Controller(ABC):
     def check_admissible(self, x: Array, dx: Array, what: str) -> None:
         """Raise InadmissibleStateError if (x, ẋ) is outside this law's admissible set."""
         self.constraints.check_admissible(x, dx, what)
+
+
+class SafetyFilter(Controller):
+    """A controller that corrects a torque for safety and counts what it did: the sampled-data
+    safeguard around a law, or a peer filter (cpbc.peers). The loop reports its counts; the
+    scenario builder does not wrap it in another filter.
+
+    Attributes:
+        acted: control steps at which it changed the torque it filters.
+        infeasible: of those, steps at which it could not meet all its conditions.
+    """
+
+    acted: int = 0
+    infeasible: int = 0
+
+    def restarted(self) -> SafetyFilter:
+        """The same filter with its counts at zero, for a new run."""
+        return self

@@ -87,7 +87,7 @@ from cpbc.arrays import Array
 from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import Braking
-from cpbc.controllers.base import Controller, Evaluation
+from cpbc.controllers.base import Controller, Evaluation, SafetyFilter
 from cpbc.controllers.linalg import solve_spd
 from cpbc.errors import CpbcError
 from cpbc.model.robot_model import ArmState, RobotModel
@@ -171,6 +171,8 @@ def guarded(
     ``settings`` when it enforces constraints, else the law itself (also with no settings).
 
     ``torque_limit`` is the plant's joint torque saturation (a number or one per joint)."""
+    if isinstance(law, SafetyFilter):  # a filter already (a peer): fresh counts, no wrap
+        return law.restarted()
     if settings is None or law.constraints.empty:
         return law
     limit = None if torque_limit is None else np.broadcast_to(
@@ -178,7 +180,7 @@ def guarded(
     return Safeguard(law, period, settings, limit, also_keep)
 
 
-class Safeguard(Controller):
+class Safeguard(SafetyFilter):
     """Wraps a constrained law so that (S1) holds under zero-order hold at period h.
 
     Args:

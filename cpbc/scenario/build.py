@@ -369,7 +369,7 @@ def _check_zoh(
 
 
 def _controller_constraints(
-    spec: s.CPBCSpec | s.RecentredSpec | s.BPBCSpec, n: int,
+    spec: s.CPBCSpec | s.RecentredSpec | s.BPBCSpec | s.CBFQPSpec, n: int,
     constraints: dict[str, ConfigurationConstraint | VelocityConstraint], field: str,
 ) -> ConstraintSet:
     chosen = list(constraints) if spec.constraints is None else spec.constraints
@@ -388,7 +388,7 @@ def _controller_constraints(
 
 
 def _build_controller(
-    spec: s.ControllerSpec,
+    spec: s.PDSpec | s.CPBCSpec | s.RecentredSpec | s.BPBCSpec,
     model: RobotModel,
     target: Array,
     gains: _Gains,
@@ -412,6 +412,26 @@ def _build_controller(
         parameter = getattr(exc, "parameter", None)  # set by a ParameterError
         where = f"{field}.{parameter}" if parameter in type(spec).model_fields else field
         raise ScenarioError(where, str(exc)) from None
+
+
+def _build_peer(
+    spec: s.CBFQPSpec, model: RobotModel, target: Array, gains: _Gains,
+    constraints: dict[str, ConfigurationConstraint | VelocityConstraint], loop: LoopSettings,
+    field: str,
+) -> Controller:
+    """The CBF-QP peer (cpbc.peers, imported only here, when a scenario asks for it) on the
+    same constraint objects as the laws, the loop's control period and torque box."""
+    from cpbc.peers import CBFQP, PeerUnavailable
+
+    cons = _controller_constraints(spec, model.n, constraints, field)
+    try:
+        return CBFQP(model, target, cons, gains.kp, gains.kd, spec.gain, spec.rate_gain,
+                     loop.control_period, loop.torque_limit)
+    except PeerUnavailable as exc:
+        raise ScenarioError(f"{field}.type", str(exc)) from None
+    except CpbcError as exc:
+        parameter = getattr(exc, "parameter", None)
+        raise ScenarioError(f"{field}.{parameter}" if parameter else field, str(exc)) from None
 
 
 def _load_robot(scenario: s.Scenario, scenario_file: Path) -> tuple[
@@ -623,6 +643,7 @@ def _check_stoppable(cases: list[CaseEntry], monitor: ConstraintSet, model: Robo
 def _controllers(
     scenario: s.Scenario, model: RobotModel, target: Array, cases: list[CaseEntry],
     built: dict[str, ConfigurationConstraint | VelocityConstraint], names: tuple[str, ...],
+    loop: LoopSettings,
 ) -> list[ControllerEntry]:
     bounds_cache: list[ModelBounds] = []
 
@@ -640,7 +661,10 @@ def _controllers(
         gains = _gains(cspec, model, target, field)
         if check:
             _check_zoh(gains, model, states, sim, names, field)
-        ctrl = _build_controller(cspec, model, target, gains, built, model_bounds, field)
+        if isinstance(cspec, s.CBFQPSpec):
+            ctrl = _build_peer(cspec, model, target, gains, built, loop, field)
+        else:
+            ctrl = _build_controller(cspec, model, target, gains, built, model_bounds, field)
         controllers.append(ControllerEntry(cspec.name or cspec.type, ctrl))
     if len({c.name for c in controllers}) != len(controllers):
         raise ScenarioError("controllers", "controller names must be unique; set 'name' on each")
@@ -682,7 +706,7 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     target, cases = _states(scenario, model, monitor, joint_ranges(model, plant))
     if loop.torque_limit is not None:
         _check_stoppable(cases, monitor, model, loop.torque_limit)
-    controllers = _controllers(scenario, model, target, cases, built, names)
+    controllers = _controllers(scenario, model, target, cases, built, names, loop)
     _check_recentred(controllers, cases, model, loop, names, sim.safeguard)
     setup = ScenarioSetup(
         scenario, path, model, monitor, controllers, cases, target,

@@ -330,8 +330,18 @@ class BPBCSpec(GainsSpec):
     constraints: list[str] | None = None
 
 
+class CBFQPSpec(GainsSpec):
+    """The CBF-QP peer (cpbc.peers.cbf_qp): PD + gravity filtered by a QP."""
+
+    type: Literal["cbf_qp"]
+    name: SafeName | None = None
+    gain: Positive = 20.0  # k of the exponential CBFs on configuration constraints [1/s]
+    rate_gain: Positive | None = None  # γ of the first-order rows [1/s]; 1/(2h) when omitted
+    constraints: list[str] | None = None
+
+
 ControllerSpec = Annotated[
-    PDSpec | CPBCSpec | RecentredSpec | BPBCSpec, Field(discriminator="type")
+    PDSpec | CPBCSpec | RecentredSpec | BPBCSpec | CBFQPSpec, Field(discriminator="type")
 ]
 
 

@@ -10,8 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.controllers.base import Controller
-from cpbc.controllers.safeguard import Safeguard
+from cpbc.controllers.base import Controller, SafetyFilter
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model.coordinates import LinearCoordinates
 from cpbc.simulation.disturbances import MeasurementNoise, rate_into_set
@@ -135,7 +134,7 @@ def run_mujoco(
     # The step's calls bound once; ndarray.dot and sums of lists: on 2-vectors numpy's @
     # costs twice as much here.
     record, apply, step, unstable = log.record, plant.apply, plant.step, plant.unstable
-    guard = controller if isinstance(controller, Safeguard) else None
+    guard = controller if isinstance(controller, SafetyFilter) else None
     acted = guard.acted if guard else 0  # the guard's count before this step
     guarded_steps = np.zeros(steps + 1 if guard else 0, dtype=bool)
     for k in range(steps + 1):

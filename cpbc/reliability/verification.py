@@ -1,0 +1,220 @@
+"""The verification campaign of ``python -m cpbc.verify``: seeded initial states of a scenario,
+each constrained controller (the laws with their safeguard, and any ``cbf_qp`` peer) at each
+control rate, with the scenario's torque limits, judged on the true state at every physics
+step (:func:`cpbc.reliability.campaign.checked_run`).
+
+The work is cut into *blocks* (one controller, one rate, a few state seeds) that any process
+can run from the scenario's file alone, so that a local process pool and a Dask cluster run
+the same blocks and give the same records. State i is drawn by its own sampler seeded with
+``seed + i``, so that a failure is reproduced by its seed alone (``--seeds``).
+
+Each state is classed, per rate, before it runs:
+
+``viable``     in the braking set V (cpbc.constraints.stopping.Braking) when the scenario has
+               torque limits, and holdable for one period (safeguard.viable): a violation from
+               here is a defect;
+``lost``       fails the stopping test: no torque in the box can stop it in time (first order);
+``outside_v``  passes the stopping test but the safeguard's uniform brake cannot stop it;
+``too_close``  closer to a configuration boundary than a quarter period of its speed: no held
+               torque keeps it inside at this rate.
+Non-viable states run too; their runs are counted apart.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.constraints.stopping import Braking, stopping_margins
+from cpbc.controllers.base import Controller
+from cpbc.controllers.safeguard import viable
+from cpbc.peers.cbf_qp import CBFQP
+from cpbc.reliability.campaign import RecordingPlant, checked_run, constrained, state_sampler
+from cpbc.reliability.sampling import SampledState
+from cpbc.scenario import ScenarioSetup, build, load_scenario
+from cpbc.scenario.build import ControllerEntry
+from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
+
+CLASSES = ("viable", "lost", "outside_v", "too_close")
+Record = dict[str, object]
+
+
+@dataclass(frozen=True)
+class Mismatch:
+    """Plant perturbation drawn per run (PlantMismatch.random), seeded by the state's seed."""
+
+    mass: float = 0.0
+    inertia: float = 0.0
+    damping: float = 0.0
+    armature: float = 0.0
+    frictionloss: float = 0.0
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What a campaign runs; everything a worker needs besides the scenario's files.
+
+    Attributes:
+        scenario: a shipped scenario's name or a path every worker can read.
+        seed: state i is drawn with seed + i.
+        states: how many states (ignored when ``seeds`` is given).
+        rates: control rates [Hz].
+        horizon: simulated seconds per run.
+        mismatch: plant perturbation per run, or None.
+        noise: (σ_x, σ_ẋ) on what the controller sees, or None.
+        seeds: run exactly these state seeds.
+    """
+
+    scenario: str
+    seed: int = 0
+    states: int = 100
+    rates: tuple[float, ...] = (1000.0, 500.0, 100.0)
+    horizon: float = 0.5
+    mismatch: Mismatch | None = None
+    noise: tuple[float, float] | None = None
+    seeds: tuple[int, ...] | None = None
+
+    def state_seeds(self) -> tuple[int, ...]:
+        return self.seeds if self.seeds is not None else tuple(
+            self.seed + i for i in range(self.states))
+
+
+@dataclass(frozen=True)
+class Block:
+    """One unit of work: a controller at one rate from a few states."""
+
+    plan: Plan
+    controller: str
+    rate: float
+    seeds: tuple[int, ...]
+
+
+def blocks(plan: Plan, controllers: Sequence[str], size: int) -> list[Block]:
+    """The campaign cut into blocks of at most ``size`` states."""
+    seeds = plan.state_seeds()
+    return [Block(plan, name, rate, seeds[i:i + size])
+            for name in controllers for rate in plan.rates
+            for i in range(0, len(seeds), size)]
+
+
+def checked_controllers(setup: ScenarioSetup) -> list[ControllerEntry]:
+    """The controllers a campaign checks: those that enforce constraints (laws and peers)."""
+    return constrained(setup)
+
+
+def draw_state(setup: ScenarioSetup, seed: int) -> SampledState:
+    """The state of a seed: one draw of the campaign's sampler seeded with it."""
+    return state_sampler(setup, seed).draw()
+
+
+def classify(setup: ScenarioSetup, law: Controller, x: Array, dx: Array, period: float) -> str:
+    """The class of an initial state at a control period (the module docstring)."""
+    limit = setup.loop_settings.torque_limit
+    if limit is not None:
+        full = np.broadcast_to(np.asarray(limit, dtype=float), (setup.model.n,))
+        lost, _, _ = stopping_margins(setup.monitor, setup.model, x, dx, full)
+        if lost.size and not np.all(lost > 0):
+            return "lost"
+        sigma, _ = Braking.of(setup.model, full).margins(setup.monitor, setup.model, x, dx)
+        if sigma.size and not np.all(sigma > 0):
+            return "outside_v"
+    return "viable" if viable(law.constraints, x, dx, period) else "too_close"
+
+
+def _law_at(entry: ControllerEntry, period: float) -> ControllerEntry:
+    """The entry as it runs at ``period``: a CBF-QP's default first-order gain is 1/(2h)."""
+    law = entry.controller
+    if isinstance(law, CBFQP):
+        return ControllerEntry(entry.name, law.at_period(period))
+    return entry
+
+
+def _plant(setup: ScenarioSetup, plan: Plan, seed: int, base: RecordingPlant) -> RecordingPlant:
+    if plan.mismatch is None:
+        return base
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    m = plan.mismatch
+    PlantMismatch.random(np.random.default_rng(seed), plant.model.nbody - 1, plant.model.nv,
+                         m.mass, m.inertia, m.damping, m.armature, m.frictionloss,
+                         ).apply(plant.model)
+    return plant
+
+
+def run_block(block: Block) -> list[Record]:
+    """Every run of a block, one record each. Builds the scenario in this process."""
+    plan = block.plan
+    setup = build(*load_scenario(plan.scenario))  # the scenario's own physics
+    entry = next(e for e in setup.controllers if e.name == block.controller)
+    period = 1.0 / block.rate
+    entry = _law_at(entry, period)
+    base = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    out: list[Record] = []
+    for seed in block.seeds:
+        s = draw_state(setup, seed)
+        settings = replace(
+            setup.loop_settings, duration=plan.horizon, control_period=period, log_every=1,
+            noise=None if plan.noise is None else MeasurementNoise(*plan.noise, seed=seed),
+        )
+        kind = classify(setup, entry.controller, s.position, s.velocity, period)
+        check = checked_run(_plant(setup, plan, seed, base), setup, entry, s.position,
+                            s.velocity, settings, safeguard=setup.safeguard)
+        traj = check.trajectory
+        out.append({
+            "controller": entry.name, "type": entry.controller.type_name, "rate": block.rate,
+            "seed": seed, "class": kind, "violated": bool(check.violated),
+            "min_margin": float(check.min_margin), "constraint": check.constraint,
+            "end_time": float(traj.end_time), "outcome": traj.outcome,
+            "final_error": float(np.max(np.abs(traj.position[-1] - entry.controller.target))),
+            "control_steps": int(traj.control_steps), "acted": int(traj.safeguard_steps),
+            "infeasible": int(traj.safeguard_infeasible),
+            "position": s.position.tolist(), "velocity": s.velocity.tolist(),
+        })
+    return out
+
+
+def _group(records: Iterable[Record]) -> dict[tuple[str, float], list[Record]]:
+    groups: dict[tuple[str, float], list[Record]] = {}
+    for r in records:
+        groups.setdefault((str(r["controller"]), float(r["rate"])), []).append(r)  # type: ignore[arg-type]
+    return groups
+
+
+def _worst(rows: Sequence[Record]) -> tuple[float, str | None]:
+    if not rows:
+        return math.inf, None
+    low = min(rows, key=lambda r: float(r["min_margin"]))  # type: ignore[arg-type]
+    return float(low["min_margin"]), low["constraint"]  # type: ignore[arg-type,return-value]
+
+
+def summarise(plan: Plan, records: Iterable[Record]) -> Record:
+    """The campaign's document: per controller and rate the viable runs, their violations,
+    the worst margin, the seeds of each failure; non-viable runs per class, apart."""
+    rows = []
+    order = sorted(_group(records).items(), key=lambda kv: (kv[0][0], -kv[0][1]))
+    for (name, rate), group in order:
+        group.sort(key=lambda r: int(r["seed"]))  # type: ignore[call-overload]
+        ok = [r for r in group if r["class"] == "viable"]
+        failures = [{k: r[k] for k in ("seed", "constraint", "end_time", "min_margin",
+                                       "outcome", "position", "velocity")}
+                    for r in ok if r["violated"]]
+        low, where = _worst(ok)
+        steps = sum(int(r["control_steps"]) for r in group)  # type: ignore[call-overload]
+        rows.append({
+            "controller": name, "type": group[0]["type"], "rate": rate, "runs": len(ok),
+            "violations": len(failures), "worst_margin": low, "worst_constraint": where,
+            "failures": failures,
+            "non_viable": {k: {"runs": sum(r["class"] == k for r in group),
+                               "violations": sum(r["class"] == k and bool(r["violated"])
+                                                 for r in group)}
+                           for k in CLASSES[1:]},
+            "filter_share": sum(int(r["acted"]) for r in group) / max(steps, 1),  # type: ignore[call-overload]
+            "infeasible_steps": sum(int(r["infeasible"]) for r in group),  # type: ignore[call-overload]
+        })
+    doc = asdict(plan)
+    doc["rates"] = list(plan.rates)
+    doc["seeds"] = list(plan.state_seeds())
+    return {"plan": doc, "results": rows}

@@ -1,0 +1,147 @@
+"""The CBF-QP peer (cpbc.peers.cbf_qp): its rows are the constraints' own, it keeps the torque
+box, it runs beside the laws from a scenario, and bad input or a missing solver exits 2."""
+
+from __future__ import annotations
+
+import copy
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from cpbc.errors import ScenarioError
+from cpbc.peers import CBFQP
+from cpbc.run import main
+from cpbc.scenario import Scenario, build
+
+ARM: dict = {
+    "name": "peer",
+    "robot": {"model": "planar_2link", "coordinates": "absolute"},
+    "simulation": {"duration": 2.0, "timestep": 0.001, "torque_limit": 3.0},
+    "target": [1.0, 1.5],
+    "cases": [{"name": "rest", "position": [0, 0]}],
+    "constraints": [
+        {"type": "point_outside_sphere", "name": "obstacle", "frame": "end_point",
+         "centre": [0, 2], "radius": 0.5},
+        {"type": "linear_limit", "name": "relative_angle", "coefficients": [[-1, 1]],
+         "lower": ["-17*pi/18"], "upper": ["17*pi/18"]},
+        {"type": "joint_rate_limit", "name": "link_rates", "bounds": [0.3, 0.2]},
+    ],
+    "controllers": [
+        {"type": "cpbc", "name": "CPBC", "kp": 4, "kd": 20},
+        {"type": "cbf_qp", "name": "QP", "kp": 4, "kd": 20, "gain": 10},
+    ],
+}
+
+
+def _setup(spec: dict, tmp_path: Path):
+    return build(Scenario.model_validate(spec), tmp_path / "s.yaml")
+
+
+def _peer(setup) -> CBFQP:
+    law = setup.controllers[1].controller
+    assert isinstance(law, CBFQP)
+    return law
+
+
+def test_filter_meets_its_rows_and_box_and_passes_a_safe_nominal(tmp_path):
+    setup = _setup(ARM, tmp_path)
+    law = _peer(setup)
+    rng = np.random.default_rng(3)
+    changed = 0
+    for _ in range(40):
+        x = rng.uniform([-0.5, -0.5], [0.5, 0.5])
+        dx = rng.uniform(-0.29, 0.29, 2) * np.array([1, 0.6])
+        state = law.state(x, dx)
+        tau = law.evaluate_state(state).torque
+        a, lower, upper = law.rows(state)
+        assert law.infeasible == 0
+        assert np.all(a @ tau >= lower - 1e-7) and np.all(a @ tau <= upper + 1e-7)
+        # the box is on the joint torques Tᵀτ (absolute link angles: T is not the identity)
+        assert np.all(np.abs(setup.model.coordinates.matrix.T @ tau) <= 3.0 + 1e-7)
+        nominal = law.nominal(state)
+        nominal_ok = np.all(a @ nominal >= lower) and np.all(a @ nominal <= upper) and np.all(
+            np.abs(setup.model.coordinates.matrix.T @ nominal) <= 3.0)
+        if nominal_ok:  # a nominal that meets every row is passed through unchanged
+            np.testing.assert_allclose(tau, nominal, atol=1e-8)
+        else:
+            changed += 1
+    assert law.acted == changed > 0
+
+
+def test_rate_rows_are_the_constraint_objects_bounds(tmp_path):
+    law = _peer(_setup(ARM, tmp_path))
+    x, dx = np.zeros(2), np.array([0.3 - 1e-3, 0.0])  # at its rate bound, heading out
+    state = law.state(x, dx)
+    tau = law.evaluate_state(state).torque
+    acc = np.linalg.solve(state.inertia, tau - state.coriolis_force - state.gravity
+                          - state.dissipation)
+    # first order: d/dt (B − ẋ) ≥ −γ (B − ẋ), γ = 1/(2h)
+    assert acc[0] <= law.rate_gain * 1e-3 + 1e-9
+    assert law.rate_gain == pytest.approx(0.5 / 1e-3)
+
+
+def test_scenario_runs_both_side_by_side(tmp_path):
+    spec = copy.deepcopy(ARM)
+    spec["simulation"]["duration"] = 0.3
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    out = tmp_path / "out"
+    assert main([str(path), "--out", str(out), "--quiet", "--no-plots"]) == 0
+    import json
+    runs = {r["controller"]: r for r in json.loads((out / "summary.json").read_text())}
+    assert set(runs) == {"CPBC", "QP"}
+    assert runs["QP"]["status"] != "constraint_violated"
+    assert runs["QP"]["min_margins"]["rate[theta2]"] > 0
+
+
+@pytest.mark.parametrize(("key", "value", "field"), [
+    ("gain", -1, "controllers.1.cbf_qp.gain"),
+    ("rate_gain", 0, "controllers.1.cbf_qp.rate_gain"),
+    ("constraints", ["nope"], "controllers[1].constraints"),
+])
+def test_bad_parameters_name_their_field(tmp_path, key, value, field):
+    spec = copy.deepcopy(ARM)
+    spec["controllers"][1][key] = value
+    with pytest.raises((ScenarioError, ValueError)) as err:
+        _setup(spec, tmp_path)
+    assert field.split(".")[-1] in str(err.value)
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    assert main([str(path), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    assert not (tmp_path / "o").exists()
+
+
+def test_missing_solver_is_exit_2_naming_the_extra(tmp_path):
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(ARM))
+    code = ("import sys; sys.modules['daqp'] = None\n"  # as if cpbc[peers] were not installed
+            "from cpbc.run import main\n"
+            f"sys.exit(main([{str(path)!r}, '--out', {str(tmp_path / 'o')!r}, '--quiet']))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 2
+    assert "cpbc[peers]" in done.stdout + done.stderr
+    assert "Traceback" not in done.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_library_never_imports_a_qp_solver():
+    code = ("import sys, cpbc.run, cpbc.scenario, cpbc.controllers, cpbc.reliability.campaign\n"
+            "assert 'daqp' not in sys.modules and 'quadprog' not in sys.modules")
+    assert subprocess.run([sys.executable, "-c", code]).returncode == 0
+
+
+def test_infeasible_step_is_counted_and_answered_without_the_box(tmp_path):
+    spec = copy.deepcopy(ARM)
+    spec["simulation"]["torque_limit"] = 0.01  # no room to stop in
+    law = _peer(_setup(spec, tmp_path))
+    rel = 17 * np.pi / 18 - 0.01  # near the relative-angle limit, closing on it
+    state = law.state(np.array([0.0, rel]), np.array([-0.1, 0.15]))
+    tau = law.evaluate_state(state).torque
+    assert law.infeasible == 1 and law.acted == 1
+    a, lower, upper = law.rows(state)
+    assert np.all(a @ tau >= lower - 1e-7) and np.all(a @ tau <= upper + 1e-7)
+    assert np.max(np.abs(law.model.coordinates.matrix.T @ tau)) > 0.01  # the actuators clip it

@@ -1,0 +1,88 @@
+"""python -m cpbc.verify: seeded, reproducible by seed, the same counts on a local process pool
+and on a Dask cluster (LocalCluster on the loopback interface only), bad arguments exit 2."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import pytest
+
+from cpbc.reliability.verification import Mismatch, Plan, blocks, run_block, summarise
+from cpbc.verify import main, run_campaign
+
+# thesis_ch6 runs the bare laws (safeguard: false): at 100 Hz some states near the boundary break
+TINY = Plan("thesis_ch6", seed=0, states=12, rates=(100.0,), horizon=0.3)
+
+
+@pytest.fixture(scope="module")
+def in_process():
+    return run_campaign(TINY, workers=1, block=4)
+
+
+def _counts(doc):
+    return [(r["controller"], r["rate"], r["runs"], r["violations"], r["worst_margin"],
+             [f["seed"] for f in r["failures"]], r["non_viable"]) for r in doc["results"]]
+
+
+def test_campaign_counts_runs_and_failures_with_their_seeds(in_process):
+    rows = in_process["results"]
+    assert [r["controller"] for r in rows] == ["CPBC", "CPBC-alpha0.05"]  # PD enforces nothing
+    for r in rows:
+        classed = r["runs"] + sum(v["runs"] for v in r["non_viable"].values())
+        assert classed == TINY.states
+        assert r["violations"] == len(r["failures"]) >= 1  # the bare law at 100 Hz breaks
+        assert r["worst_margin"] <= 0
+        for f in r["failures"]:
+            assert f["min_margin"] <= 0 and f["constraint"]
+
+
+def test_a_failure_is_reproduced_by_its_seed_alone(in_process, tmp_path):
+    failure = in_process["results"][0]["failures"][0]
+    out = tmp_path / "again.json"
+    code = main(["thesis_ch6", "--seeds", str(failure["seed"]), "--rates", "100",
+                 "--horizon", "0.3", "--workers", "1", "--out", str(out)])
+    assert code == 1  # a viable run was violated
+    again = json.loads(out.read_text())["results"][0]
+    assert again["violations"] == 1
+    assert again["failures"][0] == failure
+
+
+def test_local_pool_and_dask_cluster_give_the_same_counts(in_process):
+    import distributed  # the test extra installs it (cpbc[cluster])
+    pool = run_campaign(TINY, workers=2, block=4)
+    assert _counts(pool) == _counts(in_process)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, host="127.0.0.1",
+                                  dashboard_address=None, processes=True) as cluster:
+        assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+        on_cluster = run_campaign(TINY, cluster=cluster.scheduler_address, block=4)
+    assert _counts(on_cluster) == _counts(in_process)
+
+
+@pytest.mark.parametrize("args", [
+    ["thesis_ch6", "--rates", "fast"],
+    ["thesis_ch6", "--rates", "0"],
+    ["thesis_ch6", "--rates", "3000"],  # not a whole number of 1 ms timesteps
+    ["thesis_ch6", "--states", "0"],
+    ["thesis_ch6", "--mismatch", "weight=0.1"],
+    ["thesis_ch6", "--noise", "0.1"],
+    ["no_such_scenario"],
+    ["planar_2link_nothing.yaml"],
+])
+def test_bad_arguments_exit_2_and_write_nothing(args, tmp_path, capsys):
+    out = tmp_path / "report.md"
+    assert main([*args, "--workers", "1", "--out", str(out)]) == 2
+    assert "error" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_mismatch_and_noise_change_the_runs_and_are_recorded():
+    clean = Plan("thesis_ch6", seed=0, states=3, rates=(100.0,), horizon=0.3)
+    noisy = replace(clean, mismatch=Mismatch(mass=0.3, damping=0.1), noise=(0.001, 0.01))
+    a = run_block(blocks(clean, ["CPBC"], 3)[0])
+    b = run_block(blocks(noisy, ["CPBC"], 3)[0])
+    assert [r["seed"] for r in a] == [r["seed"] for r in b] == [0, 1, 2]
+    assert [r["position"] for r in a] == [r["position"] for r in b]  # the same states
+    assert all(abs(p["final_error"] - q["final_error"]) > 1e-6 for p, q in zip(a, b, strict=True))
+    doc = summarise(noisy, b)
+    assert doc["plan"]["mismatch"]["mass"] == 0.3 and list(doc["plan"]["noise"]) == [0.001, 0.01]
