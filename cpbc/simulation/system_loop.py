@@ -1,0 +1,136 @@
+"""The closed loop of a Part I system (cpbc.systems.Plant) under a state-feedback law
+u = k(x): in MuJoCo at a fixed control period (zero-order hold), or as the plant's ODE in
+continuous time (the reference backend)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from cpbc.arrays import Array
+from cpbc.backstepping.errors import OutsideDomainError
+from cpbc.simulation.loop import Progress, substeps_per_control
+from cpbc.systems.plant import Plant, State
+
+Law = Callable[[State], float]  # u = k(x)
+
+
+@dataclass(frozen=True)
+class SystemTrajectory:
+    """Samples at the control instants.
+
+    Attributes:
+        time: (N,) [s].
+        state: (N, n) the law's state x.
+        input: (N,) the input u applied from each sample on (NaN where the law is undefined).
+        outcome: "completed", "diverged" or "constraint_violated" (the state left the law's
+            domain: ``violated`` names the error variable).
+        end_time: simulated time at the end [s].
+        wall_time: wall-clock time of the loop [s].
+        backend: "mujoco" or "reference".
+    """
+
+    time: Array
+    state: Array
+    input: Array
+    outcome: str
+    end_time: float
+    violated: str | None
+    wall_time: float
+    backend: str
+
+
+def _control(law: Law, x: State) -> tuple[float, str | None]:
+    try:
+        return law(x), None
+    except OutsideDomainError as exc:
+        return math.nan, exc.variable
+
+
+def run_system_mujoco(
+    plant: Plant, law: Law, x0: State, duration: float, control_period: float,
+    timestep: float, integrator: str = "RK4", progress: Progress | None = None,
+) -> SystemTrajectory:
+    """Run ``law`` on the plant's MJCF, holding u over each control period."""
+    model = plant.load()
+    model.opt.timestep = timestep
+    model.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}")
+    data = mujoco.MjData(model)
+    plant.write_state(model, data, x0)
+    substeps = substeps_per_control(control_period, timestep)
+    steps = round(duration / control_period)
+    ts, xs, us = np.full(steps + 1, np.nan), np.full((steps + 1, len(x0)), np.nan), \
+        np.full(steps + 1, np.nan)
+    outcome, violated, k = "completed", None, 0
+    report_every = max(1, steps // 50)
+    start = _time.perf_counter()
+    for k in range(steps + 1):
+        x = plant.read_state(model, data)
+        ts[k], xs[k] = k * control_period, x
+        if not all(math.isfinite(v) for v in x):
+            outcome = "diverged"
+            break
+        u, violated = _control(law, x)
+        if violated is not None:
+            outcome = "constraint_violated"
+            break
+        us[k] = u
+        if k == steps:
+            break
+        plant.write_input(model, data, u)
+        for _ in range(substeps):
+            plant.before_step(model, data)
+            mujoco.mj_step(model, data)
+        if progress is not None and k % report_every == 0:
+            progress(k / steps)
+    wall = _time.perf_counter() - start
+    n = k + 1
+    return SystemTrajectory(ts[:n], xs[:n], us[:n], outcome, k * control_period, violated,
+                            wall, "mujoco")
+
+
+def run_system_reference(
+    plant: Plant, law: Law, x0: State, duration: float, sample_period: float,
+    rtol: float = 1e-10, atol: float = 1e-12,
+) -> SystemTrajectory:
+    """Integrate ẋ = f(x, k(x), t) with DOP853 (the law at every stage, no hold), piecewise
+    at the plant's breakpoints; samples every ``sample_period``."""
+    domain: list[str] = []
+
+    def rhs(t: float, y: Array) -> list[float]:
+        x = tuple(float(v) for v in y)
+        u, violated = _control(law, x)
+        if violated is not None:  # reject the stage: a true crossing ends the integration
+            domain[:] = [violated]
+            return [math.nan] * len(x)
+        return list(plant.rhs(x, u, t))
+
+    grid = np.arange(round(duration / sample_period) + 1, dtype=float) * sample_period
+    cuts = [0.0, *[b for b in plant.breakpoints() if 0.0 < b < grid[-1]], float(grid[-1])]
+    pieces, x, outcome = [], np.asarray(x0, dtype=float), "completed"
+    start = _time.perf_counter()
+    for lo, hi in itertools.pairwise(cuts):
+        last = hi == cuts[-1]
+        sel = grid[(grid >= lo) & ((grid <= hi) if last else (grid < hi))]
+        t_eval = sel if last else np.append(sel, hi)  # the end of a piece starts the next one
+        sol = solve_ivp(rhs, (lo, hi), x, method="DOP853", t_eval=t_eval, rtol=rtol, atol=atol)
+        got = sol.y.T if last or sol.status != 0 else sol.y.T[:-1]
+        pieces.append(got)
+        if sol.status != 0 or not np.all(np.isfinite(sol.y)):
+            outcome = "constraint_violated" if domain else "diverged"
+            break
+        x = sol.y[:, -1]
+    wall = _time.perf_counter() - start
+    xs = np.vstack(pieces)
+    ts = grid[: len(xs)]
+    us = np.array([_control(law, tuple(float(v) for v in row))[0] for row in xs])
+    end = float(ts[-1]) if len(ts) else 0.0
+    return SystemTrajectory(ts, xs, us, outcome, end, domain[0] if domain else None, wall,
+                            "reference")
