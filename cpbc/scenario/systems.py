@@ -33,7 +33,7 @@ from cpbc.scenario.schema import (
 from cpbc.systems import HaversineBump, Plant, QuarterCar, ReactionWheelPendulum
 from cpbc.systems.plant import State
 
-Law = Callable[[State], float]
+Law = Callable[[State, float], float]  # u = k(x, t)
 
 
 @dataclass(frozen=True)
@@ -83,7 +83,7 @@ def _suspension(spec: QuarterCarSpec) -> tuple[list[SystemLaw], SystemView]:
                 f"k2 + c1 = {ctrl.travel_bound:.6g} m exceeds travel_limit "
                 f"{spec.travel_limit:.6g} m: the law (3.84) keeps |x3| < k2 + c1 only",
             )
-        laws.append(SystemLaw(law.name, ctrl.control, law.barrier))
+        laws.append(SystemLaw(law.name, ctrl, law.barrier))
     first = next((la for la in spec.laws if la.barrier), spec.laws[0]).gains
     view = SystemView(
         panels=(
@@ -105,7 +105,7 @@ def _reaction_wheel(spec: ReactionWheelSpec) -> tuple[list[SystemLaw], SystemVie
             ctrl = ReactionWheelController(WheelPendulumGains(**law.gains.model_dump()))
         except DesignError as exc:
             raise _gain_error(f"system.laws[{i}]", exc) from None
-        laws.append(SystemLaw(law.name, ctrl.control, True))
+        laws.append(SystemLaw(law.name, ctrl, True))
         if not bounds:
             b = ctrl.bounds()
             bounds = {"(3.148) sup|α1| printed": b.alpha1[0],
@@ -153,7 +153,7 @@ def _check_start(case: SystemCase, laws: list[SystemLaw], plant: Plant, i: int) 
                                 f"bounds ({q.lower:.6g}, {q.upper:.6g})")
     for law in laws:
         try:
-            law.law(case.state)
+            law.law(case.state, 0.0)
         except OutsideDomainError as exc:
             raise ScenarioError(field, f"law '{law.name}': {exc}; the barrier law is not "
                                 "defined there, so no run can start from it") from None

@@ -19,7 +19,7 @@ from cpbc.backstepping.errors import OutsideDomainError
 from cpbc.simulation.loop import Progress, substeps_per_control
 from cpbc.systems.plant import Plant, State
 
-Law = Callable[[State], float]  # u = k(x)
+Law = Callable[[State, float], float]  # u = k(x, t)
 
 
 @dataclass(frozen=True)
@@ -47,24 +47,26 @@ class SystemTrajectory:
     backend: str
 
 
-def _control(law: Law, x: State) -> tuple[float, str | None]:
+def _control(law: Law, x: State, t: float) -> tuple[float, str | None]:
     try:
-        return law(x), None
+        return law(x, t), None
     except OutsideDomainError as exc:
         return math.nan, exc.variable
 
 
 def run_system_mujoco(
-    plant: Plant, law: Law, x0: State, duration: float, control_period: float,
-    timestep: float, integrator: str = "RK4", progress: Progress | None = None,
+    plant: Plant, law: Law, x0: State, duration: float, control_period: float | None = None,
+    timestep: float | None = None, integrator: str = "RK4", progress: Progress | None = None,
 ) -> SystemTrajectory:
-    """Run ``law`` on the plant's MJCF, holding u over each control period."""
+    """Run ``law`` on the plant's MJCF, holding u over each control period (``timestep``:
+    the MJCF's own when None; ``control_period``: one physics step when None)."""
     model = plant.load()
-    model.opt.timestep = timestep
+    model.opt.timestep = timestep or model.opt.timestep
     model.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}")
     data = mujoco.MjData(model)
     plant.write_state(model, data, x0)
-    substeps = substeps_per_control(control_period, timestep)
+    control_period = control_period or model.opt.timestep
+    substeps = substeps_per_control(control_period, model.opt.timestep)
     steps = round(duration / control_period)
     ts, xs, us = np.full(steps + 1, np.nan), np.full((steps + 1, len(x0)), np.nan), \
         np.full(steps + 1, np.nan)
@@ -77,7 +79,7 @@ def run_system_mujoco(
         if not all(math.isfinite(v) for v in x):
             outcome = "diverged"
             break
-        u, violated = _control(law, x)
+        u, violated = _control(law, x, data.time)
         if violated is not None:
             outcome = "constraint_violated"
             break
@@ -106,7 +108,7 @@ def run_system_reference(
 
     def rhs(t: float, y: Array) -> list[float]:
         x = tuple(float(v) for v in y)
-        u, violated = _control(law, x)
+        u, violated = _control(law, x, t)
         if violated is not None:  # reject the stage: a true crossing ends the integration
             domain[:] = [violated]
             return [math.nan] * len(x)
@@ -130,7 +132,8 @@ def run_system_reference(
     wall = _time.perf_counter() - start
     xs = np.vstack(pieces)
     ts = grid[: len(xs)]
-    us = np.array([_control(law, tuple(float(v) for v in row))[0] for row in xs])
+    us = np.array([_control(law, tuple(float(v) for v in row), float(t))[0]
+                   for row, t in zip(xs, ts, strict=True)])
     end = float(ts[-1]) if len(ts) else 0.0
     return SystemTrajectory(ts, xs, us, outcome, end, domain[0] if domain else None, wall,
                             "reference")
