@@ -17,6 +17,7 @@ from scipy.integrate import solve_ivp
 from cpbc.arrays import Array
 from cpbc.backstepping.errors import OutsideDomainError
 from cpbc.simulation.loop import Progress, substeps_per_control
+from cpbc.simulation.plant import _INSTABILITY_WARNINGS
 from cpbc.systems.plant import Plant, State
 
 Law = Callable[[State, float], float]  # u = k(x, t)
@@ -90,6 +91,9 @@ def run_system_mujoco(
         for _ in range(substeps):
             plant.before_step(model, data)
             mujoco.mj_step(model, data)
+        if any(data.warning[w].number for w in _INSTABILITY_WARNINGS):
+            outcome = "diverged"  # MuJoCo reset the state or dropped the input and went on
+            break
         if progress is not None and k % report_every == 0:
             progress(k / steps)
     wall = _time.perf_counter() - start
