@@ -14,6 +14,7 @@ from cpbc.results import staged_output
 from cpbc.scenario.schema import SystemScenario
 from cpbc.scenario.system_runner import SystemResult, run_system_all, write_system_outputs
 from cpbc.scenario.systems import build_system
+from cpbc.viewer.systems import write_system_view
 
 STATUS_STYLE = {"converged": "green", "not_settled": "yellow",
                 "constraint_violated": "red", "diverged": "red"}
@@ -61,6 +62,7 @@ def run_system_cli(scenario: SystemScenario, file: Path, args: argparse.Namespac
     results = run_system_all(setup, backend)
     with staged_output(out) as scratch:
         write_system_outputs(scratch, setup, results, plots=not args.no_plots)
+        write_system_view(scratch, setup, results)
     console.print(system_table(results))
     for name, value in setup.view.design_bounds.items():
         console.print(f"a-priori bound {name}: {value:.6g}")

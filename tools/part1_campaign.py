@@ -6,9 +6,10 @@ counted. Runs the shipped scenarios through the product's builder and loop.
 
 A state is drawn uniformly in a box and kept when the law is defined there and every
 constrained state is inside its bounds (the builder's own check); a quarter of them are then
-pushed toward the boundary of the domain (|z1| between 90 % and 99.9 % of its bound) by
-bisection along the line from the origin. Each state runs at every control period; the
-physics step stays the scenario's. A violation is a run whose constrained quantity reached
+pushed along the ray from the origin to 90–99.9 % of the farthest admissible scaling
+(found by bisection; the last admissible point when that one is not). Each state runs in
+continuous time (the reference) and at every control period; the physics step stays the
+scenario's. A violation is a run whose constrained quantity reached
 its bound at a sample, or that left the law's domain, or diverged.
 """
 
@@ -61,7 +62,9 @@ def near_boundary(data: dict, state: State, bump: float | None, rng: np.random.G
     for _ in range(30):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if admissible(data, tuple(mid * x), bump) else (lo, mid)
-    return tuple(float(v) for v in lo * rng.uniform(0.9, 0.999) * x)
+    near = tuple(float(v) for v in lo * rng.uniform(0.9, 0.999) * x)
+    # the domain need not be star-shaped along the ray (an angle is scaled too)
+    return near if admissible(data, near, bump) else tuple(float(v) for v in lo * x)
 
 
 def draw(data: dict, box: np.ndarray, bump_max: float | None, n: int,

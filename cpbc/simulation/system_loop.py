@@ -36,6 +36,8 @@ class SystemTrajectory:
         end_time: simulated time at the end [s].
         wall_time: wall-clock time of the loop [s].
         backend: "mujoco" or "reference".
+        qpos, qvel: (N, nq), (N, nv) MuJoCo's coordinates at the samples (for the 3-D view);
+            the reference backend sets them from x (a coordinate x omits stays at zero).
     """
 
     time: Array
@@ -46,6 +48,8 @@ class SystemTrajectory:
     violated: str | None
     wall_time: float
     backend: str
+    qpos: Array | None = None
+    qvel: Array | None = None
 
 
 def _control(law: Law, x: State, t: float) -> tuple[float, str | None]:
@@ -71,12 +75,13 @@ def run_system_mujoco(
     steps = round(duration / control_period)
     ts, xs, us = np.full(steps + 1, np.nan), np.full((steps + 1, len(x0)), np.nan), \
         np.full(steps + 1, np.nan)
+    qs, vs = np.zeros((steps + 1, model.nq)), np.zeros((steps + 1, model.nv))
     outcome, violated, k = "completed", None, 0
     report_every = max(1, steps // 50)
     start = _time.perf_counter()
     for k in range(steps + 1):
         x = plant.read_state(model, data)
-        ts[k], xs[k] = k * control_period, x
+        ts[k], xs[k], qs[k], vs[k] = k * control_period, x, data.qpos, data.qvel
         if not all(math.isfinite(v) for v in x):
             outcome = "diverged"
             break
@@ -99,7 +104,7 @@ def run_system_mujoco(
     wall = _time.perf_counter() - start
     n = k + 1
     return SystemTrajectory(ts[:n], xs[:n], us[:n], outcome, k * control_period, violated,
-                            wall, "mujoco")
+                            wall, "mujoco", qs[:n], vs[:n])
 
 
 def run_system_reference(
@@ -139,5 +144,18 @@ def run_system_reference(
     us = np.array([_control(law, tuple(float(v) for v in row), float(t))[0]
                    for row, t in zip(xs, ts, strict=True)])
     end = float(ts[-1]) if len(ts) else 0.0
+    qpos, qvel = _coordinates(plant, ts, xs)
     return SystemTrajectory(ts, xs, us, outcome, end, domain[0] if domain else None, wall,
-                            "reference")
+                            "reference", qpos, qvel)
+
+
+def _coordinates(plant: Plant, ts: Array, xs: Array) -> tuple[Array, Array]:
+    """MuJoCo's qpos and qvel for the states x at the times t, through the plant's map."""
+    model = plant.load()
+    data = mujoco.MjData(model)
+    qpos, qvel = np.zeros((len(ts), model.nq)), np.zeros((len(ts), model.nv))
+    for k, (t, x) in enumerate(zip(ts, xs, strict=True)):
+        data.time = float(t)
+        plant.write_state(model, data, tuple(float(v) for v in x))
+        qpos[k], qvel[k] = data.qpos, data.qvel
+    return qpos, qvel
