@@ -46,10 +46,12 @@ def system_table(results: Sequence[SystemResult]) -> Table:
         style = STATUS_STYLE[s.status]
         at = s.crossed_at if s.crossed_at is not None else s.end_time
         status = s.status + (f" @{at:.3g}s: {s.violated}" if s.violated else "")
-        steps = len(r.trajectory.time) / s.wall_time if s.wall_time > 0 else float("nan")
+        # the reference's samples are not its steps: its rate says nothing
+        mujoco = s.backend == "mujoco" and s.wall_time > 0
+        steps = f"{len(r.trajectory.time) / s.wall_time:,.0f}" if mujoco else "-"
         t.add_row(escape(s.case), escape(s.controller), f"[{style}]{escape(status)}[/{style}]",
                   "-" if s.settle_time is None else f"{s.settle_time:.3g}", _peaks(r),
-                  _others(r), f"{steps:,.0f}")
+                  _others(r), steps)
     return t
 
 
