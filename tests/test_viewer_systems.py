@@ -70,6 +70,8 @@ def test_quarter_car_page_moves_the_body_by_the_logged_travel(car: Path) -> None
     rest = model.body("sprung").pos[2] - model.body("unsprung").pos[2]
     assert np.abs(travel).max() > 0.05  # the bump moves it
     assert np.allclose(height - rest, travel, atol=2e-3)  # frames fall between samples
+    positions = [p["label"] for p in case["plots"][0]["panels"]]
+    assert positions == ["wheel_z [m]", "body_z [m]"]
 
 
 @needs_chromium

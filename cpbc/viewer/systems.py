@@ -8,6 +8,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from cpbc.results.saved_run import SavedCase, SavedRun, SavedTrajectory, SceneInfo
@@ -17,7 +18,16 @@ from cpbc.scenario.systems import SystemSetup
 from cpbc.viewer.export import write_view
 
 
-def _saved(result: SystemResult, setup: SystemSetup, names: tuple[str, ...]) -> SavedTrajectory:
+def _units(setup: SystemSetup, model: mujoco.MjModel) -> dict[str, str]:
+    """The plots' units: m for slide joints, rad for hinges; the input's own unit."""
+    slide = all(model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE for j in range(model.njnt))
+    unit = setup.input_name.partition("[")[2].rstrip("]") or "-"
+    return {"position": "m" if slide else "rad", "velocity": "m/s" if slide else "rad/s",
+            "torque": f"input {unit}"}
+
+
+def _saved(result: SystemResult, setup: SystemSetup, names: tuple[str, ...],
+           units: dict[str, str]) -> SavedTrajectory:
     traj = result.trajectory
     assert traj.qpos is not None and traj.qvel is not None  # both loops log them
     case = next(c for c in setup.cases if c.name == result.case)
@@ -36,7 +46,7 @@ def _saved(result: SystemResult, setup: SystemSetup, names: tuple[str, ...]) -> 
         margin_types=("other",) * len(quantities), lyapunov=np.full(len(traj.time), np.nan),
         target=np.zeros(n), coordinate_names=names, outcome=traj.outcome,
         summary={"status": result.summary.status, "controller": result.law,
-                 "case": result.case},
+                 "case": result.case, "units": units},
         coordinates=np.eye(n),
     )
 
@@ -46,7 +56,9 @@ def write_system_view(folder: Path, setup: SystemSetup, results: Sequence[System
     model = setup.cases[0].plant.load()
     names = tuple(model.joint(i).name for i in range(model.njnt))
     info = SceneInfo(np.eye(model.nq), default_trace_frame(model), setup.scenario.name, ())
+    units = _units(setup, model)
     cases = tuple(
-        SavedCase(c.name, tuple(_saved(r, setup, names) for r in results if r.case == c.name))
+        SavedCase(c.name, tuple(_saved(r, setup, names, units) for r in results
+                                if r.case == c.name))
         for c in setup.cases)
     return write_view(SavedRun(folder, model, info, cases))
