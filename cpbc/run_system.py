@@ -10,6 +10,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from cpbc.errors import CpbcError
 from cpbc.results import staged_output
 from cpbc.scenario.schema import SystemScenario
 from cpbc.scenario.system_runner import SystemResult, run_system_all, write_system_outputs
@@ -58,6 +59,9 @@ def system_table(results: Sequence[SystemResult]) -> Table:
 def run_system_cli(scenario: SystemScenario, file: Path, args: argparse.Namespace,
                    console: Console) -> int:
     """Build (refusing bad input before anything is written), run, write, print."""
+    if args.view:
+        raise CpbcError("--view streams arm scenarios only; a Part I run writes its replay "
+                        "to view.html in the output folder")
     setup = build_system(scenario, file)
     out = args.out or Path("runs") / scenario.name
     backend = args.backend or scenario.simulation.backend

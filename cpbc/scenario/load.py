@@ -140,12 +140,18 @@ def parse_yaml(text: str, file: Path) -> object:
         raise ScenarioError("", f"{file} is not valid YAML: {exc}") from None
 
 
-def load_scenario(path: str | Path) -> tuple[Scenario, Path]:
-    """Parse and validate a YAML scenario; returns it with its resolved path."""
+def _mapping(path: str | Path) -> tuple[dict[str, object], Path]:
+    """The scenario file's top-level mapping and its resolved path."""
     file = resolve_scenario_path(path)
     raw = parse_yaml(read_text(file), file)
     if not isinstance(raw, dict):
         raise ScenarioError("", f"{file} must hold a mapping of scenario keys at the top level")
+    return raw, file
+
+
+def load_scenario(path: str | Path) -> tuple[Scenario, Path]:
+    """Parse and validate a YAML scenario; returns it with its resolved path."""
+    raw, file = _mapping(path)
     try:
         return Scenario.model_validate(raw), file
     except ValidationError as exc:
@@ -154,10 +160,7 @@ def load_scenario(path: str | Path) -> tuple[Scenario, Path]:
 
 def load_any(path: str | Path) -> tuple[Scenario | SystemScenario, Path]:
     """An arm scenario, or a Part I one when the file has a ``system:`` block."""
-    file = resolve_scenario_path(path)
-    raw = parse_yaml(read_text(file), file)
-    if not isinstance(raw, dict):
-        raise ScenarioError("", f"{file} must hold a mapping of scenario keys at the top level")
+    raw, file = _mapping(path)
     kind: type[Scenario] | type[SystemScenario] = (
         SystemScenario if "system" in raw else Scenario)
     try:
