@@ -158,6 +158,10 @@ def _signal(traj: SystemTrajectory, p: Panel) -> Array:
     return p.scale * (traj.input if p.index is None else traj.state[:, p.index])
 
 
+#: A time plot with a bound shows at most this many times the bound.
+CLIP = 3.0
+
+
 def plot_case(path: Path, case: str, runs: Sequence[tuple[str, SystemTrajectory]],
               view: SystemView) -> None:
     """Every law's run of one case: one panel per quantity against time (bounds dashed),
@@ -169,10 +173,16 @@ def plot_case(path: Path, case: str, runs: Sequence[tuple[str, SystemTrajectory]
     for k, (ax, p) in enumerate(zip(axes, view.panels, strict=False)):
         for i, (name, traj) in enumerate(runs):
             ax.plot(traj.time, _signal(traj, p), color=controller_colour(i), lw=1.2, label=name)
+        label = p.label
         if p.bound is not None:
-            for b in (p.bound, -p.bound):
-                ax.axhline(b * abs(p.scale), color=BOUND_COLOUR, ls="--", lw=0.8)
-        ax.set_ylabel(p.label, fontsize=8)
+            edge = p.bound * abs(p.scale)
+            for b in (edge, -edge):
+                ax.axhline(b, color=BOUND_COLOUR, ls="--", lw=0.8)
+            peak = max(float(np.nanmax(np.abs(_signal(t, p)), initial=0.0)) for _, t in runs)
+            if peak > CLIP * edge:  # a run far past the bound would flatten the others
+                ax.set_ylim(-CLIP * edge, CLIP * edge)
+                label += f"\n(clipped at ±{CLIP:g}× bound; peak {peak:.4g})"
+        ax.set_ylabel(label, fontsize=8)
         ax.grid(alpha=0.3)
         if k == len(view.panels) - 1:
             ax.set_xlabel("time [s]")
