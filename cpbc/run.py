@@ -23,8 +23,10 @@ from cpbc.errors import CpbcError
 from cpbc.results import staged_output, write_summaries, write_trajectory
 from cpbc.results.margin_types import types_of
 from cpbc.results.metrics import RunSummary
-from cpbc.scenario import build, load_scenario
+from cpbc.run_system import run_system_cli
+from cpbc.scenario import build
 from cpbc.scenario.build import ScenarioSetup
+from cpbc.scenario.load import load_any
 from cpbc.scenario.runner import (
     LazyPool,
     RunProgress,
@@ -33,6 +35,7 @@ from cpbc.scenario.runner import (
     run_all,
     run_shared,
 )
+from cpbc.scenario.schema import SystemScenario
 from cpbc.viewer.outputs import write_run_outputs
 
 if TYPE_CHECKING:
@@ -224,7 +227,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     err = Console(stderr=True, width=None if sys.stderr.isatty() else 200)
     live: LiveView | None = None
     try:
-        scenario, file = load_scenario(args.scenario)
+        loaded, file = load_any(args.scenario)
+        if isinstance(loaded, SystemScenario):  # a Part I system: its own short path
+            return run_system_cli(loaded, file, args, console)
+        scenario = loaded
         setup = build(scenario, file)
         out = args.out or Path("runs") / scenario.name
         if args.view:

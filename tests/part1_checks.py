@@ -9,6 +9,8 @@ from typing import Protocol
 import numpy as np
 
 from cpbc.backstepping import Cascade, Rated
+from cpbc.simulation.system_loop import SystemTrajectory
+from cpbc.systems import Plant
 
 State = tuple[float, ...]
 
@@ -69,3 +71,10 @@ def assert_rates(cascade: Cascade, x: State, xi1: float, xi1_dot: float, rtol: f
     # α1's own rate is alpha1_flow: ∂α1/∂x·f
     a1 = numeric_rate(lambda p: cascade.first_step(split(p, n)[0], p[n]).alpha1, s, sdot)
     assert np.isclose(step.alpha1_flow.value, a1, rtol=rtol, atol=atol)
+
+
+def peak(run: SystemTrajectory, plant: Plant, name: str) -> tuple[float, float]:
+    """(min, max) of a constrained quantity over a run."""
+    q = next(c for c in plant.constrained if c.name == name)
+    v = run.input if q.source == "input" else run.state[:, q.index]
+    return float(v.min()), float(v.max())

@@ -8,10 +8,10 @@ import math
 
 import numpy as np
 import pytest
-from part1_checks import assert_rates, closed_loop, numeric_rate, split
-from part1_loop import run_mujoco
+from part1_checks import assert_rates, closed_loop, numeric_rate, peak, split
 
 from cpbc.backstepping import OutsideDomainError, ReactionWheelController
+from cpbc.simulation.system_loop import run_system_mujoco
 from cpbc.systems import ReactionWheelPendulum
 
 CTRL = ReactionWheelController()
@@ -99,33 +99,33 @@ def _wrapped(q: np.ndarray) -> np.ndarray:
 def test_fig_3_9_from_half_pi() -> None:
     """|q̇1| < 1 rad/s, |τ| < 0.4 N m, and (q1, q̇1) → 0 (Figs 3.9/3.10)."""
     plant = ReactionWheelPendulum()
-    run = run_mujoco(plant, CTRL, (np.pi / 2, 0.0, 0.0), duration=30.0)
-    lo, hi = run.peak(plant, "dq1")
+    run = run_system_mujoco(plant, CTRL, (np.pi / 2, 0.0, 0.0), duration=30.0)
+    lo, hi = peak(run, plant, "dq1")
     assert -1.0 < lo and hi < 1.0
-    tlo, thi = run.peak(plant, "tau")
+    tlo, thi = peak(run, plant, "tau")
     assert -0.4 < tlo and thi < 0.4
-    late = run.t >= 20.0
-    assert np.abs(_wrapped(run.x[late, 0])).max() < 5e-3  # a lean of ≈ −1.6 mrad remains
-    assert np.abs(run.x[late, 1]).max() < 1e-3
+    late = run.time >= 20.0
+    assert np.abs(_wrapped(run.state[late, 0])).max() < 5e-3  # a lean of ≈ −1.6 mrad remains
+    assert np.abs(run.state[late, 1]).max() < 1e-3
 
 
 def test_fig_3_11_from_near_pi() -> None:
     """From q1 = 3.14 the pendulum leaves the bottom slowly (the ≈ 6 s of the text), then
     converges, inside both limits (Figs 3.11/3.12)."""
     plant = ReactionWheelPendulum()
-    run = run_mujoco(plant, CTRL, (3.14, 0.0, 0.0), duration=30.0)
-    lo, hi = run.peak(plant, "dq1")
-    tlo, thi = run.peak(plant, "tau")
+    run = run_system_mujoco(plant, CTRL, (3.14, 0.0, 0.0), duration=30.0)
+    lo, hi = peak(run, plant, "dq1")
+    tlo, thi = peak(run, plant, "tau")
     assert -1.0 < lo and hi < 1.0 and -0.4 < tlo and thi < 0.4
-    early = run.t <= 4.0
-    assert np.abs(_wrapped(run.x[early, 0])).min() > 3.0  # still near the bottom at 4 s
-    late = run.t >= 25.0
-    assert np.abs(_wrapped(run.x[late, 0])).max() < 5e-3
-    assert np.abs(run.x[late, 1]).max() < 1e-3
+    early = run.time <= 4.0
+    assert np.abs(_wrapped(run.state[early, 0])).min() > 3.0  # still near the bottom at 4 s
+    late = run.time >= 25.0
+    assert np.abs(_wrapped(run.state[late, 0])).max() < 5e-3
+    assert np.abs(run.state[late, 1]).max() < 1e-3
 
 
 def test_exact_pi_start_stays_down() -> None:
     """(π, 0, 0) is a closed-loop equilibrium: "stabilisation from (π, 0, 0)" cannot happen."""
     plant = ReactionWheelPendulum()
-    run = run_mujoco(plant, CTRL, (np.pi, 0.0, 0.0), duration=10.0)
-    assert np.abs(run.x[:, 0] - np.pi).max() < 1e-9
+    run = run_system_mujoco(plant, CTRL, (np.pi, 0.0, 0.0), duration=10.0)
+    assert np.abs(run.state[:, 0] - np.pi).max() < 1e-9

@@ -8,8 +8,7 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
-from part1_checks import assert_rates, closed_loop, numeric_rate, split
-from part1_loop import run_mujoco
+from part1_checks import assert_rates, closed_loop, numeric_rate, peak, split
 
 from cpbc.backstepping import (
     DesignError,
@@ -17,6 +16,7 @@ from cpbc.backstepping import (
     SuspensionController,
     SuspensionGains,
 )
+from cpbc.simulation.system_loop import run_system_mujoco
 from cpbc.systems import HaversineBump, QuarterCar
 
 CTRL = SuspensionController()
@@ -126,11 +126,11 @@ def test_thesis_case_in_mujoco(case: str) -> None:
     thesis's claims that do not need Karlsson's controller."""
     height, x0 = CASES[case]
     plant = QuarterCar(HaversineBump(height))
-    run = run_mujoco(plant, CTRL, x0, duration=2.0)  # PART1 §4.4: T = 2 s
-    lo, hi = run.peak(plant, "x3")
+    run = run_system_mujoco(plant, CTRL, x0, duration=2.0)  # PART1 §4.4: T = 2 s
+    lo, hi = peak(run, plant, "x3")
     assert -0.1 < lo and hi < 0.1
-    z1 = np.array([CTRL.errors(tuple(x))[0] for x in run.x[::10]])
+    z1 = np.array([CTRL.errors(tuple(x))[0] for x in run.state[::10]])
     assert np.abs(z1).max() < G.k2
-    late = np.abs(run.x[run.t >= 1.0]).max(axis=0)
+    late = np.abs(run.state[run.time >= 1.0]).max(axis=0)
     assert late[2] < 0.01 * max(abs(lo), hi)  # travel within 1 % of its peak after 1 s
-    assert np.abs(run.x[-1]).max() < 1e-4
+    assert np.abs(run.state[-1]).max() < 1e-4

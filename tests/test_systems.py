@@ -9,9 +9,9 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
-from part1_loop import run_mujoco, run_ode
 
 from cpbc.errors import CpbcError, ModelError
+from cpbc.simulation.system_loop import run_system_mujoco, run_system_reference
 from cpbc.systems import ConstrainedQuantity, HaversineBump, QuarterCar, ReactionWheelPendulum
 
 
@@ -56,10 +56,10 @@ def test_quarter_car_mujoco_matches_its_ode() -> None:
     plant = QuarterCar(HaversineBump(0.05))
     x0 = (0.001, -0.2, 0.01, 0.1)
     held, cont = _held(_wiggle, 1e-4)
-    sim = run_mujoco(plant, held, x0, 1.0)
-    ref = run_ode(plant, cont, x0, 1.0, dt=1e-4)
-    assert np.abs(ref.x[:, 2]).max() > 0.01
-    err = np.abs(sim.x - ref.x).max(axis=0)
+    sim = run_system_mujoco(plant, held, x0, 1.0)
+    ref = run_system_reference(plant, cont, x0, 1.0, 1e-4)
+    assert np.abs(ref.state[:, 2]).max() > 0.01
+    err = np.abs(sim.state - ref.state).max(axis=0)
     assert err[[0, 2]].max() < 1e-6  # deflections [m]
     assert err[[1, 3]].max() < 5e-5  # velocities [m/s]
 
@@ -75,10 +75,10 @@ def test_wheel_pendulum_mujoco_matches_its_ode() -> None:
     plant = ReactionWheelPendulum()
     x0 = (0.2, -0.1, 5.0)
     held, cont = _held(_torque, 1e-3)
-    sim = run_mujoco(plant, held, x0, 1.5)
-    ref = run_ode(plant, cont, x0, 1.5, dt=1e-3)
-    assert abs(ref.x[-1, 0] - x0[0]) > 0.5  # it falls: the comparison is not trivial
-    err = np.abs(sim.x - ref.x).max(axis=0)
+    sim = run_system_mujoco(plant, held, x0, 1.5)
+    ref = run_system_reference(plant, cont, x0, 1.5, 1e-3)
+    assert abs(ref.state[-1, 0] - x0[0]) > 0.5  # it falls: the comparison is not trivial
+    err = np.abs(sim.state - ref.state).max(axis=0)
     assert err[0] < 1e-5 and err[1] < 5e-5 and err[2] < 1e-3  # q1 [rad], q̇1, q̇2 [rad/s]
 
 

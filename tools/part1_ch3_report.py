@@ -1,8 +1,8 @@
 """Measure the claims of Ngo (2007) §3.3.3 and §3.5.3 in MuJoCo and in the ODE reference.
 
 Run from the repository root:  python tools/part1_ch3_report.py
-Prints the numbers that docs/PART1_CH3.md tabulates. Uses the fixed-step driver of
-tests/part1_loop.py (the product loop does not take Part-I plants yet).
+Prints the numbers that docs/PART1_CH3.md tabulates. Uses the product's Part I loop
+(cpbc.simulation.system_loop), the one ``python -m cpbc.run scenarios/ch3_*.yaml`` runs.
 """
 
 from __future__ import annotations
@@ -14,15 +14,16 @@ import numpy as np
 from scipy.optimize import minimize
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
-
-from part1_loop import Trajectory, run_mujoco, run_ode  # noqa: E402
+sys.path[:0] = [str(ROOT)]
 
 from cpbc.backstepping import (  # noqa: E402
     OutsideDomainError,
     ReactionWheelController,
     SuspensionController,
 )
+from cpbc.simulation.system_loop import SystemTrajectory as Trajectory  # noqa: E402
+from cpbc.simulation.system_loop import run_system_mujoco as run_mujoco  # noqa: E402
+from cpbc.simulation.system_loop import run_system_reference  # noqa: E402
 from cpbc.systems import HaversineBump, QuarterCar, ReactionWheelPendulum  # noqa: E402
 
 SUSPENSION_CASES = {
@@ -52,10 +53,10 @@ def jacobian_eigenvalues(rhs, s0: np.ndarray, h: float = 1e-7) -> np.ndarray:
 
 
 def suspension_row(name: str, run: Trajectory) -> str:
-    x1, x3, u = run.x[:, 0], run.x[:, 2], run.u
+    x1, x3, u = run.state[:, 0], run.state[:, 2], run.input
     return (
         f"| {name} | {1e3 * x3.min():.2f} / {1e3 * x3.max():.2f} | {np.abs(u).max():.2f} | "
-        f"{1e3 * x1.min():.2f} / {1e3 * x1.max():.2f} | {settling_time(run.t, x3):.3f} |"
+        f"{1e3 * x1.min():.2f} / {1e3 * x1.max():.2f} | {settling_time(run.time, x3):.3f} |"
     )
 
 
@@ -67,12 +68,13 @@ def suspension() -> None:
     for name, (height, x0) in SUSPENSION_CASES.items():
         plant = QuarterCar(HaversineBump(height))
         sim = run_mujoco(plant, ctrl, x0, 2.0)
-        ref = run_ode(plant, ctrl, x0, 2.0, dt=1e-4)
+        ref = run_system_reference(plant, ctrl, x0, 2.0, 1e-4)
         print(suspension_row(f"{name}, MuJoCo", sim))
         print(suspension_row(f"{name}, ODE", ref))
-        dx3 = 1e3 * np.abs(sim.x[:, 2] - ref.x[:, 2]).max()
-        print(f"|   max |MuJoCo − ODE|: x3 {dx3:.4f} mm, u {np.abs(sim.u - ref.u).max():.3g} m/s²;"
-              f" |x(2 s)| {np.abs(sim.x[-1]).max():.2e}")
+        dx3 = 1e3 * np.abs(sim.state[:, 2] - ref.state[:, 2]).max()
+        du = np.abs(sim.input - ref.input).max()
+        print(f"|   max |MuJoCo − ODE|: x3 {dx3:.4f} mm, u {du:.3g} m/s²;"
+              f" |x(2 s)| {np.abs(sim.state[-1]).max():.2e}")
     base = SuspensionController.baseline()
     for height in (0.075, 0.11):
         run = run_mujoco(QuarterCar(HaversineBump(height)), base, (0.0,) * 4, 2.0)
@@ -100,14 +102,14 @@ def wrapped(q: np.ndarray) -> np.ndarray:
 
 
 def rwp_row(name: str, run: Trajectory) -> str:
-    q, dq, tau = wrapped(run.x[:, 0]), run.x[:, 1], run.u
+    q, dq, tau = wrapped(run.state[:, 0]), run.state[:, 1], run.input
     out = np.nonzero(np.abs(q) > 0.01)[0]
-    t_conv = float(run.t[out[-1]]) if len(out) else 0.0
+    t_conv = float(run.time[out[-1]]) if len(out) else 0.0
     leave = np.nonzero(np.abs(q) < 3.0)[0]
-    t_leave = float(run.t[leave[0]]) if len(leave) else float("nan")
+    t_leave = float(run.time[leave[0]]) if len(leave) else float("nan")
     return (
         f"| {name} | {dq.min():.4f} / {dq.max():.4f} | {tau.min():.4f} / {tau.max():.4f} | "
-        f"{t_leave:.2f} | {t_conv:.2f} | {1e3 * q[-1]:.3f} | {np.abs(run.x[:, 2]).max():.4g} |"
+        f"{t_leave:.2f} | {t_conv:.2f} | {1e3 * q[-1]:.3f} | {np.abs(run.state[:, 2]).max():.4g} |"
     )
 
 
@@ -132,7 +134,7 @@ def reaction_wheel() -> None:
                      ("fig3.11 resolved (3.14, 0, 0)", (3.14, 0.0, 0.0)),
                      ("fig3.11 literal (π, 0, 0)", (np.pi, 0.0, 0.0))):
         sim = run_mujoco(plant, ctrl, x0, 60.0)
-        ref = run_ode(plant, ctrl, x0, 60.0, dt=1e-3)
+        ref = run_system_reference(plant, ctrl, x0, 60.0, 1e-3)
         print(rwp_row(f"{name}, MuJoCo", sim))
         print(rwp_row(f"{name}, ODE", ref))
 

@@ -54,6 +54,25 @@ BASE: dict = {
     ],
 }
 
+# A small valid Part I scenario (a system: block): the quarter car with the barrier law and
+# its unconstrained comparison; the variants below change a copy of it.
+SYSTEM_BASE: dict = {
+    "name": "system_base",
+    "system": {
+        "type": "quarter_car", "travel_limit": 0.1,
+        "laws": [{"name": "barrier", "gains": {"k1": 3.5, "k2": 0.051}},
+                 {"name": "unconstrained", "barrier": False}],
+    },
+    "simulation": {"duration": 0.002, "timestep": 0.0001},
+    "cases": [{"name": "bump", "bump_height": 0.05, "state": [0, 0, 0, 0]}],
+}
+RWP_BASE: dict = {
+    "name": "rwp_base",
+    "system": {"type": "reaction_wheel_pendulum", "laws": [{"name": "barrier"}]},
+    "simulation": {"duration": 0.01},
+    "cases": [{"name": "side", "state": ["pi/2", 0, 0]}],
+}
+
 # Builds the scenario file's content from a copy of BASE; bytes for a file that is not
 # text, None when it has put something at ``folder/scenario.yaml`` itself (a directory).
 Make = Callable[[dict, Path], "str | bytes | None"]
@@ -104,6 +123,25 @@ def removing(dotted: str) -> Make:
         return yaml.safe_dump(data, sort_keys=False)
 
     return make
+
+
+def system(dotted: str, value: object, base: dict | None = None) -> Make:
+    """A copy of SYSTEM_BASE (or ``base``) with data[a][b][i] = value (a key is deleted
+    when ``value`` is REMOVE)."""
+
+    def make(_data: dict, _folder: Path) -> str:
+        data = copy.deepcopy(SYSTEM_BASE if base is None else base)
+        node, key = _path(data, dotted)
+        if value is REMOVE:
+            del node[key]  # type: ignore[attr-defined]
+        else:
+            node[key] = value  # type: ignore[index]
+        return yaml.safe_dump(data, sort_keys=False)
+
+    return make
+
+
+REMOVE = object()
 
 
 def raw(text: str) -> Make:
@@ -440,6 +478,56 @@ VARIANTS: list[BadInput] = [
     BadInput("locked_joint_out_of_range", "model file", "robot.locked_joints",
              arm("panda", [0, 0, 0, -1.5, 0, 1.5, 0], [0, 0, 0, -1.5, 0, 1.5, 0],
                  robot__locked_joints={"panda_finger_joint1": 0.5})),
+    # -- Part I systems (a system: block) ---------------------------------------------------
+    BadInput("system_unknown_type", "unknown key", "system", system("system.type", "car")),
+    BadInput("system_mistyped_key", "unknown key", "system.travel_limt",
+             system("system.travel_limt", 0.1)),
+    BadInput("system_with_target", "unknown key", "target", system("target", [0, 0])),
+    BadInput("system_with_safeguard", "unknown key", "simulation.safeguard",
+             system("simulation.safeguard", True)),
+    BadInput("system_gain_negative", "non-positive", "system.laws[0].gains.k2",
+             system("system.laws.0.gains.k2", -0.05)),
+    BadInput("system_gain_text", "wrong type", "system.laws[0].gains.k1",
+             system("system.laws.0.gains.k1", "fast")),
+    BadInput("system_gain_unknown", "unknown key", "system.laws[0].gains.k9",
+             system("system.laws.0.gains.k9", 1)),
+    BadInput("system_barrier_text", "wrong type", "system.laws[1].barrier",
+             system("system.laws.1.barrier", "no")),
+    BadInput("system_bound_above_limit", "gains", "system.laws[0].gains",
+             system("system.travel_limit", 0.05)),
+    BadInput("system_no_laws", "structure", "system.laws", system("system.laws", [])),
+    BadInput("system_law_names_repeat", "structure", "system.laws",
+             system("system.laws.1.name", "barrier")),
+    BadInput("system_travel_nan", "non-finite", "system.travel_limit",
+             system("system.travel_limit", NAN)),
+    BadInput("system_bump_missing", "structure", "cases[0].bump_height",
+             system("cases.0.bump_height", REMOVE)),
+    BadInput("system_bump_negative", "non-positive", "cases[0].bump_height",
+             system("cases.0.bump_height", -0.1)),
+    BadInput("system_state_three", "wrong shape", "cases[0].state",
+             system("cases.0.state", [0, 0, 0])),
+    BadInput("system_literal_fig3_7", "inadmissible", "cases[0].state",
+             system("cases.0.state", [0, -20, -0.05, 0])),
+    BadInput("system_travel_past_limit", "inadmissible", "cases[0].state",
+             system("cases.0.state", [0, 0, 0.12, 0])),
+    BadInput("system_period_not_multiple", "length", "simulation.control_period",
+             system("simulation.control_period", 0.00015)),
+    BadInput("system_duration_below_period", "length", "simulation.duration",
+             system("simulation.duration", 0.00001)),
+    BadInput("system_too_many_steps", "length", "simulation.max_steps",
+             system("simulation.duration", 1e7)),
+    BadInput("system_tolerance_zero", "non-positive", "simulation.tolerance",
+             system("simulation.tolerance", 0)),
+    BadInput("rwp_bump", "structure", "cases[0].bump_height",
+             system("cases.0.bump_height", 0.1, RWP_BASE)),
+    BadInput("rwp_rate_outside_domain", "inadmissible", "cases[0].state",
+             system("cases.0.state", [0, 1.5, 0], RWP_BASE)),
+    BadInput("rwp_start_outside_domain", "inadmissible", "cases[0].state",
+             system("cases.0.state", [0, 0.9, 0], RWP_BASE)),
+    BadInput("rwp_gain_zero", "non-positive", "system.laws[0].gains.k4",
+             system("system.laws.0.gains", {"k4": 0}, RWP_BASE)),
+    BadInput("rwp_torque_limit_text", "wrong type", "system.torque_limit",
+             system("system.torque_limit", "0.4 N m", RWP_BASE)),
 ]
 
 

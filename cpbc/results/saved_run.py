@@ -50,6 +50,7 @@ class SummaryEntry(_SummaryKeys, total=False):
     rate_bounds: list[float | None]
     torque_limits: list[float] | None
     torque_bound: float | None
+    units: dict[str, str]  # the plots' units when not an arm's (a Part I system's view)
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ from pydantic_core import ErrorDetails
 from cpbc.errors import ScenarioError
 from cpbc.resources import scenarios_dir
 from cpbc.scenario import schema
-from cpbc.scenario.schema import Scenario
+from cpbc.scenario.schema import Scenario, SystemScenario
 
 
 def _union_tags() -> frozenset[str]:
@@ -140,13 +140,30 @@ def parse_yaml(text: str, file: Path) -> object:
         raise ScenarioError("", f"{file} is not valid YAML: {exc}") from None
 
 
-def load_scenario(path: str | Path) -> tuple[Scenario, Path]:
-    """Parse and validate a YAML scenario; returns it with its resolved path."""
+def _mapping(path: str | Path) -> tuple[dict[str, object], Path]:
+    """The scenario file's top-level mapping and its resolved path."""
     file = resolve_scenario_path(path)
     raw = parse_yaml(read_text(file), file)
     if not isinstance(raw, dict):
         raise ScenarioError("", f"{file} must hold a mapping of scenario keys at the top level")
+    return raw, file
+
+
+def load_scenario(path: str | Path) -> tuple[Scenario, Path]:
+    """Parse and validate a YAML scenario; returns it with its resolved path."""
+    raw, file = _mapping(path)
     try:
         return Scenario.model_validate(raw), file
+    except ValidationError as exc:
+        raise format_validation_error(exc) from None
+
+
+def load_any(path: str | Path) -> tuple[Scenario | SystemScenario, Path]:
+    """An arm scenario, or a Part I one when the file has a ``system:`` block."""
+    raw, file = _mapping(path)
+    kind: type[Scenario] | type[SystemScenario] = (
+        SystemScenario if "system" in raw else Scenario)
+    try:
+        return kind.model_validate(raw), file
     except ValidationError as exc:
         raise format_validation_error(exc) from None

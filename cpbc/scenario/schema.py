@@ -357,3 +357,99 @@ class Scenario(Strict):
     obstacles: list[ObstacleSpec] = []
     constraints: list[ConstraintSpec] = []
     controllers: Annotated[list[ControllerSpec], Field(min_length=1)]
+
+
+# -- Part I systems (a ``system:`` block in place of ``robot:``) ---------------------------
+StrictBool = Annotated[bool, Field(strict=True)]
+
+
+class SuspensionGainsSpec(Strict):
+    """The design constants of §3.3.3 (Theorem 3.6), under the thesis's names."""
+
+    k1: Positive = 3.5
+    k2: Positive = 0.051
+    k3: Positive = 0.07
+    k4: Positive = 50.0
+    c1: Positive = 0.049
+    c2: Positive = 300.0
+    c3: Positive = 500.0
+
+
+class SuspensionLawSpec(Strict):
+    """The law (3.88); ``barrier: false`` is the same law with ½k3 z1² in place of the log
+    barrier (no travel guarantee), the unconstrained comparison."""
+
+    name: SafeName
+    barrier: StrictBool = True
+    gains: SuspensionGainsSpec = SuspensionGainsSpec()
+
+
+class QuarterCarSpec(Strict):
+    """The active quarter car of §3.3 over a haversine bump (its height is per case).
+    ω and ρ are the built-in MJCF's (§3.3.3)."""
+
+    type: Literal["quarter_car"]
+    travel_limit: Positive = 0.1  # Ξ [m]
+    bump_length: Positive = 2.0  # l [m]
+    speed: Positive = 25.0  # v [m/s]
+    laws: Annotated[list[SuspensionLawSpec], Field(min_length=1)]
+
+
+class WheelPendulumGainsSpec(Strict):
+    """The design constants of §3.5.3 (Proposition 3.11), under the thesis's names."""
+
+    k1: Positive = 57.5e-3
+    k2: Positive = 2.225
+    k3: Positive = 0.25
+    k4: Positive = 0.501
+    c1: Positive = 0.5
+    c2: Positive = 1.0
+
+
+class WheelPendulumLawSpec(Strict):
+    name: SafeName
+    gains: WheelPendulumGainsSpec = WheelPendulumGainsSpec()
+
+
+class ReactionWheelSpec(Strict):
+    """The reaction wheel pendulum of §3.5 (the built-in MJCF's d's, §3.5.3)."""
+
+    type: Literal["reaction_wheel_pendulum"]
+    rate_limit: Positive = 1.0  # on |q̇1| [rad/s]
+    torque_limit: Positive = 0.4  # on |τ| [N m]
+    laws: Annotated[list[WheelPendulumLawSpec], Field(min_length=1)]
+
+
+SystemSpec = Annotated[QuarterCarSpec | ReactionWheelSpec, Field(discriminator="type")]
+
+
+class SystemSimulationSpec(Strict):
+    """``control_period`` defaults to the timestep; ``tolerance`` judges convergence on the
+    components the system names (the pendulum, not its wheel)."""
+
+    duration: Positive
+    timestep: Positive = 0.001
+    control_period: Positive | None = None
+    integrator: Literal["Euler", "RK4", "implicit", "implicitfast"] = "RK4"
+    backend: Literal["mujoco", "reference"] = "mujoco"
+    tolerance: Positive = 0.01
+    max_steps: Annotated[int, Field(ge=1, strict=True)] = 10_000_000
+
+
+class SystemCaseSpec(Strict):
+    """An initial state x(0) in the system's own state (see cpbc.systems); the quarter car's
+    cases give the bump height A [m]."""
+
+    name: SafeName
+    state: Vector
+    bump_height: NonNegative | None = None
+
+
+class SystemScenario(Strict):
+    """A Part I scenario: a system with its laws, simulation and cases."""
+
+    name: SafeName
+    description: str = ""
+    system: SystemSpec
+    simulation: SystemSimulationSpec
+    cases: Annotated[list[SystemCaseSpec], Field(min_length=1)]

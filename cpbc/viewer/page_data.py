@@ -108,6 +108,8 @@ def _panels(case: SavedCase) -> tuple[list[dict[str, Any]], bool]:
     identity = bool(np.allclose(first.coordinates, np.eye(n)))
     joints = limits is not None and not identity
     names = first.coordinate_names
+    # a run may name its own units (a Part I system's slide joints, its input)
+    units = first.summary.get("units") or {}
 
     def coordinate_panels(key: str, unit: str, extra: Any) -> list[dict[str, Any]]:
         out = []
@@ -130,10 +132,12 @@ def _panels(case: SavedCase) -> tuple[list[dict[str, Any]], bool]:
 
     groups = [
         {"title": "Positions", "panels": coordinate_panels(
-            "position", "rad", lambda k: [{"y": float(first.target[k]), "label": "target"}])},
-        {"title": "Rates", "panels": coordinate_panels("velocity", "rad/s", rate_lines)},
+            "position", units.get("position", "rad"),
+            lambda k: [{"y": float(first.target[k]), "label": "target"}])},
+        {"title": "Rates", "panels": coordinate_panels(
+            "velocity", units.get("velocity", "rad/s"), rate_lines)},
         {"title": "Torques applied", "panels": coordinate_panels(
-            "torque", "N·m", torque_lines)},
+            "torque", units.get("torque", "N·m"), torque_lines)},
     ]
     margin_panels = []
     for kind, columns in grouped(first.margin_names, first.margin_types):

@@ -1,0 +1,76 @@
+"""Run every law of a Part I scenario on every case, and write the results folder."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from cpbc.results.systems import (
+    SystemSummary,
+    plot_case,
+    summarise_system,
+    write_system_summaries,
+    write_system_trajectory,
+)
+from cpbc.scenario.systems import SystemCase, SystemLaw, SystemSetup
+from cpbc.simulation.system_loop import (
+    SystemTrajectory,
+    run_system_mujoco,
+    run_system_reference,
+)
+
+RunProgress = Callable[[str, float], None]
+
+
+@dataclass(frozen=True)
+class SystemResult:
+    case: str
+    law: str
+    trajectory: SystemTrajectory
+    summary: SystemSummary
+
+
+def run_system_one(setup: SystemSetup, case: SystemCase, law: SystemLaw, backend: str,
+                   progress: RunProgress | None = None) -> SystemResult:
+    sim = setup.scenario.simulation
+    label = f"{case.name} / {law.name}"
+
+    def report(frac: float) -> None:
+        if progress is not None:
+            progress(label, frac)
+
+    if backend == "mujoco":
+        traj = run_system_mujoco(case.plant, law.law, case.state, sim.duration,
+                                 setup.control_period, sim.timestep, sim.integrator, report)
+    else:
+        traj = run_system_reference(case.plant, law.law, case.state, sim.duration,
+                                    setup.control_period)
+    report(1.0)
+    summary = summarise_system(case.name, law.name, traj, case.plant.constrained, setup.view,
+                               setup.state_names, setup.input_name, sim.tolerance)
+    return SystemResult(case.name, law.name, traj, summary)
+
+
+def run_system_all(setup: SystemSetup, backend: str | None = None,
+                   progress: RunProgress | None = None) -> list[SystemResult]:
+    """Every (case, law) pair, case-major; ``backend`` overrides the scenario's."""
+    backend = backend or setup.scenario.simulation.backend
+    return [run_system_one(setup, c, law, backend, progress)
+            for c in setup.cases for law in setup.laws]
+
+
+def write_system_outputs(folder: Path, setup: SystemSetup, results: list[SystemResult],
+                         plots: bool = True) -> None:
+    """<case>/<law>/trajectory.npz, summary.json, and <case>/timeseries.png."""
+    for r in results:
+        run = folder / r.case / r.law
+        run.mkdir(parents=True, exist_ok=True)
+        write_system_trajectory(run / "trajectory.npz", r.trajectory, setup.state_names,
+                                setup.input_name)
+    write_system_summaries(folder, [r.summary for r in results])
+    if not plots:
+        return
+    for case in setup.cases:
+        runs = [(r.law, r.trajectory) for r in results if r.case == case.name]
+        plot_case(folder / case.name / "timeseries.png", case.name, runs, setup.view)

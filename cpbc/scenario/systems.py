@@ -1,0 +1,199 @@
+"""Building a Part I scenario (a ``system:`` block): the plant of each case, the laws, and
+what the results layer shows of them (panels, the phase portrait, the a-priori bounds).
+
+Every check that refuses the scenario raises :class:`~cpbc.errors.ScenarioError` naming the
+YAML field, before anything runs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from cpbc.backstepping import (
+    DesignError,
+    LogBarrier,
+    OutsideDomainError,
+    QuadraticTerm,
+    ReactionWheelController,
+    SuspensionController,
+    SuspensionGains,
+    WheelPendulumGains,
+)
+from cpbc.errors import ScenarioError
+from cpbc.results.systems import Panel, SystemView
+from cpbc.scenario.schema import (
+    QuarterCarSpec,
+    ReactionWheelSpec,
+    SystemCaseSpec,
+    SystemScenario,
+)
+from cpbc.systems import HaversineBump, Plant, QuarterCar, ReactionWheelPendulum
+from cpbc.systems.plant import State
+
+Law = Callable[[State, float], float]  # u = k(x, t)
+
+
+@dataclass(frozen=True)
+class SystemLaw:
+    name: str
+    law: Law
+    barrier: bool  # False: the comparison without barrier, which guarantees nothing
+
+
+@dataclass(frozen=True)
+class SystemCase:
+    name: str
+    state: State
+    plant: Plant
+
+
+@dataclass(frozen=True)
+class SystemSetup:
+    """A built Part I scenario."""
+
+    scenario: SystemScenario
+    source: Path
+    cases: tuple[SystemCase, ...]
+    laws: tuple[SystemLaw, ...]
+    view: SystemView
+    control_period: float
+    state_names: tuple[str, ...]
+    input_name: str
+
+
+def _gain_error(field: str, exc: DesignError) -> ScenarioError:
+    return ScenarioError(f"{field}.gains.{exc.parameter}", f"{exc.reason} (got {exc.value!r})")
+
+
+def _suspension(spec: QuarterCarSpec) -> tuple[list[SystemLaw], SystemView]:
+    laws: list[SystemLaw] = []
+    for i, law in enumerate(spec.laws):
+        try:
+            gains = SuspensionGains(**law.gains.model_dump())
+            barrier = LogBarrier(gains.k2, gains.k3) if law.barrier else QuadraticTerm(gains.k3)
+            ctrl = SuspensionController(gains, barrier=barrier)
+        except DesignError as exc:
+            raise _gain_error(f"system.laws[{i}]", exc) from None
+        if law.barrier and ctrl.travel_bound > spec.travel_limit * (1 + 1e-12):
+            raise ScenarioError(
+                f"system.laws[{i}].gains",
+                f"k2 + c1 = {ctrl.travel_bound:.6g} m exceeds travel_limit "
+                f"{spec.travel_limit:.6g} m: the law (3.84) keeps |x3| < k2 + c1 only",
+            )
+        laws.append(SystemLaw(law.name, ctrl, law.barrier))
+    first = next((la for la in spec.laws if la.barrier), spec.laws[0]).gains
+    view = SystemView(
+        panels=(
+            Panel("suspension travel x3 [mm]", 2, 1e3, spec.travel_limit),
+            Panel("body acceleration ẋ4 = −u [m/s²]", None, -1.0),
+            Panel("tire deflection x1 [mm]", 0, 1e3),
+        ),
+        phase=None, judged=(0, 1, 2, 3), angles=(),
+        design_bounds={"(3.84) k2 + c1 on |x3| [m]": first.k2 + first.c1},
+    )
+    return laws, view
+
+
+def _reaction_wheel(spec: ReactionWheelSpec) -> tuple[list[SystemLaw], SystemView]:
+    laws: list[SystemLaw] = []
+    bounds: dict[str, float] = {}
+    for i, law in enumerate(spec.laws):
+        try:
+            ctrl = ReactionWheelController(WheelPendulumGains(**law.gains.model_dump()))
+        except DesignError as exc:
+            raise _gain_error(f"system.laws[{i}]", exc) from None
+        laws.append(SystemLaw(law.name, ctrl, True))
+        if not bounds:
+            b = ctrl.bounds()
+            bounds = {"(3.148) sup|α1| printed": b.alpha1[0],
+                      "(3.148) sup|α1| corrected": b.alpha1[1],
+                      "(3.157) |q̇1| printed [rad/s]": b.rate[0],
+                      "(3.157) |q̇1| corrected [rad/s]": b.rate[1],
+                      "(3.159) |τ| printed [N m]": b.torque[0],
+                      "(3.159) |τ| corrected [N m]": b.torque[1]}
+    view = SystemView(
+        panels=(
+            Panel("pendulum angle q1 [rad]", 0),
+            Panel("pendulum rate q̇1 [rad/s]", 1, 1.0, spec.rate_limit),
+            Panel("torque τ [N m]", None, 1.0, spec.torque_limit),
+            Panel("wheel speed q̇2 [rad/s]", 2),
+        ),
+        phase=(0, 1, "q1 [rad]", "q̇1 [rad/s]"), judged=(0, 1), angles=(0,),
+        design_bounds=bounds,
+    )
+    return laws, view
+
+
+def _plant(spec: QuarterCarSpec | ReactionWheelSpec, case: SystemCaseSpec, i: int) -> Plant:
+    if isinstance(spec, ReactionWheelSpec):
+        if case.bump_height is not None:
+            raise ScenarioError(f"cases[{i}].bump_height",
+                                "the reaction wheel pendulum has no road; remove the key")
+        return ReactionWheelPendulum(rate_limit=spec.rate_limit, torque_limit=spec.torque_limit)
+    if case.bump_height is None:
+        raise ScenarioError(f"cases[{i}].bump_height",
+                            "required key is missing: the bump height A [m] (0 for a flat road)")
+    road = HaversineBump(case.bump_height, spec.bump_length, spec.speed)
+    return QuarterCar(road, travel_limit=spec.travel_limit)
+
+
+def _check_start(case: SystemCase, laws: list[SystemLaw], plant: Plant, i: int) -> None:
+    """Refuse a start outside a barrier law's domain, or outside a constrained state's
+    bounds (the law's input is not known before the run)."""
+    field = f"cases[{i}].state"
+    if len(case.state) != len(plant.state_names):
+        raise ScenarioError(field, f"needs {len(plant.state_names)} values "
+                            f"({', '.join(plant.state_names)}), got {len(case.state)}")
+    for q in plant.constrained:
+        if q.source == "state" and not q.lower < case.state[q.index] < q.upper:
+            raise ScenarioError(field, f"{q.name} = {case.state[q.index]:.6g} is outside its "
+                                f"bounds ({q.lower:.6g}, {q.upper:.6g})")
+    for law in laws:
+        try:
+            law.law(case.state, 0.0)
+        except OutsideDomainError as exc:
+            raise ScenarioError(field, f"law '{law.name}': {exc}; the barrier law is not "
+                                "defined there, so no run can start from it") from None
+
+
+def build_system(scenario: SystemScenario, source: Path) -> SystemSetup:
+    """The plants, laws and view of a Part I scenario; ScenarioError naming the field."""
+    spec, sim = scenario.system, scenario.simulation
+    laws, view = (_reaction_wheel(spec) if isinstance(spec, ReactionWheelSpec)
+                  else _suspension(spec))
+    names = [law.name for law in laws]
+    if len(set(names)) != len(names):
+        raise ScenarioError("system.laws", f"law names repeat: {names}")
+    period = sim.control_period or sim.timestep
+    _check_length(scenario, period)
+    cases: list[SystemCase] = []
+    for i, c in enumerate(scenario.cases):
+        plant = _plant(spec, c, i)
+        case = SystemCase(c.name, tuple(c.state), plant)
+        _check_start(case, laws, plant, i)
+        cases.append(case)
+    if len({c.name for c in cases}) != len(cases):
+        raise ScenarioError("cases", "case names repeat")
+    plant = cases[0].plant
+    return SystemSetup(scenario, source, tuple(cases), tuple(laws), view, period,
+                       plant.state_names, plant.input_name)
+
+
+def _check_length(scenario: SystemScenario, period: float) -> None:
+    sim = scenario.simulation
+    ratio = period / sim.timestep
+    if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
+        raise ScenarioError("simulation.control_period",
+                            f"{period:g} s is not a whole multiple of the timestep "
+                            f"{sim.timestep:g} s")
+    if period > sim.duration:
+        raise ScenarioError("simulation.duration",
+                            f"{sim.duration:g} s is shorter than one control period ({period:g} s)")
+    steps = math.ceil(sim.duration / sim.timestep)
+    if steps > sim.max_steps:
+        raise ScenarioError("simulation.max_steps",
+                            f"{steps} physics steps exceed max_steps {sim.max_steps}; raise it "
+                            "or shorten the duration")

@@ -1,0 +1,91 @@
+"""The run page (view.html) of a Part I system: the MJCF's bodies posed from the logged MuJoCo
+coordinates, and rendered in headless Chromium."""
+
+from __future__ import annotations
+
+import base64
+import json
+import re
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import yaml
+
+from cpbc.resources import models_dir, scenarios_dir
+from cpbc.run import main
+from cpbc.viewer.browser import HeadlessChromium, find_chromium
+
+needs_chromium = pytest.mark.skipif(
+    find_chromium() is None,
+    reason="Debian's chromium is not installed (bash scripts/install.sh --test installs it)",
+)
+READY = "window.cpbc && window.cpbc.ready"
+
+
+def _run(folder: Path, name: str, duration: float, cases: list[str]) -> Path:
+    data = yaml.safe_load((scenarios_dir() / f"{name}.yaml").read_text())
+    data["simulation"]["duration"] = duration
+    data["cases"] = [c for c in data["cases"] if c["name"] in cases]
+    path = folder / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    out = folder / "out"
+    assert main([str(path), "--out", str(out), "--quiet", "--no-plots"]) == 0
+    return out
+
+
+def _page_data(page: Path) -> dict:
+    m = re.search(r"window\.CPBC_DATA = (\{.*?\});\n</script>", page.read_text(), re.S)
+    assert m, "the page holds its data"
+    return json.loads(m.group(1))
+
+
+def _f32(b64: str) -> np.ndarray:
+    return np.frombuffer(base64.b64decode(b64), dtype="<f4")
+
+
+@pytest.fixture(scope="module")
+def car(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return _run(tmp_path_factory.mktemp("car"), "ch3_suspension", 0.3, ["fig3.6"])
+
+
+def test_quarter_car_page_moves_the_body_by_the_logged_travel(car: Path) -> None:
+    """The sprung body's height on the page is z_s = z_us + x3 of the run at each frame."""
+    data = _page_data(car / "view.html")
+    case = data["cases"][0]
+    assert case["name"] == "fig3.6"
+    assert [c["name"] for c in case["controllers"]] == ["barrier", "unconstrained"]
+    bodies = [b["name"] for b in data["bodies"]]
+    assert {"unsprung", "sprung"} <= set(bodies)
+    run = case["controllers"][0]
+    pose = _f32(run["pose"]).reshape(run["frames"], len(bodies), 7)
+    with np.load(car / "fig3.6" / "barrier" / "trajectory.npz") as z:
+        time, state = z["time"], z["state"]
+    frames = np.arange(run["frames"]) / data["fps"]
+    sprung, unsprung = bodies.index("sprung"), bodies.index("unsprung")
+    travel = np.interp(frames, time, state[:, 2])
+    height = pose[:, sprung, 2] - pose[:, unsprung, 2]
+    model = mujoco.MjModel.from_xml_path(str(models_dir() / "systems" / "quarter_car.xml"))
+    rest = model.body("sprung").pos[2] - model.body("unsprung").pos[2]
+    assert np.abs(travel).max() > 0.05  # the bump moves it
+    assert np.allclose(height - rest, travel, atol=2e-3)  # frames fall between samples
+    positions = [p["label"] for p in case["plots"][0]["panels"]]
+    assert positions == ["wheel_z [m]", "body_z [m]"]
+
+
+@needs_chromium
+def test_system_pages_render(car: Path, tmp_path: Path) -> None:
+    rwp = _run(tmp_path, "ch3_rwp", 1.0, ["fig3.9"])
+    for folder, case in ((car, "fig3.6"), (rwp, "fig3.9")):
+        with HeadlessChromium(width=900, height=600) as browser:
+            browser.open((folder / "view.html").as_uri(), READY, timeout=90)
+            assert browser.evaluate("cpbc.case") == case
+            meshes = browser.evaluate(
+                "(() => { let n = 0; viewer.scene.getObjectByName('meshcat')"
+                ".getObjectByName('cpbc').traverse(o => { if (o.isMesh && o.visible) n++; });"
+                " return n; })()")
+            assert meshes >= 2
+            browser.next_frames(3)
+            shot = np.frombuffer(browser.screenshot(tmp_path / f"{case}.png"), dtype=np.uint8)
+            assert shot.size > 10_000
