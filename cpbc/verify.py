@@ -163,7 +163,8 @@ def _margin(row: Record) -> str:
 def table(doc: Record) -> Table:
     t = Table(title=f"cpbc verify: {doc['plan']['scenario']}")  # type: ignore[index]
     for col in ("controller", "rate", "viable runs", "violations", "worst margin",
-                *(f"{k} (violated)" for k in CLASSES[1:]), "filter acted", "failing seeds"):
+                *(f"{k} (violated)" for k in CLASSES[1:]), "filter acted", "torque on a limit",
+                "failing seeds"):
         t.add_column(col)
     for r in doc["results"]:  # type: ignore[attr-defined]
         nv = r["non_viable"]
@@ -171,7 +172,8 @@ def table(doc: Record) -> Table:
         t.add_row(r["controller"], f"{r['rate']:g} Hz", str(r["runs"]),
                   f"[red]{r['violations']}[/red]" if r["violations"] else "0", _margin(r),
                   *(f"{nv[k]['runs']} ({nv[k]['violations']})" for k in CLASSES[1:]),
-                  f"{r['filter_share']:.1%}", ",".join(seeds[:8]) + ("…" if len(seeds) > 8 else ""))
+                  f"{r['filter_share']:.1%}", f"{r['torque_limit_share']:.1%}",
+                  ",".join(seeds[:8]) + ("…" if len(seeds) > 8 else ""))
     return t
 
 
@@ -181,15 +183,16 @@ def markdown(doc: Record) -> str:
              f"States: {len(plan['seeds'])} (seeds {plan['seed']}…), horizon {plan['horizon']} s, "  # type: ignore[index]
              f"mismatch {plan['mismatch']}, noise {plan['noise']}.", "",  # type: ignore[index]
              "| controller | rate | viable runs | violations | worst margin | "
-             + " | ".join(CLASSES[1:]) + " | filter acted | failing seeds |",
-             "|---" * (7 + len(CLASSES) - 1) + "|"]
+             + " | ".join(CLASSES[1:]) + " | filter acted | torque on a limit | failing seeds |",
+             "|---" * (8 + len(CLASSES) - 1) + "|"]
     for r in doc["results"]:  # type: ignore[attr-defined]
         nv = r["non_viable"]
         lines.append(
             f"| {r['controller']} | {r['rate']:g} Hz | {r['runs']} | {r['violations']} | "
             f"{_margin(r)} | " + " | ".join(f"{nv[k]['runs']} ({nv[k]['violations']})"
                                              for k in CLASSES[1:])
-            + f" | {r['filter_share']:.1%} | {', '.join(str(f['seed']) for f in r['failures'])} |")
+            + f" | {r['filter_share']:.1%} | {r['torque_limit_share']:.1%} | "
+            + f"{', '.join(str(f['seed']) for f in r['failures'])} |")
     return "\n".join(lines) + "\n"
 
 

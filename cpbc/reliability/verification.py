@@ -144,6 +144,14 @@ def _plant(setup: ScenarioSetup, plan: Plan, seed: int, base: RecordingPlant) ->
     return plant
 
 
+def _steps_at_limit(joint_torque: Array, limit: Array | None) -> int:
+    """Control steps at which some applied joint torque sat on its limit."""
+    if limit is None:
+        return 0
+    applied = np.abs(joint_torque[np.all(np.isfinite(joint_torque), axis=1)])
+    return int(np.sum(np.any(applied >= np.asarray(limit) * (1 - 1e-6), axis=1)))
+
+
 def run_block(block: Block) -> list[Record]:
     """Every run of a block, one record each. Builds the scenario in this process."""
     plan = block.plan
@@ -171,6 +179,7 @@ def run_block(block: Block) -> list[Record]:
             "final_error": float(np.max(np.abs(traj.position[-1] - entry.controller.target))),
             "control_steps": int(traj.control_steps), "acted": int(traj.safeguard_steps),
             "infeasible": int(traj.safeguard_infeasible),
+            "at_limit": _steps_at_limit(traj.joint_torque, settings.torque_limit),
             "position": s.position.tolist(), "velocity": s.velocity.tolist(),
         })
     return out
@@ -213,6 +222,7 @@ def summarise(plan: Plan, records: Iterable[Record]) -> Record:
                            for k in CLASSES[1:]},
             "filter_share": sum(int(r["acted"]) for r in group) / max(steps, 1),  # type: ignore[call-overload]
             "infeasible_steps": sum(int(r["infeasible"]) for r in group),  # type: ignore[call-overload]
+            "torque_limit_share": sum(int(r["at_limit"]) for r in group) / max(steps, 1),  # type: ignore[call-overload]
         })
     doc = asdict(plan)
     doc["rates"] = list(plan.rates)
