@@ -125,6 +125,11 @@ class ConstraintSet:
         parts = [c.values_along(xs) for c in self._config]
         return np.concatenate(parts, axis=1) if parts else np.zeros((len(xs), 0))
 
+    def velocity_margins_along(self, xs: Array, dxs: Array) -> Array:
+        """Every ψ_j at every row of (xs, dxs), shape (N, number of ψ_j)."""
+        parts = [c.values_along(xs, dxs) for c in self._velocity]
+        return np.concatenate(parts, axis=1) if parts else np.zeros((len(xs), 0))
+
     def margins_along(self, xs: Array, dxs: Array) -> Array:
         """Every margin at every sample, shape (N, m); NaN rows where the state is not finite."""
         out = np.full((len(xs), len(self.names)), np.nan)

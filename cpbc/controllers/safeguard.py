@@ -92,6 +92,7 @@ from cpbc.controllers.linalg import solve_spd
 from cpbc.errors import CpbcError
 from cpbc.model.robot_model import ArmState, RobotModel
 
+# (mid-period positions, end positions, end rates), one row per prediction
 Predictor = Callable[[Array], "tuple[Array, Array, Array]"]
 
 
@@ -113,11 +114,13 @@ class SafeguardSettings:
         backoffs: Illinois steps on β when the law's torque fails (S1) (≥ 1).
         brake_search: predictions spent searching the braking factor λ between stopping
             and reversing when neither satisfies (S1) (0: none).
-        corrector: with the closed-form prediction, evaluate the model's acceleration once
-            more at the predicted end and take the acceleration as linear over the period
-            (a second-order prediction, Heun's): on a 7-joint arm near its rate bounds the
-            acceleration changes enough within 1 ms (Coriolis terms of fast joints) that the
-            frozen prediction misses a rate margin by more than its cushion.
+        corrector: with the closed-form prediction, also predict to second order (the
+            model's acceleration evaluated once more at the predicted end, taken as linear
+            over the period, Heun's) and hold every margin under both predictions. The
+            frozen one is what a semi-implicit Euler step of the plant does; the corrected
+            one is nearer continuous time (a real arm, RK4): on a 7-joint arm near its rate
+            bounds the acceleration changes enough within 1 ms (Coriolis terms of fast
+            joints) that the frozen one alone misses a rate margin by more than its cushion.
     """
 
     decay_rate: float = 50.0
@@ -471,50 +474,55 @@ class Safeguard(SafetyFilter):
             (law_margins[:k], self._extra.configuration_margins(x), law_margins[k:])))
 
     def _predictor(self, state: ArmState, bias: Array) -> Predictor:
-        """(mid-period x, end x, end ẋ) under a held τ: the frozen closed form with the
-        dynamics of the sample, or ``substeps`` semi-implicit Euler steps of the model."""
+        """(mid-period x, end x, end ẋ) under a held τ, one row per prediction: the frozen
+        closed form with the dynamics of the sample (and, with ``corrector``, the
+        second-order one beside it), or ``substeps`` semi-implicit Euler steps of the model."""
         x, dx, h = state.x, state.dx, self.period
         if self.substeps == 1:
             coast_mid, coast = x + (0.5 * h) * dx, x + h * dx  # the motion without torque
             inertia = state.inertia
-            config = self._n_config > 0
             corrector = self.settings.corrector
 
             def frozen(t: Array) -> tuple[Array, Array, Array]:
                 t = self._saturate(t)
                 acc = solve_spd(inertia, t - bias)
+                mid = coast_mid + (0.125 * h * h) * acc
                 end, speed = coast + (0.5 * h * h) * acc, dx + h * acc
-                if corrector:  # the acceleration at the predicted end: linear in between
-                    late = self.model.forward_dynamics(end, speed, t) - acc
-                    end, speed = end + (h * h / 6.0) * late, speed + (0.5 * h) * late
-                    mid = coast_mid + (0.125 * h * h) * acc + (h * h / 48.0) * late
-                else:
-                    mid = coast_mid + (0.125 * h * h) * acc
-                return (mid if config else x), end, speed
+                if not corrector:
+                    return mid[None], end[None], speed[None]
+                # the acceleration at the predicted end, taken as linear in between
+                late = self.model.forward_dynamics(end, speed, t) - acc
+                return (np.array((mid, mid + (h * h / 48.0) * late)),
+                        np.array((end, end + (h * h / 6.0) * late)),
+                        np.array((speed, speed + (0.5 * h) * late)))
 
             return frozen
-        return _substepped(self.model, x, dx, h, self.substeps, self._saturate)
+        return _substepped(self.model, x, dx, h, self.substeps, self._saturate,
+                           self.settings.corrector)
 
     def _check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None,
                stop: tuple[float, Array] | None = None) -> Callable[[Array], float]:
         """F(τ) = min_i m_i/floor_i − 1 over the predicted end (and mid-period
-        configuration) margins, and with ``stop`` = (1/(2θA), floors) the braking margins
-        σ_i at the predicted end: ≥ 0 when τ keeps every margin above its floor."""
+        configuration) margins of every prediction, and with ``stop`` = (1/(2θA), floors)
+        the braking margins σ_i at the predicted ends: ≥ 0 when τ keeps every margin above
+        its floor."""
         guarded, no_nan = self.guarded, self._no_nan
 
         def f(t: Array) -> float:
-            mid, x1, v1 = predict(t)
+            mids, ends, speeds = predict(t)
+            velocity = guarded.velocity_margins_along(ends, speeds)
             if mid_floor is None:
-                return float((no_nan(guarded.margins(x1, v1)) / end_floor).min()) - 1.0
-            if stop is None:
-                config = no_nan(guarded.configuration_margins_along(np.array((mid, x1))))
-            else:  # x_s = x₁ + (|ẋ₁|/(2θA)) ẋ₁, A frozen at the sample
-                x_stop = x1 + (stop[0] * math.sqrt(float(v1.dot(v1)))) * v1
-                config = no_nan(guarded.configuration_margins_along(np.array((mid, x1, x_stop))))
-            end = np.concatenate((config[1], no_nan(guarded.velocity_margins(x1, v1))))
-            low = min(float((end / end_floor).min()), float((config[0] / mid_floor).min()))
+                return float((no_nan(velocity) / end_floor).min()) - 1.0
+            rows = [mids, ends]
+            if stop is not None:  # x_s = x₁ + (|ẋ₁|/(2θA)) ẋ₁, A frozen at the sample
+                speed = np.sqrt(np.einsum("ij,ij->i", speeds, speeds))
+                rows.append(ends + (stop[0] * speed)[:, None] * speeds)
+            config = no_nan(guarded.configuration_margins_along(np.concatenate(rows)))
+            r = len(ends)
+            end = np.concatenate((config[r:2 * r], no_nan(velocity)), axis=1)
+            low = min(float((end / end_floor).min()), float((config[:r] / mid_floor).min()))
             if stop is not None:
-                low = min(low, float((config[2] / stop[1]).min()))
+                low = min(low, float((config[2 * r:] / stop[1]).min()))
             return low - 1.0
 
         return f
@@ -639,9 +647,11 @@ def _project(grads: Array, need: Array, start: Array) -> Array:
 
 
 def _substepped(model: RobotModel, x: Array, dx: Array, h: float, k: int,
-                saturate: Callable[[Array], Array]) -> Predictor:
-    """The prediction in k semi-implicit Euler steps of the model's forward dynamics."""
+                saturate: Callable[[Array], Array], corrector: bool) -> Predictor:
+    """The prediction in k semi-implicit Euler steps of the model's forward dynamics, and
+    with ``corrector`` beside it in k second-order (Heun) steps."""
     dt = h / k
+    mid_step = k // 2 if k % 2 == 0 else (k + 1) // 2  # the step that ends nearest h/2
 
     def predict(t: Array) -> tuple[Array, Array, Array]:
         t = saturate(t)
@@ -649,8 +659,18 @@ def _substepped(model: RobotModel, x: Array, dx: Array, h: float, k: int,
         for i in range(k):
             vs = vs + dt * model.forward_dynamics(xs, vs, t)
             xs = xs + dt * vs
-            if 2 * (i + 1) == k or (k % 2 and 2 * i + 1 == k):
+            if i + 1 == mid_step:
                 mid = xs
-        return mid, xs, vs
+        if not corrector:
+            return mid[None], xs[None], vs[None]
+        xh, vh, mid_h = x.copy(), dx.copy(), x
+        for i in range(k):
+            a0 = model.forward_dynamics(xh, vh, t)
+            a1 = model.forward_dynamics(xh + dt * vh + (0.5 * dt * dt) * a0, vh + dt * a0, t)
+            xh = xh + dt * vh + (dt * dt) * (a0 / 3.0 + a1 / 6.0)
+            vh = vh + (0.5 * dt) * (a0 + a1)
+            if i + 1 == mid_step:
+                mid_h = xh
+        return np.array((mid, mid_h)), np.array((xs, xh)), np.array((vs, vh))
 
     return predict
