@@ -499,3 +499,30 @@ def test_the_slide_removes_only_the_push_into_the_boundary(bpbc: BPBC) -> None:
     assert slack(slid) >= 0
     tau = guard.torque(x, dx)
     assert slack(tau) >= 0 and not np.allclose(tau, bias)  # not a brake to rest
+
+
+@pytest.mark.parametrize("scenario, seed, rate", [
+    ("panda_cpbc_ke_box", 198, 1000.0),  # implicitfast: the frozen prediction is its step
+    ("tools/campaigns/z1_bpbc_ke.yaml", 228, 500.0),  # RK4, two physics steps per period
+])
+def test_margins_are_held_under_the_plants_own_integrator(scenario: str, seed: int,
+                                                          rate: float) -> None:
+    """Seeded viable states (cpbc.verify's draws) from which the kinetic-energy bound was
+    crossed while the guard trusted one prediction only: the frozen one under RK4 (the Z1
+    at 500 Hz, −1.7e-5 J), the second-order one under implicitfast (the Panda, −3e-8 J).
+    Held under both predictions, each stays inside at every physics step."""
+    from pathlib import Path
+
+    from cpbc.reliability.verification import classify, draw_state
+
+    path = Path(__file__).resolve().parent.parent / scenario
+    setup = build(*load_scenario(path if path.suffix == ".yaml" else scenario))
+    entry = constrained(setup)[0]
+    s = draw_state(setup, seed)
+    assert classify(setup, entry.controller, s.position, s.velocity, 1 / rate) == "viable"
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    settings = replace(setup.loop_settings, duration=0.5, control_period=1 / rate, noise=None)
+    for corrector, kept in ((True, True), (False, scenario.startswith("panda"))):
+        check = checked_run(plant, setup, entry, s.position, s.velocity, settings,
+                            safeguard=SafeguardSettings(corrector=corrector))
+        assert check.violated != kept, (corrector, check.constraint, check.min_margin)
