@@ -4,6 +4,7 @@ the box is held, and one it calls savable is saved by the torque it assumes."""
 from __future__ import annotations
 
 import itertools
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -73,26 +74,34 @@ def test_a_savable_state_is_saved_by_the_torque_the_test_assumes(joint_model: Ro
     assert _lowest_margin(joint_model, cons, x, dx, best) > 0
 
 
-def test_a_scenario_case_that_cannot_be_stopped_is_refused(tmp_path, capsys) -> None:
-    """The Panda 0.1 mm short of joint 4's upper stop, approaching it at 1 rad/s (inside the
-    rate bound): no torque within the URDF's 87 N·m stops that in time. The CLI says so,
-    names the field and exits 2 without writing anything."""
+def _refusal(tmp_path: Path, capsys: pytest.CaptureFixture[str], q4: float,
+             velocity: str) -> str:
+    """The CLI's answer to panda_cpbc_sphere started with joint 4 at ``q4`` and the given
+    velocity: exit 2, nothing written; the message."""
     from cpbc.resources import scenarios_dir
     from cpbc.run import main
 
     text = (scenarios_dir() / "panda_cpbc_sphere.yaml").read_text()
     start = "    position: [-0.179, 0.172, -0.497, -2.085, 0.103, 2.233, 0.785]\n"
     assert start in text
-    near = "    position: [-0.179, 0.172, -0.497, -0.0699, 0.103, 2.233, 0.785]\n"
-    lost = text.replace(start, near + "    velocity: [0, 0, 0, 1.0, 0, 0, 0]\n")
-    path = tmp_path / "lost.yaml"
-    path.write_text(lost.replace("duration: 5.0", "duration: 0.01"))
+    near = f"    position: [-0.179, 0.172, -0.497, {q4}, 0.103, 2.233, 0.785]\n"
+    case = text.replace(start, near + f"    velocity: {velocity}\n")
+    path = tmp_path / "case.yaml"
+    path.write_text(case.replace("duration: 5.0", "duration: 0.01"))
     out = tmp_path / "out"
     assert main([str(path), "--out", str(out), "--quiet", "--no-plots"]) == 2
-    err = capsys.readouterr().err
+    assert not out.exists()
+    return capsys.readouterr().err
+
+
+def test_a_scenario_case_that_cannot_be_stopped_is_refused(tmp_path, capsys) -> None:
+    """The Panda 0.1 mm short of joint 4's upper stop, approaching it at 1 rad/s (inside the
+    rate bound): no torque within the URDF's 87 N·m stops that in time. The CLI says so,
+    names the field and exits 2 without writing anything."""
+    err = _refusal(tmp_path, capsys, -0.0699, "[0, 0, 0, 1.0, 0, 0, 0]")
     assert "cases[0].velocity" in err and "outside the braking set" in err
     assert "no torque within the limits can stop it" in err
-    assert "position[panda_joint4]" in err and not out.exists()
+    assert "position[panda_joint4]" in err
 
 
 def test_a_case_only_a_dedicated_brake_could_save_is_refused_and_says_so(tmp_path, capsys
@@ -100,20 +109,8 @@ def test_a_case_only_a_dedicated_brake_could_save_is_refused_and_says_so(tmp_pat
     """0.01 rad short of joint 4's stop at 0.6 rad/s while the shoulder (joint 2) swings at
     1 rad/s: the whole box aimed at joint 4 alone would stop it in time; the brake that
     slows every joint together must also stop the heavy shoulder and would not."""
-    from cpbc.resources import scenarios_dir
-    from cpbc.run import main
-
-    text = (scenarios_dir() / "panda_cpbc_sphere.yaml").read_text()
-    start = "    position: [-0.179, 0.172, -0.497, -2.085, 0.103, 2.233, 0.785]\n"
-    near = "    position: [-0.179, 0.172, -0.497, -0.0798, 0.103, 2.233, 0.785]\n"
-    case = text.replace(start, near + "    velocity: [0, 1.0, 0, 0.6, 0, 0, 0]\n")
-    path = tmp_path / "tight.yaml"
-    path.write_text(case.replace("duration: 5.0", "duration: 0.01"))
-    out = tmp_path / "out"
-    assert main([str(path), "--out", str(out), "--quiet", "--no-plots"]) == 2
-    err = capsys.readouterr().err
+    err = _refusal(tmp_path, capsys, -0.0798, "[0, 1.0, 0, 0.6, 0, 0, 0]")
     assert "outside the braking set" in err and "aimed at that constraint alone" in err
-    assert not out.exists()
 
 
 # -- the braking set -------------------------------------------------------------------------
