@@ -590,9 +590,16 @@ class Safeguard(SafetyFilter):
     def _infeasible(self, state: ArmState, bias: Array, stop: Array, predict: Predictor,
                     now: Array, floor: Array, floor_mid: Array | None) -> Array:
         """When no brake satisfies (S1): the fallback, with the escape where there are
-        configuration constraints."""
+        configuration constraints, judged on the first (frozen) prediction alone: asking
+        the fallback to satisfy both predictions left it choosing among torques that all
+        fail, and worse ones (a Panda joint limit broken at 100 Hz)."""
         delta, nc = self.cushion, self._n_config
-        positivity = self._check(predict, delta, delta[:nc] if nc else None)  # (S0) m ≥ δ
+
+        def frozen(t: Array) -> tuple[Array, Array, Array]:
+            mids, ends, speeds = predict(t)
+            return mids[:1], ends[:1], speeds[:1]
+
+        positivity = self._check(frozen, delta, delta[:nc] if nc else None)  # (S0) m ≥ δ
         if floor_mid is None:
             return self._fallback(bias, stop, positivity)
         # (S−), for the escape: configuration margins recover as (S1) asks at the end but,
@@ -603,7 +610,7 @@ class Safeguard(SafetyFilter):
         hold_mid = np.minimum(floor_mid, self.keep_half * now[:nc])
         escape = self._escape(state.x, state.dx, state.inertia, now, hold_end, hold_mid)
         return self._fallback(bias, stop, positivity, escape,
-                              self._check(predict, hold_end, hold_mid))
+                              self._check(frozen, hold_end, hold_mid))
 
     def _blend(self, tau: Array, brake: Array, f0: float, f1: float,
                slack: Callable[[Array], float]) -> Array:
