@@ -54,11 +54,11 @@ def test_z_loop_is_linear_and_bounds_hold() -> None:
     peaks_z = np.zeros(3)
     for signs in itertools.product((-1, 1), repeat=3):
         z0 = np.array(signs) * box
-        for x0 in (-2.0, 1.0):
-            sol = solve_ivp(_rhs, (0, 15), _start(x0, tuple(z0)), rtol=1e-10, atol=1e-12,
-                            t_eval=np.linspace(0, 15, 3001))
+        for x0 in (-2.0 * signs[0],):
+            sol = solve_ivp(_rhs, (0, 12), _start(x0, tuple(z0)), rtol=1e-9, atol=1e-11,
+                            t_eval=np.linspace(0, 12, 2401))
             zs = np.array([CASCADE.z_coordinates((s[0],), tuple(s[1:])) for s in sol.y.T])
-            for k in (0, 700, 3000):
+            for k in (0, 700, 2400):
                 assert np.allclose(zs[k], expm(a * sol.t[k]) @ z0, atol=1e-7)
             peaks_z = np.maximum(peaks_z, np.abs(zs).max(0))
             xi_peaks = np.abs(sol.y[1:]).max(1)

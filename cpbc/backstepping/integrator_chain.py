@@ -20,6 +20,7 @@ i.e. :class:`MultipleConstraintLaw` with c = (c2, c3, c4) and barriers (k2, k3),
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -58,6 +59,18 @@ class ChainGains:
     def names() -> tuple[str, ...]:
         """The constants in the thesis's order."""
         return ("c1", "c2", "c3", "c4", "k1", "k2", "k3", "k4", "k5", "k6", "k7")
+
+
+def thesis_symbols(statement: str) -> str:
+    """Rewrite Theorem 4.12's symbols (the generic law's c_i, k_j, Ξ_i, X_i) in the names §4.4
+    gives them under H1: gains c_i → c_{i+1}, bounds k_{2i} unchanged, weights
+    k_{2i−1} → k_{2i+1}, and the i-th constrained state is ξ_{i+1} (Ξ_i, X_i → Ξ_{i+1}, X_{i+1});
+    α_i, z_i and a_i keep their step numbers."""
+    def one(m: re.Match[str]) -> str:
+        sym, j = m.group(1), int(m.group(2))
+        return f"{sym}{j + 2 if sym == 'k' and j % 2 else j if sym == 'k' else j + 1}"
+
+    return re.sub(r"\b([ckΞX])(\d+)", one, statement)
 
 
 class ChainSystem(StrictFeedback):
