@@ -131,13 +131,11 @@ class IntegratorChainController:
 
     def check(self, state: Sequence[float]) -> State:
         """(z1, z2, z3), or :class:`~cpbc.backstepping.errors.OutsideDomainError` outside D."""
-        return self.law.check(*self.coordinates(state))
+        return tuple(float(v) for v in self.law.check(*self.coordinates(state)).z)
 
     def control(self, state: Sequence[float]) -> float:
         """u (4.74) at ξ; raises outside D (there U is infinite and nothing is guaranteed)."""
-        x, xi = self.coordinates(state)
-        self.law.check(x, xi)
-        return float(self.law.control(x, xi))
+        return float(self.law.check(*self.coordinates(state)).u)
 
     def __call__(self, state: Sequence[float], t: float = 0.0) -> float:
         """The law as state feedback u = k(ξ, t) (time-invariant)."""

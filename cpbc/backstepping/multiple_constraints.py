@@ -114,17 +114,18 @@ class MultipleConstraintLaw:
         """(z1, …, zm) at (x, ξ)."""
         return self.terms(x, xi).z
 
-    def check(self, x: Sequence[float], xi: Sequence[float]) -> tuple[float, ...]:
-        """z at (x, ξ), or :class:`OutsideDomainError` for the first |z_i| ≥ K_i (4.83)."""
-        z = self.errors(x, xi)
-        for i, (zi, b) in enumerate(zip(z, self.barriers, strict=True)):
+    def check(self, x: Sequence[float], xi: Sequence[float]) -> LawTerms:
+        """The law's terms at (x, ξ), or :class:`OutsideDomainError` for the first
+        |z_i| ≥ K_i (4.83)."""
+        terms = self.terms(x, xi)
+        for i, (zi, b) in enumerate(zip(terms.z, self.barriers, strict=True)):
             if not b.contains(float(zi)):
                 raise OutsideDomainError(
                     f"z{i + 1}", float(zi), -b.bound, b.bound,
                     f"Theorem 4.12 needs every |z_i| < k_{2 * i + 2} (D of (4.83)); there the "
                     "cLf is infinite and neither the state bounds nor stability are guaranteed",
                 )
-        return tuple(float(v) for v in z)
+        return terms
 
     def state_from_errors(self, x: Sequence[Coef], z: Sequence[Coef]) -> tuple[Coef, ...]:
         """The ξ with errors z at x: ξ_i = z_i + α_i(x, ξ1 … ξ_{i−1}), built step by step."""
