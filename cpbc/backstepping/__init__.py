@@ -1,15 +1,24 @@
-"""Backstepping designs with barrier Lyapunov functions (Part I, Chapter 3).
+"""Backstepping designs with barrier Lyapunov functions (Part I, Chapters 3 and 4).
 
 One law per module: :class:`NonStrictClfLaw` (§3.1, Prop. 3.2/Thm 3.6), :class:`IssClfLaw`
-(§3.2, Thm 3.8), :class:`TwoConstraintLaw` (§3.4, Prop. 3.11/Thm 3.13), and their applications
-:class:`SuspensionController` (§3.3) and :class:`ReactionWheelController` (§3.5). The laws are
-pure functions of the state: they never import MuJoCo.
+(§3.2, Thm 3.8; with :class:`StrictFeedbackIss`, §4.2, Thm 4.4), :class:`TwoConstraintLaw`
+(§3.4, Prop. 3.11/Thm 3.13), :class:`MultipleConstraintLaw` (§4.3, Thm 4.12), and their
+applications :class:`SuspensionController` (§3.3), :class:`ReactionWheelController` (§3.5) and
+:class:`IntegratorChainController` (§4.4). Chapter 4's systems are :class:`StrictFeedback`
+subclasses whose time derivatives come from Taylor jets (:mod:`cpbc.backstepping.jets`). The laws
+are pure functions of the state: they never import MuJoCo.
 """
 
 from cpbc.backstepping.barriers import Barrier, LogBarrier, QuadraticTerm, RationalBarrier
 from cpbc.backstepping.cascade import Cascade, FirstStep, Rated
 from cpbc.backstepping.errors import DesignError, OutsideDomainError
+from cpbc.backstepping.integrator_chain import (
+    ChainGains,
+    ChainSystem,
+    IntegratorChainController,
+)
 from cpbc.backstepping.iss_clf import IssCascade, IssClfLaw, companion
+from cpbc.backstepping.multiple_constraints import LawTerms, MultipleConstraintLaw
 from cpbc.backstepping.nonstrict_clf import NonStrictClfLaw
 from cpbc.backstepping.reaction_wheel import (
     ReactionWheelController,
@@ -17,6 +26,7 @@ from cpbc.backstepping.reaction_wheel import (
     WheelPendulumConstants,
     WheelPendulumGains,
 )
+from cpbc.backstepping.strict_feedback import StrictFeedback, nominal_jets
 from cpbc.backstepping.suspension import (
     QuarterCarConstants,
     SuspensionController,
@@ -28,12 +38,17 @@ from cpbc.backstepping.virtual_control import VirtualControl, virtual_control
 __all__ = [
     "Barrier",
     "Cascade",
+    "ChainGains",
+    "ChainSystem",
     "DesignError",
     "FirstStep",
     "Growth",
+    "IntegratorChainController",
     "IssCascade",
     "IssClfLaw",
+    "LawTerms",
     "LogBarrier",
+    "MultipleConstraintLaw",
     "NonStrictClfLaw",
     "OutsideDomainError",
     "QuadraticTerm",
@@ -41,6 +56,7 @@ __all__ = [
     "Rated",
     "RationalBarrier",
     "ReactionWheelController",
+    "StrictFeedback",
     "SuspensionController",
     "SuspensionGains",
     "TwoConstraintLaw",
@@ -49,5 +65,6 @@ __all__ = [
     "WheelPendulumConstants",
     "WheelPendulumGains",
     "companion",
+    "nominal_jets",
     "virtual_control",
 ]

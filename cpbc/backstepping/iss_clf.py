@@ -28,10 +28,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import minimize_scalar
 
 from cpbc.backstepping.barriers import positive
 from cpbc.backstepping.errors import DesignError, OutsideDomainError
+from cpbc.backstepping.linear_reach import box_reach
 
 State = tuple[float, ...]
 Array = NDArray[np.float64]
@@ -117,24 +117,8 @@ class IssClfLaw:
 
     def overshoot(self, box: State) -> float:
         """ε of (3.50) for |z_i(0)| ≤ b_i: max_t Σ_i |(e^{At})_{1i}| b_i − b1 (≥ 0)."""
-        b = np.array([positive(f"b{i + 1}", v) for i, v in enumerate(box)])
-        s, vecs = np.linalg.eig(companion(self.c))
-        s, vecs = s.real, vecs.real
-        row = vecs[0, :, None] * np.linalg.inv(vecs)  # (e^{At})_{1i} = Σ_j row[j, i] e^{s_j t}
-
-        def reach(t: float) -> float:
-            return float(np.abs(np.exp(s * t) @ row) @ b)
-
-        horizon = 40.0 / float(np.min(np.abs(s)))
-        ts = np.linspace(0.0, horizon, 20001)
-        values = np.abs(np.exp(np.outer(ts, s)) @ row) @ b
-        k = int(np.argmax(values))
-        lo, hi = ts[max(k - 1, 0)], ts[min(k + 1, len(ts) - 1)]
-        best = float(values[k])
-        if hi > lo:
-            res = minimize_scalar(lambda t: -reach(t), bounds=(lo, hi), method="bounded")
-            best = max(best, -float(res.fun))
-        return max(best - float(b[0]), 0.0)
+        b = [positive(f"b{i + 1}", v) for i, v in enumerate(box)]
+        return max(float(box_reach(companion(self.c), b)[0]) - b[0], 0.0)
 
     def xi1_bound(self, box: State) -> float:
         """b1 + ε + Δ (3.50)."""

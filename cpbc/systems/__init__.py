@@ -1,8 +1,18 @@
-"""Plant descriptions of the Part-I systems (MJCF, state and input maps, constraints, ODE)."""
+"""Plant descriptions of the Part-I systems (MJCF, state and input maps, constraints, ODE;
+the integrator chain of §4.4 is an ODE only)."""
 
-from cpbc.systems.plant import ConstrainedQuantity, Plant
+from cpbc.systems.integrator_chain import IntegratorChain
+from cpbc.systems.plant import ConstrainedQuantity, OdePlant, Plant
 from cpbc.systems.quarter_car import QuarterCar
 from cpbc.systems.reaction_wheel_pendulum import ReactionWheelPendulum
 from cpbc.systems.road import HaversineBump
 
-__all__ = ["ConstrainedQuantity", "HaversineBump", "Plant", "QuarterCar", "ReactionWheelPendulum"]
+__all__ = [
+    "ConstrainedQuantity",
+    "HaversineBump",
+    "IntegratorChain",
+    "OdePlant",
+    "Plant",
+    "QuarterCar",
+    "ReactionWheelPendulum",
+]

@@ -1,9 +1,11 @@
 """What a Part-I system is to the rest of the product: a plant description.
 
-A :class:`Plant` names the law's state x, reads it from MuJoCo (qpos, qvel and time), writes the
-law's input u into MuJoCo's ``ctrl`` (and any prescribed exogenous input before every physics
-step), lists its constrained quantities with their bounds, and gives the ODE ẋ = f(x, u, t) as a
-continuous-time reference. It holds no simulator state of its own.
+An :class:`OdePlant` names the law's state x and input u, lists its constrained quantities with
+their bounds, and gives the ODE ẋ = f(x, u, t) (the continuous-time reference; for a system
+with no mechanics to simulate, such as the integrator chain of §4.4, the only plant). A
+:class:`Plant` is an OdePlant with a MuJoCo model: it also reads x from MuJoCo (qpos, qvel and
+time), writes u into ``ctrl`` (and any prescribed exogenous input before every physics step).
+Neither holds simulator state of its own.
 """
 
 from __future__ import annotations
@@ -56,8 +58,8 @@ class ConstrainedQuantity:
         return min(v - self.lower, self.upper - v)
 
 
-class Plant(ABC):
-    """A Part-I system: its MJCF, its state map, input map, constraints and reference ODE."""
+class OdePlant(ABC):
+    """A Part-I system as an ODE: its state and input names, constraints and ẋ = f(x, u, t)."""
 
     #: names of the components of the law's state x
     state_names: tuple[str, ...]
@@ -68,6 +70,18 @@ class Plant(ABC):
     @abstractmethod
     def constrained(self) -> tuple[ConstrainedQuantity, ...]:
         """The constrained quantities with their bounds."""
+
+    @abstractmethod
+    def rhs(self, x: State, u: float, t: float) -> State:
+        """ẋ = f(x, u, t), the continuous-time reference."""
+
+    def breakpoints(self) -> tuple[float, ...]:
+        """Times where f has a kink in t (integrate an ODE piecewise there); none by default."""
+        return ()
+
+
+class Plant(OdePlant):
+    """A Part-I system with a MuJoCo model: its MJCF and the maps between x, u and MuJoCo."""
 
     @property
     @abstractmethod
@@ -98,16 +112,8 @@ class Plant(ABC):
     def write_input(self, model: mujoco.MjModel, data: mujoco.MjData, u: float) -> None:
         """Write the law's input u into ``data.ctrl``."""
 
-    def before_step(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:  # noqa: B027
+    def before_step(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Set prescribed (exogenous) inputs for the coming physics step; none by default."""
-
-    @abstractmethod
-    def rhs(self, x: State, u: float, t: float) -> State:
-        """ẋ = f(x, u, t), the continuous-time reference."""
-
-    def breakpoints(self) -> tuple[float, ...]:
-        """Times where f has a kink in t (integrate an ODE piecewise there); none by default."""
-        return ()
 
 
 def check_close(what: str, model_value: float, expected: float, rtol: float = 1e-6) -> None:
