@@ -46,3 +46,17 @@ def test_literal_fig3_7_start_is_refused_naming_the_domain() -> None:
         build_system(SystemScenario.model_validate(data), file)
     assert err.value.field == "cases[3].state"
     assert "z1 = -0.0989997" in str(err.value) and "(-0.051, 0.051)" in str(err.value)
+
+
+def test_rwp_gains_whose_torque_bound_exceeds_the_actuator_are_refused() -> None:
+    """The law keeps |τ| below its a-priori bound (3.159) only: 0.3949 N m for the thesis's
+    gains, so a 0.3 N m actuator is refused before the run (it ran, and crossed at t = 0)."""
+    scenario, file = load_any(scenarios_dir() / "ch3_rwp.yaml")
+    data = scenario.model_dump()
+    data["system"]["torque_limit"] = 0.3
+    with pytest.raises(ScenarioError) as err:
+        build_system(SystemScenario.model_validate(data), file)
+    assert err.value.field == "system.laws[0].gains"
+    assert "(3.159)" in str(err.value) and "0.394922" in str(err.value)
+    data["system"]["torque_limit"] = 0.395  # just above the bound: accepted
+    build_system(SystemScenario.model_validate(data), file)

@@ -528,6 +528,8 @@ VARIANTS: list[BadInput] = [
              system("system.laws.0.gains", {"k4": 0}, RWP_BASE)),
     BadInput("rwp_torque_limit_text", "wrong type", "system.torque_limit",
              system("system.torque_limit", "0.4 N m", RWP_BASE)),
+    BadInput("rwp_torque_limit_below_bound", "inadmissible", "system.laws[0].gains",
+             system("system.torque_limit", 0.3, RWP_BASE)),
 ]
 
 

@@ -105,9 +105,17 @@ def _reaction_wheel(spec: ReactionWheelSpec) -> tuple[list[SystemLaw], SystemVie
             ctrl = ReactionWheelController(WheelPendulumGains(**law.gains.model_dump()))
         except DesignError as exc:
             raise _gain_error(f"system.laws[{i}]", exc) from None
+        b = ctrl.bounds()
+        torque = max(b.torque)  # (3.159) printed and corrected
+        if torque > spec.torque_limit * (1 + 1e-12):
+            raise ScenarioError(
+                f"system.laws[{i}].gains",
+                f"(3.159) bounds |τ| by {torque:.6g} N m for these gains, above torque_limit "
+                f"{spec.torque_limit:.6g} N m: the law cannot promise the actuator's limit "
+                "(lower c2, k4 or k2/k3, or raise torque_limit)",
+            )
         laws.append(SystemLaw(law.name, ctrl, True))
         if not bounds:
-            b = ctrl.bounds()
             bounds = {"(3.148) sup|α1| printed": b.alpha1[0],
                       "(3.148) sup|α1| corrected": b.alpha1[1],
                       "(3.157) |q̇1| printed [rad/s]": b.rate[0],
