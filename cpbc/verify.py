@@ -1,14 +1,17 @@
-"""``python -m cpbc.verify SCENARIO``: does every constrained controller keep every limit, from
-seeded states across the admissible set and near its boundaries, at each control rate, with the
-scenario's torque limits (and optionally model mismatch and measurement noise)?
+"""``python -m cpbc.verify SCENARIO [SCENARIO ...]``: does every constrained controller keep
+every limit, from seeded states across the admissible set and near its boundaries, at each
+control rate, with the scenario's torque limits (and optionally model mismatch and measurement
+noise)?
 
-    python -m cpbc.verify SCENARIO [--states N] [--rates 1000,500,100] [--horizon S] [--seed K]
-        [--seeds K1,K2] [--mismatch mass=0.1,inertia=0.1,damping=0.05] [--noise SX,SV]
-        [--workers N] [--cluster tcp://HOST:PORT] [--json] [--out FILE]
+    python -m cpbc.verify SCENARIO [SCENARIO ...] [--states N] [--rates 1000,500,100]
+        [--horizon S] [--seed K] [--seeds K1,K2] [--mismatch mass=0.1,inertia=0.1,damping=0.05]
+        [--noise SX,SV] [--workers N] [--cluster tcp://HOST:PORT] [--json] [--out FILE]
 
 Runs on a local process pool (``--workers``, default: every core) or on a Dask distributed
-scheduler (``--cluster``; ``pip install 'cpbc[cluster]'``). Prints a table (``--json``: the
-document) and writes the report to ``--out`` (JSON for a ``.json`` name, else Markdown).
+scheduler (``--cluster``; ``pip install 'cpbc[cluster]'``). Prints a table per scenario
+(``--json``: the document; with several scenarios ``{"campaigns": [...]}``) and writes the
+report to ``--out`` (JSON for a ``.json`` name, else a Markdown report that states the command,
+the version and the conditions of every campaign: the repository's docs/RELIABILITY.md is one).
 Exit code 0 when no viable run was violated, 1 when one was, 2 on bad input.
 """
 
@@ -18,16 +21,27 @@ import argparse
 import json
 import math
 import os
+import platform
+import shlex
 import sys
+import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
 from pathlib import Path
+from typing import cast
 
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TaskID,
+    TimeRemainingColumn,
+)
 from rich.table import Table
 
+from cpbc import __version__
 from cpbc.errors import CpbcError
 from cpbc.reliability.verification import (
     CLASSES,
@@ -40,7 +54,7 @@ from cpbc.reliability.verification import (
     run_block,
     summarise,
 )
-from cpbc.scenario import build, load_scenario
+from cpbc.scenario import ScenarioSetup, build, load_scenario
 from cpbc.simulation.loop import substeps_per_control
 
 CLUSTER_EXTRA = "pip install 'cpbc[cluster]'"
@@ -89,20 +103,37 @@ def _scenario(name: str) -> str:
     return str(path.resolve()) if path.exists() else name
 
 
-def plan_from(a: argparse.Namespace) -> Plan:
+def plans_from(a: argparse.Namespace) -> list[Plan]:
+    """One plan per scenario named, with the same states, rates and disturbances."""
     rates = _numbers(a.rates, "--rates")
     if any(r <= 0 for r in rates):
         raise UsageError(f"--rates: every rate must be > 0 Hz, got {a.rates!r}")
     if a.states < 1 or a.horizon <= 0 or a.workers < 1 or a.block < 1:
         raise UsageError("--states, --workers and --block must be ≥ 1 and --horizon > 0")
+    if a.out and not Path(a.out).resolve().parent.is_dir():
+        raise UsageError(f"--out {a.out}: its folder does not exist")
     seeds = None if a.seeds is None else tuple(int(v) for v in _numbers(a.seeds, "--seeds"))
-    return Plan(_scenario(a.scenario), a.seed, a.states, tuple(rates), a.horizon,
-                _mismatch(a.mismatch), _noise(a.noise), seeds)
+    mismatch, noise = _mismatch(a.mismatch), _noise(a.noise)
+    return [Plan(_scenario(name), a.seed, a.states, tuple(rates), a.horizon, mismatch, noise,
+                 seeds) for name in a.scenario]
 
 
-def check_plan(plan: Plan) -> list[str]:
+def conditions(setup: ScenarioSetup) -> Record:
+    """What a campaign's guarantee is conditional on: the physics, the actuators' limits and
+    whether the laws run with their safeguard."""
+    limit = setup.loop_settings.torque_limit
+    return {
+        "integrator": setup.plant_settings.integrator,
+        "timestep": setup.plant_settings.timestep,
+        "torque_limit": None if limit is None else [float(v) for v in limit],
+        "safeguard": setup.safeguard is not None,
+        "coordinates": list(setup.coordinate_names),
+    }
+
+
+def check_plan(plan: Plan) -> tuple[list[str], Record]:
     """Builds the scenario here once (bad input fails before any worker starts) and returns
-    the names of the controllers to check."""
+    the names of the controllers to check and the campaign's conditions."""
     setup = build(*load_scenario(plan.scenario))
     names = [e.name for e in checked_controllers(setup)]
     if not names:
@@ -113,7 +144,7 @@ def check_plan(plan: Plan) -> list[str]:
             substeps_per_control(1.0 / rate, setup.plant_settings.timestep)
         except CpbcError as exc:
             raise UsageError(f"--rates {rate:g} Hz: {exc}") from None
-    return names
+    return names, conditions(setup)
 
 
 def _local(work: Sequence[Block], workers: int) -> Iterator[list[Record]]:
@@ -143,8 +174,9 @@ def _cluster(work: Sequence[Block], address: str) -> Iterator[list[Record]]:
 
 def run_campaign(plan: Plan, workers: int = 1, cluster: str | None = None, block: int = 8,
                  progress: Callable[[int, int], None] | None = None) -> Record:
-    """The whole campaign: the document of :func:`summarise`."""
-    work = blocks(plan, check_plan(plan), block)
+    """The whole campaign: the document of :func:`summarise`, with its ``conditions``."""
+    names, where = check_plan(plan)
+    work = blocks(plan, names, block)
     total = sum(len(b.seeds) for b in work)
     runs = _local(work, workers) if cluster is None else _cluster(work, cluster)
     records: list[Record] = []
@@ -152,7 +184,9 @@ def run_campaign(plan: Plan, workers: int = 1, cluster: str | None = None, block
         records.extend(part)
         if progress is not None:
             progress(len(records), total)
-    return summarise(plan, records)
+    doc = summarise(plan, records)
+    doc["conditions"] = where
+    return doc
 
 
 def _margin(row: Record) -> str:
@@ -161,7 +195,7 @@ def _margin(row: Record) -> str:
 
 
 def table(doc: Record) -> Table:
-    t = Table(title=f"cpbc verify: {doc['plan']['scenario']}")  # type: ignore[index]
+    t = Table(title=f"cpbc verify: {_shown(doc['plan']['scenario'])}")  # type: ignore[index]
     for col in ("controller", "rate", "viable runs", "violations", "worst margin",
                 *(f"{k} (violated)" for k in CLASSES[1:]), "filter acted", "torque on a limit",
                 "failing seeds"):
@@ -177,11 +211,34 @@ def table(doc: Record) -> Table:
     return t
 
 
-def markdown(doc: Record) -> str:
-    plan = doc["plan"]
-    lines = [f"# cpbc verify: {plan['scenario']}", "",  # type: ignore[index]
-             f"States: {len(plan['seeds'])} (seeds {plan['seed']}…), horizon {plan['horizon']} s, "  # type: ignore[index]
-             f"mismatch {plan['mismatch']}, noise {plan['noise']}.", "",  # type: ignore[index]
+def _shown(scenario: str) -> str:
+    """A scenario file as the reader would name it: relative to here when it is below."""
+    path = Path(scenario)
+    if not path.is_absolute():
+        return scenario
+    try:
+        return str(path.relative_to(Path.cwd()))
+    except ValueError:
+        return scenario
+
+
+def _limits(limit: object) -> str:
+    if limit is None:
+        return "none"
+    values = sorted({float(v) for v in limit})  # type: ignore[attr-defined]
+    return " / ".join(f"{v:g}" for v in values) + " N·m"
+
+
+def _section(doc: Record) -> list[str]:
+    plan = cast(Record, doc["plan"])
+    where = cast(Record, doc.get("conditions", {}))
+    seeds = cast(list, plan["seeds"])
+    lines = [f"## {_shown(str(plan['scenario']))}", "",
+             f"States: {len(seeds)} (seeds {plan['seed']}…), horizon {plan['horizon']} s; "
+             f"physics {where.get('integrator', '?')} at {where.get('timestep', '?')} s; "
+             f"torque limits {_limits(where.get('torque_limit'))}; safeguard "
+             f"{'on' if where.get('safeguard', True) else 'off'}; mismatch "
+             f"{plan['mismatch'] or 'none'}, noise {plan['noise'] or 'none'}.", "",
              "| controller | rate | viable runs | violations | worst margin | "
              + " | ".join(CLASSES[1:]) + " | filter acted | torque on a limit | failing seeds |",
              "|---" * (8 + len(CLASSES) - 1) + "|"]
@@ -193,12 +250,37 @@ def markdown(doc: Record) -> str:
                                              for k in CLASSES[1:])
             + f" | {r['filter_share']:.1%} | {r['torque_limit_share']:.1%} | "
             + f"{', '.join(str(f['seed']) for f in r['failures'])} |")
-    return "\n".join(lines) + "\n"
+    return lines
+
+
+def markdown(docs: Sequence[Record], command: str = "", seconds: float | None = None) -> str:
+    """The report: how it was made (command, version, machine, date), what the columns mean,
+    then one table per scenario."""
+    took = "" if seconds is None else (f" in {seconds / 60:.1f} min" if seconds >= 60
+                                          else f" in {seconds:.0f} s")
+    lines = ["# cpbc verify", "",
+             f"Made by `{command or 'python -m cpbc.verify'}` with cpbc {__version__}, "
+             f"Python {platform.python_version()}, {os.cpu_count()} cores, on "
+             f"{time.strftime('%Y-%m-%d', time.gmtime())}{took}.", "",
+             "Each state is classed per rate before it runs: *viable* (inside the braking set "
+             "V of the torque box and holdable over one period: a violation from here is a "
+             "defect), *lost* (fails the stopping test: no torque in the box stops it in "
+             "time), *outside_v* (the guard's uniform brake cannot stop it), *too_close* "
+             "(nearer a configuration boundary than a quarter period of its speed). "
+             "Non-viable runs are counted apart, as runs (violated). *Filter acted*: the "
+             "share of control steps at which the safeguard (or a peer's filter) changed "
+             "the law's torque; *torque on a limit*: the share of steps with a joint torque "
+             "on its actuator limit. A violation is judged on the true state at every "
+             "physics step. Reproduce one failure with `--seeds K --rates R`.", ""]
+    for doc in docs:
+        lines += [*_section(doc), ""]
+    return "\n".join(lines)
 
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m cpbc.verify", description=__doc__.split("\n")[0])
-    p.add_argument("scenario", help="a scenario file or the name of a shipped one")
+    p.add_argument("scenario", nargs="+",
+                   help="scenario files or names of shipped ones (each is its own campaign)")
     p.add_argument("--states", type=int, default=100, help="initial states (default 100)")
     p.add_argument("--rates", default="1000,500,100", help="control rates [Hz]")
     p.add_argument("--horizon", type=float, default=0.5, help="seconds per run (default 0.5)")
@@ -214,27 +296,44 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _run_all(a: argparse.Namespace, plans: Sequence[Plan], err: Console) -> list[Record]:
+    docs: list[Record] = []
+    with Progress("verify", BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
+                  console=err, transient=True) as bar:
+        for plan in plans:
+            task = bar.add_task(Path(plan.scenario).stem, total=None)
+
+            def show(done: int, total: int, task: TaskID = task) -> None:
+                bar.update(task, completed=done, total=total)
+
+            docs.append(run_campaign(plan, a.workers, a.cluster, a.block, show))
+    return docs
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    a = _parser().parse_args(argv)
-    err = Console(stderr=True)
+    args = sys.argv[1:] if argv is None else list(argv)
+    a = _parser().parse_args(args)
+    err = Console(stderr=True, width=None if sys.stderr.isatty() else 200)
+    start = time.perf_counter()
     try:
-        plan = plan_from(a)
-        with Progress("verify", BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
-                      console=err, transient=True) as bar:
-            task = bar.add_task("runs", total=None)
-            doc = run_campaign(plan, a.workers, a.cluster, a.block,
-                               lambda done, total: bar.update(task, completed=done, total=total))
+        docs = _run_all(a, plans_from(a), err)
     except CpbcError as exc:
         err.print(f"[red]error:[/red] {exc}", highlight=False)
         return 2
+    document: Record = docs[0] if len(docs) == 1 else {"campaigns": docs}
     if a.json:
-        print(json.dumps(doc, indent=1))
+        print(json.dumps(document, indent=1))
     else:
-        Console().print(table(doc))
+        out = Console(width=None if sys.stdout.isatty() else 200)
+        for doc in docs:
+            out.print(table(doc))
     if a.out:
-        out = Path(a.out)
-        out.write_text(json.dumps(doc, indent=1) if out.suffix == ".json" else markdown(doc))
-    return 1 if any(r["violations"] for r in doc["results"]) else 0  # type: ignore[attr-defined]
+        path = Path(a.out)
+        command = shlex.join(["python", "-m", "cpbc.verify", *args])
+        path.write_text(json.dumps(document, indent=1) if path.suffix == ".json"
+                        else markdown(docs, command, time.perf_counter() - start))
+    failed = any(r["violations"] for doc in docs for r in doc["results"])  # type: ignore[attr-defined]
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import replace
+from pathlib import Path
 
 import pytest
 
@@ -86,3 +87,37 @@ def test_mismatch_and_noise_change_the_runs_and_are_recorded():
     assert all(abs(p["final_error"] - q["final_error"]) > 1e-6 for p, q in zip(a, b, strict=True))
     doc = summarise(noisy, b)
     assert doc["plan"]["mismatch"]["mass"] == 0.3 and list(doc["plan"]["noise"]) == [0.001, 0.01]
+
+
+def test_several_scenarios_make_one_report_with_their_conditions(tmp_path, monkeypatch):
+    """The repository's docs/RELIABILITY.md is such a report: each campaign states its
+    physics, its torque limits and whether the safeguard ran; the command is in the header."""
+    monkeypatch.chdir(Path(__file__).resolve().parents[1])  # the repository, where tools/ is
+    out = tmp_path / "report.md"
+    code = main(["thesis_ch7", "tools/campaigns/planar_cpbc_box.yaml", "--states", "2",
+                 "--rates", "100", "--horizon", "0.1", "--workers", "1", "--out", str(out)])
+    text = out.read_text()
+    assert code == 0
+    assert "`python -m cpbc.verify thesis_ch7 tools/campaigns/planar_cpbc_box.yaml" in text
+    sections = text.split("\n## ")[1:]
+    assert [s.splitlines()[0] for s in sections] == ["thesis_ch7",
+                                                     "tools/campaigns/planar_cpbc_box.yaml"]
+    assert "torque limits none; safeguard on" in sections[0]
+    assert "physics RK4 at 0.001 s; torque limits 2 N·m; safeguard on" in sections[1]
+    assert "| BPBC | 100 Hz | 2 | 0 |" in sections[0] and "| CPBC | 100 Hz | 2 | 0 |" in sections[1]
+    both = json.loads(_json(["thesis_ch7", "tools/campaigns/planar_cpbc_box.yaml"], tmp_path))
+    assert [d["plan"]["scenario"].split("/")[-1] for d in both["campaigns"]] == [
+        "thesis_ch7", "planar_cpbc_box.yaml"]
+    assert both["campaigns"][1]["conditions"]["torque_limit"] == [2.0, 2.0]
+
+
+def _json(scenarios, tmp_path):
+    out = tmp_path / "report.json"
+    main([*scenarios, "--states", "1", "--rates", "100", "--horizon", "0.05", "--workers", "1",
+          "--out", str(out)])
+    return out.read_text()
+
+
+def test_an_output_folder_that_does_not_exist_is_refused_before_any_run(tmp_path, capsys):
+    assert main(["thesis_ch7", "--out", str(tmp_path / "missing" / "r.md")]) == 2
+    assert "--out" in capsys.readouterr().err and not (tmp_path / "missing").exists()
