@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from concurrent.futures import Executor
+import contextlib
+import multiprocessing
+import os
+import sys
+from collections.abc import Iterator, Sequence
+from concurrent.futures import Executor, ProcessPoolExecutor
 from pathlib import Path
 
 import mujoco
@@ -57,6 +61,19 @@ def _plot(folder: Path, only: Sequence[tuple[str, str]] | None = None) -> list[P
     return write_plots(load_run(folder), only=only)
 
 
+@contextlib.contextmanager
+def forked_helper() -> Iterator[Executor | None]:
+    """One process forked from this one, to draw figures while this one writes the page: a
+    fork has every module of this process loaded already, so it starts in milliseconds where
+    a spawned worker spends seconds importing. None where there is one core, or no safe fork
+    (Windows has none; macOS's system libraries are not fork-safe)."""
+    if (os.cpu_count() or 1) < 2 or sys.platform != "linux":
+        yield None
+        return
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork")) as pool:
+        yield pool
+
+
 def write_run_outputs(
     folder: Path,
     setup: ScenarioSetup,
@@ -67,20 +84,23 @@ def write_run_outputs(
     """Into a run folder that already holds its trajectories and summary.json: the scene
     (scene.mjb.gz, scene.json), every case's figures (unless ``plots`` is False) and view.html.
 
-    With a ``pool`` of worker processes the figures of each case are drawn there, while
-    this process writes the pages.
+    A helper process — one of ``pool``'s workers, else one forked for the purpose
+    (:func:`forked_helper`) — draws most of the figures while this process writes the page.
 
     Returns:
         The figures and pages written.
     """
     model = setup.make_plant().model
     write_scene(folder, model, scene_info(setup, model))
-    if plots and pool is not None:
+    if not plots:
+        return [write_view(load_run(folder), settings=settings)]
+    with contextlib.ExitStack() as stack:
+        helper = pool if pool is not None else stack.enter_context(forked_helper())
+        if helper is None:
+            return [*_plot(folder), write_view(load_run(folder), settings=settings)]
         jobs = [(case.name, name) for case in setup.cases for name in FIGURES]
-        helper = round(HELPER_SHARE * len(jobs))
-        future = pool.submit(_plot, folder, jobs[:helper])
+        share = round(HELPER_SHARE * len(jobs))
+        future = helper.submit(_plot, folder, jobs[:share])
         page = write_view(load_run(folder), settings=settings)
-        mine = _plot(folder, jobs[helper:])
+        mine = _plot(folder, jobs[share:])
         return [*future.result(), *mine, page]
-    written = _plot(folder) if plots else []
-    return [*written, write_view(load_run(folder), settings=settings)]
