@@ -1,4 +1,4 @@
-"""docs/RELIABILITY.md's text: runs that broke a constraint after the arm touched something
+"""docs/ROBUSTNESS.md's text: runs that broke a constraint after the arm touched something
 the law does not enforce are counted apart, and what was touched is named."""
 
 from __future__ import annotations

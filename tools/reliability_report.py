@@ -1,11 +1,11 @@
-"""Run the reliability campaigns and write docs/RELIABILITY.md.
+"""Run the reliability campaigns and write docs/ROBUSTNESS.md.
 
     python -m tools.reliability_report                  # every section (about 2 h, 1 core)
     python -m tools.reliability_report --sections cost,bad_input
     python -m tools.reliability_report --render-only    # re-render from the stored data
     python -m tools.reliability_report --quick --data /tmp/r.json --out /tmp/R.md
 
-Each finished section is merged into the data file (docs/reliability_data.json) at once, so
+Each finished section is merged into the data file (docs/robustness_data.json) at once, so
 an interrupted run keeps what it finished and sections can be re-run one at a time.
 """
 
@@ -163,8 +163,8 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--sections", default=",".join(suite.SECTIONS),
                    help=f"comma-separated, of: {', '.join(suite.SECTIONS)}")
-    p.add_argument("--data", type=Path, default=ROOT / "docs" / "reliability_data.json")
-    p.add_argument("--out", type=Path, default=ROOT / "docs" / "RELIABILITY.md")
+    p.add_argument("--data", type=Path, default=ROOT / "docs" / "robustness_data.json")
+    p.add_argument("--out", type=Path, default=ROOT / "docs" / "ROBUSTNESS.md")
     p.add_argument("--render-only", action="store_true")
     p.add_argument("--quick", action="store_true", help="tiny sizes, to try the script")
     p.add_argument("--scenarios", default="", help="comma-separated (default: all)")

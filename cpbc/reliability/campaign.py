@@ -1,7 +1,8 @@
 """Campaigns that test the guarantees outside the proof: sampled data, mismatch, noise, limits.
 
 Every campaign is seeded and returns plain records (dicts of numbers and strings) that
-``tools.reliability.report`` turns into docs/RELIABILITY.md. A *violation* is judged on the
+``cpbc.verify`` and ``tools.reliability.report`` turn into docs/RELIABILITY.md and
+docs/ROBUSTNESS.md. A *violation* is judged on the
 true state of the plant at every physics step (not only at the control instants), for the
 constraints the law enforces, plus any run the law ended itself (ConstraintViolation) or that
 diverged.

@@ -1,1 +1,1 @@
-"""The reliability report (docs/RELIABILITY.md): its suite of campaigns, findings and renderer."""
+"""The reliability report (docs/ROBUSTNESS.md): its suite of campaigns, findings and renderer."""

@@ -1,4 +1,4 @@
-"""The summary paragraphs of docs/RELIABILITY.md, computed from the campaign data."""
+"""The summary paragraphs of docs/ROBUSTNESS.md, computed from the campaign data."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
-"""The campaigns of docs/RELIABILITY.md, section by section, with their settings.
+"""The campaigns of docs/ROBUSTNESS.md, section by section, with their settings.
 
 Each section returns a JSON-able dict; ``tools/reliability_report.py`` stores them in
-docs/reliability_data.json and ``tools.reliability.report`` renders the Markdown.
+docs/robustness_data.json and ``tools.reliability.report`` renders the Markdown.
 """
 
 from __future__ import annotations
