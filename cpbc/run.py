@@ -23,7 +23,6 @@ from cpbc.errors import CpbcError
 from cpbc.results import staged_output, write_summaries, write_trajectory
 from cpbc.results.margin_types import types_of
 from cpbc.results.metrics import RunSummary
-from cpbc.run_system import run_system_cli
 from cpbc.scenario import build
 from cpbc.scenario.build import ScenarioSetup
 from cpbc.scenario.load import load_any
@@ -229,6 +228,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         loaded, file = load_any(args.scenario)
         if isinstance(loaded, SystemScenario):  # a Part I system: its own short path
+            from cpbc.run_system import run_system_cli  # not loaded for an arm
+
             return run_system_cli(loaded, file, args, console)
         scenario = loaded
         setup = build(scenario, file)

@@ -11,7 +11,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
 from cpbc.arrays import Array
 from cpbc.model.robot_model import RobotModel
@@ -45,6 +44,8 @@ def estimate_bounds(
     seed: int = 0,
 ) -> ModelBounds:
     """Estimate ζ_g, ζ_c over the box lower ≤ x ≤ upper (±π per coordinate by default)."""
+    from scipy.optimize import minimize  # only the bounded-torque laws ask (0.1–0.2 s to load)
+
     rng = np.random.default_rng(seed)
     lo, hi = _box(model, lower, upper)
     xs = rng.uniform(lo, hi, size=(samples, model.n))
