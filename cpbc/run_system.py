@@ -14,7 +14,7 @@ from cpbc.errors import CpbcError
 from cpbc.results import staged_output
 from cpbc.scenario.schema import SystemScenario
 from cpbc.scenario.system_runner import SystemResult, run_system_all, write_system_outputs
-from cpbc.scenario.systems import build_system
+from cpbc.scenario.systems import build_system, check_backend
 from cpbc.viewer.systems import write_system_view
 
 STATUS_STYLE = {"converged": "green", "not_settled": "yellow",
@@ -65,12 +65,16 @@ def run_system_cli(scenario: SystemScenario, file: Path, args: argparse.Namespac
     setup = build_system(scenario, file)
     out = args.out or Path("runs") / scenario.name
     backend = args.backend or scenario.simulation.backend
+    check_backend(setup, backend)
     results = run_system_all(setup, backend)
     with staged_output(out) as scratch:
         write_system_outputs(scratch, setup, results, plots=not args.no_plots)
-        write_system_view(scratch, setup, results)
+        view = write_system_view(scratch, setup, results)
     console.print(system_table(results))
     for name, value in setup.view.design_bounds.items():
         console.print(f"a-priori bound {name}: {value:.6g}")
+    if view is None:
+        console.print("view.html: none (the system is only its ODE, with no body to show; "
+                      "<case>/timeseries.png has its time plots)")
     console.print(f"backend: {backend}; results written to {out}/")
     return 0

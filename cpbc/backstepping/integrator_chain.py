@@ -31,6 +31,7 @@ from cpbc.backstepping.barriers import LogBarrier, positive
 from cpbc.backstepping.jets import arctan, tanh
 from cpbc.backstepping.multiple_constraints import MultipleConstraintLaw
 from cpbc.backstepping.strict_feedback import StrictFeedback, Value
+from cpbc.backstepping.tuning import RULES, TuningProblem
 
 State = tuple[float, ...]
 
@@ -70,7 +71,7 @@ def thesis_symbols(statement: str) -> str:
         sym, j = m.group(1), int(m.group(2))
         return f"{sym}{j + 2 if sym == 'k' and j % 2 else j if sym == 'k' else j + 1}"
 
-    return re.sub(r"\b([ckΞX])(\d+)", one, statement)
+    return re.sub(r"(?<![A-Za-z0-9_])([ckΞX])(\d+)", one, statement)
 
 
 class ChainSystem(StrictFeedback):
@@ -144,3 +145,23 @@ class IntegratorChainController:
     def errors(self, state: Sequence[float]) -> State:
         """(z1, z2, z3) at ξ (also outside D)."""
         return tuple(float(v) for v in self.law.errors(*self.coordinates(state)))
+
+
+#: The constants that enter the manual rules (well-posedness and X_i, (4.88)): c4, k5 and k7
+#: appear only in u's last gain and the certificate U, so the manual rules cannot move them.
+MANUAL_FREE = ("c1", "c2", "c3", "k1", "k2", "k3", "k4", "k6")
+
+
+def tuning_problem(gains: ChainGains | None = None,
+                   limits: Sequence[float] = (2.5, 12.0, 700.0), rules: str = "theorem",
+                   free: Sequence[str] | None = None) -> TuningProblem:
+    """The §4.3.3 tuning problem of the chain (reading H1) from the given constants: every
+    constant free under the theorem's rules, :data:`MANUAL_FREE` under the manual ones."""
+    g = gains or ChainGains()
+    names = ChainGains.names()
+    chosen = tuple(free) if free is not None else (
+        names if "domination" in RULES.get(rules, ()) else MANUAL_FREE)
+    return TuningProblem(
+        names, tuple(getattr(g, n) for n in names), chosen,
+        lambda v: IntegratorChainController(ChainGains(**v)).law,
+        tuple(float(v) for v in limits), rename=thesis_symbols)

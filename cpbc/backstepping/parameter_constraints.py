@@ -82,9 +82,9 @@ class WorstCase:
 
 
 def worst_case(law: MultipleConstraintLaw, points: int = 21, budget: int = 400_000,
-               x_samples: Array | None = None) -> WorstCase:
+               x_samples: Array | None = None, refine: int = 3) -> WorstCase:
     """sup over D of |α_i| for every step, by grid and local search (x over ``x_samples``,
-    default the system's; z_j over [−K_j, K_j])."""
+    default the system's; z_j over [−K_j, K_j]; ``refine`` local climbs per step)."""
     sys = law.system
     xs = sys.x_samples() if x_samples is None else x_samples
     sups: list[Sup] = []
@@ -95,7 +95,8 @@ def worst_case(law: MultipleConstraintLaw, points: int = 21, budget: int = 400_0
             xi = law.state_from_errors(xcols, zz)
             return np.asarray(law.terms(xcols, xi).alpha[i], dtype=float)
 
-        sups.append(grid_sup(alpha_i, xs, law.bounds[:i], points=points, budget=budget))
+        sups.append(grid_sup(alpha_i, xs, law.bounds[:i], points=points, budget=budget,
+                             refine=refine))
     return WorstCase(tuple(sups), tuple(k + s.value for k, s in zip(law.bounds, sups,
                                                                       strict=False)))
 

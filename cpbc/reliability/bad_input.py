@@ -72,6 +72,12 @@ RWP_BASE: dict = {
     "simulation": {"duration": 0.01},
     "cases": [{"name": "side", "state": ["pi/2", 0, 0]}],
 }
+CHAIN_BASE: dict = {
+    "name": "chain_base",
+    "system": {"type": "integrator_chain", "laws": [{"name": "barrier"}]},
+    "simulation": {"duration": 0.01, "timestep": 0.005, "backend": "reference"},
+    "cases": [{"name": "fig4.1", "state": [-10, -1.5, -0.05, -2.5]}],
+}
 
 # Builds the scenario file's content from a copy of BASE; bytes for a file that is not
 # text, None when it has put something at ``folder/scenario.yaml`` itself (a directory).
@@ -530,6 +536,20 @@ VARIANTS: list[BadInput] = [
              system("system.torque_limit", "0.4 N m", RWP_BASE)),
     BadInput("rwp_torque_limit_below_bound", "inadmissible", "system.laws[0].gains",
              system("system.torque_limit", 0.3, RWP_BASE)),
+    BadInput("chain_on_mujoco", "structure", "simulation.backend",
+             system("simulation.backend", "mujoco", CHAIN_BASE)),
+    BadInput("chain_limits_two", "wrong shape", "system.limits",
+             system("system.limits", [2.5, 12], CHAIN_BASE)),
+    BadInput("chain_gain_negative", "non-positive", "system.laws[0].gains.c3",
+             system("system.laws.0.gains", {"c3": -50}, CHAIN_BASE)),
+    BadInput("chain_bound_above_limit", "gains", "system.laws[0].gains",
+             system("system.limits", [2.5, 7, 700], CHAIN_BASE)),
+    BadInput("chain_start_outside_domain", "inadmissible", "cases[0].state",
+             system("cases.0.state", [0, 0, 0, 400], CHAIN_BASE)),
+    BadInput("chain_start_past_limit", "inadmissible", "cases[0].state",
+             system("cases.0.state", [0, 3, 0, 0], CHAIN_BASE)),
+    BadInput("chain_bump", "structure", "cases[0].bump_height",
+             system("cases.0.bump_height", 0.1, CHAIN_BASE)),
 ]
 
 

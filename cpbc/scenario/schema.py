@@ -420,7 +420,39 @@ class ReactionWheelSpec(Strict):
     laws: Annotated[list[WheelPendulumLawSpec], Field(min_length=1)]
 
 
-SystemSpec = Annotated[QuarterCarSpec | ReactionWheelSpec, Field(discriminator="type")]
+class ChainGainsSpec(Strict):
+    """The design constants of §4.4 (Theorem 4.12, manual tuning), under the thesis's names,
+    read as PART1 Ch. 4 §2.6 reading H1 (see cpbc.backstepping.integrator_chain)."""
+
+    c1: Positive = 0.5 / math.pi
+    c2: Positive = 1.0
+    c3: Positive = 50.0
+    c4: Positive = 1.0
+    k1: Positive = 1.0
+    k2: Positive = 2.0
+    k3: Positive = 3.0
+    k4: Positive = 5.61
+    k5: Positive = 1.0
+    k6: Positive = 354.5
+    k7: Positive = 10.0
+
+
+class ChainLawSpec(Strict):
+    name: SafeName
+    gains: ChainGainsSpec = ChainGainsSpec()
+
+
+class IntegratorChainSpec(Strict):
+    """The 4th-order integrator chain of §4.4 (4.92): an ODE, no MuJoCo model; ``limits``
+    are Ξ on |ξ2|, |ξ3|, |ξ4| (4.93), ξ1 is unconstrained."""
+
+    type: Literal["integrator_chain"]
+    limits: Annotated[list[Positive], Field(min_length=3, max_length=3)] = [2.5, 12.0, 700.0]
+    laws: Annotated[list[ChainLawSpec], Field(min_length=1)]
+
+
+SystemSpec = Annotated[QuarterCarSpec | ReactionWheelSpec | IntegratorChainSpec,
+                       Field(discriminator="type")]
 
 
 class SystemSimulationSpec(Strict):

@@ -6,6 +6,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from cpbc.errors import ScenarioError
 from cpbc.results.systems import (
     SystemSummary,
     plot_case,
@@ -19,6 +20,7 @@ from cpbc.simulation.system_loop import (
     run_system_mujoco,
     run_system_reference,
 )
+from cpbc.systems.plant import Plant
 
 RunProgress = Callable[[str, float], None]
 
@@ -41,6 +43,8 @@ def run_system_one(setup: SystemSetup, case: SystemCase, law: SystemLaw, backend
             progress(label, frac)
 
     if backend == "mujoco":
+        if not isinstance(case.plant, Plant):  # build_system/check_backend refuse it first
+            raise ScenarioError("simulation.backend", "this system has no MuJoCo model")
         traj = run_system_mujoco(case.plant, law.law, case.state, sim.duration,
                                  setup.control_period, sim.timestep, sim.integrator, report)
     else:

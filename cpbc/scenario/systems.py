@@ -13,7 +13,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from cpbc.backstepping import (
+    ChainGains,
     DesignError,
+    IntegratorChainController,
     LogBarrier,
     OutsideDomainError,
     QuadraticTerm,
@@ -22,16 +24,23 @@ from cpbc.backstepping import (
     SuspensionGains,
     WheelPendulumGains,
 )
+from cpbc.backstepping.parameter_constraints import worst_case
 from cpbc.errors import ScenarioError
 from cpbc.results.systems import Panel, SystemView
 from cpbc.scenario.schema import (
+    IntegratorChainSpec,
     QuarterCarSpec,
     ReactionWheelSpec,
     SystemCaseSpec,
     SystemScenario,
 )
-from cpbc.systems import HaversineBump, Plant, QuarterCar, ReactionWheelPendulum
-from cpbc.systems.plant import State
+from cpbc.systems import (
+    HaversineBump,
+    IntegratorChain,
+    QuarterCar,
+    ReactionWheelPendulum,
+)
+from cpbc.systems.plant import OdePlant, State
 
 Law = Callable[[State, float], float]  # u = k(x, t)
 
@@ -47,7 +56,7 @@ class SystemLaw:
 class SystemCase:
     name: str
     state: State
-    plant: Plant
+    plant: OdePlant  # a Plant (with its MJCF) unless the system is only its ODE
 
 
 @dataclass(frozen=True)
@@ -135,7 +144,52 @@ def _reaction_wheel(spec: ReactionWheelSpec) -> tuple[list[SystemLaw], SystemVie
     return laws, view
 
 
-def _plant(spec: QuarterCarSpec | ReactionWheelSpec, case: SystemCaseSpec, i: int) -> Plant:
+def _integrator_chain(spec: IntegratorChainSpec) -> tuple[list[SystemLaw], SystemView]:
+    """The §4.4 law under reading H1 per law; refused unless its worst-case state bounds X_i
+    (4.88) are within the limits (4.89), the one guarantee manual tuning (§4.3.6) keeps."""
+    laws: list[SystemLaw] = []
+    bounds: dict[str, float] = {}
+    for i, law in enumerate(spec.laws):
+        try:
+            ctrl = IntegratorChainController(ChainGains(**law.gains.model_dump()))
+        except DesignError as exc:
+            raise _gain_error(f"system.laws[{i}]", exc) from None
+        worst = worst_case(ctrl.law)
+        for j, (x, lim) in enumerate(zip(worst.state_bounds, spec.limits, strict=True)):
+            if x > lim:
+                raise ScenarioError(
+                    f"system.laws[{i}].gains",
+                    f"the worst-case bound X{j + 2} = k{2 * j + 2} + sup_D |α{j + 1}| = {x:.6g} "
+                    f"(4.88) exceeds limits[{j}] = Ξ{j + 2} = {lim:.6g} (4.89): the law keeps "
+                    f"|ξ{j + 2}| < X{j + 2} only",
+                )
+        laws.append(SystemLaw(law.name, ctrl, True))
+        if not bounds:
+            for j, (x, a) in enumerate(zip(worst.state_bounds, worst.alpha, strict=True)):
+                bounds[f"(4.88) sup_D |α{j + 1}|"] = a.value
+                bounds[f"(4.88) X{j + 2} on |ξ{j + 2}|"] = x
+    view = SystemView(
+        panels=(
+            Panel("position ξ1", 0),
+            Panel("velocity ξ2", 1, 1.0, spec.limits[0]),
+            Panel("acceleration ξ3", 2, 1.0, spec.limits[1]),
+            Panel("jerk ξ4", 3, 1.0, spec.limits[2]),
+            Panel("input u", None),
+        ),
+        phase=(0, 1, "ξ1", "ξ2"), judged=(0, 1, 2, 3), angles=(), design_bounds=bounds,
+    )
+    return laws, view
+
+
+SpecOf = QuarterCarSpec | ReactionWheelSpec | IntegratorChainSpec
+
+
+def _plant(spec: SpecOf, case: SystemCaseSpec, i: int) -> OdePlant:
+    if isinstance(spec, IntegratorChainSpec):
+        if case.bump_height is not None:
+            raise ScenarioError(f"cases[{i}].bump_height",
+                                "the integrator chain has no road; remove the key")
+        return IntegratorChain((None, *spec.limits))
     if isinstance(spec, ReactionWheelSpec):
         if case.bump_height is not None:
             raise ScenarioError(f"cases[{i}].bump_height",
@@ -148,7 +202,7 @@ def _plant(spec: QuarterCarSpec | ReactionWheelSpec, case: SystemCaseSpec, i: in
     return QuarterCar(road, travel_limit=spec.travel_limit)
 
 
-def _check_start(case: SystemCase, laws: list[SystemLaw], plant: Plant, i: int) -> None:
+def _check_start(case: SystemCase, laws: list[SystemLaw], plant: OdePlant, i: int) -> None:
     """Refuse a start outside a barrier law's domain, or outside a constrained state's
     bounds (the law's input is not known before the run)."""
     field = f"cases[{i}].state"
@@ -171,12 +225,14 @@ def build_system(scenario: SystemScenario, source: Path) -> SystemSetup:
     """The plants, laws and view of a Part I scenario; ScenarioError naming the field."""
     spec, sim = scenario.system, scenario.simulation
     laws, view = (_reaction_wheel(spec) if isinstance(spec, ReactionWheelSpec)
+                  else _integrator_chain(spec) if isinstance(spec, IntegratorChainSpec)
                   else _suspension(spec))
     names = [law.name for law in laws]
     if len(set(names)) != len(names):
         raise ScenarioError("system.laws", f"law names repeat: {names}")
     period = sim.control_period or sim.timestep
     _check_length(scenario, period)
+    _check_backend(scenario, sim.backend, "simulation.backend")
     cases: list[SystemCase] = []
     for i, c in enumerate(scenario.cases):
         plant = _plant(spec, c, i)
@@ -188,6 +244,19 @@ def build_system(scenario: SystemScenario, source: Path) -> SystemSetup:
     plant = cases[0].plant
     return SystemSetup(scenario, source, tuple(cases), tuple(laws), view, period,
                        plant.state_names, plant.input_name)
+
+
+def _check_backend(scenario: SystemScenario, backend: str, field: str) -> None:
+    """Refuse MuJoCo for a system that is only its ODE (nothing for a physics engine to add)."""
+    if backend == "mujoco" and isinstance(scenario.system, IntegratorChainSpec):
+        raise ScenarioError(field, "the integrator chain of §4.4 is a pure ODE with no MuJoCo "
+                            "model (a chain of integrators has no body to simulate); use the "
+                            "continuous-time reference: backend: reference")
+
+
+def check_backend(setup: SystemSetup, backend: str) -> None:
+    """:class:`ScenarioError` naming ``--backend`` if the override cannot run this system."""
+    _check_backend(setup.scenario, backend, "--backend")
 
 
 def _check_length(scenario: SystemScenario, period: float) -> None:

@@ -18,7 +18,7 @@ from cpbc.arrays import Array
 from cpbc.backstepping.errors import OutsideDomainError
 from cpbc.simulation.loop import Progress, substeps_per_control
 from cpbc.simulation.plant import _INSTABILITY_WARNINGS
-from cpbc.systems.plant import Plant, State
+from cpbc.systems.plant import OdePlant, Plant, State
 
 Law = Callable[[State, float], float]  # u = k(x, t)
 
@@ -37,7 +37,8 @@ class SystemTrajectory:
         wall_time: wall-clock time of the loop [s].
         backend: "mujoco" or "reference".
         qpos, qvel: (N, nq), (N, nv) MuJoCo's coordinates at the samples (for the 3-D view);
-            the reference backend sets them from x (a coordinate x omits stays at zero).
+            the reference backend sets them from x (a coordinate x omits stays at zero), or
+            leaves them None for a plant that is only its ODE (no MJCF, nothing to show).
     """
 
     time: Array
@@ -108,7 +109,7 @@ def run_system_mujoco(
 
 
 def run_system_reference(
-    plant: Plant, law: Law, x0: State, duration: float, sample_period: float,
+    plant: OdePlant, law: Law, x0: State, duration: float, sample_period: float,
     rtol: float = 1e-10, atol: float = 1e-12,
 ) -> SystemTrajectory:
     """Integrate ẋ = f(x, k(x), t) with DOP853 (the law at every stage, no hold), piecewise
@@ -144,7 +145,7 @@ def run_system_reference(
     us = np.array([_control(law, tuple(float(v) for v in row), float(t))[0]
                    for row, t in zip(xs, ts, strict=True)])
     end = float(ts[-1]) if len(ts) else 0.0
-    qpos, qvel = _coordinates(plant, ts, xs)
+    qpos, qvel = _coordinates(plant, ts, xs) if isinstance(plant, Plant) else (None, None)
     return SystemTrajectory(ts, xs, us, outcome, end, domain[0] if domain else None, wall,
                             "reference", qpos, qvel)
 

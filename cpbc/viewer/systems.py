@@ -15,6 +15,7 @@ from cpbc.results.saved_run import SavedCase, SavedRun, SavedTrajectory, SceneIn
 from cpbc.results.sweep import default_trace_frame
 from cpbc.scenario.system_runner import SystemResult
 from cpbc.scenario.systems import SystemSetup
+from cpbc.systems.plant import Plant
 from cpbc.viewer.export import write_view
 
 
@@ -51,9 +52,15 @@ def _saved(result: SystemResult, setup: SystemSetup, names: tuple[str, ...],
     )
 
 
-def write_system_view(folder: Path, setup: SystemSetup, results: Sequence[SystemResult]) -> Path:
-    """Write ``folder/view.html`` for the runs of a Part I scenario; returns its path."""
-    model = setup.cases[0].plant.load()
+def write_system_view(folder: Path, setup: SystemSetup,
+                      results: Sequence[SystemResult]) -> Path | None:
+    """Write ``folder/view.html`` for the runs of a Part I scenario; returns its path, or None
+    (nothing written) for a system that is only its ODE: an integrator chain has no body to
+    pose, and its time plots are the figures already written."""
+    plant = setup.cases[0].plant
+    if not isinstance(plant, Plant):
+        return None
+    model = plant.load()
     names = tuple(model.joint(i).name for i in range(model.njnt))
     info = SceneInfo(np.eye(model.nq), default_trace_frame(model), setup.scenario.name, ())
     units = _units(setup, model)
