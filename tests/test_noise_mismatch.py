@@ -18,18 +18,18 @@ from cpbc.controllers.base import Evaluation
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model import ArmState, RobotModel
 from cpbc.reliability.bad_input import BASE
-from cpbc.reliability.campaign import (
+from cpbc.reliability.campaign import campaign_setup
+from cpbc.results.metrics import STATUSES
+from cpbc.scenario import build, load_scenario
+from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, run_mujoco
+from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
+from tools.reliability.robustness import (
     MismatchLevel,
-    campaign_setup,
     mismatch_campaign,
     noise_campaign,
     saturation_campaign,
     true_kinetic_energy,
 )
-from cpbc.results.metrics import STATUSES
-from cpbc.scenario import build, load_scenario
-from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, run_mujoco
-from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
 
 RATES = [0.3, 0.2]
 

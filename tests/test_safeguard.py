@@ -24,11 +24,11 @@ from cpbc.reliability.campaign import (
     checked_run,
     constrained,
     sample_states,
-    sampled_data_campaign,
 )
 from cpbc.scenario import build, load_scenario
 from cpbc.scenario.runner import run_all
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, run_mujoco
+from tools.reliability.robustness import sampled_data_campaign
 
 
 @pytest.fixture

@@ -1,19 +1,17 @@
-"""Campaigns that test the guarantees outside the proof: sampled data, mismatch, noise, limits.
-
-Every campaign is seeded and returns plain records (dicts of numbers and strings) that
-``cpbc.verify`` and ``tools.reliability.report`` turn into docs/RELIABILITY.md and
-docs/ROBUSTNESS.md. A *violation* is judged on the
-true state of the plant at every physics step (not only at the control instants), for the
-constraints the law enforces, plus any run the law ended itself (ConstraintViolation) or that
-diverged.
+"""The building blocks of a campaign: a scenario's seeded initial states (only positions the
+arm can take) and a *checked run* from one of them — the closed loop on a plant that records
+every physics step, judged on the true state: a *violation* is a margin of a constraint the
+law enforces at or below zero at any physics step (not only at the control instants), a run
+the law ended itself (ConstraintViolation), or one that diverged. ``python -m cpbc.verify``
+runs them (docs/RELIABILITY.md); the repository's robustness campaigns
+(``tools/reliability/robustness.py``, docs/ROBUSTNESS.md) too.
 """
 
 from __future__ import annotations
 
 import math
-import time
-from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
@@ -21,24 +19,16 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.controllers import safeguard as sg
-from cpbc.controllers.safeguard import Safeguard, SafeguardSettings, viable
-from cpbc.errors import ConstraintViolation
+from cpbc.controllers.safeguard import SafeguardSettings
 from cpbc.reliability.sampling import SampledState, StateSampler
-from cpbc.results.metrics import judge_status
 from cpbc.scenario import ScenarioSetup, build, load_scenario
 from cpbc.scenario.build import ControllerEntry
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, run_mujoco
-from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
 from cpbc.simulation.trajectory import Trajectory
 
 Record = dict[str, object]
 Log = Callable[[str], None]
-
-
-def _quiet(_: str) -> None:
-    pass
 
 
 # -- set-up --------------------------------------------------------------------------------
@@ -147,7 +137,7 @@ class RunCheck:
     touch: str | None = None
 
 
-def _run(
+def guarded_run(
     plant: MujocoPlant, setup: ScenarioSetup, entry: ControllerEntry, x0: Array, dx0: Array,
     settings: LoopSettings, safeguard: SafeguardSettings | None,
     progress: Callable[[float], None] | None = None,
@@ -171,7 +161,7 @@ def checked_run(
 ) -> RunCheck:
     """run_mujoco (the law wrapped in ``safeguard`` if given), then the enforced margins at
     every physics step of the true plant."""
-    traj = _run(plant, setup, entry, x0, dx0, settings, safeguard)
+    traj = guarded_run(plant, setup, entry, x0, dx0, settings, safeguard)
     cons = constraints if constraints is not None else entry.controller.constraints
     xs, dxs = plant.fine_states(setup.model.coordinates.matrix)
     low, name, first = _min_margin(cons, xs, dxs)
@@ -234,373 +224,3 @@ def state_sampler(setup: ScenarioSetup, seed: int) -> StateSampler:
 def sample_states(setup: ScenarioSetup, count: int, seed: int) -> list[SampledState]:
     """``count`` admissible initial states of the scenario (all its constraints), seeded."""
     return state_sampler(setup, seed).draw_many(count)
-
-
-def sampled_data_campaign(
-    setup: ScenarioSetup,
-    scenario: str,
-    states: Sequence[SampledState],
-    periods: Iterable[float],
-    horizon: float,
-    safeguard: SafeguardSettings,
-    log: Log = _quiet,
-) -> list[Record]:
-    """Every constrained law of the scenario from every state, at every period, with and
-    without the safeguard. One record per (controller, period, safeguard, state)."""
-    base = RecordingPlant(setup.make_plant().model, setup.plant_settings)
-    out: list[Record] = []
-    for entry in constrained(setup):
-        for period in periods:
-            for guarded in (False, True):
-                settings = replace(
-                    setup.loop_settings, duration=horizon, control_period=period,
-                    torque_limit=None, noise=None,
-                )
-                start = time.perf_counter()
-                bad = 0
-                for i, s in enumerate(states):
-                    check = checked_run(base, setup, entry, s.position, s.velocity, settings,
-                                        safeguard=safeguard if guarded else None)
-                    traj = check.trajectory
-                    bad += check.violated
-                    out.append({
-                        "scenario": scenario, "controller": entry.name,
-                        "type": entry.controller.type_name, "period": period,
-                        "safeguard": guarded, "state": i, "kind": s.kind,
-                        "closeness": s.closeness,
-                        "viable": viable(entry.controller.constraints, s.position, s.velocity,
-                                         period),
-                        "outcome": traj.outcome,
-                        "violated": check.violated, "at_samples": check.at_samples,
-                        "violated_between_samples": check.violated and not check.at_samples,
-                        "end_time": traj.end_time, "constraint": check.constraint,
-                        "min_margin": check.min_margin, "acted": traj.safeguard_steps,
-                        "infeasible": traj.safeguard_infeasible,
-                        "control_steps": traj.control_steps,
-                        # touched something the law does not know of (a contact or a joint
-                        # stop) before any violation
-                        "contacts": int(check.touched), "touched": check.touch,
-                    })
-                log(f"{scenario} {entry.name} h={period * 1e3:g} ms "
-                    f"safeguard={'on' if guarded else 'off'}: {bad}/{len(states)} violated "
-                    f"({time.perf_counter() - start:.0f} s)")
-    return out
-
-
-def longest_safe_period(
-    setup: ScenarioSetup,
-    scenario: str,
-    states: Sequence[SampledState],
-    periods: Sequence[float],
-    horizon: float,
-    log: Log = _quiet,
-) -> list[Record]:
-    """For each constrained law without the safeguard: violations at each period, from the
-    scenario's own cases (full duration) and from those of ``states`` that are viable at that
-    period (``horizon`` seconds each). Runs in which the arm touched a physical obstacle that
-    the law does not enforce are counted apart (``contact``): that is not a sampling effect.
-    The longest safe period is the longest one such that it and every shorter one saw no
-    violation."""
-    base = RecordingPlant(setup.make_plant().model, setup.plant_settings)
-    out: list[Record] = []
-    for entry in constrained(setup):
-        cons = entry.controller.constraints
-        safe_so_far, longest = True, None
-        for period in sorted(periods):
-            settings = replace(
-                setup.loop_settings, control_period=period, torque_limit=None, noise=None,
-                log_every=1,
-            )
-            case_bad = []
-            for case in setup.cases:
-                check = checked_run(base, setup, entry, case.position, case.velocity, settings)
-                if check.violated and not check.touched:
-                    case_bad.append(case.name)
-            short = replace(settings, duration=horizon)
-            usable = [s for s in states if viable(cons, s.position, s.velocity, period)]
-            state_bad = contact = 0
-            for s in usable:
-                check = checked_run(base, setup, entry, s.position, s.velocity, short)
-                if check.violated and check.touched:
-                    contact += 1
-                elif check.violated:
-                    state_bad += 1
-            ok = not case_bad and state_bad == 0
-            safe_so_far = safe_so_far and ok
-            if safe_so_far:
-                longest = period
-            out.append({
-                "scenario": scenario, "controller": entry.name, "period": period,
-                "cases_violated": case_bad, "states_violated": state_bad,
-                "states": len(usable), "contact": contact, "safe": ok,
-            })
-            log(f"{scenario} {entry.name} h={period * 1e3:g} ms: cases violated {case_bad}, "
-                f"states violated {state_bad}/{len(usable)} (+{contact} with contact)")
-        out.append({"scenario": scenario, "controller": entry.name, "longest_safe": longest})
-    return out
-
-
-# -- model mismatch --------------------------------------------------------------------------
-def true_kinetic_energy(plant: MujocoPlant, qs: Array, dqs: Array) -> Array:
-    """½ q̇ᵀ M(q) q̇ of the MuJoCo plant (its own, mismatched, mass matrix) at each row."""
-    data = mujoco.MjData(plant.model)
-    m = np.zeros((plant.n, plant.n))
-    out = np.empty(len(qs))
-    for i, (q, dq) in enumerate(zip(qs, dqs, strict=True)):
-        data.qpos[:] = q
-        mujoco.mj_forward(plant.model, data)
-        mujoco.mj_fullM(plant.model, data, m)
-        out[i] = 0.5 * dq @ m @ dq
-    return out
-
-
-@dataclass(frozen=True)
-class MismatchLevel:
-    """One family of plant perturbations, drawn per run (see PlantMismatch.random)."""
-
-    name: str
-    mass: float = 0.0
-    inertia: float = 0.0
-    damping: float = 0.0
-    armature: float = 0.0
-    frictionloss: float = 0.0
-
-
-def mismatch_campaign(
-    setup: ScenarioSetup,
-    scenario: str,
-    levels: Sequence[MismatchLevel],
-    draws: int,
-    seed: int,
-    unguarded_types: Sequence[str] = ("cpbc_ke", "bpbc_ke"),
-    log_every: int = 10,
-    log: Log = _quiet,
-) -> list[Record]:
-    """Every controller on every case of the scenario (full duration, the scenario's control
-    period), on ``draws`` seeded perturbed plants per level, with the default safeguard; the
-    laws of ``unguarded_types`` also without it. Violations are judged on the true plant:
-    kinetic-energy limits with MuJoCo's (perturbed) mass matrix, the rest by kinematics."""
-    rng = np.random.default_rng(seed)
-    nominal = setup.make_plant()
-    nbody, ndof = nominal.model.nbody - 1, nominal.model.nv
-    out: list[Record] = []
-    for level in levels:
-        for d in range(draws):
-            mismatch = PlantMismatch.random(
-                rng, nbody, ndof, level.mass, level.inertia, level.damping, level.armature,
-                level.frictionloss,
-            )
-            plant = setup.make_plant()
-            mismatch.apply(plant.model)
-            for entry in setup.controllers:
-                variants = [True]
-                if entry.controller.type_name in unguarded_types:
-                    variants.append(False)
-                for guarded in variants:
-                    settings = replace(setup.loop_settings, log_every=log_every, noise=None)
-                    for case in setup.cases:
-                        out.append(_mismatch_run(
-                            plant, setup, entry, case.name, case.position, case.velocity,
-                            settings, scenario, level.name, d, guarded,
-                        ))
-            log(f"{scenario} mismatch {level.name} draw {d + 1}/{draws} done")
-    return out
-
-
-def _mismatch_run(
-    plant: MujocoPlant, setup: ScenarioSetup, entry: ControllerEntry, case: str,
-    x0: Array, dx0: Array, settings: LoopSettings, scenario: str, level: str, draw: int,
-    guarded: bool,
-) -> Record:
-    coords = setup.model.coordinates
-    safeguard = (setup.safeguard or SafeguardSettings()) if guarded else None
-    traj = _run(plant, setup, entry, x0, dx0, settings, safeguard)
-    status, settle = judge_status(traj, entry.controller.target, setup.criteria)
-    monitor = setup.monitor
-    xs, dxs = traj.position, traj.velocity
-    parts: list[tuple[tuple[str, ...], Array]] = [
-        (c.names, c.values_along(xs)) for c in monitor.configuration
-    ]
-    ke_excess = math.nan
-    for v in monitor.velocity:
-        if isinstance(v, KineticEnergyLimit):  # the plant's energy, not the model's
-            ke = true_kinetic_energy(plant, xs @ coords.inverse.T, dxs @ coords.inverse.T)
-            parts.append((v.names, (v.limit - ke)[:, None]))
-            ke_excess = float(np.max(ke) / v.limit)
-        else:  # rate limits do not depend on the dynamics
-            parts.append((v.names, v.values_along(xs, dxs)))
-    worst, worst_name = math.inf, None
-    for names, m in parts:
-        m = np.where(np.isnan(m), -np.inf, np.asarray(m).reshape(len(xs), -1))
-        if m.size and float(m.min()) < worst:
-            worst = float(m.min())
-            worst_name = names[int(np.argmin(m.min(axis=0)))]
-    enforced = set(entry.controller.constraints.names)
-    return {
-        "scenario": scenario, "controller": entry.name, "type": entry.controller.type_name,
-        "case": case, "level": level, "draw": draw, "safeguard": guarded,
-        "status": status, "end_time": traj.end_time, "violated": traj.violated,
-        "final_error": float(np.max(np.abs(traj.position[-1] - entry.controller.target))),
-        "settle_time": settle, "true_min_margin": worst, "true_min_constraint": worst_name,
-        "true_violation": bool(worst <= 0 or status == "constraint_violated"),
-        "enforced_violation": bool(
-            status == "constraint_violated"
-            or (worst <= 0 and worst_name in enforced)
-        ),
-        "ke_peak_over_limit": ke_excess, "acted": traj.safeguard_steps,
-        "enforces": sorted(enforced),
-    }
-
-
-# -- noise and saturation ----------------------------------------------------------------------
-def noise_campaign(
-    setup: ScenarioSetup,
-    scenario: str,
-    levels: Sequence[tuple[str, float, float]],
-    seed: int,
-    log_every: int = 10,
-    log: Log = _quiet,
-) -> list[Record]:
-    """Every controller on every case with Gaussian noise (name, σ_x, σ_ẋ) on what it sees."""
-    plant = setup.make_plant()
-    out: list[Record] = []
-    for name, sx, sv in levels:
-        for entry in setup.controllers:
-            for case in setup.cases:
-                settings = replace(
-                    setup.loop_settings, log_every=log_every,
-                    noise=MeasurementNoise(sx, sv, seed),
-                )
-                out.append(_status_record(
-                    plant, setup, entry, case.name, case.position, case.velocity, settings,
-                    {"scenario": scenario, "level": name, "sigma_position": sx,
-                     "sigma_velocity": sv}, setup.safeguard or SafeguardSettings(),
-                ))
-        log(f"{scenario} noise {name} done")
-    return out
-
-
-def saturation_campaign(
-    setup: ScenarioSetup,
-    scenario: str,
-    fractions: Sequence[float],
-    log_every: int = 10,
-    log: Log = _quiet,
-) -> list[Record]:
-    """Every controller on every case with joint torque limits at ``fraction`` × the peak
-    joint torque it asked for in the unlimited run, with and without the safeguard."""
-    plant = setup.make_plant()
-    out: list[Record] = []
-    for entry in setup.controllers:
-        for case in setup.cases:
-            free = _run(
-                plant, setup, entry, case.position, case.velocity,
-                replace(setup.loop_settings, log_every=log_every, noise=None), setup.safeguard,
-            )
-            peak = np.max(np.abs(np.nan_to_num(free.joint_torque)), axis=0)
-            for frac in fractions:
-                limit = np.maximum(frac * peak, 1e-6)
-                for guarded in (False, True):
-                    settings = replace(
-                        setup.loop_settings, log_every=log_every, torque_limit=limit,
-                        noise=None,
-                    )
-                    out.append(_status_record(
-                        plant, setup, entry, case.name, case.position, case.velocity,
-                        settings, {"scenario": scenario, "fraction": frac,
-                                   "safeguard": guarded, "peak": peak.tolist()},
-                        SafeguardSettings() if guarded else None,
-                    ))
-        log(f"{scenario} saturation {entry.name} done")
-    return out
-
-
-def _status_record(
-    plant: MujocoPlant, setup: ScenarioSetup, entry: ControllerEntry, case: str, x0: Array,
-    dx0: Array, settings: LoopSettings, extra: Record, safeguard: SafeguardSettings | None,
-) -> Record:
-    try:
-        traj = _run(plant, setup, entry, x0, dx0, settings, safeguard)
-    except Exception as exc:  # the point of the campaign: any crash is a finding
-        return {**extra, "controller": entry.name, "case": case, "status": "crashed",
-                "error": f"{type(exc).__name__}: {exc}"}
-    status, _ = judge_status(traj, entry.controller.target, setup.criteria)
-    margins = setup.monitor.margins_along(traj.position, traj.velocity)
-    enforced = [setup.monitor.names.index(n) for n in entry.controller.constraints.names]
-    low = float(np.nanmin(margins[:, enforced])) if enforced else math.nan
-    return {
-        **extra, "controller": entry.name, "type": entry.controller.type_name, "case": case,
-        "status": status, "end_time": traj.end_time, "violated": traj.violated,
-        "final_error": float(np.max(np.abs(traj.position[-1] - entry.controller.target))),
-        "min_enforced_margin": low, "saturated_steps": traj.saturated_steps,
-        "rejected_samples": traj.rejected_samples, "acted": traj.safeguard_steps,
-        "infeasible": traj.safeguard_infeasible, "control_steps": traj.control_steps,
-        "finite": bool(np.all(np.isfinite(traj.position))),
-    }
-
-
-# -- cost and long runs -------------------------------------------------------------------
-def safeguard_cost(
-    setup: ScenarioSetup, entry: ControllerEntry, states: Sequence[SampledState],
-    period: float, repeats: int = 5,
-) -> Record:
-    """Median µs per call of the bare law and of the guarded law over the same states."""
-    guard = Safeguard(entry.controller, period, also_keep=setup.also_keep)
-    law = entry.controller
-
-    def timed(f: Callable[[Array, Array], object]) -> float:
-        blocks = []
-        for _ in range(repeats):
-            start = time.perf_counter()
-            calls = 0
-            for s in states:
-                try:
-                    f(s.position, s.velocity)
-                    calls += 1
-                except ConstraintViolation:
-                    pass
-            blocks.append((time.perf_counter() - start) / max(calls, 1))
-        return float(np.median(blocks)) * 1e6
-
-    bare = timed(law.evaluate)
-    guarded = timed(guard.evaluate)
-    return {"controller": entry.name, "type": law.type_name, "bare_us": bare,
-            "guarded_us": guarded, "overhead_us": guarded - bare,
-            "acted_share": guard.acted / max(guard.calls, 1)}
-
-
-def _rss_kib() -> int:
-    try:
-        for line in Path("/proc/self/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1])
-    except OSError:
-        pass
-    return -1
-
-
-def long_run(setup: ScenarioSetup, entry: ControllerEntry, duration: float,
-             max_log_samples: int) -> Record:
-    """One run of ``duration`` simulated seconds; resident memory sampled as it goes."""
-    case = setup.cases[0]
-    rss: list[int] = []
-    settings = replace(setup.loop_settings, duration=duration, log_every=1,
-                       max_log_samples=max_log_samples)
-    plant = setup.make_plant()
-    before = _rss_kib()
-    start = time.perf_counter()
-    traj = _run(plant, setup, entry, case.position, case.velocity, settings, setup.safeguard,
-                progress=lambda _f: rss.append(_rss_kib()))
-    wall = time.perf_counter() - start
-    status, _ = judge_status(traj, entry.controller.target, setup.criteria)
-    log_bytes = sum(a.nbytes for a in (traj.time, traj.position, traj.velocity, traj.torque,
-                                       traj.joint_torque, traj.lyapunov))
-    return {
-        "controller": entry.name, "duration": duration, "control_steps": traj.control_steps,
-        "status": status, "samples_kept": len(traj.time),
-        "sample_spacing": float(np.median(np.diff(traj.time))) if len(traj.time) > 1 else 0.0,
-        "log_bytes": log_bytes, "rss_before_kib": before,
-        "rss_first_kib": rss[0] if rss else -1, "rss_last_kib": rss[-1] if rss else -1,
-        "rss_max_kib": max(rss) if rss else -1, "wall_s": wall,
-        "acted": traj.safeguard_steps,
-    }

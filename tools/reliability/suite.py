@@ -24,12 +24,14 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from cpbc.controllers import safeguard as sg
 from cpbc.controllers.safeguard import SafeguardSettings, viable
-from cpbc.reliability import campaign as cp
 from cpbc.reliability.bad_input import BASE, answer_all
 from cpbc.reliability.sampling import SampledState
 from cpbc.resources import scenarios_dir
 from cpbc.run import main as run_cli
+from cpbc.simulation import run_mujoco
+from tools.reliability import robustness as cp
 
 Log = Callable[[str], None]
 
@@ -204,13 +206,12 @@ def cost(config: Config, log: Log) -> dict[str, object]:
         for entry in cp.constrained(setup):
             # states along the scenario's own run: what the safeguard meets in operation
             case = setup.cases[0]
-            traj = cp.run_mujoco(setup.make_plant(), cp.sg.guarded(
-                                     entry.controller, setup.loop_settings.control_period,
-                                     setup.safeguard, None, setup.also_keep),
-                                 setup.model.coordinates, case.position, case.velocity,
-                                 replace(setup.loop_settings, duration=min(
-                                     5.0, setup.loop_settings.duration), log_every=25,
-                                     torque_limit=None))
+            law = sg.guarded(entry.controller, setup.loop_settings.control_period,
+                             setup.safeguard, None, setup.also_keep)
+            traj = run_mujoco(setup.make_plant(), law, setup.model.coordinates, case.position,
+                              case.velocity, replace(setup.loop_settings, duration=min(
+                                  5.0, setup.loop_settings.duration), log_every=25,
+                                  torque_limit=None))
             along = [SampledState(x, dx, "trajectory", 1.0)
                      for x, dx in zip(traj.position, traj.velocity, strict=True)][:200]
             for label, states in (("along the scenario's run", along),
