@@ -305,6 +305,29 @@ def test_an_extra_constraint_already_broken_does_not_break_the_guard(bpbc: BPBC)
     assert len(twice.guarded) == 2 + 2
 
 
+def test_past_a_limit_only_the_guard_keeps_the_arm_is_let_back_not_held() -> None:
+    """BPBC-KE knows only its energy bound; the guard keeps the joint ranges. From a state no
+    torque in the 2 N m box could stop (joint 2 at 0.997 of its 1.0 limit, 0.35 rad/s in)
+    the arm went past the limit; the guard then asked the broken margin to turn positive
+    within one period, failed every step and held the arm at rest beyond the limit for good
+    (3001 of 3001 steps), while the law's torque led back. Now a broken margin must merely
+    not shrink: the law leads the arm back inside and the guard lets go."""
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "tools/campaigns/planar_laws_box.yaml"
+    setup = build(*load_scenario(path))
+    entry = next(e for e in setup.controllers if e.name == "BPBC-KE")
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    settings = replace(setup.loop_settings, duration=2.0, noise=None)
+    x0, dx0 = np.array([0.28472, 0.99670]), np.array([0.03659, 0.34515])
+    check = checked_run(plant, setup, entry, x0, dx0, settings, safeguard=setup.safeguard)
+    traj = check.trajectory
+    limit = setup.monitor.configuration[0]
+    assert np.max(traj.position[:, 1]) > 1.0  # it did go past: no torque could stop it
+    assert np.all(limit.value(traj.position[-1]) > 0)  # and is back inside
+    assert traj.safeguard_steps < 0.25 * traj.control_steps
+
+
 def test_scenarios_keep_their_monitored_constraints_unless_told_not_to() -> None:
     setup = campaign_setup("ur5_bpbc")
     assert setup.also_keep == setup.monitor.configuration
@@ -513,13 +536,15 @@ def test_margins_are_held_under_the_plants_own_integrator(scenario: str, seed: i
     Held under both predictions, each stays inside at every physics step."""
     from pathlib import Path
 
+    from cpbc.reliability.campaign import kept_constraints
     from cpbc.reliability.verification import classify, draw_state
 
     path = Path(__file__).resolve().parent.parent / scenario
     setup = build(*load_scenario(path if path.suffix == ".yaml" else scenario))
     entry = constrained(setup)[0]
     s = draw_state(setup, seed)
-    assert classify(setup, entry.controller, s.position, s.velocity, 1 / rate) == "viable"
+    kept = kept_constraints(setup, entry, 1 / rate, setup.safeguard)
+    assert classify(setup, kept, s.position, s.velocity, 1 / rate) == "viable"
     plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
     settings = replace(setup.loop_settings, duration=0.5, control_period=1 / rate, noise=None)
     for corrector, kept in ((True, True), (False, scenario.startswith("panda"))):

@@ -501,18 +501,22 @@ class Safeguard(SafetyFilter):
                            self.settings.corrector)
 
     def _check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None,
-               stop: tuple[float, Array] | None = None) -> Callable[[Array], float]:
+               stop: tuple[float, Array] | None = None,
+               past: np.ndarray | None = None) -> Callable[[Array], float]:
         """F(τ) = min_i m_i/floor_i − 1 over the predicted end (and mid-period
         configuration) margins of every prediction, and with ``stop`` = (1/(2θA), floors)
         the braking margins σ_i at the predicted ends: ≥ 0 when τ keeps every margin above
-        its floor."""
+        its floor. ``past`` marks the margins already ≤ 0 (only the extra constraints can
+        be): their floor is their present value, compared by difference, and their braking
+        margin is not held (:meth:`_guard`)."""
         guarded, no_nan = self.guarded, self._no_nan
+        past_mid = None if past is None else past[: self._n_config]
 
         def f(t: Array) -> float:
             mids, ends, speeds = predict(t)
             velocity = guarded.velocity_margins_along(ends, speeds)
             if mid_floor is None:
-                return float((no_nan(velocity) / end_floor).min()) - 1.0
+                return float(_shares(no_nan(velocity), end_floor, past).min()) - 1.0
             rows = [mids, ends]
             if stop is not None:  # x_s = x₁ + (|ẋ₁|/(2θA)) ẋ₁, A frozen at the sample
                 speed = np.sqrt(np.einsum("ij,ij->i", speeds, speeds))
@@ -520,9 +524,13 @@ class Safeguard(SafetyFilter):
             config = no_nan(guarded.configuration_margins_along(np.concatenate(rows)))
             r = len(ends)
             end = np.concatenate((config[r:2 * r], no_nan(velocity)), axis=1)
-            low = min(float((end / end_floor).min()), float((config[:r] / mid_floor).min()))
+            low = min(float(_shares(end, end_floor, past).min()),
+                      float(_shares(config[:r], mid_floor, past_mid).min()))
             if stop is not None:
-                low = min(low, float((config[2 * r:] / stop[1]).min()))
+                braking = config[2 * r:] / stop[1]
+                if past_mid is not None:
+                    braking = np.where(past_mid, np.inf, braking)
+                low = min(low, float(braking.min()))
             return low - 1.0
 
         return f
@@ -550,12 +558,21 @@ class Safeguard(SafetyFilter):
         delta, nc = self.cushion, self._n_config
         floor = delta + self.keep * (now - delta)
         floor_mid = None
+        past = None
         if nc:
             floor_mid = delta[:nc] + self.keep_half * (now[:nc] - delta[:nc])
-            if self._extra is not None:  # an extra margin may be ≤ 0: then it must turn positive
-                floor, floor_mid = np.maximum(floor, 1e-300), np.maximum(floor_mid, 1e-300)
+            if self._extra is not None and not now[now.argmin()] > 0.0:
+                # An extra constraint (one only the guard keeps) is broken already: the arm
+                # went past a limit the law does not know of, from a state nothing could stop
+                # it from. No torque brings its margin back within one period, so it must
+                # merely not shrink: a law that leads back is let through, and the guard
+                # never holds the arm at rest beyond the limit (it did, for good, once
+                # asking for a positive margin at the period's end made every step fail).
+                past = now <= 0.0
+                floor = np.where(past, now, floor)
+                floor_mid = np.where(past[:nc], now[:nc], floor_mid)
         stop = self._braking_floor(state, bias)
-        slack = self._check(predict, floor, floor_mid, stop)  # (S1)
+        slack = self._check(predict, floor, floor_mid, stop, past)  # (S1)
         boxed = self._box(bias, tau)
         if boxed is not tau:
             self.scaled += 1
@@ -633,6 +650,15 @@ class Safeguard(SafetyFilter):
                     f_hi *= 0.5
                 side = -1
         return (1.0 - hi) * tau + hi * brake
+
+
+def _shares(m: Array, floor: Array, past: np.ndarray | None) -> Array:
+    """m / floor per margin (≥ 1: the margin keeps its floor); where ``past`` (floor ≤ 0, the
+    margin broken already) 1 + (m − floor)/|floor| instead, which is ≥ 1 when m ≥ floor."""
+    if past is None:
+        return m / floor
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(past, 1.0 + (m - floor) / np.maximum(np.abs(floor), 1e-12), m / floor)
 
 
 def _project(grads: Array, need: Array, start: Array) -> Array:
