@@ -127,6 +127,9 @@ def conditions(setup: ScenarioSetup) -> Record:
         "timestep": setup.plant_settings.timestep,
         "torque_limit": None if limit is None else [float(v) for v in limit],
         "safeguard": setup.safeguard is not None,
+        # the monitored constraints the safeguard keeps besides each law's own (judged too)
+        "also_kept": sorted({n.split("[")[0] for c in setup.also_keep for n in c.names})
+        if setup.safeguard is not None else [],
         "coordinates": list(setup.coordinate_names),
     }
 
@@ -222,6 +225,12 @@ def _shown(scenario: str) -> str:
         return scenario
 
 
+def _also(where: Record) -> str:
+    kept = cast(list, where.get("also_kept") or [])
+    return (f" (it also keeps every monitored {' and '.join(kept)} constraint, judged too)"
+            if kept else "")
+
+
 def _limits(limit: object) -> str:
     if limit is None:
         return "none"
@@ -237,7 +246,7 @@ def _section(doc: Record) -> list[str]:
              f"States: {len(seeds)} (seeds {plan['seed']}…), horizon {plan['horizon']} s; "
              f"physics {where.get('integrator', '?')} at {where.get('timestep', '?')} s; "
              f"torque limits {_limits(where.get('torque_limit'))}; safeguard "
-             f"{'on' if where.get('safeguard', True) else 'off'}; mismatch "
+             f"{'on' if where.get('safeguard', True) else 'off'}{_also(where)}; mismatch "
              f"{plan['mismatch'] or 'none'}, noise {plan['noise'] or 'none'}.", "",
              "| controller | rate | viable runs | violations | worst margin | "
              + " | ".join(CLASSES[1:]) + " | filter acted | torque on a limit | failing seeds |",
@@ -271,7 +280,10 @@ def markdown(docs: Sequence[Record], command: str = "", seconds: float | None = 
              "share of control steps at which the safeguard (or a peer's filter) changed "
              "the law's torque; *torque on a limit*: the share of steps with a joint torque "
              "on its actuator limit. A violation is judged on the true state at every "
-             "physics step. Reproduce one failure with `--seeds K --rates R`.", ""]
+             "physics step, for every constraint the controller keeps: the law's own and, "
+             "with the safeguard, the scenario's monitored constraints it keeps besides "
+             "(`simulation.safeguard_monitored`). Reproduce one failure with "
+             "`--seeds K --rates R`.", ""]
     for doc in docs:
         lines += [*_section(doc), ""]
     return "\n".join(lines)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from cpbc.reliability.verification import Mismatch, Plan, blocks, run_block, summarise
+from cpbc.reliability.verification import Block, Mismatch, Plan, blocks, run_block, summarise
 from cpbc.verify import main, run_campaign
 
 # thesis_ch6 runs the bare laws (safeguard: false): at 100 Hz some states near the boundary break
@@ -121,3 +121,14 @@ def _json(scenarios, tmp_path):
 def test_an_output_folder_that_does_not_exist_is_refused_before_any_run(tmp_path, capsys):
     assert main(["thesis_ch7", "--out", str(tmp_path / "missing" / "r.md")]) == 2
     assert "--out" in capsys.readouterr().err and not (tmp_path / "missing").exists()
+
+
+def test_a_constraint_only_the_safeguard_keeps_is_judged_too():
+    """BPBC-KE enforces its energy bound only; its safeguard keeps the joint ranges too, so a
+    run that goes past one is violated (seed 1: joint 2 at 0.997 of its limit, moving in at
+    0.35 rad/s with 2 N m actuators, is lost). It used to count as kept."""
+    path = Path(__file__).resolve().parents[1] / "tools/campaigns/planar_laws_box.yaml"
+    plan = Plan(str(path), seed=0, states=1, rates=(1000.0,), horizon=0.3)
+    (record,) = run_block(Block(plan, "BPBC-KE", 1000.0, (1,)))
+    assert record["class"] == "lost"
+    assert record["violated"] and record["constraint"] == "position[joint2]"

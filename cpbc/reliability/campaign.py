@@ -149,6 +149,17 @@ def guarded_run(
     return run_mujoco(plant, law, setup.model.coordinates, x0, dx0, settings, progress)
 
 
+def kept_constraints(setup: ScenarioSetup, entry: ControllerEntry, period: float,
+                     safeguard: SafeguardSettings | None) -> ConstraintSet:
+    """What the entry, as it runs at ``period``, promises to keep: the law's constraints and,
+    wrapped in its safeguard, the scenario's monitored ones the safeguard keeps besides
+    (``simulation.safeguard_monitored``): a run that crosses one of those is a violation
+    too."""
+    law = sg.guarded(entry.controller, period, safeguard, setup.loop_settings.torque_limit,
+                     setup.also_keep)
+    return law.guarded if isinstance(law, sg.Safeguard) else law.constraints
+
+
 def checked_run(
     plant: RecordingPlant,
     setup: ScenarioSetup,

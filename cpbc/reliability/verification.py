@@ -29,11 +29,17 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import Braking, stopping_margins
-from cpbc.controllers.base import Controller
 from cpbc.controllers.safeguard import viable
 from cpbc.peers.cbf_qp import CBFQP
-from cpbc.reliability.campaign import RecordingPlant, checked_run, constrained, state_sampler
+from cpbc.reliability.campaign import (
+    RecordingPlant,
+    checked_run,
+    constrained,
+    kept_constraints,
+    state_sampler,
+)
 from cpbc.reliability.sampling import SampledState
 from cpbc.scenario import ScenarioSetup, build, load_scenario
 from cpbc.scenario.build import ControllerEntry
@@ -111,8 +117,10 @@ def draw_state(setup: ScenarioSetup, seed: int) -> SampledState:
     return state_sampler(setup, seed).draw()
 
 
-def classify(setup: ScenarioSetup, law: Controller, x: Array, dx: Array, period: float) -> str:
-    """The class of an initial state at a control period (the module docstring)."""
+def classify(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Array,
+             period: float) -> str:
+    """The class of an initial state at a control period (the module docstring), for a
+    controller that keeps ``kept``."""
     limit = setup.loop_settings.torque_limit
     if limit is not None:
         full = np.broadcast_to(np.asarray(limit, dtype=float), (setup.model.n,))
@@ -122,7 +130,7 @@ def classify(setup: ScenarioSetup, law: Controller, x: Array, dx: Array, period:
         sigma, _ = Braking.of(setup.model, full).margins(setup.monitor, setup.model, x, dx)
         if sigma.size and not np.all(sigma > 0):
             return "outside_v"
-    return "viable" if viable(law.constraints, x, dx, period) else "too_close"
+    return "viable" if viable(kept, x, dx, period) else "too_close"
 
 
 def _law_at(entry: ControllerEntry, period: float) -> ControllerEntry:
@@ -160,6 +168,7 @@ def run_block(block: Block) -> list[Record]:
     period = 1.0 / block.rate
     entry = _law_at(entry, period)
     base = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    kept = kept_constraints(setup, entry, period, setup.safeguard)
     out: list[Record] = []
     for seed in block.seeds:
         s = draw_state(setup, seed)
@@ -167,9 +176,9 @@ def run_block(block: Block) -> list[Record]:
             setup.loop_settings, duration=plan.horizon, control_period=period, log_every=1,
             noise=None if plan.noise is None else MeasurementNoise(*plan.noise, seed=seed),
         )
-        kind = classify(setup, entry.controller, s.position, s.velocity, period)
+        kind = classify(setup, kept, s.position, s.velocity, period)
         check = checked_run(_plant(setup, plan, seed, base), setup, entry, s.position,
-                            s.velocity, settings, safeguard=setup.safeguard)
+                            s.velocity, settings, kept, safeguard=setup.safeguard)
         traj = check.trajectory
         out.append({
             "controller": entry.name, "type": entry.controller.type_name, "rate": block.rate,
