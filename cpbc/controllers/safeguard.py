@@ -114,6 +114,13 @@ class SafeguardSettings:
         backoffs: Illinois steps on β when the law's torque fails (S1) (≥ 1).
         brake_search: predictions spent searching the braking factor λ between stopping
             and reversing when neither satisfies (S1) (0: none).
+        velocity_cushion: η for the velocity margins (rates, kinetic energy), None: the same
+            as ``cushion``. Near a velocity bound the laws' inertia shaping D + ρΠ leaves
+            them little authority to decelerate, while a held torque's error grows with h:
+            on a long reach that rides a rate bound the margin can be worn down to its
+            cushion and the arm coast past its target at the bound, the guard trimming most
+            steps (README, "Safety within the actuators' torque limits"). A thicker velocity
+            cushion (0.1: 1 % of ψ(x_d, 0) at 1 ms) keeps the law's authority.
         corrector: with the closed-form prediction, also predict to second order (the
             model's acceleration evaluated once more at the predicted end, taken as linear
             over the period, Heun's) and hold every margin under both predictions. The
@@ -131,14 +138,17 @@ class SafeguardSettings:
     backoffs: int = 6
     brake_search: int = 5
     corrector: bool = True
+    velocity_cushion: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("decay_rate", "braking"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise CpbcError(f"safeguard {name} must be > 0, got {v}")
-        if not (math.isfinite(self.cushion) and 0 <= self.cushion < 1):
-            raise CpbcError(f"safeguard cushion must be in [0, 1), got {self.cushion}")
+        for name in ("cushion", "velocity_cushion"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and 0 <= v < 1):
+                raise CpbcError(f"safeguard {name} must be in [0, 1), got {v}")
         if self.substeps < 1 or self.backoffs < 1:
             raise CpbcError("safeguard substeps and backoffs must be ≥ 1")
         if self.brake_search < 0:
@@ -248,7 +258,11 @@ class Safeguard(SafetyFilter):
         # δ_i; a constraint only the guard keeps may have the target beyond it (a joint limit
         # the law does not know of between it and its target): the size of its margin there
         self.cushion = scale * np.abs(at_target)
-        self._n_config = self.guarded.n_configuration
+        nc = self.guarded.n_configuration
+        if self.settings.velocity_cushion is not None:
+            self.cushion[nc:] = (self.settings.velocity_cushion * self.period / 0.01
+                                 * np.abs(at_target[nc:]))
+        self._n_config = nc
         self._n_own_config = own.n_configuration
         self.torque_limit = None if torque_limit is None else np.asarray(torque_limit, float)
         # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)

@@ -240,6 +240,8 @@ VARIANTS: list[BadInput] = [
              setting("simulation.safeguard", "maybe")),
     BadInput("safeguard_number", "wrong type", "simulation.safeguard",
              setting("simulation.safeguard", 1)),
+    BadInput("velocity_cushion_one", "out of range", "simulation.safeguard_velocity_cushion",
+             setting("simulation.safeguard_velocity_cushion", 1.0)),
     BadInput("log_every_fraction", "wrong type", "simulation.log_every",
              setting("simulation.log_every", 1.5)),
     BadInput("noise_seed_fraction", "wrong type", "simulation.noise.seed",

@@ -92,6 +92,10 @@ class SimulationSpec(Strict):
     # ... which also keeps the configuration constraints a law only monitors (obstacles it
     # does not know of, joint ranges): it brakes before the arm reaches them
     safeguard_monitored: Annotated[bool, Field(strict=True)] = True
+    # the safeguard's cushion on the velocity margins, as a share of each margin at the target
+    # per 10 ms of control period (default: as the configuration margins', 0.001); 0.1 keeps
+    # a law that rides a rate bound on a long reach able to decelerate (README)
+    safeguard_velocity_cushion: Annotated[float, Field(gt=0, lt=1)] | None = None
     noise: NoiseSpec | None = None
     position_tolerance: Positive = 0.01
     velocity_tolerance: Positive = 0.005
