@@ -54,7 +54,9 @@ from cpbc.reliability.verification import (
     run_block,
     summarise,
 )
-from cpbc.scenario import ScenarioSetup, build, load_scenario
+from cpbc.scenario import ScenarioSetup, build
+from cpbc.scenario.load import load_any
+from cpbc.scenario.schema import SystemScenario
 from cpbc.simulation.loop import substeps_per_control
 
 CLUSTER_EXTRA = "pip install 'cpbc[cluster]'"
@@ -137,7 +139,12 @@ def conditions(setup: ScenarioSetup) -> Record:
 def check_plan(plan: Plan) -> tuple[list[str], Record]:
     """Builds the scenario here once (bad input fails before any worker starts) and returns
     the names of the controllers to check and the campaign's conditions."""
-    setup = build(*load_scenario(plan.scenario))
+    loaded, file = load_any(plan.scenario)
+    if isinstance(loaded, SystemScenario):
+        raise UsageError(f"{plan.scenario}: a Part I system scenario; verify checks arm "
+                         "scenarios (the repository's tools/part1_campaign.py runs Part I "
+                         "campaigns)")
+    setup = build(loaded, file)
     names = [e.name for e in checked_controllers(setup)]
     if not names:
         raise UsageError(f"{plan.scenario}: no controller enforces a constraint; nothing to "

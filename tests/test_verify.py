@@ -132,3 +132,9 @@ def test_a_constraint_only_the_safeguard_keeps_is_judged_too():
     (record,) = run_block(Block(plan, "BPBC-KE", 1000.0, (1,)))
     assert record["class"] == "lost"
     assert record["violated"] and record["constraint"] == "position[joint2]"
+
+
+def test_a_part_one_scenario_is_refused_with_the_reason(capsys):
+    assert main(["ch3_rwp", "--states", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "Part I system scenario" in err and "unknown key" not in err
