@@ -89,3 +89,13 @@ def test_system_pages_render(car: Path, tmp_path: Path) -> None:
             browser.next_frames(3)
             shot = np.frombuffer(browser.screenshot(tmp_path / f"{case}.png"), dtype=np.uint8)
             assert shot.size > 10_000
+
+
+def test_replaying_a_system_run_says_to_open_its_page(car: Path, capsys) -> None:
+    """python -m cpbc.viewer replays arm runs; on a Part I run it used to ask for the scene
+    files and to run the scenario again, which writes none."""
+    from cpbc.viewer.__main__ import main as viewer
+
+    assert viewer([str(car), "--export"]) == 2
+    err = capsys.readouterr().err
+    assert "Part I system run" in err and "view.html" in err

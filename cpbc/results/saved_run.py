@@ -213,6 +213,16 @@ def _trajectory(path: Path, summary: SummaryEntry, coordinates: Array) -> SavedT
         )
 
 
+def _is_system_run(folder: Path) -> bool:
+    """A Part I run's summary.json: run objects with ``peaks`` and ``bounds``."""
+    try:
+        runs = json.loads((folder / SUMMARY).read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(runs, list) and bool(runs) and all(
+        isinstance(r, dict) and "peaks" in r and "bounds" in r for r in runs)
+
+
 def load_run(folder: Path | str) -> SavedRun:
     """Read a run folder written by ``python -m cpbc.run``.
 
@@ -223,6 +233,9 @@ def load_run(folder: Path | str) -> SavedRun:
     model_file = folder / (PLAIN_SCENE_MODEL if (folder / PLAIN_SCENE_MODEL).is_file()
                            else SCENE_MODEL)
     missing = [n for n in (SUMMARY, model_file.name, SCENE_INFO) if not (folder / n).is_file()]
+    if missing and _is_system_run(folder):
+        raise CpbcError(f"'{folder}' holds a Part I system run, which this replay does not "
+                        "read: open its view.html in a browser")
     if missing:
         raise CpbcError(
             f"'{folder}' is not a complete run folder: missing {', '.join(missing)} "
