@@ -14,7 +14,7 @@ import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import ClassVar, Literal
 
 import mujoco
 
@@ -82,6 +82,10 @@ class OdePlant(ABC):
 
 class Plant(OdePlant):
     """A Part-I system with a MuJoCo model: its MJCF and the maps between x, u and MuJoCo."""
+
+    #: False when the MJCF only replays logged states (the ODE is the plant, e.g. an aircraft
+    #: whose forces depend on α̇): the MuJoCo backend refuses it
+    physics: ClassVar[bool] = True
 
     @property
     @abstractmethod
