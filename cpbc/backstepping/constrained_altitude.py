@@ -22,6 +22,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from scipy.optimize import brentq
+
 from cpbc.backstepping.altitude_law import AltitudeLaw, OuterSteps
 from cpbc.backstepping.altitude_model import AltitudeModel
 from cpbc.backstepping.barriers import positive
@@ -92,6 +94,30 @@ class ConstrainedAltitudeLaw(AltitudeLaw):
         alpha_ref = (-g.c2 * z2 - (g.k1 / g.k3) * room * phi - g.c1 * vz * (1.0 - t * t)
                      - m.climb_acceleration(vz, 0.0)) / m.l_alpha  # (5.47)
         return OuterSteps(z1, z2, alpha_ref, g.k3 * m.l_alpha * z2 / room)
+
+    def climb_plateau(self) -> float:
+        """The climb rate [m/s] the closed loop of (5.3) holds far below the command.
+
+        For h − h_d → −∞, tanh z1 → −1 and Φ → −1, so v_zref = c1 and the (z2, z3, z4) loop
+        has a quasi-steady point while z1 drifts: ż4 = 0 gives z4 = −z3/c4, ż3 = 0 gives
+        z3 = −κ z2/(c3 + 1/c4) with κ = k3 Lα*/(k2² − z2²), and ż2 = 0 leaves
+
+            −c2 z2 + (k1/k3)(k2² − z2²) − Lα* κ z2/(c3 + 1/c4) = 0,
+
+        decreasing in z2 on [0, k2) from (k1/k3)k2² > 0 to −∞: one root, and v_z = c1 + z2.
+        The plateau sits near the bound k2 + c1 only when the barrier's pull (k1/k3)k2²
+        outweighs the α-loop's coupling Lα*² k3/(k2²(c3 + 1/c4)), i.e. for a small k3.
+        (The descent is the mirror image: −c1 − z2.)
+        """
+        g, la = self.gains, self.model.l_alpha
+        k22 = g.k2 * g.k2
+
+        def balance(z2: float) -> float:
+            room = k22 - z2 * z2
+            return (-g.c2 * z2 + (g.k1 / g.k3) * room
+                    - la * la * g.k3 * z2 / (room * (g.c3 + 1.0 / g.c4)))
+
+        return g.c1 + float(brentq(balance, 0.0, g.k2 * (1.0 - 1e-12), xtol=1e-14))
 
     def lyapunov(self, x: Sequence[float], command: float) -> tuple[float, float]:
         g = self.gains

@@ -19,7 +19,8 @@ at ρ = ρ_ISA(h):
     m v̇_x = T cos θ − D cos γ − L sin γ
     m v̇_z = T sin θ − D sin γ + L cos γ − m g
     q̇ = M / I_yy,   α̇ = q − γ̇,   γ̇ = (v_x v̇_z − v_z v̇_x)/V²
-    T = clip(T_trim + m[k_p e + k_i ∫e], 0, T_max(V))     (∫e held while T is saturated)
+    T = clip(T_d, 0, T_max(V)),  T_d = T_trim + m[k_p e + k_i ∫e],
+    d/dt ∫e = e − (T_d − T)/(m k_i τ)     (back-calculation anti-windup)
 
 α̇ appears on both sides (through C_Lα̇, C_Mα̇); it is solved by fixed-point iteration, which
 contracts by ≈ q̄S c̄ C_Lα̇/(2 m V²) ≈ 0.005 per pass.
@@ -58,6 +59,7 @@ class AirspeedLoop:
 
     kp: float = 1.0  # [1/s]
     ki: float = 0.1  # [1/s²]
+    tracking: float = 1.0  # τ of the back-calculation anti-windup [s]
 
 
 @dataclass(frozen=True)
@@ -154,14 +156,13 @@ class AerosondePlant(Plant):
         return (altitude, climb_rate, self.trim[0], 0.0, 0.0, vx, 0.0)
 
     # -- dynamics -------------------------------------------------------------------------
-    def thrust(self, airspeed: float, integral: float) -> tuple[float, int]:
-        """T [N] of the airspeed loop, and its saturation: +1 at T_max(V), −1 at 0, else 0."""
+    def thrust(self, airspeed: float, integral: float) -> tuple[float, float]:
+        """T [N] of the airspeed loop, and the demand above its range (0 ≤ T ≤ T_max(V))."""
         m, loop = self.parameters.mass, self.loop
         demand = self.trim[2] + m * (loop.kp * (self.airspeed - airspeed) + loop.ki * integral)
         top = float(np.interp(airspeed, _THRUST_GRID, self._thrust_max))
-        if demand >= top:
-            return top, 1
-        return (0.0, -1) if demand <= 0.0 else (demand, 0)
+        thrust = min(max(demand, 0.0), top)
+        return thrust, demand - thrust
 
     def rhs(self, x: State, u: float, t: float) -> State:
         p = self.parameters
@@ -173,7 +174,7 @@ class AerosondePlant(Plant):
         elevator = min(max(u, -self.elevator_limit), self.elevator_limit)
         rho = isa_density(h)
         e = self.airspeed - v
-        thrust, saturated = self.thrust(v, integral)
+        thrust, excess = self.thrust(v, integral)
         alpha_dot, ax, az, qd = 0.0, 0.0, 0.0, 0.0
         for _ in range(30):
             f = aero_forces(p, rho, v, alpha, alpha_dot, q, elevator)
@@ -187,9 +188,10 @@ class AerosondePlant(Plant):
                 alpha_dot = new
                 break
             alpha_dot = new
-        # anti-windup: hold the integral while it would push the thrust further into its limit
-        winding = saturated * e > 0.0
-        return (vz, az, alpha_dot, qd, vx, ax, 0.0 if winding else e)
+        # back-calculation anti-windup: a saturated demand bleeds the integral back (continuous
+        # in the state, unlike conditional integration, whose sliding mode stalls the solver)
+        unwind = excess / (self.parameters.mass * self.loop.ki * self.loop.tracking)
+        return (vz, az, alpha_dot, qd, vx, ax, e - unwind)
 
     # -- display (the MJCF replays the path; MuJoCo simulates nothing) ----------------------
     @property
