@@ -71,7 +71,7 @@ def step_metrics(tr: SystemTrajectory, h0: float, h1: float, t0: float) -> dict[
     i = int(np.argmax(sign * vz * window))
     return {"peak_vz": float(vz[i]), "t_peak": float(t[i]), "rise_10_90": t90 - t10,
             "t_90": t90 - t0, "t_within_1m": crossing(t, frac, 1.0 - 1.0 / abs(h1 - h0), t0) - t0,
-            "overshoot": float(np.max(sign * (h[window] - h1))),
+            "overshoot": float(np.max(sign * (h[window] - h1), initial=-math.inf)),
             "alpha_max_deg": float(tr.state[:, 2].max() * DEG)}
 
 

@@ -5,10 +5,11 @@ Both Chapter 5 laws regulate to a constant h_d; the thesis's scenarios step h_d 
 z2 = v_z + c1 tanh(h − h_d) outside the barrier's domain |z2| < k2 although the state itself
 satisfies Theorem 5.5's "|v_z| < B" (e.g. v_z = 3.4 m/s, h − h_d = +100 m gives z2 = 4.9).
 The theorem needs the check it does not state: a command is admissible at the state where it
-arrives only if |z2| < k2 there. :class:`TrackingLaw` refuses an inadmissible command by
-raising :class:`OutsideDomainError` on the variable ``h_d`` (the run stops and says so) rather
-than evaluating the barrier outside its domain. (A command issued in level flight, |v_z| <
-k2 − c1, is always admissible.)
+arrives only if |z2| < k2 there. :class:`TrackingLaw` refuses an inadmissible command at the
+instant it arrives by raising :class:`OutsideDomainError` on the variable ``h_d`` (the run stops
+and says so) rather than evaluating the barrier outside its domain; a later |z2| ≥ k2 is a
+barrier crossing of the flight (e.g. under elevator saturation) and is reported as ``z2``.
+(A command issued in level flight, |v_z| < k2 − c1, is always admissible.)
 """
 
 from __future__ import annotations
@@ -52,11 +53,6 @@ class AltitudeCommand:
         i = self.index(t)
         return self.initial if i == 0 else self.steps[i - 1][1]
 
-    def previous(self, t: float) -> float:
-        """The command before the one active at t (the initial one before the first step)."""
-        i = self.index(t)
-        return self.initial if i <= 1 else self.steps[i - 2][1]
-
 
 @dataclass(frozen=True)
 class TrackingLaw:
@@ -67,10 +63,13 @@ class TrackingLaw:
 
     def __call__(self, x: Sequence[float], t: float = 0.0) -> float:
         hd = self.command.at(t)
+        i = self.command.index(t)
+        arriving = i > 0 and t == self.command.steps[i - 1][0]
         lo, hi = self.law.command_interval(x)
-        if not lo < hd < hi and self.law.admissible(x, self.command.previous(t)):
-            # inside the domain for the old command and outside for the new: the command
-            # itself is inadmissible at the state where it arrived
+        if arriving and not lo < hd < hi:
+            # at the instant the command arrives (both loops evaluate the law exactly there:
+            # the reference integrates piecewise at the command times): the command itself is
+            # inadmissible, not a barrier crossing of the flight
             raise OutsideDomainError(
                 "h_d", hd, lo, hi,
                 f"the altitude command h_d = {hd:.6g} m at t = {t:.6g} s is inadmissible at "
