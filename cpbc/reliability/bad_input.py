@@ -562,6 +562,8 @@ VARIANTS: list[BadInput] = [
     BadInput("aerosonde_start_inadmissible", "inadmissible", "cases[0].commands[0]",
              system("cases.0", {"name": "climb", "state": [100, 3.0],
                                 "commands": [{"time": 0, "altitude": 0}]}, AEROSONDE_BASE)),
+    BadInput("aerosonde_bump", "structure", "cases[0].bump_height",
+             system("cases.0.bump_height", 0.1, AEROSONDE_BASE)),
     BadInput("commands_on_quarter_car", "structure", "cases[0].commands",
              system("cases.0.commands", [{"time": 0.001, "altitude": 1}])),
 ]

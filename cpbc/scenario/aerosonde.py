@@ -73,6 +73,8 @@ def _command(case: SystemCaseSpec, altitude: float, duration: float, i: int) -> 
 
 def _plant(spec: AerosondeSpec, case: SystemCaseSpec, command: AltitudeCommand,
            i: int) -> AerosondePlant:
+    if case.bump_height is not None:
+        raise ScenarioError(f"cases[{i}].bump_height", "the Aerosonde has no road; remove the key")
     field = f"cases[{i}].state"
     if len(case.state) != 2:
         raise ScenarioError(field, "needs 2 values for the Aerosonde: altitude [m] and climb "
