@@ -18,7 +18,8 @@ SYSTEMS = sorted(p for p in scenarios_dir().glob("*.yaml")
 
 
 def test_the_part_1_scenarios_are_shipped() -> None:
-    assert {p.stem for p in SYSTEMS} == {"ch3_suspension", "ch3_rwp", "ch4_integrator_chain"}
+    assert {p.stem for p in SYSTEMS} == {"ch3_suspension", "ch3_rwp", "ch4_integrator_chain",
+                                         "ch5_aerosonde"}
 
 
 @pytest.mark.parametrize("path", SYSTEMS, ids=[p.stem for p in SYSTEMS])
@@ -36,7 +37,8 @@ def test_figure_cases_are_named_after_the_thesis() -> None:
     names = {p.stem: [c.name for c in load_any(p)[0].cases] for p in SYSTEMS}  # type: ignore[union-attr]
     assert names == {"ch3_suspension": ["fig3.4", "fig3.5", "fig3.6", "fig3.7"],
                      "ch3_rwp": ["fig3.9", "fig3.11"],
-                     "ch4_integrator_chain": ["fig4.1", "fig4.2"]}
+                     "ch4_integrator_chain": ["fig4.1", "fig4.2"],
+                     "ch5_aerosonde": ["fig5.1", "fig5.3", "fig5.5", "fig5.7"]}
 
 
 def test_literal_fig3_7_start_is_refused_naming_the_domain() -> None:

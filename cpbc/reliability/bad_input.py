@@ -79,6 +79,16 @@ CHAIN_BASE: dict = {
     "cases": [{"name": "fig4.1", "state": [-10, -1.5, -0.05, -2.5]}],
 }
 
+AEROSONDE_BASE: dict = {
+    "name": "aerosonde_base",
+    "system": {"type": "aerosonde",
+               "laws": [{"type": "traditional", "name": "traditional"},
+                        {"type": "constrained", "name": "constrained"}]},
+    "simulation": {"duration": 0.2, "timestep": 0.1, "backend": "reference"},
+    "cases": [{"name": "climb", "state": [100, 0],
+               "commands": [{"time": 0.1, "altitude": 150}]}],
+}
+
 # Builds the scenario file's content from a copy of BASE; bytes for a file that is not
 # text, None when it has put something at ``folder/scenario.yaml`` itself (a directory).
 Make = Callable[[dict, Path], "str | bytes | None"]
@@ -552,6 +562,34 @@ VARIANTS: list[BadInput] = [
              system("cases.0.state", [0, 3, 0, 0], CHAIN_BASE)),
     BadInput("chain_bump", "structure", "cases[0].bump_height",
              system("cases.0.bump_height", 0.1, CHAIN_BASE)),
+    BadInput("aerosonde_state_full", "wrong shape", "cases[0].state",
+             system("cases.0.state", [100, 0, 0.09, 0], AEROSONDE_BASE)),
+    BadInput("aerosonde_climb_past_limit", "inadmissible", "cases[0].state",
+             system("cases.0.state", [100, 4.0], AEROSONDE_BASE)),
+    BadInput("aerosonde_bound_above_limit", "gains", "system.laws[1].gains",
+             system("system.climb_rate_limit", 3.0, AEROSONDE_BASE)),
+    BadInput("aerosonde_k2_below_c1", "gains", "system.laws[1].gains.k2",
+             system("system.laws.1.gains", {"k2": 1.0}, AEROSONDE_BASE)),
+    BadInput("aerosonde_k_on_traditional", "unknown key", "system.laws[0].gains.k3",
+             system("system.laws.0.gains", {"k3": 0.5}, AEROSONDE_BASE)),
+    BadInput("aerosonde_mujoco", "structure", "simulation.backend",
+             system("simulation.backend", "mujoco", AEROSONDE_BASE)),
+    BadInput("aerosonde_density_zero", "non-positive", "system.air_density",
+             system("system.air_density", 0, AEROSONDE_BASE)),
+    BadInput("aerosonde_command_text", "wrong type", "cases[0].commands[0].altitude",
+             system("cases.0.commands.0.altitude", "high", AEROSONDE_BASE)),
+    BadInput("aerosonde_command_after_end", "length", "cases[0].commands[0].time",
+             system("cases.0.commands.0.time", 5, AEROSONDE_BASE)),
+    BadInput("aerosonde_commands_out_of_order", "structure", "cases[0].commands[1].time",
+             system("cases.0.commands", [{"time": 0.15, "altitude": 150},
+                                         {"time": 0.1, "altitude": 130}], AEROSONDE_BASE)),
+    BadInput("aerosonde_start_inadmissible", "inadmissible", "cases[0].commands[0]",
+             system("cases.0", {"name": "climb", "state": [100, 3.0],
+                                "commands": [{"time": 0, "altitude": 0}]}, AEROSONDE_BASE)),
+    BadInput("aerosonde_bump", "structure", "cases[0].bump_height",
+             system("cases.0.bump_height", 0.1, AEROSONDE_BASE)),
+    BadInput("commands_on_quarter_car", "structure", "cases[0].commands",
+             system("cases.0.commands", [{"time": 0.001, "altitude": 1}])),
 ]
 
 

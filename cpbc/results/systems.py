@@ -27,12 +27,14 @@ from cpbc.systems.plant import ConstrainedQuantity
 @dataclass(frozen=True)
 class Panel:
     """One time plot: ``scale`` × (state ``index``, or the input when ``index`` is None),
-    with the bound ± ``bound`` (in the quantity's own unit, before ``scale``) drawn."""
+    with the bound ± ``bound`` (in the quantity's own unit, before ``scale``) drawn; an
+    asymmetric interval gives its ``lower`` end too."""
 
     label: str
     index: int | None
     scale: float = 1.0
     bound: float | None = None
+    lower: float | None = None
 
 
 @dataclass(frozen=True)
@@ -45,6 +47,7 @@ class SystemView:
         judged: the state components convergence is judged on (the pendulum, not its wheel).
         angles: components wrapped to (−π, π] before judging.
         design_bounds: a-priori bounds of the thesis evaluated for the gains (name → value).
+        path: (horizontal position, altitude) indices of a vehicle's path, drawn in 3-D.
     """
 
     panels: tuple[Panel, ...]
@@ -52,6 +55,7 @@ class SystemView:
     judged: tuple[int, ...]
     angles: tuple[int, ...]
     design_bounds: dict[str, float] = field(default_factory=dict)
+    path: tuple[int, int] | None = None
 
 
 @dataclass(frozen=True)
@@ -90,6 +94,19 @@ def _values(traj: SystemTrajectory, q: ConstrainedQuantity) -> Array:
     return traj.input if q.source == "input" else traj.state[:, q.index]
 
 
+def _peak(v: Array, q: ConstrainedQuantity) -> tuple[float, float]:
+    """(peak, bound) as magnitudes, from the side of (lower, upper) that ``v`` came closest
+    to in proportion (max |v| and min(−lower, upper) when the interval is symmetric)."""
+    if not v.size:
+        return math.nan, min(-q.lower, q.upper)
+    if q.lower == -q.upper or not (q.lower < 0.0 < q.upper):
+        return float(np.max(np.abs(v))), min(-q.lower, q.upper)
+    top, bottom = float(np.max(v)), float(np.min(v))
+    if top / q.upper >= bottom / q.lower:
+        return abs(top), q.upper
+    return abs(bottom), -q.lower
+
+
 def _judged(traj: SystemTrajectory, view: SystemView) -> Array:
     """|x_i| of the judged components per sample, angles wrapped."""
     cols = []
@@ -108,9 +125,7 @@ def summarise_system(
     for q in constrained:
         v = _values(traj, q)
         out = np.nonzero((v <= q.lower) | (v >= q.upper))[0]
-        v = v[np.isfinite(v)]
-        peaks[q.name] = float(np.max(np.abs(v))) if v.size else math.nan
-        bounds[q.name] = min(-q.lower, q.upper)
+        peaks[q.name], bounds[q.name] = _peak(v[np.isfinite(v)], q)
         if out.size:
             crossed.append(q.name)
             first = min(first, float(traj.time[out[0]]))
@@ -176,7 +191,8 @@ def plot_case(path: Path, case: str, runs: Sequence[tuple[str, SystemTrajectory]
         label = p.label
         if p.bound is not None:
             edge = p.bound * abs(p.scale)
-            for b in (edge, -edge):
+            low = -edge if p.lower is None else p.lower * p.scale
+            for b in (edge, low):
                 ax.axhline(b, color=BOUND_COLOUR, ls="--", lw=0.8)
             peak = max(float(np.nanmax(np.abs(_signal(t, p)), initial=0.0)) for _, t in runs)
             if peak > CLIP * edge:  # a run far past the bound would flatten the others
@@ -198,4 +214,28 @@ def plot_case(path: Path, case: str, runs: Sequence[tuple[str, SystemTrajectory]
         ax.set_ylabel(ly)
         ax.set_title("phase portrait", fontsize=9)
         ax.grid(alpha=0.3)
+    fig.savefig(path)
+
+
+def plot_path(path: Path, case: str, runs: Sequence[tuple[str, SystemTrajectory]],
+              view: SystemView) -> None:
+    """The vehicle's path in 3-D (downrange, one lane per law, altitude): a longitudinal
+    flight is planar, so each law's path is drawn in its own lane, with its shadow on the
+    ground h = 0."""
+    assert view.path is not None
+    ix, ih = view.path
+    fig = Figure(figsize=(7.0, 4.5), dpi=100, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(projection="3d")
+    for i, (name, traj) in enumerate(runs):
+        x, h = traj.state[:, ix], traj.state[:, ih]
+        lane = np.full_like(x, float(i))
+        ax.plot(x, lane, h, color=controller_colour(i), lw=1.2, label=name)
+        ax.plot(x, lane, np.zeros_like(h), color=controller_colour(i), lw=0.6, alpha=0.3)
+        ax.plot([x[-1]], [float(i)], [h[-1]], "o", color=controller_colour(i), ms=3)
+    ax.set_yticks(range(len(runs)), [name for name, _ in runs])
+    ax.set_xlabel("downrange x [m]")
+    ax.set_zlabel("altitude h [m]")
+    ax.set_title(f"case {case}: flight path", fontsize=9)
+    ax.legend(fontsize=8, loc="upper left")
     fig.savefig(path)

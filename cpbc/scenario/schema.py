@@ -455,7 +455,65 @@ class IntegratorChainSpec(Strict):
     laws: Annotated[list[ChainLawSpec], Field(min_length=1)]
 
 
-SystemSpec = Annotated[QuarterCarSpec | ReactionWheelSpec | IntegratorChainSpec,
+class TraditionalAltitudeGainsSpec(Strict):
+    """c1 … c4 of §5.3.1 (the law (5.30))."""
+
+    c1: Positive = 1.5
+    c2: Positive = 10.0
+    c3: Positive = 5.0
+    c4: Positive = 0.1
+
+
+class ConstrainedAltitudeGainsSpec(Strict):
+    """c1 … c4, k1 … k3 of §5.4.3 (the law (5.61)); k2 + c1 must not exceed the climb-rate
+    limit B, and k2 > c1 (Theorem 5.5)."""
+
+    c1: Positive = 1.5
+    c2: Positive = 1.0
+    c3: Positive = 5.0
+    c4: Positive = 10.0
+    k1: Positive = 1.5
+    k2: Positive = 2.0
+    k3: Positive = 0.5
+
+
+class TraditionalAltitudeLawSpec(Strict):
+    """§5.3's traditional backstepping law: nothing bounds the climb rate."""
+
+    type: Literal["traditional"]
+    name: SafeName
+    gains: TraditionalAltitudeGainsSpec = TraditionalAltitudeGainsSpec()
+
+
+class ConstrainedAltitudeLawSpec(Strict):
+    """§5.4's law with the log barrier on the climb-rate error: |v_z| < k2 + c1."""
+
+    type: Literal["constrained"]
+    name: SafeName
+    gains: ConstrainedAltitudeGainsSpec = ConstrainedAltitudeGainsSpec()
+
+
+AltitudeLawSpec = Annotated[TraditionalAltitudeLawSpec | ConstrainedAltitudeLawSpec,
+                            Field(discriminator="type")]
+
+
+class AerosondeSpec(Strict):
+    """The Aerosonde UAV of Chapter 5 (AeroSim's longitudinal model, an ODE plant: the
+    reference backend only). ``air_density`` and ``mass`` are what the laws' design model
+    assumes and the aircraft's mass (the thesis gives neither); ``air_density`` defaults to
+    ISA at each case's start altitude. Each case's ``state`` is [altitude [m], climb rate
+    [m/s]]: level trim at ``airspeed`` with the velocity turned to that climb rate."""
+
+    type: Literal["aerosonde"]
+    airspeed: Positive = 23.0  # v_T [m/s], held by the airspeed loop on thrust
+    climb_rate_limit: Positive = 3.5  # B [m/s]
+    elevator_limit: Positive = 1.0  # [rad] (57.3°)
+    air_density: Positive | None = None  # ρ of the design model [kg/m³]
+    mass: Positive = 13.5  # [kg] (AeroSim gross; 8.5 empty)
+    laws: Annotated[list[AltitudeLawSpec], Field(min_length=1)]
+
+
+SystemSpec = Annotated[QuarterCarSpec | ReactionWheelSpec | IntegratorChainSpec | AerosondeSpec,
                        Field(discriminator="type")]
 
 
@@ -472,13 +530,22 @@ class SystemSimulationSpec(Strict):
     max_steps: Annotated[int, Field(ge=1, strict=True)] = 10_000_000
 
 
+class AltitudeCommandSpec(Strict):
+    """A step of the altitude command: h_d = ``altitude`` [m] from ``time`` [s] on."""
+
+    time: NonNegative
+    altitude: Number
+
+
 class SystemCaseSpec(Strict):
     """An initial state x(0) in the system's own state (see cpbc.systems); the quarter car's
-    cases give the bump height A [m]."""
+    cases give the bump height A [m], the Aerosonde's the altitude commands (h_d is the
+    start altitude until the first)."""
 
     name: SafeName
     state: Vector
     bump_height: NonNegative | None = None
+    commands: list[AltitudeCommandSpec] | None = None
 
 
 class SystemScenario(Strict):

@@ -10,6 +10,7 @@ from cpbc.errors import ScenarioError
 from cpbc.results.systems import (
     SystemSummary,
     plot_case,
+    plot_path,
     summarise_system,
     write_system_summaries,
     write_system_trajectory,
@@ -42,13 +43,14 @@ def run_system_one(setup: SystemSetup, case: SystemCase, law: SystemLaw, backend
         if progress is not None:
             progress(label, frac)
 
+    k = law.for_case(case.name)
     if backend == "mujoco":
         if not isinstance(case.plant, Plant):  # build_system/check_backend refuse it first
             raise ScenarioError("simulation.backend", "this system has no MuJoCo model")
-        traj = run_system_mujoco(case.plant, law.law, case.state, sim.duration,
+        traj = run_system_mujoco(case.plant, k, case.state, sim.duration,
                                  setup.control_period, sim.timestep, sim.integrator, report)
     else:
-        traj = run_system_reference(case.plant, law.law, case.state, sim.duration,
+        traj = run_system_reference(case.plant, k, case.state, sim.duration,
                                     setup.control_period)
     report(1.0)
     summary = summarise_system(case.name, law.name, traj, case.plant.constrained, setup.view,
@@ -60,6 +62,10 @@ def run_system_all(setup: SystemSetup, backend: str | None = None,
                    progress: RunProgress | None = None) -> list[SystemResult]:
     """Every (case, law) pair, case-major; ``backend`` overrides the scenario's."""
     backend = backend or setup.scenario.simulation.backend
+    if backend == "mujoco" and not all(c.plant.physics for c in setup.cases):
+        raise ScenarioError("simulation.backend", "this system is an ODE plant MuJoCo cannot "
+                            "simulate (no MJCF, or one that only replays the path): use the "
+                            "reference backend")
     return [run_system_one(setup, c, law, backend, progress)
             for c in setup.cases for law in setup.laws]
 
@@ -78,3 +84,5 @@ def write_system_outputs(folder: Path, setup: SystemSetup, results: list[SystemR
     for case in setup.cases:
         runs = [(r.law, r.trajectory) for r in results if r.case == case.name]
         plot_case(folder / case.name / "timeseries.png", case.name, runs, setup.view)
+        if setup.view.path is not None:
+            plot_path(folder / case.name / "path.png", case.name, runs, setup.view)

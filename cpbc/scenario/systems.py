@@ -8,8 +8,8 @@ YAML field, before anything runs.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from cpbc.backstepping import (
@@ -28,6 +28,7 @@ from cpbc.backstepping.parameter_constraints import worst_case
 from cpbc.errors import ScenarioError
 from cpbc.results.systems import Panel, SystemView
 from cpbc.scenario.schema import (
+    AerosondeSpec,
     IntegratorChainSpec,
     QuarterCarSpec,
     ReactionWheelSpec,
@@ -50,6 +51,11 @@ class SystemLaw:
     name: str
     law: Law
     barrier: bool  # False: the comparison without barrier, which guarantees nothing
+    #: the law of each case where it differs from ``law`` (one tracking the case's command)
+    cases: Mapping[str, Law] = field(default_factory=dict)
+
+    def for_case(self, case: str) -> Law:
+        return self.cases.get(case, self.law)
 
 
 @dataclass(frozen=True)
@@ -185,6 +191,9 @@ SpecOf = QuarterCarSpec | ReactionWheelSpec | IntegratorChainSpec
 
 
 def _plant(spec: SpecOf, case: SystemCaseSpec, i: int) -> OdePlant:
+    if case.commands is not None:
+        raise ScenarioError(f"cases[{i}].commands",
+                            "only the aerosonde system takes altitude commands; remove the key")
     if isinstance(spec, IntegratorChainSpec):
         if case.bump_height is not None:
             raise ScenarioError(f"cases[{i}].bump_height",
@@ -224,6 +233,10 @@ def _check_start(case: SystemCase, laws: list[SystemLaw], plant: OdePlant, i: in
 def build_system(scenario: SystemScenario, source: Path) -> SystemSetup:
     """The plants, laws and view of a Part I scenario; ScenarioError naming the field."""
     spec, sim = scenario.system, scenario.simulation
+    if isinstance(spec, AerosondeSpec):
+        from cpbc.scenario.aerosonde import build_aerosonde  # it builds on this module
+
+        return build_aerosonde(scenario, spec, source)
     laws, view = (_reaction_wheel(spec) if isinstance(spec, ReactionWheelSpec)
                   else _integrator_chain(spec) if isinstance(spec, IntegratorChainSpec)
                   else _suspension(spec))

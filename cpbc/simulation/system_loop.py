@@ -120,7 +120,8 @@ def run_system_reference(
         x = tuple(float(v) for v in y)
         u, violated = _control(law, x, t)
         if violated is not None:  # reject the stage: a true crossing ends the integration
-            domain[:] = [violated]
+            if not domain:  # the first: the solver's later stages start from the NaN
+                domain.append(violated)
             return [math.nan] * len(x)
         return list(plant.rhs(x, u, t))
 
