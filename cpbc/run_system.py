@@ -47,6 +47,8 @@ def system_table(results: Sequence[SystemResult]) -> Table:
         style = STATUS_STYLE[s.status]
         at = s.crossed_at if s.crossed_at is not None else s.end_time
         status = s.status + (f" @{at:.3g}s: {s.violated}" if s.violated else "")
+        if s.limits_reached:
+            status += f"; reached the plant's limit: {', '.join(s.limits_reached)}"
         # the reference's samples are not its steps: its rate says nothing
         mujoco = s.backend == "mujoco" and s.wall_time > 0
         steps = f"{len(r.trajectory.time) / s.wall_time:,.0f}" if mujoco else "-"

@@ -77,6 +77,7 @@ class SystemSummary:
     final_state: dict[str, float]
     design_bounds: dict[str, float]
     wall_time: float
+    limits_reached: tuple[str, ...] = ()  # the plant's limits its run reached (not violations)
 
     def as_dict(self) -> dict[str, object]:
         return {k: _finite_or_none(v) for k, v in self.__dict__.items()}
@@ -121,12 +122,14 @@ def summarise_system(
     case: str, controller: str, traj: SystemTrajectory, constrained: Sequence[ConstrainedQuantity],
     view: SystemView, state_names: Sequence[str], input_name: str, tolerance: float,
 ) -> SystemSummary:
-    peaks, bounds, crossed, first = {}, {}, [], math.inf
+    peaks, bounds, crossed, reached, first = {}, {}, [], [], math.inf
     for q in constrained:
         v = _values(traj, q)
         out = np.nonzero((v <= q.lower) | (v >= q.upper))[0]
         peaks[q.name], bounds[q.name] = _peak(v[np.isfinite(v)], q)
-        if out.size:
+        if out.size and q.limit:
+            reached.append(q.name)
+        elif out.size:
             crossed.append(q.name)
             first = min(first, float(traj.time[out[0]]))
     err = _judged(traj, view)
@@ -147,7 +150,7 @@ def summarise_system(
     violated = traj.violated or (", ".join(crossed) if crossed else None)
     return SystemSummary(case, controller, traj.backend, status, traj.end_time, violated,
                          first if crossed else None, settle, peaks, bounds, peak_abs, final,
-                         dict(view.design_bounds), traj.wall_time)
+                         dict(view.design_bounds), traj.wall_time, tuple(reached))
 
 
 def write_system_trajectory(path: Path, traj: SystemTrajectory, state_names: Sequence[str],

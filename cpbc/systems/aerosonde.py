@@ -110,8 +110,10 @@ class AerosondePlant(Plant):
         lo, hi = self.parameters.alpha_bounds
         return (
             ConstrainedQuantity("vz", -b, b, "state", 1, "m/s"),
-            ConstrainedQuantity("alpha", lo, hi, "state", 2, "rad"),
-            ConstrainedQuantity("elevator", -e, e, "input", 0, "rad"),
+            # the stall and the elevator's travel are the aircraft's limits (AeroSim clips
+            # both), not constraints of the problem: reported, not judged
+            ConstrainedQuantity("alpha", lo, hi, "state", 2, "rad", limit=True),
+            ConstrainedQuantity("elevator", -e, e, "input", 0, "rad", limit=True),
         )
 
     def breakpoints(self) -> tuple[float, ...]:

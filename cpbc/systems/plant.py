@@ -33,6 +33,9 @@ class ConstrainedQuantity:
         source: "state" (x[index]) or "input" (u).
         index: component of x (ignored for inputs).
         unit: for reports.
+        limit: a limit of the plant, not a constraint of the problem (an actuator that
+            saturates, the stall): reported with its bound, and its crossing named
+            (``SystemSummary.limits_reached``), but no run is ``constraint_violated`` by it.
     """
 
     name: str
@@ -41,6 +44,7 @@ class ConstrainedQuantity:
     source: Literal["state", "input"] = "state"
     index: int = 0
     unit: str = ""
+    limit: bool = False
 
     def __post_init__(self) -> None:
         if self.source not in ("state", "input"):
