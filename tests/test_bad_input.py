@@ -14,8 +14,8 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cpbc.reliability.bad_input import BASE, VARIANTS, BadInput, answer, setting
 from cpbc.run import main
+from tools.reliability.bad_input import BASE, VARIANTS, BadInput, answer, setting
 
 
 def test_the_base_scenario_is_valid(tmp_path: Path) -> None:

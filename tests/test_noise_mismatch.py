@@ -17,12 +17,12 @@ from cpbc.controllers import BPBC, Controller, Power
 from cpbc.controllers.base import Evaluation
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model import ArmState, RobotModel
-from cpbc.reliability.bad_input import BASE
 from cpbc.reliability.campaign import campaign_setup
 from cpbc.results.metrics import STATUSES
 from cpbc.scenario import build, load_scenario
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, run_mujoco
 from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
+from tools.reliability.bad_input import BASE
 from tools.reliability.robustness import (
     MismatchLevel,
     mismatch_campaign,

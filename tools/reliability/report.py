@@ -290,7 +290,7 @@ def render(data: Data, command: str) -> str:
         parts += [
             "## 5. Bad input", "",
             f"{len(bad['rows'])} invalid scenarios, generated from one valid scenario by "
-            "`cpbc/reliability/bad_input.py` and run through `python -m cpbc.run`: "
+            "`tools/reliability/bad_input.py` and run through `python -m cpbc.run`: "
             f"**{ok} of {len(bad['rows'])}** ended with exit code 2, a message on stderr that "
             "names the field, no traceback, and no output or scratch folder left behind "
             "(`tests/test_bad_input.py` runs the same list, plus 40 fuzzed values of numeric "

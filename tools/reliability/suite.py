@@ -26,12 +26,12 @@ import yaml
 
 from cpbc.controllers import safeguard as sg
 from cpbc.controllers.safeguard import SafeguardSettings, viable
-from cpbc.reliability.bad_input import BASE, answer_all
 from cpbc.reliability.sampling import SampledState
 from cpbc.resources import scenarios_dir
 from cpbc.run import main as run_cli
 from cpbc.simulation import run_mujoco
 from tools.reliability import robustness as cp
+from tools.reliability.bad_input import BASE, answer_all
 
 Log = Callable[[str], None]
 
