@@ -30,6 +30,7 @@ from cpbc.arrays import Array
 from cpbc.backstepping.barriers import LogBarrier, positive
 from cpbc.backstepping.jets import arctan, tanh
 from cpbc.backstepping.multiple_constraints import MultipleConstraintLaw
+from cpbc.backstepping.regions import Region
 from cpbc.backstepping.strict_feedback import StrictFeedback, Value
 from cpbc.backstepping.tuning import RULES, TuningProblem
 
@@ -154,9 +155,11 @@ MANUAL_FREE = ("c1", "c2", "c3", "k1", "k2", "k3", "k4", "k6")
 
 def tuning_problem(gains: ChainGains | None = None,
                    limits: Sequence[float] = (2.5, 12.0, 700.0), rules: str = "theorem",
-                   free: Sequence[str] | None = None) -> TuningProblem:
+                   free: Sequence[str] | None = None, region: Region | None = None
+                   ) -> TuningProblem:
     """The §4.3.3 tuning problem of the chain (reading H1) from the given constants: every
-    constant free under the theorem's rules, :data:`MANUAL_FREE` under the manual ones."""
+    constant free under the theorem's rules, :data:`MANUAL_FREE` under the manual ones; with
+    a ``region``, its sups over that region only (§4.3.5)."""
     g = gains or ChainGains()
     names = ChainGains.names()
     chosen = tuple(free) if free is not None else (
@@ -164,4 +167,4 @@ def tuning_problem(gains: ChainGains | None = None,
     return TuningProblem(
         names, tuple(getattr(g, n) for n in names), chosen,
         lambda v: IntegratorChainController(ChainGains(**v)).law,
-        tuple(float(v) for v in limits), rename=thesis_symbols)
+        tuple(float(v) for v in limits), rename=thesis_symbols, region=region)
