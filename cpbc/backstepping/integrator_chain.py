@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -168,3 +168,19 @@ def tuning_problem(gains: ChainGains | None = None,
         names, tuple(getattr(g, n) for n in names), chosen,
         lambda v: IntegratorChainController(ChainGains(**v)).law,
         tuple(float(v) for v in limits), rename=thesis_symbols, region=region)
+
+
+def local_problems(gains: ChainGains | None = None,
+                   limits: Sequence[float] = (2.5, 12.0, 700.0)
+                   ) -> Callable[[Region, str], TuningProblem]:
+    """region, rules ↦ the chain's tuning problem on that region (§4.3.5). Under the theorem's
+    rules the search starts with the later weights k5, k7 raised ×1000: they enter neither u nor
+    X_i, only the inner domination conditions (4.60), (4.78), which raising them meets (from
+    the thesis's k5 = 1, k7 = 10 the search finds no feasible point on the small regions)."""
+    g = gains or ChainGains()
+
+    def make(region: Region, rules: str) -> TuningProblem:
+        start = g if rules == "manual" else replace(g, k5=1000 * g.k5, k7=1000 * g.k7)
+        return tuning_problem(start, limits, rules, region=region)
+
+    return make

@@ -61,6 +61,8 @@ OBJECTIVES = ("thesis", "domain")
 #: Margin on every normalised condition while searching: the coarse grid's sups may fall
 #: short of the full-resolution verdict's, and K_i > sup |α_i| is strict.
 SEARCH_MARGIN = 1e-3
+#: A least violation below this is handed to SLSQP as a start (the verdict stays the checker's).
+NEAR_FEASIBLE = 1e-4
 #: The domination constants a_i stay in [A_LOW, A_HIGH] ⊂ (0, 1).
 A_LOW, A_HIGH = 0.01, 0.99
 
@@ -326,7 +328,9 @@ def optimise(
     res = resolution or Resolution()
     search = _Search(problem, rules, res)
     p, violation = _least_violation(search, _starts(search, starts, seed), maxiter)
-    if violation == 0.0 and len(p):
+    # near-feasible too: the squared penalty's gradient vanishes at the boundary, so
+    # L-BFGS-B may stop just short of it; SLSQP treats the conditions as constraints
+    if violation <= NEAR_FEASIBLE and len(p):
         opt = minimize(lambda q: search.objective(q, objective), p, method="SLSQP",
                        bounds=search.bounds(),
                        constraints=[{"type": "ineq", "fun": search.constraints}],
