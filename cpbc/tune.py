@@ -92,6 +92,8 @@ def _schedule_arguments(s: argparse.ArgumentParser) -> None:
                    help="edges of the |ξ1| bands, from 0 (default 0 1 inf)")
     s.add_argument("--shares", type=float, nargs="+", default=[0.03, 0.3, 1.0],
                    help="nested boxes |ξ_i| ≤ q Ξ_i, inner first (default 0.03 0.3 1)")
+    s.add_argument("--fixed", nargs="+", default=[], metavar="NAME",
+                   help="constants kept at the scenario's values in every region (e.g. c1 k1)")
     s.add_argument("--starts", type=int, default=1, help="starting points per problem")
     s.add_argument("--maxiter", type=int, default=40)
     s.add_argument("--seed", type=int, default=0)
@@ -207,6 +209,10 @@ def _schedule(args: argparse.Namespace, console: Console) -> tuple[int, dict[str
     for name in ("starts", "maxiter"):
         if getattr(args, name) < 1:
             raise ScenarioError(f"--{name}", "must be ≥ 1")
+    unknown = [n for n in args.fixed if n not in ChainGains.names()]
+    if unknown:
+        raise ScenarioError("--fixed", f"unknown constants {unknown}; the constants are "
+                            f"{', '.join(ChainGains.names())}")
     duration = scenario.simulation.duration if args.duration is None else args.duration
     if not duration >= 0:
         raise ScenarioError("--duration", "must be ≥ 0")
@@ -215,10 +221,11 @@ def _schedule(args: argparse.Namespace, console: Console) -> tuple[int, dict[str
     kw = {"starts": args.starts, "maxiter": args.maxiter, "seed": args.seed}
     single = optimise(tuning_problem(gains, limits, "manual"), "manual", **kw)
     fallback = single.values if single.feasible else gains.__dict__
-    sched = schedule(local_problems(gains, limits), partition, dict(fallback), **kw)
+    sched = schedule(local_problems(gains, limits, args.fixed), partition, dict(fallback), **kw)
     console.print(_schedule_table(sched))
     doc: dict[str, object] = {"warning": NO_GUARANTEE, "limits": list(limits),
                               "bands": list(args.bands), "shares": list(args.shares),
+                              "fixed": list(args.fixed),
                               "single_gain": {"feasible": single.feasible,
                                               "values": single.values},
                               "regions": [_region_doc(r) for r in sched.regions]}
@@ -252,18 +259,21 @@ def _region_doc(r: RegionTuning) -> dict[str, object]:
     reg = r.region
     return {"label": reg.label(), "xi1_band": [reg.x_low, reg.x_high],
             "box": list(reg.xi_bounds or ()), "theorem": one(r.theorem),
-            "manual": one(r.manual), "used": r.used, "values": r.values}
+            "manual": one(r.manual), "used": r.used, "values": r.values,
+            "coverage": list(r.coverage or ())}
 
 
 def _schedule_table(sched: Schedule) -> Table:
     t = Table(title="§4.3.5 gain scheduling: local problems (sups over the region ∩ D)")
-    for col in ("region", "theorem rules", "S", "failing", "manual rules", "S ", "used"):
+    for col in ("region", "theorem rules", "S", "failing", "manual rules", "S ", "used",
+                "max |z_i|/K_i on R"):
         t.add_column(col)
     for r in sched.regions:
         th, ma = r.theorem, r.manual
         t.add_row(escape(r.region.label()), "feasible" if th.feasible else "INFEASIBLE",
                   f"{th.utility:.4g}", ", ".join(sorted({c.label for c in th.failed})),
-                  "feasible" if ma.feasible else "INFEASIBLE", f"{ma.utility:.4g}", r.used)
+                  "feasible" if ma.feasible else "INFEASIBLE", f"{ma.utility:.4g}", r.used,
+                  ", ".join(f"{c:.3g}" for c in r.coverage or ()))
     return t
 
 

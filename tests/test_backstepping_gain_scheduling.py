@@ -18,6 +18,7 @@ from cpbc.backstepping.gain_scheduling import (
     NO_GUARANTEE,
     Partition,
     SwitchedLaw,
+    coverage,
     schedule,
     simulate_switched,
     single_gain,
@@ -85,6 +86,19 @@ def test_small_region_meets_the_theorem_where_d_cannot() -> None:
     assert local.theorem_holds
     glob = check_parameters(law, LIMITS, (0.95, 0.95))
     assert not glob.theorem_holds and not glob.holds("well-posed")
+
+
+def test_coverage_is_the_largest_z_over_the_box_and_the_witness_does_not_cover_it() -> None:
+    """The witness's D holds the small box in ξ2, ξ3 but not in ξ4 (|ξ4| ≤ 21 against
+    K3 = 2.85): a local design can meet the theorem on R ∩ D while R is mostly outside D."""
+    law = _law(WITNESS)
+    cov = coverage(law, SMALL)
+    rng = np.random.default_rng(7)
+    x = [rng.uniform(-1.0, 1.0, 5000)]
+    xi = list(rng.uniform(-1.0, 1.0, (3, 5000)) * np.array(SMALL.xi_bounds)[:, None])
+    sampled = np.max(np.abs(np.array(law.terms(x, xi).z)), axis=1) / np.array(law.bounds)
+    assert np.all(sampled <= np.array(cov) * (1 + 1e-9))
+    assert cov[0] < 0.1 and cov[1] < 0.5 and cov[2] > 5.0
 
 
 def test_region_verdicts_are_the_checkers_on_the_region() -> None:

@@ -31,6 +31,7 @@ from cpbc.backstepping.errors import DesignError
 from cpbc.backstepping.multiple_constraints import MultipleConstraintLaw
 from cpbc.backstepping.regions import Region
 from cpbc.backstepping.tuning import Resolution, TuningProblem, TuningResult, optimise
+from cpbc.backstepping.worst_case import grid_sup
 
 NO_GUARANTEE = ("gain scheduling (§4.3.5): NO STABILITY GUARANTEE - the thesis leaves stability "
                 "across switches open and nothing here closes it")
@@ -78,6 +79,24 @@ class Partition:
         return None
 
 
+def coverage(law: MultipleConstraintLaw, region: Region, points: int = 9,
+             budget: int = 200_000) -> tuple[float, ...]:
+    """max |z_i|/K_i over the region's box (grid over the band's x samples × the box): ≥ 1
+    means part of the region lies outside the law's D, where its local guarantees say nothing
+    and its sups were not taken (they are over R ∩ D)."""
+    if region.xi_bounds is None:
+        return (math.inf,) * law.system.m
+    xs = region.x_samples(law.system.x_samples())
+    out = []
+    for i, k in enumerate(law.bounds):
+        def z_i(x: list[Array], xi: list[Array], i: int = i, k: float = k) -> Array:
+            return np.asarray(law.terms(x, xi).z[i], dtype=float) / k
+
+        out.append(grid_sup(z_i, xs, region.xi_bounds, points=points, budget=budget,
+                            refine=0).value)
+    return tuple(out)
+
+
 @dataclass(frozen=True)
 class RegionTuning:
     """One region's local problems and what the switched law uses there.
@@ -88,6 +107,7 @@ class RegionTuning:
         manual: under the manual rules (§4.3.6 locally).
         used: "theorem", "manual" or "fallback": whose constants the switched law uses.
         values: those constants.
+        coverage: :func:`coverage` of the law with those constants (None if not computed).
     """
 
     region: Region
@@ -95,6 +115,7 @@ class RegionTuning:
     manual: TuningResult
     used: str
     values: dict[str, float]
+    coverage: tuple[float, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -116,7 +137,7 @@ ProblemMaker = Callable[[Region, str], TuningProblem]
 
 def schedule(make: ProblemMaker, partition: Partition, fallback: dict[str, float],
              starts: int = 2, maxiter: int = 40, seed: int = 0,
-             resolution: Resolution | None = None) -> Schedule:
+             resolution: Resolution | None = None, with_coverage: bool = True) -> Schedule:
     """Solve every region's problem under both rules (see the module). A region found
     infeasible under the theorem's rules is searched again from the constants of the last
     region found feasible (the starts of :func:`.tuning.optimise` are local)."""
@@ -133,7 +154,8 @@ def schedule(make: ProblemMaker, partition: Partition, fallback: dict[str, float
         ma = optimise(make(region, "manual"), "manual", **kw)  # type: ignore[arg-type]
         used, values = (("theorem", th.values) if th.feasible else
                         ("manual", ma.values) if ma.feasible else ("fallback", fallback))
-        out.append(RegionTuning(region, th, ma, used, dict(values)))
+        cover = coverage(problem.build(dict(values)), region) if with_coverage else None
+        out.append(RegionTuning(region, th, ma, used, dict(values), cover))
     return Schedule(partition, tuple(out), dict(fallback))
 
 

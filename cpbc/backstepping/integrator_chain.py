@@ -171,16 +171,18 @@ def tuning_problem(gains: ChainGains | None = None,
 
 
 def local_problems(gains: ChainGains | None = None,
-                   limits: Sequence[float] = (2.5, 12.0, 700.0)
+                   limits: Sequence[float] = (2.5, 12.0, 700.0), fixed: Sequence[str] = ()
                    ) -> Callable[[Region, str], TuningProblem]:
     """region, rules ↦ the chain's tuning problem on that region (§4.3.5). Under the theorem's
     rules the search starts with the later weights k5, k7 raised ×1000: they enter neither u nor
     X_i, only the inner domination conditions (4.60), (4.78), which raising them meets (from
-    the thesis's k5 = 1, k7 = 10 the search finds no feasible point on the small regions)."""
+    the thesis's k5 = 1, k7 = 10 the search finds no feasible point on the small regions).
+    The constants in ``fixed`` keep their given values under both rules."""
     g = gains or ChainGains()
 
     def make(region: Region, rules: str) -> TuningProblem:
         start = g if rules == "manual" else replace(g, k5=1000 * g.k5, k7=1000 * g.k7)
-        return tuning_problem(start, limits, rules, region=region)
+        free = ChainGains.names() if rules == "theorem" else MANUAL_FREE
+        return tuning_problem(start, limits, rules, [n for n in free if n not in fixed], region)
 
     return make
