@@ -110,7 +110,8 @@ def test_region_verdicts_are_the_checkers_on_the_region() -> None:
         return tuning_problem(WITNESS, LIMITS, rules, free=(), region=region)
 
     res = Resolution(search=(5, 2000, 0), verdict=(9, 20_000))
-    sched = schedule(fixed, part, {"fallback": 1.0}, starts=1, maxiter=20, resolution=res)
+    sched = schedule(fixed, part, dict(WITNESS.__dict__), starts=1, maxiter=8, resolution=res,
+                     with_coverage=False)
     assert [r.region for r in sched.regions] == list(part.regions())
     for r in sched.regions:
         for t in (r.theorem, r.manual):
