@@ -109,14 +109,14 @@ def test_region_verdicts_are_the_checkers_on_the_region() -> None:
     def fixed(region: Region, rules: str):
         return tuning_problem(WITNESS, LIMITS, rules, free=(), region=region)
 
-    res = Resolution(search=(5, 2000, 0), verdict=(9, 20_000))
+    res = Resolution(search=(5, 2000, 0), verdict=(7, 5_000))
     sched = schedule(fixed, part, dict(WITNESS.__dict__), starts=1, maxiter=8, resolution=res,
                      with_coverage=False)
     assert [r.region for r in sched.regions] == list(part.regions())
     for r in sched.regions:
         for t in (r.theorem, r.manual):
-            chk = check_parameters(_law(ChainGains(**t.values)), LIMITS, t.a, points=9,
-                                   budget=20_000, region=r.region)
+            chk = check_parameters(_law(ChainGains(**t.values)), LIMITS, t.a, points=7,
+                                   budget=5_000, region=r.region)
             assert t.feasible == chk.holds(*RULES[t.rules])
         # the switched law's constants: the theorem's if found, else the manual ones, else
         # the fallback
