@@ -136,6 +136,8 @@ def test_partition_locates_the_inner_box_first_and_refuses_bad_edges() -> None:
     assert part.locate([50.0], [0.1, 0.1, 1.0]) == 2
     assert part.locate([1.0], [0.1, 6.0, 1.0]) == 4  # |ξ3| > 0.1 Ξ3: the outer box, band 2
     assert part.locate([0.0], [0.0, 0.0, 701.0]) is None
+    short = Partition(LIMITS, (0.0, 1.0, 10.0), (1.0,))
+    assert short.locate([10.0], [0.0] * 3) == 1 and short.locate([10.5], [0.0] * 3) is None
     for bad in ({"bands": (0.0, 1.0, 1.0)}, {"bands": (1.0, 2.0)}, {"shares": (0.5, 1.5)}):
         with pytest.raises(DesignError) as err:
             Partition(LIMITS, **bad)

@@ -67,11 +67,13 @@ class Partition:
                      for q in self.shares for lo, hi in pairwise(self.bands))
 
     def locate(self, x: Sequence[float], xi: Sequence[float]) -> int | None:
-        """The index of the region holding (x, ξ) (bands half-open [b_j, b_{j+1})), or None
-        outside every box (some |ξ_i| > Ξ_i)."""
+        """The index of the region holding (x, ξ) (bands half-open [b_j, b_{j+1}), the last
+        closed), or None outside every band or every box (some |ξ_i| > q_last Ξ_i)."""
         r = max(abs(float(v)) for v in x)
+        if r > self.bands[-1]:
+            return None
         band = int(np.searchsorted(self.bands, r, side="right")) - 1
-        band = min(band, len(self.bands) - 2)  # r = ∞ or the last edge: the last band
+        band = min(band, len(self.bands) - 2)  # r on the last edge: the last band
         ratio = max(abs(float(v)) / lim for v, lim in zip(xi, self.limits, strict=True))
         for k, q in enumerate(self.shares):
             if ratio <= q:
