@@ -7,16 +7,22 @@ Chapter 4 scenario (the integrator chain of §4.4), from the law's gains in the 
               the §4.3.4 search for the least factor on the limits when it is infeasible
     starts    manual tuning step 3: the scenario's cases and random starts simulated, each
               judged (converged, limit crossed, left D, …) with the rise of U (4.70)
+    schedule  gain scheduling (§4.3.5), EXPERIMENTAL, NO STABILITY GUARANTEE: per region of a
+              partition (bands of |ξ1| × nested boxes of the constrained states) the
+              optimisation under both rules with the sups over the region only; then the
+              scenario's cases under the switched law and under the single-gain manual tuning
 
-Exit codes: 0 when it ran (and, for ``optimise``, found feasible constants), 1 when the
-optimisation is infeasible, 2 for bad input (the message names the field), 130 interrupted.
-Gain scheduling (§4.3.5) is not offered: see docs/PART1_CH4.md.
+Exit codes: 0 when it ran (and, for ``optimise``, found feasible constants; for ``schedule``,
+some region meets the theorem's rules), 1 when the optimisation is infeasible (``schedule``: in
+every region), 2 for bad input (the message names the field; nothing is written), 130
+interrupted.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -28,7 +34,20 @@ from rich.table import Table
 
 from cpbc.backstepping import ChainGains, IntegratorChainController
 from cpbc.backstepping.admissible_starts import AdmissibleStarts, sample_starts, simulate_starts
-from cpbc.backstepping.integrator_chain import thesis_symbols, tuning_problem
+from cpbc.backstepping.errors import DesignError
+from cpbc.backstepping.gain_scheduling import (
+    NO_GUARANTEE,
+    Partition,
+    RegionTuning,
+    Schedule,
+    SwitchedRun,
+    schedule,
+    simulate_switched,
+    single_gain,
+    switched_law,
+)
+from cpbc.backstepping.integrator_chain import local_problems, thesis_symbols, tuning_problem
+from cpbc.backstepping.multiple_constraints import MultipleConstraintLaw
 from cpbc.backstepping.parameter_constraints import check_parameters
 from cpbc.backstepping.tuning import OBJECTIVES, RULES, TuningResult, optimise, relax
 from cpbc.errors import CpbcError, ScenarioError
@@ -41,7 +60,8 @@ def _parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     for name, text in (("check", "the §4.3 conditions for the law's gains"),
                        ("optimise", "constrained optimisation of the constants (§4.3.3)"),
-                       ("starts", "admissible starts by simulation (§4.3.6 step 3)")):
+                       ("starts", "admissible starts by simulation (§4.3.6 step 3)"),
+                       ("schedule", "gain scheduling (§4.3.5), no stability guarantee")):
         s = sub.add_parser(name, help=text)
         s.add_argument("scenario", help="a Chapter 4 scenario file or shipped name")
         s.add_argument("--law", help="the law's name (default: the first)")
@@ -62,7 +82,23 @@ def _parser() -> argparse.ArgumentParser:
                            help="ξ1(0) uniform in ±spread (default 50)")
             s.add_argument("--duration", type=float, default=120.0)
             s.add_argument("--seed", type=int, default=0)
+        if name == "schedule":
+            _schedule_arguments(s)
     return p
+
+
+def _schedule_arguments(s: argparse.ArgumentParser) -> None:
+    s.add_argument("--bands", type=float, nargs="+", default=[0.0, 1.0, math.inf],
+                   help="edges of the |ξ1| bands, from 0 (default 0 1 inf)")
+    s.add_argument("--shares", type=float, nargs="+", default=[0.03, 0.3, 1.0],
+                   help="nested boxes |ξ_i| ≤ q Ξ_i, inner first (default 0.03 0.3 1)")
+    s.add_argument("--fixed", nargs="+", default=[], metavar="NAME",
+                   help="constants kept at the scenario's values in every region (e.g. c1 k1)")
+    s.add_argument("--starts", type=int, default=1, help="starting points per problem")
+    s.add_argument("--maxiter", type=int, default=40)
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--duration", type=float, default=None,
+                   help="simulated seconds (default: the scenario's; 0: no simulation)")
 
 
 def _load(args: argparse.Namespace
@@ -163,7 +199,101 @@ def _starts_table(res: AdmissibleStarts, names: Sequence[str]) -> Table:
     return t
 
 
-COMMANDS = {"check": _check, "optimise": _optimise, "starts": _starts}
+def _schedule(args: argparse.Namespace, console: Console) -> tuple[int, dict[str, object]]:
+    scenario, spec, law = _load(args)
+    limits = tuple(float(v) for v in spec.limits)
+    try:
+        partition = Partition(limits, tuple(args.bands), tuple(args.shares))
+    except DesignError as exc:
+        raise ScenarioError(f"--{exc.parameter}", exc.reason) from exc
+    for name in ("starts", "maxiter"):
+        if getattr(args, name) < 1:
+            raise ScenarioError(f"--{name}", "must be ≥ 1")
+    unknown = [n for n in args.fixed if n not in ChainGains.names()]
+    if unknown:
+        raise ScenarioError("--fixed", f"unknown constants {unknown}; the constants are "
+                            f"{', '.join(ChainGains.names())}")
+    duration = scenario.simulation.duration if args.duration is None else args.duration
+    if not duration >= 0:
+        raise ScenarioError("--duration", "must be ≥ 0")
+    console.print(f"[bold]{NO_GUARANTEE}[/bold]")
+    gains = _gains(law)
+    kw = {"starts": args.starts, "maxiter": args.maxiter, "seed": args.seed}
+    single = optimise(tuning_problem(gains, limits, "manual"), "manual", **kw)
+    fallback = single.values if single.feasible else gains.__dict__
+    sched = schedule(local_problems(gains, limits, args.fixed), partition, dict(fallback), **kw)
+    console.print(_schedule_table(sched))
+    doc: dict[str, object] = {"warning": NO_GUARANTEE, "limits": list(limits),
+                              "bands": list(args.bands), "shares": list(args.shares),
+                              "fixed": list(args.fixed),
+                              "single_gain": {"feasible": single.feasible,
+                                              "values": single.values},
+                              "regions": [_region_doc(r) for r in sched.regions]}
+    if duration > 0:
+        build = _chain_law
+        runs = {"scheduled": switched_law(sched, build),
+                "single-gain manual": single_gain(limits, build(dict(fallback)))}
+        sims = {(c.name, label): simulate_switched(sw, c.state, duration)
+                for c in scenario.cases for label, sw in runs.items()}
+        console.print(_switched_table(sims, limits, duration))
+        doc["simulations"] = [{"case": c, "law": lab, **r.__dict__} for (c, lab), r in
+                              sims.items()]
+    feasible = sum(r.theorem.feasible for r in sched.regions)
+    console.print(f"{feasible} of {len(sched.regions)} regions meet the theorem's rules "
+                  f"locally; {NO_GUARANTEE}")
+    return (0 if sched.any_theorem_feasible else 1), doc
+
+
+def _chain_law(values: dict[str, float]) -> MultipleConstraintLaw:
+    return IntegratorChainController(ChainGains(**values)).law
+
+
+def _region_doc(r: RegionTuning) -> dict[str, object]:
+    def one(t: TuningResult) -> dict[str, object]:
+        return {"feasible": t.feasible, "values": t.values, "a": t.a, "utility": t.utility,
+                "state_bounds": list(t.check.worst.state_bounds),
+                "failed": [c.label for c in t.failed],
+                "conflicts": {c.pair: c.ratio for c in t.conflicts},
+                "message": thesis_symbols(t.message())}
+
+    reg = r.region
+    return {"label": reg.label(), "xi1_band": [reg.x_low, reg.x_high],
+            "box": list(reg.xi_bounds or ()), "theorem": one(r.theorem),
+            "manual": one(r.manual), "used": r.used, "values": r.values,
+            "coverage": list(r.coverage or ())}
+
+
+def _schedule_table(sched: Schedule) -> Table:
+    t = Table(title="§4.3.5 gain scheduling: local problems (sups over the region ∩ D)")
+    for col in ("region", "theorem rules", "S", "failing", "manual rules", "S ", "used",
+                "max |z_i|/K_i on R"):
+        t.add_column(col)
+    for r in sched.regions:
+        th, ma = r.theorem, r.manual
+        t.add_row(escape(r.region.label()), "feasible" if th.feasible else "INFEASIBLE",
+                  f"{th.utility:.4g}", ", ".join(sorted({c.label for c in th.failed})),
+                  "feasible" if ma.feasible else "INFEASIBLE", f"{ma.utility:.4g}", r.used,
+                  ", ".join(f"{c:.3g}" for c in r.coverage or ()))
+    return t
+
+
+def _switched_table(sims: dict[tuple[str, str], SwitchedRun], limits: Sequence[float],
+                    duration: float) -> Table:
+    t = Table(title=f"switched law vs single gain, RK4 h = 0.005 s, {duration:g} s "
+              "(NO STABILITY GUARANTEE)")
+    for col in ("case", "law", "peaks |ξ2|, |ξ3|, |ξ4|", "limits", "settled (s)", "switches",
+                "U rises at switches (max)", "left D", "crossed"):
+        t.add_column(col)
+    lim = ", ".join(f"{v:g}" for v in limits)
+    for (case, label), r in sims.items():
+        rise = max(r.u_jumps, default=0.0)
+        t.add_row(escape(case), label, ", ".join(f"{p:.4g}" for p in r.peaks), lim,
+                  "-" if r.settle_time is None else f"{r.settle_time:.2f}", str(r.switches),
+                  f"{r.u_rises_at_switches} ({rise:.3g})", str(r.left_domain), str(r.crossed))
+    return t
+
+
+COMMANDS = {"check": _check, "optimise": _optimise, "starts": _starts, "schedule": _schedule}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -30,6 +30,7 @@ from cpbc.arrays import Array
 from cpbc.backstepping.barriers import LogBarrier, positive
 from cpbc.backstepping.jets import arctan, tanh
 from cpbc.backstepping.multiple_constraints import MultipleConstraintLaw
+from cpbc.backstepping.regions import Region
 from cpbc.backstepping.strict_feedback import StrictFeedback, Value
 from cpbc.backstepping.tuning import RULES, TuningProblem
 
@@ -154,9 +155,11 @@ MANUAL_FREE = ("c1", "c2", "c3", "k1", "k2", "k3", "k4", "k6")
 
 def tuning_problem(gains: ChainGains | None = None,
                    limits: Sequence[float] = (2.5, 12.0, 700.0), rules: str = "theorem",
-                   free: Sequence[str] | None = None) -> TuningProblem:
+                   free: Sequence[str] | None = None, region: Region | None = None
+                   ) -> TuningProblem:
     """The §4.3.3 tuning problem of the chain (reading H1) from the given constants: every
-    constant free under the theorem's rules, :data:`MANUAL_FREE` under the manual ones."""
+    constant free under the theorem's rules, :data:`MANUAL_FREE` under the manual ones; with
+    a ``region``, its sups over that region only (§4.3.5)."""
     g = gains or ChainGains()
     names = ChainGains.names()
     chosen = tuple(free) if free is not None else (
@@ -164,4 +167,22 @@ def tuning_problem(gains: ChainGains | None = None,
     return TuningProblem(
         names, tuple(getattr(g, n) for n in names), chosen,
         lambda v: IntegratorChainController(ChainGains(**v)).law,
-        tuple(float(v) for v in limits), rename=thesis_symbols)
+        tuple(float(v) for v in limits), rename=thesis_symbols, region=region)
+
+
+def local_problems(gains: ChainGains | None = None,
+                   limits: Sequence[float] = (2.5, 12.0, 700.0), fixed: Sequence[str] = ()
+                   ) -> Callable[[Region, str], TuningProblem]:
+    """region, rules ↦ the chain's tuning problem on that region (§4.3.5). Under the theorem's
+    rules the search starts with the later weights k5, k7 raised ×1000: they enter neither u nor
+    X_i, only the inner domination conditions (4.60), (4.78), which raising them meets (from
+    the thesis's k5 = 1, k7 = 10 the search finds no feasible point on the small regions).
+    The constants in ``fixed`` keep their given values under both rules."""
+    g = gains or ChainGains()
+
+    def make(region: Region, rules: str) -> TuningProblem:
+        start = g if rules == "manual" else replace(g, k5=1000 * g.k5, k7=1000 * g.k7)
+        free = ChainGains.names() if rules == "theorem" else MANUAL_FREE
+        return tuning_problem(start, limits, rules, [n for n in free if n not in fixed], region)
+
+    return make

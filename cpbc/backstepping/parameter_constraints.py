@@ -39,6 +39,7 @@ from cpbc.arrays import Array
 from cpbc.backstepping.errors import DesignError
 from cpbc.backstepping.linear_reach import box_reach
 from cpbc.backstepping.multiple_constraints import MultipleConstraintLaw
+from cpbc.backstepping.regions import Region, region_states
 from cpbc.backstepping.worst_case import Sup, grid_sup
 
 
@@ -82,11 +83,16 @@ class WorstCase:
 
 
 def worst_case(law: MultipleConstraintLaw, points: int = 21, budget: int = 400_000,
-               x_samples: Array | None = None, refine: int = 3) -> WorstCase:
+               x_samples: Array | None = None, refine: int = 3,
+               region: Region | None = None) -> WorstCase:
     """sup over D of |α_i| for every step, by grid and local search (x over ``x_samples``,
-    default the system's; z_j over [−K_j, K_j]; ``refine`` local climbs per step)."""
+    default the system's; z_j over [−K_j, K_j]; ``refine`` local climbs per step). With a
+    ``region`` (§4.3.5), over R ∩ D only: x in its band, z_j over the part of [−K_j, K_j]
+    where |ξ_j| ≤ s_j (:mod:`cpbc.backstepping.regions`)."""
     sys = law.system
     xs = sys.x_samples() if x_samples is None else x_samples
+    if region is not None:
+        return _region_worst_case(law, region, region.x_samples(xs), points, budget, refine)
     sups: list[Sup] = []
     for i in range(sys.m):
         def alpha_i(xcols: list[Array], z: list[Array], i: int = i) -> Array:
@@ -96,6 +102,21 @@ def worst_case(law: MultipleConstraintLaw, points: int = 21, budget: int = 400_0
             return np.asarray(law.terms(xcols, xi).alpha[i], dtype=float)
 
         sups.append(grid_sup(alpha_i, xs, law.bounds[:i], points=points, budget=budget,
+                             refine=refine))
+    return WorstCase(tuple(sups), tuple(k + s.value for k, s in zip(law.bounds, sups,
+                                                                      strict=False)))
+
+
+def _region_worst_case(law: MultipleConstraintLaw, region: Region, xs: Array, points: int,
+                       budget: int, refine: int) -> WorstCase:
+    sups: list[Sup] = []
+    for i in range(law.system.m):
+        def alpha_i(xcols: list[Array], v: list[Array], i: int = i) -> Array:
+            xi, inside = region_states(law, region, xcols, v)
+            alpha = np.asarray(law.terms(xcols, xi).alpha[i], dtype=float)
+            return np.where(inside, alpha, 0.0)
+
+        sups.append(grid_sup(alpha_i, xs, (1.0,) * i, points=points, budget=budget,
                              refine=refine))
     return WorstCase(tuple(sups), tuple(k + s.value for k, s in zip(law.bounds, sups,
                                                                       strict=False)))
@@ -255,13 +276,14 @@ class ParameterCheck:
 
 def check_parameters(
     law: MultipleConstraintLaw, limits: Sequence[float], a: Sequence[float] | None = None,
-    points: int = 21, budget: int = 400_000,
+    points: int = 21, budget: int = 400_000, region: Region | None = None,
 ) -> ParameterCheck:
-    """Evaluate every condition of §4.3 for ``law`` and the state limits Ξ."""
+    """Evaluate every condition of §4.3 for ``law`` and the state limits Ξ (with the sups over
+    ``region`` ∩ D only, if given: §4.3.5's local conditions)."""
     if len(limits) != law.system.m:
         raise DesignError("limits", float(len(limits)), f"needs one Ξ_i per step "
                           f"(m = {law.system.m})")
-    wc = worst_case(law, points=points, budget=budget)
+    wc = worst_case(law, points=points, budget=budget, region=region)
     conds = [*well_posedness(law, wc), *state_bounds(wc, limits), *domination(law, a),
              *invariance(law)]
     return ParameterCheck(tuple(conds), wc, tuple(float(v) for v in limits))

@@ -50,6 +50,7 @@ from cpbc.backstepping.parameter_constraints import (
     well_posedness,
     worst_case,
 )
+from cpbc.backstepping.regions import Region
 
 #: The condition kinds each set of rules enforces.
 RULES: dict[str, tuple[str, ...]] = {
@@ -60,6 +61,8 @@ OBJECTIVES = ("thesis", "domain")
 #: Margin on every normalised condition while searching: the coarse grid's sups may fall
 #: short of the full-resolution verdict's, and K_i > sup |α_i| is strict.
 SEARCH_MARGIN = 1e-3
+#: A least violation below this is handed to SLSQP as a start (the verdict stays the checker's).
+NEAR_FEASIBLE = 1e-4
 #: The domination constants a_i stay in [A_LOW, A_HIGH] ⊂ (0, 1).
 A_LOW, A_HIGH = 0.01, 0.99
 
@@ -77,6 +80,8 @@ class TuningProblem:
         weights: w_i of (4.91); None: 1/Ξ_i (so that each Φ_i counts as a share of its limit).
         box: (lower, upper) of every free constant.
         rename: rewrites the checker's statements into the application's names.
+        region: take the sups of X_i (4.88) over this region ∩ D only (§4.3.5's local
+            problem, :mod:`.gain_scheduling`); None: over D.
     """
 
     names: tuple[str, ...]
@@ -87,6 +92,7 @@ class TuningProblem:
     weights: tuple[float, ...] | None = None
     box: tuple[float, float] = (1e-3, 1e4)
     rename: Callable[[str], str] | None = None
+    region: Region | None = None
 
     def __post_init__(self) -> None:
         if len(self.start) != len(self.names):
@@ -244,7 +250,8 @@ class _Search:
         law = self.problem.build(values)
         points, budget, refine = self.res.search
         self.evaluations += 1
-        worst = worst_case(law, points=points, budget=budget, refine=refine)
+        worst = worst_case(law, points=points, budget=budget, refine=refine,
+                           region=self.problem.region)
         return law, conditions(law, worst, self.problem.limits, self.rules, a), worst
 
     def violation(self, p: Array) -> float:
@@ -321,7 +328,9 @@ def optimise(
     res = resolution or Resolution()
     search = _Search(problem, rules, res)
     p, violation = _least_violation(search, _starts(search, starts, seed), maxiter)
-    if violation == 0.0 and len(p):
+    # near-feasible too: the squared penalty's gradient vanishes at the boundary, so
+    # L-BFGS-B may stop just short of it; SLSQP treats the conditions as constraints
+    if violation <= NEAR_FEASIBLE and len(p):
         opt = minimize(lambda q: search.objective(q, objective), p, method="SLSQP",
                        bounds=search.bounds(),
                        constraints=[{"type": "ineq", "fun": search.constraints}],
@@ -333,10 +342,11 @@ def optimise(
     values, a = search.split(p)
     law = problem.build(values)
     points, budget = res.verdict
-    check = check_parameters(law, problem.limits, a, points=points, budget=budget)
+    check = check_parameters(law, problem.limits, a, points=points, budget=budget,
+                             region=problem.region)
     feasible = check.holds(*RULES[rules])
     start_law = problem.build(problem.values())
-    start_worst = worst_case(start_law, points=points, budget=budget)
+    start_worst = worst_case(start_law, points=points, budget=budget, region=problem.region)
     return TuningResult(
         rules, objective, feasible, values, a, check,
         utility(problem, check.worst.state_bounds),
