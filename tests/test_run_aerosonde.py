@@ -89,3 +89,12 @@ def test_an_inadmissible_command_ends_the_run_naming_it(tmp_path: Path) -> None:
     assert refused["status"] == "constraint_violated" and refused["violated"] == "h_d"
     assert refused["end_time"] == pytest.approx(20.0, abs=0.11)  # the last sample before
     assert rows["traditional"]["end_time"] == pytest.approx(25.0)
+
+
+def test_the_page_names_each_coordinates_unit(fig55) -> None:
+    """The aircraft's replay coordinates mix slide joints (range, altitude: m) and a hinge
+    (pitch: rad); the page labelled all three in rad."""
+    out, _ = fig55
+    page = (out / "view.html").read_text()
+    assert '"label":"h [m]"' in page and '"label":"pitch [rad]"' in page
+    assert '"label":"h [rad]"' not in page

@@ -50,7 +50,7 @@ class SummaryEntry(_SummaryKeys, total=False):
     rate_bounds: list[float | None]
     torque_limits: list[float] | None
     torque_bound: float | None
-    units: dict[str, str]  # the plots' units when not an arm's (a Part I system's view)
+    units: dict[str, str | list[str]]  # the plots' units when not an arm's (per coordinate or all)
 
 
 @dataclass(frozen=True)

@@ -111,13 +111,17 @@ def _panels(case: SavedCase) -> tuple[list[dict[str, Any]], bool]:
     # a run may name its own units (a Part I system's slide joints, its input)
     units = first.summary.get("units") or {}
 
-    def coordinate_panels(key: str, unit: str, extra: Any) -> list[dict[str, Any]]:
+    def coordinate_panels(key: str, unit: str | list[str], extra: Any) -> list[dict[str, Any]]:
         out = []
         for k in range(n):
             label = f"joint {k + 1}" if key == "torque" and joints else names[k]
-            out.append({"label": f"{label} [{unit}]", "key": key, "column": k,
+            each = unit[k] if isinstance(unit, list) else unit  # one per coordinate, or all
+            out.append({"label": f"{label} [{each}]", "key": key, "column": k,
                         "lines": extra(k)})
         return out
+
+    def target_lines(k: int) -> list[dict[str, Any]]:
+        return [{"y": float(first.target[k]), "label": "target"}]
 
     def rate_lines(k: int) -> list[dict[str, Any]]:
         b = bounds[k]
@@ -132,8 +136,7 @@ def _panels(case: SavedCase) -> tuple[list[dict[str, Any]], bool]:
 
     groups = [
         {"title": "Positions", "panels": coordinate_panels(
-            "position", units.get("position", "rad"),
-            lambda k: [{"y": float(first.target[k]), "label": "target"}])},
+            "position", units.get("position", "rad"), target_lines)},
         {"title": "Rates", "panels": coordinate_panels(
             "velocity", units.get("velocity", "rad/s"), rate_lines)},
         {"title": "Torques applied", "panels": coordinate_panels(

@@ -19,16 +19,18 @@ from cpbc.systems.plant import Plant
 from cpbc.viewer.export import write_view
 
 
-def _units(setup: SystemSetup, model: mujoco.MjModel) -> dict[str, str]:
-    """The plots' units: m for slide joints, rad for hinges; the input's own unit."""
-    slide = all(model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE for j in range(model.njnt))
+def _units(setup: SystemSetup, model: mujoco.MjModel) -> dict[str, str | list[str]]:
+    """The plots' units, one per coordinate: m for slide joints, rad for hinges; the input's
+    own unit."""
+    slide = [model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE for j in range(model.njnt)]
     unit = setup.input_name.partition("[")[2].rstrip("]") or "-"
-    return {"position": "m" if slide else "rad", "velocity": "m/s" if slide else "rad/s",
+    return {"position": ["m" if s else "rad" for s in slide],
+            "velocity": ["m/s" if s else "rad/s" for s in slide],
             "torque": f"input {unit}"}
 
 
 def _saved(result: SystemResult, setup: SystemSetup, names: tuple[str, ...],
-           units: dict[str, str]) -> SavedTrajectory:
+           units: dict[str, str | list[str]]) -> SavedTrajectory:
     traj = result.trajectory
     assert traj.qpos is not None and traj.qvel is not None  # both loops log them
     case = next(c for c in setup.cases if c.name == result.case)
