@@ -199,6 +199,12 @@ def run_campaign(plan: Plan, workers: int = 1, cluster: str | None = None, block
     return doc
 
 
+def _cell(text: str) -> str:
+    """Text for a Markdown table cell: a clearance pair's name (``link|obstacle``) holds a
+    bar, which would split the cell."""
+    return text.replace("|", "\\|")
+
+
 def _margin(row: Record) -> str:
     low = float(row["worst_margin"])  # type: ignore[arg-type]
     return "-" if math.isinf(low) else f"{low:.3g} ({row['worst_constraint']})"
@@ -262,7 +268,7 @@ def _section(doc: Record) -> list[str]:
         nv = r["non_viable"]
         lines.append(
             f"| {r['controller']} | {r['rate']:g} Hz | {r['runs']} | {r['violations']} | "
-            f"{_margin(r)} | " + " | ".join(f"{nv[k]['runs']} ({nv[k]['violations']})"
+            f"{_cell(_margin(r))} | " + " | ".join(f"{nv[k]['runs']} ({nv[k]['violations']})"
                                              for k in CLASSES[1:])
             + f" | {r['filter_share']:.1%} | {r['torque_limit_share']:.1%} | "
             + f"{', '.join(str(f['seed']) for f in r['failures'])} |")

@@ -138,3 +138,9 @@ def test_a_part_one_scenario_is_refused_with_the_reason(capsys):
     assert main(["ch3_rwp", "--states", "1"]) == 2
     err = capsys.readouterr().err
     assert "Part I system scenario" in err and "unknown key" not in err
+
+
+def test_a_clearance_pairs_bar_does_not_split_a_report_cell():
+    from cpbc.verify import _cell
+
+    assert _cell("0.01 (clearance[panda_hand|ball])") == "0.01 (clearance[panda_hand\\|ball])"
