@@ -35,7 +35,7 @@ from cpbc.scenario.runner import (
     run_shared,
 )
 from cpbc.scenario.schema import SystemScenario
-from cpbc.viewer.outputs import write_run_outputs
+from cpbc.viewer.outputs import figure_helper, write_run_outputs
 
 if TYPE_CHECKING:
     from cpbc.viewer.live import LiveView
@@ -241,9 +241,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             console.print(f"meshcat viewer (live): {live.url}")
         workers = args.workers or default_processes()
         # Worker processes only for a scenario long enough to repay starting them
-        # (run_shared decides); once started, they draw most figures too.
+        # (run_shared decides); once started, they draw most figures too. Otherwise a
+        # process forked now (before any simulator runs here) draws them.
         pool = LazyPool(workers - 1) if workers > 1 and not live else None
-        with staged_output(out) as scratch, pool or contextlib.nullcontext():
+        drawer = (figure_helper() if workers > 1 and not args.no_plots and not live
+                  else contextlib.nullcontext())
+        with staged_output(out) as scratch, pool or contextlib.nullcontext(), \
+                drawer as figures:
             if args.quiet:
                 results = (live.run(setup, args.backend) if live else
                            _simulate(setup, args.backend, None, pool, workers))
@@ -270,8 +274,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     r.lyapunov, setup.target, setup.coordinate_names, margin_types,
                 )
             write_summaries(scratch, [r.summary for r in results])
+            spawned = pool.started if pool else None
             write_run_outputs(scratch, setup, plots=not args.no_plots,
-                              pool=pool.started if pool else None)
+                              pool=spawned or figures, figures_only=spawned is None)
     except CpbcError as exc:
         if live:
             live.close()

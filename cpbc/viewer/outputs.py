@@ -61,16 +61,24 @@ def _plot(folder: Path, only: Sequence[tuple[str, str]] | None = None) -> list[P
     return write_plots(load_run(folder), only=only)
 
 
+def _warm() -> None:
+    """Load the plotting modules (matplotlib: about 0.3 s) in a helper before it is needed."""
+    import cpbc.results.plots  # noqa: F401
+
+
 @contextlib.contextmanager
-def forked_helper() -> Iterator[Executor | None]:
-    """One process forked from this one, to draw figures while this one writes the page: a
-    fork has every module of this process loaded already, so it starts in milliseconds where
-    a spawned worker spends seconds importing. None where there is one core, or no safe fork
-    (Windows has none; macOS's system libraries are not fork-safe)."""
+def figure_helper() -> Iterator[Executor | None]:
+    """One process forked from this one at the start of a run, to draw the figures while
+    this one simulates and then writes the page. A fork has every module of this process
+    loaded already and starts in milliseconds (a spawned worker spends seconds importing);
+    it then loads matplotlib while this process builds and simulates. None where there is
+    one core, or no safe fork (Windows has none; macOS's system libraries are not
+    fork-safe). Fork it before any simulator or thread runs here."""
     if (os.cpu_count() or 1) < 2 or sys.platform != "linux":
         yield None
         return
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork")) as pool:
+        pool.submit(_warm)
         yield pool
 
 
@@ -80,12 +88,15 @@ def write_run_outputs(
     plots: bool = True,
     settings: ViewSettings | None = None,
     pool: Executor | None = None,
+    figures_only: bool = False,
 ) -> list[Path]:
     """Into a run folder that already holds its trajectories and summary.json: the scene
     (scene.mjb.gz, scene.json), every case's figures (unless ``plots`` is False) and view.html.
 
-    A helper process — one of ``pool``'s workers, else one forked for the purpose
-    (:func:`forked_helper`) — draws most of the figures while this process writes the page.
+    A helper process of ``pool`` draws the figures while this process writes the page: all
+    of them when it is the :func:`figure_helper` (``figures_only``, matplotlib loaded there
+    while this process simulated), most of them when it is a spawned worker, this process
+    drawing the rest.
 
     Returns:
         The figures and pages written.
@@ -94,13 +105,12 @@ def write_run_outputs(
     write_scene(folder, model, scene_info(setup, model))
     if not plots:
         return [write_view(load_run(folder), settings=settings)]
-    with contextlib.ExitStack() as stack:
-        helper = pool if pool is not None else stack.enter_context(forked_helper())
-        if helper is None:
-            return [*_plot(folder), write_view(load_run(folder), settings=settings)]
-        jobs = [(case.name, name) for case in setup.cases for name in FIGURES]
-        share = round(HELPER_SHARE * len(jobs))
-        future = helper.submit(_plot, folder, jobs[:share])
-        page = write_view(load_run(folder), settings=settings)
-        mine = _plot(folder, jobs[share:])
-        return [*future.result(), *mine, page]
+    if pool is None:
+        return [*_plot(folder), write_view(load_run(folder), settings=settings)]
+    jobs = [(case.name, name) for case in setup.cases for name in FIGURES]
+    # a warm figure helper draws them all; of several spawned workers, one draws most
+    share = len(jobs) if figures_only else round(HELPER_SHARE * len(jobs))
+    future = pool.submit(_plot, folder, jobs[:share])
+    page = write_view(load_run(folder), settings=settings)
+    mine = _plot(folder, jobs[share:]) if share < len(jobs) else []
+    return [*future.result(), *mine, page]
