@@ -68,17 +68,18 @@ def _warm() -> None:
 
 @contextlib.contextmanager
 def figure_helper() -> Iterator[Executor | None]:
-    """One process forked from this one at the start of a run, to draw the figures while
-    this one simulates and then writes the page. A fork has every module of this process
+    """Two processes forked from this one at the start of a run, to draw the figures (half
+    each) while this one writes the page. A fork has every module of this process
     loaded already and starts in milliseconds (a spawned worker spends seconds importing);
-    it then loads matplotlib while this process builds and simulates. None where there is
+    they then load matplotlib while this process simulates. None where there is
     one core, or no safe fork (Windows has none; macOS's system libraries are not
     fork-safe). Fork it before any simulator or thread runs here."""
     if (os.cpu_count() or 1) < 2 or sys.platform != "linux":
         yield None
         return
-    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork")) as pool:
-        pool.submit(_warm)
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork")) as pool:
+        for _ in range(2):
+            pool.submit(_warm)
         yield pool
 
 
@@ -108,9 +109,11 @@ def write_run_outputs(
     if pool is None:
         return [*_plot(folder), write_view(load_run(folder), settings=settings)]
     jobs = [(case.name, name) for case in setup.cases for name in FIGURES]
-    # a warm figure helper draws them all; of several spawned workers, one draws most
-    share = len(jobs) if figures_only else round(HELPER_SHARE * len(jobs))
+    if figures_only:  # the warm figure helpers draw them all, half each
+        halves = [pool.submit(_plot, folder, jobs[i::2]) for i in range(2)]
+        page = write_view(load_run(folder), settings=settings)
+        return [*halves[0].result(), *halves[1].result(), page]
+    share = round(HELPER_SHARE * len(jobs))  # one spawned worker draws most of them
     future = pool.submit(_plot, folder, jobs[:share])
     page = write_view(load_run(folder), settings=settings)
-    mine = _plot(folder, jobs[share:]) if share < len(jobs) else []
-    return [*future.result(), *mine, page]
+    return [*future.result(), *_plot(folder, jobs[share:]), page]
