@@ -21,6 +21,7 @@ from rich.table import Table
 from cpbc.constraints.clearance import Clearance
 from cpbc.errors import CpbcError
 from cpbc.results import staged_output, write_summaries, write_trajectory
+from cpbc.results.drawing import figure_helper
 from cpbc.results.margin_types import types_of
 from cpbc.results.metrics import RunSummary
 from cpbc.scenario import build
@@ -35,7 +36,6 @@ from cpbc.scenario.runner import (
     run_shared,
 )
 from cpbc.scenario.schema import SystemScenario
-from cpbc.viewer.outputs import figure_helper, write_run_outputs
 
 if TYPE_CHECKING:
     from cpbc.viewer.live import LiveView
@@ -275,6 +275,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 )
             write_summaries(scratch, [r.summary for r in results])
             spawned = pool.started if pool else None
+            # the page's modules (meshcat, trimesh) load while the helpers draw
+            from cpbc.viewer.outputs import write_run_outputs
+
             write_run_outputs(scratch, setup, plots=not args.no_plots,
                               pool=spawned or figures, figures_only=spawned is None)
     except CpbcError as exc:

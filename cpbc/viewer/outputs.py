@@ -2,16 +2,12 @@
 
 from __future__ import annotations
 
-import contextlib
-import multiprocessing
-import os
-import sys
-from collections.abc import Iterator, Sequence
-from concurrent.futures import Executor, ProcessPoolExecutor
+from concurrent.futures import Executor
 from pathlib import Path
 
 import mujoco
 
+from cpbc.results.drawing import draw
 from cpbc.results.saved_run import FIGURES, SceneInfo, load_run, write_scene
 from cpbc.results.sweep import SceneKinematics, default_trace_frame
 from cpbc.scenario.build import ScenarioSetup
@@ -52,37 +48,6 @@ def scene_kinematics(setup: ScenarioSetup) -> SceneKinematics:
 HELPER_SHARE = 0.65
 
 
-def _plot(folder: Path, only: Sequence[tuple[str, str]] | None = None) -> list[Path]:
-    """Read a run folder back and draw its figures ((case, figure) pairs; all when None).
-    matplotlib is imported here, so a process that leaves the figures to others never
-    loads it."""
-    from cpbc.results.plots import write_plots
-
-    return write_plots(load_run(folder), only=only)
-
-
-def _warm() -> None:
-    """Load the plotting modules (matplotlib: about 0.3 s) in a helper before it is needed."""
-    import cpbc.results.plots  # noqa: F401
-
-
-@contextlib.contextmanager
-def figure_helper() -> Iterator[Executor | None]:
-    """Two processes forked from this one at the start of a run, to draw the figures (half
-    each) while this one writes the page. A fork has every module of this process
-    loaded already and starts in milliseconds (a spawned worker spends seconds importing);
-    they then load matplotlib while this process simulates. None where there is
-    one core, or no safe fork (Windows has none; macOS's system libraries are not
-    fork-safe). Fork it before any simulator or thread runs here."""
-    if (os.cpu_count() or 1) < 2 or sys.platform != "linux":
-        yield None
-        return
-    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork")) as pool:
-        for _ in range(2):
-            pool.submit(_warm)
-        yield pool
-
-
 def write_run_outputs(
     folder: Path,
     setup: ScenarioSetup,
@@ -94,10 +59,10 @@ def write_run_outputs(
     """Into a run folder that already holds its trajectories and summary.json: the scene
     (scene.mjb.gz, scene.json), every case's figures (unless ``plots`` is False) and view.html.
 
-    A helper process of ``pool`` draws the figures while this process writes the page: all
-    of them when it is the :func:`figure_helper` (``figures_only``, matplotlib loaded there
-    while this process simulated), most of them when it is a spawned worker, this process
-    drawing the rest.
+    Helper processes of ``pool`` draw the figures while this process writes the page: all of
+    them when they are the :func:`~cpbc.results.drawing.figure_helper`'s (``figures_only``,
+    matplotlib loaded there while this process simulated), most of them when it is a spawned
+    worker, this process drawing the rest.
 
     Returns:
         The figures and pages written.
@@ -107,13 +72,13 @@ def write_run_outputs(
     if not plots:
         return [write_view(load_run(folder), settings=settings)]
     if pool is None:
-        return [*_plot(folder), write_view(load_run(folder), settings=settings)]
+        return [*draw(folder), write_view(load_run(folder), settings=settings)]
     jobs = [(case.name, name) for case in setup.cases for name in FIGURES]
     if figures_only:  # the warm figure helpers draw them all, half each
-        halves = [pool.submit(_plot, folder, jobs[i::2]) for i in range(2)]
+        halves = [pool.submit(draw, folder, jobs[i::2]) for i in range(2)]
         page = write_view(load_run(folder), settings=settings)
         return [*halves[0].result(), *halves[1].result(), page]
     share = round(HELPER_SHARE * len(jobs))  # one spawned worker draws most of them
-    future = pool.submit(_plot, folder, jobs[:share])
+    future = pool.submit(draw, folder, jobs[:share])
     page = write_view(load_run(folder), settings=settings)
-    return [*future.result(), *_plot(folder, jobs[share:]), page]
+    return [*future.result(), *draw(folder, jobs[share:]), page]

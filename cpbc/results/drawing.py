@@ -1,0 +1,47 @@
+"""Drawing a run's figures, here or in helper processes forked for it.
+
+Figures are matplotlib's, and matplotlib takes about 0.3 s to load: a process that leaves the
+figures to others never loads it, and helpers forked at the start of a run load it while the
+run simulates (:func:`figure_helper`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import sys
+from collections.abc import Iterator, Sequence
+from concurrent.futures import Executor, ProcessPoolExecutor
+from pathlib import Path
+
+from cpbc.results.saved_run import load_run
+
+
+def draw(folder: Path, only: Sequence[tuple[str, str]] | None = None) -> list[Path]:
+    """Read a run folder back and draw its figures ((case, figure) pairs; all when None)."""
+    from cpbc.results.plots import write_plots
+
+    return write_plots(load_run(folder), only=only)
+
+
+def _warm() -> None:
+    """Load the plotting modules in a helper before it is needed."""
+    import cpbc.results.plots  # noqa: F401
+
+
+@contextlib.contextmanager
+def figure_helper() -> Iterator[Executor | None]:
+    """Two processes forked from this one at the start of a run, to draw the figures (half
+    each) while this one writes the page. A fork has every module of this process loaded
+    already and starts in milliseconds (a spawned worker spends seconds importing); they then
+    load matplotlib while this process simulates. None where there is one core, or no safe
+    fork (Windows has none; macOS's system libraries are not fork-safe). Fork them before any
+    simulator or thread runs here."""
+    if (os.cpu_count() or 1) < 2 or sys.platform != "linux":
+        yield None
+        return
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork")) as pool:
+        for _ in range(2):
+            pool.submit(_warm)
+        yield pool
