@@ -67,7 +67,7 @@ def run_system_cli(scenario: SystemScenario, file: Path, args: argparse.Namespac
     setup = build_system(scenario, file)
     out = args.out or Path("runs") / scenario.name
     backend = args.backend or scenario.simulation.backend
-    check_backend(setup, backend)
+    check_backend(setup, backend, "--backend" if args.backend else "simulation.backend")
     results = run_system_all(setup, backend)
     with staged_output(out) as scratch:
         write_system_outputs(scratch, setup, results, plots=not args.no_plots)

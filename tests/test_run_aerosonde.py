@@ -64,7 +64,8 @@ def test_the_mujoco_backend_is_refused(tmp_path: Path, capsys: pytest.CaptureFix
     path = shipped(tmp_path, 11.0, ["fig5.5"])
     out = tmp_path / "out"
     assert main([str(path), "--out", str(out), "--quiet", "--backend", "mujoco"]) == 2
-    assert "simulation.backend" in capsys.readouterr().err and not out.exists()
+    err = capsys.readouterr().err
+    assert "--backend" in err and "only replays the path" in err and not out.exists()
     data = yaml.safe_load(path.read_text())
     data["simulation"]["backend"] = "mujoco"
     path.write_text(yaml.safe_dump(data))

@@ -35,6 +35,7 @@ from cpbc.scenario.systems import (
     SystemSetup,
     _check_length,
     _gain_error,
+    check_backend,
 )
 from cpbc.systems.aerosim import AerosondeParameters
 from cpbc.systems.aerosonde import AerosondePlant
@@ -122,9 +123,6 @@ def _view(spec: AerosondeSpec, laws: list[TraditionalAltitudeLawSpec | Constrain
 def build_aerosonde(scenario: SystemScenario, spec: AerosondeSpec, source: Path) -> SystemSetup:
     """The plants, laws and view of a Chapter 5 scenario; ScenarioError naming the field."""
     sim = scenario.simulation
-    if sim.backend != "reference":
-        raise ScenarioError("simulation.backend", "the Aerosonde is an ODE plant (its MJCF "
-                            "only replays the path): set 'reference'")
     names = [law.name for law in spec.laws]
     if len(set(names)) != len(names):
         raise ScenarioError("system.laws", f"law names repeat: {names}")
@@ -151,5 +149,7 @@ def build_aerosonde(scenario: SystemScenario, spec: AerosondeSpec, source: Path)
         for system_law in laws:
             _check_start(system_law, built, command, i)
     first = cases[0].plant
-    return SystemSetup(scenario, source, tuple(cases), tuple(laws), _view(spec, spec.laws),
-                       period, first.state_names, first.input_name)
+    setup = SystemSetup(scenario, source, tuple(cases), tuple(laws), _view(spec, spec.laws),
+                        period, first.state_names, first.input_name)
+    check_backend(setup, sim.backend, "simulation.backend")
+    return setup

@@ -15,7 +15,7 @@ from cpbc.results.systems import (
     write_system_summaries,
     write_system_trajectory,
 )
-from cpbc.scenario.systems import SystemCase, SystemLaw, SystemSetup
+from cpbc.scenario.systems import SystemCase, SystemLaw, SystemSetup, check_backend
 from cpbc.simulation.system_loop import (
     SystemTrajectory,
     run_system_mujoco,
@@ -45,7 +45,7 @@ def run_system_one(setup: SystemSetup, case: SystemCase, law: SystemLaw, backend
 
     k = law.for_case(case.name)
     if backend == "mujoco":
-        if not isinstance(case.plant, Plant):  # build_system/check_backend refuse it first
+        if not isinstance(case.plant, Plant):  # check_backend refuses it first
             raise ScenarioError("simulation.backend", "this system has no MuJoCo model")
         traj = run_system_mujoco(case.plant, k, case.state, sim.duration,
                                  setup.control_period, sim.timestep, sim.integrator, report)
@@ -61,11 +61,9 @@ def run_system_one(setup: SystemSetup, case: SystemCase, law: SystemLaw, backend
 def run_system_all(setup: SystemSetup, backend: str | None = None,
                    progress: RunProgress | None = None) -> list[SystemResult]:
     """Every (case, law) pair, case-major; ``backend`` overrides the scenario's."""
+    check_backend(setup, backend or setup.scenario.simulation.backend,
+                  "simulation.backend" if backend is None else "backend")
     backend = backend or setup.scenario.simulation.backend
-    if backend == "mujoco" and not all(c.plant.physics for c in setup.cases):
-        raise ScenarioError("simulation.backend", "this system is an ODE plant MuJoCo cannot "
-                            "simulate (no MJCF, or one that only replays the path): use the "
-                            "reference backend")
     return [run_system_one(setup, c, law, backend, progress)
             for c in setup.cases for law in setup.laws]
 

@@ -41,7 +41,7 @@ from cpbc.systems import (
     QuarterCar,
     ReactionWheelPendulum,
 )
-from cpbc.systems.plant import OdePlant, State
+from cpbc.systems.plant import OdePlant, Plant, State
 
 Law = Callable[[State, float], float]  # u = k(x, t)
 
@@ -245,7 +245,6 @@ def build_system(scenario: SystemScenario, source: Path) -> SystemSetup:
         raise ScenarioError("system.laws", f"law names repeat: {names}")
     period = sim.control_period or sim.timestep
     _check_length(scenario, period)
-    _check_backend(scenario, sim.backend, "simulation.backend")
     cases: list[SystemCase] = []
     for i, c in enumerate(scenario.cases):
         plant = _plant(spec, c, i)
@@ -255,21 +254,24 @@ def build_system(scenario: SystemScenario, source: Path) -> SystemSetup:
     if len({c.name for c in cases}) != len(cases):
         raise ScenarioError("cases", "case names repeat")
     plant = cases[0].plant
-    return SystemSetup(scenario, source, tuple(cases), tuple(laws), view, period,
-                       plant.state_names, plant.input_name)
+    setup = SystemSetup(scenario, source, tuple(cases), tuple(laws), view, period,
+                        plant.state_names, plant.input_name)
+    check_backend(setup, sim.backend, "simulation.backend")
+    return setup
 
 
-def _check_backend(scenario: SystemScenario, backend: str, field: str) -> None:
-    """Refuse MuJoCo for a system that is only its ODE (nothing for a physics engine to add)."""
-    if backend == "mujoco" and isinstance(scenario.system, IntegratorChainSpec):
-        raise ScenarioError(field, "the integrator chain of §4.4 is a pure ODE with no MuJoCo "
-                            "model (a chain of integrators has no body to simulate); use the "
-                            "continuous-time reference: backend: reference")
-
-
-def check_backend(setup: SystemSetup, backend: str) -> None:
-    """:class:`ScenarioError` naming ``--backend`` if the override cannot run this system."""
-    _check_backend(setup.scenario, backend, "--backend")
+def check_backend(setup: SystemSetup, backend: str, field: str) -> None:
+    """:class:`ScenarioError` naming ``field`` when ``backend`` is MuJoCo and the system is
+    only its ODE: a plant with no MuJoCo model (the integrator chain: nothing for a physics
+    engine to add), or one whose MJCF only replays the path (the Aerosonde, whose forces
+    depend on α̇)."""
+    plant = next((c.plant for c in setup.cases if not c.plant.physics), None)
+    if backend != "mujoco" or plant is None:
+        return
+    why = ("its MJCF only replays the path" if isinstance(plant, Plant)
+           else "it has no MuJoCo model")
+    raise ScenarioError(field, f"this system is only its ODE ({why}); MuJoCo cannot simulate "
+                        "it: use the continuous-time reference (backend: reference)")
 
 
 def _check_length(scenario: SystemScenario, period: float) -> None:

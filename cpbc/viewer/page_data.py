@@ -120,9 +120,6 @@ def _panels(case: SavedCase) -> tuple[list[dict[str, Any]], bool]:
                         "lines": extra(k)})
         return out
 
-    def target_lines(k: int) -> list[dict[str, Any]]:
-        return [{"y": float(first.target[k]), "label": "target"}]
-
     def rate_lines(k: int) -> list[dict[str, Any]]:
         b = bounds[k]
         return [] if b is None else [{"y": float(b), "label": f"bound ±{float(b):g}"},
@@ -136,7 +133,8 @@ def _panels(case: SavedCase) -> tuple[list[dict[str, Any]], bool]:
 
     groups = [
         {"title": "Positions", "panels": coordinate_panels(
-            "position", units.get("position", "rad"), target_lines)},
+            "position", units.get("position", "rad"),
+            lambda k: [{"y": float(first.target[k]), "label": "target"}])},
         {"title": "Rates", "panels": coordinate_panels(
             "velocity", units.get("velocity", "rad/s"), rate_lines)},
         {"title": "Torques applied", "panels": coordinate_panels(
