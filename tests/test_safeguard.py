@@ -14,6 +14,7 @@ import pytest
 from cpbc.constraints import ConstraintSet, joint_position_limit, joint_rate_limit
 from cpbc.constraints.stopping import Braking
 from cpbc.controllers import BPBC, Power, RecentredBarrier
+from cpbc.controllers.hold import hold_corrected
 from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings, guarded, viable
 from cpbc.errors import CpbcError
@@ -57,9 +58,16 @@ def predicted(law: Safeguard, x: np.ndarray, dx: np.ndarray, tau: np.ndarray, t:
 
 
 def test_far_from_the_boundary_the_law_is_untouched(bpbc: BPBC) -> None:
-    guard = Safeguard(bpbc, 0.01)
+    """Far from every bound the guard hands back the law's torque corrected for the hold
+    (and, with the correction off, the law's own torque), without acting."""
     x, dx = np.array([0.3, 0.4]), np.array([0.01, -0.02])
-    np.testing.assert_array_equal(guard.torque(x, dx), bpbc.torque(x, dx))
+    bare = Safeguard(bpbc, 0.01, SafeguardSettings(hold_correction=False))
+    np.testing.assert_array_equal(bare.torque(x, dx), bpbc.torque(x, dx))
+    guard = Safeguard(bpbc, 0.01)
+    state = bpbc.state(x, dx)
+    bias = state.coriolis_force + state.gravity + state.dissipation
+    np.testing.assert_array_equal(
+        guard.torque(x, dx), hold_corrected(bpbc.model, state, bias, bpbc.torque(x, dx), 0.01))
     assert (guard.calls, guard.acted, guard.infeasible) == (1, 0, 0)
     assert guard.lyapunov(x, dx) == bpbc.lyapunov(x, dx)
 
@@ -553,17 +561,16 @@ def test_margins_are_held_under_the_plants_own_integrator(scenario: str, seed: i
         assert check.violated != kept, (corrector, check.constraint, check.min_margin)
 
 
-def test_a_thicker_velocity_cushion_lets_a_law_riding_a_rate_bound_slow_down(tmp_path) -> None:
+def test_a_law_riding_a_rate_bound_slows_down_as_in_continuous_time(tmp_path) -> None:
     """The Kinova Jaco2 on a 1.5 rad reach at half its rate limits, CPBC α = 0.2: in
     continuous time the law rides the rate bound (headroom 8e-5 rad/s) and settles at 8.0 s.
-    Sampled at 1 kHz its authority near the bound (D + ρΠ with ρ/ψ huge) is below the held
-    torque's error: with the default cushion the guard wears the margin down to 3e-5 rad/s,
-    trims 78 % of the steps and the arm coasts 1.5 rad past its target at the bound (10 s).
-    With safeguard_velocity_cushion 0.1 it settles as in continuous time."""
+    Near the bound its authority (D + ρΠ with ρ/ψ huge) is below the hold error: holding the
+    law's torque, the margin was worn down to the cushion, the guard trimmed 69 % of the
+    steps and the arm coasted 1.5 rad past its target at the bound. Holding its acceleration
+    (the hold correction) it settles as in continuous time, the guard never acting."""
     spec = {
         "name": "jaco_reach", "robot": {"model": "kinova"},
-        "simulation": {"duration": 12.0, "timestep": 0.001,
-                       "safeguard_velocity_cushion": 0.1},
+        "simulation": {"duration": 12.0, "timestep": 0.001},
         "target": [0.8, 3.6, 3.9, 0.0, 3.1416, 0.0],
         "cases": [{"name": "start", "position": [-0.6, 3.0, 2.6, -0.1, 3.0, -0.1]}],
         "constraints": [
@@ -578,9 +585,52 @@ def test_a_thicker_velocity_cushion_lets_a_law_riding_a_rate_bound_slow_down(tmp
     from cpbc.scenario import Scenario
 
     setup = build(Scenario.model_validate(spec), tmp_path / "s.yaml")
-    assert setup.safeguard is not None and setup.safeguard.velocity_cushion == 0.1
+    assert setup.safeguard is not None and setup.safeguard.hold_correction
     (result,) = run_all(setup)
     s = result.summary
-    assert s.status == "converged" and s.settle_time is not None and s.settle_time < 9.0, (
+    assert s.status == "converged" and s.settle_time is not None and s.settle_time < 8.5, (
         s.status, s.settle_time, s.safeguard_share)
-    assert not s.crossed_constraints and s.safeguard_share < 0.5
+    assert not s.crossed_constraints and s.safeguard_share < 0.05
+    # holding the torque instead, as before: the defect this fixes
+    spec["simulation"]["safeguard_hold_correction"] = False
+    (held_torque,) = run_all(build(Scenario.model_validate(spec), tmp_path / "s.yaml"))
+    assert held_torque.summary.status == "not_settled"
+    assert held_torque.summary.safeguard_share > 0.5
+
+
+def test_the_hold_correction_keeps_the_acceleration_of_the_sample() -> None:
+    """Over one period of the Panda model's own motion (RK4 in 20 steps), the mean
+    acceleration under the corrected torque is the law's acceleration at the sample to
+    O(h²); under the law's torque it is off by ½Δa = O(h)."""
+    from cpbc.model.loading import load_arm
+
+    model = RobotModel(load_arm("panda").model, name="panda")
+    rng = np.random.default_rng(3)
+
+    def mean_acc(x: np.ndarray, dx: np.ndarray, t: np.ndarray, h: float) -> np.ndarray:
+        q, v, k, f = x.copy(), dx.copy(), 20, model.forward_dynamics
+        dt = h / k
+        for _ in range(k):
+            k1v, k1q = f(q, v, t), v
+            k2v, k2q = f(q + 0.5 * dt * k1q, v + 0.5 * dt * k1v, t), v + 0.5 * dt * k1v
+            k3v, k3q = f(q + 0.5 * dt * k2q, v + 0.5 * dt * k2v, t), v + 0.5 * dt * k2v
+            k4v, k4q = f(q + dt * k3q, v + dt * k3v, t), v + dt * k3v
+            q = q + dt / 6 * (k1q + 2 * k2q + 2 * k3q + k4q)
+            v = v + dt / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
+        return (v - dx) / h
+
+    for _ in range(5):
+        x, dx = rng.uniform(-1.0, 1.0, model.n), rng.uniform(-1.5, 1.5, model.n)
+        state = model.state(x, dx)
+        bias = state.coriolis_force + state.gravity + state.dissipation
+        tau = bias + rng.normal(0.0, 5.0, model.n)
+        a0 = solve_spd(state.inertia, tau - bias)
+        errors = []
+        for h in (0.004, 0.002):
+            plain = np.abs(mean_acc(x, dx, tau, h) - a0).max()
+            held = np.abs(mean_acc(x, dx, hold_corrected(model, state, bias, tau, h), h)
+                          - a0).max()
+            errors.append((plain, held))
+        (plain4, held4), (plain2, held2) = errors
+        assert held2 < 0.25 * plain2 and 1.6 < plain4 / plain2 < 2.4, errors
+        assert held4 / held2 > 3.0, errors  # second order: halving h quarters it

@@ -5,7 +5,9 @@ for a control period h; near a barrier the shaped law is stiff, and one held tor
 the state across ∂S, where every log and division of the law is undefined. The safeguard
 wraps a constrained law and, at every control instant,
 
-1. asks the law for τ₀ = k(x, ẋ);
+1. asks the law for τ₀ = k(x, ẋ) and corrects it for the hold, τ₀ − ½ D Δa
+   (:mod:`cpbc.controllers.hold`: the law's acceleration of the sample kept on average over
+   the period, not its torque; ``hold_correction``);
 2. predicts the state half a period and one period ahead under the held τ with the
    controller's own model, in closed form with the dynamics frozen at the sample,
 
@@ -69,7 +71,7 @@ so the state stays in the braking set V = {σ > 0}, from which the brake within 
 stop the arm before every configuration boundary. Initial states outside V are refused by
 the scenario builder; campaigns count them apart.
 
-The wrapper returns the law's torque unchanged whenever the prediction satisfies (S1). It
+The wrapper returns the (hold-corrected) law's torque whenever the prediction satisfies (S1). It
 is pure (no simulator) like the laws it wraps, so the same object could drive a real arm
 at its control rate. The law's torque bound (Theorem 7.7, Corollary 7.8) does not cover
 τ_b; the wrapper's ``torque_bound`` is None.
@@ -88,6 +90,7 @@ from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import Braking
 from cpbc.controllers.base import Controller, Evaluation, SafetyFilter
+from cpbc.controllers.hold import hold_corrected
 from cpbc.controllers.linalg import solve_spd
 from cpbc.errors import CpbcError
 from cpbc.model.robot_model import ArmState, RobotModel
@@ -121,6 +124,11 @@ class SafeguardSettings:
             cushion and the arm coast past its target at the bound, the guard trimming most
             steps (README, "Safety within the actuators' torque limits"). A thicker velocity
             cushion (0.1: 1 % of ψ(x_d, 0) at 1 ms) keeps the law's authority.
+        hold_correction: test and hold τ − ½ D Δa instead of the law's τ
+            (:func:`cpbc.controllers.hold.hold_corrected`):
+            the law's acceleration of the sample kept on average over the period, to first
+            order, as the continuous-time law asks. Without it a law that rides a rate bound
+            loses its margin to the hold error (README, "A law that rides a rate bound").
         corrector: with the closed-form prediction, also predict to second order (the
             model's acceleration evaluated once more at the predicted end, taken as linear
             over the period, Heun's) and hold every margin under both predictions. The
@@ -139,6 +147,7 @@ class SafeguardSettings:
     brake_search: int = 5
     corrector: bool = True
     velocity_cushion: float | None = None
+    hold_correction: bool = True
 
     def __post_init__(self) -> None:
         for name in ("decay_rate", "braking"):
@@ -587,6 +596,8 @@ class Safeguard(SafetyFilter):
                 floor_mid = np.where(past[:nc], now[:nc], floor_mid)
         stop = self._braking_floor(state, bias)
         slack = self._check(predict, floor, floor_mid, stop, past)  # (S1)
+        if self.settings.hold_correction:  # the law's acceleration held, not its torque
+            tau = hold_corrected(self.model, state, bias, tau, self.period)
         boxed = self._box(bias, tau)
         if boxed is not tau:
             self.scaled += 1

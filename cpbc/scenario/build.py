@@ -713,7 +713,8 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         PlantSettings(sim.timestep, sim.integrator),
         loop, SettleCriteria(sim.position_tolerance, sim.velocity_tolerance), rate_bounds,
         obstacles, names, scenario_file, arm,
-        safeguard=SafeguardSettings(velocity_cushion=sim.safeguard_velocity_cushion)
+        safeguard=SafeguardSettings(velocity_cushion=sim.safeguard_velocity_cushion,
+                                    hold_correction=sim.safeguard_hold_correction)
         if sim.safeguard else None,
         also_keep=monitor.configuration if sim.safeguard and sim.safeguard_monitored else (),
     )

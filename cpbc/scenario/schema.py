@@ -96,6 +96,9 @@ class SimulationSpec(Strict):
     # per 10 ms of control period (default: as the configuration margins', 0.001); 0.1 keeps
     # a law that rides a rate bound on a long reach able to decelerate (README)
     safeguard_velocity_cushion: Annotated[float, Field(gt=0, lt=1)] | None = None
+    # the guard holds the law's acceleration over the period, not its torque (first order,
+    # cpbc.controllers.hold); false: the law's torque as the bare law would hold it
+    safeguard_hold_correction: Annotated[bool, Field(strict=True)] = True
     noise: NoiseSpec | None = None
     position_tolerance: Positive = 0.01
     velocity_tolerance: Positive = 0.005
