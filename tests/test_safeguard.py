@@ -200,7 +200,8 @@ def test_escape_pushes_off_one_limit_and_stops_the_joint_leaving_another(
     motion sends joint 2 back at its limit. The escape pushes joint 1 off (its margin grows
     over the period and dips mid-period by no more than the decay share) and only stops
     joint 2 (judged by the closed-form prediction: one step of 10 ms)."""
-    guard = Safeguard(recentred, 0.01, SafeguardSettings(max_step=0.01))
+    # the law's torque held as it is (with the hold correction it meets (S1) here)
+    guard = Safeguard(recentred, 0.01, SafeguardSettings(max_step=0.01, hold_correction=False))
     cons = recentred.constraints
     x, dx = np.array([1.4 - d1, -1.3 + d2]), np.array([v1, v2])
     assert viable(cons, x, dx, 0.01)
@@ -374,7 +375,9 @@ def test_every_guarded_torque_fits_the_torque_box_with_its_direction_kept(
     law's torque or a brake had to shrink, the acceleration keeps its direction: it is
     scaled toward C ẋ + g + f, never clipped joint by joint."""
     limit = np.array([3.0, 1.0])
-    guard = Safeguard(recentred, 0.01, torque_limit=limit)
+    # the law's own torque, not its hold-corrected one, is what is compared below
+    guard = Safeguard(recentred, 0.01, SafeguardSettings(hold_correction=False),
+                      torque_limit=limit)
     rng = np.random.default_rng(7)
     shrunk = 0
     for _ in range(200):
@@ -428,8 +431,11 @@ def test_the_braking_margins_keep_states_the_one_period_test_lets_go() -> None:
     seeded state near the rate bounds (campaign seed 11, draw 136), in the braking set V,
     CPBC drives the hand toward the table faster than the box can brake. The one-period
     test (S1) on the margins alone notices too late and the hand crosses the table's 1 cm
-    margin; with the braking margins σ the guard slows it in time."""
-    setup = campaign_setup("panda_cpbc_sphere")
+    margin; with the braking margins σ the guard slows it in time. Both hold the law's
+    torque, as when this was found: with the hold correction the state is kept even
+    without σ."""
+    off = SafeguardSettings(hold_correction=False)
+    setup = replace(campaign_setup("panda_cpbc_sphere"), safeguard=off)
     limit = setup.loop_settings.torque_limit
     assert limit is not None and limit.max() == 87.0
     entry = constrained(setup)[0]
@@ -440,7 +446,7 @@ def test_the_braking_margins_keep_states_the_one_period_test_lets_go() -> None:
         sigma, _ = braking.margins(setup.monitor, setup.model, s.position, s.velocity)
         assert np.all(sigma > 0)
         kept = checked_run(plant, setup, entry, s.position, s.velocity, settings,
-                           safeguard=SafeguardSettings())
+                           safeguard=off)
         assert not kept.violated and kept.trajectory.safeguard_steps > 0
         guard = setup.controller(entry)
         assert isinstance(guard, Safeguard)
@@ -557,7 +563,8 @@ def test_margins_are_held_under_the_plants_own_integrator(scenario: str, seed: i
     settings = replace(setup.loop_settings, duration=0.5, control_period=1 / rate, noise=None)
     for corrector, kept in ((True, True), (False, scenario.startswith("panda"))):
         check = checked_run(plant, setup, entry, s.position, s.velocity, settings,
-                            safeguard=SafeguardSettings(corrector=corrector))
+                            safeguard=SafeguardSettings(corrector=corrector,
+                                                        hold_correction=False))
         assert check.violated != kept, (corrector, check.constraint, check.min_margin)
 
 
