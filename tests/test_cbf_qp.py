@@ -149,10 +149,9 @@ def test_infeasible_step_is_counted_and_answered_without_the_box(tmp_path):
 
 def test_shipped_panda_comparison_settles_within_a_tenth_of_the_qp(tmp_path):
     """Issue 12's performance target on panda_cbf_qp: the guarded CPBC with α = 0.01 settles
-    no later than 1.1 × the CBF-QP (measured 2.223 s against 2.021 s with the hold correction, 2.189 s
-    without) while keeping every
-    constraint; with α = 0.2 it takes 2.64 s (its barrier's added inertia ρΠ = αL Σ Q/ψ
-    slows it far from the rate bounds)."""
+    no later than 1.1 × the CBF-QP (measured 2.223 s against 2.021 s with the hold
+    correction, 2.189 s without) while keeping every constraint; with α = 0.2 it takes
+    2.64 s (its barrier's added inertia ρΠ = αL Σ Q/ψ slows it far from the rate bounds)."""
     from cpbc.resources import scenarios_dir
 
     spec = yaml.safe_load((scenarios_dir() / "panda_cbf_qp.yaml").read_text())
