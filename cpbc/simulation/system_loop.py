@@ -12,7 +12,6 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from cpbc.arrays import Array
 from cpbc.backstepping.errors import OutsideDomainError
@@ -133,6 +132,8 @@ def run_system_reference(
         last = hi == cuts[-1]
         sel = grid[(grid >= lo) & ((grid <= hi) if last else (grid < hi))]
         t_eval = sel if last else np.append(sel, hi)  # the end of a piece starts the next one
+        from scipy.integrate import solve_ivp  # loaded when used (CLI start-up)
+
         sol = solve_ivp(rhs, (lo, hi), x, method="DOP853", t_eval=t_eval, rtol=rtol, atol=atol)
         got = sol.y.T if last or sol.status != 0 else sol.y.T[:-1]
         pieces.append(got)

@@ -19,7 +19,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 from cpbc.errors import CpbcError
 
@@ -129,4 +128,6 @@ def full_throttle_thrust(p: AerosondeParameters, rho: float, airspeed: float) ->
     lo, hi = p.engine_rpm[0] / 60.0, 1.5 * p.engine_rpm[-1] / 60.0
     if excess(lo) * excess(hi) > 0:
         raise CpbcError(f"no full-throttle rpm balances the propeller at V = {airspeed:g} m/s")
+    from scipy.optimize import brentq  # loaded when used (CLI start-up)
+
     return propeller(brentq(excess, lo, hi, xtol=1e-10))[0]

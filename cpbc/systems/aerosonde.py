@@ -34,7 +34,6 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from scipy.optimize import fsolve
 
 from cpbc.backstepping.altitude_model import AltitudeModel
 from cpbc.errors import CpbcError, ModelError
@@ -143,6 +142,8 @@ class AerosondePlant(Plant):
             f = aero_forces(p, rho, v, alpha, 0.0, 0.0, elevator)
             return [thrust * math.cos(alpha) - f.drag,
                     thrust * math.sin(alpha) + f.lift - p.mass * GRAVITY, f.moment]
+
+        from scipy.optimize import fsolve  # loaded when used (CLI start-up)
 
         sol, _, ok, msg = fsolve(residual, [0.09, -0.12, 10.0], full_output=True, xtol=1e-13)
         if ok != 1 or not p.alpha_bounds[0] < sol[0] < p.alpha_bounds[1]:
