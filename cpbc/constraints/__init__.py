@@ -3,6 +3,7 @@
 from cpbc.constraints.base import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.clearance import Clearance
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
+from cpbc.constraints.cover_cache import cached_cover
 from cpbc.constraints.covering import LinkPrimitive, cover_links
 from cpbc.constraints.geometry import (
     BoxObstacle,
@@ -32,6 +33,7 @@ __all__ = [
     "RateLimit",
     "SphereObstacle",
     "VelocityConstraint",
+    "cached_cover",
     "cover_links",
     "joint_position_limit",
     "joint_rate_limit",

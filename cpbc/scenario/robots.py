@@ -14,7 +14,8 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.clearance import Clearance
-from cpbc.constraints.covering import LinkPrimitive, cover_links
+from cpbc.constraints.cover_cache import cached_cover
+from cpbc.constraints.covering import LinkPrimitive
 from cpbc.constraints.geometry import (
     BoxObstacle,
     CapsuleObstacle,
@@ -181,7 +182,7 @@ def _primitives(spec: s.ClearanceSpec, arm: LoadedArm | None, model: RobotModel,
     links = spec.links
     taken = {p.frame for p in declared}
     try:
-        auto = cover_links(arm.model, arm.collision_model, links, spec.padding, spec.cover,
+        auto = cached_cover(arm.model, arm.collision_model, links, spec.padding, spec.cover,
                            spec.cover_tolerance)
     except CpbcError as exc:
         raise ScenarioError(f"{field}.links", str(exc)) from None
