@@ -118,12 +118,10 @@ class SafeguardSettings:
         brake_search: predictions spent searching the braking factor λ between stopping
             and reversing when neither satisfies (S1) (0: none).
         velocity_cushion: η for the velocity margins (rates, kinetic energy), None: the same
-            as ``cushion``. Near a velocity bound the laws' inertia shaping D + ρΠ leaves
-            them little authority to decelerate, while a held torque's error grows with h:
-            on a long reach that rides a rate bound the margin can be worn down to its
-            cushion and the arm coast past its target at the bound, the guard trimming most
-            steps (README, "Safety within the actuators' torque limits"). A thicker velocity
-            cushion (0.1: 1 % of ψ(x_d, 0) at 1 ms) keeps the law's authority.
+            as ``cushion``. A thicker one keeps a law riding a velocity bound further from
+            it, where its inertia shaping D + ρΠ leaves it more authority; the hold correction
+            is what keeps such a law's margin from being worn down (README, "A law that rides
+            a rate bound").
         hold_correction: test and hold τ − ½ D Δa instead of the law's τ
             (:func:`cpbc.controllers.hold.hold_corrected`):
             the law's acceleration of the sample kept on average over the period, to first

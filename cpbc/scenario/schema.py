@@ -93,8 +93,7 @@ class SimulationSpec(Strict):
     # does not know of, joint ranges): it brakes before the arm reaches them
     safeguard_monitored: Annotated[bool, Field(strict=True)] = True
     # the safeguard's cushion on the velocity margins, as a share of each margin at the target
-    # per 10 ms of control period (default: as the configuration margins', 0.001); 0.1 keeps
-    # a law that rides a rate bound on a long reach able to decelerate (README)
+    # per 10 ms of control period (default: as the configuration margins', 0.001)
     safeguard_velocity_cushion: Annotated[float, Field(gt=0, lt=1)] | None = None
     # the guard holds the law's acceleration over the period, not its torque (first order,
     # cpbc.controllers.hold); false: the law's torque as the bare law would hold it
