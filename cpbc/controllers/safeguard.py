@@ -95,8 +95,9 @@ from cpbc.controllers.linalg import solve_spd
 from cpbc.errors import CpbcError
 from cpbc.model.robot_model import ArmState, RobotModel
 
-# (mid-period positions, end positions, end rates), one row per prediction
-Predictor = Callable[[Array], "tuple[Array, Array, Array]"]
+# (mid-period positions, end positions, end rates, then positions and rates inside the
+# period), one row per prediction (per prediction and sub-step for the inner ones)
+Predictor = Callable[[Array], "tuple[Array, Array, Array, Array, Array]"]
 
 
 @dataclass(frozen=True)
@@ -504,18 +505,20 @@ class Safeguard(SafetyFilter):
             inertia = state.inertia
             corrector = self.settings.corrector
 
-            def frozen(t: Array) -> tuple[Array, Array, Array]:
+            def frozen(t: Array) -> tuple[Array, Array, Array, Array, Array]:
                 t = self._saturate(t)
                 acc = solve_spd(inertia, t - bias)
                 mid = coast_mid + (0.125 * h * h) * acc
                 end, speed = coast + (0.5 * h * h) * acc, dx + h * acc
+                mid_speed = dx + (0.5 * h) * acc
                 if not corrector:
-                    return mid[None], end[None], speed[None]
+                    return mid[None], end[None], speed[None], mid[None], mid_speed[None]
                 # the acceleration at the predicted end, taken as linear in between
                 late = self.model.forward_dynamics(end, speed, t) - acc
-                return (np.array((mid, mid + (h * h / 48.0) * late)),
-                        np.array((end, end + (h * h / 6.0) * late)),
-                        np.array((speed, speed + (0.5 * h) * late)))
+                mids = np.array((mid, mid + (h * h / 48.0) * late))
+                return (mids, np.array((end, end + (h * h / 6.0) * late)),
+                        np.array((speed, speed + (0.5 * h) * late)), mids,
+                        np.array((mid_speed, mid_speed + (0.125 * h) * late)))
 
             return frozen
         return _substepped(self.model, x, dx, h, self.substeps, self._saturate,
@@ -530,22 +533,30 @@ class Safeguard(SafetyFilter):
         its floor. ``past`` marks the margins already ≤ 0 (only the extra constraints can
         be): their floor is their present value, compared by difference, and their braking
         margin is not held (:meth:`_guard`)."""
-        guarded, no_nan = self.guarded, self._no_nan
-        past_mid = None if past is None else past[: self._n_config]
+        guarded, no_nan, nc = self.guarded, self._no_nan, self._n_config
+        past_mid = None if past is None else past[:nc]
+        past_v = None if past is None else past[nc:]
+        has_velocity = bool(guarded.velocity)
 
         def f(t: Array) -> float:
-            mids, ends, speeds = predict(t)
-            velocity = guarded.velocity_margins_along(ends, speeds)
+            mids, ends, speeds, inner_x, inner_v = predict(t)
+            velocity = no_nan(guarded.velocity_margins_along(ends, speeds))
+            # the velocity margins inside the period too, held to their end floor: under a
+            # held torque whose acceleration turns within the period a rate can cross its
+            # bound and be back by the end (seen at 100 Hz once the torque was corrected
+            # for the hold)
+            inner = float(_shares(no_nan(guarded.velocity_margins_along(inner_x, inner_v)),
+                                  end_floor[nc:], past_v).min()) if has_velocity else math.inf
             if mid_floor is None:
-                return float(_shares(no_nan(velocity), end_floor, past).min()) - 1.0
+                return min(inner, float(_shares(velocity, end_floor, past).min())) - 1.0
             rows = [mids, ends]
             if stop is not None:  # x_s = x₁ + (|ẋ₁|/(2θA)) ẋ₁, A frozen at the sample
                 speed = np.sqrt(np.einsum("ij,ij->i", speeds, speeds))
                 rows.append(ends + (stop[0] * speed)[:, None] * speeds)
             config = no_nan(guarded.configuration_margins_along(np.concatenate(rows)))
             r = len(ends)
-            end = np.concatenate((config[r:2 * r], no_nan(velocity)), axis=1)
-            low = min(float(_shares(end, end_floor, past).min()),
+            end = np.concatenate((config[r:2 * r], velocity), axis=1)
+            low = min(inner, float(_shares(end, end_floor, past).min()),
                       float(_shares(config[:r], mid_floor, past_mid).min()))
             if stop is not None:
                 braking = config[2 * r:] / stop[1]
@@ -635,9 +646,10 @@ class Safeguard(SafetyFilter):
         fail, and worse ones (a Panda joint limit broken at 100 Hz)."""
         delta, nc = self.cushion, self._n_config
 
-        def frozen(t: Array) -> tuple[Array, Array, Array]:
-            mids, ends, speeds = predict(t)
-            return mids[:1], ends[:1], speeds[:1]
+        def frozen(t: Array) -> tuple[Array, Array, Array, Array, Array]:
+            mids, ends, speeds, inner_x, inner_v = predict(t)
+            inner = len(inner_x) // len(ends)  # rows per prediction
+            return mids[:1], ends[:1], speeds[:1], inner_x[:inner], inner_v[:inner]
 
         positivity = self._check(frozen, delta, delta[:nc] if nc else None)  # (S0) m ≥ δ
         if floor_mid is None:
@@ -709,24 +721,31 @@ def _substepped(model: RobotModel, x: Array, dx: Array, h: float, k: int,
     dt = h / k
     mid_step = k // 2 if k % 2 == 0 else (k + 1) // 2  # the step that ends nearest h/2
 
-    def predict(t: Array) -> tuple[Array, Array, Array]:
+    def predict(t: Array) -> tuple[Array, Array, Array, Array, Array]:
         t = saturate(t)
-        xs, vs, mid = x.copy(), dx.copy(), x
-        for i in range(k):
+        xs, vs = x.copy(), dx.copy()
+        inner_x, inner_v = [], []  # the states after every sub-step but the last
+        for _ in range(k):
             vs = vs + dt * model.forward_dynamics(xs, vs, t)
             xs = xs + dt * vs
-            if i + 1 == mid_step:
-                mid = xs
+            inner_x.append(xs)
+            inner_v.append(vs)
+        mid = inner_x[mid_step - 1]
         if not corrector:
-            return mid[None], xs[None], vs[None]
-        xh, vh, mid_h = x.copy(), dx.copy(), x
-        for i in range(k):
+            return (mid[None], xs[None], vs[None], np.array(inner_x[:-1]).reshape(-1, len(x)),
+                    np.array(inner_v[:-1]).reshape(-1, len(x)))
+        xh, vh = x.copy(), dx.copy()
+        heun_x, heun_v = [], []
+        for _ in range(k):
             a0 = model.forward_dynamics(xh, vh, t)
             a1 = model.forward_dynamics(xh + dt * vh + (0.5 * dt * dt) * a0, vh + dt * a0, t)
             xh = xh + dt * vh + (dt * dt) * (a0 / 3.0 + a1 / 6.0)
             vh = vh + (0.5 * dt) * (a0 + a1)
-            if i + 1 == mid_step:
-                mid_h = xh
-        return np.array((mid, mid_h)), np.array((xs, xh)), np.array((vs, vh))
+            heun_x.append(xh)
+            heun_v.append(vh)
+        rows_x = np.array(inner_x[:-1] + heun_x[:-1]).reshape(-1, len(x))
+        rows_v = np.array(inner_v[:-1] + heun_v[:-1]).reshape(-1, len(x))
+        return (np.array((mid, heun_x[mid_step - 1])), np.array((xs, xh)), np.array((vs, vh)),
+                rows_x, rows_v)
 
     return predict
