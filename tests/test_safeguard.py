@@ -641,3 +641,31 @@ def test_the_hold_correction_keeps_the_acceleration_of_the_sample() -> None:
         (plain4, held4), (plain2, held2) = errors
         assert held2 < 0.25 * plain2 and 1.6 < plain4 / plain2 < 2.4, errors
         assert held4 / held2 > 3.0, errors  # second order: halving h quarters it
+
+
+@pytest.mark.parametrize("scenario, seed", [
+    ("panda_cpbc_sphere", 0),  # rate[panda_joint5] crossed by 3.8e-4 rad/s mid-period
+    ("tools/campaigns/z1_bpbc_ke.yaml", 23),  # the kinetic energy, likewise
+])
+def test_velocity_margins_are_held_inside_the_period(scenario: str, seed: int) -> None:
+    """At 100 Hz, holding the hold-corrected torque, these campaign states crossed a velocity
+    bound between two samples while the margin at every sample (and the predicted one at
+    every period's end) was positive: the acceleration turned within the period. The guard
+    now holds the velocity margins at every predicted sub-step as well."""
+    from pathlib import Path
+
+    from cpbc.reliability.campaign import kept_constraints
+    from cpbc.reliability.verification import classify, draw_state
+
+    path = Path(__file__).resolve().parent.parent / scenario
+    setup = build(*load_scenario(path if path.suffix == ".yaml" else scenario))
+    entry = constrained(setup)[0]
+    s = draw_state(setup, seed)
+    kept = kept_constraints(setup, entry, 0.01, setup.safeguard)
+    assert classify(setup, kept, s.position, s.velocity, 0.01) == "viable"
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    settings = replace(setup.loop_settings, duration=0.5, control_period=0.01, noise=None)
+    assert setup.safeguard is not None and setup.safeguard.hold_correction
+    check = checked_run(plant, setup, entry, s.position, s.velocity, settings,
+                        safeguard=setup.safeguard)
+    assert not check.violated, (check.constraint, check.min_margin)
