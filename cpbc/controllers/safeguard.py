@@ -20,6 +20,8 @@ wraps a constrained law and, at every control instant,
 
        m_i(h) − δ_i ≥ e^{−κh} (m_i − δ_i)       for every φ_i and ψ_j              (S1)
        φ_i(h/2) − δ_i ≥ e^{−κh/2} (φ_i − δ_i)   for every φ_i (between the samples)
+       ψ_j(t) − δ_j ≥ e^{−κh} (ψ_j − δ_j)       at every predicted instant t inside the
+                                                period (h/2, or every sub-step)
 
    so no margin may shrink faster than at the rate κ [1/s], and below the cushion a margin
    must grow. The cushion δ_i = η (h / 10 ms) |m_i(x_d, 0)| is a fraction of the margin at
