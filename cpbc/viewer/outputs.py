@@ -7,7 +7,8 @@ from pathlib import Path
 
 import mujoco
 
-from cpbc.results.drawing import draw
+from cpbc.results.drawing import draw, figure_weight, share_out
+from cpbc.results.margin_types import types_of
 from cpbc.results.saved_run import FIGURES, SceneInfo, load_run, write_scene
 from cpbc.results.sweep import SceneKinematics, default_trace_frame
 from cpbc.scenario.build import ScenarioSetup
@@ -43,7 +44,7 @@ def scene_kinematics(setup: ScenarioSetup) -> SceneKinematics:
     return scene_info(setup, model).kinematics(model)
 
 
-#: Share of a run's figures a helper process draws while this one writes the page (it
+#: Share of a run's figure work a helper process does while this one writes the page (it
 #: draws the rest after): so both end at about the same time.
 HELPER_SHARE = 0.65
 
@@ -74,11 +75,15 @@ def write_run_outputs(
     if pool is None:
         return [*draw(folder), write_view(load_run(folder), settings=settings)]
     jobs = [(case.name, name) for case in setup.cases for name in FIGURES]
-    if figures_only:  # the warm figure helpers draw them all, half each
-        halves = [pool.submit(draw, folder, jobs[i::2]) for i in range(2)]
+    types = len(set(types_of(setup.monitor)))
+    weights = [figure_weight(name, setup.model.n, types) for _, name in jobs]
+    if figures_only:  # the warm figure helpers draw them all, half the work each
+        halves = [pool.submit(draw, folder, part)
+                  for part in share_out(jobs, weights, (0.5, 0.5))]
         page = write_view(load_run(folder), settings=settings)
         return [*halves[0].result(), *halves[1].result(), page]
-    share = round(HELPER_SHARE * len(jobs))  # one spawned worker draws most of them
-    future = pool.submit(draw, folder, jobs[:share])
+    # one spawned worker draws most of them
+    theirs, ours = share_out(jobs, weights, (HELPER_SHARE, 1.0 - HELPER_SHARE))
+    future = pool.submit(draw, folder, theirs)
     page = write_view(load_run(folder), settings=settings)
-    return [*future.result(), *draw(folder, jobs[share:]), page]
+    return [*future.result(), *draw(folder, ours), page]
