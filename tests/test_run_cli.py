@@ -251,6 +251,23 @@ def test_subprocess_bad_input_exits_2_without_traceback(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["tiny.yaml"]
 
 
+def test_subprocess_run_ends_with_everything_written_and_printed(tmp_path):
+    """``python -m cpbc.run`` leaves without the interpreter's teardown (cpbc.run.cli): the
+    summary must still reach a pipe to its last line, and every file its folder."""
+    path = tiny(tmp_path)
+    proc = subprocess.run(
+        [sys.executable, "-m", "cpbc.run", str(path), "--out", "out", "--quiet"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=120, check=False,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.rstrip().endswith("results written to out/")
+    out = tmp_path / "out"
+    assert {"summary.json", "summary.csv", "view.html", "scene.json"} <= {
+        p.name for p in out.iterdir()}
+    assert sorted(p.name for p in (out / "rest").glob("*.png")) == sorted(
+        f"{name}.png" for name in ("positions", "rates", "torques", "lyapunov", "path"))
+
+
 def test_error_message_keeps_bracketed_constraint_names(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     changes, _ = BAD_INPUTS["inadmissible_start"]
