@@ -277,7 +277,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 )
             write_summaries(scratch, [r.summary for r in results])
             spawned = pool.started if pool else None
-            # the page's modules (meshcat, trimesh) load while the helpers draw
+            # the page's modules (meshcat) load while the helpers draw
             from cpbc.viewer.outputs import write_run_outputs
 
             write_run_outputs(scratch, setup, plots=not args.no_plots,

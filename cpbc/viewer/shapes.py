@@ -5,7 +5,6 @@ from __future__ import annotations
 import meshcat.geometry as mg
 import mujoco
 import numpy as np
-import trimesh
 
 from cpbc.constraints.base import Array
 
@@ -25,16 +24,8 @@ def geom_geometry(model: mujoco.MjModel, g: int) -> mg.Geometry | None:
         return mg.Box((2.0 * size).tolist())
     if t == mujoco.mjtGeom.mjGEOM_ELLIPSOID:
         return mg.Ellipsoid(size.tolist())
-    if t == mujoco.mjtGeom.mjGEOM_CAPSULE:
-        m = trimesh.creation.capsule(
-            height=2.0 * float(size[1]), radius=float(size[0]), count=[_CIRCLE_SEGMENTS, 16]
-        )
-        return mg.TriangularMeshGeometry(m.vertices, m.faces)
-    if t == mujoco.mjtGeom.mjGEOM_CYLINDER:
-        m = trimesh.creation.cylinder(
-            radius=float(size[0]), height=2.0 * float(size[1]), sections=_CIRCLE_SEGMENTS
-        )
-        return mg.TriangularMeshGeometry(m.vertices, m.faces)
+    if t in (mujoco.mjtGeom.mjGEOM_CAPSULE, mujoco.mjtGeom.mjGEOM_CYLINDER):
+        return _round_geometry(t, size)
     if t == mujoco.mjtGeom.mjGEOM_MESH:
         mesh = model.geom_dataid[g]
         v0, nv = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
@@ -43,6 +34,23 @@ def geom_geometry(model: mujoco.MjModel, g: int) -> mg.Geometry | None:
             model.mesh_vert[v0 : v0 + nv], model.mesh_face[f0 : f0 + nf]
         )
     return None
+
+
+def _round_geometry(t: int, size: Array) -> mg.TriangularMeshGeometry:
+    """A capsule or cylinder as a triangle mesh. trimesh is loaded here only: it takes 0.2 s
+    (SciPy's spatial module with it), on the CLI's path after the simulation, and scenes of
+    spheres, boxes and meshes do not need it."""
+    import trimesh
+
+    if t == mujoco.mjtGeom.mjGEOM_CAPSULE:
+        m = trimesh.creation.capsule(
+            height=2.0 * float(size[1]), radius=float(size[0]), count=[_CIRCLE_SEGMENTS, 16]
+        )
+    else:
+        m = trimesh.creation.cylinder(
+            radius=float(size[0]), height=2.0 * float(size[1]), sections=_CIRCLE_SEGMENTS
+        )
+    return mg.TriangularMeshGeometry(m.vertices, m.faces)
 
 
 def tube(points: Array, radius: float, sides: int = 6) -> mg.TriangularMeshGeometry | None:
