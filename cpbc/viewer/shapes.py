@@ -24,7 +24,7 @@ def geom_geometry(model: mujoco.MjModel, g: int) -> mg.Geometry | None:
         return mg.Box((2.0 * size).tolist())
     if t == mujoco.mjtGeom.mjGEOM_ELLIPSOID:
         return mg.Ellipsoid(size.tolist())
-    if t in (mujoco.mjtGeom.mjGEOM_CAPSULE, mujoco.mjtGeom.mjGEOM_CYLINDER):
+    if t == mujoco.mjtGeom.mjGEOM_CAPSULE or t == mujoco.mjtGeom.mjGEOM_CYLINDER:
         return _round_geometry(t, size)
     if t == mujoco.mjtGeom.mjGEOM_MESH:
         mesh = model.geom_dataid[g]
