@@ -498,9 +498,11 @@ class Safeguard(SafetyFilter):
             (law_margins[:k], self._extra.configuration_margins(x), law_margins[k:])))
 
     def _predictor(self, state: ArmState, bias: Array) -> Predictor:
-        """(mid-period x, end x, end ẋ) under a held τ, one row per prediction: the frozen
-        closed form with the dynamics of the sample (and, with ``corrector``, the
-        second-order one beside it), or ``substeps`` semi-implicit Euler steps of the model."""
+        """(mid-period x, end x, end ẋ, then x and ẋ inside the period) under a held τ, one
+        row per prediction (per prediction and inner instant for the last two; the Predictor
+        alias): the frozen closed form with the dynamics of the sample (and, with
+        ``corrector``, the second-order one beside it), or ``substeps`` semi-implicit Euler
+        steps of the model."""
         x, dx, h = state.x, state.dx, self.period
         if self.substeps == 1:
             coast_mid, coast = x + (0.5 * h) * dx, x + h * dx  # the motion without torque
