@@ -16,6 +16,7 @@ import pytest
 import yaml
 
 from cpbc.resources import scenarios_dir
+from cpbc.results import load_npz
 from cpbc.run import main
 
 SUMMARY_KEYS = {
@@ -118,14 +119,14 @@ def test_summary_agrees_with_the_trajectories(ch7_run):
     bounds = np.array(data["constraints"][0]["bounds"], dtype=float)
     coordinates = np.array([[1.0, 0.0], [1.0, 1.0]])  # absolute link angles θ = T q
     for r in json.loads((out / "summary.json").read_text()):
-        with np.load(out / r["case"] / r["controller"] / "trajectory.npz") as npz:
-            vel, pos, tau = npz["velocity"], npz["position"], npz["torque"]
-            applied_q = npz["joint_torque"]
-            margins, names = npz["margins"], list(npz["margin_names"])
-            types = list(npz["margin_types"])
-            np.testing.assert_allclose(npz["target"], target, rtol=1e-15)
-            assert list(npz["coordinate_names"]) == ["theta1", "theta2"]
-            time = npz["time"]
+        npz = load_npz(out / r["case"] / r["controller"] / "trajectory.npz")
+        vel, pos, tau = npz["velocity"], npz["position"], npz["torque"]
+        applied_q = npz["joint_torque"]
+        margins, names = npz["margins"], list(npz["margin_names"])
+        types = list(npz["margin_types"])
+        np.testing.assert_allclose(npz["target"], target, rtol=1e-15)
+        assert list(npz["coordinate_names"]) == ["theta1", "theta2"]
+        time = npz["time"]
         assert vel.dtype == np.float32 and time.dtype == np.float64
         assert time[0] == 0.0 and time[-1] == pytest.approx(1.0)
         np.testing.assert_array_equal(single(r["peak_joint_rates"]), np.abs(vel).max(axis=0))
@@ -392,8 +393,8 @@ def test_table_reports_margins_by_type_in_their_units(tmp_path, capsys):
     assert {w["type"]: w["unit"] for w in run["worst_margins"]} == {
         "position": "rad", "rate": "rad/s", "energy": "J"}
     # starting at rest at x = 0: 3 rad from the position limits, the whole energy budget
-    with np.load(tmp_path / "out" / "rest" / "CPBC" / "trajectory.npz") as npz:
-        m, names = npz["margins"], list(npz["margin_names"])
+    npz = load_npz(tmp_path / "out" / "rest" / "CPBC" / "trajectory.npz")
+    m, names = npz["margins"], list(npz["margin_names"])
     assert m[0, names.index("position[joint1]")] == pytest.approx(3.0)
     assert m[0, names.index("ke")] == pytest.approx(5.0)
 

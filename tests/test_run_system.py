@@ -11,6 +11,7 @@ import pytest
 import yaml
 
 from cpbc.resources import scenarios_dir
+from cpbc.results import load_npz
 from cpbc.run import main
 
 
@@ -71,10 +72,10 @@ def test_suspension_mujoco_agrees_with_the_reference(suspension) -> None:
 
 def test_suspension_trajectory_file(suspension) -> None:
     folder, _, _ = suspension
-    with np.load(folder / "mujoco" / "fig3.6" / "barrier" / "trajectory.npz") as z:
-        assert list(z["state_names"]) == ["x1", "x2", "x3", "x4"]
-        assert z["state"].shape == (1501, 4) and z["input"].shape == (1501,)
-        assert np.abs(z["state"][:, 2]).max() < 0.1
+    z = load_npz(folder / "mujoco" / "fig3.6" / "barrier" / "trajectory.npz")
+    assert list(z["state_names"]) == ["x1", "x2", "x3", "x4"]
+    assert z["state"].shape == (1501, 4) and z["input"].shape == (1501,)
+    assert np.abs(z["state"][:, 2]).max() < 0.1
 
 
 @pytest.mark.parametrize("backend", ["mujoco", "reference"])

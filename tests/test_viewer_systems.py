@@ -14,6 +14,7 @@ import pytest
 import yaml
 
 from cpbc.resources import models_dir, scenarios_dir
+from cpbc.results import load_npz
 from cpbc.run import main
 from cpbc.viewer.browser import HeadlessChromium, find_chromium
 
@@ -60,8 +61,8 @@ def test_quarter_car_page_moves_the_body_by_the_logged_travel(car: Path) -> None
     assert {"unsprung", "sprung"} <= set(bodies)
     run = case["controllers"][0]
     pose = _f32(run["pose"]).reshape(run["frames"], len(bodies), 7)
-    with np.load(car / "fig3.6" / "barrier" / "trajectory.npz") as z:
-        time, state = z["time"], z["state"]
+    z = load_npz(car / "fig3.6" / "barrier" / "trajectory.npz")
+    time, state = z["time"], z["state"]
     frames = np.arange(run["frames"]) / data["fps"]
     sprung, unsprung = bodies.index("sprung"), bodies.index("unsprung")
     travel = np.interp(frames, time, state[:, 2])

@@ -6,7 +6,6 @@ import csv
 import json
 import shutil
 import tempfile
-import zipfile
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -16,6 +15,7 @@ import numpy as np
 from cpbc.constraints.base import Array
 from cpbc.errors import CpbcError
 from cpbc.results.metrics import RunSummary
+from cpbc.results.packed import write_npz
 from cpbc.results.saved_run import FIGURES
 from cpbc.simulation.trajectory import Trajectory
 
@@ -46,10 +46,10 @@ def write_trajectory(
     coordinate_names: Sequence[str],
     margin_types: Sequence[str] = (),
 ) -> None:
-    """All logged signals of one run, in one .npz that ``numpy.load`` reads.
+    """All logged signals of one run, in one .npz (read it with cpbc.results.load_npz).
 
     Compact: the signals are stored in single precision (time and the target stay double),
-    deflated at the fastest level. Single precision keeps 7 significant digits,
+    delta-coded losslessly (cpbc.results.packed). Single precision keeps 7 significant digits,
     far below what a figure or a comparison between runs can show; the summary's numbers
     are computed from the double-precision log before it is written, and equal the file's
     peaks rounded to single precision.
@@ -68,11 +68,7 @@ def write_trajectory(
         "coordinate_names": np.array(list(coordinate_names), dtype=str),
         "outcome": np.array(traj.outcome),
     }
-    # deflate level 1: as small as level 6 on these logs (±1 %), in a third of the time
-    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as z:
-        for name, value in arrays.items():
-            with z.open(f"{name}.npy", "w") as fh:
-                np.lib.format.write_array(fh, np.asanyarray(value), allow_pickle=False)
+    write_npz(path, arrays)
 
 
 def _single(a: Array) -> Array:

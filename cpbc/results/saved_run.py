@@ -24,6 +24,7 @@ import numpy as np
 
 from cpbc.constraints.base import Array
 from cpbc.errors import CpbcError
+from cpbc.results.packed import load_npz
 from cpbc.results.sweep import SceneKinematics
 
 SCENE_MODEL = "scene.mjb.gz"
@@ -188,29 +189,29 @@ def write_scene(folder: Path, model: mujoco.MjModel, info: SceneInfo) -> None:
 
 
 def _trajectory(path: Path, summary: SummaryEntry, coordinates: Array) -> SavedTrajectory:
-    with np.load(path) as d:
-        names = tuple(str(s) for s in d["margin_names"])
-        # runs written before margins had types: every margin of an unknown type
-        types = (tuple(str(s) for s in d["margin_types"]) if "margin_types" in d.files
-                 else ("other",) * len(names))
-        return SavedTrajectory(
-            controller=str(summary["controller"]),
-            case=str(summary["case"]),
-            time=d["time"],
-            position=d["position"],
-            velocity=d["velocity"],
-            torque=d["torque"],
-            joint_torque=d["joint_torque"],
-            margins=d["margins"],
-            margin_names=names,
-            margin_types=types,
-            coordinates=coordinates,
-            lyapunov=d["lyapunov"],
-            target=d["target"],
-            coordinate_names=tuple(str(s) for s in d["coordinate_names"]),
-            outcome=str(d["outcome"]),
-            summary=summary,
-        )
+    d = load_npz(path)
+    names = tuple(str(s) for s in d["margin_names"])
+    # runs written before margins had types: every margin of an unknown type
+    types = (tuple(str(s) for s in d["margin_types"]) if "margin_types" in d
+             else ("other",) * len(names))
+    return SavedTrajectory(
+        controller=str(summary["controller"]),
+        case=str(summary["case"]),
+        time=d["time"],
+        position=d["position"],
+        velocity=d["velocity"],
+        torque=d["torque"],
+        joint_torque=d["joint_torque"],
+        margins=d["margins"],
+        margin_names=names,
+        margin_types=types,
+        coordinates=coordinates,
+        lyapunov=d["lyapunov"],
+        target=d["target"],
+        coordinate_names=tuple(str(s) for s in d["coordinate_names"]),
+        outcome=str(d["outcome"]),
+        summary=summary,
+    )
 
 
 def _is_system_run(folder: Path) -> bool:

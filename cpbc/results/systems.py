@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import math
-import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,6 +18,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from cpbc.arrays import Array
+from cpbc.results.packed import write_npz
 from cpbc.results.palette import BOUND_COLOUR, controller_colour
 from cpbc.simulation.system_loop import SystemTrajectory
 from cpbc.systems.plant import ConstrainedQuantity
@@ -155,16 +155,17 @@ def summarise_system(
 
 def write_system_trajectory(path: Path, traj: SystemTrajectory, state_names: Sequence[str],
                             input_name: str) -> None:
-    """time, state, input, names and outcome in one .npz (double precision: short logs)."""
+    """time, state, input, names and outcome in one .npz (cpbc.results.packed). The state
+    and input are stored in single precision, as an arm's signals (cpbc.results.io); the
+    summary is computed from the double-precision log before."""
     arrays: dict[str, Array] = {
-        "time": traj.time, "state": traj.state, "input": traj.input,
+        "time": traj.time,
+        "state": np.asarray(traj.state, dtype=np.float32),
+        "input": np.asarray(traj.input, dtype=np.float32),
         "state_names": np.array(list(state_names), dtype=str),
         "input_name": np.array(input_name), "outcome": np.array(traj.outcome),
     }
-    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as z:
-        for name, value in arrays.items():
-            with z.open(f"{name}.npy", "w") as fh:
-                np.lib.format.write_array(fh, np.asanyarray(value), allow_pickle=False)
+    write_npz(path, arrays)
 
 
 def write_system_summaries(folder: Path, summaries: Sequence[SystemSummary]) -> None:
