@@ -6,7 +6,6 @@ is drawn, clearances and colours are the geometry's, the server listens on 127.0
 
 from __future__ import annotations
 
-import base64
 import io
 import json
 import re
@@ -30,6 +29,7 @@ from cpbc.results.saved_run import load_run
 from cpbc.results.sweep import SceneKinematics
 from cpbc.run import main
 from cpbc.viewer.browser import HeadlessChromium, find_chromium
+from cpbc.viewer.page_data import unpacked
 from cpbc.viewer.recorder import CommandRecorder
 from cpbc.viewer.scene import CaseScene, ViewSettings
 from cpbc.viewer.server import MeshcatServer
@@ -207,10 +207,6 @@ def _page_data(page: Path) -> dict:
     return json.loads(m.group(1))
 
 
-def _f32(b64: str) -> np.ndarray:
-    return np.frombuffer(base64.b64decode(b64), dtype="<f4")
-
-
 def test_the_run_has_one_self_contained_page_built_from_the_viewer_folder(run_folder):
     page = run_folder / "view.html"
     assert not list(run_folder.glob("*/view.html"))  # one page per run, not per case
@@ -236,14 +232,14 @@ def test_page_plots_keep_every_peak_of_the_run(run_folder):
         assert [p["label"] for p in margin_panels] == ["rate limits [rad/s]", "clearance [m]"]
         for run, series in zip(case["controllers"], case["series"], strict=True):
             s = summaries[case["name"], run["name"]]
-            time = _f32(series["time"])
+            time = unpacked(series["time"])
             assert time[0] == 0 and time[-1] == pytest.approx(DURATION)
             assert len(time) < 2000  # thinned: 2 s at 1 kHz is 2001 samples
             for k in range(2):
-                rates = np.abs(_f32(series["columns"][f"velocity{k}"]))
+                rates = np.abs(unpacked(series["columns"][f"velocity{k}"]))
                 assert rates.max() == np.float32(s["peak_joint_rates"][k])
             for i, name in enumerate(("obstacle", "rate[theta1]", "rate[theta2]")):
-                low = _f32(series["columns"][f"m{i}"]).min()
+                low = unpacked(series["columns"][f"m{i}"]).min()
                 assert low == np.float32(s["min_margins"][name])
 
 
@@ -257,6 +253,15 @@ def test_page_renders_and_one_timeline_scrubs_scene_and_plots(run_folder, tmp_pa
         assert browser.evaluate("cpbc.duration") == pytest.approx(DURATION)
         # Two links per arm, two arms and the target pose, the obstacle, traces and markers.
         assert browser.evaluate(_meshes("cpbc")) >= 2 * 3 + 1 + 2 + 2
+        # the page inflates its arrays to exactly what was packed (view.js against unpacked)
+        data = _page_data(run_folder / "view.html")
+        for key in ("pose", "tip", "clearance"):
+            shown = browser.evaluate(f"Array.from(cpbc.data.cases[0].controllers[1].{key})")
+            np.testing.assert_array_equal(np.float32(shown),
+                                          unpacked(data["cases"][0]["controllers"][1][key]))
+        shown = browser.evaluate("Array.from(cpbc.data.cases[0].series[0].columns.m0)")
+        np.testing.assert_array_equal(np.float32(shown),
+                                      unpacked(data["cases"][0]["series"][0]["columns"]["m0"]))
 
         # At the frame where PD's outer link is nearest the obstacle, the page poses it there
         # and colours it as the clearance says (red when touching, its own blue far away).

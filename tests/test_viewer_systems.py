@@ -3,7 +3,6 @@ coordinates, and rendered in headless Chromium."""
 
 from __future__ import annotations
 
-import base64
 import json
 import re
 from pathlib import Path
@@ -17,6 +16,7 @@ from cpbc.resources import models_dir, scenarios_dir
 from cpbc.results import load_npz
 from cpbc.run import main
 from cpbc.viewer.browser import HeadlessChromium, find_chromium
+from cpbc.viewer.page_data import unpacked
 
 needs_chromium = pytest.mark.skipif(
     find_chromium() is None,
@@ -42,10 +42,6 @@ def _page_data(page: Path) -> dict:
     return json.loads(m.group(1))
 
 
-def _f32(b64: str) -> np.ndarray:
-    return np.frombuffer(base64.b64decode(b64), dtype="<f4")
-
-
 @pytest.fixture(scope="module")
 def car(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return _run(tmp_path_factory.mktemp("car"), "ch3_suspension", 0.3, ["fig3.6"])
@@ -60,7 +56,7 @@ def test_quarter_car_page_moves_the_body_by_the_logged_travel(car: Path) -> None
     bodies = [b["name"] for b in data["bodies"]]
     assert {"unsprung", "sprung"} <= set(bodies)
     run = case["controllers"][0]
-    pose = _f32(run["pose"]).reshape(run["frames"], len(bodies), 7)
+    pose = unpacked(run["pose"]).reshape(run["frames"], len(bodies), 7)
     z = load_npz(car / "fig3.6" / "barrier" / "trajectory.npz")
     time, state = z["time"], z["state"]
     frames = np.arange(run["frames"]) / data["fps"]

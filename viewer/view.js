@@ -3,25 +3,56 @@
 // the tests drive: seek(t), selectCase(name), play(), pause(), and the current state.
 "use strict";
 
-(function () {
+(async function () {
   const DATA = window.CPBC_DATA;
+  if (!("DecompressionStream" in window)) {
+    document.body.textContent = "This page needs a browser with DecompressionStream " +
+      "(Chrome 80, Firefox 113, Safari 16.4 or later).";
+    return;
+  }
+  // A run's page carries meshcat's script deflated (cpbc/viewer/export.py); run it first.
+  const meshcatDeflated = document.getElementById("meshcat-deflated");
+  if (typeof MeshCat === "undefined" && meshcatDeflated) {
+    const code = new TextDecoder().decode(await inflate(meshcatDeflated.textContent.trim()));
+    (0, eval)(code);  // global scope, as a <script> element would run it
+  }
+  await unpackAll(DATA);
   const THREE = MeshCat.THREE;
   const STYLES = [[], [6, 4], [1.5, 3]];  // named constraints: solid, dashed, dotted
 
   // -- data -------------------------------------------------------------------------------
-  function f32(b64) {
-    const raw = atob(b64);
-    const bytes = new Uint8Array(raw.length);
-    for (let i = 0; i < raw.length; i++) bytes[i] = raw.charCodeAt(i);
-    return new Float32Array(bytes.buffer);
+  // Arrays arrive deflated (cpbc/viewer/page_data.py, `packed`): {deflated} is bytes; with a
+  // stride, float32 rows of `stride` values, stored as the byte planes of the differences
+  // between successive rows' bit patterns.
+  async function inflate(b64) {
+    const bytes = Uint8Array.from(atob(b64), ch => ch.charCodeAt(0));
+    const stream = new Blob([bytes]).stream().pipeThrough(new DecompressionStream("deflate"));
+    return new Uint8Array(await new Response(stream).arrayBuffer());
+  }
+  function floats(planes, stride) {
+    const n = planes.length / 4, bits = new Uint32Array(n);
+    for (let i = 0; i < n; i++) {
+      bits[i] = planes[i] | planes[n + i] << 8 | planes[2 * n + i] << 16 | planes[3 * n + i] << 24;
+    }
+    for (let i = stride; i < n; i++) bits[i] += bits[i - stride];  // wraps as the differences did
+    return new Float32Array(bits.buffer);
+  }
+  // Every packed entry under `root` replaced by its array, all inflated concurrently.
+  async function unpackAll(root) {
+    const jobs = [];
+    (function walk(node) {
+      for (const [key, value] of Object.entries(node)) {
+        if (value === null || typeof value !== "object") continue;
+        if (typeof value.deflated !== "string") { walk(value); continue; }
+        jobs.push(inflate(value.deflated).then(bytes => {
+          node[key] = value.stride ? floats(bytes, value.stride) : bytes;
+        }));
+      }
+    })(root);
+    await Promise.all(jobs);
   }
   function replay(viewer, commands) {
-    for (const text of commands) {
-      const raw = atob(text);
-      const bytes = new Uint8Array(raw.length);
-      for (let i = 0; i < raw.length; i++) bytes[i] = raw.charCodeAt(i);
-      viewer.handle_command_bytearray(bytes);
-    }
+    for (const bytes of commands) viewer.handle_command_bytearray(bytes);
   }
   // Scene paths as the Python side names them; meshcat files them under "meshcat".
   function path(p) { return ["meshcat"].concat(p.split("/").filter(x => x.length > 0)); }
@@ -90,23 +121,19 @@
       const tip = new THREE.Mesh(new THREE.SphereGeometry(DATA.markerRadius, 16, 12),
                                  new THREE.MeshPhongMaterial({ color: r.colour }));
       viewer.set_object(root.concat(["tip"]), tip);
-      const tipData = f32(r.tip);
+      const tipData = r.tip;
       const tube = traceTube(tipData, r.colour);
       if (tube) viewer.set_object(root.concat(["trace"]), tube);
       return {
         name: r.name, colour: r.colour, base: rgb(r.colour), status: r.status,
-        frames: r.frames, pose: f32(r.pose), tip: tipData,
+        frames: r.frames, pose: r.pose, tip: tipData,
         tipNode: viewer.scene_tree.find(root.concat(["tip"])).object,
-        clearance: r.clearance ? f32(r.clearance) : null, bodies,
+        clearance: r.clearance, bodies,
       };
     });
     return {
       name: c.name, duration: c.duration, root: path(c.root), runs, plots: c.plots,
-      series: c.series.map(s => ({
-        time: f32(s.time),
-        columns: Object.fromEntries(Object.entries(s.columns).map(([k, v]) => [k, f32(v)])),
-      })),
-      obstacleClearance: c.obstacleClearance ? f32(c.obstacleClearance) : null,
+      series: c.series, obstacleClearance: c.obstacleClearance,
     };
   });
   const obstacleMaterials = DATA.obstacles.map(p => {

@@ -20,16 +20,19 @@ from __future__ import annotations
 import zipfile
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from cpbc.arrays import Array
+#: Any array a log holds: float signals, names, an outcome string.
+Stored = NDArray[Any]
 
 #: The suffix of a coded member: ``NAME.deltas`` holds the float array ``NAME``.
 CODED = ".deltas"
 
 
-def encode(a: Array) -> Array:
+def encode(a: NDArray[np.floating[Any]]) -> NDArray[np.uint8]:
     """The byte planes, shape ``(itemsize, *a.shape)``, of ``a``'s successive differences."""
     a = np.ascontiguousarray(a, dtype=a.dtype.newbyteorder("<"))
     bits = a.view(f"<u{a.itemsize}")
@@ -38,18 +41,18 @@ def encode(a: Array) -> Array:
     return np.ascontiguousarray(np.moveaxis(planes, -1, 0))
 
 
-def decode(planes: Array) -> Array:
+def decode(planes: NDArray[np.uint8]) -> NDArray[np.floating[Any]]:
     """The float array whose :func:`encode` is ``planes``."""
     size = planes.shape[0]
     deltas = np.ascontiguousarray(np.moveaxis(planes, 0, -1)).view(f"<u{size}")[..., 0]
     return np.cumsum(deltas, axis=0, dtype=deltas.dtype).view(f"<f{size}")
 
 
-def _coded(value: Array) -> bool:
+def _coded(value: Stored) -> bool:
     return value.dtype.kind == "f" and value.ndim >= 1
 
 
-def write_npz(path: Path, arrays: Mapping[str, Array]) -> None:
+def write_npz(path: Path, arrays: Mapping[str, Stored]) -> None:
     """Write ``arrays`` into the ``.npz`` at ``path``, float arrays coded (module docstring)."""
     with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=6) as z:
         for name, value in arrays.items():
@@ -59,7 +62,7 @@ def write_npz(path: Path, arrays: Mapping[str, Array]) -> None:
                 np.lib.format.write_array(fh, stored, allow_pickle=False)
 
 
-def load_npz(path: Path | str) -> dict[str, Array]:
+def load_npz(path: Path | str) -> dict[str, Stored]:
     """Every array of an ``.npz`` written by :func:`write_npz`, decoded, by name.
 
     Files of plain arrays (what earlier versions of cpbc wrote, or ``numpy.savez``) read as

@@ -10,19 +10,25 @@
   margins by constraint type), thinned to the smallest and largest sample of each of a few
   hundred time buckets, so that every peak of the run stays in the plot.
 
-Arrays travel as base64 of little-endian float32.
+Arrays travel deflated, as ``{"deflated": base64}`` (:func:`packed`): meshcat's command bytes
+as they are, float32 arrays with a ``stride`` as the byte planes of their successive
+differences (cpbc.results.packed), which deflate several times smaller than the floats
+themselves. The page inflates them with the browser's DecompressionStream (view.js).
 """
 
 from __future__ import annotations
 
 import base64
+import zlib
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from cpbc.constraints.base import Array
 from cpbc.results.margin_types import grouped, nearest_columns
+from cpbc.results.packed import decode, encode
 from cpbc.results.palette import BOUND_COLOUR, OBSTACLE_COLOUR, WARNING_COLOUR
 from cpbc.results.saved_run import SavedCase, SavedRun, SavedTrajectory
 from cpbc.results.thinning import Index, envelope
@@ -33,12 +39,24 @@ TEMPLATE = f"{ROOT}/_template"
 _PLOT_BUCKETS = 400  # time buckets of a plotted curve (two samples each)
 
 
-def _b64(a: Array) -> str:
-    return base64.b64encode(np.ascontiguousarray(a, dtype="<f4").tobytes()).decode("ascii")
+def packed(a: Array | bytes) -> dict[str, Any]:
+    """An array for the page, deflated: bytes as they are; floats (sent in single precision)
+    as the byte planes of the differences between successive rows, ``stride`` values a row."""
+    if isinstance(a, bytes):
+        return {"deflated": base64.b64encode(zlib.compress(a, 6)).decode("ascii")}
+    a = np.asarray(a, dtype="<f4")
+    stride = int(np.prod(a.shape[1:], dtype=int))
+    planes = encode(a.reshape(len(a), stride))
+    return {"deflated": base64.b64encode(zlib.compress(planes.tobytes(), 6)).decode("ascii"),
+            "stride": stride}
 
 
-def _encoded(commands: Sequence[bytes]) -> list[str]:
-    return [base64.b64encode(c).decode("ascii") for c in commands]
+def unpacked(entry: dict[str, Any]) -> NDArray[Any]:
+    """The array of a :func:`packed` entry, flat (what view.js decodes)."""
+    raw = np.frombuffer(zlib.decompress(base64.b64decode(entry["deflated"])), np.uint8)
+    if "stride" not in entry:
+        return raw
+    return decode(raw.reshape(4, -1, entry["stride"])).reshape(-1)
 
 
 def _shared_scene(run: SavedRun, settings: ViewSettings) -> tuple[CaseScene, dict[str, Any]]:
@@ -58,7 +76,7 @@ def _shared_scene(run: SavedRun, settings: ViewSettings) -> tuple[CaseScene, dic
     vis[TEMPLATE].set_property("visible", False)
     obstacles = [f"{ROOT}/obstacles/{_segment(kin.geom_names[g])}"
                  for g in kin.obstacle_geoms]
-    return scene, {"commands": _encoded(recorder.commands), "bodies": bodies,
+    return scene, {"commands": [packed(c) for c in recorder.commands], "bodies": bodies,
                    "obstacles": obstacles}
 
 
@@ -78,8 +96,8 @@ def _case_scene(run: SavedRun, case: SavedCase, shared: CaseScene) -> dict[str, 
         controllers.append({
             "name": r.controller, "colour": scene.colours[r.controller],
             "status": str(r.summary.get("status", "")), "frames": len(s.time),
-            "pose": _b64(pose), "tip": _b64(s.trace),
-            "clearance": None if clear is None else _b64(np.minimum(clear, 1e3)),
+            "pose": packed(pose), "tip": packed(s.trace),
+            "clearance": None if clear is None else packed(np.minimum(clear, 1e3)),
         })
     nearest = None
     if shared.kin.obstacle_geoms and sweeps:
@@ -89,7 +107,7 @@ def _case_scene(run: SavedRun, case: SavedCase, shared: CaseScene) -> dict[str, 
             pad = np.vstack([s.obstacle_clearance,
                              np.repeat(s.obstacle_clearance[-1:], length - len(s.time), 0)])
             near = np.minimum(near, pad)
-        nearest = _b64(near)
+        nearest = packed(near)
     return {"controllers": controllers, "obstacleClearance": nearest, "root": f"{ROOT}/{case.name}"}
 
 
@@ -173,7 +191,7 @@ def _series(r: SavedTrajectory, groups: list[dict[str, Any]], joints: bool) -> d
                 source = {"position": r.position, "velocity": r.velocity, "torque": torque}
                 columns.append((f"{p['key']}{p['column']}", source[p["key"]][:, p["column"]]))
     idx = _thinned(r, [c for _, c in columns])
-    return {"time": _b64(r.time[idx]), "columns": {k: _b64(c[idx]) for k, c in columns}}
+    return {"time": packed(r.time[idx]), "columns": {k: packed(c[idx]) for k, c in columns}}
 
 
 def page_data(run: SavedRun, settings: ViewSettings | None = None) -> dict[str, Any]:
