@@ -6,7 +6,7 @@ floating-point array is stored as the differences of successive samples' bit pat
 (along its first axis, wrapping as unsigned integers), split into byte planes: plane k
 holds byte k of every difference. The sign, exponent and leading mantissa planes are then
 nearly constant and deflate to almost nothing. Nothing is rounded: decoding gives back the
-same bits, NaN and -0.0 included. On the shipped scenarios' logs this is 3-4x smaller than
+same bits, NaN and -0.0 included. On the shipped scenarios' logs this is 2.5-4.3x smaller than
 deflating the plain arrays (LZMA on them, which plain ``numpy.load`` can read, gains 1.7x
 and writes ten times slower).
 
