@@ -45,7 +45,7 @@
         if (value === null || typeof value !== "object") continue;
         if (typeof value.deflated !== "string") { walk(value); continue; }
         jobs.push(inflate(value.deflated).then(bytes => {
-          node[key] = value.stride ? floats(bytes, value.stride) : bytes;
+          node[key] = "stride" in value ? floats(bytes, value.stride) : bytes;
         }));
       }
     })(root);

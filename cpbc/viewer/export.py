@@ -11,10 +11,8 @@ a page) is inlined deflated, 0.29 MB in base64; view.js inflates and runs it.
 
 from __future__ import annotations
 
-import base64
 import html
 import json
-import zlib
 from pathlib import Path
 
 import meshcat
@@ -22,7 +20,7 @@ import meshcat
 from cpbc.errors import CpbcError
 from cpbc.resources import viewer_dir
 from cpbc.results.saved_run import SavedRun
-from cpbc.viewer.page_data import page_data
+from cpbc.viewer.page_data import packed, page_data
 from cpbc.viewer.scene import ViewSettings
 
 VIEW_FILE = "view.html"
@@ -38,9 +36,9 @@ def _packed_meshcat() -> str:
     (the script's first) stays readable as an HTML comment."""
     text = meshcat_js()
     licence = text.partition("\n")[0].strip().removeprefix("/*!").removesuffix("*/").strip()
-    packed = base64.b64encode(zlib.compress(text.encode("utf-8"), 6)).decode("ascii")
+    deflated = packed(text.encode("utf-8"))["deflated"]
     return (f"<!-- meshcat viewer script: {html.escape(licence)} -->\n"
-            f'<script id="meshcat-deflated" type="application/octet-stream">{packed}</script>')
+            f'<script id="meshcat-deflated" type="application/octet-stream">{deflated}</script>')
 
 
 def _script(text: str) -> str:

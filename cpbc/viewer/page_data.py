@@ -43,12 +43,12 @@ def packed(a: Array | bytes) -> dict[str, Any]:
     """An array for the page, deflated: bytes as they are; floats (sent in single precision)
     as the byte planes of the differences between successive rows, ``stride`` values a row."""
     if isinstance(a, bytes):
-        return {"deflated": base64.b64encode(zlib.compress(a, 6)).decode("ascii")}
-    a = np.asarray(a, dtype="<f4")
-    stride = int(np.prod(a.shape[1:], dtype=int))
-    planes = encode(a.reshape(len(a), stride))
-    return {"deflated": base64.b64encode(zlib.compress(planes.tobytes(), 6)).decode("ascii"),
-            "stride": stride}
+        payload, layout = a, {}
+    else:
+        a = np.asarray(a, dtype="<f4")
+        stride = int(np.prod(a.shape[1:], dtype=int))
+        payload, layout = encode(a.reshape(len(a), stride)).tobytes(), {"stride": stride}
+    return {"deflated": base64.b64encode(zlib.compress(payload, 6)).decode("ascii"), **layout}
 
 
 def unpacked(entry: dict[str, Any]) -> NDArray[Any]:
