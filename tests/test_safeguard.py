@@ -248,9 +248,8 @@ def test_the_safeguard_imports_no_simulator() -> None:
 
 # -- in the loop -------------------------------------------------------------------------------
 @pytest.mark.parametrize("period", [0.001, 0.002, 0.01])
-# the bare law diverges from some states at 100 Hz (its logged margins overflow), and the guard
-# meets candidate torques that predict astronomic speeds (judged failing): that is
-# what this test shows
+# expected here: the bare law diverges from some states at 100 Hz (its logged margins
+# overflow), and the guard meets candidate torques predicting astronomic speeds (judged failing)
 @pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")
 def test_small_campaign_no_violation_with_the_safeguard(period: float) -> None:
     """20 seeded states near and away from ∂S, sampled-data admissible at 100 Hz, MuJoCo's
