@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from cpbc.results.packed import CODED, decode, encode, load_npz, write_npz
-from cpbc.viewer.page_data import packed, unpacked
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 
@@ -92,14 +91,3 @@ def test_the_readme_recipe_decodes_without_cpbc(tmp_path: Path) -> None:
     np.testing.assert_array_equal(scope["velocity"], velocity)
 
 
-
-@pytest.mark.parametrize("shape", [(240, 3, 7), (400,), (0, 3)])
-def test_page_arrays_unpack_to_their_single_precision_values(shape: tuple[int, ...]) -> None:
-    """cpbc.viewer.page_data packs the page's arrays with this coding (view.js inflates
-    them); unpacked, the mirror of view.js, gives the float32 values back, flat."""
-    a = np.cumsum(np.random.default_rng(4).standard_normal(shape), axis=0)
-    entry = packed(a)
-    assert entry["stride"] == int(np.prod(shape[1:], dtype=int))
-    np.testing.assert_array_equal(unpacked(entry), a.astype(np.float32).ravel())
-    raw = bytes(range(256)) * 3
-    assert unpacked(packed(raw)).tobytes() == raw

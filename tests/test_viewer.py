@@ -29,7 +29,7 @@ from cpbc.results.saved_run import load_run
 from cpbc.results.sweep import SceneKinematics
 from cpbc.run import main
 from cpbc.viewer.browser import HeadlessChromium, find_chromium
-from cpbc.viewer.page_data import unpacked
+from cpbc.viewer.page_data import packed, unpacked
 from cpbc.viewer.recorder import CommandRecorder
 from cpbc.viewer.scene import CaseScene, ViewSettings
 from cpbc.viewer.server import MeshcatServer
@@ -205,6 +205,18 @@ def _page_data(page: Path) -> dict:
     m = re.search(r"window\.CPBC_DATA = (\{.*?\});\n</script>", page.read_text(), re.S)
     assert m, "the page holds its data"
     return json.loads(m.group(1))
+
+
+@pytest.mark.parametrize("shape", [(240, 3, 7), (400,), (0, 3)])
+def test_page_arrays_unpack_to_their_single_precision_values(shape: tuple[int, ...]) -> None:
+    """The page's arrays are packed with cpbc.results.packed's coding and deflated (view.js
+    inflates them); unpacked, the mirror of view.js, gives the float32 values back, flat."""
+    a = np.cumsum(np.random.default_rng(4).standard_normal(shape), axis=0)
+    entry = packed(a)
+    assert entry["stride"] == int(np.prod(shape[1:], dtype=int))
+    np.testing.assert_array_equal(unpacked(entry), a.astype(np.float32).ravel())
+    raw = bytes(range(256)) * 3
+    assert unpacked(packed(raw)).tobytes() == raw
 
 
 def test_the_run_has_one_self_contained_page_built_from_the_viewer_folder(run_folder):

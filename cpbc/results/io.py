@@ -15,7 +15,7 @@ import numpy as np
 from cpbc.constraints.base import Array
 from cpbc.errors import CpbcError
 from cpbc.results.metrics import RunSummary
-from cpbc.results.packed import write_npz
+from cpbc.results.packed import Stored, write_npz
 from cpbc.results.saved_run import FIGURES
 from cpbc.simulation.trajectory import Trajectory
 
@@ -54,7 +54,7 @@ def write_trajectory(
     are computed from the double-precision log before it is written, and equal the file's
     peaks rounded to single precision.
     """
-    arrays: dict[str, Array] = {
+    arrays: dict[str, Stored] = {
         "time": traj.time,
         "position": _single(traj.position),
         "velocity": _single(traj.velocity),

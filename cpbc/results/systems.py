@@ -18,7 +18,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from cpbc.arrays import Array
-from cpbc.results.packed import write_npz
+from cpbc.results.packed import Stored, write_npz
 from cpbc.results.palette import BOUND_COLOUR, controller_colour
 from cpbc.simulation.system_loop import SystemTrajectory
 from cpbc.systems.plant import ConstrainedQuantity
@@ -158,7 +158,7 @@ def write_system_trajectory(path: Path, traj: SystemTrajectory, state_names: Seq
     """time, state, input, names and outcome in one .npz (cpbc.results.packed). The state
     and input are stored in single precision, as an arm's signals (cpbc.results.io); the
     summary is computed from the double-precision log before."""
-    arrays: dict[str, Array] = {
+    arrays: dict[str, Stored] = {
         "time": traj.time,
         "state": np.asarray(traj.state, dtype=np.float32),
         "input": np.asarray(traj.input, dtype=np.float32),
