@@ -2,16 +2,26 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 
 from cpbc.resources import scenarios_dir
 from cpbc.results import write_summaries, write_trajectory
-from cpbc.scenario import build, load_scenario
+from cpbc.robot import describe, scenario_for
+from cpbc.scenario import Scenario, build, load_scenario
 from cpbc.scenario.build import ScenarioSetup
-from cpbc.scenario.runner import default_workers, run_all, worker_pool
+from cpbc.scenario.load import load_any
+from cpbc.scenario.runner import (
+    default_workers,
+    run_all,
+    scenario_in_worker,
+    worker_payload,
+    worker_pool,
+)
 from cpbc.viewer.outputs import write_run_outputs
 
 
@@ -92,3 +102,81 @@ def test_a_shared_pool_runs_and_then_draws_the_figures(tmp_path: Path) -> None:
     assert drawn["pool"] == drawn["serial"]
     assert {p.name for p in drawn["pool"]} >= {"rates.png", "torques.png", "path.png"}
     assert {p.parts[0] for p in drawn["pool"]} == {"rest", "moving"}
+
+
+def _plain(value: object) -> object:
+    """A setting as nested plain values, so that two settings compare with ==."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)
+                if f.compare}
+    if isinstance(value, np.ndarray):
+        return ("array", value.shape, value.tolist())
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    return value
+
+
+def _settings(setup: ScenarioSetup) -> dict[str, object]:
+    """What a run's physics depends on besides the law's own parameters."""
+    return {
+        "loop": _plain(setup.loop_settings), "plant": _plain(setup.plant_settings),
+        "safeguard": _plain(setup.safeguard), "monitor": setup.monitor.names,
+        "also_keep": [c.names for c in setup.also_keep],
+        "criteria": _plain(setup.criteria), "rate_bounds": setup.rate_bounds,
+        "target": setup.target.tolist(), "coordinates": setup.coordinate_names,
+        "cases": [(c.name, c.position.tolist(), c.velocity.tolist()) for c in setup.cases],
+        "controllers": [(e.name, e.controller.type_name, e.controller.constraints.names)
+                        for e in setup.controllers],
+    }
+
+
+def _skeleton(name: str, folder: Path, duration: float) -> Path:
+    """``python -m cpbc.robot NAME`` as printed: it leaves ``simulation.torque_limit`` out."""
+    data = scenario_for(describe(name), duration)
+    assert "torque_limit" not in data["simulation"]
+    path = folder / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def _arm_scenarios() -> list[Path]:
+    return sorted(p for p in scenarios_dir().glob("*.yaml")
+                  if isinstance(load_any(p)[0], Scenario))
+
+
+@pytest.mark.parametrize("source", [*(p.stem for p in _arm_scenarios()), "talos_arm", "ur10"])
+def test_a_worker_rebuilds_every_setting_of_the_scenario(source: str, tmp_path: Path) -> None:
+    """Every shipped arm scenario, and two skeletons that leave the torque limits to the
+    model's effort limits, built here and as a worker rebuilds it: the same settings (the
+    torque limits vanished in workers when the default hung on "was the key given?")."""
+    path = (scenarios_dir() / f"{source}.yaml" if (scenarios_dir() / f"{source}.yaml").exists()
+            else _skeleton(source, tmp_path, 1.0))
+    scenario, file = load_scenario(path)
+    rebuilt = scenario_in_worker(worker_payload(scenario))
+    assert rebuilt == scenario
+    here, there = build(scenario, file), build(rebuilt, file)
+    assert _settings(there) == _settings(here)
+    if source in ("talos_arm", "ur10"):
+        np.testing.assert_array_equal(there.loop_settings.torque_limit, there.arm.effort_limit)
+
+
+def _timing_free(summary: dict[str, object]) -> dict[str, object]:
+    return {k: v for k, v in summary.items() if k not in ("wall_time", "steps_per_second")}
+
+
+def test_in_process_and_worker_summaries_are_identical_with_the_motors_limits(
+        tmp_path: Path) -> None:
+    """The TALOS arm's skeleton, where PD + gravity asks for more than joint 2's 17.86 N·m:
+    run in this process and in worker processes, the summaries agree to the bit (but for
+    the wall-clock fields) and the applied torque stays within the URDF's effort limits."""
+    setup = build(*load_scenario(_skeleton("talos_arm", tmp_path, 0.3)))
+    limit = setup.arm.effort_limit
+    here = run_all(setup, workers=1)
+    there = run_all(setup, workers=2)
+    assert any(max(np.abs(r.summary.peak_commanded_torques) / limit) > 1 for r in here)
+    for a, b in zip(here, there, strict=True):
+        assert _timing_free(b.summary.as_dict()) == _timing_free(a.summary.as_dict())
+        assert np.all(np.abs(b.summary.peak_torques) <= limit * (1 + 1e-12))
+        assert b.summary.torque_limits == limit.tolist()

@@ -491,7 +491,7 @@ def _loop_settings(sim: s.SimulationSpec, model: RobotModel) -> LoopSettings:
     if sim.torque_limit == "from_model":
         limit = sim.torque_limit_scale * robots.model_limits(
             model, "effort", "simulation.torque_limit")[1]
-    elif "torque_limit" not in sim.model_fields_set:  # real arms have real motors
+    elif sim.torque_limit == "auto":  # real arms have real motors
         limit = _declared_efforts(model)
         limit = None if limit is None else sim.torque_limit_scale * limit
     elif isinstance(sim.torque_limit, (float, list)):

@@ -71,10 +71,22 @@ def run_one(
     return RunResult(entry.name, case.name, traj, margins, traj.lyapunov, summary)
 
 
+def worker_payload(scenario: Scenario) -> str:
+    """The scenario as a worker receives it: only the keys the user gave (``exclude_unset``),
+    so that the rebuilt scenario has the same values *and* the same record of what was given;
+    a default that depends on "was it given?" then resolves in the worker as it did here."""
+    return scenario.model_dump_json(exclude_unset=True)
+
+
+def scenario_in_worker(payload: str) -> Scenario:
+    """The scenario a worker rebuilds from :func:`worker_payload`."""
+    return Scenario.model_validate_json(payload)
+
+
 @functools.lru_cache(maxsize=1)
-def _setup_in_worker(scenario_json: str, source: Path) -> ScenarioSetup:
+def _setup_in_worker(payload: str, source: Path) -> ScenarioSetup:
     """The setup of a scenario, built once per worker process (a worker runs several pairs)."""
-    return build(Scenario.model_validate_json(scenario_json), source)
+    return build(scenario_in_worker(payload), source)
 
 
 def setups_built() -> int:
@@ -87,7 +99,7 @@ def _run_in_worker(
     scenario: Scenario, source: Path, case: str, controller: str, backend: str
 ) -> RunResult:
     """Worker entry: the setup from its scenario (built once per process), then one pair."""
-    setup = _setup_in_worker(scenario.model_dump_json(), source)
+    setup = _setup_in_worker(worker_payload(scenario), source)
     case_entry = next(c for c in setup.cases if c.name == case)
     entry = next(c for c in setup.controllers if c.name == controller)
     return run_one(setup, case_entry, entry, backend)

@@ -81,10 +81,11 @@ class SimulationSpec(Strict):
     control_period: Positive | None = None
     integrator: Literal["Euler", "RK4", "implicit", "implicitfast"] = "RK4"
     backend: Literal["mujoco", "reference"] = "mujoco"
-    # symmetric actuator limits; "from_model": the URDF's effort limits (× torque_limit_scale),
-    # also what an arm whose model declares effort limits gets when the key is left out;
-    # "none" (or null): no limit
-    torque_limit: Positive | list[Positive] | Literal["from_model", "none"] | None = None
+    # symmetric actuator limits; "from_model": the URDF's effort limits (× torque_limit_scale);
+    # "auto" (the default): the same when the model declares them for every joint, else none;
+    # "none" (or null): no limit. The default is a value, not "left out", so that a scenario
+    # rebuilt from its JSON dump (a worker process) gets the same limits.
+    torque_limit: Positive | list[Positive] | Literal["auto", "from_model", "none"] | None = "auto"
     torque_limit_scale: Positive = 1.0
     log_every: Annotated[int, Field(ge=1)] = 1
     max_log_samples: Annotated[int, Field(ge=2)] = 100_000
