@@ -369,6 +369,8 @@ def test_overriding_a_laws_formula_changes_its_torque(tilted: RobotModel, index:
         np.testing.assert_allclose(shifted.torque(x, dx), tau + extra, rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(shifted.evaluate(x, dx)[0], tau + extra, rtol=1e-12,
                                    atol=1e-12)
+        np.testing.assert_allclose(shifted.evaluate_state(shifted.state(x, dx)).torque,
+                                   tau + extra, rtol=1e-12, atol=1e-12)
         assert shifted.evaluate(x, dx)[1] == law.evaluate(x, dx)[1]
         if not law.constraints.empty:  # the guard asks the subclass, not the base class
             guarded = Safeguard(shifted, 0.001,
@@ -377,3 +379,24 @@ def test_overriding_a_laws_formula_changes_its_torque(tilted: RobotModel, index:
                                        atol=1e-12)
         checked += 1
     assert checked >= 5, name
+
+
+@pytest.mark.parametrize("base", [PD, PDGravity])
+def test_overriding_a_baselines_feed_forward_changes_every_path(tilted: RobotModel,
+                                                                  base: type[PD]) -> None:
+    """The baselines' state-only feed-forward (none; gravity) is one hook, ``_bias``: a
+    subclass that overrides it gets its torque from torque(), evaluate() and evaluate_state()
+    alike (evaluate_state once read a hook of its own, so the override reached only two)."""
+    extra = np.array([0.7, -0.4])
+
+    class Biased(base):  # type: ignore[misc, valid-type]
+        def _bias(self, x, state):  # type: ignore[no-untyped-def]
+            return super()._bias(x, state) + extra
+
+    target, kp, kd = np.array([0.4, -0.3]), np.array([30.0, 20.0]), np.array([5.0, 3.0])
+    law, biased = base(tilted, target, kp, kd), Biased(tilted, target, kp, kd)
+    x, dx = np.array([0.2, 0.5]), np.array([-0.3, 0.1])
+    tau = law.torque(x, dx)
+    for got in (biased.torque(x, dx), biased.evaluate(x, dx)[0],
+                biased.evaluate_state(biased.state(x, dx)).torque):
+        np.testing.assert_allclose(got, tau + extra, rtol=1e-12, atol=1e-12)

@@ -19,8 +19,10 @@ class PD(Controller):
         self.kd = positive_vector(kd, model.n, "kd")
         self._potential = QuadraticPotential(self.kp)
 
+    # torque() and evaluate() skip the per-step state (PD + g needs only g); evaluate_state
+    # reads it. Both ask the one feed-forward hook, _bias, so a subclass changes both.
     def torque(self, x: Array, dx: Array) -> Array:
-        return self._law(x - self.target, dx, self._bias(x))
+        return self._law(x - self.target, dx, self._bias(x, None))
 
     def lyapunov(self, x: Array, dx: Array) -> float:
         """L = ½ ẋᵀDẋ + ½ x̃ᵀK_P x̃ (eq. 6.7); non-increasing when gravity does no work."""
@@ -28,13 +30,13 @@ class PD(Controller):
 
     def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
         err = x - self.target
-        tau = self._law(err, dx, self._bias(x))
+        tau = self._law(err, dx, self._bias(x, None))
         return tau, self.model.kinetic_energy(x, dx) + self._potential.value(err)
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         err = state.x - self.target
         dx = state.dx
-        tau = self._law(err, dx, self._state_bias(state))
+        tau = self._law(err, dx, self._bias(state.x, state))
         value = 0.5 * float(dx @ state.inertia @ dx) + self._potential.value(err)
         found = self.constraints.margins(state.x, dx, state) if margins else None
         return Evaluation(tau, value, found)
@@ -43,11 +45,9 @@ class PD(Controller):
         """τ = bias − K_P x̃ − K_D ẋ."""
         return bias - self.kp * err - self.kd * dx
 
-    def _bias(self, x: Array) -> Array | float:
-        """The torque's state-only feed-forward: none for PD."""
-        return 0.0
-
-    def _state_bias(self, state: ArmState) -> Array | float:
+    def _bias(self, x: Array, state: ArmState | None) -> Array | float:
+        """The torque's state-only feed-forward at x (read from ``state`` when the caller
+        has one): none for PD."""
         return 0.0
 
 
@@ -56,8 +56,5 @@ class PDGravity(PD):
 
     type_name = "pd_gravity"
 
-    def _bias(self, x: Array) -> Array:
-        return self.model.gravity(x)
-
-    def _state_bias(self, state: ArmState) -> Array:
-        return state.gravity
+    def _bias(self, x: Array, state: ArmState | None) -> Array:
+        return self.model.gravity(x) if state is None else state.gravity
