@@ -86,10 +86,11 @@ class GravityLoad:
                 f"torque limit {self.limit:.4g} N·m")
 
 
-def joint_loads(model: RobotModel, x: Array, limit: Array,
+def joint_loads(model: RobotModel, x: Array, limit: Array | float,
                 fraction: float = 0.0) -> list[GravityLoad]:
     """The load of every joint with a finite limit at the configuration x (controller
-    coordinates); ``limit`` is per joint [N·m]."""
+    coordinates); ``limit`` is one per joint, or one for all [N·m]."""
+    limit = np.broadcast_to(np.asarray(limit, dtype=float), (model.n,))
     to_joint = model.coordinates.matrix.T  # τ_q = Tᵀ τ
     gravity = np.abs(to_joint @ model.gravity(x))
     braking = BRAKING_DECELERATION * np.linalg.norm(to_joint @ model.inertia(x), axis=1)
