@@ -23,7 +23,9 @@ import pinocchio as pin
 import yaml
 
 from cpbc.errors import CpbcError, ModelError
+from cpbc.model.gravity_load import BRAKING_DECELERATION, joint_loads
 from cpbc.model.loading import ARMS, load_arm
+from cpbc.model.robot_model import RobotModel
 from cpbc.resources import builtin_models
 from cpbc.scenario.gains import physical_gains, spectral_radius
 from cpbc.scenario.robots import xml_root
@@ -149,6 +151,26 @@ def _number(v: float, unit: str = "") -> str:
     return "-" if not np.isfinite(v) else f"{v:.4g}{unit}"
 
 
+def gravity_at_target(d: RobotDescription) -> list[str]:
+    """Per joint with an effort limit, the torque gravity asks of it at the skeleton's
+    target, with the brake's allowance on top (cpbc.model.gravity_load), against the limit."""
+    if d.pin_model is None:
+        return []
+    target, _ = home(d.limits)
+    loads = joint_loads(RobotModel(pin.Model(d.pin_model)), target, d.limits.effort)
+    if not loads:
+        return []
+    width = max(len(load.joint) for load in loads)
+    lines = [f"gravity at the suggested target [N·m], + the brake's allowance "
+             f"(at {BRAKING_DECELERATION:g} rad/s²), against the effort limit:"]
+    for load in loads:
+        verdict = (" cannot hold it: a run is refused" if not load.held else
+                   " no room to brake" if not load.brakes else "")
+        lines.append(f"  {load.joint:<{width}}  {load.gravity:8.2f} + {load.braking:5.2f} of "
+                     f"{load.limit:<7.4g} {load.share:5.0%}{verdict}")
+    return lines
+
+
 def report(d: RobotDescription) -> str:
     """The description as YAML comment lines."""
     lim = d.limits
@@ -161,6 +183,7 @@ def report(d: RobotDescription) -> str:
         tag = " (continuous)" if name in d.continuous else ""
         lines.append(f"  {name:<{width}}  {rng:>20}  {_number(lim.velocity[i]):>8}  "
                      f"{_number(lim.effort[i]):>8}{tag}")
+    lines += gravity_at_target(d)
     if d.locked:
         lines.append("locked by default: " + ", ".join(f"{k} = {v:g}" for k, v in
                                                        d.locked.items()))

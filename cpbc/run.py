@@ -29,6 +29,7 @@ from cpbc.results.metrics import RunSummary
 from cpbc.scenario import build
 from cpbc.scenario.build import ScenarioSetup
 from cpbc.scenario.load import load_any
+from cpbc.scenario.preflight import warning
 from cpbc.scenario.runner import (
     LazyPool,
     RunProgress,
@@ -185,7 +186,7 @@ def _status(s: RunSummary) -> str:
                          if s.violated_constraint else "")
     if s.status == "diverged":
         status += f" @{s.end_time:.3g}s"
-    return status + _notes(s)
+    return status + _notes(s) + (f"; cause: {s.cause}" if s.cause else "")
 
 
 #: Above this share of steps, the safeguard, not the law, drove the run: the status says so.
@@ -222,6 +223,13 @@ def _simulate(setup: ScenarioSetup, backend: str | None, progress: RunProgress |
     return run_shared(setup, pool.get, workers - 1, backend, progress)
 
 
+def _warn(setup: ScenarioSetup, err: Console) -> None:
+    """One line per case whose path to the target leaves a motor no room to brake over
+    gravity (cpbc.scenario.preflight)."""
+    for case, load in setup.gravity_on_path.items():
+        err.print(f"[yellow]warning:[/yellow] {escape(warning(case, load))}", highlight=False)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     console = Console(stderr=False, width=None if sys.stdout.isatty() else 200)
@@ -235,6 +243,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return run_system_cli(loaded, file, args, console)
         scenario = loaded
         setup = build(scenario, file)
+        _warn(setup, err)
         out = args.out or Path("runs") / scenario.name
         if args.view:
             from cpbc.viewer.live import start_live_view  # meshcat only when asked for

@@ -80,11 +80,24 @@ class RunSummary:
     safeguard_steps: int = 0
     safeguard_infeasible: int = 0
     rejected_samples: int = 0
+    # why a failed run likely failed, when something before the run foresaw it (gravity
+    # beyond a motor on the way to the target: cpbc.scenario.preflight); None otherwise
+    cause: str | None = None
 
     @property
     def safeguard_share(self) -> float:
         """Fraction of the control steps at which the safeguard changed the law's torque."""
         return self.safeguard_steps / self.control_steps if self.control_steps else 0.0
+
+    @property
+    def failed(self) -> bool:
+        """Whether the run ended short of the target with the actuators out of room: a
+        crossed constraint, a diverged state, or a stop away from the target with saturated
+        torques or a safeguard that found no torque to keep S."""
+        if self.status in ("constraint_violated", "diverged"):
+            return True
+        return self.status != "converged" and bool(self.saturated_steps
+                                                   or self.safeguard_infeasible)
 
     def worst_margins(self) -> list[WorstMargin]:
         """Per constraint type, the constraint that came nearest its bound."""

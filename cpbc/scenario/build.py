@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,12 +31,14 @@ from cpbc.controllers.shaping import Shaping
 from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
 from cpbc.model import LinearCoordinates, RobotModel
 from cpbc.model.bounds import ModelBounds, estimate_bounds
+from cpbc.model.gravity_load import GravityLoad
 from cpbc.model.loading import ARMS, LoadedArm, finish_mujoco_model
 from cpbc.resources import builtin_models
 from cpbc.results.metrics import SettleCriteria
 from cpbc.scenario import robots
 from cpbc.scenario import schema as s
 from cpbc.scenario.gains import physical_gains, unstable_loop
+from cpbc.scenario.preflight import check_gravity
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, substeps_per_control
 from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
 
@@ -88,6 +91,9 @@ class ScenarioSetup:
     # configuration constraints it keeps besides each law's own (the monitored ones)
     safeguard: SafeguardSettings | None = None
     also_keep: tuple[ConfigurationConstraint, ...] = ()
+    # per case, the load on its path to the target that leaves a motor no room to brake
+    # over gravity (cpbc.scenario.preflight): a warning before the run, a cause after it
+    gravity_on_path: dict[str, GravityLoad] = dataclasses.field(default_factory=dict)
 
     def controller(self, entry: ControllerEntry) -> Controller:
         """The entry's law as the scenario runs it in the sampled-data loop: wrapped in the
@@ -704,7 +710,10 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         [c for c in built.values() if isinstance(c, VelocityConstraint)],
     )
     target, cases = _states(scenario, model, monitor, joint_ranges(model, plant))
+    gravity_on_path: dict[str, GravityLoad] = {}
     if loop.torque_limit is not None:
+        gravity_on_path = check_gravity(model, target, [(c.name, c.position) for c in cases],
+                                        loop.torque_limit)
         _check_stoppable(cases, monitor, model, loop.torque_limit)
     controllers = _controllers(scenario, model, target, cases, built, names, loop)
     _check_recentred(controllers, cases, model, loop, names, sim.safeguard)
@@ -717,6 +726,7 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
                                     hold_correction=sim.safeguard_hold_correction)
         if sim.safeguard else None,
         also_keep=monitor.configuration if sim.safeguard and sim.safeguard_monitored else (),
+        gravity_on_path=gravity_on_path,
     )
     _check_disturbances(scenario, plant, model.n)
     return setup

@@ -14,7 +14,7 @@ import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from cpbc.constraints.base import Array
@@ -68,6 +68,9 @@ def run_one(
         setup.rate_bounds, margins, setup.loop_settings.torque_limit,
         setup.model.coordinates.matrix,
     )
+    load = setup.gravity_on_path.get(case.name)
+    if load is not None and summary.failed:
+        summary = replace(summary, cause=load.describe())
     return RunResult(entry.name, case.name, traj, margins, traj.lyapunov, summary)
 
 

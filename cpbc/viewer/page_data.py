@@ -30,7 +30,7 @@ from cpbc.constraints.base import Array
 from cpbc.results.margin_types import grouped, nearest_columns
 from cpbc.results.packed import decode, encode
 from cpbc.results.palette import BOUND_COLOUR, OBSTACLE_COLOUR, WARNING_COLOUR
-from cpbc.results.saved_run import SavedCase, SavedRun, SavedTrajectory
+from cpbc.results.saved_run import SavedCase, SavedRun, SavedTrajectory, SummaryEntry
 from cpbc.results.thinning import Index, envelope
 from cpbc.viewer.recorder import CommandRecorder
 from cpbc.viewer.scene import ROOT, CaseScene, ViewSettings, _segment
@@ -80,6 +80,13 @@ def _shared_scene(run: SavedRun, settings: ViewSettings) -> tuple[CaseScene, dic
                    "obstacles": obstacles}
 
 
+def _status(summary: SummaryEntry) -> str:
+    """A run's status, and its cause when the summary names one."""
+    status = str(summary.get("status", ""))
+    cause = summary.get("cause")
+    return f"{status}; cause: {cause}" if cause else status
+
+
 def _case_scene(run: SavedRun, case: SavedCase, shared: CaseScene) -> dict[str, Any]:
     """Poses, clearances and traces of every controller of a case."""
     first = case.runs[0]
@@ -95,7 +102,7 @@ def _case_scene(run: SavedRun, case: SavedCase, shared: CaseScene) -> dict[str, 
         clear = s.body_clearance[:, bodies] if shared.kin.obstacle_geoms else None
         controllers.append({
             "name": r.controller, "colour": scene.colours[r.controller],
-            "status": str(r.summary.get("status", "")), "frames": len(s.time),
+            "status": _status(r.summary), "frames": len(s.time),
             "pose": packed(pose), "tip": packed(s.trace),
             "clearance": None if clear is None else packed(np.minimum(clear, 1e3)),
         })
