@@ -1,4 +1,4 @@
-"""Can the motors hold the arm up? Gravity against the joint torque limits (issue 25).
+"""Can the motors hold the arm up? Gravity against the joint torque limits.
 
 At rest an arm needs the joint torques τ_q = Tᵀ g(x) just to stay where it is, so a joint j
 with |τ_q,j| > L_j cannot hold the configuration at all: no controller can keep it there.
