@@ -71,7 +71,10 @@ WITH_AN_ARM = [
     "talos_data/robots/talos_reduced_corrected.urdf",
     "romeo_description/urdf/romeo.urdf",
     "romeo_description/urdf/romeo_small.urdf",
-    "icub_description/robots/icub.urdf",
+    # iCub's neck links weigh (nearly) nothing: their inertia is raised to MuJoCo's least
+    # (1e-9 kg·m²) and the skeleton's gains are then unstable at 1 kHz (issue 25, open)
+    pytest.param("icub_description/robots/icub.urdf", marks=pytest.mark.xfail(
+        strict=True, reason="skeleton gains unstable on the near-massless neck")),
     "icub_description/robots/icub_reduced.urdf",
     "g1_description/urdf/g1_29dof_rev_1_0.urdf",
     "g1_description/urdf/g1_29dof_with_hand_rev_1_0.urdf",
@@ -103,8 +106,9 @@ def _cli(entry, *argv: str) -> tuple[int, str, str]:
 def test_the_list_covers_every_robot_of_issue_25() -> None:
     reported = {"tiago.urdf", "pr2.urdf", "baxter.urdf", "talos_left_arm.urdf", "b1-z1.urdf",
                 "anymal-kinova.urdf", "so100.urdf"}
-    assert reported <= {Path(p).name for p in WITH_AN_ARM}
-    assert len(set(WITH_AN_ARM)) == len(WITH_AN_ARM)
+    names = [p if isinstance(p, str) else p.values[0] for p in WITH_AN_ARM]
+    assert reported <= {Path(p).name for p in names}
+    assert len(set(names)) == len(names)
 
 
 @pytest.mark.skipif(SHARE is None, reason="example-robot-data is not installed")
