@@ -114,3 +114,51 @@ def test_a_urdf_saved_as_xml_is_read_as_urdf(tmp_path: Path) -> None:
     assert code == 0 and "shoulder_pan_joint" in out
     (tmp_path / "s.yaml").write_text(out)
     assert build(*load_scenario(tmp_path / "s.yaml")).arm is not None
+
+
+_MOTORS = """<mujoco>
+  <compiler angle="radian"/>
+  <worldbody>
+    <body name="l1"><joint name="j1" axis="0 1 0" range="-1 1"/>
+      <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.05"/>
+      <body name="l2" pos="0.5 0 0"><joint name="j2" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.04"/>
+        <body name="l3" pos="0.4 0 0"><joint name="j3" axis="0 1 0"/>
+          <geom type="sphere" size="0.05"/></body></body></body>
+  </worldbody>
+  <actuator>
+    <motor joint="j1" ctrlrange="-40 50" gear="2"/>
+    <motor joint="j2" forcerange="-7 7" forcelimited="true"/>
+    <motor joint="j3"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def test_robot_cli_shows_the_effort_limits_of_mjcf_actuators(tmp_path: Path) -> None:
+    path = tmp_path / "motors.xml"
+    path.write_text(_MOTORS)
+    np.testing.assert_allclose(describe(str(path)).limits.effort, [80.0, 7.0, np.inf])
+    code, out, _ = _cli(str(path))
+    assert code == 0
+    rows = {line.split()[1]: line.split()[-1] for line in out.splitlines()
+            if line.startswith("#   j") and "effort" not in line}
+    assert rows == {"j1": "80", "j2": "7", "j3": "-"}
+
+
+def test_package_dirs_that_do_not_exist_name_the_field(tmp_path: Path) -> None:
+    from cpbc import run
+    from cpbc.errors import ScenarioError
+    from cpbc.scenario.robots import load_scenario_arm
+    from cpbc.scenario.schema import RobotSpec
+
+    with pytest.raises(ScenarioError, match=r"^robot\.package_dirs: .*nope"):
+        load_scenario_arm(RobotSpec(model="ur5", package_dirs=["nope"]), tmp_path)
+    data = scenario_for(describe("ur5"), 0.01)
+    data["robot"]["package_dirs"] = ["nope"]
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(data))
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = run.main([str(tmp_path / "s.yaml"), "--quiet", "--no-plots"])
+    assert code == 2 and "robot.package_dirs" in err.getvalue() + out.getvalue()
+    assert "Traceback" not in err.getvalue()

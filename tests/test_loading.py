@@ -266,3 +266,76 @@ def test_an_unreadable_mesh_is_a_model_error(tmp_path: Path) -> None:
     urdf.write_text(_ONE_LINK.format(mesh="arm.dae"))
     with pytest.raises(ModelError, match=r"arm\.dae"):
         load_urdf(urdf)
+
+
+# -- links welded to the base or to each other; package:// from the URDF (issue 25) --------
+@pytest.mark.parametrize("urdf", [
+    "tiago_description/robots/tiago.urdf",  # antennas welded to the base
+    "pr2_description/urdf/pr2.urdf",  # a sensor mount
+    "b1_description/urdf/b1-z1.urdf",  # the quadruped's base
+    "anymal_b_simple_description/robots/anymal-kinova.urdf",
+])
+def test_links_welded_to_the_base_keep_the_dynamics(urdf: str, rng: np.random.Generator) -> None:
+    arm = load_urdf(arm_urdf("panda").parents[2] / urdf)
+    _agreement(arm, arm.mujoco_model(), rng)
+
+
+_VIRTUAL = """<robot name="virtual">
+  <link name="base"/>
+  <link name="between"/>
+  <link name="arm">
+    <inertial><mass value="1"/><origin xyz="0 0 0.3"/>
+      <inertia ixx="0.02" iyy="0.02" izz="0.001" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <joint name="ab" type="revolute"><parent link="base"/><child link="between"/>
+    <axis xyz="1 0 0"/><limit lower="-1" upper="1" effort="5" velocity="2"/></joint>
+  <joint name="bc" type="revolute"><parent link="between"/><child link="arm"/>
+    <axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="5" velocity="2"/></joint>
+</robot>
+"""
+
+
+def test_a_massless_link_between_joints_is_regularised_in_both_engines(
+    tmp_path: Path, rng: np.random.Generator
+) -> None:
+    from cpbc.model.inertias import MIN_MASS, mujoco_accepts
+
+    urdf = tmp_path / "virtual.urdf"
+    urdf.write_text(_VIRTUAL)
+    arm = load_urdf(urdf)
+    assert arm.regularised == ("ab",)
+    inertia = arm.model.inertias[arm.model.getJointId("ab")]
+    assert mujoco_accepts(inertia) and inertia.mass == MIN_MASS
+    _agreement(arm, arm.mujoco_model(), rng)
+
+
+def test_branches_are_numbered_alike_in_both_engines(tmp_path: Path) -> None:
+    text = _CONTINUOUS.replace('name="j1"', 'name="z1"').replace(
+        "<parent link=\"l1\"/>", "<parent link=\"base\"/>")
+    urdf = tmp_path / "branches.urdf"
+    urdf.write_text(text)  # two joints on the base, written "z1" before "j2"
+    arm = load_urdf(urdf)
+    assert arm.joint_names == ("j2", "z1")
+    assert tuple(arm.mujoco_model().joint(i).name for i in range(2)) == arm.joint_names
+
+
+def test_package_uris_resolve_from_the_urdf_first(tmp_path: Path) -> None:
+    mesh = arm_urdf("panda").parents[1] / "meshes" / "collision" / "link1.stl"
+    for where in ("mine", "elsewhere"):
+        folder = tmp_path / where / "my_arm" / "meshes"
+        folder.mkdir(parents=True)
+        (folder / "arm.stl").write_bytes(mesh.read_bytes())
+    (tmp_path / "mine" / "my_arm" / "urdf").mkdir()
+    urdf = tmp_path / "mine" / "my_arm" / "urdf" / "one.urdf"
+    urdf.write_text(_ONE_LINK.format(mesh="package://my_arm/meshes/arm.stl"))
+    arm = load_urdf(urdf, package_dirs=[tmp_path / "elsewhere"])
+    assert str(tmp_path / "mine" / "my_arm" / "meshes" / "arm.stl") in arm.urdf_text
+    assert "elsewhere" not in arm.urdf_text
+
+
+def test_package_dirs_that_do_not_exist_are_an_error(tmp_path: Path) -> None:
+    urdf = tmp_path / "one.urdf"
+    urdf.write_text(_ONE_LINK.format(mesh="package://nowhere/meshes/arm.stl"))
+    with pytest.raises(ModelError, match=r"package_dirs .*nope.* do not exist") as info:
+        load_urdf(urdf, package_dirs=[tmp_path / "nope"])
+    assert info.value.parameter == "package_dirs"

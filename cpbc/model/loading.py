@@ -38,6 +38,7 @@ import pinocchio as pin
 
 from cpbc.arrays import Array
 from cpbc.errors import ModelError
+from cpbc.model.inertias import apply_joint_inertias, regularise_inertias
 from cpbc.model.meshes import mujoco_mesh
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
@@ -134,9 +135,13 @@ _MESH_URI = re.compile(r'(<mesh\b[^>]*?\bfilename\s*=\s*)(["\'])(.*?)\2', re.DOT
 _JOINT = re.compile(r"<joint\b[^>]*?/>|<joint\b[^>]*?[^/]>.*?</joint>", re.DOTALL)
 _JOINT_HEAD = re.compile(r"<joint\b[^>]*>", re.DOTALL)
 _CONTINUOUS = re.compile(r"""\btype\s*=\s*(["'])continuous\1""")
+_REVOLUTE = re.compile(r"""\btype\s*=\s*(["'])revolute\1""")
 _NAME = re.compile(r"""\bname\s*=\s*(["'])(.*?)\1""")
 _LIMIT = re.compile(r"<limit\b[^>]*>", re.DOTALL)
 _LOWER_UPPER = re.compile(r"""\s(lower|upper)\s*=\s*(["']).*?\2""")
+_COMMENT = re.compile(r"<!--.*?-->", re.DOTALL)
+_TYPED = re.compile(r"""\btype\s*=""")
+_ROBOT_END = re.compile(r"</robot\s*>\s*$")
 
 
 def example_robot_data_share() -> Path | None:
@@ -188,7 +193,16 @@ def arm_urdf(name: str) -> Path:
 
 
 def _package_dirs(urdf: Path, extra: Sequence[str | Path]) -> list[Path]:
-    """Folders in which ``package://NAME/...`` is looked up as ``folder/NAME/...``."""
+    """Folders in which ``package://NAME/...`` is looked up as ``folder/NAME/...`` (after the
+    URDF's own folders, see :func:`resolve_mesh_uri`).
+
+    Raises:
+        ModelError: one of ``extra`` is not an existing folder.
+    """
+    missing = [str(p) for p in extra if not Path(p).is_dir()]
+    if missing:
+        raise ModelError(f"package_dirs {missing} do not exist or are not folders",
+                         "package_dirs")
     dirs = [Path(p) for p in extra]
     dirs += [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
     share = example_robot_data_share()
@@ -199,10 +213,16 @@ def _package_dirs(urdf: Path, extra: Sequence[str | Path]) -> list[Path]:
 
 
 def resolve_mesh_uri(uri: str, urdf: Path, package_dirs: Sequence[Path]) -> Path:
-    """Absolute path of a URDF mesh reference; ModelError naming the URI if it is missing."""
+    """Absolute path of a URDF mesh reference; ModelError naming the URI if it is missing.
+
+    ``package://NAME/rest`` is first looked up from the URDF's own location (the nearest of
+    its parent folders called NAME), so that a package shipped with its URDF wins over a
+    namesake elsewhere, then as ``folder/NAME/rest`` in each of ``package_dirs``.
+    """
     looked: list[Path] = []
     if uri.startswith("package://"):
         package, _, rest = uri[len("package://"):].partition("/")
+        looked += [d / rest for d in urdf.resolve().parents if d.name == package]
         for d in package_dirs:
             looked.append(d / package / rest)
             if d.name == package:
@@ -222,8 +242,9 @@ def resolve_mesh_uri(uri: str, urdf: Path, package_dirs: Sequence[Path]) -> Path
 def resolve_urdf_meshes(
     urdf: Path, text: str | None = None, package_dirs: Sequence[str | Path] = ()
 ) -> str:
-    """The URDF text with every mesh filename replaced by an absolute path."""
-    text = urdf.read_text() if text is None else text
+    """The URDF text, without its comments, with every mesh filename replaced by an absolute
+    path."""
+    text = _COMMENT.sub("", urdf.read_text() if text is None else text)
     dirs = _package_dirs(urdf, package_dirs)
 
     def sub(m: re.Match[str]) -> str:
@@ -231,6 +252,34 @@ def resolve_urdf_meshes(
         return f"{m.group(1)}{m.group(2)}{path}{m.group(2)}"
 
     return _MESH_URI.sub(sub, text)
+
+
+def sort_joints(text: str) -> str:
+    """The URDF text with the joints of its kinematic tree in name order, after the links.
+
+    Pinocchio (through urdfdom) visits the children of a link in the order of their joints'
+    names, MuJoCo's URDF parser in the order of the file; in name order both number the joints
+    of a branching robot (two arms, four legs) alike. Comments must be gone (see
+    :func:`resolve_urdf_meshes`): a commented-out joint would be moved out of its comment.
+    """
+    blocks = [m for m in _JOINT.finditer(text)
+              if (head := _JOINT_HEAD.match(m.group(0))) and _TYPED.search(head.group(0))]
+
+    def name(m: re.Match[str]) -> str:
+        head = _JOINT_HEAD.match(m.group(0))
+        found = _NAME.search(head.group(0)) if head else None
+        return found.group(2) if found else ""
+
+    end = _ROBOT_END.search(text)
+    if not blocks or end is None:
+        return text
+    parts, last = [], 0
+    for m in blocks:
+        parts.append(text[last:m.start()])
+        last = m.end()
+    parts.append(text[last:end.start()])
+    joints = "\n".join(m.group(0) for m in sorted(blocks, key=name))
+    return "".join(parts) + joints + "\n" + text[end.start():]
 
 
 def unbound_continuous_joints(text: str) -> tuple[str, tuple[str, ...]]:
@@ -242,17 +291,27 @@ def unbound_continuous_joints(text: str) -> tuple[str, tuple[str, ...]]:
     same in both engines and the controllers' x = q holds. The ``<limit>`` keeps its effort
     and velocity; its lower/upper (meaningless for a continuous joint) are dropped, and the
     loader marks the joint unbounded in both engines.
+
+    A continuous or revolute joint without ``<limit>`` (TIAGo dual's casters) gets one
+    without effort or rate limit (urdfdom, hence Pinocchio, refuses a revolute joint without);
+    a revolute one is then read as what it describes, a continuous joint.
     """
     names: list[str] = []
 
     def sub(m: re.Match[str]) -> str:
         block = m.group(0)
         head = _JOINT_HEAD.match(block)
-        if head is None or not _CONTINUOUS.search(head.group(0)):
+        if head is None:
+            return block
+        no_limit = block.endswith("</joint>") and not _LIMIT.search(block)
+        if not (_CONTINUOUS.search(head.group(0))
+                or (no_limit and _REVOLUTE.search(head.group(0)))):
             return block
         name = _NAME.search(head.group(0))
         names.append(name.group(2) if name else "?")
         block = _CONTINUOUS.sub('type="revolute"', block, count=1)
+        if no_limit:  # urdfdom requires one for a revolute joint
+            return block[:-len("</joint>")] + '<limit effort="0" velocity="0"/></joint>'
         return _LIMIT.sub(lambda lim: _LOWER_UPPER.sub("", lim.group(0)), block)
 
     return _JOINT.sub(sub, text), tuple(names)
@@ -314,6 +373,9 @@ class LoadedArm:
         tip: link carrying the MuJoCo site ``end_point`` (the tool centre point), or None.
         continuous_joints: joints the URDF declares ``continuous``, driven as unbounded
             revolute joints (see :func:`unbound_continuous_joints`).
+        regularised: driven joints whose link inertia (with the links welded to it) MuJoCo
+            would refuse, raised to the nearest it accepts in both engines
+            (cpbc.model.inertias).
     """
 
     name: str
@@ -329,6 +391,7 @@ class LoadedArm:
     effort_limit: Array
     tip: str | None = None
     continuous_joints: tuple[str, ...] = ()
+    regularised: tuple[str, ...] = ()
 
     @property
     def n(self) -> int:
@@ -351,6 +414,7 @@ class LoadedArm:
             lock_mujoco_joint(spec, joint_name, value)
         for eq in list(spec.equalities):  # e.g. a mimic of a locked finger
             spec.delete(eq)
+        apply_joint_inertias(spec, self.model)
         for joint_name in self.continuous_joints:
             if spec.joint(joint_name) is not None:
                 spec.joint(joint_name).limited = mujoco.mjtLimited.mjLIMITED_FALSE
@@ -360,6 +424,10 @@ class LoadedArm:
             joint.armature = 0.0
         for geom in spec.geoms:
             geom.contype, geom.conaffinity = 1, 0
+        # The geoms' own inertia is never used (every body's is explicit, from Pinocchio): a
+        # flat or open mesh, whose volume MuJoCo cannot compute, is measured as a shell.
+        for mesh in spec.meshes:
+            mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
         if self.tip is not None and spec.body(self.tip) is not None:
             spec.body(self.tip).add_site(name="end_point", size=[0.01, 0, 0])
         for joint_name in self.joint_names:
@@ -433,7 +501,7 @@ def load_urdf(
     if not path.is_file():
         raise ModelError(f"URDF file not found: {path}")
     text, continuous = unbound_continuous_joints(
-        resolve_urdf_meshes(path, package_dirs=package_dirs))
+        sort_joints(resolve_urdf_meshes(path, package_dirs=package_dirs)))
     try:
         full = pin.buildModelFromXML(text)
         geoms = pin.buildGeomFromUrdfString(full, text, pin.GeometryType.COLLISION)
@@ -481,10 +549,13 @@ def load_urdf(
             "cpbc can neither drive nor lock: make them fixed, revolute, continuous or "
             "prismatic in the URDF"
         )
+    if model.nv == 0:
+        raise ModelError(f"{path.name} has no joint to drive (every joint is fixed or locked)")
     lower, upper, vel, eff = _limits(model)
     return LoadedArm(
         name or path.stem, path, text, model, collision, locked, tuple(model.names[1:]),
         lower, upper, vel, eff, continuous_joints=continuous,
+        regularised=regularise_inertias(model),
     )
 
 

@@ -1,8 +1,9 @@
 """Mesh files MuJoCo can read: other formats (Collada ``.dae``, …) converted once, cached on disk.
 
-MuJoCo decodes only STL, OBJ and its own MSH; URDFs often reference Collada meshes (the Kinova
-Jaco2 of example-robot-data, UR visuals). Pinocchio reads those through coal and assimp, so the
-conversion uses the same loader: the STL holds exactly the triangles Pinocchio collides with
+MuJoCo decodes only binary STL, OBJ and its own MSH; URDFs often reference Collada meshes (the
+Kinova Jaco2 of example-robot-data, UR visuals) or ASCII STL (its simple humanoid). Pinocchio
+reads those through coal and assimp, so the conversion uses the same loader: the STL holds
+exactly the triangles Pinocchio collides with
 (at scale 1; the URDF's ``scale`` attribute still applies in both engines).
 
 The cache lives outside the repository: ``$CPBC_CACHE_DIR`` if set, else
@@ -35,7 +36,22 @@ def cache_dir() -> Path:
 
 def needs_conversion(path: Path) -> bool:
     """Whether MuJoCo cannot decode this mesh file as it is."""
-    return path.suffix.lower() not in MUJOCO_MESH_SUFFIXES
+    return path.suffix.lower() not in MUJOCO_MESH_SUFFIXES or is_ascii_stl(path)
+
+
+def is_ascii_stl(path: Path) -> bool:
+    """Whether a ``.stl`` file is ASCII: it starts with ``solid`` and its size is not that of
+    a binary STL with the facet count of its bytes 80-84 (a binary header may say "solid")."""
+    if path.suffix.lower() != ".stl":
+        return False
+    try:
+        with path.open("rb") as f:
+            head = f.read(84)
+        size = path.stat().st_size
+    except OSError:
+        return False
+    binary = len(head) == 84 and size == 84 + 50 * int.from_bytes(head[80:84], "little")
+    return head.lstrip().startswith(b"solid") and not binary
 
 
 def _triangles(path: Path) -> tuple[np.ndarray, np.ndarray]:
