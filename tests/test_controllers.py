@@ -29,6 +29,7 @@ from cpbc.controllers import (
     RecentredBarrier,
     Tanh,
 )
+from cpbc.controllers.potentials import Configuration
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model import LinearCoordinates, RobotModel
@@ -253,8 +254,7 @@ def expected_rate(name: str, ctrl, model: RobotModel, x, dx, divisor) -> float:
     if divisor == "s":
         return -dx @ (damping + f) / s
     psi = ctrl.energy.limit - model.kinetic_energy(x, dx)
-    err = x - ctrl.target
-    lag = model.kinetic_energy(x, dx) + ctrl.potential.value(err)
+    lag = model.kinetic_energy(x, dx) + ctrl.potential.evaluate(Configuration(x))[0]
     rho = ctrl.shaping.ratio(log_x) * lag
     return -(dx @ damping + (1 + rho / psi) * dx @ f) / s
 

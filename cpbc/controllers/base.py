@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import ClassVar, NamedTuple
+from typing import TYPE_CHECKING, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -11,6 +11,9 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.errors import CpbcError, ParameterError
 from cpbc.model.robot_model import ArmState, RobotModel
+
+if TYPE_CHECKING:
+    from cpbc.controllers.potentials import Potential
 
 
 class Evaluation(NamedTuple):
@@ -54,13 +57,16 @@ class Controller(ABC):
     Attributes:
         type_name: the scenario ``type`` of this law.
         model: the controller's robot model.
-        target: the set point x_d, shape (n,).
+        target: the joint set point x_d, or the posture x_n of a task potential, shape (n,).
         constraints: the constraints this law enforces (empty for the baselines).
+        potential: the law's potential U (cpbc.controllers.potentials), or None for a law
+            without one; the per-step state holds the frames it reads.
         torque_bound: an explicit bound on ‖τ‖ from the theory, or None.
     """
 
     type_name: ClassVar[str]
     torque_bound: float | None = None
+    potential: Potential | None = None
 
     def __init__(
         self, model: RobotModel, target: Array, constraints: ConstraintSet | None = None
@@ -75,8 +81,11 @@ class Controller(ABC):
 
     def state(self, x: Array, dx: Array) -> ArmState:
         """The per-step state this law reads: the model's dynamics terms and, when a
-        constraint needs them, its kinematics — computed once, read by law and constraints."""
-        return self.model.state(x, dx, kinematics=self.constraints.needs_kinematics)
+        constraint or the potential needs them, its kinematics — computed once, read by law,
+        constraints and potential."""
+        frames = () if self.potential is None else self.potential.frames
+        return self.model.state(x, dx, kinematics=self.constraints.needs_kinematics,
+                                frames=frames)
 
     @abstractmethod
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:

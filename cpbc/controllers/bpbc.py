@@ -9,8 +9,14 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.rate_limit import RateLimit
 from cpbc.controllers.base import positive_vector
 from cpbc.controllers.cpbc import CPBC
+from cpbc.controllers.potentials import (
+    JointLogCoshSpring,
+    Potential,
+    require_bounded,
+    require_posture,
+)
 from cpbc.controllers.shaping import Shaping
-from cpbc.controllers.terms import LogCoshPotential, TanhDamping
+from cpbc.controllers.terms import TanhDamping
 from cpbc.errors import CpbcError
 from cpbc.model.bounds import ModelBounds, estimate_bounds
 from cpbc.model.robot_model import RobotModel
@@ -27,6 +33,11 @@ class BPBC(CPBC):
     with ζ_g, ζ_c, ζ_f estimated from the model (cpbc.model.bounds). ``torque_bound`` is that
     number as the thesis states it; ``torque_bound_norm`` replaces λmax(K) by ‖diag K‖₂, since
     ‖K tanh(·)‖ can reach ‖diag K‖₂ > λmax(K) when several entries saturate together.
+
+    The proof of (7.32) bounds the potential's force only by sup ‖∂U/∂x‖, so ``potential``
+    may be any U with a posture spring and a bounded gradient (a task potential of ln cosh
+    and orientation springs): λmax(K_P) is then replaced by the potential's
+    ``gradient_bound`` (``stated`` in ``torque_bound``, ``norm`` in ``torque_bound_norm``).
     """
 
     type_name = "bpbc"
@@ -42,6 +53,7 @@ class BPBC(CPBC):
         gamma: object = 1.0,
         shaping: Shaping | None = None,
         model_bounds: ModelBounds | None = None,
+        potential: Potential | None = None,
     ) -> None:
         super().__init__(model, target, constraints, kp, kd, shaping)
         if constraints.configuration or not constraints.velocity or not all(
@@ -59,7 +71,9 @@ class BPBC(CPBC):
             )
         self.xi = positive_vector(xi, model.n, "xi")
         self.gamma = positive_vector(gamma, model.n, "gamma")
-        self.potential = LogCoshPotential(self.kp, self.xi)
+        self.potential = JointLogCoshSpring(self.target, self.kp, self.xi) if (
+            potential is None) else require_posture(potential, self.type_name)
+        spring = require_bounded(self.potential, self.type_name)
         self.damping = TanhDamping(self.kd, self.gamma)
         bounds = np.zeros(model.n)
         for c in rates:
@@ -69,5 +83,5 @@ class BPBC(CPBC):
         zb = self.model_bounds
         rate_norm = float(np.linalg.norm(bounds))
         tail = zb.gravity + zb.coriolis * rate_norm**2 + zb.friction * rate_norm
-        self.torque_bound = tail + float(self.kp.max() + self.kd.max())
-        self.torque_bound_norm = tail + float(np.linalg.norm(self.kp) + np.linalg.norm(self.kd))
+        self.torque_bound = tail + (spring.stated + float(self.kd.max()))
+        self.torque_bound_norm = tail + (spring.norm + float(np.linalg.norm(self.kd)))

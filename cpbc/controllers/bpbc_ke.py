@@ -8,8 +8,14 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.controllers.base import positive_vector
 from cpbc.controllers.cpbc_ke import CPBCKineticEnergy
+from cpbc.controllers.potentials import (
+    JointLogCoshSpring,
+    Potential,
+    require_bounded,
+    require_posture,
+)
 from cpbc.controllers.shaping import Shaping
-from cpbc.controllers.terms import LogCoshPotential, TanhDamping
+from cpbc.controllers.terms import TanhDamping
 from cpbc.errors import CpbcError
 from cpbc.model.bounds import ModelBounds, estimate_bounds
 from cpbc.model.robot_model import RobotModel
@@ -21,7 +27,9 @@ class BPBCKineticEnergy(CPBCKineticEnergy):
         τ = g − [K_P tanh(Ξx̃) + K_D tanh(Γẋ)] / (1 + ρ/ψ)
 
     bounded by (7.40): ‖τ‖ ≤ ζ_g + λmax(K_P) + λmax(K_D) (``torque_bound``, as stated) or
-    ζ_g + ‖diag K_P‖₂ + ‖diag K_D‖₂ (``torque_bound_norm``; see BPBC).
+    ζ_g + ‖diag K_P‖₂ + ‖diag K_D‖₂ (``torque_bound_norm``; see BPBC). With a bounded task
+    ``potential`` (see BPBC) K_P tanh(Ξx̃) is ∂U/∂x, and λmax(K_P), ‖diag K_P‖₂ are replaced
+    by its ``gradient_bound``.
     """
 
     type_name = "bpbc_ke"
@@ -37,6 +45,7 @@ class BPBCKineticEnergy(CPBCKineticEnergy):
         gamma: object = 1.0,
         shaping: Shaping | None = None,
         model_bounds: ModelBounds | None = None,
+        potential: Potential | None = None,
     ) -> None:
         super().__init__(model, target, constraints, kp, kd, shaping)
         if constraints.configuration:
@@ -46,9 +55,11 @@ class BPBCKineticEnergy(CPBCKineticEnergy):
             )
         self.xi = positive_vector(xi, model.n, "xi")
         self.gamma = positive_vector(gamma, model.n, "gamma")
-        self.potential = LogCoshPotential(self.kp, self.xi)
+        self.potential = JointLogCoshSpring(self.target, self.kp, self.xi) if (
+            potential is None) else require_posture(potential, self.type_name)
+        spring = require_bounded(self.potential, self.type_name)
         self.damping = TanhDamping(self.kd, self.gamma)
         self.model_bounds = model_bounds or estimate_bounds(model)
         g = self.model_bounds.gravity
-        self.torque_bound = g + float(self.kp.max() + self.kd.max())
-        self.torque_bound_norm = g + float(np.linalg.norm(self.kp) + np.linalg.norm(self.kd))
+        self.torque_bound = g + (spring.stated + float(self.kd.max()))
+        self.torque_bound_norm = g + (spring.norm + float(np.linalg.norm(self.kd)))

@@ -8,8 +8,9 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
 from cpbc.controllers.base import Controller, Evaluation, positive_vector
 from cpbc.controllers.linalg import solve_spd
+from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
-from cpbc.controllers.terms import Damping, LinearDamping, Potential, QuadraticPotential
+from cpbc.controllers.terms import Damping, LinearDamping
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -19,18 +20,21 @@ class CPBC(Controller):
     With V = L / s(ΦΨ), L = ½ẋᵀDẋ + U(x̃), dividing (6.24) by s gives the equivalent
 
         ρ = r(ΦΨ)·L,   b_φ = Σ ∇φ_i/φ_i,   b_ψ = Σ ∂_xψ_j/ψ_j,   Π = Σ Q_j/ψ_j
-        a = −∂U/∂x̃ − K_D ẋ + ρ(b_φ + b_ψ),   c = C ẋ + f
+        a = −∂U/∂x − K_D ẋ + ρ(b_φ + b_ψ),   c = C ẋ + f
         τ = g + c + D (D + ρΠ)⁻¹ (a − c)
 
     which is (6.24) rearranged so that one linear solve suffices and the products Φ, Ψ are
-    never formed. Along the closed loop V̇ = −ẋᵀ(K_D ẋ + f)/s ≤ 0 (eq. 6.32).
+    never formed. Along the closed loop V̇ = −ẋᵀ(K_D ẋ + f)/s ≤ 0 (eq. 6.32). The proof uses
+    U only through U ≥ 0 and ∂U/∂x, so U may be any potential with a posture spring (a task
+    potential: frame springs plus a joint spring toward x_n inside S; TASKSPACE §2.2).
 
     Args:
         model: the controller's robot model.
-        target: x_d, inside S.
+        target: x_d, inside S (the posture x_n with a task potential).
         constraints: the enforced constraints.
         kp, kd: diagonal gains (number or list of n), > 0.
         shaping: s(x); Identity (Theorem 6.9) when omitted.
+        potential: U; the joint spring ½x̃ᵀK_P x̃ toward ``target`` (eq. 6.7) when omitted.
     """
 
     type_name = "cpbc"
@@ -43,17 +47,19 @@ class CPBC(Controller):
         kp: object,
         kd: object,
         shaping: Shaping | None = None,
+        potential: Potential | None = None,
     ) -> None:
         super().__init__(model, target, constraints)
         self.kp = positive_vector(kp, model.n, "kp")
         self.kd = positive_vector(kd, model.n, "kd")
         self.shaping: Shaping = shaping or Identity()
-        self.potential: Potential = QuadraticPotential(self.kp)
+        self.potential: Potential = JointSpring(self.target, self.kp) if potential is None else (
+            require_posture(potential, self.type_name))
         self.damping: Damping = LinearDamping(self.kd)
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         bar = self.constraints.barrier(state, margins)  # raises outside S
-        potential, grad = self.potential.evaluate(state.x - self.target)
+        potential, grad = self.potential.evaluate(state)
         dx = state.dx
         lag = 0.5 * float(dx.dot(state.inertia.dot(dx))) + potential
         tau = self._law(state, bar, grad, lag)
@@ -66,7 +72,7 @@ class CPBC(Controller):
         return math.exp(math.log(lag) - self.shaping.log_s(bar.log_phi + bar.log_psi))
 
     def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float) -> Array:
-        """The law of the class docstring: τ from ∂U/∂x̃ (``grad``), L and the barrier sums."""
+        """The law of the class docstring: τ from ∂U/∂x (``grad``), L and the barrier sums."""
         a = -grad - self.damping.force(state.dx)
         rho = self.shaping.ratio(bar.log_phi + bar.log_psi) * lag
         if bar.gradient is not None:

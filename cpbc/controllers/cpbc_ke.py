@@ -10,8 +10,9 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
 from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.controllers.base import Controller, Evaluation, positive_vector
+from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
-from cpbc.controllers.terms import Damping, LinearDamping, Potential, QuadraticPotential
+from cpbc.controllers.terms import Damping, LinearDamping
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -31,9 +32,11 @@ def single_energy_limit(constraints: ConstraintSet, law: str) -> KineticEnergyLi
 class CPBCKineticEnergy(Controller):
     """Corollary 6.11 (eq. 6.67) with shaping s, in log-barrier form:
 
-        τ = g + [−(K_P x̃ + K_D ẋ) + ρ b_φ] / (1 + ρ/ψ),   ρ = r(ΦΨ)·L
+        τ = g + [−(∂U/∂x + K_D ẋ) + ρ b_φ] / (1 + ρ/ψ),   ρ = r(ΦΨ)·L
 
-    No C, no D⁻¹: only D (inside ψ and L) and g. V̇ = −[ẋᵀK_Dẋ + (1 + ρ/ψ)ẋᵀf]/s ≤ 0.
+    with ∂U/∂x = K_P x̃ for the default potential (``potential``: any U with a posture
+    spring, as in CPBC). No C, no D⁻¹: only D (inside ψ and L) and g.
+    V̇ = −[ẋᵀK_Dẋ + (1 + ρ/ψ)ẋᵀf]/s ≤ 0.
     """
 
     type_name = "cpbc_ke"
@@ -46,13 +49,15 @@ class CPBCKineticEnergy(Controller):
         kp: object,
         kd: object,
         shaping: Shaping | None = None,
+        potential: Potential | None = None,
     ) -> None:
         super().__init__(model, target, constraints)
         self.energy = single_energy_limit(constraints, self.type_name)
         self.kp = positive_vector(kp, model.n, "kp")
         self.kd = positive_vector(kd, model.n, "kd")
         self.shaping: Shaping = shaping or Identity()
-        self.potential: Potential = QuadraticPotential(self.kp)
+        self.potential: Potential = JointSpring(self.target, self.kp) if potential is None else (
+            require_posture(potential, self.type_name))
         self.damping: Damping = LinearDamping(self.kd)
         self._config = ConstraintSet(model.n, constraints.configuration)
 
@@ -63,18 +68,18 @@ class CPBCKineticEnergy(Controller):
         if not psi > 0:
             raise ConstraintViolation(self.energy.names[0], psi)
         bar = self._config.barrier(state, margins)
-        err = state.x - self.target
-        lag = kinetic + self.potential.value(err)
+        potential, grad = self.potential.evaluate(state)
+        lag = kinetic + potential
         log_x = bar.log_phi + math.log(psi)
         value = 0.0 if lag <= 0 else math.exp(math.log(lag) - self.shaping.log_s(log_x))
         found = None if bar.margins is None else np.append(bar.margins, psi)
-        return Evaluation(self._law(state, bar, err, lag, psi), value, found)
+        return Evaluation(self._law(state, bar, grad, lag, psi), value, found)
 
-    def _law(self, state: ArmState, bar: BarrierTerms, err: Array, lag: float, psi: float
+    def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float, psi: float
              ) -> Array:
-        """The law of the class docstring."""
+        """The law of the class docstring, from ∂U/∂x (``grad``)."""
         rho = self.shaping.ratio(bar.log_phi + math.log(psi)) * lag
-        shaped = -(self.potential.gradient(err) + self.damping.force(state.dx))
+        shaped = -(grad + self.damping.force(state.dx))
         if bar.gradient is not None:
             shaped += rho * bar.gradient
         return state.gravity + shaped / (1.0 + rho / psi)

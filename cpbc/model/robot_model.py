@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from pathlib import Path
+from types import MappingProxyType
 from typing import NamedTuple
 
 import numpy as np
@@ -11,6 +13,9 @@ import pinocchio as pin
 from cpbc.arrays import Array
 from cpbc.errors import ModelError
 from cpbc.model.coordinates import LinearCoordinates
+from cpbc.model.frames import FrameKinematics, offset_jacobian
+
+_NO_FRAMES: Mapping[int, FrameKinematics] = MappingProxyType({})
 
 
 class ArmState(NamedTuple):
@@ -31,6 +36,9 @@ class ArmState(NamedTuple):
             ``RobotModel.coriolis``).
         gravity: g, shape (n,).
         dissipation: f(ẋ) = F_d ẋ, shape (n,).
+        frames: the placement and Jacobian of every frame asked for (``frames=`` of
+            :meth:`RobotModel.state`, e.g. those a task potential reads), by frame id; empty
+            when none was asked for.
     """
 
     x: Array
@@ -41,6 +49,7 @@ class ArmState(NamedTuple):
     coriolis_force: Array
     gravity: Array
     dissipation: Array
+    frames: Mapping[int, FrameKinematics] = _NO_FRAMES
 
 
 class RobotModel:
@@ -156,11 +165,13 @@ class RobotModel:
             return self._no_dissipation
         return self.viscous_friction.dot(dx)
 
-    def state(self, x: Array, dx: Array, kinematics: bool = False) -> ArmState:
+    def state(self, x: Array, dx: Array, kinematics: bool = False,
+              frames: Iterable[int] = ()) -> ArmState:
         """The per-step state at (x, ẋ): D, C ẋ, g and f from three Pinocchio passes (CRBA,
-        RNEA, gravity) and, with ``kinematics``, one pass for every joint and frame
-        placement and joint Jacobian (left in ``self.data``). Fresh arrays every call:
-        nothing is kept between calls."""
+        RNEA, gravity) and, with ``kinematics`` or any ``frames``, one pass for every joint and
+        frame placement and joint Jacobian (left in ``self.data``), from which each frame of
+        ``frames`` is read into ``ArmState.frames``. Fresh arrays every call: nothing is kept
+        between calls."""
         model, data = self.model, self.data
         if self._identity:
             q, dq = x, dx
@@ -172,14 +183,17 @@ class RobotModel:
         nle = pin.nonLinearEffects(model, data, q, dq)
         g = pin.computeGeneralizedGravity(model, data, q)
         f = self.dissipation(dx)
-        if kinematics:  # after the dynamics passes, which may leave other placements behind
+        wanted = tuple(frames)
+        if kinematics or wanted:  # after the dynamics passes, which may leave other placements
             pin.computeJointJacobians(model, data, q)
             pin.updateFramePlacements(model, data)
+        found = MappingProxyType({i: self._state_frame(i) for i in wanted}) if wanted else (
+            _NO_FRAMES)
         if self._identity:
-            return ArmState(x, dx, q, dq, m.copy(), nle - g, g.copy(), f)
+            return ArmState(x, dx, q, dq, m.copy(), nle - g, g.copy(), f, found)
         t_inv_t = self._t_inv_t
         inertia = self._congruence.dot(m.reshape(-1)).reshape(self.n, self.n)
-        return ArmState(x, dx, q, dq, inertia, t_inv_t.dot(nle - g), t_inv_t.dot(g), f)
+        return ArmState(x, dx, q, dq, inertia, t_inv_t.dot(nle - g), t_inv_t.dot(g), f, found)
 
     def dynamics(self, x: Array, dx: Array) -> ArmState:
         """The per-step state without kinematics (:meth:`state`)."""
@@ -230,6 +244,15 @@ class RobotModel:
             self.model, self.data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
         return self._point(frame_id, j, offset)
 
+    def _state_frame(self, frame_id: int) -> FrameKinematics:
+        """A frame's placement and Jacobian (controller coordinates) from the kinematics pass
+        of :meth:`state`."""
+        j = pin.getFrameJacobian(
+            self.model, self.data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        placement = self.data.oMf[frame_id]
+        return FrameKinematics(placement.translation.copy(), placement.rotation.copy(),
+                               j if self._identity else j.dot(self._t_inv))
+
     def _point(self, frame_id: int, j: Array, offset: Array | None) -> tuple[Array, Array]:
         """The point's position and Jacobian from its frame's placement and Jacobian j (6, n)."""
         placement = self.data.oMf[frame_id]
@@ -238,7 +261,7 @@ class RobotModel:
         else:
             r = placement.rotation @ offset
             p = placement.translation + r
-            jv = j[:3] - np.cross(r, j[3:].T).T  # v_p = v_o + ω × r
+            jv = offset_jacobian(j[:3], j[3:], r)
         return p, (jv if self._identity else jv.dot(self._t_inv))
 
     def point_position(self, frame_id: int, x: Array, offset: Array | None = None) -> Array:

@@ -1,0 +1,156 @@
+"""Smooth bounded orientation springs on a frame (TASKSPACE §2.2): the trace spring toward a
+rotation R_d, and the axis spring "tool axis a_b points along world axis a_w" (free about it).
+
+Both are smooth everywhere (unlike ½θ² of the log map, not differentiable at θ = π), and
+their gradients are bounded, so they keep the bounded-torque laws' bounds (7.32), (7.40).
+With ω = J_ω ẋ in world axes, δR = [J_ω δx]× R.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.controllers.potentials.base import GradientBound, Placed, frame_at
+from cpbc.errors import ParameterError
+from cpbc.model.frames import jacobian_bounds
+from cpbc.model.robot_model import RobotModel
+
+
+def _positive(value: float, name: str) -> float:
+    v = float(value)
+    if not (np.isfinite(v) and v > 0):
+        raise ParameterError(name, f"{name} must be finite and > 0, got {value!r}")
+    return v
+
+
+def _unit(value: object, name: str) -> Array:
+    a = np.array(value, dtype=float)
+    norm = float(np.linalg.norm(a)) if a.shape == (3,) else 0.0
+    if not (np.isfinite(norm) and norm > 0):
+        raise ParameterError(name, f"{name} must be a nonzero 3-vector, got {value!r}")
+    a = a / norm
+    a.setflags(write=False)
+    return a
+
+
+def _rotation(value: object) -> Array:
+    r = np.array(value, dtype=float)
+    if r.shape != (3, 3) or not np.allclose(r.T @ r, np.eye(3), atol=1e-9) or (
+            np.linalg.det(r) <= 0):
+        raise ParameterError("rotation", f"rotation must be a 3 × 3 rotation matrix, got {r}")
+    r.setflags(write=False)
+    return r
+
+
+def _angular_reach(model: RobotModel, frame: int) -> float:
+    return jacobian_bounds(model.model, model.coordinates.inverse, frame)[1]
+
+
+@dataclass(frozen=True)
+class FrameOrientationSpring:
+    """U = k (3 − tr(R_dᵀR)) = 4k sin²(θ/2) ≤ 4k, θ the angle of R_dᵀR, with
+
+        ∂U/∂x = k J_ωᵀ vee(R R_dᵀ − R_d Rᵀ),   ‖∂U/∂x‖ = 2k sin θ ‖·‖ ≤ 2k J̄_ω
+
+    (from δ tr(R_dᵀR) = tr([a]× R R_dᵀ) = −aᵀ vee(M − Mᵀ), M = R R_dᵀ, a = J_ω δx).
+
+    Attributes:
+        frame: the frame id.
+        rotation: R_d, the goal's axes in the world, shape (3, 3).
+        stiffness: k [N·m/rad], > 0 (the small-angle stiffness is 2k).
+        reach: J̄_ω ≥ ‖J_ω(x)‖₂ over every configuration (:meth:`named` computes it).
+    """
+
+    frame: int
+    rotation: Array
+    stiffness: float
+    reach: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "rotation", _rotation(self.rotation))
+        object.__setattr__(self, "stiffness", _positive(self.stiffness, "stiffness"))
+
+    @classmethod
+    def named(cls, model: RobotModel, frame: str, rotation: object, stiffness: float
+              ) -> FrameOrientationSpring:
+        fid = model.frame_id(frame)
+        return cls(fid, np.asarray(rotation, dtype=float), stiffness, _angular_reach(model, fid))
+
+    @property
+    def frames(self) -> tuple[int, ...]:
+        return (self.frame,)
+
+    @property
+    def anchored(self) -> bool:
+        return False
+
+    @property
+    def gradient_bound(self) -> GradientBound:
+        bound = 2.0 * self.stiffness * self.reach
+        return GradientBound(bound, bound)
+
+    def evaluate(self, at: Placed) -> tuple[float, Array]:
+        kin = frame_at(at, self.frame)
+        m = kin.rotation @ self.rotation.T
+        skew = m - m.T
+        vee = np.array([skew[2, 1], skew[0, 2], skew[1, 0]])
+        value = self.stiffness * (3.0 - float(np.trace(m)))
+        return value, self.stiffness * (kin.angular.T @ vee)
+
+
+@dataclass(frozen=True)
+class FrameAxisSpring:
+    """U = k (1 − a_wᵀ R a_b) = k (1 − cos θ) ≤ 2k, θ the angle between the tool axis R a_b and
+    the world axis a_w (the rotation about a_w is free), with
+
+        ∂U/∂x = k J_ωᵀ (a_w × R a_b),   ‖∂U/∂x‖ ≤ k sin θ J̄_ω ≤ k J̄_ω
+
+    (from δ(R a_b) = (J_ω δx) × R a_b).
+
+    Attributes:
+        frame: the frame id.
+        tool: a_b, the axis in the frame's axes (normalised).
+        world: a_w, the axis in the world (normalised).
+        stiffness: k [N·m/rad], > 0.
+        reach: J̄_ω (:meth:`named` computes it).
+    """
+
+    frame: int
+    tool: Array
+    world: Array
+    stiffness: float
+    reach: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "tool", _unit(self.tool, "tool"))
+        object.__setattr__(self, "world", _unit(self.world, "world"))
+        object.__setattr__(self, "stiffness", _positive(self.stiffness, "stiffness"))
+
+    @classmethod
+    def named(cls, model: RobotModel, frame: str, tool: object, world: object,
+              stiffness: float) -> FrameAxisSpring:
+        fid = model.frame_id(frame)
+        return cls(fid, np.asarray(tool, dtype=float), np.asarray(world, dtype=float),
+                   stiffness, _angular_reach(model, fid))
+
+    @property
+    def frames(self) -> tuple[int, ...]:
+        return (self.frame,)
+
+    @property
+    def anchored(self) -> bool:
+        return False
+
+    @property
+    def gradient_bound(self) -> GradientBound:
+        bound = self.stiffness * self.reach
+        return GradientBound(bound, bound)
+
+    def evaluate(self, at: Placed) -> tuple[float, Array]:
+        kin = frame_at(at, self.frame)
+        axis = kin.rotation @ self.tool
+        value = self.stiffness * (1.0 - float(self.world @ axis))
+        return value, self.stiffness * (kin.angular.T @ np.cross(self.world, axis))

@@ -1,0 +1,148 @@
+"""Position springs on a point fixed in a frame, e = p(x) − p_d (TASKSPACE §2.2):
+quadratic, and a bounded ln cosh variant for the bounded-torque laws."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.controllers.base import positive_vector
+from cpbc.controllers.potentials.base import GradientBound, Placed, frame_at
+from cpbc.controllers.potentials.log_cosh import LogCoshSum
+from cpbc.errors import ParameterError
+from cpbc.model.frames import jacobian_bounds
+from cpbc.model.robot_model import RobotModel
+
+
+def _vector3(value: object, name: str) -> Array:
+    a = np.array(value, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise ParameterError(name, f"{name} must be 3 finite numbers, got {value!r}")
+    a.setflags(write=False)
+    return a
+
+
+def _stiffness_matrix(value: object) -> Array:
+    """K as a symmetric positive definite 3 × 3 matrix (a number or 3 numbers: diagonal)."""
+    a = np.array(value, dtype=float)
+    k = np.diag(positive_vector(a, 3, "stiffness")) if a.ndim < 2 else a
+    if k.shape != (3, 3) or not np.all(np.isfinite(k)) or not np.allclose(k, k.T) or (
+            np.linalg.eigvalsh(k).min() <= 0):
+        raise ParameterError(
+            "stiffness", "stiffness must be > 0: a number, 3 numbers or a symmetric positive "
+            f"definite 3 × 3 matrix, got {value!r}")
+    k.setflags(write=False)
+    return k
+
+
+@dataclass(frozen=True)
+class FramePositionSpring:
+    """U = ½ eᵀ K e, e = p(x) − p_d, ∂U/∂x = J_vᵀ K e (Takegaki–Arimoto's spring).
+
+    Attributes:
+        frame: the frame id (:meth:`RobotModel.frame_id`).
+        goal: p_d in the world, shape (3,) [m].
+        stiffness: K [N/m]: a number, 3 numbers (diagonal, world axes) or an SPD 3 × 3 matrix.
+        offset: the point in the frame's axes (None: the frame's origin) [m].
+    """
+
+    frame: int
+    goal: Array
+    stiffness: Array
+    offset: Array | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "goal", _vector3(self.goal, "goal"))
+        object.__setattr__(self, "stiffness", _stiffness_matrix(self.stiffness))
+        if self.offset is not None:
+            object.__setattr__(self, "offset", _vector3(self.offset, "offset"))
+
+    @classmethod
+    def named(cls, model: RobotModel, frame: str, goal: object, stiffness: object,
+              offset: object = None) -> FramePositionSpring:
+        """The spring on the frame named ``frame`` of ``model``."""
+        return cls(model.frame_id(frame), np.asarray(goal, dtype=float),
+                   np.asarray(stiffness, dtype=float),
+                   None if offset is None else np.asarray(offset, dtype=float))
+
+    @property
+    def frames(self) -> tuple[int, ...]:
+        return (self.frame,)
+
+    @property
+    def anchored(self) -> bool:
+        return False
+
+    @property
+    def gradient_bound(self) -> GradientBound | None:
+        return None
+
+    def evaluate(self, at: Placed) -> tuple[float, Array]:
+        p, jv = frame_at(at, self.frame).point(self.offset)
+        err = p - self.goal
+        force = self.stiffness @ err
+        return 0.5 * float(err @ force), jv.T @ force
+
+
+@dataclass(frozen=True)
+class FramePositionLogCosh:
+    """U = Σ (K_i/ξ_i) ln cosh(ξ_i e_i) per world axis, e = p(x) − p_d (the ln cosh of
+    eq. 7.18 on the position error), ∂U/∂x = J_vᵀ K tanh(Ξe).
+
+    ‖∂U/∂x‖₂ ≤ J̄_v ‖diag K‖₂, with J̄_v ≥ ‖J_v(x)‖₂ over every configuration
+    (:func:`cpbc.model.frames.jacobian_bounds`, from the chain's geometry).
+
+    Attributes:
+        frame, goal, offset: as :class:`FramePositionSpring`.
+        stiffness: K [N/m], a number or 3 numbers (world axes), > 0.
+        xi: ξ [1/m], a number or 3 numbers, > 0: the force saturates at K beyond |e| ≫ 1/ξ.
+        reach: J̄_v, the Jacobian bound (:meth:`named` computes it).
+    """
+
+    frame: int
+    goal: Array
+    stiffness: Array
+    xi: Array
+    reach: float
+    offset: Array | None = None
+    _spring: LogCoshSum = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        stiffness = positive_vector(self.stiffness, 3, "stiffness")
+        xi = positive_vector(self.xi, 3, "xi")
+        object.__setattr__(self, "goal", _vector3(self.goal, "goal"))
+        object.__setattr__(self, "stiffness", stiffness)
+        object.__setattr__(self, "xi", xi)
+        if self.offset is not None:
+            object.__setattr__(self, "offset", _vector3(self.offset, "offset"))
+        object.__setattr__(self, "_spring", LogCoshSum(stiffness, xi))
+
+    @classmethod
+    def named(cls, model: RobotModel, frame: str, goal: object, stiffness: object,
+              xi: object, offset: object = None) -> FramePositionLogCosh:
+        """The spring on the frame named ``frame`` of ``model``, with its Jacobian bound."""
+        fid = model.frame_id(frame)
+        point = None if offset is None else _vector3(offset, "offset")
+        reach, _ = jacobian_bounds(model.model, model.coordinates.inverse, fid, point)
+        return cls(fid, np.asarray(goal, dtype=float), np.asarray(stiffness, dtype=float),
+                   np.asarray(xi, dtype=float), reach, point)
+
+    @property
+    def frames(self) -> tuple[int, ...]:
+        return (self.frame,)
+
+    @property
+    def anchored(self) -> bool:
+        return False
+
+    @property
+    def gradient_bound(self) -> GradientBound:
+        bound = self.reach * float(np.linalg.norm(self.stiffness))
+        return GradientBound(bound, bound)
+
+    def evaluate(self, at: Placed) -> tuple[float, Array]:
+        p, jv = frame_at(at, self.frame).point(self.offset)
+        value, force = self._spring.evaluate(p - self.goal)
+        return value, jv.T @ force

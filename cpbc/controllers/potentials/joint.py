@@ -1,0 +1,98 @@
+"""Joint springs toward a set point x_d: today's potentials of the joint laws (eqs. 6.7 and
+7.18), and the posture spring toward x_n that every task potential needs."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.controllers.base import positive_vector
+from cpbc.controllers.potentials.base import GradientBound, Placed
+from cpbc.controllers.potentials.log_cosh import LogCoshSum
+
+
+def _set_point(target: object) -> Array:
+    a = np.array(target, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True)
+class JointSpring:
+    """U = ½ x̃ᵀ K x̃, x̃ = x − x_d (eq. 6.7), ∂U/∂x = K x̃, K diagonal > 0.
+
+    Attributes:
+        target: x_d (the joint set point, or the posture x_n), shape (n,).
+        stiffness: K, a number or n numbers, > 0.
+    """
+
+    target: Array
+    stiffness: Array
+
+    def __post_init__(self) -> None:
+        target = _set_point(self.target)
+        object.__setattr__(self, "target", target)
+        object.__setattr__(self, "stiffness",
+                           positive_vector(self.stiffness, target.shape[0], "stiffness"))
+
+    @property
+    def frames(self) -> tuple[int, ...]:
+        return ()
+
+    @property
+    def anchored(self) -> bool:
+        return True
+
+    @property
+    def gradient_bound(self) -> GradientBound | None:
+        return None
+
+    def evaluate(self, at: Placed) -> tuple[float, Array]:
+        err = at.x - self.target
+        grad = self.stiffness * err
+        return 0.5 * float(err @ grad), grad
+
+
+@dataclass(frozen=True)
+class JointLogCoshSpring:
+    """U = Σ (K_i/ξ_i) ln cosh(ξ_i x̃_i) (eq. 7.18), ∂U/∂x = K tanh(Ξx̃), bounded by K.
+
+    Attributes:
+        target: x_d (the joint set point, or the posture x_n), shape (n,).
+        stiffness: K, a number or n numbers, > 0.
+        xi: ξ, a number or n numbers, > 0.
+    """
+
+    target: Array
+    stiffness: Array
+    xi: Array
+    _spring: LogCoshSum = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        target = _set_point(self.target)
+        n = target.shape[0]
+        stiffness = positive_vector(self.stiffness, n, "stiffness")
+        xi = positive_vector(self.xi, n, "xi")
+        object.__setattr__(self, "target", target)
+        object.__setattr__(self, "stiffness", stiffness)
+        object.__setattr__(self, "xi", xi)
+        object.__setattr__(self, "_spring", LogCoshSum(stiffness, xi))
+
+    @property
+    def frames(self) -> tuple[int, ...]:
+        return ()
+
+    @property
+    def anchored(self) -> bool:
+        return True
+
+    @property
+    def gradient_bound(self) -> GradientBound:
+        """‖K tanh(Ξx̃)‖₂ < ‖diag K‖₂; the thesis states λmax(K) (7.32)."""
+        return GradientBound(float(np.linalg.norm(self.stiffness)),
+                             float(self.stiffness.max()))
+
+    def evaluate(self, at: Placed) -> tuple[float, Array]:
+        return self._spring.evaluate(at.x - self.target)

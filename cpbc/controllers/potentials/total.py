@@ -1,0 +1,58 @@
+"""A sum of potentials U = Σ U_k, ∂U/∂x = Σ ∂U_k/∂x: a task potential is a sum of frame
+springs and a posture spring."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from cpbc.arrays import Array
+from cpbc.controllers.potentials.base import GradientBound, Placed, Potential
+from cpbc.errors import CpbcError
+
+
+@dataclass(frozen=True)
+class PotentialSum:
+    """U = Σ U_k. It is anchored when one part is (a posture spring), and its gradient is
+    bounded by the sum of the parts' bounds when every part has one.
+
+    Attributes:
+        parts: the potentials, at least one.
+    """
+
+    parts: tuple[Potential, ...]
+
+    def __post_init__(self) -> None:
+        if not self.parts:
+            raise CpbcError("a sum of potentials needs at least one part")
+
+    @property
+    def frames(self) -> tuple[int, ...]:
+        return tuple(dict.fromkeys(f for p in self.parts for f in p.frames))
+
+    @property
+    def anchored(self) -> bool:
+        return any(p.anchored for p in self.parts)
+
+    @property
+    def gradient_bound(self) -> GradientBound | None:
+        bounds = [p.gradient_bound for p in self.parts]
+        total = GradientBound(0.0, 0.0)
+        for b in bounds:
+            if b is None:
+                return None
+            total = total + b
+        return total
+
+    def evaluate(self, at: Placed) -> tuple[float, Array]:
+        value, grad = self.parts[0].evaluate(at)
+        grad = grad.copy()
+        for part in self.parts[1:]:
+            u, g = part.evaluate(at)
+            value += u
+            grad += g
+        return value, grad
+
+
+def total(*parts: Potential) -> PotentialSum:
+    """U = Σ parts."""
+    return PotentialSum(tuple(parts))
