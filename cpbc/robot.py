@@ -23,7 +23,7 @@ import pinocchio as pin
 import yaml
 
 from cpbc.errors import CpbcError, ModelError
-from cpbc.model.gravity_load import BRAKING_DECELERATION, joint_loads
+from cpbc.model.gravity_load import BRAKING_DECELERATION, holdable_near, joint_loads
 from cpbc.model.loading import ARMS, load_arm
 from cpbc.model.robot_model import RobotModel
 from cpbc.resources import builtin_models
@@ -162,10 +162,30 @@ def stable_omega(d: RobotDescription, states: Sequence[np.ndarray], period: floa
     return OMEGAS[-1]
 
 
+#: Share of each joint range kept clear when the target is lowered for the motors.
+CLEAR_OF_RANGE = 0.1
+
+
+def suggested_pose(d: RobotDescription) -> tuple[np.ndarray, np.ndarray]:
+    """The skeleton's target and start (cpbc.scenario.skeleton.home): mid-range, or, where
+    the motors cannot carry the arm there with room to brake, the configuration near it
+    (inside the ranges, clear of their ends) where they can (gravity_load.holdable_near)."""
+    target, start = home(d.limits)
+    lim = d.limits
+    if d.pin_model is None or not np.any(np.isfinite(lim.effort)):
+        return target, start
+    finite = np.isfinite(lim.lower) & np.isfinite(lim.upper)
+    clear = np.where(finite, CLEAR_OF_RANGE * (lim.upper - lim.lower), 0.0)
+    lowered = holdable_near(RobotModel(pin.Model(d.pin_model)), target, lim.lower + clear,
+                            lim.upper - clear, lim.effort)
+    return home(lim, lowered)
+
+
 def scenario_for(d: RobotDescription, duration: float = 5.0) -> dict:
     """The skeleton scenario of an arm, with gains its held loop tolerates at 1 kHz."""
-    target, start = home(d.limits)
-    return skeleton(d.model, d.limits, duration, omega_n=stable_omega(d, [target, start]))
+    target, start = suggested_pose(d)
+    return skeleton(d.model, d.limits, duration, omega_n=stable_omega(d, [target, start]),
+                    target=target)
 
 
 def _number(v: float, unit: str = "") -> str:
@@ -177,13 +197,17 @@ def gravity_at_target(d: RobotDescription) -> list[str]:
     target, with the brake's allowance on top (cpbc.model.gravity_load), against the limit."""
     if d.pin_model is None:
         return []
-    target, _ = home(d.limits)
+    target, _ = suggested_pose(d)
     loads = joint_loads(RobotModel(pin.Model(d.pin_model)), target, d.limits.effort)
     if not loads:
         return []
     width = max(len(load.joint) for load in loads)
+    lowered = not np.array_equal(target, home(d.limits)[0])
     lines = [f"gravity at the suggested target [N·m], + the brake's allowance "
              f"(at {BRAKING_DECELERATION:g} rad/s²), against the effort limit:"]
+    if lowered:
+        lines.append("(the target is lowered from mid-range, where the motors could not "
+                     "carry the arm with room to brake)")
     for load in loads:
         verdict = (" cannot hold it: a run is refused" if not load.held else
                    " no room to brake" if not load.brakes else "")

@@ -9,9 +9,13 @@ import json
 import re
 from pathlib import Path
 
+import numpy as np
+import pinocchio as pin
 import pytest
 import yaml
 
+from cpbc.model.gravity_load import joint_loads
+from cpbc.model.robot_model import RobotModel
 from cpbc.results.metrics import RunSummary
 from cpbc.robot import main as robot_main
 from cpbc.run import _status, main
@@ -96,6 +100,26 @@ def test_robot_prints_the_gravity_load_at_the_suggested_target(capsys) -> None:
     text = capsys.readouterr().out
     assert "# gravity at the suggested target [N·m]" in text
     (line,) = [x for x in text.splitlines() if x.startswith("#   right_s1 ") and " of " in x]
-    assert line.split() == ["#", "right_s1", "47.71", "+", "2.91", "of", "50", "101%", "no",
-                            "room", "to", "brake"]
+    # mid-range, right_s1 would need 47.71 + 2.91 of its 50 N·m (101 %): the suggested target
+    # is lowered until every motor carries the arm with room to brake
+    assert "# (the target is lowered from mid-range" in text
+    gravity, allowance, limit = float(line.split()[2]), float(line.split()[4]), 50.0
+    assert line.split()[5:7] == ["of", "50"] and gravity + allowance <= 0.8 * limit
     assert yaml.safe_load(text)["robot"] == {"model": "baxter_right"}  # still a scenario
+
+
+def test_the_suggested_target_is_mid_range_where_the_motors_carry_the_arm() -> None:
+    """The Panda carries itself at mid-range: its skeleton's target stays there; Baxter's
+    right_s1 does not (101 % with the brake's allowance): its target is lowered, and every
+    motor then has the allowance to spare."""
+    from cpbc.robot import describe, suggested_pose
+    from cpbc.scenario.skeleton import home
+
+    panda = describe("panda")
+    np.testing.assert_array_equal(suggested_pose(panda)[0], home(panda.limits)[0])
+    baxter = describe("baxter_right")
+    middle, lowered = home(baxter.limits)[0], suggested_pose(baxter)[0]
+    model = RobotModel(pin.Model(baxter.pin_model))
+    assert max(x.share for x in joint_loads(model, middle, baxter.limits.effort)) > 1.0
+    assert max(x.share for x in joint_loads(model, lowered, baxter.limits.effort)) <= 0.8
+    assert np.all((lowered >= baxter.limits.lower) & (lowered <= baxter.limits.upper))

@@ -132,10 +132,14 @@ def _settings(setup: ScenarioSetup) -> dict[str, object]:
     }
 
 
-def _skeleton(name: str, folder: Path, duration: float) -> Path:
-    """``python -m cpbc.robot NAME`` as printed: it leaves ``simulation.torque_limit`` out."""
+def _skeleton(name: str, folder: Path, duration: float, start: list[float] | None = None
+              ) -> Path:
+    """``python -m cpbc.robot NAME`` as printed (it leaves ``simulation.torque_limit`` out),
+    from ``start`` if given."""
     data = scenario_for(describe(name), duration)
     assert "torque_limit" not in data["simulation"]
+    if start is not None:
+        data["cases"][0]["position"] = start
     path = folder / f"{name}.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
@@ -168,10 +172,13 @@ def _timing_free(summary: dict[str, object]) -> dict[str, object]:
 
 def test_in_process_and_worker_summaries_are_identical_with_the_motors_limits(
         tmp_path: Path) -> None:
-    """The TALOS arm's skeleton, where PD + gravity asks for more than joint 2's 17.86 N·m:
-    run in this process and in worker processes, the summaries agree to the bit (but for
-    the wall-clock fields) and the applied torque stays within the URDF's effort limits."""
-    setup = build(*load_scenario(_skeleton("talos_arm", tmp_path, 0.3)))
+    """The TALOS arm's skeleton from a tenth of each range, where PD + gravity asks for up to
+    3.9 times what its motors give: run in this process and in worker processes, the
+    summaries agree to the bit (but for the wall-clock fields) and the applied torque stays
+    within the URDF's effort limits."""
+    limits = describe("talos_arm").limits
+    far = np.round(limits.lower + 0.1 * (limits.upper - limits.lower), 4).tolist()
+    setup = build(*load_scenario(_skeleton("talos_arm", tmp_path, 0.3, far)))
     limit = setup.arm.effort_limit
     here = run_all(setup, workers=1)
     there = run_all(setup, workers=2)

@@ -108,6 +108,39 @@ def unheld(model: RobotModel, x: Array, limit: Array,
     return max(over, key=lambda load: load.gravity / load.limit) if over else None
 
 
+def _shares(model: RobotModel, x: Array, limit: Array) -> Array:
+    """(gravity + braking allowance) / limit per joint, as :class:`GravityLoad.share`."""
+    to_joint = model.coordinates.matrix.T
+    gravity = np.abs(to_joint @ model.gravity(x))
+    braking = BRAKING_DECELERATION * np.linalg.norm(to_joint @ model.inertia(x), axis=1)
+    return (gravity + braking) / limit
+
+
+def holdable_near(model: RobotModel, x0: Array, lower: Array, upper: Array, limit: Array,
+                  share: float = 0.8) -> Array:
+    """A configuration near ``x0``, inside [lower, upper], where every motor holds the arm
+    with the braking allowance to spare (each share ≤ ``share``); ``x0`` itself when it is
+    one already. Found by descending Σ max(0, share_j − ``share``)² from ``x0`` (bounded
+    quasi-Newton): the arm lowered until its motors can carry it. The result may still be
+    over: the caller checks it (:func:`joint_loads`).
+
+    Args:
+        model: the controller's model; x0, lower, upper in its coordinates (±inf: none).
+        limit: the joint torque limits [N·m], inf where a joint has none.
+    """
+    limit = np.broadcast_to(np.asarray(limit, dtype=float), (model.n,))
+    if np.all(_shares(model, x0, limit) <= share):
+        return np.asarray(x0, dtype=float)
+    from scipy.optimize import minimize  # only for an arm its motors cannot carry
+
+    def excess(x: Array) -> float:
+        return float(np.sum(np.maximum(_shares(model, x, limit) - share, 0.0) ** 2))
+
+    bounds = [(lo if np.isfinite(lo) else None, hi if np.isfinite(hi) else None)
+              for lo, hi in zip(lower, upper, strict=True)]
+    return np.asarray(minimize(excess, x0, method="L-BFGS-B", bounds=bounds).x, dtype=float)
+
+
 def heaviest_on_path(model: RobotModel, start: Array, target: Array, limit: Array,
                      samples: int = PATH_SAMPLES) -> GravityLoad | None:
     """Along the straight path from ``start`` to ``target`` (both included), the load that

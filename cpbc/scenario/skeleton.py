@@ -1,9 +1,10 @@
 """A scenario to start from, for any arm: its joint ranges and limits, PD + gravity and CPBC.
 
-The target is the middle of every joint's range (0 where a joint has none), the case starts a
-little off it, the gains are physical (ω_n, ζ; see cpbc.scenario.gains), and the admissible
-set is the arm's own: the position ranges of the joints that have one and, when every joint
-declares one, half its rate limits.
+The target is the middle of every joint's range (0 where a joint has none) unless the caller
+gives one (``cpbc.robot`` lowers it where the motors cannot carry the arm there), the case
+starts a little off it toward the middle of the ranges, the gains are physical (ω_n, ζ; see
+cpbc.scenario.gains), and the admissible set is the arm's own: the position ranges of the
+joints that have one and, when every joint declares one, half its rate limits.
 """
 
 from __future__ import annotations
@@ -43,21 +44,25 @@ def _round(values: Array) -> list[float]:
     return [round(float(v), 4) for v in values]
 
 
-def home(limits: JointLimits) -> tuple[Array, Array]:
-    """A target (mid-range, 0 where unbounded) and a start 0.1 rad (at most a quarter of the
-    range) below it on every joint."""
+def home(limits: JointLimits, target: Array | None = None) -> tuple[Array, Array]:
+    """A target (by default mid-range, 0 where unbounded) and a start 0.1 rad (at most a
+    quarter of the range) off it on every joint, toward the middle of the range (below it
+    from the middle itself)."""
     lo, hi = limits.lower, limits.upper
     finite = np.isfinite(lo) & np.isfinite(hi)
-    target = np.where(finite, 0.5 * (np.where(finite, lo, 0) + np.where(finite, hi, 0)), 0.0)
+    middle = np.where(finite, 0.5 * (np.where(finite, lo, 0) + np.where(finite, hi, 0)), 0.0)
+    target = middle if target is None else np.asarray(target, dtype=float)
     width = np.where(finite, hi - lo, np.inf)
-    start = target - np.minimum(0.1, 0.25 * width)
+    toward = np.where(target > middle, -1.0, np.where(target < middle, 1.0, -1.0))
+    start = target + toward * np.minimum(0.1, 0.25 * width)
     return np.array(_round(target)), np.array(_round(start))
 
 
 def skeleton(model: str, limits: JointLimits, duration: float = 5.0,
-             omega_n: float = 10.0, zeta: float = 1.0) -> dict:
-    """A valid scenario (as a dict for YAML) of the arm ``model`` (a name or a path)."""
-    target, start = home(limits)
+             omega_n: float = 10.0, zeta: float = 1.0, target: Array | None = None) -> dict:
+    """A valid scenario (as a dict for YAML) of the arm ``model`` (a name or a path), toward
+    ``target`` (by default mid-range, see :func:`home`)."""
+    target, start = home(limits, target)
     constraints: list[dict] = []
     bounded = limits.bounded
     if bounded:
