@@ -327,6 +327,12 @@ class Safeguard(SafetyFilter):
         tau = self._guard(state, out.torque, out.margins)
         return Evaluation(tau, out.lyapunov, out.margins if margins else None)
 
+    def lyapunov(self, x: Array, dx: Array) -> float:
+        """The law's V, which the guard leaves as it is: the law alone is asked, no guard runs
+        and no count moves (the loop asks for the true state's V beside every guarded call
+        when the measurement is noisy)."""
+        return self.law.lyapunov(x, dx)
+
     # -- the guard ---------------------------------------------------------------------------
     def _search_braking(
         self, bias: Array, stop: Array, slack: Callable[[Array], float], f_stop: float,
