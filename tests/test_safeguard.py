@@ -672,3 +672,32 @@ def test_velocity_margins_are_held_inside_the_period(scenario: str, seed: int) -
     check = checked_run(plant, setup, entry, s.position, s.velocity, settings,
                         safeguard=setup.safeguard)
     assert not check.violated, (check.constraint, check.min_margin)
+
+
+def test_lyapunov_runs_no_guard_and_moves_no_count(bpbc: BPBC) -> None:
+    """V of the guarded law is the law's: asking for it runs no guard (every count stays),
+    so a noisy run, whose loop asks for the true state's V beside every guarded call, guards
+    each control step once (it guarded twice: 30 002 calls over 15 001 steps on
+    planar_cpbc_ke)."""
+    guard = Safeguard(bpbc, 0.001)
+    x, dx = np.array([0.3, 0.4]), np.array([0.25, -0.15])  # near the rate bounds: it acts
+    guard.torque(x, dx)
+    counts = (guard.calls, guard.acted, guard.infeasible, guard.scaled, guard.uncorrected)
+    assert guard.lyapunov(x, dx) == bpbc.lyapunov(x, dx)
+    assert (guard.calls, guard.acted, guard.infeasible, guard.scaled,
+            guard.uncorrected) == counts
+
+    scenario, path = load_scenario("planar_cpbc_ke")
+    spec = scenario.model_dump(exclude_unset=True)
+    spec["simulation"].update(duration=0.5, noise={"position": 1e-4, "velocity": 1e-3,
+                                                   "seed": 1})
+    from cpbc.scenario import Scenario
+
+    setup = build(Scenario.model_validate(spec), path)
+    (entry,) = constrained(setup)
+    law = setup.controller(entry)
+    assert isinstance(law, Safeguard)
+    case = setup.cases[0]
+    traj = run_mujoco(setup.make_plant(), law, setup.model.coordinates, case.position,
+                      case.velocity, setup.loop_settings)
+    assert traj.control_steps == 501 and law.calls == traj.control_steps

@@ -5,9 +5,13 @@ for a control period h; near a barrier the shaped law is stiff, and one held tor
 the state across ∂S, where every log and division of the law is undefined. The safeguard
 wraps a constrained law and, at every control instant,
 
-1. asks the law for τ₀ = k(x, ẋ) and corrects it for the hold, τ₀ − ½ D Δa
+1. asks the law for τ₀ = k(x, ẋ) and corrects it for the hold, τ₀ − s D Δa
    (:mod:`cpbc.controllers.hold`: the law's acceleration of the sample kept on average over
-   the period, not its torque; ``hold_correction``);
+   the period, not its torque; ``hold_correction``), by the share s of the drift Δa the
+   plant has (½ in continuous time, 0 for a plant that steps once per period by
+   semi-implicit Euler; ``plant_step``). Should the corrected torque fail the test below
+   while τ₀ passes it, the correction is what fails, not the law: the guard keeps as much
+   of it as the test allows and does not act;
 2. predicts the state half a period and one period ahead under the held τ with the
    controller's own model, in closed form with the dynamics frozen at the sample,
 
@@ -92,7 +96,7 @@ from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import Braking
 from cpbc.controllers.base import Controller, Evaluation, SafetyFilter
-from cpbc.controllers.hold import hold_corrected
+from cpbc.controllers.hold import hold_corrected, hold_share
 from cpbc.controllers.linalg import solve_spd
 from cpbc.errors import CpbcError
 from cpbc.model.robot_model import ArmState, RobotModel
@@ -130,6 +134,12 @@ class SafeguardSettings:
             the law's acceleration of the sample kept on average over the period, to first
             order, as the continuous-time law asks. Without it a law that rides a rate bound
             loses its margin to the hold error (README, "A law that rides a rate bound").
+        plant_step: the step [s] of a plant integrated by a one-stage (semi-implicit Euler)
+            integrator (MuJoCo's Euler, implicit, implicitfast), None for an arm in
+            continuous time or an RK4 plant. It sets s of the hold correction τ − s D Δa,
+            the share of the period's drift Δa the plant's acceleration has on average
+            (:func:`cpbc.controllers.hold.hold_share`): ½ in continuous time, 0 for a plant
+            stepped once per period, which holds the sample's acceleration exactly.
         corrector: with the closed-form prediction, also predict to second order (the
             model's acceleration evaluated once more at the predicted end, taken as linear
             over the period, Heun's) and hold every margin under both predictions. The
@@ -149,6 +159,7 @@ class SafeguardSettings:
     corrector: bool = True
     velocity_cushion: float | None = None
     hold_correction: bool = True
+    plant_step: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("decay_rate", "braking"):
@@ -159,6 +170,9 @@ class SafeguardSettings:
             v = getattr(self, name)
             if v is not None and not (math.isfinite(v) and 0 <= v < 1):
                 raise CpbcError(f"safeguard {name} must be in [0, 1), got {v}")
+        if self.plant_step is not None and not (math.isfinite(self.plant_step)
+                                                and self.plant_step > 0):
+            raise CpbcError(f"safeguard plant_step must be > 0, got {self.plant_step}")
         if self.substeps < 1 or self.backoffs < 1:
             raise CpbcError("safeguard substeps and backoffs must be ≥ 1")
         if self.brake_search < 0:
@@ -231,6 +245,9 @@ class Safeguard(SafetyFilter):
         infeasible: instants at which even the braking torque failed (S1).
         scaled: instants at which the law's torque was outside the torque box and was scaled
             into it (it is then tested as scaled).
+        uncorrected: instants at which the hold-corrected torque failed (S1) and the law's
+            own torque kept it: the guard held a blend of the two, with as much of the
+            correction as (S1) allows (not counted as acting: the torque is the law's).
     """
 
     type_name = "safeguard"
@@ -252,6 +269,9 @@ class Safeguard(SafetyFilter):
         self.keep = self.settings.keep_fraction(self.period)
         self.keep_half = math.sqrt(self.keep)
         self.substeps = self.settings.steps_for(self.period)
+        # s of the hold correction τ − s D Δa: the drift the plant's hold has (hold.py)
+        self.hold_share = hold_share(self.period, self.settings.plant_step) \
+            if self.settings.hold_correction else 0.0
         own = law.constraints
         seen = set(own.names)  # a constraint the law enforces already, or a repeat, is skipped
         extra = []
@@ -287,9 +307,10 @@ class Safeguard(SafetyFilter):
         self.acted = 0
         self.infeasible = 0
         self.scaled = 0
+        self.uncorrected = 0
 
     def reset_counts(self) -> None:
-        self.calls = self.acted = self.infeasible = self.scaled = 0
+        self.calls = self.acted = self.infeasible = self.scaled = self.uncorrected = 0
 
     # -- the Controller interface ------------------------------------------------------------
     def state(self, x: Array, dx: Array) -> ArmState:
@@ -305,6 +326,12 @@ class Safeguard(SafetyFilter):
         assert out.margins is not None  # asked for
         tau = self._guard(state, out.torque, out.margins)
         return Evaluation(tau, out.lyapunov, out.margins if margins else None)
+
+    def lyapunov(self, x: Array, dx: Array) -> float:
+        """The law's V, which the guard leaves as it is: the law alone is asked, no guard runs
+        and no count moves (the loop asks for the true state's V beside every guarded call
+        when the measurement is noisy)."""
+        return self.law.lyapunov(x, dx)
 
     # -- the guard ---------------------------------------------------------------------------
     def _search_braking(
@@ -609,13 +636,7 @@ class Safeguard(SafetyFilter):
                 floor_mid = np.where(past[:nc], now[:nc], floor_mid)
         stop = self._braking_floor(state, bias)
         slack = self._check(predict, floor, floor_mid, stop, past)  # (S1)
-        if self.settings.hold_correction:  # the law's acceleration held, not its torque
-            tau = hold_corrected(self.model, state, bias, tau, self.period)
-        boxed = self._box(bias, tau)
-        if boxed is not tau:
-            self.scaled += 1
-            tau = boxed
-        f0 = slack(tau)
+        tau, f0 = self._held(state, bias, tau, slack)
         if f0 >= 0.0:
             return tau
         self.acted += 1
@@ -641,6 +662,33 @@ class Safeguard(SafetyFilter):
                 reverse, f_rev = self._brake(bias, stop, lam), f_lam
             brake, f1 = reverse, f_rev
         return self._blend(tau, brake, f0, f1, slack)
+
+    def _held(self, state: ArmState, bias: Array, law: Array,
+              slack: Callable[[Array], float]) -> tuple[Array, float]:
+        """The law's torque as the guard would hold it, and F of (S1) there: corrected for
+        the hold (:func:`hold_corrected`, by the plant's share ``hold_share``) and scaled
+        into the torque box. If that fails (S1) while the law's own torque keeps it, the
+        blend of the two with as much of the correction as (S1) lets through (F ≥ 0): the
+        correction, not the law, is what fails then. It is right for a plant whose
+        acceleration drifts within the period (the corrected prediction), while the frozen
+        prediction sees the correction and none of the drift, and finds the margin moved
+        by s h Δa against the law's own torque; near a velocity bound that is more than
+        (S1) allows, and braking there fought the law on every other step."""
+        share = self.hold_share
+        tau = hold_corrected(self.model, state, bias, law, self.period, share) if share else law
+        boxed = self._box(bias, tau)
+        if boxed is not tau:
+            self.scaled += 1
+            tau = boxed
+        f0 = slack(tau)
+        if f0 >= 0.0 or not share:
+            return tau, f0
+        plain = self._box(bias, law)
+        f_plain = slack(plain)
+        if f_plain < 0.0:
+            return tau, f0
+        self.uncorrected += 1
+        return self._blend(tau, plain, f0, f_plain, slack), 0.0
 
     def _infeasible(self, state: ArmState, bias: Array, stop: Array, predict: Predictor,
                     now: Array, floor: Array, floor_mid: Array | None) -> Array:

@@ -26,6 +26,7 @@ from cpbc.constraints import (
 from cpbc.constraints.geometry import Obstacle, SceneGeom
 from cpbc.constraints.stopping import Braking, stopping_margins
 from cpbc.controllers import CONTROLLERS, Controller, Identity, Power, RecentredBarrier, Tanh
+from cpbc.controllers.hold import ONE_STAGE
 from cpbc.controllers.safeguard import SafeguardSettings, guarded
 from cpbc.controllers.shaping import Shaping
 from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
@@ -723,7 +724,9 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         loop, SettleCriteria(sim.position_tolerance, sim.velocity_tolerance), rate_bounds,
         obstacles, names, scenario_file, arm,
         safeguard=SafeguardSettings(velocity_cushion=sim.safeguard_velocity_cushion,
-                                    hold_correction=sim.safeguard_hold_correction)
+                                    hold_correction=sim.safeguard_hold_correction,
+                                    plant_step=sim.timestep if sim.integrator in ONE_STAGE
+                                    else None)
         if sim.safeguard else None,
         also_keep=monitor.configuration if sim.safeguard and sim.safeguard_monitored else (),
         gravity_on_path=gravity_on_path,

@@ -97,7 +97,8 @@ class SimulationSpec(Strict):
     # per 10 ms of control period (default: as the configuration margins', 0.001)
     safeguard_velocity_cushion: Annotated[float, Field(gt=0, lt=1)] | None = None
     # the guard holds the law's acceleration over the period, not its torque (first order,
-    # cpbc.controllers.hold); false: the law's torque as the bare law would hold it
+    # cpbc.controllers.hold; by the share of the drift the plant has, from its integrator and
+    # timestep); false: the law's torque as the bare law would hold it
     safeguard_hold_correction: Annotated[bool, Field(strict=True)] = True
     noise: NoiseSpec | None = None
     position_tolerance: Positive = 0.01
