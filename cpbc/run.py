@@ -285,7 +285,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except CpbcError as exc:
         if live:
             live.close()
-        err.print(f"[bold red]error:[/bold red] {escape(str(exc))}", highlight=False)
+        err.print(f"[bold red]error:[/bold red] {escape(str(exc))}", highlight=False,
+                  soft_wrap=True)
         return 2
     except KeyboardInterrupt:
         if live:

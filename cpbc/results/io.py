@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import shutil
@@ -150,27 +151,70 @@ def _place(scratch: Path, out: Path, earlier: set[Path]) -> None:
     (out / MANIFEST).write_text("".join(f"{p.as_posix()}\n" for p in new), encoding="utf-8")
 
 
+def _unwritable(out: Path, exc: OSError) -> CpbcError:
+    """An output folder the system refused (read-only, missing, name too long, full disk),
+    as a one-line error naming --out."""
+    return CpbcError(f"--out {out}: cannot write the results there ({exc.strerror or exc}); "
+                     "choose a writable folder with --out")
+
+
+def _missing_folders(out: Path) -> list[Path]:
+    """The folders of ``out``'s path that do not exist yet, deepest first (a run that
+    fails removes those it made)."""
+    missing = []
+    for folder in out.absolute().parents:
+        try:
+            if folder.exists():
+                break
+        except OSError:  # a name too long: nothing of it was made
+            break
+        missing.append(folder)
+    return missing
+
+
+def _remove_made(folders: Sequence[Path]) -> None:
+    for folder in folders:  # deepest first; only if still empty
+        with contextlib.suppress(OSError):
+            folder.rmdir()
+
+
 @contextmanager
 def staged_output(out: Path) -> Iterator[Path]:
     """Write into a scratch folder next to ``out``; move it into place only on success.
 
-    Nothing half-written is left behind: on any error the scratch folder is removed and an
-    existing ``out`` is untouched. Into an earlier cpbc output, the earlier run's files
-    (listed in its ``.cpbc-files``) are replaced and files the user added are kept; a run
-    that would overwrite one of those is refused. A folder holding files but no earlier
-    cpbc output is refused.
+    Nothing half-written is left behind: on any error the scratch folder (and the missing
+    parent folders of ``out`` it made) are removed and an existing ``out`` is untouched.
+    Into an earlier cpbc output, the earlier run's files (listed in its ``.cpbc-files``) are
+    replaced and files the user added are kept; a run that would overwrite one of those is
+    refused. A folder holding files but no earlier cpbc output is refused, and so is one the
+    system will not let this process write (a CpbcError naming --out).
     """
-    earlier = earlier_output(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    scratch = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    made = _missing_folders(out)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        earlier = earlier_output(out)  # after: a name too long shows only in a folder
+        scratch = Path(tempfile.mkdtemp(prefix=f".{out.name[:64]}.", dir=out.parent))
+    except (OSError, CpbcError) as exc:
+        _remove_made(made)
+        if isinstance(exc, OSError):
+            raise _unwritable(out, exc) from None
+        raise
     try:
         yield scratch
-        if not out.exists():
-            (scratch / MANIFEST).write_text("".join(
-                f"{p.relative_to(scratch).as_posix()}\n"
-                for p in sorted(scratch.rglob("*")) if p.is_file()), encoding="utf-8")
-            scratch.rename(out)
-            return
-        _place(scratch, out, earlier)
+        _finish(scratch, out, earlier)
+    except OSError as exc:
+        raise _unwritable(out, exc) from None
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
+        if not out.exists():
+            _remove_made(made)
+
+
+def _finish(scratch: Path, out: Path, earlier: set[Path]) -> None:
+    if not out.exists():
+        (scratch / MANIFEST).write_text("".join(
+            f"{p.relative_to(scratch).as_posix()}\n"
+            for p in sorted(scratch.rglob("*")) if p.is_file()), encoding="utf-8")
+        scratch.rename(out)
+        return
+    _place(scratch, out, earlier)

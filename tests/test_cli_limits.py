@@ -1,0 +1,82 @@
+"""Input outside the scenario schema: output folders the system refuses, names that collide
+with the run's files, YAML that expands without bound, scenarios too large to run. Each ends
+with exit code 2, a one-line message naming what to change, no traceback and nothing left
+behind, in bounded time."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+import yaml
+
+from cpbc.run import main
+from tools.reliability.bad_input import BASE
+
+
+def _scenario(folder: Path, change: dict[str, object] | None = None) -> Path:
+    data = copy.deepcopy(BASE)
+    data["controllers"] = data["controllers"][:2]
+    data.update(change or {})
+    path = folder / "scenario.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def _refused(capsys: pytest.CaptureFixture[str], args: list[str], *named: str) -> str:
+    """The CLI's answer: exit 2, no traceback, one line (a schema error's line under the
+    "invalid scenario:" heading) naming each of ``named``."""
+    code = main([*args, "--quiet", "--no-plots", "--workers", "1"])
+    message = capsys.readouterr().err.strip()
+    assert code == 2, message
+    assert "Traceback" not in message
+    assert len(message.removeprefix("error: invalid scenario:\n").splitlines()) == 1, message
+    for n in named:
+        assert n in message, message
+    return message
+
+
+def _left(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.iterdir() if p.name != "scenario.yaml")
+
+
+@pytest.mark.parametrize("out", ["/proc/cpbc-out", "/proc/cpbc/deeper/out"])
+def test_output_folder_on_a_read_only_file_system_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], out: str) -> None:
+    scenario = _scenario(tmp_path)
+    _refused(capsys, [str(scenario), "--out", out], "--out", out)
+
+
+@pytest.mark.parametrize("where", ["leaf", "parent"])
+def test_over_long_output_folder_name_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], where: str) -> None:
+    scenario = _scenario(tmp_path)
+    out = tmp_path / ("a" * 300) if where == "leaf" else tmp_path / ("a" * 300) / "out"
+    _refused(capsys, [str(scenario), "--out", str(out)], "--out", "File name too long")
+    assert _left(tmp_path) == []
+
+
+def test_missing_parents_of_the_output_folder_are_made(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    scenario = _scenario(tmp_path)
+    out = tmp_path / "new" / "deeper" / "out"
+    assert main([str(scenario), "--out", str(out), "--quiet", "--no-plots",
+                 "--workers", "1"]) == 0
+    assert (out / "summary.json").is_file()
+
+
+def test_missing_parents_made_for_a_refused_run_are_removed(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    scenario = _scenario(tmp_path)
+    out = tmp_path / "new" / "deeper" / ("a" * 300)
+    _refused(capsys, [str(scenario), "--out", str(out)], "--out")
+    assert _left(tmp_path) == []
+
+
+def test_read_only_working_directory_is_refused_naming_out(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    scenario = _scenario(tmp_path)
+    monkeypatch.chdir("/proc")  # where the default runs/<name> cannot be made, even by root
+    _refused(capsys, [str(scenario)], "--out runs/base", "writable folder")
