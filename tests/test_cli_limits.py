@@ -80,3 +80,31 @@ def test_read_only_working_directory_is_refused_naming_out(
     scenario = _scenario(tmp_path)
     monkeypatch.chdir("/proc")  # where the default runs/<name> cannot be made, even by root
     _refused(capsys, [str(scenario)], "--out runs/base", "writable folder")
+
+
+@pytest.mark.parametrize(("field", "change"), [
+    ("cases[0].name", {"cases": [{"name": "view.html", "position": [0, 0]}]}),
+    ("cases[0].name", {"cases": [{"name": "summary.json", "position": [0, 0]}]}),
+    ("cases[0].name", {"cases": [{"name": "c" * 300, "position": [0, 0]}]}),
+    ("controllers[0].name", {"controllers": [{"type": "pd", "name": "positions.png",
+                                              "kp": 4, "kd": 20}]}),
+    ("controllers[0].name", {"controllers": [{"type": "pd", "name": "view.html",
+                                              "kp": 4, "kd": 20}]}),
+])
+def test_names_that_collide_with_the_run_files_are_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], field: str,
+        change: dict[str, object]) -> None:
+    scenario = _scenario(tmp_path, change)
+    _refused(capsys, [str(scenario), "--out", str(tmp_path / "out")], field)
+    assert _left(tmp_path) == []
+
+
+def test_names_near_the_run_files_still_run(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    scenario = _scenario(tmp_path, {
+        "cases": [{"name": "view", "position": [0, 0]}],
+        "controllers": [{"type": "pd", "name": "positions", "kp": 4, "kd": 20}]})
+    out = tmp_path / "out"
+    assert main([str(scenario), "--out", str(out), "--quiet", "--no-plots",
+                 "--workers", "1"]) == 0
+    assert (out / "view" / "positions" / "trajectory.npz").is_file()
