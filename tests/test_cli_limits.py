@@ -6,6 +6,7 @@ behind, in bounded time."""
 from __future__ import annotations
 
 import copy
+import time
 from pathlib import Path
 
 import pytest
@@ -108,3 +109,43 @@ def test_names_near_the_run_files_still_run(
     assert main([str(scenario), "--out", str(out), "--quiet", "--no-plots",
                  "--workers", "1"]) == 0
     assert (out / "view" / "positions" / "trajectory.npz").is_file()
+
+
+def _timed_refusal(capsys: pytest.CaptureFixture[str], scenario: Path, *named: str,
+                   seconds: float) -> None:
+    start = time.process_time()
+    _refused(capsys, [str(scenario), "--out", str(scenario.parent / "out")], *named)
+    assert time.process_time() - start < seconds
+    assert _left(scenario.parent) == []
+
+
+def test_yaml_alias_bomb_is_refused_at_once(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    lines = ["a0: &a0 [1, 1, 1, 1, 1, 1, 1, 1, 1]"]  # 9**10 values once expanded
+    lines += [f"a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * 9)}]" for i in range(1, 10)]
+    scenario = tmp_path / "scenario.yaml"
+    scenario.write_text("\n".join(lines) + "\n")
+    _timed_refusal(capsys, scenario, "1,000,000 values", seconds=2.0)
+
+
+def test_yaml_that_contains_itself_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    scenario = tmp_path / "scenario.yaml"
+    scenario.write_text("name: x\ntarget: &a [1, *a]\n")
+    _timed_refusal(capsys, scenario, "line 2", "recursive", seconds=2.0)
+
+
+def test_million_entry_target_is_refused_before_it_is_parsed(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    text = _scenario(tmp_path).read_text().replace("target:\n- 1.0\n- 1.5\n",
+                                                   f"target: [{', '.join(['1'] * 10**6)}]\n")
+    (tmp_path / "scenario.yaml").write_text(text)
+    _timed_refusal(capsys, tmp_path / "scenario.yaml", "1 MB", seconds=1.0)
+
+
+def test_target_at_the_size_limit_is_refused_naming_its_length(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    text = _scenario(tmp_path).read_text().replace("target:\n- 1.0\n- 1.5\n",
+                                                   f"target: [{','.join(['1'] * 450_000)}]\n")
+    (tmp_path / "scenario.yaml").write_text(text)
+    _timed_refusal(capsys, tmp_path / "scenario.yaml", "target", "got 450000", seconds=5.0)
