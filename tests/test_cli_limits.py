@@ -149,3 +149,18 @@ def test_target_at_the_size_limit_is_refused_naming_its_length(
                                                    f"target: [{','.join(['1'] * 450_000)}]\n")
     (tmp_path / "scenario.yaml").write_text(text)
     _timed_refusal(capsys, tmp_path / "scenario.yaml", "target", "got 450000", seconds=5.0)
+
+
+def test_more_cases_than_the_limit_are_refused_naming_it(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cases = [{"name": f"c{i}", "position": [0, 0]} for i in range(5000)]
+    scenario = _scenario(tmp_path, {"cases": cases})
+    _timed_refusal(capsys, scenario, "cases", "5000 entries", "500 allowed", seconds=5.0)
+
+
+def test_more_runs_than_the_limit_are_refused_naming_it(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cases = [{"name": f"c{i}", "position": [0, 0]} for i in range(400)]
+    controllers = [{"type": "pd", "name": f"PD{k}", "kp": 4, "kd": 20} for k in range(3)]
+    scenario = _scenario(tmp_path, {"cases": cases, "controllers": controllers})
+    _timed_refusal(capsys, scenario, "cases", "1200 runs", "1000", seconds=5.0)

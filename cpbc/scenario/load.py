@@ -58,6 +58,10 @@ def _message(err: ErrorDetails) -> str:
         expected = err.get("ctx", {}).get("expected_tags", "")
         tag = err.get("ctx", {}).get("tag", err.get("input"))
         return f"unknown type {tag!r}; registered types: {expected}"
+    if kind == "too_long":
+        ctx = err.get("ctx", {})
+        return (f"holds {ctx.get('actual_length')} entries, more than the "
+                f"{ctx.get('max_length')} allowed; shorten it")
     if kind == "union_tag_not_found":
         return "needs a 'type' key"
     return msg.removeprefix("Value error, ")

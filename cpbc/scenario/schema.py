@@ -57,6 +57,13 @@ CaseName = Annotated[SafeName, AfterValidator(_not_in(RUN_FILES, "into the outpu
 RunName = Annotated[SafeName, AfterValidator(_not_in(CASE_FILES, "into each case's folder"))]
 
 
+#: The most cases a scenario holds, and the most runs (cases × controllers): each case
+#: draws its figures and each run logs its trajectory and joins the page; more is a
+#: campaign, for cpbc.reliability, or several scenarios.
+MAX_CASES = 500
+MAX_RUNS = 1000
+
+
 class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -382,7 +389,7 @@ class Scenario(Strict):
     robot: RobotSpec = RobotSpec()
     simulation: SimulationSpec
     target: Vector
-    cases: Annotated[list[CaseSpec], Field(min_length=1)]
+    cases: Annotated[list[CaseSpec], Field(min_length=1, max_length=MAX_CASES)]
     obstacles: list[ObstacleSpec] = []
     constraints: list[ConstraintSpec] = []
     controllers: Annotated[list[ControllerSpec], Field(min_length=1)]
@@ -580,4 +587,4 @@ class SystemScenario(Strict):
     description: str = ""
     system: SystemSpec
     simulation: SystemSimulationSpec
-    cases: Annotated[list[SystemCaseSpec], Field(min_length=1)]
+    cases: Annotated[list[SystemCaseSpec], Field(min_length=1, max_length=MAX_CASES)]
