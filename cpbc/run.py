@@ -215,6 +215,26 @@ def _safeguard(s: RunSummary) -> str:
     return f"{share} ({s.safeguard_steps} steps{late})"
 
 
+def _progress(bar: Progress, runs: int) -> RunProgress:
+    """A bar per run under way, removed when it ends (a bar per run of hundreds made every
+    refresh draw them all), and one for the runs done."""
+    tasks: dict[str, TaskID] = {}
+    done = bar.add_task(f"runs done (of {runs})", total=runs) if runs > 1 else None
+
+    def progress(label: str, frac: float) -> None:
+        if frac >= 1.0:
+            if label in tasks:
+                bar.remove_task(tasks.pop(label))
+            if done is not None:
+                bar.advance(done)
+            return
+        if label not in tasks:
+            tasks[label] = bar.add_task(label, total=1.0)
+        bar.update(tasks[label], completed=frac)
+
+    return progress
+
+
 def _simulate(setup: ScenarioSetup, backend: str | None, progress: RunProgress | None,
               pool: LazyPool | None, workers: int) -> list[RunResult]:
     if pool is None:
@@ -258,13 +278,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
                     console=err, transient=True,
                 ) as bar:
-                    tasks: dict[str, TaskID] = {}
-
-                    def progress(label: str, frac: float) -> None:
-                        if label not in tasks:
-                            tasks[label] = bar.add_task(label, total=1.0)
-                        bar.update(tasks[label], completed=frac)
-
+                    progress = _progress(bar, len(setup.cases) * len(setup.controllers))
                     results = (live.run(setup, args.backend, progress) if live else
                                _simulate(setup, args.backend, progress, pool, workers))
             margin_types = types_of(setup.monitor)

@@ -6,13 +6,16 @@ behind, in bounded time."""
 from __future__ import annotations
 
 import copy
+import io
 import time
 from pathlib import Path
 
 import pytest
 import yaml
+from rich.console import Console
+from rich.progress import Progress
 
-from cpbc.run import main
+from cpbc.run import _progress, main
 from tools.reliability.bad_input import BASE
 
 
@@ -164,3 +167,13 @@ def test_more_runs_than_the_limit_are_refused_naming_it(
     controllers = [{"type": "pd", "name": f"PD{k}", "kp": 4, "kd": 20} for k in range(3)]
     scenario = _scenario(tmp_path, {"cases": cases, "controllers": controllers})
     _timed_refusal(capsys, scenario, "cases", "1200 runs", "1000", seconds=5.0)
+
+
+def test_progress_shows_the_runs_under_way_not_every_run() -> None:
+    bar = Progress(console=Console(file=io.StringIO()))
+    report = _progress(bar, 500)
+    for i in range(500):
+        report(f"c{i} / PD", 0.5)
+        report(f"c{i} / PD", 1.0)
+    assert len(bar.tasks) == 1  # the runs done
+    assert bar.tasks[0].completed == 500
