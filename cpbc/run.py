@@ -10,6 +10,7 @@ import argparse
 import contextlib
 import gc
 import os
+import signal
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -316,6 +317,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def cli() -> None:
     """``python -m cpbc.run`` and ``cpbc-run``: :func:`main` in a process that ends with it.
 
@@ -327,6 +332,7 @@ def cli() -> None:
     helper and server has stopped, the output streams are flushed here).
     """
     gc.freeze()
+    signal.signal(signal.SIGTERM, _interrupt)  # as Ctrl-C: the scratch folder is removed
     code = main()
     with contextlib.suppress(OSError):  # a reader that went away (| head) is no error here
         sys.stdout.flush()

@@ -7,6 +7,10 @@ from __future__ import annotations
 
 import copy
 import io
+import os
+import signal
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -177,3 +181,33 @@ def test_progress_shows_the_runs_under_way_not_every_run() -> None:
         report(f"c{i} / PD", 1.0)
     assert len(bar.tasks) == 1  # the runs done
     assert bar.tasks[0].completed == 500
+
+
+@pytest.mark.parametrize("how", ["SIGTERM", "Ctrl-C"])
+def test_interrupted_run_removes_its_scratch_folder(tmp_path: Path, how: str) -> None:
+    scenario = _scenario(tmp_path, {"simulation": {**BASE["simulation"], "duration": 300},
+                                    "controllers": BASE["controllers"][:1]})
+    out = tmp_path / "out"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from cpbc.run import cli; cli()", str(scenario), "--out",
+         str(out), "--workers", "2"],  # with the figure helpers, forked at the start
+        cwd=Path(__file__).parents[1], start_new_session=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 30
+        while not any(p.name.startswith(".out.") for p in tmp_path.iterdir()):
+            assert time.monotonic() < deadline and proc.poll() is None, proc.stderr
+            time.sleep(0.05)
+        time.sleep(0.5)  # the run under way
+        if how == "SIGTERM":
+            proc.terminate()
+        else:
+            os.killpg(proc.pid, signal.SIGINT)  # as the terminal sends it: to every process
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err, err
+    assert "interrupted; nothing written" in err
+    assert _left(tmp_path) == []
