@@ -282,7 +282,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     progress = _progress(bar, len(setup.cases) * len(setup.controllers))
                     results = (live.run(setup, args.backend, progress) if live else
                                _simulate(setup, args.backend, progress, pool, workers))
-            margin_types = types_of(setup.monitor)
+            margin_types = types_of(setup.monitor, setup.model.length_coordinates)
             for r in results:
                 folder = scratch / r.case / r.controller
                 folder.mkdir(parents=True, exist_ok=True)

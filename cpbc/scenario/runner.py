@@ -67,7 +67,7 @@ def run_one(
     summary = summarise(
         entry.name, case.name, entry.controller, setup.monitor, traj, setup.criteria,
         setup.rate_bounds, margins, setup.loop_settings.torque_limit,
-        setup.model.coordinates.matrix,
+        setup.model.coordinates.matrix, setup.model.length_coordinates,
     )
     return RunResult(entry.name, case.name, traj, margins, traj.lyapunov, summary)
 
