@@ -211,3 +211,16 @@ def test_interrupted_run_removes_its_scratch_folder(tmp_path: Path, how: str) ->
     assert "Traceback" not in err, err
     assert "interrupted; nothing written" in err
     assert _left(tmp_path) == []
+
+
+def test_run_folder_mode_follows_the_umask(tmp_path: Path) -> None:
+    scenario = _scenario(tmp_path)
+    out = tmp_path / "out"
+    old = os.umask(0o022)
+    try:
+        assert main([str(scenario), "--out", str(out), "--quiet", "--no-plots",
+                     "--workers", "1"]) == 0
+    finally:
+        os.umask(old)
+    assert out.stat().st_mode & 0o777 == 0o755
+    assert (out / "rest").stat().st_mode & 0o777 == 0o755

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import errno
 import json
+import secrets
 import shutil
-import tempfile
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -172,6 +173,20 @@ def _missing_folders(out: Path) -> list[Path]:
     return missing
 
 
+def _scratch_folder(out: Path) -> Path:
+    """An empty folder next to ``out`` with a new name, made as any folder is: its mode
+    from the umask (tempfile.mkdtemp's would be private, 0700, and so would the run folder
+    it becomes)."""
+    for _ in range(100):
+        scratch = out.parent / f".{out.name[:64]}.{secrets.token_hex(4)}"
+        try:
+            scratch.mkdir()
+        except FileExistsError:
+            continue
+        return scratch
+    raise FileExistsError(errno.EEXIST, "no free scratch folder name", str(out.parent))
+
+
 def _remove_made(folders: Sequence[Path]) -> None:
     for folder in folders:  # deepest first; only if still empty
         with contextlib.suppress(OSError):
@@ -193,7 +208,7 @@ def staged_output(out: Path) -> Iterator[Path]:
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         earlier = earlier_output(out)  # after: a name too long shows only in a folder
-        scratch = Path(tempfile.mkdtemp(prefix=f".{out.name[:64]}.", dir=out.parent))
+        scratch = _scratch_folder(out)
     except (OSError, CpbcError) as exc:
         _remove_made(made)
         if isinstance(exc, OSError):
