@@ -191,3 +191,14 @@ def test_reference_names_the_constraint_the_trajectory_crossed(model: RobotModel
     traj = run_reference(model, law, np.zeros(2), np.zeros(2), LoopSettings(2.0, 0.01))
     assert traj.outcome == "constraint_violated"
     assert traj.violated == "rate[second]"  # a rejected stage, from NaN, named the first
+
+
+def test_violated_run_logs_the_torque_held_until_the_crossing(model: RobotModel) -> None:
+    rates = ConstraintSet(2, velocity=[joint_rate_limit([50.0, 0.3], ["first", "second"])])
+    law = _Watched(PD(model, np.array([1.0, 1.5]), [4, 4], [2, 2]), rates)
+    traj = run_mujoco(plant(), law, ABSOLUTE, np.zeros(2), np.zeros(2), LoopSettings(2.0, 0.01))
+    assert traj.outcome == "constraint_violated"
+    assert np.all(np.isfinite(traj.torque)) and np.all(np.isfinite(traj.joint_torque))
+    np.testing.assert_array_equal(traj.torque[-1], traj.torque[-2])  # zero-order hold
+    np.testing.assert_array_equal(traj.joint_torque[-1], traj.joint_torque[-2])
+    assert np.isnan(traj.lyapunov[-1])  # V is undefined outside S
