@@ -27,7 +27,7 @@ CSV_COLUMNS = (
     "torque_limits", "peak_torque_norm", "torque_bound", "worst_margins",
     "crossed_constraints", "max_lyapunov_increase", "max_contacts", "saturated_steps",
     "safeguard_steps", "safeguard_share", "safeguard_infeasible", "rejected_samples",
-    "wall_time", "steps_per_second",
+    "wall_time", "steps_per_second", "violated_constraint",
 )
 #: Lists the files a run wrote into its folder, one relative path a line; a later run into
 #: the same folder replaces these and nothing else.
