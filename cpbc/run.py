@@ -10,6 +10,7 @@ import argparse
 import contextlib
 import gc
 import os
+import signal
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -216,6 +217,26 @@ def _safeguard(s: RunSummary) -> str:
     return f"{share} ({s.safeguard_steps} steps{late})"
 
 
+def _progress(bar: Progress, runs: int) -> RunProgress:
+    """A bar per run under way, removed when it ends (a bar per run of hundreds made every
+    refresh draw them all), and one for the runs done."""
+    tasks: dict[str, TaskID] = {}
+    done = bar.add_task(f"runs done (of {runs})", total=runs) if runs > 1 else None
+
+    def progress(label: str, frac: float) -> None:
+        if frac >= 1.0:
+            if label in tasks:
+                bar.remove_task(tasks.pop(label))
+            if done is not None:
+                bar.advance(done)
+            return
+        if label not in tasks:
+            tasks[label] = bar.add_task(label, total=1.0)
+        bar.update(tasks[label], completed=frac)
+
+    return progress
+
+
 def _simulate(setup: ScenarioSetup, backend: str | None, progress: RunProgress | None,
               pool: LazyPool | None, workers: int) -> list[RunResult]:
     if pool is None:
@@ -267,16 +288,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                     TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
                     console=err, transient=True,
                 ) as bar:
-                    tasks: dict[str, TaskID] = {}
-
-                    def progress(label: str, frac: float) -> None:
-                        if label not in tasks:
-                            tasks[label] = bar.add_task(label, total=1.0)
-                        bar.update(tasks[label], completed=frac)
-
+                    progress = _progress(bar, len(setup.cases) * len(setup.controllers))
                     results = (live.run(setup, args.backend, progress) if live else
                                _simulate(setup, args.backend, progress, pool, workers))
-            margin_types = types_of(setup.monitor)
+            margin_types = types_of(setup.monitor, setup.model.length_coordinates)
             for r in results:
                 folder = scratch / r.case / r.controller
                 folder.mkdir(parents=True, exist_ok=True)
@@ -294,7 +309,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except CpbcError as exc:
         if live:
             live.close()
-        err.print(f"[bold red]error:[/bold red] {escape(str(exc))}", highlight=False)
+        err.print(f"[bold red]error:[/bold red] {escape(str(exc))}", highlight=False,
+                  soft_wrap=True)
         return 2
     except KeyboardInterrupt:
         if live:
@@ -310,6 +326,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def cli() -> None:
     """``python -m cpbc.run`` and ``cpbc-run``: :func:`main` in a process that ends with it.
 
@@ -321,6 +341,7 @@ def cli() -> None:
     helper and server has stopped, the output streams are flushed here).
     """
     gc.freeze()
+    signal.signal(signal.SIGTERM, _interrupt)  # as Ctrl-C: the scratch folder is removed
     code = main()
     with contextlib.suppress(OSError):  # a reader that went away (| head) is no error here
         sys.stdout.flush()

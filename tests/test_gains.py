@@ -170,3 +170,17 @@ def test_coupling_tightens_the_damping_limit() -> None:
     assert spectral_radius(kp, kd, d, 0.01) > 1
     h = longest_stable_period(kp, kd, d, 0.01)
     assert spectral_radius(kp, kd, d, 0.99 * h) < 1 < spectral_radius(kp, kd, d, 1.01 * h)
+
+
+def test_a_coupled_mode_is_reported_with_the_damping_that_is_stable() -> None:
+    d = np.array([[3.5 + np.cos(0.8), 1.25 + 0.5 * np.cos(0.8)],
+                  [1.25 + 0.5 * np.cos(0.8), 1.25]])
+    kp, kd = physical_gains(np.full(2, 50.0), np.full(2, 0.7), np.diag(d))
+    bad = unstable_loop(kp, kd, [d], 0.01, ["shoulder", "elbow"])
+    assert bad is not None and bad.stable_kd is not None
+    assert f"lower kd of '{bad.name}' below {bad.stable_kd:.4g}" in bad.advice()
+    lowered = kd.copy()
+    lowered[bad.index] = 0.99 * bad.stable_kd
+    assert spectral_radius(kp, lowered, d, 0.01) < 1
+    lowered[bad.index] = 1.01 * bad.stable_kd
+    assert spectral_radius(kp, lowered, d, 0.01) > 1

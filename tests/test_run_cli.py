@@ -5,6 +5,7 @@ message naming the field and no traceback, and leaves nothing behind."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import re
 import subprocess
@@ -16,8 +17,12 @@ import pytest
 import yaml
 
 from cpbc.resources import scenarios_dir
-from cpbc.results import load_npz
+from cpbc.results import load_npz, write_summaries
 from cpbc.run import main
+from cpbc.scenario import build
+from cpbc.scenario.load import load_scenario
+from cpbc.scenario.runner import run_all
+from tools.reliability.bad_input import BASE
 
 SUMMARY_KEYS = {
     "controller", "case", "status", "final_error", "settle_time", "peak_joint_rates",
@@ -430,3 +435,19 @@ def test_status_says_when_the_safeguard_drove_most_of_the_run(ch7_run):
     calm = replace(s, safeguard_steps=half)
     assert "safeguard" not in _notes(calm)
     assert _safeguard(calm) == f"{half / s.control_steps:.1%} ({half} steps)"
+
+
+def test_summary_csv_names_the_violated_constraint(tmp_path: Path) -> None:
+    path = tmp_path / "base.yaml"
+    path.write_text(yaml.safe_dump(BASE, sort_keys=False))
+    scenario, file = load_scenario(path)
+    setup = build(scenario, file)
+    summaries = [r.summary for r in run_all(setup)]
+    summaries[1] = dataclasses.replace(summaries[1], status="constraint_violated",
+                                       violated_constraint="obstacle")
+    write_summaries(tmp_path, summaries)
+    with (tmp_path / "summary.csv").open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        rows = list(reader)
+    assert reader.fieldnames is not None and reader.fieldnames[-1] == "violated_constraint"
+    assert [r["violated_constraint"] for r in rows] == ["", "obstacle", "", ""]

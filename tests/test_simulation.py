@@ -168,3 +168,37 @@ def test_plant_reports_instability_until_reset() -> None:
     p.data.qvel[:] = [np.nan, 0.0]  # and resets a NaN state (bad qvel)
     p.step(1)
     assert p.unstable()
+
+
+class _Watched(Controller):
+    """A law defined only inside its constraints' set, naming (as the constrained laws do)
+    the worst margin, and the first constraint at a state that is not finite."""
+
+    def __init__(self, law: Controller, constraints: ConstraintSet) -> None:
+        self.law, self.constraints, self.model = law, constraints, law.model
+
+    def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
+        m = self.constraints.margins(state.x, state.dx)
+        if not np.all(m > 0):
+            i = int(np.argmin(np.nan_to_num(m, nan=-np.inf)))
+            raise ConstraintViolation(self.constraints.names[i], float(m[i]))
+        return self.law.evaluate_state(state, margins)
+
+
+def test_reference_names_the_constraint_the_trajectory_crossed(model: RobotModel) -> None:
+    rates = ConstraintSet(2, velocity=[joint_rate_limit([50.0, 0.3], ["first", "second"])])
+    law = _Watched(PD(model, np.array([1.0, 1.5]), [4, 4], [2, 2]), rates)
+    traj = run_reference(model, law, np.zeros(2), np.zeros(2), LoopSettings(2.0, 0.01))
+    assert traj.outcome == "constraint_violated"
+    assert traj.violated == "rate[second]"  # a rejected stage, from NaN, named the first
+
+
+def test_violated_run_logs_the_torque_held_until_the_crossing(model: RobotModel) -> None:
+    rates = ConstraintSet(2, velocity=[joint_rate_limit([50.0, 0.3], ["first", "second"])])
+    law = _Watched(PD(model, np.array([1.0, 1.5]), [4, 4], [2, 2]), rates)
+    traj = run_mujoco(plant(), law, ABSOLUTE, np.zeros(2), np.zeros(2), LoopSettings(2.0, 0.01))
+    assert traj.outcome == "constraint_violated"
+    assert np.all(np.isfinite(traj.torque)) and np.all(np.isfinite(traj.joint_torque))
+    np.testing.assert_array_equal(traj.torque[-1], traj.torque[-2])  # zero-order hold
+    np.testing.assert_array_equal(traj.joint_torque[-1], traj.joint_torque[-2])
+    assert np.isnan(traj.lyapunov[-1])  # V is undefined outside S

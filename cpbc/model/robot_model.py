@@ -52,6 +52,12 @@ class ArmState(NamedTuple):
     frames: Mapping[int, FrameKinematics] = _NO_FRAMES
 
 
+def _is_prismatic(shortname: str) -> bool:
+    """Pinocchio's prismatic joints: JointModelPX/PY/PZ and JointModelPrismaticUnaligned."""
+    return shortname in ("JointModelPX", "JointModelPY", "JointModelPZ") or (
+        "Prismatic" in shortname)
+
+
 class RobotModel:
     """Rigid-body dynamics of a serial arm from Pinocchio, in controller coordinates x = T q.
 
@@ -111,6 +117,15 @@ class RobotModel:
         probe = pin.crba(model, self.data, np.linspace(0.3, 1.1, self.n)) if self.n > 1 else None
         self._crba_upper_only = probe is not None and not np.allclose(probe, probe.T)
         self._lower = np.tril_indices(self.n, -1)
+
+    @property
+    def length_coordinates(self) -> Array:
+        """Which controller coordinates are lengths [m], not angles [rad]: those whose row of
+        T involves prismatic joints only."""
+        prismatic = np.array([_is_prismatic(j.shortname()) for j in self.model.joints[1:]],
+                             dtype=bool)
+        used = np.abs(self.coordinates.matrix) > 0
+        return np.array([bool(np.any(u)) and bool(np.all(prismatic[u])) for u in used])
 
     @classmethod
     def from_mjcf(cls, path: str | Path, **kwargs: object) -> RobotModel:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import signal
 import sys
 from collections.abc import Iterator, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
@@ -52,6 +53,14 @@ def share_out(jobs: Sequence[Job], weights: Sequence[float], shares: Sequence[fl
     return parts
 
 
+def quiet_on_interrupt() -> None:
+    """Worker initialiser: Ctrl-C (the terminal's SIGINT reaches every process of the group)
+    or SIGTERM ends a helper at once, without a traceback of its own; the main process
+    reports the interruption and removes what the run had written."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def _warm() -> None:
     """Load the plotting modules in a helper before it is needed."""
     import cpbc.results.plots  # noqa: F401
@@ -68,7 +77,8 @@ def figure_helper() -> Iterator[Executor | None]:
     if (os.cpu_count() or 1) < 2 or sys.platform != "linux":
         yield None
         return
-    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork")) as pool:
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork"),
+                             initializer=quiet_on_interrupt) as pool:
         for _ in range(2):
             pool.submit(_warm)
         yield pool

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import errno
 import json
+import secrets
 import shutil
-import tempfile
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -25,7 +27,7 @@ CSV_COLUMNS = (
     "torque_limits", "peak_torque_norm", "torque_bound", "worst_margins",
     "crossed_constraints", "max_lyapunov_increase", "max_contacts", "saturated_steps",
     "safeguard_steps", "safeguard_share", "safeguard_infeasible", "rejected_samples",
-    "wall_time", "steps_per_second", "cause",
+    "wall_time", "steps_per_second", "cause", "violated_constraint",
 )
 #: Lists the files a run wrote into its folder, one relative path a line; a later run into
 #: the same folder replaces these and nothing else.
@@ -150,27 +152,84 @@ def _place(scratch: Path, out: Path, earlier: set[Path]) -> None:
     (out / MANIFEST).write_text("".join(f"{p.as_posix()}\n" for p in new), encoding="utf-8")
 
 
+def _unwritable(out: Path, exc: OSError) -> CpbcError:
+    """An output folder the system refused (read-only, missing, name too long, full disk),
+    as a one-line error naming --out."""
+    return CpbcError(f"--out {out}: cannot write the results there ({exc.strerror or exc}); "
+                     "choose a writable folder with --out")
+
+
+def _missing_folders(out: Path) -> list[Path]:
+    """The folders of ``out``'s path that do not exist yet, deepest first (a run that
+    fails removes those it made)."""
+    missing = []
+    for folder in out.absolute().parents:
+        try:
+            if folder.exists():
+                break
+        except OSError:  # a name too long: nothing of it was made
+            break
+        missing.append(folder)
+    return missing
+
+
+def _scratch_folder(out: Path) -> Path:
+    """An empty folder next to ``out`` with a new name, made as any folder is: its mode
+    from the umask (tempfile.mkdtemp's would be private, 0700, and so would the run folder
+    it becomes)."""
+    for _ in range(100):
+        scratch = out.parent / f".{out.name[:64]}.{secrets.token_hex(4)}"
+        try:
+            scratch.mkdir()
+        except FileExistsError:
+            continue
+        return scratch
+    raise FileExistsError(errno.EEXIST, "no free scratch folder name", str(out.parent))
+
+
+def _remove_made(folders: Sequence[Path]) -> None:
+    for folder in folders:  # deepest first; only if still empty
+        with contextlib.suppress(OSError):
+            folder.rmdir()
+
+
 @contextmanager
 def staged_output(out: Path) -> Iterator[Path]:
     """Write into a scratch folder next to ``out``; move it into place only on success.
 
-    Nothing half-written is left behind: on any error the scratch folder is removed and an
-    existing ``out`` is untouched. Into an earlier cpbc output, the earlier run's files
-    (listed in its ``.cpbc-files``) are replaced and files the user added are kept; a run
-    that would overwrite one of those is refused. A folder holding files but no earlier
-    cpbc output is refused.
+    Nothing half-written is left behind: on any error the scratch folder (and the missing
+    parent folders of ``out`` it made) are removed and an existing ``out`` is untouched.
+    Into an earlier cpbc output, the earlier run's files (listed in its ``.cpbc-files``) are
+    replaced and files the user added are kept; a run that would overwrite one of those is
+    refused. A folder holding files but no earlier cpbc output is refused, and so is one the
+    system will not let this process write (a CpbcError naming --out).
     """
-    earlier = earlier_output(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    scratch = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    made = _missing_folders(out)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        earlier = earlier_output(out)  # after: a name too long shows only in a folder
+        scratch = _scratch_folder(out)
+    except (OSError, CpbcError) as exc:
+        _remove_made(made)
+        if isinstance(exc, OSError):
+            raise _unwritable(out, exc) from None
+        raise
     try:
         yield scratch
-        if not out.exists():
-            (scratch / MANIFEST).write_text("".join(
-                f"{p.relative_to(scratch).as_posix()}\n"
-                for p in sorted(scratch.rglob("*")) if p.is_file()), encoding="utf-8")
-            scratch.rename(out)
-            return
-        _place(scratch, out, earlier)
+        _finish(scratch, out, earlier)
+    except OSError as exc:
+        raise _unwritable(out, exc) from None
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
+        if not out.exists():
+            _remove_made(made)
+
+
+def _finish(scratch: Path, out: Path, earlier: set[Path]) -> None:
+    if not out.exists():
+        (scratch / MANIFEST).write_text("".join(
+            f"{p.relative_to(scratch).as_posix()}\n"
+            for p in sorted(scratch.rglob("*")) if p.is_file()), encoding="utf-8")
+        scratch.rename(out)
+        return
+    _place(scratch, out, earlier)

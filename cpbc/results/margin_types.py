@@ -11,10 +11,13 @@ type          margin reported                              unit
 position      distance of the coordinate to its nearer     rad
               limit (joint and relative-joint limits)
 rate          B − |aᵀẋ|, rate headroom                     rad/s
+travel        a position limit on prismatic joints         m
+speed         a rate limit on prismatic joints             m/s
 clearance     distance between robot and obstacle          m
 energy        Ω − ½ẋᵀDẋ, kinetic-energy headroom           J
 ============  ===========================================  ======
 
+A limit whose row mixes revolute and prismatic coordinates has no one unit: it is "other".
 Each is zero exactly where the constraint's own function is (on the boundary of S), positive
 inside and negative outside, so its sign tells the same story.
 """
@@ -52,11 +55,13 @@ class MarginType:
 
 POSITION = MarginType("position", "position limits", "rad")
 RATE = MarginType("rate", "rate limits", "rad/s")
+TRAVEL = MarginType("travel", "prismatic position limits", "m")
+SPEED = MarginType("speed", "prismatic rate limits", "m/s")
 CLEARANCE = MarginType("clearance", "clearance", "m")
 ENERGY = MarginType("energy", "kinetic energy", "J")
 OTHER = MarginType("other", "other constraints", "")
 #: Every type, in the order figures and tables show them.
-TYPES: tuple[MarginType, ...] = (POSITION, RATE, CLEARANCE, ENERGY, OTHER)
+TYPES: tuple[MarginType, ...] = (POSITION, RATE, TRAVEL, SPEED, CLEARANCE, ENERGY, OTHER)
 BY_KEY = {t.key: t for t in TYPES}
 
 
@@ -96,9 +101,31 @@ def _constraints(
     return (*monitor.configuration, *monitor.velocity)
 
 
-def types_of(monitor: ConstraintSet) -> tuple[str, ...]:
-    """The type key of every monitored margin, in the order of ``monitor.names``."""
-    return tuple(margin_type(c).key for c in _constraints(monitor) for _ in c.names)
+def _row_type(kind: MarginType, row: Array, lengths: Array) -> MarginType:
+    """A position or rate limit's row on prismatic coordinates only is in m (m/s); on both
+    kinds it has no one unit."""
+    used = np.abs(row) > 0
+    if not np.any(np.logical_and(used, lengths)):
+        return kind
+    if np.all(lengths[used]):
+        return TRAVEL if kind is POSITION else SPEED
+    return OTHER
+
+
+def types_of(monitor: ConstraintSet, lengths: Array | None = None) -> tuple[str, ...]:
+    """The type key of every monitored margin, in the order of ``monitor.names``.
+
+    ``lengths`` marks the coordinates that are lengths (prismatic joints,
+    :attr:`cpbc.model.RobotModel.length_coordinates`); without it every coordinate is an
+    angle."""
+    out = []
+    for c in _constraints(monitor):
+        kind = margin_type(c)
+        if lengths is not None and isinstance(c, (LinearLimit, RateLimit)):
+            out += [_row_type(kind, row, np.asarray(lengths, dtype=bool)) for row in c.rows]
+        else:
+            out += [kind] * len(c.names)
+    return tuple(t.key for t in out)
 
 
 def physical_history(monitor: ConstraintSet, values: Array) -> Array:

@@ -170,6 +170,7 @@ def summarise(
     margins: Array | None = None,
     torque_limits: Array | None = None,
     coordinates: Array | None = None,
+    lengths: Array | None = None,
 ) -> RunSummary:
     """Condense a trajectory into a RunSummary.
 
@@ -177,6 +178,8 @@ def summarise(
         margins: :func:`margin_history` of the run, when already computed.
         torque_limits: the plant's joint torque limits, shape (n,), or None.
         coordinates: T of x = T q (the identity when omitted).
+        lengths: which coordinates are lengths (RobotModel.length_coordinates), for the
+            margins' units; all angles when omitted.
     """
     margins = margin_history(monitor, traj) if margins is None else margins
     lyapunov = traj.lyapunov
@@ -213,7 +216,7 @@ def summarise(
         peak_torque_norm=float(np.max(np.linalg.norm(finite_tau, axis=1))),
         torque_bound=controller.torque_bound,
         min_margins=min_margins,
-        margin_types=dict(zip(monitor.names, types_of(monitor), strict=True)),
+        margin_types=dict(zip(monitor.names, types_of(monitor, lengths), strict=True)),
         crossed_constraints=[n for n, v in min_margins.items() if v <= 0],
         enforced_constraints=list(controller.constraints.names),
         max_lyapunov_increase=float(max(dv.max(), 0.0)) if dv.size else 0.0,

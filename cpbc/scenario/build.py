@@ -699,6 +699,11 @@ def _check_recentred(controllers: list[ControllerEntry], cases: list[CaseEntry],
 
 def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     """Check a scenario against its robot and build every object it describes."""
+    runs = len(scenario.cases) * len(scenario.controllers)
+    if runs > s.MAX_RUNS:
+        raise ScenarioError("cases", f"{len(scenario.cases)} cases × {len(scenario.controllers)} "
+                            f"controllers make {runs} runs, more than the {s.MAX_RUNS} a "
+                            "scenario may hold; split it into several scenarios")
     arm, path, model, plant = _load_robot(scenario, scenario_file)
     names = _coordinate_names(scenario.robot, model)
     sim = scenario.simulation

@@ -127,6 +127,9 @@ class UnstableLoop:
         period: the control period h [s].
         radius: spectral radius of the held loop (≥ 1).
         longest_period: the longest period at which these gains are stable [s].
+        stable_kd: for a coupled mode (each coordinate alone stable), the largest K_D of
+            this coordinate, below ``kd``, at which the arm's held loop is stable; None when
+            lowering it alone does not help.
     """
 
     name: str
@@ -137,6 +140,7 @@ class UnstableLoop:
     period: float
     radius: float
     longest_period: float
+    stable_kd: float | None = None
 
     def advice(self) -> str:
         """What is wrong and the ways out, in numbers."""
@@ -145,8 +149,11 @@ class UnstableLoop:
             fix = f"K_D h ≥ 2 D_eff: lower kd below {2 * m / h:.4g}"
         elif kp * h >= 2.0 * kd:
             fix = f"K_P h ≥ 2 K_D: raise kd above {kp * h / 2:.4g} or lower kp"
+        elif self.stable_kd is not None:
+            fix = (f"a coupled mode: lower kd of '{self.name}' below {self.stable_kd:.4g} "
+                   "(or omega_n, zeta)")
         else:
-            fix = "a coupled mode: lower kd (or omega_n, zeta)"
+            fix = "a coupled mode: lower omega_n or zeta"
         return (f"the gains are unstable under the zero-order hold at control period "
                 f"h = {h:.3g} s (spectral radius {self.radius:.4g} ≥ 1), mostly in coordinate "
                 f"'{self.name}' (effective inertia {m:.3g}, K_P = {kp:.4g}, K_D = {kd:.4g}; "
@@ -171,5 +178,33 @@ def unstable_loop(
         m_eff = 1.0 / float(np.linalg.inv(inertia)[i, i])
         return UnstableLoop(names[i], i, m_eff, float(kp[i]), float(kd[i]), period,
                             float(abs(values[k])),
-                            longest_stable_period(kp, kd, inertia, period, euler_step))
+                            longest_stable_period(kp, kd, inertia, period, euler_step),
+                            _stable_kd(kp, kd, inertias, period, euler_step, i)
+                            if zoh_stable(float(kp[i]), float(kd[i]), m_eff, period) else None)
     return None
+
+
+def _stable_kd(kp: Array, kd: Array, inertias: Sequence[Array], period: float,
+               euler_step: float, i: int) -> float | None:
+    """The largest K_D of coordinate ``i`` (the others kept) below its own at which the held
+    loop is stable at every inertia: scanned down from ``kd[i]`` to K_P h / 2 (below which
+    the coordinate alone is unstable), then the edge found by bisection. None when no value
+    on the way is stable."""
+    def stable(value: float) -> bool:
+        trial = np.array(kd, dtype=float)
+        trial[i] = value
+        return all(spectral_radius(kp, trial, d, period, euler_step) < 1.0 for d in inertias)
+
+    grid = np.linspace(float(kd[i]), float(kp[i]) * period / 2.0, 66)[1:-1]
+    hi = float(kd[i])  # unstable
+    for lo in grid:
+        if stable(lo):
+            break
+        hi = lo
+    else:
+        return None
+    lo = float(lo)
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return lo

@@ -18,6 +18,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from cpbc.constraints.base import Array
+from cpbc.results.drawing import quiet_on_interrupt
 from cpbc.results.metrics import RunSummary, margin_history, summarise
 from cpbc.scenario.build import CaseEntry, ControllerEntry, ScenarioSetup, build
 from cpbc.scenario.schema import Scenario
@@ -66,7 +67,7 @@ def run_one(
     summary = summarise(
         entry.name, case.name, entry.controller, setup.monitor, traj, setup.criteria,
         setup.rate_bounds, margins, setup.loop_settings.torque_limit,
-        setup.model.coordinates.matrix,
+        setup.model.coordinates.matrix, setup.model.length_coordinates,
     )
     load = setup.gravity_on_path.get(case.name)
     if load is not None and summary.failed:
@@ -121,6 +122,7 @@ def default_processes() -> int:
 def _warm_up() -> None:
     """Worker initialiser: import what its tasks need (figures, runs) while the main
     process is busy, so that the first task does not wait for it."""
+    quiet_on_interrupt()
     import cpbc.results.plots  # noqa: F401
 
 
@@ -128,7 +130,8 @@ def worker_pool(workers: int, warm: bool = False) -> ProcessPoolExecutor:
     """Processes for independent runs (and figures): spawned, so no simulator state is
     inherited; each builds its own Pinocchio and MuJoCo objects. With ``warm`` each starts
     importing at once (a pool is otherwise started lazily, by its first task)."""
-    pool = ProcessPoolExecutor(max_workers=workers, initializer=_warm_up if warm else None,
+    pool = ProcessPoolExecutor(max_workers=workers,
+                               initializer=_warm_up if warm else quiet_on_interrupt,
                                mp_context=multiprocessing.get_context("spawn"))
     if warm:
         for _ in range(workers):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Annotated, Literal
 
 from pydantic import (
@@ -30,8 +31,37 @@ Positive = Annotated[Number, Field(gt=0)]
 NonNegative = Annotated[Number, Field(ge=0)]
 Vector = list[Number]
 Gain = Positive | list[Positive]
-# Names become folder names of the output: one path component, no "." or "..".
-SafeName = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")]
+# Names become folder names of the output: one path component, no "." or "..", short
+# enough for any file system (a name is at most 255 bytes).
+SafeName = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$", max_length=100)]
+#: What a run writes at the top of its output folder (cpbc.results.io, cpbc.results.saved_run,
+#: cpbc.viewer) and into each case's folder (the figures of cpbc.results.plots and
+#: cpbc.scenario.system_runner): a case, or a controller, of one of these names would collide.
+RUN_FILES = frozenset({"summary.json", "summary.csv", "scene.mjb", "scene.mjb.gz",
+                       "scene.json", "view.html"})
+CASE_FILES = frozenset({"positions.png", "rates.png", "torques.png", "lyapunov.png",
+                        "margins.png", "path.png", "timeseries.png", "view.html"})
+
+
+def _not_in(reserved: frozenset[str], what: str) -> Callable[[str], str]:
+    def check(name: str) -> str:
+        if name in reserved:
+            raise ValueError(f"'{name}' is the name of a file the run writes {what}; "
+                             "rename it")
+        return name
+
+    return check
+
+
+CaseName = Annotated[SafeName, AfterValidator(_not_in(RUN_FILES, "into the output folder"))]
+RunName = Annotated[SafeName, AfterValidator(_not_in(CASE_FILES, "into each case's folder"))]
+
+
+#: The most cases a scenario holds, and the most runs (cases × controllers): each case
+#: draws its figures and each run logs its trajectory and joins the page; more is a
+#: campaign, for cpbc.reliability, or several scenarios.
+MAX_CASES = 500
+MAX_RUNS = 1000
 
 
 class Strict(BaseModel):
@@ -111,7 +141,7 @@ class SimulationSpec(Strict):
 
 
 class CaseSpec(Strict):
-    name: SafeName
+    name: CaseName
     position: Vector
     velocity: Vector | None = None
 
@@ -313,25 +343,25 @@ class GainsSpec(Strict):
 
 class PDSpec(GainsSpec):
     type: Literal["pd", "pd_gravity"]
-    name: SafeName | None = None
+    name: RunName | None = None
 
 
 class CPBCSpec(GainsSpec):
     type: Literal["cpbc", "cpbc_ke"]
-    name: SafeName | None = None
+    name: RunName | None = None
     shaping: ShapingSpec | None = None
     constraints: list[str] | None = None  # names of scenario constraints; all when omitted
 
 
 class RecentredSpec(GainsSpec):
     type: Literal["recentred"]
-    name: SafeName | None = None
+    name: RunName | None = None
     constraints: list[str] | None = None
 
 
 class BPBCSpec(GainsSpec):
     type: Literal["bpbc", "bpbc_ke"]
-    name: SafeName | None = None
+    name: RunName | None = None
     xi: Gain = 1.0
     gamma: Gain = 1.0
     shaping: ShapingSpec | None = None
@@ -342,7 +372,7 @@ class CBFQPSpec(GainsSpec):
     """The CBF-QP peer (cpbc.peers.cbf_qp): PD + gravity filtered by a QP."""
 
     type: Literal["cbf_qp"]
-    name: SafeName | None = None
+    name: RunName | None = None
     gain: Positive = 20.0  # k of the exponential CBFs on configuration constraints [1/s]
     rate_gain: Positive | None = None  # γ of the first-order rows [1/s]; 1/(2h) when omitted
     constraints: list[str] | None = None
@@ -361,7 +391,7 @@ class Scenario(Strict):
     robot: RobotSpec = RobotSpec()
     simulation: SimulationSpec
     target: Vector
-    cases: Annotated[list[CaseSpec], Field(min_length=1)]
+    cases: Annotated[list[CaseSpec], Field(min_length=1, max_length=MAX_CASES)]
     obstacles: list[ObstacleSpec] = []
     constraints: list[ConstraintSpec] = []
     controllers: Annotated[list[ControllerSpec], Field(min_length=1)]
@@ -387,7 +417,7 @@ class SuspensionLawSpec(Strict):
     """The law (3.88); ``barrier: false`` is the same law with ½k3 z1² in place of the log
     barrier (no travel guarantee), the unconstrained comparison."""
 
-    name: SafeName
+    name: RunName
     barrier: StrictBool = True
     gains: SuspensionGainsSpec = SuspensionGainsSpec()
 
@@ -415,7 +445,7 @@ class WheelPendulumGainsSpec(Strict):
 
 
 class WheelPendulumLawSpec(Strict):
-    name: SafeName
+    name: RunName
     gains: WheelPendulumGainsSpec = WheelPendulumGainsSpec()
 
 
@@ -446,7 +476,7 @@ class ChainGainsSpec(Strict):
 
 
 class ChainLawSpec(Strict):
-    name: SafeName
+    name: RunName
     gains: ChainGainsSpec = ChainGainsSpec()
 
 
@@ -485,7 +515,7 @@ class TraditionalAltitudeLawSpec(Strict):
     """§5.3's traditional backstepping law: nothing bounds the climb rate."""
 
     type: Literal["traditional"]
-    name: SafeName
+    name: RunName
     gains: TraditionalAltitudeGainsSpec = TraditionalAltitudeGainsSpec()
 
 
@@ -493,7 +523,7 @@ class ConstrainedAltitudeLawSpec(Strict):
     """§5.4's law with the log barrier on the climb-rate error: |v_z| < k2 + c1."""
 
     type: Literal["constrained"]
-    name: SafeName
+    name: RunName
     gains: ConstrainedAltitudeGainsSpec = ConstrainedAltitudeGainsSpec()
 
 
@@ -546,7 +576,7 @@ class SystemCaseSpec(Strict):
     cases give the bump height A [m], the Aerosonde's the altitude commands (h_d is the
     start altitude until the first)."""
 
-    name: SafeName
+    name: CaseName
     state: Vector
     bump_height: NonNegative | None = None
     commands: list[AltitudeCommandSpec] | None = None
@@ -559,4 +589,4 @@ class SystemScenario(Strict):
     description: str = ""
     system: SystemSpec
     simulation: SystemSimulationSpec
-    cases: Annotated[list[SystemCaseSpec], Field(min_length=1)]
+    cases: Annotated[list[SystemCaseSpec], Field(min_length=1, max_length=MAX_CASES)]

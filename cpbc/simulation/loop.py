@@ -126,6 +126,7 @@ def run_mujoco(
     log = TrajectoryLog(n, steps + 1, settings.log_every, settings.max_log_samples)
     sample = _Sampler(controller, settings.noise, n)
     tau: Array | None = None
+    tau_q: Array = np.full(n, np.nan)  # the joint torque applied through the last interval
     outcome, violated, saturated, contacts = "completed", None, 0, 0
     report_every = max(1, steps // 50)
     start = _time.perf_counter()
@@ -148,7 +149,9 @@ def run_mujoco(
             tau, v = sample(x, dx, tau)
         except ConstraintViolation as exc:
             outcome, violated = "constraint_violated", exc.constraint
-            log.record(t, np.nan, x, dx, np.full(n, np.nan), np.full(n, np.nan), force=True)
+            # V is undefined outside S; the torque is the one held until this instant
+            held = np.full(n, np.nan) if tau is None else tau
+            log.record(t, np.nan, x, dx, held, tau_q, force=True)
             break
         if not math.isfinite(sum(tau.tolist())):
             outcome = "diverged"

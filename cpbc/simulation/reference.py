@@ -36,6 +36,7 @@ def run_reference(
     limit = settings.torque_limit
     calls = 0
     violation: list[str] = []
+    inside: list[Array] = []  # the last state at which the law was defined
 
     def applied(x: Array, dx: Array) -> tuple[Array, Array]:
         tau = controller.torque(x, dx)
@@ -56,6 +57,7 @@ def run_reference(
             # crossing ends the integration with a too-small step size.
             violation[:] = [exc.constraint]
             return np.full(2 * n, np.nan)
+        inside[:] = [y]
         return np.concatenate([dx, plant.forward_dynamics(x, dx, coords.torque_from_joint(tau_q))])
 
     steps = round(settings.duration / settings.control_period)
@@ -81,7 +83,9 @@ def run_reference(
     if sol.status == 0:
         outcome, violated = "completed", None
     elif violation:
-        outcome, violated = "constraint_violated", violation[0]
+        outcome = "constraint_violated"
+        violated = _crossed(controller, inside[0], n) if inside else None
+        violated = violated or violation[0]
     else:
         outcome, violated = "diverged", None
     if not np.all(np.isfinite(sol.y)):
@@ -91,3 +95,13 @@ def run_reference(
         sol.t.copy(), xs, dxs, taus, tau_qs, vs, outcome, end_time, violated, wall, calls, 0, 0,
         "reference",
     )
+
+
+def _crossed(controller: Controller, y: Array, n: int) -> str | None:
+    """The constraint the trajectory crossed: the nearest its boundary at the last state
+    inside S. (Not the one a rejected trial stage named: a stage after a rejected one is
+    computed from NaN, and a law names its first constraint there.)"""
+    margins = controller.constraints.margins(y[:n], y[n:])
+    if not margins.size:
+        return None
+    return controller.constraints.names[int(np.argmin(np.nan_to_num(margins, nan=np.inf)))]

@@ -75,7 +75,7 @@ def write_run_outputs(
     if pool is None:
         return [*draw(folder), write_view(load_run(folder), settings=settings)]
     jobs = [(case.name, name) for case in setup.cases for name in FIGURES]
-    types = len(set(types_of(setup.monitor)))
+    types = len(set(types_of(setup.monitor, setup.model.length_coordinates)))
     weights = [figure_weight(name, setup.model.n, types) for _, name in jobs]
     if figures_only:  # the warm figure helpers draw them all, half the work each
         halves = [pool.submit(draw, folder, part)
