@@ -339,3 +339,27 @@ def test_package_dirs_that_do_not_exist_are_an_error(tmp_path: Path) -> None:
     with pytest.raises(ModelError, match=r"package_dirs .*nope.* do not exist") as info:
         load_urdf(urdf, package_dirs=[tmp_path / "nope"])
     assert info.value.parameter == "package_dirs"
+
+
+@pytest.mark.parametrize(("name", "robot_joints"), [
+    ("tiago_arm", 48), ("tiago_pro_left", 33), ("pr2_left", 30), ("pr2_right", 30),
+    ("b1_z1", 19), ("anymal_kinova", 18)])
+def test_the_arm_of_a_larger_robot_drives_only_its_arm(name: str, robot_joints: int,
+                                                       rng: np.random.Generator) -> None:
+    """A named arm of a mobile manipulator or a legged robot drives the arm's joints alone:
+    every other joint of the robot (wheels, legs, torso, head, hand) is locked, at 0 moved
+    into its range, and the arm's dynamics agree in both engines."""
+    from cpbc.model.loading import ARMS
+
+    arm = load_arm(name)
+    entry = ARMS[name]
+    assert arm.joint_names == entry.driven
+    assert len(arm.locked_joints) == robot_joints - len(entry.driven)
+    full = pin.buildModelFromXML(arm.urdf_text)
+    for joint, value in arm.locked_joints.items():
+        idx = full.joints[full.getJointId(joint)].idx_q
+        lo, hi = full.lowerPositionLimit[idx], full.upperPositionLimit[idx]
+        assert value == (float(np.clip(0.0, lo, hi)) if lo <= hi else 0.0)
+    mj = arm.mujoco_model()
+    assert mj.nv == len(entry.driven)
+    _agreement(arm, mj, rng)

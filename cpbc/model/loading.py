@@ -54,12 +54,15 @@ class ArmEntry:
         summary: one line for listings.
         tip: the link at the tool centre point; the MuJoCo model gets a site ``end_point``
             there (the point the viewer traces).
+        driven: for the arm of a larger robot (a mobile manipulator, a quadruped carrying an
+            arm): the joints to drive; every other joint is locked (``load_urdf``).
     """
 
     urdf: str
     locked_joints: Mapping[str, float] = field(default_factory=dict)
     summary: str = ""
     tip: str | None = None
+    driven: tuple[str, ...] | None = None
 
 
 # Baxter is two 7-DOF arms on a fixed torso: each is an arm of its own, the rest locked.
@@ -126,6 +129,41 @@ ARMS: dict[str, ArmEntry] = {
         "baxter_description/urdf/baxter.urdf", {**_BAXTER_OTHERS, **_BAXTER_LEFT},
         "Rethink Baxter's right arm, 7 DOF (head, left arm and grippers locked)",
         "right_gripper",
+    ),
+    # The arms of mobile manipulators and legged robots, the rest of the robot locked
+    # (base fixed to the world, legs, wheels, torso, head and hand held at 0 or the nearest
+    # end of their range).
+    "tiago_arm": ArmEntry(
+        "tiago_description/robots/tiago.urdf", {}, "PAL TIAGo's arm, 7 DOF (the rest locked)",
+        "arm_tool_link", tuple(f"arm_{i}_joint" for i in range(1, 8)),
+    ),
+    "tiago_pro_left": ArmEntry(
+        "tiago_pro_description/robots/tiago_pro.urdf", {},
+        "PAL TIAGo Pro's left arm, 7 DOF (the rest locked)", "arm_left_tool_link",
+        tuple(f"arm_left_{i}_joint" for i in range(1, 8)),
+    ),
+    "pr2_left": ArmEntry(
+        "pr2_description/urdf/pr2.urdf", {}, "Willow Garage PR2's left arm, 7 DOF "
+        "(the rest locked)", "l_gripper_tool_frame",
+        tuple(f"l_{j}_joint" for j in ("shoulder_pan", "shoulder_lift", "upper_arm_roll",
+                                        "elbow_flex", "forearm_roll", "wrist_flex",
+                                        "wrist_roll")),
+    ),
+    "pr2_right": ArmEntry(
+        "pr2_description/urdf/pr2.urdf", {}, "Willow Garage PR2's right arm, 7 DOF "
+        "(the rest locked)", "r_gripper_tool_frame",
+        tuple(f"r_{j}_joint" for j in ("shoulder_pan", "shoulder_lift", "upper_arm_roll",
+                                        "elbow_flex", "forearm_roll", "wrist_flex",
+                                        "wrist_roll")),
+    ),
+    "b1_z1": ArmEntry(
+        "b1_description/urdf/b1-z1.urdf", {}, "Unitree Z1 on a B1 quadruped, 6 DOF "
+        "(legs and gripper locked)", "gripperStator", tuple(f"joint{i}" for i in range(1, 7)),
+    ),
+    "anymal_kinova": ArmEntry(
+        "anymal_b_simple_description/robots/anymal-kinova.urdf", {},
+        "Kinova arm on an ANYmal B, 6 DOF (legs locked)", "j2s6s200_end_effector",
+        tuple(f"j2s6s200_joint_{i}" for i in range(1, 7)),
     ),
 }
 
@@ -483,6 +521,7 @@ def load_urdf(
     locked_joints: Mapping[str, float] | None = None,
     name: str | None = None,
     package_dirs: Sequence[str | Path] = (),
+    driven: Sequence[str] | None = None,
 ) -> LoadedArm:
     """Load a fixed-base URDF arm into Pinocchio, ready for MuJoCo.
 
@@ -492,6 +531,8 @@ def load_urdf(
         name: label; the file's stem when omitted.
         package_dirs: extra folders to look up ``package://`` URIs in (besides
             ``ROS_PACKAGE_PATH``, example-robot-data and the URDF's parent folders).
+        driven: when given, the joints to drive: every other joint is locked too, at its
+            value in ``locked_joints`` or else at 0 moved into its range.
 
     Raises:
         ModelError: missing file or mesh, unknown or out-of-range locked joint, a joint type
@@ -507,12 +548,7 @@ def load_urdf(
         geoms = pin.buildGeomFromUrdfString(full, text, pin.GeometryType.COLLISION)
     except (RuntimeError, ValueError) as exc:
         raise ModelError(f"Pinocchio could not load {path}: {exc}") from None
-    locked = {k: float(v) for k, v in (locked_joints or {}).items()}
-    joints = list(full.names[1:])
-    unknown = [j for j in locked if j not in joints]
-    if unknown:
-        raise ModelError(f"locked joints {unknown} are not in {path.name}; its joints: {joints}",
-                         "locked_joints")
+    locked = _locked(full, locked_joints or {}, driven, path)
     for joint_name in continuous:  # unbounded: no stop in MuJoCo, ±inf in Pinocchio
         idx = full.joints[full.getJointId(joint_name)].idx_q
         full.lowerPositionLimit[idx], full.upperPositionLimit[idx] = -np.inf, np.inf
@@ -559,6 +595,36 @@ def load_urdf(
     )
 
 
+def _locked(full: pin.Model, given: Mapping[str, float], driven: Sequence[str] | None,
+            path: Path) -> dict[str, float]:
+    """The joints to lock, with their values: those given and, with ``driven``, every other
+    joint but the driven ones (:func:`_all_but`)."""
+    locked = {k: float(v) for k, v in given.items()}
+    if driven is not None:
+        locked = {**_all_but(full, driven, path), **locked}
+    joints = list(full.names[1:])
+    unknown = [j for j in locked if j not in joints]
+    if unknown:
+        raise ModelError(f"locked joints {unknown} are not in {path.name}; its joints: {joints}",
+                         "locked_joints")
+    return locked
+
+
+def _all_but(full: pin.Model, driven: Sequence[str], path: Path) -> dict[str, float]:
+    """Every joint of ``full`` but the ``driven`` ones, each at 0 moved into its range."""
+    missing = [j for j in driven if j not in full.names]
+    if missing:
+        raise ModelError(f"driven joints {missing} are not in {path.name}", "driven")
+    out = {}
+    for jid in range(1, full.njoints):
+        if full.names[jid] in driven or full.joints[jid].nq != 1:
+            continue
+        idx = full.joints[jid].idx_q
+        lo, hi = full.lowerPositionLimit[idx], full.upperPositionLimit[idx]
+        out[full.names[jid]] = float(np.clip(0.0, lo, hi)) if lo <= hi else 0.0
+    return out
+
+
 def load_arm(
     name_or_path: str | Path,
     locked_joints: Mapping[str, float] | None = None,
@@ -572,7 +638,8 @@ def load_arm(
     if isinstance(name_or_path, str) and name_or_path in ARMS:
         entry = ARMS[name_or_path]
         locked = {**entry.locked_joints, **(locked_joints or {})}
-        arm = load_urdf(arm_urdf(name_or_path), locked, name_or_path, package_dirs)
+        arm = load_urdf(arm_urdf(name_or_path), locked, name_or_path, package_dirs,
+                        entry.driven)
         arm.tip = entry.tip
         return arm
     path = Path(name_or_path)
