@@ -16,7 +16,9 @@ A driven link whose merged inertia MuJoCo still refuses (a massless "virtual" li
 joints, a principal moment of zero) cannot be reproduced exactly; :func:`regularise_inertias`
 raises the offending principal moments (and a zero mass) by the least amount MuJoCo accepts,
 in the Pinocchio model itself, so both engines keep the same dynamics and the change is
-reported.
+reported. It does so only where the change is negligible (:data:`MAX_RAISE`): an inertia
+that needs more, such as A + B < C by a share of C (romeo_small's shoulder), is an error in
+the model file, and loading it is refused naming the joint.
 """
 
 from __future__ import annotations
@@ -25,9 +27,13 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from cpbc.errors import ModelError
+
 MIN_MASS = 1e-6  # kg: the mass given to a massless driven link
 MIN_MOMENT = 1e-9  # kg·m²: the least principal moment of a driven link
 _TRIANGLE_SLACK = 1e-12  # kg·m²: A + B ≥ C is checked with this margin
+#: kg·m²: the most a principal moment may be raised (a gram at 3 cm); beyond, a model error
+MAX_RAISE = 1e-6
 
 
 def _moments(inertia: pin.Inertia) -> tuple[np.ndarray, np.ndarray]:
@@ -65,9 +71,18 @@ def regularise_inertias(model: pin.Model) -> tuple[str, ...]:
     the names of the joints changed."""
     changed = []
     for jid in range(1, model.njoints):
-        if not mujoco_accepts(model.inertias[jid]):
-            model.inertias[jid] = regularised(model.inertias[jid])
-            changed.append(str(model.names[jid]))
+        inertia = model.inertias[jid]
+        if mujoco_accepts(inertia):
+            continue
+        fixed = regularised(inertia)
+        before, after = _moments(inertia)[0], _moments(fixed)[0]
+        if np.max(after - before) > MAX_RAISE:
+            raise ModelError(
+                f"the link of joint '{model.names[jid]}' has an unphysical inertia (principal "
+                f"moments {np.array2string(before, precision=4)} kg·m² break A + B ≥ C, and "
+                f"MuJoCo refuses it): correct its <inertial> in the URDF")
+        model.inertias[jid] = fixed
+        changed.append(str(model.names[jid]))
     return tuple(changed)
 
 
