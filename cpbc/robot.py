@@ -45,6 +45,7 @@ class RobotDescription:
         locked: joints frozen by default, with their values.
         continuous: joints driven as unbounded revolute joints.
         pin_model: Pinocchio model of the driven joints (for the inertia of the gains).
+        regularised: joints whose link inertia was raised to the least MuJoCo accepts.
     """
 
     model: str
@@ -55,6 +56,7 @@ class RobotDescription:
     locked: dict[str, float] = field(default_factory=dict)
     continuous: tuple[str, ...] = ()
     pin_model: pin.Model | None = field(default=None, compare=False, repr=False)
+    regularised: tuple[str, ...] = ()
 
 
 def _frames(model: pin.Model) -> tuple[str, ...]:
@@ -71,7 +73,8 @@ def _describe_urdf(name_or_path: str) -> RobotDescription:
     limits = JointLimits(arm.joint_names, arm.position_lower, arm.position_upper,
                          arm.velocity_limit, arm.effort_limit)
     return RobotDescription(model, summary, limits, _frames(arm.model), covered,
-                            dict(arm.locked_joints), arm.continuous_joints, arm.model)
+                            dict(arm.locked_joints), arm.continuous_joints, arm.model,
+                            arm.regularised)
 
 
 def _describe_mjcf(path: Path, model_name: str) -> RobotDescription:
@@ -229,6 +232,11 @@ def report(d: RobotDescription) -> str:
         lines.append(f"  {name:<{width}}  {rng:>20}  {_number(lim.velocity[i]):>8}  "
                      f"{_number(lim.effort[i]):>8}{tag}")
     lines += gravity_at_target(d)
+    if d.regularised:
+        lines += textwrap.wrap(
+            "inertia raised to the least MuJoCo accepts (by at most 1e-6 kg·m², in both "
+            "engines) on the links of: " + ", ".join(d.regularised), 96,
+            subsequent_indent="  ")
     if d.locked:
         lines.append("locked by default: " + ", ".join(f"{k} = {v:g}" for k, v in
                                                        d.locked.items()))

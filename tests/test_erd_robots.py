@@ -151,3 +151,12 @@ def test_a_robot_whose_inertia_is_unphysical_is_a_clear_error() -> None:
     code, out, err = _cli(main, str(ROBOTS / "romeo_description/urdf/romeo_small.urdf"))
     assert code == 2 and out == ""
     assert "RShoulderYaw" in err and "unphysical inertia" in err and "Traceback" not in err
+
+
+@pytest.mark.skipif(SHARE is None, reason="example-robot-data is not installed")
+def test_the_robot_print_names_the_links_whose_inertia_was_raised() -> None:
+    """human.urdf's virtual links are massless: their inertia is raised to the least MuJoCo
+    accepts, and the description says so."""
+    code, out, _ = _cli(main, str(ROBOTS / "human_description/robots/human.urdf"))
+    assert code == 0
+    assert "# inertia raised to the least MuJoCo accepts" in out and "left_hip_Z" in out
