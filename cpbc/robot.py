@@ -23,8 +23,9 @@ import pinocchio as pin
 import yaml
 
 from cpbc.errors import CpbcError, ModelError
+from cpbc.model.arms import ARMS
 from cpbc.model.gravity_load import BRAKING_DECELERATION, holdable_near, joint_loads
-from cpbc.model.loading import ARMS, load_arm
+from cpbc.model.loading import load_arm
 from cpbc.model.robot_model import RobotModel
 from cpbc.resources import builtin_models
 from cpbc.scenario.gains import physical_gains, spectral_radius

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from cpbc import run
-from cpbc.model.loading import example_robot_data_share
+from cpbc.model.arms import example_robot_data_share
 from cpbc.robot import describe, main
 
 SHARE = example_robot_data_share()

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import yaml
 
-from cpbc.model.loading import available_arms
+from cpbc.model.arms import available_arms
 from cpbc.robot import describe, main, scenario_for
 from cpbc.scenario import Scenario, build, load_scenario
 from cpbc.scenario.runner import run_one
@@ -106,7 +106,7 @@ def test_robot_cli_bad_names_exit_2(arg: str, words: str) -> None:
 
 
 def test_a_urdf_saved_as_xml_is_read_as_urdf(tmp_path: Path) -> None:
-    from cpbc.model.loading import arm_urdf
+    from cpbc.model.arms import arm_urdf
 
     path = tmp_path / "ur5.xml"
     path.write_text(arm_urdf("ur5").read_text())

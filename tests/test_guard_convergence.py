@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cpbc.model.loading import available_arms
+from cpbc.model.arms import available_arms
 from cpbc.robot import describe, scenario_for
 from cpbc.scenario import Scenario, build, load_scenario
 from cpbc.scenario.build import ScenarioSetup

@@ -11,15 +11,9 @@ import pinocchio as pin
 import pytest
 
 from cpbc.errors import ModelError
-from cpbc.model.loading import (
-    ARMS,
-    LoadedArm,
-    arm_urdf,
-    available_arms,
-    load_arm,
-    load_urdf,
-    resolve_mesh_uri,
-)
+from cpbc.model.arms import ARMS, arm_urdf, available_arms
+from cpbc.model.loading import LoadedArm, load_arm, load_urdf
+from cpbc.model.urdf_text import resolve_mesh_uri
 
 
 @cache
@@ -349,7 +343,7 @@ def test_the_arm_of_a_larger_robot_drives_only_its_arm(name: str, robot_joints: 
     """A named arm of a mobile manipulator or a legged robot drives the arm's joints alone:
     every other joint of the robot (wheels, legs, torso, head, hand) is locked, at 0 moved
     into its range, and the arm's dynamics agree in both engines."""
-    from cpbc.model.loading import ARMS
+    from cpbc.model.arms import ARMS
 
     arm = load_arm(name)
     entry = ARMS[name]

@@ -31,9 +31,10 @@ from cpbc.controllers.safeguard import SafeguardSettings, guarded
 from cpbc.controllers.shaping import Shaping
 from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
 from cpbc.model import LinearCoordinates, RobotModel
+from cpbc.model.arms import ARMS
 from cpbc.model.bounds import ModelBounds, estimate_bounds
 from cpbc.model.gravity_load import GravityLoad
-from cpbc.model.loading import ARMS, LoadedArm, finish_mujoco_model
+from cpbc.model.loading import LoadedArm, finish_mujoco_model
 from cpbc.resources import builtin_models
 from cpbc.results.metrics import SettleCriteria
 from cpbc.scenario import robots

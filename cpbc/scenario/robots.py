@@ -25,7 +25,8 @@ from cpbc.constraints.geometry import (
     SphereObstacle,
 )
 from cpbc.errors import CpbcError, ScenarioError
-from cpbc.model.loading import ARMS, LoadedArm, load_arm, load_urdf
+from cpbc.model.arms import ARMS
+from cpbc.model.loading import LoadedArm, load_arm, load_urdf
 from cpbc.model.robot_model import RobotModel
 from cpbc.scenario import schema as s
 

@@ -82,7 +82,7 @@ class PlantMismatchSpec(Strict):
 
 class RobotSpec(Strict):
     """The arm. ``model`` is a built-in name (see cpbc.resources), an example-robot-data arm
-    (``panda``, ``ur5``, … see cpbc.model.loading.ARMS) or a path to an MJCF (.xml) or URDF
+    (``panda``, ``ur5``, … see cpbc.model.arms.ARMS) or a path to an MJCF (.xml) or URDF
     (.urdf) file, relative to the scenario file. ``coordinates`` are the controller's:
     ``joint`` (the model's own), ``absolute`` (absolute link angles θ = T q of a planar chain)
     or a matrix T. ``viscous_friction`` is F_d (diagonal, joint coordinates) in the plant and
