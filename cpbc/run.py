@@ -23,7 +23,14 @@ from rich.table import Table
 
 from cpbc.constraints.clearance import Clearance
 from cpbc.errors import CpbcError
-from cpbc.results import staged_output, write_summaries, write_trajectory
+from cpbc.results import (
+    LOG_FILE,
+    ArmLabels,
+    log_file,
+    staged_output,
+    write_summaries,
+    write_trajectory,
+)
 from cpbc.results.drawing import figure_helper
 from cpbc.results.margin_types import types_of
 from cpbc.results.metrics import RunSummary
@@ -244,6 +251,19 @@ def _simulate(setup: ScenarioSetup, backend: str | None, progress: RunProgress |
     return run_shared(setup, pool.get, workers - 1, backend, progress)
 
 
+def write_logs(folder: Path, setup: ScenarioSetup, results: Sequence[RunResult]) -> None:
+    """Every run's signals into the run folder's trajectories.h5."""
+    model = setup.model
+    labels = ArmLabels(
+        setup.coordinate_names, tuple(bool(v) for v in model.length_coordinates),
+        model.joint_names, tuple(bool(v) for v in model.length_joints),
+        setup.monitor.names, types_of(setup.monitor, model.length_coordinates))
+    with log_file(folder / LOG_FILE, setup.scenario.name) as log:
+        for r in results:
+            write_trajectory(log, r.case, r.controller, r.trajectory, r.margins, r.lyapunov,
+                             setup.target, labels, r.summary.as_dict())
+
+
 def _warn(setup: ScenarioSetup, err: Console) -> None:
     """One line per case whose path to the target leaves a motor no room to brake over
     gravity (cpbc.scenario.preflight)."""
@@ -291,14 +311,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     progress = _progress(bar, len(setup.cases) * len(setup.controllers))
                     results = (live.run(setup, args.backend, progress) if live else
                                _simulate(setup, args.backend, progress, pool, workers))
-            margin_types = types_of(setup.monitor, setup.model.length_coordinates)
-            for r in results:
-                folder = scratch / r.case / r.controller
-                folder.mkdir(parents=True, exist_ok=True)
-                write_trajectory(
-                    folder / "trajectory.npz", r.trajectory, r.margins, setup.monitor.names,
-                    r.lyapunov, setup.target, setup.coordinate_names, margin_types,
-                )
+            write_logs(scratch, setup, results)
             write_summaries(scratch, [r.summary for r in results])
             spawned = pool.started if pool else None
             # the page's modules (meshcat) load while the helpers draw

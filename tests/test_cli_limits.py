@@ -19,6 +19,7 @@ import yaml
 from rich.console import Console
 from rich.progress import Progress
 
+from cpbc.results import LOG_FILE, load_log
 from cpbc.run import _progress, main
 from tools.reliability.bad_input import BASE
 
@@ -115,7 +116,7 @@ def test_names_near_the_run_files_still_run(
     out = tmp_path / "out"
     assert main([str(scenario), "--out", str(out), "--quiet", "--no-plots",
                  "--workers", "1"]) == 0
-    assert (out / "view" / "positions" / "trajectory.npz").is_file()
+    assert load_log(out / LOG_FILE, "view", "positions")["time"].size
 
 
 def _timed_refusal(capsys: pytest.CaptureFixture[str], scenario: Path, *named: str,

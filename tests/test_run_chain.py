@@ -10,7 +10,7 @@ import yaml
 from test_run_system import run, shipped
 
 from cpbc.resources import scenarios_dir
-from cpbc.results import load_npz
+from cpbc.results import LOG_FILE, load_log
 from cpbc.run import main
 
 
@@ -47,7 +47,7 @@ def test_fig4_2_ramps_at_half_the_velocity_bound(chain) -> None:
     """ξ2 holds a plateau at z1* + c1π/2 = 1 + 0.25 (the barrier step's equilibrium as
     V' → −k1), half of Ξ2 = 2.5: the thesis's 'near optimal velocity' is 50 %."""
     out, _ = chain
-    z = load_npz(out / "fig4.2" / "barrier" / "trajectory.npz")
+    z = load_log(out / LOG_FILE, "fig4.2", "barrier")
     t, xi = z["time"], z["state"]
     ramp = xi[(t > 20) & (t < 40), 1]
     assert 1.22 < ramp.min() and ramp.max() < 1.25

@@ -1,6 +1,6 @@
 """The command line: ``python -m cpbc.run SCENARIO``. A good scenario writes summary.json,
-summary.csv and one trajectory.npz per (case, controller); bad input exits with code 2, a
-message naming the field and no traceback, and leaves nothing behind."""
+summary.csv and trajectories.h5 (a group per case and controller); bad input exits with code
+2, a message naming the field and no traceback, and leaves nothing behind."""
 
 from __future__ import annotations
 
@@ -12,12 +12,13 @@ import subprocess
 import sys
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 import yaml
 
 from cpbc.resources import scenarios_dir
-from cpbc.results import load_npz, write_summaries
+from cpbc.results import LOG_FILE, load_log, write_summaries
 from cpbc.run import main
 from cpbc.scenario import build
 from cpbc.scenario.load import load_scenario
@@ -71,11 +72,10 @@ def test_good_scenario_exits_zero_and_writes_results(ch7_run):
     assert (out / "summary.csv").is_file()
     cases = [c["name"] for c in data["cases"]]
     controllers = [c["name"] for c in data["controllers"]]
-    for case in cases:
-        for ctrl in controllers:
-            assert (out / case / ctrl / "trajectory.npz").is_file()
-    npz = sorted(p.relative_to(out) for p in out.rglob("*.npz"))
-    assert len(npz) == len(cases) * len(controllers)
+    with h5py.File(out / LOG_FILE, "r") as log:  # one group per case, one per run in it
+        assert list(log) == cases
+        assert all(list(log[case]) == controllers for case in cases)
+    assert not list(out.rglob("*.npz"))
     # nothing else was left next to the output (the scratch folder was moved into place)
     assert sorted(p.name for p in out.parent.iterdir()) == ["ch7_short.yaml", "out"]
 
@@ -124,7 +124,7 @@ def test_summary_agrees_with_the_trajectories(ch7_run):
     bounds = np.array(data["constraints"][0]["bounds"], dtype=float)
     coordinates = np.array([[1.0, 0.0], [1.0, 1.0]])  # absolute link angles θ = T q
     for r in json.loads((out / "summary.json").read_text()):
-        npz = load_npz(out / r["case"] / r["controller"] / "trajectory.npz")
+        npz = load_log(out / LOG_FILE, r["case"], r["controller"])
         vel, pos, tau = npz["velocity"], npz["position"], npz["torque"]
         applied_q = npz["joint_torque"]
         margins, names = npz["margins"], list(npz["margin_names"])
@@ -333,8 +333,9 @@ def test_a_rerun_keeps_the_files_the_user_added(tmp_path, capsys):
     first = tiny(tmp_path, cases=[{"name": "first", "position": [0, 0]}])
     assert main([str(first), "--out", str(out), "--quiet", "--no-plots"]) == 0
     written = (out / ".cpbc-files").read_text().splitlines()
-    assert "summary.json" in written and "first/PD/trajectory.npz" in written
+    assert "summary.json" in written and LOG_FILE in written
     (out / "notes.md").write_text("mine")
+    (out / "first").mkdir()  # (a run without figures writes no case folder)
     (out / "first" / "sketch.txt").write_text("also mine")
     second = tiny(tmp_path, cases=[{"name": "second", "position": [0.1, 0]}])
     assert main([str(second), "--out", str(out), "--quiet", "--no-plots"]) == 0
@@ -342,7 +343,8 @@ def test_a_rerun_keeps_the_files_the_user_added(tmp_path, capsys):
     assert (out / "first" / "sketch.txt").read_text() == "also mine"
     # the earlier run's own files are gone, the new run's are in place
     assert not (out / "first" / "PD").exists()
-    assert (out / "second" / "PD" / "trajectory.npz").is_file()
+    with h5py.File(out / LOG_FILE, "r") as log:
+        assert list(log) == ["second"]
     assert [r["case"] for r in json.loads((out / "summary.json").read_text())] == ["second"]
     assert "notes.md" not in (out / ".cpbc-files").read_text()
 
@@ -351,14 +353,15 @@ def test_a_rerun_that_would_overwrite_a_user_file_is_refused(tmp_path, capsys):
     out = tmp_path / "out"
     first = tiny(tmp_path, cases=[{"name": "first", "position": [0, 0]}])
     assert main([str(first), "--out", str(out), "--quiet", "--no-plots"]) == 0
-    mine = out / "second" / "PD" / "trajectory.npz"
-    mine.parent.mkdir(parents=True)
+    mine = out / LOG_FILE  # a file of the user's, where the next run writes (not listed)
     mine.write_text("my own file where the next run writes")
+    listed = (out / ".cpbc-files").read_text().splitlines()
+    (out / ".cpbc-files").write_text("".join(f"{p}\n" for p in listed if p != LOG_FILE))
     before = sorted(p.relative_to(out) for p in out.rglob("*"))
     second = tiny(tmp_path, cases=[{"name": "second", "position": [0.1, 0]}])
     assert main([str(second), "--out", str(out), "--quiet", "--no-plots"]) == 2
     err = " ".join(capsys.readouterr().err.split())  # as one line, however it was wrapped
-    assert "second/PD/trajectory.npz" in err and "was not written by cpbc" in err
+    assert LOG_FILE in err and "was not written by cpbc" in err
     assert "choose another --out" in err
     assert mine.read_text() == "my own file where the next run writes"
     assert sorted(p.relative_to(out) for p in out.rglob("*")) == before
@@ -398,7 +401,7 @@ def test_table_reports_margins_by_type_in_their_units(tmp_path, capsys):
     assert {w["type"]: w["unit"] for w in run["worst_margins"]} == {
         "position": "rad", "rate": "rad/s", "energy": "J"}
     # starting at rest at x = 0: 3 rad from the position limits, the whole energy budget
-    npz = load_npz(tmp_path / "out" / "rest" / "CPBC" / "trajectory.npz")
+    npz = load_log(tmp_path / "out" / LOG_FILE, "rest", "CPBC")
     m, names = npz["margins"], list(npz["margin_names"])
     assert m[0, names.index("position[joint1]")] == pytest.approx(3.0)
     assert m[0, names.index("ke")] == pytest.approx(5.0)

@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from cpbc.resources import scenarios_dir
-from cpbc.results import load_npz
+from cpbc.results import LOG_FILE, load_log
 from cpbc.run import main
 
 
@@ -53,7 +53,7 @@ def test_suspension_barrier_keeps_the_travel_and_the_comparison_does_not(suspens
         assert e["bounds"] == {"x3": 0.1}
         assert 0.05 < e["peaks"]["x3"] < 0.1, e["peaks"]  # the bump does load it
         assert e["status"] != "constraint_violated"
-        assert (folder / "mujoco" / case / "barrier" / "trajectory.npz").is_file()
+        assert load_log(folder / "mujoco" / LOG_FILE, case, "barrier")["time"].size
         assert (folder / "mujoco" / case / "timeseries.png").stat().st_size > 10_000
     worse = mj["fig3.6", "unconstrained"]
     assert worse["status"] == "constraint_violated" and worse["violated"] == "x3"
@@ -72,7 +72,7 @@ def test_suspension_mujoco_agrees_with_the_reference(suspension) -> None:
 
 def test_suspension_trajectory_file(suspension) -> None:
     folder, _, _ = suspension
-    z = load_npz(folder / "mujoco" / "fig3.6" / "barrier" / "trajectory.npz")
+    z = load_log(folder / "mujoco" / LOG_FILE, "fig3.6", "barrier")
     assert list(z["state_names"]) == ["x1", "x2", "x3", "x4"]
     assert z["state"].shape == (1501, 4) and z["input"].shape == (1501,)
     assert np.abs(z["state"][:, 2]).max() < 0.1

@@ -10,8 +10,9 @@ import pytest
 import yaml
 
 from cpbc.resources import scenarios_dir
-from cpbc.results import write_summaries, write_trajectory
+from cpbc.results import write_summaries
 from cpbc.robot import describe, scenario_for
+from cpbc.run import write_logs
 from cpbc.scenario import Scenario, build, load_scenario
 from cpbc.scenario.build import ScenarioSetup
 from cpbc.scenario.load import load_any
@@ -88,11 +89,8 @@ def test_a_shared_pool_runs_and_then_draws_the_figures(tmp_path: Path) -> None:
         pooled = run_all(setup, pool=pool)
         for label, use in (("pool", pool), ("serial", None)):
             folder = folders[label] = tmp_path / label
-            for r in pooled:
-                (folder / r.case / r.controller).mkdir(parents=True)
-                write_trajectory(folder / r.case / r.controller / "trajectory.npz",
-                                 r.trajectory, r.margins, setup.monitor.names, r.lyapunov,
-                                 setup.target, setup.coordinate_names)
+            folder.mkdir()
+            write_logs(folder, setup, pooled)
             write_summaries(folder, [r.summary for r in pooled])
             write_run_outputs(folder, setup, pool=use)
     for a, b in zip(serial, pooled, strict=True):

@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from cpbc.resources import models_dir, scenarios_dir
-from cpbc.results import load_npz
+from cpbc.results import LOG_FILE, load_log
 from cpbc.run import main
 from cpbc.viewer.browser import HeadlessChromium, find_chromium
 from cpbc.viewer.page_data import unpacked
@@ -57,7 +57,7 @@ def test_quarter_car_page_moves_the_body_by_the_logged_travel(car: Path) -> None
     assert {"unsprung", "sprung"} <= set(bodies)
     run = case["controllers"][0]
     pose = unpacked(run["pose"]).reshape(run["frames"], len(bodies), 7)
-    z = load_npz(car / "fig3.6" / "barrier" / "trajectory.npz")
+    z = load_log(car / LOG_FILE, "fig3.6", "barrier")
     time, state = z["time"], z["state"]
     frames = np.arange(run["frames"]) / data["fps"]
     sprung, unsprung = bodies.index("sprung"), bodies.index("unsprung")

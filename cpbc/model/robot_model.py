@@ -119,11 +119,17 @@ class RobotModel:
         self._lower = np.tril_indices(self.n, -1)
 
     @property
+    def length_joints(self) -> Array:
+        """Which joints are prismatic (their coordinate a length [m], their torque a force
+        [N]), in the order of :attr:`joint_names`."""
+        return np.array([_is_prismatic(j.shortname()) for j in self.model.joints[1:]],
+                        dtype=bool)
+
+    @property
     def length_coordinates(self) -> Array:
         """Which controller coordinates are lengths [m], not angles [rad]: those whose row of
         T involves prismatic joints only."""
-        prismatic = np.array([_is_prismatic(j.shortname()) for j in self.model.joints[1:]],
-                             dtype=bool)
+        prismatic = self.length_joints
         used = np.abs(self.coordinates.matrix) > 0
         return np.array([bool(np.any(u)) and bool(np.all(prismatic[u])) for u in used])
 

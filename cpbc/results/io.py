@@ -1,4 +1,5 @@
-"""Files of a scenario run: trajectory.npz per run, summary.csv and summary.json per scenario."""
+"""Files of a scenario run: summary.csv and summary.json, and the staging of the run folder
+(the logs: cpbc.results.hdf5_log)."""
 
 from __future__ import annotations
 
@@ -12,14 +13,9 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-import numpy as np
-
-from cpbc.constraints.base import Array
 from cpbc.errors import CpbcError
 from cpbc.results.metrics import RunSummary
-from cpbc.results.packed import Stored, write_npz
 from cpbc.results.saved_run import FIGURES
-from cpbc.simulation.trajectory import Trajectory
 
 CSV_COLUMNS = (
     "controller", "controller_type", "case", "backend", "status", "end_time", "final_error",
@@ -34,47 +30,8 @@ CSV_COLUMNS = (
 MANIFEST = ".cpbc-files"
 #: What earlier versions wrote (folders without a manifest), as glob patterns.
 _LEGACY = ("summary.json", "summary.csv", "scene.mjb", "scene.mjb.gz", "scene.json", "view.html",
-           "*/view.html", "*/*/trajectory.npz",
+           "*/view.html", "*/*/trajectory.npz", "trajectories.h5",
            *(f"*/{name}.png" for name in FIGURES))
-
-
-def write_trajectory(
-    path: Path,
-    traj: Trajectory,
-    margins: Array,
-    margin_names: Sequence[str],
-    lyapunov: Array,
-    target: Array,
-    coordinate_names: Sequence[str],
-    margin_types: Sequence[str] = (),
-) -> None:
-    """All logged signals of one run, in one .npz (read it with cpbc.results.load_npz).
-
-    Compact: the signals are stored in single precision (time and the target stay double),
-    delta-coded losslessly (cpbc.results.packed). Single precision keeps 7 significant digits,
-    far below what a figure or a comparison between runs can show; the summary's numbers
-    are computed from the double-precision log before it is written, and equal the file's
-    peaks rounded to single precision.
-    """
-    arrays: dict[str, Stored] = {
-        "time": traj.time,
-        "position": _single(traj.position),
-        "velocity": _single(traj.velocity),
-        "torque": _single(traj.torque),
-        "joint_torque": _single(traj.joint_torque),
-        "margins": _single(margins),
-        "margin_names": np.array(list(margin_names), dtype=str),
-        "margin_types": np.array(list(margin_types), dtype=str),
-        "lyapunov": _single(lyapunov),
-        "target": target,
-        "coordinate_names": np.array(list(coordinate_names), dtype=str),
-        "outcome": np.array(traj.outcome),
-    }
-    write_npz(path, arrays)
-
-
-def _single(a: Array) -> Array:
-    return np.asarray(a, dtype=np.float32)
 
 
 def _csv_row(s: RunSummary) -> dict[str, object]:

@@ -1,14 +1,16 @@
 """A run folder read back: the scene it was simulated in and every trajectory it logged.
 
-``python -m cpbc.run`` writes, next to ``summary.json`` and the ``<case>/<controller>/``
-folders of ``trajectory.npz`` files, the scene the runs happened in:
+``python -m cpbc.run`` writes, next to ``summary.json`` and ``trajectories.h5`` (every run's
+log, cpbc.results.hdf5_log), the scene the runs happened in:
 
 * ``scene.mjb.gz``: the compiled MuJoCo model with the scenario's obstacles (binary MJB,
   gzipped — meshes halve —, so a replay needs no model or mesh files; it loads with the same
   MuJoCo version; folders of earlier versions hold it as a plain ``scene.mjb``);
 * ``scene.json``: the controller's coordinates ``x = T q`` and the frame whose path is traced.
 
-The figures and the viewer read a run only through :func:`load_run`.
+The figures and the viewer read a run only through :func:`load_run`. Folders of earlier
+versions, a ``<case>/<controller>/trajectory.npz`` per run instead of ``trajectories.h5``,
+still load.
 """
 
 from __future__ import annotations
@@ -17,21 +19,23 @@ import gzip
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TypedDict
+from typing import Any, TypedDict
 
+import h5py
 import mujoco
 import numpy as np
 
 from cpbc.constraints.base import Array
 from cpbc.errors import CpbcError
-from cpbc.results.packed import load_npz
+from cpbc.results.delta_planes import load_earlier_log
+from cpbc.results.hdf5_log import LOG_FILE, read_run
 from cpbc.results.sweep import SceneKinematics
 
 SCENE_MODEL = "scene.mjb.gz"
 PLAIN_SCENE_MODEL = "scene.mjb"  # what earlier versions wrote
 SCENE_INFO = "scene.json"
 SUMMARY = "summary.json"
-TRAJECTORY = "trajectory.npz"
+EARLIER_TRAJECTORY = "trajectory.npz"  # a run's log in folders of earlier versions
 #: The figures of each case, ``<case>/<name>.png`` (cpbc.results.plots draws them).
 FIGURES = ("positions", "rates", "torques", "lyapunov", "margins", "path")
 
@@ -189,8 +193,7 @@ def write_scene(folder: Path, model: mujoco.MjModel, info: SceneInfo) -> None:
     (folder / SCENE_INFO).write_text(info.to_json())
 
 
-def _trajectory(path: Path, summary: SummaryEntry, coordinates: Array) -> SavedTrajectory:
-    d = load_npz(path)
+def _trajectory(d: dict[str, Any], summary: SummaryEntry, coordinates: Array) -> SavedTrajectory:
     names = tuple(str(s) for s in d["margin_names"])
     # runs written before margins had types: every margin of an unknown type
     types = (tuple(str(s) for s in d["margin_types"]) if "margin_types" in d
@@ -213,6 +216,25 @@ def _trajectory(path: Path, summary: SummaryEntry, coordinates: Array) -> SavedT
         outcome=str(d["outcome"]),
         summary=summary,
     )
+
+
+def _logs(folder: Path, summaries: list[SummaryEntry]) -> list[dict[str, Any]]:
+    """Every run's log, in the order of summary.json: from trajectories.h5, or from the
+    trajectory.npz files of a folder an earlier version wrote."""
+    names = [(str(s["case"]), str(s["controller"])) for s in summaries]
+    if not (folder / LOG_FILE).is_file():
+        paths = [folder / case / ctrl / EARLIER_TRAJECTORY for case, ctrl in names]
+        for path in paths:
+            if not path.is_file():
+                raise CpbcError(f"run folder '{folder}' lacks {LOG_FILE}")
+        return [load_earlier_log(p) for p in paths]
+    try:
+        with h5py.File(folder / LOG_FILE, "r") as f:
+            return [read_run(f, case, ctrl) for case, ctrl in names]
+    except KeyError as exc:
+        raise CpbcError(f"{folder / LOG_FILE} lacks a run of summary.json ({exc})") from None
+    except OSError as exc:
+        raise CpbcError(f"cannot read {folder / LOG_FILE}: {exc}") from None
 
 
 def _is_system_run(folder: Path) -> bool:
@@ -253,10 +275,7 @@ def load_run(folder: Path | str) -> SavedRun:
     info = SceneInfo.from_json((folder / SCENE_INFO).read_text())
     summaries = json.loads((folder / SUMMARY).read_text())
     by_case: dict[str, list[SavedTrajectory]] = {}
-    for s in summaries:
-        path = folder / str(s["case"]) / str(s["controller"]) / TRAJECTORY
-        if not path.is_file():
-            raise CpbcError(f"run folder '{folder}' lacks {path.relative_to(folder)}")
-        by_case.setdefault(str(s["case"]), []).append(_trajectory(path, s, info.coordinates))
+    for s, log in zip(summaries, _logs(folder, summaries), strict=True):
+        by_case.setdefault(str(s["case"]), []).append(_trajectory(log, s, info.coordinates))
     cases = tuple(SavedCase(name, tuple(runs)) for name, runs in by_case.items())
     return SavedRun(folder, model, info, cases)

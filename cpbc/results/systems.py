@@ -1,6 +1,6 @@
 """Results of a Part I system run: the summary (peaks and bounds of every constrained
-quantity, convergence on the components the system names), the trajectory file and the
-figures in the thesis's style (time plots per case, the phase portrait).
+quantity, convergence on the components the system names) and the figures in the thesis's
+style (time plots per case, the phase portrait). The logs: cpbc.results.hdf5_log.
 
 matplotlib is imported only with the Agg canvas and no pyplot state, as in plots.py.
 """
@@ -18,7 +18,6 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from cpbc.arrays import Array
-from cpbc.results.packed import Stored, write_npz
 from cpbc.results.palette import BOUND_COLOUR, controller_colour
 from cpbc.simulation.system_loop import SystemTrajectory
 from cpbc.systems.plant import ConstrainedQuantity
@@ -151,21 +150,6 @@ def summarise_system(
     return SystemSummary(case, controller, traj.backend, status, traj.end_time, violated,
                          first if crossed else None, settle, peaks, bounds, peak_abs, final,
                          dict(view.design_bounds), traj.wall_time, tuple(reached))
-
-
-def write_system_trajectory(path: Path, traj: SystemTrajectory, state_names: Sequence[str],
-                            input_name: str) -> None:
-    """time, state, input, names and outcome in one .npz (cpbc.results.packed). The state
-    and input are stored in single precision, as an arm's signals (cpbc.results.io); the
-    summary is computed from the double-precision log before."""
-    arrays: dict[str, Stored] = {
-        "time": traj.time,
-        "state": np.asarray(traj.state, dtype=np.float32),
-        "input": np.asarray(traj.input, dtype=np.float32),
-        "state_names": np.array(list(state_names), dtype=str),
-        "input_name": np.array(input_name), "outcome": np.array(traj.outcome),
-    }
-    write_npz(path, arrays)
 
 
 def write_system_summaries(folder: Path, summaries: Sequence[SystemSummary]) -> None:

@@ -7,13 +7,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from cpbc.errors import ScenarioError
+from cpbc.results.hdf5_log import LOG_FILE, log_file, write_system_trajectory
 from cpbc.results.systems import (
     SystemSummary,
     plot_case,
     plot_path,
     summarise_system,
     write_system_summaries,
-    write_system_trajectory,
 )
 from cpbc.scenario.systems import SystemCase, SystemLaw, SystemSetup, check_backend
 from cpbc.simulation.system_loop import (
@@ -70,17 +70,17 @@ def run_system_all(setup: SystemSetup, backend: str | None = None,
 
 def write_system_outputs(folder: Path, setup: SystemSetup, results: list[SystemResult],
                          plots: bool = True) -> None:
-    """<case>/<law>/trajectory.npz, summary.json, and <case>/timeseries.png."""
-    for r in results:
-        run = folder / r.case / r.law
-        run.mkdir(parents=True, exist_ok=True)
-        write_system_trajectory(run / "trajectory.npz", r.trajectory, setup.state_names,
-                                setup.input_name)
+    """trajectories.h5 (every run's log), summary.json, and <case>/timeseries.png."""
+    with log_file(folder / LOG_FILE, setup.scenario.name) as log:
+        for r in results:
+            write_system_trajectory(log, r.case, r.law, r.trajectory, setup.state_names,
+                                    setup.input_name, r.summary.as_dict())
     write_system_summaries(folder, [r.summary for r in results])
     if not plots:
         return
     for case in setup.cases:
         runs = [(r.law, r.trajectory) for r in results if r.case == case.name]
+        (folder / case.name).mkdir(exist_ok=True)
         plot_case(folder / case.name / "timeseries.png", case.name, runs, setup.view)
         if setup.view.path is not None:
             plot_path(folder / case.name / "path.png", case.name, runs, setup.view)

@@ -12,7 +12,7 @@
 
 Arrays travel deflated, as ``{"deflated": base64}`` (:func:`packed`): meshcat's command bytes
 as they are, float32 arrays with a ``stride`` as the byte planes of their successive
-differences (cpbc.results.packed), which deflate several times smaller than the floats
+differences (cpbc.results.delta_planes), which deflate several times smaller than the floats
 themselves. The page inflates them with the browser's DecompressionStream (view.js).
 """
 
@@ -27,8 +27,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cpbc.constraints.base import Array
+from cpbc.results.delta_planes import decode, encode
 from cpbc.results.margin_types import grouped, nearest_columns
-from cpbc.results.packed import decode, encode
 from cpbc.results.palette import BOUND_COLOUR, OBSTACLE_COLOUR, WARNING_COLOUR
 from cpbc.results.saved_run import SavedCase, SavedRun, SavedTrajectory, SummaryEntry
 from cpbc.results.thinning import Index, envelope
