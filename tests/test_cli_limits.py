@@ -224,4 +224,4 @@ def test_run_folder_mode_follows_the_umask(tmp_path: Path) -> None:
     finally:
         os.umask(old)
     assert out.stat().st_mode & 0o777 == 0o755
-    assert (out / "rest").stat().st_mode & 0o777 == 0o755
+    assert (out / "trajectories.h5").stat().st_mode & 0o777 == 0o644

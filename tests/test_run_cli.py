@@ -184,7 +184,7 @@ def test_a_second_run_replaces_the_previous_output(tmp_path):
     assert main([str(second), "--out", str(out), "--quiet"]) == 0
     assert sorted(p.name for p in out.iterdir()) == [
         ".cpbc-files", "scene.json", "scene.mjb.gz", "second", "summary.csv", "summary.json",
-        "view.html",
+        "trajectories.h5", "view.html",
     ]
     assert [r["case"] for r in json.loads((out / "summary.json").read_text())] == ["second"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "tiny.yaml"]
