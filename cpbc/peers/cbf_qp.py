@@ -15,8 +15,10 @@ largest first-order gain a held period tolerates), and a cushion on rate rows th
 the period: c(h) = 2e-3 · (h / 1 ms)^1.7 rad/s, through the two cushions a practitioner
 calibrates at 1 kHz (2e-3, the drift's change over 1 ms) and 100 Hz (0.1). The box is kept
 hard. **Infeasible steps** (the box and the rows cannot all hold) are counted
-(``infeasible``) and solved again with one free slack per row, weighted 1e6 against the
-torque change (rows are scaled to unit norm, so the slack is in N·m): the box still holds.
+(``infeasible``) and solved again with one free slack per configuration row, weighted 1e6
+against the torque change (rows are scaled to unit norm, so the slack is in N·m), the rate
+rows and the box kept hard; only if that too fails does every row get a slack. A slack spread
+over every row would let a least-squares compromise spin a light wrist past its rate bound.
 
 ``variant: exponential`` is the earlier in-project filter: exponential CBFs with both poles at
 −k on the reported constraints (a clearance's per-link minimum), no cushion, and on an
@@ -33,6 +35,7 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
@@ -41,7 +44,7 @@ from cpbc.constraints.rate_limit import RateLimit
 from cpbc.controllers.base import Evaluation, SafetyFilter, positive_vector
 from cpbc.errors import CpbcError, ParameterError
 from cpbc.model.robot_model import ArmState, RobotModel
-from cpbc.peers.cbf_rows import Tuning, barrier_rows
+from cpbc.peers.cbf_rows import Rows, Tuning, barrier_rows
 
 EXTRA = "pip install 'cpbc[peers]'"
 
@@ -160,40 +163,45 @@ class CBFQP(SafetyFilter):
         r = barrier_rows(self.tuning, self.constraints, state)
         return r.a, r.lower, r.upper
 
-    def _bounded(self, a: Array, lower: Array, upper: Array, slack: bool
+    def _bounded(self, a: Array, lower: Array, upper: Array, slack: NDArray[np.bool_] | None
                  ) -> tuple[Array, Array, Array]:
         """The rows with the box first (DAQP's simple bounds when T = I), and with ``slack``
-        one free slack variable per barrier row (lower ≤ a τ + s ≤ upper)."""
-        n, m = self.model.n, len(lower)
-        if slack:
-            a = np.hstack([a, np.eye(m)])
+        (a mask of rows) one free slack variable per masked row: lower ≤ a τ + s ≤ upper."""
+        n = self.model.n
+        if slack is not None:
+            a = np.hstack([a, np.eye(len(lower))[:, slack]])
         if self.torque_limit is None:
             return a, lower, upper
         lim = self.torque_limit * (1 - 1e-9)  # the solver's tolerance inside the box
         lower, upper = np.concatenate([-lim, lower]), np.concatenate([lim, upper])
         if self._box_rows is not None:
-            box = self._box_rows if not slack else np.hstack([self._box_rows, np.zeros((n, m))])
-            a = np.vstack([box, a])
+            pad = np.zeros((n, a.shape[1] - n))
+            a = np.vstack([np.hstack([self._box_rows, pad]), a])
         return a, lower, upper
 
     def _qp(self, nominal: Array, a: Array, lower: Array, upper: Array, box: bool,
-            slack: bool = False) -> tuple[Array, int]:
+            slack: NDArray[np.bool_] | None = None) -> tuple[Array, int]:
         n = self.model.n
         if box:
             a, lower, upper = self._bounded(a, lower, upper, slack)
-        weights = np.ones(n) if not slack else np.concatenate(
-            [np.ones(n), np.full(a.shape[1] - n, SLACK_WEIGHT)])
+        weights = np.ones(a.shape[1])
+        weights[n:] = SLACK_WEIGHT
         linear = np.zeros(len(weights))
         linear[:n] = -nominal
         z, _, flag, _ = self._solve(np.diag(weights), linear, np.ascontiguousarray(a),
                                     upper, lower, np.zeros(len(upper), dtype=np.int32))
         return np.asarray(z)[:n], int(flag)
 
-    def _fallback(self, nominal: Array, a: Array, lower: Array, upper: Array) -> Array:
-        """An infeasible step: braking keeps the box and relaxes the rows; exponential drops
-        the box; τ_nom (clipped to the box) if even that fails."""
+    def _fallback(self, nominal: Array, rows: Rows) -> Array:
+        """An infeasible step: braking keeps the box and relaxes the configuration rows
+        (then every row, if the rate rows alone contradict the box); exponential drops the
+        box; τ_nom (clipped to a simple box) if even that fails."""
+        a, lower, upper = rows.a, rows.lower, rows.upper
         if self.variant == "braking":
-            tau, flag = self._qp(nominal, a, lower, upper, box=True, slack=True)
+            tau, flag = self._qp(nominal, a, lower, upper, box=True, slack=rows.soft)
+            if flag != 1:
+                everything = np.ones(len(lower), dtype=bool)
+                tau, flag = self._qp(nominal, a, lower, upper, box=True, slack=everything)
         else:
             tau, flag = self._qp(nominal, a, lower, upper, box=False)
         if flag == 1:
@@ -204,12 +212,12 @@ class CBFQP(SafetyFilter):
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         nominal = self.nominal(state)
-        a, lower, upper = self.rows(state)
-        tau, flag = self._qp(nominal, a, lower, upper, box=True)
+        rows = barrier_rows(self.tuning, self.constraints, state)
+        tau, flag = self._qp(nominal, rows.a, rows.lower, rows.upper, box=True)
         feasible = flag == 1
         if not feasible:  # counted as a step it acted on, of which it could not meet all
             self.infeasible += 1
-            tau = self._fallback(nominal, a, lower, upper)
+            tau = self._fallback(nominal, rows)
         if not feasible or np.max(np.abs(tau - nominal)) > 1e-9 * (1 + np.max(np.abs(nominal))):
             self.acted += 1
         err = state.x - self.target

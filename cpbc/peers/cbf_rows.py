@@ -30,6 +30,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from cpbc.arrays import Array
 from cpbc.constraints.base import ConfigurationConstraint
@@ -63,11 +64,13 @@ class Tuning:
 
 @dataclass(frozen=True)
 class Rows:
-    """lower ≤ a τ ≤ upper, a (m, n)."""
+    """lower ≤ a τ ≤ upper, a (m, n); ``soft`` marks the configuration rows (relative
+    degree two), the ones a slack relaxes first."""
 
     a: Array
     lower: Array
     upper: Array
+    soft: NDArray[np.bool_]
 
 
 def _configuration_rows(c: ConfigurationConstraint, x: Array, dx: Array, per_pair: bool
@@ -127,6 +130,7 @@ def barrier_rows(t: Tuning, constraints: ConstraintSet, state: ArmState) -> Rows
         a_rows.append(r)
         lower.append(_lower_bound(t, phi, grad @ dx, r, r @ b, curv))
         upper.append(np.full(len(phi), np.inf))
+    configuration = sum(len(r) for r in a_rows)
     g = t.rate_gain
     for v in constraints.velocity:
         if isinstance(v, RateLimit):
@@ -142,8 +146,9 @@ def barrier_rows(t: Tuning, constraints: ConstraintSet, state: ArmState) -> Rows
                                        + g * v.value(x, dx, state)))
     n = len(x)
     if not a_rows:
-        return Rows(np.zeros((0, n)), np.zeros(0), np.zeros(0))
+        return Rows(np.zeros((0, n)), np.zeros(0), np.zeros(0), np.zeros(0, dtype=bool))
     a = np.vstack(a_rows)
     scale = 1.0 / np.maximum(np.linalg.norm(a, axis=1), 1e-12)
+    soft = np.arange(len(a)) < configuration
     return Rows(a * scale[:, None], np.concatenate(lower) * scale,
-                np.concatenate(upper) * scale)
+                np.concatenate(upper) * scale, soft)
