@@ -60,3 +60,22 @@ def test_point_outside_sphere_curvature(tmp_path):
         x, dx = np.array(x), np.array(dx)
         np.testing.assert_allclose(c.curvature(x, dx), _second_difference(c.value, x, dx),
                                    rtol=1e-5, atol=1e-6)
+
+
+def test_panda_peer_keeps_one_row_per_near_sphere_pair(panda):
+    from cpbc.peers import CBFQP
+
+    law = next(e.controller for e in panda.controllers if isinstance(e.controller, CBFQP))
+    c = _clearance(panda)
+    from cpbc.reliability.verification import draw_state
+
+    x = draw_state(panda, 2).position  # near the table
+    dx = np.array([0.05, -0.04, 0.03, 0.06, -0.08, 0.02, 0.1])
+    phi, _, _, moving = c.sphere_pairs(x, dx)
+    near = int(np.sum(moving & (phi < c.influence)))
+    a, lower, upper = law.rows(law.state(x, dx))
+    assert near > 0 and len(a) == 7 + near + 7  # joint limits, sphere pairs, rate bounds
+    np.testing.assert_allclose(np.linalg.norm(a, axis=1), 1.0)
+    tau = law.evaluate_state(law.state(x, dx)).torque
+    assert np.all(a @ tau >= lower - 1e-7) and np.all(a @ tau <= upper + 1e-7)
+    assert np.all(np.abs(tau) <= law.torque_limit + 1e-9)
