@@ -212,17 +212,19 @@ def _margin(row: Record) -> str:
 
 def table(doc: Record) -> Table:
     t = Table(title=f"cpbc verify: {_shown(doc['plan']['scenario'])}")  # type: ignore[index]
-    for col in ("controller", "rate", "viable runs", "violations", "worst margin",
-                *(f"{k} (violated)" for k in CLASSES[1:]), "filter acted", "torque on a limit",
-                "failing seeds"):
+    for col in ("controller", "rate", "viable runs", "violations", "deeper than 1e-6",
+                "worst depth", "worst margin", *(f"{k} (violated)" for k in CLASSES[1:]),
+                "filter acted", "infeasible steps", "torque on a limit", "failing seeds"):
         t.add_column(col)
     for r in doc["results"]:  # type: ignore[attr-defined]
         nv = r["non_viable"]
         seeds = [str(f["seed"]) for f in r["failures"]]
         t.add_row(r["controller"], f"{r['rate']:g} Hz", str(r["runs"]),
-                  f"[red]{r['violations']}[/red]" if r["violations"] else "0", _margin(r),
+                  f"[red]{r['violations']}[/red]" if r["violations"] else "0",
+                  str(r["deep_violations"]), f"{r['worst_depth']:.2g}", _margin(r),
                   *(f"{nv[k]['runs']} ({nv[k]['violations']})" for k in CLASSES[1:]),
-                  f"{r['filter_share']:.1%}", f"{r['torque_limit_share']:.1%}",
+                  f"{r['filter_share']:.1%}", str(r["infeasible_steps"]),
+                  f"{r['torque_limit_share']:.1%}",
                   ",".join(seeds[:8]) + ("…" if len(seeds) > 8 else ""))
     return t
 
@@ -261,16 +263,19 @@ def _section(doc: Record) -> list[str]:
              f"torque limits {_limits(where.get('torque_limit'))}; safeguard "
              f"{'on' if where.get('safeguard', True) else 'off'}{_also(where)}; mismatch "
              f"{plan['mismatch'] or 'none'}, noise {plan['noise'] or 'none'}.", "",
-             "| controller | rate | viable runs | violations | worst margin | "
-             + " | ".join(CLASSES[1:]) + " | filter acted | torque on a limit | failing seeds |",
-             "|---" * (8 + len(CLASSES) - 1) + "|"]
+             "| controller | rate | viable runs | violations | deeper than 1e-6 | worst depth | "
+             "worst margin | " + " | ".join(CLASSES[1:])
+             + " | filter acted | infeasible steps | torque on a limit | failing seeds |",
+             "|---" * (11 + len(CLASSES) - 1) + "|"]
     for r in doc["results"]:  # type: ignore[attr-defined]
         nv = r["non_viable"]
         lines.append(
             f"| {r['controller']} | {r['rate']:g} Hz | {r['runs']} | {r['violations']} | "
+            f"{r['deep_violations']} | {r['worst_depth']:.2g} | "
             f"{_cell(_margin(r))} | " + " | ".join(f"{nv[k]['runs']} ({nv[k]['violations']})"
                                              for k in CLASSES[1:])
-            + f" | {r['filter_share']:.1%} | {r['torque_limit_share']:.1%} | "
+            + f" | {r['filter_share']:.1%} | {r['infeasible_steps']} | "
+            f"{r['torque_limit_share']:.1%} | "
             + f"{', '.join(str(f['seed']) for f in r['failures'])} |")
     return lines
 
@@ -289,9 +294,15 @@ def markdown(docs: Sequence[Record], command: str = "", seconds: float | None = 
              "defect), *lost* (fails the stopping test: no torque in the box stops it in "
              "time), *outside_v* (the guard's uniform brake cannot stop it), *too_close* "
              "(nearer a configuration boundary than a quarter period of its speed). "
-             "Non-viable runs are counted apart, as runs (violated). *Filter acted*: the "
-             "share of control steps at which the safeguard (or a peer's filter) changed "
-             "the law's torque; *torque on a limit*: the share of steps with a joint torque "
+             "Non-viable runs are counted apart, as runs (violated). One rule for every "
+             "controller: *violations* are viable runs with a margin ≤ 0 at some physics "
+             "step, *deeper than 1e-6* those whose smallest margin fell below −1e-6 in the "
+             "constraint's own units (rad², m, rad/s: the rest are crossings of rounding "
+             "size), *worst depth* the largest such depth (0 when none crossed). *Filter "
+             "acted*: the share of control steps (all runs) at which the safeguard (or a "
+             "peer's filter) changed the nominal torque; *infeasible steps*: steps at which "
+             "it could not meet every row within the box (the guard's fallback, the peer's "
+             "slack); *torque on a limit*: the share of steps with a joint torque "
              "on its actuator limit. A violation is judged on the true state at every "
              "physics step, for every constraint the controller keeps: the law's own and, "
              "with the safeguard, the scenario's monitored constraints it keeps besides "

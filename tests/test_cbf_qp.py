@@ -101,6 +101,8 @@ def test_scenario_runs_both_side_by_side(tmp_path):
 @pytest.mark.parametrize(("key", "value", "field"), [
     ("gain", -1, "controllers.1.cbf_qp.gain"),
     ("rate_gain", 0, "controllers.1.cbf_qp.rate_gain"),
+    ("braking_share", 1.5, "controllers.1.cbf_qp.braking_share"),
+    ("variant", "linear", "controllers.1.cbf_qp.variant"),
     ("constraints", ["nope"], "controllers[1].constraints"),
 ])
 def test_bad_parameters_name_their_field(tmp_path, key, value, field):
@@ -134,17 +136,38 @@ def test_the_library_never_imports_a_qp_solver():
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
 
 
-def test_infeasible_step_is_counted_and_answered_without_the_box(tmp_path):
+def _closing_on_the_limit(tmp_path, variant: str):
     spec = copy.deepcopy(ARM)
     spec["simulation"]["torque_limit"] = 0.01  # no room to stop in
+    spec["controllers"][1]["variant"] = variant
     law = _peer(_setup(spec, tmp_path))
     rel = 17 * np.pi / 18 - 0.01  # near the relative-angle limit, closing on it
     state = law.state(np.array([0.0, rel]), np.array([-0.1, 0.15]))
-    tau = law.evaluate_state(state).torque
+    return law, state, law.evaluate_state(state).torque
+
+
+def test_exponential_variant_answers_an_infeasible_step_without_the_box(tmp_path):
+    law, state, tau = _closing_on_the_limit(tmp_path, "exponential")
     assert law.infeasible == 1 and law.acted == 1
     a, lower, upper = law.rows(state)
     assert np.all(a @ tau >= lower - 1e-7) and np.all(a @ tau <= upper + 1e-7)
     assert np.max(np.abs(law.model.coordinates.matrix.T @ tau)) > 0.01  # the actuators clip it
+
+
+def test_braking_variant_keeps_the_box_hard_and_counts_the_slack_step(tmp_path):
+    law, _, tau = _closing_on_the_limit(tmp_path, "braking")
+    assert law.infeasible == 1 and law.acted == 1
+    joint = np.abs(law.model.coordinates.matrix.T @ tau)
+    assert np.max(joint) <= 0.01 + 1e-9
+    assert np.max(joint) > 0.01 * (1 - 1e-6)  # it brakes as hard as the box lets it
+
+
+def test_cushion_and_rate_gain_follow_the_period(tmp_path):
+    law = _peer(_setup(ARM, tmp_path))
+    assert law.tuning.rate_cushion == pytest.approx(2e-3)
+    slow = law.at_period(1e-2)
+    assert slow.rate_gain == pytest.approx(50.0)
+    assert 0.08 < slow.tuning.rate_cushion < 0.12
 
 
 def test_shipped_panda_comparison_settles_within_a_tenth_of_the_qp(tmp_path):

@@ -144,3 +144,17 @@ def test_a_clearance_pairs_bar_does_not_split_a_report_cell():
     from cpbc.verify import _cell
 
     assert _cell("0.01 (clearance[panda_hand|ball])") == "0.01 (clearance[panda_hand\\|ball])"
+
+
+def test_one_rule_counts_runs_at_or_below_zero_and_deeper_than_the_tolerance():
+    def record(seed, margin, acted, infeasible=0):
+        return {"controller": "QP", "type": "cbf_qp", "rate": 1000.0, "seed": seed,
+                "class": "viable", "violated": margin <= 0, "min_margin": margin,
+                "constraint": "c", "end_time": 0.5, "outcome": "", "position": [0.0],
+                "velocity": [0.0], "control_steps": 10, "acted": acted,
+                "infeasible": infeasible, "at_limit": 0}
+    records = [record(0, 0.1, 2), record(1, -3e-13, 5), record(2, -2e-3, 10, 4)]
+    row = summarise(TINY, records)["results"][0]
+    assert (row["runs"], row["violations"], row["deep_violations"]) == (3, 2, 1)
+    assert row["worst_depth"] == pytest.approx(2e-3) and row["tolerance"] == 1e-6
+    assert row["filter_share"] == pytest.approx(17 / 30) and row["infeasible_steps"] == 4

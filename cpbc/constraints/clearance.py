@@ -30,6 +30,7 @@ from cpbc.constraints.geometry import (
     segment_point,
     segment_segment,
 )
+from cpbc.constraints.pair_motion import point_motion, rounded_box_curvature
 from cpbc.errors import CpbcError, ParameterError
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -454,6 +455,7 @@ class Clearance(ConfigurationConstraint):
         self._zero = np.zeros(self._n)
         self._zero.setflags(write=False)
         self._along: dict[int, tuple[Array, Array, _Index]] = {}  # see values_along
+        self._motion_data = self._pin.createData()  # second order, apart from the state's
 
     # -- set-up ------------------------------------------------------------------------------
     def _setup_kinematics(self) -> None:
@@ -869,6 +871,70 @@ class Clearance(ConfigurationConstraint):
 
     def gradient(self, x: Array) -> Array:
         return self.evaluate(x)[1]
+
+    # -- second order (cpbc.constraints.pair_motion) ----------------------------------------
+    @property
+    def sphere_count(self) -> int:
+        """How many reported constraints are sphere primitives' (they come first)."""
+        return 0 if self._spheres is None else self._spheres.stop
+
+    def sphere_pairs(self, x: Array, dx: Array
+                     ) -> tuple[Array, Array, Array, NDArray[np.bool_]]:
+        """Every sphere pair on its own (not the per-link minimum): its clearance φ_p (P,),
+        gradient ∇φ_p (P, n), curvature ẋᵀ∇²φ_p ẋ (P,) and whether it can move (P,) bool.
+
+        Each pair is smooth where the minimum over a link's spheres is not: a filter that
+        wants C¹ rows keeps one row per pair. Empty without sphere primitives.
+        """
+        s = self._spheres
+        if s is None:
+            n = self._n
+            return np.zeros(0), np.zeros((0, n)), np.zeros(0), np.zeros(0, dtype=bool)
+        q, dq = self._q(x), self._q(dx)
+        y = self._regressor(q)
+        phi, grad = self._pair_gradients(q, y)
+        if not self._identity:
+            grad = grad @ self._t_inv
+        return phi, grad, self._pair_curvature(q, dq, y), s.moving > 0.0
+
+    def _pair_curvature(self, q: Array, dq: Array, y: Array) -> Array:
+        """ẋᵀ∇²φ_p ẋ of every sphere pair (pair_motion, eqs. 1 and 2)."""
+        s = self._spheres
+        assert s is not None
+        data = self._motion_data
+        pin.computeJointJacobiansTimeVariation(self._pin, data, q, dq)
+        pin.computeJointJacobians(self._pin, data, q)
+        u = self._offsets(y)
+        centres = s.scratch[:3].T.copy()
+        vel, acc = point_motion(data.J, data.dJ, s.sphere_supports, dq, centres)
+        rot = s.pair_rot
+        first = s.pair_sphere
+        du = np.einsum("pba,pb->ap", rot, vel[first])
+        ddu = np.einsum("pba,pb->ap", rot, acc[first])
+        if len(s.pair_sphere2):
+            at, second = s.n_obstacle, s.pair_sphere2
+            du[:, at:] -= vel[second].T
+            ddu[:, at:] -= acc[second].T
+        return rounded_box_curvature(u, du, ddu, s.half)
+
+    def curvature(self, x: Array, dx: Array) -> Array:
+        """ẋᵀ∇²φ ẋ of each reported constraint: that of its closest sphere pair (as its
+        gradient is), and for capsule primitives a central difference of the gradient along
+        ẋ (step 1e-6 rad of motion; their closed forms are piecewise and not given here)."""
+        out = np.zeros(len(self.names))
+        s = self._spheres
+        if s is not None:
+            phi, _, curv, _ = self.sphere_pairs(x, dx)
+            bounds = [*s.starts.tolist(), len(phi)]
+            closest = [lo + int(np.argmin(phi[lo:hi])) for lo, hi in pairwise(bounds)]
+            out[s.start:s.stop] = curv[closest]
+        speed = float(np.linalg.norm(dx))
+        if self._groups and speed > 0.0:
+            t = 1e-6 / speed
+            diff = self.gradient(x + t * dx) - self.gradient(x - t * dx)
+            rest = slice(0 if s is None else s.stop, len(self.names))
+            out[rest] = (diff @ dx)[rest] / (2.0 * t)
+        return out
 
     def _shape(self, phi: Array) -> tuple[Array, Array]:
         """φ̃ and (dφ̃/dφ)/φ̃ of the class docstring (φ and 1/φ without an influence)."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 
 from cpbc.arrays import Array, ArrayLike
 from cpbc.constraints.base import ConfigurationConstraint
@@ -48,6 +49,7 @@ class PointOutsideSphere(ConfigurationConstraint):
         self._r2 = self.radius**2
         self.offset = None if offset is None else np.asarray(offset, dtype=float).reshape(3)
         self.names = (name or f"clearance[{frame}]",)
+        self._motion_data = model.model.createData()  # second order, apart from the state's
 
     def value(self, x: Array) -> Array:
         d = self.model.point_position(self.frame_id, x, self.offset) - self.centre
@@ -68,3 +70,21 @@ class PointOutsideSphere(ConfigurationConstraint):
         d = p - self.centre
         phi = np.array([float(d @ d) - self._r2])
         return phi, (d @ jac) * (2.0 / phi[0]), phi
+
+    def curvature(self, x: Array, dx: Array) -> Array:
+        """ẋᵀ∇²φ ẋ = 2‖ṗ‖² + 2 (p − c)·p̈₀, p̈₀ the point's acceleration at ẍ = 0: the frame
+        origin's classical acceleration plus α × r + ω × (ω × r) for the offset r."""
+        pm, data = self.model.model, self._motion_data
+        q, dq = self.model.joint_coordinates(x), self.model.joint_coordinates(dx)
+        pin.forwardKinematics(pm, data, q, dq, np.zeros_like(dq))
+        pin.updateFramePlacements(pm, data)
+        frame = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        vel = pin.getFrameVelocity(pm, data, self.frame_id, frame)
+        acc = pin.getFrameClassicalAcceleration(pm, data, self.frame_id, frame).linear
+        spin, placement = vel.angular, data.oMf[self.frame_id]
+        r = np.zeros(3) if self.offset is None else placement.rotation @ self.offset
+        p_dot = vel.linear + np.cross(spin, r)
+        spin_dot = pin.getFrameAcceleration(pm, data, self.frame_id, frame).angular
+        p_ddot = acc + np.cross(spin_dot, r) + np.cross(spin, np.cross(spin, r))
+        d = placement.translation + r - self.centre
+        return np.array([2.0 * float(p_dot @ p_dot) + 2.0 * float(d @ p_ddot)])

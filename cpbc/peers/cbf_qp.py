@@ -1,29 +1,28 @@
 """A torque-level CBF-QP safety filter around PD + gravity: the baseline users pick today.
 
-At each sample it solves, with DAQP (a dense active-set solver: the problem has n variables
-and one row per scalar constraint),
+At each sample it solves, with DAQP (a dense active-set solver),
 
     min_τ ½‖τ − τ_nom‖²,   τ_nom = g − K_P x̃ − K_D ẋ          (PD + gravity, eq. 6.10)
 
-subject to, with ẍ = D⁻¹(τ − b) and b = C ẋ + g + f (eq. 6.1):
+subject to one row per barrier (cpbc.peers.cbf_rows: the rows, their two variants and their
+equations) and the actuators' box |Tᵀτ| ≤ L when the scenario has torque limits.
 
-* every configuration constraint φ_i (the law's own objects: joint limits, clearances, …),
-  as an exponential CBF of relative degree two with both poles at −k:
-      φ̈_i + 2k φ̇_i + k² φ_i ≥ 0,   φ̈_i = ∇φ_i ẍ + ẋᵀ∇²φ_i ẋ
-  (the curvature where the constraint knows it, ConfigurationConstraint.curvature);
-* every rate bound |aᵀẋ| < B as two first-order rows, d/dt(B ∓ aᵀẋ) ≥ −γ (B ∓ aᵀẋ): one row on
-  the side a joint is heading is not enough under a zero-order hold (a held torque can throw
-  it past the opposite bound), so both sides are kept in one two-sided row;
-* a kinetic-energy limit ψ = Ω − ½ẋᵀDẋ, first order: ψ̇ = −ẋᵀ(τ − g − f) ≥ −γψ
-  (skew symmetry of Ḋ − 2C, Property 6.2);
-* the actuators' box |Tᵀτ| ≤ L when the scenario has torque limits.
+**Tuning, as its users would tune it** (``variant: braking``, the default): a braking-aware
+high-order CBF for every configuration constraint with the curvature term, one row per sphere
+pair within the clearance's influence distance (per-link minima switch spheres and are not
+smooth), k = 20 /s, β = 0.5 of the box's deceleration along each row, γ = 1/(2h) (half the
+largest first-order gain a held period tolerates), and a cushion on rate rows that grows with
+the period: c(h) = 2e-3 · (h / 1 ms)^1.7 rad/s, through the two cushions a practitioner
+calibrates at 1 kHz (2e-3, the drift's change over 1 ms) and 100 Hz (0.1). The box is kept
+hard. **Infeasible steps** (the box and the rows cannot all hold) are counted
+(``infeasible``) and solved again with one free slack per configuration row, weighted 1e6
+against the torque change (rows are scaled to unit norm, so the slack is in N·m), the rate
+rows and the box kept hard; only if that too fails does every row get a slack. A slack spread
+over every row would let a least-squares compromise spin a light wrist past its rate bound.
 
-γ defaults to 1/(2h), half the largest first-order gain a held period tolerates.
-
-**Infeasible steps** (the box and the barrier rows cannot all hold) are counted
-(``infeasible``): the filter then solves again without the box and returns that torque, which
-the actuators clip; when even the barrier rows contradict each other it returns τ_nom. This is
-what a practitioner's filter does with a soft box; nothing is hidden from the counts.
+``variant: exponential`` is the earlier in-project filter: exponential CBFs with both poles at
+−k on the reported constraints (a clearance's per-link minimum), no cushion, and on an
+infeasible step the box dropped (the actuators then clip).
 
 Only this module imports a QP solver, and only when a ``cbf_qp`` controller is built.
 """
@@ -32,17 +31,20 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.constraints.rate_limit import RateLimit
 from cpbc.controllers.base import Evaluation, SafetyFilter, positive_vector
-from cpbc.errors import ConstraintViolation, CpbcError, ParameterError
+from cpbc.errors import CpbcError, ParameterError
 from cpbc.model.robot_model import ArmState, RobotModel
+from cpbc.peers.cbf_rows import Rows, Tuning, barrier_rows
 
 EXTRA = "pip install 'cpbc[peers]'"
 
@@ -61,6 +63,15 @@ def _daqp() -> Callable[..., Any]:
     return daqp.solve
 
 
+VARIANTS = ("braking", "exponential")
+SLACK_WEIGHT = 1e6  # per unit row (N·m) of slack, against the torque change
+
+
+def default_cushion(period: float) -> float:
+    """c(h) = 2e-3 · (h / 1 ms)^1.7 [rad/s]: the module docstring's calibrated cushions."""
+    return 2e-3 * (period / 1e-3) ** 1.7
+
+
 class CBFQP(SafetyFilter):
     """The CBF-QP filter of the module docstring.
 
@@ -70,10 +81,13 @@ class CBFQP(SafetyFilter):
         constraints: the constraints to enforce — configuration constraints of any kind,
             rate limits and at most one kinetic-energy limit.
         kp, kd: gains of the PD + gravity nominal.
-        gain: k of the exponential CBFs [1/s].
+        gain: k [1/s] (cpbc.peers.cbf_rows).
         rate_gain: γ of the first-order rows [1/s]; 1/(2·period) when omitted.
         period: the control period h [s].
         torque_limit: L per joint (joint coordinates), or None for no box.
+        variant: ``braking`` (default) or ``exponential``.
+        braking_share: β, the share of the box's deceleration a braking row counts on.
+        rate_cushion: c on rate rows; default_cushion(period) when omitted (braking only).
     """
 
     type_name = "cbf_qp"
@@ -81,26 +95,53 @@ class CBFQP(SafetyFilter):
     def __init__(
         self, model: RobotModel, target: Array, constraints: ConstraintSet, kp: object,
         kd: object, gain: float = 20.0, rate_gain: float | None = None, period: float = 1e-3,
-        torque_limit: Array | float | None = None,
+        torque_limit: Array | float | None = None, variant: str = "braking",
+        braking_share: float = 0.5, rate_cushion: float | None = None,
     ) -> None:
         super().__init__(model, target, constraints)
         self.kp = positive_vector(kp, model.n, "kp")
         self.kd = positive_vector(kd, model.n, "kd")
-        self.gain = float(positive_vector(gain, 1, "gain")[0])
-        self._rate_given = rate_gain
-        rate = 0.5 / period if rate_gain is None else rate_gain
-        self.rate_gain = float(positive_vector(rate, 1, "rate_gain")[0])
+        if variant not in VARIANTS:
+            raise ParameterError("variant", f"one of {VARIANTS}, not {variant!r}")
+        if not 0 < braking_share <= 1:
+            raise ParameterError("braking_share", f"must be in (0, 1], got {braking_share}")
+        if rate_cushion is not None and not rate_cushion >= 0:
+            raise ParameterError("rate_cushion", f"must be ≥ 0, got {rate_cushion}")
         for v in constraints.velocity:
             if not isinstance(v, RateLimit | KineticEnergyLimit):
                 raise ParameterError("constraints", f"cbf_qp keeps rate and kinetic-energy "
                                      f"limits only, not {type(v).__name__} {v.names}")
-        self.torque_limit = None if torque_limit is None else np.broadcast_to(
+        self.variant = variant
+        self._given = (rate_gain, rate_cushion)
+        limit = None if torque_limit is None else np.broadcast_to(
             np.asarray(torque_limit, dtype=float), (model.n,))
+        self.torque_limit = limit
+        self.tuning = Tuning(variant, float(positive_vector(gain, 1, "gain")[0]), 0.0,
+                             float(braking_share), 0.0, limit)
+        self._set_period(period)
         coords = model.coordinates
         self._box_rows = None if coords.is_identity else np.ascontiguousarray(coords.matrix.T)
         self._solve = _daqp()
         self.acted = 0
         self.infeasible = 0
+
+    def _set_period(self, period: float) -> None:
+        rate_gain, cushion = self._given
+        rate = 0.5 / period if rate_gain is None else rate_gain
+        if self.variant == "exponential":
+            cushion = 0.0 if cushion is None else cushion
+        elif cushion is None:
+            cushion = default_cushion(period)
+        gamma = float(positive_vector(rate, 1, "rate_gain")[0])
+        self.tuning = replace(self.tuning, rate_gain=gamma, rate_cushion=float(cushion))
+
+    @property
+    def gain(self) -> float:
+        return self.tuning.gain
+
+    @property
+    def rate_gain(self) -> float:
+        return self.tuning.rate_gain
 
     def restarted(self) -> CBFQP:
         out = copy.copy(self)
@@ -108,10 +149,9 @@ class CBFQP(SafetyFilter):
         return out
 
     def at_period(self, period: float) -> CBFQP:
-        """The same filter at another control period (its default γ = 1/(2h) follows)."""
+        """The same filter at another control period (its default γ and cushion follow)."""
         out = self.restarted()
-        if self._rate_given is None:
-            out.rate_gain = float(positive_vector(0.5 / period, 1, "period")[0])
+        out._set_period(period)
         return out
 
     def nominal(self, state: ArmState) -> Array:
@@ -120,62 +160,64 @@ class CBFQP(SafetyFilter):
 
     def rows(self, state: ArmState) -> tuple[Array, Array, Array]:
         """The barrier rows: A (m, n), lower (m,), upper (m,) with lower ≤ A τ ≤ upper."""
-        x, dx = state.x, state.dx
-        inv = np.linalg.inv(state.inertia)
-        drift = inv.dot(state.coriolis_force + state.gravity + state.dissipation)  # ẍ at τ = 0
-        a_rows, lower, upper = [], [], []
-        k = self.gain
-        for c in self.constraints.configuration:
-            phi, grad = c.evaluate(x)
-            if not np.all(phi > 0):  # outside S, as the laws refuse it
-                i = int(np.argmin(np.where(np.isnan(phi), -np.inf, phi)))
-                raise ConstraintViolation(c.names[i], float(phi[i]))
-            need = grad.dot(drift) - c.curvature(x, dx) - 2 * k * grad.dot(dx) - k * k * phi
-            a_rows.append(grad.dot(inv))
-            lower.append(need)
-            upper.append(np.full(len(phi), np.inf))
-        g = self.rate_gain
-        for v in self.constraints.velocity:
-            if isinstance(v, RateLimit):
-                rate = v.rows.dot(dx)
-                base = v.rows.dot(drift)
-                a_rows.append(v.rows.dot(inv))
-                lower.append(base - g * (v.bounds + rate))
-                upper.append(base + g * (v.bounds - rate))
-            else:  # kinetic energy: ẋᵀτ ≤ ẋᵀ(g + f) + γψ
-                psi = v.value(x, dx, state)
-                a_rows.append(dx[None, :])
-                lower.append(np.array([-np.inf]))
-                upper.append(dx.dot(state.gravity + state.dissipation) + g * psi)
-        if not a_rows:
-            n = self.model.n
-            return np.zeros((0, n)), np.zeros(0), np.zeros(0)
-        return np.vstack(a_rows), np.concatenate(lower), np.concatenate(upper)
+        r = barrier_rows(self.tuning, self.constraints, state)
+        return r.a, r.lower, r.upper
 
-    def _qp(self, nominal: Array, a: Array, lower: Array, upper: Array, box: bool
-            ) -> tuple[Array, int]:
+    def _bounded(self, a: Array, lower: Array, upper: Array, slack: NDArray[np.bool_] | None
+                 ) -> tuple[Array, Array, Array]:
+        """The rows with the box first (DAQP's simple bounds when T = I), and with ``slack``
+        (a mask of rows) one free slack variable per masked row: lower ≤ a τ + s ≤ upper."""
         n = self.model.n
-        if box and self.torque_limit is not None:
-            lim = self.torque_limit * (1 - 1e-9)  # the solver's tolerance inside the box
-            if self._box_rows is None:  # simple bounds come first (DAQP's convention)
-                lower, upper = np.concatenate([-lim, lower]), np.concatenate([lim, upper])
-            else:
-                a = np.vstack([self._box_rows, a])
-                lower, upper = np.concatenate([-lim, lower]), np.concatenate([lim, upper])
-        tau, _, flag, _ = self._solve(np.eye(n), -nominal, np.ascontiguousarray(a),
-                                      upper, lower, np.zeros(len(upper), dtype=np.int32))
-        return np.asarray(tau), int(flag)
+        if slack is not None:
+            a = np.hstack([a, np.eye(len(lower))[:, slack]])
+        if self.torque_limit is None:
+            return a, lower, upper
+        lim = self.torque_limit * (1 - 1e-9)  # the solver's tolerance inside the box
+        lower, upper = np.concatenate([-lim, lower]), np.concatenate([lim, upper])
+        if self._box_rows is not None:
+            pad = np.zeros((n, a.shape[1] - n))
+            a = np.vstack([np.hstack([self._box_rows, pad]), a])
+        return a, lower, upper
+
+    def _qp(self, nominal: Array, a: Array, lower: Array, upper: Array, box: bool,
+            slack: NDArray[np.bool_] | None = None) -> tuple[Array, int]:
+        n = self.model.n
+        if box:
+            a, lower, upper = self._bounded(a, lower, upper, slack)
+        weights = np.ones(a.shape[1])
+        weights[n:] = SLACK_WEIGHT
+        linear = np.zeros(len(weights))
+        linear[:n] = -nominal
+        z, _, flag, _ = self._solve(np.diag(weights), linear, np.ascontiguousarray(a),
+                                    upper, lower, np.zeros(len(upper), dtype=np.int32))
+        return np.asarray(z)[:n], int(flag)
+
+    def _fallback(self, nominal: Array, rows: Rows) -> Array:
+        """An infeasible step: braking keeps the box and relaxes the configuration rows
+        (then every row, if the rate rows alone contradict the box); exponential drops the
+        box; τ_nom (clipped to a simple box) if even that fails."""
+        a, lower, upper = rows.a, rows.lower, rows.upper
+        if self.variant == "braking":
+            tau, flag = self._qp(nominal, a, lower, upper, box=True, slack=rows.soft)
+            if flag != 1:
+                everything = np.ones(len(lower), dtype=bool)
+                tau, flag = self._qp(nominal, a, lower, upper, box=True, slack=everything)
+        else:
+            tau, flag = self._qp(nominal, a, lower, upper, box=False)
+        if flag == 1:
+            return tau
+        if self.torque_limit is None or self._box_rows is not None:
+            return nominal
+        return np.clip(nominal, -self.torque_limit, self.torque_limit)
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         nominal = self.nominal(state)
-        a, lower, upper = self.rows(state)
-        tau, flag = self._qp(nominal, a, lower, upper, box=True)
+        rows = barrier_rows(self.tuning, self.constraints, state)
+        tau, flag = self._qp(nominal, rows.a, rows.lower, rows.upper, box=True)
         feasible = flag == 1
         if not feasible:  # counted as a step it acted on, of which it could not meet all
             self.infeasible += 1
-            tau, flag = self._qp(nominal, a, lower, upper, box=False)
-            if flag != 1:
-                tau = nominal
+            tau = self._fallback(nominal, rows)
         if not feasible or np.max(np.abs(tau - nominal)) > 1e-9 * (1 + np.max(np.abs(nominal))):
             self.acted += 1
         err = state.x - self.target

@@ -46,6 +46,7 @@ from cpbc.scenario.build import ControllerEntry
 from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
 
 CLASSES = ("viable", "lost", "outside_v", "too_close")
+TOLERANCE = 1e-6  # a run is "deep" when some margin fell below −TOLERANCE (its own units)
 Record = dict[str, object]
 
 
@@ -209,8 +210,10 @@ def _worst(rows: Sequence[Record]) -> tuple[float, str | None]:
 
 
 def summarise(plan: Plan, records: Iterable[Record]) -> Record:
-    """The campaign's document: per controller and rate the viable runs, their violations,
-    the worst margin, the seeds of each failure; non-viable runs per class, apart."""
+    """The campaign's document: per controller and rate the viable runs, their violations
+    (runs with a margin ≤ 0) and of those the runs deeper than TOLERANCE, the worst margin and
+    depth, the seeds of each failure, the share of steps the filter changed and its
+    infeasible steps; non-viable runs per class, apart."""
     rows = []
     order = sorted(_group(records).items(), key=lambda kv: (kv[0][0], -kv[0][1]))
     for (name, rate), group in order:
@@ -224,6 +227,9 @@ def summarise(plan: Plan, records: Iterable[Record]) -> Record:
         rows.append({
             "controller": name, "type": group[0]["type"], "rate": rate, "runs": len(ok),
             "violations": len(failures), "worst_margin": low, "worst_constraint": where,
+            "deep_violations": sum(float(f["min_margin"]) < -TOLERANCE  # type: ignore[arg-type]
+                                   for f in failures),
+            "worst_depth": max(0.0, -low), "tolerance": TOLERANCE,
             "failures": failures,
             "non_viable": {k: {"runs": sum(r["class"] == k for r in group),
                                "violations": sum(r["class"] == k and bool(r["violated"])

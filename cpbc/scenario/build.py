@@ -434,7 +434,8 @@ def _build_peer(
     cons = _controller_constraints(spec, model.n, constraints, field)
     try:
         return CBFQP(model, target, cons, gains.kp, gains.kd, spec.gain, spec.rate_gain,
-                     loop.control_period, loop.torque_limit)
+                     loop.control_period, loop.torque_limit, spec.variant,
+                     spec.braking_share, spec.rate_cushion)
     except PeerUnavailable as exc:
         raise ScenarioError(f"{field}.type", str(exc)) from None
     except CpbcError as exc:

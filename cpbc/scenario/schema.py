@@ -373,8 +373,11 @@ class CBFQPSpec(GainsSpec):
 
     type: Literal["cbf_qp"]
     name: RunName | None = None
-    gain: Positive = 20.0  # k of the exponential CBFs on configuration constraints [1/s]
+    variant: Literal["braking", "exponential"] = "braking"  # cpbc.peers.cbf_rows
+    gain: Positive = 20.0  # k [1/s]: α'(0) of the braking rows, or the exponential poles
     rate_gain: Positive | None = None  # γ of the first-order rows [1/s]; 1/(2h) when omitted
+    braking_share: float = Field(0.5, gt=0, le=1)  # β: share of the box's deceleration
+    rate_cushion: float | None = Field(None, ge=0)  # c on rate rows; 2e-3 (h/1 ms)^1.7
     constraints: list[str] | None = None
 
 
