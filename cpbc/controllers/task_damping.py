@@ -55,27 +55,28 @@ def _gain_matrix(value: object) -> Array:
 
 @dataclass(frozen=True)
 class TaskDamping:
-    """F = J_vᵀ D_x (J_v ẋ − ṗ_ff) + d_ω J_ωᵀ J_ω ẋ on the point ``offset`` of ``frame``
-    (module docstring; the angular term damps the frame's rotation, ẋᵀ of it is d_ω‖ω‖² ≥ 0).
+    """F = J_vᵀ D_x (J_v ẋ − ṗ_ff) + J_ωᵀ D_ω J_ω ẋ on the point ``offset`` of ``frame``
+    (module docstring; the angular term damps the frame's rotation, ẋᵀ of it is ωᵀD_ωω ≥ 0).
 
     Attributes:
         frame: the frame id.
         gain: D_x [N·s/m], symmetric positive semidefinite 3 × 3 (world axes).
         offset: the point in the frame's axes (None: the frame's origin) [m].
         feedforward: ṗ_ff [m/s], world axes; zero for a fixed goal.
-        angular: d_ω [N·m·s/rad] ≥ 0.
+        angular: D_ω [N·m·s/rad], symmetric positive semidefinite 3 × 3 (a number: d_ω I);
+            an axis goal damps only the rotation across its axis, (I − a aᵀ) d_ω, leaving
+            the free yaw to the posture spring and joint damping.
     """
 
     frame: int
     gain: Array
     offset: Array | None = None
     feedforward: Array = field(default_factory=lambda: ZERO3)
-    angular: float = 0.0
+    angular: Array | float = 0.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "gain", _gain_matrix(self.gain))
-        if not (np.isfinite(self.angular) and self.angular >= 0):
-            raise ParameterError("angular", f"angular damping must be ≥ 0, got {self.angular}")
+        object.__setattr__(self, "angular", _gain_matrix(self.angular))
         object.__setattr__(self, "feedforward", _vector3(self.feedforward, "feedforward"))
         if self.offset is not None:
             object.__setattr__(self, "offset", _vector3(self.offset, "offset"))
@@ -94,8 +95,8 @@ class TaskDamping:
         kin = frame_at(at, self.frame)
         _, jv = kin.point(self.offset)
         force = jv.T @ (self.gain @ (jv @ dx - self.feedforward))
-        if self.angular:
-            force = force + self.angular * (kin.angular.T @ (kin.angular @ dx))
+        if np.any(self.angular):
+            force = force + kin.angular.T @ (self.angular @ (kin.angular @ dx))
         return force
 
 

@@ -91,7 +91,7 @@ def task_gains(model: RobotModel, goal: FrameGoal, posture: Array, spec: TaskGai
 def linear_terms(goal: FrameGoal, gains: TaskGains, kin: FrameKinematics
                  ) -> tuple[Array, Array]:
     """The law's stiffness ∂²U/∂x² at zero task error and its damping matrix, (n, n) each:
-    J_vᵀK_pJ_v + k_R J_ωᵀP J_ω + K_n and J_vᵀD_xJ_v + d_ω J_ωᵀJ_ω + K_D, with P the identity
+    J_vᵀK_pJ_v + k_R J_ωᵀP J_ω + K_n and J_vᵀD_xJ_v + d_ω J_ωᵀP J_ω + K_D, with P the identity
     (full orientation) or the projector across the world axis (axis goal)."""
     jv, jw = kin.point(goal.offset)[1], kin.angular
     across = np.eye(3)
@@ -102,5 +102,5 @@ def linear_terms(goal: FrameGoal, gains: TaskGains, kin: FrameKinematics
     damping = jv.T @ gains.position_damping @ jv + np.diag(gains.joint_damping)
     if goal.rotation is not None:
         stiffness = stiffness + gains.rotation * (jw.T @ across @ jw)
-        damping = damping + gains.angular_damping * (jw.T @ jw)
+        damping = damping + gains.angular_damping * (jw.T @ across @ jw)
     return stiffness, damping

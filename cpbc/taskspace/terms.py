@@ -55,6 +55,15 @@ def _orientation(model: RobotModel, goal: FrameGoal, gains: TaskGains) -> list[P
     return [FrameOrientationSpring(goal.frame, goal.rotation, 0.5 * gains.rotation, reach)]
 
 
+def _across(goal: FrameGoal) -> Array:
+    """The rotations an orientation goal fixes: all (I), or those across an axis goal's axis
+    (I − a aᵀ); its yaw about the axis is left to the posture spring."""
+    if isinstance(goal.rotation, AxisGoal):
+        a = goal.rotation.world
+        return np.eye(3) - np.outer(a, a)
+    return np.eye(3)
+
+
 def task_terms(model: RobotModel, goal: FrameGoal, posture: Array, gains: TaskGains,
                bounded: Saturation | None = None) -> tuple[Potential, StateDamping]:
     """U and F of the module docstring toward ``goal`` with the posture x_n."""
@@ -64,7 +73,7 @@ def task_terms(model: RobotModel, goal: FrameGoal, posture: Array, gains: TaskGa
                                                   goal.offset)
         spring: Potential = JointSpring(posture, gains.posture)
         damping: StateDamping = TaskDamping(goal.frame, gains.position_damping, goal.offset,
-                                            angular=gains.angular_damping)
+                                            angular=gains.angular_damping * _across(goal))
         return total(position, *rotation, spring), damping
     reach = jacobian_bounds(model.model, model.coordinates.inverse, goal.frame, goal.offset)[0]
     slope = np.maximum(np.diag(gains.position), 1e-9)
