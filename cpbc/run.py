@@ -314,6 +314,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 write_trajectory(
                     folder / "trajectory.npz", r.trajectory, r.margins, setup.monitor.names,
                     r.lyapunov, setup.target, setup.coordinate_names, margin_types,
+                    r.task_error,
                 )
             write_summaries(scratch, [r.summary for r in results])
             spawned = pool.started if pool else None

@@ -48,6 +48,7 @@ def write_trajectory(
     target: Array,
     coordinate_names: Sequence[str],
     margin_types: Sequence[str] = (),
+    task_error: Array | None = None,
 ) -> None:
     """All logged signals of one run, in one .npz (read it with cpbc.results.load_npz).
 
@@ -71,6 +72,8 @@ def write_trajectory(
         "coordinate_names": np.array(list(coordinate_names), dtype=str),
         "outcome": np.array(traj.outcome),
     }
+    if task_error is not None:  # a goal run: (position m, angle rad) per sample
+        arrays["task_error"] = _single(task_error)
     write_npz(path, arrays)
 
 

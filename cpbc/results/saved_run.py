@@ -33,7 +33,7 @@ SCENE_INFO = "scene.json"
 SUMMARY = "summary.json"
 TRAJECTORY = "trajectory.npz"
 #: The figures of each case, ``<case>/<name>.png`` (cpbc.results.plots draws them).
-FIGURES = ("positions", "rates", "torques", "lyapunov", "margins", "path")
+FIGURES = ("positions", "rates", "torques", "lyapunov", "margins", "path", "task_error")
 
 
 class _SummaryKeys(TypedDict):
@@ -137,6 +137,7 @@ class SavedTrajectory:
     summary: SummaryEntry
     margin_types: tuple[str, ...] = ()
     coordinates: Array = field(default_factory=lambda: np.eye(0))
+    task_error: Array | None = None  # a goal run's (position m, angle rad), (N, 2)
 
     def commanded_torque(self, joints: bool = False) -> Array:
         """What the controller asked for, (N, n): in its coordinates, or per joint
@@ -212,6 +213,7 @@ def _trajectory(path: Path, summary: SummaryEntry, coordinates: Array) -> SavedT
         coordinate_names=tuple(str(s) for s in d["coordinate_names"]),
         outcome=str(d["outcome"]),
         summary=summary,
+        task_error=d.get("task_error"),
     )
 
 

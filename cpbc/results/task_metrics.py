@@ -84,10 +84,11 @@ def stall_kind(model: RobotModel, goal: FrameGoal, x: Array, names: Sequence[str
 
 def task_outcome(model: RobotModel, goal: FrameGoal, verdict: str, traj: Trajectory,
                  joint_status: str, names: Sequence[str], margins: Array,
-                 velocity_tolerance: float) -> TaskOutcome:
+                 velocity_tolerance: float, errors: Array | None = None) -> TaskOutcome:
     """The goal run's outcome from its trajectory, the preflight's ``verdict`` and the joint
-    status judge_status gave it (against the posture)."""
-    errors = task_errors(model, goal, traj.position)
+    status judge_status gave it (against the posture); ``errors``: :func:`task_errors` of
+    the run, when already computed."""
+    errors = task_errors(model, goal, traj.position) if errors is None else errors
     finite = errors[np.all(np.isfinite(errors), axis=1)]
     final = finite[-1] if len(finite) else np.full(2, np.nan)
     tol = np.array(goal.tolerance)

@@ -40,7 +40,8 @@ SafeName = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$", max_le
 RUN_FILES = frozenset({"summary.json", "summary.csv", "scene.mjb", "scene.mjb.gz",
                        "scene.json", "view.html"})
 CASE_FILES = frozenset({"positions.png", "rates.png", "torques.png", "lyapunov.png",
-                        "margins.png", "path.png", "timeseries.png", "view.html"})
+                        "margins.png", "path.png", "timeseries.png", "task_error.png",
+                        "view.html"})
 
 
 def _not_in(reserved: frozenset[str], what: str) -> Callable[[str], str]:
