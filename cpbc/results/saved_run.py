@@ -17,7 +17,7 @@ import gzip
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TypedDict
+from typing import Any, TypedDict
 
 import mujoco
 import numpy as np
@@ -65,12 +65,15 @@ class SceneInfo:
         scenario: name of the scenario.
         obstacles: names of the world geoms that are the scenario's obstacles (None: every
             world geom but planes).
+        goal: a goal run's goal, drawn as a triad (cpbc.viewer.goal_marker.goal_entry):
+            position, rotation (3 × 3) or None, axis (world) or None; None for joint runs.
     """
 
     coordinates: Array
     trace_frame: str
     scenario: str = ""
     obstacles: tuple[str, ...] | None = None
+    goal: dict[str, Any] | None = None
 
     def to_json(self) -> str:
         return json.dumps(
@@ -79,6 +82,7 @@ class SceneInfo:
                 "trace_frame": self.trace_frame,
                 "scenario": self.scenario,
                 "obstacles": None if self.obstacles is None else list(self.obstacles),
+                "goal": self.goal,
             },
             indent=2,
         )
@@ -92,6 +96,7 @@ class SceneInfo:
             d["trace_frame"],
             d.get("scenario", ""),
             None if obstacles is None else tuple(obstacles),
+            d.get("goal"),
         )
 
     def kinematics(self, model: mujoco.MjModel) -> SceneKinematics:
