@@ -73,10 +73,17 @@ class TaskDamping:
     offset: Array | None = None
     feedforward: Array = field(default_factory=lambda: ZERO3)
     angular: Array | float = 0.0
+    _gain6: Array = field(init=False, repr=False, compare=False)
+    _bias6: Array = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "gain", _gain_matrix(self.gain))
         object.__setattr__(self, "angular", _gain_matrix(self.angular))
+        # F = Jᵀ(G J ẋ − b) with J = [J_v; J_ω], G = diag(D_x, D_ω), b = G [ṗ_ff; 0]
+        gain6 = np.zeros((6, 6))
+        gain6[:3, :3], gain6[3:, 3:] = self.gain, self.angular
+        object.__setattr__(self, "_gain6", gain6)
+        object.__setattr__(self, "_bias6", gain6[:, :3] @ self.feedforward)
         object.__setattr__(self, "feedforward", _vector3(self.feedforward, "feedforward"))
         if self.offset is not None:
             object.__setattr__(self, "offset", _vector3(self.offset, "offset"))
@@ -93,11 +100,9 @@ class TaskDamping:
     def force(self, at: Placed, dx: Array) -> Array:
         """F, shape (n,), at a state holding the frame."""
         kin = frame_at(at, self.frame)
-        _, jv = kin.point(self.offset)
-        force = jv.T @ (self.gain @ (jv @ dx - self.feedforward))
-        if np.any(self.angular):
-            force = force + kin.angular.T @ (self.angular @ (kin.angular @ dx))
-        return force
+        j = kin.jacobian if self.offset is None else np.vstack(
+            (kin.point(self.offset)[1], kin.angular))
+        return j.T @ (self._gain6 @ (j @ dx) - self._bias6)
 
 
 @dataclass(frozen=True)
