@@ -24,7 +24,11 @@ from cpbc.model.frames import FrameKinematics
 from cpbc.model.robot_model import RobotModel
 from cpbc.taskspace.goal import AxisGoal, FrameGoal
 
-RCOND = 1e-8
+#: Directions of J D⁻¹ Jᵀ with less than this share of its largest eigenvalue count as ones
+#: the arm cannot move along (at or near a singular posture, as the outstretched closest pose
+#: of an unreachable goal): Λ there would be huge, and so would K_p = ω² Λ, which no
+#: sampled loop could hold.
+RCOND = 1e-3
 
 
 @dataclass(frozen=True)
@@ -59,8 +63,10 @@ class TaskGains:
 
 def task_inertia(jacobian: Array, inertia: Array) -> Array:
     """Λ = (J D⁻¹ Jᵀ)⁺ for a 3 × n block J, with the directions the arm cannot move along
-    (null of J D⁻¹ Jᵀ; the planar arm's normal) given the mean of the other eigenvalues, so
-    that the spring stays positive definite (along those directions J_vᵀ kills its force)."""
+    (eigenvalues of J D⁻¹ Jᵀ below ``RCOND`` of its largest: the planar arm's normal, a
+    singular posture's) given the mean of the other eigenvalues of Λ, so that the spring
+    stays positive definite and bounded (along those directions J_vᵀ all but kills its
+    force)."""
     mobility = jacobian @ np.linalg.solve(inertia, jacobian.T)
     values, vectors = np.linalg.eigh(0.5 * (mobility + mobility.T))
     moving = values > RCOND * max(float(values.max()), 1e-300)
