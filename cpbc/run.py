@@ -53,6 +53,8 @@ if TYPE_CHECKING:
 
 STATUS_STYLE = {
     "converged": "green",
+    "reached": "green",
+    "unreachable": "yellow",
     "stalled": "yellow",
     "held": "yellow",
     "not_settled": "yellow",
@@ -177,7 +179,7 @@ def _table(results: Sequence[RunResult], coordinate_names: Sequence[str],
         cells = [
             escape(s.case), escape(s.controller),
             f"[{style}]{escape(_status(s))}[/{style}]",
-            f"{s.final_error:.3g}",
+            _final_error(s),
             "-" if s.settle_time is None else f"{s.settle_time:.3g}",
             _rates(s, coordinate_names),
             f"{_torques(s, coordinate_names)} / {s.peak_torque_norm:.4g}{bound}", _margins(s),
@@ -189,8 +191,18 @@ def _table(results: Sequence[RunResult], coordinate_names: Sequence[str],
     return t
 
 
+def _final_error(s: RunSummary) -> str:
+    """The joint error, or a goal run's task error (position, angle) and reach time."""
+    if s.task_error_final is None:
+        return f"{s.final_error:.3g}"
+    e = s.task_error_final
+    reach = "" if s.reach_time is None else f" @{s.reach_time:.3g}s"
+    return f"{e['position'] * 1000:.3g} mm, {e['angle']:.2g} rad{reach}"
+
+
 def _status(s: RunSummary) -> str:
-    status = s.status + (f" @{s.end_time:.3g}s: {s.violated_constraint}"
+    status = s.status + (f" ({s.stall_kind})" if s.stall_kind else "") + (
+        f" @{s.end_time:.3g}s: {s.violated_constraint}"
                          if s.violated_constraint else "")
     if s.status == "diverged":
         status += f" @{s.end_time:.3g}s"
@@ -261,7 +273,7 @@ def write_logs(folder: Path, setup: ScenarioSetup, results: Sequence[RunResult])
     with log_file(folder / LOG_FILE, setup.scenario.name) as log:
         for r in results:
             write_trajectory(log, r.case, r.controller, r.trajectory, r.margins, r.lyapunov,
-                             setup.target, labels, r.summary.as_dict())
+                             setup.target, labels, r.summary.as_dict(), r.task_error)
 
 
 def _warn(setup: ScenarioSetup, err: Console) -> None:
@@ -269,6 +281,10 @@ def _warn(setup: ScenarioSetup, err: Console) -> None:
     gravity (cpbc.scenario.preflight)."""
     for case, load in setup.gravity_on_path.items():
         err.print(f"[yellow]warning:[/yellow] {escape(warning(case, load))}", highlight=False)
+    if setup.goal is not None:
+        goal = setup.goal
+        err.print(f"goal preflight ({goal.goal.frame_name}): "
+                  f"{escape(goal.preflight.describe())}", highlight=False)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

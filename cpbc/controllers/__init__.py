@@ -8,6 +8,7 @@ from cpbc.controllers.cpbc_ke import CPBCKineticEnergy
 from cpbc.controllers.pd import PD, PDGravity
 from cpbc.controllers.recentred import RecentredBarrier
 from cpbc.controllers.shaping import Identity, Power, Tanh
+from cpbc.controllers.task_damping import TaskDamping, TaskTanhDamping
 
 CONTROLLERS: dict[str, type[Controller]] = {
     c.type_name: c
@@ -27,4 +28,6 @@ __all__ = [
     "Power",
     "RecentredBarrier",
     "Tanh",
+    "TaskDamping",
+    "TaskTanhDamping",
 ]

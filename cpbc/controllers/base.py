@@ -14,6 +14,7 @@ from cpbc.model.robot_model import ArmState, RobotModel
 
 if TYPE_CHECKING:
     from cpbc.controllers.potentials import Potential
+    from cpbc.controllers.terms import StateDamping
 
 
 class Evaluation(NamedTuple):
@@ -61,12 +62,15 @@ class Controller(ABC):
         constraints: the constraints this law enforces (empty for the baselines).
         potential: the law's potential U (cpbc.controllers.potentials), or None for a law
             without one; the per-step state holds the frames it reads.
+        task_damping: a damping force read from the state (task-space damping), added to
+            the law's joint damping, or None.
         torque_bound: an explicit bound on ‖τ‖ from the theory, or None.
     """
 
     type_name: ClassVar[str]
     torque_bound: float | None = None
     potential: Potential | None = None
+    task_damping: StateDamping | None = None
 
     def __init__(
         self, model: RobotModel, target: Array, constraints: ConstraintSet | None = None
@@ -83,9 +87,22 @@ class Controller(ABC):
         """The per-step state this law reads: the model's dynamics terms and, when a
         constraint or the potential needs them, its kinematics — computed once, read by law,
         constraints and potential."""
-        frames = () if self.potential is None else self.potential.frames
         return self.model.state(x, dx, kinematics=self.constraints.needs_kinematics,
-                                frames=frames)
+                                frames=self.frames)
+
+    @property
+    def frames(self) -> tuple[int, ...]:
+        """The frames the potential and the task damping read from the per-step state."""
+        frames = () if self.potential is None else self.potential.frames
+        if self.task_damping is not None:
+            frames = tuple(dict.fromkeys(frames + self.task_damping.frames))
+        return frames
+
+    def task_damping_force(self, state: ArmState) -> Array | float:
+        """The task-space damping force F at the state (0 without task damping)."""
+        if self.task_damping is None:
+            return 0.0
+        return self.task_damping.force(state, state.dx)
 
     @abstractmethod
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:

@@ -16,10 +16,22 @@ from cpbc.controllers.potentials import (
     require_posture,
 )
 from cpbc.controllers.shaping import Shaping
-from cpbc.controllers.terms import TanhDamping
+from cpbc.controllers.terms import StateDamping, TanhDamping
 from cpbc.errors import CpbcError
 from cpbc.model.bounds import ModelBounds, estimate_bounds
 from cpbc.model.robot_model import RobotModel
+
+
+def bounded_damping(task_damping: StateDamping | None, law: str) -> float:
+    """sup ‖F‖ of a bounded-torque law's task damping (0 without one), or a CpbcError when it
+    is unbounded."""
+    if task_damping is None:
+        return 0.0
+    bound = task_damping.force_bound
+    if bound is None or not np.isfinite(bound):
+        raise CpbcError(f"{law}: its torque bound needs bounded task damping (TaskTanhDamping, "
+                        "D_x tanh(Γ_x v)), not the linear one")
+    return float(bound)
 
 
 class BPBC(CPBC):
@@ -38,6 +50,7 @@ class BPBC(CPBC):
     may be any U with a posture spring and a bounded gradient (a task potential of ln cosh
     and orientation springs): λmax(K_P) is then replaced by the potential's
     ``gradient_bound`` (``stated`` in ``torque_bound``, ``norm`` in ``torque_bound_norm``).
+    A ``task_damping`` term must be bounded (TaskTanhDamping); its ``force_bound`` is added.
     """
 
     type_name = "bpbc"
@@ -54,8 +67,10 @@ class BPBC(CPBC):
         shaping: Shaping | None = None,
         model_bounds: ModelBounds | None = None,
         potential: Potential | None = None,
+        task_damping: StateDamping | None = None,
     ) -> None:
-        super().__init__(model, target, constraints, kp, kd, shaping)
+        super().__init__(model, target, constraints, kp, kd, shaping,
+                         task_damping=task_damping)
         if constraints.configuration or not constraints.velocity or not all(
             isinstance(c, RateLimit) and c.is_per_joint for c in constraints.velocity
         ):
@@ -74,6 +89,7 @@ class BPBC(CPBC):
         self.potential = JointLogCoshSpring(self.target, self.kp, self.xi) if (
             potential is None) else require_posture(potential, self.type_name)
         spring = require_bounded(self.potential, self.type_name)
+        extra = bounded_damping(task_damping, self.type_name)
         self.damping = TanhDamping(self.kd, self.gamma)
         bounds = np.zeros(model.n)
         for c in rates:
@@ -82,6 +98,6 @@ class BPBC(CPBC):
         self.model_bounds = model_bounds or estimate_bounds(model)
         zb = self.model_bounds
         rate_norm = float(np.linalg.norm(bounds))
-        tail = zb.gravity + zb.coriolis * rate_norm**2 + zb.friction * rate_norm
+        tail = zb.gravity + zb.coriolis * rate_norm**2 + zb.friction * rate_norm + extra
         self.torque_bound = tail + (spring.stated + float(self.kd.max()))
         self.torque_bound_norm = tail + (spring.norm + float(np.linalg.norm(self.kd)))

@@ -7,6 +7,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.controllers.base import positive_vector
+from cpbc.controllers.bpbc import bounded_damping
 from cpbc.controllers.cpbc_ke import CPBCKineticEnergy
 from cpbc.controllers.potentials import (
     JointLogCoshSpring,
@@ -15,7 +16,7 @@ from cpbc.controllers.potentials import (
     require_posture,
 )
 from cpbc.controllers.shaping import Shaping
-from cpbc.controllers.terms import TanhDamping
+from cpbc.controllers.terms import StateDamping, TanhDamping
 from cpbc.errors import CpbcError
 from cpbc.model.bounds import ModelBounds, estimate_bounds
 from cpbc.model.robot_model import RobotModel
@@ -29,7 +30,7 @@ class BPBCKineticEnergy(CPBCKineticEnergy):
     bounded by (7.40): ‖τ‖ ≤ ζ_g + λmax(K_P) + λmax(K_D) (``torque_bound``, as stated) or
     ζ_g + ‖diag K_P‖₂ + ‖diag K_D‖₂ (``torque_bound_norm``; see BPBC). With a bounded task
     ``potential`` (see BPBC) K_P tanh(Ξx̃) is ∂U/∂x, and λmax(K_P), ‖diag K_P‖₂ are replaced
-    by its ``gradient_bound``.
+    by its ``gradient_bound``; a bounded ``task_damping`` adds its ``force_bound``.
     """
 
     type_name = "bpbc_ke"
@@ -46,8 +47,10 @@ class BPBCKineticEnergy(CPBCKineticEnergy):
         shaping: Shaping | None = None,
         model_bounds: ModelBounds | None = None,
         potential: Potential | None = None,
+        task_damping: StateDamping | None = None,
     ) -> None:
-        super().__init__(model, target, constraints, kp, kd, shaping)
+        super().__init__(model, target, constraints, kp, kd, shaping,
+                         task_damping=task_damping)
         if constraints.configuration:
             raise CpbcError(
                 "bpbc_ke (Corollary 7.8) enforces only a kinetic-energy limit; remove the "
@@ -58,8 +61,9 @@ class BPBCKineticEnergy(CPBCKineticEnergy):
         self.potential = JointLogCoshSpring(self.target, self.kp, self.xi) if (
             potential is None) else require_posture(potential, self.type_name)
         spring = require_bounded(self.potential, self.type_name)
+        extra = bounded_damping(task_damping, self.type_name)
         self.damping = TanhDamping(self.kd, self.gamma)
         self.model_bounds = model_bounds or estimate_bounds(model)
         g = self.model_bounds.gravity
-        self.torque_bound = g + (spring.stated + float(self.kd.max()))
-        self.torque_bound_norm = g + (spring.norm + float(np.linalg.norm(self.kd)))
+        self.torque_bound = g + extra + (spring.stated + float(self.kd.max()))
+        self.torque_bound_norm = g + extra + (spring.norm + float(np.linalg.norm(self.kd)))

@@ -10,7 +10,7 @@ from cpbc.controllers.base import Controller, Evaluation, positive_vector
 from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
-from cpbc.controllers.terms import Damping, LinearDamping
+from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -35,6 +35,8 @@ class CPBC(Controller):
         kp, kd: diagonal gains (number or list of n), > 0.
         shaping: s(x); Identity (Theorem 6.9) when omitted.
         potential: U; the joint spring ½x̃ᵀK_P x̃ toward ``target`` (eq. 6.7) when omitted.
+        task_damping: F(x, ẋ) with ẋᵀF ≥ 0 added to K_D ẋ (cpbc.controllers.task_damping);
+            then V̇ = −ẋᵀ(K_D ẋ + F + f)/s.
     """
 
     type_name = "cpbc"
@@ -48,8 +50,10 @@ class CPBC(Controller):
         kd: object,
         shaping: Shaping | None = None,
         potential: Potential | None = None,
+        task_damping: StateDamping | None = None,
     ) -> None:
         super().__init__(model, target, constraints)
+        self.task_damping = task_damping
         self.kp = positive_vector(kp, model.n, "kp")
         self.kd = positive_vector(kd, model.n, "kd")
         self.shaping: Shaping = shaping or Identity()
@@ -73,7 +77,7 @@ class CPBC(Controller):
 
     def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float) -> Array:
         """The law of the class docstring: τ from ∂U/∂x (``grad``), L and the barrier sums."""
-        a = -grad - self.damping.force(state.dx)
+        a = -grad - self.damping.force(state.dx) - self.task_damping_force(state)
         rho = self.shaping.ratio(bar.log_phi + bar.log_psi) * lag
         if bar.gradient is not None:
             a += rho * bar.gradient

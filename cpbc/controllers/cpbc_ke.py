@@ -12,7 +12,7 @@ from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.controllers.base import Controller, Evaluation, positive_vector
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
-from cpbc.controllers.terms import Damping, LinearDamping
+from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -36,7 +36,7 @@ class CPBCKineticEnergy(Controller):
 
     with ∂U/∂x = K_P x̃ for the default potential (``potential``: any U with a posture
     spring, as in CPBC). No C, no D⁻¹: only D (inside ψ and L) and g.
-    V̇ = −[ẋᵀK_Dẋ + (1 + ρ/ψ)ẋᵀf]/s ≤ 0.
+    V̇ = −[ẋᵀK_Dẋ + (1 + ρ/ψ)ẋᵀf]/s ≤ 0; with ``task_damping`` F, K_D ẋ becomes K_D ẋ + F.
     """
 
     type_name = "cpbc_ke"
@@ -50,8 +50,10 @@ class CPBCKineticEnergy(Controller):
         kd: object,
         shaping: Shaping | None = None,
         potential: Potential | None = None,
+        task_damping: StateDamping | None = None,
     ) -> None:
         super().__init__(model, target, constraints)
+        self.task_damping = task_damping
         self.energy = single_energy_limit(constraints, self.type_name)
         self.kp = positive_vector(kp, model.n, "kp")
         self.kd = positive_vector(kd, model.n, "kd")
@@ -79,7 +81,7 @@ class CPBCKineticEnergy(Controller):
              ) -> Array:
         """The law of the class docstring, from ∂U/∂x (``grad``)."""
         rho = self.shaping.ratio(bar.log_phi + math.log(psi)) * lag
-        shaped = -(grad + self.damping.force(state.dx))
+        shaped = -(grad + self.damping.force(state.dx) + self.task_damping_force(state))
         if bar.gradient is not None:
             shaped += rho * bar.gradient
         return state.gravity + shaped / (1.0 + rho / psi)

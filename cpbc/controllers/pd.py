@@ -5,19 +5,23 @@ from __future__ import annotations
 from cpbc.arrays import Array
 from cpbc.controllers.base import Controller, Evaluation, positive_vector
 from cpbc.controllers.potentials import Configuration, JointSpring, Potential, require_posture
+from cpbc.controllers.terms import StateDamping
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
 class PD(Controller):
     """τ = −∂U/∂x − K_D ẋ with U = ½ x̃ᵀK_P x̃ (eq. 6.7): −K_P x̃ − K_D ẋ, as compared against
     in Sections 6.4 and 7.3. ``potential`` replaces U (a task potential with a posture spring:
-    with PD + g, Takegaki and Arimoto's Jacobian-transpose law)."""
+    with PD + g, Takegaki and Arimoto's Jacobian-transpose law); ``task_damping`` F is
+    subtracted too (L̇ = −ẋᵀ(K_D ẋ + F + f) for PD + g)."""
 
     type_name = "pd"
 
     def __init__(self, model: RobotModel, target: Array, kp: object, kd: object,
-                 potential: Potential | None = None) -> None:
+                 potential: Potential | None = None,
+                 task_damping: StateDamping | None = None) -> None:
         super().__init__(model, target)
+        self.task_damping = task_damping
         self.kp = positive_vector(kp, model.n, "kp")
         self.kd = positive_vector(kd, model.n, "kd")
         self.potential: Potential = JointSpring(self.target, self.kp) if potential is None else (
@@ -27,19 +31,19 @@ class PD(Controller):
     # potential reads frames; evaluate_state reads it. Both ask the one feed-forward hook,
     # _bias, so a subclass changes both.
     def torque(self, x: Array, dx: Array) -> Array:
-        if self.potential.frames:
+        if self.frames:
             return self.evaluate_state(self.state(x, dx)).torque
         _, grad = self.potential.evaluate(Configuration(x))
         return self._law(grad, dx, self._bias(x, None))
 
     def lyapunov(self, x: Array, dx: Array) -> float:
         """L = ½ ẋᵀDẋ + U (eq. 6.7); non-increasing when gravity does no work."""
-        if self.potential.frames:
+        if self.frames:
             return self.evaluate_state(self.state(x, dx)).lyapunov
         return self.model.kinetic_energy(x, dx) + self.potential.evaluate(Configuration(x))[0]
 
     def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
-        if self.potential.frames:
+        if self.frames:
             out = self.evaluate_state(self.state(x, dx))
             return out.torque, out.lyapunov
         value, grad = self.potential.evaluate(Configuration(x))
@@ -49,7 +53,7 @@ class PD(Controller):
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         dx = state.dx
         value, grad = self.potential.evaluate(state)
-        tau = self._law(grad, dx, self._bias(state.x, state))
+        tau = self._law(grad, dx, self._bias(state.x, state)) - self.task_damping_force(state)
         value += 0.5 * float(dx @ state.inertia @ dx)
         found = self.constraints.margins(state.x, dx, state) if margins else None
         return Evaluation(tau, value, found)

@@ -3,11 +3,14 @@
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from cpbc.arrays import Array
+
+if TYPE_CHECKING:
+    from cpbc.controllers.potentials import Placed
 
 
 class Damping(Protocol):
@@ -37,3 +40,23 @@ class TanhDamping:
 
     def force(self, dx: Array) -> Array:
         return self.kd * np.tanh(self.gamma * dx)
+
+
+class StateDamping(Protocol):
+    """A damping force F(x, ẋ) read from the per-step state (task-space damping,
+    cpbc.controllers.task_damping), added to a law's joint damping; ẋᵀF ≥ 0 without
+    feed-forward."""
+
+    @property
+    def frames(self) -> tuple[int, ...]:
+        """The frame ids whose kinematics ``force`` reads from the state."""
+        ...
+
+    @property
+    def force_bound(self) -> float | None:
+        """sup ‖F‖₂, or None when F is unbounded."""
+        ...
+
+    def force(self, at: Placed, dx: Array) -> Array:
+        """F, shape (n,)."""
+        ...

@@ -16,9 +16,16 @@ import pinocchio as pin
 from cpbc.arrays import Array
 
 
+def cross3(a: Array, b: Array) -> Array:
+    """a × b of two 3-vectors, written out (numpy.cross costs tens of µs a call)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                     a[0] * b[1] - a[1] * b[0]])
+
+
 def offset_jacobian(linear: Array, angular: Array, r: Array) -> Array:
     """∂p/∂x of a point at r (world axes) from a frame's origin: v_p = v_o + ω × r."""
-    return linear - np.cross(r, angular.T).T
+    skew = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+    return linear - skew @ angular
 
 
 @dataclass(frozen=True)

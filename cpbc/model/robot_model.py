@@ -293,6 +293,12 @@ class RobotModel:
             return placement.translation.copy()
         return placement.act(np.asarray(offset, dtype=float))
 
+    def frame_placement(self, frame_id: int, x: Array) -> tuple[Array, Array]:
+        """A frame's origin (3,) [m] and axes R (3, 3) in the world, from one kinematics pass."""
+        pin.framesForwardKinematics(self.model, self.data, self._q(x))
+        placement = self.data.oMf[frame_id]
+        return placement.translation.copy(), placement.rotation.copy()
+
     def point_jacobian(self, frame_id: int, x: Array, offset: Array | None = None) -> Array:
         """∂p/∂x of a point fixed in a frame, shape (3, n). Call after point_position(x)."""
         q = self._q(x)

@@ -121,8 +121,9 @@ def _single(a: Array) -> Array:
 
 def write_trajectory(log: h5py.File, case: str, controller: str, traj: Trajectory,
                      margins: Array, lyapunov: Array, target: Array, labels: ArmLabels,
-                     summary: Mapping[str, object]) -> None:
-    """One arm's run into ``log`` as the group ``/<case>/<controller>``."""
+                     summary: Mapping[str, object], task_error: Array | None = None) -> None:
+    """One arm's run into ``log`` as the group ``/<case>/<controller>``; a goal run's
+    ``task_error`` (position, angle per sample) too."""
     g = _run_group(log, case, controller, traj.outcome, summary)
     coords, lengths = labels.coordinate_names, labels.coordinate_lengths
     _dataset(g, "time", traj.time, "s")
@@ -138,6 +139,8 @@ def write_trajectory(log: h5py.File, case: str, controller: str, traj: Trajector
         m.attrs["types"] = _text(types)
     _dataset(g, "lyapunov", _single(lyapunov), "")
     _dataset(g, "target", target, _units(lengths, "m", "rad"), coords)
+    if task_error is not None:
+        _dataset(g, "task_error", _single(task_error), ["m", "rad"], ["position", "angle"])
 
 
 def _unit_of(name: str) -> str:

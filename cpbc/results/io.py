@@ -23,7 +23,8 @@ CSV_COLUMNS = (
     "torque_limits", "peak_torque_norm", "torque_bound", "worst_margins",
     "crossed_constraints", "max_lyapunov_increase", "max_contacts", "saturated_steps",
     "safeguard_steps", "safeguard_share", "safeguard_infeasible", "rejected_samples",
-    "wall_time", "steps_per_second", "cause", "violated_constraint",
+    "wall_time", "steps_per_second", "cause", "stall_kind", "task_error_final",
+    "task_error_rms", "task_error_max", "reach_time", "violated_constraint",
 )
 #: Lists the files a run wrote into its folder, one relative path a line; a later run into
 #: the same folder replaces these and nothing else.
@@ -40,6 +41,9 @@ def _csv_row(s: RunSummary) -> dict[str, object]:
         f"{w.type} {w.value:.6g} {w.unit} ({w.constraint})".replace("  ", " ")
         for w in s.worst_margins())
     row["safeguard_share"] = f"{s.safeguard_share:.6g}"
+    for k in ("task_error_final", "task_error_rms", "task_error_max"):
+        pair = getattr(s, k)
+        row[k] = "" if pair is None else f"{pair['position']:.6g} m {pair['angle']:.6g} rad"
     for k in ("peak_joint_rates", "rate_bounds", "peak_torques", "peak_commanded_torques",
               "torque_limits", "crossed_constraints"):
         row[k] = " ".join("-" if v is None else (f"{v:.6g}" if isinstance(v, float) else str(v))

@@ -13,8 +13,10 @@ from cpbc.controllers.base import Controller
 from cpbc.results.margin_types import WorstMargin, physical_history, types_of, worst_by_type
 from cpbc.simulation.trajectory import Trajectory
 
-STATUSES = ("converged", "stalled", "held", "not_settled", "constraint_violated",
-            "diverged")
+STATUSES = ("converged", "reached", "unreachable", "stalled", "held", "not_settled",
+            "constraint_violated", "diverged")
+#: The statuses of a run that ended where it was sent (a joint target, a task goal).
+ARRIVED = ("converged", "reached")
 
 
 @dataclass(frozen=True)
@@ -83,6 +85,13 @@ class RunSummary:
     # why a failed run likely failed, when something before the run foresaw it (gravity
     # beyond a motor on the way to the target: cpbc.scenario.preflight); None otherwise
     cause: str | None = None
+    # a goal run's task-space outcome (cpbc.results.task_metrics): errors {position m,
+    # angle rad}, the reach time, and why it rests away from the goal; None for joint runs
+    stall_kind: str | None = None
+    task_error_final: dict[str, float] | None = None
+    task_error_rms: dict[str, float] | None = None
+    task_error_max: dict[str, float] | None = None
+    reach_time: float | None = None
 
     @property
     def safeguard_share(self) -> float:
@@ -96,7 +105,7 @@ class RunSummary:
         torques or a safeguard that found no torque to keep S."""
         if self.status in ("constraint_violated", "diverged"):
             return True
-        return self.status != "converged" and bool(self.saturated_steps
+        return self.status not in ARRIVED and bool(self.saturated_steps
                                                    or self.safeguard_infeasible)
 
     def worst_margins(self) -> list[WorstMargin]:

@@ -195,6 +195,29 @@ def lyapunov_figure(case: SavedCase) -> Figure:
     return fig
 
 
+def task_error_figure(case: SavedCase) -> Figure | None:
+    """A goal run's task error: the position [mm] and, for an orientation goal, the angle
+    [rad] to the goal against time, on log axes (None for joint runs)."""
+    runs = [(r, c) for r, c in _each(case) if r.task_error is not None]
+    if not runs:
+        return None
+    angled = any(r.task_error is not None and bool(np.any(r.task_error[:, 1] > 0))
+                 for r, _ in runs)
+    fig, axes = _figure(2 if angled else 1, _title(case, "task error"),
+                        height=5.0 if angled else 3.4)
+    for r, colour in runs:
+        assert r.task_error is not None
+        for ax, values in zip(axes, (r.task_error[:, 0] * 1000.0, r.task_error[:, 1]),
+                              strict=False):
+            _curve(ax, r.time, np.where(values > 0, values, np.nan), color=colour,
+                   label=r.controller)
+    for ax, label in zip(axes, ("position [mm]", "angle [rad]"), strict=False):
+        ax.set_yscale("log")
+        ax.set_ylabel(label)
+    _legend(axes[0])
+    return fig
+
+
 _NAMED = 3  # constraints of a type drawn and named one by one; the rest as a shaded range
 _STYLES = ("-", "--", ":")
 
@@ -379,6 +402,7 @@ def case_figures(
         "lyapunov": lambda: lyapunov_figure(case),
         "margins": lambda: margins_figure(case),
         "path": lambda: None if kin is None else path_figure(case, kin),
+        "task_error": lambda: task_error_figure(case),
     }
     out = {}
     for name, make in makers.items():

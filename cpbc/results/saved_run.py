@@ -37,7 +37,7 @@ SCENE_INFO = "scene.json"
 SUMMARY = "summary.json"
 EARLIER_TRAJECTORY = "trajectory.npz"  # a run's log in folders of earlier versions
 #: The figures of each case, ``<case>/<name>.png`` (cpbc.results.plots draws them).
-FIGURES = ("positions", "rates", "torques", "lyapunov", "margins", "path")
+FIGURES = ("positions", "rates", "torques", "lyapunov", "margins", "path", "task_error")
 
 
 class _SummaryKeys(TypedDict):
@@ -69,12 +69,15 @@ class SceneInfo:
         scenario: name of the scenario.
         obstacles: names of the world geoms that are the scenario's obstacles (None: every
             world geom but planes).
+        goal: a goal run's goal, drawn as a triad (cpbc.viewer.goal_marker.goal_entry):
+            position, rotation (3 × 3) or None, axis (world) or None; None for joint runs.
     """
 
     coordinates: Array
     trace_frame: str
     scenario: str = ""
     obstacles: tuple[str, ...] | None = None
+    goal: dict[str, Any] | None = None
 
     def to_json(self) -> str:
         return json.dumps(
@@ -83,6 +86,7 @@ class SceneInfo:
                 "trace_frame": self.trace_frame,
                 "scenario": self.scenario,
                 "obstacles": None if self.obstacles is None else list(self.obstacles),
+                "goal": self.goal,
             },
             indent=2,
         )
@@ -96,6 +100,7 @@ class SceneInfo:
             d["trace_frame"],
             d.get("scenario", ""),
             None if obstacles is None else tuple(obstacles),
+            d.get("goal"),
         )
 
     def kinematics(self, model: mujoco.MjModel) -> SceneKinematics:
@@ -141,6 +146,7 @@ class SavedTrajectory:
     summary: SummaryEntry
     margin_types: tuple[str, ...] = ()
     coordinates: Array = field(default_factory=lambda: np.eye(0))
+    task_error: Array | None = None  # a goal run's (position m, angle rad), (N, 2)
 
     def commanded_torque(self, joints: bool = False) -> Array:
         """What the controller asked for, (N, n): in its coordinates, or per joint
@@ -215,6 +221,7 @@ def _trajectory(d: dict[str, Any], summary: SummaryEntry, coordinates: Array) ->
         coordinate_names=tuple(str(s) for s in d["coordinate_names"]),
         outcome=str(d["outcome"]),
         summary=summary,
+        task_error=d.get("task_error"),
     )
 
 

@@ -40,6 +40,7 @@ from cpbc.results.metrics import SettleCriteria
 from cpbc.scenario import robots
 from cpbc.scenario import schema as s
 from cpbc.scenario.gains import physical_gains, unstable_loop
+from cpbc.scenario.goal import GoalPlan, goal_of, law_terms, linear_gains, plan
 from cpbc.scenario.preflight import check_gravity
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, substeps_per_control
 from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
@@ -96,6 +97,8 @@ class ScenarioSetup:
     # per case, the load on its path to the target that leaves a motor no room to brake
     # over gravity (cpbc.scenario.preflight): a warning before the run, a cause after it
     gravity_on_path: dict[str, GravityLoad] = dataclasses.field(default_factory=dict)
+    # a goal scenario's goal, preflight and posture (``target`` is then the posture x_n)
+    goal: GoalPlan | None = None
 
     def controller(self, entry: ControllerEntry) -> Controller:
         """The entry's law as the scenario runs it in the sampled-data loop: wrapped in the
@@ -403,9 +406,10 @@ def _build_controller(
     constraints: dict[str, ConfigurationConstraint | VelocityConstraint],
     model_bounds: Callable[[], ModelBounds],
     field: str,
+    terms: dict[str, object] | None = None,
 ) -> Controller:
     cls = CONTROLLERS[spec.type]
-    kwargs: dict[str, object] = {"kp": gains.kp, "kd": gains.kd}
+    kwargs: dict[str, object] = terms or {"kp": gains.kp, "kd": gains.kd}
     if not isinstance(spec, s.PDSpec):
         kwargs["constraints"] = _controller_constraints(spec, model.n, constraints, field)
         if not isinstance(spec, s.RecentredSpec):
@@ -607,9 +611,16 @@ def _states(
 ) -> tuple[Array, list[CaseEntry]]:
     """The target and the initial states: the right size, inside the joint ranges and S."""
     n = model.n
-    target = _vector(scenario.target, n, "target")
-    _check_in_range(target, model, ranges, "target", "")
-    _check_admissible(monitor, target, np.zeros(n), "target", "target")
+    if (scenario.goal is None) == (scenario.target is None):
+        raise ScenarioError("goal" if scenario.goal else "target",
+                            "give either target: (a joint set point) or goal: (a frame's "
+                            "pose), not both" if scenario.goal else "missing: give target (a "
+                            "joint set point) or goal (a frame's pose)")
+    target = np.zeros(n)
+    if scenario.target is not None:
+        target = _vector(scenario.target, n, "target")
+        _check_in_range(target, model, ranges, "target", "")
+        _check_admissible(monitor, target, np.zeros(n), "target", "target")
     cases = []
     for i, case in enumerate(scenario.cases):
         x0 = _vector(case.position, n, f"cases[{i}].position")
@@ -652,7 +663,7 @@ def _check_stoppable(cases: list[CaseEntry], monitor: ConstraintSet, model: Robo
 def _controllers(
     scenario: s.Scenario, model: RobotModel, target: Array, cases: list[CaseEntry],
     built: dict[str, ConfigurationConstraint | VelocityConstraint], names: tuple[str, ...],
-    loop: LoopSettings,
+    loop: LoopSettings, goal: GoalPlan | None = None,
 ) -> list[ControllerEntry]:
     bounds_cache: list[ModelBounds] = []
 
@@ -667,13 +678,23 @@ def _controllers(
     controllers = []
     for i, cspec in enumerate(scenario.controllers):
         field = f"controllers[{i}]"
-        gains = _gains(cspec, model, target, field)
+        terms = None
+        if goal is not None:
+            terms, task = law_terms(cspec, model, goal, field)
+            stiffness, damping = linear_gains(model, goal, task)
+            gains = _Gains(terms["kp"], terms["kd"], stiffness, damping)  # type: ignore[arg-type]
+        elif cspec.task is not None or cspec.posture is not None:
+            raise ScenarioError(f"{field}.task", "task and posture gains need a goal: give "
+                                "goal: {frame, position, ...} in place of target:, or kp, kd")
+        else:
+            gains = _gains(cspec, model, target, field)
         if check:
             _check_zoh(gains, model, states, sim, names, field)
         if isinstance(cspec, s.CBFQPSpec):
             ctrl = _build_peer(cspec, model, target, gains, built, loop, field)
         else:
-            ctrl = _build_controller(cspec, model, target, gains, built, model_bounds, field)
+            ctrl = _build_controller(cspec, model, target, gains, built, model_bounds, field,
+                                     terms)
         controllers.append(ControllerEntry(cspec.name or cspec.type, ctrl))
     if len({c.name for c in controllers}) != len(controllers):
         raise ScenarioError("controllers", "controller names must be unique; set 'name' on each")
@@ -699,6 +720,25 @@ def _check_recentred(controllers: list[ControllerEntry], cases: list[CaseEntry],
                                     f"'{entry.name}' (recentred), case '{case.name}': {problem}")
 
 
+def _goal(scenario: s.Scenario, model: RobotModel, scene: dict[str, Obstacle],
+          monitor: ConstraintSet, cases: list[CaseEntry], ranges: tuple[Array, Array]
+          ) -> GoalPlan | None:
+    """A goal scenario's goal, preflight (from the first case's start, then the middle of the
+    joint ranges and four seeded draws in them) and posture; None for a joint target."""
+    if scenario.goal is None:
+        return None
+    goal = goal_of(scenario.goal, model, scene, monitor)
+    lo, hi = (np.clip(r, -np.pi, np.pi) for r in ranges)
+    rng = np.random.default_rng(0)
+    seeds = [0.5 * (lo + hi)] + [rng.uniform(lo, hi) for _ in range(4)]
+
+    def check(x: Array, field: str) -> None:
+        _check_in_range(x, model, ranges, field, "")
+        _check_admissible(monitor, x, np.zeros(model.n), "goal posture", field)
+
+    return plan(scenario.goal, goal, model, monitor, cases[0].position, seeds, check)
+
+
 def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     """Check a scenario against its robot and build every object it describes."""
     runs = len(scenario.cases) * len(scenario.controllers)
@@ -717,13 +757,17 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         [c for c in built.values() if isinstance(c, ConfigurationConstraint)],
         [c for c in built.values() if isinstance(c, VelocityConstraint)],
     )
-    target, cases = _states(scenario, model, monitor, joint_ranges(model, plant))
+    ranges = joint_ranges(model, plant)
+    target, cases = _states(scenario, model, monitor, ranges)
+    goal = _goal(scenario, model, scene, monitor, cases, ranges)
+    if goal is not None:
+        target = goal.posture
     gravity_on_path: dict[str, GravityLoad] = {}
     if loop.torque_limit is not None:
         gravity_on_path = check_gravity(model, target, [(c.name, c.position) for c in cases],
                                         loop.torque_limit)
         _check_stoppable(cases, monitor, model, loop.torque_limit)
-    controllers = _controllers(scenario, model, target, cases, built, names, loop)
+    controllers = _controllers(scenario, model, target, cases, built, names, loop, goal)
     _check_recentred(controllers, cases, model, loop, names, sim.safeguard)
     setup = ScenarioSetup(
         scenario, path, model, monitor, controllers, cases, target,
@@ -736,7 +780,7 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
                                     else None)
         if sim.safeguard else None,
         also_keep=monitor.configuration if sim.safeguard and sim.safeguard_monitored else (),
-        gravity_on_path=gravity_on_path,
+        gravity_on_path=gravity_on_path, goal=goal,
     )
     _check_disturbances(scenario, plant, model.n)
     return setup

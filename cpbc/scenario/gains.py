@@ -75,13 +75,20 @@ def zoh_stable(kp: float, kd: float, inertia: float, period: float) -> bool:
     return kd * period < 2.0 * inertia and kp * period < 2.0 * kd
 
 
+def _matrix(k: Array) -> Array:
+    """A diagonal gain's matrix; a full stiffness or damping matrix (a task-space law's,
+    J_vᵀK_pJ_v + K_n) as it is."""
+    k = np.asarray(k, dtype=float)
+    return np.diag(k) if k.ndim == 1 else k
+
+
 def held_loop(kp: Array, kd: Array, inertia: Array, period: float,
               euler_step: float = 0.0) -> Array:
     """The map A of (x̃, ẋ) over one period (module docstring), shape (2n, 2n);
     ``euler_step`` is δ of an Euler-type physics integrator (0: exact, as RK4)."""
     n, h = len(kp), period
-    stiff = np.linalg.solve(inertia, np.diag(kp))
-    damp = np.linalg.solve(inertia, np.diag(kd))
+    stiff = np.linalg.solve(inertia, _matrix(kp))
+    damp = np.linalg.solve(inertia, _matrix(kd))
     eye = np.eye(n)
     c = h * (h + euler_step) / 2
     return np.block([[eye - c * stiff, h * eye - c * damp],
@@ -176,6 +183,10 @@ def unstable_loop(
             continue
         i = int(np.argmax(np.abs(vectors[:n, k]) + np.abs(vectors[n:, k]) * period))
         m_eff = 1.0 / float(np.linalg.inv(inertia)[i, i])
+        if np.ndim(kp) == 2:  # a task-space law: its diagonal, no single K_D to lower
+            kp_i, kd_i = float(kp[i, i]), float(kd[i, i])
+            return UnstableLoop(names[i], i, m_eff, kp_i, kd_i, period, float(abs(values[k])),
+                                longest_stable_period(kp, kd, inertia, period, euler_step))
         return UnstableLoop(names[i], i, m_eff, float(kp[i]), float(kd[i]), period,
                             float(abs(values[k])),
                             longest_stable_period(kp, kd, inertia, period, euler_step),

@@ -20,6 +20,7 @@ from pathlib import Path
 from cpbc.constraints.base import Array
 from cpbc.results.drawing import quiet_on_interrupt
 from cpbc.results.metrics import RunSummary, margin_history, summarise
+from cpbc.results.task_metrics import task_errors, task_outcome
 from cpbc.scenario.build import CaseEntry, ControllerEntry, ScenarioSetup, build
 from cpbc.scenario.schema import Scenario
 from cpbc.simulation import MujocoPlant, Trajectory, run_mujoco, run_reference
@@ -35,6 +36,7 @@ class RunResult:
     margins: Array
     lyapunov: Array
     summary: RunSummary
+    task_error: Array | None = None  # a goal run's (position m, angle rad) per sample
 
 
 def run_one(
@@ -69,10 +71,18 @@ def run_one(
         setup.rate_bounds, margins, setup.loop_settings.torque_limit,
         setup.model.coordinates.matrix, setup.model.length_coordinates,
     )
+    errors = None
+    if setup.goal is not None:
+        errors = task_errors(setup.model, setup.goal.goal, traj.position)
+        outcome = task_outcome(setup.model, setup.goal.goal, setup.goal.preflight.verdict,
+                               traj, summary.status, setup.monitor.names, margins,
+                               setup.criteria.velocity_tolerance, errors)
+        # a goal run settles when it enters the goal's band for good, not at the posture
+        summary = replace(summary, **outcome.__dict__, settle_time=outcome.reach_time)
     load = setup.gravity_on_path.get(case.name)
     if load is not None and summary.failed:
         summary = replace(summary, cause=load.describe())
-    return RunResult(entry.name, case.name, traj, margins, traj.lyapunov, summary)
+    return RunResult(entry.name, case.name, traj, margins, traj.lyapunov, summary, errors)
 
 
 def worker_payload(scenario: Scenario) -> str:

@@ -40,7 +40,8 @@ SafeName = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$", max_le
 RUN_FILES = frozenset({"summary.json", "summary.csv", "scene.mjb", "scene.mjb.gz",
                        "scene.json", "view.html"})
 CASE_FILES = frozenset({"positions.png", "rates.png", "torques.png", "lyapunov.png",
-                        "margins.png", "path.png", "timeseries.png", "view.html"})
+                        "margins.png", "path.png", "timeseries.png", "task_error.png",
+                        "view.html"})
 
 
 def _not_in(reserved: frozenset[str], what: str) -> Callable[[str], str]:
@@ -307,6 +308,27 @@ ShapingSpec = Annotated[
 ]
 
 
+class TaskGainsSpec(Strict):
+    """A goal's task gains in physical units, scaled by the arm's task-space inertia Λ at the
+    posture (cpbc.taskspace.gains): K_p = ω_n² Λ, D_x = 2 ζ ω_n Λ; the orientation spring
+    at ``rotation_omega_n`` (ω_n when omitted). The bounded laws (bpbc, bpbc_ke) saturate the
+    position spring beyond 1/``xi`` [m] and the task damping beyond 1/``gamma`` [m/s]."""
+
+    omega_n: Positive = 8.0
+    zeta: Positive = 1.0
+    rotation_omega_n: Positive | None = None
+    xi: Positive = 10.0
+    gamma: Positive = 10.0
+
+
+class PostureGainsSpec(Strict):
+    """A goal's posture spring and joint damping: K_n = ω_n² D_ii, K_D = 2 ζ ω_n D_ii at the
+    posture. Never off (it keeps the law's V a barrier on the boundary of S)."""
+
+    omega_n: Positive = 2.0
+    zeta: Positive = 1.0
+
+
 class GainsSpec(Strict):
     """K_P, K_D directly (``kp``, ``kd``), or in physical terms: a natural frequency
     ``omega_n`` [rad/s] and damping ratio ``zeta`` per coordinate (or one for all), scaled by
@@ -318,19 +340,27 @@ class GainsSpec(Strict):
     zeta: Gain | None = None
     kp: Gain | None = None
     kd: Gain | None = None
+    # with a scenario goal: the task and posture gains in place of kp, kd
+    task: TaskGainsSpec | None = None
+    posture: PostureGainsSpec | None = None
 
     @field_validator("kp", "kd", mode="before")
     @classmethod
     def _not_null(cls, v: object, info: ValidationInfo) -> object:
         # kp: null is a slip, unless the gains are given as omega_n, zeta (as a dumped
         # scenario has them)
-        if v is None and info.data.get("omega_n") is None:
+        if v is None and info.data.get("omega_n") is None and info.data.get("task") is None:
             raise ValueError("must be a number or a list of numbers, not null")
         return v
 
     @model_validator(mode="after")
     def _one_form(self) -> GainsSpec:
         given = {k for k in ("kp", "kd", "omega_n", "zeta") if getattr(self, k) is not None}
+        if self.task is not None or self.posture is not None:
+            if given:
+                raise ValueError(f"give task and posture gains, or {', '.join(sorted(given))}"
+                                 ", not both (a goal's law takes task: and posture:)")
+            return self
         if given & {"kp", "kd"} and given & {"omega_n", "zeta"}:
             raise ValueError("give either kp and kd, or omega_n and zeta, not both")
         if given not in ({"kp", "kd"}, {"omega_n", "zeta"}):
@@ -386,14 +416,48 @@ ControllerSpec = Annotated[
 ]
 
 
+class AxisSpec(Strict):
+    """The tool axis ``tool`` (frame axes) along the world axis ``world``; yaw about it free."""
+
+    tool: Vector
+    world: Vector
+
+
+class OrientationSpec(Strict):
+    """A goal orientation: exactly one of ``rpy`` [rad], ``quat`` (w, x, y, z) or ``axis``."""
+
+    rpy: Vector | None = None
+    quat: Vector | None = None
+    axis: AxisSpec | None = None
+
+
+class ToleranceSpec(Strict):
+    """The band of ``reached``: position [m] and angle [rad]."""
+
+    position: Positive = 0.002
+    angle: Positive = 0.02
+
+
+class GoalSpec(Strict):
+    """A frame's goal pose instead of a joint target (cpbc.taskspace)."""
+
+    frame: str
+    offset: Vector | None = None
+    position: Vector
+    orientation: OrientationSpec | None = None
+    tolerance: ToleranceSpec = ToleranceSpec()
+    posture: Literal["ik", "start"] | Vector = "ik"
+
+
 class Scenario(Strict):
-    """A whole scenario: robot, simulation, target, cases, constraints, controllers."""
+    """A whole scenario: robot, simulation, target or goal, cases, constraints, controllers."""
 
     name: SafeName
     description: str = ""
     robot: RobotSpec = RobotSpec()
     simulation: SimulationSpec
-    target: Vector
+    target: Vector | None = None
+    goal: GoalSpec | None = None
     cases: Annotated[list[CaseSpec], Field(min_length=1, max_length=MAX_CASES)]
     obstacles: list[ObstacleSpec] = []
     constraints: list[ConstraintSpec] = []

@@ -12,7 +12,9 @@ from cpbc.results.margin_types import types_of
 from cpbc.results.saved_run import FIGURES, SceneInfo, load_run, write_scene
 from cpbc.results.sweep import SceneKinematics, default_trace_frame
 from cpbc.scenario.build import ScenarioSetup
+from cpbc.taskspace.goal import AxisGoal
 from cpbc.viewer.export import write_view
+from cpbc.viewer.goal_marker import goal_entry
 from cpbc.viewer.scene import ViewSettings
 
 
@@ -33,8 +35,15 @@ def trace_frame(setup: ScenarioSetup, model: mujoco.MjModel) -> str:
 def scene_info(setup: ScenarioSetup, model: mujoco.MjModel) -> SceneInfo:
     """Coordinates, traced frame and obstacle geoms of a scenario's scene."""
     obstacles = tuple(ob.name for ob in getattr(setup, "obstacles", ()))
+    goal = None
+    plan = getattr(setup, "goal", None)
+    if plan is not None:
+        rot = plan.goal.rotation
+        goal = goal_entry(plan.goal.position, None if isinstance(rot, AxisGoal) else rot,
+                          rot.world if isinstance(rot, AxisGoal) else None)
     return SceneInfo(
-        setup.model.coordinates.matrix, trace_frame(setup, model), setup.scenario.name, obstacles
+        setup.model.coordinates.matrix, trace_frame(setup, model), setup.scenario.name, obstacles,
+        goal,
     )
 
 

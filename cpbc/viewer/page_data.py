@@ -32,6 +32,7 @@ from cpbc.results.margin_types import grouped, nearest_columns
 from cpbc.results.palette import BOUND_COLOUR, OBSTACLE_COLOUR, WARNING_COLOUR
 from cpbc.results.saved_run import SavedCase, SavedRun, SavedTrajectory, SummaryEntry
 from cpbc.results.thinning import Index, envelope
+from cpbc.viewer.goal_marker import draw_goal
 from cpbc.viewer.recorder import CommandRecorder
 from cpbc.viewer.scene import ROOT, CaseScene, ViewSettings, _segment
 
@@ -67,6 +68,8 @@ def _shared_scene(run: SavedRun, settings: ViewSettings) -> tuple[CaseScene, dic
     recorder = CommandRecorder()
     vis = recorder.visualizer()
     scene.draw_environment(vis)
+    if run.info.goal is not None:
+        draw_goal(vis, f"{ROOT}/goal", run.info.goal, 0.1 * scene.extent[1])
     bodies = []
     for b in scene.bodies:
         path = f"{TEMPLATE}/{_segment(kin.body_names[b])}"

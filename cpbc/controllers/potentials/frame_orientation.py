@@ -15,7 +15,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.controllers.potentials.base import GradientBound, Placed, frame_at
 from cpbc.errors import ParameterError
-from cpbc.model.frames import jacobian_bounds
+from cpbc.model.frames import cross3, jacobian_bounds
 from cpbc.model.robot_model import RobotModel
 
 
@@ -153,4 +153,4 @@ class FrameAxisSpring:
         kin = frame_at(at, self.frame)
         axis = kin.rotation @ self.tool
         value = self.stiffness * (1.0 - float(self.world @ axis))
-        return value, self.stiffness * (kin.angular.T @ np.cross(self.world, axis))
+        return value, self.stiffness * (kin.angular.T @ cross3(self.world, axis))

@@ -1,0 +1,154 @@
+"""Task-space damping on a point of a frame (TASKSPACE §2.2):
+
+    F(x, ẋ) = J_vᵀ D_x (J_v ẋ − ṗ_ff)                    (quadratic, CPBC, CPBC-KE, PD + g)
+    F(x, ẋ) = J_vᵀ D_x tanh(Γ_x (J_v ẋ − ṗ_ff))           (bounded, BPBC, BPBC-KE)
+
+added to the joint damping of a law: a = −∂U/∂x − K_D ẋ − F + ρ(b_φ + b_ψ). With the
+feed-forward ṗ_ff = 0 (a fixed goal) ẋᵀF = (J_vẋ)ᵀD_x(J_vẋ) ≥ 0 (or Σ D_i v_i tanh(Γ_i v_i) ≥ 0),
+so each law keeps its V̇ identity with K_D ẋ replaced by K_D ẋ + F (Claim A: any damping with
+ẋᵀF ≥ 0). A nonzero ṗ_ff (a moving reference) makes ẋᵀF sign-indefinite: that case is paid for
+by the reference governor (§2.4), not here.
+
+The bounded form is bounded by J̄_v ‖diag D_x‖₂, J̄_v ≥ ‖J_v(x)‖₂ over every configuration
+(:func:`cpbc.model.frames.jacobian_bounds`), so BPBC's torque bound (7.32) keeps holding with
+that term added.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.controllers.base import positive_vector
+from cpbc.controllers.potentials.base import Placed, frame_at
+from cpbc.errors import ParameterError
+from cpbc.model.frames import jacobian_bounds
+from cpbc.model.robot_model import RobotModel
+
+ZERO3 = np.zeros(3)
+ZERO3.setflags(write=False)
+
+
+def _vector3(value: object, name: str) -> Array:
+    a = np.array(value, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise ParameterError(name, f"{name} must be 3 finite numbers, got {value!r}")
+    a.setflags(write=False)
+    return a
+
+
+def _gain_matrix(value: object) -> Array:
+    """D_x ⪰ 0 as a symmetric 3 × 3 matrix (a number or 3 numbers: diagonal)."""
+    a = np.array(value, dtype=float)
+    d = np.diag(np.broadcast_to(a, (3,))) if a.ndim < 2 else a
+    if d.shape != (3, 3) or not np.all(np.isfinite(d)) or not np.allclose(d, d.T) or (
+            np.linalg.eigvalsh(d).min() < 0):
+        raise ParameterError(
+            "task damping", "the task damping D_x must be ≥ 0: a number, 3 numbers or a "
+            f"symmetric positive semidefinite 3 × 3 matrix, got {value!r}")
+    d = d.copy()
+    d.setflags(write=False)
+    return d
+
+
+@dataclass(frozen=True)
+class TaskDamping:
+    """F = J_vᵀ D_x (J_v ẋ − ṗ_ff) + J_ωᵀ D_ω J_ω ẋ on the point ``offset`` of ``frame``
+    (module docstring; the angular term damps the frame's rotation, ẋᵀ of it is ωᵀD_ωω ≥ 0).
+
+    Attributes:
+        frame: the frame id.
+        gain: D_x [N·s/m], symmetric positive semidefinite 3 × 3 (world axes).
+        offset: the point in the frame's axes (None: the frame's origin) [m].
+        feedforward: ṗ_ff [m/s], world axes; zero for a fixed goal.
+        angular: D_ω [N·m·s/rad], symmetric positive semidefinite 3 × 3 (a number: d_ω I);
+            an axis goal damps only the rotation across its axis, (I − a aᵀ) d_ω, leaving
+            the free yaw to the posture spring and joint damping.
+    """
+
+    frame: int
+    gain: Array
+    offset: Array | None = None
+    feedforward: Array = field(default_factory=lambda: ZERO3)
+    angular: Array | float = 0.0
+    _gain6: Array = field(init=False, repr=False, compare=False)
+    _bias6: Array = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "gain", _gain_matrix(self.gain))
+        object.__setattr__(self, "angular", _gain_matrix(self.angular))
+        # F = Jᵀ(G J ẋ − b) with J = [J_v; J_ω], G = diag(D_x, D_ω), b = G [ṗ_ff; 0]
+        gain6 = np.zeros((6, 6))
+        gain6[:3, :3], gain6[3:, 3:] = self.gain, self.angular
+        object.__setattr__(self, "_gain6", gain6)
+        object.__setattr__(self, "_bias6", gain6[:, :3] @ self.feedforward)
+        object.__setattr__(self, "feedforward", _vector3(self.feedforward, "feedforward"))
+        if self.offset is not None:
+            object.__setattr__(self, "offset", _vector3(self.offset, "offset"))
+
+    @property
+    def frames(self) -> tuple[int, ...]:
+        return (self.frame,)
+
+    @property
+    def force_bound(self) -> float | None:
+        """sup ‖F‖₂: none (it grows with ẋ)."""
+        return None
+
+    def force(self, at: Placed, dx: Array) -> Array:
+        """F, shape (n,), at a state holding the frame."""
+        kin = frame_at(at, self.frame)
+        j = kin.jacobian if self.offset is None else np.vstack(
+            (kin.point(self.offset)[1], kin.angular))
+        return j.T @ (self._gain6 @ (j @ dx) - self._bias6)
+
+
+@dataclass(frozen=True)
+class TaskTanhDamping:
+    """F = J_vᵀ D_x tanh(Γ_x (J_v ẋ − ṗ_ff)), diagonal D_x, Γ_x (world axes), bounded by
+    J̄_v ‖diag D_x‖₂ (module docstring).
+
+    Attributes:
+        frame, offset, feedforward: as :class:`TaskDamping`.
+        gain: diag D_x [N], 3 numbers > 0: the force saturates at D_x.
+        gamma: diag Γ_x [s/m], 3 numbers > 0 (the slope at zero is D_x Γ_x).
+        reach: J̄_v (:meth:`named` computes it).
+    """
+
+    frame: int
+    gain: Array
+    gamma: Array
+    reach: float
+    offset: Array | None = None
+    feedforward: Array = field(default_factory=lambda: ZERO3)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "gain", positive_vector(self.gain, 3, "task damping"))
+        object.__setattr__(self, "gamma", positive_vector(self.gamma, 3, "task gamma"))
+        object.__setattr__(self, "feedforward", _vector3(self.feedforward, "feedforward"))
+        if self.offset is not None:
+            object.__setattr__(self, "offset", _vector3(self.offset, "offset"))
+
+    @classmethod
+    def named(cls, model: RobotModel, frame: str, gain: object, gamma: object,
+              offset: object = None) -> TaskTanhDamping:
+        """The damping on the frame named ``frame``, with its Jacobian bound."""
+        fid = model.frame_id(frame)
+        point = None if offset is None else _vector3(offset, "offset")
+        reach, _ = jacobian_bounds(model.model, model.coordinates.inverse, fid, point)
+        return cls(fid, np.asarray(gain, dtype=float), np.asarray(gamma, dtype=float),
+                   reach, point)
+
+    @property
+    def frames(self) -> tuple[int, ...]:
+        return (self.frame,)
+
+    @property
+    def force_bound(self) -> float:
+        return self.reach * float(np.linalg.norm(self.gain))
+
+    def force(self, at: Placed, dx: Array) -> Array:
+        _, jv = frame_at(at, self.frame).point(self.offset)
+        return jv.T @ (self.gain * np.tanh(self.gamma * (jv @ dx - self.feedforward)))

@@ -1,0 +1,200 @@
+"""The IK preflight (TASKSPACE §3.3): before a run, where will the law rest?
+
+Damped least squares with the constraints' log barriers: from a seed inside S, minimise
+
+    F(x) = ½ ‖r(x)‖² − μ Σ ln φ_i(x)            r = [p(x) − p_d ; w·e_R(x)]
+
+(e_R = ½ vee(R R_dᵀ − R_d Rᵀ) for a full orientation, a_w × R a_b for an axis goal; w [m/rad]
+weighs angle against distance) by Levenberg–Marquardt steps
+
+    Δx = −(J_rᵀJ_r + μ b bᵀ + λ I)⁻¹ (J_rᵀ r − μ b),   b = Σ ∇φ_i/φ_i
+
+each accepted only inside S and when F decreases. Its rest points are those of the law's own
+V(·, 0) = U/s(Φ) in kind (∇U balanced by the barrier sum), so it predicts whether the arm
+reaches the goal, is held off it by a constraint, or cannot reach it at all:
+
+* ``reachable``: the task error is within the goal's tolerance; the result is the posture x_n
+  (``posture: ik``), consistent with the goal and strictly inside S;
+* ``blocked``: a constraint's margin shrank to a small share of its value at the seed while
+  the error stays above tolerance; that constraint is named;
+* ``unreachable``: neither; the closest approach is reported.
+
+Several seeds (the start first, then others the caller gives) guard against local minima;
+the first reachable one wins, otherwise the one closest to the goal.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.errors import ConstraintViolation
+from cpbc.model.frames import FrameKinematics
+from cpbc.model.robot_model import RobotModel
+from cpbc.taskspace.goal import AxisGoal, FrameGoal, TaskError
+
+BARRIER_WEIGHT = 1e-7  # μ [m²]
+ANGLE_LENGTH = 0.3  # w [m/rad]
+ACTIVE_SHARE = 0.05  # a margin below this share of its seed value is active
+SINGULAR = 1e-3  # σ_min(J_v) [m/rad] below which a configuration is singular for the goal
+
+
+@dataclass(frozen=True)
+class Preflight:
+    """The preflight's prediction.
+
+    Attributes:
+        verdict: ``reachable``, ``blocked`` or ``unreachable``.
+        posture: the rest configuration found (x_n for ``posture: ik``).
+        error: its task error.
+        blocked_by: the active constraint (``blocked``), else None.
+        nearest: (name, margin) of the smallest margin at the posture; None without
+            configuration constraints.
+        singular_start: σ_min(J_v) at the start is below ``SINGULAR``.
+    """
+
+    verdict: str
+    posture: Array
+    error: TaskError
+    blocked_by: str | None
+    nearest: tuple[str, float] | None
+    singular_start: bool
+
+    def describe(self) -> str:
+        """One line for the console."""
+        err = f"{self.error.position * 1000:.3g} mm, {self.error.angle:.3g} rad"
+        if self.verdict == "reachable":
+            text = f"reachable (IK error {err}); posture {np.round(self.posture, 3).tolist()}"
+        elif self.verdict == "blocked":
+            text = f"blocked_by: {self.blocked_by} (closest {err})"
+        else:
+            text = f"unreachable (distance {err})"
+        if self.singular_start:
+            text += "; the start is singular for this goal (slow start expected)"
+        return text
+
+
+def _residual(goal: FrameGoal, kin: FrameKinematics) -> tuple[Array, Array]:
+    """r and ∂r/∂x of the module docstring."""
+    p, jv = kin.point(goal.offset)
+    rows, jac = [p - goal.position], [jv]
+    if isinstance(goal.rotation, AxisGoal):
+        axis = kin.rotation @ goal.rotation.tool
+        rows.append(ANGLE_LENGTH * np.cross(goal.rotation.world, axis))
+        skew = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+        w = goal.rotation.world
+        wx = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+        jac.append(ANGLE_LENGTH * (-wx @ skew @ kin.angular))
+    elif goal.rotation is not None:
+        m = kin.rotation @ goal.rotation.T
+        skew = m - m.T
+        rows.append(ANGLE_LENGTH * 0.5 * np.array([skew[2, 1], skew[0, 2], skew[1, 0]]))
+        jac.append(ANGLE_LENGTH * 0.5 * (np.trace(m) * np.eye(3) - m) @ kin.angular)
+    return np.concatenate(rows), np.vstack(jac)
+
+
+@dataclass(frozen=True)
+class _Point:
+    x: Array
+    cost: float
+    residual: Array
+    jacobian: Array
+    barrier: Array
+    margins: Array
+    kin: FrameKinematics
+
+
+class _Flow:
+    """One descent from a seed."""
+
+    def __init__(self, model: RobotModel, constraints: ConstraintSet, goal: FrameGoal) -> None:
+        self.model, self.constraints, self.goal = model, constraints, goal
+        self.zero = np.zeros(model.n)
+
+    def at(self, x: Array) -> _Point | None:
+        state = self.model.state(x, self.zero, kinematics=self.constraints.needs_kinematics,
+                                 frames=[self.goal.frame])
+        kin = state.frames[self.goal.frame]
+        r, jac = _residual(self.goal, kin)
+        if self.constraints.empty:
+            return _Point(x, 0.5 * float(r @ r), r, jac, self.zero, np.zeros(0), kin)
+        try:
+            bar = self.constraints.barrier(state, margins=True)
+        except ConstraintViolation:
+            return None
+        if bar.margins is None or not np.all(bar.margins > 0):
+            return None
+        grad = self.zero if bar.gradient is None else bar.gradient
+        cost = 0.5 * float(r @ r) - BARRIER_WEIGHT * bar.log_phi
+        return _Point(x, cost, r, jac, grad, bar.margins, kin)
+
+    def descend(self, seed: Array, iterations: int) -> _Point | None:
+        point = self.at(seed)
+        if point is None:
+            return None
+        damping = 1e-3
+        for _ in range(iterations):
+            g = point.jacobian.T @ point.residual - BARRIER_WEIGHT * point.barrier
+            h = point.jacobian.T @ point.jacobian + BARRIER_WEIGHT * np.outer(
+                point.barrier, point.barrier)
+            step = -np.linalg.solve(h + damping * np.eye(self.model.n), g)
+            trial = self.at(point.x + step)
+            if trial is not None and trial.cost < point.cost:
+                done = point.cost - trial.cost < 1e-14 + 1e-10 * point.cost
+                point, damping = trial, max(damping / 3.0, 1e-9)
+                if done:
+                    break
+            else:
+                damping *= 4.0
+                if damping > 1e6:
+                    break
+        return point
+
+
+def _singular(model: RobotModel, goal: FrameGoal, x: Array) -> bool:
+    state = model.state(x, np.zeros(model.n), frames=[goal.frame])
+    jv = state.frames[goal.frame].point(goal.offset)[1]
+    sigma = np.linalg.svd(jv, compute_uv=False)
+    rank = min(jv.shape[0], jv.shape[1])
+    return bool(sigma[: min(rank, 2) if model.n < 3 else rank][-1] < SINGULAR)
+
+
+def preflight(model: RobotModel, constraints: ConstraintSet, goal: FrameGoal, start: Array,
+              seeds: Sequence[Array] = (), iterations: int = 200) -> Preflight:
+    """The verdict of the module docstring; ``constraints`` are the configuration
+    constraints (velocity ones are slack at rest)."""
+    flow = _Flow(model, constraints, goal)
+    seed_point = flow.at(start)
+    best: _Point | None = None
+    for seed in [start, *seeds]:
+        found = flow.descend(np.asarray(seed, dtype=float), iterations)
+        if found is None:
+            continue
+        if best is None or float(found.residual @ found.residual) < float(
+                best.residual @ best.residual):
+            best = found
+        if goal.reached(goal.error(best.kin)):
+            break
+    if best is None:
+        best = seed_point if seed_point is not None else flow.at(start)
+    assert best is not None, "the start is inside S (checked by the caller)"
+    error = goal.error(best.kin)
+    names = constraints.names[: constraints.n_configuration]
+    nearest = None
+    blocked = None
+    if best.margins.size:
+        k = int(np.argmin(best.margins))
+        nearest = (names[k], float(best.margins[k]))
+        if seed_point is not None:
+            share = best.margins / np.maximum(seed_point.margins, 1e-300)
+            j = int(np.argmin(share))
+            blocked = names[j] if share[j] < ACTIVE_SHARE else None
+    if goal.reached(error):
+        verdict, blocked = "reachable", None
+    else:
+        verdict = "blocked" if blocked is not None else "unreachable"
+    return Preflight(verdict, best.x, error, blocked, nearest, _singular(model, goal, start))

@@ -1,0 +1,109 @@
+"""Scenario ``goal:`` (cpbc.scenario.goal, cpbc.taskspace): refusals naming the field, the
+task gains from the task-space inertia and their zero-order-hold check, and the IK
+preflight's three verdicts on the thesis's arm."""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from cpbc.constraints import ConstraintSet
+from cpbc.errors import CpbcError
+from cpbc.resources import scenarios_dir
+from cpbc.scenario import ScenarioSetup, build, load_scenario
+from cpbc.taskspace.goal import FrameGoal
+from cpbc.taskspace.ik import preflight
+
+SCENARIO = scenarios_dir() / "planar_ch6_taskspace.yaml"
+
+
+@pytest.fixture
+def data() -> dict:
+    return yaml.safe_load(SCENARIO.read_text())
+
+
+@pytest.fixture
+def load(tmp_path: Path) -> Callable[[dict], ScenarioSetup]:
+    counter = iter(range(1000))
+
+    def _load(d: dict) -> ScenarioSetup:
+        path = tmp_path / f"goal_{next(counter)}.yaml"
+        path.write_text(yaml.safe_dump(d, sort_keys=False))
+        return build(*load_scenario(path))
+
+    return _load
+
+
+def _refused(load: Callable[[dict], ScenarioSetup], d: dict, field: str, word: str) -> None:
+    with pytest.raises(CpbcError) as err:  # a ScenarioError, or an inadmissible state's
+        load(d)
+    assert getattr(err.value, "field", None) == field, str(err.value)
+    assert word in str(err.value)
+
+
+@pytest.mark.parametrize(("edit", "field", "word"), [
+    (lambda d: d.update(target=[1.0, 2.0]), "goal", "not both"),
+    (lambda d: d["goal"].update(frame="no_such_frame"), "goal.frame", "end_point"),
+    (lambda d: d["goal"].update(position=[1.0, 2.0]), "goal.position", "3 numbers"),
+    (lambda d: d["goal"].update(position=[0.1, 1.8, 0.0]), "goal.position", "obstacle"),
+    (lambda d: d["goal"].update(orientation={"rpy": [0, 0, 1], "quat": [1, 0, 0, 0]}),
+     "goal.orientation", "exactly one"),
+    (lambda d: d["goal"].update(posture=[0.0, 3.1]), "goal.posture", ""),
+    (lambda d: d["controllers"][0].update(type="pd", shaping=None) or d["controllers"][0].pop(
+        "shaping"), "controllers[0].type", "pd_gravity"),
+    (lambda d: d["controllers"][0].update(task={"omega_n": 5000.0}),
+     "controllers[0]", "zero-order hold"),
+])
+def test_bad_goals_are_refused_naming_the_field(load, data, edit, field, word) -> None:
+    d = copy.deepcopy(data)
+    edit(d)
+    _refused(load, d, field, word)
+
+
+def test_task_gains_without_a_goal_are_refused(load, data) -> None:
+    d = copy.deepcopy(data)
+    d.pop("goal")
+    d["target"] = [math.pi, 2 * math.pi / 3]
+    _refused(load, d, "controllers[0].task", "need a goal")
+
+
+def test_goal_scenario_builds_with_task_stiffness_from_the_task_inertia(load, data) -> None:
+    setup = load(data)
+    assert setup.goal is not None and setup.goal.preflight.verdict == "reachable"
+    assert np.allclose(setup.target, [math.pi, 2 * math.pi / 3], atol=1e-4)
+    law = setup.controllers[0].controller
+    state = law.state(setup.target, np.zeros(2))
+    jv = state.frames[setup.goal.goal.frame].linear[:2]
+    lam = np.linalg.inv(jv @ np.linalg.solve(state.inertia, jv.T))
+    spring = law.potential.parts[0]  # type: ignore[union-attr]
+    assert np.allclose(spring.stiffness[:2, :2], 4.0 * lam)  # ω_n = 2
+    assert np.allclose(law.kp, 0.25 * np.diag(state.inertia))  # posture ω_n = 0.5
+
+
+def _planar(load, data) -> tuple[ScenarioSetup, ConstraintSet]:
+    setup = load(data)
+    return setup, ConstraintSet(2, setup.monitor.configuration)
+
+
+@pytest.mark.parametrize(("position", "verdict", "named"), [
+    ([-1.5, 0.8660254, 0.0], "reachable", None),
+    ([3.0, 1.0, 0.0], "unreachable", None),
+    ([0.08, 0.0, 0.0], "blocked", "relative_angle"),
+])
+def test_preflight_verdicts(load, data, position, verdict, named) -> None:
+    setup, config = _planar(load, data)
+    assert setup.goal is not None
+    goal = FrameGoal(setup.goal.goal.frame, "end_point", np.array(position))
+    start = np.array([0.5, 1.2])
+    found = preflight(setup.model, config, goal, start)
+    assert found.verdict == verdict, found.describe()
+    assert found.blocked_by == named
+    if verdict == "unreachable":  # the outstretched arm: |p| − 2 from the goal
+        assert found.error.position == pytest.approx(math.hypot(3.0, 1.0) - 2.0, abs=1e-3)
+    assert np.all(config.configuration_margins(found.posture) > 0)
