@@ -1,0 +1,22 @@
+"""Clearance between the whole arm and the obstacles (and between its own links).
+
+One scalar configuration constraint per (robot primitive, obstacle) pair and per
+self-collision pair, all evaluated together so that the hot path is a fixed, small number of
+vectorised operations whatever the number of pairs.
+
+The package, one concept per module:
+
+- ``constraint``: :class:`Clearance`, the coordinator (arguments, values, gradients,
+  curvature, the localised barrier's terms);
+- ``spheres``: the sphere primitives' pairs (distances, gradients, the law's factors and
+  force, curvature);
+- ``capsules``: the capsule primitives' groups (against spheres, capsules, boxes and planes,
+  and self pairs);
+- ``layout``: the set-up of the pairs from the link covers, and the capsules' broad phase;
+- ``kinematics``: points fixed on links over Pinocchio's static regressor;
+- ``tables``: the constant wrench/cross tables of the hot path.
+"""
+
+from cpbc.constraints.clearance.constraint import Clearance
+
+__all__ = ["Clearance"]

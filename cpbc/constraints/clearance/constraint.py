@@ -1,0 +1,397 @@
+"""``Clearance``: the coordinator of the clearance constraint.
+
+It checks the arguments, lays out the pairs (``layout``), and answers the
+``ConfigurationConstraint`` calls — values, gradients, curvature and the localised
+barrier's terms — by combining the sphere pairs' fast path (``spheres``) with the
+capsule groups (``capsules``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from functools import partial
+from itertools import pairwise
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from cpbc.arrays import Array
+from cpbc.constraints.base import ConfigurationConstraint
+from cpbc.constraints.clearance.capsules import _CapsuleGroup, _Rows
+from cpbc.constraints.clearance.layout import _PairLayout
+from cpbc.constraints.clearance.spheres import _core_distances
+from cpbc.constraints.clearance.tables import _ONE, _THREE, _Index
+from cpbc.constraints.covering import LinkPrimitive
+from cpbc.constraints.geometry import Obstacle
+from cpbc.errors import CpbcError, ParameterError
+from cpbc.model.robot_model import ArmState, RobotModel
+
+
+class Clearance(_PairLayout, ConfigurationConstraint):
+    """φ_p(x) = d_p(x) − Δ > 0 for every pair p of a robot primitive and an obstacle (or of
+    two robot primitives on different links), d_p the exact distance between the two shapes
+    (cpbc.constraints.geometry) and Δ the margin.
+
+    Gradient (envelope theorem): ∇φ_p = n̂ᵀ J_P(x), with P the closest point of the robot
+    primitive held fixed on its link, n̂ the unit vector from the obstacle's closest point to
+    P, and J_P the Jacobian of that point, assembled for all pairs at once from Pinocchio's
+    world joint Jacobians: column k of J_P is v_k + ω_k × P (zero for joints that do not move
+    the link). For a self pair both points move: ∇φ = n̂ᵀ (J_P − J_Q).
+
+    **Spheres are the fast path.** Every obstacle is a rounded box (geometry.RoundedBox), so a
+    sphere primitive's distance to any obstacle is one formula, exact and C¹ outside the
+    obstacle; the centres of all spheres, in every obstacle's frame, come out of two small
+    matrix products with Pinocchio's static regressor (all joint placements in one call).
+    Capsule primitives are supported too (segment–sphere, segment–segment, segment–box and
+    segment–plane, each exact; see the smoothness notes in cpbc.constraints.geometry), at a
+    higher cost per step. A capsule above a plane enters the barrier as the product of its
+    two end spheres' clearances (each smooth, where min(n·a, n·b) is not); its reported value
+    is the smaller of the two.
+
+    **Localised barrier.** Theorem 6.9 sums ∇φ_p/φ_p over every pair, so an obstacle far
+    away still pulls (weakly) on the arm and every pair enters every step. With an
+    ``influence`` distance ℓ the law is given instead the constraint functions
+
+        φ̃_p = ℓ σ(φ_p/ℓ),   σ(u) = 1 − (1 − u)³ for u < 1,   σ(u) = 1 for u ≥ 1,
+
+    which are C² wherever φ_p is, positive exactly where φ_p is (the same admissible set S),
+    equal to 3φ_p + O(φ_p²) at the boundary (the same barrier there) and constant, with zero
+    gradient, once the pair is farther apart than ℓ. This is Theorem 6.9 applied to the
+    constraints φ̃_p, so its guarantees hold unchanged, and a pair beyond ℓ is *exactly*
+    inactive: when no pair is within ℓ the barrier costs the distance computation only, and
+    capsule groups are skipped after a conservative bounding-sphere test. Once one sphere
+    pair is within ℓ, all of them go through the rest densely (those beyond ℓ with factor
+    exactly 1 and zero slope): per numpy call that costs the same as a few, and it needs no
+    picking. With
+    ``influence=None`` the barrier is φ_p itself (the plain thesis form).
+
+    ``value`` and ``gradient`` report the clearance φ_p itself [m] (what the run summary
+    shows); ``barrier_terms`` gives the law φ̃_p and Σ ∇φ̃_p/φ̃_p. Sphere primitives are
+    reported per link: ``name[link|obstacle]`` is the smallest clearance of the link's
+    spheres (its gradient that of the closest sphere), and the law's function for it is the
+    product of the spheres' φ̃ — one log-barrier term per sphere pair, exactly as if each
+    were its own constraint, with the same zero set as the minimum but smooth. Capsule
+    primitives are reported per primitive. Sphere pairs whose clearance cannot change (a
+    link turning about the normal of a plane, say) are detected once, by their vanishing
+    gradient at random configurations, and leave the law (a constant factor).
+
+    Args:
+        model: the controller's robot model.
+        primitives: robot primitives (spheres or capsules fixed in link frames).
+        obstacles: fixed obstacles.
+        margin: Δ ≥ 0 [m].
+        influence: ℓ > 0 [m], or None for the non-localised barrier.
+        self_pairs: pairs of link (frame) names to keep apart; every primitive of the one
+            against every primitive of the other.
+        name: prefix of the constraint names, ``name[primitive|obstacle]``.
+    """
+
+    needs_kinematics = True  # the law's pass reads the state's joint Jacobians
+
+    def __init__(
+        self,
+        model: RobotModel,
+        primitives: Sequence[LinkPrimitive],
+        obstacles: Sequence[Obstacle],
+        margin: float = 0.0,
+        influence: float | None = 0.1,
+        self_pairs: Sequence[tuple[str, str]] = (),
+        name: str = "clearance",
+    ) -> None:
+        if not (np.isfinite(margin) and margin >= 0):
+            raise ParameterError("margin", f"clearance margin must be ≥ 0, got {margin}")
+        if influence is not None and not (np.isfinite(influence) and influence > 0):
+            raise ParameterError(
+                "influence", f"clearance influence distance must be > 0, got {influence}")
+        if not primitives:
+            raise CpbcError("clearance needs at least one robot primitive")
+        prim_names = [p.name for p in primitives]
+        if len(set(prim_names)) != len(prim_names):
+            raise CpbcError(f"primitive names must be unique, got {prim_names}")
+        obs_names = [o.name for o in obstacles]
+        if len(set(obs_names)) != len(obs_names):
+            raise CpbcError(f"obstacle names must be unique, got {obs_names}")
+        frames = sorted({p.frame for p in primitives})
+        for a, b in self_pairs:
+            for f in (a, b):
+                if f not in frames:
+                    raise CpbcError(
+                        f"self-collision pair ({a}, {b}): no primitive on link '{f}'; "
+                        f"links with primitives: {frames}"
+                    )
+            if a == b:
+                raise CpbcError(f"self-collision pair ({a}, {b}) names one link twice")
+        if not obstacles and not self_pairs:
+            raise CpbcError("clearance needs at least one obstacle or self-collision pair")
+        self.model = model
+        self.primitives = tuple(primitives)
+        self.obstacles = tuple(obstacles)
+        self.margin = float(margin)
+        self.influence = None if influence is None else float(influence)
+        self._ell = np.array(self.influence or 1.0)  # ℓ and 1/ℓ as 0-d arrays (see _ONE)
+        self._inv_ell = np.array(1.0 / (self.influence or 1.0))
+        self.self_pairs = tuple((str(a), str(b)) for a, b in self_pairs)
+        self._pin = model.model
+        self._data = model.data  # the model's: the per-step state leaves its Jacobians there
+        self._n = model.n
+        self._identity = model.coordinates.is_identity
+        self._t_inv = model.coordinates.inverse
+        self._setup_kinematics()
+        self._setup_pairs(name)
+        self._far_phi = np.full(len(self.names), self.influence or 1.0)
+        self._split_static()
+        self._far_phi.setflags(write=False)
+        self._zero = np.zeros(self._n)
+        self._zero.setflags(write=False)
+        self._along: dict[int, tuple[Array, Array, _Index]] = {}  # see values_along
+        self._motion_data = self._pin.createData()  # second order, apart from the state's
+
+    # -- set-up (the pairs themselves: layout) -------------------------------------------
+    def _split_static(self, samples: int = 8) -> None:
+        """Take the sphere pairs whose clearance cannot change out of the law.
+
+        A sphere on the first link of an arm whose first axis is vertical keeps its height
+        above a table: its clearance is constant, its barrier gradient zero. Such pairs are
+        found by their gradient, which vanishes at every one of ``samples`` random
+        configurations (an analytic function of q that vanishes on random samples is zero);
+        their constant factor φ̃ goes into ``_far_phi`` once. In the law they then count as
+        beyond ℓ (rsum_law = −∞: φ = ∞, factor 1, no slope), so a link that always sits
+        near the table does not keep the whole barrier awake.
+        """
+        s = self._spheres
+        if s is None:
+            return
+        pm = self._pin
+        lo = np.where(np.isfinite(pm.lowerPositionLimit), pm.lowerPositionLimit, -np.pi)
+        hi = np.where(np.isfinite(pm.upperPositionLimit), pm.upperPositionLimit, np.pi)
+        rng = np.random.default_rng(0)
+        slope = np.zeros(len(s.group))
+        for _ in range(samples):
+            q = rng.uniform(lo, hi)
+            g = self._pair_gradients(q, self._regressor(q))[1]
+            slope = np.maximum(slope, np.abs(g).max(axis=1))
+        static = slope < 1e-12
+        if not static.any():
+            return
+        phi = self._sphere_distances(self._regressor(pin.neutral(pm)))[0] - s.rsum
+        shaped = phi if self.influence is None else self._shape(phi)[0] / self.influence
+        np.multiply.at(self._far_phi, s.group[static], shaped[static])
+        s.moving[static] = 0.0
+        if self.influence is not None:
+            s.rsum_law[static] = -np.inf
+
+    # -- ConfigurationConstraint ----------------------------------------------------------
+    def value(self, x: Array) -> Array:
+        y = self._regressor(self._q(x))
+        if self._spheres is None:
+            return self._value(y, None, None)
+        d, u, _ = self._sphere_distances(y)
+        return self._value(y, d, u)
+
+    def _value(self, y: Array, d: Array | None, u: Array | None) -> Array:
+        """The clearances from the regressor y and (with spheres) their pairs' d and u."""
+        s = self._spheres
+        if s is None:
+            out = np.empty(len(self.names))
+        else:
+            assert d is not None and u is not None
+            phi = d - s.rsum
+            # (x[x.argmin()]: min without a ufunc reduction, several times cheaper)
+            if not d[d.argmin()] > 0.0:  # a centre inside a core box: signed distance there
+                depth = np.max(np.abs(u) - s.half, axis=0) - s.rsum
+                phi = np.where(d > 0.0, phi, depth)
+            out = np.minimum.reduceat(phi, s.starts)  # the sphere constraints come first
+            if not self._groups:
+                return out
+            out = np.concatenate([out, np.empty(len(self.names) - s.stop)])
+        for g in self._groups:
+            out[g.start:g.stop] = g.reported(g.narrow(y)[0])
+        return out
+
+    def values_along(self, xs: Array) -> Array:
+        """φ at each row of xs, (N, k): with sphere primitives only, the pairs of all rows go
+        through one set of numpy calls (the same numbers as ``value`` row by row)."""
+        s = self._spheres
+        xs = np.asarray(xs, dtype=float)
+        if s is None or self._groups or len(xs) < 2:
+            return super().values_along(xs)
+        rows = len(xs)
+        if rows not in self._along:  # h, rsum and the constraints' first pairs, row after row
+            pairs = len(s.rsum)
+            self._along[rows] = (np.tile(s.half, rows), np.tile(s.rsum, rows),
+                                 (s.starts + pairs * np.arange(rows)[:, None]).reshape(-1))
+        half, rsum, starts = self._along[rows]
+        u = np.concatenate([self._offsets(self._regressor(self._q(x))) for x in xs], axis=1)
+        d, _ = _core_distances(u, half)
+        if not d[d.argmin()] > 0.0:  # a centre inside a core box: row by row
+            return super().values_along(xs)
+        d -= rsum
+        return np.minimum.reduceat(d, starts).reshape(rows, -1)
+
+    def evaluate(self, x: Array) -> tuple[Array, Array]:
+        q = self._q(x)
+        y = self._regressor(q)
+        k = len(self.names)
+        grad = np.empty((k, self._n))
+        out = self.value(x)
+        s = self._spheres
+        if s is not None:
+            phi, g0 = self._pair_gradients(q, y)
+            # each reported constraint is its closest sphere pair
+            bounds = [*s.starts.tolist(), len(phi)]
+            closest = [lo + int(np.argmin(phi[lo:hi])) for lo, hi in pairwise(bounds)]
+            grad[s.start:s.stop] = g0[closest]
+        jacobian_rows = partial(self._rows_times_jacobians, q)
+        for g in self._groups:
+            grad[g.start:g.stop] = g.gradient(*g.narrow(y), jacobian_rows)
+        if not self._identity:
+            grad = grad @ self._t_inv
+        return out, grad
+
+    def gradient(self, x: Array) -> Array:
+        return self.evaluate(x)[1]
+
+    # -- second order (cpbc.constraints.pair_motion) ----------------------------------------
+    @property
+    def sphere_count(self) -> int:
+        """How many reported constraints are sphere primitives' (they come first)."""
+        return 0 if self._spheres is None else self._spheres.stop
+
+    def sphere_pairs(self, x: Array, dx: Array
+                     ) -> tuple[Array, Array, Array, NDArray[np.bool_]]:
+        """Every sphere pair on its own (not the per-link minimum): its clearance φ_p (P,),
+        gradient ∇φ_p (P, n), curvature ẋᵀ∇²φ_p ẋ (P,) and whether it can move (P,) bool.
+
+        Each pair is smooth where the minimum over a link's spheres is not: a filter that
+        wants C¹ rows keeps one row per pair. Empty without sphere primitives.
+        """
+        s = self._spheres
+        if s is None:
+            n = self._n
+            return np.zeros(0), np.zeros((0, n)), np.zeros(0), np.zeros(0, dtype=bool)
+        q, dq = self._q(x), self._q(dx)
+        y = self._regressor(q)
+        phi, grad = self._pair_gradients(q, y)
+        if not self._identity:
+            grad = grad @ self._t_inv
+        return phi, grad, self._pair_curvature(q, dq, y), s.moving > 0.0
+
+    def curvature(self, x: Array, dx: Array) -> Array:
+        """ẋᵀ∇²φ ẋ of each reported constraint: that of its closest sphere pair (as its
+        gradient is), and for capsule primitives a central difference of the gradient along
+        ẋ (step 1e-6 rad of motion; their closed forms are piecewise and not given here)."""
+        out = np.zeros(len(self.names))
+        s = self._spheres
+        if s is not None:
+            phi, _, curv, _ = self.sphere_pairs(x, dx)
+            bounds = [*s.starts.tolist(), len(phi)]
+            closest = [lo + int(np.argmin(phi[lo:hi])) for lo, hi in pairwise(bounds)]
+            out[s.start:s.stop] = curv[closest]
+        speed = float(np.linalg.norm(dx))
+        if self._groups and speed > 0.0:
+            t = 1e-6 / speed
+            diff = self.gradient(x + t * dx) - self.gradient(x - t * dx)
+            rest = slice(0 if s is None else s.stop, len(self.names))
+            out[rest] = (diff @ dx)[rest] / (2.0 * t)
+        return out
+
+    # -- the localised barrier -------------------------------------------------------------
+    def _shape(self, phi: Array) -> tuple[Array, Array]:
+        """φ̃ and (dφ̃/dφ)/φ̃ of the class docstring (φ and 1/φ without an influence)."""
+        ell = self.influence
+        if ell is None:
+            return phi, 1.0 / phi
+        # ℓ − ℓ(1 − min(φ/ℓ, 1))³ and 3(1 − …)²/φ̃, operation by operation as ever (the same
+        # bits), in place and with 0-d array constants (cheaper per call than Python floats)
+        v = phi * self._inv_ell
+        np.minimum(v, _ONE, out=v)
+        np.subtract(_ONE, v, out=v)
+        v2 = v * v
+        shaped = v2 * v
+        shaped *= self._ell
+        np.subtract(self._ell, shaped, out=shaped)
+        v2 *= _THREE
+        v2 /= shaped
+        return shaped, v2
+
+    def _near_groups(self, y: Array) -> list[_CapsuleGroup]:
+        """Capsule groups with a pair that may be within the influence distance."""
+        if not self._groups:
+            return []
+        if self.influence is None:
+            return self._groups
+        z = y.reshape(-1) @ self._broad_w + self._broad_c
+        n3 = 3 * self._n_bounded
+        delta = z[:n3].reshape(-1, 3)
+        slack = np.concatenate([(delta * delta).sum(axis=1) - self._broad_thr,
+                                z[n3:] - self.influence])
+        low = (np.minimum.reduceat(slack, self._reduce_at) < 0.0).tolist()
+        return [g for g, hit in zip(self._groups, low, strict=True) if hit]
+
+    def barrier_terms(self, state: ArmState, margins: bool = False
+                      ) -> tuple[Array, Array, Array | None]:
+        """φ̃, Σ ∇φ̃/φ̃ and (with ``margins``) the clearances φ, from one pass that reads
+        the state's joint Jacobians."""
+        return self._barrier(state.x, state.q, margins)
+
+    def _barrier(self, x: Array, q: Array, with_value: bool
+                 ) -> tuple[Array, Array, Array | None]:
+        """The sphere pairs' factors of φ̃ and their normals, then the terms of the capsule
+        groups that may be within ℓ, then the force of both (``_force``). Outside S: the
+        clearances φ for φ̃ and no force (the constraint set raises)."""
+        y = self._regressor(q)
+        value: Array | None = None
+        phi_out: Array | None = None
+        sphere_local: Array | None = None  # the pairs' normals × (dφ̃/dφ)/φ̃, obstacle frames
+        s = self._spheres
+        if s is not None:
+            d, u, outside = self._sphere_distances(y)
+            phi = d - s.rsum_law  # pairs that cannot move: ∞ (with ℓ)
+            low = phi[phi.argmin()]  # phi.min(), cheaper
+            if low <= 0.0:  # outside S: report it, the constraint set raises
+                value = self._value(y, d, u)
+                return value, self._zero, value
+            if with_value:
+                value = self._value(y, d, u)
+            phi_out, sphere_local = self._sphere_law(s, phi, low, d, u, outside)
+        capsules = self._capsule_law(y, phi_out)
+        if capsules is None:  # a capsule pair outside S
+            value = self.value(x)
+            return value, self._zero, value
+        phi_out, rows = capsules
+        if with_value and value is None:
+            value = self.value(x)
+        if phi_out is None:
+            return self._far_phi, self._zero, value
+        return phi_out, self._force(q, sphere_local, rows), value
+
+    def _capsule_law(self, y: Array, phi_out: Array | None
+                     ) -> tuple[Array | None, list[_Rows]] | None:
+        """The terms of the capsule groups that may be within ℓ: their φ̃ into ``phi_out``
+        (a copy of the far values first if None) and the rows of their force; None when a
+        pair is outside S."""
+        rows: list[_Rows] = []
+        for g in self._near_groups(y):
+            phi, grows = g.narrow(y)
+            if phi.min() <= 0.0:
+                return None
+            shaped, ratio = self._shape(phi)
+            phi_out = self._far_phi.copy() if phi_out is None else phi_out
+            phi_out[g.start:g.stop], g_rows = g.law(shaped, ratio, grows, self.influence)
+            rows += g_rows
+        return phi_out, rows
+
+    def _force(self, q: Array, sphere_local: Array | None, rows: list[_Rows]) -> Array:
+        """Σ ∇φ̃/φ̃: the sphere pairs' (``_sphere_force``) plus the capsule rows', from the
+        state's joint Jacobians (RobotModel.state, kinematics=True)."""
+        jac = self._data.J
+        b = self._zero
+        if sphere_local is not None:
+            b = self._sphere_force(sphere_local, jac)
+        if rows:
+            points, normals, masks = (np.concatenate(part) for part in zip(*rows, strict=True))
+            b = b + self._rows_times_jacobians(q, points, normals, masks, jac).sum(axis=0)
+        if not self._identity:
+            b = b @ self._t_inv
+        return b
