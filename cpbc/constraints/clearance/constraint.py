@@ -18,17 +18,17 @@ from numpy.typing import NDArray
 
 from cpbc.arrays import Array
 from cpbc.constraints.base import ConfigurationConstraint
-from cpbc.constraints.clearance.capsules import _CapsuleGroup, _Rows
-from cpbc.constraints.clearance.layout import _PairLayout
-from cpbc.constraints.clearance.spheres import _core_distances
-from cpbc.constraints.clearance.tables import _ONE, _THREE, _Index
+from cpbc.constraints.clearance.capsules import CapsuleGroup, Rows
+from cpbc.constraints.clearance.layout import PairLayout
+from cpbc.constraints.clearance.spheres import core_distances
+from cpbc.constraints.clearance.tables import ONE, THREE, Index
 from cpbc.constraints.covering import LinkPrimitive
 from cpbc.constraints.geometry import Obstacle
 from cpbc.errors import CpbcError, ParameterError
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
-class Clearance(_PairLayout, ConfigurationConstraint):
+class Clearance(PairLayout, ConfigurationConstraint):
     """φ_p(x) = d_p(x) − Δ > 0 for every pair p of a robot primitive and an obstacle (or of
     two robot primitives on different links), d_p the exact distance between the two shapes
     (cpbc.constraints.geometry) and Δ the margin.
@@ -129,7 +129,7 @@ class Clearance(_PairLayout, ConfigurationConstraint):
         self.obstacles = tuple(obstacles)
         self.margin = float(margin)
         self.influence = None if influence is None else float(influence)
-        self._ell = np.array(self.influence or 1.0)  # ℓ and 1/ℓ as 0-d arrays (see _ONE)
+        self._ell = np.array(self.influence or 1.0)  # ℓ and 1/ℓ as 0-d arrays (see ONE)
         self._inv_ell = np.array(1.0 / (self.influence or 1.0))
         self.self_pairs = tuple((str(a), str(b)) for a, b in self_pairs)
         self._pin = model.model
@@ -144,7 +144,7 @@ class Clearance(_PairLayout, ConfigurationConstraint):
         self._far_phi.setflags(write=False)
         self._zero = np.zeros(self._n)
         self._zero.setflags(write=False)
-        self._along: dict[int, tuple[Array, Array, _Index]] = {}  # see values_along
+        self._along: dict[int, tuple[Array, Array, Index]] = {}  # see values_along
         self._motion_data = self._pin.createData()  # second order, apart from the state's
 
     # -- set-up (the pairs themselves: layout) -------------------------------------------
@@ -223,7 +223,7 @@ class Clearance(_PairLayout, ConfigurationConstraint):
                                  (s.starts + pairs * np.arange(rows)[:, None]).reshape(-1))
         half, rsum, starts = self._along[rows]
         u = np.concatenate([self._offsets(self._regressor(self._q(x))) for x in xs], axis=1)
-        d, _ = _core_distances(u, half)
+        d, _ = core_distances(u, half)
         if not d[d.argmin()] > 0.0:  # a centre inside a core box: row by row
             return super().values_along(xs)
         d -= rsum
@@ -305,17 +305,17 @@ class Clearance(_PairLayout, ConfigurationConstraint):
         # ℓ − ℓ(1 − min(φ/ℓ, 1))³ and 3(1 − …)²/φ̃, operation by operation as ever (the same
         # bits), in place and with 0-d array constants (cheaper per call than Python floats)
         v = phi * self._inv_ell
-        np.minimum(v, _ONE, out=v)
-        np.subtract(_ONE, v, out=v)
+        np.minimum(v, ONE, out=v)
+        np.subtract(ONE, v, out=v)
         v2 = v * v
         shaped = v2 * v
         shaped *= self._ell
         np.subtract(self._ell, shaped, out=shaped)
-        v2 *= _THREE
+        v2 *= THREE
         v2 /= shaped
         return shaped, v2
 
-    def _near_groups(self, y: Array) -> list[_CapsuleGroup]:
+    def _near_groups(self, y: Array) -> list[CapsuleGroup]:
         """Capsule groups with a pair that may be within the influence distance."""
         if not self._groups:
             return []
@@ -367,11 +367,11 @@ class Clearance(_PairLayout, ConfigurationConstraint):
         return phi_out, self._force(q, sphere_local, rows), value
 
     def _capsule_law(self, y: Array, phi_out: Array | None
-                     ) -> tuple[Array | None, list[_Rows]] | None:
+                     ) -> tuple[Array | None, list[Rows]] | None:
         """The terms of the capsule groups that may be within ℓ: their φ̃ into ``phi_out``
         (a copy of the far values first if None) and the rows of their force; None when a
         pair is outside S."""
-        rows: list[_Rows] = []
+        rows: list[Rows] = []
         for g in self._near_groups(y):
             phi, grows = g.narrow(y)
             if phi.min() <= 0.0:
@@ -382,7 +382,7 @@ class Clearance(_PairLayout, ConfigurationConstraint):
             rows += g_rows
         return phi_out, rows
 
-    def _force(self, q: Array, sphere_local: Array | None, rows: list[_Rows]) -> Array:
+    def _force(self, q: Array, sphere_local: Array | None, rows: list[Rows]) -> Array:
         """Σ ∇φ̃/φ̃: the sphere pairs' (``_sphere_force``) plus the capsule rows', from the
         state's joint Jacobians (RobotModel.state, kinematics=True)."""
         jac = self._data.J

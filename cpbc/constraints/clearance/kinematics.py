@@ -1,6 +1,6 @@
 """Points fixed on the arm's links, read from Pinocchio in one call.
 
-``_Kinematics`` is the base of ``Clearance``: the attributes every part of it reads, the
+``Kinematics`` is the base of ``Clearance``: the attributes every part of it reads, the
 columns that give a point fixed on a link from Pinocchio's static regressor Y, the joint
 supports of each primitive, and the rows n̂ᵀ J(p) of a point's Jacobian from the joint
 Jacobians.
@@ -14,14 +14,14 @@ import numpy as np
 import pinocchio as pin
 
 from cpbc.arrays import Array
-from cpbc.constraints.clearance.tables import _CROSS
+from cpbc.constraints.clearance.tables import CROSS
 from cpbc.constraints.covering import LinkPrimitive
 from cpbc.constraints.geometry import Obstacle
 from cpbc.errors import CpbcError
 from cpbc.model.robot_model import RobotModel
 
 
-class _Kinematics:
+class Kinematics:
     """What the parts of ``Clearance`` share: its settings, the robot's Pinocchio model and
     data, and points fixed on links as columns over the static regressor."""
 
@@ -115,4 +115,4 @@ class _Kinematics:
         joint coordinates (``jac``: the joint Jacobians at q, if already computed)."""
         jac = self._jacobians(q) if jac is None else jac
         outer = (points[:, :, None] * normals[:, None, :]).reshape(-1, 9)
-        return (normals @ jac[:3] + outer @ (_CROSS @ jac[3:])) * masks
+        return (normals @ jac[:3] + outer @ (CROSS @ jac[3:])) * masks

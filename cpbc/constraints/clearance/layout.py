@@ -1,8 +1,8 @@
 """Set-up of the clearance's pairs from the link covers: which primitive meets which
 obstacle or link, in which order, named how, and the capsule groups' broad phase.
 
-``_Layout`` collects the names and broad-phase columns pair by pair; ``_PairLayout`` (a
-base of ``Clearance``) builds the sphere pairs' tables (``_Spheres``) and the capsule
+``_Layout`` collects the names and broad-phase columns pair by pair; ``PairLayout`` (a
+base of ``Clearance``) builds the sphere pairs' tables (``Spheres``) and the capsule
 groups once, at construction.
 """
 
@@ -16,15 +16,15 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.clearance.capsules import (
-    _CapsuleBox,
-    _CapsuleCapsule,
-    _CapsuleGroup,
-    _CapsulePlane,
-    _CapsuleSelf,
-    _CapsuleSphere,
+    CapsuleBox,
+    CapsuleCapsule,
+    CapsuleGroup,
+    CapsulePlane,
+    CapsuleSelf,
+    CapsuleSphere,
 )
-from cpbc.constraints.clearance.spheres import _SpherePairs, _Spheres
-from cpbc.constraints.clearance.tables import _FORCE, _Index
+from cpbc.constraints.clearance.spheres import SpherePairs, Spheres
+from cpbc.constraints.clearance.tables import FORCE, Index
 from cpbc.constraints.geometry import (
     BoxObstacle,
     CapsuleObstacle,
@@ -81,7 +81,7 @@ class _Layout:
         self.constants.append(constant)
 
 
-class _PairLayout(_SpherePairs):
+class PairLayout(SpherePairs):
     """Set-up: the pairs, in the order of ``names``, from the link covers (primitives), the
     obstacles and the self pairs, and the capsule groups' broad phase."""
 
@@ -89,7 +89,7 @@ class _PairLayout(_SpherePairs):
     _broad_c: Array
     _broad_thr: Array  # reach² per bounded pair
     _n_bounded: int
-    _reduce_at: _Index  # each capsule group's first broad-phase term
+    _reduce_at: Index  # each capsule group's first broad-phase term
 
     def _setup_pairs(self, name: str) -> None:
         """Every pair, in the order of ``names``: the sphere primitives' pairs first (one fast
@@ -104,11 +104,11 @@ class _PairLayout(_SpherePairs):
         capsules = [i for i, p in enumerate(self.primitives) if p.kind == "capsule"]
         obstacles = self.obstacles
         groups = [
-            self._obstacle_group(_CapsuleSphere.against, _only(SphereObstacle, obstacles),
+            self._obstacle_group(CapsuleSphere.against, _only(SphereObstacle, obstacles),
                                  capsules, layout),
-            self._obstacle_group(_CapsuleCapsule.against, _only(CapsuleObstacle, obstacles),
+            self._obstacle_group(CapsuleCapsule.against, _only(CapsuleObstacle, obstacles),
                                  capsules, layout),
-            self._obstacle_group(_CapsuleBox.against, _only(BoxObstacle, obstacles),
+            self._obstacle_group(CapsuleBox.against, _only(BoxObstacle, obstacles),
                                  capsules, layout),
             self._self_group(by_frame, sphere_self, layout),
             self._plane_group(capsules, layout),  # last: its tests follow the bounded ones
@@ -151,19 +151,19 @@ class _PairLayout(_SpherePairs):
         self._spheres = self._sphere_group(order, sphere_self, group) if group else None
         return sphere_self
 
-    def _capsules(self, start: int, stop: int, prims: Sequence[int]) -> _CapsuleGroup:
+    def _capsules(self, start: int, stop: int, prims: Sequence[int]) -> CapsuleGroup:
         """The capsule side of pairs: primitive ``prims[p]`` in pair p, radius + margin."""
-        return _CapsuleGroup(start, stop, self._columns(prims, 0), self._columns(prims, 1),
+        return CapsuleGroup(start, stop, self._columns(prims, 0), self._columns(prims, 1),
                              self._masks(prims),
                              np.array([self.primitives[i].radius for i in prims]) + self.margin)
 
     def _obstacle_group(
         self,
-        against: Callable[[_CapsuleGroup, list[_O]], _CapsuleGroup],
+        against: Callable[[CapsuleGroup, list[_O]], CapsuleGroup],
         obstacles: list[_O],
         capsules: list[int],
         layout: _Layout,
-    ) -> _CapsuleGroup | None:
+    ) -> CapsuleGroup | None:
         """Every capsule primitive against each of the obstacles (of one kind), each pair
         bounded in the broad phase by the obstacle's bounding sphere."""
         pairs = [(i, o) for o in obstacles for i in capsules]
@@ -179,7 +179,7 @@ class _PairLayout(_SpherePairs):
                        [o for _, o in pairs])
 
     def _self_group(self, by_frame: dict[str, list[int]], sphere_self: list[tuple[int, int]],
-                    layout: _Layout) -> _CapsuleSelf | None:
+                    layout: _Layout) -> CapsuleSelf | None:
         """The self pairs not both spheres, each bounded by the reach between midpoints."""
         prims, span, taken = self.primitives, self.influence or 0.0, set(sphere_self)
         pairs = [(i, j) for a, b in self.self_pairs for i in by_frame[a] for j in by_frame[b]
@@ -192,19 +192,19 @@ class _PairLayout(_SpherePairs):
                      + prims[j].radius + self.margin + span)
             layout.bound(self._column(i, None) - self._column(j, None), np.zeros(3), reach)
         pi, pj = [i for i, _ in pairs], [j for _, j in pairs]
-        return _CapsuleSelf(
+        return CapsuleSelf(
             start, stop, self._columns(pi, 0), self._columns(pi, 1), self._masks(pi),
             np.array([prims[i].radius + prims[j].radius for i, j in pairs]) + self.margin,
             ea2=self._columns(pj, 0), eb2=self._columns(pj, 1), mask2=self._masks(pj),
         )
 
-    def _plane_group(self, capsules: list[int], layout: _Layout) -> _CapsulePlane | None:
+    def _plane_group(self, capsules: list[int], layout: _Layout) -> CapsulePlane | None:
         """Every capsule primitive above each plane; in the broad phase, its ends' heights."""
         pairs = [(i, o) for o in _only(PlaneObstacle, self.obstacles) for i in capsules]
         if not pairs:
             return None
         start, stop = layout.add([f"{self.primitives[i].name}|{o.name}" for i, o in pairs])
-        g = _CapsulePlane.against(self._capsules(start, stop, [i for i, _ in pairs]),
+        g = CapsulePlane.against(self._capsules(start, stop, [i for i, _ in pairs]),
                                   [o for _, o in pairs])
         for e in (g.ea, g.eb):  # heights n·a − offset − r − Δ and n·b − …, over vec(Y)
             for p in range(len(pairs)):
@@ -214,7 +214,7 @@ class _PairLayout(_SpherePairs):
 
     def _sphere_group(
         self, spheres: list[int], self_pairs: list[tuple[int, int]], group: list[int]
-    ) -> _Spheres:
+    ) -> Spheres:
         """The sphere pairs: every sphere in ``spheres`` against every obstacle, then
         ``self_pairs``; ``group`` gives each pair's constraint."""
         prims, margin = self.primitives, self.margin
@@ -241,13 +241,13 @@ class _PairLayout(_SpherePairs):
         for o, core in enumerate(cores):
             half[:, o * n_sph:(o + 1) * n_sph] = core.half_extents[:, None]
         grp = np.array(group, dtype=np.intp)
-        return _Spheres(
+        return Spheres(
             start=0, stop=int(grp[-1]) + 1, n_obstacle=n_obs * n_sph,
             centres=self._columns(spheres, 0),
             scratch=np.ones((4, n_sph)),
             to_obstacle=to_obstacle, self_map=self_map, half=half,
             rsum=rsum, rsum_law=rsum.copy(), moving=np.ones(len(rsum)),
-            to_world=_FORCE @ to_world,
+            to_world=FORCE @ to_world,
             self_force=np.ascontiguousarray(slope * self_map.T),
             pair_sphere=np.concatenate([np.tile(np.arange(n_sph), n_obs),
                                         [index[i] for i, _ in self_pairs]]).astype(np.intp),

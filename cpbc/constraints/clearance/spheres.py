@@ -1,7 +1,7 @@
 """Sphere primitives' pairs: every sphere against every obstacle (as a rounded box) and in
 self pairs, all at once.
 
-``_Spheres`` holds the pairs' constant tables; ``_SpherePairs`` (a base of ``Clearance``)
+``Spheres`` holds the pairs' constant tables; ``SpherePairs`` (a base of ``Clearance``)
 computes their offsets u and core distances d, their gradients, the localised law's
 factors and force, and their curvature along a motion.
 """
@@ -14,32 +14,32 @@ import numpy as np
 import pinocchio as pin
 
 from cpbc.arrays import Array
-from cpbc.constraints.clearance.capsules import _CapsuleGroup
-from cpbc.constraints.clearance.kinematics import _Kinematics
+from cpbc.constraints.clearance.capsules import CapsuleGroup
+from cpbc.constraints.clearance.kinematics import Kinematics
 from cpbc.constraints.clearance.tables import (
-    _AT_POINT,
-    _FORCE,
-    _ONE,
-    _ONES3,
-    _ONES12,
-    _TINY,
-    _WRENCH,
-    _ZERO,
-    _Index,
+    AT_POINT,
+    FORCE,
+    ONE,
+    ONES3,
+    ONES12,
+    TINY,
+    WRENCH,
+    ZERO,
+    Index,
 )
 from cpbc.constraints.pair_motion import point_motion, rounded_box_curvature
 
 
-def _core_distances(u: Array, half: Array) -> tuple[Array, Array]:
+def core_distances(u: Array, half: Array) -> tuple[Array, Array]:
     """‖max(|u| − h, 0)‖ per column of u (3, P), and max(|u| − h, 0) itself."""
     outside = np.abs(u)
     outside -= half
-    np.maximum(outside, _ZERO, out=outside)
-    return np.sqrt(np.dot(_ONES3, outside * outside)), outside
+    np.maximum(outside, ZERO, out=outside)
+    return np.sqrt(np.dot(ONES3, outside * outside)), outside
 
 
 @dataclass(frozen=True, eq=False)
-class _Spheres:
+class Spheres:
     """Sphere primitives against every obstacle (as rounded boxes) and each other.
 
     For pair p of a sphere with world centre s and an obstacle with centre c, rotation R, core
@@ -66,23 +66,23 @@ class _Spheres:
     rsum: Array  # (P,) sphere radius + rounding (+ other radius) + margin
     rsum_law: Array  # (P,) rsum, −∞ on pairs that cannot move (ℓ given): they leave the law
     moving: Array  # (P,) 1.0 on pairs whose clearance can change, else 0.0
-    to_world: Array  # (12, 3 O): _FORCE @ (w Σ_o R_o local_o) from local.reshape(3 O, S),
+    to_world: Array  # (12, 3 O): FORCE @ (w Σ_o R_o local_o) from local.reshape(3 O, S),
     # w = 3/ℓ (1 without ℓ): see ``_sphere_factors``
     self_force: Array  # (Ps, S): w (+1 first, −1 second), the self pairs' forces per sphere
-    pair_sphere: _Index  # (P,) the (first) sphere of each pair
-    pair_sphere2: _Index  # (Ps,) the second sphere of each self pair
+    pair_sphere: Index  # (P,) the (first) sphere of each pair
+    pair_sphere2: Index  # (Ps,) the second sphere of each self pair
     pair_rot: Array  # (P, 3, 3) the obstacle's rotation R (I for a self pair)
     sphere_supports: Array  # (S, n) 1 where joint k moves sphere s's link
-    starts: _Index  # first pair of each reported constraint (a link against an obstacle/link)
-    group: _Index  # (P,) the constraint (index in ``names``) of each pair
+    starts: Index  # first pair of each reported constraint (a link against an obstacle/link)
+    group: Index  # (P,) the constraint (index in ``names``) of each pair
 
 
-class _SpherePairs(_Kinematics):
+class SpherePairs(Kinematics):
     """The sphere pairs' hot path: distances, gradients, the law's factors and force, and
     the curvature (``pair_motion``), all pairs in a fixed number of numpy calls."""
 
-    _spheres: _Spheres | None
-    _groups: list[_CapsuleGroup]
+    _spheres: Spheres | None
+    _groups: list[CapsuleGroup]
     _far_phi: Array  # φ̃ of every constraint with no pair within ℓ
     _inv_ell: Array  # 1/ℓ, 0-d
     _motion_data: pin.Data  # second order, apart from the state's
@@ -105,7 +105,7 @@ class _SpherePairs(_Kinematics):
         s = self._spheres
         assert s is not None
         u = self._offsets(y)
-        d, outside = _core_distances(u, s.half)
+        d, outside = core_distances(u, s.half)
         return d, u, outside
 
     def _pair_gradients(self, q: Array, y: Array) -> tuple[Array, Array]:
@@ -113,7 +113,7 @@ class _SpherePairs(_Kinematics):
         s = self._spheres
         assert s is not None
         d, u, outside = self._sphere_distances(y)
-        local = np.copysign(outside, u) / np.maximum(d, _TINY)
+        local = np.copysign(outside, u) / np.maximum(d, TINY)
         normal = np.einsum("pab,bp->pa", s.pair_rot, local)
         centres = s.scratch[:3]
         jac = self._jacobians(q)
@@ -134,9 +134,9 @@ class _SpherePairs(_Kinematics):
         Dense over all the pairs (a pair out of the law has local_p = 0): cheaper than
         picking the active ones. The pairs' forces are first summed per sphere, f_s, in one
         product. A force f at a point s fixed on a link drives joint k, if k moves the link,
-        by fᵀ(v_k + ω_k × s) = vec(s ⊗ f)·(_CROSS ω_k) + f·v_k with J = [v; ω] Pinocchio's
+        by fᵀ(v_k + ω_k × s) = vec(s ⊗ f)·(CROSS ω_k) + f·v_k with J = [v; ω] Pinocchio's
         world joint Jacobian: so the spheres' [vec(s ⊗ f); f] (12, S), summed over the
-        spheres each joint moves (one product), meet the Jacobian through _WRENCH.
+        spheres each joint moves (one product), meet the Jacobian through WRENCH.
         (np.dot, and no broadcasting: each costs less call overhead here.)
         """
         s = self._spheres
@@ -147,11 +147,11 @@ class _SpherePairs(_Kinematics):
         else:
             force = np.zeros((12, n_sph))
         if len(s.pair_sphere2):
-            force += np.dot(_FORCE, np.dot(local[:, at:], s.self_force))
-        force *= np.dot(_AT_POINT, s.scratch)
+            force += np.dot(FORCE, np.dot(local[:, at:], s.self_force))
+        force *= np.dot(AT_POINT, s.scratch)
         per_joint = np.dot(force, s.sphere_supports)  # (12, n)
-        per_joint *= np.dot(_WRENCH, jac)
-        return np.dot(_ONES12, per_joint)
+        per_joint *= np.dot(WRENCH, jac)
+        return np.dot(ONES12, per_joint)
 
     def _pair_curvature(self, q: Array, dq: Array, y: Array) -> Array:
         """ẋᵀ∇²φ_p ẋ of every sphere pair (pair_motion, eqs. 1 and 2)."""
@@ -173,7 +173,7 @@ class _SpherePairs(_Kinematics):
             ddu[:, at:] -= acc[second].T
         return rounded_box_curvature(u, du, ddu, s.half)
 
-    def _sphere_law(self, s: _Spheres, phi: Array, low: Array, d: Array, u: Array,
+    def _sphere_law(self, s: Spheres, phi: Array, low: Array, d: Array, u: Array,
                     outside: Array) -> tuple[Array | None, Array | None]:
         """φ̃ of every constraint, its sphere constraints' the product of their pairs'
         factors (their log-barriers add; a pair that cannot move gives a constant factor),
@@ -194,7 +194,7 @@ class _SpherePairs(_Kinematics):
         sphere_local *= slope
         return phi_out, sphere_local
 
-    def _sphere_factors(self, s: _Spheres, phi: Array, low: Array
+    def _sphere_factors(self, s: Spheres, phi: Array, low: Array
                         ) -> tuple[Array, Array] | None:
         """Each sphere pair's factor φ̃/ℓ (φ without ℓ) and (dφ̃/dφ)/φ̃ (without the 3/ℓ kept
         in ``to_world``); None when no pair is within ℓ (the sphere pairs are all far)."""
@@ -206,10 +206,10 @@ class _SpherePairs(_Kinematics):
         # slope 0, and all pairs go through densely. In place, with v = 1 − min(φ/ℓ, 1):
         # φ̃/ℓ = 1 − v³ and (dφ̃/dφ)/φ̃ = (3/ℓ) v²/(1 − v³)
         v = phi * self._inv_ell
-        np.minimum(v, _ONE, out=v)
-        np.subtract(_ONE, v, out=v)
+        np.minimum(v, ONE, out=v)
+        np.subtract(ONE, v, out=v)
         slope = v * v
         factor = slope * v
-        np.subtract(_ONE, factor, out=factor)
+        np.subtract(ONE, factor, out=factor)
         slope /= factor
         return factor, slope

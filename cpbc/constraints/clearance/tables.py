@@ -10,32 +10,32 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-# vec(p ⊗ n) @ _CROSS = p × n
-_CROSS = np.zeros((9, 3))
+# vec(p ⊗ n) @ CROSS = p × n
+CROSS = np.zeros((9, 3))
 for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
-    _CROSS[3 * _j + _k, _i] = 1.0
-    _CROSS[3 * _k + _j, _i] = -1.0
-_CROSS.setflags(write=False)
+    CROSS[3 * _j + _k, _i] = 1.0
+    CROSS[3 * _k + _j, _i] = -1.0
+CROSS.setflags(write=False)
 
-# vec((P; 1) ⊗ n) @ (_WRENCH @ J) = nᵀ J_P for J = [v; ω] Pinocchio's world joint Jacobian
-# (column k of J_P is v_k + ω_k × P): rows 3i + j hold _CROSS @ ω, rows 9 + j hold v
-_WRENCH = np.zeros((12, 6))
-_WRENCH[:9, 3:] = _CROSS
-_WRENCH[9:, :3] = np.eye(3)
-_WRENCH.setflags(write=False)
+# vec((P; 1) ⊗ n) @ (WRENCH @ J) = nᵀ J_P for J = [v; ω] Pinocchio's world joint Jacobian
+# (column k of J_P is v_k + ω_k × P): rows 3i + j hold CROSS @ ω, rows 9 + j hold v
+WRENCH = np.zeros((12, 6))
+WRENCH[:9, 3:] = CROSS
+WRENCH[9:, :3] = np.eye(3)
+WRENCH.setflags(write=False)
 
-# [vec(s ⊗ f); f] (12,) = (_AT_POINT @ [s; 1]) * (_FORCE @ f), for the force f at a point s
-_AT_POINT = np.zeros((12, 4))
-_AT_POINT[np.arange(9), np.arange(9) // 3] = 1.0
-_AT_POINT[9:, 3] = 1.0
-_AT_POINT.setflags(write=False)
-_FORCE = np.vstack([np.eye(3)] * 4)
-_FORCE.setflags(write=False)
-_ONES3, _ONES12 = np.ones(3), np.ones(12)  # sums over a short first axis: a dot is cheaper
+# [vec(s ⊗ f); f] (12,) = (AT_POINT @ [s; 1]) * (FORCE @ f), for the force f at a point s
+AT_POINT = np.zeros((12, 4))
+AT_POINT[np.arange(9), np.arange(9) // 3] = 1.0
+AT_POINT[9:, 3] = 1.0
+AT_POINT.setflags(write=False)
+FORCE = np.vstack([np.eye(3)] * 4)
+FORCE.setflags(write=False)
+ONES3, ONES12 = np.ones(3), np.ones(12)  # sums over a short first axis: a dot is cheaper
 
 # 0-d arrays: numpy takes them faster than Python floats as ufunc operands
-_ZERO, _ONE, _THREE = np.array(0.0), np.array(1.0), np.array(3.0)
+ZERO, ONE, THREE = np.array(0.0), np.array(1.0), np.array(3.0)
 
-_TINY = 1e-300
+TINY = 1e-300
 
-_Index = NDArray[np.intp]
+Index = NDArray[np.intp]
