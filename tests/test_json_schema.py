@@ -1,13 +1,14 @@
-"""python -m cpbc.json_schema: the JSON Schema of scenario files. jsonschema is not a
-dependency, so the test checks the schema against every shipped scenario by hand: it parses,
-names every top-level key each file uses, requires only keys the file has, and lets a number
-be written as an expression."""
+"""python -m cpbc.json_schema: the JSON Schema of scenario files. The test checks it parses,
+names every top-level key each file uses, requires only keys the file has, lets a number be
+written as an expression, and (with jsonschema, a test dependency, as an editor would) accepts
+every shipped scenario whole and refuses a misspelled key."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
+import jsonschema
 import pytest
 import yaml
 
@@ -45,3 +46,16 @@ def test_every_shipped_scenario_fits_the_schema_at_the_top(schema: dict, path: P
 def test_stdout_by_default(capsys) -> None:
     assert main([]) == 0
     assert json.loads(capsys.readouterr().out)["title"] == "cpbc scenario"
+
+
+@pytest.mark.parametrize("path", SCENARIOS, ids=[p.stem for p in SCENARIOS])
+def test_every_shipped_scenario_validates_whole(schema: dict, path: Path) -> None:
+    raw = yaml.safe_load(path.read_text())
+    errors = list(jsonschema.Draft202012Validator(schema).iter_errors(raw))
+    assert errors == [], [e.message for e in errors]
+
+
+def test_a_misspelled_key_is_refused_as_an_editor_would(schema: dict) -> None:
+    raw = yaml.safe_load((SCENARIOS[0]).read_text())
+    raw["simulation"]["duraton"] = 1.0
+    assert list(jsonschema.Draft202012Validator(schema).iter_errors(raw))
