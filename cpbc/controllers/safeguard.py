@@ -74,8 +74,15 @@ the arm — above their cushions at the predicted end of the period:
     σ_i(h) ≥ δ_i                                                                      (S2)
 
 so the state stays in the braking set V = {σ > 0}, from which the brake within the box can
-stop the arm before every configuration boundary. Initial states outside V are refused by
-the scenario builder; campaigns count them apart.
+stop the arm before every configuration boundary. The uniform brake lets the joint with the
+least torque to spare set every joint's deceleration; where it fails (a state outside V, or
+one no torque of the guard's own keeps in it) the *rescue* (:mod:`cpbc.controllers.rescue`)
+holds the first of the least-squares, aimed and uniform brakes of
+:mod:`cpbc.constraints.brakes` that, held in the model at the control rate until the arm
+rests, keeps every guarded margin above its cushion throughout; only where none does is the
+step answered by the fallback below. Initial states outside V are refused by the scenario
+builder; campaigns (which start anywhere) class states by whether some brake stops them in the
+true plant.
 
 The wrapper returns the (hold-corrected) law's torque whenever the prediction satisfies (S1). It
 is pure (no simulator) like the laws it wraps, so the same object could drive a real arm
@@ -93,11 +100,13 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.base import ConfigurationConstraint
+from cpbc.constraints.brakes import TorqueBox
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import Braking
 from cpbc.controllers.base import Controller, Evaluation, SafetyFilter
 from cpbc.controllers.hold import hold_corrected, hold_share
 from cpbc.controllers.linalg import solve_spd
+from cpbc.controllers.rescue import Rescue
 from cpbc.errors import CpbcError
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -295,22 +304,28 @@ class Safeguard(SafetyFilter):
         self._n_config = nc
         self._n_own_config = own.n_configuration
         self.torque_limit = None if torque_limit is None else np.asarray(torque_limit, float)
+        self._torque_box = None if torque_limit is None else TorqueBox.of(law.model,
+                                                                          torque_limit)
         # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)
         self.braking = None if torque_limit is None or not self._n_config else Braking.of(
             law.model, torque_limit)
         self._sigma_floor = np.maximum(self.cushion[: self._n_config], 1e-300)
-        coords = law.model.coordinates
-        self._t_mat_t = coords.matrix.T  # τ_q = Tᵀ τ
-        self._t_inv_t = coords.inverse.T  # τ = T⁻ᵀ τ_q
-        self._identity = coords.is_identity
+        # where no torque of its own will do: brakes better than the uniform one (rescue.py)
+        self.rescue = None if self.braking is None or self._torque_box is None else Rescue(
+            law.model, self.guarded, self._torque_box, self.cushion,
+            self.period, self.substeps)
         self.calls = 0
         self.acted = 0
         self.infeasible = 0
         self.scaled = 0
         self.uncorrected = 0
+        self.rescues = 0
 
     def reset_counts(self) -> None:
         self.calls = self.acted = self.infeasible = self.scaled = self.uncorrected = 0
+        self.rescues = 0
+        if self.rescue is not None:
+            self.rescue.forget()
 
     # -- the Controller interface ------------------------------------------------------------
     def state(self, x: Array, dx: Array) -> ArmState:
@@ -477,37 +492,18 @@ class Safeguard(SafetyFilter):
         return self._box(bias, bias + state.inertia.dot(acc))
 
     def _box(self, bias: Array, tau: Array) -> Array:
-        """τ scaled toward the bias b = C ẋ + g + f until it fits the torque box:
-        b + t (τ − b) with the largest t ∈ [0, 1] inside |τ_q| ≤ limit. The acceleration
-        D⁻¹(τ − b) keeps its direction and only shrinks, so no joint is spun up by the
-        coupling through D, as clipping each joint would (τ itself when it fits, or when
-        there is no limit). Where b alone exceeds a limit no scaling fits, and τ is clipped.
-        """
-        if self.torque_limit is None:
-            return tau
-        tau_q = tau if self._identity else self._t_mat_t.dot(tau)
-        limit = self.torque_limit
-        if np.all(np.abs(tau_q) <= limit):
-            return tau
-        b_q = bias if self._identity else self._t_mat_t.dot(bias)
-        if np.any(np.abs(b_q) > limit):
-            return self._saturate(tau)
-        d = tau_q - b_q
-        with np.errstate(divide="ignore", invalid="ignore"):
-            room = np.where(d > 0, (limit - b_q) / d, np.where(d < 0, (-limit - b_q) / d, np.inf))
-        t = min(1.0, float(room.min()))
-        return bias + t * (tau - bias)
+        """τ scaled toward the bias b = C ẋ + g + f until it fits the torque box
+        (:meth:`TorqueBox.toward`): the acceleration D⁻¹(τ − b) keeps its direction and only
+        shrinks, so no joint is spun up by the coupling through D, as clipping each joint
+        would (τ itself when it fits, or when there is no limit)."""
+        return tau if self._torque_box is None else self._torque_box.toward(bias, tau)
 
     def _brake(self, bias: Array, stop: Array, lam: float) -> Array:
         """The braking torque b − λ D ẋ/h, scaled into the torque box (:meth:`_box`)."""
         return self._box(bias, bias - lam * stop)
 
     def _saturate(self, tau: Array) -> Array:
-        if self.torque_limit is None:
-            return tau
-        tau_q = tau if self._identity else self._t_mat_t.dot(tau)
-        clipped = np.clip(tau_q, -self.torque_limit, self.torque_limit)
-        return clipped if self._identity else self._t_inv_t.dot(clipped)
+        return tau if self._torque_box is None else self._torque_box.clip(tau)
 
     @staticmethod
     def _no_nan(m: Array) -> Array:
@@ -658,10 +654,26 @@ class Safeguard(SafetyFilter):
                 lam, f_lam = self._search_braking(bias, stop, slack, f1, f_rev)
                 if f_lam < 0.0:
                     self.infeasible += 1
+                    rescued = self._rescued(state, bias, predict)
+                    if rescued is not None:
+                        return rescued
                     return self._infeasible(state, bias, stop, predict, now, floor, floor_mid)
                 reverse, f_rev = self._brake(bias, stop, lam), f_lam
             brake, f1 = reverse, f_rev
         return self._blend(tau, brake, f0, f1, slack)
+
+    def _rescued(self, state: ArmState, bias: Array, predict: Predictor) -> Array | None:
+        """The rescue's brake (rescue.py) when it finds one that stops the arm inside S in
+        the model; a committed one is held again while it keeps every margin above its
+        cushion over the period (S0)."""
+        if self.rescue is None:
+            return None
+        delta, nc = self.cushion, self._n_config
+        positivity = self._check(predict, delta, delta[:nc] if nc else None)
+        tau = self.rescue.torque(state, bias, lambda t: positivity(t) >= 0.0)
+        if tau is not None:
+            self.rescues += 1
+        return tau
 
     def _held(self, state: ArmState, bias: Array, law: Array,
               slack: Callable[[Array], float]) -> tuple[Array, float]:
