@@ -8,7 +8,9 @@ still be stopped by a brake that lets each joint decelerate as hard as the box a
 guard's own satisfies its conditions — the state is outside V, or about to leave it — the
 rescue holds each brake in turn in the controller's model, period after period at the control
 rate (prediction sub-steps of at most ``max_step``), until the arm rests, and takes the first
-that keeps every guarded margin above its cushion δ_i at every predicted step: the torque it
+that keeps every guarded margin m_i above min(δ_i, ½ m_i(now)) at every predicted step (its
+cushion δ_i, or half its present value where that is below the cushion already); failing
+that, the first that keeps every margin positive: the torque it
 holds is that brake's at the sample. The brake found is *committed*: while the guard keeps
 failing, the next periods hold it again as long as its one-period prediction keeps every margin
 above its cushion (S0), and search again otherwise. That is the whole promise: from a state
@@ -19,6 +21,8 @@ The search runs only on the guard's infeasible path; the accept path does not ch
 from __future__ import annotations
 
 from collections.abc import Callable
+
+import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.brakes import TorqueBox, brakes, brings_to_rest, model_advance
@@ -48,20 +52,35 @@ class Rescue:
         self.cushion, self.period, self.steps, self.horizon = cushion, period, steps, horizon
         self.table = brakes(box, guarded, model)
         self.committed: str | None = None
+        self.floor: Array | None = None  # the floor of the search that committed the brake
         self.searches = 0
 
-    def torque(self, state: ArmState, bias: Array,
-               holds: Callable[[Array], bool]) -> Array | None:
-        """The committed brake's torque if ``holds`` accepts it (its one-period prediction),
-        else the first brake whose model braking keeps every margin above its cushion until
-        rest (then committed), else None."""
-        if self.committed is not None:
+    def torque(self, state: ArmState, bias: Array, now: Array,
+               holds: Callable[[Array, Array], bool]) -> Array | None:
+        """The committed brake's torque if ``holds(τ, floor)`` accepts it (its one-period
+        prediction keeps every margin above the floor of the search that committed it), else
+        the first brake whose model braking keeps every margin above its floor until rest
+        (the module docstring; then committed), else None. ``now``: the margins m_i at the
+        sample."""
+        if self.committed is not None and self.floor is not None:
             tau = self.table[self.committed](state, bias, self.period)
-            if holds(tau):
+            if holds(tau, self.floor):
                 return tau
         self.committed = None
         self.searches += 1
-        floor = self.cushion
+        # first with a cushion: a margin keeps δ_i, or half of itself where it is below δ_i
+        # already; then with none (every margin positive in the model)
+        cushioned = np.minimum(self.cushion, 0.5 * np.maximum(now, 0.0))
+        for floor in (cushioned, np.zeros_like(cushioned)):
+            name = self._search(state, floor)
+            if name is not None:
+                self.committed, self.floor = name, floor
+                return self.box.clip(self.table[name](state, bias, self.period))
+        return None
+
+    def _search(self, state: ArmState, floor: Array) -> str | None:
+        """The first brake of ORDER that, held in the model until rest, keeps every margin
+        above ``floor``."""
 
         def margins(xs: Array, dxs: Array) -> Array:
             return self.guarded.margins_along(xs, dxs) - floor
@@ -72,10 +91,9 @@ class Rescue:
             stop = brings_to_rest(self.table[name], self.model, margins, advance, state.x,
                                   state.dx, self.period, horizon=self.horizon)
             if stop.stopped:
-                self.committed = name
-                return self.box.clip(self.table[name](state, bias, self.period))
+                return name
         return None
 
     def forget(self) -> None:
-        self.committed = None
+        self.committed = self.floor = None
 

@@ -654,7 +654,7 @@ class Safeguard(SafetyFilter):
                 lam, f_lam = self._search_braking(bias, stop, slack, f1, f_rev)
                 if f_lam < 0.0:
                     self.infeasible += 1
-                    rescued = self._rescued(state, bias, predict)
+                    rescued = self._rescued(state, bias, predict, now)
                     if rescued is not None:
                         return rescued
                     return self._infeasible(state, bias, stop, predict, now, floor, floor_mid)
@@ -662,15 +662,20 @@ class Safeguard(SafetyFilter):
             brake, f1 = reverse, f_rev
         return self._blend(tau, brake, f0, f1, slack)
 
-    def _rescued(self, state: ArmState, bias: Array, predict: Predictor) -> Array | None:
+    def _rescued(self, state: ArmState, bias: Array, predict: Predictor,
+                 now: Array) -> Array | None:
         """The rescue's brake (rescue.py) when it finds one that stops the arm inside S in
-        the model; a committed one is held again while it keeps every margin above its
-        cushion over the period (S0)."""
+        the model; a committed one is held again while its one-period prediction keeps every
+        margin above the floor it was found with."""
         if self.rescue is None:
             return None
-        delta, nc = self.cushion, self._n_config
-        positivity = self._check(predict, delta, delta[:nc] if nc else None)
-        tau = self.rescue.torque(state, bias, lambda t: positivity(t) >= 0.0)
+        nc = self._n_config
+
+        def holds(t: Array, floor: Array) -> bool:
+            return self._check(predict, np.maximum(floor, 1e-300),
+                               np.maximum(floor[:nc], 1e-300) if nc else None)(t) >= 0.0
+
+        tau = self.rescue.torque(state, bias, now, holds)
         if tau is not None:
             self.rescues += 1
         return tau
