@@ -561,7 +561,7 @@ def test_margins_are_held_under_the_plants_own_integrator(scenario: str, seed: i
     entry = constrained(setup)[0]
     s = draw_state(setup, seed)
     kept = kept_constraints(setup, entry, 1 / rate, setup.safeguard)
-    assert classify(setup, kept, s.position, s.velocity, 1 / rate) == "viable"
+    assert classify(setup, kept, s.position, s.velocity, 1 / rate) == "stoppable"
     plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
     settings = replace(setup.loop_settings, duration=0.5, control_period=1 / rate, noise=None)
     for corrector, kept in ((True, True), (False, scenario.startswith("panda"))):
@@ -665,7 +665,7 @@ def test_velocity_margins_are_held_inside_the_period(scenario: str, seed: int) -
     entry = constrained(setup)[0]
     s = draw_state(setup, seed)
     kept = kept_constraints(setup, entry, 0.01, setup.safeguard)
-    assert classify(setup, kept, s.position, s.velocity, 0.01) == "viable"
+    assert classify(setup, kept, s.position, s.velocity, 0.01) == "stoppable"
     plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
     settings = replace(setup.loop_settings, duration=0.5, control_period=0.01, noise=None)
     assert setup.safeguard is not None and setup.safeguard.hold_correction

@@ -64,7 +64,7 @@ def _methods(config: suite.Config) -> dict[str, str]:
             "sampler therefore counts states with d < v·h/4 at 100 Hz (`safeguard.viable`) "
             "apart: they are drawn, counted, and a share of them is run separately (second "
             "table); the headline counts are over the viable ones.\n\n"
-            "**The safeguard** (`cpbc/controllers/safeguard.py`, on by default, "
+            "**The safeguard** (`cpbc/controllers/safeguard/`, on by default, "
             "`simulation.safeguard: false` turns it off) predicts the state half a period and "
             "one period ahead under the held torque with the controller's model; when a "
             "margin m would not keep e^{−κh} of its value above a cushion δ = η·(h/10 ms)·"

@@ -96,7 +96,8 @@ class Braking:
     deceleration A > θA moves x_s back along ẋ, by (1/θ − 1) h (|ẋ| − ½hA) per period
     (frozen dynamics), so σ can always be kept from shrinking by braking. θ < 1 absorbs
     what freezing D, b and A over the stop gets wrong. A state outside V is refused as an
-    initial state: the brake the safeguard has cannot stop it in time.
+    initial state: the uniform brake cannot stop it in time (another brake within the box may:
+    :mod:`cpbc.constraints.brakes`, which the safeguard's rescue holds there).
 
     Attributes:
         limit: L, the joint torque limits, shape (n,) [N·m].

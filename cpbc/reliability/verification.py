@@ -8,16 +8,20 @@ can run from the scenario's file alone, so that a local process pool and a Dask 
 the same blocks and give the same records. State i is drawn by its own sampler seeded with
 ``seed + i``, so that a failure is reproduced by its seed alone (``--seeds``).
 
-Each state is classed, per rate, before it runs:
+Each state is classed, per rate, before it runs, by what was shown of it:
 
-``viable``     in the braking set V (cpbc.constraints.stopping.Braking) when the scenario has
-               torque limits, and holdable for one period (safeguard.viable): a violation from
-               here is a defect;
-``lost``       fails the stopping test: no torque in the box can stop it in time (first order);
-``outside_v``  passes the stopping test but the safeguard's uniform brake cannot stop it;
-``too_close``  closer to a configuration boundary than a quarter period of its speed: no held
-               torque keeps it inside at this rate.
-Non-viable states run too; their runs are counted apart.
+``stoppable``      some brake within the torque box (cpbc.constraints.brakes: the uniform
+                   brake, the least-squares brake, the brake aimed at the nearest constraint),
+                   recomputed from the model at every sample and held over the control period
+                   in the true plant (MuJoCo, the run's own physics), brings the arm to rest
+                   with every margin the controller keeps positive at every physics step: a
+                   violation from here is a defect of the controller;
+``not_stoppable``  none of them does (it may still be savable by a torque no brake here finds).
+
+Each record also says whether the state lies in the guard's own braking set V
+(``in_v``: cpbc.constraints.stopping.Braking, σ > 0, and holdable for one period,
+safeguard.viable) and which brake stopped it (``brake``). Without a torque limit the box is
+unbounded. Every state runs; the report counts the two classes apart.
 """
 
 from __future__ import annotations
@@ -29,6 +33,15 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.brakes import (
+    Advance,
+    Brake,
+    Stop,
+    TorqueBox,
+    brakes,
+    brings_to_rest,
+    first_stop,
+)
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import Braking, stopping_margins
 from cpbc.controllers.safeguard import viable
@@ -43,9 +56,10 @@ from cpbc.reliability.campaign import (
 from cpbc.reliability.sampling import SampledState
 from cpbc.scenario import ScenarioSetup, build, load_scenario
 from cpbc.scenario.build import ControllerEntry
+from cpbc.simulation import MujocoPlant
 from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
 
-CLASSES = ("viable", "lost", "outside_v", "too_close")
+CLASSES = ("stoppable", "not_stoppable")
 TOLERANCE = 1e-6  # a run is "deep" when some margin fell below −TOLERANCE (its own units)
 Record = dict[str, object]
 
@@ -118,20 +132,68 @@ def draw_state(setup: ScenarioSetup, seed: int) -> SampledState:
     return state_sampler(setup, seed).draw()
 
 
-def classify(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Array,
-             period: float) -> str:
-    """The class of an initial state at a control period (the module docstring), for a
-    controller that keeps ``kept``."""
+def in_braking_set(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Array,
+                   period: float) -> bool:
+    """Whether the state is in the guard's braking set V (σ > 0 of the uniform brake, the
+    first-order stopping test) and holdable for one period (safeguard.viable)."""
     limit = setup.loop_settings.torque_limit
     if limit is not None:
         full = np.broadcast_to(np.asarray(limit, dtype=float), (setup.model.n,))
         lost, _, _ = stopping_margins(setup.monitor, setup.model, x, dx, full)
         if lost.size and not np.all(lost > 0):
-            return "lost"
+            return False
         sigma, _ = Braking.of(setup.model, full).margins(setup.monitor, setup.model, x, dx)
         if sigma.size and not np.all(sigma > 0):
-            return "outside_v"
-    return "viable" if viable(kept, x, dx, period) else "too_close"
+            return False
+    return viable(kept, x, dx, period)
+
+
+def stopping_brake(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Array,
+                   period: float, plant: MujocoPlant | None = None) -> str | None:
+    """The first brake (cpbc.constraints.brakes) that, held at ``period`` in the true plant
+    within the torque box, brings the arm to rest with every margin of ``kept`` positive at
+    every physics step; None if none does. ``plant``: the true plant to brake in (a fresh
+    one of the scenario's by default)."""
+    limit = setup.loop_settings.torque_limit
+    box = TorqueBox.of(setup.model, math.inf if limit is None else limit)
+    plant = plant or setup.make_plant()
+    coords = setup.model.coordinates
+    substeps = max(round(period / plant.model.opt.timestep), 1)
+    table = brakes(box, kept, setup.model)
+
+    def run(brake: Brake) -> Stop:
+        plant.reset(coords.to_joint(x), coords.to_joint(dx))
+        return brings_to_rest(brake, setup.model, kept.margins_along,
+                              _true_advance(plant, box, coords.matrix, substeps),
+                              x, dx, period)
+
+    return first_stop(tuple(table), table, run)[0]
+
+
+def _true_advance(plant: MujocoPlant, box: TorqueBox, t_mat: Array, substeps: int) -> Advance:
+    """The true plant as a plant for brings_to_rest: τ clipped to the box, held for one
+    control period, every physics step reported (controller coordinates)."""
+    data = plant.data
+
+    def advance(tau: Array) -> tuple[Array, Array] | None:
+        plant.apply(box.joint(box.clip(tau)))
+        qs, dqs = [], []
+        for _ in range(substeps):
+            plant.step(1)
+            qs.append(data.qpos.copy())
+            dqs.append(data.qvel.copy())
+        if plant.unstable():
+            return None
+        return np.array(qs) @ t_mat.T, np.array(dqs) @ t_mat.T
+
+    return advance
+
+
+def classify(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Array,
+             period: float) -> str:
+    """The class of an initial state at a control period (the module docstring), for a
+    controller that keeps ``kept``."""
+    return "stoppable" if stopping_brake(setup, kept, x, dx, period) else "not_stoppable"
 
 
 def _law_at(entry: ControllerEntry, period: float) -> ControllerEntry:
@@ -177,13 +239,16 @@ def run_block(block: Block) -> list[Record]:
             setup.loop_settings, duration=plan.horizon, control_period=period, log_every=1,
             noise=None if plan.noise is None else MeasurementNoise(*plan.noise, seed=seed),
         )
-        kind = classify(setup, kept, s.position, s.velocity, period)
+        brake = stopping_brake(setup, kept, s.position, s.velocity, period, base)
+        kind = "stoppable" if brake else "not_stoppable"
+        in_v = in_braking_set(setup, kept, s.position, s.velocity, period)
         check = checked_run(_plant(setup, plan, seed, base), setup, entry, s.position,
                             s.velocity, settings, kept, safeguard=setup.safeguard)
         traj = check.trajectory
         out.append({
             "controller": entry.name, "type": entry.controller.type_name, "rate": block.rate,
-            "seed": seed, "class": kind, "violated": bool(check.violated),
+            "seed": seed, "class": kind, "in_v": in_v, "brake": brake,
+            "violated": bool(check.violated),
             "min_margin": float(check.min_margin), "constraint": check.constraint,
             "end_time": float(traj.end_time), "outcome": traj.outcome,
             "final_error": float(np.max(np.abs(traj.position[-1] - entry.controller.target))),
@@ -218,7 +283,7 @@ def summarise(plan: Plan, records: Iterable[Record]) -> Record:
     order = sorted(_group(records).items(), key=lambda kv: (kv[0][0], -kv[0][1]))
     for (name, rate), group in order:
         group.sort(key=lambda r: int(r["seed"]))  # type: ignore[call-overload]
-        ok = [r for r in group if r["class"] == "viable"]
+        ok = [r for r in group if r["class"] == CLASSES[0]]
         failures = [{k: r[k] for k in ("seed", "constraint", "end_time", "min_margin",
                                        "outcome", "position", "velocity")}
                     for r in ok if r["violated"]]

@@ -1,0 +1,238 @@
+"""Brakes within the torque box, and whether one of them stops the arm (issue 27).
+
+Under bounded torque |τ_q| ≤ L a state of S is worth promising only if some torque in the box
+can bring the arm to rest before every boundary. No closed form says which states can; a
+*brake* — a feedback torque held for one control period at a time — held until the arm rests
+says it for one state by construction. Three brakes, each computed from the model at the sample
+(D, b = C ẋ + g + f, controller coordinates, τ = T⁻ᵀ τ_q) and held over the period h:
+
+* the **uniform** brake, b − D ẋ/h scaled toward b until it fits the box
+  (:meth:`TorqueBox.toward`): ẍ = −t ẋ/h, every coordinate slowed in proportion to its speed
+  (the brake of :class:`cpbc.constraints.stopping.Braking`, capped at rest in one period);
+* the **least-squares** brake: the torque in the box whose acceleration is nearest to the one
+  that stops every coordinate in one period,
+
+      min ‖D⁻¹(T⁻ᵀ τ_q − b) + ẋ/h‖   subject to   −L ≤ τ_q ≤ L
+
+  (SciPy's bounded least squares): each joint decelerates as hard as the box lets it, not
+  only as hard as the weakest joint lets all of them;
+* the **aimed** brake: the same problem with one more row, weighted ``aim_weight``, that asks
+  the approach v_i = −∇φ_i · ẋ of the configuration constraint with the least first-order
+  stopping margin (:func:`cpbc.constraints.stopping.stopping_margins`) to stop within the
+  period, ∇φ_i · ẍ = v_i / h; the least-squares brake when nothing approaches.
+
+:func:`brings_to_rest` holds a brake period after period in a given plant (the model, or the
+true plant in a campaign) and says whether the arm comes to rest with every margin positive at
+every step it reports.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import lsq_linear
+
+from cpbc.arrays import Array
+from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.stopping import stopping_margins
+from cpbc.model.robot_model import ArmState, RobotModel
+
+
+@dataclass(frozen=True, eq=False)
+class TorqueBox:
+    """The actuators' box |Tᵀ τ| ≤ L in controller coordinates.
+
+    Attributes:
+        limit: L, joint coordinates, shape (n,) [N·m].
+        to_joint: Tᵀ (τ_q = Tᵀ τ), or None for joint coordinates.
+        from_joint: T⁻ᵀ (τ = T⁻ᵀ τ_q), or None for joint coordinates.
+    """
+
+    limit: Array
+    to_joint: Array | None = None
+    from_joint: Array | None = None
+
+    @classmethod
+    def of(cls, model: RobotModel, limit: Array | float) -> TorqueBox:
+        coords = model.coordinates
+        full = np.broadcast_to(np.asarray(limit, dtype=float), (model.n,)).copy()
+        if coords.is_identity:
+            return cls(full)
+        return cls(full, coords.matrix.T.copy(), coords.inverse.T.copy())
+
+    def joint(self, tau: Array) -> Array:
+        return tau if self.to_joint is None else self.to_joint.dot(tau)
+
+    def clip(self, tau: Array) -> Array:
+        """τ with each joint torque clipped to its limit."""
+        clipped = np.clip(self.joint(tau), -self.limit, self.limit)
+        return clipped if self.from_joint is None else self.from_joint.dot(clipped)
+
+    def toward(self, bias: Array, tau: Array) -> Array:
+        """b + t (τ − b) with the largest t ∈ [0, 1] inside the box: the acceleration
+        D⁻¹(τ − b) keeps its direction and only shrinks (τ itself when it fits). Where b alone
+        exceeds a limit no scaling fits, and τ is clipped."""
+        tau_q = self.joint(tau)
+        limit = self.limit
+        if np.all(np.abs(tau_q) <= limit):
+            return tau
+        b_q = self.joint(bias)
+        if np.any(np.abs(b_q) > limit):
+            return self.clip(tau)
+        d = tau_q - b_q
+        with np.errstate(divide="ignore", invalid="ignore"):
+            room = np.where(d > 0, (limit - b_q) / d, np.where(d < 0, (-limit - b_q) / d, np.inf))
+        t = min(1.0, float(room.min()))
+        return bias + t * (tau - bias)
+
+
+# a brake: (state, bias b, period h) -> the torque to hold over the period
+Brake = Callable[[ArmState, Array, float], Array]
+
+
+def uniform_brake(box: TorqueBox) -> Brake:
+    """b − D ẋ/h scaled into the box."""
+
+    def brake(state: ArmState, bias: Array, h: float) -> Array:
+        return box.toward(bias, bias - state.inertia.dot(state.dx) / h)
+
+    return brake
+
+
+def _nearest_stop(box: TorqueBox, state: ArmState, bias: Array, h: float,
+                  rows: Array | None, wanted: Array | None) -> Array:
+    """The torque in the box nearest (least squares) to ẍ = −ẋ/h, with extra weighted rows
+    ``rows`` · ẍ = ``wanted`` on top."""
+    inv_d = np.linalg.inv(state.inertia)
+    a = inv_d if box.from_joint is None else inv_d @ box.from_joint  # ẍ = A τ_q − D⁻¹b
+    free = inv_d.dot(bias)
+    target = free - state.dx / h
+    if rows is not None and wanted is not None:
+        a = np.vstack((a, rows @ a))
+        target = np.concatenate((target, wanted + rows @ free))
+    tau_q = lsq_linear(a, target, bounds=(-box.limit, box.limit), method="bvls").x
+    return tau_q if box.from_joint is None else box.from_joint.dot(tau_q)
+
+
+def least_squares_brake(box: TorqueBox) -> Brake:
+    """The torque in the box nearest to stopping every coordinate in one period."""
+
+    def brake(state: ArmState, bias: Array, h: float) -> Array:
+        return _nearest_stop(box, state, bias, h, None, None)
+
+    return brake
+
+
+def aimed_brake(box: TorqueBox, constraints: ConstraintSet, model: RobotModel,
+                aim_weight: float = 30.0) -> Brake:
+    """The least-squares brake with the approach to the constraint of least stopping margin
+    asked to stop within the period (its row weighted ``aim_weight``, gradient normalised)."""
+
+    def brake(state: ArmState, bias: Array, h: float) -> Array:
+        if not constraints.configuration:
+            return _nearest_stop(box, state, bias, h, None, None)
+        s, speed, _ = stopping_margins(constraints, model, state.x, state.dx, box.limit)
+        approaching = np.flatnonzero(speed > 0)
+        if not approaching.size:
+            return _nearest_stop(box, state, bias, h, None, None)
+        i = int(approaching[np.argmin(s[approaching])])
+        grads = np.concatenate([c.gradient(state.x) for c in constraints.configuration])
+        g = grads[i]
+        norm = math.sqrt(float(g.dot(g)))
+        if norm == 0.0:
+            return _nearest_stop(box, state, bias, h, None, None)
+        row = (aim_weight / norm) * g
+        return _nearest_stop(box, state, bias, h, row[None], np.array([row.dot(-state.dx) / h]))
+
+    return brake
+
+
+def brakes(box: TorqueBox, constraints: ConstraintSet,
+           model: RobotModel) -> dict[str, Brake]:
+    """The brakes of the module docstring, by name, in the order they are tried."""
+    return {"uniform": uniform_brake(box), "least_squares": least_squares_brake(box),
+            "aimed": aimed_brake(box, constraints, model)}
+
+
+# a plant to brake in: holds τ (controller coordinates) for one period from its present state,
+# returns the states it passed (rows of x and ẋ, the period's end last), or None if it diverged
+Advance = Callable[[Array], "tuple[Array, Array] | None"]
+
+
+@dataclass(frozen=True)
+class Stop:
+    """The outcome of holding one brake until rest.
+
+    Attributes:
+        stopped: the arm came to rest with every margin above its floor throughout.
+        periods: control periods held.
+        low: the smallest margin less its floor over every reported step.
+    """
+
+    stopped: bool
+    periods: int
+    low: float
+
+
+def brings_to_rest(brake: Brake, model: RobotModel, margins: Callable[[Array, Array], Array],
+                   advance: Advance, x: Array, dx: Array, h: float, rest: float = 1e-3,
+                   horizon: float = 3.0) -> Stop:
+    """Hold ``brake`` (recomputed at every sample from ``model``) in the plant ``advance``
+    from (x, ẋ) until max|ẋ| ≤ ``rest``; ``margins`` gives each reported step's margins less
+    their floors (rows). At most ``horizon`` seconds."""
+    low = math.inf
+    periods = max(math.ceil(horizon / h), 1)
+    for k in range(periods):
+        if float(np.max(np.abs(dx))) <= rest:
+            return Stop(low > 0.0, k, low)
+        state = model.state(x, dx)
+        bias = state.coriolis_force + state.gravity + state.dissipation
+        rows = advance(brake(state, bias, h))
+        if rows is None:
+            return Stop(False, k + 1, -math.inf)
+        xs, dxs = rows
+        m = margins(xs, dxs)
+        least = float(np.min(np.where(np.isnan(m), -np.inf, m))) if m.size else math.inf
+        low = min(low, least)
+        if not low > 0.0:
+            return Stop(False, k + 1, low)
+        x, dx = xs[-1], dxs[-1]
+    return Stop(False, periods, low)
+
+
+def model_advance(model: RobotModel, box: TorqueBox, x: Array, dx: Array, h: float,
+                  steps: int) -> Advance:
+    """The model as a plant from (x, ẋ): ``steps`` semi-implicit Euler steps per period of
+    its forward dynamics, the torque clipped to the box."""
+    now = [x.copy(), dx.copy()]
+    dt = h / steps
+
+    def advance(tau: Array) -> tuple[Array, Array] | None:
+        tau = box.clip(tau)
+        xs, vs = now
+        rows_x, rows_v = [], []
+        for _ in range(steps):
+            vs = vs + dt * model.forward_dynamics(xs, vs, tau)
+            xs = xs + dt * vs
+            rows_x.append(xs)
+            rows_v.append(vs)
+        if not np.all(np.isfinite(vs)):
+            return None
+        now[:] = [xs, vs]
+        return np.array(rows_x), np.array(rows_v)
+
+    return advance
+
+
+def first_stop(names: Sequence[str], table: dict[str, Brake], run: Callable[[Brake], Stop],
+               ) -> tuple[str | None, Stop | None]:
+    """The first brake of ``names`` that stops the arm (``run`` holds one until rest)."""
+    last = None
+    for name in names:
+        last = run(table[name])
+        if last.stopped:
+            return name, last
+    return None, last

@@ -1,0 +1,258 @@
+"""What the safeguard holds when the law's torque fails its test (step 4 of the package
+docstring): the law less its push into the boundaries (the slide), the brakes b − λ D ẋ/h and
+the search of λ, the rescue's brakes (cpbc.controllers.rescue), and, when nothing passes, the
+calmest brake or the escape."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.stopping import Braking
+from cpbc.controllers.linalg import solve_spd
+from cpbc.controllers.rescue import Rescue
+from cpbc.controllers.safeguard.prediction import Predictor
+from cpbc.controllers.safeguard.settings import SafeguardSettings
+from cpbc.model.robot_model import ArmState, RobotModel
+
+
+class Brakes:
+    """The replacement torques: mixed into :class:`cpbc.controllers.safeguard.Safeguard`."""
+
+    # what the Safeguard that mixes this in provides (guard.py)
+    model: RobotModel
+    period: float
+    settings: SafeguardSettings
+    guarded: ConstraintSet
+    cushion: Array
+    keep: float
+    keep_half: float
+    hold_share: float
+    infeasible: int
+    uncorrected: int
+    scaled: int
+    rescues: int
+    rescue: Rescue | None
+    braking: Braking | None
+    _n_config: int
+    _sigma_floor: Array
+
+    def _box(self, bias: Array, tau: Array) -> Array:
+        raise NotImplementedError
+
+    def _check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None,
+               stop: tuple[float, Array] | None = None,
+               past: np.ndarray | None = None) -> Callable[[Array], float]:
+        raise NotImplementedError
+
+    def _brake(self, bias: Array, stop: Array, lam: float) -> Array:
+        """The braking torque b − λ D ẋ/h, scaled into the torque box (:meth:`_box`)."""
+        return self._box(bias, bias - lam * stop)
+
+    def _search_braking(
+        self, bias: Array, stop: Array, slack: Callable[[Array], float], f_stop: float,
+        f_reverse: float,
+    ) -> tuple[float, float]:
+        """Golden-section search of λ ∈ (λ₀, 2) for the braking torque bias − λ D ẋ / h with
+        the largest F, stopping at the first λ with F ≥ 0. Between stopping (excursion ½hẋ)
+        and reversing (excursion ¼hẋ, speed kept) lies a λ whose excursion h ẋ / (2λ) fits
+        the configuration margin while the end speed |1 − λ|·|ẋ| keeps the velocity ones."""
+        a, b = self.settings.braking, 2.0
+        best = max((f_stop, a), (f_reverse, b))
+        budget = self.settings.brake_search if a < b else 0
+        ratio = 0.5 * (math.sqrt(5.0) - 1.0)
+        c, d = b - ratio * (b - a), a + ratio * (b - a)
+        fc = fd = -math.inf
+        for i in range(budget):
+            at_c = i == 0 or (i > 1 and fc > fd)
+            if at_c:  # a new point c: the larger F lies in [a, d]
+                if i > 1:
+                    b, d, fd = d, c, fc
+                    c = b - ratio * (b - a)
+                lam = c
+            else:  # a new point d: the larger F lies in [c, b]
+                if i > 1:
+                    a, c, fc = c, d, fd
+                    d = a + ratio * (b - a)
+                lam = d
+            f = slack(self._brake(bias, stop, lam))
+            if at_c:
+                fc = f
+            else:
+                fd = f
+            best = max(best, (f, lam))
+            if f >= 0.0:
+                break
+        return best[1], best[0]
+
+    def _rescued(self, state: ArmState, bias: Array, predict: Predictor,
+                 now: Array) -> Array | None:
+        """The rescue's brake (rescue.py) when it finds one that stops the arm inside S in
+        the model; a committed one is held again while its one-period prediction keeps every
+        margin above the floor it was found with."""
+        if self.rescue is None:
+            return None
+        nc = self._n_config
+
+        def holds(t: Array, floor: Array) -> bool:
+            return self._check(predict, np.maximum(floor, 1e-300),
+                               np.maximum(floor[:nc], 1e-300) if nc else None)(t) >= 0.0
+
+        tau = self.rescue.torque(state, bias, now, holds)
+        if tau is not None:
+            self.rescues += 1
+        return tau
+
+    def _infeasible(self, state: ArmState, bias: Array, stop: Array, predict: Predictor,
+                    now: Array, floor: Array, floor_mid: Array | None) -> Array:
+        """When no brake satisfies (S1): the fallback, with the escape where there are
+        configuration constraints, judged on the first (frozen) prediction alone: asking
+        the fallback to satisfy both predictions left it choosing among torques that all
+        fail, and worse ones (a Panda joint limit broken at 100 Hz)."""
+        delta, nc = self.cushion, self._n_config
+
+        def frozen(t: Array) -> tuple[Array, Array, Array, Array, Array]:
+            mids, ends, speeds, inner_x, inner_v = predict(t)
+            inner = len(inner_x) // len(ends)  # rows per prediction
+            return mids[:1], ends[:1], speeds[:1], inner_x[:inner], inner_v[:inner]
+
+        positivity = self._check(frozen, delta, delta[:nc] if nc else None)  # (S0) m ≥ δ
+        if floor_mid is None:
+            return self._fallback(bias, stop, positivity)
+        # (S−), for the escape: configuration margins recover as (S1) asks at the end but,
+        # below their cushion, may shrink at mid-period by the decay share; velocity
+        # margins may be spent down to their cushion.
+        hold_end = np.minimum(delta, self.keep * now)
+        hold_end[:nc] = floor[:nc]
+        hold_mid = np.minimum(floor_mid, self.keep_half * now[:nc])
+        escape = self._escape(state.x, state.dx, state.inertia, now, hold_end, hold_mid)
+        return self._fallback(bias, stop, positivity, escape,
+                              self._check(frozen, hold_end, hold_mid))
+
+    def _fallback(
+        self, bias: Array, stop: Array, positivity: Callable[[Array], float],
+        escape: Array | None = None,
+        holding: Callable[[Array], float] | None = None,
+    ) -> Array:
+        """When no torque satisfies (S1): the calmest braking torque that keeps every margin
+        above its cushion (S0) — the smallest λ ≥ λ₀, so that the arm is not bounced off
+        the boundary period after period; else the first escape torque
+        C ẋ + g + f − D ẋ/h + s·D v/h, s = 1, 1.5, 2, that holds (S−) (the larger s for
+        the curvature of φ that the first-order escape misses); else the λ that comes
+        closest to (S0)."""
+        lam0 = self.settings.braking
+        calmest = self._brake(bias, stop, lam0)
+        f_stop = positivity(calmest)
+        if f_stop >= 0.0:
+            return calmest
+        lam, f_lam = self._search_braking(bias, stop, positivity, f_stop,
+                                          positivity(self._brake(bias, stop, 2.0)))
+        if f_lam >= 0.0:  # bisect down towards the smallest λ that keeps (S0)
+            lo = lam0
+            for _ in range(self.settings.brake_search):
+                mid = 0.5 * (lo + lam)
+                if positivity(self._brake(bias, stop, mid)) >= 0.0:
+                    lam = mid
+                else:
+                    lo = mid
+        elif escape is not None and holding is not None:
+            start = bias - stop  # ends the period at rest ...
+            for s in (1.0, 1.5, 2.0):  # ... plus the push to the end velocity s·v
+                push = self._box(bias, start + s * escape)
+                if holding(push) >= 0.0:
+                    return push
+        return self._brake(bias, stop, lam)
+
+    def _escape(
+        self, x: Array, dx: Array, inertia: Array, now: Array, end_floor: Array,
+        mid_floor: Array,
+    ) -> Array:
+        """The push D v/h of a braking torque that ends the period at a velocity v pushing
+        off the nearby configuration boundaries — for when one factor λ for every joint
+        cannot both keep one joint off its limit and let another move away from its own.
+
+        Under τ = C ẋ + g + f + D (v − ẋ)/h the frozen prediction ends at x + ½h(ẋ + v) and
+        passes x + ⅛h(3ẋ + v) at mid-period, so to first order a floor φ̲ at the end and
+        φ̲ᵐ at mid-period ask of each configuration margin φ_i
+
+            ∇φ_i · v ≥ r_i = max(2(φ̲_i − φ_i)/h − ∇φ_i·ẋ,  8(φ̲ᵐ_i − φ_i)/h − 3∇φ_i·ẋ).
+
+        v starts at rest and is projected onto the most violated of these half-spaces, at
+        most twice per constraint (joint limits are orthogonal to each other, so one
+        projection meets each): a closed-form construction, not an optimisation. A joint
+        heading away from its limit just stops. The caller adds the push to the stopping
+        torque C ẋ + g + f − D ẋ/h and checks the sum with the full prediction.
+        """
+        h = self.period
+        nc = self._n_config
+        grads = self._gradients(x)
+        rate = grads @ dx
+        need = np.maximum(2.0 * (end_floor[:nc] - now[:nc]) / h - rate,
+                          8.0 * (mid_floor - now[:nc]) / h - 3.0 * rate)
+        return inertia @ _project(grads, need, np.zeros_like(dx)) / h
+
+    def _gradients(self, x: Array) -> Array:
+        """∇φ_i of every guarded configuration constraint, shape (number of φ_i, n)."""
+        return np.concatenate([c.gradient(x) for c in self.guarded.configuration])
+
+    def _slide(self, state: ArmState, bias: Array, tau: Array, now: Array, end_floor: Array,
+               mid_floor: Array, stop: tuple[float, Array] | None) -> Array:
+        """The law's torque less what drives the arm into the configuration boundaries:
+        its acceleration a = D⁻¹(τ − b) projected onto the half-spaces that (S1) asks of
+        each configuration margin to first order,
+
+            ∇φ_i · a ≥ r_i = max(2(φ̲_i − φ_i − h∇φ_i·ẋ)/h²,  8(φ̲ᵐ_i − φ_i − ½h∇φ_i·ẋ)/h²),
+
+        (φ(h) ≈ φ + h∇φ·ẋ + ½h²∇φ·a, and at mid-period with h/2), as :func:`_project`
+        builds it, then b + D a scaled into the torque box. Blending toward it, not toward a
+        brake, lets the law go on along a boundary it presses against: a law that does not
+        know of a joint limit and whose acceleration, through D, pushes that joint into it
+        would otherwise be braked to rest there for good. Where the result would leave a
+        braking margin σ_i below its floor (``stop``), the arm must also stop approaching
+        that boundary by the end of the period, ∇φ_i · (ẋ + h a) ≥ 0, and a is projected
+        again with that half-space added."""
+        h = self.period
+        nc = self._n_config
+        grads = self._gradients(state.x)
+        rate = grads @ state.dx
+        phi = now[:nc]
+        # aimed a little past each floor (a twentieth of the step, and 10⁻⁴ of the floor for
+        # a margin resting on it): the projection lands on the first-order boundary, which
+        # the curvature of φ may put a hair short of the floor
+        end = end_floor[:nc] + 0.05 * np.abs(end_floor[:nc] - phi) + 1e-4 * np.abs(end_floor[:nc])
+        mid = mid_floor + 0.05 * np.abs(mid_floor - phi) + 1e-4 * np.abs(mid_floor)
+        need = np.maximum(2.0 * (end - phi - h * rate) / (h * h),
+                          8.0 * (mid - phi - 0.5 * h * rate) / (h * h))
+        law = solve_spd(state.inertia, tau - bias)
+        acc = _project(grads, need, law)
+        if stop is not None:
+            v1 = state.dx + h * acc
+            x_stop = state.x + h * state.dx + (0.5 * h * h) * acc + (
+                stop[0] * math.sqrt(float(v1.dot(v1)))) * v1
+            short = self.guarded.configuration_margins(x_stop) < stop[1]
+            if short.any():
+                need = np.where(short, np.maximum(need, -rate / h), need)
+                acc = _project(grads, need, law)
+        return self._box(bias, bias + state.inertia.dot(acc))
+
+
+def _project(grads: Array, need: Array, start: Array) -> Array:
+    """``start`` moved onto the half-spaces {v : ∇φ_i · v ≥ r_i}: one orthogonal projection
+    at a time onto the most violated, at most twice per constraint (joint limits are
+    orthogonal to each other, so one projection meets each): a closed-form construction,
+    not an optimisation."""
+    norms = np.einsum("ij,ij->i", grads, grads)
+    movable = norms > 1e-300
+    scale = np.sqrt(np.where(movable, norms, 1.0))
+    v = start
+    for _ in range(2 * len(need)):
+        short = np.where(movable, need - grads @ v, -np.inf)
+        i = int(np.argmax(short / scale))
+        if not short[i] > 0.0:
+            break
+        v = v + (short[i] / norms[i]) * grads[i]
+    return v

@@ -1,0 +1,250 @@
+"""The safeguard itself: the wrapper a law runs in (the package docstring), its state and
+counts, and one control instant — accept the law's torque (acceptance.py) or replace it
+(braking.py)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.constraints.base import ConfigurationConstraint
+from cpbc.constraints.brakes import TorqueBox
+from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.stopping import Braking
+from cpbc.controllers.base import Controller, Evaluation, SafetyFilter
+from cpbc.controllers.hold import hold_share
+from cpbc.controllers.rescue import Rescue
+from cpbc.controllers.safeguard.acceptance import Acceptance
+from cpbc.controllers.safeguard.braking import Brakes
+from cpbc.controllers.safeguard.prediction import Predictor, predictor
+from cpbc.controllers.safeguard.settings import SafeguardSettings
+from cpbc.errors import CpbcError
+from cpbc.model.robot_model import ArmState
+
+
+def guarded(
+    law: Controller,
+    period: float,
+    settings: SafeguardSettings | None,
+    torque_limit: Array | float | None = None,
+    also_keep: Sequence[ConfigurationConstraint] = (),
+) -> Controller:
+    """The law as a sampled-data loop at period h should run it: wrapped in a Safeguard with
+    ``settings`` when it enforces constraints, else the law itself (also with no settings).
+
+    ``torque_limit`` is the plant's joint torque saturation (a number or one per joint)."""
+    if isinstance(law, SafetyFilter):  # a filter already (a peer): fresh counts, no wrap
+        return law.restarted()
+    if settings is None or law.constraints.empty:
+        return law
+    limit = None if torque_limit is None else np.broadcast_to(
+        np.asarray(torque_limit, dtype=float), (law.model.n,))
+    return Safeguard(law, period, settings, limit, also_keep)
+
+
+class Safeguard(Acceptance, Brakes, SafetyFilter):
+    """Wraps a constrained law so that (S1) holds under zero-order hold at period h.
+
+    Args:
+        law: the constrained law (its ``constraints`` and ``model`` are used).
+        period: control period h [s].
+        settings: κ, λ, prediction sub-steps, back-off steps.
+        torque_limit: joint torque limits |τ_q| ≤ limit (the actuators'), shape (n,). Every
+            torque the safeguard returns or predicts with lies in this box: the law's torque,
+            the brakes and the escape are scaled toward C ẋ + g + f until they fit
+            (:meth:`_box`), which keeps the direction of the acceleration they ask for.
+        also_keep: configuration constraints the law does not enforce (obstacles it does
+            not know of, the plant's joint ranges) that the safeguard keeps as well: (S1)
+            on them makes it brake before the arm reaches them. Those the law enforces
+            already are skipped.
+
+    Attributes:
+        calls: control instants seen.
+        acted: instants at which the law's torque was replaced (β > 0).
+        infeasible: instants at which even the braking torque failed (S1).
+        scaled: instants at which the law's torque was outside the torque box and was scaled
+            into it (it is then tested as scaled).
+        uncorrected: instants at which the hold-corrected torque failed (S1) and the law's
+            own torque kept it: the guard held a blend of the two, with as much of the
+            correction as (S1) allows (not counted as acting: the torque is the law's).
+    """
+
+    type_name = "safeguard"
+
+    def __init__(
+        self,
+        law: Controller,
+        period: float,
+        settings: SafeguardSettings | None = None,
+        torque_limit: Array | None = None,
+        also_keep: Sequence[ConfigurationConstraint] = (),
+    ) -> None:
+        if not (math.isfinite(period) and period > 0):
+            raise CpbcError(f"safeguard period must be > 0, got {period}")
+        super().__init__(law.model, law.target, law.constraints)
+        self.law = law
+        self.period = float(period)
+        self.settings = settings or SafeguardSettings()
+        self.keep = self.settings.keep_fraction(self.period)
+        self.keep_half = math.sqrt(self.keep)
+        self.substeps = self.settings.steps_for(self.period)
+        # s of the hold correction τ − s D Δa: the drift the plant's hold has (hold.py)
+        self.hold_share = hold_share(self.period, self.settings.plant_step) \
+            if self.settings.hold_correction else 0.0
+        own = law.constraints
+        seen = set(own.names)  # a constraint the law enforces already, or a repeat, is skipped
+        extra = []
+        for c in also_keep:
+            if seen.isdisjoint(c.names):
+                extra.append(c)
+                seen.update(c.names)
+        # the constraints the guard keeps: the law's own, and the extra configuration ones
+        self.guarded = own if not extra or own.empty else ConstraintSet(
+            own.n, (*own.configuration, *extra), own.velocity)
+        self._extra = ConstraintSet(own.n, extra) if extra and not own.empty else None
+        at_target = self.guarded.margins(law.target, np.zeros(law.model.n))
+        scale = self.settings.cushion * self.period / 0.01
+        # δ_i; a constraint only the guard keeps may have the target beyond it (a joint limit
+        # the law does not know of between it and its target): the size of its margin there
+        self.cushion = scale * np.abs(at_target)
+        nc = self.guarded.n_configuration
+        if self.settings.velocity_cushion is not None:
+            self.cushion[nc:] = (self.settings.velocity_cushion * self.period / 0.01
+                                 * np.abs(at_target[nc:]))
+        self._n_config = nc
+        self._n_own_config = own.n_configuration
+        self.torque_limit = None if torque_limit is None else np.asarray(torque_limit, float)
+        self._torque_box = None if torque_limit is None else TorqueBox.of(law.model,
+                                                                          torque_limit)
+        # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)
+        self.braking = None if torque_limit is None or not self._n_config else Braking.of(
+            law.model, torque_limit)
+        self._sigma_floor = np.maximum(self.cushion[: self._n_config], 1e-300)
+        # where no torque of its own will do: brakes better than the uniform one (rescue.py)
+        self.rescue = None if self.braking is None or self._torque_box is None else Rescue(
+            law.model, self.guarded, self._torque_box, self.cushion,
+            self.period, self.substeps)
+        self.calls = 0
+        self.acted = 0
+        self.infeasible = 0
+        self.scaled = 0
+        self.uncorrected = 0
+        self.rescues = 0
+
+    def reset_counts(self) -> None:
+        self.calls = self.acted = self.infeasible = self.scaled = self.uncorrected = 0
+        self.rescues = 0
+        if self.rescue is not None:
+            self.rescue.forget()
+
+    # -- the Controller interface ------------------------------------------------------------
+
+    def state(self, x: Array, dx: Array) -> ArmState:
+        return self.law.state(x, dx)
+
+    def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
+        """The guarded torque and the law's V at the per-step state; ConstraintViolation
+        outside S."""
+        out = self.law.evaluate_state(state, margins=True)  # raises outside S
+        self.calls += 1
+        if self.constraints.empty:
+            return out
+        assert out.margins is not None  # asked for
+        tau = self._guard(state, out.torque, out.margins)
+        return Evaluation(tau, out.lyapunov, out.margins if margins else None)
+
+    def lyapunov(self, x: Array, dx: Array) -> float:
+        """The law's V, which the guard leaves as it is: the law alone is asked, no guard runs
+        and no count moves (the loop asks for the true state's V beside every guarded call
+        when the measurement is noisy)."""
+        return self.law.lyapunov(x, dx)
+
+    # -- the guard ---------------------------------------------------------------------------
+
+    def _guard(self, state: ArmState, tau: Array, law_margins: Array) -> Array:
+        """τ if it satisfies (S1), else the smallest blend toward braking that does."""
+        bias = state.coriolis_force + state.gravity
+        if self.model.has_friction:
+            bias = bias + state.dissipation
+        predict = self._predictor(state, bias)
+        now = self._now(state.x, law_margins)
+        delta, nc = self.cushion, self._n_config
+        floor = delta + self.keep * (now - delta)
+        floor_mid = None
+        past = None
+        if nc:
+            floor_mid = delta[:nc] + self.keep_half * (now[:nc] - delta[:nc])
+            if self._extra is not None and not now[now.argmin()] > 0.0:
+                # An extra constraint (one only the guard keeps) is broken already: the arm
+                # went past a limit the law does not know of, from a state nothing could stop
+                # it from. No torque brings its margin back within one period, so it must
+                # merely not shrink: a law that leads back is let through, and the guard
+                # never holds the arm at rest beyond the limit (it did, for good, once
+                # asking for a positive margin at the period's end made every step fail).
+                past = now <= 0.0
+                floor = np.where(past, now, floor)
+                floor_mid = np.where(past[:nc], now[:nc], floor_mid)
+        stop = self._braking_floor(state, bias)
+        slack = self._check(predict, floor, floor_mid, stop, past)  # (S1)
+        tau, f0 = self._held(state, bias, tau, slack)
+        if f0 >= 0.0:
+            return tau
+        self.acted += 1
+        if floor_mid is not None:  # first the law less its push into the boundaries
+            slid = self._slide(state, bias, tau, now, floor, floor_mid, stop)
+            f_slid = slack(slid)
+            if f_slid >= 0.0:
+                return self._blend(tau, slid, f0, f_slid, slack)
+        stop = state.inertia.dot(state.dx) / self.period
+        brake = self._brake(bias, stop, self.settings.braking)
+        f1 = slack(brake)
+        if f1 < 0.0:
+            # Reverse instead of stop: x⁺ = x, ẋ⁺ = −ẋ, the least excursion at this speed.
+            reverse = self._brake(bias, stop, 2.0)
+            f_rev = slack(reverse)
+            if f_rev < 0.0:
+                # Stopping goes too far and reversing at full speed breaks a velocity
+                # margin: search the deceleration λ in between.
+                lam, f_lam = self._search_braking(bias, stop, slack, f1, f_rev)
+                if f_lam < 0.0:
+                    self.infeasible += 1
+                    rescued = self._rescued(state, bias, predict, now)
+                    if rescued is not None:
+                        return rescued
+                    return self._infeasible(state, bias, stop, predict, now, floor, floor_mid)
+                reverse, f_rev = self._brake(bias, stop, lam), f_lam
+            brake, f1 = reverse, f_rev
+        return self._blend(tau, brake, f0, f1, slack)
+
+    def _box(self, bias: Array, tau: Array) -> Array:
+        """τ scaled toward the bias b = C ẋ + g + f until it fits the torque box
+        (:meth:`TorqueBox.toward`): the acceleration D⁻¹(τ − b) keeps its direction and only
+        shrinks, so no joint is spun up by the coupling through D, as clipping each joint
+        would (τ itself when it fits, or when there is no limit)."""
+        return tau if self._torque_box is None else self._torque_box.toward(bias, tau)
+
+    def _saturate(self, tau: Array) -> Array:
+        return tau if self._torque_box is None else self._torque_box.clip(tau)
+
+    @staticmethod
+    def _no_nan(m: Array) -> Array:
+        """NaN margins (a prediction gone wild) count as −∞; one sum tells if there are any."""
+        total = m.sum()
+        return np.where(np.isnan(m), -np.inf, m) if total != total else m
+
+    def _now(self, x: Array, law_margins: Array) -> Array:
+        """Every guarded margin at the sample: the law's, with the extra configuration
+        constraints' after its own configuration margins."""
+        if self._extra is None:
+            return self._no_nan(law_margins)
+        k = self._n_own_config
+        return self._no_nan(np.concatenate(
+            (law_margins[:k], self._extra.configuration_margins(x), law_margins[k:])))
+
+    def _predictor(self, state: ArmState, bias: Array) -> Predictor:
+        """The period's prediction under a held τ (:func:`prediction.predictor`)."""
+        return predictor(self.model, state, bias, self.period, self.substeps, self._saturate,
+                         self.settings.corrector)

@@ -1,0 +1,86 @@
+"""The safeguard's prediction of one control period under a held torque (step 2 of the package
+docstring): in closed form with the dynamics frozen at the sample (and, with the corrector, to
+second order beside it), or in semi-implicit Euler sub-steps of the model's forward dynamics
+(with Heun's steps beside them)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.controllers.linalg import solve_spd
+from cpbc.model.robot_model import ArmState, RobotModel
+
+# (mid-period positions, end positions, end rates, then positions and rates inside the
+# period), one row per prediction (per prediction and sub-step for the inner ones)
+Predictor = Callable[[Array], "tuple[Array, Array, Array, Array, Array]"]
+
+
+def predictor(model: RobotModel, state: ArmState, bias: Array, h: float, substeps: int,
+              saturate: Callable[[Array], Array], corrector: bool) -> Predictor:
+    """(mid-period x, end x, end ẋ, then x and ẋ inside the period) under a held τ, one
+    row per prediction (per prediction and inner instant for the last two; the Predictor
+    alias): the frozen closed form with the dynamics of the sample (and, with
+    ``corrector``, the second-order one beside it), or ``substeps`` semi-implicit Euler
+    steps of the model. ``saturate`` clips a torque to the box."""
+    x, dx = state.x, state.dx
+    if substeps == 1:
+        coast_mid, coast = x + (0.5 * h) * dx, x + h * dx  # the motion without torque
+        inertia = state.inertia
+
+        def frozen(t: Array) -> tuple[Array, Array, Array, Array, Array]:
+            t = saturate(t)
+            acc = solve_spd(inertia, t - bias)
+            mid = coast_mid + (0.125 * h * h) * acc
+            end, speed = coast + (0.5 * h * h) * acc, dx + h * acc
+            mid_speed = dx + (0.5 * h) * acc
+            if not corrector:
+                return mid[None], end[None], speed[None], mid[None], mid_speed[None]
+            # the acceleration at the predicted end, taken as linear in between
+            late = model.forward_dynamics(end, speed, t) - acc
+            mids = np.array((mid, mid + (h * h / 48.0) * late))
+            return (mids, np.array((end, end + (h * h / 6.0) * late)),
+                    np.array((speed, speed + (0.5 * h) * late)), mids,
+                    np.array((mid_speed, mid_speed + (0.125 * h) * late)))
+
+        return frozen
+    return substepped(model, x, dx, h, substeps, saturate, corrector)
+
+
+def substepped(model: RobotModel, x: Array, dx: Array, h: float, k: int,
+                saturate: Callable[[Array], Array], corrector: bool) -> Predictor:
+    """The prediction in k semi-implicit Euler steps of the model's forward dynamics, and
+    with ``corrector`` beside it in k second-order (Heun) steps."""
+    dt = h / k
+    mid_step = k // 2 if k % 2 == 0 else (k + 1) // 2  # the step that ends nearest h/2
+
+    def predict(t: Array) -> tuple[Array, Array, Array, Array, Array]:
+        t = saturate(t)
+        xs, vs = x.copy(), dx.copy()
+        inner_x, inner_v = [], []  # the states after every sub-step but the last
+        for _ in range(k):
+            vs = vs + dt * model.forward_dynamics(xs, vs, t)
+            xs = xs + dt * vs
+            inner_x.append(xs)
+            inner_v.append(vs)
+        mid = inner_x[mid_step - 1]
+        if not corrector:
+            return (mid[None], xs[None], vs[None], np.array(inner_x[:-1]).reshape(-1, len(x)),
+                    np.array(inner_v[:-1]).reshape(-1, len(x)))
+        xh, vh = x.copy(), dx.copy()
+        heun_x, heun_v = [], []
+        for _ in range(k):
+            a0 = model.forward_dynamics(xh, vh, t)
+            a1 = model.forward_dynamics(xh + dt * vh + (0.5 * dt * dt) * a0, vh + dt * a0, t)
+            xh = xh + dt * vh + (dt * dt) * (a0 / 3.0 + a1 / 6.0)
+            vh = vh + (0.5 * dt) * (a0 + a1)
+            heun_x.append(xh)
+            heun_v.append(vh)
+        rows_x = np.array(inner_x[:-1] + heun_x[:-1]).reshape(-1, len(x))
+        rows_v = np.array(inner_v[:-1] + heun_v[:-1]).reshape(-1, len(x))
+        return (np.array((mid, heun_x[mid_step - 1])), np.array((xs, xh)), np.array((vs, vh)),
+                rows_x, rows_v)
+
+    return predict

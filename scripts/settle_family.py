@@ -1,0 +1,75 @@
+"""Settle time of guarded CPBC beside the CBF-QP peer on a family of Panda reaches.
+
+The shipped reach of ``panda_cbf_qp`` and its reversal, each with its start and target shifted
+by a seeded offset (uniform in ±``--shift`` rad per joint): pair k is start_k → target_k and
+target_k → start_k. Every controller of the scenario runs every reach (MuJoCo, the scenario's
+physics, torque limits and safeguard); the script prints per controller the median, the
+quartiles and the range of the settle time, its ratio to the CBF-QP's on the same reach, and
+the reaches that did not converge.
+
+    python scripts/settle_family.py [--pairs 20] [--shift 0.1] [--seed 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from cpbc.scenario import build, load_scenario
+from cpbc.scenario.runner import run_one
+from cpbc.scenario.schema import Scenario
+
+
+def reaches(spec: Scenario, pairs: int, shift: float, seed: int) -> list[tuple[list, list]]:
+    """(start, target) of every reach: pairs shifted copies of the shipped one, both ways."""
+    rng = np.random.default_rng(seed)
+    start, target = np.array(spec.cases[0].position), np.array(spec.target)
+    out = []
+    for k in range(pairs):
+        a = start + (rng.uniform(-shift, shift, start.size) if k else 0.0)
+        b = target + (rng.uniform(-shift, shift, target.size) if k else 0.0)
+        out += [(a.tolist(), b.tolist()), (b.tolist(), a.tolist())]
+    return out
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--pairs", type=int, default=20)
+    p.add_argument("--shift", type=float, default=0.1)
+    p.add_argument("--seed", type=int, default=0)
+    args = p.parse_args()
+    spec, file = load_scenario("panda_cbf_qp")
+    settle: dict[str, list[float]] = {}
+    failed: dict[str, list[int]] = {}
+    began = time.time()
+    for i, (a, b) in enumerate(reaches(spec, args.pairs, args.shift, args.seed)):
+        case = spec.cases[0].model_copy(update={"position": a})
+        setup = build(spec.model_copy(update={"target": b, "cases": [case]}), file)
+        for entry in setup.controllers:
+            s = run_one(setup, setup.cases[0], entry, "mujoco").summary
+            if s.status == "converged" and s.settle_time is not None:
+                settle.setdefault(entry.name, []).append(s.settle_time)
+            else:
+                settle.setdefault(entry.name, []).append(np.nan)
+                failed.setdefault(entry.name, []).append(i)
+        print(f"reach {i}: " + ", ".join(f"{n} {v[-1]:.3f} s" for n, v in settle.items()),
+              flush=True)
+    peer = np.array(settle.get("CBF-QP", []))
+    print(f"\n{len(peer)} reaches ({args.pairs} pairs, shift ±{args.shift} rad, seed "
+          f"{args.seed}), {time.strftime('%Y-%m-%d')}, {time.time() - began:.0f} s")
+    print("controller | median settle [s] | quartiles | range | median ratio to CBF-QP "
+          "(quartiles, range) | not converged")
+    for name, values in settle.items():
+        v = np.array(values)
+        ratio = v / peer if peer.size == v.size else np.full(v.size, np.nan)
+        q = np.nanpercentile(v, [0, 25, 50, 75, 100])
+        r = np.nanpercentile(ratio, [0, 25, 50, 75, 100])
+        print(f"{name} | {q[2]:.3f} | {q[1]:.3f}–{q[3]:.3f} | {q[0]:.3f}–{q[4]:.3f} | "
+              f"{r[2]:.3f} ({r[1]:.3f}–{r[3]:.3f}, {r[0]:.3f}–{r[4]:.3f}) | "
+              f"{failed.get(name, [])}")
+
+
+if __name__ == "__main__":
+    main()
