@@ -149,7 +149,7 @@ def test_a_clearance_pairs_bar_does_not_split_a_report_cell():
 def test_one_rule_counts_runs_at_or_below_zero_and_deeper_than_the_tolerance():
     def record(seed, margin, acted, infeasible=0):
         return {"controller": "QP", "type": "cbf_qp", "rate": 1000.0, "seed": seed,
-                "class": "viable", "violated": margin <= 0, "min_margin": margin,
+                "class": "stoppable", "violated": margin <= 0, "min_margin": margin,
                 "constraint": "c", "end_time": 0.5, "outcome": "", "position": [0.0],
                 "velocity": [0.0], "control_steps": 10, "acted": acted,
                 "infeasible": infeasible, "at_limit": 0}
