@@ -29,7 +29,7 @@ class ReferencePlan:
         goal: the frame goal (frame, offset, orientation) the path moves.
         path, period: the path and h.
         points, tangents: p(s_k), dp/ds(s_k), (m, 3); speeds: |dp/ds(s_k)|, as a list.
-        postures: x_n(s_k), (m, n).
+        postures: x_n(s_k), (m, n); posture_tangents: dx_n/ds(s_k), (m, n).
         log_norm: ln s(ΦΨ(x_n(s_k), 0)) of the law, as a list (V̄ = V·exp(log_norm)).
         postures_path: the coarse continuation and its stretches.
         blend_times: per stretch, |p(end) − p(start)| over the nominal speed at its end.
@@ -42,6 +42,7 @@ class ReferencePlan:
     tangents: Array
     speeds: list[float]
     postures: Array
+    posture_tangents: Array
     log_norm: list[float]
     postures_path: PosturePath
     blend_times: tuple[float, ...]
@@ -50,7 +51,7 @@ class ReferencePlan:
         return min(int(s / self.period + 0.5), len(self.speeds) - 1)
 
 
-def _log_norm(law: Controller, x: Array) -> float:
+def log_norm(law: Controller, x: Array) -> float:
     """ln s(ΦΨ(x, 0)) of the law's shaping (0 for a law without barriers)."""
     shaping = getattr(law, "shaping", None)
     if shaping is None or law.constraints.empty:
@@ -74,8 +75,8 @@ def plan_reference(law: Controller, goal: FrameGoal, path: Path, start: Array,
     points, tangents = path.sample(grid)
     postures = np.column_stack([np.interp(grid, coarse.s, coarse.postures[:, j])
                                 for j in range(law.model.n)])
-    norms = [_log_norm(law, x) for x in coarse.postures]
-    log_norm = np.interp(grid, coarse.s, np.minimum(norms, 700.0))
+    norms = [log_norm(law, x) for x in coarse.postures]
+    norm_table = np.interp(grid, coarse.s, np.minimum(norms, 700.0))
     blends = []
     for begin, end, _ in coarse.stretches:
         if math.isinf(end):
@@ -86,4 +87,5 @@ def plan_reference(law: Controller, goal: FrameGoal, path: Path, start: Array,
         blends.append(float(np.linalg.norm(p[0][1] - p[0][0])) / speed)
     return ReferencePlan(replace(goal), path, period, points, tangents,
                          np.linalg.norm(tangents, axis=1).tolist(), postures,
-                         log_norm.tolist(), coarse, tuple(blends))
+                         np.gradient(postures, period, axis=0),
+                         norm_table.tolist(), coarse, tuple(blends))

@@ -17,6 +17,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.controllers.base import Controller
+from cpbc.controllers.pd import PDGravity
 from cpbc.controllers.potentials import (
     FramePositionLogCosh,
     FramePositionSpring,
@@ -28,28 +29,29 @@ from cpbc.controllers.potentials import (
     PotentialSum,
 )
 from cpbc.controllers.task_damping import TaskDamping, TaskTanhDamping
+from cpbc.controllers.terms import LinearDamping
 from cpbc.errors import CpbcError
 
 
 class MovingTarget:
     """The applied reference: ``position`` p_d (3,), ``velocity`` ṗ_ff (3,) and ``posture``
-    x_n (n,), written in place by :meth:`set`."""
+    x_n (n,) and its feed-forward ``posture_velocity`` ẋ_n,ff (n,), written in place by
+    :meth:`set`."""
 
     def __init__(self, position: Array, posture: Array) -> None:
         self.position = np.array(position, dtype=float)
         self.velocity = np.zeros(3)
         self.posture = np.array(posture, dtype=float)
+        self.posture_velocity = np.zeros_like(self.posture)
 
     def set(self, position: Array, velocity: Array | None = None,
-            posture: Array | None = None) -> None:
-        """Move the target (the velocity to zero when not given; the posture kept)."""
+            posture: Array | None = None, posture_velocity: Array | None = None) -> None:
+        """Move the target (velocities to zero when not given; the posture kept)."""
         self.position[:] = position
-        if velocity is None:
-            self.velocity[:] = 0.0
-        else:
-            self.velocity[:] = velocity
+        self.velocity[:] = 0.0 if velocity is None else velocity
         if posture is not None:
             self.posture[:] = posture
+        self.posture_velocity[:] = 0.0 if posture_velocity is None else posture_velocity
 
 
 class _Steerable(Protocol):
@@ -93,10 +95,12 @@ class Steered:
 
 @dataclass(frozen=True)
 class SteeredDamping:
-    """Task damping whose feed-forward is the target's ``velocity``."""
+    """Task damping whose feed-forward is the target's ``velocity``, less K_D ẋ_n,ff when
+    the law's joint damping ``joint`` K_D is linear (module docstring)."""
 
     damping: TaskDamping | TaskTanhDamping
     target: MovingTarget
+    joint: Array | None = None
 
     @property
     def frames(self) -> tuple[int, ...]:
@@ -107,7 +111,10 @@ class SteeredDamping:
         return self.damping.force_bound
 
     def force(self, at: Placed, dx: Array) -> Array:
-        return self.damping.force_with(at, dx, self.target.velocity)
+        force = self.damping.force_with(at, dx, self.target.velocity)
+        if self.joint is None:
+            return force
+        return force - self.joint * self.target.posture_velocity
 
 
 def _steer_part(part: Potential, target: MovingTarget) -> Potential:
@@ -132,5 +139,7 @@ def steer(law: Controller, target: MovingTarget) -> Controller:
     law.potential = PotentialSum(steered)
     damping = law.task_damping
     if isinstance(damping, TaskDamping | TaskTanhDamping):
-        law.task_damping = SteeredDamping(damping, target)
+        linear = isinstance(getattr(law, "damping", None), LinearDamping) or isinstance(
+            law, PDGravity)
+        law.task_damping = SteeredDamping(damping, target, law.kd if linear else None)  # type: ignore[attr-defined]
     return law

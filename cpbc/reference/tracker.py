@@ -7,6 +7,9 @@ ERG attraction
 
     v ← v + h · min(κ Δ, 1) · v_max · (r − v)/max(|r − v|, v_max h),   Δ = max(0, Γ − V̄)/Γ
 
+with V̄ normalised at the law's posture x_n, which a streamed target leaves where it is
+(no path to continue it along: far targets leave a posture-spring compromise).
+
 It is a Controller like any law, so cpbc.simulation.loop.run_mujoco runs it unchanged; it
 knows nothing of the simulator (its clock is its own count of control steps).
 """
@@ -21,7 +24,7 @@ from cpbc.arrays import Array
 from cpbc.controllers.base import Controller, Evaluation, SafetyFilter
 from cpbc.model.robot_model import ArmState
 from cpbc.reference.governor import GovernorSettings, PathGovernor
-from cpbc.reference.plan import ReferencePlan
+from cpbc.reference.plan import ReferencePlan, log_norm
 from cpbc.reference.target import MovingTarget, steer
 
 
@@ -61,6 +64,7 @@ class ReferenceTracker(Controller):
         self.governor = None if plan is None else PathGovernor(
             self.settings, plan.path.duration, period, plan.postures_path.stretches,
             plan.blend_times)
+        self.stream_norm = math.exp(log_norm(law, self.moving.posture))
         self.requested = self.moving.position.copy()
         self.requested_velocity = np.zeros(3)
         self.k = 0
@@ -96,14 +100,16 @@ class ReferenceTracker(Controller):
                             (1 - w) * plan.postures[j] + w * plan.postures[end])
         else:
             rate = gov.rate if self.feedforward else 0.0
-            self.moving.set(plan.points[j], rate * plan.tangents[j], plan.postures[j])
+            self.moving.set(plan.points[j], rate * plan.tangents[j], plan.postures[j],
+                            rate * plan.posture_tangents[j])
         self.log_s.append(s)
         self.log_blocked.append(gov.blocked_now)
         self.log_applied.append(self.moving.position.copy())
 
     def _follow_stream(self, v: float) -> None:
         st = self.settings
-        delta = max(0.0, st.budget - v) / st.budget  # V̄ = V: no path to normalise on
+        vbar = v * self.stream_norm  # normalised at the (fixed) posture x_n
+        delta = max(0.0, st.budget - vbar) / st.budget
         gap = self.requested - self.moving.position
         dist = float(np.linalg.norm(gap))
         step = self.h * min(st.gain * delta, 1.0) * st.max_speed
