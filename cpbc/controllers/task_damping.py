@@ -99,10 +99,18 @@ class TaskDamping:
 
     def force(self, at: Placed, dx: Array) -> Array:
         """F, shape (n,), at a state holding the frame."""
+        return self._force(at, dx, self._bias6)
+
+    def force_with(self, at: Placed, dx: Array, feedforward: Array) -> Array:
+        """F with the feed-forward ṗ_ff = ``feedforward`` in place of the damping's own (a
+        moving reference, cpbc.reference.target)."""
+        return self._force(at, dx, self._gain6[:, :3] @ feedforward)
+
+    def _force(self, at: Placed, dx: Array, bias: Array) -> Array:
         kin = frame_at(at, self.frame)
         j = kin.jacobian if self.offset is None else np.vstack(
             (kin.point(self.offset)[1], kin.angular))
-        return j.T @ (self._gain6 @ (j @ dx) - self._bias6)
+        return j.T @ (self._gain6 @ (j @ dx) - bias)
 
 
 @dataclass(frozen=True)
@@ -150,5 +158,9 @@ class TaskTanhDamping:
         return self.reach * float(np.linalg.norm(self.gain))
 
     def force(self, at: Placed, dx: Array) -> Array:
+        return self.force_with(at, dx, self.feedforward)
+
+    def force_with(self, at: Placed, dx: Array, feedforward: Array) -> Array:
+        """F with ṗ_ff = ``feedforward`` in place of the damping's own."""
         _, jv = frame_at(at, self.frame).point(self.offset)
-        return jv.T @ (self.gain * np.tanh(self.gamma * (jv @ dx - self.feedforward)))
+        return jv.T @ (self.gain * np.tanh(self.gamma * (jv @ dx - feedforward)))

@@ -80,8 +80,13 @@ class FramePositionSpring:
         return None
 
     def evaluate(self, at: Placed) -> tuple[float, Array]:
+        return self.evaluate_toward(at, self.goal)
+
+    def evaluate_toward(self, at: Placed, goal: Array) -> tuple[float, Array]:
+        """U and ∂U/∂x with the goal p_d = ``goal`` in place of the spring's own (a moving
+        reference, cpbc.reference.target)."""
         p, jv = frame_at(at, self.frame).point(self.offset)
-        err = p - self.goal
+        err = p - goal
         force = self.stiffness @ err
         return 0.5 * float(err @ force), jv.T @ force
 
@@ -143,6 +148,10 @@ class FramePositionLogCosh:
         return GradientBound(bound, bound)
 
     def evaluate(self, at: Placed) -> tuple[float, Array]:
+        return self.evaluate_toward(at, self.goal)
+
+    def evaluate_toward(self, at: Placed, goal: Array) -> tuple[float, Array]:
+        """U and ∂U/∂x toward ``goal`` in place of the spring's own."""
         p, jv = frame_at(at, self.frame).point(self.offset)
-        value, force = self._spring.evaluate(p - self.goal)
+        value, force = self._spring.evaluate(p - goal)
         return value, jv.T @ force

@@ -50,7 +50,12 @@ class JointSpring:
         return None
 
     def evaluate(self, at: Placed) -> tuple[float, Array]:
-        err = at.x - self.target
+        return self.evaluate_toward(at, self.target)
+
+    def evaluate_toward(self, at: Placed, goal: Array) -> tuple[float, Array]:
+        """U and ∂U/∂x toward the set point ``goal`` in place of the spring's own (a moving
+        posture x_n(s), cpbc.reference.target)."""
+        err = at.x - goal
         grad = self.stiffness * err
         return 0.5 * float(err @ grad), grad
 
@@ -96,3 +101,7 @@ class JointLogCoshSpring:
 
     def evaluate(self, at: Placed) -> tuple[float, Array]:
         return self._spring.evaluate(at.x - self.target)
+
+    def evaluate_toward(self, at: Placed, goal: Array) -> tuple[float, Array]:
+        """U and ∂U/∂x toward the set point ``goal`` in place of the spring's own."""
+        return self._spring.evaluate(at.x - goal)

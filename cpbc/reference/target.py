@@ -1,0 +1,145 @@
+"""The moving target a law's springs and task damping read each step, without rebuilding
+the law (TASKSPACE §2.4): the frame goal p_d, the feed-forward ṗ_ff and the posture x_n.
+
+:func:`steer` rewrites a law's task potential and task damping so that the frame position
+spring reads p_d, the joint (posture) spring x_n and the damping ṗ_ff from one
+:class:`MovingTarget`, whose arrays are written in place. The formulas stay in the springs
+(``evaluate_toward``) and the damping (``force_with``). While the target does not move, the
+law is the same law with a fixed goal: its V̇ identity holds unchanged.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.controllers.base import Controller
+from cpbc.controllers.pd import PDGravity
+from cpbc.controllers.potentials import (
+    FramePositionLogCosh,
+    FramePositionSpring,
+    GradientBound,
+    JointLogCoshSpring,
+    JointSpring,
+    Placed,
+    Potential,
+    PotentialSum,
+)
+from cpbc.controllers.task_damping import TaskDamping, TaskTanhDamping
+from cpbc.controllers.terms import LinearDamping
+from cpbc.errors import CpbcError
+
+
+class MovingTarget:
+    """The applied reference: ``position`` p_d (3,), ``velocity`` ṗ_ff (3,) and ``posture``
+    x_n (n,) and its feed-forward ``posture_velocity`` ẋ_n,ff (n,), written in place by
+    :meth:`set`."""
+
+    def __init__(self, position: Array, posture: Array) -> None:
+        self.position = np.array(position, dtype=float)
+        self.velocity = np.zeros(3)
+        self.posture = np.array(posture, dtype=float)
+        self.posture_velocity = np.zeros_like(self.posture)
+
+    def set(self, position: Array, velocity: Array | None = None,
+            posture: Array | None = None, posture_velocity: Array | None = None) -> None:
+        """Move the target (velocities to zero when not given; the posture kept)."""
+        self.position[:] = position
+        self.velocity[:] = 0.0 if velocity is None else velocity
+        if posture is not None:
+            self.posture[:] = posture
+        self.posture_velocity[:] = 0.0 if posture_velocity is None else posture_velocity
+
+
+class _Steerable(Protocol):
+    @property
+    def frames(self) -> tuple[int, ...]: ...
+
+    @property
+    def anchored(self) -> bool: ...
+
+    @property
+    def gradient_bound(self) -> GradientBound | None: ...
+
+    def evaluate_toward(self, at: Placed, goal: Array) -> tuple[float, Array]: ...
+
+
+@dataclass(frozen=True)
+class Steered:
+    """A spring whose goal is the target's ``position`` (a frame spring) or ``posture`` (a
+    joint spring)."""
+
+    spring: _Steerable
+    target: MovingTarget
+    reads: str
+
+    @property
+    def frames(self) -> tuple[int, ...]:
+        return self.spring.frames
+
+    @property
+    def anchored(self) -> bool:
+        return self.spring.anchored
+
+    @property
+    def gradient_bound(self) -> GradientBound | None:
+        return self.spring.gradient_bound
+
+    def evaluate(self, at: Placed) -> tuple[float, Array]:
+        goal = self.target.position if self.reads == "position" else self.target.posture
+        return self.spring.evaluate_toward(at, goal)
+
+
+@dataclass(frozen=True)
+class SteeredDamping:
+    """Task damping whose feed-forward is the target's ``velocity``, less K_D ẋ_n,ff when
+    the law's joint damping ``joint`` K_D is linear (module docstring)."""
+
+    damping: TaskDamping | TaskTanhDamping
+    target: MovingTarget
+    joint: Array | None = None
+
+    @property
+    def frames(self) -> tuple[int, ...]:
+        return self.damping.frames
+
+    @property
+    def force_bound(self) -> float | None:
+        return self.damping.force_bound
+
+    def force(self, at: Placed, dx: Array) -> Array:
+        force = self.damping.force_with(at, dx, self.target.velocity)
+        if self.joint is None:
+            return force
+        return force - self.joint * self.target.posture_velocity
+
+
+def _steer_part(part: Potential, target: MovingTarget) -> Potential:
+    if isinstance(part, FramePositionSpring | FramePositionLogCosh):
+        return Steered(part, target, "position")
+    if isinstance(part, JointSpring | JointLogCoshSpring):
+        return Steered(part, target, "posture")
+    return part
+
+
+def steer(law: Controller, target: MovingTarget) -> Controller:
+    """Make ``law`` read its frame goal, posture and feed-forward from ``target`` (in place;
+    the law is returned). The law needs a task potential (a sum with one frame position
+    spring) and, for the feed-forward, task damping."""
+    potential = law.potential
+    parts = potential.parts if isinstance(potential, PotentialSum) else (
+        () if potential is None else (potential,))
+    steered = tuple(_steer_part(p, target) for p in parts)
+    if sum(isinstance(p, Steered) and p.reads == "position" for p in steered) != 1:
+        raise CpbcError(f"{law.type_name}: a moving reference needs a task potential with "
+                        "exactly one frame position spring (build the law for a goal)")
+    law.potential = PotentialSum(steered)
+    damping = law.task_damping
+    if isinstance(damping, TaskDamping | TaskTanhDamping):
+        linear = isinstance(getattr(law, "damping", None), LinearDamping) or isinstance(
+            law, PDGravity)
+        law.task_damping = SteeredDamping(damping, target, law.kd if linear else None)  # type: ignore[attr-defined]
+    return law
