@@ -75,22 +75,22 @@ class PlantMismatchSpec(Strict):
     damping, armature and dry friction added to the plant (one number, or one per joint)."""
 
     mass_scale: Positive | list[Positive] = Field(
-        1.0, description=(
+        default=1.0, description=(
             "factor on each body's mass in the MuJoCo plant: one number, or one per body "
             "below the world"))
     inertia_scale: Positive | list[Positive] = Field(
-        1.0, description=(
+        default=1.0, description=(
             "factor on each body's rotational inertia in the plant: one number, or one per "
             "body"))
     damping: NonNegative | list[NonNegative] = Field(
-        0.0, description=(
+        default=0.0, description=(
             "joint damping added to the plant [N·m·s/rad]: one number, or one per joint"))
     armature: NonNegative | list[NonNegative] = Field(
-        0.0, description=(
+        default=0.0, description=(
             "armature (rotor inertia) added to the plant [kg·m²]: one number, or one per "
             "joint"))
     frictionloss: NonNegative | list[NonNegative] = Field(
-        0.0, description=(
+        default=0.0, description=(
             "dry friction added to the plant [N·m]: one number, or one per joint"))
 
 
@@ -104,26 +104,26 @@ class RobotSpec(Strict):
     gripper is locked by default), ``package_dirs`` are extra folders for ``package://``."""
 
     model: str = Field(
-        "planar_2link", description=(
+        default="planar_2link", description=(
             "a built-in model (planar_2link), an example-robot-data arm (panda, ur5, …) or a "
             "path to an MJCF (.xml) or URDF (.urdf) file, relative to the scenario file"))
     coordinates: Literal["joint", "absolute"] | list[Vector] = Field(
-        "joint", description=(
+        default="joint", description=(
             "the controller's coordinates: joint (the model's own), absolute (absolute link "
             "angles θ = T q of a planar chain) or a matrix T"))
     viscous_friction: NonNegative | list[NonNegative] = Field(
-        0.0, description=(
+        default=0.0, description=(
             "F_d, diagonal viscous friction in joint coordinates, in plant and model: one "
             "number or one per joint"))
     locked_joints: dict[str, Number] = Field(
-        {}, description=(
+        default={}, description=(
             "URDF arms: joints frozen at these values in both engines (a named arm's gripper "
             "is locked by default)"))
     package_dirs: list[str] = Field(
-        [], description=(
+        default=[], description=(
             "URDF arms: extra folders searched for package:// meshes"))
     plant: PlantMismatchSpec | None = Field(
-        None, description=(
+        default=None, description=(
             "how the MuJoCo plant differs from the controller's model (the plant only)"))
 
 
@@ -131,30 +131,30 @@ class NoiseSpec(Strict):
     """Gaussian noise on the state the controller sees (controller coordinates), seeded."""
 
     position: NonNegative | list[NonNegative] = Field(
-        0.0, description=(
+        default=0.0, description=(
             "standard deviation of the noise on the positions the controller sees [rad or m]:"
             " one number or one per coordinate"))
     velocity: NonNegative | list[NonNegative] = Field(
-        0.0, description=(
+        default=0.0, description=(
             "standard deviation of the noise on the rates the controller sees [rad/s or m/s]:"
             " one number or one per coordinate"))
     seed: Annotated[int, Field(ge=0, strict=True)] = Field(
-        0, description=(
+        default=0, description=(
             "seed of the noise generator"))
 
 
 class SimulationSpec(Strict):
     duration: Positive = Field(description="simulated time of each run [s]")
-    timestep: Positive = Field(0.001, description="MuJoCo's physics timestep [s]")
+    timestep: Positive = Field(default=0.001, description="MuJoCo's physics timestep [s]")
     control_period: Positive | None = Field(
-        None, description=(
+        default=None, description=(
             "control period [s], a whole multiple of the timestep (zero-order hold); the "
             "timestep when omitted"))
     integrator: Literal["Euler", "RK4", "implicit", "implicitfast"] = Field(
-        "RK4", description=(
+        default="RK4", description=(
             "MuJoCo's integrator"))
     backend: Literal["mujoco", "reference"] = Field(
-        "mujoco", description=(
+        default="mujoco", description=(
             "mujoco (sampled-data loop) or reference (SciPy solve_ivp on Pinocchio's forward "
             "dynamics, continuous-time control)"))
     # symmetric actuator limits; "from_model": the URDF's effort limits (× torque_limit_scale);
@@ -162,34 +162,34 @@ class SimulationSpec(Strict):
     # "none" (or null): no limit. The default is a value, not "left out", so that a scenario
     # rebuilt from its JSON dump (a worker process) gets the same limits.
     torque_limit: Positive | list[Positive] | Literal["auto", "from_model", "none"] | None = Field(
-        "auto", description=(
+        default="auto", description=(
             "symmetric joint torque limits: auto (the model's effort limits if it declares "
             "them for every joint, else none), from_model, none, one number or one per joint "
             "[N·m]"))
     torque_limit_scale: Positive = Field(
-        1.0, description=(
+        default=1.0, description=(
             "factor on the model's effort limits (from_model and auto)"))
     log_every: Annotated[int, Field(ge=1)] = Field(
-        1, description=(
+        default=1, description=(
             "keep every k-th control sample in the log"))
     max_log_samples: Annotated[int, Field(ge=2)] = Field(
-        100_000, description=(
+        default=100_000, description=(
             "most samples a run's log keeps; a long run halves its log rate when full"))
     # the sampled-data safeguard
     safeguard: Annotated[bool, Field(strict=True)] = Field(
-        True, description=(
+        default=True, description=(
             "the sampled-data safeguard around each constrained law (braking when a margin "
             "would shrink too fast over a period)"))
     # ... which also keeps the configuration constraints a law only monitors (obstacles it
     # does not know of, joint ranges): it brakes before the arm reaches them
     safeguard_monitored: Annotated[bool, Field(strict=True)] = Field(
-        True, description=(
+        default=True, description=(
             "the safeguard also keeps the configuration constraints a law only monitors "
             "(obstacles or joint ranges it does not know of)"))
     # the safeguard's cushion on the velocity margins, as a share of each margin at the target
     # per 10 ms of control period (default: as the configuration margins', 0.001)
     safeguard_velocity_cushion: Annotated[float, Field(gt=0, lt=1)] | None = Field(
-        None, description=(
+        default=None, description=(
             "the safeguard's cushion on velocity margins, as a share of each margin at the "
             "target per 10 ms of control period (default: as the configuration margins', "
             "0.001)"))
@@ -197,27 +197,27 @@ class SimulationSpec(Strict):
     # cpbc.controllers.hold; by the share of the drift the plant has, from its integrator and
     # timestep); false: the law's torque as the bare law would hold it
     safeguard_hold_correction: Annotated[bool, Field(strict=True)] = Field(
-        True, description=(
+        default=True, description=(
             "the safeguard holds the law's acceleration over the period, not its torque (τ − "
             "s D Δa with the plant's share s); false holds the law's torque"))
     noise: NoiseSpec | None = Field(
-        None, description=(
+        default=None, description=(
             "Gaussian noise on the state the controller sees (MuJoCo backend)"))
     position_tolerance: Positive = Field(
-        0.01, description=(
+        default=0.01, description=(
             'the "on target" band used to judge convergence [rad]'))
     velocity_tolerance: Positive = Field(
-        0.005, description=(
+        default=0.005, description=(
             'the "at rest" band used to judge convergence [rad/s]'))
     # physics steps per run above which the run is refused (raise it to run longer)
     max_steps: Annotated[int, Field(ge=1, strict=True)] = Field(
-        10_000_000, description=(
+        default=10_000_000, description=(
             "physics steps per run (duration / timestep) above which the scenario is refused;"
             " raise it to mean it"))
     # refuse gains whose zero-order-hold loop is unstable at control_period
     # (cpbc.scenario.gains); false lets a deliberately unstable run go ahead
     check_gains: Annotated[bool, Field(strict=True)] = Field(
-        True, description=(
+        default=True, description=(
             "refuse gains whose zero-order-hold loop is unstable at the control period (false"
             " runs them anyway)"))
 
@@ -228,7 +228,7 @@ class CaseSpec(Strict):
         description=(
             "initial position, controller coordinates; numbers may be expressions of pi"))
     velocity: Vector | None = Field(
-        None, description=(
+        default=None, description=(
             "initial velocity, controller coordinates; zero when omitted"))
 
 
@@ -241,10 +241,10 @@ class JointPositionLimitSpec(Strict):
         description=(
             "lower < x_i < upper on coordinates, φ = (x − l)(u − x)"))
     name: str = Field(
-        "joint_position_limit", description=(
+        default="joint_position_limit", description=(
             "unique name, used by controllers' constraints lists and in the summary"))
     joints: list[str] | None = Field(
-        None, description=(
+        default=None, description=(
             "the constrained coordinates by joint name; all when omitted"))
     lower: Vector | FromModel = Field(
         description=(
@@ -259,7 +259,7 @@ class LinearLimitSpec(Strict):
         description=(
             "lower < aᵀx < upper for each row a (the thesis's |θ2 − θ1| < 17π/18)"))
     name: str = Field(
-        "linear_limit", description=(
+        default="linear_limit", description=(
             "unique name, used by controllers' constraints lists and in the summary"))
     coefficients: list[Vector] = Field(description="the rows a, one per limit")
     lower: Vector = Field(description="lower bound per row")
@@ -271,41 +271,41 @@ class PointOutsideSphereSpec(Strict):
         description=(
             "‖p − c‖² − r² > 0 for a frame's point p (the thesis's end-point obstacle)"))
     name: str = Field(
-        "obstacle", description=(
+        default="obstacle", description=(
             "unique name, used by controllers' constraints lists and in the summary"))
     frame: str = Field(description="the model frame carrying the point")
     offset: Vector | None = Field(
-        None, description=(
+        default=None, description=(
             "the point in the frame [m]; the frame's origin when omitted"))
     centre: Vector = Field(description="the sphere's centre in the world [m]")
     radius: Positive = Field(description="the sphere's radius [m]")
     # the thesis's obstacle is not a physical body
     collides: bool = Field(
-        False, description=(
+        default=False, description=(
             "make the sphere a physical body in MuJoCo (the thesis's obstacle is not)"))
 
 
 class JointRateLimitSpec(Strict):
     type: Literal["joint_rate_limit"] = Field(description="|ẋ_i| < B_i on coordinates")
     name: str = Field(
-        "joint_rate_limit", description=(
+        default="joint_rate_limit", description=(
             "unique name, used by controllers' constraints lists and in the summary"))
     joints: list[str] | None = Field(
-        None, description=(
+        default=None, description=(
             "the constrained coordinates by joint name; all when omitted"))
     bounds: list[Positive] | FromModel = Field(
         description=(
             "the rate bounds B_i [rad/s or m/s], or from_model (the URDF's velocity limits)"))
     # multiplies the bounds (e.g. 0.5 of the URDF's velocity limits)
     scale: Positive = Field(
-        1.0, description=(
+        default=1.0, description=(
             "factor on the bounds (0.5: half the URDF's velocity limits)"))
 
 
 class RateLimitSpec(Strict):
     type: Literal["rate_limit"] = Field(description="|aᵀẋ| < B for each row a")
     name: str = Field(
-        "rate_limit", description=(
+        default="rate_limit", description=(
             "unique name, used by controllers' constraints lists and in the summary"))
     coefficients: list[Vector] = Field(description="the rows a, one per bound")
     bounds: list[Positive] = Field(description="the bound B per row")
@@ -314,7 +314,7 @@ class RateLimitSpec(Strict):
 class KineticEnergyLimitSpec(Strict):
     type: Literal["kinetic_energy_limit"] = Field(description="½ẋᵀDẋ < Ω")
     name: str = Field(
-        "kinetic_energy", description=(
+        default="kinetic_energy", description=(
             "unique name, used by controllers' constraints lists and in the summary"))
     limit: Positive = Field(description="Ω [J]")
 
@@ -324,11 +324,14 @@ class PrimitiveSpec(Strict):
 
     link: str = Field(description="the link carrying the primitive")
     name: str | None = Field(
-        None, description=(
+        default=None, description=(
             "the primitive's name in the summary; derived from the link when omitted"))
-    centre: Vector | None = Field(None, description="a sphere's centre in the link's frame [m]")
-    start: Vector | None = Field(None, description="a capsule's first end in the link's frame [m]")
-    end: Vector | None = Field(None, description="a capsule's second end in the link's frame [m]")
+    centre: Vector | None = Field(
+        default=None, description="a sphere's centre in the link's frame [m]")
+    start: Vector | None = Field(
+        default=None, description="a capsule's first end in the link's frame [m]")
+    end: Vector | None = Field(
+        default=None, description="a capsule's second end in the link's frame [m]")
     radius: Positive = Field(description="radius [m]")
 
 
@@ -346,32 +349,33 @@ class ClearanceSpec(Strict):
             "distance − margin > 0 between each covered link and each obstacle (and declared "
             "link pairs)"))
     name: str = Field(
-        "clearance", description=(
+        default="clearance", description=(
             "unique name prefix of the (link, obstacle) constraints"))
     obstacles: list[str] | None = Field(
-        None, description=(
+        default=None, description=(
             "the scenario obstacles kept clear of, by name; all when omitted"))
     links: list[str] | None = Field(
-        None, description=(
+        default=None, description=(
             "links covered automatically from their collision meshes; all moving links with "
             "collision geometry when omitted, none with []"))
     cover: Literal["spheres", "capsules"] = Field(
-        "spheres", description=(
+        default="spheres", description=(
             "cover each link with spheres or capsules (capsules cost about 5.5× per step)"))
     cover_tolerance: Positive = Field(
-        0.01, description=(
+        default=0.01, description=(
             "how far the fitted cover may fall short of the mesh [m]"))
-    padding: NonNegative = Field(0.0, description="added to every cover primitive's radius [m]")
+    padding: NonNegative = Field(
+        default=0.0, description="added to every cover primitive's radius [m]")
     primitives: list[PrimitiveSpec] | None = Field(
-        None, description=(
+        default=None, description=(
             "declared spheres or capsules; they replace the automatic cover of their links"))
-    margin: NonNegative = Field(0.0, description="φ = distance − margin [m]")
+    margin: NonNegative = Field(default=0.0, description="φ = distance − margin [m]")
     influence: Positive | None = Field(
-        0.1, description=(
+        default=0.1, description=(
             "pairs farther apart than this exert no force [m]; null: the plain barrier of "
             "every pair"))
     self_collision: list[Annotated[list[str], Field(min_length=2, max_length=2)]] = Field(
-        [], description=(
+        default=[], description=(
             "link pairs kept apart from each other"))
 
 
@@ -394,7 +398,7 @@ class SphereObstacleSpec(Strict):
     centre: Vector = Field(description="centre in the world [m]")
     radius: Positive = Field(description="radius [m]")
     collides: bool = Field(
-        True, description=(
+        default=True, description=(
             "a physical body in the MuJoCo scene (false: only the constraint sees it)"))
 
 
@@ -409,7 +413,7 @@ class CapsuleObstacleSpec(Strict):
     end: Vector = Field(description="axis end in the world [m]")
     radius: Positive = Field(description="radius [m]")
     collides: bool = Field(
-        True, description=(
+        default=True, description=(
             "a physical body in the MuJoCo scene (false: only the constraint sees it)"))
 
 
@@ -418,9 +422,10 @@ class BoxObstacleSpec(Strict):
     name: SafeName = Field(description="unique obstacle name")
     centre: Vector = Field(description="centre in the world [m]")
     half_extents: list[Positive] = Field(description="half sizes along the box's axes [m]")
-    rpy: Vector = Field([0.0, 0.0, 0.0], description="orientation as roll, pitch, yaw [rad]")
+    rpy: Vector = Field(
+        default=[0.0, 0.0, 0.0], description="orientation as roll, pitch, yaw [rad]")
     collides: bool = Field(
-        True, description=(
+        default=True, description=(
             "a physical body in the MuJoCo scene (false: only the constraint sees it)"))
 
 
@@ -431,12 +436,12 @@ class PlaneObstacleSpec(Strict):
         description=(
             "a floor or table top: the half-space below the plane"))
     name: SafeName = Field(description="unique obstacle name")
-    point: Vector = Field([0.0, 0.0, 0.0], description="a point of the plane [m]")
+    point: Vector = Field(default=[0.0, 0.0, 0.0], description="a point of the plane [m]")
     normal: Vector = Field(
-        [0.0, 0.0, 1.0], description=(
+        default=[0.0, 0.0, 1.0], description=(
             "the plane's normal, pointing to the free side"))
     collides: bool = Field(
-        True, description=(
+        default=True, description=(
             "a physical body in the MuJoCo scene (false: only the constraint sees it)"))
 
 
@@ -473,17 +478,18 @@ class TaskGainsSpec(Strict):
     position spring beyond 1/``xi`` [m] and the task damping beyond 1/``gamma`` [m/s]."""
 
     omega_n: Positive = Field(
-        8.0, description=(
+        default=8.0, description=(
             "natural frequency of the position spring [rad/s]: K_p = ω_n² Λ"))
-    zeta: Positive = Field(1.0, description="damping ratio of the task damping: D_x = 2 ζ ω_n Λ")
+    zeta: Positive = Field(
+        default=1.0, description="damping ratio of the task damping: D_x = 2 ζ ω_n Λ")
     rotation_omega_n: Positive | None = Field(
-        None, description=(
+        default=None, description=(
             "natural frequency of the orientation spring [rad/s]; omega_n when omitted"))
     xi: Positive = Field(
-        10.0, description=(
+        default=10.0, description=(
             "bpbc, bpbc_ke: the position spring saturates beyond 1/xi [1/m]"))
     gamma: Positive = Field(
-        10.0, description=(
+        default=10.0, description=(
             "bpbc, bpbc_ke: the task damping saturates beyond 1/gamma [s/m]"))
 
 
@@ -492,10 +498,10 @@ class PostureGainsSpec(Strict):
     posture. Never off (it keeps the law's V a barrier on the boundary of S)."""
 
     omega_n: Positive = Field(
-        2.0, description=(
+        default=2.0, description=(
             "natural frequency of the posture spring [rad/s]: K_n = ω_n² D_ii"))
     zeta: Positive = Field(
-        1.0, description=(
+        default=1.0, description=(
             "damping ratio of the joint damping: K_D = 2 ζ ω_n D_ii"))
 
 
@@ -507,24 +513,24 @@ class GainsSpec(Strict):
 
     # omega_n and zeta come first so that kp's and kd's checks see them (info.data)
     omega_n: Gain | None = Field(
-        None, description=(
+        default=None, description=(
             "natural frequency per coordinate, or one for all [rad/s]: K_P,i = D_ii(x_d) "
             "ω_n,i²"))
     zeta: Gain | None = Field(
-        None, description=(
+        default=None, description=(
             "damping ratio per coordinate, or one for all: K_D,i = 2 ζ_i ω_n,i D_ii(x_d)"))
     kp: Gain | None = Field(
-        None, description=(
+        default=None, description=(
             "K_P: one number or one per coordinate (instead of omega_n, zeta)"))
     kd: Gain | None = Field(
-        None, description=(
+        default=None, description=(
             "K_D: one number or one per coordinate (instead of omega_n, zeta)"))
     # with a scenario goal: the task and posture gains in place of kp, kd
     task: TaskGainsSpec | None = Field(
-        None, description=(
+        default=None, description=(
             "with a scenario goal: the task gains in place of kp, kd"))
     posture: PostureGainsSpec | None = Field(
-        None, description=(
+        default=None, description=(
             "with a scenario goal: the posture gains in place of kp, kd"))
 
     @field_validator("kp", "kd", mode="before")
@@ -560,7 +566,7 @@ class PDSpec(GainsSpec):
             "pd: −K_P x̃ − K_D ẋ (the thesis's baseline); pd_gravity: g − K_P x̃ − K_D ẋ "
             "(6.10). Constraints are only monitored"))
     name: RunName | None = Field(
-        None, description=(
+        default=None, description=(
             "the controller's name in the output; the type when omitted"))
 
 
@@ -570,14 +576,14 @@ class CPBCSpec(GainsSpec):
             "cpbc: Theorem 6.9, any configuration and velocity constraints; cpbc_ke: "
             "Corollary 6.11, configuration constraints and one kinetic_energy_limit"))
     name: RunName | None = Field(
-        None, description=(
+        default=None, description=(
             "the controller's name in the output; the type when omitted"))
     shaping: ShapingSpec | None = Field(
-        None, description=(
+        default=None, description=(
             "the barrier's shaping s: identity, power (α) or tanh (σ)"))
     # names of scenario constraints; all when omitted
     constraints: list[str] | None = Field(
-        None, description=(
+        default=None, description=(
             "the scenario constraints it enforces, by name; all when omitted"))
 
 
@@ -587,10 +593,10 @@ class RecentredSpec(GainsSpec):
             "the re-centred barrier (Cases 2–3, eqs. 6.53–6.65): joint_position_limit and "
             "velocity constraints"))
     name: RunName | None = Field(
-        None, description=(
+        default=None, description=(
             "the controller's name in the output; the type when omitted"))
     constraints: list[str] | None = Field(
-        None, description=(
+        default=None, description=(
             "the scenario constraints it enforces, by name; all when omitted"))
 
 
@@ -600,19 +606,19 @@ class BPBCSpec(GainsSpec):
             "bpbc: Theorem 7.7, bounded torque, a joint_rate_limit on every joint; bpbc_ke: "
             "Corollary 7.8, one kinetic_energy_limit"))
     name: RunName | None = Field(
-        None, description=(
+        default=None, description=(
             "the controller's name in the output; the type when omitted"))
     xi: Gain = Field(
-        1.0, description=(
+        default=1.0, description=(
             "Ξ of the ln cosh potential: one number or one per coordinate"))
     gamma: Gain = Field(
-        1.0, description=(
+        default=1.0, description=(
             "Γ of the K_D tanh(Γẋ) damping: one number or one per coordinate"))
     shaping: ShapingSpec | None = Field(
-        None, description=(
+        default=None, description=(
             "the barrier's shaping s: identity, power (α) or tanh (σ)"))
     constraints: list[str] | None = Field(
-        None, description=(
+        default=None, description=(
             "the scenario constraints it enforces, by name; all when omitted"))
 
 
@@ -624,30 +630,30 @@ class CBFQPSpec(GainsSpec):
             "the torque-level CBF-QP safety filter around PD + gravity (needs the peers "
             "extra)"))
     name: RunName | None = Field(
-        None, description=(
+        default=None, description=(
             "the controller's name in the output; the type when omitted"))
     # cpbc.peers.cbf_rows
     variant: Literal["braking", "exponential"] = Field(
-        "braking", description=(
+        default="braking", description=(
             "braking (default) or exponential: the earlier filter"))
     # k [1/s]: α'(0) of the braking rows, or the exponential poles
     gain: Positive = Field(
-        20.0, description=(
+        default=20.0, description=(
             "k [1/s]: α'(0) of the braking rows, or the exponential variant's double pole"))
     # γ of the first-order rows [1/s]; 1/(2h) when omitted
     rate_gain: Positive | None = Field(
-        None, description=(
+        default=None, description=(
             "γ of the first-order rows [1/s]; 1/(2h) when omitted"))
     # β: share of the box's deceleration
     braking_share: float = Field(
-        0.5, gt=0, le=1, description=(
+        default=0.5, gt=0, le=1, description=(
             "β ∈ (0, 1]: the share of the torque box's deceleration a braking row counts on"))
     # c on rate rows; 2e-3 (h/1 ms)^1.7
     rate_cushion: float | None = Field(
-        None, ge=0, description=(
+        default=None, ge=0, description=(
             "c on rate rows [rad/s]; 2e-3 (h / 1 ms)^1.7 when omitted"))
     constraints: list[str] | None = Field(
-        None, description=(
+        default=None, description=(
             "the scenario constraints it enforces, by name; all when omitted"))
 
 
@@ -666,18 +672,18 @@ class AxisSpec(Strict):
 class OrientationSpec(Strict):
     """A goal orientation: exactly one of ``rpy`` [rad], ``quat`` (w, x, y, z) or ``axis``."""
 
-    rpy: Vector | None = Field(None, description="roll, pitch, yaw [rad]")
-    quat: Vector | None = Field(None, description="quaternion (w, x, y, z)")
+    rpy: Vector | None = Field(default=None, description="roll, pitch, yaw [rad]")
+    quat: Vector | None = Field(default=None, description="quaternion (w, x, y, z)")
     axis: AxisSpec | None = Field(
-        None, description=(
+        default=None, description=(
             "a tool axis along a world axis, yaw about it free"))
 
 
 class ToleranceSpec(Strict):
     """The band of ``reached``: position [m] and angle [rad]."""
 
-    position: Positive = Field(0.002, description="position band of reached [m]")
-    angle: Positive = Field(0.02, description="angle band of reached [rad]")
+    position: Positive = Field(default=0.002, description="position band of reached [m]")
+    angle: Positive = Field(default=0.02, description="angle band of reached [rad]")
 
 
 class GoalSpec(Strict):
@@ -685,15 +691,15 @@ class GoalSpec(Strict):
 
     frame: str = Field(description="the model frame sent to the goal")
     offset: Vector | None = Field(
-        None, description=(
+        default=None, description=(
             "the point in the frame [m] (a TCP); the frame's origin when omitted"))
     position: Vector = Field(description="the goal position in the world [m]")
     orientation: OrientationSpec | None = Field(
-        None, description=(
+        default=None, description=(
             "the goal orientation: one of rpy, quat or axis; none: position only"))
-    tolerance: ToleranceSpec = Field(ToleranceSpec(), description="the band of reached")
+    tolerance: ToleranceSpec = Field(default=ToleranceSpec(), description="the band of reached")
     posture: Literal["ik", "start"] | Vector = Field(
-        "ik", description=(
+        default="ik", description=(
             "the posture spring's rest: ik (an IK solution, the default), start (the case's "
             "start) or joint values"))
 
@@ -702,22 +708,23 @@ class Scenario(Strict):
     """A whole scenario: robot, simulation, target or goal, cases, constraints, controllers."""
 
     name: SafeName = Field(description="the scenario's name: letters, digits, _ . + -")
-    description: str = Field("", description="free text")
-    robot: RobotSpec = Field(RobotSpec(), description="the arm")
+    description: str = Field(default="", description="free text")
+    robot: RobotSpec = Field(default=RobotSpec(), description="the arm")
     simulation: SimulationSpec = Field(description="the simulation and the loop")
     target: Vector | None = Field(
-        None, description=(
+        default=None, description=(
             "the joint target x_d in controller coordinates; numbers may be expressions of pi"
             " (give target or goal)"))
-    goal: GoalSpec | None = Field(None, description="a frame's goal pose instead of a joint target")
+    goal: GoalSpec | None = Field(
+        default=None, description="a frame's goal pose instead of a joint target")
     cases: Annotated[list[CaseSpec], Field(min_length=1, max_length=MAX_CASES)] = Field(
         description=(
             "initial states; every controller runs on every case"))
     obstacles: list[ObstacleSpec] = Field(
-        [], description=(
+        default=[], description=(
             "bodies in the scene, kept clear of by clearance constraints"))
     constraints: list[ConstraintSpec] = Field(
-        [], description=(
+        default=[], description=(
             "the admissible set S; each item has a unique name"))
     controllers: Annotated[list[ControllerSpec], Field(min_length=1)] = Field(
         description=(
@@ -731,13 +738,13 @@ StrictBool = Annotated[bool, Field(strict=True)]
 class SuspensionGainsSpec(Strict):
     """The design constants of §3.3.3 (Theorem 3.6), under the thesis's names."""
 
-    k1: Positive = Field(3.5, description="k1 of §3.3.3 (Theorem 3.6)")
-    k2: Positive = Field(0.051, description="k2 of §3.3.3 (Theorem 3.6)")
-    k3: Positive = Field(0.07, description="k3 of §3.3.3 (Theorem 3.6)")
-    k4: Positive = Field(50.0, description="k4 of §3.3.3 (Theorem 3.6)")
-    c1: Positive = Field(0.049, description="c1 of §3.3.3 (Theorem 3.6)")
-    c2: Positive = Field(300.0, description="c2 of §3.3.3 (Theorem 3.6)")
-    c3: Positive = Field(500.0, description="c3 of §3.3.3 (Theorem 3.6)")
+    k1: Positive = Field(default=3.5, description="k1 of §3.3.3 (Theorem 3.6)")
+    k2: Positive = Field(default=0.051, description="k2 of §3.3.3 (Theorem 3.6)")
+    k3: Positive = Field(default=0.07, description="k3 of §3.3.3 (Theorem 3.6)")
+    k4: Positive = Field(default=50.0, description="k4 of §3.3.3 (Theorem 3.6)")
+    c1: Positive = Field(default=0.049, description="c1 of §3.3.3 (Theorem 3.6)")
+    c2: Positive = Field(default=300.0, description="c2 of §3.3.3 (Theorem 3.6)")
+    c3: Positive = Field(default=500.0, description="c3 of §3.3.3 (Theorem 3.6)")
 
 
 class SuspensionLawSpec(Strict):
@@ -746,9 +753,10 @@ class SuspensionLawSpec(Strict):
 
     name: RunName = Field(description="the law's name in the output")
     barrier: StrictBool = Field(
-        True, description=(
+        default=True, description=(
             "the log barrier on the travel; false: ½k3 z1² in its place (no travel guarantee)"))
-    gains: SuspensionGainsSpec = Field(SuspensionGainsSpec(), description="the design constants")
+    gains: SuspensionGainsSpec = Field(
+        default=SuspensionGainsSpec(), description="the design constants")
 
 
 class QuarterCarSpec(Strict):
@@ -759,11 +767,11 @@ class QuarterCarSpec(Strict):
         description=(
             "the active quarter car of §3.3 over a haversine bump"))
     # Ξ [m]
-    travel_limit: Positive = Field(0.1, description="Ξ, the suspension travel limit [m]")
+    travel_limit: Positive = Field(default=0.1, description="Ξ, the suspension travel limit [m]")
     # l [m]
-    bump_length: Positive = Field(2.0, description="l, the bump's length [m]")
+    bump_length: Positive = Field(default=2.0, description="l, the bump's length [m]")
     # v [m/s]
-    speed: Positive = Field(25.0, description="v, the car's speed [m/s]")
+    speed: Positive = Field(default=25.0, description="v, the car's speed [m/s]")
     laws: Annotated[list[SuspensionLawSpec], Field(min_length=1)] = Field(
         description=(
             "the laws compared"))
@@ -772,18 +780,18 @@ class QuarterCarSpec(Strict):
 class WheelPendulumGainsSpec(Strict):
     """The design constants of §3.5.3 (Proposition 3.11), under the thesis's names."""
 
-    k1: Positive = Field(57.5e-3, description="k1 of §3.5.3 (Proposition 3.11)")
-    k2: Positive = Field(2.225, description="k2 of §3.5.3 (Proposition 3.11)")
-    k3: Positive = Field(0.25, description="k3 of §3.5.3 (Proposition 3.11)")
-    k4: Positive = Field(0.501, description="k4 of §3.5.3 (Proposition 3.11)")
-    c1: Positive = Field(0.5, description="c1 of §3.5.3 (Proposition 3.11)")
-    c2: Positive = Field(1.0, description="c2 of §3.5.3 (Proposition 3.11)")
+    k1: Positive = Field(default=57.5e-3, description="k1 of §3.5.3 (Proposition 3.11)")
+    k2: Positive = Field(default=2.225, description="k2 of §3.5.3 (Proposition 3.11)")
+    k3: Positive = Field(default=0.25, description="k3 of §3.5.3 (Proposition 3.11)")
+    k4: Positive = Field(default=0.501, description="k4 of §3.5.3 (Proposition 3.11)")
+    c1: Positive = Field(default=0.5, description="c1 of §3.5.3 (Proposition 3.11)")
+    c2: Positive = Field(default=1.0, description="c2 of §3.5.3 (Proposition 3.11)")
 
 
 class WheelPendulumLawSpec(Strict):
     name: RunName = Field(description="the law's name in the output")
     gains: WheelPendulumGainsSpec = Field(
-        WheelPendulumGainsSpec(), description=(
+        default=WheelPendulumGainsSpec(), description=(
             "the design constants"))
 
 
@@ -794,9 +802,10 @@ class ReactionWheelSpec(Strict):
         description=(
             "the reaction wheel pendulum of §3.5"))
     # on |q̇1| [rad/s]
-    rate_limit: Positive = Field(1.0, description="bound on the pendulum's rate |q̇1| [rad/s]")
+    rate_limit: Positive = Field(
+        default=1.0, description="bound on the pendulum's rate |q̇1| [rad/s]")
     # on |τ| [N m]
-    torque_limit: Positive = Field(0.4, description="bound on the wheel torque |τ| [N·m]")
+    torque_limit: Positive = Field(default=0.4, description="bound on the wheel torque |τ| [N·m]")
     laws: Annotated[list[WheelPendulumLawSpec], Field(min_length=1)] = Field(
         description=(
             "the laws compared"))
@@ -806,22 +815,23 @@ class ChainGainsSpec(Strict):
     """The design constants of §4.4 (Theorem 4.12, manual tuning), under the thesis's names,
     read as PART1 Ch. 4 §2.6 reading H1 (see cpbc.backstepping.integrator_chain)."""
 
-    c1: Positive = Field(0.5 / math.pi, description="c1 of §4.4 (Theorem 4.12, manual tuning)")
-    c2: Positive = Field(1.0, description="c2 of §4.4 (Theorem 4.12, manual tuning)")
-    c3: Positive = Field(50.0, description="c3 of §4.4 (Theorem 4.12, manual tuning)")
-    c4: Positive = Field(1.0, description="c4 of §4.4 (Theorem 4.12, manual tuning)")
-    k1: Positive = Field(1.0, description="k1 of §4.4 (Theorem 4.12, manual tuning)")
-    k2: Positive = Field(2.0, description="k2 of §4.4 (Theorem 4.12, manual tuning)")
-    k3: Positive = Field(3.0, description="k3 of §4.4 (Theorem 4.12, manual tuning)")
-    k4: Positive = Field(5.61, description="k4 of §4.4 (Theorem 4.12, manual tuning)")
-    k5: Positive = Field(1.0, description="k5 of §4.4 (Theorem 4.12, manual tuning)")
-    k6: Positive = Field(354.5, description="k6 of §4.4 (Theorem 4.12, manual tuning)")
-    k7: Positive = Field(10.0, description="k7 of §4.4 (Theorem 4.12, manual tuning)")
+    c1: Positive = Field(
+        default=0.5 / math.pi, description="c1 of §4.4 (Theorem 4.12, manual tuning)")
+    c2: Positive = Field(default=1.0, description="c2 of §4.4 (Theorem 4.12, manual tuning)")
+    c3: Positive = Field(default=50.0, description="c3 of §4.4 (Theorem 4.12, manual tuning)")
+    c4: Positive = Field(default=1.0, description="c4 of §4.4 (Theorem 4.12, manual tuning)")
+    k1: Positive = Field(default=1.0, description="k1 of §4.4 (Theorem 4.12, manual tuning)")
+    k2: Positive = Field(default=2.0, description="k2 of §4.4 (Theorem 4.12, manual tuning)")
+    k3: Positive = Field(default=3.0, description="k3 of §4.4 (Theorem 4.12, manual tuning)")
+    k4: Positive = Field(default=5.61, description="k4 of §4.4 (Theorem 4.12, manual tuning)")
+    k5: Positive = Field(default=1.0, description="k5 of §4.4 (Theorem 4.12, manual tuning)")
+    k6: Positive = Field(default=354.5, description="k6 of §4.4 (Theorem 4.12, manual tuning)")
+    k7: Positive = Field(default=10.0, description="k7 of §4.4 (Theorem 4.12, manual tuning)")
 
 
 class ChainLawSpec(Strict):
     name: RunName = Field(description="the law's name in the output")
-    gains: ChainGainsSpec = Field(ChainGainsSpec(), description="the design constants")
+    gains: ChainGainsSpec = Field(default=ChainGainsSpec(), description="the design constants")
 
 
 class IntegratorChainSpec(Strict):
@@ -832,7 +842,7 @@ class IntegratorChainSpec(Strict):
         description=(
             "the 4th-order integrator chain of §4.4 (4.92), an ODE"))
     limits: Annotated[list[Positive], Field(min_length=3, max_length=3)] = Field(
-        [2.5, 12.0, 700.0], description=(
+        default=[2.5, 12.0, 700.0], description=(
             "Ξ2, Ξ3, Ξ4 on |ξ2|, |ξ3|, |ξ4| (4.93)"))
     laws: Annotated[list[ChainLawSpec], Field(min_length=1)] = Field(
         description=(
@@ -842,23 +852,23 @@ class IntegratorChainSpec(Strict):
 class TraditionalAltitudeGainsSpec(Strict):
     """c1 … c4 of §5.3.1 (the law (5.30))."""
 
-    c1: Positive = Field(1.5, description="c1 of §5.3.1 (the law 5.30)")
-    c2: Positive = Field(10.0, description="c2 of §5.3.1 (the law 5.30)")
-    c3: Positive = Field(5.0, description="c3 of §5.3.1 (the law 5.30)")
-    c4: Positive = Field(0.1, description="c4 of §5.3.1 (the law 5.30)")
+    c1: Positive = Field(default=1.5, description="c1 of §5.3.1 (the law 5.30)")
+    c2: Positive = Field(default=10.0, description="c2 of §5.3.1 (the law 5.30)")
+    c3: Positive = Field(default=5.0, description="c3 of §5.3.1 (the law 5.30)")
+    c4: Positive = Field(default=0.1, description="c4 of §5.3.1 (the law 5.30)")
 
 
 class ConstrainedAltitudeGainsSpec(Strict):
     """c1 … c4, k1 … k3 of §5.4.3 (the law (5.61)); k2 + c1 must not exceed the climb-rate
     limit B, and k2 > c1 (Theorem 5.5)."""
 
-    c1: Positive = Field(1.5, description="c1 of §5.4.3 (the law 5.61)")
-    c2: Positive = Field(1.0, description="c2 of §5.4.3 (the law 5.61)")
-    c3: Positive = Field(5.0, description="c3 of §5.4.3 (the law 5.61)")
-    c4: Positive = Field(10.0, description="c4 of §5.4.3 (the law 5.61)")
-    k1: Positive = Field(1.5, description="k1 of §5.4.3 (the law 5.61)")
-    k2: Positive = Field(2.0, description="k2 of §5.4.3 (the law 5.61)")
-    k3: Positive = Field(0.5, description="k3 of §5.4.3 (the law 5.61)")
+    c1: Positive = Field(default=1.5, description="c1 of §5.4.3 (the law 5.61)")
+    c2: Positive = Field(default=1.0, description="c2 of §5.4.3 (the law 5.61)")
+    c3: Positive = Field(default=5.0, description="c3 of §5.4.3 (the law 5.61)")
+    c4: Positive = Field(default=10.0, description="c4 of §5.4.3 (the law 5.61)")
+    k1: Positive = Field(default=1.5, description="k1 of §5.4.3 (the law 5.61)")
+    k2: Positive = Field(default=2.0, description="k2 of §5.4.3 (the law 5.61)")
+    k3: Positive = Field(default=0.5, description="k3 of §5.4.3 (the law 5.61)")
 
 
 class TraditionalAltitudeLawSpec(Strict):
@@ -867,7 +877,7 @@ class TraditionalAltitudeLawSpec(Strict):
     type: Literal["traditional"] = Field(description="§5.3's traditional backstepping law")
     name: RunName = Field(description="the law's name in the output")
     gains: TraditionalAltitudeGainsSpec = Field(
-        TraditionalAltitudeGainsSpec(), description=(
+        default=TraditionalAltitudeGainsSpec(), description=(
             "the design constants"))
 
 
@@ -879,7 +889,7 @@ class ConstrainedAltitudeLawSpec(Strict):
             "§5.4's law with the log barrier on the climb rate"))
     name: RunName = Field(description="the law's name in the output")
     gains: ConstrainedAltitudeGainsSpec = Field(
-        ConstrainedAltitudeGainsSpec(), description=(
+        default=ConstrainedAltitudeGainsSpec(), description=(
             "the design constants"))
 
 
@@ -899,18 +909,20 @@ class AerosondeSpec(Strict):
             "the Aerosonde UAV of Chapter 5 (AeroSim's longitudinal model; reference backend "
             "only)"))
     # v_T [m/s], held by the airspeed loop on thrust
-    airspeed: Positive = Field(23.0, description="v_T, held by the airspeed loop on thrust [m/s]")
+    airspeed: Positive = Field(
+        default=23.0, description="v_T, held by the airspeed loop on thrust [m/s]")
     # B [m/s]
-    climb_rate_limit: Positive = Field(3.5, description="B, the bound on |v_z| [m/s]")
+    climb_rate_limit: Positive = Field(default=3.5, description="B, the bound on |v_z| [m/s]")
     # [rad] (57.3°)
-    elevator_limit: Positive = Field(1.0, description="the elevator's travel [rad]")
+    elevator_limit: Positive = Field(default=1.0, description="the elevator's travel [rad]")
     # ρ of the design model [kg/m³]
     air_density: Positive | None = Field(
-        None, description=(
+        default=None, description=(
             "ρ of the laws' design model [kg/m³]; ISA at each case's start altitude when "
             "omitted"))
     # [kg] (AeroSim gross; 8.5 empty)
-    mass: Positive = Field(13.5, description="the aircraft's mass [kg] (AeroSim gross; 8.5 empty)")
+    mass: Positive = Field(
+        default=13.5, description="the aircraft's mass [kg] (AeroSim gross; 8.5 empty)")
     laws: Annotated[list[AltitudeLawSpec], Field(min_length=1)] = Field(
         description=(
             "the laws compared"))
@@ -925,21 +937,21 @@ class SystemSimulationSpec(Strict):
     components the system names (the pendulum, not its wheel)."""
 
     duration: Positive = Field(description="simulated time of each run [s]")
-    timestep: Positive = Field(0.001, description="physics or output timestep [s]")
+    timestep: Positive = Field(default=0.001, description="physics or output timestep [s]")
     control_period: Positive | None = Field(
-        None, description=(
+        default=None, description=(
             "control period [s]; the timestep when omitted"))
     integrator: Literal["Euler", "RK4", "implicit", "implicitfast"] = Field(
-        "RK4", description=(
+        default="RK4", description=(
             "MuJoCo's integrator"))
     backend: Literal["mujoco", "reference"] = Field(
-        "mujoco", description=(
+        default="mujoco", description=(
             "mujoco or reference (solve_ivp on the system's ODE)"))
     tolerance: Positive = Field(
-        0.01, description=(
+        default=0.01, description=(
             "convergence band on the components the system names"))
     max_steps: Annotated[int, Field(ge=1, strict=True)] = Field(
-        10_000_000, description=(
+        default=10_000_000, description=(
             "steps per run above which the scenario is refused"))
 
 
@@ -959,9 +971,10 @@ class SystemCaseSpec(Strict):
     state: Vector = Field(
         description=(
             "the initial state x(0) in the system's own coordinates (see cpbc.systems)"))
-    bump_height: NonNegative | None = Field(None, description="quarter car: the bump height A [m]")
+    bump_height: NonNegative | None = Field(
+        default=None, description="quarter car: the bump height A [m]")
     commands: list[AltitudeCommandSpec] | None = Field(
-        None, description=(
+        default=None, description=(
             "Aerosonde: the altitude command steps (h_d is the start altitude until the "
             "first)"))
 
@@ -970,7 +983,7 @@ class SystemScenario(Strict):
     """A Part I scenario: a system with its laws, simulation and cases."""
 
     name: SafeName = Field(description="the scenario's name: letters, digits, _ . + -")
-    description: str = Field("", description="free text")
+    description: str = Field(default="", description="free text")
     system: SystemSpec = Field(description="the Part I system and its laws")
     simulation: SystemSimulationSpec = Field(description="the simulation")
     cases: Annotated[list[SystemCaseSpec], Field(min_length=1, max_length=MAX_CASES)] = Field(
