@@ -1,6 +1,6 @@
 """Benchmark set-ups of URDF arms for ``python -m cpbc.bench --robot panda``.
 
-The Panda of ``scenarios/panda_cpbc_sphere.yaml`` with every constraint of issue 3 at once:
+The Panda of ``scenarios/panda_cpbc_sphere.yaml`` with every kind of arm constraint at once:
 its 14 URDF joint position limits (one two-sided limit per joint), 7 joint rate limits and
 three obstacles (a table plane, a ball and a crate) against every link, each link covered by
 spheres from its collision mesh (33 spheres, 99 sphere–obstacle pairs, 30 reported

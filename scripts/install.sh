@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
-# Install cpbc into ./.venv (created if missing). With --test, also the test extras and
-# Debian's chromium for the browser tests of the viewer (installed only when missing; needs root).
+# Install cpbc into ./.venv (created if missing). With --test, also the test and docs extras
+# (pytest, linters, mkdocs) and Debian's chromium for the browser tests of the viewer
+# (installed only when missing; needs root).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 python3 -m venv .venv
 .venv/bin/python -m pip install --quiet --upgrade pip
 if [[ "${1:-}" == "--test" ]]; then
-  .venv/bin/python -m pip install --quiet ".[test]"
+  .venv/bin/python -m pip install --quiet ".[test,docs]"
   if ! command -v chromium >/dev/null 2>&1; then
     if [[ $(id -u) -eq 0 ]]; then
       apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null

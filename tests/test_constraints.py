@@ -370,7 +370,8 @@ def test_kinetic_energy_limit_against_the_thesis_inertia(absolute_model, rng, ce
             assert c.value(th, dth, given)[0] == pytest.approx(0.05 - 0.5 * dth @ d @ dth,
                                                                rel=1e-12)
             np.testing.assert_allclose(c.weights(th, given), d[None], atol=1e-12)
-            # ∂ψ/∂x at fixed ẋ is −Cᵀẋ (DESIGN §2), checked by finite differences
+            # ∂ψ/∂x at fixed ẋ is −Cᵀẋ (the velocity constraint's gradient in x), checked
+            # by finite differences
             grad = c.gradient(th, dth, given)
             fd = central_difference(lambda z, dth=dth: c.value(z, dth, None), th)
             np.testing.assert_allclose(grad, fd, rtol=0, atol=1e-9)

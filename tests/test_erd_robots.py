@@ -5,7 +5,7 @@ cpbc.run``, with every applied torque within the effort limits it printed.
 The whole robot is loaded with its base fixed to the world, every joint driven (wheels,
 torso, head, legs and fingers too: the skeleton holds them). Links welded to the base or to
 each other (antennas, sensor mounts, a quadruped's base) are merged as Pinocchio merges them
-(cpbc.model.inertias), which is what four of the five robots of issue 25 needed.
+(cpbc.model.inertias), which is what four of the five robots added with it needed.
 """
 
 from __future__ import annotations
@@ -71,7 +71,7 @@ WITH_AN_ARM = [
     "talos_data/robots/talos_reduced_corrected.urdf",
     "romeo_description/urdf/romeo.urdf",
     # iCub's neck links weigh (nearly) nothing: their inertia is raised to MuJoCo's least
-    # (1e-9 kg·m²) and the skeleton's gains are then unstable at 1 kHz (issue 25, open)
+    # (1e-9 kg·m²) and the skeleton's gains are then unstable at 1 kHz (not solved yet)
     pytest.param("icub_description/robots/icub.urdf", marks=pytest.mark.xfail(
         strict=True, reason="skeleton gains unstable on the near-massless neck")),
     "icub_description/robots/icub_reduced.urdf",

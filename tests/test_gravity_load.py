@@ -1,4 +1,4 @@
-"""Gravity beyond the motors (issue 25): a target no motor can hold is refused naming the
+"""Gravity beyond the motors: a target no motor can hold is refused naming the
 joint, its torque and its limit; a path that leaves a motor no room to brake over gravity
 warns, and a run on it that fails names it as its cause, in the status line, the summary
 and on the page; ``python -m cpbc.robot`` prints the load at its suggested target."""

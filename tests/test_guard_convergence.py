@@ -1,4 +1,5 @@
-"""A law that converges alone converges guarded (issue 25): on every arm the tests load, and on
+"""A law that converges alone converges guarded, the hold correction taking only the plant's
+share of the drift: on every arm the tests load, and on
 the shipped Panda reach with α = 0.1, the safeguard lets a CPBC reach that the bare law
 settles with every constraint kept settle as the bare law does, instead of driving the arm.
 

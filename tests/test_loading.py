@@ -166,7 +166,7 @@ def test_named_arms_mark_their_tool_centre_point() -> None:
     assert ur.body(int(ur.site("end_point").bodyid[0])).name == "tool0"
 
 
-# -- continuous joints and Collada meshes (issue 14) ---------------------------------------
+# -- continuous joints and Collada meshes -------------------------------------------------
 _CONTINUOUS = """<robot name="two">
   <link name="base"/>
   <link name="l1">
@@ -262,7 +262,7 @@ def test_an_unreadable_mesh_is_a_model_error(tmp_path: Path) -> None:
         load_urdf(urdf)
 
 
-# -- links welded to the base or to each other; package:// from the URDF (issue 25) --------
+# -- links welded to the base or to each other; package:// from the URDF ------------------
 @pytest.mark.parametrize("urdf", [
     "tiago_description/robots/tiago.urdf",  # antennas welded to the base
     "pr2_description/urdf/pr2.urdf",  # a sensor mount

@@ -1,4 +1,4 @@
-"""The ``recentred`` law (Cases 2–3, eqs. 6.53–6.65) on real 6- and 7-joint arms (issue 12).
+"""The ``recentred`` law (Cases 2–3, eqs. 6.53–6.65) on real 6- and 7-joint arms.
 
 On the UR3 the law commands 100+ N·m at rest far from its bounds. These tests pin down that
 this is the law and not the code (the gradient, centring and signs against the thesis's own

@@ -1,5 +1,5 @@
-"""The README's moving-reference example runs as printed, and a streamed target moves the
-arm: the tracker wraps a goal law for cpbc.simulation.loop.run_mujoco."""
+"""The docs' moving-reference example (docs/task-space.md) runs as printed, and a streamed
+target moves the arm: the tracker wraps a goal law for cpbc.simulation.loop.run_mujoco."""
 
 from __future__ import annotations
 
@@ -13,16 +13,16 @@ from cpbc.reference import tracking
 from cpbc.scenario import build, load_scenario
 from cpbc.simulation.loop import run_mujoco
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+PAGE = Path(__file__).resolve().parents[1] / "docs" / "task-space.md"
 
 
-def test_the_readme_example_runs(capsys: object) -> None:
-    text = README.read_text()
+def test_the_docs_example_runs(capsys: object) -> None:
+    text = PAGE.read_text()
     code = re.search(r"<!-- reference-example -->\n```python\n(.*?)```", text, re.S)
     assert code is not None
     assert len(code.group(1).strip().splitlines()) <= 16
     scope: dict[str, object] = {}
-    exec(compile(code.group(1), "README example", "exec"), scope)
+    exec(compile(code.group(1), "docs example", "exec"), scope)
     traj, law = scope["traj"], scope["law"]
     assert traj.outcome == "completed"  # type: ignore[attr-defined]
     assert law.governor.s > 0.9 and not law.governor.blocks  # type: ignore[attr-defined]

@@ -503,7 +503,7 @@ def test_file_that_is_not_a_scenario_mapping(tmp_path, text, match):
         load_scenario(path)
 
 
-# -- input that failed before issue 14 -----------------------------------------------------
+# -- input that was once mishandled: files, keys and numbers --------------------------------
 def test_duplicate_key_names_the_key_and_both_lines(tmp_path: Path) -> None:
     path = tmp_path / "dup.yaml"
     path.write_text("name: d\nsimulation: {duration: 1}\ntarget: [1, 1]\n"

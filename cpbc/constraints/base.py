@@ -44,8 +44,8 @@ class ConfigurationConstraint(ABC):
 
     def barrier_terms(self, state: ArmState, margins: bool = False
                       ) -> tuple[Array, Array, Array | None]:
-        """What the laws need (DESIGN §3): the barrier values φ̃ (k,) whose logs enter V,
-        Σ_i ∇φ̃_i/φ̃_i, shape (n,), and — with ``margins`` — φ itself (None without).
+        """What the laws need (their log-barrier form): the barrier values φ̃ (k,) whose logs
+        enter V, Σ_i ∇φ̃_i/φ̃_i, shape (n,), and — with ``margins`` — φ itself (None without).
 
         φ̃ = φ except for a localised barrier (Clearance with an influence distance). Outside
         S (some φ_i ≤ 0) the second value is meaningless; callers check the first.
@@ -101,7 +101,7 @@ class VelocityConstraint(ABC):
         """∂ψ/∂x at fixed ẋ, shape (k, n)."""
 
     def barrier_terms(self, state: ArmState) -> tuple[Array, Array, Array | None]:
-        """ψ, Π = Σ Q_j/ψ_j (n, n) and b = Σ (∂ψ_j/∂x)/ψ_j (n,) — the log-barrier form of DESIGN §3.
+        """ψ, Π = Σ Q_j/ψ_j (n, n) and b = Σ (∂ψ_j/∂x)/ψ_j (n,) — the laws' log-barrier form.
 
         b may be None when it is identically zero (constant Q and Ω). Subclasses override
         this with a cheaper closed form.

@@ -51,7 +51,7 @@ def _stack(items: Sequence[Constraint]) -> tuple[Constraint, ...]:
 
 
 class BarrierTerms(NamedTuple):
-    """Log-barrier sums of DESIGN §3 at one state.
+    """The laws' log-barrier sums (Σ ∇φ/φ, never the products Φ, Ψ) at one state.
 
     Attributes:
         log_phi: Σ log φ̃_i = log Φ.

@@ -1,5 +1,6 @@
 """Can the actuators stop in time? A first-order stopping test for configuration constraints
-under bounded torque (issue 12: viability is part of the admissible set).
+under bounded torque (viability is part of the admissible set: what no torque can stop is
+already lost).
 
 With |τ_q| ≤ L the arm can only decelerate so fast, so a state close to a boundary φ_i = 0
 and approaching it fast is lost whatever any controller does. For one constraint, with the

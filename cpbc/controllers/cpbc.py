@@ -1,4 +1,4 @@
-"""Constrained passivity-based control (Theorem 6.9) in the log-barrier form of DESIGN §3."""
+"""Constrained passivity-based control (Theorem 6.9) in log-barrier form (sums of ∇φ/φ)."""
 
 from __future__ import annotations
 

@@ -1,8 +1,8 @@
 """Shaping functions s of the barrier Lyapunov function V = L / s(ΦΨ) (Theorem 6.9 and Remarks).
 
 The law needs only r(x) = x s'(x) / s(x), which multiplies the barrier terms through
-ρ = r(ΦΨ)·L (DESIGN §3). Each shaping also gives log s from log x, so that V can be
-evaluated without forming the product ΦΨ.
+ρ = r(ΦΨ)·L (the laws' log-barrier form, cpbc.constraints.constraint_set). Each shaping
+also gives log s from log x, so that V can be evaluated without forming the product ΦΨ.
 """
 
 from __future__ import annotations

@@ -3,7 +3,8 @@
 Sup-norms over the configuration space have no closed form for a general arm; they are
 estimated here by seeded sampling followed by local refinement, so they are numerical
 estimates (from below) of the true suprema. For the thesis's planar arm the estimates
-match the closed forms (ζ_g = 0, ζ_c = m₂l₁l_c₂ = 0.5); see tests/test_bounds.py.
+match the closed forms (ζ_g = 0, ζ_c = m₂l₁l_c₂ = 0.5); see
+tests/test_controllers.py::test_bpbc_bound_matches_thesis_7_42.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Linear changes of generalised coordinates (DESIGN §4).
+"""Linear changes of generalised coordinates x = T q (the controller's coordinates).
 
 The thesis's planar arm (eq. 6.69) is written in absolute link angles θ while MuJoCo and
 URDF joints are relative angles q. With θ = T q and T constant, the Euler–Lagrange

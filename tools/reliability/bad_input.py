@@ -431,7 +431,7 @@ VARIANTS: list[BadInput] = [
              setting("controllers.2.constraints", ["obstacle", "link_rates"])),
     BadInput("ke_law_without_energy", "structure", "controllers[3]",
              setting("controllers.3.constraints", ["link_rates"])),
-    # -- the file itself (issue 14) --------------------------------------------------------
+    # -- the file itself ----------------------------------------------------------------------
     BadInput("not_utf8", "file", "UTF-8", raw_bytes("name: caf\xe9\n".encode("latin-1"))),
     BadInput("utf16", "file", "UTF-8",
              lambda data, _f: yaml.safe_dump(data, sort_keys=False).encode("utf-16")),
