@@ -1,4 +1,4 @@
-"""Brakes within the torque box, and whether one of them stops the arm (issue 27).
+"""Brakes within the torque box, and whether one of them stops the arm.
 
 Under bounded torque |τ_q| ≤ L a state of S is worth promising only if some torque in the box
 can bring the arm to rest before every boundary. No closed form says which states can; a
