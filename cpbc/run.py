@@ -35,7 +35,7 @@ from cpbc.results.drawing import figure_helper
 from cpbc.results.margin_types import types_of
 from cpbc.results.metrics import RunSummary
 from cpbc.scenario import build
-from cpbc.scenario.build import ScenarioSetup
+from cpbc.scenario.build import ScenarioSetup, undeclared_efforts
 from cpbc.scenario.load import load_any
 from cpbc.scenario.preflight import warning
 from cpbc.scenario.runner import (
@@ -278,9 +278,18 @@ def write_logs(folder: Path, setup: ScenarioSetup, results: Sequence[RunResult])
 
 def _warn(setup: ScenarioSetup, err: Console) -> None:
     """One line per case whose path to the target leaves a motor no room to brake over
-    gravity (cpbc.scenario.preflight)."""
+    gravity (cpbc.scenario.preflight), and one when the motors' limits are declared for some
+    joints only (the run then has none)."""
     for case, load in setup.gravity_on_path.items():
         err.print(f"[yellow]warning:[/yellow] {escape(warning(case, load))}", highlight=False)
+    undeclared = undeclared_efforts(setup)
+    if undeclared:
+        n = setup.model.n
+        err.print(f"[yellow]warning:[/yellow] the model declares effort limits for "
+                  f"{n - len(undeclared)} of its {n} joints (none for "
+                  f"{escape(', '.join(undeclared[:4]))}{', …' if len(undeclared) > 4 else ''}): "
+                  "simulation.torque_limit: auto runs without torque limits; give "
+                  "simulation.torque_limit to set them", highlight=False)
     if setup.goal is not None:
         goal = setup.goal
         err.print(f"goal preflight ({goal.goal.frame_name}): "

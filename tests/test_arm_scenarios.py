@@ -4,6 +4,7 @@ closed-loop runs of the Panda and UR5 scenarios, and bad input that exits 2 writ
 from __future__ import annotations
 
 import io
+import json
 from pathlib import Path
 
 import mujoco
@@ -249,3 +250,25 @@ def test_state_inside_an_obstacle_exits_2(tmp_path: Path, capsys) -> None:
                    obstacles=[{"type": "sphere", "name": "ball", "centre": hand, "radius": 0.02}])
     with pytest.raises(InadmissibleStateError, match=r"initial state of case 'low'.*panda_hand"):
         _build(tmp_path, moved)
+
+
+def test_effort_limits_declared_for_some_joints_only_are_named(tmp_path: Path, capsys) -> None:
+    """A model that declares an effort limit on j1 and none on j2: `torque_limit: auto` runs it
+    without limits, and says so, naming the joint without one."""
+    link = ('<link name="{0}"><inertial><origin xyz="0.2 0 0"/><mass value="1"/><inertia '
+            'ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>')
+    joint = ('<joint name="{0}" type="revolute"><parent link="{1}"/><child link="{2}"/>'
+             '<origin xyz="{3} 0 0"/><axis xyz="0 1 0"/>'
+             '<limit lower="-2" upper="2" effort="{4}" velocity="2"/></joint>')
+    (tmp_path / "two.urdf").write_text(
+        '<robot name="two"><link name="base"/>' + link.format("a") + link.format("b")
+        + joint.format("j1", "base", "a", 0, 40) + joint.format("j2", "a", "b", 0.4, 0)
+        + "</robot>")
+    data = _panda(robot={"model": "two.urdf"}, target=[0.1, 0.2], cases=[
+        {"name": "rest", "position": [0.0, 0.0]}], obstacles=[], constraints=[],
+        controllers=[{"type": "pd_gravity", "name": "PD", "kp": 20, "kd": 5}])
+    code, out = _exit_code(tmp_path, data)
+    assert code == 0
+    err = capsys.readouterr().err
+    assert "effort limits for 1 of its 2 joints (none for j2)" in err
+    assert json.loads((out / "summary.json").read_text())[0]["torque_limits"] is None

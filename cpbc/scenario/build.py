@@ -496,6 +496,20 @@ def _declared_efforts(model: RobotModel) -> Array | None:
     return effort if usable and bool(np.all(np.isfinite(effort) & (effort > 0))) else None
 
 
+def undeclared_efforts(setup: ScenarioSetup) -> tuple[str, ...]:
+    """The joints without an effort limit when the model declares one for some joints only
+    and ``simulation.torque_limit: auto`` therefore ran the scenario without any limit; ()
+    otherwise."""
+    if setup.scenario.simulation.torque_limit != "auto" or setup.loop_settings.torque_limit \
+            is not None or not setup.model.coordinates.is_identity:
+        return ()
+    effort = np.array(setup.model.model.effortLimit, dtype=float)
+    declared = np.isfinite(effort) & (effort > 0)
+    if effort.size != setup.model.n or not np.any(declared):
+        return ()
+    return tuple(n for n, d in zip(setup.model.joint_names, declared, strict=True) if not d)
+
+
 def _loop_settings(sim: s.SimulationSpec, model: RobotModel) -> LoopSettings:
     n = model.n
     control_period = sim.control_period or sim.timestep
