@@ -1,5 +1,6 @@
 """trajectories.h5: one standard HDF5 file per run folder that h5py reads without cpbc, the
-README's lines on it, and run folders of earlier versions (trajectory.npz) that still replay."""
+lines docs/getting-started.md gives for it, and run folders of earlier versions
+(trajectory.npz) that still replay."""
 
 from __future__ import annotations
 
@@ -18,13 +19,13 @@ from cpbc.results.delta_planes import CODED, encode
 from cpbc.results.saved_run import load_run
 from cpbc.run import main
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+PAGE = Path(__file__).resolve().parents[1] / "docs" / "getting-started.md"
 SIGNALS = ("time", "position", "velocity", "torque", "joint_torque", "margins", "lyapunov")
 
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory) -> Path:
-    """A 20 ms CPBC run of the planar arm with limits, written where the README reads it
+    """A 20 ms CPBC run of the planar arm with limits, written where the docs read it
     (runs/thesis_ch6 under the folder returned)."""
     root = tmp_path_factory.mktemp("h5")
     scenario = root / "tiny.yaml"
@@ -69,13 +70,13 @@ def test_one_file_a_group_per_run_with_units_names_and_summary(run: Path) -> Non
     assert log["velocity"].shape == (len(log["time"]), 2)
 
 
-def test_the_readme_lines_read_a_run_with_h5py_alone(run: Path, monkeypatch) -> None:
-    block = re.search(r"```python\n(import h5py\n.*?)```", README.read_text(), re.S)
-    assert block, "README lacks the h5py lines for trajectories.h5"
+def test_the_docs_lines_read_a_run_with_h5py_alone(run: Path, monkeypatch) -> None:
+    block = re.search(r"```python\n(import h5py\n.*?)```", PAGE.read_text(), re.S)
+    assert block, "docs/getting-started.md lacks the h5py lines for trajectories.h5"
     assert len(block.group(1).strip().splitlines()) == 3
     monkeypatch.chdir(run)
     scope: dict[str, object] = {}
-    exec(block.group(1), scope)  # the README's own lines, on the run written here
+    exec(block.group(1), scope)  # the page's own lines, on the run written here
     expected = load_log(run / "runs" / "thesis_ch6" / LOG_FILE, "rest", "CPBC")
     np.testing.assert_array_equal(scope["velocity"], expected["velocity"])
     assert scope["names"] == list(expected["coordinate_names"])
