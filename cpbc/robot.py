@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import sys
 import textwrap
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -64,8 +64,9 @@ def _frames(model: pin.Model) -> tuple[str, ...]:
     return tuple(dict.fromkeys(f.name for f in model.frames if f.name != "universe"))
 
 
-def _describe_urdf(name_or_path: str) -> RobotDescription:
-    arm = load_arm(name_or_path)
+def _describe_urdf(name_or_path: str, locked: Mapping[str, float] | None = None
+                   ) -> RobotDescription:
+    arm = load_arm(name_or_path, locked)
     model = name_or_path if name_or_path in ARMS else str(Path(name_or_path).resolve())
     covered = tuple(dict.fromkeys(
         arm.model.frames[g.parentFrame].name for g in arm.collision_model.geometryObjects
@@ -116,8 +117,10 @@ def actuator_efforts(mj: mujoco.MjModel, n: int) -> np.ndarray:
     return np.where(driven, total, np.inf)
 
 
-def describe(name_or_path: str) -> RobotDescription:
-    """The description of a built-in model, an example-robot-data arm, or a model file."""
+def describe(name_or_path: str, locked: Mapping[str, float] | None = None
+             ) -> RobotDescription:
+    """The description of a built-in model, an example-robot-data arm, or a model file
+    (a URDF's ``locked`` joints frozen at their values besides its defaults)."""
     builtin = builtin_models()
     if name_or_path in builtin:
         return _describe_mjcf(builtin[name_or_path], name_or_path)
@@ -138,17 +141,18 @@ def describe(name_or_path: str) -> RobotDescription:
                 f"unknown robot '{name_or_path}': give a built-in model "
                 f"({', '.join(builtin)}), an example-robot-data arm "
                 f"({', '.join(sorted(ARMS))}) or a path to a .urdf or .xml file")
-    return _describe_urdf(name_or_path)
+    return _describe_urdf(name_or_path, locked)
 
 
 OMEGAS = (10.0, 5.0, 2.0, 1.0)  # rad/s, tried in turn for the skeleton's gains
 
 
 def stable_omega(d: RobotDescription, states: Sequence[np.ndarray], period: float = 0.001,
-                 zeta: float = 1.0) -> float:
+                 zeta: float = 1.0) -> float | None:
     """The largest of :data:`OMEGAS` whose physical gains (at the first state's D_ii) keep the
     held loop stable at twice ``period`` at every state (cpbc.scenario.gains): arms near a
-    singular pose couple their joints strongly."""
+    singular pose couple their joints strongly. None when none does; the smallest for a model
+    without a Pinocchio twin."""
     if d.pin_model is None:
         return OMEGAS[-1]
     data = d.pin_model.createData()
@@ -163,7 +167,7 @@ def stable_omega(d: RobotDescription, states: Sequence[np.ndarray], period: floa
         kp, kd = physical_gains(np.full(n, omega), np.full(n, zeta), np.diag(ds[0]))
         if all(spectral_radius(kp, kd, m, 2 * period) < 1.0 for m in ds):
             return omega
-    return OMEGAS[-1]
+    return None
 
 
 #: Share of each joint range kept clear when the target is lowered for the motors.
@@ -185,11 +189,33 @@ def suggested_pose(d: RobotDescription) -> tuple[np.ndarray, np.ndarray]:
     return home(lim, lowered)
 
 
-def scenario_for(d: RobotDescription, duration: float = 5.0) -> dict:
-    """The skeleton scenario of an arm, with gains its held loop tolerates at 1 kHz."""
+def scenario_for(d: RobotDescription, duration: float = 5.0,
+                 locked: Mapping[str, float] | None = None) -> dict:
+    """The skeleton scenario of an arm, with gains its held loop tolerates at 1 kHz (the
+    smallest tried where none does), and the joints ``locked`` besides the arm's defaults."""
     target, start = suggested_pose(d)
-    return skeleton(d.model, d.limits, duration, omega_n=stable_omega(d, [target, start]),
-                    target=target)
+    omega = stable_omega(d, [target, start])
+    data = skeleton(d.model, d.limits, duration, omega_n=omega or OMEGAS[-1], target=target)
+    if locked:
+        data["robot"]["locked_joints"] = dict(locked)
+    return data
+
+
+def for_skeleton(name_or_path: str) -> tuple[RobotDescription, dict[str, float]]:
+    """The arm's description and the joints its skeleton locks: none, unless no gain of
+    :data:`OMEGAS` holds the loop stable at 1 kHz and some links' inertia was raised to the
+    least MuJoCo accepts (the URDF leaves it at zero, as on the full iCub's neck: a massless
+    link no sampled-data law can drive at that rate); then those joints, at 0 moved into their
+    range."""
+    d = describe(name_or_path)
+    if not d.regularised or d.pin_model is None:
+        return d, {}
+    if stable_omega(d, list(suggested_pose(d))) is not None:
+        return d, {}
+    lim = d.limits
+    locked = {j: float(np.clip(0.0, lim.lower[i], lim.upper[i]))
+              for i, j in enumerate(lim.names) if j in d.regularised}
+    return describe(name_or_path, {**d.locked, **locked}), locked
 
 
 def _number(v: float, unit: str = "") -> str:
@@ -262,11 +288,11 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        d = describe(args.robot)
+        d, locked = for_skeleton(args.robot)
     except CpbcError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    scenario = scenario_for(d, args.duration)
+    scenario = scenario_for(d, args.duration, locked)
     sys.stdout.write(report(d) + "# --- scenario (python -m cpbc.run FILE) ---\n"
                      + yaml.safe_dump(scenario, sort_keys=False, default_flow_style=None,
                                       width=100))
