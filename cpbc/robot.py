@@ -201,21 +201,46 @@ def scenario_for(d: RobotDescription, duration: float = 5.0,
     return data
 
 
-def for_skeleton(name_or_path: str) -> tuple[RobotDescription, dict[str, float]]:
-    """The arm's description and the joints its skeleton locks: none, unless no gain of
-    :data:`OMEGAS` holds the loop stable at 1 kHz and some links' inertia was raised to the
-    least MuJoCo accepts (the URDF leaves it at zero, as on the full iCub's neck: a massless
-    link no sampled-data law can drive at that rate); then those joints, at 0 moved into their
-    range."""
-    d = describe(name_or_path)
-    if not d.regularised or d.pin_model is None:
-        return d, {}
-    if stable_omega(d, list(suggested_pose(d))) is not None:
-        return d, {}
+def _at_zero(d: RobotDescription, joints: Sequence[str]) -> dict[str, float]:
+    """The ``joints`` at 0 moved into their ranges."""
     lim = d.limits
-    locked = {j: float(np.clip(0.0, lim.lower[i], lim.upper[i]))
-              for i, j in enumerate(lim.names) if j in d.regularised}
-    return describe(name_or_path, {**d.locked, **locked}), locked
+    return {j: float(np.clip(0.0, lim.lower[i], lim.upper[i]))
+            for i, j in enumerate(lim.names) if j in joints}
+
+
+def _overloaded(d: RobotDescription) -> dict[str, float]:
+    """Joints whose motors cannot hold the arm up even at the suggested target (the target
+    already lowered where it helps): a TIAGo dual's suspension carries the robot's weight."""
+    if d.pin_model is None or not np.any(np.isfinite(d.limits.effort)):
+        return {}
+    target, _ = suggested_pose(d)
+    loads = joint_loads(RobotModel(pin.Model(d.pin_model)), target, d.limits.effort)
+    return _at_zero(d, [load.joint for load in loads if not load.held])
+
+
+def _massless(d: RobotDescription) -> dict[str, float]:
+    """Joints whose link inertia was raised to the least MuJoCo accepts (the URDF leaves it
+    at zero), when no gain of :data:`OMEGAS` holds the loop stable at 1 kHz with them (the
+    full iCub's neck: a massless link no sampled-data law can drive at that rate)."""
+    if not d.regularised or d.pin_model is None:
+        return {}
+    if stable_omega(d, list(suggested_pose(d))) is not None:
+        return {}
+    return _at_zero(d, d.regularised)
+
+
+def for_skeleton(name_or_path: str) -> tuple[RobotDescription, dict[str, float]]:
+    """The arm's description and the joints its skeleton locks (at 0 moved into their ranges)
+    besides the arm's defaults: those whose motors cannot hold the arm up anywhere near the
+    suggested target, then those a sampled-data law cannot drive at 1 kHz (massless links)."""
+    d = describe(name_or_path)
+    locked: dict[str, float] = {}
+    for find in (_overloaded, _massless):
+        found = find(d)
+        if found:
+            locked |= found
+            d = describe(name_or_path, {**d.locked, **found})
+    return d, locked
 
 
 def _number(v: float, unit: str = "") -> str:
@@ -293,7 +318,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     scenario = scenario_for(d, args.duration, locked)
-    sys.stdout.write(report(d) + "# --- scenario (python -m cpbc.run FILE) ---\n"
+    why = "".join(f"# {line}\n" for line in textwrap.wrap(
+        "the skeleton locks " + ", ".join(locked) + ": motors that cannot hold the arm up "
+        "near any target tried, or links without inertia (no gain is stable at 1 kHz)", 96,
+        subsequent_indent="  ")) if locked else ""
+    sys.stdout.write(report(d) + why + "# --- scenario (python -m cpbc.run FILE) ---\n"
                      + yaml.safe_dump(scenario, sort_keys=False, default_flow_style=None,
                                       width=100))
     return 0

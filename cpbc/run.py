@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import gc
+import math
 import os
 import signal
 import sys
@@ -138,13 +139,14 @@ def _torques(s: RunSummary, names: Sequence[str]) -> str:
         i = max(range(len(s.peak_torques)), key=lambda k: s.peak_torques[k])
         return f"{s.peak_torques[i]:.3g} ({escape(names[i])})"
     peaks = s.peak_joint_torques
-    at = [k for k, (p, lim) in enumerate(zip(peaks, limits, strict=True)) if p >= lim]
+    lims = [math.inf if lim is None else lim for lim in limits]  # None: this joint has none
+    at = [k for k, (p, lim) in enumerate(zip(peaks, lims, strict=True)) if p >= lim]
     if len(names) <= WIDE:
         return ", ".join(f"{p:.3g}{'=' if k in at else '<'}{lim:.3g}"
-                         for k, (p, lim) in enumerate(zip(peaks, limits, strict=True)))
-    i = max(range(len(peaks)), key=lambda k: peaks[k] / limits[k])
+                         for k, (p, lim) in enumerate(zip(peaks, lims, strict=True)))
+    i = max(range(len(peaks)), key=lambda k: peaks[k] / lims[k])
     tail = f"; [yellow]{len(at)} of {len(peaks)} at the limit[/yellow]" if at else ""
-    return f"{peaks[i]:.3g}{'=' if i in at else '<'}{limits[i]:.3g} (joint {i + 1}){tail}"
+    return f"{peaks[i]:.3g}{'=' if i in at else '<'}{lims[i]:.3g} (joint {i + 1}){tail}"
 
 
 def _margins(s: RunSummary) -> str:
@@ -288,8 +290,8 @@ def _warn(setup: ScenarioSetup, err: Console) -> None:
         err.print(f"[yellow]warning:[/yellow] the model declares effort limits for "
                   f"{n - len(undeclared)} of its {n} joints (none for "
                   f"{escape(', '.join(undeclared[:4]))}{', …' if len(undeclared) > 4 else ''}): "
-                  "simulation.torque_limit: auto runs without torque limits; give "
-                  "simulation.torque_limit to set them", highlight=False)
+                  "those run without a torque limit; give simulation.torque_limit to set "
+                  "every joint's", highlight=False)
     if setup.goal is not None:
         goal = setup.goal
         err.print(f"goal preflight ({goal.goal.frame_name}): "

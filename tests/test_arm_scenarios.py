@@ -253,16 +253,17 @@ def test_state_inside_an_obstacle_exits_2(tmp_path: Path, capsys) -> None:
 
 
 def test_effort_limits_declared_for_some_joints_only_are_named(tmp_path: Path, capsys) -> None:
-    """A model that declares an effort limit on j1 and none on j2: `torque_limit: auto` runs it
-    without limits, and says so, naming the joint without one."""
+    """A horizontal arm that declares an effort limit on j1 (1 N·m, less than PD + g asks) and
+    none on j2: `torque_limit: auto` limits j1 alone, and says so, naming the joint without
+    one."""
     link = ('<link name="{0}"><inertial><origin xyz="0.2 0 0"/><mass value="1"/><inertia '
             'ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>')
     joint = ('<joint name="{0}" type="revolute"><parent link="{1}"/><child link="{2}"/>'
-             '<origin xyz="{3} 0 0"/><axis xyz="0 1 0"/>'
+             '<origin xyz="{3} 0 0"/><axis xyz="0 0 1"/>'
              '<limit lower="-2" upper="2" effort="{4}" velocity="2"/></joint>')
     (tmp_path / "two.urdf").write_text(
         '<robot name="two"><link name="base"/>' + link.format("a") + link.format("b")
-        + joint.format("j1", "base", "a", 0, 40) + joint.format("j2", "a", "b", 0.4, 0)
+        + joint.format("j1", "base", "a", 0, 1) + joint.format("j2", "a", "b", 0.4, 0)
         + "</robot>")
     data = _panda(robot={"model": "two.urdf"}, target=[0.1, 0.2], cases=[
         {"name": "rest", "position": [0.0, 0.0]}], obstacles=[], constraints=[],
@@ -271,4 +272,7 @@ def test_effort_limits_declared_for_some_joints_only_are_named(tmp_path: Path, c
     assert code == 0
     err = capsys.readouterr().err
     assert "effort limits for 1 of its 2 joints (none for j2)" in err
-    assert json.loads((out / "summary.json").read_text())[0]["torque_limits"] is None
+    (run,) = json.loads((out / "summary.json").read_text())
+    assert run["torque_limits"] == [1.0, None]
+    assert run["peak_commanded_torques"][0] > 1.0 >= run["peak_joint_torques"][0]
+    assert run["saturated_steps"] > 0

@@ -59,7 +59,9 @@ def stopping_margins(
     curvature = np.concatenate([c.curvature(x, dx) for c in constraints.configuration])
     inv_d_grads = np.linalg.solve(state.inertia, grads.T)  # D⁻¹ ∇φᵀ, (n, k)
     w = model.coordinates.inverse @ inv_d_grads  # T⁻¹ D⁻¹ ∇φᵀ: a torque in joint units
-    reach = np.abs(w).T @ np.broadcast_to(torque_limit, (model.n,))
+    # Σ_j |w_jk| L_j, where a joint without a limit (L_j = ∞) adds ∞ only if it moves φ_k
+    reach = np.where(w != 0.0, np.abs(w) * np.broadcast_to(torque_limit, (model.n,))[:, None],
+                     0.0).sum(axis=0)
     decel = reach - inv_d_grads.T @ bias + curvature
     speed = -(grads @ dx)
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -64,7 +64,7 @@ class RunSummary:
     peak_torques: list[float]
     peak_commanded_torques: list[float]
     peak_joint_torques: list[float]
-    torque_limits: list[float] | None
+    torque_limits: list[float | None] | None
     peak_torque_norm: float
     torque_bound: float | None
     min_margins: dict[str, float]
@@ -198,8 +198,10 @@ def summarise(
     # τ_q = Tᵀ τ_x, so the applied torque in the controller's coordinates is τ_q T⁻¹ per row.
     applied = applied_q if coordinates is None else np.linalg.solve(
         np.asarray(coordinates, dtype=float).T, applied_q.T).T
-    limits = None if torque_limits is None else np.broadcast_to(
-        np.asarray(torque_limits, dtype=float), (traj.joint_torque.shape[1],)).tolist()
+    limits = None if torque_limits is None else [
+        float(v) if np.isfinite(v) else None  # JSON has no infinity: null, no limit there
+        for v in np.broadcast_to(np.asarray(torque_limits, dtype=float),
+                                 (traj.joint_torque.shape[1],))]
     min_margins = {
         n: float(np.nanmin(margins[:, i])) if np.any(np.isfinite(margins[:, i])) else float("nan")
         for i, n in enumerate(monitor.names)

@@ -155,8 +155,9 @@ def torques_figure(case: SavedCase) -> Figure:
                 _curve(ax, r.time, asked[:, k], color=colour, lw=0.7, alpha=0.6,
                        label=f"{r.controller} asked")
             _curve(ax, r.time, applied[:, k], color=colour, label=r.controller)
-        if limits is not None and (joints or _identity(first)):
-            lim = float(limits[k])
+        found = None if limits is None else limits[k]  # None: no limit on this joint
+        if found is not None and (joints or _identity(first)):
+            lim = float(found)
             ax.axhline(lim, color=BOUND_COLOUR, ls="--", lw=1.0, label=f"limit ±{lim:.4g}")
             ax.axhline(-lim, color=BOUND_COLOUR, ls="--", lw=1.0)
         what = f"joint {k + 1}" if joints else _symbol(first.coordinate_names[k])

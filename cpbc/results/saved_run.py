@@ -53,7 +53,7 @@ class SummaryEntry(_SummaryKeys, total=False):
 
     status: str
     rate_bounds: list[float | None]
-    torque_limits: list[float] | None
+    torque_limits: list[float | None] | None
     torque_bound: float | None
     units: dict[str, str | list[str]]  # the plots' units when not an arm's (per coordinate or all)
     cause: str | None  # why a failed run likely failed, when foreseen (RunSummary.cause)

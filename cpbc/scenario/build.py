@@ -489,25 +489,23 @@ def _check_length(sim: s.SimulationSpec, control_period: float) -> None:
 
 
 def _declared_efforts(model: RobotModel) -> Array | None:
-    """The effort limits of every joint when the model declares them all (a URDF arm), in
-    joint coordinates; None otherwise (the built-in MJCF arm declares none)."""
+    """The effort limits the model declares (a URDF arm), in joint coordinates, inf for a joint
+    that declares none; None when no joint declares one (the built-in MJCF arm)."""
     effort = np.array(model.model.effortLimit, dtype=float)
-    usable = model.coordinates.is_identity and effort.size == model.n
-    return effort if usable and bool(np.all(np.isfinite(effort) & (effort > 0))) else None
+    declared = np.isfinite(effort) & (effort > 0)
+    if not model.coordinates.is_identity or effort.size != model.n or not np.any(declared):
+        return None
+    return np.where(declared, effort, np.inf)
 
 
 def undeclared_efforts(setup: ScenarioSetup) -> tuple[str, ...]:
-    """The joints without an effort limit when the model declares one for some joints only
-    and ``simulation.torque_limit: auto`` therefore ran the scenario without any limit; ()
-    otherwise."""
-    if setup.scenario.simulation.torque_limit != "auto" or setup.loop_settings.torque_limit \
-            is not None or not setup.model.coordinates.is_identity:
+    """The joints that run without a torque limit beside joints that have one (the model
+    declares effort limits for some joints only; ``simulation.torque_limit: auto``)."""
+    limit = setup.loop_settings.torque_limit
+    if limit is None:
         return ()
-    effort = np.array(setup.model.model.effortLimit, dtype=float)
-    declared = np.isfinite(effort) & (effort > 0)
-    if effort.size != setup.model.n or not np.any(declared):
-        return ()
-    return tuple(n for n, d in zip(setup.model.joint_names, declared, strict=True) if not d)
+    return tuple(n for n, v in zip(setup.model.joint_names, limit, strict=True)
+                 if not np.isfinite(v))
 
 
 def _loop_settings(sim: s.SimulationSpec, model: RobotModel) -> LoopSettings:

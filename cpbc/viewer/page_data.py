@@ -154,9 +154,10 @@ def _panels(case: SavedCase) -> tuple[list[dict[str, Any]], bool]:
                                      {"y": -float(b), "label": ""}]
 
     def torque_lines(k: int) -> list[dict[str, Any]]:
-        if limits is None or not (joints or identity):
+        found = None if limits is None else limits[k]  # None: no limit on this joint
+        if found is None or not (joints or identity):
             return []
-        lim = float(limits[k])
+        lim = float(found)
         return [{"y": lim, "label": f"limit ±{lim:.4g}"}, {"y": -lim, "label": ""}]
 
     groups = [
