@@ -7,6 +7,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.base import VelocityConstraint
 from cpbc.errors import CpbcError
+from cpbc.kernels.barriers import kinetic_energy_terms
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -42,10 +43,12 @@ class KineticEnergyLimit(VelocityConstraint):
         return -((self.model.coriolis(x, dx) if c is None else c).T @ dx)[None, :]
 
     def barrier_terms(self, state: ArmState) -> tuple[Array, Array, Array]:
-        """ψ, Π = D/ψ and b = −Cᵀẋ/ψ, with C the state's (``coriolis=True``)."""
+        """ψ, Π = D/ψ and b = −Cᵀẋ/ψ, with C the state's (``coriolis=True``)
+        (cpbc.kernels.barriers.kinetic_energy_terms)."""
         d, dx, c = state.inertia, state.dx, state.coriolis_matrix
         if c is None:
             raise CpbcError("the kinetic-energy limit reads C from the state: build it with "
                             "coriolis=True (a law's state(x, dx) does)")
-        psi = self.limit - 0.5 * dx @ d @ dx
-        return np.array([psi]), d / psi, -(c.T @ dx) / psi
+        pi, b = np.empty_like(d), np.empty_like(dx)
+        psi = kinetic_energy_terms(self.limit, d, c, dx, pi, b)
+        return np.array([psi]), pi, b

@@ -14,6 +14,7 @@ from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
 from cpbc.errors import ConstraintViolation, CpbcError
+from cpbc.kernels.laws import cpbc_ke_torque
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -79,9 +80,12 @@ class CPBCKineticEnergy(Controller):
 
     def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float, psi: float
              ) -> Array:
-        """The law of the class docstring, from ∂U/∂x (``grad``)."""
+        """The law of the class docstring, from ∂U/∂x (``grad``)
+        (cpbc.kernels.laws.cpbc_ke_torque)."""
         rho = self.shaping.ratio(bar.log_phi + math.log(psi)) * lag
-        shaped = -(grad + self.damping.force(state.dx) + self.task_damping_force(state))
-        if bar.gradient is not None:
-            shaped += rho * bar.gradient
-        return state.gravity + shaped / (1.0 + rho / psi)
+        force = -grad - self.damping.force(state.dx) - self.task_damping_force(state)
+        n = force.shape[0]
+        tau = np.empty(n)
+        cpbc_ke_torque(state.gravity, force, np.zeros(n) if bar.gradient is None else (
+            bar.gradient), rho, psi, tau)
+        return tau
