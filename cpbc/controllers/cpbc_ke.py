@@ -64,6 +64,12 @@ class CPBCKineticEnergy(Controller):
         self.damping: Damping = LinearDamping(self.kd)
         self._config = ConstraintSet(model.n, constraints.configuration)
 
+    def state(self, x: Array, dx: Array) -> ArmState:
+        """The per-step state of the configuration constraints and the potential: the law
+        reads the energy limit through D alone (no C, which the limit's own barrier terms
+        would need)."""
+        return self._config.state(self.model, x, dx, self.frames)
+
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         dx = state.dx
         kinetic = 0.5 * float(dx @ state.inertia @ dx)
