@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Install cpbc into ./.venv (created if missing). With --test, also the test and docs extras
 # (pytest, linters, mkdocs) and Debian's chromium for the browser tests of the viewer
-# (installed only when missing; needs root).
+# (installed only when missing; needs root). Then warms the compiled kernels' cache.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 python3 -m venv .venv
@@ -18,3 +18,9 @@ if [[ "${1:-}" == "--test" ]]; then
 else
   .venv/bin/python -m pip install --quiet .
 fi
+# Compile the numba kernels once into numba's on-disk cache, for the installed package (run
+# from / so that it is the one imported) and for this source tree (what tests run from here
+# import), so that a fresh process compiles nothing.
+root=$(pwd)
+(cd / && "$root/.venv/bin/python" -m cpbc.kernels --warm --check)
+.venv/bin/python -m cpbc.kernels --warm --check

@@ -63,13 +63,13 @@ def central_difference() -> FiniteDifference:
     return _central_difference
 
 
-def state_at(x: np.ndarray, dx: np.ndarray | None = None, model: RobotModel | None = None
-             ) -> ArmState:
+def state_at(x: np.ndarray, dx: np.ndarray | None = None, model: RobotModel | None = None,
+             frames: tuple[int, ...] = ()) -> ArmState:
     """The per-step state a law hands its constraints: the model's, with kinematics, or —
     for constraints that read only x and ẋ — the state alone (no dynamics terms)."""
     x = np.asarray(x, dtype=float)
     dx = np.zeros_like(x) if dx is None else np.asarray(dx, dtype=float)
     if model is not None:
-        return model.state(x, dx, kinematics=True)
+        return model.state(x, dx, kinematics=True, frames=frames, coriolis=True)
     nothing = np.full(0, np.nan)
     return ArmState(x, dx, x, dx, nothing, nothing, nothing, nothing)

@@ -252,6 +252,28 @@ def test_margins_after_the_barrier_are_clearances_not_the_shaped_barrier(rng) ->
 
 
 @pytest.mark.parametrize("kind", ["spheres", "mixed"])
+def test_the_barrier_reads_the_state_not_the_models_pinocchio_data(kind, rng) -> None:
+    """The barrier terms are a function of the per-step state alone: the model's Pinocchio
+    data moved to another configuration (any later model call) changes nothing, bit for bit."""
+    c = _clearance(kind, influence=0.3)
+    cs = ConstraintSet(7, [c])
+    _, model = _panda()
+    checked = 0
+    for x in _states(rng, 6):
+        state = cs.state(model, x, np.zeros(7))
+        try:
+            first = cs.barrier(state, margins=True)
+        except ConstraintViolation:
+            continue
+        model.state(x[::-1].copy(), np.ones(7), kinematics=True, coriolis=True)
+        again = cs.barrier(state, margins=True)
+        for a, b in zip(first, again, strict=True):
+            np.testing.assert_array_equal(a, b)
+        checked += 1
+    assert checked >= 3
+
+
+@pytest.mark.parametrize("kind", ["spheres", "mixed"])
 def test_values_along_and_barrier_with_value_are_value_bit_for_bit(kind, rng) -> None:
     """The batched values and the barrier pass's values are ``value`` row by row, exactly
     (the safeguard's acceptance test reads them in place of ``value``)."""

@@ -80,7 +80,7 @@ def relative_limit() -> LinearLimit:
 
 def assert_generic_configuration_terms(c: ConfigurationConstraint, x: np.ndarray) -> None:
     """The subclass's closed-form barrier terms equal the base class's generic formula."""
-    st = state_at(x, model=getattr(c, "model", None))
+    st = state_at(x, model=getattr(c, "model", None), frames=c.frames)
     phi, b, value = c.barrier_terms(st, margins=True)
     phi_ref, b_ref, _ = ConfigurationConstraint.barrier_terms(c, st)
     np.testing.assert_array_equal(value, phi)
@@ -365,7 +365,10 @@ def test_kinetic_energy_limit_against_the_thesis_inertia(absolute_model, rng, ce
     assert c.needs_dynamics
     for th, dth in states(rng):
         d = thesis_inertia(th)
-        dyn = absolute_model.dynamics(th, dth)
+        dyn = absolute_model.state(th, dth, coriolis=True)
+        # the state's C is the model's own, bit for bit: the limit makes no call of its own
+        assert dyn.coriolis_matrix is not None
+        np.testing.assert_array_equal(dyn.coriolis_matrix, absolute_model.coriolis(th, dth))
         for given in (None, dyn):
             assert c.value(th, dth, given)[0] == pytest.approx(0.05 - 0.5 * dth @ d @ dth,
                                                                rel=1e-12)
@@ -436,7 +439,7 @@ def test_constraint_set_names_and_margins(thesis_ch6_set, absolute_model, rng):
 def test_constraint_set_barrier_is_the_sum_of_logs(thesis_ch6_set, absolute_model, rng,
                                                    central_difference):
     for th, dth in admissible_states(thesis_ch6_set, rng):
-        bar = thesis_ch6_set.barrier(absolute_model.state(th, dth, kinematics=True))
+        bar = thesis_ch6_set.barrier(thesis_ch6_set.state(absolute_model, th, dth))
         assert isinstance(bar, BarrierTerms)
         phi = np.array([thesis_phi1(th), thesis_phi2(th)])
         psi_rates = 0.5 * (B**2 - dth**2)
@@ -468,7 +471,7 @@ def test_constraint_set_barrier_is_the_sum_of_logs(thesis_ch6_set, absolute_mode
 def test_barrier_without_velocity_constraints(absolute_model, rng):
     cs = ConstraintSet(2, [obstacle(absolute_model), relative_limit()])
     for th, dth in admissible_states(cs, rng, 5):
-        bar = cs.barrier(absolute_model.state(th, dth, kinematics=True))
+        bar = cs.barrier(cs.state(absolute_model, th, dth))
         assert bar.weight is None
         assert bar.log_psi == 0.0
         assert bar.log_phi == pytest.approx(math.log(thesis_phi1(th) * thesis_phi2(th)))
@@ -477,7 +480,7 @@ def test_barrier_without_velocity_constraints(absolute_model, rng):
 def test_barrier_with_only_rate_limits_has_no_gradient(absolute_model):
     cs = ConstraintSet(2, velocity=[joint_rate_limit(B, ("theta1", "theta2"))])
     x, dx = np.array([0.3, 0.1]), np.array([0.1, -0.1])
-    bar = cs.barrier(absolute_model.state(x, dx, kinematics=True))
+    bar = cs.barrier(cs.state(absolute_model, x, dx))
     assert bar.gradient is None
     assert bar.log_phi == 0.0
     np.testing.assert_allclose(bar.weight, np.diag(1 / (0.5 * (B**2 - dx**2))))
@@ -489,7 +492,7 @@ def test_empty_constraint_set(absolute_model):
     assert len(cs) == 0
     x = np.array([0.3, 0.1])
     empty = BarrierTerms(0.0, 0.0, None, None)
-    assert cs.barrier(absolute_model.state(x, x, kinematics=True)) == empty
+    assert cs.barrier(cs.state(absolute_model, x, x)) == empty
     assert cs.margins(x, x).shape == (0,)
     cs.check_admissible(x, 100 * x, "anything")  # no constraint, nothing to violate
 
@@ -508,7 +511,7 @@ def test_barrier_outside_s_raises_naming_the_constraint(thesis_ch6_set, absolute
                                                         dth, name):
     th, dth = np.array(th), np.array(dth)
     with pytest.raises(ConstraintViolation) as info:
-        thesis_ch6_set.barrier(absolute_model.state(th, dth, kinematics=True))
+        thesis_ch6_set.barrier(thesis_ch6_set.state(absolute_model, th, dth))
     assert info.value.constraint == name
     assert info.value.margin <= 0
     assert name in str(info.value)
@@ -518,7 +521,7 @@ def test_barrier_outside_the_energy_bound_names_it(absolute_model):
     cs = ConstraintSet(2, velocity=[KineticEnergyLimit(absolute_model, 0.01, name="energy")])
     th, dth = np.zeros(2), np.array([0.2, 0.2])
     with pytest.raises(ConstraintViolation, match="energy") as info:
-        cs.barrier(absolute_model.state(th, dth, kinematics=True))
+        cs.barrier(cs.state(absolute_model, th, dth))
     assert info.value.margin == pytest.approx(0.01 - 0.5 * dth @ thesis_inertia(th) @ dth)
 
 
@@ -575,9 +578,9 @@ def test_duplicate_constraint_names_are_rejected(absolute_model):
 def test_barrier_margins_are_the_margins(thesis_ch6_set, absolute_model, rng):
     """The margins the law's barrier pass reports are those ``margins`` computes afresh."""
     for th, dth in admissible_states(thesis_ch6_set, rng, 5):
-        bar = thesis_ch6_set.barrier(absolute_model.state(th, dth, kinematics=True),
+        bar = thesis_ch6_set.barrier(thesis_ch6_set.state(absolute_model, th, dth),
                                      margins=True)
         np.testing.assert_allclose(bar.margins, thesis_ch6_set.margins(th, dth), rtol=1e-12,
                                    atol=1e-15)
-        assert thesis_ch6_set.barrier(absolute_model.state(th, dth, kinematics=True)
+        assert thesis_ch6_set.barrier(thesis_ch6_set.state(absolute_model, th, dth)
                                       ).margins is None

@@ -248,7 +248,7 @@ def expected_rate(name: str, ctrl, model: RobotModel, x, dx, divisor) -> float:
     if divisor == "psi":
         psi = np.prod(ctrl._velocity.margins(x, dx))
         return -dx @ (damping + f) / psi
-    bar = ctrl.constraints.barrier(model.state(x, dx, kinematics=True))
+    bar = ctrl.constraints.barrier(ctrl.constraints.state(model, x, dx))
     log_x = bar.log_phi + bar.log_psi
     s = math.exp(ctrl.shaping.log_s(log_x))
     if divisor == "s":

@@ -367,8 +367,8 @@ def test_state_kinematics_give_the_point_of_one_pass(absolute_model, rng, offset
     fid = absolute_model.frame_id(absolute_model.model.frames[-1].name)
     for _ in range(5):
         x, dx = rng.uniform(-3, 3, 2), rng.normal(size=2)
-        absolute_model.state(x, dx, kinematics=True)
-        p, jac = absolute_model.state_point(fid, offset)
+        state = absolute_model.state(x, dx, frames=[fid])
+        p, jac = state.frames[fid].point(offset)
         p_ref, jac_ref = absolute_model.point_kinematics(fid, x, offset)
         np.testing.assert_allclose(p, p_ref, rtol=0, atol=1e-14)
         np.testing.assert_allclose(jac, jac_ref, rtol=0, atol=1e-14)

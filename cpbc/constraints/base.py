@@ -22,12 +22,14 @@ class ConfigurationConstraint(ABC):
 
     Attributes:
         names: one per scalar constraint.
-        needs_kinematics: whether ``barrier_terms`` reads the state's placements and
-            Jacobians from the model's Pinocchio data (``RobotModel.state(kinematics=True)``).
+        needs_kinematics: whether ``barrier_terms`` reads the state's joint placements and
+            Jacobians (``RobotModel.state(kinematics=True)``).
+        frames: the frames whose kinematics ``barrier_terms`` reads from ``ArmState.frames``.
     """
 
     names: tuple[str, ...]
     needs_kinematics: bool = False
+    frames: tuple[int, ...] = ()
     stacks: bool = False  # whether neighbours of this class are evaluated as one (stacked)
 
     @abstractmethod
@@ -76,11 +78,14 @@ class VelocityConstraint(ABC):
     """ψ_j(x, ẋ) = Ω_j(x) − ½ ẋᵀ Q_j(x) ẋ > 0 with Q_j ⪰ 0 (eq. 6.17).
 
     ``needs_dynamics`` says whether the constraint reads D from the state; without a state
-    (at a predicted configuration) such a constraint asks the model.
+    (at a predicted configuration) such a constraint asks the model. ``needs_coriolis`` says
+    whether ``barrier_terms`` reads the matrix C from the state
+    (``RobotModel.state(coriolis=True)``).
     """
 
     names: tuple[str, ...]
     needs_dynamics: bool = False
+    needs_coriolis: bool = False
     stacks: bool = False  # whether neighbours of this class are evaluated as one (stacked)
 
     @abstractmethod

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from itertools import groupby
 from typing import NamedTuple, TypeVar
 
@@ -12,7 +12,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.base import ConfigurationConstraint, VelocityConstraint
 from cpbc.errors import ConstraintViolation, CpbcError, InadmissibleStateError
-from cpbc.model.robot_model import ArmState
+from cpbc.model.robot_model import ArmState, RobotModel
 
 Constraint = TypeVar("Constraint", ConfigurationConstraint, VelocityConstraint)
 
@@ -93,6 +93,9 @@ class ConstraintSet:
             raise CpbcError(f"duplicate constraint names: {dup}; give each constraint its own name")
         self.needs_dynamics = any(c.needs_dynamics for c in self.velocity)
         self.needs_kinematics = any(c.needs_kinematics for c in self.configuration)
+        self.needs_coriolis = any(c.needs_coriolis for c in self.velocity)
+        self.frames: tuple[int, ...] = tuple(
+            dict.fromkeys(f for c in self.configuration for f in c.frames))
         self._config = _stack(self.configuration)
         self._velocity = _stack(self.velocity)
         self.n_configuration = sum(len(c.names) for c in self.configuration)
@@ -103,6 +106,14 @@ class ConstraintSet:
     @property
     def empty(self) -> bool:
         return not self.names
+
+    def state(self, model: RobotModel, x: Array, dx: Array, frames: Iterable[int] = ()
+              ) -> ArmState:
+        """The per-step state these constraints read (with ``frames`` besides, e.g. a
+        potential's), from one call of ``model.state``."""
+        wanted = tuple(dict.fromkeys((*self.frames, *frames)))
+        return model.state(x, dx, kinematics=self.needs_kinematics, frames=wanted,
+                           coriolis=self.needs_coriolis)
 
     def margins(self, x: Array, dx: Array, state: ArmState | None = None) -> Array:
         """Every φ_i and ψ_j at (x, ẋ), in the order of ``names``."""

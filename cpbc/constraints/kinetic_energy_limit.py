@@ -7,6 +7,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.base import VelocityConstraint
 from cpbc.errors import CpbcError
+from cpbc.kernels.barriers import kinetic_energy_terms
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -20,6 +21,7 @@ class KineticEnergyLimit(VelocityConstraint):
     """
 
     needs_dynamics = True
+    needs_coriolis = True
 
     def __init__(self, model: RobotModel, limit: float, name: str = "kinetic_energy") -> None:
         if not (np.isfinite(limit) and limit > 0):
@@ -37,10 +39,16 @@ class KineticEnergyLimit(VelocityConstraint):
         return d[None, :, :]
 
     def gradient(self, x: Array, dx: Array, state: ArmState | None = None) -> Array:
-        return -(self.model.coriolis(x, dx).T @ dx)[None, :]
+        c = state.coriolis_matrix if state is not None else None
+        return -((self.model.coriolis(x, dx) if c is None else c).T @ dx)[None, :]
 
     def barrier_terms(self, state: ArmState) -> tuple[Array, Array, Array]:
-        """ψ, Π = D/ψ and b = −Cᵀẋ/ψ."""
-        d, dx = state.inertia, state.dx
-        psi = self.limit - 0.5 * dx @ d @ dx
-        return np.array([psi]), d / psi, -(self.model.coriolis(state.x, dx).T @ dx) / psi
+        """ψ, Π = D/ψ and b = −Cᵀẋ/ψ, with C the state's (``coriolis=True``)
+        (cpbc.kernels.barriers.kinetic_energy_terms)."""
+        d, dx, c = state.inertia, state.dx, state.coriolis_matrix
+        if c is None:
+            raise CpbcError("the kinetic-energy limit reads C from the state: build it with "
+                            "coriolis=True (a law's state(x, dx) does)")
+        pi, b = np.empty_like(d), np.empty_like(dx)
+        psi = kinetic_energy_terms(self.limit, d, c, dx, pi, b)
+        return np.array([psi]), pi, b

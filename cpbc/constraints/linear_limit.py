@@ -9,6 +9,7 @@ import numpy as np
 from cpbc.arrays import Array, ArrayLike
 from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.errors import CpbcError
+from cpbc.kernels.barriers import linear_limit_terms
 from cpbc.model.robot_model import ArmState
 
 
@@ -54,6 +55,8 @@ class LinearLimit(ConfigurationConstraint):
         self._sum = lower + upper
         for a in (self.rows, self.lower, self.upper, self.centre, self.half_width, self._sum):
             a.setflags(write=False)
+        # the kernel's constants, packed into one array (writable: numba's typed signature)
+        self._constants = np.column_stack([rows, lower, upper])
 
     def value(self, x: Array) -> Array:
         y = self.rows.dot(x)
@@ -61,10 +64,11 @@ class LinearLimit(ConfigurationConstraint):
 
     def barrier_terms(self, state: ArmState, margins: bool = False
                       ) -> tuple[Array, Array, Array | None]:
-        """φ, Σ ∇φ_i/φ_i = Σ a_i (l_i + u_i − 2a_iᵀx)/φ_i and φ again."""
-        y = self.rows.dot(state.x)
-        phi = (y - self.lower) * (self.upper - y)
-        return phi, ((self._sum - 2.0 * y) / phi).dot(self.rows), phi
+        """φ, Σ ∇φ_i/φ_i = Σ a_i (l_i + u_i − 2a_iᵀx)/φ_i and φ again
+        (cpbc.kernels.barriers.linear_limit_terms)."""
+        phi, b = np.empty(len(self.names)), np.empty(self.rows.shape[1])
+        linear_limit_terms(self._constants, state.x, phi, b)
+        return phi, b, phi
 
     @classmethod
     def stacked(cls, parts: Sequence[ConfigurationConstraint]) -> LinearLimit:

@@ -26,7 +26,6 @@ class PointOutsideSphere(ConfigurationConstraint):
         name: label of the constraint.
     """
 
-    needs_kinematics = True
 
     def __init__(
         self,
@@ -44,6 +43,7 @@ class PointOutsideSphere(ConfigurationConstraint):
             raise CpbcError(f"obstacle centre must be 3 finite numbers, got {centre.tolist()}")
         self.model = model
         self.frame_id = model.frame_id(frame)
+        self.frames = (self.frame_id,)
         self.centre = centre
         self.radius = float(radius)
         self._r2 = self.radius**2
@@ -65,8 +65,13 @@ class PointOutsideSphere(ConfigurationConstraint):
 
     def barrier_terms(self, state: ArmState, margins: bool = False
                       ) -> tuple[Array, Array, Array | None]:
-        """φ, ∇φ/φ = 2 (p − c)ᵀ J_p / φ and φ again, from the state's kinematics."""
-        p, jac = self.model.state_point(self.frame_id, self.offset)
+        """φ, ∇φ/φ = 2 (p − c)ᵀ J_p / φ and φ again, from the frame's kinematics held by
+        the state (``frames``)."""
+        kin = state.frames.get(self.frame_id)
+        if kin is None:
+            raise CpbcError(f"{self.names[0]} reads frame {self.frame_id} from the state: "
+                            "build it with the constraint set's frames (a law's state(x, dx))")
+        p, jac = kin.point(self.offset)
         d = p - self.centre
         phi = np.array([float(d @ d) - self._r2])
         return phi, (d @ jac) * (2.0 / phi[0]), phi

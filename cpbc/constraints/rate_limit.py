@@ -9,6 +9,7 @@ import numpy as np
 from cpbc.arrays import Array, ArrayLike
 from cpbc.constraints.base import VelocityConstraint
 from cpbc.errors import CpbcError
+from cpbc.kernels.barriers import rate_limit_terms
 from cpbc.model.robot_model import ArmState
 
 
@@ -37,18 +38,14 @@ class RateLimit(VelocityConstraint):
         self.bounds = bounds
         self.names = tuple(names)
         self._omega = 0.5 * bounds**2
-        n_cols = rows.shape[1]
         # A row of the identity needs no matrix product in the hot path.
         unit = (np.count_nonzero(rows, axis=1) == 1) & np.isclose(np.abs(rows).sum(axis=1), 1.0)
         self._joint_index = np.argmax(np.abs(rows), axis=1) if np.all(unit) else None
         if self._joint_index is not None and len(set(self._joint_index.tolist())) != len(bounds):
             raise CpbcError("rate limit: a joint is bounded twice in one constraint")
-        # Every joint bounded, in order: Π is diagonal and needs no scatter.
-        self._all_joints_in_order = self._joint_index is not None and np.array_equal(
-            self._joint_index, np.arange(n_cols)
-        )
         for a in (self.rows, self.bounds):
             a.setflags(write=False)
+        self._constants = np.column_stack([rows, self._omega])  # the kernel's, packed
 
     @property
     def is_per_joint(self) -> bool:
@@ -83,18 +80,10 @@ class RateLimit(VelocityConstraint):
         return np.zeros((self.rows.shape[0], x.shape[0]))
 
     def barrier_terms(self, state: ArmState) -> tuple[Array, Array, Array | None]:
-        """ψ, Π = Aᵀ diag(1/ψ) A and b = 0 (None)."""
-        psi = self.value(state.x, state.dx)
-        n = state.x.shape[0]
-        if self._all_joints_in_order:
-            pi = np.zeros((n, n))
-            pi.flat[:: n + 1] = 1.0 / psi
-        elif self._joint_index is not None:
-            pi = np.zeros((n, n))
-            idx = self._joint_index
-            pi[idx, idx] = 1.0 / psi  # indices are distinct (checked in __init__)
-        else:
-            pi = self.rows.T @ (self.rows / psi[:, None])
+        """ψ, Π = Aᵀ diag(1/ψ) A and b = 0 (None) (cpbc.kernels.barriers.rate_limit_terms)."""
+        n = self.rows.shape[1]
+        psi, pi = np.empty(len(self.names)), np.empty((n, n))
+        rate_limit_terms(self._constants, state.dx, psi, pi)
         return psi, pi, None
 
 

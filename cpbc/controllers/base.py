@@ -87,8 +87,7 @@ class Controller(ABC):
         """The per-step state this law reads: the model's dynamics terms and, when a
         constraint or the potential needs them, its kinematics — computed once, read by law,
         constraints and potential."""
-        return self.model.state(x, dx, kinematics=self.constraints.needs_kinematics,
-                                frames=self.frames)
+        return self.constraints.state(self.model, x, dx, self.frames)
 
     @property
     def frames(self) -> tuple[int, ...]:

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
 from cpbc.controllers.base import Controller, Evaluation, positive_vector
-from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
+from cpbc.kernels.laws import cpbc_torque
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -76,15 +78,17 @@ class CPBC(Controller):
         return math.exp(math.log(lag) - self.shaping.log_s(bar.log_phi + bar.log_psi))
 
     def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float) -> Array:
-        """The law of the class docstring: τ from ∂U/∂x (``grad``), L and the barrier sums."""
-        a = -grad - self.damping.force(state.dx) - self.task_damping_force(state)
+        """The law of the class docstring: τ from ∂U/∂x (``grad``), L and the barrier sums
+        (cpbc.kernels.laws.cpbc_torque)."""
+        force = -grad - self.damping.force(state.dx) - self.task_damping_force(state)
         rho = self.shaping.ratio(bar.log_phi + bar.log_psi) * lag
-        if bar.gradient is not None:
-            a += rho * bar.gradient
-        if bar.weight is None:
-            return state.gravity + a
+        n = force.shape[0]
         c = state.coriolis_force + state.dissipation if self.model.has_friction else (
             state.coriolis_force
         )
-        y = solve_spd(state.inertia + rho * bar.weight, a - c)
-        return state.gravity + c + state.inertia.dot(y)
+        tau = np.empty(n)
+        cpbc_torque(state.inertia, state.gravity, c, force,
+                    np.zeros(n) if bar.gradient is None else bar.gradient,
+                    np.zeros((n, n)) if bar.weight is None else bar.weight,
+                    bar.weight is not None, rho, np.empty((n, 2 * n + 1)), tau)
+        return tau

@@ -14,6 +14,7 @@ from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
 from cpbc.errors import ConstraintViolation, CpbcError
+from cpbc.kernels.laws import cpbc_ke_torque
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -63,6 +64,12 @@ class CPBCKineticEnergy(Controller):
         self.damping: Damping = LinearDamping(self.kd)
         self._config = ConstraintSet(model.n, constraints.configuration)
 
+    def state(self, x: Array, dx: Array) -> ArmState:
+        """The per-step state of the configuration constraints and the potential: the law
+        reads the energy limit through D alone (no C, which the limit's own barrier terms
+        would need)."""
+        return self._config.state(self.model, x, dx, self.frames)
+
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         dx = state.dx
         kinetic = 0.5 * float(dx @ state.inertia @ dx)
@@ -79,9 +86,12 @@ class CPBCKineticEnergy(Controller):
 
     def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float, psi: float
              ) -> Array:
-        """The law of the class docstring, from ∂U/∂x (``grad``)."""
+        """The law of the class docstring, from ∂U/∂x (``grad``)
+        (cpbc.kernels.laws.cpbc_ke_torque)."""
         rho = self.shaping.ratio(bar.log_phi + math.log(psi)) * lag
-        shaped = -(grad + self.damping.force(state.dx) + self.task_damping_force(state))
-        if bar.gradient is not None:
-            shaped += rho * bar.gradient
-        return state.gravity + shaped / (1.0 + rho / psi)
+        force = -grad - self.damping.force(state.dx) - self.task_damping_force(state)
+        n = force.shape[0]
+        tau = np.empty(n)
+        cpbc_ke_torque(state.gravity, force, np.zeros(n) if bar.gradient is None else (
+            bar.gradient), rho, psi, tau)
+        return tau

@@ -23,10 +23,10 @@ class ArmState(NamedTuple):
     :meth:`RobotModel.state`: the state and the terms of D(q) q̈ + C(q, q̇) q̇ + g(q) + f(q̇) = τ
     (eq. 6.1), in controller coordinates.
 
-    With ``kinematics=True`` the model's Pinocchio data also holds this state's joint and
-    frame placements and joint Jacobians (``RobotModel.data``), which constraints read
-    instead of running their own kinematics; they stay valid until the next model call at
-    another configuration.
+    It is the only place a law, its constraints and its potential read the arm from: none of
+    them reads the model's Pinocchio data behind it. What a reader needs beyond the dynamics
+    terms it asks for when the state is built (``RobotModel.state``: ``kinematics``,
+    ``frames``, ``coriolis``); the fields it did not ask for are None or empty.
 
     Attributes:
         x, dx: the state, shape (n,).
@@ -39,6 +39,12 @@ class ArmState(NamedTuple):
         frames: the placement and Jacobian of every frame asked for (``frames=`` of
             :meth:`RobotModel.state`, e.g. those a task potential reads), by frame id; empty
             when none was asked for.
+        coriolis_matrix: C(x, ẋ) in Christoffel form, shape (n, n), with ``coriolis=True``
+            (the kinetic-energy limit's ∂ψ/∂x = −Cᵀẋ), else None.
+        joint_jacobians: Pinocchio's world joint Jacobians J = [v; ω] (6, n) in *joint*
+            coordinates, with ``kinematics=True`` (clearance), else None.
+        regressor: every joint placement Y = [t_1 R_1 … t_m R_m]/M (3, 4m), Pinocchio's
+            static regressor (M the total mass), with ``kinematics=True``, else None.
     """
 
     x: Array
@@ -50,6 +56,9 @@ class ArmState(NamedTuple):
     gravity: Array
     dissipation: Array
     frames: Mapping[int, FrameKinematics] = _NO_FRAMES
+    coriolis_matrix: Array | None = None
+    joint_jacobians: Array | None = None
+    regressor: Array | None = None
 
 
 def _is_prismatic(shortname: str) -> bool:
@@ -187,12 +196,14 @@ class RobotModel:
         return self.viscous_friction.dot(dx)
 
     def state(self, x: Array, dx: Array, kinematics: bool = False,
-              frames: Iterable[int] = ()) -> ArmState:
+              frames: Iterable[int] = (), coriolis: bool = False) -> ArmState:
         """The per-step state at (x, ẋ): D, C ẋ, g and f from three Pinocchio passes (CRBA,
-        RNEA, gravity) and, with ``kinematics`` or any ``frames``, one pass for every joint and
-        frame placement and joint Jacobian (left in ``self.data``), from which each frame of
-        ``frames`` is read into ``ArmState.frames``. Fresh arrays every call: nothing is kept
-        between calls."""
+        RNEA, gravity); with ``coriolis`` the matrix C (one more pass); with ``kinematics``
+        or any ``frames`` one pass for every joint and frame placement and joint Jacobian,
+        from which each frame of ``frames`` is read into ``ArmState.frames`` and — with
+        ``kinematics`` — the joint Jacobians and placements (the static regressor, one more
+        call) are copied into the state. Fresh arrays every call: nothing is kept between
+        calls, and nothing in ``self.data`` is meant to be read afterwards."""
         model, data = self.model, self.data
         if self._identity:
             q, dq = x, dx
@@ -204,17 +215,25 @@ class RobotModel:
         nle = pin.nonLinearEffects(model, data, q, dq)
         g = pin.computeGeneralizedGravity(model, data, q)
         f = self.dissipation(dx)
+        c_matrix = self._back(pin.computeCoriolisMatrix(model, data, q, dq).copy()) if (
+            coriolis) else None
         wanted = tuple(frames)
+        jac = placements = None
         if kinematics or wanted:  # after the dynamics passes, which may leave other placements
             pin.computeJointJacobians(model, data, q)
             pin.updateFramePlacements(model, data)
         found = MappingProxyType({i: self._state_frame(i) for i in wanted}) if wanted else (
             _NO_FRAMES)
+        if kinematics:
+            jac = data.J.copy()
+            placements = pin.computeStaticRegressor(model, data, q).copy()
         if self._identity:
-            return ArmState(x, dx, q, dq, m.copy(), nle - g, g.copy(), f, found)
+            return ArmState(x, dx, q, dq, m.copy(), nle - g, g.copy(), f, found, c_matrix,
+                            jac, placements)
         t_inv_t = self._t_inv_t
         inertia = self._congruence.dot(m.reshape(-1)).reshape(self.n, self.n)
-        return ArmState(x, dx, q, dq, inertia, t_inv_t.dot(nle - g), t_inv_t.dot(g), f, found)
+        return ArmState(x, dx, q, dq, inertia, t_inv_t.dot(nle - g), t_inv_t.dot(g), f, found,
+                        c_matrix, jac, placements)
 
     def dynamics(self, x: Array, dx: Array) -> ArmState:
         """The per-step state without kinematics (:meth:`state`)."""
@@ -256,13 +275,6 @@ class RobotModel:
         j = pin.computeFrameJacobian(
             self.model, self.data, self._q(x), frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
         )  # also updates the frame's placement
-        return self._point(frame_id, j, offset)
-
-    def state_point(self, frame_id: int, offset: Array | None = None) -> tuple[Array, Array]:
-        """Position (3,) and Jacobian ∂p/∂x (3, n) of a point fixed in a frame, read from the
-        kinematics of the last :meth:`state` with ``kinematics=True`` (no new pass)."""
-        j = pin.getFrameJacobian(
-            self.model, self.data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
         return self._point(frame_id, j, offset)
 
     def _state_frame(self, frame_id: int) -> FrameKinematics:

@@ -56,8 +56,7 @@ def log_norm(law: Controller, x: Array) -> float:
     shaping = getattr(law, "shaping", None)
     if shaping is None or law.constraints.empty:
         return 0.0
-    state = law.model.state(x, np.zeros(law.model.n),
-                            kinematics=law.constraints.needs_kinematics)
+    state = law.constraints.state(law.model, x, np.zeros(law.model.n))
     try:
         bar = law.constraints.barrier(state)
     except ConstraintViolation:

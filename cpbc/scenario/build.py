@@ -725,7 +725,7 @@ def _check_recentred(controllers: list[ControllerEntry], cases: list[CaseEntry],
         if not isinstance(law, RecentredBarrier):
             continue
         for case in cases:
-            state = model.state(case.position, case.velocity)
+            state = law.state(case.position, case.velocity)
             problem = law.start_problem(state, names, loop.torque_limit, period)
             if problem is not None:
                 raise ScenarioError(f"controllers[{i}]",

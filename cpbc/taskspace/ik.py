@@ -116,8 +116,7 @@ class _Flow:
         self.zero = np.zeros(model.n)
 
     def at(self, x: Array) -> _Point | None:
-        state = self.model.state(x, self.zero, kinematics=self.constraints.needs_kinematics,
-                                 frames=[self.goal.frame])
+        state = self.constraints.state(self.model, x, self.zero, [self.goal.frame])
         kin = state.frames[self.goal.frame]
         r, jac = _residual(self.goal, kin)
         if self.constraints.empty:

@@ -133,7 +133,7 @@ class Clearance(PairLayout, ConfigurationConstraint):
         self._inv_ell = np.array(1.0 / (self.influence or 1.0))
         self.self_pairs = tuple((str(a), str(b)) for a, b in self_pairs)
         self._pin = model.model
-        self._data = model.data  # the model's: the per-step state leaves its Jacobians there
+        self._data = self._pin.createData()  # its own, for evaluations away from the state
         self._n = model.n
         self._identity = model.coordinates.is_identity
         self._t_inv = model.coordinates.inverse
@@ -242,7 +242,7 @@ class Clearance(PairLayout, ConfigurationConstraint):
             bounds = [*s.starts.tolist(), len(phi)]
             closest = [lo + int(np.argmin(phi[lo:hi])) for lo, hi in pairwise(bounds)]
             grad[s.start:s.stop] = g0[closest]
-        jacobian_rows = partial(self._rows_times_jacobians, q)
+        jacobian_rows = partial(self._rows_times_jacobians, self._jacobians(q))
         for g in self._groups:
             grad[g.start:g.stop] = g.gradient(*g.narrow(y), jacobian_rows)
         if not self._identity:
@@ -331,16 +331,19 @@ class Clearance(PairLayout, ConfigurationConstraint):
 
     def barrier_terms(self, state: ArmState, margins: bool = False
                       ) -> tuple[Array, Array, Array | None]:
-        """φ̃, Σ ∇φ̃/φ̃ and (with ``margins``) the clearances φ, from one pass that reads
-        the state's joint Jacobians."""
-        return self._barrier(state.x, state.q, margins)
+        """φ̃, Σ ∇φ̃/φ̃ and (with ``margins``) the clearances φ, from the state's joint
+        placements and Jacobians (``RobotModel.state(kinematics=True)``)."""
+        if state.regressor is None or state.joint_jacobians is None:
+            raise CpbcError("clearance reads the state's joint kinematics: build the state "
+                            "with kinematics=True (a law's state(x, dx) does)")
+        return self._barrier(state.x, state.regressor, state.joint_jacobians, margins)
 
-    def _barrier(self, x: Array, q: Array, with_value: bool
+    def _barrier(self, x: Array, y: Array, jac: Array, with_value: bool
                  ) -> tuple[Array, Array, Array | None]:
         """The sphere pairs' factors of φ̃ and their normals, then the terms of the capsule
         groups that may be within ℓ, then the force of both (``_force``). Outside S: the
-        clearances φ for φ̃ and no force (the constraint set raises)."""
-        y = self._regressor(q)
+        clearances φ for φ̃ and no force (the constraint set raises). ``y``, ``jac``: the
+        joint placements and Jacobians at x."""
         value: Array | None = None
         phi_out: Array | None = None
         sphere_local: Array | None = None  # the pairs' normals × (dφ̃/dφ)/φ̃, obstacle frames
@@ -364,7 +367,7 @@ class Clearance(PairLayout, ConfigurationConstraint):
             value = self.value(x)
         if phi_out is None:
             return self._far_phi, self._zero, value
-        return phi_out, self._force(q, sphere_local, rows), value
+        return phi_out, self._force(jac, sphere_local, rows), value
 
     def _capsule_law(self, y: Array, phi_out: Array | None
                      ) -> tuple[Array | None, list[Rows]] | None:
@@ -382,16 +385,15 @@ class Clearance(PairLayout, ConfigurationConstraint):
             rows += g_rows
         return phi_out, rows
 
-    def _force(self, q: Array, sphere_local: Array | None, rows: list[Rows]) -> Array:
+    def _force(self, jac: Array, sphere_local: Array | None, rows: list[Rows]) -> Array:
         """Σ ∇φ̃/φ̃: the sphere pairs' (``_sphere_force``) plus the capsule rows', from the
-        state's joint Jacobians (RobotModel.state, kinematics=True)."""
-        jac = self._data.J
+        state's joint Jacobians ``jac`` (RobotModel.state, kinematics=True)."""
         b = self._zero
         if sphere_local is not None:
             b = self._sphere_force(sphere_local, jac)
         if rows:
             points, normals, masks = (np.concatenate(part) for part in zip(*rows, strict=True))
-            b = b + self._rows_times_jacobians(q, points, normals, masks, jac).sum(axis=0)
+            b = b + self._rows_times_jacobians(jac, points, normals, masks).sum(axis=0)
         if not self._identity:
             b = b @ self._t_inv
         return b

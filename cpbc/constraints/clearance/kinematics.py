@@ -33,7 +33,7 @@ class Kinematics:
     influence: float | None
     self_pairs: tuple[tuple[str, str], ...]
     _pin: pin.Model
-    _data: pin.Data  # the model's: the per-step state leaves its Jacobians there
+    _data: pin.Data  # its own, for evaluations away from the per-step state
     _n: int
     _identity: bool
     _t_inv: Array
@@ -108,11 +108,9 @@ class Kinematics:
         pin.computeJointJacobians(self._pin, self._data, q)
         return self._data.J
 
-    def _rows_times_jacobians(
-        self, q: Array, points: Array, normals: Array, masks: Array, jac: Array | None = None
-    ) -> Array:
+    def _rows_times_jacobians(self, jac: Array, points: Array, normals: Array, masks: Array
+                              ) -> Array:
         """Rows n_rᵀ J(p_r) with J(p) the Jacobian of a point fixed on its link, shape (r, n),
-        joint coordinates (``jac``: the joint Jacobians at q, if already computed)."""
-        jac = self._jacobians(q) if jac is None else jac
+        joint coordinates, from the joint Jacobians ``jac`` (6, n) at the configuration."""
         outer = (points[:, :, None] * normals[:, None, :]).reshape(-1, 9)
         return (normals @ jac[:3] + outer @ (CROSS @ jac[3:])) * masks

@@ -117,13 +117,13 @@ class SpherePairs(Kinematics):
         normal = np.einsum("pab,bp->pa", s.pair_rot, local)
         centres = s.scratch[:3]
         jac = self._jacobians(q)
-        grad = self._rows_times_jacobians(q, centres[:, s.pair_sphere].T, normal,
-                                          s.sphere_supports[s.pair_sphere], jac)
+        grad = self._rows_times_jacobians(jac, centres[:, s.pair_sphere].T, normal,
+                                          s.sphere_supports[s.pair_sphere])
         if len(s.pair_sphere2):
             at = s.n_obstacle
             grad[at:] -= self._rows_times_jacobians(
-                q, centres[:, s.pair_sphere2].T, normal[at:],
-                s.sphere_supports[s.pair_sphere2], jac)
+                jac, centres[:, s.pair_sphere2].T, normal[at:],
+                s.sphere_supports[s.pair_sphere2])
         return d - s.rsum, grad
 
     def _sphere_force(self, local: Array, jac: Array) -> Array:

@@ -1,0 +1,33 @@
+"""Compiled kernels: each formula of the hot path written once, over arrays, compiled by numba.
+
+The constraint and law classes keep their Python methods as thin wrappers that call these
+(the formulas live here, next to their thesis equation numbers): a subclass that overrides a
+method replaces the kernel call with its own code, so nothing dispatches on type.
+
+Every kernel is compiled ahead of first use for the one signature its wrapper calls it with
+(``kernel``), in nopython mode only, and cached on disk by numba next to this package
+(``cache=True``: numba's own cache, the only state kept between runs). ``python -m
+cpbc.kernels --warm`` compiles them once (scripts/install.sh runs it), so a fresh process
+compiles nothing; ``--check`` fails when any kernel is not compiled in nopython mode.
+With ``NUMBA_DISABLE_JIT=1`` the same functions run as plain Python (the tests compare both).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, TypeVar, cast
+
+import numba
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def kernel(signature: str) -> Callable[[F], F]:
+    """numba's nopython compilation of one function for one signature, cached on disk;
+    numpy's floating-point semantics (x/0 is ±inf or NaN, as the numpy code it replaces)."""
+
+    def wrap(fn: F) -> F:
+        compiled = numba.njit(signature, cache=True, nogil=True, error_model="numpy")(fn)
+        return cast(F, compiled)
+
+    return wrap

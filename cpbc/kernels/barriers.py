@@ -1,0 +1,83 @@
+"""The constraints' log-barrier terms (the laws' b_φ = Σ ∇φ_i/φ_i, Π = Σ Q_j/ψ_j,
+b_ψ = Σ ∂_xψ_j/ψ_j), one kernel per constraint kind."""
+
+from __future__ import annotations
+
+from cpbc.arrays import Array
+from cpbc.kernels import kernel
+
+
+@kernel("void(float64[:, :], float64[:], float64[:], float64[:])")
+def linear_limit_terms(constants: Array, x: Array, phi: Array, gradient: Array) -> None:
+    """Two-sided limits lower_i < a_iᵀx < upper_i as φ_i = (a_iᵀx − l_i)(u_i − a_iᵀx) (the
+    joint limit of eq. 6.50 up to a constant factor; the relative limit φ₂ of Section 6.4):
+    φ into ``phi`` (k,) and Σ ∇φ_i/φ_i = Σ a_i (l_i + u_i − 2a_iᵀx)/φ_i into ``gradient``
+    (n,), which is overwritten. ``constants``: [a_iᵀ l_i u_i] row by row, shape (k, n + 2)."""
+    k, n = constants.shape[0], constants.shape[1] - 2
+    rows = constants[:, :n]
+    lower, upper = constants[:, n], constants[:, n + 1]
+    for j in range(n):
+        gradient[j] = 0.0
+    for i in range(k):
+        y = 0.0
+        for j in range(n):
+            if rows[i, j] != 0.0:  # a row's zeros ignore the other coordinates, even NaN
+                y += rows[i, j] * x[j]
+        p = (y - lower[i]) * (upper[i] - y)
+        phi[i] = p
+        w = (lower[i] + upper[i] - 2.0 * y) / p
+        for j in range(n):
+            if rows[i, j] != 0.0:
+                gradient[j] += w * rows[i, j]
+
+
+@kernel("void(float64[:, :], float64[:], float64[:], float64[:, :])")
+def rate_limit_terms(constants: Array, dx: Array, psi: Array, weight: Array) -> None:
+    """Rate limits |a_jᵀẋ| < B_j as ψ_j = Ω_j − ½(a_jᵀẋ)², Ω_j = B_j²/2, Q_j = a_j a_jᵀ
+    (Remark 6.7, eq. 7.9): ψ into ``psi`` (k,) and Π = Σ a_j a_jᵀ/ψ_j into ``weight``
+    (n, n), which is overwritten; ∂ψ/∂x = 0. ``constants``: [a_jᵀ Ω_j] row by row, shape
+    (k, n + 1)."""
+    k, n = constants.shape[0], constants.shape[1] - 1
+    rows = constants[:, :n]
+    omega = constants[:, n]
+    for a in range(n):
+        for b in range(n):
+            weight[a, b] = 0.0
+    for i in range(k):
+        y = 0.0
+        for j in range(n):
+            if rows[i, j] != 0.0:  # a row's zeros ignore the other rates, even NaN
+                y += rows[i, j] * dx[j]
+        p = omega[i] - 0.5 * y * y
+        psi[i] = p
+        inv = 1.0 / p
+        for a in range(n):
+            ra = rows[i, a]
+            if ra != 0.0:
+                ra *= inv
+                for b in range(n):
+                    if rows[i, b] != 0.0:
+                        weight[a, b] += ra * rows[i, b]
+
+
+@kernel("float64(float64, float64[:, :], float64[:, :], float64[:], float64[:, :], float64[:])")
+def kinetic_energy_terms(limit: float, inertia: Array, coriolis: Array, dx: Array,
+                         weight: Array, gradient: Array) -> float:
+    """A kinetic-energy limit ψ = Ω − ½ẋᵀD(x)ẋ (eq. 6.66, 7.33), Q = D, ∂ψ/∂x = −Cᵀẋ with
+    C in Christoffel form: returns ψ, writes Π = D/ψ into ``weight`` and b = −Cᵀẋ/ψ into
+    ``gradient``."""
+    n = dx.shape[0]
+    energy = 0.0
+    for a in range(n):
+        s = 0.0
+        for b in range(n):
+            s += inertia[a, b] * dx[b]
+        energy += dx[a] * s
+    psi = limit - 0.5 * energy
+    for a in range(n):
+        s = 0.0
+        for b in range(n):
+            weight[a, b] = inertia[a, b] / psi
+            s += coriolis[b, a] * dx[b]
+        gradient[a] = -s / psi
+    return psi

@@ -1,0 +1,56 @@
+"""The laws' formulas, given the potential's force, the damping and the barrier sums."""
+
+from __future__ import annotations
+
+from cpbc.arrays import Array
+from cpbc.kernels import kernel
+from cpbc.kernels.linalg import solve_spd
+
+
+@kernel("void(float64[:, :], float64[:], float64[:], float64[:], float64[:], float64[:, :],"
+        " boolean, float64, float64[:, :], float64[:])")
+def cpbc_torque(inertia: Array, gravity: Array, bias: Array, force: Array, gradient: Array,
+                weight: Array, constrained_rate: bool, rho: float, work: Array, tau: Array
+                ) -> None:
+    """CPBC (Theorem 6.9, eq. 6.24) in log-barrier form:
+
+        a = force + ρ (b_φ + b_ψ),   τ = g + c + D (D + ρΠ)⁻¹ (a − c)
+
+    with ``force`` = −∂U/∂x − K_D ẋ − F, ``bias`` c = C ẋ + f, ``gradient`` b_φ + b_ψ and
+    ``weight`` Π. Without velocity constraints (``constrained_rate`` False, Π = 0) this is
+    τ = g + a. ``work``: (n, 2n + 1) scratch. τ into ``tau``."""
+    n = gravity.shape[0]
+    for i in range(n):
+        tau[i] = force[i] + rho * gradient[i]  # a
+    if not constrained_rate:
+        for i in range(n):
+            tau[i] += gravity[i]
+        return
+    m = work[:, :n]
+    factor = work[:, n:2 * n]
+    rhs = work[:, 2 * n]
+    for i in range(n):
+        rhs[i] = tau[i] - bias[i]
+        for j in range(n):
+            m[i, j] = inertia[i, j] + rho * weight[i, j]
+    solve_spd(m, rhs, factor, tau)  # tau holds y = (D + ρΠ)⁻¹ (a − c)
+    for i in range(n):
+        s = 0.0
+        for j in range(n):
+            s += inertia[i, j] * tau[j]
+        rhs[i] = gravity[i] + bias[i] + s
+    for i in range(n):
+        tau[i] = rhs[i]
+
+
+@kernel("void(float64[:], float64[:], float64[:], float64, float64, float64[:])")
+def cpbc_ke_torque(gravity: Array, force: Array, gradient: Array, rho: float, psi: float,
+                   tau: Array) -> None:
+    """CPBC-KE (Corollary 6.11, eq. 6.67) with shaping, in log-barrier form:
+
+        τ = g + (force + ρ b_φ) / (1 + ρ/ψ),   force = −∂U/∂x − K_D ẋ − F
+
+    (BPBC-KE, eq. 7.34, with the ln cosh spring and tanh damping in ``force``)."""
+    scale = 1.0 + rho / psi
+    for i in range(gravity.shape[0]):
+        tau[i] = gravity[i] + (force[i] + rho * gradient[i]) / scale

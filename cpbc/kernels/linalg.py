@@ -1,0 +1,73 @@
+"""A small dense solve inside the kernels (the laws' (D + ρΠ) y = a − c)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.kernels import kernel
+
+
+@kernel("void(float64[:, :], float64[:], float64[:, :], float64[:])")
+def _solve_lu(a: Array, b: Array, work: Array, y: Array) -> None:
+    """y = a⁻¹ b by Gaussian elimination with partial pivoting (``work`` holds the factors)."""
+    n = b.shape[0]
+    for i in range(n):
+        y[i] = b[i]
+        for j in range(n):
+            work[i, j] = a[i, j]
+    for col in range(n):
+        p = col
+        for i in range(col + 1, n):
+            if abs(work[i, col]) > abs(work[p, col]):
+                p = i
+        if p != col:
+            for j in range(n):
+                work[col, j], work[p, j] = work[p, j], work[col, j]
+            y[col], y[p] = y[p], y[col]
+        for i in range(col + 1, n):
+            f = work[i, col] / work[col, col]
+            for j in range(col, n):
+                work[i, j] -= f * work[col, j]
+            y[i] -= f * y[col]
+    for i in range(n - 1, -1, -1):
+        t = y[i]
+        for j in range(i + 1, n):
+            t -= work[i, j] * y[j]
+        y[i] = t / work[i, i]
+
+
+@kernel("void(float64[:, :], float64[:], float64[:, :], float64[:])")
+def solve_spd(a: Array, b: Array, work: Array, y: Array) -> None:
+    """y = a⁻¹ b for a symmetric positive definite a, by Cholesky a = L Lᵀ (L in ``work``,
+    shape (n, n)); by Gaussian elimination with partial pivoting when a is not numerically
+    positive definite. ``a`` and ``b`` are left as they are."""
+    n = b.shape[0]
+    spd = True
+    for j in range(n):
+        s = a[j, j]
+        for k in range(j):
+            s -= work[j, k] * work[j, k]
+        if not s > 0.0:
+            spd = False
+            break
+        d = np.sqrt(s)
+        work[j, j] = d
+        for i in range(j + 1, n):
+            t = a[i, j]
+            for k in range(j):
+                t -= work[i, k] * work[j, k]
+            work[i, j] = t / d
+    if spd:
+        for i in range(n):  # L z = b
+            t = b[i]
+            for k in range(i):
+                t -= work[i, k] * y[k]
+            y[i] = t / work[i, i]
+        for i in range(n - 1, -1, -1):  # Lᵀ y = z
+            t = y[i]
+            for k in range(i + 1, n):
+                t -= work[k, i] * y[k]
+            y[i] = t / work[i, i]
+        return
+    _solve_lu(a, b, work, y)

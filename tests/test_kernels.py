@@ -1,0 +1,160 @@
+"""The compiled kernels: nopython only, equal to the numpy formulas they replace, and equal
+to themselves run as plain Python (NUMBA_DISABLE_JIT=1, in a subprocess)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cpbc.bench import planar_2link
+from cpbc.constraints.base import ConfigurationConstraint, VelocityConstraint
+from cpbc.controllers import CPBC, CPBCKineticEnergy
+from cpbc.errors import ConstraintViolation
+from cpbc.kernels.laws import cpbc_ke_torque, cpbc_torque
+
+ROOT = Path(__file__).resolve().parents[1]
+JIT_OFF = os.environ.get("NUMBA_DISABLE_JIT", "0") not in ("", "0")
+
+
+@pytest.mark.skipif(JIT_OFF, reason="the kernels run as Python here")
+def test_every_kernel_is_compiled_in_nopython_mode() -> None:
+    from cpbc.kernels.__main__ import kernels, problems
+
+    assert len(list(kernels())) >= 7
+    assert problems() == []
+
+
+def _reference_cpbc(inertia, gravity, bias, force, gradient, weight, rho):
+    """The numpy code the kernel replaced: a = force + ρ b, τ = g + c + D (D + ρΠ)⁻¹ (a − c)."""
+    a = force + rho * gradient
+    if weight is None:
+        return gravity + a
+    return gravity + bias + inertia @ np.linalg.solve(inertia + rho * weight, a - bias)
+
+
+@pytest.mark.parametrize("n", [1, 2, 6, 7])
+def test_law_kernels_equal_the_numpy_formulas(n: int) -> None:
+    rng = np.random.default_rng(n)
+    for _ in range(50):
+        m = rng.normal(size=(n, n))
+        inertia = m @ m.T + 0.1 * np.eye(n)
+        w = rng.normal(size=(n, n))
+        weight = w @ w.T
+        g, c, f, b = (rng.normal(size=n) for _ in range(4))
+        rho = float(rng.uniform(0.0, 5.0))
+        for wt in (weight, None):
+            tau = np.empty(n)
+            cpbc_torque(inertia, g, c, f, b, np.zeros((n, n)) if wt is None else wt,
+                        wt is not None, rho, np.empty((n, 2 * n + 1)), tau)
+            np.testing.assert_allclose(tau, _reference_cpbc(inertia, g, c, f, b, wt, rho),
+                                       rtol=1e-12, atol=1e-12)
+        psi = float(rng.uniform(0.01, 3.0))
+        tau = np.empty(n)
+        cpbc_ke_torque(g, f, b, rho, psi, tau)
+        np.testing.assert_allclose(tau, g + (f + rho * b) / (1.0 + rho / psi), rtol=1e-12,
+                                   atol=1e-12)
+
+
+def test_an_indefinite_matrix_is_solved_by_elimination() -> None:
+    """D + ρΠ is positive definite in theory; when rounding makes it not, the kernel solves
+    by Gaussian elimination as numpy.linalg.solve would."""
+    inertia = np.array([[1.0, 2.0], [2.0, 1.0]])  # indefinite
+    g, c, f = np.array([0.5, -0.2]), np.array([0.1, 0.3]), np.array([1.0, 2.0])
+    tau = np.empty(2)
+    cpbc_torque(inertia, g, c, f, np.zeros(2), np.zeros((2, 2)), True, 0.0,
+                np.empty((2, 5)), tau)
+    np.testing.assert_allclose(tau, _reference_cpbc(inertia, g, c, f, np.zeros(2),
+                                                    np.zeros((2, 2)), 0.0), rtol=1e-12)
+
+
+def _law_reference(law, state) -> np.ndarray:
+    """τ of CPBC / CPBC-KE from the generic (numpy) barrier formulas of the base classes."""
+    config = [c for c in law.constraints.configuration]
+    phis, b = [], np.zeros(law.model.n)
+    for c in config:
+        phi, grad, _ = ConfigurationConstraint.barrier_terms(c, state)
+        phis.append(phi)
+        b = b + grad
+    _, du = law.potential.evaluate(state)
+    dx = state.dx
+    kinetic = 0.5 * float(dx @ state.inertia @ dx)
+    lag = kinetic + law.potential.evaluate(state)[0]
+    force = -du - law.damping.force(dx) - law.task_damping_force(state)
+    log_phi = sum(math.fsum(np.log(p)) for p in phis)
+    if isinstance(law, CPBCKineticEnergy):
+        psi = law.energy.limit - kinetic
+        rho = law.shaping.ratio(log_phi + math.log(psi)) * lag
+        return state.gravity + (force + rho * b) / (1.0 + rho / psi)
+    weight, log_psi = None, 0.0
+    for v in law.constraints.velocity:
+        psi, pi, bv = VelocityConstraint.barrier_terms(v, state)
+        log_psi += math.fsum(np.log(psi))
+        weight = pi if weight is None else weight + pi
+        b = b + bv
+    rho = law.shaping.ratio(log_phi + log_psi) * lag
+    bias = state.coriolis_force + state.dissipation
+    return _reference_cpbc(state.inertia, state.gravity, bias, force, b, weight, rho)
+
+
+def test_law_torques_equal_the_numpy_formulas_at_random_states() -> None:
+    """The planar bench's laws (thesis constraints, KE limits, shaping) at its states and at
+    random ones: the compiled torque equals the numpy formulas to 1e-12."""
+    setup = planar_2link()
+    rng = np.random.default_rng(7)
+    states = list(setup.states) + [(rng.uniform(-1, 1, 2), rng.uniform(-0.5, 0.5, 2))
+                                   for _ in range(40)]
+    checked = 0
+    for name, law in setup.controllers.items():
+        if not isinstance(law, CPBC | CPBCKineticEnergy):
+            continue
+        for x, dx in states:
+            state = law.state(x, dx)
+            try:
+                tau = law.evaluate_state(state).torque
+            except ConstraintViolation:
+                continue
+            np.testing.assert_allclose(tau, _law_reference(law, state), rtol=1e-12,
+                                       atol=1e-12, err_msg=name)
+            checked += 1
+    assert checked >= 100
+
+
+SCRIPT = """
+import json, sys
+import numpy as np
+from cpbc.bench import planar_2link
+from cpbc.bench_arms import panda
+from cpbc.errors import ConstraintViolation
+out = {}
+for setup in (planar_2link(), panda(states=8)):
+    for name, law in setup.controllers.items():
+        for i, (x, dx) in enumerate(setup.states[:8]):
+            try:
+                out[f"{setup.robot}/{name}/{i}"] = law.torque(x, dx).tolist()
+            except ConstraintViolation:
+                pass
+json.dump(out, sys.stdout)
+"""
+
+
+def _torques(jit_off: bool) -> dict[str, list[float]]:
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1" if jit_off else "0")
+    done = subprocess.run([sys.executable, "-c", SCRIPT], cwd=ROOT, env=env, check=True,
+                          capture_output=True, text=True, timeout=600)
+    return json.loads(done.stdout)
+
+
+def test_the_kernels_run_uncompiled_give_the_same_torques() -> None:
+    """Every bench law (planar and Panda) with the kernels compiled and run as plain Python
+    (NUMBA_DISABLE_JIT=1): the same torques to 1e-12."""
+    compiled, plain = _torques(False), _torques(True)
+    assert compiled.keys() == plain.keys() and len(compiled) >= 40
+    for key, tau in compiled.items():
+        np.testing.assert_allclose(tau, plain[key], rtol=1e-12, atol=1e-12, err_msg=key)
