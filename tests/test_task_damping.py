@@ -93,7 +93,8 @@ def _rate(law: Controller, model: RobotModel, x: np.ndarray, dx: np.ndarray,
 
 def _stated_rate(name: str, law: Controller, x: np.ndarray, dx: np.ndarray) -> float:
     """−ẋᵀ(K_D ẋ + F + f)/s (6.32, 7.22), the KE laws' (1 + ρ/ψ) on f (Corollaries 6.11, 7.8)."""
-    state = law.state(x, dx)
+    # every constraint's terms, the energy limit's included (CPBC-KE's own state leaves C out)
+    state = law.constraints.state(law.model, x, dx, law.frames)
     f = state.dissipation
     assert law.task_damping is not None
     task = law.task_damping.force(state, dx)

@@ -205,6 +205,10 @@ class RobotModel:
         call) are copied into the state. Fresh arrays every call: nothing is kept between
         calls, and nothing in ``self.data`` is meant to be read afterwards."""
         model, data = self.model, self.data
+        # the compiled kernels take writable float arrays: a law's own target (read-only) may
+        # be the state asked for
+        if not (x.flags.writeable and dx.flags.writeable):
+            x, dx = np.array(x, dtype=float), np.array(dx, dtype=float)
         if self._identity:
             q, dq = x, dx
         else:
