@@ -7,7 +7,9 @@ the rescue (cpbc.controllers.rescue.Rescue.torque) is timed. A call that searche
 from one that holds the committed brake. Prints per state the rescued steps, the searches and
 their cost, then the median and range over all searches [ms].
 
-    python scripts/rescue_cost.py
+    PYTHONPATH=. python scripts/rescue_cost.py
+
+(``PYTHONPATH=.``: measure this checkout's package, not an installed copy.)
 """
 
 from __future__ import annotations
