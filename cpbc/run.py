@@ -234,6 +234,7 @@ def _safeguard(s: RunSummary) -> str:
     if not s.safeguard_steps:
         return "-" if s.enforced_constraints else ""
     late = f", {s.safeguard_infeasible} infeasible" if s.safeguard_infeasible else ""
+    late += f", {s.rescues} rescued" if s.rescues else ""
     share = f"{s.safeguard_share:.1%}" if s.safeguard_share >= 0.001 else "<0.1%"
     return f"{share} ({s.safeguard_steps} steps{late})"
 

@@ -212,9 +212,10 @@ def _margin(row: Record) -> str:
 
 def table(doc: Record) -> Table:
     t = Table(title=f"cpbc verify: {_shown(doc['plan']['scenario'])}")  # type: ignore[index]
-    for col in ("controller", "rate", "viable runs", "violations", "deeper than 1e-6",
+    for col in ("controller", "rate", "stoppable runs", "violations", "deeper than 1e-6",
                 "worst depth", "worst margin", *(f"{k} (violated)" for k in CLASSES[1:]),
-                "filter acted", "infeasible steps", "torque on a limit", "failing seeds"):
+                "filter acted", "rows acted", "infeasible steps", "rescues",
+                "torque on a limit", "failing seeds"):
         t.add_column(col)
     for r in doc["results"]:  # type: ignore[attr-defined]
         nv = r["non_viable"]
@@ -223,10 +224,16 @@ def table(doc: Record) -> Table:
                   f"[red]{r['violations']}[/red]" if r["violations"] else "0",
                   str(r["deep_violations"]), f"{r['worst_depth']:.2g}", _margin(r),
                   *(f"{nv[k]['runs']} ({nv[k]['violations']})" for k in CLASSES[1:]),
-                  f"{r['filter_share']:.1%}", str(r["infeasible_steps"]),
-                  f"{r['torque_limit_share']:.1%}",
+                  f"{r['filter_share']:.1%}", f"{_rows(r):.1%}", str(r["infeasible_steps"]),
+                  str(r.get("rescues", 0)), f"{r['torque_limit_share']:.1%}",
                   ",".join(seeds[:8]) + ("…" if len(seeds) > 8 else ""))
     return t
+
+
+def _rows(row: Record) -> float:
+    """The share of steps the filter's own rows or conditions changed the torque (the whole
+    filter share in documents written before it was counted apart)."""
+    return float(row.get("row_share", row["filter_share"]))  # type: ignore[arg-type]
 
 
 def _shown(scenario: str) -> str:
@@ -263,10 +270,11 @@ def _section(doc: Record) -> list[str]:
              f"torque limits {_limits(where.get('torque_limit'))}; safeguard "
              f"{'on' if where.get('safeguard', True) else 'off'}{_also(where)}; mismatch "
              f"{plan['mismatch'] or 'none'}, noise {plan['noise'] or 'none'}.", "",
-             "| controller | rate | viable runs | violations | deeper than 1e-6 | worst depth | "
-             "worst margin | " + " | ".join(CLASSES[1:])
-             + " | filter acted | infeasible steps | torque on a limit | failing seeds |",
-             "|---" * (11 + len(CLASSES) - 1) + "|"]
+             "| controller | rate | stoppable runs | violations | deeper than 1e-6 | "
+             "worst depth | worst margin | " + " | ".join(f"{k} (violated)" for k in CLASSES[1:])
+             + " | filter acted | rows acted | infeasible steps | rescues | torque on a limit "
+             "| failing seeds |",
+             "|---" * (13 + len(CLASSES) - 1) + "|"]
     for r in doc["results"]:  # type: ignore[attr-defined]
         nv = r["non_viable"]
         lines.append(
@@ -274,8 +282,8 @@ def _section(doc: Record) -> list[str]:
             f"{r['deep_violations']} | {r['worst_depth']:.2g} | "
             f"{_cell(_margin(r))} | " + " | ".join(f"{nv[k]['runs']} ({nv[k]['violations']})"
                                              for k in CLASSES[1:])
-            + f" | {r['filter_share']:.1%} | {r['infeasible_steps']} | "
-            f"{r['torque_limit_share']:.1%} | "
+            + f" | {r['filter_share']:.1%} | {_rows(r):.1%} | {r['infeasible_steps']} | "
+            f"{r.get('rescues', 0)} | {r['torque_limit_share']:.1%} | "
             + f"{', '.join(str(f['seed']) for f in r['failures'])} |")
     return lines
 
@@ -292,21 +300,24 @@ def markdown(docs: Sequence[Record], command: str = "", seconds: float | None = 
              "Each state is classed per rate before it runs: *stoppable* (some brake within "
              "the torque box — uniform, least-squares, or aimed at the nearest constraint — "
              "held at the control rate in the true plant brings it to rest with every margin "
-             "positive: the *viable runs* column counts these, and a violation from here is a "
-             "defect), *not_stoppable* (none of those brakes does). "
-             "Non-viable runs are counted apart, as runs (violated). One rule for every "
-             "controller: *violations* are viable runs with a margin ≤ 0 at some physics "
-             "step, *deeper than 1e-6* those whose smallest margin fell below −1e-6 in the "
-             "constraint's own units (rad², m, rad/s: the rest are crossings of rounding "
-             "size), *worst depth* the largest such depth (0 when none crossed). *Filter "
-             "acted*: the share of control steps (all runs) at which the safeguard (or a "
-             "peer's filter) changed the nominal torque; *infeasible steps*: steps at which "
-             "it could not meet every row within the box (the guard's fallback, the peer's "
-             "slack); *torque on a limit*: the share of steps with a joint torque "
-             "on its actuator limit. A violation is judged on the true state at every "
-             "physics step, for every constraint the controller keeps: the law's own and, "
-             "with the safeguard, the scenario's monitored constraints it keeps besides "
-             "(`simulation.safeguard_monitored`). Reproduce one failure with "
+             "positive: the *stoppable runs* column counts these, and a violation from here "
+             "is a defect), *not_stoppable* (none of those brakes does; counted apart, as "
+             "runs (violated)). One rule for every controller: *violations* are stoppable "
+             "runs with a margin ≤ 0 at some physics step, *deeper than 1e-6* those whose "
+             "smallest margin fell below −1e-6 in the constraint's own units (rad², m, "
+             "rad/s: the rest are crossings of rounding size), *worst depth* the largest "
+             "such depth (0 when none crossed). *Filter acted*: the share of control steps "
+             "(all runs) at which the safeguard (or a peer's filter) changed the nominal "
+             "torque; *rows acted*: the share at which its own conditions changed it, not "
+             "the torque box alone (a peer clips its PD nominal to the box, which *filter "
+             "acted* counts too; every step the guard acts is its own); *infeasible steps*: "
+             "steps at which it could not meet every row within the box (the guard's "
+             "fallback, the peer's slack); *rescues*: steps at which the guard held its "
+             "rescue's brake (`cpbc.controllers.rescue`); *torque on a limit*: the share of "
+             "steps with a joint torque on its actuator limit. A violation is judged on the "
+             "true state at every physics step, for every constraint the controller keeps: "
+             "the law's own and, with the safeguard, the scenario's monitored constraints it "
+             "keeps besides (`simulation.safeguard_monitored`). Reproduce one failure with "
              "`--seeds K --rates R`.", ""]
     for doc in docs:
         lines += [*_section(doc), ""]

@@ -7,7 +7,10 @@ physics, torque limits and safeguard); the script prints per controller the medi
 quartiles and the range of the settle time, its ratio to the CBF-QP's on the same reach, and
 the reaches that did not converge.
 
-    python scripts/settle_family.py [--pairs 20] [--shift 0.1] [--seed 0]
+    PYTHONPATH=. python scripts/settle_family.py [--pairs 20] [--shift 0.1] [--seed 0]
+
+(``PYTHONPATH=.``: a script's own folder, not the checkout, heads Python's path, so without
+it an installed copy of cpbc would be measured instead of this one.)
 """
 
 from __future__ import annotations

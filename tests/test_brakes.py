@@ -55,3 +55,4 @@ def test_the_guard_keeps_states_only_a_better_brake_can_stop(scenario, rate, see
     check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
                         safeguard=setup.safeguard)
     assert not check.violated, (check.constraint, check.min_margin)
+    assert check.trajectory.rescues > 0  # the rescue held a brake, and the run counts it

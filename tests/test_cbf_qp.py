@@ -70,6 +70,25 @@ def test_filter_meets_its_rows_and_box_and_passes_a_safe_nominal(tmp_path):
         else:
             changed += 1
     assert law.acted == changed > 0
+    assert law.row_active_steps <= law.acted
+
+
+def test_a_clip_to_the_box_alone_is_not_counted_as_the_rows_acting(tmp_path):
+    """``acted`` counts every step whose torque differs from the PD nominal; the rows count
+    apart only the steps at which the solution differs from the nominal clipped to the box."""
+    spec = copy.deepcopy(ARM)
+    spec["robot"]["coordinates"] = "joint"  # T = I: the box-only answer is a clip
+    spec["constraints"] = [{"type": "joint_rate_limit", "name": "rates", "bounds": [5, 5]}]
+    law = _peer(_setup(spec, tmp_path))
+    far = law.state(np.array([-2.0, -2.0]), np.zeros(2))  # a large error: PD beyond the box
+    tau = law.evaluate_state(far).torque
+    assert np.max(np.abs(law.nominal(far))) > 3.0
+    np.testing.assert_allclose(tau, np.clip(law.nominal(far), -3, 3), atol=1e-6)
+    assert law.acted == 1 and law.row_active_steps == 0
+    spec["constraints"][0]["bounds"] = [0.3, 0.2]
+    law = _peer(_setup(spec, tmp_path))
+    law.evaluate_state(law.state(np.array([0.0, 0.0]), np.array([0.0, 0.199])))
+    assert law.acted == law.row_active_steps == 1  # near a rate bound, accelerated on: the row
 
 
 def test_rate_rows_are_the_constraint_objects_bounds(tmp_path):
@@ -170,22 +189,33 @@ def test_cushion_and_rate_gain_follow_the_period(tmp_path):
     assert 0.08 < slow.tuning.rate_cushion < 0.12
 
 
-def test_shipped_panda_comparison_settles_within_a_tenth_of_the_qp(tmp_path):
-    """Issue 12's performance target on panda_cbf_qp: the guarded CPBC with α = 0.01 settles
-    no later than 1.1 × the CBF-QP (measured 2.223 s against 2.021 s with the hold
-    correction, 2.189 s without) while keeping every constraint; with α = 0.2 it takes
-    2.64 s (its barrier's added inertia ρΠ = αL Σ Q/ψ slows it far from the rate bounds)."""
+def _settle(tmp_path: Path, spec: dict, name: str) -> dict[str, dict]:
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    out = tmp_path / name
+    assert main([str(path), "--out", str(out), "--quiet", "--no-plots"]) == 0
+    import json
+    return {r["controller"]: r for r in json.loads((out / "summary.json").read_text())}
+
+
+def test_shipped_panda_reach_both_ways_settles_within_a_tenth_of_the_qp(tmp_path):
+    """The claim is the family's (scripts/settle_family.py, docs/reliability.md): over 40
+    reaches around panda_cbf_qp's the guarded CPBC with α = 0.01 settles in a median 1.097× the
+    CBF-QP's time (quartiles 1.085–1.113, range 1.028–1.152), not within 1.1× on every reach.
+    This checks the two reaches the family
+    starts from — the shipped one and its reversal — at 1.1×: measured 2.189 s against
+    2.023 s (1.082×) and 2.207 s against 2.031 s (1.087×), 2026-11-25, while every
+    constraint is kept. α = 0.2 takes 1.30× (its barrier's added inertia ρΠ = αL Σ Q/ψ slows
+    it far from the rate bounds); it is not run here."""
     from cpbc.resources import scenarios_dir
 
     spec = yaml.safe_load((scenarios_dir() / "panda_cbf_qp.yaml").read_text())
     spec["controllers"] = [c for c in spec["controllers"] if c["name"] != "CPBC"]
-    path = tmp_path / "s.yaml"
-    path.write_text(yaml.safe_dump(spec))
-    out = tmp_path / "out"
-    assert main([str(path), "--out", str(out), "--quiet", "--no-plots"]) == 0
-    import json
-    runs = {r["controller"]: r for r in json.loads((out / "summary.json").read_text())}
-    law, qp = runs["CPBC-alpha0.01"], runs["CBF-QP"]
-    assert law["status"] == qp["status"] == "converged"
-    assert law["settle_time"] <= 1.1 * qp["settle_time"]
-    assert min(law["min_margins"].values()) > 0 and not law["crossed_constraints"]
+    back = copy.deepcopy(spec)
+    back["target"], back["cases"][0]["position"] = spec["cases"][0]["position"], spec["target"]
+    for name, s in (("shipped", spec), ("reversed", back)):
+        runs = _settle(tmp_path, s, name)
+        law, qp = runs["CPBC-alpha0.01"], runs["CBF-QP"]
+        assert law["status"] == qp["status"] == "converged"
+        assert law["settle_time"] <= 1.1 * qp["settle_time"], name
+        assert min(law["min_margins"].values()) > 0 and not law["crossed_constraints"]

@@ -134,10 +134,20 @@ class SafetyFilter(Controller):
     Attributes:
         acted: control steps at which it changed the torque it filters.
         infeasible: of those, steps at which it could not meet all its conditions.
+        rescues: steps at which it held a rescue brake (the safeguard's rescue; 0 for a
+            peer).
     """
 
     acted: int = 0
     infeasible: int = 0
+    rescues: int = 0
+
+    @property
+    def row_active_steps(self) -> int:
+        """Steps at which its own safety conditions, not the torque box alone, changed the
+        torque: every step it acted, unless the filter counts them apart (a peer whose
+        nominal torque is clipped to the box counts that clip in ``acted`` too)."""
+        return self.acted
 
     def restarted(self) -> SafetyFilter:
         """The same filter with its counts at zero, for a new run."""

@@ -124,6 +124,14 @@ class CBFQP(SafetyFilter):
         self._solve = _daqp()
         self.acted = 0
         self.infeasible = 0
+        self.rows_active = 0
+
+    @property
+    def row_active_steps(self) -> int:
+        """Steps at which the barrier rows changed the torque: the solution differs from the
+        nominal projected on the torque box alone (or the step was infeasible). ``acted``
+        counts the box's clip of the nominal too."""
+        return self.rows_active
 
     def _set_period(self, period: float) -> None:
         rate_gain, cushion = self._given
@@ -145,7 +153,7 @@ class CBFQP(SafetyFilter):
 
     def restarted(self) -> CBFQP:
         out = copy.copy(self)
-        out.acted = out.infeasible = 0
+        out.acted = out.infeasible = out.rows_active = 0
         return out
 
     def at_period(self, period: float) -> CBFQP:
@@ -192,6 +200,18 @@ class CBFQP(SafetyFilter):
                                     upper, lower, np.zeros(len(upper), dtype=np.int32))
         return np.asarray(z)[:n], int(flag)
 
+    def _box_only(self, nominal: Array) -> Array:
+        """The nominal projected on the torque box alone (no barrier rows): what the filter
+        would apply if no row were there."""
+        if self.torque_limit is None:
+            return nominal
+        if self._box_rows is None:
+            lim = self.torque_limit * (1 - 1e-9)
+            return np.clip(nominal, -lim, lim)
+        empty = np.zeros((0, self.model.n))
+        tau, flag = self._qp(nominal, empty, np.zeros(0), np.zeros(0), box=True)
+        return tau if flag == 1 else nominal
+
     def _fallback(self, nominal: Array, rows: Rows) -> Array:
         """An infeasible step: braking keeps the box and relaxes the configuration rows
         (then every row, if the rate rows alone contradict the box); exponential drops the
@@ -218,8 +238,11 @@ class CBFQP(SafetyFilter):
         if not feasible:  # counted as a step it acted on, of which it could not meet all
             self.infeasible += 1
             tau = self._fallback(nominal, rows)
-        if not feasible or np.max(np.abs(tau - nominal)) > 1e-9 * (1 + np.max(np.abs(nominal))):
+        tol = 1e-9 * (1 + np.max(np.abs(nominal)))
+        if not feasible or np.max(np.abs(tau - nominal)) > tol:
             self.acted += 1
+            if not feasible or np.max(np.abs(tau - self._box_only(nominal))) > tol:
+                self.rows_active += 1
         err = state.x - self.target
         value = 0.5 * float(state.dx @ state.inertia @ state.dx) + 0.5 * float(
             err @ (self.kp * err))

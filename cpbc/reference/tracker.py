@@ -127,7 +127,14 @@ class GuardedReferenceTracker(ReferenceTracker, SafetyFilter):
         run = self.run
         assert isinstance(run, SafetyFilter)
         self.acted, self.infeasible = run.acted, run.infeasible
+        self.rescues = run.rescues
         return out
+
+    @property
+    def row_active_steps(self) -> int:
+        run = self.run
+        assert isinstance(run, SafetyFilter)
+        return run.row_active_steps
 
 
 def tracking(law: Controller, period: float, plan: ReferencePlan | None = None,

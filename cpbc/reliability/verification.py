@@ -254,6 +254,7 @@ def run_block(block: Block) -> list[Record]:
             "final_error": float(np.max(np.abs(traj.position[-1] - entry.controller.target))),
             "control_steps": int(traj.control_steps), "acted": int(traj.safeguard_steps),
             "infeasible": int(traj.safeguard_infeasible),
+            "rows_acted": int(traj.filter_row_steps), "rescues": int(traj.rescues),
             "at_limit": _steps_at_limit(traj.joint_torque, settings.torque_limit),
             "position": s.position.tolist(), "velocity": s.velocity.tolist(),
         })
@@ -277,8 +278,9 @@ def _worst(rows: Sequence[Record]) -> tuple[float, str | None]:
 def summarise(plan: Plan, records: Iterable[Record]) -> Record:
     """The campaign's document: per controller and rate the viable runs, their violations
     (runs with a margin ≤ 0) and of those the runs deeper than TOLERANCE, the worst margin and
-    depth, the seeds of each failure, the share of steps the filter changed and its
-    infeasible steps; non-viable runs per class, apart."""
+    depth, the seeds of each failure, the share of steps the filter changed (and of those
+    its own rows or conditions, not the torque box alone), its infeasible steps and the steps
+    the guard's rescue held a brake; not-stoppable runs, apart."""
     rows = []
     order = sorted(_group(records).items(), key=lambda kv: (kv[0][0], -kv[0][1]))
     for (name, rate), group in order:
@@ -302,6 +304,9 @@ def summarise(plan: Plan, records: Iterable[Record]) -> Record:
                            for k in CLASSES[1:]},
             "filter_share": sum(int(r["acted"]) for r in group) / max(steps, 1),  # type: ignore[call-overload]
             "infeasible_steps": sum(int(r["infeasible"]) for r in group),  # type: ignore[call-overload]
+            "row_share": sum(int(r.get("rows_acted", r["acted"])) for r in group)  # type: ignore[call-overload]
+            / max(steps, 1),
+            "rescues": sum(int(r.get("rescues", 0)) for r in group),  # type: ignore[call-overload]
             "torque_limit_share": sum(int(r["at_limit"]) for r in group) / max(steps, 1),  # type: ignore[call-overload]
         })
     doc = asdict(plan)

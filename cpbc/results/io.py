@@ -22,7 +22,7 @@ CSV_COLUMNS = (
     "settle_time", "peak_joint_rates", "rate_bounds", "peak_torques", "peak_commanded_torques",
     "torque_limits", "peak_torque_norm", "torque_bound", "worst_margins",
     "crossed_constraints", "max_lyapunov_increase", "max_contacts", "saturated_steps",
-    "safeguard_steps", "safeguard_share", "safeguard_infeasible", "rejected_samples",
+    "safeguard_steps", "safeguard_share", "safeguard_infeasible", "rescues", "rejected_samples",
     "wall_time", "steps_per_second", "cause", "stall_kind", "task_error_final",
     "task_error_rms", "task_error_max", "reach_time", "violated_constraint",
 )

@@ -81,6 +81,8 @@ class RunSummary:
     extra: dict[str, float] = field(default_factory=dict)
     safeguard_steps: int = 0
     safeguard_infeasible: int = 0
+    # control steps at which the safeguard held its rescue's brake (cpbc.controllers.rescue)
+    rescues: int = 0
     rejected_samples: int = 0
     # why a failed run likely failed, when something before the run foresaw it (gravity
     # beyond a motor on the way to the target: cpbc.scenario.preflight); None otherwise
@@ -239,6 +241,7 @@ def summarise(
         steps_per_second=traj.steps_per_second,
         safeguard_steps=traj.safeguard_steps,
         safeguard_infeasible=traj.safeguard_infeasible,
+        rescues=getattr(traj, "rescues", 0),
         rejected_samples=traj.rejected_samples,
     )
 

@@ -185,6 +185,8 @@ def run_mujoco(
         int(contacts), "mujoco",
         safeguard_steps=guard.acted if guard else 0,
         safeguard_infeasible=guard.infeasible if guard else 0,
+        filter_row_steps=guard.row_active_steps if guard else 0,
+        rescues=guard.rescues if guard else 0,
         rejected_samples=sample.rejected,
         guarded_steps=guarded_steps[: k + 1] if guard else None,
     )

@@ -33,6 +33,10 @@ class Trajectory:
             torque (0 without a safeguard).
         safeguard_infeasible: of those, steps at which even its braking torque could not
             keep every margin above its floor.
+        filter_row_steps: of the safeguard steps, those at which the filter's own safety
+            conditions, not the torque box alone, changed the torque (a peer's barrier rows;
+            the guard's every step).
+        rescues: control steps at which the safeguard held its rescue's brake.
         rejected_samples: noisy measurements outside S (true state inside) that the law
             refused; the previous torque was held.
         guarded_steps: per control step, whether the safeguard replaced the law's torque
@@ -57,6 +61,8 @@ class Trajectory:
     safeguard_infeasible: int = 0
     rejected_samples: int = 0
     guarded_steps: Array | None = None
+    filter_row_steps: int = 0
+    rescues: int = 0
 
     @property
     def steps_per_second(self) -> float:
