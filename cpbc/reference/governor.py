@@ -105,7 +105,8 @@ class PathGovernor:
             return self.s
         if rate < 0.95 and self.s < self.duration:
             self.steps_slowed += 1
-        self.s, self.rate = s, rate
+        self.s = s
+        self.rate = rate if s < self.duration else 0.0  # at the end the reference rests
         return s
 
     def _held(self, t: float, vbar: float, speed: float) -> float:
