@@ -34,7 +34,7 @@ class ReferenceSetup:
 
     path: Path
     goal: FrameGoal
-    settings: GovernorSettings
+    settings: Mapping[str, GovernorSettings]
     feedforward: bool
     plans: Mapping[str, ReferencePlan]
 
@@ -42,7 +42,8 @@ class ReferenceSetup:
                 period: float) -> ReferenceTracker:
         """A fresh tracker of the law ``name`` for one run (``run``: the law as the loop runs
         it, possibly inside its safeguard)."""
-        return tracking(law, period, self.plans[name], self.settings, self.feedforward, run)
+        return tracking(law, period, self.plans[name], self.settings[name], self.feedforward,
+                        run)
 
 
 def _path(spec: s.PathSpec, scenario_file: FilePath) -> Path:
@@ -113,11 +114,14 @@ def reference_goal(spec: s.ReferenceSpec, model: RobotModel, scene: Mapping[str,
 
 
 def reference_setup(spec: s.ReferenceSpec, path: Path, goal: GoalPlan,
-                    laws: Mapping[str, Controller], period: float) -> ReferenceSetup:
-    """Each law's plan from the goal's posture."""
+                    laws: Mapping[str, tuple[Controller, str | None]],
+                    period: float) -> ReferenceSetup:
+    """Each law's governor settings (its own ``on_infeasible`` when given) and plan from the
+    goal's posture."""
     g = spec.governor
-    settings = GovernorSettings(g.budget, g.gain, g.catch_up, g.max_speed, g.margin,
-                                g.on_infeasible)
-    plans = {name: plan_reference(law, goal.goal, path, goal.posture, settings, period)
-             for name, law in laws.items()}
+    settings = {name: GovernorSettings(g.budget, g.gain, g.catch_up, g.max_speed, g.margin,
+                                       policy or g.on_infeasible)
+                for name, (_, policy) in laws.items()}
+    plans = {name: plan_reference(law, goal.goal, path, goal.posture, settings[name], period)
+             for name, (law, _) in laws.items()}
     return ReferenceSetup(path, goal.goal, settings, spec.feedforward == "velocity", plans)

@@ -532,6 +532,10 @@ class GainsSpec(Strict):
     posture: PostureGainsSpec | None = Field(
         default=None, description=(
             "with a scenario goal: the posture gains in place of kp, kd"))
+    on_infeasible: Literal["stop", "rejoin"] | None = Field(
+        default=None, description=(
+            "with a scenario reference: this law's governor policy in place of "
+            "reference.governor.on_infeasible (to compare stop and rejoin in one scenario)"))
 
     @field_validator("kp", "kd", mode="before")
     @classmethod
