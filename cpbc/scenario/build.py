@@ -807,15 +807,15 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     controllers = _controllers(scenario, model, target, cases, built, names, loop, goal)
     _check_recentred(controllers, cases, model, loop, names, sim.safeguard)
     for i, c in enumerate(scenario.controllers):
-        if c.on_infeasible is not None and scenario.reference is None:
-            raise ScenarioError(f"controllers[{i}].on_infeasible", "is a reference's governor "
-                                "policy: give reference: or drop it")
+        for key in ("on_infeasible", "reference_speed"):
+            if getattr(c, key) is not None and scenario.reference is None:
+                raise ScenarioError(f"controllers[{i}].{key}", "belongs to a reference: give "
+                                    "reference: or drop it")
     reference = None
     if ref_path is not None and scenario.reference is not None and goal is not None:
-        policies = [c.on_infeasible for c in scenario.controllers]
         reference = reference_setup(scenario.reference, ref_path, goal,
-                                    {c.name: (c.controller, p)
-                                     for c, p in zip(controllers, policies, strict=True)},
+                                    {c.name: (c.controller, spec) for c, spec in
+                                     zip(controllers, scenario.controllers, strict=True)},
                                     loop.control_period)
     setup = ScenarioSetup(
         scenario, path, model, monitor, controllers, cases, target,

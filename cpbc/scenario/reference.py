@@ -19,7 +19,7 @@ from cpbc.errors import ParameterError, ScenarioError
 from cpbc.model.robot_model import RobotModel
 from cpbc.reference.csv_path import read_csv_path
 from cpbc.reference.governor import GovernorSettings
-from cpbc.reference.paths import Circle, Lissajous, Path, Waypoints
+from cpbc.reference.paths import Circle, Lissajous, Path, Scaled, Waypoints
 from cpbc.reference.plan import ReferencePlan, plan_reference
 from cpbc.reference.tracker import ReferenceTracker, tracking
 from cpbc.scenario import schema as s
@@ -114,14 +114,16 @@ def reference_goal(spec: s.ReferenceSpec, model: RobotModel, scene: Mapping[str,
 
 
 def reference_setup(spec: s.ReferenceSpec, path: Path, goal: GoalPlan,
-                    laws: Mapping[str, tuple[Controller, str | None]],
+                    laws: Mapping[str, tuple[Controller, s.ControllerSpec]],
                     period: float) -> ReferenceSetup:
-    """Each law's governor settings (its own ``on_infeasible`` when given) and plan from the
-    goal's posture."""
+    """Each law's governor settings (its own ``on_infeasible`` when given) and plan of its
+    path (at its own ``reference_speed``) from the goal's posture."""
     g = spec.governor
     settings = {name: GovernorSettings(g.budget, g.gain, g.catch_up, g.max_speed, g.margin,
-                                       policy or g.on_infeasible)
-                for name, (_, policy) in laws.items()}
-    plans = {name: plan_reference(law, goal.goal, path, goal.posture, settings[name], period)
-             for name, (law, _) in laws.items()}
+                                       c.on_infeasible or g.on_infeasible)
+                for name, (_, c) in laws.items()}
+    plans = {name: plan_reference(law, goal.goal, path if c.reference_speed is None else
+                                  Scaled(path, c.reference_speed), goal.posture,
+                                  settings[name], period)
+             for name, (law, c) in laws.items()}
     return ReferenceSetup(path, goal.goal, settings, spec.feedforward == "velocity", plans)

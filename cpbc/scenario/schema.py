@@ -536,6 +536,10 @@ class GainsSpec(Strict):
         default=None, description=(
             "with a scenario reference: this law's governor policy in place of "
             "reference.governor.on_infeasible (to compare stop and rejoin in one scenario)"))
+    reference_speed: Positive | None = Field(
+        default=None, description=(
+            "with a scenario reference: this law's path runs this many times its nominal "
+            "speed (to compare speeds in one scenario); 1 when omitted"))
 
     @field_validator("kp", "kd", mode="before")
     @classmethod
