@@ -623,7 +623,7 @@ def _states(
     if len(given) != 1:
         raise ScenarioError(given[-1] if given else "target",
                             "give one of target: (a joint set point), goal: (a frame's pose) "
-                            f"or reference: (a frame's path), not {' and '.join(given)}"
+                            f"or reference: (a frame's path), not both {' and '.join(given)}"
                             if given else "missing: give target (a joint set point), goal "
                             "(a frame's pose) or reference (a frame's path)")
     target = np.zeros(n)
