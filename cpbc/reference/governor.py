@@ -83,6 +83,12 @@ class PathGovernor:
         self.steps_slowed = self.steps_blocked = 0
         self._next = 0  # the index of the next stretch ahead of s_v
 
+    def start_at(self, s: float) -> None:
+        """Start at path time ``s`` (a campaign's drawn phase, outside every stretch): s_v and
+        the run clock at s, the stretches that begin before it passed."""
+        self.s = self.t = s
+        self._next = sum(1 for stretch in self.stretches if stretch[0] < s)
+
     def _rate(self, vbar: float, speed: float) -> float:
         st = self.settings
         cap = st.catch_up if self.s < self.t else 1.0

@@ -72,6 +72,16 @@ class ReferenceTracker(Controller):
         self.log_blocked: list[bool] = []
         self.log_applied: list[Array] = []
 
+    def start_at(self, phase: float) -> None:
+        """Begin the path at path time ``phase`` (outside its stretches) instead of 0: the
+        governor's s_v and clock, and the target at the path's point and posture there."""
+        assert self.plan is not None and self.governor is not None
+        self.governor.start_at(phase)
+        self.k = round(phase / self.h)
+        h = self.plan.period
+        self.moving.set(_between(self.plan.points, phase, h), None,
+                        _between(self.plan.postures, phase, h))
+
     def set_target(self, position: Array, velocity: Array | None = None) -> None:
         """The streamed target r (and its velocity, for the feed-forward) for the next steps."""
         self.requested[:] = position
@@ -92,10 +102,11 @@ class ReferenceTracker(Controller):
         i = plan.index(gov.s)
         vbar = v * math.exp(plan.log_norm[i])
         # the fastest table segment a step (≤ ρ_max h) can reach: v_max holds across jumps
-        k = min(int(gov.s / self.h), len(plan.speeds) - 1)
+        k = min(int(gov.s / plan.period), len(plan.speeds) - 1)
         s = gov.advance(self.k * self.h, vbar, max(plan.speeds[k:k + 3]))
         j = plan.index(s)
-        point, posture = _between(plan.points, s, self.h), _between(plan.postures, s, self.h)
+        point, posture = _between(plan.points, s, plan.period), _between(plan.postures, s,
+                                                                          plan.period)
         if gov.blend is not None:  # a rejoin carries the reference over a stretch
             end = plan.index(gov.blocked[1]) if gov.blocked else j
             w = gov.blend

@@ -38,12 +38,27 @@ class ReferenceSetup:
     feedforward: bool
     plans: Mapping[str, ReferencePlan]
 
-    def tracker(self, name: str, law: Controller, run: Controller,
-                period: float) -> ReferenceTracker:
+    def tracker(self, name: str, law: Controller, run: Controller, period: float,
+                phase: float = 0.0) -> ReferenceTracker:
         """A fresh tracker of the law ``name`` for one run (``run``: the law as the loop runs
-        it, possibly inside its safeguard)."""
-        return tracking(law, period, self.plans[name], self.settings[name], self.feedforward,
-                        run)
+        it, possibly inside its safeguard), starting at path time ``phase``."""
+        found = tracking(law, period, self.plans[name], self.settings[name], self.feedforward,
+                         run)
+        if phase > 0.0:
+            found.start_at(phase)
+        return found
+
+    def phase(self, name: str, seed: int) -> float:
+        """A path time drawn uniformly outside the law's inadmissible stretches (a
+        campaign's reference phase), seeded."""
+        plan = self.plans[name]
+        rng = np.random.default_rng([seed, 26])
+        stretches = plan.postures_path.stretches
+        for _ in range(1000):
+            s = float(rng.uniform(0.0, plan.path.duration))
+            if not any(a - plan.period <= s < b + plan.period for a, b, _ in stretches):
+                return s
+        return 0.0
 
 
 def _path(spec: s.PathSpec, scenario_file: FilePath) -> Path:
