@@ -144,7 +144,7 @@ def write_trajectory(log: h5py.File, case: str, controller: str, traj: Trajector
     if task_error is not None:
         _dataset(g, "task_error", _single(task_error), ["m", "rad"], ["position", "angle"])
     for name, data in (reference or {}).items():
-        units = {"path_time": "s", "blocked": ""}.get(name, ["m", "m", "m"])
+        units = {"path_time": "s", "path_lag": "s", "blocked": ""}.get(name, ["m", "m", "m"])
         labels_ = ["x", "y", "z"] if name in ("applied", "requested") else ()
         _dataset(g, name, np.asarray(data, dtype=np.uint8 if name == "blocked" else float),
                  units, labels_)

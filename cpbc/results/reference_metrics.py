@@ -34,13 +34,15 @@ _KEPT = ("constraint_violated", "diverged", "held")
 @dataclass(frozen=True)
 class ReferenceLog:
     """Per trajectory sample: s_v, the applied point (N, 3), the blocked flag, the requested
-    point r(t) (N, 3) and the task error (position m, angle rad) to r(t), (N, 2)."""
+    point r(t) (N, 3), the task error (position m, angle rad) to r(t), (N, 2), and the lag
+    min(t, T) − s_v [s] (T the path's duration)."""
 
     path_time: Array
     applied: Array
     blocked: Array
     requested: Array
     task_error: Array
+    path_lag: Array
 
 
 @dataclass(frozen=True)
@@ -76,7 +78,8 @@ def reference_log(model: RobotModel, goal: FrameGoal, tracker: ReferenceTracker,
         if goal.offset is not None:
             p = p + rot @ goal.offset
         errors[i] = float(np.linalg.norm(p - requested[i])), goal.angle(rot)
-    return ReferenceLog(s_v, applied, blocked, requested, errors)
+    lag = np.clip(np.minimum(traj.time, plan.path.duration) - s_v, 0.0, None)
+    return ReferenceLog(s_v, applied, blocked, requested, errors, lag)
 
 
 def _pair(values: Array) -> dict[str, float]:
@@ -117,7 +120,7 @@ def reference_outcome(model: RobotModel, goal: FrameGoal, tracker: ReferenceTrac
     kind = None
     if status == "stalled":
         kind = stall_kind(model, goal, traj.position[-1], names, margins)
-    lag = np.clip(np.minimum(traj.time, plan.path.duration) - log.path_time, 0.0, None)
+    lag = log.path_lag
     applied_gap = [_gap(model, goal, x, a) for x, a in zip(traj.position, log.applied,
                                                            strict=True)]
     block = gov.blocks[0] if gov.blocks else None

@@ -85,7 +85,7 @@ def run_one(
         summary = replace(summary, **found.__dict__, settle_time=None)
         errors = log.task_error
         logged = {"path_time": log.path_time, "applied": log.applied,
-                  "requested": log.requested, "blocked": log.blocked}
+                  "requested": log.requested, "blocked": log.blocked, "path_lag": log.path_lag}
     elif setup.goal is not None:
         errors = task_errors(setup.model, setup.goal.goal, traj.position)
         outcome = task_outcome(setup.model, setup.goal.goal, setup.goal.preflight.verdict,

@@ -41,6 +41,7 @@ RUN_FILES = frozenset({"summary.json", "summary.csv", "scene.mjb", "scene.mjb.gz
                        "scene.json", "view.html"})
 CASE_FILES = frozenset({"positions.png", "rates.png", "torques.png", "lyapunov.png",
                         "margins.png", "path.png", "timeseries.png", "task_error.png",
+                        "governor.png",
                         "view.html"})
 
 
