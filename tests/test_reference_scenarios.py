@@ -140,3 +140,20 @@ def test_a_reference_too_fast_for_the_energy_bound_is_slowed_not_crossed(load) -
     assert s.path_lag_max is not None and s.path_lag_max > 0.1
     assert s.min_margins["kinetic_energy"] > 0 and not s.crossed_constraints
     assert s.status == "tracked"
+
+
+def test_the_page_draws_the_path_its_blocked_stretch_and_the_applied_reference() -> None:
+    from cpbc.reference.paths import Circle
+    from cpbc.viewer.recorder import CommandRecorder
+    from cpbc.viewer.reference_marker import draw_applied, draw_reference, reference_entry
+
+    circle = Circle(np.array([0.3, 0.1, 0.4]), 0.15, np.array([0, 0, 1.0]), 0.25)
+    entry = reference_entry(circle, ((0.5, 1.0, "pan"),))
+    assert len(entry["path"]) > 100 and len(entry["blocked"]) == 1
+    recorder = CommandRecorder()
+    vis = recorder.visualizer()
+    draw_reference(vis, "/scene/reference", entry)
+    draw_applied(vis, "/scene/case/applied/law", np.array(entry["path"]), "#1f77b4")
+    drawn = " ".join(str(c) for c in recorder.commands)
+    assert "reference/path" in drawn and "reference/blocked_0" in drawn
+    assert "applied/law" in drawn

@@ -79,6 +79,8 @@ class SceneInfo:
     scenario: str = ""
     obstacles: tuple[str, ...] | None = None
     goal: dict[str, Any] | None = None
+    # a reference run's path and inadmissible stretches (cpbc.viewer.reference_marker)
+    reference: dict[str, Any] | None = None
 
     def to_json(self) -> str:
         return json.dumps(
@@ -88,6 +90,7 @@ class SceneInfo:
                 "scenario": self.scenario,
                 "obstacles": None if self.obstacles is None else list(self.obstacles),
                 "goal": self.goal,
+                "reference": self.reference,
             },
             indent=2,
         )
@@ -102,6 +105,7 @@ class SceneInfo:
             d.get("scenario", ""),
             None if obstacles is None else tuple(obstacles),
             d.get("goal"),
+            d.get("reference"),
         )
 
     def kinematics(self, model: mujoco.MjModel) -> SceneKinematics:
@@ -152,6 +156,7 @@ class SavedTrajectory:
     path_time: Array | None = None
     blocked: Array | None = None
     path_lag: Array | None = None
+    applied: Array | None = None  # the applied reference point per sample, (N, 3)
 
     def commanded_torque(self, joints: bool = False) -> Array:
         """What the controller asked for, (N, n): in its coordinates, or per joint
@@ -230,6 +235,7 @@ def _trajectory(d: dict[str, Any], summary: SummaryEntry, coordinates: Array) ->
         path_time=d.get("path_time"),
         blocked=d.get("blocked"),
         path_lag=d.get("path_lag"),
+        applied=d.get("applied"),
     )
 
 
