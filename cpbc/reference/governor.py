@@ -9,8 +9,10 @@ and never onto an inadmissible stretch of the posture path (cpbc.reference.postu
 when the next step would enter one, s_v stops at its start and the governor is *blocked*
 by the stretch's constraint. ``stop`` stays there. ``rejoin`` waits until the path's own
 clock t has passed the stretch, then carries the applied reference from where it stopped to
-the stretch's end, at the same rate, along the straight blend (point and posture) that the
-plan checked admissible, and continues the path from there, catching up at ρ_max.
+the stretch's end, at the same rate, along the straight blend (point and posture), and
+continues the path from there, catching up at ρ_max. The plan checks that blend's postures
+(every configuration margin ≥ δ/2 at 21 points, cpbc.reference.plan.blend_admissible); a
+stretch whose blend fails is planned as lasting to the path's end, so rejoin stops there.
 
 {V̄ ≤ Γ} is forward invariant: at V̄ = Γ the reference stops (ṡ_v = 0, ṗ_ff = 0) and V̄ is
 non-increasing for a frozen reference. v_max keeps the applied reference Lipschitz even
