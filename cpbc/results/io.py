@@ -24,9 +24,9 @@ CSV_COLUMNS = (
     "crossed_constraints", "max_lyapunov_increase", "max_contacts", "saturated_steps",
     "safeguard_steps", "safeguard_share", "safeguard_infeasible", "rejected_samples",
     "wall_time", "steps_per_second", "cause", "stall_kind", "task_error_final",
-    "task_error_rms", "task_error_max", "reach_time", "violated_constraint",
-    "tracking_error_applied_rms", "path_lag_final", "path_lag_max", "governor", "blocked_by",
-    "blocked_at",
+    "task_error_rms", "task_error_max", "reach_time", "tracking_error_applied_rms",
+    "path_lag_final", "path_lag_max", "governor", "blocked_by", "blocked_at",
+    "violated_constraint",
 )
 #: Lists the files a run wrote into its folder, one relative path a line; a later run into
 #: the same folder replaces these and nothing else.
