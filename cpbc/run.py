@@ -55,6 +55,8 @@ if TYPE_CHECKING:
 STATUS_STYLE = {
     "converged": "green",
     "reached": "green",
+    "tracked": "green",
+    "blocked": "yellow",
     "unreachable": "yellow",
     "stalled": "yellow",
     "held": "yellow",
@@ -198,12 +200,18 @@ def _final_error(s: RunSummary) -> str:
     if s.task_error_final is None:
         return f"{s.final_error:.3g}"
     e = s.task_error_final
+    if s.path_lag_max is not None and s.task_error_rms is not None:  # a reference run
+        rms = s.task_error_rms
+        return (f"rms {rms['position'] * 1000:.3g} mm, {rms['angle']:.2g} rad; end "
+                f"{e['position'] * 1000:.3g} mm; lag ≤ {s.path_lag_max:.3g} s")
     reach = "" if s.reach_time is None else f" @{s.reach_time:.3g}s"
     return f"{e['position'] * 1000:.3g} mm, {e['angle']:.2g} rad{reach}"
 
 
 def _status(s: RunSummary) -> str:
     status = s.status + (f" ({s.stall_kind})" if s.stall_kind else "") + (
+        f" by {s.blocked_by} @{s.blocked_at['time']:.4g}s" if s.status == "blocked"
+        and s.blocked_by and s.blocked_at else "") + (
         f" @{s.end_time:.3g}s: {s.violated_constraint}"
                          if s.violated_constraint else "")
     if s.status == "diverged":
@@ -276,7 +284,8 @@ def write_logs(folder: Path, setup: ScenarioSetup, results: Sequence[RunResult])
     with log_file(folder / LOG_FILE, setup.scenario.name) as log:
         for r in results:
             write_trajectory(log, r.case, r.controller, r.trajectory, r.margins, r.lyapunov,
-                             setup.target, labels, r.summary.as_dict(), r.task_error)
+                             setup.target, labels, r.summary.as_dict(), r.task_error,
+                             r.reference)
 
 
 def _warn(setup: ScenarioSetup, err: Console) -> None:

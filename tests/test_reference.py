@@ -159,3 +159,17 @@ def test_the_governor_costs_under_two_microseconds_a_step() -> None:
         best = min(best, (time.perf_counter() - start) / n)
     print(f"governor step: {best * 1e6:.2f} µs")
     assert best < 4e-6  # target 2 µs; slack for a loaded shared machine
+
+
+def test_a_rejoin_blend_is_checked_admissible(panda: RobotModel) -> None:
+    from cpbc.constraints import ConstraintSet, joint_position_limit
+    from cpbc.reference.plan import blend_admissible
+
+    names = list(panda.joint_names)
+    limits = joint_position_limit(np.full(7, -2.8), np.full(7, 2.8), names)
+    config = ConstraintSet(7, [limits])
+    a, b = HOME.copy(), HOME.copy()
+    b[0] = 1.0
+    assert blend_admissible(config, a, b, 0.01)  # a box is convex: the blend stays inside
+    b[0] = 2.799  # the end itself closer than δ to the bound (φ = (x − l)(u − x))
+    assert not blend_admissible(config, a, b, 0.05)

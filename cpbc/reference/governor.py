@@ -9,8 +9,10 @@ and never onto an inadmissible stretch of the posture path (cpbc.reference.postu
 when the next step would enter one, s_v stops at its start and the governor is *blocked*
 by the stretch's constraint. ``stop`` stays there. ``rejoin`` waits until the path's own
 clock t has passed the stretch, then carries the applied reference from where it stopped to
-the stretch's end, at the same rate, along the straight blend (point and posture) that the
-plan checked admissible, and continues the path from there, catching up at ρ_max.
+the stretch's end, at the same rate, along the straight blend (point and posture), and
+continues the path from there, catching up at ρ_max. The plan checks that blend's postures
+(every configuration margin ≥ δ/2 at 21 points, cpbc.reference.plan.blend_admissible); a
+stretch whose blend fails is planned as lasting to the path's end, so rejoin stops there.
 
 {V̄ ≤ Γ} is forward invariant: at V̄ = Γ the reference stops (ṡ_v = 0, ṗ_ff = 0) and V̄ is
 non-increasing for a frozen reference. v_max keeps the applied reference Lipschitz even
@@ -83,6 +85,12 @@ class PathGovernor:
         self.steps_slowed = self.steps_blocked = 0
         self._next = 0  # the index of the next stretch ahead of s_v
 
+    def start_at(self, s: float) -> None:
+        """Start at path time ``s`` (a campaign's drawn phase, outside every stretch): s_v and
+        the run clock at s, the stretches that begin before it passed."""
+        self.s = self.t = s
+        self._next = sum(1 for stretch in self.stretches if stretch[0] < s)
+
     def _rate(self, vbar: float, speed: float) -> float:
         st = self.settings
         cap = st.catch_up if self.s < self.t else 1.0
@@ -105,7 +113,8 @@ class PathGovernor:
             return self.s
         if rate < 0.95 and self.s < self.duration:
             self.steps_slowed += 1
-        self.s, self.rate = s, rate
+        self.s = s
+        self.rate = rate if s < self.duration else 0.0  # at the end the reference rests
         return s
 
     def _held(self, t: float, vbar: float, speed: float) -> float:

@@ -192,3 +192,23 @@ class Polyline:
 
     def sample(self, s: Array) -> tuple[Array, Array]:
         return Waypoints(self.times, self.points, "linear").sample(s)
+
+
+@dataclass(frozen=True)
+class Scaled:
+    """``path`` run ``factor`` times faster: p(s) = q(k s), dp/ds = k dq/ds(k s)."""
+
+    path: Path
+    factor: float
+
+    def __post_init__(self) -> None:
+        if not self.factor > 0 or not math.isfinite(self.factor):
+            raise ParameterError("speed", f"a speed factor must be > 0, got {self.factor}")
+
+    @property
+    def duration(self) -> float:
+        return self.path.duration / self.factor
+
+    def sample(self, s: Array) -> tuple[Array, Array]:
+        p, dp = self.path.sample(np.asarray(s, dtype=float) * self.factor)
+        return p, dp * self.factor

@@ -11,6 +11,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.controllers.base import Controller
 from cpbc.errors import ConstraintViolation
 from cpbc.reference.governor import GovernorSettings
@@ -19,6 +20,7 @@ from cpbc.reference.posture_path import PosturePath, posture_path
 from cpbc.taskspace.goal import FrameGoal
 
 SCAN_STEP = 0.02  # the posture path's grid [s of path time]
+BLEND_SAMPLES = 21  # postures checked along a rejoin's straight blend
 
 
 @dataclass(frozen=True)
@@ -64,12 +66,45 @@ def log_norm(law: Controller, x: Array) -> float:
     return float(shaping.log_s(bar.log_phi + bar.log_psi))
 
 
+def blend_admissible(config: ConstraintSet, x0: Array, x1: Array, delta: float,
+                     samples: int = BLEND_SAMPLES) -> bool:
+    """Whether every posture of the straight blend from ``x0`` to ``x1`` keeps every
+    configuration margin ≥ δ (at ``samples`` evenly spaced points, both ends included)."""
+    if config.empty:
+        return True
+    zero = np.zeros(len(x0))
+    for w in np.linspace(0.0, 1.0, samples):
+        x = (1.0 - w) * x0 + w * x1
+        try:
+            if float(np.min(config.margins(x, zero))) < delta:
+                return False
+        except ConstraintViolation:
+            return False
+    return True
+
+
+def _rejoinable(law: Controller, coarse: PosturePath, delta: float) -> PosturePath:
+    """The stretches whose rejoin blend (from the posture where the governor stops to the
+    one at the stretch's end) leaves a configuration margin below δ/2 made to last to the
+    path's end: rejoin stops there."""
+    config = ConstraintSet(law.model.n, law.constraints.configuration)
+    kept = []
+    for begin, end, name in coarse.stretches:
+        if not math.isinf(end) and not blend_admissible(
+                config, coarse.posture(begin), coarse.posture(end), 0.5 * delta):
+            end, name = math.inf, f"{name} (no admissible rejoin)"
+        kept.append((begin, end, name))
+    return replace(coarse, stretches=tuple(kept))
+
+
 def plan_reference(law: Controller, goal: FrameGoal, path: Path, start: Array,
                    settings: GovernorSettings, period: float) -> ReferencePlan:
     """The tables for ``law`` following ``path`` with ``goal``'s frame, orientation and
     offset, from the posture ``start``."""
     coarse = posture_path(law.model, law.constraints, goal, path, start, settings.margin,
                           SCAN_STEP, period)
+    if settings.on_infeasible == "rejoin":
+        coarse = _rejoinable(law, coarse, settings.margin)
     grid = np.arange(0.0, path.duration + 0.5 * period, period)
     points, tangents = path.sample(grid)
     postures = np.column_stack([np.interp(grid, coarse.s, coarse.postures[:, j])

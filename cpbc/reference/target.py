@@ -118,6 +118,8 @@ class SteeredDamping:
 
 
 def _steer_part(part: Potential, target: MovingTarget) -> Potential:
+    if isinstance(part, Steered):  # steered before (an earlier run): to the new target
+        return Steered(part.spring, target, part.reads)
     if isinstance(part, FramePositionSpring | FramePositionLogCosh):
         return Steered(part, target, "position")
     if isinstance(part, JointSpring | JointLogCoshSpring):
@@ -127,8 +129,9 @@ def _steer_part(part: Potential, target: MovingTarget) -> Potential:
 
 def steer(law: Controller, target: MovingTarget) -> Controller:
     """Make ``law`` read its frame goal, posture and feed-forward from ``target`` (in place;
-    the law is returned). The law needs a task potential (a sum with one frame position
-    spring) and, for the feed-forward, task damping."""
+    the law is returned; a law steered before reads the new target). The law needs a task
+    potential (a sum with one frame position spring) and, for the feed-forward, task
+    damping."""
     potential = law.potential
     parts = potential.parts if isinstance(potential, PotentialSum) else (
         () if potential is None else (potential,))
@@ -138,7 +141,9 @@ def steer(law: Controller, target: MovingTarget) -> Controller:
                         "exactly one frame position spring (build the law for a goal)")
     law.potential = PotentialSum(steered)
     damping = law.task_damping
-    if isinstance(damping, TaskDamping | TaskTanhDamping):
+    if isinstance(damping, SteeredDamping):
+        law.task_damping = SteeredDamping(damping.damping, target, damping.joint)
+    elif isinstance(damping, TaskDamping | TaskTanhDamping):
         linear = isinstance(getattr(law, "damping", None), LinearDamping) or isinstance(
             law, PDGravity)
         law.task_damping = SteeredDamping(damping, target, law.kd if linear else None)  # type: ignore[attr-defined]

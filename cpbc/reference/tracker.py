@@ -72,6 +72,16 @@ class ReferenceTracker(Controller):
         self.log_blocked: list[bool] = []
         self.log_applied: list[Array] = []
 
+    def start_at(self, phase: float) -> None:
+        """Begin the path at path time ``phase`` (outside its stretches) instead of 0: the
+        governor's s_v and clock, and the target at the path's point and posture there."""
+        assert self.plan is not None and self.governor is not None
+        self.governor.start_at(phase)
+        self.k = round(phase / self.h)
+        h = self.plan.period
+        self.moving.set(_between(self.plan.points, phase, h), None,
+                        _between(self.plan.postures, phase, h))
+
     def set_target(self, position: Array, velocity: Array | None = None) -> None:
         """The streamed target r (and its velocity, for the feed-forward) for the next steps."""
         self.requested[:] = position
@@ -91,16 +101,20 @@ class ReferenceTracker(Controller):
         assert gov is not None
         i = plan.index(gov.s)
         vbar = v * math.exp(plan.log_norm[i])
-        s = gov.advance(self.k * self.h, vbar, plan.speeds[i])
+        # the fastest table segment a step (≤ ρ_max h) can reach: v_max holds across jumps
+        k = min(int(gov.s / plan.period), len(plan.speeds) - 1)
+        s = gov.advance(self.k * self.h, vbar, max(plan.speeds[k:k + 3]))
         j = plan.index(s)
+        point, posture = _between(plan.points, s, plan.period), _between(plan.postures, s,
+                                                                          plan.period)
         if gov.blend is not None:  # a rejoin carries the reference over a stretch
             end = plan.index(gov.blocked[1]) if gov.blocked else j
             w = gov.blend
-            self.moving.set((1 - w) * plan.points[j] + w * plan.points[end], None,
-                            (1 - w) * plan.postures[j] + w * plan.postures[end])
+            self.moving.set((1 - w) * point + w * plan.points[end], None,
+                            (1 - w) * posture + w * plan.postures[end])
         else:
             rate = gov.rate if self.feedforward else 0.0
-            self.moving.set(plan.points[j], rate * plan.tangents[j], plan.postures[j],
+            self.moving.set(point, rate * plan.tangents[j], posture,
                             rate * plan.posture_tangents[j])
         self.log_s.append(s)
         self.log_blocked.append(gov.blocked_now)
@@ -144,6 +158,15 @@ def tracking(law: Controller, period: float, plan: ReferencePlan | None = None,
     safety filter."""
     cls = GuardedReferenceTracker if isinstance(run, SafetyFilter) else ReferenceTracker
     return cls(law, period, plan, settings, feedforward, run)
+
+
+def _between(table: Array, s: float, h: float) -> Array:
+    """The table's row at path time s, linear between the control grid's rows (so that the
+    applied point moves no faster than s does along a jump of the path)."""
+    x = s / h
+    i = min(int(x), len(table) - 2)
+    w = min(max(x - i, 0.0), 1.0)
+    return (1.0 - w) * table[i] + w * table[i + 1]
 
 
 def _spring_goal(law: Controller) -> Array:

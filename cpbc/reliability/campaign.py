@@ -140,12 +140,16 @@ class RunCheck:
 def guarded_run(
     plant: MujocoPlant, setup: ScenarioSetup, entry: ControllerEntry, x0: Array, dx0: Array,
     settings: LoopSettings, safeguard: SafeguardSettings | None,
-    progress: Callable[[float], None] | None = None,
+    progress: Callable[[float], None] | None = None, phase: float = 0.0,
 ) -> Trajectory:
     """The entry's law in the loop, wrapped in ``safeguard`` (with the scenario's extra
-    constraints) at the settings' period and torque limit when it is given."""
+    constraints) at the settings' period and torque limit when it is given; with a
+    reference, inside its tracker, starting at path time ``phase``."""
     law = sg.guarded(entry.controller, settings.control_period, safeguard,
                      settings.torque_limit, setup.also_keep)
+    if setup.reference is not None:
+        law = setup.reference.tracker(entry.name, entry.controller, law,
+                                      settings.control_period, phase)
     return run_mujoco(plant, law, setup.model.coordinates, x0, dx0, settings, progress)
 
 
@@ -169,10 +173,11 @@ def checked_run(
     settings: LoopSettings,
     constraints: ConstraintSet | None = None,
     safeguard: SafeguardSettings | None = None,
+    phase: float = 0.0,
 ) -> RunCheck:
     """run_mujoco (the law wrapped in ``safeguard`` if given), then the enforced margins at
     every physics step of the true plant."""
-    traj = guarded_run(plant, setup, entry, x0, dx0, settings, safeguard)
+    traj = guarded_run(plant, setup, entry, x0, dx0, settings, safeguard, phase=phase)
     cons = constraints if constraints is not None else entry.controller.constraints
     xs, dxs = plant.fine_states(setup.model.coordinates.matrix)
     low, name, first = _min_margin(cons, xs, dxs)

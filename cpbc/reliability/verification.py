@@ -242,8 +242,9 @@ def run_block(block: Block) -> list[Record]:
         brake = stopping_brake(setup, kept, s.position, s.velocity, period, base)
         kind = "stoppable" if brake else "not_stoppable"
         in_v = in_braking_set(setup, kept, s.position, s.velocity, period)
+        phase = 0.0 if setup.reference is None else setup.reference.phase(entry.name, seed)
         check = checked_run(_plant(setup, plan, seed, base), setup, entry, s.position,
-                            s.velocity, settings, kept, safeguard=setup.safeguard)
+                            s.velocity, settings, kept, safeguard=setup.safeguard, phase=phase)
         traj = check.trajectory
         out.append({
             "controller": entry.name, "type": entry.controller.type_name, "rate": block.rate,
@@ -257,6 +258,7 @@ def run_block(block: Block) -> list[Record]:
             "rows_acted": int(traj.filter_row_steps), "rescues": int(traj.rescues),
             "at_limit": _steps_at_limit(traj.joint_torque, settings.torque_limit),
             "position": s.position.tolist(), "velocity": s.velocity.tolist(),
+            **({} if setup.reference is None else {"phase": phase}),
         })
     return out
 

@@ -121,9 +121,11 @@ def _single(a: Array) -> Array:
 
 def write_trajectory(log: h5py.File, case: str, controller: str, traj: Trajectory,
                      margins: Array, lyapunov: Array, target: Array, labels: ArmLabels,
-                     summary: Mapping[str, object], task_error: Array | None = None) -> None:
+                     summary: Mapping[str, object], task_error: Array | None = None,
+                     reference: Mapping[str, Array] | None = None) -> None:
     """One arm's run into ``log`` as the group ``/<case>/<controller>``; a goal run's
-    ``task_error`` (position, angle per sample) too."""
+    ``task_error`` (position, angle per sample) too, and a reference run's per-sample
+    ``path_time`` s_v [s], ``applied`` and ``requested`` points [m] and ``blocked`` flag."""
     g = _run_group(log, case, controller, traj.outcome, summary)
     coords, lengths = labels.coordinate_names, labels.coordinate_lengths
     _dataset(g, "time", traj.time, "s")
@@ -141,6 +143,11 @@ def write_trajectory(log: h5py.File, case: str, controller: str, traj: Trajector
     _dataset(g, "target", target, _units(lengths, "m", "rad"), coords)
     if task_error is not None:
         _dataset(g, "task_error", _single(task_error), ["m", "rad"], ["position", "angle"])
+    for name, data in (reference or {}).items():
+        units = {"path_time": "s", "path_lag": "s", "blocked": ""}.get(name, ["m", "m", "m"])
+        labels_ = ["x", "y", "z"] if name in ("applied", "requested") else ()
+        _dataset(g, name, np.asarray(data, dtype=np.uint8 if name == "blocked" else float),
+                 units, labels_)
 
 
 def _unit_of(name: str) -> str:

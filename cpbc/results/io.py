@@ -24,7 +24,9 @@ CSV_COLUMNS = (
     "crossed_constraints", "max_lyapunov_increase", "max_contacts", "saturated_steps",
     "safeguard_steps", "safeguard_share", "safeguard_infeasible", "rescues", "rejected_samples",
     "wall_time", "steps_per_second", "cause", "stall_kind", "task_error_final",
-    "task_error_rms", "task_error_max", "reach_time", "violated_constraint",
+    "task_error_rms", "task_error_max", "reach_time", "tracking_error_applied_rms",
+    "path_lag_final", "path_lag_max", "governor", "blocked_by", "blocked_at",
+    "violated_constraint",
 )
 #: Lists the files a run wrote into its folder, one relative path a line; a later run into
 #: the same folder replaces these and nothing else.
@@ -44,6 +46,9 @@ def _csv_row(s: RunSummary) -> dict[str, object]:
     for k in ("task_error_final", "task_error_rms", "task_error_max"):
         pair = getattr(s, k)
         row[k] = "" if pair is None else f"{pair['position']:.6g} m {pair['angle']:.6g} rad"
+    for k in ("governor", "blocked_at"):
+        items = getattr(s, k)
+        row[k] = "" if items is None else " ".join(f"{n}={v:.6g}" for n, v in items.items())
     for k in ("peak_joint_rates", "rate_bounds", "peak_torques", "peak_commanded_torques",
               "torque_limits", "crossed_constraints"):
         row[k] = " ".join("-" if v is None else (f"{v:.6g}" if isinstance(v, float) else str(v))

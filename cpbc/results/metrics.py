@@ -13,10 +13,11 @@ from cpbc.controllers.base import Controller
 from cpbc.results.margin_types import WorstMargin, physical_history, types_of, worst_by_type
 from cpbc.simulation.trajectory import Trajectory
 
-STATUSES = ("converged", "reached", "unreachable", "stalled", "held", "not_settled",
-            "constraint_violated", "diverged")
-#: The statuses of a run that ended where it was sent (a joint target, a task goal).
-ARRIVED = ("converged", "reached")
+STATUSES = ("converged", "reached", "tracked", "blocked", "unreachable", "stalled", "held",
+            "not_settled", "constraint_violated", "diverged")
+#: The statuses of a run that ended where it was sent (a joint target, a task goal, the end
+#: of a reference).
+ARRIVED = ("converged", "reached", "tracked")
 
 
 @dataclass(frozen=True)
@@ -94,6 +95,15 @@ class RunSummary:
     task_error_rms: dict[str, float] | None = None
     task_error_max: dict[str, float] | None = None
     reach_time: float | None = None
+    # a reference run's (cpbc.results.reference_metrics): the error to the applied reference
+    # [m], the path lag t − s_v [s], the governor's slowed and blocked time [s], and the
+    # constraint that blocked it with {time, path_time}; None for other runs
+    tracking_error_applied_rms: float | None = None
+    path_lag_final: float | None = None
+    path_lag_max: float | None = None
+    governor: dict[str, float] | None = None
+    blocked_by: str | None = None
+    blocked_at: dict[str, float] | None = None
 
     @property
     def safeguard_share(self) -> float:

@@ -219,6 +219,29 @@ def task_error_figure(case: SavedCase) -> Figure | None:
     return fig
 
 
+def governor_figure(case: SavedCase) -> Figure | None:
+    """A reference run's governor: the applied path time s_v against the run time (the
+    nominal t dotted, blocked samples in red) and the lag min(t, T) − s_v (None for other runs)."""
+    runs = [(r, c) for r, c in _each(case) if r.path_time is not None]
+    if not runs:
+        return None
+    fig, (top, low) = _figure(2, _title(case, "reference governor"), height=5.0)
+    t_end = max(float(r.time[-1]) for r, _ in runs)
+    top.plot([0.0, t_end], [0.0, t_end], ":", color="0.5", lw=1.0, label="t (nominal)")
+    for r, colour in runs:
+        assert r.path_time is not None
+        _curve(top, r.time, r.path_time, color=colour, label=r.controller)
+        if r.blocked is not None and np.any(r.blocked):
+            hit = np.asarray(r.blocked, dtype=bool)
+            top.plot(r.time[hit], r.path_time[hit], ".", color="red", ms=2)
+        if r.path_lag is not None:
+            _curve(low, r.time, r.path_lag, color=colour)
+    top.set_ylabel("path time s_v [s]")
+    low.set_ylabel("lag min(t, T) − s_v [s]")
+    _legend(top)
+    return fig
+
+
 _NAMED = 3  # constraints of a type drawn and named one by one; the rest as a shaded range
 _STYLES = ("-", "--", ":")
 
@@ -404,6 +427,7 @@ def case_figures(
         "margins": lambda: margins_figure(case),
         "path": lambda: None if kin is None else path_figure(case, kin),
         "task_error": lambda: task_error_figure(case),
+        "governor": lambda: governor_figure(case),
     }
     out = {}
     for name, make in makers.items():

@@ -37,7 +37,8 @@ SCENE_INFO = "scene.json"
 SUMMARY = "summary.json"
 EARLIER_TRAJECTORY = "trajectory.npz"  # a run's log in folders of earlier versions
 #: The figures of each case, ``<case>/<name>.png`` (cpbc.results.plots draws them).
-FIGURES = ("positions", "rates", "torques", "lyapunov", "margins", "path", "task_error")
+FIGURES = ("positions", "rates", "torques", "lyapunov", "margins", "path", "task_error",
+           "governor")
 
 
 class _SummaryKeys(TypedDict):
@@ -78,6 +79,8 @@ class SceneInfo:
     scenario: str = ""
     obstacles: tuple[str, ...] | None = None
     goal: dict[str, Any] | None = None
+    # a reference run's path and inadmissible stretches (cpbc.viewer.reference_marker)
+    reference: dict[str, Any] | None = None
 
     def to_json(self) -> str:
         return json.dumps(
@@ -87,6 +90,7 @@ class SceneInfo:
                 "scenario": self.scenario,
                 "obstacles": None if self.obstacles is None else list(self.obstacles),
                 "goal": self.goal,
+                "reference": self.reference,
             },
             indent=2,
         )
@@ -101,6 +105,7 @@ class SceneInfo:
             d.get("scenario", ""),
             None if obstacles is None else tuple(obstacles),
             d.get("goal"),
+            d.get("reference"),
         )
 
     def kinematics(self, model: mujoco.MjModel) -> SceneKinematics:
@@ -147,6 +152,11 @@ class SavedTrajectory:
     margin_types: tuple[str, ...] = ()
     coordinates: Array = field(default_factory=lambda: np.eye(0))
     task_error: Array | None = None  # a goal run's (position m, angle rad), (N, 2)
+    # a reference run's applied path time s_v [s] and blocked flag per sample, (N,)
+    path_time: Array | None = None
+    blocked: Array | None = None
+    path_lag: Array | None = None
+    applied: Array | None = None  # the applied reference point per sample, (N, 3)
 
     def commanded_torque(self, joints: bool = False) -> Array:
         """What the controller asked for, (N, n): in its coordinates, or per joint
@@ -222,6 +232,10 @@ def _trajectory(d: dict[str, Any], summary: SummaryEntry, coordinates: Array) ->
         outcome=str(d["outcome"]),
         summary=summary,
         task_error=d.get("task_error"),
+        path_time=d.get("path_time"),
+        blocked=d.get("blocked"),
+        path_lag=d.get("path_lag"),
+        applied=d.get("applied"),
     )
 
 

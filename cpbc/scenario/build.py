@@ -35,6 +35,7 @@ from cpbc.model.arms import ARMS
 from cpbc.model.bounds import ModelBounds, estimate_bounds
 from cpbc.model.gravity_load import GravityLoad
 from cpbc.model.loading import LoadedArm, finish_mujoco_model
+from cpbc.reference.paths import Path as RefPath
 from cpbc.resources import builtin_models
 from cpbc.results.metrics import SettleCriteria
 from cpbc.scenario import robots
@@ -42,6 +43,7 @@ from cpbc.scenario import schema as s
 from cpbc.scenario.gains import physical_gains, unstable_loop
 from cpbc.scenario.goal import GoalPlan, goal_of, law_terms, linear_gains, plan
 from cpbc.scenario.preflight import check_gravity
+from cpbc.scenario.reference import ReferenceSetup, reference_goal, reference_setup
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, substeps_per_control
 from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
 
@@ -99,13 +101,19 @@ class ScenarioSetup:
     gravity_on_path: dict[str, GravityLoad] = dataclasses.field(default_factory=dict)
     # a goal scenario's goal, preflight and posture (``target`` is then the posture x_n)
     goal: GoalPlan | None = None
+    # a reference scenario's path, governor and plans (``goal`` is then its first sample)
+    reference: ReferenceSetup | None = None
 
     def controller(self, entry: ControllerEntry) -> Controller:
         """The entry's law as the scenario runs it in the sampled-data loop: wrapped in the
-        safeguard at the loop's control period and torque limit, when it has one."""
+        safeguard at the loop's control period and torque limit, when it has one; with a
+        reference, inside a fresh tracker (cpbc.reference.tracker) for one run."""
         loop = self.loop_settings
-        return guarded(entry.controller, loop.control_period, self.safeguard,
-                       loop.torque_limit, self.also_keep)
+        run = guarded(entry.controller, loop.control_period, self.safeguard,
+                      loop.torque_limit, self.also_keep)
+        if self.reference is None:
+            return run
+        return self.reference.tracker(entry.name, entry.controller, run, loop.control_period)
 
     def make_plant(self) -> MujocoPlant:
         """A fresh MuJoCo plant of the scenario's robot with its obstacles in the scene."""
@@ -623,11 +631,13 @@ def _states(
 ) -> tuple[Array, list[CaseEntry]]:
     """The target and the initial states: the right size, inside the joint ranges and S."""
     n = model.n
-    if (scenario.goal is None) == (scenario.target is None):
-        raise ScenarioError("goal" if scenario.goal else "target",
-                            "give either target: (a joint set point) or goal: (a frame's "
-                            "pose), not both" if scenario.goal else "missing: give target (a "
-                            "joint set point) or goal (a frame's pose)")
+    given = [k for k in ("target", "goal", "reference") if getattr(scenario, k) is not None]
+    if len(given) != 1:
+        raise ScenarioError(given[-1] if given else "target",
+                            "give one of target: (a joint set point), goal: (a frame's pose) "
+                            f"or reference: (a frame's path), not both {' and '.join(given)}"
+                            if given else "missing: give target (a joint set point), goal "
+                            "(a frame's pose) or reference (a frame's path)")
     target = np.zeros(n)
     if scenario.target is not None:
         target = _vector(scenario.target, n, "target")
@@ -733,13 +743,13 @@ def _check_recentred(controllers: list[ControllerEntry], cases: list[CaseEntry],
 
 
 def _goal(scenario: s.Scenario, model: RobotModel, scene: dict[str, Obstacle],
-          monitor: ConstraintSet, cases: list[CaseEntry], ranges: tuple[Array, Array]
-          ) -> GoalPlan | None:
+          monitor: ConstraintSet, cases: list[CaseEntry], ranges: tuple[Array, Array],
+          scenario_file: Path) -> tuple[RefPath | None, GoalPlan] | None:
     """A goal scenario's goal, preflight (from the first case's start, then the middle of the
-    joint ranges and four seeded draws in them) and posture; None for a joint target."""
-    if scenario.goal is None:
+    joint ranges and four seeded draws in them) and posture; a reference scenario's path and
+    the goal at its first sample; None for a joint target."""
+    if scenario.goal is None and scenario.reference is None:
         return None
-    goal = goal_of(scenario.goal, model, scene, monitor)
     lo, hi = (np.clip(r, -np.pi, np.pi) for r in ranges)
     rng = np.random.default_rng(0)
     seeds = [0.5 * (lo + hi)] + [rng.uniform(lo, hi) for _ in range(4)]
@@ -748,7 +758,29 @@ def _goal(scenario: s.Scenario, model: RobotModel, scene: dict[str, Obstacle],
         _check_in_range(x, model, ranges, field, "")
         _check_admissible(monitor, x, np.zeros(model.n), "goal posture", field)
 
-    return plan(scenario.goal, goal, model, monitor, cases[0].position, seeds, check)
+    if scenario.reference is not None:
+        return reference_goal(scenario.reference, model, scene, monitor, scenario_file,
+                              [c.position for c in cases], seeds, check)
+    assert scenario.goal is not None
+    goal = goal_of(scenario.goal, model, scene, monitor)
+    return None, plan(scenario.goal, goal, model, monitor, cases[0].position, seeds, check)
+
+
+def _check_distinct(built: dict[str, ConfigurationConstraint | VelocityConstraint],
+                    entries: list[str]) -> None:
+    """Refuse two constraint entries that make a row of the same name (two position limits
+    on one joint, say): the second would shadow the first in every report."""
+    owner: dict[str, tuple[int, str]] = {}
+    for entry, c in built.items():
+        i = entries.index(entry) if entry in entries else len(entries)
+        for row in c.names:
+            if row in owner:
+                j, first = owner[row]
+                raise ScenarioError(
+                    f"constraints[{i}]", f"'{entry}' and '{first}' (constraints[{j}]) both "
+                    f"make the constraint '{row}'; merge them into one entry or give them "
+                    "different joints")
+            owner[row] = (i, entry)
 
 
 def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
@@ -764,6 +796,7 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     loop = _loop_settings(sim, model)
     obstacles, scene = _obstacles(scenario.obstacles)
     built, rate_bounds = _constraints(scenario, model, names, arm, scene, obstacles)
+    _check_distinct(built, [c.name for c in scenario.constraints])
     monitor = ConstraintSet(
         model.n,
         [c for c in built.values() if isinstance(c, ConfigurationConstraint)],
@@ -771,9 +804,13 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     )
     ranges = joint_ranges(model, plant)
     target, cases = _states(scenario, model, monitor, ranges)
-    goal = _goal(scenario, model, scene, monitor, cases, ranges)
+    planned = _goal(scenario, model, scene, monitor, cases, ranges, scenario_file)
+    ref_path, goal = planned if planned is not None else (None, None)
     if goal is not None:
         target = goal.posture
+    if ref_path is not None and sim.backend != "mujoco":
+        raise ScenarioError("simulation.backend", "a reference runs in the sampled-data loop "
+                            "only (its governor counts control periods): use backend: mujoco")
     gravity_on_path: dict[str, GravityLoad] = {}
     if loop.torque_limit is not None:
         gravity_on_path = check_gravity(model, target, [(c.name, c.position) for c in cases],
@@ -781,6 +818,17 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         _check_stoppable(cases, monitor, model, loop.torque_limit)
     controllers = _controllers(scenario, model, target, cases, built, names, loop, goal)
     _check_recentred(controllers, cases, model, loop, names, sim.safeguard)
+    for i, c in enumerate(scenario.controllers):
+        for key in ("on_infeasible", "reference_speed"):
+            if getattr(c, key) is not None and scenario.reference is None:
+                raise ScenarioError(f"controllers[{i}].{key}", "belongs to a reference: give "
+                                    "reference: or drop it")
+    reference = None
+    if ref_path is not None and scenario.reference is not None and goal is not None:
+        reference = reference_setup(scenario.reference, ref_path, goal,
+                                    {c.name: (c.controller, spec) for c, spec in
+                                     zip(controllers, scenario.controllers, strict=True)},
+                                    loop.control_period)
     setup = ScenarioSetup(
         scenario, path, model, monitor, controllers, cases, target,
         PlantSettings(sim.timestep, sim.integrator),
@@ -792,7 +840,7 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
                                     else None)
         if sim.safeguard else None,
         also_keep=monitor.configuration if sim.safeguard and sim.safeguard_monitored else (),
-        gravity_on_path=gravity_on_path, goal=goal,
+        gravity_on_path=gravity_on_path, goal=goal, reference=reference,
     )
     _check_disturbances(scenario, plant, model.n)
     return setup

@@ -18,8 +18,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from cpbc.constraints.base import Array
+from cpbc.reference.tracker import ReferenceTracker
 from cpbc.results.drawing import quiet_on_interrupt
 from cpbc.results.metrics import RunSummary, margin_history, summarise
+from cpbc.results.reference_metrics import reference_log, reference_outcome
 from cpbc.results.task_metrics import task_errors, task_outcome
 from cpbc.scenario.build import CaseEntry, ControllerEntry, ScenarioSetup, build
 from cpbc.scenario.schema import Scenario
@@ -37,6 +39,8 @@ class RunResult:
     lyapunov: Array
     summary: RunSummary
     task_error: Array | None = None  # a goal run's (position m, angle rad) per sample
+    # a reference run's per-sample path_time, applied, requested and blocked
+    reference: dict[str, Array] | None = None
 
 
 def run_one(
@@ -54,9 +58,10 @@ def run_one(
         if progress is not None:
             progress(label, frac)
 
+    law = setup.controller(entry) if backend == "mujoco" else entry.controller
     if backend == "mujoco":
         traj = run_mujoco(
-            plant or setup.make_plant(), setup.controller(entry), setup.model.coordinates,
+            plant or setup.make_plant(), law, setup.model.coordinates,
             case.position, case.velocity, setup.loop_settings, report,
         )
     else:
@@ -71,8 +76,17 @@ def run_one(
         setup.rate_bounds, margins, setup.loop_settings.torque_limit,
         setup.model.coordinates.matrix, setup.model.length_coordinates,
     )
-    errors = None
-    if setup.goal is not None:
+    errors, logged = None, None
+    if isinstance(law, ReferenceTracker) and setup.goal is not None:
+        log = reference_log(setup.model, setup.goal.goal, law, traj)
+        found = reference_outcome(setup.model, setup.goal.goal, law, traj, log,
+                                  summary.status, setup.monitor.names, margins,
+                                  setup.criteria.velocity_tolerance)
+        summary = replace(summary, **found.__dict__, settle_time=None)
+        errors = log.task_error
+        logged = {"path_time": log.path_time, "applied": log.applied,
+                  "requested": log.requested, "blocked": log.blocked, "path_lag": log.path_lag}
+    elif setup.goal is not None:
         errors = task_errors(setup.model, setup.goal.goal, traj.position)
         outcome = task_outcome(setup.model, setup.goal.goal, setup.goal.preflight.verdict,
                                traj, summary.status, setup.monitor.names, margins,
@@ -82,7 +96,8 @@ def run_one(
     load = setup.gravity_on_path.get(case.name)
     if load is not None and summary.failed:
         summary = replace(summary, cause=load.describe())
-    return RunResult(entry.name, case.name, traj, margins, traj.lyapunov, summary, errors)
+    return RunResult(entry.name, case.name, traj, margins, traj.lyapunov, summary, errors,
+                     logged)
 
 
 def worker_payload(scenario: Scenario) -> str:

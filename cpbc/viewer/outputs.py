@@ -15,6 +15,7 @@ from cpbc.scenario.build import ScenarioSetup
 from cpbc.taskspace.goal import AxisGoal
 from cpbc.viewer.export import write_view
 from cpbc.viewer.goal_marker import goal_entry
+from cpbc.viewer.reference_marker import reference_entry
 from cpbc.viewer.scene import ViewSettings
 
 
@@ -41,9 +42,15 @@ def scene_info(setup: ScenarioSetup, model: mujoco.MjModel) -> SceneInfo:
         rot = plan.goal.rotation
         goal = goal_entry(plan.goal.position, None if isinstance(rot, AxisGoal) else rot,
                           rot.world if isinstance(rot, AxisGoal) else None)
+    ref = getattr(setup, "reference", None)
+    drawn = None
+    if ref is not None:
+        plans = list(ref.plans.values())
+        stretches = [st for p in plans for st in p.postures_path.stretches]
+        drawn = reference_entry(plans[0].path if plans else ref.path, stretches)
     return SceneInfo(
         setup.model.coordinates.matrix, trace_frame(setup, model), setup.scenario.name, obstacles,
-        goal,
+        goal, drawn,
     )
 
 

@@ -29,11 +29,17 @@ from numpy.typing import NDArray
 from cpbc.constraints.base import Array
 from cpbc.results.delta_planes import decode, encode
 from cpbc.results.margin_types import grouped, nearest_columns
-from cpbc.results.palette import BOUND_COLOUR, OBSTACLE_COLOUR, WARNING_COLOUR
+from cpbc.results.palette import (
+    BOUND_COLOUR,
+    OBSTACLE_COLOUR,
+    WARNING_COLOUR,
+    controller_colour,
+)
 from cpbc.results.saved_run import SavedCase, SavedRun, SavedTrajectory, SummaryEntry
 from cpbc.results.thinning import Index, envelope
 from cpbc.viewer.goal_marker import draw_goal
 from cpbc.viewer.recorder import CommandRecorder
+from cpbc.viewer.reference_marker import draw_applied, draw_reference
 from cpbc.viewer.scene import ROOT, CaseScene, ViewSettings, _segment
 
 TEMPLATE = f"{ROOT}/_template"
@@ -70,6 +76,13 @@ def _shared_scene(run: SavedRun, settings: ViewSettings) -> tuple[CaseScene, dic
     scene.draw_environment(vis)
     if run.info.goal is not None:
         draw_goal(vis, f"{ROOT}/goal", run.info.goal, 0.1 * scene.extent[1])
+    if run.info.reference is not None:
+        draw_reference(vis, f"{ROOT}/reference", run.info.reference)
+        for case in run.cases:
+            for i, r in enumerate(case.runs):
+                if r.applied is not None:
+                    draw_applied(vis, f"{ROOT}/{case.name}/applied/{_segment(r.controller)}",
+                                 r.applied, controller_colour(i))
     bodies = []
     for b in scene.bodies:
         path = f"{TEMPLATE}/{_segment(kin.body_names[b])}"

@@ -1,0 +1,139 @@
+"""A reference run's outcome (TASKSPACE §3.4): the frame's error to the requested reference
+r(t) and to the applied one, the path lag t − s_v, the governor's slowed and blocked time,
+and the status of a reference run.
+
+Statuses of a reference run (never ``converged``: that is a joint set point's):
+
+* ``tracked``: the governor completed the path (s_v reached its end) and the frame ends
+  within the tolerance of the path's last point;
+* ``blocked`` with ``blocked_by`` (the constraint) and ``blocked_at`` ({time, path_time}
+  of the block): the governor stopped before an inadmissible stretch and the run ended
+  there (``stop``, or a stretch to the path's end);
+* ``stalled`` with ``stall_kind``: the path completed, the arm at rest away from its end;
+* ``held``, ``not_settled`` (the path not completed in the run, or the arm still moving
+  away from its end), ``constraint_violated`` and ``diverged`` as for joint runs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.model.robot_model import RobotModel
+from cpbc.reference.tracker import ReferenceTracker
+from cpbc.results.task_metrics import stall_kind
+from cpbc.simulation.trajectory import Trajectory
+from cpbc.taskspace.goal import FrameGoal
+
+_KEPT = ("constraint_violated", "diverged", "held")
+
+
+@dataclass(frozen=True)
+class ReferenceLog:
+    """Per trajectory sample: s_v, the applied point (N, 3), the blocked flag, the requested
+    point r(t) (N, 3), the task error (position m, angle rad) to r(t), (N, 2), and the lag
+    min(t, T) − s_v [s] (T the path's duration)."""
+
+    path_time: Array
+    applied: Array
+    blocked: Array
+    requested: Array
+    task_error: Array
+    path_lag: Array
+
+
+@dataclass(frozen=True)
+class ReferenceOutcome:
+    """What a reference run adds to its summary (m, rad, s)."""
+
+    status: str
+    stall_kind: str | None
+    task_error_final: dict[str, float]
+    task_error_rms: dict[str, float]
+    task_error_max: dict[str, float]
+    tracking_error_applied_rms: float
+    path_lag_final: float
+    path_lag_max: float
+    governor: dict[str, float]
+    blocked_by: str | None
+    blocked_at: dict[str, float] | None
+
+
+def reference_log(model: RobotModel, goal: FrameGoal, tracker: ReferenceTracker,
+                  traj: Trajectory) -> ReferenceLog:
+    """The tracker's per-step log on the trajectory's samples, with r(t) and the errors."""
+    plan = tracker.plan
+    assert plan is not None and tracker.log_s
+    k = np.clip(np.rint(traj.time / tracker.h).astype(int), 0, len(tracker.log_s) - 1)
+    s_v = np.asarray(tracker.log_s)[k]
+    applied = np.asarray(tracker.log_applied)[k]
+    blocked = np.asarray(tracker.log_blocked, dtype=bool)[k]
+    requested = plan.path.sample(np.asarray(traj.time, dtype=float))[0]
+    errors = np.empty((len(traj.time), 2))
+    for i, x in enumerate(traj.position):
+        p, rot = model.frame_placement(goal.frame, x)
+        if goal.offset is not None:
+            p = p + rot @ goal.offset
+        errors[i] = float(np.linalg.norm(p - requested[i])), goal.angle(rot)
+    lag = np.clip(np.minimum(traj.time, plan.path.duration) - s_v, 0.0, None)
+    return ReferenceLog(s_v, applied, blocked, requested, errors, lag)
+
+
+def _pair(values: Array) -> dict[str, float]:
+    return {"position": float(values[0]), "angle": float(values[1])}
+
+
+def _status(joint_status: str, finished: bool, stopped: bool, inside: bool,
+            at_rest: bool) -> str:
+    if joint_status in _KEPT:
+        return joint_status
+    if stopped:
+        return "blocked"
+    if finished and inside:
+        return "tracked"
+    if finished and at_rest:
+        return "stalled"
+    return "not_settled"
+
+
+def reference_outcome(model: RobotModel, goal: FrameGoal, tracker: ReferenceTracker,
+                      traj: Trajectory, log: ReferenceLog, joint_status: str,
+                      names: Sequence[str], margins: Array,
+                      velocity_tolerance: float) -> ReferenceOutcome:
+    """The run's outcome (module docstring) from its log and the joint status."""
+    gov, plan = tracker.governor, tracker.plan
+    assert gov is not None and plan is not None
+    h = tracker.h
+    finite = log.task_error[np.all(np.isfinite(log.task_error), axis=1)]
+    final = finite[-1] if len(finite) else np.full(2, np.nan)
+    end_point = plan.path.sample(np.array([plan.path.duration]))[0][0]
+    final_gap = float(np.linalg.norm(log.requested[-1] - end_point))
+    inside = bool(final[0] + final_gap <= goal.tolerance[0] and final[1] <= goal.tolerance[1])
+    finished = gov.s >= plan.path.duration - 0.5 * h
+    stopped = gov.blocked_now and (gov.settings.on_infeasible == "stop"
+                                   or not np.isfinite(gov.blocked[1] if gov.blocked else 0))
+    at_rest = bool(np.max(np.abs(traj.velocity[-1])) < velocity_tolerance)
+    status = _status(joint_status, finished, stopped, inside, at_rest)
+    kind = None
+    if status == "stalled":
+        kind = stall_kind(model, goal, traj.position[-1], names, margins)
+    lag = log.path_lag
+    applied_gap = [_gap(model, goal, x, a) for x, a in zip(traj.position, log.applied,
+                                                           strict=True)]
+    block = gov.blocks[0] if gov.blocks else None
+    return ReferenceOutcome(
+        status, kind, _pair(final),
+        _pair(np.sqrt(np.mean(finite**2, axis=0)) if len(finite) else np.full(2, np.nan)),
+        _pair(finite.max(axis=0) if len(finite) else np.full(2, np.nan)),
+        float(np.sqrt(np.nanmean(np.square(applied_gap)))),
+        float(lag[-1]), float(lag.max()),
+        {"time_slowed": gov.steps_slowed * h, "time_blocked": gov.steps_blocked * h},
+        None if block is None else block.constraint,
+        None if block is None else {"time": block.time, "path_time": block.path_time})
+
+
+def _gap(model: RobotModel, goal: FrameGoal, x: Array, applied: Array) -> float:
+    return float(np.linalg.norm(model.point_position(goal.frame, x, goal.offset) - applied))
