@@ -158,3 +158,18 @@ def test_one_rule_counts_runs_at_or_below_zero_and_deeper_than_the_tolerance():
     assert (row["runs"], row["violations"], row["deep_violations"]) == (3, 2, 1)
     assert row["worst_depth"] == pytest.approx(2e-3) and row["tolerance"] == 1e-6
     assert row["filter_share"] == pytest.approx(17 / 30) and row["infeasible_steps"] == 4
+
+
+def test_the_ur5_circle_keeps_the_floor_of_its_scene():
+    """The UR5 circle's scene has a floor (10 cm below the base) that its laws were not told
+    of: from seeds 2, 3 and 16 the task-space law swept a link into it, and the contact, which
+    neither the law nor its safeguard models, kicked a joint rate past its bound (up to
+    0.2 rad/s deep at 1 kHz). The scenario now lists the floor's clearance, which the law
+    monitors and its safeguard keeps (as in ur5_bpbc): the same states of seeds 2 and 16 are
+    kept, and seed 3's state (its upper arm's cover 3 cm inside the clearance, in contact with
+    the floor 3 ms in) is no longer drawn."""
+    plan = Plan("ur5_circle", seed=0, states=3, rates=(1000.0,), horizon=2.0)
+    records = run_block(Block(plan, "TS-CPBC", 1000.0, (2, 3, 16)))
+    assert [r["class"] for r in records] == ["stoppable"] * 3
+    for r in records:
+        assert not r["violated"], (r["seed"], r["constraint"], r["min_margin"])
