@@ -173,3 +173,22 @@ def test_the_ur5_circle_keeps_the_floor_of_its_scene():
     assert [r["class"] for r in records] == ["stoppable"] * 3
     for r in records:
         assert not r["violated"], (r["seed"], r["constraint"], r["min_margin"])
+
+
+def test_a_brake_that_rests_on_something_the_law_does_not_keep_does_not_make_a_state_stoppable(
+        tmp_path):
+    """With the UR5 circle's floor left out of its constraints, seed 3 starts with the upper
+    arm 3 ms above the floor: the uniform brake 'stopped' it in the true plant only by resting
+    it on the floor, a force outside the torque box, and the state was classed stoppable. A
+    brake's run that touches anything (contact or joint range stop) no longer counts."""
+    yaml = pytest.importorskip("yaml")
+    root = Path(__file__).resolve().parents[1]
+    doc = yaml.safe_load((root / "scenarios/ur5_circle.yaml").read_text())
+    doc["constraints"] = [c for c in doc["constraints"] if c["type"] != "clearance"]
+    for c in doc["controllers"]:
+        c.pop("constraints", None)
+    path = tmp_path / "ur5_circle_floor_unkept.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    plan = Plan(str(path), seed=0, states=1, rates=(1000.0,), horizon=0.05)
+    (record,) = run_block(Block(plan, "TS-CPBC", 1000.0, (3,)))
+    assert record["class"] == "not_stoppable" and record["brake"] is None
