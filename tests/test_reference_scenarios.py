@@ -66,7 +66,7 @@ def _jump_csv(tmp_path: Path) -> str:
     (lambda d, _: d["constraints"].append({"type": "joint_position_limit", "name": "again",
                                            "joints": ["shoulder_pan_joint"],
                                            "lower": [-1.0], "upper": [1.0]}),
-     "constraints[3]", "position[shoulder_pan_joint]"),
+     "constraints[4]", "position[shoulder_pan_joint]"),
 ])
 def test_bad_references_are_refused_naming_the_field(load, tmp_path, edit, field, word) -> None:
     d = _data("ur5_circle_joint_limit")

@@ -158,3 +158,37 @@ def test_one_rule_counts_runs_at_or_below_zero_and_deeper_than_the_tolerance():
     assert (row["runs"], row["violations"], row["deep_violations"]) == (3, 2, 1)
     assert row["worst_depth"] == pytest.approx(2e-3) and row["tolerance"] == 1e-6
     assert row["filter_share"] == pytest.approx(17 / 30) and row["infeasible_steps"] == 4
+
+
+def test_the_ur5_circle_keeps_the_floor_of_its_scene():
+    """The UR5 circle's scene has a floor (10 cm below the base) that its laws were not told
+    of: from seeds 2, 3 and 16 the task-space law swept a link into it, and the contact, which
+    neither the law nor its safeguard models, kicked a joint rate past its bound (up to
+    0.2 rad/s deep at 1 kHz). The scenario now lists the floor's clearance, which the law
+    monitors and its safeguard keeps (as in ur5_bpbc): the same states of seeds 2 and 16 are
+    kept, and seed 3's state (its upper arm's cover 3 cm inside the clearance, in contact with
+    the floor 3 ms in) is no longer drawn."""
+    plan = Plan("ur5_circle", seed=0, states=3, rates=(1000.0,), horizon=2.0)
+    records = run_block(Block(plan, "TS-CPBC", 1000.0, (2, 3, 16)))
+    assert [r["class"] for r in records] == ["stoppable"] * 3
+    for r in records:
+        assert not r["violated"], (r["seed"], r["constraint"], r["min_margin"])
+
+
+def test_a_brake_that_rests_on_something_the_law_does_not_keep_does_not_make_a_state_stoppable(
+        tmp_path):
+    """With the UR5 circle's floor left out of its constraints, seed 3 starts with the upper
+    arm 3 ms above the floor: the uniform brake 'stopped' it in the true plant only by resting
+    it on the floor, a force outside the torque box, and the state was classed stoppable. A
+    brake's run that touches anything (contact or joint range stop) no longer counts."""
+    yaml = pytest.importorskip("yaml")
+    root = Path(__file__).resolve().parents[1]
+    doc = yaml.safe_load((root / "scenarios/ur5_circle.yaml").read_text())
+    doc["constraints"] = [c for c in doc["constraints"] if c["type"] != "clearance"]
+    for c in doc["controllers"]:
+        c.pop("constraints", None)
+    path = tmp_path / "ur5_circle_floor_unkept.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    plan = Plan(str(path), seed=0, states=1, rates=(1000.0,), horizon=0.05)
+    (record,) = run_block(Block(plan, "TS-CPBC", 1000.0, (3,)))
+    assert record["class"] == "not_stoppable" and record["brake"] is None

@@ -51,6 +51,13 @@ def constrained(setup: ScenarioSetup) -> list[ControllerEntry]:
 _LIMIT_JOINT = int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT)
 
 
+def touching(data: mujoco.MjData) -> bool:
+    """Whether the last physics step acted through a contact or a joint's range stop: forces
+    no controller of the package commands (mj_step finds them at the state it starts from)."""
+    return bool(data.ncon) or bool(data.nefc and np.any(
+        data.efc_type[: data.nefc] == _LIMIT_JOINT))
+
+
 class RecordingPlant(MujocoPlant):
     """A MuJoCo plant that keeps its state after every physics step, so that constraints
     can be checked between control instants. ``rows`` holds (qpos, qvel) per step;
@@ -74,8 +81,7 @@ class RecordingPlant(MujocoPlant):
             mujoco.mj_step(model, data)
             # mj_step finds contacts and active limits at the state it starts from (the last
             # row), then integrates: a touch there acts during this step
-            if self.first_touch is None and (data.ncon or (data.nefc and np.any(
-                    data.efc_type[: data.nefc] == _LIMIT_JOINT))):
+            if self.first_touch is None and touching(data):
                 self.first_touch = len(self.rows) - 1
                 self.touched = self._what_touched()
             self.rows.append(np.concatenate([data.qpos, data.qvel]))

@@ -14,8 +14,9 @@ Each state is classed, per rate, before it runs, by what was shown of it:
                    brake, the least-squares brake, the brake aimed at the nearest constraint),
                    recomputed from the model at every sample and held over the control period
                    in the true plant (MuJoCo, the run's own physics), brings the arm to rest
-                   with every margin the controller keeps positive at every physics step: a
-                   violation from here is a defect of the controller;
+                   with every margin the controller keeps positive at every physics step,
+                   touching nothing (no contact, no joint range stop: no force outside the
+                   box helps it stop): a violation from here is a defect of the controller;
 ``not_stoppable``  none of them does (it may still be savable by a torque no brake here finds).
 
 Each record also says whether the state lies in the guard's own braking set V
@@ -52,6 +53,7 @@ from cpbc.reliability.campaign import (
     constrained,
     kept_constraints,
     state_sampler,
+    touching,
 )
 from cpbc.reliability.sampling import SampledState
 from cpbc.scenario import ScenarioSetup, build, load_scenario
@@ -172,7 +174,10 @@ def stopping_brake(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Arra
 
 def _true_advance(plant: MujocoPlant, box: TorqueBox, t_mat: Array, substeps: int) -> Advance:
     """The true plant as a plant for brings_to_rest: τ clipped to the box, held for one
-    control period, every physics step reported (controller coordinates)."""
+    control period, every physics step reported (controller coordinates). A step that acted
+    through a contact or a joint's range stop ends the braking unstopped (None): a force
+    outside the torque box stopped the arm then, not the brake (a UR5 started 3 ms above a
+    floor its law did not keep was classed stoppable by a brake that rested on the floor)."""
     data = plant.data
 
     def advance(tau: Array) -> tuple[Array, Array] | None:
@@ -180,6 +185,8 @@ def _true_advance(plant: MujocoPlant, box: TorqueBox, t_mat: Array, substeps: in
         qs, dqs = [], []
         for _ in range(substeps):
             plant.step(1)
+            if touching(data):
+                return None
             qs.append(data.qpos.copy())
             dqs.append(data.qvel.copy())
         if plant.unstable():
