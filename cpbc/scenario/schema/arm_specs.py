@@ -1,0 +1,215 @@
+"""An arm scenario: robot, simulation, cases, and the whole ``Scenario``."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import Field
+
+from cpbc.scenario.schema.common import (
+    MAX_CASES,
+    CaseName,
+    NonNegative,
+    Number,
+    Positive,
+    SafeName,
+    Strict,
+    Vector,
+)
+from cpbc.scenario.schema.constraint_specs import ConstraintSpec
+from cpbc.scenario.schema.controller_specs import ControllerSpec
+from cpbc.scenario.schema.obstacle_specs import ObstacleSpec
+from cpbc.scenario.schema.taskspace_specs import GoalSpec, ReferenceSpec
+
+
+class PlantMismatchSpec(Strict):
+    """How the MuJoCo plant differs from the controller's model (the plant only): factors on
+    each body's mass and inertia (one number, or one per body below the world), and joint
+    damping, armature and dry friction added to the plant (one number, or one per joint)."""
+
+    mass_scale: Positive | list[Positive] = Field(
+        default=1.0, description=(
+            "factor on each body's mass in the MuJoCo plant: one number, or one per body "
+            "below the world"))
+    inertia_scale: Positive | list[Positive] = Field(
+        default=1.0, description=(
+            "factor on each body's rotational inertia in the plant: one number, or one per "
+            "body"))
+    damping: NonNegative | list[NonNegative] = Field(
+        default=0.0, description=(
+            "joint damping added to the plant [N·m·s/rad]: one number, or one per joint"))
+    armature: NonNegative | list[NonNegative] = Field(
+        default=0.0, description=(
+            "armature (rotor inertia) added to the plant [kg·m²]: one number, or one per "
+            "joint"))
+    frictionloss: NonNegative | list[NonNegative] = Field(
+        default=0.0, description=(
+            "dry friction added to the plant [N·m]: one number, or one per joint"))
+
+
+class RobotSpec(Strict):
+    """The arm. ``model`` is a built-in name (see cpbc.resources), an example-robot-data arm
+    (``panda``, ``ur5``, … see cpbc.model.arms.ARMS) or a path to an MJCF (.xml) or URDF
+    (.urdf) file, relative to the scenario file. ``coordinates`` are the controller's:
+    ``joint`` (the model's own), ``absolute`` (absolute link angles θ = T q of a planar chain)
+    or a matrix T. ``viscous_friction`` is F_d (diagonal, joint coordinates) in the plant and
+    the model. URDF arms only: ``locked_joints`` freezes joints at values (a named arm's
+    gripper is locked by default), ``package_dirs`` are extra folders for ``package://``."""
+
+    model: str = Field(
+        default="planar_2link", description=(
+            "a built-in model (planar_2link), an example-robot-data arm (panda, ur5, …) or a "
+            "path to an MJCF (.xml) or URDF (.urdf) file, relative to the scenario file"))
+    coordinates: Literal["joint", "absolute"] | list[Vector] = Field(
+        default="joint", description=(
+            "the controller's coordinates: joint (the model's own), absolute (absolute link "
+            "angles θ = T q of a planar chain) or a matrix T"))
+    viscous_friction: NonNegative | list[NonNegative] = Field(
+        default=0.0, description=(
+            "F_d, diagonal viscous friction in joint coordinates, in plant and model: one "
+            "number or one per joint"))
+    locked_joints: dict[str, Number] = Field(
+        default={}, description=(
+            "URDF arms: joints frozen at these values in both engines (a named arm's gripper "
+            "is locked by default)"))
+    package_dirs: list[str] = Field(
+        default=[], description=(
+            "URDF arms: extra folders searched for package:// meshes"))
+    plant: PlantMismatchSpec | None = Field(
+        default=None, description=(
+            "how the MuJoCo plant differs from the controller's model (the plant only)"))
+
+
+class NoiseSpec(Strict):
+    """Gaussian noise on the state the controller sees (controller coordinates), seeded."""
+
+    position: NonNegative | list[NonNegative] = Field(
+        default=0.0, description=(
+            "standard deviation of the noise on the positions the controller sees [rad or m]:"
+            " one number or one per coordinate"))
+    velocity: NonNegative | list[NonNegative] = Field(
+        default=0.0, description=(
+            "standard deviation of the noise on the rates the controller sees [rad/s or m/s]:"
+            " one number or one per coordinate"))
+    seed: Annotated[int, Field(ge=0, strict=True)] = Field(
+        default=0, description=(
+            "seed of the noise generator"))
+
+
+class SimulationSpec(Strict):
+    duration: Positive = Field(description="simulated time of each run [s]")
+    timestep: Positive = Field(default=0.001, description="MuJoCo's physics timestep [s]")
+    control_period: Positive | None = Field(
+        default=None, description=(
+            "control period [s], a whole multiple of the timestep (zero-order hold); the "
+            "timestep when omitted"))
+    integrator: Literal["Euler", "RK4", "implicit", "implicitfast"] = Field(
+        default="RK4", description=(
+            "MuJoCo's integrator"))
+    backend: Literal["mujoco", "reference"] = Field(
+        default="mujoco", description=(
+            "mujoco (sampled-data loop) or reference (SciPy solve_ivp on Pinocchio's forward "
+            "dynamics, continuous-time control)"))
+    # symmetric actuator limits; "from_model": the URDF's effort limits (× torque_limit_scale);
+    # "auto" (the default): the same when the model declares them for every joint, else none;
+    # "none" (or null): no limit. The default is a value, not "left out", so that a scenario
+    # rebuilt from its JSON dump (a worker process) gets the same limits.
+    torque_limit: Positive | list[Positive] | Literal["auto", "from_model", "none"] | None = Field(
+        default="auto", description=(
+            "symmetric joint torque limits: auto (the model's effort limits if it declares "
+            "them for every joint, else none), from_model, none, one number or one per joint "
+            "[N·m]"))
+    torque_limit_scale: Positive = Field(
+        default=1.0, description=(
+            "factor on the model's effort limits (from_model and auto)"))
+    log_every: Annotated[int, Field(ge=1)] = Field(
+        default=1, description=(
+            "keep every k-th control sample in the log"))
+    max_log_samples: Annotated[int, Field(ge=2)] = Field(
+        default=100_000, description=(
+            "most samples a run's log keeps; a long run halves its log rate when full"))
+    # the sampled-data safeguard
+    safeguard: Annotated[bool, Field(strict=True)] = Field(
+        default=True, description=(
+            "the sampled-data safeguard around each constrained law (braking when a margin "
+            "would shrink too fast over a period)"))
+    # ... which also keeps the configuration constraints a law only monitors (obstacles it
+    # does not know of, joint ranges): it brakes before the arm reaches them
+    safeguard_monitored: Annotated[bool, Field(strict=True)] = Field(
+        default=True, description=(
+            "the safeguard also keeps the configuration constraints a law only monitors "
+            "(obstacles or joint ranges it does not know of)"))
+    # the safeguard's cushion on the velocity margins, as a share of each margin at the target
+    # per 10 ms of control period (default: as the configuration margins', 0.001)
+    safeguard_velocity_cushion: Annotated[float, Field(gt=0, lt=1)] | None = Field(
+        default=None, description=(
+            "the safeguard's cushion on velocity margins, as a share of each margin at the "
+            "target per 10 ms of control period (default: as the configuration margins', "
+            "0.001)"))
+    # the guard holds the law's acceleration over the period, not its torque (first order,
+    # cpbc.controllers.hold; by the share of the drift the plant has, from its integrator and
+    # timestep); false: the law's torque as the bare law would hold it
+    safeguard_hold_correction: Annotated[bool, Field(strict=True)] = Field(
+        default=True, description=(
+            "the safeguard holds the law's acceleration over the period, not its torque (τ − "
+            "s D Δa with the plant's share s); false holds the law's torque"))
+    noise: NoiseSpec | None = Field(
+        default=None, description=(
+            "Gaussian noise on the state the controller sees (MuJoCo backend)"))
+    position_tolerance: Positive = Field(
+        default=0.01, description=(
+            'the "on target" band used to judge convergence [rad]'))
+    velocity_tolerance: Positive = Field(
+        default=0.005, description=(
+            'the "at rest" band used to judge convergence [rad/s]'))
+    # physics steps per run above which the run is refused (raise it to run longer)
+    max_steps: Annotated[int, Field(ge=1, strict=True)] = Field(
+        default=10_000_000, description=(
+            "physics steps per run (duration / timestep) above which the scenario is refused;"
+            " raise it to mean it"))
+    # refuse gains whose zero-order-hold loop is unstable at control_period
+    # (cpbc.scenario.gains); false lets a deliberately unstable run go ahead
+    check_gains: Annotated[bool, Field(strict=True)] = Field(
+        default=True, description=(
+            "refuse gains whose zero-order-hold loop is unstable at the control period (false"
+            " runs them anyway)"))
+
+
+class CaseSpec(Strict):
+    name: CaseName = Field(description="the case's name (a folder name of the output)")
+    position: Vector = Field(
+        description=(
+            "initial position, controller coordinates; numbers may be expressions of pi"))
+    velocity: Vector | None = Field(
+        default=None, description=(
+            "initial velocity, controller coordinates; zero when omitted"))
+
+
+class Scenario(Strict):
+    """A whole scenario: robot, simulation, target or goal, cases, constraints, controllers."""
+
+    name: SafeName = Field(description="the scenario's name: letters, digits, _ . + -")
+    description: str = Field(default="", description="free text")
+    robot: RobotSpec = Field(default=RobotSpec(), description="the arm")
+    simulation: SimulationSpec = Field(description="the simulation and the loop")
+    target: Vector | None = Field(
+        default=None, description=(
+            "the joint target x_d in controller coordinates; numbers may be expressions of pi"
+            " (give target or goal)"))
+    goal: GoalSpec | None = Field(
+        default=None, description="a frame's goal pose instead of a joint target")
+    reference: ReferenceSpec | None = Field(
+        default=None, description=(
+            "a frame's moving reference instead of a joint target or a goal"))
+    cases: Annotated[list[CaseSpec], Field(min_length=1, max_length=MAX_CASES)] = Field(
+        description=(
+            "initial states; every controller runs on every case"))
+    obstacles: list[ObstacleSpec] = Field(
+        default=[], description=(
+            "bodies in the scene, kept clear of by clearance constraints"))
+    constraints: list[ConstraintSpec] = Field(
+        default=[], description=(
+            "the admissible set S; each item has a unique name"))
+    controllers: Annotated[list[ControllerSpec], Field(min_length=1)] = Field(
+        description=(
+            "the laws compared; every controller runs on every case"))
