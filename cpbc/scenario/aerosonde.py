@@ -33,9 +33,9 @@ from cpbc.scenario.systems import (
     SystemCase,
     SystemLaw,
     SystemSetup,
-    _check_length,
-    _gain_error,
     check_backend,
+    check_length,
+    gain_error,
 )
 from cpbc.systems.aerosim import AerosondeParameters
 from cpbc.systems.aerosonde import AerosondePlant
@@ -51,7 +51,7 @@ def _law(spec: TraditionalAltitudeLawSpec | ConstrainedAltitudeLawSpec, model: A
                 model, TraditionalAltitudeGains(**spec.gains.model_dump()))
         gains = ConstrainedAltitudeGains(**spec.gains.model_dump())
     except DesignError as exc:
-        raise _gain_error(f"system.laws[{j}]", exc) from None
+        raise gain_error(f"system.laws[{j}]", exc) from None
     if gains.climb_rate_bound > limit * (1 + 1e-12):
         raise ScenarioError(
             f"system.laws[{j}].gains",
@@ -127,7 +127,7 @@ def build_aerosonde(scenario: SystemScenario, spec: AerosondeSpec, source: Path)
     if len(set(names)) != len(names):
         raise ScenarioError("system.laws", f"law names repeat: {names}")
     period = sim.control_period or sim.timestep
-    _check_length(scenario, period)
+    check_length(scenario, period)
     cases: list[SystemCase] = []
     commands: list[AltitudeCommand] = []
     per_law: list[dict[str, Law]] = [{} for _ in spec.laws]

@@ -79,7 +79,7 @@ class SystemSetup:
     input_name: str
 
 
-def _gain_error(field: str, exc: DesignError) -> ScenarioError:
+def gain_error(field: str, exc: DesignError) -> ScenarioError:
     return ScenarioError(f"{field}.gains.{exc.parameter}", f"{exc.reason} (got {exc.value!r})")
 
 
@@ -91,7 +91,7 @@ def _suspension(spec: QuarterCarSpec) -> tuple[list[SystemLaw], SystemView]:
             barrier = LogBarrier(gains.k2, gains.k3) if law.barrier else QuadraticTerm(gains.k3)
             ctrl = SuspensionController(gains, barrier=barrier)
         except DesignError as exc:
-            raise _gain_error(f"system.laws[{i}]", exc) from None
+            raise gain_error(f"system.laws[{i}]", exc) from None
         if law.barrier and ctrl.travel_bound > spec.travel_limit * (1 + 1e-12):
             raise ScenarioError(
                 f"system.laws[{i}].gains",
@@ -119,7 +119,7 @@ def _reaction_wheel(spec: ReactionWheelSpec) -> tuple[list[SystemLaw], SystemVie
         try:
             ctrl = ReactionWheelController(WheelPendulumGains(**law.gains.model_dump()))
         except DesignError as exc:
-            raise _gain_error(f"system.laws[{i}]", exc) from None
+            raise gain_error(f"system.laws[{i}]", exc) from None
         b = ctrl.bounds()
         torque = max(b.torque)  # (3.159) printed and corrected
         if torque > spec.torque_limit * (1 + 1e-12):
@@ -159,7 +159,7 @@ def _integrator_chain(spec: IntegratorChainSpec) -> tuple[list[SystemLaw], Syste
         try:
             ctrl = IntegratorChainController(ChainGains(**law.gains.model_dump()))
         except DesignError as exc:
-            raise _gain_error(f"system.laws[{i}]", exc) from None
+            raise gain_error(f"system.laws[{i}]", exc) from None
         worst = worst_case(ctrl.law)
         for j, (x, lim) in enumerate(zip(worst.state_bounds, spec.limits, strict=True)):
             if x > lim:
@@ -244,7 +244,7 @@ def build_system(scenario: SystemScenario, source: Path) -> SystemSetup:
     if len(set(names)) != len(names):
         raise ScenarioError("system.laws", f"law names repeat: {names}")
     period = sim.control_period or sim.timestep
-    _check_length(scenario, period)
+    check_length(scenario, period)
     cases: list[SystemCase] = []
     for i, c in enumerate(scenario.cases):
         plant = _plant(spec, c, i)
@@ -274,7 +274,7 @@ def check_backend(setup: SystemSetup, backend: str, field: str) -> None:
                         "it: use the continuous-time reference (backend: reference)")
 
 
-def _check_length(scenario: SystemScenario, period: float) -> None:
+def check_length(scenario: SystemScenario, period: float) -> None:
     sim = scenario.simulation
     ratio = period / sim.timestep
     if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:

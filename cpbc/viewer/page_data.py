@@ -40,7 +40,7 @@ from cpbc.results.thinning import Index, envelope
 from cpbc.viewer.goal_marker import draw_goal
 from cpbc.viewer.recorder import CommandRecorder
 from cpbc.viewer.reference_marker import draw_applied, draw_reference
-from cpbc.viewer.scene import ROOT, CaseScene, ViewSettings, _segment
+from cpbc.viewer.scene import ROOT, CaseScene, ViewSettings, segment
 
 TEMPLATE = f"{ROOT}/_template"
 _PLOT_BUCKETS = 400  # time buckets of a plotted curve (two samples each)
@@ -81,16 +81,16 @@ def _shared_scene(run: SavedRun, settings: ViewSettings) -> tuple[CaseScene, dic
         for case in run.cases:
             for i, r in enumerate(case.runs):
                 if r.applied is not None:
-                    draw_applied(vis, f"{ROOT}/{case.name}/applied/{_segment(r.controller)}",
+                    draw_applied(vis, f"{ROOT}/{case.name}/applied/{segment(r.controller)}",
                                  r.applied, controller_colour(i))
     bodies = []
     for b in scene.bodies:
-        path = f"{TEMPLATE}/{_segment(kin.body_names[b])}"
+        path = f"{TEMPLATE}/{segment(kin.body_names[b])}"
         scene.draw_template_body(vis, path, b)
         bodies.append({"name": kin.body_names[b], "path": path,
                        "geoms": [scene.geom_path(path, g) for g in scene.body_geoms(b)]})
     vis[TEMPLATE].set_property("visible", False)
-    obstacles = [f"{ROOT}/obstacles/{_segment(kin.geom_names[g])}"
+    obstacles = [f"{ROOT}/obstacles/{segment(kin.geom_names[g])}"
                  for g in kin.obstacle_geoms]
     return scene, {"commands": [packed(c) for c in recorder.commands], "bodies": bodies,
                    "obstacles": obstacles}

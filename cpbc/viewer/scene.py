@@ -96,7 +96,7 @@ def _matrix(pos: Array, quat: Array) -> Array:
     return m
 
 
-def _segment(name: str) -> str:
+def segment(name: str) -> str:
     return name.replace("/", "_") or "_"
 
 
@@ -146,16 +146,16 @@ class CaseScene:
 
     # -- paths ---------------------------------------------------------------------------------
     def _body_path(self, controller: str, b: int) -> str:
-        return f"{self.root}/{_segment(controller)}/robot/{_segment(self.kin.body_names[b])}"
+        return f"{self.root}/{segment(controller)}/robot/{segment(self.kin.body_names[b])}"
 
     def _geom_path(self, body_path: str, g: int) -> str:
-        return f"{body_path}/{_segment(self.kin.geom_names[g])}"
+        return f"{body_path}/{segment(self.kin.geom_names[g])}"
 
     def _obstacle_path(self, g: int) -> str:
-        return f"{self.root}/obstacles/{_segment(self.kin.geom_names[g])}"
+        return f"{self.root}/obstacles/{segment(self.kin.geom_names[g])}"
 
     def controller_path(self, controller: str) -> str:
-        return f"{self.root}/{_segment(controller)}"
+        return f"{self.root}/{segment(controller)}"
 
     # -- geometry ------------------------------------------------------------------------------
     def _extent(self) -> tuple[Array, float]:
@@ -209,12 +209,12 @@ class CaseScene:
                 continue
             mat = m.geom_matid[g]
             rgba = m.mat_rgba[mat] if mat >= 0 else m.geom_rgba[g]
-            node = vis[f"{self.root}/static/{_segment(self.kin.geom_names[g])}"]
+            node = vis[f"{self.root}/static/{segment(self.kin.geom_names[g])}"]
             node.set_object(shape, _material(_hex(rgba[:3]), float(rgba[3])))
             node.set_transform(_matrix(d.geom_xpos[g], _quat_of(d.geom_xmat[g])))
         d = self.kin.pose(self.target)
         for b in self.bodies:
-            path = f"{self.root}/target/{_segment(self.kin.body_names[b])}"
+            path = f"{self.root}/target/{segment(self.kin.body_names[b])}"
             self._draw_body(vis, path, b, int(TARGET_COLOUR[1:], 16), 0.22)
             vis[path].set_transform(_matrix(d.xpos[b], d.xquat[b]))
         tip = vis[f"{self.root}/target/tip"]
