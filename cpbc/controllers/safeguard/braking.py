@@ -11,38 +11,14 @@ from collections.abc import Callable
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.constraints.stopping import Braking
 from cpbc.controllers.linalg import solve_spd
-from cpbc.controllers.rescue import Rescue
+from cpbc.controllers.safeguard.members import GuardMembers
 from cpbc.controllers.safeguard.prediction import Predictor
-from cpbc.controllers.safeguard.settings import SafeguardSettings
-from cpbc.model.robot_model import ArmState, RobotModel
+from cpbc.model.robot_model import ArmState
 
 
-class Brakes:
+class Brakes(GuardMembers):
     """The replacement torques: mixed into :class:`cpbc.controllers.safeguard.Safeguard`."""
-
-    # what the Safeguard that mixes this in provides (guard.py)
-    model: RobotModel
-    period: float
-    settings: SafeguardSettings
-    guarded: ConstraintSet
-    cushion: Array
-    keep: float
-    keep_half: float
-    hold_share: float
-    infeasible: int
-    uncorrected: int
-    scaled: int
-    rescues: int
-    rescue: Rescue | None
-    braking: Braking | None
-    _n_config: int
-    _sigma_floor: Array
-
-    def _box(self, bias: Array, tau: Array) -> Array:
-        raise NotImplementedError
 
     def _check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None,
                stop: tuple[float, Array] | None = None,

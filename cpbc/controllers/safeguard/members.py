@@ -1,0 +1,36 @@
+"""What the guard's parts read of the guard: the attributes and the torque-box method that
+:class:`cpbc.controllers.safeguard.guard.Safeguard` provides to the parts it mixes in
+(acceptance, brakes), declared once so that each part type-checks on its own."""
+
+from __future__ import annotations
+
+from cpbc.arrays import Array
+from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.stopping import Braking
+from cpbc.controllers.rescue import Rescue
+from cpbc.controllers.safeguard.settings import SafeguardSettings
+from cpbc.model.robot_model import RobotModel
+
+
+class GuardMembers:
+    """The guard's state as its mixed-in parts see it (set by ``Safeguard.__init__``)."""
+
+    model: RobotModel
+    period: float
+    settings: SafeguardSettings
+    guarded: ConstraintSet
+    cushion: Array
+    keep: float
+    keep_half: float
+    hold_share: float
+    infeasible: int
+    uncorrected: int
+    scaled: int
+    rescues: int
+    rescue: Rescue | None
+    braking: Braking | None
+    _n_config: int
+    _sigma_floor: Array
+
+    def _box(self, bias: Array, tau: Array) -> Array:
+        raise NotImplementedError
