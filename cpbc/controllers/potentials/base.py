@@ -43,6 +43,21 @@ class Configuration(NamedTuple):
     frames: Mapping[int, FrameKinematics] = NO_FRAMES
 
 
+
+class OnOneFrame:
+    """A task term read from one frame of the per-step state (``frame``), which never anchors
+    the posture: the frame springs."""
+
+    frame: int
+
+    @property
+    def frames(self) -> tuple[int, ...]:
+        return (self.frame,)
+
+    @property
+    def anchored(self) -> bool:
+        return False
+
 @dataclass(frozen=True)
 class GradientBound:
     """sup ‖∂U/∂x‖₂ over every configuration, for the torque bounds (7.32) and (7.40).

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.controllers.potentials.base import GradientBound, Placed, frame_at
+from cpbc.controllers.potentials.base import GradientBound, OnOneFrame, Placed, frame_at
 from cpbc.errors import ParameterError
 from cpbc.model.frames import cross3, jacobian_bounds
 from cpbc.model.robot_model import RobotModel
@@ -50,7 +50,7 @@ def _angular_reach(model: RobotModel, frame: int) -> float:
 
 
 @dataclass(frozen=True)
-class FrameOrientationSpring:
+class FrameOrientationSpring(OnOneFrame):
     """U = k (3 − tr(R_dᵀR)) = 4k sin²(θ/2) ≤ 4k, θ the angle of R_dᵀR, with
 
         ∂U/∂x = k J_ωᵀ vee(R R_dᵀ − R_d Rᵀ),   ‖∂U/∂x‖ = 2k sin θ ‖·‖ ≤ 2k J̄_ω
@@ -80,14 +80,6 @@ class FrameOrientationSpring:
         return cls(fid, np.asarray(rotation, dtype=float), stiffness, _angular_reach(model, fid))
 
     @property
-    def frames(self) -> tuple[int, ...]:
-        return (self.frame,)
-
-    @property
-    def anchored(self) -> bool:
-        return False
-
-    @property
     def gradient_bound(self) -> GradientBound:
         bound = 2.0 * self.stiffness * self.reach
         return GradientBound(bound, bound)
@@ -102,7 +94,7 @@ class FrameOrientationSpring:
 
 
 @dataclass(frozen=True)
-class FrameAxisSpring:
+class FrameAxisSpring(OnOneFrame):
     """U = k (1 − a_wᵀ R a_b) = k (1 − cos θ) ≤ 2k, θ the angle between the tool axis R a_b and
     the world axis a_w (the rotation about a_w is free), with
 
@@ -135,14 +127,6 @@ class FrameAxisSpring:
         fid = model.frame_id(frame)
         return cls(fid, np.asarray(tool, dtype=float), np.asarray(world, dtype=float),
                    stiffness, _angular_reach(model, fid))
-
-    @property
-    def frames(self) -> tuple[int, ...]:
-        return (self.frame,)
-
-    @property
-    def anchored(self) -> bool:
-        return False
 
     @property
     def gradient_bound(self) -> GradientBound:

@@ -9,7 +9,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.controllers.base import positive_vector
-from cpbc.controllers.potentials.base import GradientBound, Placed, frame_at
+from cpbc.controllers.potentials.base import GradientBound, OnOneFrame, Placed, frame_at
 from cpbc.controllers.potentials.log_cosh import LogCoshSum
 from cpbc.errors import ParameterError
 from cpbc.model.frames import jacobian_bounds
@@ -38,7 +38,7 @@ def _stiffness_matrix(value: object) -> Array:
 
 
 @dataclass(frozen=True)
-class FramePositionSpring:
+class FramePositionSpring(OnOneFrame):
     """U = ½ eᵀ K e, e = p(x) − p_d, ∂U/∂x = J_vᵀ K e (Takegaki–Arimoto's spring).
 
     Attributes:
@@ -68,14 +68,6 @@ class FramePositionSpring:
                    None if offset is None else np.asarray(offset, dtype=float))
 
     @property
-    def frames(self) -> tuple[int, ...]:
-        return (self.frame,)
-
-    @property
-    def anchored(self) -> bool:
-        return False
-
-    @property
     def gradient_bound(self) -> GradientBound | None:
         return None
 
@@ -92,7 +84,7 @@ class FramePositionSpring:
 
 
 @dataclass(frozen=True)
-class FramePositionLogCosh:
+class FramePositionLogCosh(OnOneFrame):
     """U = Σ (K_i/ξ_i) ln cosh(ξ_i e_i) per world axis, e = p(x) − p_d (the ln cosh of
     eq. 7.18 on the position error), ∂U/∂x = J_vᵀ K tanh(Ξe).
 
@@ -133,14 +125,6 @@ class FramePositionLogCosh:
         reach, _ = jacobian_bounds(model.model, model.coordinates.inverse, fid, point)
         return cls(fid, np.asarray(goal, dtype=float), np.asarray(stiffness, dtype=float),
                    np.asarray(xi, dtype=float), reach, point)
-
-    @property
-    def frames(self) -> tuple[int, ...]:
-        return (self.frame,)
-
-    @property
-    def anchored(self) -> bool:
-        return False
 
     @property
     def gradient_bound(self) -> GradientBound:
