@@ -32,6 +32,15 @@ class Evaluation(NamedTuple):
     margins: Array | None = None
 
 
+def vector3(value: object, name: str) -> Array:
+    """A point or a velocity in space as a read-only vector of 3 finite numbers."""
+    a = np.array(value, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise ParameterError(name, f"{name} must be 3 finite numbers, got {value!r}")
+    a.setflags(write=False)
+    return a
+
+
 def positive_vector(value: object, n: int, field: str) -> Array:
     """A gain or parameter as a read-only vector of n strictly positive entries.
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.controllers.base import positive_vector
+from cpbc.controllers.base import positive_vector, vector3
 from cpbc.controllers.potentials.base import Placed, frame_at
 from cpbc.errors import ParameterError
 from cpbc.model.frames import jacobian_bounds
@@ -29,14 +29,6 @@ from cpbc.model.robot_model import RobotModel
 
 ZERO3 = np.zeros(3)
 ZERO3.setflags(write=False)
-
-
-def _vector3(value: object, name: str) -> Array:
-    a = np.array(value, dtype=float)
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise ParameterError(name, f"{name} must be 3 finite numbers, got {value!r}")
-    a.setflags(write=False)
-    return a
 
 
 def _gain_matrix(value: object) -> Array:
@@ -84,9 +76,9 @@ class TaskDamping:
         gain6[:3, :3], gain6[3:, 3:] = self.gain, self.angular
         object.__setattr__(self, "_gain6", gain6)
         object.__setattr__(self, "_bias6", gain6[:, :3] @ self.feedforward)
-        object.__setattr__(self, "feedforward", _vector3(self.feedforward, "feedforward"))
+        object.__setattr__(self, "feedforward", vector3(self.feedforward, "feedforward"))
         if self.offset is not None:
-            object.__setattr__(self, "offset", _vector3(self.offset, "offset"))
+            object.__setattr__(self, "offset", vector3(self.offset, "offset"))
 
     @property
     def frames(self) -> tuple[int, ...]:
@@ -135,16 +127,16 @@ class TaskTanhDamping:
     def __post_init__(self) -> None:
         object.__setattr__(self, "gain", positive_vector(self.gain, 3, "task damping"))
         object.__setattr__(self, "gamma", positive_vector(self.gamma, 3, "task gamma"))
-        object.__setattr__(self, "feedforward", _vector3(self.feedforward, "feedforward"))
+        object.__setattr__(self, "feedforward", vector3(self.feedforward, "feedforward"))
         if self.offset is not None:
-            object.__setattr__(self, "offset", _vector3(self.offset, "offset"))
+            object.__setattr__(self, "offset", vector3(self.offset, "offset"))
 
     @classmethod
     def named(cls, model: RobotModel, frame: str, gain: object, gamma: object,
               offset: object = None) -> TaskTanhDamping:
         """The damping on the frame named ``frame``, with its Jacobian bound."""
         fid = model.frame_id(frame)
-        point = None if offset is None else _vector3(offset, "offset")
+        point = None if offset is None else vector3(offset, "offset")
         reach, _ = jacobian_bounds(model.model, model.coordinates.inverse, fid, point)
         return cls(fid, np.asarray(gain, dtype=float), np.asarray(gamma, dtype=float),
                    reach, point)

@@ -8,20 +8,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.controllers.base import positive_vector
+from cpbc.controllers.base import positive_vector, vector3
 from cpbc.controllers.potentials.base import GradientBound, OnOneFrame, Placed, frame_at
 from cpbc.controllers.potentials.log_cosh import LogCoshSum
 from cpbc.errors import ParameterError
 from cpbc.model.frames import jacobian_bounds
 from cpbc.model.robot_model import RobotModel
-
-
-def _vector3(value: object, name: str) -> Array:
-    a = np.array(value, dtype=float)
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise ParameterError(name, f"{name} must be 3 finite numbers, got {value!r}")
-    a.setflags(write=False)
-    return a
 
 
 def _stiffness_matrix(value: object) -> Array:
@@ -54,10 +46,10 @@ class FramePositionSpring(OnOneFrame):
     offset: Array | None = None
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "goal", _vector3(self.goal, "goal"))
+        object.__setattr__(self, "goal", vector3(self.goal, "goal"))
         object.__setattr__(self, "stiffness", _stiffness_matrix(self.stiffness))
         if self.offset is not None:
-            object.__setattr__(self, "offset", _vector3(self.offset, "offset"))
+            object.__setattr__(self, "offset", vector3(self.offset, "offset"))
 
     @classmethod
     def named(cls, model: RobotModel, frame: str, goal: object, stiffness: object,
@@ -109,11 +101,11 @@ class FramePositionLogCosh(OnOneFrame):
     def __post_init__(self) -> None:
         stiffness = positive_vector(self.stiffness, 3, "stiffness")
         xi = positive_vector(self.xi, 3, "xi")
-        object.__setattr__(self, "goal", _vector3(self.goal, "goal"))
+        object.__setattr__(self, "goal", vector3(self.goal, "goal"))
         object.__setattr__(self, "stiffness", stiffness)
         object.__setattr__(self, "xi", xi)
         if self.offset is not None:
-            object.__setattr__(self, "offset", _vector3(self.offset, "offset"))
+            object.__setattr__(self, "offset", vector3(self.offset, "offset"))
         object.__setattr__(self, "_spring", LogCoshSum(stiffness, xi))
 
     @classmethod
@@ -121,7 +113,7 @@ class FramePositionLogCosh(OnOneFrame):
               xi: object, offset: object = None) -> FramePositionLogCosh:
         """The spring on the frame named ``frame`` of ``model``, with its Jacobian bound."""
         fid = model.frame_id(frame)
-        point = None if offset is None else _vector3(offset, "offset")
+        point = None if offset is None else vector3(offset, "offset")
         reach, _ = jacobian_bounds(model.model, model.coordinates.inverse, fid, point)
         return cls(fid, np.asarray(goal, dtype=float), np.asarray(stiffness, dtype=float),
                    np.asarray(xi, dtype=float), reach, point)
