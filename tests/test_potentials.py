@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from lyapunov_rates import measured_rate, stated_rate
 
 from cpbc.constraints import (
     ConstraintSet,
@@ -209,37 +210,6 @@ def panda_task_laws(model: RobotModel) -> list[tuple[str, Controller]]:
     ]
 
 
-def _rate(law: Controller, model: RobotModel, x: np.ndarray, dx: np.ndarray, h: float = 1e-5
-          ) -> float:
-    """V̇ = ∂V/∂x ẋ + ∂V/∂ẋ ẍ, ẍ = D⁻¹(τ − Cẋ − g − f) under the law (five-point stencil)."""
-    ddx = model.forward_dynamics(x, dx, law.torque(x, dx))
-
-    def v(step: float) -> float:
-        return law.lyapunov(x + step * dx, dx + step * ddx)
-
-    return (-v(2 * h) + 8 * v(h) - 8 * v(-h) + v(-2 * h)) / (12 * h)
-
-
-def _stated_rate(name: str, law: Controller, model: RobotModel, x: np.ndarray,
-                 dx: np.ndarray) -> float:
-    """The V̇ each theorem states (6.11, 6.32, 7.22, Corollaries 6.11 and 7.8)."""
-    # every constraint's terms, the energy limit's included (CPBC-KE's own state leaves C out)
-    state = law.constraints.state(law.model, x, dx, law.frames)
-    f = state.dissipation
-    damping = law.damping.force(dx) if hasattr(law, "damping") else law.kd * dx  # type: ignore
-    if name == "pd_gravity":
-        return float(-dx @ (damping + f))
-    bar = law.constraints.barrier(state)
-    log_x = bar.log_phi + bar.log_psi
-    s = math.exp(law.shaping.log_s(log_x))  # type: ignore[attr-defined]
-    if not name.endswith("_ke"):
-        return float(-dx @ (damping + f) / s)
-    kinetic = 0.5 * float(dx @ state.inertia @ dx)
-    assert law.potential is not None
-    lag = kinetic + law.potential.evaluate(state)[0]
-    psi = law.energy.limit - kinetic  # type: ignore[attr-defined]
-    rho = law.shaping.ratio(log_x) * lag  # type: ignore[attr-defined]
-    return float(-(dx @ damping + (1 + rho / psi) * dx @ f) / s)
 
 
 @pytest.mark.parametrize("index", range(6))
@@ -253,9 +223,9 @@ def test_lyapunov_rate_with_a_task_potential_matches_theorem(panda: RobotModel, 
         dx = rng.uniform(-0.4, 0.4, 7)
         if not np.all(law.constraints.margins(x, dx, law.state(x, dx)) > 0):
             continue
-        want = _stated_rate(name, law, panda, x, dx)
+        want = stated_rate(name, law, x, dx)
         assert want <= 0
-        assert _rate(law, panda, x, dx) == pytest.approx(want, rel=1e-4, abs=1e-7), name
+        assert measured_rate(law, panda, x, dx) == pytest.approx(want, rel=1e-4, abs=1e-7), name
         checked += 1
         if checked == 4:
             break

@@ -4,10 +4,9 @@ torque bound, and the refusal of unbounded task damping by the bounded-torque la
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
+from lyapunov_rates import measured_rate, stated_rate
 
 from cpbc.constraints import (
     ConstraintSet,
@@ -81,39 +80,6 @@ def _laws(model: RobotModel) -> list[tuple[str, Controller]]:
     ]
 
 
-def _rate(law: Controller, model: RobotModel, x: np.ndarray, dx: np.ndarray,
-          h: float = 1e-5) -> float:
-    ddx = model.forward_dynamics(x, dx, law.torque(x, dx))
-
-    def v(step: float) -> float:
-        return law.lyapunov(x + step * dx, dx + step * ddx)
-
-    return (-v(2 * h) + 8 * v(h) - 8 * v(-h) + v(-2 * h)) / (12 * h)
-
-
-def _stated_rate(name: str, law: Controller, x: np.ndarray, dx: np.ndarray) -> float:
-    """−ẋᵀ(K_D ẋ + F + f)/s (6.32, 7.22), the KE laws' (1 + ρ/ψ) on f (Corollaries 6.11, 7.8)."""
-    # every constraint's terms, the energy limit's included (CPBC-KE's own state leaves C out)
-    state = law.constraints.state(law.model, x, dx, law.frames)
-    f = state.dissipation
-    assert law.task_damping is not None
-    task = law.task_damping.force(state, dx)
-    assert float(dx @ task) >= 0
-    damping = law.damping.force(dx) if hasattr(law, "damping") else law.kd * dx  # type: ignore
-    damping = damping + task
-    if name == "pd_gravity":
-        return float(-dx @ (damping + f))
-    bar = law.constraints.barrier(state)
-    log_x = bar.log_phi + bar.log_psi
-    s = math.exp(law.shaping.log_s(log_x))  # type: ignore[attr-defined]
-    if not name.endswith("_ke"):
-        return float(-dx @ (damping + f) / s)
-    kinetic = 0.5 * float(dx @ state.inertia @ dx)
-    assert law.potential is not None
-    lag = kinetic + law.potential.evaluate(state)[0]
-    psi = law.energy.limit - kinetic  # type: ignore[attr-defined]
-    rho = law.shaping.ratio(log_x) * lag  # type: ignore[attr-defined]
-    return float(-(dx @ damping + (1 + rho / psi) * dx @ f) / s)
 
 
 @pytest.mark.parametrize("index", range(5))
@@ -126,9 +92,10 @@ def test_lyapunov_rate_with_task_damping_matches_theorem(panda: RobotModel, inde
         dx = rng.uniform(-0.4, 0.4, 7)
         if not np.all(law.constraints.margins(x, dx, law.state(x, dx)) > 0):
             continue
-        want = _stated_rate(name, law, x, dx)
+        assert law.task_damping is not None
+        want = stated_rate(name, law, x, dx)
         assert want < 0
-        assert _rate(law, panda, x, dx) == pytest.approx(want, rel=1e-4, abs=1e-7), name
+        assert measured_rate(law, panda, x, dx) == pytest.approx(want, rel=1e-4, abs=1e-7), name
         checked += 1
         if checked == 3:
             break
