@@ -1,5 +1,6 @@
 """Shared fixtures: the thesis's 2-link arm (eq. 6.69) in joint and absolute coordinates,
-a seeded random generator and a central finite-difference helper."""
+the same kind of arm tilted into gravity with friction, a seeded random generator and a
+central finite-difference helper."""
 
 from __future__ import annotations
 
@@ -73,3 +74,30 @@ def state_at(x: np.ndarray, dx: np.ndarray | None = None, model: RobotModel | No
         return model.state(x, dx, kinematics=True, frames=frames, coriolis=True)
     nothing = np.full(0, np.nan)
     return ArmState(x, dx, x, dx, nothing, nothing, nothing, nothing)
+
+
+TILTED = """
+<mujoco model="tilted_2link">
+  <option gravity="0 0 -9.81"/>
+  <default><joint type="hinge" axis="0 1 0"/></default>
+  <worldbody>
+    <body name="link1">
+      <joint name="j1"/>
+      <inertial pos="0.5 0 0" mass="1.3" diaginertia="0.2 0.9 0.8"/>
+      <body name="link2" pos="1 0 0">
+        <joint name="j2"/>
+        <inertial pos="0.4 0 0" mass="0.8" diaginertia="0.1 0.5 0.5"/>
+        <site name="tip" pos="0.9 0 0"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.fixture(scope="module")
+def tilted(tmp_path_factory: pytest.TempPathFactory) -> RobotModel:
+    """A 2-link arm in a vertical plane with unequal links, gravity and viscous friction."""
+    path = Path(tmp_path_factory.mktemp("tilted")) / "tilted.xml"
+    path.write_text(TILTED)
+    return RobotModel.from_mjcf(path, viscous_friction=np.array([0.3, 0.15]))

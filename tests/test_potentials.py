@@ -6,7 +6,6 @@ default potentials' torques unchanged to the bit."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -49,24 +48,6 @@ from cpbc.model.frames import jacobian_bounds
 from cpbc.model.loading import load_arm
 from cpbc.resources import models_dir
 
-TILTED = """
-<mujoco model="tilted_2link">
-  <option gravity="0 0 -9.81"/>
-  <default><joint type="hinge" axis="0 1 0"/></default>
-  <worldbody>
-    <body name="link1">
-      <joint name="j1"/>
-      <inertial pos="0.5 0 0" mass="1.3" diaginertia="0.2 0.9 0.8"/>
-      <body name="link2" pos="1 0 0">
-        <joint name="j2"/>
-        <inertial pos="0.4 0 0" mass="0.8" diaginertia="0.1 0.5 0.5"/>
-        <site name="tip" pos="0.9 0 0"/>
-      </body>
-    </body>
-  </worldbody>
-</mujoco>
-"""
-
 
 @pytest.fixture(scope="module")
 def panda() -> RobotModel:
@@ -80,13 +61,6 @@ def planar() -> RobotModel:
     """The thesis's arm in absolute link angles: controller ≠ joint coordinates."""
     return RobotModel.from_mjcf(models_dir() / "planar_2link.xml",
                                 coordinates=LinearCoordinates.absolute_link_angles(2))
-
-
-@pytest.fixture(scope="module")
-def tilted(tmp_path_factory: pytest.TempPathFactory) -> RobotModel:
-    path = Path(tmp_path_factory.mktemp("tilted")) / "tilted.xml"
-    path.write_text(TILTED)
-    return RobotModel.from_mjcf(path, viscous_friction=np.array([0.3, 0.15]))
 
 
 PANDA_HOME = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
