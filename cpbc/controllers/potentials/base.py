@@ -44,6 +44,19 @@ class Configuration(NamedTuple):
 
 
 
+class OfTheJoints:
+    """A spring on the joint configuration alone: it reads no frame, and (stiff in every
+    coordinate) it anchors the posture — the joint set-point springs."""
+
+    @property
+    def frames(self) -> tuple[int, ...]:
+        return ()
+
+    @property
+    def anchored(self) -> bool:
+        return True
+
+
 class OnOneFrame:
     """A task term read from one frame of the per-step state (``frame``), which never anchors
     the posture: the frame springs."""

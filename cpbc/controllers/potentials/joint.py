@@ -9,7 +9,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.controllers.base import positive_vector
-from cpbc.controllers.potentials.base import GradientBound, Placed
+from cpbc.controllers.potentials.base import GradientBound, OfTheJoints, Placed
 from cpbc.controllers.potentials.log_cosh import LogCoshSum
 
 
@@ -20,7 +20,7 @@ def _set_point(target: object) -> Array:
 
 
 @dataclass(frozen=True)
-class JointSpring:
+class JointSpring(OfTheJoints):
     """U = ½ x̃ᵀ K x̃, x̃ = x − x_d (eq. 6.7), ∂U/∂x = K x̃, K diagonal > 0.
 
     Attributes:
@@ -38,14 +38,6 @@ class JointSpring:
                            positive_vector(self.stiffness, target.shape[0], "stiffness"))
 
     @property
-    def frames(self) -> tuple[int, ...]:
-        return ()
-
-    @property
-    def anchored(self) -> bool:
-        return True
-
-    @property
     def gradient_bound(self) -> GradientBound | None:
         return None
 
@@ -61,7 +53,7 @@ class JointSpring:
 
 
 @dataclass(frozen=True)
-class JointLogCoshSpring:
+class JointLogCoshSpring(OfTheJoints):
     """U = Σ (K_i/ξ_i) ln cosh(ξ_i x̃_i) (eq. 7.18), ∂U/∂x = K tanh(Ξx̃), bounded by K.
 
     Attributes:
@@ -84,14 +76,6 @@ class JointLogCoshSpring:
         object.__setattr__(self, "stiffness", stiffness)
         object.__setattr__(self, "xi", xi)
         object.__setattr__(self, "_spring", LogCoshSum(stiffness, xi))
-
-    @property
-    def frames(self) -> tuple[int, ...]:
-        return ()
-
-    @property
-    def anchored(self) -> bool:
-        return True
 
     @property
     def gradient_bound(self) -> GradientBound:
