@@ -107,3 +107,34 @@ def test_preflight_verdicts(load, data, position, verdict, named) -> None:
     if verdict == "unreachable":  # the outstretched arm: |p| − 2 from the goal
         assert found.error.position == pytest.approx(math.hypot(3.0, 1.0) - 2.0, abs=1e-3)
     assert np.all(config.configuration_margins(found.posture) > 0)
+
+
+def test_a_blocked_goal_keeps_the_posture_of_the_descent_from_the_start(tmp_path: Path) -> None:
+    # UR10 tool just under a ball: no seed reaches it. A seed on the far branch (pan −2.6 rad)
+    # misses by less, but the law descends from the start: taking that branch's posture sent
+    # the posture spring across the workspace and the arm wandered for 8 s.
+    start = [0.0, -1.57, 1.57, -1.57, -1.57, 0.0]
+    scenario = {
+        "name": "ur10_under_ball", "robot": {"model": "ur10"},
+        "simulation": {"duration": 1.0, "timestep": 0.001},
+        "goal": {"frame": "tool0", "position": [0.6, 0.2, 0.36],
+                 "orientation": {"axis": {"tool": [0, 0, 1], "world": [0, 0, -1]}}},
+        "cases": [{"name": "start", "position": start}],
+        "obstacles": [{"type": "plane", "name": "table", "point": [0, 0, -0.08]},
+                      {"type": "sphere", "name": "ball", "centre": [0.6, 0.2, 0.5],
+                       "radius": 0.1}],
+        "constraints": [
+            {"type": "joint_position_limit", "name": "ranges", "lower": "from_model",
+             "upper": "from_model"},
+            {"type": "clearance", "name": "clearance", "margin": 0.01, "influence": 0.1}],
+        "controllers": [{"type": "cpbc", "name": "TS-CPBC",
+                         "task": {"omega_n": 12, "zeta": 1, "rotation_omega_n": 24},
+                         "posture": {"omega_n": 2, "zeta": 1}}],
+    }
+    path = tmp_path / "ur10_under_ball.yaml"
+    path.write_text(yaml.safe_dump(scenario, sort_keys=False))
+    plan = build(*load_scenario(path)).goal
+    assert plan is not None
+    assert plan.preflight.verdict == "blocked", plan.preflight.describe()
+    assert (plan.preflight.blocked_by or "").startswith("clearance[")
+    assert np.max(np.abs(plan.posture - np.array(start))) < 0.5, plan.posture

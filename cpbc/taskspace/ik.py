@@ -19,8 +19,11 @@ reaches the goal, is held off it by a constraint, or cannot reach it at all:
   the error stays above tolerance; that constraint is named;
 * ``unreachable``: neither; the closest approach is reported.
 
-Several seeds (the start first, then others the caller gives) guard against local minima;
-the first reachable one wins, otherwise the one closest to the goal.
+Several seeds (the start first, then others the caller gives) guard against local minima:
+the first one that reaches the goal wins. When none does, the descent from the start is the
+prediction, because that is where the law, which descends from the start, comes to rest: a
+closer miss on another branch would send the posture spring across the workspace toward a
+configuration that does not reach the goal either.
 """
 
 from __future__ import annotations
@@ -168,16 +171,13 @@ def preflight(model: RobotModel, constraints: ConstraintSet, goal: FrameGoal, st
     constraints (velocity ones are slack at rest)."""
     flow = _Flow(model, constraints, goal)
     seed_point = flow.at(start)
-    best: _Point | None = None
-    for seed in [start, *seeds]:
-        found = flow.descend(np.asarray(seed, dtype=float), iterations)
-        if found is None:
-            continue
-        if best is None or float(found.residual @ found.residual) < float(
-                best.residual @ best.residual):
-            best = found
-        if goal.reached(goal.error(best.kin)):
-            break
+    best = flow.descend(np.asarray(start, dtype=float), iterations)
+    if best is None or not goal.reached(goal.error(best.kin)):
+        for seed in seeds:  # another branch may reach the goal; a miss there is no better
+            found = flow.descend(np.asarray(seed, dtype=float), iterations)
+            if found is not None and goal.reached(goal.error(found.kin)):
+                best = found
+                break
     if best is None:
         best = seed_point if seed_point is not None else flow.at(start)
     assert best is not None, "the start is inside S (checked by the caller)"
