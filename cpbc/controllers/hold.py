@@ -11,7 +11,7 @@ to first order: the continuous-time law's acceleration, which its theorem is abo
 of one that is off by ½Δa. It matters where the law's authority is small: the CPBC laws near
 a velocity bound (their shaped inertia D + ρΠ grows as 1/ψ, so the acceleration they can ask
 for shrinks with the margin), where the hold error alone, not the law, would wear the margin
-down (README, "A law that rides a rate bound").
+down (docs/reliability.md, "A law that rides a rate bound").
 
 The ½ is what an arm in continuous time does. A simulated plant stepped by a one-stage
 integrator (MuJoCo's Euler, implicit, implicitfast) evaluates the dynamics only at the start

@@ -47,7 +47,7 @@ def _message(err: ErrorDetails) -> str:
     kind, msg = err["type"], err["msg"]
     if kind == "extra_forbidden":
         return (
-            "unknown key; remove it or check its spelling against the scenario format in README.md"
+            "unknown key; remove it or check its spelling against docs/scenario-reference.md"
         )
     if kind == "string_pattern_mismatch":
         return (f"{err.get('input')!r} is not a valid name: use letters, digits and _ . + -, "
