@@ -1,4 +1,4 @@
-"""The kind registry (cpbc.scenario.kinds): one contract over every registered constraint and
+"""The kind registry (cpbc.scenario.schema.kinds): one contract over every registered constraint and
 law kind, the refusals of a kind that does not declare what it must, and a constraint kind
 added inside a test — one class and one declaration — reaching the schema, the build, the
 results, the figures and the docs without touching the default registry."""
@@ -25,12 +25,12 @@ from cpbc.results.plots import margins_figure
 from cpbc.results.saved_run import load_run
 from cpbc.run import write_logs
 from cpbc.scenario import Scenario, build
-from cpbc.scenario.kinds import KINDS, ConstraintKind, KindError, Kinds, LawKind
-from cpbc.scenario.kinds.law_inputs import Slopes
-from cpbc.scenario.kinds.pd_kind import PDSpec
-from cpbc.scenario.kinds.pd_kind import build as build_pd
 from cpbc.scenario.runner import run_all
 from cpbc.scenario.schema import ConstraintEntrySpec, scenario_model
+from cpbc.scenario.schema.kinds import KINDS, ConstraintKind, KindError, Kinds, LawKind
+from cpbc.scenario.schema.kinds.law_inputs import Slopes
+from cpbc.scenario.schema.kinds.pd_kind import PDSpec
+from cpbc.scenario.schema.kinds.pd_kind import build as build_pd
 from cpbc.viewer.outputs import write_run_outputs
 from tools import scenario_reference
 

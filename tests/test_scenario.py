@@ -19,7 +19,7 @@ from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
 from cpbc.resources import models_dir, scenarios_dir
 from cpbc.scenario import Scenario, ScenarioSetup, build, load_scenario
 from cpbc.scenario.expressions import parse_number
-from cpbc.scenario.kinds import KINDS
+from cpbc.scenario.schema.kinds import KINDS
 
 # the arm scenarios; the Part I ones (a system: block) are tested in test_scenario_systems.py
 SHIPPED = sorted(p for p in scenarios_dir().glob("*.yaml")

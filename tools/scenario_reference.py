@@ -28,7 +28,7 @@ HEAD = """# Scenario reference
 
 Every key a scenario file takes, with its type, its default (*required* where it has none)
 and what it means, generated from the descriptions of the pydantic models in
-`cpbc/scenario/schema/` and `cpbc/scenario/kinds/` (one module per constraint and law kind).
+`cpbc/scenario/schema/` and `cpbc/scenario/schema/kinds/` (one module per constraint and law kind).
 Numbers may be written as expressions (`2*pi/3`). An unknown key is an error naming it.
 `python -m cpbc.json_schema -o scenario.schema.json` writes the same models as a JSON Schema
 for editors. See [Scenarios](scenarios.md) for a worked example.
@@ -121,7 +121,7 @@ def _ordered(root: str, defs: dict[str, Any]) -> list[str]:
 
 
 def render(arm: type[BaseModel] = Scenario) -> str:
-    """The page's text (``arm``: the arm scenario's model, that of cpbc.scenario.kinds.KINDS
+    """The page's text (``arm``: the arm scenario's model, that of cpbc.scenario.schema.kinds.KINDS
     unless a test gives another, see cpbc.scenario.schema.scenario_model)."""
     out = [HEAD]
     arm_models = set(arm.model_json_schema().get("$defs", {}))

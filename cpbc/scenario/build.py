@@ -33,10 +33,10 @@ from cpbc.scenario.arm_setup import (
 from cpbc.scenario.constraint_build import check_distinct, scenario_constraints, scene_obstacles
 from cpbc.scenario.controller_build import build_controllers, check_starts
 from cpbc.scenario.goal import GoalPlan, goal_of, plan
-from cpbc.scenario.kinds import KINDS, Kinds
 from cpbc.scenario.loop_setup import loop_settings, undeclared_efforts
 from cpbc.scenario.preflight import check_gravity
 from cpbc.scenario.reference import reference_goal, reference_setup
+from cpbc.scenario.schema.kinds import KINDS, Kinds
 from cpbc.scenario.state_checks import (
     check_admissible,
     check_in_range,
@@ -83,7 +83,7 @@ def _goal(scenario: s.Scenario, model: RobotModel, scene: dict[str, Obstacle],
 
 def build(scenario: s.Scenario, scenario_file: Path, kinds: Kinds = KINDS) -> ScenarioSetup:
     """Check a scenario against its robot and build every object it describes, each
-    constraint and controller by its kind in ``kinds`` (cpbc.scenario.kinds)."""
+    constraint and controller by its kind in ``kinds`` (cpbc.scenario.schema.kinds)."""
     runs = len(scenario.cases) * len(scenario.controllers)
     if runs > s.MAX_RUNS:
         raise ScenarioError("cases", f"{len(scenario.cases)} cases × {len(scenario.controllers)} "

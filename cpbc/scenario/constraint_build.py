@@ -12,9 +12,9 @@ from cpbc.model.loading import LoadedArm
 from cpbc.scenario import robots
 from cpbc.scenario import schema as s
 from cpbc.scenario.arm_setup import ObstacleGeom
-from cpbc.scenario.kinds import KINDS, ConstraintKind, Kinds
-from cpbc.scenario.kinds.constraint_inputs import ConstraintInputs
 from cpbc.scenario.schema.constraint_specs import ConstraintEntrySpec
+from cpbc.scenario.schema.kinds import KINDS, ConstraintKind, Kinds
+from cpbc.scenario.schema.kinds.constraint_inputs import ConstraintInputs
 
 
 def _build_constraint(

@@ -1,4 +1,4 @@
-"""The controllers of an arm scenario, each built by its law kind (cpbc.scenario.kinds): the
+"""The controllers of an arm scenario, each built by its law kind (cpbc.scenario.schema.kinds): the
 gains (given, or from ω_n and ζ through the slopes the kind declares), the held-loop check,
 and the law on the scenario's constraints."""
 
@@ -18,8 +18,8 @@ from cpbc.scenario import schema as s
 from cpbc.scenario.arm_setup import CaseEntry, ControllerEntry
 from cpbc.scenario.gains import physical_gains, unstable_loop
 from cpbc.scenario.goal import GoalPlan, law_terms, linear_gains
-from cpbc.scenario.kinds import KINDS, Kinds, LawKind
-from cpbc.scenario.kinds.law_inputs import LawInputs, Slopes, gain_vector
+from cpbc.scenario.schema.kinds import KINDS, Kinds, LawKind
+from cpbc.scenario.schema.kinds.law_inputs import LawInputs, Slopes, gain_vector
 from cpbc.simulation import LoopSettings
 
 

@@ -16,7 +16,7 @@ from cpbc.constraints.point_outside_sphere import PointOutsideSphere
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model.robot_model import RobotModel
 from cpbc.scenario import schema as s
-from cpbc.scenario.kinds.law_inputs import Slopes
+from cpbc.scenario.schema.kinds.law_inputs import Slopes
 from cpbc.taskspace.gains import TaskGains, TaskGainSpec, linear_terms, task_gains
 from cpbc.taskspace.goal import AxisGoal, FrameGoal
 from cpbc.taskspace.ik import Preflight, preflight

@@ -1,21 +1,9 @@
 """The YAML scenario format, validated with pydantic. Every error names its field.
 
 One module per group of specs; the constraint and law kinds' specs are declared beside their
-factories in cpbc.scenario.kinds. Every name is re-exported here, so
+factories in cpbc.scenario.schema.kinds. Every name is re-exported here, so
 ``from cpbc.scenario.schema import Scenario`` and ``schema.RobotSpec`` keep working."""
 
-from cpbc.scenario.kinds.bpbc_kind import BPBCSpec
-from cpbc.scenario.kinds.cbf_qp_kind import CBFQPSpec
-from cpbc.scenario.kinds.clearance_kind import ClearanceSpec, PrimitiveSpec
-from cpbc.scenario.kinds.cpbc_kind import CPBCSpec
-from cpbc.scenario.kinds.joint_position_limit_kind import JointPositionLimitSpec
-from cpbc.scenario.kinds.joint_rate_limit_kind import JointRateLimitSpec
-from cpbc.scenario.kinds.kinetic_energy_limit_kind import KineticEnergyLimitSpec
-from cpbc.scenario.kinds.linear_limit_kind import LinearLimitSpec
-from cpbc.scenario.kinds.pd_kind import PDSpec
-from cpbc.scenario.kinds.point_outside_sphere_kind import PointOutsideSphereSpec
-from cpbc.scenario.kinds.rate_limit_kind import RateLimitSpec
-from cpbc.scenario.kinds.recentred_kind import RecentredSpec
 from cpbc.scenario.schema.arm_specs import (
     CaseSpec,
     ConstraintSpec,
@@ -54,6 +42,18 @@ from cpbc.scenario.schema.controller_specs import (
     TanhShapingSpec,
     TaskGainsSpec,
 )
+from cpbc.scenario.schema.kinds.bpbc_kind import BPBCSpec
+from cpbc.scenario.schema.kinds.cbf_qp_kind import CBFQPSpec
+from cpbc.scenario.schema.kinds.clearance_kind import ClearanceSpec, PrimitiveSpec
+from cpbc.scenario.schema.kinds.cpbc_kind import CPBCSpec
+from cpbc.scenario.schema.kinds.joint_position_limit_kind import JointPositionLimitSpec
+from cpbc.scenario.schema.kinds.joint_rate_limit_kind import JointRateLimitSpec
+from cpbc.scenario.schema.kinds.kinetic_energy_limit_kind import KineticEnergyLimitSpec
+from cpbc.scenario.schema.kinds.linear_limit_kind import LinearLimitSpec
+from cpbc.scenario.schema.kinds.pd_kind import PDSpec
+from cpbc.scenario.schema.kinds.point_outside_sphere_kind import PointOutsideSphereSpec
+from cpbc.scenario.schema.kinds.rate_limit_kind import RateLimitSpec
+from cpbc.scenario.schema.kinds.recentred_kind import RecentredSpec
 from cpbc.scenario.schema.obstacle_specs import (
     BoxObstacleSpec,
     CapsuleObstacleSpec,

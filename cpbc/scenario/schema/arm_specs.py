@@ -6,7 +6,6 @@ from typing import TYPE_CHECKING, Annotated, Literal
 
 from pydantic import Field, create_model
 
-from cpbc.scenario.kinds import KINDS, Kinds
 from cpbc.scenario.schema.common import (
     MAX_CASES,
     CaseName,
@@ -19,12 +18,13 @@ from cpbc.scenario.schema.common import (
 )
 from cpbc.scenario.schema.constraint_specs import ConstraintEntrySpec
 from cpbc.scenario.schema.controller_specs import LawSpec
+from cpbc.scenario.schema.kinds import KINDS, Kinds
 from cpbc.scenario.schema.obstacle_specs import ObstacleSpec
 from cpbc.scenario.schema.taskspace_specs import GoalSpec, ReferenceSpec
 
 # A ``constraints:`` item and a ``controllers:`` item: the registered kinds' specs,
 # discriminated by ``type``. A type checker sees their common bases: what is particular to a
-# kind is read through the kind (cpbc.scenario.kinds), not by the code around it.
+# kind is read through the kind (cpbc.scenario.schema.kinds), not by the code around it.
 if TYPE_CHECKING:
     ConstraintSpec = ConstraintEntrySpec
     ControllerSpec = LawSpec

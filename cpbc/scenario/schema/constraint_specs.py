@@ -1,4 +1,4 @@
-"""What the ``constraints:`` items share (each kind's own spec is in cpbc.scenario.kinds)."""
+"""What the ``constraints:`` items share (each kind's own spec is in cpbc.scenario.schema.kinds)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ FromModel = Literal["from_model"]  # a limit read from the robot's URDF/MJCF
 
 class ConstraintEntrySpec(Strict):
     """What every ``constraints:`` entry has: its ``type`` and its unique ``name``. Each
-    constraint kind (cpbc.scenario.kinds) narrows ``type`` to its name, gives ``name`` its
+    constraint kind (cpbc.scenario.schema.kinds) narrows ``type`` to its name, gives ``name`` its
     default and adds its own keys."""
 
     type: str = Field(description="the constraint")

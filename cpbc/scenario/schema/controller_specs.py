@@ -1,5 +1,5 @@
 """What the ``controllers:`` items share: their gains, shaping, task and posture gains, and
-the bases of the law kinds' specs (each kind's own spec is in cpbc.scenario.kinds)."""
+the bases of the law kinds' specs (each kind's own spec is in cpbc.scenario.schema.kinds)."""
 
 from __future__ import annotations
 
@@ -133,7 +133,7 @@ class GainsSpec(Strict):
 
 class LawSpec(GainsSpec):
     """What every ``controllers:`` entry has: its gains, its ``type`` and its ``name``. Each
-    law kind (cpbc.scenario.kinds) narrows ``type`` to its names and adds its own keys."""
+    law kind (cpbc.scenario.schema.kinds) narrows ``type`` to its names and adds its own keys."""
 
     type: str = Field(description="the law")
     name: RunName | None = Field(

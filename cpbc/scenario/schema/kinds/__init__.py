@@ -1,5 +1,5 @@
 """The constraint and law kinds a scenario's ``type:`` may name, one module each, and
-:data:`KINDS`, the registry built from them (see cpbc.scenario.kinds.registry for what a kind
+:data:`KINDS`, the registry built from them (see cpbc.scenario.schema.kinds.registry for what a kind
 declares, where, and why the registry is a value).
 
 A new kind is one module here (its spec, its factory, its declarations, ``KIND``), one line
@@ -7,7 +7,7 @@ in the tuple below, and its test; the schema, the JSON schema, the scenario refe
 build, the gain check and the results read it from there.
 """
 
-from cpbc.scenario.kinds import (
+from cpbc.scenario.schema.kinds import (
     bpbc_kind,
     cbf_qp_kind,
     clearance_kind,
@@ -21,7 +21,7 @@ from cpbc.scenario.kinds import (
     rate_limit_kind,
     recentred_kind,
 )
-from cpbc.scenario.kinds.registry import ConstraintKind, KindError, Kinds, LawKind
+from cpbc.scenario.schema.kinds.registry import ConstraintKind, KindError, Kinds, LawKind
 
 KINDS = Kinds(
     constraints=(

@@ -9,10 +9,10 @@ from pydantic import Field
 
 from cpbc.controllers import BPBC, BPBCKineticEnergy
 from cpbc.controllers.base import Controller
-from cpbc.scenario.kinds.law_inputs import LawInputs, shaping, tanh_slopes
-from cpbc.scenario.kinds.registry import LawKind
 from cpbc.scenario.schema.common import Gain
 from cpbc.scenario.schema.controller_specs import ConstrainedLawSpec, ShapingSpec
+from cpbc.scenario.schema.kinds.law_inputs import LawInputs, shaping, tanh_slopes
+from cpbc.scenario.schema.kinds.registry import LawKind
 
 
 class BPBCSpec(ConstrainedLawSpec):

@@ -8,10 +8,10 @@ from typing import Literal
 from pydantic import Field
 
 from cpbc.constraints import LinearLimit, joint_position_limit
-from cpbc.scenario.kinds.constraint_inputs import ConstraintInputs
-from cpbc.scenario.kinds.registry import ConstraintKind
 from cpbc.scenario.schema.common import Vector
 from cpbc.scenario.schema.constraint_specs import ConstraintEntrySpec, FromModel
+from cpbc.scenario.schema.kinds.constraint_inputs import ConstraintInputs
+from cpbc.scenario.schema.kinds.registry import ConstraintKind
 
 
 class JointPositionLimitSpec(ConstraintEntrySpec):

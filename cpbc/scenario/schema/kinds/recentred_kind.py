@@ -9,9 +9,9 @@ from pydantic import Field
 from cpbc.arrays import Array
 from cpbc.controllers import RecentredBarrier
 from cpbc.controllers.base import Controller
-from cpbc.scenario.kinds.law_inputs import LINEAR, LawInputs
-from cpbc.scenario.kinds.registry import LawKind
 from cpbc.scenario.schema.controller_specs import ConstrainedLawSpec
+from cpbc.scenario.schema.kinds.law_inputs import LINEAR, LawInputs
+from cpbc.scenario.schema.kinds.registry import LawKind
 
 
 class RecentredSpec(ConstrainedLawSpec):

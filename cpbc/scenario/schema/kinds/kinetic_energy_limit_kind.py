@@ -7,10 +7,10 @@ from typing import Literal
 from pydantic import Field
 
 from cpbc.constraints import KineticEnergyLimit
-from cpbc.scenario.kinds.constraint_inputs import ConstraintInputs
-from cpbc.scenario.kinds.registry import ConstraintKind
 from cpbc.scenario.schema.common import Positive
 from cpbc.scenario.schema.constraint_specs import ConstraintEntrySpec
+from cpbc.scenario.schema.kinds.constraint_inputs import ConstraintInputs
+from cpbc.scenario.schema.kinds.registry import ConstraintKind
 
 
 class KineticEnergyLimitSpec(ConstraintEntrySpec):

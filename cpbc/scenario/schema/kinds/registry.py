@@ -7,7 +7,7 @@ constraints → controllers → simulation → results → scenario/CLI):
   margin type and unit and how φ becomes a margin (``margin_type``, ``margins``; see
   cpbc.constraints.margins). It knows nothing of scenarios.
 - The law class (``cpbc.controllers``, ``cpbc.peers``) declares nothing for the registry.
-- One module per scenario ``type:`` family in ``cpbc.scenario.kinds`` declares the rest: its
+- One module per scenario ``type:`` family in ``cpbc.scenario.schema.kinds`` declares the rest: its
   pydantic spec (the YAML entry, with the field descriptions the JSON schema and the
   scenario reference are generated from), its factory (spec → object, with errors that name
   the field), for a constraint the class it builds, for a law what the gain check needs
@@ -15,7 +15,7 @@ constraints → controllers → simulation → results → scenario/CLI):
   declaration.
 
 **The registry is a value, not a global that fills itself.** :class:`Kinds` is frozen and
-built from an explicit tuple of those ``KIND`` declarations (``cpbc.scenario.kinds.KINDS``);
+built from an explicit tuple of those ``KIND`` declarations (``cpbc.scenario.schema.kinds.KINDS``);
 the schema's discriminated unions, ``build``, the gain check and the generated docs all read
 it. No module registers itself at import, so a test that wants one more kind builds its own
 ``Kinds`` from ``KINDS`` plus its entry and passes it along; the default stays as it was.
@@ -36,8 +36,8 @@ from cpbc.arrays import Array
 from cpbc.constraints.base import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.margins import TYPES
 from cpbc.controllers.base import Controller
-from cpbc.scenario.kinds.constraint_inputs import ConstraintInputs, SceneSphere
-from cpbc.scenario.kinds.law_inputs import LawInputs, Slopes
+from cpbc.scenario.schema.kinds.constraint_inputs import ConstraintInputs, SceneSphere
+from cpbc.scenario.schema.kinds.law_inputs import LawInputs, Slopes
 
 Constraint = ConfigurationConstraint | VelocityConstraint
 S = TypeVar("S", bound=BaseModel)

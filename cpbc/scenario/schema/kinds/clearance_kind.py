@@ -14,10 +14,10 @@ from cpbc.constraints.covering import LinkPrimitive
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model.loading import LoadedArm
 from cpbc.model.robot_model import RobotModel
-from cpbc.scenario.kinds.constraint_inputs import ConstraintInputs
-from cpbc.scenario.kinds.registry import ConstraintKind
 from cpbc.scenario.schema.common import NonNegative, Positive, Strict, Vector
 from cpbc.scenario.schema.constraint_specs import ConstraintEntrySpec
+from cpbc.scenario.schema.kinds.constraint_inputs import ConstraintInputs
+from cpbc.scenario.schema.kinds.registry import ConstraintKind
 
 
 class PrimitiveSpec(Strict):

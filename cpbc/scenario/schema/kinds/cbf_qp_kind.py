@@ -10,10 +10,10 @@ from pydantic import Field
 
 from cpbc.controllers.base import Controller
 from cpbc.errors import ScenarioError
-from cpbc.scenario.kinds.law_inputs import LINEAR, LawInputs
-from cpbc.scenario.kinds.registry import LawKind
 from cpbc.scenario.schema.common import Positive
 from cpbc.scenario.schema.controller_specs import ConstrainedLawSpec
+from cpbc.scenario.schema.kinds.law_inputs import LINEAR, LawInputs
+from cpbc.scenario.schema.kinds.registry import LawKind
 
 
 class CBFQPSpec(ConstrainedLawSpec):

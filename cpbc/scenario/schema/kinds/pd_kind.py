@@ -9,9 +9,9 @@ from pydantic import Field
 
 from cpbc.controllers import PD, PDGravity
 from cpbc.controllers.base import Controller
-from cpbc.scenario.kinds.law_inputs import LINEAR, LawInputs
-from cpbc.scenario.kinds.registry import LawKind
 from cpbc.scenario.schema.controller_specs import LawSpec
+from cpbc.scenario.schema.kinds.law_inputs import LINEAR, LawInputs
+from cpbc.scenario.schema.kinds.registry import LawKind
 
 
 class PDSpec(LawSpec):

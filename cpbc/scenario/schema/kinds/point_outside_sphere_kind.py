@@ -10,10 +10,10 @@ from pydantic import Field
 
 from cpbc.constraints import PointOutsideSphere
 from cpbc.errors import ScenarioError
-from cpbc.scenario.kinds.constraint_inputs import ConstraintInputs, SceneSphere
-from cpbc.scenario.kinds.registry import Constraint, ConstraintKind
 from cpbc.scenario.schema.common import Positive, Vector
 from cpbc.scenario.schema.constraint_specs import ConstraintEntrySpec
+from cpbc.scenario.schema.kinds.constraint_inputs import ConstraintInputs, SceneSphere
+from cpbc.scenario.schema.kinds.registry import Constraint, ConstraintKind
 
 
 class PointOutsideSphereSpec(ConstraintEntrySpec):

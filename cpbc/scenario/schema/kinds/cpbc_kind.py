@@ -9,9 +9,9 @@ from pydantic import Field
 
 from cpbc.controllers import CPBC, CPBCKineticEnergy
 from cpbc.controllers.base import Controller
-from cpbc.scenario.kinds.law_inputs import LINEAR, LawInputs, shaping
-from cpbc.scenario.kinds.registry import LawKind
 from cpbc.scenario.schema.controller_specs import ConstrainedLawSpec, ShapingSpec
+from cpbc.scenario.schema.kinds.law_inputs import LINEAR, LawInputs, shaping
+from cpbc.scenario.schema.kinds.registry import LawKind
 
 
 class CPBCSpec(ConstrainedLawSpec):
