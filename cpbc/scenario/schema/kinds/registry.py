@@ -12,7 +12,10 @@ constraints → controllers → simulation → results → scenario/CLI):
   scenario reference are generated from), its factory (spec → object, with errors that name
   the field), for a constraint the class it builds, for a law what the gain check needs
   (:class:`Slopes`) and which of its types take a goal. Its module-level ``KIND`` is that
-  declaration.
+  declaration. A kind module imports the layers below, the schema's shared pieces
+  (``common``, ``constraint_specs``, ``controller_specs``) and ``cpbc.scenario.values`` —
+  never the rest of the scenario layer, which imports it (the Scenario model aggregates the
+  kinds' specs).
 
 **The registry is a value, not a global that fills itself.** :class:`Kinds` is frozen and
 built from an explicit tuple of those ``KIND`` declarations (``cpbc.scenario.schema.kinds.KINDS``);
