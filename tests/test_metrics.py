@@ -85,10 +85,10 @@ def test_margins_become_distances_to_the_bounds_in_each_types_unit() -> None:
 
 def test_obstacle_margin_is_the_distance_to_its_surface() -> None:
     from cpbc.constraints import PointOutsideSphere
-    from cpbc.results.margin_types import CLEARANCE, margin_type, physical
+    from cpbc.constraints.margins import CLEARANCE
 
     c = PointOutsideSphere.__new__(PointOutsideSphere)
     c.radius, c.names = 0.5, ("obstacle",)
     d = np.array([[0.2], [0.5], [0.7], [3.0]])  # distances from the centre [m]
-    assert margin_type(c) is CLEARANCE
-    np.testing.assert_allclose(physical(c, d**2 - 0.25), d - 0.5, atol=1e-15)
+    assert c.margin_type is CLEARANCE
+    np.testing.assert_allclose(c.margins(d**2 - 0.25), d - 0.5, atol=1e-15)

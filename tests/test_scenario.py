@@ -15,12 +15,11 @@ import pytest
 import yaml
 
 from cpbc.constraints import KineticEnergyLimit, LinearLimit, PointOutsideSphere, RateLimit
-from cpbc.controllers import CONTROLLERS
 from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
-from cpbc.peers import PEERS
 from cpbc.resources import models_dir, scenarios_dir
 from cpbc.scenario import Scenario, ScenarioSetup, build, load_scenario
 from cpbc.scenario.expressions import parse_number
+from cpbc.scenario.schema.kinds import KINDS
 
 # the arm scenarios; the Part I ones (a system: block) are tested in test_scenario_systems.py
 SHIPPED = sorted(p for p in scenarios_dir().glob("*.yaml")
@@ -132,7 +131,7 @@ def test_shipped_scenario_loads_and_builds(path):
     assert len(setup.controllers) == len(scenario.controllers) >= 1
     assert len(setup.cases) == len(scenario.cases) >= 1
     for entry in setup.controllers:
-        assert entry.controller.type_name in {**CONTROLLERS, **PEERS}
+        assert entry.controller.type_name in KINDS.law_types
         assert entry.controller.target.shape == (n,)
         # every law can be evaluated at every initial state: each is inside its admissible set
         for case in setup.cases:
@@ -405,7 +404,7 @@ def test_duplicate_case_names(load_dict, minimal):
 def test_unknown_controller_type_lists_registered_types(load_dict, minimal):
     edit(minimal, "controllers.1.type", "lqr")
     err = expect_error(load_dict, minimal, "controllers[1]", "lqr")
-    for name in CONTROLLERS:
+    for name in KINDS.law_types:
         assert repr(name) in str(err)
 
 

@@ -14,10 +14,11 @@ from collections.abc import Sequence
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.margins import HasMargins
 from cpbc.model.robot_model import ArmState
 
 
-class ConfigurationConstraint(ABC):
+class ConfigurationConstraint(HasMargins, ABC):
     """φ_i(x) = h_i(x) − Δ_i > 0 (eq. 6.16), with gradient ∇φ_i(x).
 
     Attributes:
@@ -25,6 +26,8 @@ class ConfigurationConstraint(ABC):
         needs_kinematics: whether ``barrier_terms`` reads the state's joint placements and
             Jacobians (``RobotModel.state(kinematics=True)``).
         frames: the frames whose kinematics ``barrier_terms`` reads from ``ArmState.frames``.
+        margin_type: the type and unit of its margins, declared by each concrete class
+            (cpbc.constraints.margins).
     """
 
     names: tuple[str, ...]
@@ -74,13 +77,13 @@ class ConfigurationConstraint(ABC):
         return parts[0]
 
 
-class VelocityConstraint(ABC):
+class VelocityConstraint(HasMargins, ABC):
     """ψ_j(x, ẋ) = Ω_j(x) − ½ ẋᵀ Q_j(x) ẋ > 0 with Q_j ⪰ 0 (eq. 6.17).
 
     ``needs_dynamics`` says whether the constraint reads D from the state; without a state
     (at a predicted configuration) such a constraint asks the model. ``needs_coriolis`` says
     whether ``barrier_terms`` reads the matrix C from the state
-    (``RobotModel.state(coriolis=True)``).
+    (``RobotModel.state(coriolis=True)``). ``margin_type``: as for configuration constraints.
     """
 
     names: tuple[str, ...]

@@ -6,6 +6,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.base import VelocityConstraint
+from cpbc.constraints.margins import ENERGY
 from cpbc.errors import CpbcError
 from cpbc.kernels.barriers import kinetic_energy_terms
 from cpbc.model.robot_model import ArmState, RobotModel
@@ -20,6 +21,7 @@ class KineticEnergyLimit(VelocityConstraint):
         name: label of the constraint.
     """
 
+    margin_type = ENERGY  # ψ is in J already
     needs_dynamics = True
     needs_coriolis = True
 

@@ -8,6 +8,7 @@ import numpy as np
 
 from cpbc.arrays import Array, ArrayLike
 from cpbc.constraints.base import ConfigurationConstraint
+from cpbc.constraints.margins import POSITION, MarginType, headroom, row_types
 from cpbc.errors import CpbcError
 from cpbc.kernels.barriers import linear_limit_terms
 from cpbc.model.robot_model import ArmState
@@ -29,6 +30,14 @@ class LinearLimit(ConfigurationConstraint):
     """
 
     stacks = True
+    margin_type = POSITION
+
+    def margins(self, values: Array) -> Array:
+        """φ = w² − (aᵀx − c)² as w − |aᵀx − c| [rad or m]."""
+        return headroom(values, self.half_width)
+
+    def margin_types(self, lengths: Array | None = None) -> tuple[MarginType, ...]:
+        return row_types(POSITION, self.rows, lengths)
 
     def __init__(
         self, rows: ArrayLike, lower: ArrayLike, upper: ArrayLike, names: Sequence[str]

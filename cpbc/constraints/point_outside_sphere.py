@@ -7,6 +7,7 @@ import pinocchio as pin
 
 from cpbc.arrays import Array, ArrayLike
 from cpbc.constraints.base import ConfigurationConstraint
+from cpbc.constraints.margins import CLEARANCE
 from cpbc.errors import CpbcError
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -26,6 +27,11 @@ class PointOutsideSphere(ConfigurationConstraint):
         name: label of the constraint.
     """
 
+    margin_type = CLEARANCE
+
+    def margins(self, values: Array) -> Array:
+        """φ = d² − r² as d − r [m]."""
+        return values / (np.sqrt(np.maximum(values + self.radius**2, 0.0)) + self.radius)
 
     def __init__(
         self,

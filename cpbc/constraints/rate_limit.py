@@ -8,6 +8,7 @@ import numpy as np
 
 from cpbc.arrays import Array, ArrayLike
 from cpbc.constraints.base import VelocityConstraint
+from cpbc.constraints.margins import RATE, MarginType, headroom, row_types
 from cpbc.errors import CpbcError
 from cpbc.kernels.barriers import rate_limit_terms
 from cpbc.model.robot_model import ArmState
@@ -26,6 +27,14 @@ class RateLimit(VelocityConstraint):
     """
 
     stacks = True
+    margin_type = RATE
+
+    def margins(self, values: Array) -> Array:
+        """ψ = ½(B² − (aᵀẋ)²) as B − |aᵀẋ| [rad/s or m/s]."""
+        return headroom(2.0 * values, self.bounds)
+
+    def margin_types(self, lengths: Array | None = None) -> tuple[MarginType, ...]:
+        return row_types(RATE, self.rows, lengths)
 
     def __init__(self, rows: ArrayLike, bounds: ArrayLike, names: Sequence[str]) -> None:
         rows = np.atleast_2d(np.asarray(rows, dtype=float))

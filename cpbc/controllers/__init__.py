@@ -10,14 +10,8 @@ from cpbc.controllers.recentred import RecentredBarrier
 from cpbc.controllers.shaping import Identity, Power, Tanh
 from cpbc.controllers.task_damping import TaskDamping, TaskTanhDamping
 
-CONTROLLERS: dict[str, type[Controller]] = {
-    c.type_name: c
-    for c in (PD, PDGravity, CPBC, CPBCKineticEnergy, RecentredBarrier, BPBC, BPBCKineticEnergy)
-}
-
 __all__ = [
     "BPBC",
-    "CONTROLLERS",
     "CPBC",
     "PD",
     "BPBCKineticEnergy",

@@ -3,6 +3,4 @@ that they can run beside them (``type: cbf_qp``). Optional: ``pip install 'cpbc[
 
 from cpbc.peers.cbf_qp import CBFQP, PeerUnavailable
 
-PEERS = {CBFQP.type_name: CBFQP}  # scenario type -> class, beside cpbc.controllers.CONTROLLERS
-
-__all__ = ["CBFQP", "PEERS", "PeerUnavailable"]
+__all__ = ["CBFQP", "PeerUnavailable"]

@@ -34,7 +34,7 @@ import h5py
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.results.margin_types import BY_KEY, OTHER
+from cpbc.constraints.margins import BY_KEY, OTHER
 from cpbc.simulation.system_loop import SystemTrajectory
 from cpbc.simulation.trajectory import Trajectory
 

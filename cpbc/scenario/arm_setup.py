@@ -219,15 +219,6 @@ def _robot_model(
     return RobotModel(probe.model, coords, fd, name=probe.name)
 
 
-def vector(value: list[float] | None, n: int, field: str, default: float | None = None) -> Array:
-    if value is None and default is not None:
-        return np.full(n, default)
-    a = np.asarray(value, dtype=float)
-    if a.shape != (n,):
-        raise ScenarioError(field, f"needs {n} entries (one per coordinate), got {a.size}")
-    return a
-
-
 def coordinate_names(robot: s.RobotSpec, model: RobotModel) -> tuple[str, ...]:
     if robot.coordinates == "joint":
         return model.joint_names

@@ -31,11 +31,12 @@ from cpbc.scenario.arm_setup import (
     load_robot,
 )
 from cpbc.scenario.constraint_build import check_distinct, scenario_constraints, scene_obstacles
-from cpbc.scenario.controller_build import build_controllers, check_recentred
+from cpbc.scenario.controller_build import build_controllers, check_starts
 from cpbc.scenario.goal import GoalPlan, goal_of, plan
 from cpbc.scenario.loop_setup import loop_settings, undeclared_efforts
 from cpbc.scenario.preflight import check_gravity
 from cpbc.scenario.reference import reference_goal, reference_setup
+from cpbc.scenario.schema.kinds import KINDS, Kinds
 from cpbc.scenario.state_checks import (
     check_admissible,
     check_in_range,
@@ -80,8 +81,9 @@ def _goal(scenario: s.Scenario, model: RobotModel, scene: dict[str, Obstacle],
     return None, plan(scenario.goal, goal, model, monitor, cases[0].position, seeds, check)
 
 
-def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
-    """Check a scenario against its robot and build every object it describes."""
+def build(scenario: s.Scenario, scenario_file: Path, kinds: Kinds = KINDS) -> ScenarioSetup:
+    """Check a scenario against its robot and build every object it describes, each
+    constraint and controller by its kind in ``kinds`` (cpbc.scenario.schema.kinds)."""
     runs = len(scenario.cases) * len(scenario.controllers)
     if runs > s.MAX_RUNS:
         raise ScenarioError("cases", f"{len(scenario.cases)} cases × {len(scenario.controllers)} "
@@ -92,7 +94,8 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
     sim = scenario.simulation
     loop = loop_settings(sim, model)
     obstacles, scene = scene_obstacles(scenario.obstacles)
-    built, rate_bounds = scenario_constraints(scenario, model, names, arm, scene, obstacles)
+    built, rate_bounds = scenario_constraints(scenario, model, names, arm, scene, obstacles,
+                                              kinds)
     check_distinct(built, [c.name for c in scenario.constraints])
     monitor = ConstraintSet(
         model.n,
@@ -113,8 +116,9 @@ def build(scenario: s.Scenario, scenario_file: Path) -> ScenarioSetup:
         gravity_on_path = check_gravity(model, target, [(c.name, c.position) for c in cases],
                                         loop.torque_limit)
         check_stoppable(cases, monitor, model, loop.torque_limit)
-    controllers = build_controllers(scenario, model, target, cases, built, names, loop, goal)
-    check_recentred(controllers, cases, model, loop, names, sim.safeguard)
+    controllers = build_controllers(scenario, model, target, cases, built, names, loop, goal,
+                                    kinds)
+    check_starts(controllers, scenario.controllers, cases, loop, names, sim.safeguard, kinds)
     for i, c in enumerate(scenario.controllers):
         for key in ("on_infeasible", "reference_speed"):
             if getattr(c, key) is not None and scenario.reference is None:

@@ -16,12 +16,11 @@ from cpbc.constraints.point_outside_sphere import PointOutsideSphere
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model.robot_model import RobotModel
 from cpbc.scenario import schema as s
+from cpbc.scenario.schema.kinds.law_inputs import Slopes
 from cpbc.taskspace.gains import TaskGains, TaskGainSpec, linear_terms, task_gains
 from cpbc.taskspace.goal import AxisGoal, FrameGoal
 from cpbc.taskspace.ik import Preflight, preflight
 from cpbc.taskspace.terms import Saturation, task_terms
-
-GOAL_LAWS = ("pd_gravity", "cpbc", "cpbc_ke", "bpbc", "bpbc_ke")
 
 
 def _vector3(value: list[float] | None, field: str) -> Array:
@@ -118,34 +117,24 @@ def plan(spec: s.GoalSpec, goal: FrameGoal, model: RobotModel, monitor: Constrai
     return GoalPlan(goal, found, posture)
 
 
-def _bounded(spec: s.ControllerSpec, n: int) -> Saturation | None:
-    if not isinstance(spec, s.BPBCSpec):
-        return None
-    task = spec.task or s.TaskGainsSpec()
-    xi = np.broadcast_to(np.asarray(spec.xi, dtype=float), (n,)).copy()
-    return Saturation(task.xi, task.gamma, xi)
-
-
-def law_terms(spec: s.ControllerSpec, model: RobotModel, goal: GoalPlan, field: str
+def law_terms(spec: s.LawSpec, model: RobotModel, goal: GoalPlan, field: str, slopes: Slopes
               ) -> tuple[dict[str, object], TaskGains]:
     """The keyword arguments (kp, kd, potential, task_damping) of a law for the goal, and its
-    gains (linear at the posture, for the zero-order-hold check)."""
-    if spec.type not in GOAL_LAWS:
-        raise ScenarioError(f"{field}.type", f"'{spec.type}' takes no goal; with goal: use "
-                            f"one of {', '.join(GOAL_LAWS)}")
+    gains (linear at the posture, for the zero-order-hold check). A law whose slopes saturate
+    (its kind's declaration) gets the bounded task terms, saturating beyond 1/``task.xi`` and
+    1/``task.gamma``, and its posture spring and joint damping divided by its slopes."""
     if spec.task is None and spec.posture is None:
         raise ScenarioError(f"{field}.kp", "with goal:, give task: {omega_n, zeta} and "
                             "posture: {omega_n, zeta} in place of kp, kd (or omega_n, zeta)")
     task, posture = spec.task or s.TaskGainsSpec(), spec.posture or s.PostureGainsSpec()
     gains = task_gains(model, goal.goal, goal.posture, TaskGainSpec(
         task.omega_n, task.zeta, task.rotation_omega_n, posture.omega_n, posture.zeta))
-    bounded = _bounded(spec, model.n)
+    bounded = Saturation(task.xi, task.gamma, slopes.spring) if slopes.saturates else None
     kd = gains.joint_damping
     if bounded is not None:  # the bounded laws' springs and damping take the diagonals
         gains = replace(gains, position=np.diag(np.diag(gains.position)),
                         position_damping=np.diag(np.diag(gains.position_damping)))
-        gamma = np.broadcast_to(np.asarray(spec.gamma, dtype=float), (model.n,))  # type: ignore[union-attr]
-        kd = kd / gamma
+        kd = kd / slopes.damping
     potential, damping = task_terms(model, goal.goal, goal.posture, gains, bounded)
     kp = gains.posture if bounded is None else gains.posture / bounded.joint_xi
     return {"kp": kp, "kd": kd, "potential": potential, "task_damping": damping}, gains

@@ -8,9 +8,9 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model import RobotModel
-from cpbc.scenario import robots
 from cpbc.scenario import schema as s
-from cpbc.scenario.arm_setup import ScenarioSetup, vector
+from cpbc.scenario.arm_setup import ScenarioSetup
+from cpbc.scenario.values import model_limits, vector
 from cpbc.simulation import LoopSettings, substeps_per_control
 from cpbc.simulation.disturbances import MeasurementNoise
 
@@ -64,7 +64,7 @@ def loop_settings(sim: s.SimulationSpec, model: RobotModel) -> LoopSettings:
     _check_length(sim, control_period)
     limit = None
     if sim.torque_limit == "from_model":
-        limit = sim.torque_limit_scale * robots.model_limits(
+        limit = sim.torque_limit_scale * model_limits(
             model, "effort", "simulation.torque_limit")[1]
     elif sim.torque_limit == "auto":  # real arms have real motors
         limit = _declared_efforts(model)

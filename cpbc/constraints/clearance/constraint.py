@@ -24,6 +24,7 @@ from cpbc.constraints.clearance.spheres import core_distances
 from cpbc.constraints.clearance.tables import ONE, THREE, Index
 from cpbc.constraints.covering import LinkPrimitive
 from cpbc.constraints.geometry import Obstacle
+from cpbc.constraints.margins import CLEARANCE
 from cpbc.errors import CpbcError, ParameterError
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -87,6 +88,7 @@ class Clearance(PairLayout, ConfigurationConstraint):
         name: prefix of the constraint names, ``name[primitive|obstacle]``.
     """
 
+    margin_type = CLEARANCE  # φ_p is in m already
     needs_kinematics = True  # the law's pass reads the state's joint Jacobians
 
     def __init__(

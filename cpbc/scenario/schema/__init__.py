@@ -1,15 +1,19 @@
 """The YAML scenario format, validated with pydantic. Every error names its field.
 
-One module per group of specs; every name is re-exported here, so
+One module per group of specs; the constraint and law kinds' specs are declared beside their
+factories in cpbc.scenario.schema.kinds. Every name is re-exported here, so
 ``from cpbc.scenario.schema import Scenario`` and ``schema.RobotSpec`` keep working."""
 
 from cpbc.scenario.schema.arm_specs import (
     CaseSpec,
+    ConstraintSpec,
+    ControllerSpec,
     NoiseSpec,
     PlantMismatchSpec,
     RobotSpec,
     Scenario,
     SimulationSpec,
+    scenario_model,
 )
 from cpbc.scenario.schema.common import (
     CASE_FILES,
@@ -26,33 +30,30 @@ from cpbc.scenario.schema.common import (
     Strict,
     Vector,
 )
-from cpbc.scenario.schema.constraint_specs import (
-    ClearanceSpec,
-    ConstraintSpec,
-    FromModel,
-    JointPositionLimitSpec,
-    JointRateLimitSpec,
-    KineticEnergyLimitSpec,
-    LinearLimitSpec,
-    PointOutsideSphereSpec,
-    PrimitiveSpec,
-    RateLimitSpec,
-)
+from cpbc.scenario.schema.constraint_specs import ConstraintEntrySpec, FromModel
 from cpbc.scenario.schema.controller_specs import (
-    BPBCSpec,
-    CBFQPSpec,
-    ControllerSpec,
-    CPBCSpec,
+    ConstrainedLawSpec,
     GainsSpec,
     IdentityShapingSpec,
-    PDSpec,
+    LawSpec,
     PostureGainsSpec,
     PowerShapingSpec,
-    RecentredSpec,
     ShapingSpec,
     TanhShapingSpec,
     TaskGainsSpec,
 )
+from cpbc.scenario.schema.kinds.bpbc_kind import BPBCSpec
+from cpbc.scenario.schema.kinds.cbf_qp_kind import CBFQPSpec
+from cpbc.scenario.schema.kinds.clearance_kind import ClearanceSpec, PrimitiveSpec
+from cpbc.scenario.schema.kinds.cpbc_kind import CPBCSpec
+from cpbc.scenario.schema.kinds.joint_position_limit_kind import JointPositionLimitSpec
+from cpbc.scenario.schema.kinds.joint_rate_limit_kind import JointRateLimitSpec
+from cpbc.scenario.schema.kinds.kinetic_energy_limit_kind import KineticEnergyLimitSpec
+from cpbc.scenario.schema.kinds.linear_limit_kind import LinearLimitSpec
+from cpbc.scenario.schema.kinds.pd_kind import PDSpec
+from cpbc.scenario.schema.kinds.point_outside_sphere_kind import PointOutsideSphereSpec
+from cpbc.scenario.schema.kinds.rate_limit_kind import RateLimitSpec
+from cpbc.scenario.schema.kinds.recentred_kind import RecentredSpec
 from cpbc.scenario.schema.obstacle_specs import (
     BoxObstacleSpec,
     CapsuleObstacleSpec,
@@ -119,6 +120,8 @@ __all__ = [
     "ClearanceSpec",
     "ConstrainedAltitudeGainsSpec",
     "ConstrainedAltitudeLawSpec",
+    "ConstrainedLawSpec",
+    "ConstraintEntrySpec",
     "ConstraintSpec",
     "ControllerSpec",
     "FromModel",
@@ -131,6 +134,7 @@ __all__ = [
     "JointPositionLimitSpec",
     "JointRateLimitSpec",
     "KineticEnergyLimitSpec",
+    "LawSpec",
     "LinearLimitSpec",
     "LissajousPathSpec",
     "NoiseSpec",
@@ -177,4 +181,5 @@ __all__ = [
     "WaypointsPathSpec",
     "WheelPendulumGainsSpec",
     "WheelPendulumLawSpec",
+    "scenario_model",
 ]

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
-from pydantic import Field
+from pydantic import Field, create_model
 
 from cpbc.scenario.schema.common import (
     MAX_CASES,
@@ -16,10 +16,21 @@ from cpbc.scenario.schema.common import (
     Strict,
     Vector,
 )
-from cpbc.scenario.schema.constraint_specs import ConstraintSpec
-from cpbc.scenario.schema.controller_specs import ControllerSpec
+from cpbc.scenario.schema.constraint_specs import ConstraintEntrySpec
+from cpbc.scenario.schema.controller_specs import LawSpec
+from cpbc.scenario.schema.kinds import KINDS, Kinds
 from cpbc.scenario.schema.obstacle_specs import ObstacleSpec
 from cpbc.scenario.schema.taskspace_specs import GoalSpec, ReferenceSpec
+
+# A ``constraints:`` item and a ``controllers:`` item: the registered kinds' specs,
+# discriminated by ``type``. A type checker sees their common bases: what is particular to a
+# kind is read through the kind (cpbc.scenario.schema.kinds), not by the code around it.
+if TYPE_CHECKING:
+    ConstraintSpec = ConstraintEntrySpec
+    ControllerSpec = LawSpec
+else:
+    ConstraintSpec = KINDS.constraint_spec()
+    ControllerSpec = KINDS.law_spec()
 
 
 class PlantMismatchSpec(Strict):
@@ -213,3 +224,16 @@ class Scenario(Strict):
     controllers: Annotated[list[ControllerSpec], Field(min_length=1)] = Field(
         description=(
             "the laws compared; every controller runs on every case"))
+
+
+def scenario_model(kinds: Kinds) -> type[Scenario]:
+    """The Scenario model whose ``constraints:`` and ``controllers:`` take the kinds of
+    ``kinds`` (Scenario itself for the default registry)."""
+    if kinds == KINDS:
+        return Scenario
+    fields = Scenario.model_fields
+    return create_model(
+        "Scenario", __base__=Scenario, __doc__=Scenario.__doc__,
+        constraints=(list[kinds.constraint_spec()], fields["constraints"]),  # type: ignore[arg-type,misc]
+        controllers=(list[kinds.law_spec()], fields["controllers"]),  # type: ignore[arg-type,misc]
+    )

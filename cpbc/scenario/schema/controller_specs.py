@@ -1,4 +1,5 @@
-"""The controllers of an arm scenario: the ``controllers:`` items and their gains."""
+"""What the ``controllers:`` items share: their gains, shaping, task and posture gains, and
+the bases of the law kinds' specs (each kind's own spec is in cpbc.scenario.schema.kinds)."""
 
 from __future__ import annotations
 
@@ -130,103 +131,19 @@ class GainsSpec(Strict):
         return self
 
 
-class PDSpec(GainsSpec):
-    type: Literal["pd", "pd_gravity"] = Field(
-        description=(
-            "pd: −K_P x̃ − K_D ẋ (the thesis's baseline); pd_gravity: g − K_P x̃ − K_D ẋ "
-            "(6.10). Constraints are only monitored"))
+class LawSpec(GainsSpec):
+    """What every ``controllers:`` entry has: its gains, its ``type`` and its ``name``. Each
+    law kind (cpbc.scenario.schema.kinds) narrows ``type`` to its names and adds its own keys."""
+
+    type: str = Field(description="the law")
     name: RunName | None = Field(
         default=None, description=(
             "the controller's name in the output; the type when omitted"))
 
 
-class CPBCSpec(GainsSpec):
-    type: Literal["cpbc", "cpbc_ke"] = Field(
-        description=(
-            "cpbc: Theorem 6.9, any configuration and velocity constraints; cpbc_ke: "
-            "Corollary 6.11, configuration constraints and one kinetic_energy_limit"))
-    name: RunName | None = Field(
-        default=None, description=(
-            "the controller's name in the output; the type when omitted"))
-    shaping: ShapingSpec | None = Field(
-        default=None, description=(
-            "the barrier's shaping s: identity, power (α) or tanh (σ)"))
-    # names of scenario constraints; all when omitted
+class ConstrainedLawSpec(LawSpec):
+    """A law that enforces scenario constraints: ``constraints`` names them."""
+
     constraints: list[str] | None = Field(
         default=None, description=(
             "the scenario constraints it enforces, by name; all when omitted"))
-
-
-class RecentredSpec(GainsSpec):
-    type: Literal["recentred"] = Field(
-        description=(
-            "the re-centred barrier (Cases 2–3, eqs. 6.53–6.65): joint_position_limit and "
-            "velocity constraints"))
-    name: RunName | None = Field(
-        default=None, description=(
-            "the controller's name in the output; the type when omitted"))
-    constraints: list[str] | None = Field(
-        default=None, description=(
-            "the scenario constraints it enforces, by name; all when omitted"))
-
-
-class BPBCSpec(GainsSpec):
-    type: Literal["bpbc", "bpbc_ke"] = Field(
-        description=(
-            "bpbc: Theorem 7.7, bounded torque, a joint_rate_limit on every joint; bpbc_ke: "
-            "Corollary 7.8, one kinetic_energy_limit"))
-    name: RunName | None = Field(
-        default=None, description=(
-            "the controller's name in the output; the type when omitted"))
-    xi: Gain = Field(
-        default=1.0, description=(
-            "Ξ of the ln cosh potential: one number or one per coordinate"))
-    gamma: Gain = Field(
-        default=1.0, description=(
-            "Γ of the K_D tanh(Γẋ) damping: one number or one per coordinate"))
-    shaping: ShapingSpec | None = Field(
-        default=None, description=(
-            "the barrier's shaping s: identity, power (α) or tanh (σ)"))
-    constraints: list[str] | None = Field(
-        default=None, description=(
-            "the scenario constraints it enforces, by name; all when omitted"))
-
-
-class CBFQPSpec(GainsSpec):
-    """The CBF-QP peer (cpbc.peers.cbf_qp): PD + gravity filtered by a QP."""
-
-    type: Literal["cbf_qp"] = Field(
-        description=(
-            "the torque-level CBF-QP safety filter around PD + gravity (needs the peers "
-            "extra)"))
-    name: RunName | None = Field(
-        default=None, description=(
-            "the controller's name in the output; the type when omitted"))
-    # cpbc.peers.cbf_rows
-    variant: Literal["braking", "exponential"] = Field(
-        default="braking", description=(
-            "braking (default) or exponential: the earlier filter"))
-    # k [1/s]: α'(0) of the braking rows, or the exponential poles
-    gain: Positive = Field(
-        default=20.0, description=(
-            "k [1/s]: α'(0) of the braking rows, or the exponential variant's double pole"))
-    # γ of the first-order rows [1/s]; 1/(2h) when omitted
-    rate_gain: Positive | None = Field(
-        default=None, description=(
-            "γ of the first-order rows [1/s]; 1/(2h) when omitted"))
-    # β: share of the box's deceleration
-    braking_share: float = Field(
-        default=0.5, gt=0, le=1, description=(
-            "β ∈ (0, 1]: the share of the torque box's deceleration a braking row counts on"))
-    # c on rate rows; 2e-3 (h/1 ms)^1.7
-    rate_cushion: float | None = Field(
-        default=None, ge=0, description=(
-            "c on rate rows [rad/s]; 2e-3 (h / 1 ms)^1.7 when omitted"))
-    constraints: list[str] | None = Field(
-        default=None, description=(
-            "the scenario constraints it enforces, by name; all when omitted"))
-
-
-ControllerSpec = Annotated[
-    PDSpec | CPBCSpec | RecentredSpec | BPBCSpec | CBFQPSpec, Field(discriminator="type")
-]
