@@ -12,7 +12,8 @@ from collections.abc import Iterator, Sequence
 
 from numba.core.registry import CPUDispatcher
 
-MODULES = ("cpbc.kernels.linalg", "cpbc.kernels.barriers", "cpbc.kernels.laws")
+MODULES = ("cpbc.kernels.linalg", "cpbc.kernels.barriers", "cpbc.kernels.laws",
+           "cpbc.kernels.clearance")
 
 
 def kernels() -> Iterator[tuple[str, CPUDispatcher]]:
