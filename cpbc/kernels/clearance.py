@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cpbc.arrays import Array
-from cpbc.kernels import kernel
+from cpbc.kernels import READ_ONLY, kernel
 
 Ints = NDArray[np.int64]  # the index tables
 
@@ -181,7 +181,7 @@ def forces_on_joints(centres: Array, force: Array, supports: Array, jac: Array, 
 
 
 @kernel("float64(float64[:, :], float64[:, :], int64[:], float64[:, :], float64[:, :],"
-        " int64[:, :], float64[:, :], float64[:, :], float64[:], float64, float64[:],"
+        f" int64[:, :], float64[:, :], float64[:, :], {READ_ONLY}, float64, float64[:],"
         " float64[:], float64[:])")
 def sphere_barrier(y: Array, jac: Array, sphere_index: Ints, sphere_local: Array,
                    obstacles: Array, pair_index: Ints, pair_table: Array, supports: Array,

@@ -139,7 +139,6 @@ class Clearance(PairLayout, ConfigurationConstraint):
         self._far_phi = np.full(len(self.names), self.influence or 1.0)
         self._split_static()
         self._far_phi.setflags(write=False)
-        self._far_phi_packed = self._far_phi.copy()  # the kernel's (numba takes writable)
         self._zero = np.zeros(self._n)
         self._zero.setflags(write=False)
         self._no_value = np.empty(0)

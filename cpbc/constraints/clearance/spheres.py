@@ -79,7 +79,6 @@ class SpherePairs(Kinematics):
     _spheres: Spheres | None
     _groups: list[CapsuleGroup]
     _far_phi: Array  # φ̃ of every constraint with no pair within ℓ
-    _far_phi_packed: Array  # the same, writable, for the kernel
     _no_value: Array  # an empty array: ``sphere_barrier`` without the reported values
     _motion_data: pin.Data  # second order, apart from the state's
 
@@ -111,7 +110,7 @@ class SpherePairs(Kinematics):
         s = self._spheres
         assert s is not None
         return sphere_barrier(y, jac, s.sphere_index, s.sphere_local, s.obstacles,
-                              s.pair_index, s.pair_table, s.sphere_supports, self._far_phi_packed,
+                              s.pair_index, s.pair_table, s.sphere_supports, self._far_phi,
                               self.influence or 0.0, phi_out, b, value)
 
     def _pair_gradients(self, q: Array, y: Array) -> tuple[Array, Array]:
