@@ -107,7 +107,7 @@ class ConstraintSet:
               ) -> ArmState:
         """The per-step state these constraints read (with ``frames`` besides, e.g. a
         potential's), from one call of ``model.state``."""
-        wanted = tuple(dict.fromkeys((*self.frames, *frames)))
+        wanted = tuple(dict.fromkeys((*self.frames, *frames))) if frames else self.frames
         return model.state(x, dx, kinematics=self.needs_kinematics, frames=wanted,
                            coriolis=self.needs_coriolis)
 
