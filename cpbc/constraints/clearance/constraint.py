@@ -60,9 +60,8 @@ class Clearance(PairLayout, ConfigurationConstraint):
     constraints φ̃_p, so its guarantees hold unchanged, and a pair beyond ℓ is *exactly*
     inactive: when no pair is within ℓ the barrier costs the distance computation only, and
     capsule groups are skipped after a conservative bounding-sphere test. Once one sphere
-    pair is within ℓ, all of them go through the rest densely (those beyond ℓ with factor
-    exactly 1 and zero slope): per numpy call that costs the same as a few, and it needs no
-    picking. With
+    pair is within ℓ, the sphere kernel (cpbc.kernels.clearance.sphere_barrier) skips the
+    pairs beyond ℓ (factor exactly 1, zero slope) as a written branch. With
     ``influence=None`` the barrier is φ_p itself (the plain thesis form).
 
     ``value`` and ``gradient`` report the clearance φ_p itself [m] (what the run summary
