@@ -3,7 +3,9 @@
 Prints, for each controller, the median wall time of one ``torque`` call (µs) and the
 closed-loop rate (control steps per second, MuJoCo physics included). Medians over repeated
 blocks; nothing here is asserted inside the unit tests. ``--check`` exits 1 when CPBC costs
-more than 3× PD + gravity measured in the same run (a ratio, so it holds across machines).
+more than 3× PD + gravity measured in the same run (a ratio, so it holds across machines), or
+when a compiled kernel is not compiled in nopython mode (it fell back to object mode, or
+``NUMBA_DISABLE_JIT`` left it uncompiled; ``python -m cpbc.kernels --check``).
 """
 
 from __future__ import annotations
@@ -165,7 +167,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--repeats", type=int, default=15, help="timed blocks per figure")
     p.add_argument("--loop-seconds", type=float, default=2.0, help="simulated s per loop run")
     p.add_argument("--check", action="store_true",
-                   help="exit 1 if CPBC costs more than 3x PD + gravity")
+                   help="exit 1 if CPBC costs more than 3x PD + gravity, or a kernel is not "
+                   "compiled in nopython mode")
     p.add_argument("--peers", action="store_true",
                    help="also time the guarded law and the cbf_qp peer (needs cpbc[peers])")
     args = p.parse_args(argv)
@@ -205,7 +208,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                  " (the ≤ 3 target is the planar arm's; none is set for this arm)"))
     if peers and not args.json:
         _print_peers(torque_us)
-    return 1 if args.check and ratio > 3.0 else 0
+    if args.check:
+        from cpbc.kernels.__main__ import problems
+
+        found = problems()
+        for line in found:
+            print(f"kernel: {line}", file=sys.stderr)
+        return 1 if ratio > 3.0 or found else 0
+    return 0
 
 
 if __name__ == "__main__":

@@ -24,3 +24,20 @@ def test_bench_peers_times_guarded_law_and_cbf_qp_on_the_same_states(capsys) -> 
     out = json.loads(capsys.readouterr().out)
     assert {"cpbc", "cpbc_guarded", "cbf_qp"} <= set(out["torque_us"])
     assert all(out["torque_us"][k] > 0 for k in ("cpbc_guarded", "cbf_qp"))
+
+
+def test_bench_check_fails_when_the_kernels_are_not_compiled() -> None:
+    """--check fails when a kernel is not compiled in nopython mode: here none is (the
+    kernels run as plain Python under NUMBA_DISABLE_JIT=1), however fast CPBC may be."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
+    done = subprocess.run(
+        [sys.executable, "-m", "cpbc.bench", "--check", "--repeats", "1", "--loop-seconds",
+         "0.01"], cwd=Path(__file__).resolve().parents[1], env=env, capture_output=True,
+        text=True, timeout=600)
+    assert done.returncode == 1
+    assert "kernel: no compiled kernels" in done.stderr

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Sequence
 from itertools import groupby
 from typing import NamedTuple, TypeVar
@@ -12,23 +11,20 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.base import ConfigurationConstraint, VelocityConstraint
 from cpbc.errors import ConstraintViolation, CpbcError, InadmissibleStateError
+from cpbc.kernels.barriers import log_sum
 from cpbc.model.robot_model import ArmState, RobotModel
 
 Constraint = TypeVar("Constraint", ConfigurationConstraint, VelocityConstraint)
 
 
 def _log_sum(parts: Sequence[Array], names: Sequence[str]) -> float:
-    """Σ log of every margin in ``parts``; ConstraintViolation naming the worst one if any
-    margin is ≤ 0 or NaN."""
-    values: list[float] = []
+    """Σ log of every margin in ``parts`` (cpbc.kernels.barriers.log_sum); ConstraintViolation
+    naming the worst one if any margin is ≤ 0 or NaN."""
+    total = 0.0
     for m in parts:
-        values += m.tolist()
-    try:
-        total = math.fsum(map(math.log, values))
-    except ValueError:  # a margin ≤ 0
-        total = math.nan
-    if total != total:  # a margin ≤ 0 or NaN (math.log(nan) is nan)
-        margins = np.asarray(values)
+        total += log_sum(m)
+    if total != total:  # a margin ≤ 0 or NaN
+        margins = np.concatenate(parts)
         i = int(np.argmin(np.nan_to_num(margins, nan=-np.inf)))
         raise ConstraintViolation(names[i], float(margins[i]))
     return total
@@ -111,7 +107,7 @@ class ConstraintSet:
               ) -> ArmState:
         """The per-step state these constraints read (with ``frames`` besides, e.g. a
         potential's), from one call of ``model.state``."""
-        wanted = tuple(dict.fromkeys((*self.frames, *frames)))
+        wanted = tuple(dict.fromkeys((*self.frames, *frames))) if frames else self.frames
         return model.state(x, dx, kinematics=self.needs_kinematics, frames=wanted,
                            coriolis=self.needs_coriolis)
 

@@ -12,7 +12,7 @@ from cpbc.controllers.base import Controller, Evaluation, positive_vector
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
-from cpbc.kernels.laws import cpbc_torque
+from cpbc.kernels.laws import cpbc_torque, zero_terms
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -62,6 +62,7 @@ class CPBC(Controller):
         self.potential: Potential = JointSpring(self.target, self.kp) if potential is None else (
             require_posture(potential, self.type_name))
         self.damping: Damping = LinearDamping(self.kd)
+        self._no_barrier = zero_terms(model.n)
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         bar = self.constraints.barrier(state, margins)  # raises outside S
@@ -80,15 +81,18 @@ class CPBC(Controller):
     def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float) -> Array:
         """The law of the class docstring: τ from ∂U/∂x (``grad``), L and the barrier sums
         (cpbc.kernels.laws.cpbc_torque)."""
-        force = -grad - self.damping.force(state.dx) - self.task_damping_force(state)
+        force = -grad
+        force -= self.damping.force(state.dx)
+        if self.task_damping is not None:
+            force -= self.task_damping_force(state)
         rho = self.shaping.ratio(bar.log_phi + bar.log_psi) * lag
-        n = force.shape[0]
         c = state.coriolis_force + state.dissipation if self.model.has_friction else (
             state.coriolis_force
         )
-        tau = np.empty(n)
+        tau = np.empty(force.shape[0])
+        zero_gradient, zero_weight = self._no_barrier
         cpbc_torque(state.inertia, state.gravity, c, force,
-                    np.zeros(n) if bar.gradient is None else bar.gradient,
-                    np.zeros((n, n)) if bar.weight is None else bar.weight,
-                    bar.weight is not None, rho, np.empty((n, 2 * n + 1)), tau)
+                    zero_gradient if bar.gradient is None else bar.gradient,
+                    zero_weight if bar.weight is None else bar.weight,
+                    bar.weight is not None, rho, tau)
         return tau

@@ -14,7 +14,7 @@ from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
 from cpbc.errors import ConstraintViolation, CpbcError
-from cpbc.kernels.laws import cpbc_ke_torque
+from cpbc.kernels.laws import cpbc_ke_torque, zero_terms
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -63,6 +63,7 @@ class CPBCKineticEnergy(Controller):
             require_posture(potential, self.type_name))
         self.damping: Damping = LinearDamping(self.kd)
         self._config = ConstraintSet(model.n, constraints.configuration)
+        self._no_barrier = zero_terms(model.n)
 
     def state(self, x: Array, dx: Array) -> ArmState:
         """The per-step state of the configuration constraints and the potential: the law
@@ -89,9 +90,11 @@ class CPBCKineticEnergy(Controller):
         """The law of the class docstring, from ∂U/∂x (``grad``)
         (cpbc.kernels.laws.cpbc_ke_torque)."""
         rho = self.shaping.ratio(bar.log_phi + math.log(psi)) * lag
-        force = -grad - self.damping.force(state.dx) - self.task_damping_force(state)
-        n = force.shape[0]
-        tau = np.empty(n)
-        cpbc_ke_torque(state.gravity, force, np.zeros(n) if bar.gradient is None else (
+        force = -grad
+        force -= self.damping.force(state.dx)
+        if self.task_damping is not None:
+            force -= self.task_damping_force(state)
+        tau = np.empty(force.shape[0])
+        cpbc_ke_torque(state.gravity, force, self._no_barrier[0] if bar.gradient is None else (
             bar.gradient), rho, psi, tau)
         return tau

@@ -21,6 +21,10 @@ import numba
 
 F = TypeVar("F", bound=Callable[..., Any])
 
+# a float vector the kernel only reads, in a signature: it takes read-only arrays too
+READ_ONLY = "Array(float64, 1, 'A', readonly=True)"
+READ_ONLY_MATRIX = "Array(float64, 2, 'A', readonly=True)"
+
 
 def kernel(signature: str) -> Callable[[F], F]:
     """numba's nopython compilation of one function for one signature, cached on disk;

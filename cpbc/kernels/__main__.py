@@ -12,7 +12,8 @@ from collections.abc import Iterator, Sequence
 
 from numba.core.registry import CPUDispatcher
 
-MODULES = ("cpbc.kernels.linalg", "cpbc.kernels.barriers", "cpbc.kernels.laws")
+MODULES = ("cpbc.kernels.linalg", "cpbc.kernels.barriers", "cpbc.kernels.laws",
+           "cpbc.kernels.clearance")
 
 
 def kernels() -> Iterator[tuple[str, CPUDispatcher]]:
@@ -25,9 +26,13 @@ def kernels() -> Iterator[tuple[str, CPUDispatcher]]:
 
 
 def problems() -> list[str]:
-    """Kernels not compiled, or compiled other than in nopython mode (empty when all are)."""
+    """Kernels not compiled, or compiled other than in nopython mode (empty when all are);
+    none found at all is one (NUMBA_DISABLE_JIT runs them as Python)."""
+    every = list(kernels())
+    if not every:
+        return ["no compiled kernels (NUMBA_DISABLE_JIT is set?)"]
     found = []
-    for name, dispatcher in kernels():
+    for name, dispatcher in every:
         if not dispatcher.targetoptions.get("nopython", False):
             found.append(f"{name}: not nopython")
         if not dispatcher.signatures:

@@ -3,8 +3,10 @@ b_ψ = Σ ∂_xψ_j/ψ_j), one kernel per constraint kind."""
 
 from __future__ import annotations
 
+import math
+
 from cpbc.arrays import Array
-from cpbc.kernels import kernel
+from cpbc.kernels import READ_ONLY, kernel
 
 
 @kernel("void(float64[:, :], float64[:], float64[:], float64[:])")
@@ -81,3 +83,16 @@ def kinetic_energy_terms(limit: float, inertia: Array, coriolis: Array, dx: Arra
             s += coriolis[b, a] * dx[b]
         gradient[a] = -s / psi
     return psi
+
+
+@kernel(f"float64({READ_ONLY})")
+def log_sum(margins: Array) -> float:
+    """Σ log m_i of positive margins (log Φ = Σ log φ_i, log Ψ = Σ log ψ_j: the products Φ, Ψ
+    are never formed); NaN when a margin is ≤ 0 or NaN."""
+    total = 0.0
+    for i in range(margins.shape[0]):
+        m = margins[i]
+        if not m > 0.0:
+            return math.nan
+        total += math.log(m)
+    return total

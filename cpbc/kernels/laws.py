@@ -2,23 +2,33 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from cpbc.arrays import Array
-from cpbc.kernels import kernel
+from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
 from cpbc.kernels.linalg import solve_spd
 
 
-@kernel("void(float64[:, :], float64[:], float64[:], float64[:], float64[:], float64[:, :],"
-        " boolean, float64, float64[:, :], float64[:])")
+def zero_terms(n: int) -> tuple[Array, Array]:
+    """Read-only zero barrier sums b (n,) and Π (n, n), for a law whose constraints give none
+    (a law keeps them: nothing constant is allocated per call)."""
+    b, weight = np.zeros(n), np.zeros((n, n))
+    b.setflags(write=False)
+    weight.setflags(write=False)
+    return b, weight
+
+
+@kernel("void(float64[:, :], float64[:], float64[:], float64[:], "
+        f"{READ_ONLY}, {READ_ONLY_MATRIX}, boolean, float64, float64[:])")
 def cpbc_torque(inertia: Array, gravity: Array, bias: Array, force: Array, gradient: Array,
-                weight: Array, constrained_rate: bool, rho: float, work: Array, tau: Array
-                ) -> None:
+                weight: Array, constrained_rate: bool, rho: float, tau: Array) -> None:
     """CPBC (Theorem 6.9, eq. 6.24) in log-barrier form:
 
         a = force + ρ (b_φ + b_ψ),   τ = g + c + D (D + ρΠ)⁻¹ (a − c)
 
     with ``force`` = −∂U/∂x − K_D ẋ − F, ``bias`` c = C ẋ + f, ``gradient`` b_φ + b_ψ and
     ``weight`` Π. Without velocity constraints (``constrained_rate`` False, Π = 0) this is
-    τ = g + a. ``work``: (n, 2n + 1) scratch. τ into ``tau``."""
+    τ = g + a. τ into ``tau``."""
     n = gravity.shape[0]
     for i in range(n):
         tau[i] = force[i] + rho * gradient[i]  # a
@@ -26,6 +36,7 @@ def cpbc_torque(inertia: Array, gravity: Array, bias: Array, force: Array, gradi
         for i in range(n):
             tau[i] += gravity[i]
         return
+    work = np.empty((n, 2 * n + 1))
     m = work[:, :n]
     factor = work[:, n:2 * n]
     rhs = work[:, 2 * n]
@@ -43,7 +54,7 @@ def cpbc_torque(inertia: Array, gravity: Array, bias: Array, force: Array, gradi
         tau[i] = rhs[i]
 
 
-@kernel("void(float64[:], float64[:], float64[:], float64, float64, float64[:])")
+@kernel(f"void(float64[:], float64[:], {READ_ONLY}, float64, float64, float64[:])")
 def cpbc_ke_torque(gravity: Array, force: Array, gradient: Array, rho: float, psi: float,
                    tau: Array) -> None:
     """CPBC-KE (Corollary 6.11, eq. 6.67) with shaping, in log-barrier form:

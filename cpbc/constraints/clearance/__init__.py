@@ -1,15 +1,15 @@
 """Clearance between the whole arm and the obstacles (and between its own links).
 
 One scalar configuration constraint per (robot primitive, obstacle) pair and per
-self-collision pair, all evaluated together so that the hot path is a fixed, small number of
-vectorised operations whatever the number of pairs.
+self-collision pair, all evaluated together: the sphere pairs by compiled kernels over
+tables packed at construction (cpbc.kernels.clearance), the capsule groups by numpy.
 
 The package, one concept per module:
 
 - ``constraint``: :class:`Clearance`, the coordinator (arguments, values, gradients,
   curvature, the localised barrier's terms);
-- ``spheres``: the sphere primitives' pairs (distances, gradients, the law's factors and
-  force, curvature);
+- ``spheres``: the sphere primitives' pairs (their packed tables; distances, the law's
+  factors and force by kernels; gradients, curvature);
 - ``capsules``: the capsule primitives' groups (against spheres, capsules, boxes and planes,
   and self pairs);
 - ``layout``: the set-up of the pairs from the link covers, and the capsules' broad phase;

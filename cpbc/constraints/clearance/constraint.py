@@ -20,12 +20,11 @@ from cpbc.arrays import Array
 from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.constraints.clearance.capsules import CapsuleGroup, Rows
 from cpbc.constraints.clearance.layout import PairLayout
-from cpbc.constraints.clearance.spheres import core_distances
-from cpbc.constraints.clearance.tables import ONE, THREE, Index
 from cpbc.constraints.covering import LinkPrimitive
 from cpbc.constraints.geometry import Obstacle
 from cpbc.constraints.margins import CLEARANCE
 from cpbc.errors import CpbcError, ParameterError
+from cpbc.kernels.clearance import localised_terms
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -62,9 +61,8 @@ class Clearance(PairLayout, ConfigurationConstraint):
     constraints φ̃_p, so its guarantees hold unchanged, and a pair beyond ℓ is *exactly*
     inactive: when no pair is within ℓ the barrier costs the distance computation only, and
     capsule groups are skipped after a conservative bounding-sphere test. Once one sphere
-    pair is within ℓ, all of them go through the rest densely (those beyond ℓ with factor
-    exactly 1 and zero slope): per numpy call that costs the same as a few, and it needs no
-    picking. With
+    pair is within ℓ, the sphere kernel (cpbc.kernels.clearance.sphere_barrier) skips the
+    pairs beyond ℓ (factor exactly 1, zero slope) as a written branch. With
     ``influence=None`` the barrier is φ_p itself (the plain thesis form).
 
     ``value`` and ``gradient`` report the clearance φ_p itself [m] (what the run summary
@@ -131,8 +129,6 @@ class Clearance(PairLayout, ConfigurationConstraint):
         self.obstacles = tuple(obstacles)
         self.margin = float(margin)
         self.influence = None if influence is None else float(influence)
-        self._ell = np.array(self.influence or 1.0)  # ℓ and 1/ℓ as 0-d arrays (see ONE)
-        self._inv_ell = np.array(1.0 / (self.influence or 1.0))
         self.self_pairs = tuple((str(a), str(b)) for a, b in self_pairs)
         self._pin = model.model
         self._data = self._pin.createData()  # its own, for evaluations away from the state
@@ -146,7 +142,7 @@ class Clearance(PairLayout, ConfigurationConstraint):
         self._far_phi.setflags(write=False)
         self._zero = np.zeros(self._n)
         self._zero.setflags(write=False)
-        self._along: dict[int, tuple[Array, Array, Index]] = {}  # see values_along
+        self._no_value = np.empty(0)
         self._motion_data = self._pin.createData()  # second order, apart from the state's
 
     # -- set-up (the pairs themselves: layout) -------------------------------------------
@@ -176,7 +172,7 @@ class Clearance(PairLayout, ConfigurationConstraint):
         static = slope < 1e-12
         if not static.any():
             return
-        phi = self._sphere_distances(self._regressor(pin.neutral(pm)))[0] - s.rsum
+        phi = self._sphere_geometry(self._regressor(pin.neutral(pm)))[3] - s.rsum
         shaped = phi if self.influence is None else self._shape(phi)[0] / self.influence
         np.multiply.at(self._far_phi, s.group[static], shaped[static])
         s.moving[static] = 0.0
@@ -185,51 +181,21 @@ class Clearance(PairLayout, ConfigurationConstraint):
 
     # -- ConfigurationConstraint ----------------------------------------------------------
     def value(self, x: Array) -> Array:
-        y = self._regressor(self._q(x))
-        if self._spheres is None:
-            return self._value(y, None, None)
-        d, u, _ = self._sphere_distances(y)
-        return self._value(y, d, u)
+        return self._value(self._regressor(self._q(x)))
 
-    def _value(self, y: Array, d: Array | None, u: Array | None) -> Array:
-        """The clearances from the regressor y and (with spheres) their pairs' d and u."""
-        s = self._spheres
-        if s is None:
-            out = np.empty(len(self.names))
-        else:
-            assert d is not None and u is not None
-            phi = d - s.rsum
-            # (x[x.argmin()]: min without a ufunc reduction, several times cheaper)
-            if not d[d.argmin()] > 0.0:  # a centre inside a core box: signed distance there
-                depth = np.max(np.abs(u) - s.half, axis=0) - s.rsum
-                phi = np.where(d > 0.0, phi, depth)
-            out = np.minimum.reduceat(phi, s.starts)  # the sphere constraints come first
-            if not self._groups:
-                return out
-            out = np.concatenate([out, np.empty(len(self.names) - s.stop)])
-        for g in self._groups:
-            out[g.start:g.stop] = g.reported(g.narrow(y)[0])
+    def _value(self, y: Array) -> Array:
+        """The clearances from the joint placements y: the sphere constraints' first
+        (cpbc.kernels.clearance.sphere_clearances), then the capsule groups'."""
+        out = np.empty(len(self.names))
+        if self._spheres is not None:
+            self._sphere_values(y, out)
+        self._group_values(y, out)
         return out
 
-    def values_along(self, xs: Array) -> Array:
-        """φ at each row of xs, (N, k): with sphere primitives only, the pairs of all rows go
-        through one set of numpy calls (the same numbers as ``value`` row by row)."""
-        s = self._spheres
-        xs = np.asarray(xs, dtype=float)
-        if s is None or self._groups or len(xs) < 2:
-            return super().values_along(xs)
-        rows = len(xs)
-        if rows not in self._along:  # h, rsum and the constraints' first pairs, row after row
-            pairs = len(s.rsum)
-            self._along[rows] = (np.tile(s.half, rows), np.tile(s.rsum, rows),
-                                 (s.starts + pairs * np.arange(rows)[:, None]).reshape(-1))
-        half, rsum, starts = self._along[rows]
-        u = np.concatenate([self._offsets(self._regressor(self._q(x))) for x in xs], axis=1)
-        d, _ = core_distances(u, half)
-        if not d[d.argmin()] > 0.0:  # a centre inside a core box: row by row
-            return super().values_along(xs)
-        d -= rsum
-        return np.minimum.reduceat(d, starts).reshape(rows, -1)
+    def _group_values(self, y: Array, out: Array) -> None:
+        """The capsule groups' reported clearances at y into their entries of ``out``."""
+        for g in self._groups:
+            out[g.start:g.stop] = g.reported(g.narrow(y)[0])
 
     def evaluate(self, x: Array) -> tuple[Array, Array]:
         q = self._q(x)
@@ -300,22 +266,14 @@ class Clearance(PairLayout, ConfigurationConstraint):
 
     # -- the localised barrier -------------------------------------------------------------
     def _shape(self, phi: Array) -> tuple[Array, Array]:
-        """φ̃ and (dφ̃/dφ)/φ̃ of the class docstring (φ and 1/φ without an influence)."""
+        """φ̃ and (dφ̃/dφ)/φ̃ of the class docstring (φ and 1/φ without an influence;
+        cpbc.kernels.clearance.localised)."""
         ell = self.influence
         if ell is None:
             return phi, 1.0 / phi
-        # ℓ − ℓ(1 − min(φ/ℓ, 1))³ and 3(1 − …)²/φ̃, operation by operation as ever (the same
-        # bits), in place and with 0-d array constants (cheaper per call than Python floats)
-        v = phi * self._inv_ell
-        np.minimum(v, ONE, out=v)
-        np.subtract(ONE, v, out=v)
-        v2 = v * v
-        shaped = v2 * v
-        shaped *= self._ell
-        np.subtract(self._ell, shaped, out=shaped)
-        v2 *= THREE
-        v2 /= shaped
-        return shaped, v2
+        shaped, ratio = np.empty_like(phi), np.empty_like(phi)
+        localised_terms(phi, ell, shaped, ratio)
+        return shaped, ratio
 
     def _near_groups(self, y: Array) -> list[CapsuleGroup]:
         """Capsule groups with a pair that may be within the influence distance."""
@@ -342,24 +300,26 @@ class Clearance(PairLayout, ConfigurationConstraint):
 
     def _barrier(self, x: Array, y: Array, jac: Array, with_value: bool
                  ) -> tuple[Array, Array, Array | None]:
-        """The sphere pairs' factors of φ̃ and their normals, then the terms of the capsule
-        groups that may be within ℓ, then the force of both (``_force``). Outside S: the
-        clearances φ for φ̃ and no force (the constraint set raises). ``y``, ``jac``: the
-        joint placements and Jacobians at x."""
+        """The sphere pairs' φ̃ and force (one kernel, ``_sphere_terms``), then the terms of
+        the capsule groups that may be within ℓ, then the force of both (``_force``).
+        Outside S: the clearances φ for φ̃ and no force (the constraint set raises). ``y``,
+        ``jac``: the joint placements and Jacobians at x."""
         value: Array | None = None
         phi_out: Array | None = None
-        sphere_local: Array | None = None  # the pairs' normals × (dφ̃/dφ)/φ̃, obstacle frames
-        s = self._spheres
-        if s is not None:
-            d, u, outside = self._sphere_distances(y)
-            phi = d - s.rsum_law  # pairs that cannot move: ∞ (with ℓ)
-            low = phi[phi.argmin()]  # phi.min(), cheaper
-            if low <= 0.0:  # outside S: report it, the constraint set raises
-                value = self._value(y, d, u)
+        b_sphere: Array | None = None
+        if self._spheres is not None:
+            phi_out, b_sphere = np.empty(len(self.names)), np.empty(self._n)
+            value = np.empty(len(self.names)) if with_value else self._no_value
+            low = self._sphere_terms(y, jac, phi_out, b_sphere, value)
+            if not low > 0.0:  # outside S (or NaN): report it, the constraint set raises
+                value = self._value(y)
                 return value, self._zero, value
             if with_value:
-                value = self._value(y, d, u)
-            phi_out, sphere_local = self._sphere_law(s, phi, low, d, u, outside)
+                self._group_values(y, value)
+            else:
+                value = None
+            if self.influence is not None and not low < self.influence:
+                phi_out = b_sphere = None  # no sphere pair within ℓ
         capsules = self._capsule_law(y, phi_out)
         if capsules is None:  # a capsule pair outside S
             value = self.value(x)
@@ -369,7 +329,7 @@ class Clearance(PairLayout, ConfigurationConstraint):
             value = self.value(x)
         if phi_out is None:
             return self._far_phi, self._zero, value
-        return phi_out, self._force(jac, sphere_local, rows), value
+        return phi_out, self._force(b_sphere, rows, jac), value
 
     def _capsule_law(self, y: Array, phi_out: Array | None
                      ) -> tuple[Array | None, list[Rows]] | None:
@@ -387,12 +347,11 @@ class Clearance(PairLayout, ConfigurationConstraint):
             rows += g_rows
         return phi_out, rows
 
-    def _force(self, jac: Array, sphere_local: Array | None, rows: list[Rows]) -> Array:
-        """Σ ∇φ̃/φ̃: the sphere pairs' (``_sphere_force``) plus the capsule rows', from the
-        state's joint Jacobians ``jac`` (RobotModel.state, kinematics=True)."""
-        b = self._zero
-        if sphere_local is not None:
-            b = self._sphere_force(sphere_local, jac)
+    def _force(self, b_sphere: Array | None, rows: list[Rows], jac: Array) -> Array:
+        """Σ ∇φ̃/φ̃: the sphere pairs' (``b_sphere``, joint coordinates) plus the capsule
+        rows', from the state's joint Jacobians ``jac`` (RobotModel.state,
+        kinematics=True)."""
+        b = self._zero if b_sphere is None else b_sphere
         if rows:
             points, normals, masks = (np.concatenate(part) for part in zip(*rows, strict=True))
             b = b + self._rows_times_jacobians(jac, points, normals, masks).sum(axis=0)

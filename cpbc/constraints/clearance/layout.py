@@ -24,7 +24,7 @@ from cpbc.constraints.clearance.capsules import (
     CapsuleSphere,
 )
 from cpbc.constraints.clearance.spheres import SpherePairs, Spheres
-from cpbc.constraints.clearance.tables import FORCE, Index
+from cpbc.constraints.clearance.tables import Index
 from cpbc.constraints.geometry import (
     BoxObstacle,
     CapsuleObstacle,
@@ -222,36 +222,33 @@ class PairLayout(SpherePairs):
         cores = [o.core() for o in self.obstacles]
         n_obs, n_sph = len(cores), len(spheres)
         radius = np.array([prims[i].radius for i in spheres])
-        to_obstacle = np.zeros((3 * n_obs, 4))
-        to_world = np.zeros((3, 3 * n_obs))
-        slope = 1.0 if self.influence is None else 3.0 / self.influence  # see _sphere_factors
-        for o, core in enumerate(cores):
-            for k in range(3):  # row (k, o): u_k = R[:, k]·(s − c)
-                to_obstacle[k * n_obs + o, :3] = core.rotation[:, k]
-                to_obstacle[k * n_obs + o, 3] = -core.rotation[:, k] @ core.centre
-                to_world[:, k * n_obs + o] = slope * core.rotation[:, k]
-        self_map = np.zeros((n_sph, len(self_pairs)))
-        for p, (i, j) in enumerate(self_pairs):
-            self_map[index[i], p] = 1.0
-            self_map[index[j], p] = -1.0
         rsum = np.concatenate(
             [radius + core.rounding + margin for core in cores]
             + [[prims[i].radius + prims[j].radius + margin for i, j in self_pairs]])
-        half = np.zeros((3, len(rsum)))
+        table = np.zeros((len(rsum), 6))  # h, rsum, rsum_law, moving
         for o, core in enumerate(cores):
-            half[:, o * n_sph:(o + 1) * n_sph] = core.half_extents[:, None]
+            table[o * n_sph:(o + 1) * n_sph, :3] = core.half_extents
+        table[:, 3] = table[:, 4] = rsum
+        table[:, 5] = 1.0
         grp = np.array(group, dtype=np.intp)
+        pair_index = np.full((len(rsum), 4), -1, dtype=np.int64)
+        pair_index[:n_obs * n_sph, 0] = np.repeat(np.arange(n_obs), n_sph)
+        pair_index[:, 1] = np.concatenate([np.tile(np.arange(n_sph), n_obs),
+                                           [index[i] for i, _ in self_pairs]])
+        pair_index[n_obs * n_sph:, 2] = [index[j] for _, j in self_pairs]
+        pair_index[:, 3] = grp
+        columns = self._columns(spheres, 0)  # (4 nj, S), four entries of each column nonzero
+        first = np.array([4 * (self._joint[i] - 1) for i in spheres], dtype=np.int64)
         return Spheres(
             start=0, stop=int(grp[-1]) + 1, n_obstacle=n_obs * n_sph,
-            centres=self._columns(spheres, 0),
-            scratch=np.ones((4, n_sph)),
-            to_obstacle=to_obstacle, self_map=self_map, half=half,
-            rsum=rsum, rsum_law=rsum.copy(), moving=np.ones(len(rsum)),
-            to_world=FORCE @ to_world,
-            self_force=np.ascontiguousarray(slope * self_map.T),
-            pair_sphere=np.concatenate([np.tile(np.arange(n_sph), n_obs),
-                                        [index[i] for i, _ in self_pairs]]).astype(np.intp),
-            pair_sphere2=np.array([index[j] for _, j in self_pairs], dtype=np.intp),
+            sphere_index=first,
+            sphere_local=np.ascontiguousarray(
+                np.array([columns[j:j + 4, s] for s, j in enumerate(first)]).reshape(-1, 4)),
+            obstacles=np.array([np.concatenate([core.rotation.reshape(-1), core.centre])
+                                for core in cores]).reshape(-1, 12),
+            pair_index=pair_index, pair_table=table,
+            pair_sphere=pair_index[:, 1].astype(np.intp),
+            pair_sphere2=pair_index[n_obs * n_sph:, 2].astype(np.intp),
             pair_rot=np.array([core.rotation for core in cores for _ in spheres]
                               + [np.eye(3)] * len(self_pairs)).reshape(-1, 3, 3),
             sphere_supports=self._masks(spheres),
