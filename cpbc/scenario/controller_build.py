@@ -22,7 +22,7 @@ from cpbc.model.bounds import ModelBounds, estimate_bounds
 from cpbc.scenario import schema as s
 from cpbc.scenario.arm_setup import CaseEntry, ControllerEntry
 from cpbc.scenario.gains import physical_gains, unstable_loop
-from cpbc.scenario.goal import GoalPlan, law_terms, linear_gains
+from cpbc.scenario.goal import GoalPlan, law_terms, linear_gains, peer_nominal
 from cpbc.simulation import LoopSettings
 
 
@@ -133,17 +133,19 @@ def _build_controller(
 def _build_peer(
     spec: s.CBFQPSpec, model: RobotModel, target: Array, gains: _Gains,
     constraints: dict[str, ConfigurationConstraint | VelocityConstraint], loop: LoopSettings,
-    field: str,
+    field: str, goal: GoalPlan | None = None,
 ) -> Controller:
     """The CBF-QP peer (cpbc.peers, imported only here, when a scenario asks for it) on the
-    same constraint objects as the laws, the loop's control period and torque box."""
+    same constraint objects as the laws, the loop's control period and torque box; with a
+    goal, around the operational-space nominal."""
     from cpbc.peers import CBFQP, PeerUnavailable
 
     cons = _controller_constraints(spec, model.n, constraints, field)
+    osc = peer_nominal(spec, goal, field)
     try:
         return CBFQP(model, target, cons, gains.kp, gains.kd, spec.gain, spec.rate_gain,
                      loop.control_period, loop.torque_limit, spec.variant,
-                     spec.braking_share, spec.rate_cushion)
+                     spec.braking_share, spec.rate_cushion, osc)
     except PeerUnavailable as exc:
         raise ScenarioError(f"{field}.type", str(exc)) from None
     except CpbcError as exc:
@@ -182,7 +184,7 @@ def build_controllers(
         if check:
             _check_zoh(gains, model, states, sim, names, field)
         if isinstance(cspec, s.CBFQPSpec):
-            ctrl = _build_peer(cspec, model, target, gains, built, loop, field)
+            ctrl = _build_peer(cspec, model, target, gains, built, loop, field, goal)
         else:
             ctrl = _build_controller(cspec, model, target, gains, built, model_bounds, field,
                                      terms)

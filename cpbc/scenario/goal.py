@@ -15,13 +15,14 @@ from cpbc.constraints.geometry import Obstacle, point_rounded_box, quat_to_matri
 from cpbc.constraints.point_outside_sphere import PointOutsideSphere
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model.robot_model import RobotModel
+from cpbc.peers.osc import OperationalSpace, OSCGains
 from cpbc.scenario import schema as s
 from cpbc.taskspace.gains import TaskGains, TaskGainSpec, linear_terms, task_gains
 from cpbc.taskspace.goal import AxisGoal, FrameGoal
 from cpbc.taskspace.ik import Preflight, preflight
 from cpbc.taskspace.terms import Saturation, task_terms
 
-GOAL_LAWS = ("pd_gravity", "cpbc", "cpbc_ke", "bpbc", "bpbc_ke")
+GOAL_LAWS = ("pd_gravity", "cpbc", "cpbc_ke", "bpbc", "bpbc_ke", "cbf_qp")
 
 
 def _vector3(value: list[float] | None, field: str) -> Array:
@@ -133,6 +134,8 @@ def law_terms(spec: s.ControllerSpec, model: RobotModel, goal: GoalPlan, field: 
     if spec.type not in GOAL_LAWS:
         raise ScenarioError(f"{field}.type", f"'{spec.type}' takes no goal; with goal: use "
                             f"one of {', '.join(GOAL_LAWS)}")
+    if isinstance(spec, s.CBFQPSpec):
+        peer_nominal(spec, goal, field)  # refuses its joint-space nominal first
     if spec.task is None and spec.posture is None:
         raise ScenarioError(f"{field}.kp", "with goal:, give task: {omega_n, zeta} and "
                             "posture: {omega_n, zeta} in place of kp, kd (or omega_n, zeta)")
@@ -149,6 +152,24 @@ def law_terms(spec: s.ControllerSpec, model: RobotModel, goal: GoalPlan, field: 
     potential, damping = task_terms(model, goal.goal, goal.posture, gains, bounded)
     kp = gains.posture if bounded is None else gains.posture / bounded.joint_xi
     return {"kp": kp, "kd": kd, "potential": potential, "task_damping": damping}, gains
+
+
+def peer_nominal(spec: s.CBFQPSpec, goal: GoalPlan | None, field: str
+                 ) -> OperationalSpace | None:
+    """The CBF-QP peer's operational-space nominal (``nominal: osc``) toward the goal with
+    the law's task and posture gains, or None for its PD + gravity nominal."""
+    if spec.nominal == "osc":
+        if goal is None:
+            raise ScenarioError(f"{field}.nominal", "osc steers a frame: give goal: or "
+                                "reference: in place of target:, or nominal: pd_gravity")
+        task, posture = spec.task or s.TaskGainsSpec(), spec.posture or s.PostureGainsSpec()
+        return OperationalSpace(goal.goal, goal.posture, OSCGains(
+            task.omega_n, task.zeta, task.rotation_omega_n or task.omega_n, posture.omega_n,
+            posture.zeta))
+    if goal is not None:
+        raise ScenarioError(f"{field}.nominal", "with goal: or reference:, cbf_qp filters "
+                            "an operational-space nominal: set nominal: osc")
+    return None
 
 
 def linear_gains(model: RobotModel, goal: GoalPlan, gains: TaskGains) -> tuple[Array, Array]:

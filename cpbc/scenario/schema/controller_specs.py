@@ -193,12 +193,18 @@ class BPBCSpec(GainsSpec):
 
 
 class CBFQPSpec(GainsSpec):
-    """The CBF-QP peer (cpbc.peers.cbf_qp): PD + gravity filtered by a QP."""
+    """The CBF-QP peer (cpbc.peers.cbf_qp): PD + gravity, or an operational-space nominal
+    toward a goal or reference, filtered by a QP."""
 
     type: Literal["cbf_qp"] = Field(
         description=(
             "the torque-level CBF-QP safety filter around PD + gravity (needs the peers "
             "extra)"))
+    nominal: Literal["pd_gravity", "osc"] = Field(
+        default="pd_gravity", description=(
+            "the torque it filters: pd_gravity (g − K_P x̃ − K_D ẋ toward target:) or osc "
+            "(operational-space control toward goal: or reference:, with task: and posture: "
+            "gains; cpbc.peers.osc)"))
     name: RunName | None = Field(
         default=None, description=(
             "the controller's name in the output; the type when omitted"))
