@@ -31,6 +31,7 @@ from cpbc.arrays import Array
 from cpbc.controllers.linalg import solve_spd
 from cpbc.model.frames import cross3
 from cpbc.model.robot_model import ArmState
+from cpbc.taskspace.gains import fixed_rotations
 from cpbc.taskspace.goal import AxisGoal, FrameGoal
 
 TIKHONOV = 1e-9  # of tr(J D⁻¹ Jᵀ), added to its diagonal before the inversion
@@ -71,14 +72,6 @@ class OSCGains:
     posture_zeta: float
 
 
-def _across(axis: Array) -> Array:
-    """Two unit world axes spanning the plane normal to ``axis``, (2, 3)."""
-    helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
-    u = cross3(axis, helper)
-    u = u / np.linalg.norm(u)
-    return np.vstack([u, cross3(axis, u)])
-
-
 class OperationalSpace:
     """The nominal of the module docstring for ``goal`` with posture x_n.
 
@@ -91,8 +84,7 @@ class OperationalSpace:
     def __init__(self, goal: FrameGoal, posture: Array, gains: OSCGains) -> None:
         self.goal, self.gains = goal, gains
         self.target: TaskTarget = HeldTarget.at(goal.position, posture)
-        self._across = _across(goal.rotation.world) if isinstance(goal.rotation, AxisGoal) \
-            else None
+        self._across = fixed_rotations(goal)
 
     @property
     def frames(self) -> tuple[int, ...]:
@@ -115,7 +107,6 @@ class OperationalSpace:
             return jv, e, accel
         jw = kin.angular
         if isinstance(rotation, AxisGoal):
-            assert self._across is not None
             jw = self._across @ jw
             e_r = self._across @ cross3(rotation.world, kin.rotation @ rotation.tool)
         else:
