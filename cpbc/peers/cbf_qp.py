@@ -1,8 +1,12 @@
-"""A torque-level CBF-QP safety filter around PD + gravity: the baseline users pick today.
+"""A torque-level CBF-QP safety filter around PD + gravity or an operational-space nominal:
+the baseline users pick today.
 
 At each sample it solves, with DAQP (a dense active-set solver),
 
     min_τ ½‖τ − τ_nom‖²,   τ_nom = g − K_P x̃ − K_D ẋ          (PD + gravity, eq. 6.10)
+
+or, toward a task-space goal or reference (``nominal: osc``), τ_nom the operational-space
+nominal of cpbc.peers.osc (OSCBF's: Jᵀ Λ a_task + Nᵀ D a_null + C ẋ + g),
 
 subject to one row per barrier (cpbc.peers.cbf_rows: the rows, their two variants and their
 equations) and the actuators' box |Tᵀτ| ≤ L when the scenario has torque limits.
@@ -45,6 +49,7 @@ from cpbc.controllers.base import Evaluation, SafetyFilter, positive_vector
 from cpbc.errors import CpbcError, ParameterError
 from cpbc.model.robot_model import ArmState, RobotModel
 from cpbc.peers.cbf_rows import Rows, Tuning, barrier_rows
+from cpbc.peers.osc import OperationalSpace, TaskTarget
 
 EXTRA = "pip install 'cpbc[peers]'"
 
@@ -88,6 +93,8 @@ class CBFQP(SafetyFilter):
         variant: ``braking`` (default) or ``exponential``.
         braking_share: β, the share of the box's deceleration a braking row counts on.
         rate_cushion: c on rate rows; default_cushion(period) when omitted (braking only).
+        osc: an operational-space nominal (cpbc.peers.osc) in place of PD + gravity; the
+            filter's value is then its closed-loop energy, and kp the posture spring's.
     """
 
     type_name = "cbf_qp"
@@ -97,6 +104,7 @@ class CBFQP(SafetyFilter):
         kd: object, gain: float = 20.0, rate_gain: float | None = None, period: float = 1e-3,
         torque_limit: Array | float | None = None, variant: str = "braking",
         braking_share: float = 0.5, rate_cushion: float | None = None,
+        osc: OperationalSpace | None = None,
     ) -> None:
         super().__init__(model, target, constraints)
         self.kp = positive_vector(kp, model.n, "kp")
@@ -122,6 +130,7 @@ class CBFQP(SafetyFilter):
         coords = model.coordinates
         self._box_rows = None if coords.is_identity else np.ascontiguousarray(coords.matrix.T)
         self._solve = _daqp()
+        self.osc = osc
         self.acted = 0
         self.infeasible = 0
         self.rows_active = 0
@@ -162,9 +171,30 @@ class CBFQP(SafetyFilter):
         out._set_period(period)
         return out
 
+    @property
+    def frames(self) -> tuple[int, ...]:
+        return () if self.osc is None else self.osc.frames
+
+    def follow(self, target: TaskTarget) -> None:
+        """Steer the operational-space nominal to a moving reference's target (written in
+        place each step by cpbc.reference); a PD + gravity nominal has no task to steer."""
+        if self.osc is None:
+            raise CpbcError("cbf_qp: a moving reference needs the operational-space nominal "
+                            "(nominal: osc)")
+        self.osc.follow(target)
+
     def nominal(self, state: ArmState) -> Array:
-        """τ_nom = g − K_P x̃ − K_D ẋ."""
-        return state.gravity - self.kp * (state.x - self.target) - self.kd * state.dx
+        """τ_nom = g − K_P x̃ − K_D ẋ, or the operational-space nominal."""
+        return self._nominal(state)[0]
+
+    def _nominal(self, state: ArmState) -> tuple[Array, float]:
+        """τ_nom and the nominal's value: ½ẋᵀDẋ + ½x̃ᵀK_Px̃ for PD + g."""
+        if self.osc is not None:
+            return self.osc.evaluate(state)
+        err = state.x - self.target
+        value = 0.5 * float(state.dx @ state.inertia @ state.dx) + 0.5 * float(
+            err @ (self.kp * err))
+        return state.gravity - self.kp * err - self.kd * state.dx, value
 
     def rows(self, state: ArmState) -> tuple[Array, Array, Array]:
         """The barrier rows: A (m, n), lower (m,), upper (m,) with lower ≤ A τ ≤ upper."""
@@ -231,7 +261,7 @@ class CBFQP(SafetyFilter):
         return np.clip(nominal, -self.torque_limit, self.torque_limit)
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
-        nominal = self.nominal(state)
+        nominal, value = self._nominal(state)
         rows = barrier_rows(self.tuning, self.constraints, state)
         tau, flag = self._qp(nominal, rows.a, rows.lower, rows.upper, box=True)
         feasible = flag == 1
@@ -243,8 +273,5 @@ class CBFQP(SafetyFilter):
             self.acted += 1
             if not feasible or np.max(np.abs(tau - self._box_only(nominal))) > tol:
                 self.rows_active += 1
-        err = state.x - self.target
-        value = 0.5 * float(state.dx @ state.inertia @ state.dx) + 0.5 * float(
-            err @ (self.kp * err))
         found = self.constraints.margins(state.x, state.dx, state) if margins else None
         return Evaluation(tau, value, found)

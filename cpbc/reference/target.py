@@ -11,7 +11,7 @@ law is the same law with a fixed goal: its V̇ identity holds unchanged.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -117,6 +117,14 @@ class SteeredDamping:
         return force - self.joint * self.target.posture_velocity
 
 
+@runtime_checkable
+class Follower(Protocol):
+    """A controller whose nominal reads the target itself (the CBF-QP peer's
+    operational-space nominal, cpbc.peers.osc), with no spring to steer."""
+
+    def follow(self, target: MovingTarget) -> None: ...
+
+
 def _steer_part(part: Potential, target: MovingTarget) -> Potential:
     if isinstance(part, Steered):  # steered before (an earlier run): to the new target
         return Steered(part.spring, target, part.reads)
@@ -131,7 +139,10 @@ def steer(law: Controller, target: MovingTarget) -> Controller:
     """Make ``law`` read its frame goal, posture and feed-forward from ``target`` (in place;
     the law is returned; a law steered before reads the new target). The law needs a task
     potential (a sum with one frame position spring) and, for the feed-forward, task
-    damping."""
+    damping. A :class:`Follower` is handed the target instead."""
+    if isinstance(law, Follower):
+        law.follow(target)
+        return law
     potential = law.potential
     parts = potential.parts if isinstance(potential, PotentialSum) else (
         () if potential is None else (potential,))

@@ -72,6 +72,11 @@ class ReferenceTracker(Controller):
         self.log_blocked: list[bool] = []
         self.log_applied: list[Array] = []
 
+    @property
+    def frames(self) -> tuple[int, ...]:
+        """The frames the wrapped law reads (its potential's, or a peer nominal's)."""
+        return self.law.frames
+
     def start_at(self, phase: float) -> None:
         """Begin the path at path time ``phase`` (outside its stretches) instead of 0: the
         governor's s_v and clock, and the target at the path's point and posture there."""

@@ -116,7 +116,7 @@ def build_controllers(
         if check:
             _check_zoh(gains, model, states, sim, names, field)
         given = LawInputs(model, target, terms or {"kp": gains.kp, "kd": gains.kd}, built,
-                          model_bounds, loop, field)
+                          model_bounds, loop, field, None if goal is None else goal.goal)
         controllers.append(ControllerEntry(cspec.name or cspec.type,
                                            _build_controller(cspec, kind, given)))
     if len({c.name for c in controllers}) != len(controllers):

@@ -13,7 +13,7 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.geometry import Obstacle, point_rounded_box, quat_to_matrix, rpy_matrix
 from cpbc.constraints.point_outside_sphere import PointOutsideSphere
-from cpbc.errors import CpbcError, ScenarioError
+from cpbc.errors import CpbcError, ParameterError, ScenarioError
 from cpbc.model.robot_model import RobotModel
 from cpbc.scenario import schema as s
 from cpbc.scenario.schema.kinds.law_inputs import Slopes
@@ -127,8 +127,12 @@ def law_terms(spec: s.LawSpec, model: RobotModel, goal: GoalPlan, field: str, sl
         raise ScenarioError(f"{field}.kp", "with goal:, give task: {omega_n, zeta} and "
                             "posture: {omega_n, zeta} in place of kp, kd (or omega_n, zeta)")
     task, posture = spec.task or s.TaskGainsSpec(), spec.posture or s.PostureGainsSpec()
-    gains = task_gains(model, goal.goal, goal.posture, TaskGainSpec(
-        task.omega_n, task.zeta, task.rotation_omega_n, posture.omega_n, posture.zeta))
+    try:
+        gains = task_gains(model, goal.goal, goal.posture, TaskGainSpec(
+            task.omega_n, task.zeta, task.rotation_omega_n, posture.omega_n, posture.zeta))
+    except ParameterError as exc:
+        raise ScenarioError(f"{field}.task", f"{exc}; raise task.omega_n (or zeta, "
+                            "rotation_omega_n) or lower posture.omega_n") from None
     bounded = Saturation(task.xi, task.gamma, slopes.spring) if slopes.saturates else None
     kd = gains.joint_damping
     if bounded is not None:  # the bounded laws' springs and damping take the diagonals

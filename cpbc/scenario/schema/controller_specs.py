@@ -36,15 +36,18 @@ ShapingSpec = Annotated[
 
 class TaskGainsSpec(Strict):
     """A goal's task gains in physical units, scaled by the arm's task-space inertia Λ at the
-    posture (cpbc.taskspace.gains): K_p = ω_n² Λ, D_x = 2 ζ ω_n Λ; the orientation spring
+    posture (cpbc.taskspace.gains): the task closes at ω_n, ζ, the posture terms' share taken
+    off, K_p = (ω_n² − ω_p²) Λ, D_x = 2 (ζ ω_n − ζ_p ω_p) Λ; the orientation spring
     at ``rotation_omega_n`` (ω_n when omitted). The bounded laws (bpbc, bpbc_ke) saturate the
     position spring beyond 1/``xi`` [m] and the task damping beyond 1/``gamma`` [m/s]."""
 
     omega_n: Positive = Field(
         default=8.0, description=(
-            "natural frequency of the position spring [rad/s]: K_p = ω_n² Λ"))
+            "natural frequency of the task [rad/s]: K_p = (ω_n² − ω_p²) Λ, ω_p the "
+            "posture's"))
     zeta: Positive = Field(
-        default=1.0, description="damping ratio of the task damping: D_x = 2 ζ ω_n Λ")
+        default=1.0, description=(
+            "damping ratio of the task: D_x = 2 (ζ ω_n − ζ_p ω_p) Λ, ζ_p ω_p the posture's"))
     rotation_omega_n: Positive | None = Field(
         default=None, description=(
             "natural frequency of the orientation spring [rad/s]; omega_n when omitted"))

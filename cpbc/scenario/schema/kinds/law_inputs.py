@@ -22,6 +22,7 @@ from cpbc.scenario.schema.controller_specs import (
     ShapingSpec,
 )
 from cpbc.simulation import LoopSettings
+from cpbc.taskspace.goal import FrameGoal
 
 
 def gain_vector(value: float | list[float], n: int, field: str) -> Array:
@@ -80,6 +81,8 @@ class LawInputs:
         model_bounds: the model's bounds (estimated once, when a law first asks).
         loop: the loop's settings (control period, torque limit).
         field: the entry's place in the scenario (``controllers[1]``), for errors.
+        goal: a goal or reference scenario's frame goal (``target`` is then its posture),
+            else None.
     """
 
     model: RobotModel
@@ -89,6 +92,7 @@ class LawInputs:
     model_bounds: Callable[[], ModelBounds]
     loop: LoopSettings
     field: str
+    goal: FrameGoal | None = None
 
     def constraint_set(self, chosen: list[str] | None) -> ConstraintSet:
         """The scenario constraints an entry names (all when None)."""
