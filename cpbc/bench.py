@@ -152,6 +152,21 @@ def peer_times(setup: BenchSetup, repeats: int) -> dict[str, float]:
     return {k: time_torque(c, setup.states, repeats) for k, c in contenders.items()}
 
 
+def time_governor(repeats: int, steps: int = 5000) -> float:
+    """The reference governor's step (cpbc.reference.governor, target ≤ 2 µs) [µs]: a path
+    with one blocked stretch far ahead, V̄ below the budget, median over ``repeats`` blocks."""
+    from cpbc.reference.governor import GovernorSettings, PathGovernor
+
+    gov = PathGovernor(GovernorSettings(), 1e9, 0.001, ((5e8, 6e8, "x"),))
+    times = []
+    for r in range(repeats):
+        start = time.perf_counter()
+        for k in range(steps):
+            gov.advance((r * steps + k) * 0.001, 0.1, 0.25)
+        times.append((time.perf_counter() - start) / steps)
+    return statistics.median(times) * 1e6
+
+
 def _print_peers(torque_us: dict[str, float]) -> None:
     qp = torque_us["cbf_qp"]
     print(f"peers, same states: cbf_qp {qp:.1f} µs, cpbc guarded {torque_us['cpbc_guarded']:.1f}"
@@ -189,11 +204,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             for k, c in setup.controllers.items() if not c.constraints.empty}
     ratio = torque_us["cpbc"] / torque_us["pd_gravity"]
     torque_us.update(peers)
+    governor = time_governor(args.repeats)
     if args.json:
         print(json.dumps({"robot": setup.robot, "torque_us": torque_us,
                           "closed_loop_steps_per_second": loop,
                           "closed_loop_bare_law_steps_per_second": bare,
-                          "cpbc_over_pd_gravity": ratio, "notes": setup.notes}))
+                          "cpbc_over_pd_gravity": ratio, "governor_us": governor,
+                          "notes": setup.notes}))
     else:
         print(f"robot: {setup.robot} ({setup.notes})")
         print(f"{'controller':<12} {'torque [µs]':>12} {'loop [steps/s]':>15} "
@@ -206,6 +223,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"cpbc / pd_gravity cost ratio: {ratio:.2f}"
               + (" (target ≤ 3)" if setup.robot == "planar_2link" else
                  " (the ≤ 3 target is the planar arm's; none is set for this arm)"))
+        print(f"reference governor: {governor:.2f} µs a step (target ≤ 2)")
     if peers and not args.json:
         _print_peers(torque_us)
     if args.check:

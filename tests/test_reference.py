@@ -4,7 +4,6 @@ and its per-step cost."""
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -146,19 +145,6 @@ def test_the_budget_slows_and_stops_the_reference() -> None:
     gov = PathGovernor(GovernorSettings(budget=1.0, gain=20.0), 3.0, 0.001, ())
     s = _run(gov, 1000, vbar=0.98)  # ṡ = 20·0.02 = 0.4
     assert s[-1] == pytest.approx(0.4, rel=0.01) and gov.steps_slowed == 1000
-
-
-def test_the_governor_costs_under_two_microseconds_a_step() -> None:
-    gov = PathGovernor(GovernorSettings(), 1e9, 0.001, ((5e8, 6e8, "x"),))
-    n = 20000
-    best = np.inf
-    for _ in range(3):
-        start = time.perf_counter()
-        for k in range(n):
-            gov.advance(k * 0.001, 0.1, 0.25)
-        best = min(best, (time.perf_counter() - start) / n)
-    print(f"governor step: {best * 1e6:.2f} µs")
-    assert best < 4e-6  # target 2 µs; slack for a loaded shared machine
 
 
 def test_a_rejoin_blend_is_checked_admissible(panda: RobotModel) -> None:
