@@ -139,3 +139,31 @@ def test_a_blocked_goal_keeps_the_posture_of_the_descent_from_the_start(tmp_path
     assert plan.preflight.verdict == "blocked", plan.preflight.describe()
     assert (plan.preflight.blocked_by or "").startswith("clearance[")
     assert np.max(np.abs(plan.posture - np.array(start))) < 0.5, plan.posture
+
+
+def test_the_hold_check_pairs_each_state_s_jacobian_with_its_inertia(tmp_path: Path) -> None:
+    # Kinova Jaco2 from the upright start (its wrist all but singular: joint 4 alone weighs
+    # 3e-4 kg·m²) to a goal behind the base. The check once put the task springs through the
+    # posture's Jacobian against the start's inertia — a law that never exists — and refused
+    # ω_n = 12 (spectral radius 4.2); through the start's own Jacobian the held loop is
+    # stable, and the plant agrees: PD + g with those gains reaches the goal.
+    from cpbc.scenario.runner import run_one
+
+    scenario = {
+        "name": "kinova_behind", "robot": {"model": "kinova"},
+        "simulation": {"duration": 8.0, "timestep": 0.001},
+        "goal": {"frame": "j2s6s200_end_effector", "position": [-0.30, 0.10, 0.45],
+                 "orientation": {"axis": {"tool": [0, 0, 1], "world": [0, 0, -1]}}},
+        "cases": [{"name": "upright", "position": [-0.1, 3.0416, 3.0416, -0.1, 3.0416, -0.1]}],
+        "constraints": [{"type": "joint_position_limit", "name": "ranges", "lower": "from_model",
+                         "upper": "from_model",
+                         "joints": ["j2s6s200_joint_2", "j2s6s200_joint_3", "j2s6s200_joint_5"]}],
+        "controllers": [{"type": "pd_gravity", "name": "TS-PD+g",
+                         "task": {"omega_n": 12, "zeta": 1, "rotation_omega_n": 24},
+                         "posture": {"omega_n": 2, "zeta": 1}}],
+    }
+    path = tmp_path / "kinova_behind.yaml"
+    path.write_text(yaml.safe_dump(scenario, sort_keys=False))
+    setup = build(*load_scenario(path))
+    summary = run_one(setup, setup.cases[0], setup.controllers[0], "mujoco").summary
+    assert summary.status == "reached", (summary.status, summary.task_error_final)

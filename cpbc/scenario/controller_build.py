@@ -4,7 +4,7 @@ and the law on the scenario's constraints."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -31,6 +31,8 @@ class _Gains:
     kd: Array
     stiffness: Array
     damping: Array
+    # a goal law's stiffness and damping at a state (its task springs act through J(x))
+    at: Callable[[Array], tuple[Array, Array]] | None = None
 
 
 def _gains(spec: s.LawSpec, slopes: Slopes, model: RobotModel, target: Array,
@@ -55,8 +57,13 @@ def _check_zoh(
 ) -> None:
     """Refuse gains whose held loop is unstable at the control period (cpbc.scenario.gains)."""
     euler_step = 0.0 if sim.integrator == "RK4" else sim.timestep
-    bad = unstable_loop(gains.stiffness, gains.damping, [model.inertia(x) for x in states],
-                        sim.control_period or sim.timestep, names, euler_step)
+    period = sim.control_period or sim.timestep
+    bad = None
+    for x in states:
+        stiffness, damping = (gains.stiffness, gains.damping) if gains.at is None else (
+            gains.at(x))
+        bad = bad or unstable_loop(stiffness, damping, [model.inertia(x)], period, names,
+                                   euler_step)
     if bad is not None:
         raise ScenarioError(field, bad.advice() + "; simulation.check_gains: false runs it "
                             "anyway")
@@ -86,7 +93,8 @@ def _entry_gains(spec: s.LawSpec, kind: LawKind[Any], model: RobotModel, target:
                                 f"use one of {', '.join(kinds.goal_types)}")
         terms, task = law_terms(spec, model, goal, field, slopes)
         stiffness, damping = linear_gains(model, goal, task)
-        return _Gains(terms["kp"], terms["kd"], stiffness, damping), terms  # type: ignore[arg-type]
+        return _Gains(terms["kp"], terms["kd"], stiffness, damping,  # type: ignore[arg-type]
+                      lambda x: linear_gains(model, goal, task, x)), terms
     if spec.task is not None or spec.posture is not None:
         raise ScenarioError(f"{field}.task", "task and posture gains need a goal: give "
                             "goal: {frame, position, ...} in place of target:, or kp, kd")
