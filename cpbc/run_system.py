@@ -13,9 +13,9 @@ from rich.table import Table
 from cpbc.errors import CpbcError
 from cpbc.results import staged_output
 from cpbc.scenario.schema import SystemScenario
+from cpbc.scenario.system_build import build_system, check_backend
 from cpbc.scenario.system_runner import SystemResult, run_system_all, write_system_outputs
-from cpbc.scenario.systems import build_system, check_backend
-from cpbc.viewer.systems import write_system_view
+from cpbc.viewer.system_page import write_system_view
 
 STATUS_STYLE = {"converged": "green", "not_settled": "yellow",
                 "constraint_violated": "red", "diverged": "red"}

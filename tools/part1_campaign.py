@@ -29,8 +29,8 @@ sys.path[:0] = [str(ROOT)]
 
 from cpbc.errors import ScenarioError  # noqa: E402
 from cpbc.scenario.schema import SystemScenario  # noqa: E402
+from cpbc.scenario.system_build import build_system  # noqa: E402
 from cpbc.scenario.system_runner import run_system_all  # noqa: E402
-from cpbc.scenario.systems import build_system  # noqa: E402
 
 State = tuple[float, ...]
 

@@ -8,20 +8,20 @@ from pathlib import Path
 
 from cpbc.errors import ScenarioError
 from cpbc.results.hdf5_log import LOG_FILE, log_file, write_system_trajectory
-from cpbc.results.systems import (
+from cpbc.results.system_metrics import (
     SystemSummary,
     plot_case,
     plot_path,
     summarise_system,
     write_system_summaries,
 )
-from cpbc.scenario.systems import SystemCase, SystemLaw, SystemSetup, check_backend
+from cpbc.scenario.system_build import SystemCase, SystemLaw, SystemSetup, check_backend
 from cpbc.simulation.system_loop import (
     SystemTrajectory,
     run_system_mujoco,
     run_system_reference,
 )
-from cpbc.systems.plant import Plant
+from cpbc.systems.ode_plant import Plant
 
 RunProgress = Callable[[str, float], None]
 

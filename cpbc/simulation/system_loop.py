@@ -14,10 +14,10 @@ import mujoco
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.backstepping.errors import OutsideDomainError
+from cpbc.backstepping.design_errors import OutsideDomainError
 from cpbc.simulation.loop import Progress, substeps_per_control
-from cpbc.simulation.plant import _INSTABILITY_WARNINGS
-from cpbc.systems.plant import OdePlant, Plant, State
+from cpbc.simulation.plant import INSTABILITY_WARNINGS
+from cpbc.systems.ode_plant import OdePlant, Plant, State
 
 Law = Callable[[State, float], float]  # u = k(x, t)
 
@@ -96,7 +96,7 @@ def run_system_mujoco(
         for _ in range(substeps):
             plant.before_step(model, data)
             mujoco.mj_step(model, data)
-        if any(data.warning[w].number for w in _INSTABILITY_WARNINGS):
+        if any(data.warning[w].number for w in INSTABILITY_WARNINGS):
             outcome = "diverged"  # MuJoCo reset the state or dropped the input and went on
             break
         if progress is not None and k % report_every == 0:

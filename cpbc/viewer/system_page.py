@@ -13,9 +13,9 @@ import numpy as np
 
 from cpbc.results.saved_run import SavedCase, SavedRun, SavedTrajectory, SceneInfo
 from cpbc.results.sweep import default_trace_frame
+from cpbc.scenario.system_build import SystemSetup
 from cpbc.scenario.system_runner import SystemResult
-from cpbc.scenario.systems import SystemSetup
-from cpbc.systems.plant import Plant
+from cpbc.systems.ode_plant import Plant
 from cpbc.viewer.export import write_view
 
 

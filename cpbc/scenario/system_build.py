@@ -26,7 +26,7 @@ from cpbc.backstepping import (
 )
 from cpbc.backstepping.parameter_constraints import worst_case
 from cpbc.errors import ScenarioError
-from cpbc.results.systems import Panel, SystemView
+from cpbc.results.system_metrics import Panel, SystemView
 from cpbc.scenario.schema import (
     AerosondeSpec,
     IntegratorChainSpec,
@@ -41,7 +41,7 @@ from cpbc.systems import (
     QuarterCar,
     ReactionWheelPendulum,
 )
-from cpbc.systems.plant import OdePlant, Plant, State
+from cpbc.systems.ode_plant import OdePlant, Plant, State
 
 Law = Callable[[State, float], float]  # u = k(x, t)
 
@@ -234,7 +234,7 @@ def build_system(scenario: SystemScenario, source: Path) -> SystemSetup:
     """The plants, laws and view of a Part I scenario; ScenarioError naming the field."""
     spec, sim = scenario.system, scenario.simulation
     if isinstance(spec, AerosondeSpec):
-        from cpbc.scenario.aerosonde import build_aerosonde  # it builds on this module
+        from cpbc.scenario.aerosonde_build import build_aerosonde  # it builds on this module
 
         return build_aerosonde(scenario, spec, source)
     laws, view = (_reaction_wheel(spec) if isinstance(spec, ReactionWheelSpec)
