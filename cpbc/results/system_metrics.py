@@ -19,7 +19,7 @@ from matplotlib.figure import Figure
 
 from cpbc.arrays import Array
 from cpbc.results.palette import BOUND_COLOUR, controller_colour
-from cpbc.simulation.system_loop import SystemTrajectory
+from cpbc.simulation.trajectory import SystemTrajectory
 from cpbc.systems.ode_plant import ConstrainedQuantity
 
 

@@ -16,11 +16,7 @@ from cpbc.results.system_metrics import (
     write_system_summaries,
 )
 from cpbc.scenario.system_build import SystemCase, SystemLaw, SystemSetup, check_backend
-from cpbc.simulation.system_loop import (
-    SystemTrajectory,
-    run_system_mujoco,
-    run_system_reference,
-)
+from cpbc.simulation import SystemTrajectory, run_system_mujoco, run_system_reference
 from cpbc.systems.ode_plant import Plant
 
 RunProgress = Callable[[str, float], None]
