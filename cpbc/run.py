@@ -51,7 +51,8 @@ from cpbc.scenario.runner import (
     run_systems,
 )
 from cpbc.scenario.schema import SystemScenario
-from cpbc.scenario.system_build import build_system, check_backend
+from cpbc.scenario.system_build import build_system
+from cpbc.scenario.system_setup import check_backend
 
 if TYPE_CHECKING:
     from cpbc.viewer.live import LiveView

@@ -28,7 +28,7 @@ from cpbc.scenario.schema import (
     SystemScenario,
     TraditionalAltitudeLawSpec,
 )
-from cpbc.scenario.system_build import (
+from cpbc.scenario.system_setup import (
     Law,
     SystemCase,
     SystemLaw,

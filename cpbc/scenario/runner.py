@@ -30,7 +30,7 @@ from cpbc.results.system_metrics import SystemSummary, summarise_system
 from cpbc.results.task_metrics import task_errors, task_outcome
 from cpbc.scenario.build import CaseEntry, ControllerEntry, ScenarioSetup, build
 from cpbc.scenario.schema import Scenario
-from cpbc.scenario.system_build import SystemCase, SystemLaw, SystemSetup, check_backend
+from cpbc.scenario.system_setup import SystemCase, SystemLaw, SystemSetup, check_backend
 from cpbc.simulation import (
     MujocoPlant,
     SystemTrajectory,

@@ -28,7 +28,7 @@ from cpbc.results.sweep import SceneKinematics, default_trace_frame
 from cpbc.results.system_plots import plot_case, plot_path
 from cpbc.scenario.build import ScenarioSetup
 from cpbc.scenario.runner import SystemResult
-from cpbc.scenario.system_build import SystemSetup
+from cpbc.scenario.system_setup import SystemSetup
 from cpbc.systems.ode_plant import Plant
 from cpbc.taskspace.goal import AxisGoal
 from cpbc.viewer.export import write_view
