@@ -30,6 +30,7 @@ from cpbc.results import (
     log_file,
     staged_output,
     write_summaries,
+    write_system_trajectory,
     write_trajectory,
 )
 from cpbc.results.drawing import figure_helper
@@ -43,11 +44,15 @@ from cpbc.scenario.runner import (
     LazyPool,
     RunProgress,
     RunResult,
+    SystemResult,
     default_processes,
     run_all,
     run_shared,
+    run_systems,
 )
 from cpbc.scenario.schema import SystemScenario
+from cpbc.scenario.system_build import build_system
+from cpbc.scenario.system_setup import check_backend
 
 if TYPE_CHECKING:
     from cpbc.viewer.live import LiveView
@@ -247,6 +252,82 @@ def _safeguard(s: RunSummary) -> str:
     return f"{share} ({s.safeguard_steps} steps{late})"
 
 
+def _peaks(r: SystemResult) -> str:
+    s = r.summary
+    parts = []
+    for name, peak in s.peaks.items():
+        bound = s.bounds[name]
+        mark = "<" if peak < bound else "[red]≥[/red]"
+        parts.append(f"{escape(name)} {peak:.4g}{mark}{bound:.4g}")
+    return "\n".join(parts)
+
+
+def _others(r: SystemResult) -> str:
+    """The peaks of the components that are not constrained (the wheel's speed, say)."""
+    s = r.summary
+    return ", ".join(f"{escape(k)} {v:.4g}" for k, v in s.peak_abs.items() if k not in s.peaks)
+
+
+def _system_table(results: Sequence[SystemResult]) -> Table:
+    t = Table(title="cpbc summary (Part I system)")
+    for col in ("case", "law", "status", "settle [s]", "peak |·| vs bound", "other peaks |·|",
+                "steps/s"):
+        t.add_column(col)
+    for r in results:
+        s = r.summary
+        style = STATUS_STYLE[s.status]
+        at = s.crossed_at if s.crossed_at is not None else s.end_time
+        status = s.status + (f" @{at:.3g}s: {s.violated}" if s.violated else "")
+        if s.limits_reached:
+            status += f"; reached the plant's limit: {', '.join(s.limits_reached)}"
+        # the reference's samples are not its steps: its rate says nothing
+        steps = "-" if s.steps_per_second is None else f"{s.steps_per_second:,.0f}"
+        t.add_row(escape(s.case), escape(s.controller), f"[{style}]{escape(status)}[/{style}]",
+                  "-" if s.settle_time is None else f"{s.settle_time:.3g}", _peaks(r),
+                  _others(r), steps)
+    return t
+
+
+def _run_system(scenario: SystemScenario, file: Path, args: argparse.Namespace,
+                console: Console, err: Console) -> int:
+    """A Part I scenario: built (bad input refused before anything is written), run through
+    the same loop and runner as an arm's, written as the same files (trajectories.h5,
+    summary.json, summary.csv, figures, view.html), summarised in a table of its own
+    columns."""
+    if args.view:
+        raise CpbcError("--view streams arm scenarios only; a Part I run writes its replay "
+                        "to view.html in the output folder")
+    from cpbc.viewer.outputs import write_system_outputs  # the page's modules: when used
+
+    setup = build_system(scenario, file)
+    out = args.out or Path("runs") / scenario.name
+    backend = args.backend or scenario.simulation.backend
+    check_backend(setup, backend, "--backend" if args.backend else "simulation.backend")
+    if args.quiet:
+        results = run_systems(setup, backend)
+    else:
+        with Progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
+                      console=err, transient=True) as bar:
+            results = run_systems(setup, backend,
+                                  _progress(bar, len(setup.cases) * len(setup.laws)))
+    with staged_output(out) as scratch:
+        with log_file(scratch / LOG_FILE, scenario.name) as log:
+            for r in results:
+                write_system_trajectory(log, r.case, r.controller, r.trajectory,
+                                        setup.state_names, setup.input_name,
+                                        r.summary.as_dict())
+        write_summaries(scratch, [r.summary for r in results])
+        view = write_system_outputs(scratch, setup, results, plots=not args.no_plots)
+    console.print(_system_table(results))
+    for name, value in setup.view.design_bounds.items():
+        console.print(f"a-priori bound {name}: {value:.6g}")
+    if view is None:
+        console.print("view.html: none (the system is only its ODE, with no body to show; "
+                      "<case>/timeseries.png has its time plots)")
+    console.print(f"backend: {backend}; results written to {out}/")
+    return 0
+
+
 def _progress(bar: Progress, runs: int) -> RunProgress:
     """A bar per run under way, removed when it ends (a bar per run of hundreds made every
     refresh draw them all), and one for the runs done."""
@@ -315,10 +396,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     live: LiveView | None = None
     try:
         loaded, file = load_any(args.scenario)
-        if isinstance(loaded, SystemScenario):  # a Part I system: its own short path
-            from cpbc.run_system import run_system_cli  # not loaded for an arm
-
-            return run_system_cli(loaded, file, args, console)
+        if isinstance(loaded, SystemScenario):  # a Part I system: runs serially, no live view
+            return _run_system(loaded, file, args, console, err)
         scenario = loaded
         setup = build(scenario, file)
         _warn(setup, err)

@@ -34,7 +34,7 @@ from rich.table import Table
 
 from cpbc.backstepping import ChainGains, IntegratorChainController
 from cpbc.backstepping.admissible_starts import AdmissibleStarts, sample_starts, simulate_starts
-from cpbc.backstepping.errors import DesignError
+from cpbc.backstepping.design_errors import DesignError
 from cpbc.backstepping.gain_scheduling import (
     NO_GUARANTEE,
     Partition,
@@ -46,7 +46,7 @@ from cpbc.backstepping.gain_scheduling import (
     single_gain,
     switched_law,
 )
-from cpbc.backstepping.integrator_chain import local_problems, thesis_symbols, tuning_problem
+from cpbc.backstepping.integrator_chain_law import local_problems, thesis_symbols, tuning_problem
 from cpbc.backstepping.multiple_constraints import MultipleConstraintLaw
 from cpbc.backstepping.parameter_constraints import check_parameters
 from cpbc.backstepping.tuning import OBJECTIVES, RULES, TuningResult, optimise, relax

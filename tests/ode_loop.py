@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from cpbc.systems.plant import OdePlant
+from cpbc.systems.ode_plant import OdePlant
 
 Law = Callable[[tuple[float, ...], float], float]  # u = k(x, t)
 Array = NDArray[np.float64]

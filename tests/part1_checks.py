@@ -9,7 +9,7 @@ from typing import Protocol
 import numpy as np
 
 from cpbc.backstepping import Cascade, Rated
-from cpbc.simulation.system_loop import SystemTrajectory
+from cpbc.simulation.trajectory import SystemTrajectory
 from cpbc.systems import Plant
 
 State = tuple[float, ...]

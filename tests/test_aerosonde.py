@@ -19,7 +19,7 @@ from cpbc.backstepping.constrained_altitude import (
     ConstrainedAltitudeGains,
     ConstrainedAltitudeLaw,
 )
-from cpbc.simulation.system_loop import run_system_reference
+from cpbc.simulation import run_system_reference
 from cpbc.systems.aerosim import AerosondeParameters, aero_forces, full_throttle_thrust, isa_density
 from cpbc.systems.aerosonde import AerosondePlant
 

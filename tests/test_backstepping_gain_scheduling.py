@@ -23,7 +23,7 @@ from cpbc.backstepping.gain_scheduling import (
     simulate_switched,
     single_gain,
 )
-from cpbc.backstepping.integrator_chain import tuning_problem
+from cpbc.backstepping.integrator_chain_law import tuning_problem
 from cpbc.backstepping.parameter_constraints import WorstCase, check_parameters, worst_case
 from cpbc.backstepping.regions import Region
 from cpbc.backstepping.tuning import RULES, Resolution

@@ -9,7 +9,7 @@ import pytest
 from toy_chains import NonAffine, Planar
 
 from cpbc.backstepping import LogBarrier, OutsideDomainError
-from cpbc.backstepping.errors import DesignError
+from cpbc.backstepping.design_errors import DesignError
 from cpbc.backstepping.multiple_constraints import MultipleConstraintLaw
 from cpbc.backstepping.strict_feedback import StrictFeedback, nominal_jets
 

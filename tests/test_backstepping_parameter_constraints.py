@@ -16,8 +16,8 @@ from cpbc.backstepping import (
     LogBarrier,
     MultipleConstraintLaw,
 )
-from cpbc.backstepping.errors import DesignError
-from cpbc.backstepping.integrator_chain import thesis_symbols
+from cpbc.backstepping.design_errors import DesignError
+from cpbc.backstepping.integrator_chain_law import thesis_symbols
 from cpbc.backstepping.parameter_constraints import (
     check_parameters,
     domination,

@@ -11,7 +11,7 @@ import pytest
 from part1_checks import assert_rates, closed_loop, numeric_rate, peak, split
 
 from cpbc.backstepping import OutsideDomainError, ReactionWheelController
-from cpbc.simulation.system_loop import run_system_mujoco
+from cpbc.simulation import run_system_mujoco
 from cpbc.systems import ReactionWheelPendulum
 
 CTRL = ReactionWheelController()

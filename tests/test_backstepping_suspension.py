@@ -16,7 +16,7 @@ from cpbc.backstepping import (
     SuspensionController,
     SuspensionGains,
 )
-from cpbc.simulation.system_loop import run_system_mujoco
+from cpbc.simulation import run_system_mujoco
 from cpbc.systems import HaversineBump, QuarterCar
 
 CTRL = SuspensionController()

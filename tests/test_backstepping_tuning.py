@@ -16,7 +16,7 @@ import pytest
 
 from cpbc.backstepping import ChainGains, ChainSystem, IntegratorChainController, LogBarrier
 from cpbc.backstepping.admissible_starts import simulate_starts
-from cpbc.backstepping.integrator_chain import tuning_problem
+from cpbc.backstepping.integrator_chain_law import tuning_problem
 from cpbc.backstepping.multiple_constraints import MultipleConstraintLaw
 from cpbc.backstepping.parameter_constraints import worst_case
 from cpbc.backstepping.tuning import Resolution, TuningProblem, conflicts, optimise, relax

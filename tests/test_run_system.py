@@ -108,3 +108,27 @@ def test_a_coarser_control_rate_and_another_bump(tmp_path: Path) -> None:
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     e = run(path, tmp_path / "out", "--no-plots")["bump9", "barrier"]
     assert 0.05 < e["peaks"]["x3"] < 0.1
+
+
+def test_system_runs_write_the_arm_files_and_vocabulary(suspension) -> None:
+    """A Part I run folder holds what an arm's holds: summary.csv with the arm's columns (the
+    ones that apply filled), statuses from the arm's vocabulary, the MuJoCo rate only where
+    the samples are steps."""
+    import csv
+
+    from cpbc.results import STATUSES
+    from cpbc.results.io import CSV_COLUMNS
+
+    folder, mj, ref = suspension
+    with (folder / "mujoco" / "summary.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert tuple(rows[0]) == CSV_COLUMNS
+    by_run = {(r["case"], r["controller"]): r for r in rows}
+    assert set(by_run) == set(mj)
+    worse = by_run["fig3.6", "unconstrained"]
+    assert worse["status"] == "constraint_violated" and worse["crossed_constraints"] == "x3"
+    assert worse["worst_margins"].startswith("x3 -")  # past its bound: a negative margin
+    assert float(by_run["fig3.6", "barrier"]["worst_margins"].split()[1]) > 0
+    assert {e["status"] for e in (*mj.values(), *ref.values())} <= set(STATUSES)
+    assert all(e["steps_per_second"] > 0 for e in mj.values())
+    assert all(e["steps_per_second"] is None for e in ref.values())

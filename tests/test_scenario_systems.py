@@ -1,4 +1,4 @@
-"""The Part I scenario layer (cpbc/scenario/systems.py): the shipped system scenarios load
+"""The Part I scenario layer (cpbc/scenario/system_build.py): the shipped system scenarios load
 and build, every law is defined at every case's start, and the literal thesis starts the
 laws cannot take are refused with the reason."""
 
@@ -11,7 +11,7 @@ from cpbc.errors import ScenarioError
 from cpbc.resources import scenarios_dir
 from cpbc.scenario.load import load_any
 from cpbc.scenario.schema import SystemScenario
-from cpbc.scenario.systems import build_system
+from cpbc.scenario.system_build import build_system
 
 SYSTEMS = sorted(p for p in scenarios_dir().glob("*.yaml")
                  if "system" in yaml.safe_load(p.read_text()))

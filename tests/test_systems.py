@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from cpbc.errors import CpbcError, ModelError
-from cpbc.simulation.system_loop import run_system_mujoco, run_system_reference
+from cpbc.simulation import run_system_mujoco, run_system_reference
 from cpbc.systems import ConstrainedQuantity, HaversineBump, QuarterCar, ReactionWheelPendulum
 
 

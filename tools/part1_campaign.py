@@ -28,9 +28,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path[:0] = [str(ROOT)]
 
 from cpbc.errors import ScenarioError  # noqa: E402
+from cpbc.scenario.runner import run_systems  # noqa: E402
 from cpbc.scenario.schema import SystemScenario  # noqa: E402
-from cpbc.scenario.system_runner import run_system_all  # noqa: E402
-from cpbc.scenario.systems import build_system  # noqa: E402
+from cpbc.scenario.system_build import build_system  # noqa: E402
 
 State = tuple[float, ...]
 
@@ -97,10 +97,10 @@ def campaign(name: str, box: list[float], bump_max: float | None, periods: list[
                          for i, (x, b, _) in enumerate(states)]
         setup = build_system(SystemScenario.model_validate(data), ROOT)
         start = time.perf_counter()
-        results = run_system_all(setup, "reference" if period is None else "mujoco")
+        results = run_systems(setup, "reference" if period is None else "mujoco")
         wall = time.perf_counter() - start
         for law in (la.name for la in setup.laws if law_filter(la.name)):
-            mine = [(r, states[int(r.case[1:])][2]) for r in results if r.law == law]
+            mine = [(r, states[int(r.case[1:])][2]) for r in results if r.controller == law]
             bad = [(r, edge) for r, edge in mine if r.summary.status in
                    ("constraint_violated", "diverged")]
             worst = max(max(p / r.summary.bounds[k] for k, p in r.summary.peaks.items())

@@ -1,8 +1,8 @@
 """Measure the claims of Ngo (2007) §3.3.3 and §3.5.3 in MuJoCo and in the ODE reference.
 
 Run from the repository root:  python tools/part1_ch3_report.py
-Prints the numbers that docs/PART1_CH3.md tabulates. Uses the product's Part I loop
-(cpbc.simulation.system_loop), the one ``python -m cpbc.run scenarios/ch3_*.yaml`` runs.
+Prints the numbers that docs/PART1_CH3.md tabulates. Uses the product's closed loop
+(cpbc.simulation.loop), the one ``python -m cpbc.run scenarios/ch3_*.yaml`` runs.
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ from cpbc.backstepping import (  # noqa: E402
     ReactionWheelController,
     SuspensionController,
 )
-from cpbc.simulation.system_loop import SystemTrajectory as Trajectory  # noqa: E402
-from cpbc.simulation.system_loop import run_system_mujoco as run_mujoco  # noqa: E402
-from cpbc.simulation.system_loop import run_system_reference  # noqa: E402
+from cpbc.simulation import run_system_mujoco as run_mujoco  # noqa: E402
+from cpbc.simulation import run_system_reference  # noqa: E402
+from cpbc.simulation.trajectory import SystemTrajectory as Trajectory  # noqa: E402
 from cpbc.systems import HaversineBump, QuarterCar, ReactionWheelPendulum  # noqa: E402
 
 SUSPENSION_CASES = {

@@ -25,7 +25,7 @@ from cpbc.backstepping.constrained_altitude import (  # noqa: E402
     ConstrainedAltitudeGains,
     ConstrainedAltitudeLaw,
 )
-from cpbc.simulation.system_loop import SystemTrajectory, run_system_reference  # noqa: E402
+from cpbc.simulation.trajectory import SystemTrajectory, run_system_reference  # noqa: E402
 from cpbc.systems.aerosim import (  # noqa: E402
     GRAVITY,
     AerosondeParameters,

@@ -17,14 +17,14 @@ from cpbc.backstepping.altitude_backstepping import (
 )
 from cpbc.backstepping.altitude_command import AltitudeCommand, TrackingLaw
 from cpbc.backstepping.altitude_model import AltitudeModel
-from cpbc.backstepping.barriers import Barrier, LogBarrier, QuadraticTerm, RationalBarrier
+from cpbc.backstepping.barrier_terms import Barrier, LogBarrier, QuadraticTerm, RationalBarrier
 from cpbc.backstepping.cascade import Cascade, FirstStep, Rated
 from cpbc.backstepping.constrained_altitude import (
     ConstrainedAltitudeGains,
     ConstrainedAltitudeLaw,
 )
-from cpbc.backstepping.errors import DesignError, OutsideDomainError
-from cpbc.backstepping.integrator_chain import (
+from cpbc.backstepping.design_errors import DesignError, OutsideDomainError
+from cpbc.backstepping.integrator_chain_law import (
     ChainGains,
     ChainSystem,
     IntegratorChainController,

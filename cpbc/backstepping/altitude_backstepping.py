@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 from cpbc.backstepping.altitude_law import AltitudeLaw, OuterSteps
 from cpbc.backstepping.altitude_model import AltitudeModel
-from cpbc.backstepping.barriers import positive
+from cpbc.backstepping.barrier_terms import positive
 from cpbc.backstepping.jets import Jet
 
 

@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from cpbc.backstepping.altitude_law import AltitudeLaw
-from cpbc.backstepping.errors import OutsideDomainError
+from cpbc.backstepping.design_errors import OutsideDomainError
 
 
 @dataclass(frozen=True)

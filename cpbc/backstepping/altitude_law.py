@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from cpbc.backstepping.altitude_model import AltitudeModel
-from cpbc.backstepping.barriers import positive
+from cpbc.backstepping.barrier_terms import positive
 from cpbc.backstepping.jets import Jet, as_jet
 
 State = tuple[float, ...]

@@ -19,8 +19,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from cpbc.backstepping.barriers import positive
-from cpbc.backstepping.errors import DesignError
+from cpbc.backstepping.barrier_terms import positive
+from cpbc.backstepping.design_errors import DesignError
 from cpbc.backstepping.jets import Coef, Jet, coefficient
 from cpbc.backstepping.strict_feedback import Value
 

@@ -26,8 +26,8 @@ from scipy.optimize import brentq
 
 from cpbc.backstepping.altitude_law import AltitudeLaw, OuterSteps
 from cpbc.backstepping.altitude_model import AltitudeModel
-from cpbc.backstepping.barriers import positive
-from cpbc.backstepping.errors import DesignError, OutsideDomainError
+from cpbc.backstepping.barrier_terms import positive
+from cpbc.backstepping.design_errors import DesignError, OutsideDomainError
 from cpbc.backstepping.jets import Jet, log, tanh
 
 

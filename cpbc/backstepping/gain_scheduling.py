@@ -27,7 +27,7 @@ from itertools import pairwise
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.backstepping.errors import DesignError
+from cpbc.backstepping.design_errors import DesignError
 from cpbc.backstepping.multiple_constraints import MultipleConstraintLaw
 from cpbc.backstepping.regions import Region
 from cpbc.backstepping.tuning import Resolution, TuningProblem, TuningResult, optimise

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from cpbc.backstepping.barriers import positive
-from cpbc.backstepping.errors import DesignError, OutsideDomainError
+from cpbc.backstepping.barrier_terms import positive
+from cpbc.backstepping.design_errors import DesignError, OutsideDomainError
 from cpbc.backstepping.linear_reach import box_reach
 
 State = tuple[float, ...]

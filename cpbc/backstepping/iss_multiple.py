@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cpbc.backstepping.barriers import positive
+from cpbc.backstepping.barrier_terms import positive
 from cpbc.backstepping.iss_clf import IssCascade, IssClfLaw, companion
 from cpbc.backstepping.jets import Coef, Jet, as_jet
 from cpbc.backstepping.linear_reach import box_reach

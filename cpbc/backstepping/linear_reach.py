@@ -19,7 +19,7 @@ from scipy.linalg import expm
 from scipy.optimize import minimize_scalar
 
 from cpbc.arrays import Array
-from cpbc.backstepping.errors import DesignError
+from cpbc.backstepping.design_errors import DesignError
 
 
 def box_reach(a: Array, box: Sequence[float], samples: int = 20000) -> Array:

@@ -29,8 +29,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from cpbc.backstepping.barriers import LogBarrier, positive
-from cpbc.backstepping.errors import DesignError, OutsideDomainError
+from cpbc.backstepping.barrier_terms import LogBarrier, positive
+from cpbc.backstepping.design_errors import DesignError, OutsideDomainError
 from cpbc.backstepping.jets import Coef, as_jet
 from cpbc.backstepping.strict_feedback import StrictFeedback, nominal_jets
 

@@ -21,9 +21,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cpbc.backstepping.barriers import Barrier, positive
+from cpbc.backstepping.barrier_terms import Barrier, positive
 from cpbc.backstepping.cascade import Cascade
-from cpbc.backstepping.errors import DesignError, OutsideDomainError
+from cpbc.backstepping.design_errors import DesignError, OutsideDomainError
 from cpbc.backstepping.virtual_control import VirtualControl, virtual_control
 
 State = tuple[float, ...]

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.backstepping.errors import DesignError
+from cpbc.backstepping.design_errors import DesignError
 from cpbc.backstepping.linear_reach import box_reach
 from cpbc.backstepping.multiple_constraints import MultipleConstraintLaw
 from cpbc.backstepping.regions import Region, region_states

@@ -29,9 +29,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cpbc.backstepping.barriers import LogBarrier, positive
+from cpbc.backstepping.barrier_terms import LogBarrier, positive
 from cpbc.backstepping.cascade import Cascade, FirstStep, Rated
-from cpbc.backstepping.errors import DesignError
+from cpbc.backstepping.design_errors import DesignError
 from cpbc.backstepping.two_constraints import Growth, TwoConstraintLaw
 
 State = tuple[float, ...]
@@ -182,7 +182,7 @@ class ReactionWheelController:
         return (c.d11 * dq1 + c.d12 * dq2, q1), (dq1,)
 
     def check(self, x: State) -> None:
-        """Raise :class:`~cpbc.backstepping.errors.OutsideDomainError` unless |z| < k4."""
+        """Raise :class:`~cpbc.backstepping.design_errors.OutsideDomainError` unless |z| < k4."""
         self.law.check(*self.coordinates(x))
 
     def control(self, x: State) -> float:

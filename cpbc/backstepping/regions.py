@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.backstepping.errors import DesignError
+from cpbc.backstepping.design_errors import DesignError
 from cpbc.backstepping.multiple_constraints import MultipleConstraintLaw
 
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cpbc.backstepping.barriers import Barrier, LogBarrier, QuadraticTerm, positive
+from cpbc.backstepping.barrier_terms import Barrier, LogBarrier, QuadraticTerm, positive
 from cpbc.backstepping.cascade import Cascade, FirstStep, Rated
 from cpbc.backstepping.nonstrict_clf import NonStrictClfLaw
 
@@ -159,7 +159,7 @@ class SuspensionController:
         return (x1 + r / (r + 1) * x3, (x2 + r * x4) / (r + 1)), (x3, x4 - x2)
 
     def check(self, x: State) -> None:
-        """Raise :class:`~cpbc.backstepping.errors.OutsideDomainError` unless |z1| < k2.
+        """Raise :class:`~cpbc.backstepping.design_errors.OutsideDomainError` unless |z1| < k2.
 
         The literal Fig. 3.7 start (x3 = −0.05 m, x2 = −20 m/s) has z1 = −0.0990 and is refused.
         """

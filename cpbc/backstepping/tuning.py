@@ -38,7 +38,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from cpbc.arrays import Array
-from cpbc.backstepping.errors import DesignError
+from cpbc.backstepping.design_errors import DesignError
 from cpbc.backstepping.multiple_constraints import MultipleConstraintLaw
 from cpbc.backstepping.parameter_constraints import (
     Condition,

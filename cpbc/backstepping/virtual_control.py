@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cpbc.backstepping.barriers import Barrier
+from cpbc.backstepping.barrier_terms import Barrier
 from cpbc.backstepping.cascade import FirstStep
 
 

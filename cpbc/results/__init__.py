@@ -1,6 +1,13 @@
 """Results layer: metrics and status judged from data, and the files a run writes."""
 
-from cpbc.results.hdf5_log import LOG_FILE, ArmLabels, load_log, log_file, write_trajectory
+from cpbc.results.hdf5_log import (
+    LOG_FILE,
+    ArmLabels,
+    load_log,
+    log_file,
+    write_system_trajectory,
+    write_trajectory,
+)
 from cpbc.results.io import staged_output, write_summaries
 from cpbc.results.metrics import STATUSES, RunSummary, SettleCriteria, summarise
 
@@ -15,5 +22,6 @@ __all__ = [
     "staged_output",
     "summarise",
     "write_summaries",
+    "write_system_trajectory",
     "write_trajectory",
 ]

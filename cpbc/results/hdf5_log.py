@@ -35,8 +35,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.margins import BY_KEY, OTHER
-from cpbc.simulation.system_loop import SystemTrajectory
-from cpbc.simulation.trajectory import Trajectory
+from cpbc.simulation.trajectory import SystemTrajectory, Trajectory
 
 #: The file's name in a run folder.
 LOG_FILE = "trajectories.h5"

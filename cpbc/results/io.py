@@ -1,5 +1,5 @@
-"""Files of a scenario run: summary.csv and summary.json, and the staging of the run folder
-(the logs: cpbc.results.hdf5_log)."""
+"""Files of a scenario run: summary.csv and summary.json (an arm's runs or a Part I
+system's, one format), and the staging of the run folder (the logs: cpbc.results.hdf5_log)."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from pathlib import Path
 from cpbc.errors import CpbcError
 from cpbc.results.metrics import RunSummary
 from cpbc.results.saved_run import FIGURES
+from cpbc.results.system_metrics import SystemSummary
 
 CSV_COLUMNS = (
     "controller", "controller_type", "case", "backend", "status", "end_time", "final_error",
@@ -56,8 +57,10 @@ def _csv_row(s: RunSummary) -> dict[str, object]:
     return row
 
 
-def write_summaries(folder: Path, summaries: Sequence[RunSummary]) -> None:
-    """summary.json (a list of run objects) and summary.csv (one row per run)."""
+def write_summaries(folder: Path, summaries: Sequence[RunSummary] | Sequence[SystemSummary]
+                    ) -> None:
+    """summary.json (a list of run objects) and summary.csv (one row per run; a Part I run
+    fills the columns that apply to it)."""
     (folder / "summary.json").write_text(
         json.dumps([s.as_dict() for s in summaries], indent=2, allow_nan=False)
     )
@@ -65,7 +68,7 @@ def write_summaries(folder: Path, summaries: Sequence[RunSummary]) -> None:
         writer = csv.DictWriter(fh, fieldnames=list(CSV_COLUMNS))
         writer.writeheader()
         for s in summaries:
-            writer.writerow(_csv_row(s))
+            writer.writerow(s.csv_row() if isinstance(s, SystemSummary) else _csv_row(s))
 
 
 def earlier_output(out: Path) -> set[Path]:

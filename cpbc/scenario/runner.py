@@ -1,7 +1,10 @@
-"""Run every controller of a scenario on every case and collect the results.
+"""Run every controller of a scenario on every case and collect the results: an arm's
+scenario, or a Part I system's (``system:``), whose laws run on its cases through the same
+closed loop (cpbc.simulation.loop) and are summarised for the same files.
 
-Runs are independent, so with ``workers > 1`` they go to separate processes; each process
-rebuilds the setup from the scenario (Pinocchio and MuJoCo objects are not shared).
+An arm's runs are independent, so with ``workers > 1`` they go to separate processes; each
+process rebuilds the setup from the scenario (Pinocchio and MuJoCo objects are not shared).
+A Part I scenario's runs are short and run in this process.
 """
 
 from __future__ import annotations
@@ -18,14 +21,26 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from cpbc.constraints.base import Array
+from cpbc.errors import ScenarioError
 from cpbc.reference.tracker import ReferenceTracker
 from cpbc.results.drawing import quiet_on_interrupt
 from cpbc.results.metrics import RunSummary, margin_history, summarise
 from cpbc.results.reference_metrics import reference_log, reference_outcome
+from cpbc.results.system_metrics import SystemSummary, summarise_system
 from cpbc.results.task_metrics import task_errors, task_outcome
 from cpbc.scenario.build import CaseEntry, ControllerEntry, ScenarioSetup, build
 from cpbc.scenario.schema import Scenario
-from cpbc.simulation import MujocoPlant, Trajectory, run_mujoco, run_reference
+from cpbc.scenario.system_setup import SystemCase, SystemLaw, SystemSetup, check_backend
+from cpbc.simulation import (
+    MujocoPlant,
+    SystemTrajectory,
+    Trajectory,
+    run_mujoco,
+    run_reference,
+    run_system_mujoco,
+    run_system_reference,
+)
+from cpbc.systems.ode_plant import Plant
 
 RunProgress = Callable[[str, float], None]
 
@@ -98,6 +113,52 @@ def run_one(
         summary = replace(summary, cause=load.describe())
     return RunResult(entry.name, case.name, traj, margins, traj.lyapunov, summary, errors,
                      logged)
+
+
+@dataclass(frozen=True)
+class SystemResult:
+    """One law of a Part I scenario on one case."""
+
+    case: str
+    controller: str
+    trajectory: SystemTrajectory
+    summary: SystemSummary
+
+
+def run_system_one(setup: SystemSetup, case: SystemCase, law: SystemLaw, backend: str,
+                   progress: RunProgress | None = None) -> SystemResult:
+    """One law of a Part I scenario on one case."""
+    sim = setup.scenario.simulation
+    label = f"{case.name} / {law.name}"
+
+    def report(frac: float) -> None:
+        if progress is not None:
+            progress(label, frac)
+
+    k = law.for_case(case.name)
+    if backend == "mujoco":
+        if not isinstance(case.plant, Plant):  # check_backend refuses it first
+            raise ScenarioError("simulation.backend", "this system has no MuJoCo model")
+        traj = run_system_mujoco(case.plant, k, case.state, sim.duration,
+                                 setup.control_period, sim.timestep, sim.integrator, report)
+    else:
+        traj = run_system_reference(case.plant, k, case.state, sim.duration,
+                                    setup.control_period)
+    report(1.0)
+    summary = summarise_system(case.name, law.name, traj, case.plant.constrained, setup.view,
+                               setup.state_names, setup.input_name, sim.tolerance)
+    return SystemResult(case.name, law.name, traj, summary)
+
+
+def run_systems(setup: SystemSetup, backend: str | None = None,
+                progress: RunProgress | None = None) -> list[SystemResult]:
+    """Every (case, law) pair of a Part I scenario, case-major; ``backend`` overrides the
+    scenario's."""
+    check_backend(setup, backend or setup.scenario.simulation.backend,
+                  "simulation.backend" if backend is None else "backend")
+    backend = backend or setup.scenario.simulation.backend
+    return [run_system_one(setup, c, law, backend, progress)
+            for c in setup.cases for law in setup.laws]
 
 
 def worker_payload(scenario: Scenario) -> str:

@@ -1,4 +1,12 @@
-"""The closed loop: controller at a fixed control rate (zero-order hold) on MuJoCo physics."""
+"""The closed loop: a law at a fixed control rate (zero-order hold) on MuJoCo physics.
+
+One loop (:func:`run_loop`) steps every plant: an arm under a joint-space or task-space law
+(:func:`run_mujoco`) and a Part I system under its backstepping law
+(:func:`run_system_mujoco`). What differs between them, what a state and an input are and
+what is logged, sits behind the small :class:`SampledLoop` protocol; the loop owns the rest:
+the control instants, the hold, the physics substeps, the outcome (completed, diverged,
+constraint_violated), the progress reports and the wall-clock time.
+"""
 
 from __future__ import annotations
 
@@ -6,7 +14,9 @@ import math
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
+import mujoco
 import numpy as np
 
 from cpbc.arrays import Array
@@ -14,10 +24,17 @@ from cpbc.controllers.base import Controller, SafetyFilter
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model.coordinates import LinearCoordinates
 from cpbc.simulation.disturbances import MeasurementNoise, rate_into_set
-from cpbc.simulation.plant import MujocoPlant
-from cpbc.simulation.trajectory import Trajectory, TrajectoryLog
+from cpbc.simulation.plant import INSTABILITY_WARNINGS, MujocoPlant
+from cpbc.simulation.trajectory import SystemTrajectory, Trajectory, TrajectoryLog
+
+if TYPE_CHECKING:  # the Part I plants load the backstepping designs (0.5 s): not for an arm
+    from cpbc.systems.ode_plant import Plant, State
+
+    SystemLaw = Callable[[State, float], float]  # a Part I law u = k(x, t)
 
 Progress = Callable[[float], None]
+S = TypeVar("S")
+U = TypeVar("U")
 
 
 @dataclass(frozen=True)
@@ -93,6 +110,147 @@ class _Sampler:
         return tau, _true_lyapunov(ctrl, x, dx)
 
 
+class SampledLoop(Protocol[S, U]):
+    """A plant and its law as :func:`run_loop` steps them: at each control instant the loop
+    observes the state, asks for the input, has the sample recorded, and holds the input
+    over the control period."""
+
+    def observe(self) -> S | None:
+        """The state the law sees; None when it is not finite (the run diverged)."""
+
+    def control(self, t: float, x: S) -> U | None:
+        """The input to hold from ``t`` on; None when it is not finite (the run diverged; the
+        sample is logged). Raises ConstraintViolation when the state left the law's domain."""
+
+    def record(self, t: float, x: S, u: U, last: bool) -> None:
+        """Log the sample (``last``: the run's final one, always kept)."""
+
+    def refused(self, t: float, x: S) -> None:
+        """Log the sample at which the law refused the state."""
+
+    def hold(self, u: U, substeps: int) -> bool:
+        """Apply ``u`` and step the physics ``substeps`` times; False when the physics went
+        unstable (MuJoCo reset the state or dropped the input and went on)."""
+
+
+@dataclass(frozen=True)
+class LoopEnd:
+    """How :func:`run_loop` ended: the outcome, the constraint that was crossed, the last
+    control step taken (0-based) and the wall-clock time of the loop [s]."""
+
+    outcome: str
+    violated: str | None
+    last_step: int
+    wall_time: float
+
+
+def run_loop(loop: SampledLoop[S, U], steps: int, substeps: int, period: float,
+             progress: Progress | None = None) -> LoopEnd:
+    """Run ``steps`` control periods of ``substeps`` physics steps each (samples at
+    0, period, …, steps·period)."""
+    outcome, violated, k = "completed", None, 0
+    report_every = max(1, steps // 50)
+    # the step's calls bound once (attribute look-ups cost per step)
+    observe, control, record, hold = loop.observe, loop.control, loop.record, loop.hold
+    start = _time.perf_counter()
+    for k in range(steps + 1):
+        t = k * period
+        x = observe()
+        if x is None:
+            outcome = "diverged"
+            break
+        try:
+            u = control(t, x)
+        except ConstraintViolation as exc:
+            outcome, violated = "constraint_violated", exc.constraint
+            loop.refused(t, x)
+            break
+        if u is None:
+            outcome = "diverged"
+            break
+        record(t, x, u, k == steps)
+        if k == steps:
+            break
+        if not hold(u, substeps):
+            outcome = "diverged"
+            break
+        if progress is not None and k % report_every == 0:
+            progress(k / steps)
+    return LoopEnd(outcome, violated, k, _time.perf_counter() - start)
+
+
+class _ArmLoop:
+    """An arm in MuJoCo under a law in controller coordinates x = T q: the state (x, ẋ), the
+    law through the measurement noise, the torque mapped to the joints and clipped at the
+    plant's limits, the safeguard's steps counted, the largest contact count kept."""
+
+    def __init__(self, plant: MujocoPlant, controller: Controller,
+                 coordinates: LinearCoordinates, settings: LoopSettings, steps: int) -> None:
+        n = plant.n
+        self.plant = plant
+        self.t_mat = coordinates.matrix
+        self.t_mat_t = np.ascontiguousarray(self.t_mat.T)
+        self.identity = coordinates.is_identity
+        self.limit = settings.torque_limit
+        self.log = TrajectoryLog(n, steps + 1, settings.log_every, settings.max_log_samples)
+        self.sample = _Sampler(controller, settings.noise, n)
+        self.qpos, self.qvel = plant.data.qpos, plant.data.qvel
+        self.tau: Array | None = None
+        self.v = math.nan
+        self.tau_q: Array = np.full(n, np.nan)  # the joint torque applied through the last interval
+        self.saturated, self.contacts, self.k = 0, 0, 0
+        self.guard = controller if isinstance(controller, SafetyFilter) else None
+        self.acted = self.guard.acted if self.guard else 0  # the guard's count before this step
+        self.guarded_steps = np.zeros(steps + 1 if self.guard else 0, dtype=bool)
+
+    def observe(self) -> tuple[Array, Array] | None:
+        if self.identity:
+            x, dx = self.qpos.copy(), self.qvel.copy()
+        else:
+            x, dx = self.t_mat.dot(self.qpos), self.t_mat.dot(self.qvel)
+        # On 2-vectors numpy's @ and isfinite cost twice a sum of lists here.
+        if not math.isfinite(sum(x.tolist()) + sum(dx.tolist())):  # NaN or overflow
+            return None
+        return x, dx
+
+    def control(self, t: float, state: tuple[Array, Array]) -> Array | None:
+        x, dx = state
+        tau, v = self.sample(x, dx, self.tau)
+        self.tau, self.v = tau, v
+        if not math.isfinite(sum(tau.tolist())):
+            self.log.record(t, v, x, dx, tau, np.full(len(tau), np.nan), force=True)
+            return None
+        guard = self.guard
+        if guard is not None and guard.acted != self.acted:
+            self.guarded_steps[self.k], self.acted = True, guard.acted
+        tau_q = tau if self.identity else self.t_mat_t.dot(tau)
+        if self.limit is not None:
+            clipped = np.clip(tau_q, -self.limit, self.limit)
+            self.saturated += int(np.any(clipped != tau_q))
+            tau_q = clipped
+        self.tau_q = tau_q
+        return tau_q
+
+    def record(self, t: float, state: tuple[Array, Array], tau_q: Array, last: bool) -> None:
+        assert self.tau is not None  # control() set it
+        self.log.record(t, self.v, state[0], state[1], self.tau, tau_q, last)
+
+    def refused(self, t: float, state: tuple[Array, Array]) -> None:
+        # V is undefined outside S; the torque is the one held until this instant
+        held = np.full(self.plant.n, np.nan) if self.tau is None else self.tau
+        self.log.record(t, np.nan, state[0], state[1], held, self.tau_q, force=True)
+
+    def hold(self, tau_q: Array, substeps: int) -> bool:
+        plant = self.plant
+        plant.apply(tau_q)
+        plant.step(substeps)
+        if plant.unstable():
+            return False
+        self.contacts = max(self.contacts, plant.data.ncon)
+        self.k += 1
+        return True
+
+
 def run_mujoco(
     plant: MujocoPlant,
     controller: Controller,
@@ -102,7 +260,7 @@ def run_mujoco(
     settings: LoopSettings,
     progress: Progress | None = None,
 ) -> Trajectory:
-    """Simulate the closed loop from (x0, ẋ0), given in controller coordinates.
+    """Simulate an arm's closed loop from (x0, ẋ0), given in controller coordinates.
 
     The loop runs ``controller`` as it is given: a law, or a law the scenario builder has
     wrapped in its sampled-data safeguard (cpbc.controllers.safeguard.guarded), whose counts
@@ -117,79 +275,92 @@ def run_mujoco(
     """
     substeps = substeps_per_control(settings.control_period, plant.model.opt.timestep)
     steps = round(settings.duration / settings.control_period)
-    n = plant.n
-    t_mat, t_inv = coordinates.matrix, coordinates.inverse
-    t_mat_t = np.ascontiguousarray(t_mat.T)
-    identity = coordinates.is_identity
-    limit = settings.torque_limit
-    plant.reset(t_inv @ x0, t_inv @ dx0)
-    log = TrajectoryLog(n, steps + 1, settings.log_every, settings.max_log_samples)
-    sample = _Sampler(controller, settings.noise, n)
-    tau: Array | None = None
-    tau_q: Array = np.full(n, np.nan)  # the joint torque applied through the last interval
-    outcome, violated, saturated, contacts = "completed", None, 0, 0
-    report_every = max(1, steps // 50)
-    start = _time.perf_counter()
-    data, h = plant.data, settings.control_period
-    qpos, qvel = data.qpos, data.qvel
-    # The step's calls bound once; ndarray.dot and sums of lists: on 2-vectors numpy's @
-    # costs twice as much here.
-    record, apply, step, unstable = log.record, plant.apply, plant.step, plant.unstable
-    guard = controller if isinstance(controller, SafetyFilter) else None
-    acted = guard.acted if guard else 0  # the guard's count before this step
-    guarded_steps = np.zeros(steps + 1 if guard else 0, dtype=bool)
-    for k in range(steps + 1):
-        t = k * h
-        x = qpos.copy() if identity else t_mat.dot(qpos)
-        dx = qvel.copy() if identity else t_mat.dot(qvel)
-        if not math.isfinite(sum(x.tolist()) + sum(dx.tolist())):  # NaN or overflow
-            outcome = "diverged"
-            break
-        try:
-            tau, v = sample(x, dx, tau)
-        except ConstraintViolation as exc:
-            outcome, violated = "constraint_violated", exc.constraint
-            # V is undefined outside S; the torque is the one held until this instant
-            held = np.full(n, np.nan) if tau is None else tau
-            log.record(t, np.nan, x, dx, held, tau_q, force=True)
-            break
-        if not math.isfinite(sum(tau.tolist())):
-            outcome = "diverged"
-            log.record(t, v, x, dx, tau, np.full(n, np.nan), force=True)
-            break
-        if guard is not None and guard.acted != acted:
-            guarded_steps[k], acted = True, guard.acted
-        tau_q = tau if identity else t_mat_t.dot(tau)
-        if limit is not None:
-            clipped = np.clip(tau_q, -limit, limit)
-            saturated += int(np.any(clipped != tau_q))
-            tau_q = clipped
-        record(t, v, x, dx, tau, tau_q, k == steps)
-        if k == steps:
-            break
-        apply(tau_q)
-        step(substeps)
-        if unstable():  # MuJoCo reset the state or dropped the control
-            outcome = "diverged"
-            break
-        contacts = max(contacts, data.ncon)
-        if progress is not None and k % report_every == 0:
-            progress(k / steps)
-    wall = _time.perf_counter() - start
-    tt, xs, dxs, taus, tau_qs, vs = log.arrays()
+    plant.reset(coordinates.inverse @ x0, coordinates.inverse @ dx0)
+    arm = _ArmLoop(plant, controller, coordinates, settings, steps)
+    end = run_loop(arm, steps, substeps, settings.control_period, progress)
+    k, guard = end.last_step, arm.guard
+    tt, xs, dxs, taus, tau_qs, vs = arm.log.arrays()
     end_time = float(tt[-1]) if tt.size else 0.0
-    if outcome == "diverged":
+    if end.outcome == "diverged":
         end_time = k * settings.control_period
     return Trajectory(
-        tt, xs, dxs, taus, tau_qs, vs, outcome, end_time, violated, wall, k + 1, saturated,
-        int(contacts), "mujoco",
+        tt, xs, dxs, taus, tau_qs, vs, end.outcome, end_time, end.violated, end.wall_time,
+        k + 1, arm.saturated, int(arm.contacts), "mujoco",
         safeguard_steps=guard.acted if guard else 0,
         safeguard_infeasible=guard.infeasible if guard else 0,
         filter_row_steps=guard.row_active_steps if guard else 0,
         rescues=guard.rescues if guard else 0,
-        rejected_samples=sample.rejected,
-        guarded_steps=guarded_steps[: k + 1] if guard else None,
+        rejected_samples=arm.sample.rejected,
+        guarded_steps=arm.guarded_steps[: k + 1] if guard else None,
     )
+
+
+class _SystemLoop:
+    """A Part I system in MuJoCo under its law u = k(x, t): the state read through the
+    plant's map (every sample logged as it is read, a non-finite one too), the input written
+    to ``ctrl`` and any prescribed exogenous input set before every physics step."""
+
+    def __init__(self, plant: Plant, law: SystemLaw, model: mujoco.MjModel,
+                 data: mujoco.MjData, steps: int, period: float, n: int) -> None:
+        self.plant, self.law, self.model, self.data = plant, law, model, data
+        self.period = period
+        self.time, self.input = np.full(steps + 1, np.nan), np.full(steps + 1, np.nan)
+        self.state = np.full((steps + 1, n), np.nan)
+        self.qpos, self.qvel = np.zeros((steps + 1, model.nq)), np.zeros((steps + 1, model.nv))
+        self.k = -1
+
+    def observe(self) -> State | None:
+        x = self.plant.read_state(self.model, self.data)
+        self.k += 1
+        k, data = self.k, self.data
+        self.time[k], self.state[k], self.qpos[k], self.qvel[k] = (
+            k * self.period, x, data.qpos, data.qvel)
+        return x if all(math.isfinite(v) for v in x) else None
+
+    def control(self, t: float, x: State) -> float | None:
+        # MuJoCo's clock, which the plant's exogenous input (a road) also reads; outside its
+        # domain the law raises OutsideDomainError, a ConstraintViolation
+        u = self.law(x, self.data.time)
+        self.input[self.k] = u
+        return u if math.isfinite(u) else None
+
+    def record(self, t: float, x: State, u: float, last: bool) -> None:
+        """Nothing more: observe() and control() logged the sample."""
+
+    def refused(self, t: float, x: State) -> None:
+        """Nothing more: the sample is logged with its input undefined (NaN)."""
+
+    def hold(self, u: float, substeps: int) -> bool:
+        model, data = self.model, self.data
+        self.plant.write_input(model, data, u)
+        for _ in range(substeps):
+            self.plant.before_step(model, data)
+            mujoco.mj_step(model, data)
+        return not any(data.warning[w].number for w in INSTABILITY_WARNINGS)
+
+
+def run_system_mujoco(
+    plant: Plant, law: SystemLaw, x0: State, duration: float,
+    control_period: float | None = None, timestep: float | None = None,
+    integrator: str = "RK4", progress: Progress | None = None,
+) -> SystemTrajectory:
+    """Run a Part I ``law`` on the plant's MJCF, holding u over each control period
+    (``timestep``: the MJCF's own when None; ``control_period``: one physics step when
+    None)."""
+    model = plant.load()
+    model.opt.timestep = timestep or model.opt.timestep
+    model.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}")
+    data = mujoco.MjData(model)
+    plant.write_state(model, data, x0)
+    period = control_period or model.opt.timestep
+    substeps = substeps_per_control(period, model.opt.timestep)
+    steps = round(duration / period)
+    system = _SystemLoop(plant, law, model, data, steps, period, len(x0))
+    end = run_loop(system, steps, substeps, period, progress)
+    n = end.last_step + 1
+    return SystemTrajectory(system.time[:n], system.state[:n], system.input[:n], end.outcome,
+                            end.last_step * period, end.violated, end.wall_time, "mujoco",
+                            system.qpos[:n], system.qvel[:n])
 
 
 def _fallback(law: Controller, xm: Array, dxm: Array, held: Array) -> Array:

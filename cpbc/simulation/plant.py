@@ -19,7 +19,7 @@ INTEGRATORS = {
 }
 
 
-_INSTABILITY_WARNINGS = tuple(
+INSTABILITY_WARNINGS = tuple(
     int(getattr(mujoco.mjtWarning, name))
     for name in ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC", "mjWARN_BADCTRL")
     if hasattr(mujoco.mjtWarning, name)
@@ -65,8 +65,8 @@ class MujocoPlant:
         self.data = mujoco.MjData(model)
         # A live view of the instability warnings' counters (BADQPOS … BADCTRL are
         # contiguous), compared with zeros as bytes: the cheapest test per step.
-        lo, hi = min(_INSTABILITY_WARNINGS), max(_INSTABILITY_WARNINGS) + 1
-        if hi - lo != len(_INSTABILITY_WARNINGS):
+        lo, hi = min(INSTABILITY_WARNINGS), max(INSTABILITY_WARNINGS) + 1
+        if hi - lo != len(INSTABILITY_WARNINGS):
             raise CpbcError("MuJoCo's instability warnings are no longer contiguous")
         self._instability = self.data.warning.number[lo:hi]
         self._stable = bytes(self._instability.nbytes)

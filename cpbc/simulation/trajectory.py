@@ -1,4 +1,5 @@
-"""The logged closed-loop trajectory of one run."""
+"""The logged closed-loop trajectory of one run: an arm's (:class:`Trajectory`) or a Part I
+system's (:class:`SystemTrajectory`)."""
 
 from __future__ import annotations
 
@@ -67,6 +68,36 @@ class Trajectory:
     @property
     def steps_per_second(self) -> float:
         return self.control_steps / self.wall_time if self.wall_time > 0 else float("nan")
+
+
+@dataclass(frozen=True)
+class SystemTrajectory:
+    """Samples at the control instants.
+
+    Attributes:
+        time: (N,) [s].
+        state: (N, n) the law's state x.
+        input: (N,) the input u applied from each sample on (NaN where the law is undefined).
+        outcome: "completed", "diverged" or "constraint_violated" (the state left the law's
+            domain: ``violated`` names the error variable).
+        end_time: simulated time at the end [s].
+        wall_time: wall-clock time of the loop [s].
+        backend: "mujoco" or "reference".
+        qpos, qvel: (N, nq), (N, nv) MuJoCo's coordinates at the samples (for the 3-D view);
+            the reference backend sets them from x (a coordinate x omits stays at zero), or
+            leaves them None for a plant that is only its ODE (no MJCF, nothing to show).
+    """
+
+    time: Array
+    state: Array
+    input: Array
+    outcome: str
+    end_time: float
+    violated: str | None
+    wall_time: float
+    backend: str
+    qpos: Array | None = None
+    qvel: Array | None = None
 
 
 class TrajectoryLog:

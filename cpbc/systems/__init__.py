@@ -5,7 +5,7 @@ replays its path)."""
 from cpbc.systems.aerosim import AerosondeParameters
 from cpbc.systems.aerosonde import AerosondePlant, AirspeedLoop
 from cpbc.systems.integrator_chain import IntegratorChain
-from cpbc.systems.plant import ConstrainedQuantity, OdePlant, Plant
+from cpbc.systems.ode_plant import ConstrainedQuantity, OdePlant, Plant
 from cpbc.systems.quarter_car import QuarterCar
 from cpbc.systems.reaction_wheel_pendulum import ReactionWheelPendulum
 from cpbc.systems.road import HaversineBump

@@ -45,7 +45,7 @@ from cpbc.systems.aerosim import (
     full_throttle_thrust,
     isa_density,
 )
-from cpbc.systems.plant import ConstrainedQuantity, Plant, State
+from cpbc.systems.ode_plant import ConstrainedQuantity, Plant, State
 
 #: airspeeds at which T_max(V) is tabulated [m/s]
 _THRUST_GRID = np.linspace(15.0, 50.0, 71)

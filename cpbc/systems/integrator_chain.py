@@ -13,9 +13,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from cpbc.backstepping.barriers import positive
+from cpbc.backstepping.barrier_terms import positive
 from cpbc.errors import CpbcError
-from cpbc.systems.plant import ConstrainedQuantity, OdePlant, State
+from cpbc.systems.ode_plant import ConstrainedQuantity, OdePlant, State
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ import mujoco
 from cpbc.backstepping.suspension import QuarterCarConstants
 from cpbc.errors import ModelError
 from cpbc.resources import models_dir
-from cpbc.systems.plant import ConstrainedQuantity, Plant, State, check_close
+from cpbc.systems.ode_plant import ConstrainedQuantity, Plant, State, check_close
 from cpbc.systems.road import HaversineBump
 
 _WHEEL, _BODY = 0, 1  # qpos/qvel addresses of wheel_z and body_z (checked by verify)

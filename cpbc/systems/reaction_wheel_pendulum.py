@@ -19,7 +19,7 @@ import numpy as np
 from cpbc.backstepping.reaction_wheel import WheelPendulumConstants
 from cpbc.errors import ModelError
 from cpbc.resources import models_dir
-from cpbc.systems.plant import ConstrainedQuantity, Plant, State, check_close
+from cpbc.systems.ode_plant import ConstrainedQuantity, Plant, State, check_close
 
 
 @dataclass(frozen=True)

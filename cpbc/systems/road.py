@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cpbc.backstepping.barriers import positive
+from cpbc.backstepping.barrier_terms import positive
 from cpbc.errors import CpbcError
 
 

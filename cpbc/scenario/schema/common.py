@@ -34,7 +34,7 @@ Gain = Positive | list[Positive]
 SafeName = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$", max_length=100)]
 #: What a run writes at the top of its output folder (cpbc.results.io, cpbc.results.saved_run,
 #: cpbc.viewer) and into each case's folder (the figures of cpbc.results.plots and
-#: cpbc.scenario.system_runner): a case, or a controller, of one of these names would collide.
+#: cpbc.results.system_plots): a case, or a controller, of one of these names would collide.
 RUN_FILES = frozenset({"summary.json", "summary.csv", "scene.mjb", "scene.mjb.gz",
                        "scene.json", "view.html"})
 CASE_FILES = frozenset({"positions.png", "rates.png", "torques.png", "lyapunov.png",

@@ -100,7 +100,7 @@ class ReactionWheelSpec(Strict):
 
 class ChainGainsSpec(Strict):
     """The design constants of §4.4 (Theorem 4.12, manual tuning), under the thesis's names,
-    read as PART1 Ch. 4 §2.6 reading H1 (see cpbc.backstepping.integrator_chain)."""
+    read as PART1 Ch. 4 §2.6 reading H1 (see cpbc.backstepping.integrator_chain_law)."""
 
     c1: Positive = Field(
         default=0.5 / math.pi, description="c1 of §4.4 (Theorem 4.12, manual tuning)")

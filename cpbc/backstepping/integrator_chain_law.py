@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.backstepping.barriers import LogBarrier, positive
+from cpbc.backstepping.barrier_terms import LogBarrier, positive
 from cpbc.backstepping.jets import arctan, tanh
 from cpbc.backstepping.multiple_constraints import MultipleConstraintLaw
 from cpbc.backstepping.regions import Region
@@ -132,7 +132,8 @@ class IntegratorChainController:
         return (float(state[0]),), tuple(float(v) for v in state[1:])
 
     def check(self, state: Sequence[float]) -> State:
-        """(z1, z2, z3), or :class:`~cpbc.backstepping.errors.OutsideDomainError` outside D."""
+        """(z1, z2, z3), or :class:`~cpbc.backstepping.design_errors.OutsideDomainError`
+        outside D."""
         return tuple(float(v) for v in self.law.check(*self.coordinates(state)).z)
 
     def control(self, state: Sequence[float]) -> float:

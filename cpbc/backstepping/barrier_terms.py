@@ -13,7 +13,7 @@ import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
-from cpbc.backstepping.errors import DesignError
+from cpbc.backstepping.design_errors import DesignError
 
 
 def positive(name: str, value: float) -> float:

@@ -20,7 +20,7 @@ from cpbc.backstepping.constrained_altitude import (
     ConstrainedAltitudeLaw,
 )
 from cpbc.errors import CpbcError, ScenarioError
-from cpbc.results.systems import Panel, SystemView
+from cpbc.results.system_metrics import Panel, SystemView
 from cpbc.scenario.schema import (
     AerosondeSpec,
     ConstrainedAltitudeLawSpec,
@@ -28,7 +28,7 @@ from cpbc.scenario.schema import (
     SystemScenario,
     TraditionalAltitudeLawSpec,
 )
-from cpbc.scenario.systems import (
+from cpbc.scenario.system_setup import (
     Law,
     SystemCase,
     SystemLaw,

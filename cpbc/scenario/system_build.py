@@ -1,5 +1,7 @@
-"""Building a Part I scenario (a ``system:`` block): the plant of each case, the laws, and
-what the results layer shows of them (panels, the phase portrait, the a-priori bounds).
+"""Building a Part I scenario (a ``system:`` block) into a
+:class:`~cpbc.scenario.system_setup.SystemSetup`: the plant of each case, the laws, and what
+the results layer shows of them (panels, the phase portrait, the a-priori bounds); the
+Aerosonde's in cpbc.scenario.aerosonde_build.
 
 Every check that refuses the scenario raises :class:`~cpbc.errors.ScenarioError` naming the
 YAML field, before anything runs.
@@ -7,9 +9,6 @@ YAML field, before anything runs.
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
 
 from cpbc.backstepping import (
@@ -26,7 +25,8 @@ from cpbc.backstepping import (
 )
 from cpbc.backstepping.parameter_constraints import worst_case
 from cpbc.errors import ScenarioError
-from cpbc.results.systems import Panel, SystemView
+from cpbc.results.system_metrics import Panel, SystemView
+from cpbc.scenario.aerosonde_build import build_aerosonde
 from cpbc.scenario.schema import (
     AerosondeSpec,
     IntegratorChainSpec,
@@ -35,52 +35,21 @@ from cpbc.scenario.schema import (
     SystemCaseSpec,
     SystemScenario,
 )
+from cpbc.scenario.system_setup import (
+    SystemCase,
+    SystemLaw,
+    SystemSetup,
+    check_backend,
+    check_length,
+    gain_error,
+)
 from cpbc.systems import (
     HaversineBump,
     IntegratorChain,
     QuarterCar,
     ReactionWheelPendulum,
 )
-from cpbc.systems.plant import OdePlant, Plant, State
-
-Law = Callable[[State, float], float]  # u = k(x, t)
-
-
-@dataclass(frozen=True)
-class SystemLaw:
-    name: str
-    law: Law
-    barrier: bool  # False: the comparison without barrier, which guarantees nothing
-    #: the law of each case where it differs from ``law`` (one tracking the case's command)
-    cases: Mapping[str, Law] = field(default_factory=dict)
-
-    def for_case(self, case: str) -> Law:
-        return self.cases.get(case, self.law)
-
-
-@dataclass(frozen=True)
-class SystemCase:
-    name: str
-    state: State
-    plant: OdePlant  # a Plant (with its MJCF) unless the system is only its ODE
-
-
-@dataclass(frozen=True)
-class SystemSetup:
-    """A built Part I scenario."""
-
-    scenario: SystemScenario
-    source: Path
-    cases: tuple[SystemCase, ...]
-    laws: tuple[SystemLaw, ...]
-    view: SystemView
-    control_period: float
-    state_names: tuple[str, ...]
-    input_name: str
-
-
-def gain_error(field: str, exc: DesignError) -> ScenarioError:
-    return ScenarioError(f"{field}.gains.{exc.parameter}", f"{exc.reason} (got {exc.value!r})")
+from cpbc.systems.ode_plant import OdePlant
 
 
 def _suspension(spec: QuarterCarSpec) -> tuple[list[SystemLaw], SystemView]:
@@ -234,8 +203,6 @@ def build_system(scenario: SystemScenario, source: Path) -> SystemSetup:
     """The plants, laws and view of a Part I scenario; ScenarioError naming the field."""
     spec, sim = scenario.system, scenario.simulation
     if isinstance(spec, AerosondeSpec):
-        from cpbc.scenario.aerosonde import build_aerosonde  # it builds on this module
-
         return build_aerosonde(scenario, spec, source)
     laws, view = (_reaction_wheel(spec) if isinstance(spec, ReactionWheelSpec)
                   else _integrator_chain(spec) if isinstance(spec, IntegratorChainSpec)
@@ -258,34 +225,3 @@ def build_system(scenario: SystemScenario, source: Path) -> SystemSetup:
                         plant.state_names, plant.input_name)
     check_backend(setup, sim.backend, "simulation.backend")
     return setup
-
-
-def check_backend(setup: SystemSetup, backend: str, field: str) -> None:
-    """:class:`ScenarioError` naming ``field`` when ``backend`` is MuJoCo and the system is
-    only its ODE: a plant with no MuJoCo model (the integrator chain: nothing for a physics
-    engine to add), or one whose MJCF only replays the path (the Aerosonde, whose forces
-    depend on α̇)."""
-    plant = next((c.plant for c in setup.cases if not c.plant.physics), None)
-    if backend != "mujoco" or plant is None:
-        return
-    why = ("its MJCF only replays the path" if isinstance(plant, Plant)
-           else "it has no MuJoCo model")
-    raise ScenarioError(field, f"this system is only its ODE ({why}); MuJoCo cannot simulate "
-                        "it: use the continuous-time reference (backend: reference)")
-
-
-def check_length(scenario: SystemScenario, period: float) -> None:
-    sim = scenario.simulation
-    ratio = period / sim.timestep
-    if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
-        raise ScenarioError("simulation.control_period",
-                            f"{period:g} s is not a whole multiple of the timestep "
-                            f"{sim.timestep:g} s")
-    if period > sim.duration:
-        raise ScenarioError("simulation.duration",
-                            f"{sim.duration:g} s is shorter than one control period ({period:g} s)")
-    steps = math.ceil(sim.duration / sim.timestep)
-    if steps > sim.max_steps:
-        raise ScenarioError("simulation.max_steps",
-                            f"{steps} physics steps exceed max_steps {sim.max_steps}; raise it "
-                            "or shorten the duration")
