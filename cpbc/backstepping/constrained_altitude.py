@@ -67,10 +67,6 @@ class ConstrainedAltitudeLaw(AltitudeLaw):
         self.gains = gains or ConstrainedAltitudeGains()
         super().__init__(model, self.gains.c3, self.gains.c4)
 
-    def climb_error(self, x: Sequence[float], command: float) -> float:
-        """z2 = v_z + c1 tanh(h − h_d) (5.38)."""
-        return float(x[1]) + self.gains.c1 * float(tanh(float(x[0]) - command))
-
     def command_interval(self, x: Sequence[float]) -> tuple[float, float]:
         """The h_d with |v_z + c1 tanh(h − h_d)| < k2 at x: tanh(h − h_d) must lie in
         ((−k2 − v_z)/c1, (k2 − v_z)/c1) ∩ (−1, 1); empty (+∞, −∞) once |v_z| ≥ k2 + c1."""

@@ -64,10 +64,6 @@ class Jet:
             raise ValueError("the derivative of an order-0 jet is unknown")
         return Jet([(k + 1) * self.c[k + 1] for k in range(self.order)])
 
-    def truncate(self, order: int) -> Jet:
-        """The same series to a lower order."""
-        return Jet(self.c[: order + 1])
-
     # -- arithmetic ---------------------------------------------------------------------------
     def _pair(self, other: Jet | Coef) -> tuple[tuple[Coef, ...], tuple[Coef, ...]]:
         if isinstance(other, Jet):

@@ -127,10 +127,6 @@ class SceneKinematics:
             self.obstacle_geoms = tuple(named[o] for o in obstacles)
         self.static_geoms = tuple(g for g in world if g not in self.obstacle_geoms)
 
-    def joint_positions(self, x: Array) -> Array:
-        """q = T⁻¹ x, shape (nq,)."""
-        return self._t_inv @ x
-
     def pose(self, x: Array) -> mujoco.MjData:
         """Pose the model at x (controller coordinates); returns the posed MjData."""
         self.data.qpos[:] = self._t_inv @ x

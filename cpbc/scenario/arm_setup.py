@@ -137,7 +137,7 @@ class ScenarioSetup:
 
     def make_reference_plant(self) -> RobotModel:
         """A Pinocchio model of the plant, separate from the controller's model."""
-        return _robot_model(self.model_path, self.scenario.robot, self.model.n, self.arm)
+        return _robot_model(self.model_path, self.scenario.robot, self.arm)
 
 
 def _mismatch(spec: s.PlantMismatchSpec | None) -> PlantMismatch | None:
@@ -202,7 +202,7 @@ def _coordinates(robot: s.RobotSpec, n: int) -> LinearCoordinates:
 
 
 def _robot_model(
-    path: Path, robot: s.RobotSpec, n_expected: int | None = None, arm: LoadedArm | None = None
+    path: Path, robot: s.RobotSpec, arm: LoadedArm | None = None
 ) -> RobotModel:
     if arm is not None:  # a copy: the reference plant must not share the controller's model
         probe = RobotModel(pin.Model(arm.model), name=arm.name)

@@ -137,6 +137,3 @@ class MujocoPlant:
         and carries on, so the loop must ask.
         """
         return self._instability.tobytes() != self._stable
-
-    def contact_count(self) -> int:
-        return int(self.data.ncon)
