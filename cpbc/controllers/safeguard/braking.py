@@ -68,8 +68,9 @@ class Brakes(GuardMembers):
     def _rescued(self, state: ArmState, bias: Array, predict: Predictor,
                  now: Array) -> Array | None:
         """The rescue's brake (rescue.py) when it finds one that stops the arm inside S in
-        the model; a committed one is held again while its one-period prediction keeps every
-        margin above the floor it was found with."""
+        the model; a committed one is held again, in the period right after the one it was
+        held in, while its one-period prediction keeps every margin above the floor it was
+        found with."""
         if self.rescue is None:
             return None
         nc = self._n_config
@@ -78,7 +79,7 @@ class Brakes(GuardMembers):
             return self._check(predict, np.maximum(floor, 1e-300),
                                np.maximum(floor[:nc], 1e-300) if nc else None)(t) >= 0.0
 
-        tau = self.rescue.torque(state, bias, now, holds)
+        tau = self.rescue.torque(state, bias, now, holds, self.calls)
         if tau is not None:
             self.rescues += 1
         return tau

@@ -23,6 +23,7 @@ class GuardMembers:
     keep: float
     keep_half: float
     hold_share: float
+    calls: int
     infeasible: int
     uncorrected: int
     scaled: int
