@@ -23,6 +23,7 @@ class GuardMembers:
     keep: float
     keep_half: float
     hold_share: float
+    travel: float
     calls: int
     infeasible: int
     uncorrected: int
