@@ -13,9 +13,15 @@ cushion δ_i, or half its present value where that is below the cushion already)
 that, the first that keeps every margin positive: the torque it
 holds is that brake's at the sample. The brake found is *committed*: while the guard keeps
 failing, the next periods hold it again as long as its one-period prediction keeps every margin
-above its cushion (S0), and search again otherwise. That is the whole promise: from a state
-where the model says one of these brakes stops the arm inside S, the guard holds that brake.
-The search runs only on the guard's infeasible path; the accept path does not change.
+above its cushion (S0), and search again otherwise. The commitment lasts only as long as the
+brake is held in unbroken succession: a period in which the guard's own torque passed ends it.
+The search showed that the brake, held from *that* state on, stops the arm; once the law has
+moved the arm on, the same brake may lead into a boundary while its next period still looks
+safe (on the Panda figure-8 a brake committed 300 periods earlier was held again and carried
+the hand 4 mm through the table's clearance, where the uniform brake would have stopped it).
+That is the whole promise: from a state where the model says one of these brakes stops the
+arm inside S, the guard holds that brake. The search runs only on the guard's infeasible path;
+the accept path does not change.
 """
 
 from __future__ import annotations
@@ -53,18 +59,22 @@ class Rescue:
         self.table = brakes(box, guarded, model)
         self.committed: str | None = None
         self.floor: Array | None = None  # the floor of the search that committed the brake
+        self.held_at: int | None = None  # the control step at which it was last held
         self.searches = 0
 
     def torque(self, state: ArmState, bias: Array, now: Array,
-               holds: Callable[[Array, Array], bool]) -> Array | None:
-        """The committed brake's torque if ``holds(τ, floor)`` accepts it (its one-period
+               holds: Callable[[Array, Array], bool], step: int) -> Array | None:
+        """The committed brake's torque if it was held at the step before ``step`` (the
+        guard's count of control steps) and ``holds(τ, floor)`` accepts it (its one-period
         prediction keeps every margin above the floor of the search that committed it), else
         the first brake whose model braking keeps every margin above its floor until rest
         (the module docstring; then committed), else None. ``now``: the margins m_i at the
         sample."""
-        if self.committed is not None and self.floor is not None:
+        if (self.committed is not None and self.floor is not None
+                and self.held_at == step - 1):
             tau = self.table[self.committed](state, bias, self.period)
             if holds(tau, self.floor):
+                self.held_at = step
                 return tau
         self.committed = None
         self.searches += 1
@@ -74,7 +84,7 @@ class Rescue:
         for floor in (cushioned, np.zeros_like(cushioned)):
             name = self._search(state, floor)
             if name is not None:
-                self.committed, self.floor = name, floor
+                self.committed, self.floor, self.held_at = name, floor, step
                 return self.box.clip(self.table[name](state, bias, self.period))
         return None
 
@@ -95,5 +105,5 @@ class Rescue:
         return None
 
     def forget(self) -> None:
-        self.committed = self.floor = None
+        self.committed = self.floor = self.held_at = None
 

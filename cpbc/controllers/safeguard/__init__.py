@@ -17,8 +17,11 @@ wraps a constrained law and, at every control instant,
 
        a = D⁻¹(τ − C ẋ − g − f),   x(t) = x + t ẋ + ½t² a,   ẋ(t) = ẋ + t a
 
-   or, for periods longer than ``max_step`` (1 ms), in ⌈h/max_step⌉ semi-implicit Euler
-   steps of the model's forward dynamics;
+   except that the period's end is x + hẋ + ½(1 + 1/k)h² a for a plant that takes k
+   one-stage (semi-implicit Euler) steps a period (``plant_step``; x + hẋ + h² a at one
+   step: where that plant lands, which ½h² a misses by ½h² a on every margin); or, for
+   periods longer than ``max_step`` (1 ms), in ⌈h/max_step⌉ semi-implicit Euler steps of
+   the model's forward dynamics;
 3. accepts τ₀ when every predicted margin keeps its share of the present one — a discrete-time
    barrier condition on margins tightened by a cushion δ_i,
 

@@ -68,8 +68,9 @@ class Brakes(GuardMembers):
     def _rescued(self, state: ArmState, bias: Array, predict: Predictor,
                  now: Array) -> Array | None:
         """The rescue's brake (rescue.py) when it finds one that stops the arm inside S in
-        the model; a committed one is held again while its one-period prediction keeps every
-        margin above the floor it was found with."""
+        the model; a committed one is held again, in the period right after the one it was
+        held in, while its one-period prediction keeps every margin above the floor it was
+        found with."""
         if self.rescue is None:
             return None
         nc = self._n_config
@@ -78,7 +79,7 @@ class Brakes(GuardMembers):
             return self._check(predict, np.maximum(floor, 1e-300),
                                np.maximum(floor[:nc], 1e-300) if nc else None)(t) >= 0.0
 
-        tau = self.rescue.torque(state, bias, now, holds)
+        tau = self.rescue.torque(state, bias, now, holds, self.calls)
         if tau is not None:
             self.rescues += 1
         return tau
@@ -151,11 +152,13 @@ class Brakes(GuardMembers):
         off the nearby configuration boundaries — for when one factor λ for every joint
         cannot both keep one joint off its limit and let another move away from its own.
 
-        Under τ = C ẋ + g + f + D (v − ẋ)/h the frozen prediction ends at x + ½h(ẋ + v) and
-        passes x + ⅛h(3ẋ + v) at mid-period, so to first order a floor φ̲ at the end and
-        φ̲ᵐ at mid-period ask of each configuration margin φ_i
+        Under τ = C ẋ + g + f + D (v − ẋ)/h the frozen prediction ends at
+        x + h((1 − c)ẋ + c v) (c of its end, ``travel``: ½ in continuous time, where it is
+        x + ½h(ẋ + v)) and passes x + ⅛h(3ẋ + v) at mid-period, so to first order a floor
+        φ̲ at the end and φ̲ᵐ at mid-period ask of each configuration margin φ_i
 
-            ∇φ_i · v ≥ r_i = max(2(φ̲_i − φ_i)/h − ∇φ_i·ẋ,  8(φ̲ᵐ_i − φ_i)/h − 3∇φ_i·ẋ).
+            ∇φ_i · v ≥ r_i = max(((φ̲_i − φ_i)/h − (1 − c)∇φ_i·ẋ)/c,
+                                 8(φ̲ᵐ_i − φ_i)/h − 3∇φ_i·ẋ).
 
         v starts at rest and is projected onto the most violated of these half-spaces, at
         most twice per constraint (joint limits are orthogonal to each other, so one
@@ -167,7 +170,8 @@ class Brakes(GuardMembers):
         nc = self._n_config
         grads = self._gradients(x)
         rate = grads @ dx
-        need = np.maximum(2.0 * (end_floor[:nc] - now[:nc]) / h - rate,
+        c = self.travel
+        need = np.maximum(((end_floor[:nc] - now[:nc]) / h - (1.0 - c) * rate) / c,
                           8.0 * (mid_floor - now[:nc]) / h - 3.0 * rate)
         return inertia @ _project(grads, need, np.zeros_like(dx)) / h
 
@@ -181,9 +185,10 @@ class Brakes(GuardMembers):
         its acceleration a = D⁻¹(τ − b) projected onto the half-spaces that (S1) asks of
         each configuration margin to first order,
 
-            ∇φ_i · a ≥ r_i = max(2(φ̲_i − φ_i − h∇φ_i·ẋ)/h²,  8(φ̲ᵐ_i − φ_i − ½h∇φ_i·ẋ)/h²),
+            ∇φ_i · a ≥ r_i = max((φ̲_i − φ_i − h∇φ_i·ẋ)/(c h²),  8(φ̲ᵐ_i − φ_i − ½h∇φ_i·ẋ)/h²),
 
-        (φ(h) ≈ φ + h∇φ·ẋ + ½h²∇φ·a, and at mid-period with h/2), as :func:`_project`
+        (φ(h) ≈ φ + h∇φ·ẋ + c h²∇φ·a, c of the prediction's end (``travel``: ½ in continuous
+        time), and at mid-period ⅛h²∇φ·a), as :func:`_project`
         builds it, then b + D a scaled into the torque box. Blending toward it, not toward a
         brake, lets the law go on along a boundary it presses against: a law that does not
         know of a joint limit and whose acceleration, through D, pushes that joint into it
@@ -201,13 +206,13 @@ class Brakes(GuardMembers):
         # the curvature of φ may put a hair short of the floor
         end = end_floor[:nc] + 0.05 * np.abs(end_floor[:nc] - phi) + 1e-4 * np.abs(end_floor[:nc])
         mid = mid_floor + 0.05 * np.abs(mid_floor - phi) + 1e-4 * np.abs(mid_floor)
-        need = np.maximum(2.0 * (end - phi - h * rate) / (h * h),
+        need = np.maximum((end - phi - h * rate) / (self.travel * h * h),
                           8.0 * (mid - phi - 0.5 * h * rate) / (h * h))
         law = solve_spd(state.inertia, tau - bias)
         acc = _project(grads, need, law)
         if stop is not None:
             v1 = state.dx + h * acc
-            x_stop = state.x + h * state.dx + (0.5 * h * h) * acc + (
+            x_stop = state.x + h * state.dx + (self.travel * h * h) * acc + (
                 stop[0] * math.sqrt(float(v1.dot(v1)))) * v1
             short = self.guarded.configuration_margins(x_stop) < stop[1]
             if short.any():

@@ -19,7 +19,7 @@ from cpbc.controllers.hold import hold_share
 from cpbc.controllers.rescue import Rescue
 from cpbc.controllers.safeguard.acceptance import Acceptance
 from cpbc.controllers.safeguard.braking import Brakes
-from cpbc.controllers.safeguard.prediction import Predictor, predictor
+from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_share
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.errors import CpbcError
 from cpbc.model.robot_model import ArmState
@@ -94,6 +94,8 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         # s of the hold correction τ − s D Δa: the drift the plant's hold has (hold.py)
         self.hold_share = hold_share(self.period, self.settings.plant_step) \
             if self.settings.hold_correction else 0.0
+        # c of the predicted end x + hẋ + c h² a: where the plant's own steps land
+        self.travel = travel_share(self.period, self.settings.plant_step)
         own = law.constraints
         seen = set(own.names)  # a constraint the law enforces already, or a repeat, is skipped
         extra = []
@@ -247,4 +249,4 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
     def _predictor(self, state: ArmState, bias: Array) -> Predictor:
         """The period's prediction under a held τ (:func:`prediction.predictor`)."""
         return predictor(self.model, state, bias, self.period, self.substeps, self._saturate,
-                         self.settings.corrector)
+                         self.settings.corrector, self.travel)

@@ -23,6 +23,8 @@ class GuardMembers:
     keep: float
     keep_half: float
     hold_share: float
+    travel: float
+    calls: int
     infeasible: int
     uncorrected: int
     scaled: int

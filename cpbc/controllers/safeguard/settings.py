@@ -46,14 +46,18 @@ class SafeguardSettings:
             continuous time or an RK4 plant. It sets s of the hold correction τ − s D Δa,
             the share of the period's drift Δa the plant's acceleration has on average
             (:func:`cpbc.controllers.hold.hold_share`): ½ in continuous time, 0 for a plant
-            stepped once per period, which holds the sample's acceleration exactly.
-        corrector: with the closed-form prediction, also predict to second order (the
-            model's acceleration evaluated once more at the predicted end, taken as linear
-            over the period, Heun's) and hold every margin under both predictions. The
-            frozen one is what a semi-implicit Euler step of the plant does; the corrected
-            one is nearer continuous time (a real arm, RK4): on a 7-joint arm near its rate
-            bounds the acceleration changes enough within 1 ms (Coriolis terms of fast
-            joints) that the frozen one alone misses a rate margin by more than its cushion.
+            stepped once per period, which holds the sample's acceleration exactly; and c
+            of the closed-form prediction's end x + hẋ + c h² a, where that plant's steps
+            land (:func:`cpbc.controllers.safeguard.prediction.travel_share`): ½ in
+            continuous time, 1 for a plant stepped once per period.
+        corrector: with the closed-form prediction, also predict to second order in
+            continuous time (the model's acceleration evaluated once more at the predicted
+            end, taken as linear over the period, Heun's) and hold every margin under both
+            predictions. The frozen one is what the semi-implicit Euler steps of the plant
+            do (given ``plant_step``); the corrected one is nearer continuous time (a real
+            arm, RK4): on a 7-joint arm near its rate bounds the acceleration changes
+            enough within 1 ms (Coriolis terms of fast joints) that the frozen one alone
+            misses a rate margin by more than its cushion.
     """
 
     decay_rate: float = 50.0
