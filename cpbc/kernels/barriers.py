@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, kernel
 
@@ -96,3 +98,33 @@ def log_sum(margins: Array) -> float:
             return math.nan
         total += math.log(m)
     return total
+
+
+@kernel("void(float64[:], float64[:], float64[:, :], float64[:, :], float64[:], float64[:])")
+def point_sphere_terms(constants: Array, origin: Array, rotation: Array, jacobian: Array,
+                       phi: Array, gradient: Array) -> None:
+    """A point p kept outside a sphere, φ = ‖p − c‖² − r² (φ₁ of Section 6.4), ∇φ = 2(p − c)ᵀJ_p:
+    φ into ``phi[0]`` and ∇φ/φ into ``gradient`` (n,), overwritten. The point sits at o (frame
+    axes) in a frame with ``origin``, axes ``rotation`` and Jacobian ``jacobian`` = [J_v; J_ω]
+    (6, n): p = origin + R o, J_p = J_v − [R o]× J_ω (v_p = v + ω × R o).
+    ``constants``: [c r² o has_offset], shape (8,)."""
+    n = gradient.shape[0]
+    r = np.zeros(3)
+    if constants[7] != 0.0:
+        for i in range(3):
+            r[i] = rotation[i, 0] * constants[4] + rotation[i, 1] * constants[5] + (
+                rotation[i, 2] * constants[6])
+    d = np.empty(3)
+    for i in range(3):
+        d[i] = origin[i] + r[i] - constants[i]
+    p = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - constants[3]
+    phi[0] = p
+    scale = 2.0 / p
+    for k in range(n):
+        v0, v1, v2 = jacobian[0, k], jacobian[1, k], jacobian[2, k]
+        if constants[7] != 0.0:
+            w0, w1, w2 = jacobian[3, k], jacobian[4, k], jacobian[5, k]
+            v0 -= r[1] * w2 - r[2] * w1
+            v1 -= r[2] * w0 - r[0] * w2
+            v2 -= r[0] * w1 - r[1] * w0
+        gradient[k] = (d[0] * v0 + d[1] * v1 + d[2] * v2) * scale

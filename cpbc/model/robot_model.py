@@ -198,12 +198,14 @@ class RobotModel:
     def state(self, x: Array, dx: Array, kinematics: bool = False,
               frames: Iterable[int] = (), coriolis: bool = False) -> ArmState:
         """The per-step state at (x, ẋ): D, C ẋ, g and f from three Pinocchio passes (CRBA,
-        RNEA, gravity); with ``coriolis`` the matrix C (one more pass); with ``kinematics``
-        or any ``frames`` one pass for every joint and frame placement and joint Jacobian,
-        from which each frame of ``frames`` is read into ``ArmState.frames`` and — with
-        ``kinematics`` — the joint Jacobians and placements (the static regressor, one more
-        call) are copied into the state. Fresh arrays every call: nothing is kept between
-        calls, and nothing in ``self.data`` is meant to be read afterwards."""
+        RNEA, gravity) — or, with ``kinematics`` or any ``frames``, from one pass that also
+        gives every joint placement and joint Jacobian (``computeAllTerms``; its D and g
+        differ from the separate passes' in the last bit, 1e-15); with ``coriolis`` the
+        matrix C (one more pass). Each frame of ``frames`` is read into ``ArmState.frames``
+        and — with ``kinematics`` — the joint Jacobians and placements (the static
+        regressor, one more call) are copied into the state. Fresh arrays every call:
+        nothing is kept between calls, and nothing in ``self.data`` is meant to be read
+        afterwards."""
         model, data = self.model, self.data
         # the compiled kernels take writable float arrays: a law's own target (read-only) may
         # be the state asked for
@@ -213,24 +215,27 @@ class RobotModel:
             q, dq = x, dx
         else:
             q, dq = self._t_inv.dot(x), self._t_inv.dot(dx)
-        m = pin.crba(model, data, q)
-        if self._crba_upper_only:
-            m[self._lower] = m.T[self._lower]
-        nle = pin.nonLinearEffects(model, data, q, dq)
-        g = pin.computeGeneralizedGravity(model, data, q)
-        f = self.dissipation(dx)
         c_matrix = self._back(pin.computeCoriolisMatrix(model, data, q, dq).copy()) if (
             coriolis) else None
         wanted = tuple(frames)
         jac = placements = None
-        if kinematics or wanted:  # after the dynamics passes, which may leave other placements
-            pin.computeJointJacobians(model, data, q)
-            pin.updateFramePlacements(model, data)
-        found = MappingProxyType({i: self._state_frame(i) for i in wanted}) if wanted else (
-            _NO_FRAMES)
-        if kinematics:
-            jac = data.J.copy()
-            placements = pin.computeStaticRegressor(model, data, q).copy()
+        found = _NO_FRAMES
+        if kinematics or wanted:
+            pin.computeAllTerms(model, data, q, dq)
+            m, nle, g = data.M, data.nle, data.g
+            if wanted:
+                pin.updateFramePlacements(model, data)
+                found = MappingProxyType({i: self._state_frame(i) for i in wanted})
+            if kinematics:
+                jac = data.J.copy()
+                placements = pin.computeStaticRegressor(model, data, q).copy()
+        else:
+            m = pin.crba(model, data, q)
+            nle = pin.nonLinearEffects(model, data, q, dq)
+            g = pin.computeGeneralizedGravity(model, data, q)
+        if self._crba_upper_only:
+            m[self._lower] = m.T[self._lower]
+        f = self.dissipation(dx)
         if self._identity:
             return ArmState(x, dx, q, dq, m.copy(), nle - g, g.copy(), f, found, c_matrix,
                             jac, placements)
