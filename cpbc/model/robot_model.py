@@ -12,6 +12,7 @@ import pinocchio as pin
 
 from cpbc.arrays import Array
 from cpbc.errors import ModelError
+from cpbc.kernels.coordinates import to_controller, to_joint
 from cpbc.model.coordinates import LinearCoordinates
 from cpbc.model.frames import FrameKinematics, offset_jacobian
 
@@ -106,8 +107,6 @@ class RobotModel:
         self._identity = self.coordinates.is_identity
         self._t_inv = self.coordinates.inverse
         self._t_inv_t = np.ascontiguousarray(self.coordinates.inverse.T)
-        # vec(T⁻ᵀ M T⁻¹) = (T⁻ᵀ ⊗ T⁻ᵀ) vec(M): one product instead of two in the hot path.
-        self._congruence = np.kron(self._t_inv_t, self._t_inv_t)
         fd = np.zeros((self.n, self.n)) if viscous_friction is None else np.asarray(
             viscous_friction, dtype=float
         )
@@ -214,7 +213,8 @@ class RobotModel:
         if self._identity:
             q, dq = x, dx
         else:
-            q, dq = self._t_inv.dot(x), self._t_inv.dot(dx)
+            q, dq = np.empty(self.n), np.empty(self.n)
+            to_joint(self._t_inv, x, dx, q, dq)
         c_matrix = self._back(pin.computeCoriolisMatrix(model, data, q, dq).copy()) if (
             coriolis) else None
         wanted = tuple(frames)
@@ -239,10 +239,10 @@ class RobotModel:
         if self._identity:
             return ArmState(x, dx, q, dq, m.copy(), nle - g, g.copy(), f, found, c_matrix,
                             jac, placements)
-        t_inv_t = self._t_inv_t
-        inertia = self._congruence.dot(m.reshape(-1)).reshape(self.n, self.n)
-        return ArmState(x, dx, q, dq, inertia, t_inv_t.dot(nle - g), t_inv_t.dot(g), f, found,
-                        c_matrix, jac, placements)
+        inertia, bias, gravity = np.empty((self.n, self.n)), np.empty(self.n), np.empty(self.n)
+        to_controller(self._t_inv, m, nle, g, inertia, bias, gravity)
+        return ArmState(x, dx, q, dq, inertia, bias, gravity, f, found, c_matrix, jac,
+                        placements)
 
     def dynamics(self, x: Array, dx: Array) -> ArmState:
         """The per-step state without kinematics (:meth:`state`)."""
@@ -291,8 +291,8 @@ class RobotModel:
         of :meth:`state`."""
         j = pin.getFrameJacobian(
             self.model, self.data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
-        placement = self.data.oMf[frame_id]
-        return FrameKinematics(placement.translation.copy(), placement.rotation.copy(),
+        placement = self.data.oMf[frame_id].homogeneous  # a fresh 4 × 4 [R p; 0 1]
+        return FrameKinematics(placement[:3, 3], placement[:3, :3],
                                j if self._identity else j.dot(self._t_inv))
 
     def _point(self, frame_id: int, j: Array, offset: Array | None) -> tuple[Array, Array]:
