@@ -9,6 +9,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, kernel
+from cpbc.kernels.task import point_on_frame
 
 
 @kernel("void(float64[:, :], float64[:], float64[:], float64[:])")
@@ -104,27 +105,15 @@ def log_sum(margins: Array) -> float:
 def point_sphere_terms(constants: Array, origin: Array, rotation: Array, jacobian: Array,
                        phi: Array, gradient: Array) -> None:
     """A point p kept outside a sphere, φ = ‖p − c‖² − r² (φ₁ of Section 6.4), ∇φ = 2(p − c)ᵀJ_p:
-    φ into ``phi[0]`` and ∇φ/φ into ``gradient`` (n,), overwritten. The point sits at o (frame
-    axes) in a frame with ``origin``, axes ``rotation`` and Jacobian ``jacobian`` = [J_v; J_ω]
-    (6, n): p = origin + R o, J_p = J_v − [R o]× J_ω (v_p = v + ω × R o).
-    ``constants``: [c r² o has_offset], shape (8,)."""
+    φ into ``phi[0]`` and ∇φ/φ into ``gradient`` (n,), overwritten; p and J_p of the point
+    at o in the frame (cpbc.kernels.task.point_on_frame). ``constants``: [c r² o has_offset],
+    shape (8,)."""
     n = gradient.shape[0]
-    r = np.zeros(3)
-    if constants[7] != 0.0:
-        for i in range(3):
-            r[i] = rotation[i, 0] * constants[4] + rotation[i, 1] * constants[5] + (
-                rotation[i, 2] * constants[6])
-    d = np.empty(3)
-    for i in range(3):
-        d[i] = origin[i] + r[i] - constants[i]
-    p = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - constants[3]
+    point, linear = np.empty(3), np.empty((3, n))
+    point_on_frame(origin, rotation, jacobian, constants[4:], point, linear)
+    d0, d1, d2 = point[0] - constants[0], point[1] - constants[1], point[2] - constants[2]
+    p = d0 * d0 + d1 * d1 + d2 * d2 - constants[3]
     phi[0] = p
     scale = 2.0 / p
     for k in range(n):
-        v0, v1, v2 = jacobian[0, k], jacobian[1, k], jacobian[2, k]
-        if constants[7] != 0.0:
-            w0, w1, w2 = jacobian[3, k], jacobian[4, k], jacobian[5, k]
-            v0 -= r[1] * w2 - r[2] * w1
-            v1 -= r[2] * w0 - r[0] * w2
-            v2 -= r[0] * w1 - r[1] * w0
-        gradient[k] = (d[0] * v0 + d[1] * v1 + d[2] * v2) * scale
+        gradient[k] = (d0 * linear[0, k] + d1 * linear[1, k] + d2 * linear[2, k]) * scale

@@ -224,7 +224,6 @@ class RobotModel:
             pin.computeAllTerms(model, data, q, dq)
             m, nle, g = data.M, data.nle, data.g
             if wanted:
-                pin.updateFramePlacements(model, data)
                 found = MappingProxyType({i: self._state_frame(i) for i in wanted})
             if kinematics:
                 jac = data.J.copy()
@@ -289,9 +288,10 @@ class RobotModel:
     def _state_frame(self, frame_id: int) -> FrameKinematics:
         """A frame's placement and Jacobian (controller coordinates) from the kinematics pass
         of :meth:`state`."""
+        # the frame's own placement only (one frame: cheaper than every frame's)
+        placement = pin.updateFramePlacement(self.model, self.data, frame_id).homogeneous
         j = pin.getFrameJacobian(
             self.model, self.data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
-        placement = self.data.oMf[frame_id].homogeneous  # a fresh 4 × 4 [R p; 0 1]
         return FrameKinematics(placement[:3, 3], placement[:3, :3],
                                j if self._identity else j.dot(self._t_inv))
 
