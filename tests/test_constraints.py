@@ -584,3 +584,67 @@ def test_barrier_margins_are_the_margins(thesis_ch6_set, absolute_model, rng):
                                    atol=1e-15)
         assert thesis_ch6_set.barrier(thesis_ch6_set.state(absolute_model, th, dth)
                                       ).margins is None
+
+
+def _one_by_one(cs: ConstraintSet, state) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """log Φ, log Ψ, b and Π from each constraint's own barrier_terms, added in order."""
+    log_phi, log_psi = 0.0, 0.0
+    b, pi = np.zeros(cs.n), np.zeros((cs.n, cs.n))
+    for c in cs.configuration:
+        phi, grad, _ = c.barrier_terms(state)
+        log_phi += float(np.sum(np.log(phi)))
+        b = b + grad
+    for v in cs.velocity:
+        psi, weight, grad = v.barrier_terms(state)
+        log_psi += float(np.sum(np.log(psi)))
+        pi = pi + weight
+        b = b if grad is None else b + grad
+    return log_phi, log_psi, b, pi
+
+
+def test_the_set_kernel_equals_each_constraints_terms(absolute_model, rng):
+    """One kernel call for the packed set (cpbc.kernels.barrier_set) gives the sums of the
+    constraints' own barrier terms, and every margin in the order of the names."""
+    obstacle = PointOutsideSphere(absolute_model, "end_point", X_OBS, R_OBS, name="obstacle",
+                                  offset=[0.0, 0.0, 0.05])
+    relative = LinearLimit([[-1, 1]], [-REL], [REL], ["relative"])
+    for velocity in ([joint_rate_limit(B, ("theta1", "theta2"))],
+                     [KineticEnergyLimit(absolute_model, 2.0)]):
+        cs = ConstraintSet(2, [obstacle, relative], velocity)
+        checked = 0
+        for _ in range(40):
+            x, dx = rng.uniform(-0.5, 0.5, 2), rng.uniform(-0.1, 0.1, 2)
+            state = cs.state(absolute_model, x, dx)
+            if not np.all(cs.margins(x, dx, state) > 0):
+                continue
+            bar = cs.barrier(state, margins=True)
+            log_phi, log_psi, b, pi = _one_by_one(cs, state)
+            assert bar.log_phi == pytest.approx(log_phi, rel=1e-12, abs=1e-12)
+            assert bar.log_psi == pytest.approx(log_psi, rel=1e-12, abs=1e-12)
+            np.testing.assert_allclose(bar.gradient, b, rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(bar.weight, pi, rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(bar.margins, cs.margins(x, dx, state), rtol=1e-12,
+                                       atol=1e-14)
+            checked += 1
+        assert checked >= 20
+
+
+def test_a_subclass_formula_overrides_the_set_kernel(absolute_model):
+    """A constraint whose class overrides barrier_terms does not pack: the set asks its
+    method, so its own formula reaches the law."""
+
+    class Doubled(LinearLimit):
+        def barrier_terms(self, state, margins=False):  # type: ignore[no-untyped-def]
+            phi, grad, value = super().barrier_terms(state, margins)
+            return phi, 2.0 * grad, value
+
+    rows, lo, hi = [[-1, 1]], [-REL], [REL]
+    plain = ConstraintSet(2, [LinearLimit(rows, lo, hi, ["relative"])])
+    doubled = ConstraintSet(2, [Doubled(rows, lo, hi, ["relative"])])
+    state = state_at(np.array([0.1, 0.9]), np.zeros(2))
+    a, b = plain.barrier(state), doubled.barrier(state)
+    assert a.gradient is not None and b.gradient is not None
+    np.testing.assert_allclose(b.gradient, 2.0 * a.gradient, rtol=1e-15)
+    assert b.log_phi == a.log_phi
+    with pytest.raises(ConstraintViolation, match="relative"):
+        doubled.barrier(state_at(np.array([0.0, 3.1]), np.zeros(2)))

@@ -51,13 +51,14 @@ def test_law_kernels_equal_the_numpy_formulas(n: int) -> None:
         rho = float(rng.uniform(0.0, 5.0))
         for wt in (weight, None):
             tau = np.empty(n)
-            cpbc_torque(inertia, g, c, f, b, np.zeros((n, n)) if wt is None else wt,
+            cpbc_torque(inertia, g, c, -f, np.zeros(n), b,
+                        np.zeros((n, n)) if wt is None else wt,
                         wt is not None, rho, tau)
             np.testing.assert_allclose(tau, _reference_cpbc(inertia, g, c, f, b, wt, rho),
                                        rtol=1e-12, atol=1e-12)
         psi = float(rng.uniform(0.01, 3.0))
         tau = np.empty(n)
-        cpbc_ke_torque(g, f, b, rho, psi, tau)
+        cpbc_ke_torque(g, -f, np.zeros(n), b, rho, psi, tau)
         np.testing.assert_allclose(tau, g + (f + rho * b) / (1.0 + rho / psi), rtol=1e-12,
                                    atol=1e-12)
 
@@ -68,7 +69,7 @@ def test_an_indefinite_matrix_is_solved_by_elimination() -> None:
     inertia = np.array([[1.0, 2.0], [2.0, 1.0]])  # indefinite
     g, c, f = np.array([0.5, -0.2]), np.array([0.1, 0.3]), np.array([1.0, 2.0])
     tau = np.empty(2)
-    cpbc_torque(inertia, g, c, f, np.zeros(2), np.zeros((2, 2)), True, 0.0, tau)
+    cpbc_torque(inertia, g, c, -f, np.zeros(2), np.zeros(2), np.zeros((2, 2)), True, 0.0, tau)
     np.testing.assert_allclose(tau, _reference_cpbc(inertia, g, c, f, np.zeros(2),
                                                     np.zeros((2, 2)), 0.0), rtol=1e-12)
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.margins import HasMargins
+from cpbc.constraints.packing import Packed
 from cpbc.model.robot_model import ArmState
 
 
@@ -76,6 +77,11 @@ class ConfigurationConstraint(HasMargins, ABC):
             raise TypeError(f"{cls.__name__} does not stack")
         return parts[0]
 
+    def packed(self) -> Packed | None:
+        """This constraint's share of its set's barrier kernel (cpbc.constraints.packing),
+        or None: the set then asks ``barrier_terms``. Kinds with a kernel override this."""
+        return None
+
 
 class VelocityConstraint(HasMargins, ABC):
     """ψ_j(x, ẋ) = Ω_j(x) − ½ ẋᵀ Q_j(x) ẋ > 0 with Q_j ⪰ 0 (eq. 6.17).
@@ -127,3 +133,8 @@ class VelocityConstraint(HasMargins, ABC):
         if len(parts) != 1:
             raise TypeError(f"{cls.__name__} does not stack")
         return parts[0]
+
+    def packed(self) -> Packed | None:
+        """This constraint's share of its set's barrier kernel (cpbc.constraints.packing),
+        or None: the set then asks ``barrier_terms``. Kinds with a kernel override this."""
+        return None

@@ -10,7 +10,9 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.base import ConfigurationConstraint, VelocityConstraint
+from cpbc.constraints.packing import Packed, PackedSet
 from cpbc.errors import ConstraintViolation, CpbcError, InadmissibleStateError
+from cpbc.kernels.barrier_set import POINT, RATE, set_barrier
 from cpbc.kernels.barriers import log_sum
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -28,6 +30,12 @@ def _log_sum(parts: Sequence[Array], names: Sequence[str]) -> float:
         i = int(np.argmin(np.nan_to_num(margins, nan=-np.inf)))
         raise ConstraintViolation(names[i], float(margins[i]))
     return total
+
+
+def _violation(margins: Array, names: Sequence[str]) -> ConstraintViolation:
+    """The worst margin (≤ 0 or NaN) by name."""
+    i = int(np.argmin(np.nan_to_num(margins, nan=-np.inf)))
+    return ConstraintViolation(names[i], float(margins[i]))
 
 
 def _stack(items: Sequence[Constraint]) -> tuple[Constraint, ...]:
@@ -95,6 +103,42 @@ class ConstraintSet:
         self._config = _stack(self.configuration)
         self._velocity = _stack(self.velocity)
         self.n_configuration = sum(len(c.names) for c in self.configuration)
+        self._pack()
+
+    def _pack(self) -> None:
+        """The constants of every constraint that packs, for one kernel call per step
+        (cpbc.constraints.packing); the others (a subclass's own formula, capsules, a second
+        point frame) are asked through ``barrier_terms`` after it, at their margins."""
+        parts: list[tuple[int, int, Packed]] = []
+        rest_config: list[tuple[int, ConfigurationConstraint]] = []
+        rest_velocity: list[tuple[int, VelocityConstraint]] = []
+        frame, at = -1, 0
+        for c in self._config:
+            p = c.packed()
+            if p is not None and (p.kind != POINT or frame in (-1, p.frame)):
+                frame = p.frame if p.kind == POINT else frame
+                parts.append((at, len(c.names), p))
+            else:
+                rest_config.append((at, c))
+            at += len(c.names)
+        for v in self._velocity:
+            p = v.packed()
+            if p is not None:
+                parts.append((at, len(v.names), p))
+            else:
+                rest_velocity.append((at, v))
+            at += len(v.names)
+        self._packed = PackedSet.build(parts)
+        self._rest_config = tuple(rest_config)
+        self._rest_velocity = tuple(rest_velocity)
+        # b = 0 always (rate limits only): the laws skip it
+        self._no_gradient = not self._config and not rest_velocity and all(
+            p.kind == RATE for _, _, p in parts)
+        n = self.n
+        self._empty = np.zeros(0)
+        self._no_matrix = np.zeros((0, 0))
+        self._no_frame = (np.zeros(3), np.eye(3), np.zeros((6, n)))
+        self._no_joints = (np.zeros((3, 0)), np.zeros((6, 0)))
 
     def __len__(self) -> int:
         return len(self.names)
@@ -156,26 +200,74 @@ class ConstraintSet:
 
     def barrier(self, state: ArmState, margins: bool = False) -> BarrierTerms:
         """Log-barrier sums at the per-step state (with ``margins``, every margin too);
-        raises ConstraintViolation outside S."""
-        gradient, weight = None, None
-        phis, values = [], []
-        for c in self._config:
-            phi, b, value = c.barrier_terms(state, margins)
-            phis.append(phi)
-            values.append(value)
-            gradient = b if gradient is None else gradient + b
-        psis = []
-        for v in self._velocity:
-            psi, pi, b_psi = v.barrier_terms(state)
-            psis.append(psi)
-            if b_psi is not None:
-                gradient = b_psi if gradient is None else gradient + b_psi
-            weight = pi if weight is None else weight + pi
+        raises ConstraintViolation outside S. One kernel call for the packed constraints
+        (cpbc.kernels.barrier_set.set_barrier), then the others' ``barrier_terms``."""
+        n, m, pk = self.n, len(self.names), self._packed
+        phi = np.empty(m)
+        gradient = np.empty(n)
+        weight = np.empty((n, n)) if self.velocity else self._no_matrix
+        value = np.empty(m) if margins else self._empty
+        if self.needs_coriolis and state.coriolis_matrix is None:
+            raise CpbcError("the kinetic-energy limit reads C from the state: build it with "
+                            "coriolis=True (a law's state(x, dx) does)")
+        coriolis = self._no_matrix if state.coriolis_matrix is None else state.coriolis_matrix
+        origin, rotation, frame_jac = self._point_frame(state)
+        y, jac = self._joints(state)
+        inertia = state.inertia if self.needs_dynamics else self._no_matrix
+        log_phi, log_psi = set_barrier(pk.plan, pk.ints, pk.floats, state.x, state.dx,
+                                       inertia, coriolis, origin, rotation, frame_jac,
+                                       y, jac, phi, gradient, weight, value)
+        if self._rest_config or self._rest_velocity:
+            log_phi, log_psi = self._rest(state, margins, log_phi, log_psi, phi, gradient,
+                                          weight, value)
         nc = self.n_configuration
-        log_phi = _log_sum(phis, self.names[:nc]) if phis else 0.0
-        log_psi = _log_sum(psis, self.names[nc:]) if psis else 0.0
-        found = None
-        if margins:
-            parts = values + psis
-            found = np.concatenate(parts) if parts else np.zeros(0)  # type: ignore[arg-type]
-        return BarrierTerms(log_phi, log_psi, gradient, weight, found)
+        if log_phi != log_phi:  # a margin ≤ 0 or NaN
+            raise _violation(phi[:nc], self.names[:nc])
+        if log_psi != log_psi:
+            raise _violation(phi[nc:], self.names[nc:])
+        return BarrierTerms(log_phi, log_psi, None if self._no_gradient else gradient,
+                            weight if self.velocity else None, value if margins else None)
+
+    def _point_frame(self, state: ArmState) -> tuple[Array, Array, Array]:
+        """The origin, axes and Jacobian of the packed point constraint's frame."""
+        frame = self._packed.frame
+        if frame < 0:
+            return self._no_frame
+        kin = state.frames.get(frame)
+        if kin is None:
+            raise CpbcError(f"a point constraint reads frame {frame} from the state: build "
+                            "it with the constraint set's frames (a law's state(x, dx))")
+        return kin.position, kin.rotation, kin.jacobian
+
+    def _joints(self, state: ArmState) -> tuple[Array, Array]:
+        """The joint placements and Jacobians the clearance kernels read."""
+        if not self.needs_kinematics:
+            return self._no_joints
+        if state.regressor is None or state.joint_jacobians is None:
+            raise CpbcError("clearance reads the state's joint kinematics: build the state "
+                            "with kinematics=True (a law's state(x, dx) does)")
+        return state.regressor, state.joint_jacobians
+
+    def _rest(self, state: ArmState, margins: bool, log_phi: float, log_psi: float,
+              phi: Array, gradient: Array, weight: Array, value: Array) -> tuple[float, float]:
+        """The terms of the constraints that do not pack, from their ``barrier_terms``,
+        added to the kernel's."""
+        for at, c in self._rest_config:
+            part, b, shown = c.barrier_terms(state, margins)
+            k = len(part)
+            phi[at:at + k] = part
+            gradient += b
+            log_phi += log_sum(part)
+            if margins:
+                value[at:at + k] = shown
+        for at, v in self._rest_velocity:
+            psi, pi, b_psi = v.barrier_terms(state)
+            k = len(psi)
+            phi[at:at + k] = psi
+            weight += pi
+            if b_psi is not None:
+                gradient += b_psi
+            log_psi += log_sum(psi)
+            if margins:
+                value[at:at + k] = psi
+        return log_phi, log_psi

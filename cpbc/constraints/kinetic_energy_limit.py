@@ -7,7 +7,9 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.base import VelocityConstraint
 from cpbc.constraints.margins import ENERGY
+from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError
+from cpbc.kernels import barrier_set
 from cpbc.kernels.barriers import kinetic_energy_terms
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -54,3 +56,9 @@ class KineticEnergyLimit(VelocityConstraint):
         pi, b = np.empty_like(d), np.empty_like(dx)
         psi = kinetic_energy_terms(self.limit, d, c, dx, pi, b)
         return np.array([psi]), pi, b
+
+    def packed(self) -> Packed | None:
+        """Ω for the kernel, unless a subclass overrides ``barrier_terms``."""
+        if type(self).barrier_terms is not KineticEnergyLimit.barrier_terms:
+            return None
+        return Packed(barrier_set.ENERGY, (np.array([[self.limit]]),))

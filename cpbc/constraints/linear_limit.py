@@ -9,7 +9,9 @@ import numpy as np
 from cpbc.arrays import Array, ArrayLike
 from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.constraints.margins import POSITION, MarginType, headroom, row_types
+from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError
+from cpbc.kernels import barrier_set
 from cpbc.kernels.barriers import linear_limit_terms
 from cpbc.model.robot_model import ArmState
 
@@ -78,6 +80,12 @@ class LinearLimit(ConfigurationConstraint):
         phi, b = np.empty(len(self.names)), np.empty(self.rows.shape[1])
         linear_limit_terms(self._constants, state.x, phi, b)
         return phi, b, phi
+
+    def packed(self) -> Packed | None:
+        """The kernel's constants, unless a subclass overrides ``barrier_terms``."""
+        if type(self).barrier_terms is not LinearLimit.barrier_terms:
+            return None
+        return Packed(barrier_set.LINEAR, (self._constants,))
 
     @classmethod
     def stacked(cls, parts: Sequence[ConfigurationConstraint]) -> LinearLimit:

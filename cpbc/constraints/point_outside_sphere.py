@@ -8,7 +8,10 @@ import pinocchio as pin
 from cpbc.arrays import Array, ArrayLike
 from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.constraints.margins import CLEARANCE
+from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError
+from cpbc.kernels import barrier_set
+from cpbc.kernels.barriers import point_sphere_terms
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -56,6 +59,10 @@ class PointOutsideSphere(ConfigurationConstraint):
         self.offset = None if offset is None else np.asarray(offset, dtype=float).reshape(3)
         self.names = (name or f"clearance[{frame}]",)
         self._motion_data = model.model.createData()  # second order, apart from the state's
+        # the kernel's constants [c r² o has_offset]
+        self._constants = np.concatenate(
+            [centre, [self._r2], np.zeros(3) if self.offset is None else self.offset,
+             [0.0 if self.offset is None else 1.0]])
 
     def value(self, x: Array) -> Array:
         d = self.model.point_position(self.frame_id, x, self.offset) - self.centre
@@ -72,15 +79,20 @@ class PointOutsideSphere(ConfigurationConstraint):
     def barrier_terms(self, state: ArmState, margins: bool = False
                       ) -> tuple[Array, Array, Array | None]:
         """φ, ∇φ/φ = 2 (p − c)ᵀ J_p / φ and φ again, from the frame's kinematics held by
-        the state (``frames``)."""
+        the state (``frames``) (cpbc.kernels.barriers.point_sphere_terms)."""
         kin = state.frames.get(self.frame_id)
         if kin is None:
             raise CpbcError(f"{self.names[0]} reads frame {self.frame_id} from the state: "
                             "build it with the constraint set's frames (a law's state(x, dx))")
-        p, jac = kin.point(self.offset)
-        d = p - self.centre
-        phi = np.array([float(d @ d) - self._r2])
-        return phi, (d @ jac) * (2.0 / phi[0]), phi
+        phi, b = np.empty(1), np.empty(len(kin.jacobian[0]))
+        point_sphere_terms(self._constants, kin.position, kin.rotation, kin.jacobian, phi, b)
+        return phi, b, phi
+
+    def packed(self) -> Packed | None:
+        """The kernel's constants and frame, unless a subclass overrides ``barrier_terms``."""
+        if type(self).barrier_terms is not PointOutsideSphere.barrier_terms:
+            return None
+        return Packed(barrier_set.POINT, (self._constants[None, :],), frame=self.frame_id)
 
     def curvature(self, x: Array, dx: Array) -> Array:
         """ẋᵀ∇²φ ẋ = 2‖ṗ‖² + 2 (p − c)·p̈₀, p̈₀ the point's acceleration at ẍ = 0: the frame

@@ -9,7 +9,9 @@ import numpy as np
 from cpbc.arrays import Array, ArrayLike
 from cpbc.constraints.base import VelocityConstraint
 from cpbc.constraints.margins import RATE, MarginType, headroom, row_types
+from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError
+from cpbc.kernels import barrier_set
 from cpbc.kernels.barriers import rate_limit_terms
 from cpbc.model.robot_model import ArmState
 
@@ -65,6 +67,12 @@ class RateLimit(VelocityConstraint):
     def joint_index(self) -> Array | None:
         """The coordinate each row bounds (per-joint limits), else None."""
         return self._joint_index
+
+    def packed(self) -> Packed | None:
+        """The kernel's constants, unless a subclass overrides ``barrier_terms``."""
+        if type(self).barrier_terms is not RateLimit.barrier_terms:
+            return None
+        return Packed(barrier_set.RATE, (self._constants,))
 
     @classmethod
     def stacked(cls, parts: Sequence[VelocityConstraint]) -> RateLimit:

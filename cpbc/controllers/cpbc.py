@@ -12,7 +12,7 @@ from cpbc.controllers.base import Controller, Evaluation, positive_vector
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
-from cpbc.kernels.laws import cpbc_torque, zero_terms
+from cpbc.kernels.laws import cpbc_torque, kinetic_energy, zero_terms
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -67,8 +67,7 @@ class CPBC(Controller):
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         bar = self.constraints.barrier(state, margins)  # raises outside S
         potential, grad = self.potential.evaluate(state)
-        dx = state.dx
-        lag = 0.5 * float(dx.dot(state.inertia.dot(dx))) + potential
+        lag = kinetic_energy(state.inertia, state.dx) + potential
         tau = self._law(state, bar, grad, lag)
         return Evaluation(tau, self._shaped_value(bar, lag), bar.margins)
 
@@ -81,17 +80,16 @@ class CPBC(Controller):
     def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float) -> Array:
         """The law of the class docstring: τ from ∂U/∂x (``grad``), L and the barrier sums
         (cpbc.kernels.laws.cpbc_torque)."""
-        force = -grad
-        force -= self.damping.force(state.dx)
+        damping = self.damping.force(state.dx)
         if self.task_damping is not None:
-            force -= self.task_damping_force(state)
+            damping = damping + self.task_damping_force(state)
         rho = self.shaping.ratio(bar.log_phi + bar.log_psi) * lag
         c = state.coriolis_force + state.dissipation if self.model.has_friction else (
             state.coriolis_force
         )
-        tau = np.empty(force.shape[0])
+        tau = np.empty(grad.shape[0])
         zero_gradient, zero_weight = self._no_barrier
-        cpbc_torque(state.inertia, state.gravity, c, force,
+        cpbc_torque(state.inertia, state.gravity, c, grad, damping,
                     zero_gradient if bar.gradient is None else bar.gradient,
                     zero_weight if bar.weight is None else bar.weight,
                     bar.weight is not None, rho, tau)

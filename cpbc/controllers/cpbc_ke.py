@@ -14,7 +14,7 @@ from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
 from cpbc.errors import ConstraintViolation, CpbcError
-from cpbc.kernels.laws import cpbc_ke_torque, zero_terms
+from cpbc.kernels.laws import cpbc_ke_torque, kinetic_energy, zero_terms
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -72,8 +72,7 @@ class CPBCKineticEnergy(Controller):
         return self._config.state(self.model, x, dx, self.frames)
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
-        dx = state.dx
-        kinetic = 0.5 * float(dx @ state.inertia @ dx)
+        kinetic = kinetic_energy(state.inertia, state.dx)
         psi = self.energy.limit - kinetic
         if not psi > 0:
             raise ConstraintViolation(self.energy.names[0], psi)
@@ -90,11 +89,10 @@ class CPBCKineticEnergy(Controller):
         """The law of the class docstring, from ∂U/∂x (``grad``)
         (cpbc.kernels.laws.cpbc_ke_torque)."""
         rho = self.shaping.ratio(bar.log_phi + math.log(psi)) * lag
-        force = -grad
-        force -= self.damping.force(state.dx)
+        damping = self.damping.force(state.dx)
         if self.task_damping is not None:
-            force -= self.task_damping_force(state)
-        tau = np.empty(force.shape[0])
-        cpbc_ke_torque(state.gravity, force, self._no_barrier[0] if bar.gradient is None else (
-            bar.gradient), rho, psi, tau)
+            damping = damping + self.task_damping_force(state)
+        tau = np.empty(grad.shape[0])
+        gradient = self._no_barrier[0] if bar.gradient is None else bar.gradient
+        cpbc_ke_torque(state.gravity, grad, damping, gradient, rho, psi, tau)
         return tau

@@ -23,7 +23,9 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.controllers.base import positive_vector, vector3
 from cpbc.controllers.potentials.base import Placed, frame_at
+from cpbc.controllers.potentials.frame_position import point_offset
 from cpbc.errors import ParameterError
+from cpbc.kernels.task import task_damping
 from cpbc.model.frames import jacobian_bounds
 from cpbc.model.robot_model import RobotModel
 
@@ -67,6 +69,7 @@ class TaskDamping:
     angular: Array | float = 0.0
     _gain6: Array = field(init=False, repr=False, compare=False)
     _bias6: Array = field(init=False, repr=False, compare=False)
+    _point: Array = field(init=False, repr=False, compare=False)  # the kernel's [o has]
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "gain", _gain_matrix(self.gain))
@@ -79,6 +82,7 @@ class TaskDamping:
         object.__setattr__(self, "feedforward", vector3(self.feedforward, "feedforward"))
         if self.offset is not None:
             object.__setattr__(self, "offset", vector3(self.offset, "offset"))
+        object.__setattr__(self, "_point", point_offset(self.offset))
 
     @property
     def frames(self) -> tuple[int, ...]:
@@ -99,10 +103,12 @@ class TaskDamping:
         return self._force(at, dx, self._gain6[:, :3] @ feedforward)
 
     def _force(self, at: Placed, dx: Array, bias: Array) -> Array:
+        """(cpbc.kernels.task.task_damping)"""
         kin = frame_at(at, self.frame)
-        j = kin.jacobian if self.offset is None else np.vstack(
-            (kin.point(self.offset)[1], kin.angular))
-        return j.T @ (self._gain6 @ (j @ dx) - bias)
+        force = np.empty(dx.shape[0])
+        task_damping(kin.position, kin.rotation, kin.jacobian, self._point, self._gain6, bias,
+                     dx, force)
+        return force
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ from collections.abc import Iterator, Sequence
 from numba.core.registry import CPUDispatcher
 
 MODULES = ("cpbc.kernels.linalg", "cpbc.kernels.barriers", "cpbc.kernels.laws",
+           "cpbc.kernels.barrier_set", "cpbc.kernels.coordinates", "cpbc.kernels.task",
            "cpbc.kernels.clearance")
 
 

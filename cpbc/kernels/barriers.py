@@ -5,8 +5,11 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, kernel
+from cpbc.kernels.task import point_on_frame
 
 
 @kernel("void(float64[:, :], float64[:], float64[:], float64[:])")
@@ -96,3 +99,21 @@ def log_sum(margins: Array) -> float:
             return math.nan
         total += math.log(m)
     return total
+
+
+@kernel("void(float64[:], float64[:], float64[:, :], float64[:, :], float64[:], float64[:])")
+def point_sphere_terms(constants: Array, origin: Array, rotation: Array, jacobian: Array,
+                       phi: Array, gradient: Array) -> None:
+    """A point p kept outside a sphere, φ = ‖p − c‖² − r² (φ₁ of Section 6.4), ∇φ = 2(p − c)ᵀJ_p:
+    φ into ``phi[0]`` and ∇φ/φ into ``gradient`` (n,), overwritten; p and J_p of the point
+    at o in the frame (cpbc.kernels.task.point_on_frame). ``constants``: [c r² o has_offset],
+    shape (8,)."""
+    n = gradient.shape[0]
+    point, linear = np.empty(3), np.empty((3, n))
+    point_on_frame(origin, rotation, jacobian, constants[4:], point, linear)
+    d0, d1, d2 = point[0] - constants[0], point[1] - constants[1], point[2] - constants[2]
+    p = d0 * d0 + d1 * d1 + d2 * d2 - constants[3]
+    phi[0] = p
+    scale = 2.0 / p
+    for k in range(n):
+        gradient[k] = (d0 * linear[0, k] + d1 * linear[1, k] + d2 * linear[2, k]) * scale

@@ -18,20 +18,47 @@ def zero_terms(n: int) -> tuple[Array, Array]:
     return b, weight
 
 
-@kernel("void(float64[:, :], float64[:], float64[:], float64[:], "
+@kernel("float64(float64[:, :], float64[:])")
+def kinetic_energy(inertia: Array, dx: Array) -> float:
+    """½ ẋᵀ D ẋ, the kinetic part of L (eq. 6.7)."""
+    n = dx.shape[0]
+    total = 0.0
+    for a in range(n):
+        s = 0.0
+        for b in range(n):
+            s += inertia[a, b] * dx[b]
+        total += dx[a] * s
+    return 0.5 * total
+
+
+@kernel(f"float64({READ_ONLY}, {READ_ONLY}, {READ_ONLY}, float64[:])")
+def joint_spring(x: Array, goal: Array, stiffness: Array, grad: Array) -> float:
+    """U = ½ x̃ᵀ K x̃, x̃ = x − x_d (eq. 6.7), K diagonal: returns U, writes ∂U/∂x = K x̃
+    into ``grad``."""
+    total = 0.0
+    for i in range(x.shape[0]):
+        e = x[i] - goal[i]
+        g = stiffness[i] * e
+        grad[i] = g
+        total += e * g
+    return 0.5 * total
+
+
+@kernel("void(float64[:, :], float64[:], float64[:], float64[:], float64[:], "
         f"{READ_ONLY}, {READ_ONLY_MATRIX}, boolean, float64, float64[:])")
-def cpbc_torque(inertia: Array, gravity: Array, bias: Array, force: Array, gradient: Array,
-                weight: Array, constrained_rate: bool, rho: float, tau: Array) -> None:
+def cpbc_torque(inertia: Array, gravity: Array, bias: Array, grad: Array, damping: Array,
+                gradient: Array, weight: Array, constrained_rate: bool, rho: float, tau: Array
+                ) -> None:
     """CPBC (Theorem 6.9, eq. 6.24) in log-barrier form:
 
-        a = force + ρ (b_φ + b_ψ),   τ = g + c + D (D + ρΠ)⁻¹ (a − c)
+        a = −∂U/∂x − (K_D ẋ + F) + ρ (b_φ + b_ψ),   τ = g + c + D (D + ρΠ)⁻¹ (a − c)
 
-    with ``force`` = −∂U/∂x − K_D ẋ − F, ``bias`` c = C ẋ + f, ``gradient`` b_φ + b_ψ and
-    ``weight`` Π. Without velocity constraints (``constrained_rate`` False, Π = 0) this is
-    τ = g + a. τ into ``tau``."""
+    with ``grad`` ∂U/∂x, ``damping`` K_D ẋ + F, ``bias`` c = C ẋ + f, ``gradient``
+    b_φ + b_ψ and ``weight`` Π. Without velocity constraints (``constrained_rate`` False,
+    Π = 0) this is τ = g + a. τ into ``tau``."""
     n = gravity.shape[0]
     for i in range(n):
-        tau[i] = force[i] + rho * gradient[i]  # a
+        tau[i] = -grad[i] - damping[i] + rho * gradient[i]  # a
     if not constrained_rate:
         for i in range(n):
             tau[i] += gravity[i]
@@ -54,14 +81,15 @@ def cpbc_torque(inertia: Array, gravity: Array, bias: Array, force: Array, gradi
         tau[i] = rhs[i]
 
 
-@kernel(f"void(float64[:], float64[:], {READ_ONLY}, float64, float64, float64[:])")
-def cpbc_ke_torque(gravity: Array, force: Array, gradient: Array, rho: float, psi: float,
-                   tau: Array) -> None:
+@kernel(f"void(float64[:], float64[:], float64[:], {READ_ONLY}, float64, float64, float64[:])")
+def cpbc_ke_torque(gravity: Array, grad: Array, damping: Array, gradient: Array, rho: float,
+                   psi: float, tau: Array) -> None:
     """CPBC-KE (Corollary 6.11, eq. 6.67) with shaping, in log-barrier form:
 
-        τ = g + (force + ρ b_φ) / (1 + ρ/ψ),   force = −∂U/∂x − K_D ẋ − F
+        τ = g + (−∂U/∂x − (K_D ẋ + F) + ρ b_φ) / (1 + ρ/ψ)
 
-    (BPBC-KE, eq. 7.34, with the ln cosh spring and tanh damping in ``force``)."""
+    with ``grad`` ∂U/∂x and ``damping`` K_D ẋ + F (BPBC-KE, eq. 7.34, with the ln cosh
+    spring and tanh damping)."""
     scale = 1.0 + rho / psi
     for i in range(gravity.shape[0]):
-        tau[i] = gravity[i] + (force[i] + rho * gradient[i]) / scale
+        tau[i] = gravity[i] + (-grad[i] - damping[i] + rho * gradient[i]) / scale

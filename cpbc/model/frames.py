@@ -8,7 +8,7 @@ world axes, taken with respect to the controller coordinates x = T q (∂/∂x =
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -28,9 +28,9 @@ def offset_jacobian(linear: Array, angular: Array, r: Array) -> Array:
     return linear - skew @ angular
 
 
-@dataclass(frozen=True)
-class FrameKinematics:
-    """One frame at one state, in controller coordinates.
+class FrameKinematics(NamedTuple):
+    """One frame at one state, in controller coordinates (a tuple: built every control
+    step, where a frozen dataclass costs several times more to make).
 
     Attributes:
         position: the frame's origin in the world, shape (3,) [m].

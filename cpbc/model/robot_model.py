@@ -12,6 +12,7 @@ import pinocchio as pin
 
 from cpbc.arrays import Array
 from cpbc.errors import ModelError
+from cpbc.kernels.coordinates import to_controller, to_joint
 from cpbc.model.coordinates import LinearCoordinates
 from cpbc.model.frames import FrameKinematics, offset_jacobian
 
@@ -106,8 +107,6 @@ class RobotModel:
         self._identity = self.coordinates.is_identity
         self._t_inv = self.coordinates.inverse
         self._t_inv_t = np.ascontiguousarray(self.coordinates.inverse.T)
-        # vec(T⁻ᵀ M T⁻¹) = (T⁻ᵀ ⊗ T⁻ᵀ) vec(M): one product instead of two in the hot path.
-        self._congruence = np.kron(self._t_inv_t, self._t_inv_t)
         fd = np.zeros((self.n, self.n)) if viscous_friction is None else np.asarray(
             viscous_friction, dtype=float
         )
@@ -198,12 +197,14 @@ class RobotModel:
     def state(self, x: Array, dx: Array, kinematics: bool = False,
               frames: Iterable[int] = (), coriolis: bool = False) -> ArmState:
         """The per-step state at (x, ẋ): D, C ẋ, g and f from three Pinocchio passes (CRBA,
-        RNEA, gravity); with ``coriolis`` the matrix C (one more pass); with ``kinematics``
-        or any ``frames`` one pass for every joint and frame placement and joint Jacobian,
-        from which each frame of ``frames`` is read into ``ArmState.frames`` and — with
-        ``kinematics`` — the joint Jacobians and placements (the static regressor, one more
-        call) are copied into the state. Fresh arrays every call: nothing is kept between
-        calls, and nothing in ``self.data`` is meant to be read afterwards."""
+        RNEA, gravity) — or, with ``kinematics`` or any ``frames``, from one pass that also
+        gives every joint placement and joint Jacobian (``computeAllTerms``; its D and g
+        differ from the separate passes' in the last bit, 1e-15); with ``coriolis`` the
+        matrix C (one more pass). Each frame of ``frames`` is read into ``ArmState.frames``
+        and — with ``kinematics`` — the joint Jacobians and placements (the static
+        regressor, one more call) are copied into the state. Fresh arrays every call:
+        nothing is kept between calls, and nothing in ``self.data`` is meant to be read
+        afterwards."""
         model, data = self.model, self.data
         # the compiled kernels take writable float arrays: a law's own target (read-only) may
         # be the state asked for
@@ -212,32 +213,35 @@ class RobotModel:
         if self._identity:
             q, dq = x, dx
         else:
-            q, dq = self._t_inv.dot(x), self._t_inv.dot(dx)
-        m = pin.crba(model, data, q)
-        if self._crba_upper_only:
-            m[self._lower] = m.T[self._lower]
-        nle = pin.nonLinearEffects(model, data, q, dq)
-        g = pin.computeGeneralizedGravity(model, data, q)
-        f = self.dissipation(dx)
+            q, dq = np.empty(self.n), np.empty(self.n)
+            to_joint(self._t_inv, x, dx, q, dq)
         c_matrix = self._back(pin.computeCoriolisMatrix(model, data, q, dq).copy()) if (
             coriolis) else None
         wanted = tuple(frames)
         jac = placements = None
-        if kinematics or wanted:  # after the dynamics passes, which may leave other placements
-            pin.computeJointJacobians(model, data, q)
-            pin.updateFramePlacements(model, data)
-        found = MappingProxyType({i: self._state_frame(i) for i in wanted}) if wanted else (
-            _NO_FRAMES)
-        if kinematics:
-            jac = data.J.copy()
-            placements = pin.computeStaticRegressor(model, data, q).copy()
+        found = _NO_FRAMES
+        if kinematics or wanted:
+            pin.computeAllTerms(model, data, q, dq)
+            m, nle, g = data.M, data.nle, data.g
+            if wanted:
+                found = MappingProxyType({i: self._state_frame(i) for i in wanted})
+            if kinematics:
+                jac = data.J.copy()
+                placements = pin.computeStaticRegressor(model, data, q).copy()
+        else:
+            m = pin.crba(model, data, q)
+            nle = pin.nonLinearEffects(model, data, q, dq)
+            g = pin.computeGeneralizedGravity(model, data, q)
+        if self._crba_upper_only:
+            m[self._lower] = m.T[self._lower]
+        f = self.dissipation(dx)
         if self._identity:
             return ArmState(x, dx, q, dq, m.copy(), nle - g, g.copy(), f, found, c_matrix,
                             jac, placements)
-        t_inv_t = self._t_inv_t
-        inertia = self._congruence.dot(m.reshape(-1)).reshape(self.n, self.n)
-        return ArmState(x, dx, q, dq, inertia, t_inv_t.dot(nle - g), t_inv_t.dot(g), f, found,
-                        c_matrix, jac, placements)
+        inertia, bias, gravity = np.empty((self.n, self.n)), np.empty(self.n), np.empty(self.n)
+        to_controller(self._t_inv, m, nle, g, inertia, bias, gravity)
+        return ArmState(x, dx, q, dq, inertia, bias, gravity, f, found, c_matrix, jac,
+                        placements)
 
     def dynamics(self, x: Array, dx: Array) -> ArmState:
         """The per-step state without kinematics (:meth:`state`)."""
@@ -284,10 +288,11 @@ class RobotModel:
     def _state_frame(self, frame_id: int) -> FrameKinematics:
         """A frame's placement and Jacobian (controller coordinates) from the kinematics pass
         of :meth:`state`."""
+        # the frame's own placement only (one frame: cheaper than every frame's)
+        placement = pin.updateFramePlacement(self.model, self.data, frame_id).homogeneous
         j = pin.getFrameJacobian(
             self.model, self.data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
-        placement = self.data.oMf[frame_id]
-        return FrameKinematics(placement.translation.copy(), placement.rotation.copy(),
+        return FrameKinematics(placement[:3, 3], placement[:3, :3],
                                j if self._identity else j.dot(self._t_inv))
 
     def _point(self, frame_id: int, j: Array, offset: Array | None) -> tuple[Array, Array]:

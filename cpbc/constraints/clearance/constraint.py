@@ -23,7 +23,9 @@ from cpbc.constraints.clearance.layout import PairLayout
 from cpbc.constraints.covering import LinkPrimitive
 from cpbc.constraints.geometry import Obstacle
 from cpbc.constraints.margins import CLEARANCE
+from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError, ParameterError
+from cpbc.kernels import barrier_set
 from cpbc.kernels.clearance import localised_terms
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -297,6 +299,18 @@ class Clearance(PairLayout, ConfigurationConstraint):
             raise CpbcError("clearance reads the state's joint kinematics: build the state "
                             "with kinematics=True (a law's state(x, dx) does)")
         return self._barrier(state.x, state.regressor, state.joint_jacobians, margins)
+
+    def packed(self) -> Packed | None:
+        """The sphere pairs' tables (cpbc.kernels.barrier_set), when every primitive is a
+        sphere, the coordinates are the joints' and no subclass overrides
+        ``barrier_terms``."""
+        s = self._spheres
+        if (type(self).barrier_terms is not Clearance.barrier_terms or s is None
+                or self._groups or not self._identity):
+            return None
+        tables = (s.sphere_local, s.obstacles, s.pair_table, s.sphere_supports,
+                  self._far_phi[:, None], np.array([[self.influence or 0.0]]))
+        return Packed(barrier_set.SPHERES, tables, (s.sphere_index[:, None], s.pair_index))
 
     def _barrier(self, x: Array, y: Array, jac: Array, with_value: bool
                  ) -> tuple[Array, Array, Array | None]:

@@ -15,7 +15,8 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.controllers.potentials.base import GradientBound, OnOneFrame, Placed, frame_at
 from cpbc.errors import ParameterError
-from cpbc.model.frames import cross3, jacobian_bounds
+from cpbc.kernels.task import axis_spring, orientation_spring
+from cpbc.model.frames import jacobian_bounds
 from cpbc.model.robot_model import RobotModel
 
 
@@ -85,12 +86,12 @@ class FrameOrientationSpring(OnOneFrame):
         return GradientBound(bound, bound)
 
     def evaluate(self, at: Placed) -> tuple[float, Array]:
+        """(cpbc.kernels.task.orientation_spring)"""
         kin = frame_at(at, self.frame)
-        m = kin.rotation @ self.rotation.T
-        skew = m - m.T
-        vee = np.array([skew[2, 1], skew[0, 2], skew[1, 0]])
-        value = self.stiffness * (3.0 - float(np.trace(m)))
-        return value, self.stiffness * (kin.angular.T @ vee)
+        grad = np.empty(kin.jacobian.shape[1])
+        value = orientation_spring(kin.rotation, kin.jacobian, self.rotation, self.stiffness,
+                                   grad)
+        return value, grad
 
 
 @dataclass(frozen=True)
@@ -134,7 +135,9 @@ class FrameAxisSpring(OnOneFrame):
         return GradientBound(bound, bound)
 
     def evaluate(self, at: Placed) -> tuple[float, Array]:
+        """(cpbc.kernels.task.axis_spring)"""
         kin = frame_at(at, self.frame)
-        axis = kin.rotation @ self.tool
-        value = self.stiffness * (1.0 - float(self.world @ axis))
-        return value, self.stiffness * (kin.angular.T @ cross3(self.world, axis))
+        grad = np.empty(kin.jacobian.shape[1])
+        value = axis_spring(kin.rotation, kin.jacobian, self.tool, self.world, self.stiffness,
+                            grad)
+        return value, grad

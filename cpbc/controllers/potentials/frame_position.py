@@ -12,8 +12,16 @@ from cpbc.controllers.base import positive_vector, vector3
 from cpbc.controllers.potentials.base import GradientBound, OnOneFrame, Placed, frame_at
 from cpbc.controllers.potentials.log_cosh import LogCoshSum
 from cpbc.errors import ParameterError
+from cpbc.kernels.task import position_spring
 from cpbc.model.frames import jacobian_bounds
 from cpbc.model.robot_model import RobotModel
+
+
+def point_offset(offset: Array | None) -> Array:
+    """A point's offset in its frame as the task kernels read it, [o has_offset] (4,)."""
+    out = np.zeros(4) if offset is None else np.append(offset, 1.0)
+    out.setflags(write=False)
+    return out
 
 
 def _stiffness_matrix(value: object) -> Array:
@@ -44,12 +52,14 @@ class FramePositionSpring(OnOneFrame):
     goal: Array
     stiffness: Array
     offset: Array | None = None
+    _point: Array = field(init=False, repr=False, compare=False)  # the kernel's [o has]
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "goal", vector3(self.goal, "goal"))
         object.__setattr__(self, "stiffness", _stiffness_matrix(self.stiffness))
         if self.offset is not None:
             object.__setattr__(self, "offset", vector3(self.offset, "offset"))
+        object.__setattr__(self, "_point", point_offset(self.offset))
 
     @classmethod
     def named(cls, model: RobotModel, frame: str, goal: object, stiffness: object,
@@ -68,11 +78,12 @@ class FramePositionSpring(OnOneFrame):
 
     def evaluate_toward(self, at: Placed, goal: Array) -> tuple[float, Array]:
         """U and ∂U/∂x with the goal p_d = ``goal`` in place of the spring's own (a moving
-        reference, cpbc.reference.target)."""
-        p, jv = frame_at(at, self.frame).point(self.offset)
-        err = p - goal
-        force = self.stiffness @ err
-        return 0.5 * float(err @ force), jv.T @ force
+        reference, cpbc.reference.target) (cpbc.kernels.task.position_spring)."""
+        kin = frame_at(at, self.frame)
+        grad = np.empty(kin.jacobian.shape[1])
+        value = position_spring(kin.position, kin.rotation, kin.jacobian, self._point, goal,
+                                self.stiffness, grad)
+        return value, grad
 
 
 @dataclass(frozen=True)

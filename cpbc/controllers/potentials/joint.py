@@ -11,6 +11,7 @@ from cpbc.arrays import Array
 from cpbc.controllers.base import positive_vector
 from cpbc.controllers.potentials.base import GradientBound, OfTheJoints, Placed
 from cpbc.controllers.potentials.log_cosh import LogCoshSum
+from cpbc.kernels.laws import joint_spring
 
 
 def _set_point(target: object) -> Array:
@@ -46,10 +47,9 @@ class JointSpring(OfTheJoints):
 
     def evaluate_toward(self, at: Placed, goal: Array) -> tuple[float, Array]:
         """U and ∂U/∂x toward the set point ``goal`` in place of the spring's own (a moving
-        posture x_n(s), cpbc.reference.target)."""
-        err = at.x - goal
-        grad = self.stiffness * err
-        return 0.5 * float(err @ grad), grad
+        posture x_n(s), cpbc.reference.target) (cpbc.kernels.laws.joint_spring)."""
+        grad = np.empty(goal.shape[0])
+        return joint_spring(at.x, goal, self.stiffness, grad), grad
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,7 @@ springs and a posture spring."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from cpbc.arrays import Array
 from cpbc.controllers.potentials.base import GradientBound, Placed, Potential
@@ -20,14 +20,13 @@ class PotentialSum:
     """
 
     parts: tuple[Potential, ...]
+    frames: tuple[int, ...] = field(init=False)  # every part's, once (read each step)
 
     def __post_init__(self) -> None:
         if not self.parts:
             raise CpbcError("a sum of potentials needs at least one part")
-
-    @property
-    def frames(self) -> tuple[int, ...]:
-        return tuple(dict.fromkeys(f for p in self.parts for f in p.frames))
+        object.__setattr__(self, "frames",
+                           tuple(dict.fromkeys(f for p in self.parts for f in p.frames)))
 
     @property
     def anchored(self) -> bool:

@@ -1,0 +1,113 @@
+"""The task-space terms on a frame of the per-step state (TASKSPACE §2.2): the point of a
+frame and its Jacobian, the position spring, the orientation springs and the task damping
+(cpbc.controllers.potentials, cpbc.controllers.task_damping: their Python methods call
+these).
+
+A frame arrives as its origin (3,), axes R (3, 3) and Jacobian [J_v; J_ω] (6, n) in world
+axes (cpbc.model.frames.FrameKinematics); a point fixed in it as ``offset`` = [o has_offset]
+(4,), o in the frame's axes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
+
+FRAME = f"{READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}"
+
+
+@kernel(f"void({FRAME}, {READ_ONLY}, float64[:], float64[:, :])")
+def point_on_frame(origin: Array, rotation: Array, jacobian: Array, offset: Array,
+                   point: Array, linear: Array) -> None:
+    """p = origin + R o into ``point`` and J_p = J_v − [R o]× J_ω (v_p = v + ω × R o) into
+    ``linear`` (3, n)."""
+    r0 = r1 = r2 = 0.0
+    if offset[3] != 0.0:
+        r0 = rotation[0, 0] * offset[0] + rotation[0, 1] * offset[1] + rotation[0, 2] * offset[2]
+        r1 = rotation[1, 0] * offset[0] + rotation[1, 1] * offset[1] + rotation[1, 2] * offset[2]
+        r2 = rotation[2, 0] * offset[0] + rotation[2, 1] * offset[1] + rotation[2, 2] * offset[2]
+    point[0], point[1], point[2] = origin[0] + r0, origin[1] + r1, origin[2] + r2
+    for k in range(jacobian.shape[1]):
+        w0, w1, w2 = jacobian[3, k], jacobian[4, k], jacobian[5, k]
+        linear[0, k] = jacobian[0, k] - (r1 * w2 - r2 * w1)
+        linear[1, k] = jacobian[1, k] - (r2 * w0 - r0 * w2)
+        linear[2, k] = jacobian[2, k] - (r0 * w1 - r1 * w0)
+
+
+@kernel(f"float64({FRAME}, {READ_ONLY}, {READ_ONLY}, {READ_ONLY_MATRIX}, float64[:])")
+def position_spring(origin: Array, rotation: Array, jacobian: Array, offset: Array,
+                    goal: Array, stiffness: Array, grad: Array) -> float:
+    """U = ½ eᵀ K e, e = p − p_d, ∂U/∂x = J_pᵀ K e into ``grad`` (Takegaki–Arimoto's
+    spring on the point); returns U."""
+    n = grad.shape[0]
+    point, linear = np.empty(3), np.empty((3, n))
+    point_on_frame(origin, rotation, jacobian, offset, point, linear)
+    e0, e1, e2 = point[0] - goal[0], point[1] - goal[1], point[2] - goal[2]
+    f = np.empty(3)
+    for i in range(3):
+        f[i] = stiffness[i, 0] * e0 + stiffness[i, 1] * e1 + stiffness[i, 2] * e2
+    for k in range(n):
+        grad[k] = linear[0, k] * f[0] + linear[1, k] * f[1] + linear[2, k] * f[2]
+    return 0.5 * (e0 * f[0] + e1 * f[1] + e2 * f[2])
+
+
+@kernel(f"float64({READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}, float64,"
+        " float64[:])")
+def orientation_spring(rotation: Array, jacobian: Array, goal: Array, stiffness: float,
+                       grad: Array) -> float:
+    """U = k (3 − tr(R_dᵀR)), ∂U/∂x = k J_ωᵀ vee(M − Mᵀ), M = R R_dᵀ, into ``grad``;
+    returns U."""
+    m = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            m[i, j] = rotation[i, 0] * goal[j, 0] + rotation[i, 1] * goal[j, 1] + (
+                rotation[i, 2] * goal[j, 2])
+    v0, v1, v2 = m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]
+    for k in range(grad.shape[0]):
+        grad[k] = stiffness * (jacobian[3, k] * v0 + jacobian[4, k] * v1 + jacobian[5, k] * v2)
+    return stiffness * (3.0 - (m[0, 0] + m[1, 1] + m[2, 2]))
+
+
+@kernel(f"float64({READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}, {READ_ONLY}, {READ_ONLY}, float64,"
+        " float64[:])")
+def axis_spring(rotation: Array, jacobian: Array, tool: Array, world: Array,
+                stiffness: float, grad: Array) -> float:
+    """U = k (1 − a_wᵀ R a_b), ∂U/∂x = k J_ωᵀ (a_w × R a_b) into ``grad``; returns U."""
+    a = np.empty(3)
+    for i in range(3):
+        a[i] = rotation[i, 0] * tool[0] + rotation[i, 1] * tool[1] + rotation[i, 2] * tool[2]
+    c0 = world[1] * a[2] - world[2] * a[1]
+    c1 = world[2] * a[0] - world[0] * a[2]
+    c2 = world[0] * a[1] - world[1] * a[0]
+    for k in range(grad.shape[0]):
+        grad[k] = stiffness * (jacobian[3, k] * c0 + jacobian[4, k] * c1 + jacobian[5, k] * c2)
+    return stiffness * (1.0 - (world[0] * a[0] + world[1] * a[1] + world[2] * a[2]))
+
+
+@kernel(f"void({FRAME}, {READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY}, {READ_ONLY},"
+        " float64[:])")
+def task_damping(origin: Array, rotation: Array, jacobian: Array, offset: Array,
+                 gain: Array, bias: Array, dx: Array, force: Array) -> None:
+    """F = Jᵀ (G J ẋ − b), J = [J_p; J_ω] of the point, G = diag(D_x, D_ω) (6, 6) ``gain``,
+    b = G [ṗ_ff; 0] ``bias``, into ``force``."""
+    n = dx.shape[0]
+    point, linear = np.empty(3), np.empty((3, n))
+    point_on_frame(origin, rotation, jacobian, offset, point, linear)
+    v = np.zeros(6)
+    for k in range(n):
+        for i in range(3):
+            v[i] += linear[i, k] * dx[k]
+            v[3 + i] += jacobian[3 + i, k] * dx[k]
+    w = np.empty(6)
+    for i in range(6):
+        s = -bias[i]
+        for j in range(6):
+            s += gain[i, j] * v[j]
+        w[i] = s
+    for k in range(n):
+        s = 0.0
+        for i in range(3):
+            s += linear[i, k] * w[i] + jacobian[3 + i, k] * w[3 + i]
+        force[k] = s
