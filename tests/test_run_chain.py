@@ -33,14 +33,14 @@ def test_every_constrained_state_stays_below_its_bound(chain) -> None:
     for case in ("fig4.1", "fig4.2"):
         e = res[case, "barrier"]
         assert e["backend"] == "reference"
-        assert e["bounds"] == {"xi2": 2.5, "xi3": 12.0, "xi4": 700.0}
-        assert all(e["peaks"][k] < e["bounds"][k] for k in e["bounds"]), e["peaks"]
-        assert e["status"] in ("converged", "not_settled") and e["violated"] is None
+        assert e["system"]["bounds"] == {"xi2": 2.5, "xi3": 12.0, "xi4": 700.0}
+        assert all(e["system"]["peaks"][k] < e["system"]["bounds"][k] for k in e["system"]["bounds"]), e["system"]["peaks"]
+        assert e["status"] in ("converged", "not_settled") and e["violated_constraint"] is None
         # the a-priori bounds of (4.88) for the thesis's gains, within the limits (4.89)
-        assert e["design_bounds"]["(4.88) X4 on |ξ4|"] == pytest.approx(655.0, abs=0.1)
+        assert e["system"]["design_bounds"]["(4.88) X4 on |ξ4|"] == pytest.approx(655.0, abs=0.1)
     fig41 = res["fig4.1", "barrier"]
     assert fig41["status"] == "converged" and 20.0 < fig41["settle_time"] < 23.0
-    assert fig41["peak_abs"]["xi1"] > 11.0  # ξ1 overshoots −10 before it turns
+    assert fig41["system"]["peak_abs"]["xi1"] > 11.0  # ξ1 overshoots −10 before it turns
 
 
 def test_fig4_2_ramps_at_half_the_velocity_bound(chain) -> None:

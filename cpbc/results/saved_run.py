@@ -259,13 +259,13 @@ def _logs(folder: Path, summaries: list[SummaryEntry]) -> list[dict[str, Any]]:
 
 
 def _is_system_run(folder: Path) -> bool:
-    """A Part I run's summary.json: run objects with ``peaks`` and ``bounds``."""
+    """A Part I run's summary.json: run objects with a ``system`` outcome."""
     try:
         runs = json.loads((folder / SUMMARY).read_text())
     except (OSError, ValueError):
         return False
     return isinstance(runs, list) and bool(runs) and all(
-        isinstance(r, dict) and "peaks" in r and "bounds" in r for r in runs)
+        isinstance(r, dict) and isinstance(r.get("system"), dict) for r in runs)
 
 
 def load_run(folder: Path | str) -> SavedRun:
