@@ -41,16 +41,18 @@ def test_summary_reports_the_three_bounds(fig55) -> None:
         assert row["backend"] == "reference"
     barrier, plain = rows["constrained"], rows["traditional"]
     # the barrier law climbs at its plateau, well inside |v_z| < 3.5 and below the stall
-    assert 1.5 < barrier["system"]["peaks"]["vz"] < 1.65 and barrier["system"]["peaks"]["alpha"] < 0.2
+    peaks, plain_peaks = barrier["system"]["peaks"], plain["system"]["peaks"]
+    assert 1.5 < peaks["vz"] < 1.65 and peaks["alpha"] < 0.2
     # the traditional law overshoots the climb-rate bound and nearly stalls
-    assert plain["system"]["peaks"]["vz"] > 6.5 and 0.29 < plain["system"]["peaks"]["alpha"] < 0.3
+    assert plain_peaks["vz"] > 6.5 and 0.29 < plain_peaks["alpha"] < 0.3
     # both demand more elevator than the actuator has at the step: the aircraft's limit,
     # reported, not a violation of the problem's constraint (the climb rate)
     assert plain["system"]["limits_reached"] == barrier["system"]["limits_reached"] == ["elevator"]
     assert plain["violated_constraint"] == "vz" and barrier["violated_constraint"] is None
     assert plain["status"] == "constraint_violated"
     assert barrier["status"] in ("converged", "not_settled")
-    assert barrier["system"]["design_bounds"] == {"(5.68) k2 + c1 on |v_z|, law 'constrained' [m/s]": 3.5}
+    assert barrier["system"]["design_bounds"] == {
+        "(5.68) k2 + c1 on |v_z|, law 'constrained' [m/s]": 3.5}
 
 
 def test_figures_path_and_replay_are_written(fig55) -> None:
