@@ -113,13 +113,10 @@ def _run_system(scenario: SystemScenario, file: Path, args: argparse.Namespace,
                                         setup.state_names, setup.input_name,
                                         r.summary.as_dict())
         write_summaries(scratch, [r.summary for r in results])
-        view = write_system_outputs(scratch, setup, results, plots=not args.no_plots)
+        write_system_outputs(scratch, setup, results, plots=not args.no_plots)
     console.print(summary_table([r.summary for r in results]))
     for name, value in setup.view.design_bounds.items():
         console.print(f"a-priori bound {name}: {value:.6g}")
-    if view is None:
-        console.print("view.html: none (the system is only its ODE, with no body to show; "
-                      "<case>/timeseries.png has its time plots)")
     console.print(f"backend: {backend}; results written to {out}/")
     return 0
 

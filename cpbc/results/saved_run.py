@@ -57,6 +57,13 @@ class SummaryEntry(_SummaryKeys, total=False):
     torque_limits: list[float | None] | None
     torque_bound: float | None
     units: dict[str, str | list[str]]  # the plots' units when not an arm's (per coordinate or all)
+    # a system that is only its ODE (its page: cpbc.viewer.outputs): the page's groups of
+    # plots ("position", "velocity", "torque"), their titles, and a bound interval per
+    # position (None: unbounded)
+    groups: list[str]
+    titles: dict[str, str]
+    position_bounds: list[list[float] | None]
+    input_name: str  # a Part I system's one input, with its unit: the torques' one panel
     cause: str | None  # why a failed run likely failed, when foreseen (RunSummary.cause)
 
 

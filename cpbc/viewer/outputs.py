@@ -2,7 +2,9 @@
 an arm's (:func:`write_run_outputs`) or a Part I system's (:func:`write_system_outputs`: its
 figures, and the same page drawing the system's MJCF geometry replayed from the logged MuJoCo
 coordinates, with one timeline for the scene and the time plots; the plots show MuJoCo's
-coordinates and the input, the margins each constrained quantity's distance to its bound)."""
+coordinates and the input, the margins each constrained quantity's distance to its bound).
+A system that is only its ODE (the integrator chain) has no body to draw: its page is its
+time plots, the states against their bounds and the input."""
 
 from __future__ import annotations
 
@@ -21,6 +23,7 @@ from cpbc.results.saved_run import (
     SavedRun,
     SavedTrajectory,
     SceneInfo,
+    SummaryEntry,
     load_run,
     write_scene,
 )
@@ -28,7 +31,7 @@ from cpbc.results.sweep import SceneKinematics, default_trace_frame
 from cpbc.results.system_plots import plot_case, plot_path
 from cpbc.scenario.build import ScenarioSetup
 from cpbc.scenario.runner import SystemResult
-from cpbc.scenario.system_setup import SystemSetup
+from cpbc.scenario.system_setup import SystemCase, SystemSetup
 from cpbc.systems.ode_plant import Plant
 from cpbc.taskspace.goal import AxisGoal
 from cpbc.viewer.export import write_view
@@ -123,11 +126,9 @@ def write_run_outputs(
     return [*future.result(), *draw(folder, ours), page]
 
 def write_system_outputs(folder: Path, setup: SystemSetup, results: Sequence[SystemResult],
-                         plots: bool = True) -> Path | None:
+                         plots: bool = True) -> Path:
     """Into a run folder: every case's figures (<case>/timeseries.png, and path.png for a
-    vehicle; unless ``plots`` is False) and view.html. Returns the page, or None (nothing
-    written) for a system that is only its ODE: an integrator chain has no body to pose, and
-    its time plots are its figures."""
+    vehicle; unless ``plots`` is False) and view.html. Returns the page."""
     if plots:
         for case in setup.cases:
             runs = [(r.controller, r.trajectory) for r in results if r.case == case.name]
@@ -138,53 +139,85 @@ def write_system_outputs(folder: Path, setup: SystemSetup, results: Sequence[Sys
     return _write_system_view(folder, setup, results)
 
 
-def _units(setup: SystemSetup, model: mujoco.MjModel) -> dict[str, str | list[str]]:
-    """The plots' units, one per coordinate: m for slide joints, rad for hinges; the input's
-    own unit."""
+def ode_display_model(state_names: Sequence[str]) -> mujoco.MjModel:
+    """A model with nothing to draw and a joint per state component: what the page poses
+    for a system that is only its ODE (never simulated; its geometry-less bodies turn in
+    place at the origin, so the scene stays empty and traces no path: the page's content is
+    its time plots)."""
+    bodies = "".join(
+        f'<body name="{_bare(n)}"><joint name="{_bare(n)}" type="hinge"/>'
+        '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body>' for n in state_names)
+    return mujoco.MjModel.from_xml_string(f'<mujoco model="states"><worldbody>{bodies}'
+                                          '</worldbody></mujoco>')
+
+
+def _bare(name: str) -> str:
+    """A state's name without its unit ("x3 [m]" → "x3")."""
+    return name.split(" [")[0]
+
+
+def _state_page(setup: SystemSetup, case: SystemCase, summary: SummaryEntry) -> None:
+    """What the page of a system that is only its ODE shows of a run, into its ``summary``:
+    the states (with the bounds of those constrained) and the input, no rates (the states
+    are the system's coordinates: each is the rate of the one before)."""
+    bounds: list[list[float] | None] = [None] * len(setup.state_names)
+    for q in case.plant.constrained:
+        if q.source == "state":
+            bounds[q.index] = [q.lower, q.upper]
+    summary["units"] = {"position": [n.partition("[")[2].rstrip("]") or "-"
+                                     for n in setup.state_names]}
+    summary["groups"] = ["position", "torque"]
+    summary["titles"] = {"position": "States", "torque": "Input"}  # its coordinates: the states
+    summary["position_bounds"] = bounds
+
+
+def _units(model: mujoco.MjModel) -> dict[str, str | list[str]]:
+    """The plots' units, one per coordinate: m for slide joints, rad for hinges (the input's
+    panel is labelled with its name and unit)."""
     slide = [model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE for j in range(model.njnt)]
-    unit = setup.input_name.partition("[")[2].rstrip("]") or "-"
     return {"position": ["m" if s else "rad" for s in slide],
-            "velocity": ["m/s" if s else "rad/s" for s in slide],
-            "torque": f"input {unit}"}
+            "velocity": ["m/s" if s else "rad/s" for s in slide]}
 
 
 def _saved(result: SystemResult, setup: SystemSetup, names: tuple[str, ...],
            units: dict[str, str | list[str]]) -> SavedTrajectory:
     traj = result.trajectory
-    assert traj.qpos is not None and traj.qvel is not None  # both loops log them
     case = next(c for c in setup.cases if c.name == result.case)
+    summary: SummaryEntry = {"status": result.summary.status, "controller": result.controller,
+                             "case": result.case, "units": units,
+                             "input_name": setup.input_name, "titles": {"torque": "Input"}}
+    if traj.qpos is None or traj.qvel is None:  # only its ODE: the states are the coordinates
+        qpos, qvel = traj.state, np.zeros_like(traj.state)
+        _state_page(setup, case, summary)
+    else:
+        qpos, qvel = traj.qpos, traj.qvel
     quantities = case.plant.constrained
     margins = np.column_stack([
         min(-q.lower, q.upper) - np.abs(traj.input if q.source == "input"
                                         else traj.state[:, q.index])
         for q in quantities])
-    n = traj.qpos.shape[1]
+    n = qpos.shape[1]
     force = np.zeros((len(traj.time), n))
     force[:, 0] = traj.input  # the input in the first column, labelled in coordinate_names
     return SavedTrajectory(
-        controller=result.controller, case=result.case, time=traj.time, position=traj.qpos,
-        velocity=traj.qvel, torque=force, joint_torque=force, margins=margins,
+        controller=result.controller, case=result.case, time=traj.time, position=qpos,
+        velocity=qvel, torque=force, joint_torque=force, margins=margins,
         margin_names=tuple(q.name for q in quantities),
         margin_types=("other",) * len(quantities), lyapunov=np.full(len(traj.time), np.nan),
         target=np.zeros(n), coordinate_names=names, outcome=traj.outcome,
-        summary={"status": result.summary.status, "controller": result.controller,
-                 "case": result.case, "units": units},
+        summary=summary,
         coordinates=np.eye(n),
     )
 
 
 def _write_system_view(folder: Path, setup: SystemSetup,
-                       results: Sequence[SystemResult]) -> Path | None:
-    """Write ``folder/view.html`` for the runs of a Part I scenario; returns its path, or None
-    (nothing written) for a system that is only its ODE: an integrator chain has no body to
-    pose, and its time plots are the figures already written."""
+                       results: Sequence[SystemResult]) -> Path:
+    """Write ``folder/view.html`` for the runs of a Part I scenario; returns its path."""
     plant = setup.cases[0].plant
-    if not isinstance(plant, Plant):
-        return None
-    model = plant.load()
+    model = plant.load() if isinstance(plant, Plant) else ode_display_model(setup.state_names)
     names = tuple(model.joint(i).name for i in range(model.njnt))
     info = SceneInfo(np.eye(model.nq), default_trace_frame(model), setup.scenario.name, ())
-    units = _units(setup, model)
+    units = _units(model)
     cases = tuple(
         SavedCase(c.name, tuple(_saved(r, setup, names, units) for r in results
                                 if r.case == c.name))
