@@ -55,6 +55,7 @@ def test_fig4_2_ramps_at_half_the_velocity_bound(chain) -> None:
     assert (out / "view.html").is_file()  # the states' time plots (tests/test_viewer_systems)
     for case in ("fig4.1", "fig4.2"):
         assert (out / case / "timeseries.png").stat().st_size > 10_000
+        assert (out / case / "margins.png").stat().st_size > 10_000  # as an arm's
 
 
 def test_mujoco_backend_is_refused_with_exit_2(tmp_path: Path, capsys) -> None:

@@ -17,6 +17,7 @@ import numpy as np
 
 from cpbc.results.drawing import draw, figure_weight, share_out
 from cpbc.results.margin_types import types_of
+from cpbc.results.plots import case_figures
 from cpbc.results.saved_run import (
     FIGURES,
     SavedCase,
@@ -127,16 +128,22 @@ def write_run_outputs(
 
 def write_system_outputs(folder: Path, setup: SystemSetup, results: Sequence[SystemResult],
                          plots: bool = True) -> Path:
-    """Into a run folder: every case's figures (<case>/timeseries.png, and path.png for a
-    vehicle; unless ``plots`` is False) and view.html. Returns the page."""
+    """Into a run folder: every case's figures, unless ``plots`` is False (the thesis's time
+    plots <case>/timeseries.png and, for a vehicle, path.png, cpbc.results.system_plots; the
+    margins over time, margins.png, drawn as an arm's by cpbc.results.plots), and view.html.
+    Returns the page."""
+    run = _system_run(folder, setup, results)
     if plots:
-        for case in setup.cases:
+        for case, saved in zip(setup.cases, run.cases, strict=True):
             runs = [(r.controller, r.trajectory) for r in results if r.case == case.name]
             (folder / case.name).mkdir(exist_ok=True)
             plot_case(folder / case.name / "timeseries.png", case.name, runs, setup.view)
             if setup.view.path is not None:
                 plot_path(folder / case.name / "path.png", case.name, runs, setup.view)
-    return _write_system_view(folder, setup, results)
+            for name, fig in case_figures(saved, None, ("margins",)).items():
+                fig.savefig(folder / case.name / f"{name}.png",
+                            metadata={"Title": fig.get_suptitle(), "Software": "cpbc"})
+    return write_view(run)
 
 
 def ode_display_model(state_names: Sequence[str]) -> mujoco.MjModel:
@@ -210,9 +217,9 @@ def _saved(result: SystemResult, setup: SystemSetup, names: tuple[str, ...],
     )
 
 
-def _write_system_view(folder: Path, setup: SystemSetup,
-                       results: Sequence[SystemResult]) -> Path:
-    """Write ``folder/view.html`` for the runs of a Part I scenario; returns its path."""
+def _system_run(folder: Path, setup: SystemSetup, results: Sequence[SystemResult]) -> SavedRun:
+    """The runs of a Part I scenario as a run folder's content: the system's MJCF (or, for
+    a system that is only its ODE, :func:`ode_display_model`) and every run's signals."""
     plant = setup.cases[0].plant
     model = plant.load() if isinstance(plant, Plant) else ode_display_model(setup.state_names)
     names = tuple(model.joint(i).name for i in range(model.njnt))
@@ -222,4 +229,4 @@ def _write_system_view(folder: Path, setup: SystemSetup,
         SavedCase(c.name, tuple(_saved(r, setup, names, units) for r in results
                                 if r.case == c.name))
         for c in setup.cases)
-    return write_view(SavedRun(folder, model, info, cases))
+    return SavedRun(folder, model, info, cases)
