@@ -49,8 +49,6 @@ from cpbc.scenario.runner import (
     run_systems,
 )
 from cpbc.scenario.schema import SystemScenario
-from cpbc.scenario.system_build import build_system
-from cpbc.scenario.system_setup import check_backend
 
 if TYPE_CHECKING:
     from cpbc.viewer.live import LiveView
@@ -93,7 +91,10 @@ def _run_system(scenario: SystemScenario, file: Path, args: argparse.Namespace,
     if args.view:
         raise CpbcError("--view streams arm scenarios only; a Part I run writes its replay "
                         "to view.html in the output folder")
-    from cpbc.viewer.outputs import write_system_outputs  # the page's modules: when used
+    # a Part I system's modules (its laws, the page's) only when one runs
+    from cpbc.scenario.system_build import build_system
+    from cpbc.scenario.system_setup import check_backend
+    from cpbc.viewer.system_outputs import write_system_outputs
 
     setup = build_system(scenario, file)
     out = args.out or Path("runs") / scenario.name

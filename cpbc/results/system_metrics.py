@@ -10,13 +10,16 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.results.metrics import RunSummary, SystemOutcome
 from cpbc.simulation.trajectory import SystemTrajectory
-from cpbc.systems.ode_plant import ConstrainedQuantity
+
+if TYPE_CHECKING:  # the systems load with a Part I scenario, not with an arm's run
+    from cpbc.systems.ode_plant import ConstrainedQuantity
 
 
 @dataclass(frozen=True)

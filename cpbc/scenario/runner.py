@@ -40,7 +40,6 @@ from cpbc.simulation import (
     run_system_mujoco,
     run_system_reference,
 )
-from cpbc.systems.ode_plant import Plant
 
 RunProgress = Callable[[str, float], None]
 
@@ -134,6 +133,8 @@ def run_system_one(setup: SystemSetup, case: SystemCase, law: SystemLaw, backend
     def report(frac: float) -> None:
         if progress is not None:
             progress(label, frac)
+
+    from cpbc.systems.ode_plant import Plant  # with a Part I scenario only
 
     k = law.for_case(case.name)
     if backend == "mujoco":
