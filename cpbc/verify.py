@@ -199,7 +199,7 @@ def run_campaign(plan: Plan, workers: int = 1, cluster: str | None = None, block
     return doc
 
 
-def _cell(text: str) -> str:
+def markdown_cell(text: str) -> str:
     """Text for a Markdown table cell: a clearance pair's name (``link|obstacle``) holds a
     bar, which would split the cell."""
     return text.replace("|", "\\|")
@@ -280,8 +280,8 @@ def _section(doc: Record) -> list[str]:
         lines.append(
             f"| {r['controller']} | {r['rate']:g} Hz | {r['runs']} | {r['violations']} | "
             f"{r['deep_violations']} | {r['worst_depth']:.2g} | "
-            f"{_cell(_margin(r))} | " + " | ".join(f"{nv[k]['runs']} ({nv[k]['violations']})"
-                                             for k in CLASSES[1:])
+            f"{markdown_cell(_margin(r))} | "
+            + " | ".join(f"{nv[k]['runs']} ({nv[k]['violations']})" for k in CLASSES[1:])
             + f" | {r['filter_share']:.1%} | {_rows(r):.1%} | {r['infeasible_steps']} | "
             f"{r.get('rescues', 0)} | {r['torque_limit_share']:.1%} | "
             + f"{', '.join(str(f['seed']) for f in r['failures'])} |")

@@ -17,7 +17,8 @@ from rich.console import Console
 from cpbc.constraints.clearance import Clearance
 from cpbc.errors import InadmissibleStateError, ScenarioError
 from cpbc.resources import scenarios_dir
-from cpbc.run import _table, main
+from cpbc.results.summary_table import summary_table
+from cpbc.run import main
 from cpbc.scenario import build, load_scenario
 from cpbc.scenario.runner import run_all
 
@@ -161,7 +162,7 @@ def test_ur5_table_names_the_joint_nearest_its_rate_bound(tmp_path: Path) -> Non
     setup = _build(tmp_path, data)
     results = run_all(setup)
     console = Console(width=400, record=True, file=io.StringIO())
-    console.print(_table(results, setup.coordinate_names))
+    console.print(summary_table([r.summary for r in results], setup.coordinate_names))
     table = console.export_text()
     assert "peak |rate|, nearest its bound" in table
     for r in results:

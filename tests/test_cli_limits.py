@@ -19,8 +19,9 @@ import yaml
 from rich.console import Console
 from rich.progress import Progress
 
+from cpbc.progress_bars import run_progress
 from cpbc.results import LOG_FILE, load_log
-from cpbc.run import _progress, main
+from cpbc.run import main
 from tools.reliability.bad_input import BASE
 
 
@@ -176,7 +177,7 @@ def test_more_runs_than_the_limit_are_refused_naming_it(
 
 def test_progress_shows_the_runs_under_way_not_every_run() -> None:
     bar = Progress(console=Console(file=io.StringIO()))
-    report = _progress(bar, 500)
+    report = run_progress(bar, 500)
     for i in range(500):
         report(f"c{i} / PD", 0.5)
         report(f"c{i} / PD", 1.0)

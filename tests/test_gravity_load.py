@@ -17,8 +17,9 @@ import yaml
 from cpbc.model.gravity_load import joint_loads
 from cpbc.model.robot_model import RobotModel
 from cpbc.results.metrics import RunSummary
+from cpbc.results.summary_table import status_text
 from cpbc.robot import main as robot_main
-from cpbc.run import _status, main
+from cpbc.run import main
 from cpbc.scenario.build import build
 from cpbc.scenario.load import load_any
 
@@ -77,7 +78,7 @@ def test_a_path_beyond_the_motors_warns_and_the_failed_run_names_it(tmp_path: Pa
     (run,) = json.loads((out / "summary.json").read_text())
     assert run["status"] == "constraint_violated"
     assert run["cause"].startswith("gravity on 'right_s1' is 53.03 N·m")
-    status = _status(RunSummary(**{k: v for k, v in run.items()
+    status = status_text(RunSummary(**{k: v for k, v in run.items()
                                    if k in RunSummary.__dataclass_fields__}))
     assert status.startswith("constraint_violated @") and status.endswith(
         f"; cause: {run['cause']}")  # the table's status line

@@ -37,20 +37,22 @@ def fig55(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
 def test_summary_reports_the_three_bounds(fig55) -> None:
     _, rows = fig55
     for row in rows.values():
-        assert row["bounds"] == {"vz": 3.5, "alpha": 0.3, "elevator": 1.0}
+        assert row["system"]["bounds"] == {"vz": 3.5, "alpha": 0.3, "elevator": 1.0}
         assert row["backend"] == "reference"
     barrier, plain = rows["constrained"], rows["traditional"]
     # the barrier law climbs at its plateau, well inside |v_z| < 3.5 and below the stall
-    assert 1.5 < barrier["peaks"]["vz"] < 1.65 and barrier["peaks"]["alpha"] < 0.2
+    peaks, plain_peaks = barrier["system"]["peaks"], plain["system"]["peaks"]
+    assert 1.5 < peaks["vz"] < 1.65 and peaks["alpha"] < 0.2
     # the traditional law overshoots the climb-rate bound and nearly stalls
-    assert plain["peaks"]["vz"] > 6.5 and 0.29 < plain["peaks"]["alpha"] < 0.3
+    assert plain_peaks["vz"] > 6.5 and 0.29 < plain_peaks["alpha"] < 0.3
     # both demand more elevator than the actuator has at the step: the aircraft's limit,
     # reported, not a violation of the problem's constraint (the climb rate)
-    assert plain["limits_reached"] == barrier["limits_reached"] == ["elevator"]
-    assert plain["violated"] == "vz" and barrier["violated"] is None
+    assert plain["system"]["limits_reached"] == barrier["system"]["limits_reached"] == ["elevator"]
+    assert plain["violated_constraint"] == "vz" and barrier["violated_constraint"] is None
     assert plain["status"] == "constraint_violated"
     assert barrier["status"] in ("converged", "not_settled")
-    assert barrier["design_bounds"] == {"(5.68) k2 + c1 on |v_z|, law 'constrained' [m/s]": 3.5}
+    assert barrier["system"]["design_bounds"] == {
+        "(5.68) k2 + c1 on |v_z|, law 'constrained' [m/s]": 3.5}
 
 
 def test_figures_path_and_replay_are_written(fig55) -> None:
@@ -88,7 +90,7 @@ def test_an_inadmissible_command_ends_the_run_naming_it(tmp_path: Path) -> None:
     rows = {r["controller"]: r for r in
             json.loads((tmp_path / "out" / "summary.json").read_text())}
     refused = rows["constrained"]
-    assert refused["status"] == "constraint_violated" and refused["violated"] == "h_d"
+    assert refused["status"] == "constraint_violated" and refused["violated_constraint"] == "h_d"
     assert refused["end_time"] == pytest.approx(20.0, abs=0.11)  # the last sample before
     assert rows["traditional"]["end_time"] == pytest.approx(25.0)
 

@@ -424,7 +424,7 @@ def test_status_says_when_the_safeguard_drove_most_of_the_run(ch7_run):
     from dataclasses import replace
 
     from cpbc.results.metrics import RunSummary
-    from cpbc.run import _notes, _safeguard
+    from cpbc.results.summary_table import run_notes, safeguard_cell
 
     _, out, _ = ch7_run
     fields = {k: v for k, v in json.loads((out / "summary.json").read_text())[0].items()
@@ -433,11 +433,11 @@ def test_status_says_when_the_safeguard_drove_most_of_the_run(ch7_run):
     half = s.control_steps // 2
     busy = replace(s, safeguard_steps=half + 1)  # just over half of the steps
     share = (half + 1) / s.control_steps
-    assert f"safeguard acted on {share:.0%} of steps" in _notes(busy)
-    assert _safeguard(busy) == f"{share:.1%} ({half + 1} steps)"
+    assert f"safeguard acted on {share:.0%} of steps" in run_notes(busy)
+    assert safeguard_cell(busy) == f"{share:.1%} ({half + 1} steps)"
     calm = replace(s, safeguard_steps=half)
-    assert "safeguard" not in _notes(calm)
-    assert _safeguard(calm) == f"{half / s.control_steps:.1%} ({half} steps)"
+    assert "safeguard" not in run_notes(calm)
+    assert safeguard_cell(calm) == f"{half / s.control_steps:.1%} ({half} steps)"
 
 
 def test_summary_csv_names_the_violated_constraint(tmp_path: Path) -> None:

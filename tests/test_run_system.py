@@ -50,14 +50,16 @@ def test_suspension_barrier_keeps_the_travel_and_the_comparison_does_not(suspens
     folder, mj, _ = suspension
     for case in ("fig3.6", "fig3.7"):
         e = mj[case, "barrier"]
-        assert e["bounds"] == {"x3": 0.1}
-        assert 0.05 < e["peaks"]["x3"] < 0.1, e["peaks"]  # the bump does load it
+        assert e["system"]["bounds"] == {"x3": 0.1}
+        peaks = e["system"]["peaks"]
+        assert 0.05 < peaks["x3"] < 0.1, peaks  # the bump does load it
         assert e["status"] != "constraint_violated"
         assert load_log(folder / "mujoco" / LOG_FILE, case, "barrier")["time"].size
         assert (folder / "mujoco" / case / "timeseries.png").stat().st_size > 10_000
     worse = mj["fig3.6", "unconstrained"]
-    assert worse["status"] == "constraint_violated" and worse["violated"] == "x3"
-    assert worse["peaks"]["x3"] > 0.1 and 0.0 < worse["crossed_at"] < 0.08  # on the bump
+    assert worse["status"] == "constraint_violated" and worse["violated_constraint"] == "x3"
+    own = worse["system"]
+    assert own["peaks"]["x3"] > 0.1 and 0.0 < own["crossed_at"] < 0.08  # on the bump
 
 
 def test_suspension_mujoco_agrees_with_the_reference(suspension) -> None:
@@ -67,7 +69,7 @@ def test_suspension_mujoco_agrees_with_the_reference(suspension) -> None:
     for key, e in mj.items():
         assert ref[key]["backend"] == "reference" and e["backend"] == "mujoco"
         if key != ("fig3.7", "unconstrained"):
-            assert abs(e["peaks"]["x3"] - ref[key]["peaks"]["x3"]) < 2e-4, key
+            assert abs(e["system"]["peaks"]["x3"] - ref[key]["system"]["peaks"]["x3"]) < 2e-4, key
 
 
 def test_suspension_trajectory_file(suspension) -> None:
@@ -85,10 +87,11 @@ def test_rwp_converges_on_the_pendulum_within_its_bounds(backend: str, tmp_path:
     path = shipped("ch3_rwp", tmp_path, 12.0, ["fig3.9"])
     e = run(path, tmp_path / "out", "--backend", backend, "--no-plots")["fig3.9", "barrier"]
     assert e["status"] == "converged" and 6.5 < e["settle_time"] < 8.0
-    assert e["bounds"] == {"dq1": 1.0, "tau": 0.4}
-    assert 0.8 < e["peaks"]["dq1"] < 1.0 and 0.38 < e["peaks"]["tau"] < 0.4
-    assert abs(e["final_state"]["dq2"]) > 1e4 and e["peak_abs"]["dq2"] > 2e4
-    assert e["design_bounds"]["(3.159) |τ| printed [N m]"] == pytest.approx(0.3949, abs=1e-4)
+    assert e["system"]["bounds"] == {"dq1": 1.0, "tau": 0.4}
+    assert 0.8 < e["system"]["peaks"]["dq1"] < 1.0 and 0.38 < e["system"]["peaks"]["tau"] < 0.4
+    assert abs(e["system"]["final_state"]["dq2"]) > 1e4 and e["system"]["peak_abs"]["dq2"] > 2e4
+    printed = e["system"]["design_bounds"]["(3.159) |τ| printed [N m]"]
+    assert printed == pytest.approx(0.3949, abs=1e-4)
 
 
 def test_rwp_figures_have_the_phase_portrait(tmp_path: Path) -> None:
@@ -107,7 +110,7 @@ def test_a_coarser_control_rate_and_another_bump(tmp_path: Path) -> None:
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     e = run(path, tmp_path / "out", "--no-plots")["bump9", "barrier"]
-    assert 0.05 < e["peaks"]["x3"] < 0.1
+    assert 0.05 < e["system"]["peaks"]["x3"] < 0.1
 
 
 def test_system_runs_write_the_arm_files_and_vocabulary(suspension) -> None:
@@ -127,7 +130,9 @@ def test_system_runs_write_the_arm_files_and_vocabulary(suspension) -> None:
     assert set(by_run) == set(mj)
     worse = by_run["fig3.6", "unconstrained"]
     assert worse["status"] == "constraint_violated" and worse["crossed_constraints"] == "x3"
-    assert worse["worst_margins"].startswith("x3 -")  # past its bound: a negative margin
+    # the arm's format, type value unit (constraint); past its bound: a negative margin
+    assert worse["worst_margins"].startswith("other -") and worse["worst_margins"].endswith(
+        " m (x3)")
     assert float(by_run["fig3.6", "barrier"]["worst_margins"].split()[1]) > 0
     assert {e["status"] for e in (*mj.values(), *ref.values())} <= set(STATUSES)
     assert all(e["steps_per_second"] > 0 for e in mj.values())

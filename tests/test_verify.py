@@ -141,9 +141,10 @@ def test_a_part_one_scenario_is_refused_with_the_reason(capsys):
 
 
 def test_a_clearance_pairs_bar_does_not_split_a_report_cell():
-    from cpbc.verify import _cell
+    from cpbc.verify import markdown_cell
 
-    assert _cell("0.01 (clearance[panda_hand|ball])") == "0.01 (clearance[panda_hand\\|ball])"
+    cell = markdown_cell("0.01 (clearance[panda_hand|ball])")
+    assert cell == "0.01 (clearance[panda_hand\\|ball])"
 
 
 def test_one_rule_counts_runs_at_or_below_zero_and_deeper_than_the_tolerance():

@@ -96,3 +96,49 @@ def test_replaying_a_system_run_says_to_open_its_page(car: Path, capsys) -> None
     assert viewer([str(car), "--export"]) == 2
     err = capsys.readouterr().err
     assert "Part I system run" in err and "view.html" in err
+
+
+@pytest.fixture(scope="module")
+def chain(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return _run(tmp_path_factory.mktemp("chain"), "ch4_integrator_chain", 30.0, ["fig4.1"])
+
+
+def test_integrator_chain_page_plots_the_states_against_their_bounds(chain: Path) -> None:
+    """The chain is only its ODE: its page has no body, and shows the four states (ξ2, ξ3,
+    ξ4 with their bounds ±2.5, ±12, ±700) and the input, from the run's log."""
+    data = _page_data(chain / "view.html")
+    assert data["bodies"] == []
+    (case,) = data["cases"]
+    assert [g["title"] for g in case["plots"]] == ["States", "Input", "Margins by type"]
+    states = case["plots"][0]["panels"]
+    assert [p["label"] for p in states] == ["xi1 [-]", "xi2 [-]", "xi3 [-]", "xi4 [-]"]
+    bounds = [sorted(line["y"] for line in p["lines"] if line["label"] != "target")
+              for p in states]
+    assert bounds == [[], [-2.5, 2.5], [-12.0, 12.0], [-700.0, 700.0]]
+    z = load_log(chain / LOG_FILE, "fig4.1", "barrier")
+    series = case["series"][0]
+    xi1 = unpacked(series["columns"]["position0"])
+    shown = unpacked(series["time"])
+    logged = np.interp(shown, z["time"], z["state"][:, 0])
+    assert np.abs(xi1 - logged).max() < 1e-3 * np.abs(logged).max()  # its samples, single
+    u = unpacked(series["columns"]["torque0"])
+    assert np.abs(u).max() == pytest.approx(np.abs(z["input"]).max(), rel=1e-6)
+
+
+@needs_chromium
+def test_integrator_chain_page_renders(chain: Path, tmp_path: Path) -> None:
+    with HeadlessChromium(width=900, height=600) as browser:
+        browser.open((chain / "view.html").as_uri(), READY, timeout=90)
+        assert browser.evaluate("cpbc.case") == "fig4.1"
+        browser.next_frames(3)
+        shot = np.frombuffer(browser.screenshot(tmp_path / "chain.png"), dtype=np.uint8)
+        assert shot.size > 10_000
+
+
+def test_a_system_page_plots_its_one_input_once(car: Path) -> None:
+    """The input has one panel, named as the system names it (not a zero column per
+    MuJoCo coordinate)."""
+    (case,) = _page_data(car / "view.html")["cases"]
+    assert [g["title"] for g in case["plots"]] == ["Positions", "Rates", "Input",
+                                                   "Margins by type"]
+    assert [p["label"] for p in case["plots"][2]["panels"]] == ["u [m/s²]"]

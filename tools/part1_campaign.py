@@ -103,9 +103,9 @@ def campaign(name: str, box: list[float], bump_max: float | None, periods: list[
             mine = [(r, states[int(r.case[1:])][2]) for r in results if r.controller == law]
             bad = [(r, edge) for r, edge in mine if r.summary.status in
                    ("constraint_violated", "diverged")]
-            worst = max(max(p / r.summary.bounds[k] for k, p in r.summary.peaks.items())
-                        for r, _ in mine)
-            kinds = sorted({f"{r.summary.status}: {r.summary.violated}" for r, _ in bad})
+            outcomes = [r.summary.system for r, _ in mine if r.summary.system is not None]
+            worst = max(max(p / o.bounds[k] for k, p in o.peaks.items()) for o in outcomes)
+            kinds = sorted({f"{r.summary.status}: {r.summary.violated_constraint}" for r, _ in bad})
             rate = "continuous (reference)" if period is None else f"{period:g}"
             print(f"| {rate} | {law} | {len(mine)} | {len(bad)} | "
                   f"{sum(edge for _, edge in bad)} | {worst:.4f} | {'; '.join(kinds)} |")

@@ -1,5 +1,6 @@
-"""Files of a scenario run: summary.csv and summary.json (an arm's runs or a Part I
-system's, one format), and the staging of the run folder (the logs: cpbc.results.hdf5_log)."""
+"""Files of a scenario run: summary.csv and summary.json (one record per run, an arm's or a
+Part I system's: cpbc.results.metrics.RunSummary), and the staging of the run folder (the
+logs: cpbc.results.hdf5_log)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import contextlib
 import csv
 import errno
 import json
+import math
 import secrets
 import shutil
 from collections.abc import Iterator, Sequence
@@ -16,7 +18,6 @@ from pathlib import Path
 from cpbc.errors import CpbcError
 from cpbc.results.metrics import RunSummary
 from cpbc.results.saved_run import FIGURES
-from cpbc.results.system_metrics import SystemSummary
 
 CSV_COLUMNS = (
     "controller", "controller_type", "case", "backend", "status", "end_time", "final_error",
@@ -39,7 +40,10 @@ _LEGACY = ("summary.json", "summary.csv", "scene.mjb", "scene.mjb.gz", "scene.js
 
 
 def _csv_row(s: RunSummary) -> dict[str, object]:
+    """A run's row; a number that does not apply (a Part I run's V: NaN) is left empty."""
     row = {k: getattr(s, k) for k in CSV_COLUMNS if hasattr(s, k)}
+    row = {k: "" if isinstance(v, float) and not math.isfinite(v) else v
+           for k, v in row.items()}
     row["worst_margins"] = "; ".join(
         f"{w.type} {w.value:.6g} {w.unit} ({w.constraint})".replace("  ", " ")
         for w in s.worst_margins())
@@ -57,10 +61,10 @@ def _csv_row(s: RunSummary) -> dict[str, object]:
     return row
 
 
-def write_summaries(folder: Path, summaries: Sequence[RunSummary] | Sequence[SystemSummary]
-                    ) -> None:
+def write_summaries(folder: Path, summaries: Sequence[RunSummary]) -> None:
     """summary.json (a list of run objects) and summary.csv (one row per run; a Part I run
-    fills the columns that apply to it)."""
+    fills the columns that apply to it, its own quantities are in summary.json's
+    ``system``)."""
     (folder / "summary.json").write_text(
         json.dumps([s.as_dict() for s in summaries], indent=2, allow_nan=False)
     )
@@ -68,7 +72,7 @@ def write_summaries(folder: Path, summaries: Sequence[RunSummary] | Sequence[Sys
         writer = csv.DictWriter(fh, fieldnames=list(CSV_COLUMNS))
         writer.writeheader()
         for s in summaries:
-            writer.writerow(s.csv_row() if isinstance(s, SystemSummary) else _csv_row(s))
+            writer.writerow(_csv_row(s))
 
 
 def earlier_output(out: Path) -> set[Path]:

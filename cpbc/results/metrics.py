@@ -1,4 +1,8 @@
-"""What a run did, judged from its data: status, settle time, peaks, margins, V."""
+"""What a run did, judged from its data: status, settle time, peaks, margins, V.
+
+:class:`RunSummary` is the one record of a run, an arm's (:func:`summarise`) or a Part I
+system's (cpbc.results.system_metrics): the same status vocabulary and the same fields where
+they apply, a Part I run's own quantities in its :class:`SystemOutcome` (``system``)."""
 
 from __future__ import annotations
 
@@ -9,6 +13,7 @@ import numpy as np
 
 from cpbc.constraints.base import Array
 from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.margins import BY_KEY
 from cpbc.controllers.base import Controller
 from cpbc.results.margin_types import WorstMargin, physical_history, types_of, worst_by_type
 from cpbc.simulation.trajectory import Trajectory
@@ -39,6 +44,30 @@ class SettleCriteria:
 
 
 @dataclass(frozen=True)
+class SystemOutcome:
+    """What a Part I system's run has beyond an arm's fields (cpbc.results.system_metrics).
+
+    Attributes:
+        peaks, bounds: per constrained quantity, max |value| and the bound on |value| (of the
+            side of an asymmetric interval the run came nearer to, in proportion).
+        peak_abs, final_state: max |value| and last value of every state component and the
+            input (the wheel's speed among them).
+        design_bounds: the thesis's a-priori bounds evaluated for the gains (name → value).
+        limits_reached: the plant's limits (the stall, the elevator's travel) the run reached:
+            reported, not violations.
+        crossed_at: first sample at which a constrained quantity was at its bound [s].
+    """
+
+    peaks: dict[str, float]
+    bounds: dict[str, float]
+    peak_abs: dict[str, float]
+    final_state: dict[str, float]
+    design_bounds: dict[str, float]
+    limits_reached: list[str]
+    crossed_at: float | None
+
+
+@dataclass(frozen=True)
 class RunSummary:
     """One controller on one case.
 
@@ -48,7 +77,13 @@ class RunSummary:
     plant's torque limit), ``peak_commanded_torques`` what the controller asked for, and
     ``peak_torque_norm`` the largest ‖τ‖ commanded (what a theoretical ``torque_bound``
     bounds). ``min_margins`` are distances to the bounds in each constraint type's unit
-    (``margin_types``; see cpbc.results.margin_types).
+    (``margin_types``; see cpbc.results.margin_types), ``margin_units`` their units.
+
+    A Part I system's run (``system`` set) fills the fields that apply: its input u as the
+    torques (one column), its constrained quantities' margins (type "other", each in its own
+    unit), ``final_error`` the largest judged component at the end; it has no joint rates
+    (empty lists), no V (NaN, null in JSON), no safeguard, contacts or saturation counted
+    (0), and ``steps_per_second`` None on the reference backend, whose samples are not steps.
     """
 
     controller: str
@@ -78,7 +113,7 @@ class RunSummary:
     saturated_steps: int
     wall_time: float
     control_steps: int
-    steps_per_second: float
+    steps_per_second: float | None
     extra: dict[str, float] = field(default_factory=dict)
     safeguard_steps: int = 0
     safeguard_infeasible: int = 0
@@ -104,6 +139,11 @@ class RunSummary:
     governor: dict[str, float] | None = None
     blocked_by: str | None = None
     blocked_at: dict[str, float] | None = None
+    # every margin's unit (the unit of its type for an arm's, the quantity's own for a
+    # Part I system's)
+    margin_units: dict[str, str] = field(default_factory=dict)
+    # a Part I system's run: its own quantities; None for an arm's
+    system: SystemOutcome | None = None
 
     @property
     def safeguard_share(self) -> float:
@@ -121,11 +161,16 @@ class RunSummary:
                                                    or self.safeguard_infeasible)
 
     def worst_margins(self) -> list[WorstMargin]:
-        """Per constraint type, the constraint that came nearest its bound."""
-        return worst_by_type(self.min_margins, self.margin_types)
+        """Per constraint type, the constraint that came nearest its bound; a Part I
+        system's few quantities (all of type "other", in units of their own) one by one."""
+        if self.system is None:
+            return worst_by_type(self.min_margins, self.margin_types)
+        return [WorstMargin(self.margin_types[n], self.margin_units.get(n, ""), n, v)
+                for n, v in self.min_margins.items()]
 
     def as_dict(self) -> dict[str, object]:
-        out = {k: _plain(v) for k, v in self.__dict__.items()}
+        out = {k: _plain(v) for k, v in self.__dict__.items() if k != "system"}
+        out["system"] = None if self.system is None else _plain(dict(self.system.__dict__))
         out["safeguard_share"] = self.safeguard_share
         out["worst_margins"] = [_plain(dict(w.__dict__)) for w in self.worst_margins()]
         return out
@@ -220,6 +265,7 @@ def summarise(
     }
     dv = np.diff(lyapunov)
     dv = dv[np.isfinite(dv)]
+    types = dict(zip(monitor.names, types_of(monitor, lengths), strict=True))
     return RunSummary(
         controller=name,
         controller_type=controller.type_name,
@@ -239,7 +285,7 @@ def summarise(
         peak_torque_norm=float(np.max(np.linalg.norm(finite_tau, axis=1))),
         torque_bound=controller.torque_bound,
         min_margins=min_margins,
-        margin_types=dict(zip(monitor.names, types_of(monitor, lengths), strict=True)),
+        margin_types=types,
         crossed_constraints=[n for n, v in min_margins.items() if v <= 0],
         enforced_constraints=list(controller.constraints.names),
         max_lyapunov_increase=float(max(dv.max(), 0.0)) if dv.size else 0.0,
@@ -253,6 +299,7 @@ def summarise(
         safeguard_infeasible=traj.safeguard_infeasible,
         rescues=getattr(traj, "rescues", 0),
         rejected_samples=traj.rejected_samples,
+        margin_units={n: BY_KEY[t].unit for n, t in types.items()},
     )
 
 

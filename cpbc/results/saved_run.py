@@ -57,6 +57,13 @@ class SummaryEntry(_SummaryKeys, total=False):
     torque_limits: list[float | None] | None
     torque_bound: float | None
     units: dict[str, str | list[str]]  # the plots' units when not an arm's (per coordinate or all)
+    # a system that is only its ODE (its page: cpbc.viewer.outputs): the page's groups of
+    # plots ("position", "velocity", "torque"), their titles, and a bound interval per
+    # position (None: unbounded)
+    groups: list[str]
+    titles: dict[str, str]
+    position_bounds: list[list[float] | None]
+    input_name: str  # a Part I system's one input, with its unit: the torques' one panel
     cause: str | None  # why a failed run likely failed, when foreseen (RunSummary.cause)
 
 
@@ -259,13 +266,13 @@ def _logs(folder: Path, summaries: list[SummaryEntry]) -> list[dict[str, Any]]:
 
 
 def _is_system_run(folder: Path) -> bool:
-    """A Part I run's summary.json: run objects with ``peaks`` and ``bounds``."""
+    """A Part I run's summary.json: run objects with a ``system`` outcome."""
     try:
         runs = json.loads((folder / SUMMARY).read_text())
     except (OSError, ValueError):
         return False
     return isinstance(runs, list) and bool(runs) and all(
-        isinstance(r, dict) and "peaks" in r and "bounds" in r for r in runs)
+        isinstance(r, dict) and isinstance(r.get("system"), dict) for r in runs)
 
 
 def load_run(folder: Path | str) -> SavedRun:

@@ -1,19 +1,25 @@
 """Results of a Part I system run: what the results show of the system (:class:`SystemView`)
-and the summary (peaks and bounds of every constrained quantity, convergence on the
-components the system names). Written with an arm's summaries (cpbc.results.io: summary.json
-and summary.csv), logs (cpbc.results.hdf5_log) and figures (cpbc.results.system_plots)."""
+and its summary, the arm's record (cpbc.results.metrics.RunSummary) with the fields that
+apply filled and the system's own quantities in its SystemOutcome (peaks and bounds of every
+constrained quantity, convergence on the components the system names). Written as an arm's
+summaries (cpbc.results.io: summary.json and summary.csv), logs (cpbc.results.hdf5_log) and
+figures (cpbc.results.system_plots, and the margins through cpbc.results.plots)."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.results.metrics import RunSummary, SystemOutcome
 from cpbc.simulation.trajectory import SystemTrajectory
-from cpbc.systems.ode_plant import ConstrainedQuantity
+
+if TYPE_CHECKING:  # the systems load with a Part I scenario, not with an arm's run
+    from cpbc.systems.ode_plant import ConstrainedQuantity
 
 
 @dataclass(frozen=True)
@@ -50,55 +56,6 @@ class SystemView:
     path: tuple[int, int] | None = None
 
 
-@dataclass(frozen=True)
-class SystemSummary:
-    """One run. ``peaks``/``bounds``: max |value| and the bound on |value| of every
-    constrained quantity; ``peak_abs``/``final_state``: every state component and the input."""
-
-    case: str
-    controller: str
-    backend: str
-    status: str  # converged, not_settled, constraint_violated, diverged
-    end_time: float
-    violated: str | None
-    crossed_at: float | None  # first sample at which a constrained quantity was at its bound
-    settle_time: float | None
-    peaks: dict[str, float]
-    bounds: dict[str, float]
-    peak_abs: dict[str, float]
-    final_state: dict[str, float]
-    design_bounds: dict[str, float]
-    wall_time: float
-    limits_reached: tuple[str, ...] = ()  # the plant's limits its run reached (not violations)
-    # MuJoCo's control steps per wall-clock second; None for the reference, whose samples
-    # are not its steps
-    steps_per_second: float | None = None
-
-    def as_dict(self) -> dict[str, object]:
-        return {k: _finite_or_none(v) for k, v in self.__dict__.items()}
-
-    def csv_row(self) -> dict[str, object]:
-        """The columns of summary.csv (cpbc.results.io.CSV_COLUMNS) that apply to a Part I
-        run; the peaks and bounds, which have no arm column, are in summary.json."""
-        crossed = self.violated.split(", ") if self.violated else []
-        margins = "; ".join(f"{n} {self.bounds[n] - p:.6g}" for n, p in self.peaks.items())
-        samples_per_second = "" if self.steps_per_second is None else f"{self.steps_per_second:.6g}"
-        return {"controller": self.controller, "case": self.case, "backend": self.backend,
-                "status": self.status, "end_time": self.end_time,
-                "settle_time": self.settle_time, "worst_margins": margins,
-                "crossed_constraints": " ".join(crossed), "wall_time": self.wall_time,
-                "steps_per_second": samples_per_second,
-                "violated_constraint": self.violated or ""}
-
-
-def _finite_or_none(v: object) -> object:
-    if isinstance(v, float):
-        return v if math.isfinite(v) else None
-    if isinstance(v, dict):
-        return {k: _finite_or_none(x) for k, x in v.items()}
-    return v
-
-
 def _values(traj: SystemTrajectory, q: ConstrainedQuantity) -> Array:
     return traj.input if q.source == "input" else traj.state[:, q.index]
 
@@ -126,10 +83,14 @@ def _judged(traj: SystemTrajectory, view: SystemView) -> Array:
     return np.max(np.column_stack(cols), axis=1)
 
 
-def summarise_system(
-    case: str, controller: str, traj: SystemTrajectory, constrained: Sequence[ConstrainedQuantity],
-    view: SystemView, state_names: Sequence[str], input_name: str, tolerance: float,
-) -> SystemSummary:
+#: controller_type of a Part I law with and without its barrier
+BARRIER_LAW, PLAIN_LAW = "barrier backstepping", "backstepping"
+
+
+def _crossings(traj: SystemTrajectory, constrained: Sequence[ConstrainedQuantity]
+               ) -> tuple[dict[str, float], dict[str, float], list[str], list[str], float]:
+    """Peaks and bounds of every constrained quantity, the constraints crossed, the plant's
+    limits reached, and the first sample at a crossed constraint's bound (inf: none)."""
     peaks, bounds, crossed, reached, first = {}, {}, [], [], math.inf
     for q in constrained:
         v = _values(traj, q)
@@ -140,16 +101,33 @@ def summarise_system(
         elif out.size:
             crossed.append(q.name)
             first = min(first, float(traj.time[out[0]]))
-    err = _judged(traj, view)
+    return peaks, bounds, crossed, reached, first
+
+
+def _judge(traj: SystemTrajectory, err: Array, crossed: list[str], tolerance: float
+           ) -> tuple[str, float | None]:
+    """Status and settle time: settled once every judged component stays below
+    ``tolerance`` to the end."""
     outside = np.nonzero(~(err < tolerance))[0]
     settled = traj.outcome == "completed" and (outside.size == 0 or outside[-1] < len(err) - 1)
     settle = (float(traj.time[outside[-1] + 1]) if outside.size else 0.0) if settled else None
     if traj.outcome != "completed":
-        status = traj.outcome
-    elif crossed:
-        status = "constraint_violated"
-    else:
-        status = "converged" if settled else "not_settled"
+        return traj.outcome, settle
+    if crossed:
+        return "constraint_violated", settle
+    return ("converged" if settled else "not_settled"), settle
+
+
+def summarise_system(
+    case: str, controller: str, traj: SystemTrajectory, constrained: Sequence[ConstrainedQuantity],
+    view: SystemView, state_names: Sequence[str], input_name: str, tolerance: float,
+    barrier: bool = True,
+) -> RunSummary:
+    """A Part I run as the arm's record; ``barrier``: whether the law enforces the system's
+    constraints (its plant's limits are enforced by none)."""
+    peaks, bounds, crossed, reached, first = _crossings(traj, constrained)
+    err = _judged(traj, view)
+    status, settle = _judge(traj, err, crossed, tolerance)
     names = [*state_names, input_name.split(" ")[0]]
     columns = [*traj.state.T, traj.input]
     peak_abs = {n: float(np.nanmax(np.abs(c))) if np.isfinite(c).any() else math.nan
@@ -158,6 +136,23 @@ def summarise_system(
     violated = traj.violated or (", ".join(crossed) if crossed else None)
     rate = (len(traj.time) / traj.wall_time if traj.backend == "mujoco" and traj.wall_time > 0
             else None)
-    return SystemSummary(case, controller, traj.backend, status, traj.end_time, violated,
-                         first if crossed else None, settle, peaks, bounds, peak_abs, final,
-                         dict(view.design_bounds), traj.wall_time, tuple(reached), rate)
+    u = peak_abs[names[-1]]
+    limit = next((min(-q.lower, q.upper) for q in constrained
+                  if q.source == "input" and q.limit), None)
+    outcome = SystemOutcome(peaks, bounds, peak_abs, final, dict(view.design_bounds), reached,
+                            first if crossed else None)
+    return RunSummary(
+        controller=controller, controller_type=BARRIER_LAW if barrier else PLAIN_LAW,
+        case=case, backend=traj.backend, status=status, end_time=traj.end_time,
+        violated_constraint=violated, final_error=float(err[-1]) if err.size else math.nan,
+        settle_time=settle, peak_joint_rates=[], rate_bounds=[], peak_torques=[u],
+        peak_commanded_torques=[u], peak_joint_torques=[u],
+        torque_limits=None if limit is None else [limit], peak_torque_norm=u,
+        torque_bound=None, min_margins={n: bounds[n] - p for n, p in peaks.items()},
+        margin_types={q.name: "other" for q in constrained}, crossed_constraints=crossed,
+        enforced_constraints=[q.name for q in constrained if barrier and not q.limit],
+        max_lyapunov_increase=math.nan, initial_lyapunov=math.nan, max_contacts=0,
+        saturated_steps=0, wall_time=traj.wall_time,
+        control_steps=len(traj.time) if traj.backend == "mujoco" else 0,
+        steps_per_second=rate, margin_units={q.name: q.unit for q in constrained},
+        system=outcome)

@@ -26,7 +26,7 @@ from cpbc.reference.tracker import ReferenceTracker
 from cpbc.results.drawing import quiet_on_interrupt
 from cpbc.results.metrics import RunSummary, margin_history, summarise
 from cpbc.results.reference_metrics import reference_log, reference_outcome
-from cpbc.results.system_metrics import SystemSummary, summarise_system
+from cpbc.results.system_metrics import summarise_system
 from cpbc.results.task_metrics import task_errors, task_outcome
 from cpbc.scenario.build import CaseEntry, ControllerEntry, ScenarioSetup, build
 from cpbc.scenario.schema import Scenario
@@ -40,7 +40,6 @@ from cpbc.simulation import (
     run_system_mujoco,
     run_system_reference,
 )
-from cpbc.systems.ode_plant import Plant
 
 RunProgress = Callable[[str, float], None]
 
@@ -122,7 +121,7 @@ class SystemResult:
     case: str
     controller: str
     trajectory: SystemTrajectory
-    summary: SystemSummary
+    summary: RunSummary
 
 
 def run_system_one(setup: SystemSetup, case: SystemCase, law: SystemLaw, backend: str,
@@ -135,6 +134,8 @@ def run_system_one(setup: SystemSetup, case: SystemCase, law: SystemLaw, backend
         if progress is not None:
             progress(label, frac)
 
+    from cpbc.systems.ode_plant import Plant  # with a Part I scenario only
+
     k = law.for_case(case.name)
     if backend == "mujoco":
         if not isinstance(case.plant, Plant):  # check_backend refuses it first
@@ -146,7 +147,8 @@ def run_system_one(setup: SystemSetup, case: SystemCase, law: SystemLaw, backend
                                     setup.control_period)
     report(1.0)
     summary = summarise_system(case.name, law.name, traj, case.plant.constrained, setup.view,
-                               setup.state_names, setup.input_name, sim.tolerance)
+                               setup.state_names, setup.input_name, sim.tolerance,
+                               law.barrier)
     return SystemResult(case.name, law.name, traj, summary)
 
 

@@ -9,14 +9,17 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from cpbc.backstepping import DesignError
 from cpbc.errors import ScenarioError
 from cpbc.results.system_metrics import SystemView
 from cpbc.scenario.schema import SystemScenario
-from cpbc.systems.ode_plant import OdePlant, Plant, State
 
-Law = Callable[[State, float], float]  # u = k(x, t)
+if TYPE_CHECKING:  # the systems and their laws load with a Part I scenario, not an arm's
+    from cpbc.backstepping.design_errors import DesignError
+    from cpbc.systems.ode_plant import OdePlant
+
+Law = Callable[[tuple[float, ...], float], float]  # u = k(x, t), x a State
 
 
 @dataclass(frozen=True)
@@ -34,7 +37,7 @@ class SystemLaw:
 @dataclass(frozen=True)
 class SystemCase:
     name: str
-    state: State
+    state: tuple[float, ...]  # the initial state x (cpbc.systems.ode_plant.State)
     plant: OdePlant  # a Plant (with its MJCF) unless the system is only its ODE
 
 
@@ -61,6 +64,8 @@ def check_backend(setup: SystemSetup, backend: str, field: str) -> None:
     only its ODE: a plant with no MuJoCo model (the integrator chain: nothing for a physics
     engine to add), or one whose MJCF only replays the path (the Aerosonde, whose forces
     depend on α̇)."""
+    from cpbc.systems.ode_plant import Plant  # with a Part I scenario only
+
     plant = next((c.plant for c in setup.cases if not c.plant.physics), None)
     if backend != "mujoco" or plant is None:
         return

@@ -35,7 +35,7 @@ class ConstrainedQuantity:
         unit: for reports.
         limit: a limit of the plant, not a constraint of the problem (an actuator that
             saturates, the stall): reported with its bound, and its crossing named
-            (``SystemSummary.limits_reached``), but no run is ``constraint_violated`` by it.
+            (``RunSummary.system.limits_reached``), but no run is ``constraint_violated`` by it.
     """
 
     name: str

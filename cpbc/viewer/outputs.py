@@ -1,35 +1,23 @@
-"""What a scenario run leaves besides its data: the scene files, the figures, ``view.html``;
-an arm's (:func:`write_run_outputs`) or a Part I system's (:func:`write_system_outputs`: its
-figures, and the same page drawing the system's MJCF geometry replayed from the logged MuJoCo
-coordinates, with one timeline for the scene and the time plots; the plots show MuJoCo's
-coordinates and the input, the margins each constrained quantity's distance to its bound)."""
+"""What an arm's scenario run leaves besides its data: the scene files, the figures,
+``view.html`` (a Part I system's: cpbc.viewer.system_outputs)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from concurrent.futures import Executor
 from pathlib import Path
 
 import mujoco
-import numpy as np
 
 from cpbc.results.drawing import draw, figure_weight, share_out
 from cpbc.results.margin_types import types_of
 from cpbc.results.saved_run import (
     FIGURES,
-    SavedCase,
-    SavedRun,
-    SavedTrajectory,
     SceneInfo,
     load_run,
     write_scene,
 )
 from cpbc.results.sweep import SceneKinematics, default_trace_frame
-from cpbc.results.system_plots import plot_case, plot_path
 from cpbc.scenario.build import ScenarioSetup
-from cpbc.scenario.runner import SystemResult
-from cpbc.scenario.system_setup import SystemSetup
-from cpbc.systems.ode_plant import Plant
 from cpbc.taskspace.goal import AxisGoal
 from cpbc.viewer.export import write_view
 from cpbc.viewer.goal_marker import goal_entry
@@ -121,72 +109,3 @@ def write_run_outputs(
     future = pool.submit(draw, folder, theirs)
     page = write_view(load_run(folder), settings=settings)
     return [*future.result(), *draw(folder, ours), page]
-
-def write_system_outputs(folder: Path, setup: SystemSetup, results: Sequence[SystemResult],
-                         plots: bool = True) -> Path | None:
-    """Into a run folder: every case's figures (<case>/timeseries.png, and path.png for a
-    vehicle; unless ``plots`` is False) and view.html. Returns the page, or None (nothing
-    written) for a system that is only its ODE: an integrator chain has no body to pose, and
-    its time plots are its figures."""
-    if plots:
-        for case in setup.cases:
-            runs = [(r.controller, r.trajectory) for r in results if r.case == case.name]
-            (folder / case.name).mkdir(exist_ok=True)
-            plot_case(folder / case.name / "timeseries.png", case.name, runs, setup.view)
-            if setup.view.path is not None:
-                plot_path(folder / case.name / "path.png", case.name, runs, setup.view)
-    return _write_system_view(folder, setup, results)
-
-
-def _units(setup: SystemSetup, model: mujoco.MjModel) -> dict[str, str | list[str]]:
-    """The plots' units, one per coordinate: m for slide joints, rad for hinges; the input's
-    own unit."""
-    slide = [model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE for j in range(model.njnt)]
-    unit = setup.input_name.partition("[")[2].rstrip("]") or "-"
-    return {"position": ["m" if s else "rad" for s in slide],
-            "velocity": ["m/s" if s else "rad/s" for s in slide],
-            "torque": f"input {unit}"}
-
-
-def _saved(result: SystemResult, setup: SystemSetup, names: tuple[str, ...],
-           units: dict[str, str | list[str]]) -> SavedTrajectory:
-    traj = result.trajectory
-    assert traj.qpos is not None and traj.qvel is not None  # both loops log them
-    case = next(c for c in setup.cases if c.name == result.case)
-    quantities = case.plant.constrained
-    margins = np.column_stack([
-        min(-q.lower, q.upper) - np.abs(traj.input if q.source == "input"
-                                        else traj.state[:, q.index])
-        for q in quantities])
-    n = traj.qpos.shape[1]
-    force = np.zeros((len(traj.time), n))
-    force[:, 0] = traj.input  # the input in the first column, labelled in coordinate_names
-    return SavedTrajectory(
-        controller=result.controller, case=result.case, time=traj.time, position=traj.qpos,
-        velocity=traj.qvel, torque=force, joint_torque=force, margins=margins,
-        margin_names=tuple(q.name for q in quantities),
-        margin_types=("other",) * len(quantities), lyapunov=np.full(len(traj.time), np.nan),
-        target=np.zeros(n), coordinate_names=names, outcome=traj.outcome,
-        summary={"status": result.summary.status, "controller": result.controller,
-                 "case": result.case, "units": units},
-        coordinates=np.eye(n),
-    )
-
-
-def _write_system_view(folder: Path, setup: SystemSetup,
-                       results: Sequence[SystemResult]) -> Path | None:
-    """Write ``folder/view.html`` for the runs of a Part I scenario; returns its path, or None
-    (nothing written) for a system that is only its ODE: an integrator chain has no body to
-    pose, and its time plots are the figures already written."""
-    plant = setup.cases[0].plant
-    if not isinstance(plant, Plant):
-        return None
-    model = plant.load()
-    names = tuple(model.joint(i).name for i in range(model.njnt))
-    info = SceneInfo(np.eye(model.nq), default_trace_frame(model), setup.scenario.name, ())
-    units = _units(setup, model)
-    cases = tuple(
-        SavedCase(c.name, tuple(_saved(r, setup, names, units) for r in results
-                                if r.case == c.name))
-        for c in setup.cases)
-    return write_view(SavedRun(folder, model, info, cases))

@@ -152,10 +152,16 @@ def _panels(case: SavedCase) -> tuple[list[dict[str, Any]], bool]:
     # a run may name its own units (a Part I system's slide joints, its input)
     units = first.summary.get("units") or {}
 
+    # a Part I system's one input, in the first column of the torques
+    single = first.summary.get("input_name")
+
     def coordinate_panels(key: str, unit: str | list[str], extra: Any) -> list[dict[str, Any]]:
         out = []
-        for k in range(n):
+        for k in range(1 if key == "torque" and single else n):
             label = f"joint {k + 1}" if key == "torque" and joints else names[k]
+            if key == "torque" and single:
+                out.append({"label": single, "key": key, "column": 0, "lines": extra(0)})
+                continue
             each = unit[k] if isinstance(unit, list) else unit  # one per coordinate, or all
             out.append({"label": f"{label} [{each}]", "key": key, "column": k,
                         "lines": extra(k)})
@@ -173,15 +179,22 @@ def _panels(case: SavedCase) -> tuple[list[dict[str, Any]], bool]:
         lim = float(found)
         return [{"y": lim, "label": f"limit ±{lim:.4g}"}, {"y": -lim, "label": ""}]
 
-    groups = [
-        {"title": "Positions", "panels": coordinate_panels(
-            "position", units.get("position", "rad"),
-            lambda k: [{"y": float(first.target[k]), "label": "target"}])},
-        {"title": "Rates", "panels": coordinate_panels(
-            "velocity", units.get("velocity", "rad/s"), rate_lines)},
-        {"title": "Torques applied", "panels": coordinate_panels(
-            "torque", units.get("torque", "N·m"), torque_lines)},
-    ]
+    def position_lines(k: int) -> list[dict[str, Any]]:
+        found = bounded[k] if k < len(bounded) else None  # a run may give its own bounds
+        edges = [] if found is None else [{"y": float(found[0]), "label": "bound"},
+                                          {"y": float(found[1]), "label": ""}]
+        return [{"y": float(first.target[k]), "label": "target"}, *edges]
+
+    bounded = first.summary.get("position_bounds") or []
+    # a run may say which groups apply and name them (a system that is only its ODE: its
+    # states and its input)
+    titles = {"position": "Positions", "velocity": "Rates", "torque": "Torques applied",
+              **(first.summary.get("titles") or {})}
+    lines = {"position": position_lines, "velocity": rate_lines, "torque": torque_lines}
+    default_units = {"position": "rad", "velocity": "rad/s", "torque": "N·m"}
+    groups = [{"title": titles[key], "panels": coordinate_panels(
+                  key, units.get(key, default_units[key]), lines[key])}
+              for key in first.summary.get("groups") or list(lines)]
     margin_panels = []
     for kind, columns in grouped(first.margin_names, first.margin_types):
         named = nearest_columns([r.margins for r in case.runs], columns, 3)
