@@ -28,7 +28,7 @@ from cpbc.model.gravity_load import BRAKING_DECELERATION, holdable_near, joint_l
 from cpbc.model.loading import load_arm
 from cpbc.model.robot_model import RobotModel
 from cpbc.resources import builtin_models
-from cpbc.scenario.gains import physical_gains, spectral_radius
+from cpbc.scenario.gain_check import physical_gains, spectral_radius
 from cpbc.scenario.robots import xml_root
 from cpbc.scenario.skeleton import JointLimits, home, skeleton
 
@@ -150,7 +150,7 @@ OMEGAS = (10.0, 5.0, 2.0, 1.0)  # rad/s, tried in turn for the skeleton's gains
 def stable_omega(d: RobotDescription, states: Sequence[np.ndarray], period: float = 0.001,
                  zeta: float = 1.0) -> float | None:
     """The largest of :data:`OMEGAS` whose physical gains (at the first state's D_ii) keep the
-    held loop stable at twice ``period`` at every state (cpbc.scenario.gains): arms near a
+    held loop stable at twice ``period`` at every state (cpbc.scenario.gain_check): arms near a
     singular pose couple their joints strongly. None when none does; the smallest for a model
     without a Pinocchio twin."""
     if d.pin_model is None:

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from cpbc.controllers.base import Controller
+from cpbc.controllers.controller import Controller
 from cpbc.model.robot_model import RobotModel
 
 

@@ -10,7 +10,7 @@ import yaml
 
 from cpbc.errors import ScenarioError
 from cpbc.scenario import ScenarioSetup, build, load_scenario
-from cpbc.scenario.gains import (
+from cpbc.scenario.gain_check import (
     longest_stable_period,
     physical_gains,
     spectral_radius,

@@ -1,4 +1,4 @@
-"""Scenario ``goal:`` (cpbc.scenario.goal, cpbc.taskspace): refusals naming the field, the
+"""Scenario ``goal:`` (cpbc.scenario.goal_build, cpbc.taskspace): refusals naming the field, the
 task gains from the task-space inertia and their zero-order-hold check, and the IK
 preflight's three verdicts on the thesis's arm."""
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from cpbc.bench import planar_2link
-from cpbc.constraints.base import ConfigurationConstraint, VelocityConstraint
+from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.controllers import CPBC, CPBCKineticEnergy
 from cpbc.errors import ConstraintViolation
 from cpbc.kernels.laws import cpbc_ke_torque, cpbc_torque

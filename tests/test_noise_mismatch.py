@@ -14,7 +14,7 @@ import yaml
 
 from cpbc.constraints import ConstraintSet, joint_rate_limit
 from cpbc.controllers import BPBC, Controller, Power
-from cpbc.controllers.base import Evaluation
+from cpbc.controllers.controller import Evaluation
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model import ArmState, RobotModel
 from cpbc.reliability.campaign import campaign_setup

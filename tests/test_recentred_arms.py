@@ -24,7 +24,7 @@ from cpbc.errors import ScenarioError
 from cpbc.model import RobotModel
 from cpbc.model.loading import LoadedArm, load_arm
 from cpbc.scenario import ScenarioSetup, build, load_scenario
-from cpbc.scenario.gains import physical_gains
+from cpbc.scenario.gain_check import physical_gains
 
 # a target and starts of the kind a user picks for the UR3 (the UR5 scenario's), far from
 # every bound of its ±2π (elbow ±π) ranges

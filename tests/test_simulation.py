@@ -7,7 +7,7 @@ import pytest
 
 from cpbc.constraints import ConstraintSet, joint_rate_limit
 from cpbc.controllers import BPBC, PD, Controller, Power
-from cpbc.controllers.base import Evaluation
+from cpbc.controllers.controller import Evaluation
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model import ArmState, LinearCoordinates, RobotModel
 from cpbc.resources import models_dir

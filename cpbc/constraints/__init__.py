@@ -1,8 +1,8 @@
 """Constraint layer: configuration constraints φ(x) > 0 and velocity constraints ψ(x, ẋ) > 0."""
 
-from cpbc.constraints.base import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.clearance import Clearance
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
+from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.cover_cache import cached_cover
 from cpbc.constraints.covering import LinkPrimitive, cover_links
 from cpbc.constraints.geometry import (

@@ -9,7 +9,7 @@ from typing import NamedTuple, TypeVar
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.constraints.base import ConfigurationConstraint, VelocityConstraint
+from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.packing import Packed, PackedSet
 from cpbc.errors import ConstraintViolation, CpbcError, InadmissibleStateError
 from cpbc.kernels.barrier_set import POINT, RATE, set_barrier

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.constraints.base import VelocityConstraint
+from cpbc.constraints.constraint_types import VelocityConstraint
 from cpbc.constraints.margins import ENERGY
 from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from cpbc.arrays import Array, ArrayLike
-from cpbc.constraints.base import ConfigurationConstraint
+from cpbc.constraints.constraint_types import ConfigurationConstraint
 from cpbc.constraints.margins import POSITION, MarginType, headroom, row_types
 from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError

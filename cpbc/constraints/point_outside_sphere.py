@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 
 from cpbc.arrays import Array, ArrayLike
-from cpbc.constraints.base import ConfigurationConstraint
+from cpbc.constraints.constraint_types import ConfigurationConstraint
 from cpbc.constraints.margins import CLEARANCE
 from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError

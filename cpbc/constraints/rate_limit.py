@@ -7,7 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from cpbc.arrays import Array, ArrayLike
-from cpbc.constraints.base import VelocityConstraint
+from cpbc.constraints.constraint_types import VelocityConstraint
 from cpbc.constraints.margins import RATE, MarginType, headroom, row_types
 from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError

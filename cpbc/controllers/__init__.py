@@ -1,8 +1,8 @@
 """Controller layer: closed-form laws τ = k(x, ẋ) of Chapters 6–7 and the PD baselines."""
 
-from cpbc.controllers.base import Controller
 from cpbc.controllers.bpbc import BPBC
 from cpbc.controllers.bpbc_ke import BPBCKineticEnergy
+from cpbc.controllers.controller import Controller
 from cpbc.controllers.cpbc import CPBC
 from cpbc.controllers.cpbc_ke import CPBCKineticEnergy
 from cpbc.controllers.pd import PD, PDGravity

@@ -7,7 +7,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.rate_limit import RateLimit
-from cpbc.controllers.base import positive_vector
+from cpbc.controllers.controller import positive_vector
 from cpbc.controllers.cpbc import CPBC
 from cpbc.controllers.potentials import (
     JointLogCoshSpring,

@@ -6,8 +6,8 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.controllers.base import positive_vector
 from cpbc.controllers.bpbc import bounded_damping
+from cpbc.controllers.controller import positive_vector
 from cpbc.controllers.cpbc_ke import CPBCKineticEnergy
 from cpbc.controllers.potentials import (
     JointLogCoshSpring,

@@ -9,7 +9,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
 from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
-from cpbc.controllers.base import Controller, Evaluation, positive_vector
+from cpbc.controllers.controller import Controller, Evaluation, positive_vector
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from cpbc.arrays import Array
-from cpbc.controllers.base import Controller, Evaluation, positive_vector
+from cpbc.controllers.controller import Controller, Evaluation, positive_vector
 from cpbc.controllers.potentials import Configuration, JointSpring, Potential, require_posture
 from cpbc.controllers.terms import StateDamping
 from cpbc.model.robot_model import ArmState, RobotModel

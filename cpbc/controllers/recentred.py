@@ -56,7 +56,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
 from cpbc.constraints.linear_limit import LinearLimit
-from cpbc.controllers.base import Controller, Evaluation, positive_vector
+from cpbc.controllers.controller import Controller, Evaluation, positive_vector
 from cpbc.controllers.linalg import solve_spd
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model.robot_model import ArmState, RobotModel

@@ -21,9 +21,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.controllers.base import positive_vector, vector3
-from cpbc.controllers.potentials.base import Placed, frame_at
+from cpbc.controllers.controller import positive_vector, vector3
 from cpbc.controllers.potentials.frame_position import point_offset
+from cpbc.controllers.potentials.potential import Placed, frame_at
 from cpbc.errors import ParameterError
 from cpbc.kernels.task import task_damping
 from cpbc.model.frames import jacobian_bounds

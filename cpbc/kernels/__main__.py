@@ -12,8 +12,8 @@ from collections.abc import Iterator, Sequence
 
 from numba.core.registry import CPUDispatcher
 
-MODULES = ("cpbc.kernels.linalg", "cpbc.kernels.barriers", "cpbc.kernels.laws",
-           "cpbc.kernels.barrier_set", "cpbc.kernels.coordinates", "cpbc.kernels.task",
+MODULES = ("cpbc.kernels.small_solves", "cpbc.kernels.barriers", "cpbc.kernels.laws",
+           "cpbc.kernels.barrier_set", "cpbc.kernels.coordinate_maps", "cpbc.kernels.task",
            "cpbc.kernels.clearance")
 
 

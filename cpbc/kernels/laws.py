@@ -6,7 +6,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
-from cpbc.kernels.linalg import solve_spd
+from cpbc.kernels.small_solves import solve_spd
 
 
 def zero_terms(n: int) -> tuple[Array, Array]:

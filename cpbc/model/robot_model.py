@@ -12,7 +12,7 @@ import pinocchio as pin
 
 from cpbc.arrays import Array
 from cpbc.errors import ModelError
-from cpbc.kernels.coordinates import to_controller, to_joint
+from cpbc.kernels.coordinate_maps import to_controller, to_joint
 from cpbc.model.coordinates import LinearCoordinates
 from cpbc.model.frames import FrameKinematics, offset_jacobian
 

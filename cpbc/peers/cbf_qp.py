@@ -45,7 +45,7 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.constraints.rate_limit import RateLimit
-from cpbc.controllers.base import Evaluation, SafetyFilter, positive_vector
+from cpbc.controllers.controller import Evaluation, SafetyFilter, positive_vector
 from cpbc.errors import CpbcError, ParameterError
 from cpbc.model.robot_model import ArmState, RobotModel
 from cpbc.peers.cbf_rows import Rows, Tuning, barrier_rows

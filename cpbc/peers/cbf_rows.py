@@ -33,9 +33,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cpbc.arrays import Array
-from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.constraints.clearance import Clearance
 from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.constraint_types import ConfigurationConstraint
 from cpbc.constraints.rate_limit import RateLimit
 from cpbc.errors import ConstraintViolation
 from cpbc.model.robot_model import ArmState

@@ -12,7 +12,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.controllers.base import Controller
+from cpbc.controllers.controller import Controller
 from cpbc.errors import ConstraintViolation
 from cpbc.reference.governor import GovernorSettings
 from cpbc.reference.paths import Path

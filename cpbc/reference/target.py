@@ -16,7 +16,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.controllers.base import Controller
+from cpbc.controllers.controller import Controller
 from cpbc.controllers.pd import PDGravity
 from cpbc.controllers.potentials import (
     FramePositionLogCosh,

@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.controllers.base import Controller, Evaluation, SafetyFilter
+from cpbc.controllers.controller import Controller, Evaluation, SafetyFilter
 from cpbc.model.robot_model import ArmState
 from cpbc.reference.governor import GovernorSettings, PathGovernor
 from cpbc.reference.plan import ReferencePlan, log_norm

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cpbc.constraints.base import Array, ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.constraint_types import Array, ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.margins import TYPES, MarginType
 
 

@@ -11,10 +11,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cpbc.constraints.base import Array
 from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.constraint_types import Array
 from cpbc.constraints.margins import BY_KEY
-from cpbc.controllers.base import Controller
+from cpbc.controllers.controller import Controller
 from cpbc.results.margin_types import WorstMargin, physical_history, types_of, worst_by_type
 from cpbc.simulation.trajectory import Trajectory
 

@@ -36,7 +36,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch, Polygon
 
-from cpbc.constraints.base import Array
+from cpbc.constraints.constraint_types import Array
 from cpbc.results.margin_types import grouped, nearest_columns
 from cpbc.results.palette import (
     BOUND_COLOUR,

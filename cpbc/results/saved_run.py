@@ -25,7 +25,7 @@ import h5py
 import mujoco
 import numpy as np
 
-from cpbc.constraints.base import Array
+from cpbc.constraints.constraint_types import Array
 from cpbc.errors import CpbcError
 from cpbc.results.delta_planes import load_earlier_log
 from cpbc.results.hdf5_log import LOG_FILE, read_run

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from cpbc.constraints.base import Array
+from cpbc.constraints.constraint_types import Array
 from cpbc.errors import ModelError
 
 #: MuJoCo's default visible geom groups; higher groups usually hold collision-only copies.

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from cpbc.constraints.base import Array
+from cpbc.constraints.constraint_types import Array
 
 BUCKETS = 1500  # time buckets of a thinned curve in the figures (two samples each)
 #: Sample indices into a logged signal.

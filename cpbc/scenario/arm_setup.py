@@ -28,7 +28,7 @@ from cpbc.resources import builtin_models
 from cpbc.results.metrics import SettleCriteria
 from cpbc.scenario import robots
 from cpbc.scenario import schema as s
-from cpbc.scenario.goal import GoalPlan
+from cpbc.scenario.goal_build import GoalPlan
 from cpbc.scenario.reference import ReferenceSetup
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings
 from cpbc.simulation.disturbances import PlantMismatch

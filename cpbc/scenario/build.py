@@ -32,7 +32,7 @@ from cpbc.scenario.arm_setup import (
 )
 from cpbc.scenario.constraint_build import check_distinct, scenario_constraints, scene_obstacles
 from cpbc.scenario.controller_build import build_controllers, check_starts
-from cpbc.scenario.goal import GoalPlan, goal_of, plan
+from cpbc.scenario.goal_build import GoalPlan, goal_of, plan
 from cpbc.scenario.loop_setup import loop_settings, undeclared_efforts
 from cpbc.scenario.preflight import check_gravity
 from cpbc.scenario.reference import reference_goal, reference_setup

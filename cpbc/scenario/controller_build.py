@@ -16,8 +16,8 @@ from cpbc.model import RobotModel
 from cpbc.model.bounds import ModelBounds, estimate_bounds
 from cpbc.scenario import schema as s
 from cpbc.scenario.arm_setup import CaseEntry, ControllerEntry
-from cpbc.scenario.gains import physical_gains, unstable_loop
-from cpbc.scenario.goal import GoalPlan, law_terms, linear_gains
+from cpbc.scenario.gain_check import physical_gains, unstable_loop
+from cpbc.scenario.goal_build import GoalPlan, law_terms, linear_gains
 from cpbc.scenario.schema.kinds import KINDS, Kinds, LawKind
 from cpbc.scenario.schema.kinds.law_inputs import LawInputs, Slopes, gain_vector
 from cpbc.simulation import LoopSettings
@@ -37,7 +37,7 @@ class _Gains:
 
 def _gains(spec: s.LawSpec, slopes: Slopes, model: RobotModel, target: Array,
            field: str) -> _Gains:
-    """K_P, K_D as given, or from ω_n and ζ with D_ii at the target (cpbc.scenario.gains),
+    """K_P, K_D as given, or from ω_n and ζ with D_ii at the target (cpbc.scenario.gain_check),
     divided by the law's slopes; its stiffness and damping near the target are K_P and K_D
     times them."""
     n = model.n
@@ -55,7 +55,7 @@ def _check_zoh(
     gains: _Gains, model: RobotModel, states: list[Array], sim: s.SimulationSpec,
     names: tuple[str, ...], field: str,
 ) -> None:
-    """Refuse gains whose held loop is unstable at the control period (cpbc.scenario.gains)."""
+    """Refuse gains whose held loop is unstable at the control period (cpbc.scenario.gain_check)."""
     euler_step = 0.0 if sim.integrator == "RK4" else sim.timestep
     period = sim.control_period or sim.timestep
     bad = None

@@ -14,7 +14,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.geometry import Obstacle
-from cpbc.controllers.base import Controller
+from cpbc.controllers.controller import Controller
 from cpbc.errors import ParameterError, ScenarioError
 from cpbc.model.robot_model import RobotModel
 from cpbc.reference.csv_path import read_csv_path
@@ -23,7 +23,7 @@ from cpbc.reference.paths import Circle, Lissajous, Path, Scaled, Waypoints
 from cpbc.reference.plan import ReferencePlan, plan_reference
 from cpbc.reference.tracker import ReferenceTracker, tracking
 from cpbc.scenario import schema as s
-from cpbc.scenario.goal import GoalPlan, goal_of, plan
+from cpbc.scenario.goal_build import GoalPlan, goal_of, plan
 from cpbc.taskspace.goal import FrameGoal
 
 

@@ -20,7 +20,7 @@ from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from cpbc.constraints.base import Array
+from cpbc.constraints.constraint_types import Array
 from cpbc.errors import ScenarioError
 from cpbc.reference.tracker import ReferenceTracker
 from cpbc.results.drawing import quiet_on_interrupt

@@ -3,7 +3,7 @@
 The target is the middle of every joint's range (0 where a joint has none) unless the caller
 gives one (``cpbc.robot`` lowers it where the motors cannot carry the arm there), the case
 starts a little off it toward the middle of the ranges, the gains are physical (ω_n, ζ; see
-cpbc.scenario.gains), and the admissible set is the arm's own: the position ranges of the
+cpbc.scenario.gain_check), and the admissible set is the arm's own: the position ranges of the
 joints that have one and, when every joint declares one, half its rate limits.
 """
 

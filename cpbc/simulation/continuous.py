@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.controllers.base import Controller
+from cpbc.controllers.controller import Controller
 from cpbc.errors import ConstraintViolation
 from cpbc.model.robot_model import RobotModel
 from cpbc.simulation.loop import LoopSettings

@@ -20,7 +20,7 @@ import mujoco
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.controllers.base import Controller, SafetyFilter
+from cpbc.controllers.controller import Controller, SafetyFilter
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model.coordinates import LinearCoordinates
 from cpbc.simulation.disturbances import MeasurementNoise, rate_into_set

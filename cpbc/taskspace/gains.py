@@ -1,7 +1,7 @@
 """Task gains in physical units (TASKSPACE §3.1): a frame's stiffness and damping from the
 arm's task-space inertia at the posture x_n, the posture spring and joint damping from D(x_n),
 and the linear stiffness and damping of the whole law near the goal (for the zero-order-hold
-check of cpbc.scenario.gains).
+check of cpbc.scenario.gain_check).
 
     K_n = ω_n² D_ii(x_n),  K_D = 2 ζ_n ω_n D_ii(x_n)                       (posture, joints)
     Λ_v = S_v⁺,  S_v = M_vv − M_vr M_rr⁺ M_rv,  M = J D⁻¹ Jᵀ, J = [J_v; P J_ω]

@@ -19,7 +19,7 @@ import mujoco
 import numpy as np
 from meshcat.animation import Animation
 
-from cpbc.constraints.base import Array
+from cpbc.constraints.constraint_types import Array
 from cpbc.results.saved_run import SavedRun, load_run
 from cpbc.results.sweep import SceneKinematics
 from cpbc.scenario.build import ScenarioSetup

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from cpbc.constraints.base import Array
+from cpbc.constraints.constraint_types import Array
 from cpbc.results.delta_planes import decode, encode
 from cpbc.results.margin_types import grouped, nearest_columns
 from cpbc.results.palette import (

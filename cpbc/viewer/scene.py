@@ -26,7 +26,7 @@ import numpy as np
 from meshcat.animation import Animation, AnimationClip, AnimationTrack
 from meshcat.commands import SetAnimation
 
-from cpbc.constraints.base import Array
+from cpbc.constraints.constraint_types import Array
 from cpbc.results.palette import (
     OBSTACLE_COLOUR,
     TARGET_COLOUR,

@@ -6,7 +6,7 @@ import meshcat.geometry as mg
 import mujoco
 import numpy as np
 
-from cpbc.constraints.base import Array
+from cpbc.constraints.constraint_types import Array
 
 _CIRCLE_SEGMENTS = 32
 

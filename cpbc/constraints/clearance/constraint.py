@@ -17,9 +17,9 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from cpbc.arrays import Array
-from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.constraints.clearance.capsules import CapsuleGroup, Rows
 from cpbc.constraints.clearance.layout import PairLayout
+from cpbc.constraints.constraint_types import ConfigurationConstraint
 from cpbc.constraints.covering import LinkPrimitive
 from cpbc.constraints.geometry import Obstacle
 from cpbc.constraints.margins import CLEARANCE

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.controllers.potentials.base import GradientBound, OnOneFrame, Placed, frame_at
+from cpbc.controllers.potentials.potential import GradientBound, OnOneFrame, Placed, frame_at
 from cpbc.errors import ParameterError
 from cpbc.kernels.task import axis_spring, orientation_spring
 from cpbc.model.frames import jacobian_bounds

@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.controllers.base import positive_vector, vector3
-from cpbc.controllers.potentials.base import GradientBound, OnOneFrame, Placed, frame_at
+from cpbc.controllers.controller import positive_vector, vector3
 from cpbc.controllers.potentials.log_cosh import LogCoshSum
+from cpbc.controllers.potentials.potential import GradientBound, OnOneFrame, Placed, frame_at
 from cpbc.errors import ParameterError
 from cpbc.kernels.task import position_spring
 from cpbc.model.frames import jacobian_bounds

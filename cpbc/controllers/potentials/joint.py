@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.controllers.base import positive_vector
-from cpbc.controllers.potentials.base import GradientBound, OfTheJoints, Placed
+from cpbc.controllers.controller import positive_vector
 from cpbc.controllers.potentials.log_cosh import LogCoshSum
+from cpbc.controllers.potentials.potential import GradientBound, OfTheJoints, Placed
 from cpbc.kernels.laws import joint_spring
 
 

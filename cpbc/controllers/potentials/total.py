@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from cpbc.arrays import Array
-from cpbc.controllers.potentials.base import GradientBound, Placed, Potential
+from cpbc.controllers.potentials.potential import GradientBound, Placed, Potential
 from cpbc.errors import CpbcError
 
 

@@ -10,11 +10,11 @@ from collections.abc import Sequence
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.constraints.base import ConfigurationConstraint
 from cpbc.constraints.brakes import TorqueBox
 from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.constraint_types import ConfigurationConstraint
 from cpbc.constraints.stopping import Braking
-from cpbc.controllers.base import Controller, Evaluation, SafetyFilter
+from cpbc.controllers.controller import Controller, Evaluation, SafetyFilter
 from cpbc.controllers.hold import hold_share
 from cpbc.controllers.rescue import Rescue
 from cpbc.controllers.safeguard.acceptance import Acceptance

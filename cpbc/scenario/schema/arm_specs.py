@@ -179,7 +179,7 @@ class SimulationSpec(Strict):
             "physics steps per run (duration / timestep) above which the scenario is refused;"
             " raise it to mean it"))
     # refuse gains whose zero-order-hold loop is unstable at control_period
-    # (cpbc.scenario.gains); false lets a deliberately unstable run go ahead
+    # (cpbc.scenario.gain_check); false lets a deliberately unstable run go ahead
     check_gains: Annotated[bool, Field(strict=True)] = Field(
         default=True, description=(
             "refuse gains whose zero-order-hold loop is unstable at the control period (false"

@@ -75,7 +75,7 @@ class GainsSpec(Strict):
     """K_P, K_D directly (``kp``, ``kd``), or in physical terms: a natural frequency
     ``omega_n`` [rad/s] and damping ratio ``zeta`` per coordinate (or one for all), scaled by
     the arm's inertia at the target: K_P,i = D_ii(x_d) ω_n,i², K_D,i = 2 ζ_i ω_n,i D_ii(x_d)
-    (see cpbc.scenario.gains)."""
+    (see cpbc.scenario.gain_check)."""
 
     # omega_n and zeta come first so that kp's and kd's checks see them (info.data)
     omega_n: Gain | None = Field(

@@ -8,7 +8,7 @@ from typing import Any, Literal
 from pydantic import Field
 
 from cpbc.controllers import BPBC, BPBCKineticEnergy
-from cpbc.controllers.base import Controller
+from cpbc.controllers.controller import Controller
 from cpbc.scenario.schema.common import Gain
 from cpbc.scenario.schema.controller_specs import ConstrainedLawSpec, ShapingSpec
 from cpbc.scenario.schema.kinds.law_inputs import LawInputs, shaping, tanh_slopes

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Literal
 
 from pydantic import Field
 
-from cpbc.controllers.base import Controller
+from cpbc.controllers.controller import Controller
 from cpbc.errors import ScenarioError
 from cpbc.scenario.schema.common import Positive
 from cpbc.scenario.schema.controller_specs import (

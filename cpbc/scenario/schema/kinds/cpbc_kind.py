@@ -8,7 +8,7 @@ from typing import Any, Literal
 from pydantic import Field
 
 from cpbc.controllers import CPBC, CPBCKineticEnergy
-from cpbc.controllers.base import Controller
+from cpbc.controllers.controller import Controller
 from cpbc.scenario.schema.controller_specs import ConstrainedLawSpec, ShapingSpec
 from cpbc.scenario.schema.kinds.law_inputs import LINEAR, LawInputs, shaping
 from cpbc.scenario.schema.kinds.registry import LawKind

@@ -37,7 +37,7 @@ def gain_vector(value: float | list[float], n: int, field: str) -> Array:
 
 @dataclass(frozen=True)
 class Slopes:
-    """What the gain check (cpbc.scenario.gains) needs of a law: the slopes near the target
+    """What the gain check (cpbc.scenario.gain_check) needs of a law: the slopes near the target
     of its spring and damping per unit of K_P and K_D, shape (n,) each. Its linear stiffness
     is K_P·spring and its damping K_D·damping; gains given as ω_n, ζ are divided by them.
     ``saturates``: the spring and damping saturate (tanh), and so do a goal's task terms."""
@@ -76,7 +76,7 @@ class LawInputs:
         model: the controller's robot model.
         target: the joint target (a goal's posture).
         gains: the law's keyword arguments kp, kd — with a goal also potential and
-            task_damping (cpbc.scenario.goal.law_terms).
+            task_damping (cpbc.scenario.goal_build.law_terms).
         constraints: every scenario constraint by name.
         model_bounds: the model's bounds (estimated once, when a law first asks).
         loop: the loop's settings (control period, torque limit).

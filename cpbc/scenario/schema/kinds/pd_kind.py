@@ -8,7 +8,7 @@ from typing import Any, Literal
 from pydantic import Field
 
 from cpbc.controllers import PD, PDGravity
-from cpbc.controllers.base import Controller
+from cpbc.controllers.controller import Controller
 from cpbc.scenario.schema.controller_specs import LawSpec
 from cpbc.scenario.schema.kinds.law_inputs import LINEAR, LawInputs
 from cpbc.scenario.schema.kinds.registry import LawKind

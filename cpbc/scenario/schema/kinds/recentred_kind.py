@@ -8,7 +8,7 @@ from pydantic import Field
 
 from cpbc.arrays import Array
 from cpbc.controllers import RecentredBarrier
-from cpbc.controllers.base import Controller
+from cpbc.controllers.controller import Controller
 from cpbc.scenario.schema.controller_specs import ConstrainedLawSpec
 from cpbc.scenario.schema.kinds.law_inputs import LINEAR, LawInputs
 from cpbc.scenario.schema.kinds.registry import LawKind

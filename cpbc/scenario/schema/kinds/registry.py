@@ -36,9 +36,9 @@ from typing import Annotated, Any, Generic, TypeVar, Union, get_args
 from pydantic import BaseModel, Field
 
 from cpbc.arrays import Array
-from cpbc.constraints.base import ConfigurationConstraint, VelocityConstraint
+from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.margins import TYPES
-from cpbc.controllers.base import Controller
+from cpbc.controllers.controller import Controller
 from cpbc.scenario.schema.kinds.constraint_inputs import ConstraintInputs, SceneSphere
 from cpbc.scenario.schema.kinds.law_inputs import LawInputs, Slopes
 

@@ -20,7 +20,7 @@ from cpbc.scenario.schema.kinds.law_inputs import Slopes
 from cpbc.taskspace.gains import TaskGains, TaskGainSpec, linear_terms, task_gains
 from cpbc.taskspace.goal import AxisGoal, FrameGoal
 from cpbc.taskspace.ik import Preflight, preflight
-from cpbc.taskspace.terms import Saturation, task_terms
+from cpbc.taskspace.task_terms import Saturation, task_terms
 
 
 def _vector3(value: list[float] | None, field: str) -> Array:
