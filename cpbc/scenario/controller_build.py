@@ -25,14 +25,12 @@ from cpbc.simulation import LoopSettings
 
 @dataclass(frozen=True)
 class _Gains:
-    """K_P, K_D of a law, and its linear stiffness and damping near the target."""
+    """K_P, K_D of a law, and its linear stiffness and damping at a state: constant for a
+    joint-space law, through J(x) for a goal law's task springs."""
 
     kp: Array
     kd: Array
-    stiffness: Array
-    damping: Array
-    # a goal law's stiffness and damping at a state (its task springs act through J(x))
-    at: Callable[[Array], tuple[Array, Array]] | None = None
+    linear: Callable[[Array], tuple[Array, Array]]
 
 
 def _gains(spec: s.LawSpec, slopes: Slopes, model: RobotModel, target: Array,
@@ -48,7 +46,8 @@ def _gains(spec: s.LawSpec, slopes: Slopes, model: RobotModel, target: Array,
         zeta = gain_vector(spec.zeta, n, f"{field}.zeta")  # type: ignore[arg-type]
         kp, kd = physical_gains(omega, zeta, model.inertia(target).diagonal())
         kp, kd = kp / slopes.spring, kd / slopes.damping
-    return _Gains(kp, kd, kp * slopes.spring, kd * slopes.damping)
+    stiffness, damping = kp * slopes.spring, kd * slopes.damping
+    return _Gains(kp, kd, lambda x: (stiffness, damping))
 
 
 def _check_zoh(
@@ -58,15 +57,12 @@ def _check_zoh(
     """Refuse gains whose held loop is unstable at the control period (cpbc.scenario.gain_check)."""
     euler_step = 0.0 if sim.integrator == "RK4" else sim.timestep
     period = sim.control_period or sim.timestep
-    bad = None
     for x in states:
-        stiffness, damping = (gains.stiffness, gains.damping) if gains.at is None else (
-            gains.at(x))
-        bad = bad or unstable_loop(stiffness, damping, [model.inertia(x)], period, names,
-                                   euler_step)
-    if bad is not None:
-        raise ScenarioError(field, bad.advice() + "; simulation.check_gains: false runs it "
-                            "anyway")
+        stiffness, damping = gains.linear(x)
+        bad = unstable_loop(stiffness, damping, [model.inertia(x)], period, names, euler_step)
+        if bad is not None:
+            raise ScenarioError(field, bad.advice() + "; simulation.check_gains: false runs "
+                                "it anyway")
 
 
 def _build_controller(spec: s.LawSpec, kind: LawKind[Any], given: LawInputs) -> Controller:
@@ -92,8 +88,7 @@ def _entry_gains(spec: s.LawSpec, kind: LawKind[Any], model: RobotModel, target:
             raise ScenarioError(f"{field}.type", f"'{spec.type}' takes no goal; with goal: "
                                 f"use one of {', '.join(kinds.goal_types)}")
         terms, task = law_terms(spec, model, goal, field, slopes)
-        stiffness, damping = linear_gains(model, goal, task)
-        return _Gains(terms["kp"], terms["kd"], stiffness, damping,  # type: ignore[arg-type]
+        return _Gains(terms["kp"], terms["kd"],  # type: ignore[arg-type]
                       lambda x: linear_gains(model, goal, task, x)), terms
     if spec.task is not None or spec.posture is not None:
         raise ScenarioError(f"{field}.task", "task and posture gains need a goal: give "

@@ -144,11 +144,10 @@ def law_terms(spec: s.LawSpec, model: RobotModel, goal: GoalPlan, field: str, sl
     return {"kp": kp, "kd": kd, "potential": potential, "task_damping": damping}, gains
 
 
-def linear_gains(model: RobotModel, goal: GoalPlan, gains: TaskGains, at: Array | None = None
+def linear_gains(model: RobotModel, goal: GoalPlan, gains: TaskGains, x: Array
                  ) -> tuple[Array, Array]:
-    """The law's linear stiffness and damping (n × n) with the Jacobians at ``at`` (the
-    posture when None), for the ZOH check: the task springs reach the joints through J(x),
-    so at a start far from the posture they load other joints than at the posture."""
-    x = goal.posture if at is None else at
+    """The law's linear stiffness and damping (n × n) with the Jacobians at ``x``, for the
+    ZOH check: the task springs reach the joints through J(x), so at a start far from the
+    posture they load other joints than at the posture."""
     state = model.state(x, np.zeros(model.n), frames=[goal.goal.frame])
     return linear_terms(goal.goal, gains, state.frames[goal.goal.frame])
