@@ -14,7 +14,8 @@ from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
 from cpbc.errors import ConstraintViolation, CpbcError
-from cpbc.kernels.laws import cpbc_ke_torque, kinetic_energy, zero_terms
+from cpbc.kernels.energy import kinetic_energy
+from cpbc.kernels.laws import cpbc_ke_torque, zero_terms
 from cpbc.model.robot_model import ArmState, RobotModel
 
 

@@ -12,9 +12,9 @@ from collections.abc import Iterator, Sequence
 
 from numba.core.registry import CPUDispatcher
 
-MODULES = ("cpbc.kernels.small_solves", "cpbc.kernels.barriers", "cpbc.kernels.laws",
-           "cpbc.kernels.barrier_set", "cpbc.kernels.coordinate_maps", "cpbc.kernels.task",
-           "cpbc.kernels.clearance")
+MODULES = ("cpbc.kernels.small_solves", "cpbc.kernels.energy", "cpbc.kernels.barriers",
+           "cpbc.kernels.laws", "cpbc.kernels.barrier_set", "cpbc.kernels.coordinate_maps",
+           "cpbc.kernels.task", "cpbc.kernels.clearance")
 
 
 def kernels() -> Iterator[tuple[str, CPUDispatcher]]:

@@ -9,6 +9,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, kernel
+from cpbc.kernels.energy import kinetic_energy
 from cpbc.kernels.task import point_on_frame
 
 
@@ -72,13 +73,7 @@ def kinetic_energy_terms(limit: float, inertia: Array, coriolis: Array, dx: Arra
     C in Christoffel form: returns ψ, writes Π = D/ψ into ``weight`` and b = −Cᵀẋ/ψ into
     ``gradient``."""
     n = dx.shape[0]
-    energy = 0.0
-    for a in range(n):
-        s = 0.0
-        for b in range(n):
-            s += inertia[a, b] * dx[b]
-        energy += dx[a] * s
-    psi = limit - 0.5 * energy
+    psi = limit - kinetic_energy(inertia, dx)
     for a in range(n):
         s = 0.0
         for b in range(n):

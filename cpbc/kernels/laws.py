@@ -18,19 +18,6 @@ def zero_terms(n: int) -> tuple[Array, Array]:
     return b, weight
 
 
-@kernel("float64(float64[:, :], float64[:])")
-def kinetic_energy(inertia: Array, dx: Array) -> float:
-    """½ ẋᵀ D ẋ, the kinetic part of L (eq. 6.7)."""
-    n = dx.shape[0]
-    total = 0.0
-    for a in range(n):
-        s = 0.0
-        for b in range(n):
-            s += inertia[a, b] * dx[b]
-        total += dx[a] * s
-    return 0.5 * total
-
-
 @kernel(f"float64({READ_ONLY}, {READ_ONLY}, {READ_ONLY}, float64[:])")
 def joint_spring(x: Array, goal: Array, stiffness: Array, grad: Array) -> float:
     """U = ½ x̃ᵀ K x̃, x̃ = x − x_d (eq. 6.7), K diagonal: returns U, writes ∂U/∂x = K x̃
