@@ -9,11 +9,27 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from cpbc.model import ArmState, LinearCoordinates, RobotModel
 from cpbc.resources import models_dir
+from cpbc.scenario import ScenarioSetup, build, load_scenario
 
 FiniteDifference = Callable[..., np.ndarray]
+
+
+@pytest.fixture
+def load_dict(tmp_path: Path) -> Callable[[dict], ScenarioSetup]:
+    """Write a scenario dict to YAML in tmp_path, load and build it."""
+    counter = iter(range(1000))
+
+    def _load(data: dict) -> ScenarioSetup:
+        path = tmp_path / f"scenario_{next(counter)}.yaml"
+        path.write_text(yaml.safe_dump(data, sort_keys=False))
+        scenario, file = load_scenario(path)
+        return build(scenario, file)
+
+    return _load
 
 
 @pytest.fixture(scope="session")

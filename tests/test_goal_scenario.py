@@ -7,7 +7,6 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,7 +15,7 @@ import yaml
 from cpbc.constraints import ConstraintSet
 from cpbc.errors import CpbcError
 from cpbc.resources import scenarios_dir
-from cpbc.scenario import ScenarioSetup, build, load_scenario
+from cpbc.scenario import ScenarioSetup
 from cpbc.taskspace.goal import FrameGoal
 from cpbc.taskspace.ik import preflight
 
@@ -28,21 +27,9 @@ def data() -> dict:
     return yaml.safe_load(SCENARIO.read_text())
 
 
-@pytest.fixture
-def load(tmp_path: Path) -> Callable[[dict], ScenarioSetup]:
-    counter = iter(range(1000))
-
-    def _load(d: dict) -> ScenarioSetup:
-        path = tmp_path / f"goal_{next(counter)}.yaml"
-        path.write_text(yaml.safe_dump(d, sort_keys=False))
-        return build(*load_scenario(path))
-
-    return _load
-
-
-def _refused(load: Callable[[dict], ScenarioSetup], d: dict, field: str, word: str) -> None:
+def _refused(load_dict: Callable[[dict], ScenarioSetup], d: dict, field: str, word: str) -> None:
     with pytest.raises(CpbcError) as err:  # a ScenarioError, or an inadmissible state's
-        load(d)
+        load_dict(d)
     assert getattr(err.value, "field", None) == field, str(err.value)
     assert word in str(err.value)
 
@@ -60,21 +47,21 @@ def _refused(load: Callable[[dict], ScenarioSetup], d: dict, field: str, word: s
     (lambda d: d["controllers"][0].update(task={"omega_n": 5000.0}),
      "controllers[0]", "zero-order hold"),
 ])
-def test_bad_goals_are_refused_naming_the_field(load, data, edit, field, word) -> None:
+def test_bad_goals_are_refused_naming_the_field(load_dict, data, edit, field, word) -> None:
     d = copy.deepcopy(data)
     edit(d)
-    _refused(load, d, field, word)
+    _refused(load_dict, d, field, word)
 
 
-def test_task_gains_without_a_goal_are_refused(load, data) -> None:
+def test_task_gains_without_a_goal_are_refused(load_dict, data) -> None:
     d = copy.deepcopy(data)
     d.pop("goal")
     d["target"] = [math.pi, 2 * math.pi / 3]
-    _refused(load, d, "controllers[0].task", "need a goal")
+    _refused(load_dict, d, "controllers[0].task", "need a goal")
 
 
-def test_goal_scenario_builds_with_task_stiffness_from_the_task_inertia(load, data) -> None:
-    setup = load(data)
+def test_goal_scenario_builds_with_task_stiffness_from_the_task_inertia(load_dict, data) -> None:
+    setup = load_dict(data)
     assert setup.goal is not None and setup.goal.preflight.verdict == "reachable"
     assert np.allclose(setup.target, [math.pi, 2 * math.pi / 3], atol=1e-4)
     law = setup.controllers[0].controller
@@ -87,8 +74,8 @@ def test_goal_scenario_builds_with_task_stiffness_from_the_task_inertia(load, da
     assert np.allclose(law.kp, 0.25 * np.diag(state.inertia))  # posture ω_n = 0.5
 
 
-def _planar(load, data) -> tuple[ScenarioSetup, ConstraintSet]:
-    setup = load(data)
+def _planar(load_dict, data) -> tuple[ScenarioSetup, ConstraintSet]:
+    setup = load_dict(data)
     return setup, ConstraintSet(2, setup.monitor.configuration)
 
 
@@ -97,8 +84,8 @@ def _planar(load, data) -> tuple[ScenarioSetup, ConstraintSet]:
     ([3.0, 1.0, 0.0], "unreachable", None),
     ([0.08, 0.0, 0.0], "blocked", "relative_angle"),
 ])
-def test_preflight_verdicts(load, data, position, verdict, named) -> None:
-    setup, config = _planar(load, data)
+def test_preflight_verdicts(load_dict, data, position, verdict, named) -> None:
+    setup, config = _planar(load_dict, data)
     assert setup.goal is not None
     goal = FrameGoal(setup.goal.goal.frame, "end_point", np.array(position))
     start = np.array([0.5, 1.2])
@@ -110,7 +97,7 @@ def test_preflight_verdicts(load, data, position, verdict, named) -> None:
     assert np.all(config.configuration_margins(found.posture) > 0)
 
 
-def test_a_blocked_goal_keeps_the_posture_of_the_descent_from_the_start(tmp_path: Path) -> None:
+def test_a_blocked_goal_keeps_the_posture_of_the_descent_from_the_start(load_dict) -> None:
     # UR10 tool just under a ball: no seed reaches it. A seed on the far branch (pan −2.6 rad)
     # misses by less, but the law descends from the start: taking that branch's posture sent
     # the posture spring across the workspace and the arm wandered for 8 s.
@@ -132,16 +119,14 @@ def test_a_blocked_goal_keeps_the_posture_of_the_descent_from_the_start(tmp_path
                          "task": {"omega_n": 12, "zeta": 1, "rotation_omega_n": 24},
                          "posture": {"omega_n": 2, "zeta": 1}}],
     }
-    path = tmp_path / "ur10_under_ball.yaml"
-    path.write_text(yaml.safe_dump(scenario, sort_keys=False))
-    plan = build(*load_scenario(path)).goal
+    plan = load_dict(scenario).goal
     assert plan is not None
     assert plan.preflight.verdict == "blocked", plan.preflight.describe()
     assert (plan.preflight.blocked_by or "").startswith("clearance[")
     assert np.max(np.abs(plan.posture - np.array(start))) < 0.5, plan.posture
 
 
-def test_the_hold_check_pairs_each_state_s_jacobian_with_its_inertia(tmp_path: Path) -> None:
+def test_the_hold_check_pairs_each_state_s_jacobian_with_its_inertia(load_dict) -> None:
     # Kinova Jaco2 from the upright start (its wrist all but singular: joint 4 alone weighs
     # 3e-4 kg·m²) to a goal behind the base. The check once put the task springs through the
     # posture's Jacobian against the start's inertia — a law that never exists — and refused
@@ -162,8 +147,6 @@ def test_the_hold_check_pairs_each_state_s_jacobian_with_its_inertia(tmp_path: P
                          "task": {"omega_n": 12, "zeta": 1, "rotation_omega_n": 24},
                          "posture": {"omega_n": 2, "zeta": 1}}],
     }
-    path = tmp_path / "kinova_behind.yaml"
-    path.write_text(yaml.safe_dump(scenario, sort_keys=False))
-    setup = build(*load_scenario(path))
+    setup = load_dict(scenario)
     summary = run_one(setup, setup.cases[0], setup.controllers[0], "mujoco").summary
     assert summary.status == "reached", (summary.status, summary.task_error_final)

@@ -15,7 +15,7 @@ import yaml
 from cpbc.errors import CpbcError
 from cpbc.resources import scenarios_dir
 from cpbc.results.metrics import RunSummary
-from cpbc.scenario import ScenarioSetup, build, load_scenario
+from cpbc.scenario import ScenarioSetup
 from cpbc.scenario.runner import RunResult, run_one
 
 UR5 = scenarios_dir() / "ur5_circle_joint_limit.yaml"
@@ -25,24 +25,12 @@ def _data(name: str) -> dict:
     return yaml.safe_load((scenarios_dir() / f"{name}.yaml").read_text())
 
 
-@pytest.fixture
-def load(tmp_path: Path) -> Callable[[dict], ScenarioSetup]:
-    counter = iter(range(1000))
-
-    def _load(d: dict) -> ScenarioSetup:
-        path = tmp_path / f"ref_{next(counter)}.yaml"
-        path.write_text(yaml.safe_dump(d, sort_keys=False))
-        return build(*load_scenario(path))
-
-    return _load
-
-
-def _run(load: Callable[[dict], ScenarioSetup], d: dict, controller: str,
+def _run(load_dict: Callable[[dict], ScenarioSetup], d: dict, controller: str,
          duration: float) -> tuple[ScenarioSetup, RunResult]:
     d = copy.deepcopy(d)
     d["controllers"] = [c for c in d["controllers"] if c["name"] == controller]
     d["simulation"]["duration"] = duration
-    setup = load(d)
+    setup = load_dict(d)
     return setup, run_one(setup, setup.cases[0], setup.controllers[0], "mujoco")
 
 
@@ -68,25 +56,26 @@ def _jump_csv(tmp_path: Path) -> str:
                                            "lower": [-1.0], "upper": [1.0]}),
      "constraints[4]", "position[shoulder_pan_joint]"),
 ])
-def test_bad_references_are_refused_naming_the_field(load, tmp_path, edit, field, word) -> None:
+def test_bad_references_are_refused_naming_the_field(load_dict, tmp_path, edit, field, word
+                                                      ) -> None:
     d = _data("ur5_circle_joint_limit")
     edit(d, tmp_path)
     with pytest.raises(CpbcError) as err:
-        load(d)
+        load_dict(d)
     assert getattr(err.value, "field", None) == field, str(err.value)
     assert word in str(err.value)
 
 
-def test_a_policy_without_a_reference_is_refused(load) -> None:
+def test_a_policy_without_a_reference_is_refused(load_dict) -> None:
     d = yaml.safe_load((scenarios_dir() / "panda_goal_pose.yaml").read_text())
     d["controllers"][1]["on_infeasible"] = "rejoin"
     with pytest.raises(CpbcError) as err:
-        load(d)
+        load_dict(d)
     assert getattr(err.value, "field", None) == "controllers[1].on_infeasible"
 
 
-def test_the_joint_limit_circle_blocks_within_one_period_naming_the_pan(load) -> None:
-    setup, r = _run(load, _data("ur5_circle_joint_limit"), "TS-CPBC-stop", 0.8)
+def test_the_joint_limit_circle_blocks_within_one_period_naming_the_pan(load_dict) -> None:
+    setup, r = _run(load_dict, _data("ur5_circle_joint_limit"), "TS-CPBC-stop", 0.8)
     s = r.summary
     assert s.status == "blocked" and s.blocked_by == "position[shoulder_pan_joint]"
     assert s.blocked_at is not None and not s.crossed_constraints
@@ -98,18 +87,18 @@ def test_the_joint_limit_circle_blocks_within_one_period_naming_the_pan(load) ->
     assert s.min_margins["position[shoulder_pan_joint]"] > 0
 
 
-def test_the_sill_blocks_the_place_before_the_sill(load) -> None:
-    _, r = _run(load, _data("panda_pick_place_blocked"), "TS-CPBC", 5.6)
+def test_the_sill_blocks_the_place_before_the_sill(load_dict) -> None:
+    _, r = _run(load_dict, _data("panda_pick_place_blocked"), "TS-CPBC", 5.6)
     s = r.summary
     assert s.status == "blocked" and s.blocked_by is not None and "sill" in s.blocked_by
     assert not s.crossed_constraints
 
 
-def test_a_csv_reference_with_a_jump_is_carried_at_the_speed_cap(load, tmp_path) -> None:
+def test_a_csv_reference_with_a_jump_is_carried_at_the_speed_cap(load_dict, tmp_path) -> None:
     d = _data("ur5_circle")
     d["reference"]["path"] = {"csv": _jump_csv(tmp_path)}
     d["reference"]["governor"]["max_speed"] = 0.5
-    _, r = _run(load, d, "TS-CPBC", 3.0)
+    _, r = _run(load_dict, d, "TS-CPBC", 3.0)
     s, ref = r.summary, r.reference
     assert ref is not None
     step = np.linalg.norm(np.diff(ref["applied"], axis=0), axis=1).max()
@@ -117,24 +106,24 @@ def test_a_csv_reference_with_a_jump_is_carried_at_the_speed_cap(load, tmp_path)
     assert s.status == "tracked" and not s.crossed_constraints
 
 
-def _summary(load, name: str, controller: str, duration: float | None = None) -> RunSummary:
+def _summary(load_dict, name: str, controller: str, duration: float | None = None) -> RunSummary:
     d = _data(name)
-    return _run(load, d, controller, duration or d["simulation"]["duration"])[1].summary
+    return _run(load_dict, d, controller, duration or d["simulation"]["duration"])[1].summary
 
 
-def test_the_ur5_circle_is_tracked_within_the_targets(load) -> None:
-    cpbc = _summary(load, "ur5_circle", "TS-CPBC")
-    pd = _summary(load, "ur5_circle", "TS-PD+g")
+def test_the_ur5_circle_is_tracked_within_the_targets(load_dict) -> None:
+    cpbc = _summary(load_dict, "ur5_circle", "TS-CPBC")
+    pd = _summary(load_dict, "ur5_circle", "TS-PD+g")
     assert cpbc.status == "tracked" and pd.status == "tracked"
     assert cpbc.task_error_rms is not None and pd.task_error_rms is not None
     assert cpbc.task_error_rms["position"] <= 0.012
     assert cpbc.task_error_rms["position"] <= 1.2 * pd.task_error_rms["position"]
 
 
-def test_a_reference_too_fast_for_the_energy_bound_is_slowed_not_crossed(load) -> None:
+def test_a_reference_too_fast_for_the_energy_bound_is_slowed_not_crossed(load_dict) -> None:
     d = _data("panda_figure8_ke")
     d["controllers"][2]["reference_speed"] = 6.0  # the figure-8 in 1.33 s: over Ω untamed
-    _, r = _run(load, d, "TS-CPBC-KE-x3", 4.0)
+    _, r = _run(load_dict, d, "TS-CPBC-KE-x3", 4.0)
     s = r.summary
     assert s.governor is not None and s.governor["time_slowed"] > 0.2
     assert s.path_lag_max is not None and s.path_lag_max > 0.1

@@ -6,7 +6,6 @@ from __future__ import annotations
 import copy
 import math
 import shutil
-from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
@@ -17,7 +16,7 @@ import yaml
 from cpbc.constraints import KineticEnergyLimit, LinearLimit, PointOutsideSphere, RateLimit
 from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
 from cpbc.resources import models_dir, scenarios_dir
-from cpbc.scenario import Scenario, ScenarioSetup, build, load_scenario
+from cpbc.scenario import Scenario, build, load_scenario
 from cpbc.scenario.expressions import parse_number
 from cpbc.scenario.schema.kinds import KINDS
 
@@ -68,20 +67,6 @@ MINIMAL: dict = {
 def minimal() -> dict:
     """A fresh deep copy of the minimal valid scenario, to be edited by each test."""
     return copy.deepcopy(MINIMAL)
-
-
-@pytest.fixture
-def load_dict(tmp_path: Path) -> Callable[[dict], ScenarioSetup]:
-    """Write a scenario dict to YAML in tmp_path, load and build it."""
-    counter = iter(range(1000))
-
-    def _load(data: dict) -> ScenarioSetup:
-        path = tmp_path / f"scenario_{next(counter)}.yaml"
-        path.write_text(yaml.safe_dump(data, sort_keys=False))
-        scenario, file = load_scenario(path)
-        return build(scenario, file)
-
-    return _load
 
 
 def edit(data: dict, path: str, value: object) -> dict:
