@@ -11,7 +11,9 @@ Runs on a local process pool (``--workers``, default: every core) or on a Dask d
 scheduler (``--cluster``; ``pip install 'cpbc[cluster]'``). Prints a table per scenario
 (``--json``: the document; with several scenarios ``{"campaigns": [...]}``) and writes the
 report to ``--out`` (JSON for a ``.json`` name, else a Markdown report that states the command,
-the version and the conditions of every campaign: the repository's docs/RELIABILITY.md is one).
+the version and the conditions of every campaign: the repository's docs/RELIABILITY.md is one;
+``--out`` may be given twice, for both). ``python -m tools.verify_table`` renders either into
+the tables the documentation pages include.
 Exit code 0 when no viable run was violated, 1 when one was, 2 on bad input.
 """
 

@@ -246,10 +246,9 @@ def _by_rate_layout(tables: Sequence[CampaignTable], columns: Sequence[str]) -> 
     """One row per set-up and controller, each cell its values at each rate joined by '/'."""
     rate_sets = {tuple(_rates(t)) for t in tables}
     same = len(rate_sets) == 1
-    label = (" (" + " / ".join(r.removesuffix(" Hz") for r in next(iter(rate_sets)))
-             + " Hz)") if same else ""
-    head = [c if c == "controller" else c + label for c in columns]
-    lines = ["| " + " | ".join((SETUP, *head)) + " |", "|---" * (len(columns) + 1) + "|"]
+    lines = [("Each cell gives " + " / ".join(next(iter(rate_sets))) + ", in that order.")
+             if same else "Each value is followed by its rate.", "",
+             "| " + " | ".join((SETUP, *columns)) + " |", "|---" * (len(columns) + 1) + "|"]
     for table in tables:
         cells = table.cells()
         for name in dict.fromkeys(row["controller"] for row in cells):
