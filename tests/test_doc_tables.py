@@ -151,3 +151,24 @@ def test_the_campaign_fragments_are_what_their_reports_render(path: str) -> None
     assert (ROOT / path).read_text(encoding="utf-8") == \
         verify_table.docs_fragments()[ROOT / path], \
         f"{path} is stale: python -m tools.verify_table --docs"
+
+
+def test_bench_writes_its_markdown_from_the_document_it_prints(tmp_path, capsys) -> None:
+    from cpbc.bench import main
+
+    out = tmp_path / "speed.md"
+    assert main(["--json", "--markdown", str(out), "--repeats", "2", "--loop-seconds",
+                 "0.02"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert out.read_text(encoding="utf-8") == markdown([document])
+    assert all(low <= document["torque_us"][k] <= high
+               for k, (low, high) in document["torque_us_range"].items())
+    assert document["made"]["command"].startswith("python -m cpbc.bench --json --markdown")
+
+
+def test_bench_refuses_a_markdown_path_in_a_missing_folder(tmp_path, capsys) -> None:
+    from cpbc.bench import main
+
+    assert main(["--markdown", str(tmp_path / "no" / "speed.md")]) == 2
+    assert "--markdown" in capsys.readouterr().err
+    assert not (tmp_path / "no").exists()
