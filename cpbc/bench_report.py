@@ -102,28 +102,39 @@ def torque_table(documents: Sequence[Document]) -> list[str]:
     return [*lines, ""]
 
 
-def other_figures(doc: Document) -> list[str]:
-    """Every entry the main table does not show, by its shape."""
+def _small_table(doc: Document, key: str, numbers: Mapping[str, float]) -> list[str]:
+    unit = _unit(key)
+    ranges = doc.get(f"{key}_range")
+    return [f"{_label(key)} on `{doc.get('robot', '?')}`:", "",
+            f"| | {unit or 'value'} (median) | range |", "|---|---|---|",
+            *(f"| {k} | {_number(v)} | {_span(ranges, k)} |" for k, v in numbers.items()), ""]
+
+
+def _others(doc: Document) -> list[tuple[str, object]]:
+    return [(k, v) for k, v in doc.items() if k not in SHOWN and not k.endswith("_range")]
+
+
+def other_tables(doc: Document) -> list[str]:
+    """Every mapping of numbers the main table does not show, each as a small table."""
     lines: list[str] = []
-    tables: list[str] = []
-    for key, value in doc.items():
-        if key in SHOWN or key.endswith("_range"):
-            continue
-        unit = _unit(key)
+    for key, value in _others(doc):
         numbers = _numbers(value)
+        if numbers is not None:
+            lines += _small_table(doc, key, numbers)
+    return lines
+
+
+def other_figures(doc: Document) -> list[str]:
+    """Every entry the main table does not show: a number or text as a line, a mapping of
+    numbers as a small table."""
+    lines = []
+    for key, value in _others(doc):
         if isinstance(value, int | float) and not isinstance(value, bool):
-            lines.append(f"- {_label(key)}: {_number(float(value))} {unit}".rstrip())
-        elif numbers is not None:
-            ranges = doc.get(f"{key}_range")
-            tables += [f"{_label(key)}:", "",
-                       f"| | {unit or 'value'} (median) | range |", "|---|---|---|",
-                       *(f"| {k} | {_number(v)} | {_span(ranges, k)} |"
-                         for k, v in numbers.items()), ""]
-        else:
+            lines.append(f"- {_label(key)}: {_number(float(value))} {_unit(key)}".rstrip())
+        elif _numbers(value) is None:
             lines.append(f"- {_label(key)}: {value}")
-    if not lines and not tables:
-        return []
-    return [f"On `{doc.get('robot', '?')}`:", "", *lines, "", *tables]
+    lines = [f"On `{doc.get('robot', '?')}`:", "", *lines, ""] if lines else []
+    return lines + other_tables(doc)
 
 
 def markdown(documents: Sequence[Document], command: str | None = None) -> str:
@@ -136,7 +147,8 @@ def markdown(documents: Sequence[Document], command: str | None = None) -> str:
 
 def readme_table(documents: Sequence[Document]) -> str:
     """The README's short form: per arm PD + g, CPBC and every line the arm's own controller
-    set does not have (the peers and any added figure), with the ratio to PD + g."""
+    set does not have (the peers and any added figure), with the ratio to PD + g; then every
+    mapping of numbers a document holds besides (a breakdown of a step, say) as on the page."""
     lines = ["| arm | controller | µs per call (median) | × PD + g |", "|---|---|---|---|"]
     for doc in documents:
         times = _numbers(doc.get(MAIN)) or {}
@@ -147,4 +159,7 @@ def readme_table(documents: Sequence[Document]) -> str:
                 continue
             ratio = f"{us / base:.2f}×" if base else "–"
             lines.append(f"| {doc.get('robot', '?')} | {name} | {_number(us)} | {ratio} |")
-    return "\n".join([README_START, "", *lines, "", README_END])
+    lines.append("")
+    for doc in documents:  # breakdowns and added figures, as on the speed page
+        lines += other_tables(doc)
+    return "\n".join([README_START, "", *lines, README_END])
