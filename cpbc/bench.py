@@ -1,26 +1,33 @@
-"""``python -m cpbc.bench [--robot NAME] [--json] [--check]``: what one control step costs.
+"""``python -m cpbc.bench [--robot NAME] [--json] [--markdown PATH] [--check]``: what one
+control step costs.
 
 Prints, for each controller, the median wall time of one ``torque`` call (µs) and the
 closed-loop rate (control steps per second, MuJoCo physics included). Medians over repeated
-blocks; nothing here is asserted inside the unit tests. ``--check`` exits 1 when CPBC costs
-more than 3× PD + gravity measured in the same run (a ratio, so it holds across machines), or
-when a compiled kernel is not compiled in nopython mode (it fell back to object mode, or
-``NUMBA_DISABLE_JIT`` left it uncompiled; ``python -m cpbc.kernels --check``).
+blocks; nothing here is asserted inside the unit tests. ``--json`` prints the document (with
+each figure's range over the blocks and how the run was made), ``--markdown`` writes the same
+document as a Markdown fragment (``cpbc.bench_report``; the docs' tables are these).
+``--check`` exits 1 when CPBC costs more than 3× PD + gravity measured in the same run (a
+ratio, so it holds across machines), or when a compiled kernel is not compiled in nopython
+mode (it fell back to object mode, or ``NUMBA_DISABLE_JIT`` left it uncompiled;
+``python -m cpbc.kernels --check``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import shlex
 import statistics
 import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.bench_report import markdown as bench_markdown
 from cpbc.constraints import (
     ConstraintSet,
     KineticEnergyLimit,
@@ -43,6 +50,7 @@ from cpbc.controllers import (
 from cpbc.controllers.safeguard import SafeguardSettings, guarded
 from cpbc.errors import CpbcError
 from cpbc.model import LinearCoordinates, RobotModel
+from cpbc.provenance import provenance
 from cpbc.resources import models_dir
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, run_mujoco
 
@@ -108,15 +116,22 @@ def panda() -> BenchSetup:
 ROBOTS: dict[str, Callable[[], BenchSetup]] = {"planar_2link": planar_2link, "panda": panda}
 
 
-def time_torque(ctrl: Controller, states: Sequence[tuple[Array, Array]], repeats: int) -> float:
-    """Median over ``repeats`` blocks of the mean cost of one torque call [µs]."""
+def time_blocks(
+    ctrl: Controller, states: Sequence[tuple[Array, Array]], repeats: int
+) -> list[float]:
+    """The mean cost of one torque call in each of ``repeats`` blocks over ``states`` [µs]."""
     blocks = []
     for _ in range(repeats):
         start = time.perf_counter()
         for x, dx in states:
             ctrl.torque(x, dx)
         blocks.append((time.perf_counter() - start) / len(states) * 1e6)
-    return statistics.median(blocks)
+    return blocks
+
+
+def time_torque(ctrl: Controller, states: Sequence[tuple[Array, Array]], repeats: int) -> float:
+    """Median over ``repeats`` blocks of the mean cost of one torque call [µs]."""
+    return statistics.median(time_blocks(ctrl, states, repeats))
 
 
 def time_loop(
@@ -135,9 +150,10 @@ def time_loop(
     return statistics.median(rates)
 
 
-def peer_times(setup: BenchSetup, repeats: int) -> dict[str, float]:
+def peer_times(setup: BenchSetup, repeats: int) -> dict[str, list[float]]:
     """--peers: the CPBC law as the loop runs it (with its safeguard) and the CBF-QP filter
-    (cpbc.peers, DAQP) on the same constraint objects, gains, torque box and states [µs]."""
+    (cpbc.peers, DAQP) on the same constraint objects, gains, torque box and states: the µs of
+    each timed block."""
     from cpbc.peers import CBFQP
 
     law = setup.controllers["cpbc"]
@@ -149,7 +165,7 @@ def peer_times(setup: BenchSetup, repeats: int) -> dict[str, float]:
     }
     for ctrl in contenders.values():
         time_torque(ctrl, setup.states[:8], 1)
-    return {k: time_torque(c, setup.states, repeats) for k, c in contenders.items()}
+    return {k: time_blocks(c, setup.states, repeats) for k, c in contenders.items()}
 
 
 def time_governor(repeats: int, steps: int = 5000) -> float:
@@ -175,6 +191,13 @@ def _print_peers(torque_us: dict[str, float]) -> None:
           f"cbf_qp / cpbc bare: {qp / torque_us['cpbc']:.2f}x")
 
 
+def made(argv: Sequence[str] | None, repeats: int, states: int) -> dict[str, object]:
+    """How this run was made (cpbc.provenance), with what one figure is a median of."""
+    args = sys.argv[1:] if argv is None else list(argv)
+    return {**provenance(shlex.join(["python", "-m", "cpbc.bench", *args])),
+            "blocks": repeats, "calls_per_block": states}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m cpbc.bench", description=__doc__)
     p.add_argument("--robot", choices=sorted(ROBOTS), default="planar_2link")
@@ -186,7 +209,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                    "compiled in nopython mode")
     p.add_argument("--peers", action="store_true",
                    help="also time the guarded law and the cbf_qp peer (needs cpbc[peers])")
+    p.add_argument("--markdown", metavar="PATH",
+                   help="also write the figures as a Markdown fragment (cpbc.bench_report)")
     args = p.parse_args(argv)
+    if args.markdown and not Path(args.markdown).resolve().parent.is_dir():
+        print(f"error: --markdown {args.markdown}: its folder does not exist", file=sys.stderr)
+        return 2
     setup = ROBOTS[args.robot]()
     try:
         peers = peer_times(setup, args.repeats) if args.peers else {}
@@ -195,22 +223,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     for ctrl in setup.controllers.values():  # warm up caches and lazy imports
         time_torque(ctrl, setup.states[:8], 1)
-    torque_us = {k: time_torque(c, setup.states, args.repeats)
+    blocks_us = {k: time_blocks(c, setup.states, args.repeats)
                  for k, c in setup.controllers.items()}
+    torque_us = {k: statistics.median(v) for k, v in blocks_us.items()}
     blocks = max(3, args.repeats // 3)
     loop = {k: time_loop(setup, c, args.loop_seconds, blocks)
             for k, c in setup.controllers.items()}
     bare = {k: time_loop(setup, c, args.loop_seconds, blocks, safeguard=False)
             for k, c in setup.controllers.items() if not c.constraints.empty}
     ratio = torque_us["cpbc"] / torque_us["pd_gravity"]
-    torque_us.update(peers)
+    blocks_us.update(peers)
+    torque_us.update({k: statistics.median(v) for k, v in peers.items()})
     governor = time_governor(args.repeats)
+    document = {"robot": setup.robot, "torque_us": torque_us,
+                "torque_us_range": {k: [min(v), max(v)] for k, v in blocks_us.items()},
+                "closed_loop_steps_per_second": loop,
+                "closed_loop_bare_law_steps_per_second": bare,
+                "cpbc_over_pd_gravity": ratio, "governor_us": governor,
+                "notes": setup.notes, "made": made(argv, args.repeats, len(setup.states))}
+    if args.markdown:
+        Path(args.markdown).write_text(bench_markdown([document]), encoding="utf-8")
     if args.json:
-        print(json.dumps({"robot": setup.robot, "torque_us": torque_us,
-                          "closed_loop_steps_per_second": loop,
-                          "closed_loop_bare_law_steps_per_second": bare,
-                          "cpbc_over_pd_gravity": ratio, "governor_us": governor,
-                          "notes": setup.notes}))
+        print(json.dumps(document))
     else:
         print(f"robot: {setup.robot} ({setup.notes})")
         print(f"{'controller':<12} {'torque [µs]':>12} {'loop [steps/s]':>15} "

@@ -11,7 +11,9 @@ Runs on a local process pool (``--workers``, default: every core) or on a Dask d
 scheduler (``--cluster``; ``pip install 'cpbc[cluster]'``). Prints a table per scenario
 (``--json``: the document; with several scenarios ``{"campaigns": [...]}``) and writes the
 report to ``--out`` (JSON for a ``.json`` name, else a Markdown report that states the command,
-the version and the conditions of every campaign: the repository's docs/RELIABILITY.md is one).
+the version and the conditions of every campaign: the repository's docs/RELIABILITY.md is one;
+``--out`` may be given twice, for both). ``python -m tools.verify_table`` renders either into
+the tables the documentation pages include.
 Exit code 0 when no viable run was violated, 1 when one was, 2 on bad input.
 """
 
@@ -21,7 +23,6 @@ import argparse
 import json
 import math
 import os
-import platform
 import shlex
 import sys
 import time
@@ -41,8 +42,9 @@ from rich.progress import (
 )
 from rich.table import Table
 
-from cpbc import __version__
 from cpbc.errors import CpbcError
+from cpbc.provenance import provenance
+from cpbc.reliability.report import margin_text, markdown, row_share, shown
 from cpbc.reliability.verification import (
     CLASSES,
     Block,
@@ -112,8 +114,9 @@ def plans_from(a: argparse.Namespace) -> list[Plan]:
         raise UsageError(f"--rates: every rate must be > 0 Hz, got {a.rates!r}")
     if a.states < 1 or a.horizon <= 0 or a.workers < 1 or a.block < 1:
         raise UsageError("--states, --workers and --block must be ≥ 1 and --horizon > 0")
-    if a.out and not Path(a.out).resolve().parent.is_dir():
-        raise UsageError(f"--out {a.out}: its folder does not exist")
+    for out in a.out:
+        if not Path(out).resolve().parent.is_dir():
+            raise UsageError(f"--out {out}: its folder does not exist")
     seeds = None if a.seeds is None else tuple(int(v) for v in _numbers(a.seeds, "--seeds"))
     mismatch, noise = _mismatch(a.mismatch), _noise(a.noise)
     return [Plan(_scenario(name), a.seed, a.states, tuple(rates), a.horizon, mismatch, noise,
@@ -199,19 +202,8 @@ def run_campaign(plan: Plan, workers: int = 1, cluster: str | None = None, block
     return doc
 
 
-def markdown_cell(text: str) -> str:
-    """Text for a Markdown table cell: a clearance pair's name (``link|obstacle``) holds a
-    bar, which would split the cell."""
-    return text.replace("|", "\\|")
-
-
-def _margin(row: Record) -> str:
-    low = float(row["worst_margin"])  # type: ignore[arg-type]
-    return "-" if math.isinf(low) else f"{low:.3g} ({row['worst_constraint']})"
-
-
 def table(doc: Record) -> Table:
-    t = Table(title=f"cpbc verify: {_shown(doc['plan']['scenario'])}")  # type: ignore[index]
+    t = Table(title=f"cpbc verify: {shown(doc['plan']['scenario'])}")  # type: ignore[index]
     for col in ("controller", "rate", "stoppable runs", "violations", "deeper than 1e-6",
                 "worst depth", "worst margin", *(f"{k} (violated)" for k in CLASSES[1:]),
                 "filter acted", "rows acted", "infeasible steps", "rescues",
@@ -222,106 +214,12 @@ def table(doc: Record) -> Table:
         seeds = [str(f["seed"]) for f in r["failures"]]
         t.add_row(r["controller"], f"{r['rate']:g} Hz", str(r["runs"]),
                   f"[red]{r['violations']}[/red]" if r["violations"] else "0",
-                  str(r["deep_violations"]), f"{r['worst_depth']:.2g}", _margin(r),
+                  str(r["deep_violations"]), f"{r['worst_depth']:.2g}", margin_text(r),
                   *(f"{nv[k]['runs']} ({nv[k]['violations']})" for k in CLASSES[1:]),
-                  f"{r['filter_share']:.1%}", f"{_rows(r):.1%}", str(r["infeasible_steps"]),
+                  f"{r['filter_share']:.1%}", f"{row_share(r):.1%}", str(r["infeasible_steps"]),
                   str(r.get("rescues", 0)), f"{r['torque_limit_share']:.1%}",
                   ",".join(seeds[:8]) + ("…" if len(seeds) > 8 else ""))
     return t
-
-
-def _rows(row: Record) -> float:
-    """The share of steps the filter's own rows or conditions changed the torque (the whole
-    filter share in documents written before it was counted apart)."""
-    return float(row.get("row_share", row["filter_share"]))  # type: ignore[arg-type]
-
-
-def _shown(scenario: str) -> str:
-    """A scenario file as the reader would name it: relative to here when it is below."""
-    path = Path(scenario)
-    if not path.is_absolute():
-        return scenario
-    try:
-        return str(path.relative_to(Path.cwd()))
-    except ValueError:
-        return scenario
-
-
-def _also(where: Record) -> str:
-    kept = cast(list, where.get("also_kept") or [])
-    return (f" (it also keeps every monitored {' and '.join(kept)} constraint, judged too)"
-            if kept else "")
-
-
-def _limits(limit: object) -> str:
-    if limit is None:
-        return "none"
-    values = sorted({float(v) for v in limit})  # type: ignore[attr-defined]
-    return " / ".join(f"{v:g}" for v in values) + " N·m"
-
-
-def _section(doc: Record) -> list[str]:
-    plan = cast(Record, doc["plan"])
-    where = cast(Record, doc.get("conditions", {}))
-    seeds = cast(list, plan["seeds"])
-    lines = [f"## {_shown(str(plan['scenario']))}", "",
-             f"States: {len(seeds)} (seeds {plan['seed']}…), horizon {plan['horizon']} s; "
-             f"physics {where.get('integrator', '?')} at {where.get('timestep', '?')} s; "
-             f"torque limits {_limits(where.get('torque_limit'))}; safeguard "
-             f"{'on' if where.get('safeguard', True) else 'off'}{_also(where)}; mismatch "
-             f"{plan['mismatch'] or 'none'}, noise {plan['noise'] or 'none'}.", "",
-             "| controller | rate | stoppable runs | violations | deeper than 1e-6 | "
-             "worst depth | worst margin | " + " | ".join(f"{k} (violated)" for k in CLASSES[1:])
-             + " | filter acted | rows acted | infeasible steps | rescues | torque on a limit "
-             "| failing seeds |",
-             "|---" * (13 + len(CLASSES) - 1) + "|"]
-    for r in doc["results"]:  # type: ignore[attr-defined]
-        nv = r["non_viable"]
-        lines.append(
-            f"| {r['controller']} | {r['rate']:g} Hz | {r['runs']} | {r['violations']} | "
-            f"{r['deep_violations']} | {r['worst_depth']:.2g} | "
-            f"{markdown_cell(_margin(r))} | "
-            + " | ".join(f"{nv[k]['runs']} ({nv[k]['violations']})" for k in CLASSES[1:])
-            + f" | {r['filter_share']:.1%} | {_rows(r):.1%} | {r['infeasible_steps']} | "
-            f"{r.get('rescues', 0)} | {r['torque_limit_share']:.1%} | "
-            + f"{', '.join(str(f['seed']) for f in r['failures'])} |")
-    return lines
-
-
-def markdown(docs: Sequence[Record], command: str = "", seconds: float | None = None) -> str:
-    """The report: how it was made (command, version, machine, date), what the columns mean,
-    then one table per scenario."""
-    took = "" if seconds is None else (f" in {seconds / 60:.1f} min" if seconds >= 60
-                                          else f" in {seconds:.0f} s")
-    lines = ["# cpbc verify", "",
-             f"Made by `{command or 'python -m cpbc.verify'}` with cpbc {__version__}, "
-             f"Python {platform.python_version()}, {os.cpu_count()} cores, on "
-             f"{time.strftime('%Y-%m-%d', time.gmtime())}{took}.", "",
-             "Each state is classed per rate before it runs: *stoppable* (some brake within "
-             "the torque box — uniform, least-squares, or aimed at the nearest constraint — "
-             "held at the control rate in the true plant brings it to rest with every margin "
-             "positive: the *stoppable runs* column counts these, and a violation from here "
-             "is a defect), *not_stoppable* (none of those brakes does; counted apart, as "
-             "runs (violated)). One rule for every controller: *violations* are stoppable "
-             "runs with a margin ≤ 0 at some physics step, *deeper than 1e-6* those whose "
-             "smallest margin fell below −1e-6 in the constraint's own units (rad², m, "
-             "rad/s: the rest are crossings of rounding size), *worst depth* the largest "
-             "such depth (0 when none crossed). *Filter acted*: the share of control steps "
-             "(all runs) at which the safeguard (or a peer's filter) changed the nominal "
-             "torque; *rows acted*: the share at which its own conditions changed it, not "
-             "the torque box alone (a peer clips its PD nominal to the box, which *filter "
-             "acted* counts too; every step the guard acts is its own); *infeasible steps*: "
-             "steps at which it could not meet every row within the box (the guard's "
-             "fallback, the peer's slack); *rescues*: steps at which the guard held its "
-             "rescue's brake (`cpbc.controllers.rescue`); *torque on a limit*: the share of "
-             "steps with a joint torque on its actuator limit. A violation is judged on the "
-             "true state at every physics step, for every constraint the controller keeps: "
-             "the law's own and, with the safeguard, the scenario's monitored constraints it "
-             "keeps besides (`simulation.safeguard_monitored`). Reproduce one failure with "
-             "`--seeds K --rates R`.", ""]
-    for doc in docs:
-        lines += [*_section(doc), ""]
-    return "\n".join(lines)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -339,7 +237,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--block", type=int, default=8, help="states per unit of work")
     p.add_argument("--cluster", help="a Dask scheduler's address, e.g. tcp://127.0.0.1:8786")
     p.add_argument("--json", action="store_true", help="print the JSON document")
-    p.add_argument("--out", help="write the report here (.json: the document; else Markdown)")
+    p.add_argument("--out", action="append", default=[],
+                   help="write the report here (.json: the document; else Markdown); may be "
+                   "given more than once, e.g. a report and its JSON document")
     return p
 
 
@@ -368,17 +268,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         err.print(f"[red]error:[/red] {exc}", highlight=False)
         return 2
     document: Record = docs[0] if len(docs) == 1 else {"campaigns": docs}
+    command = shlex.join(["python", "-m", "cpbc.verify", *args])
+    seconds = time.perf_counter() - start
+    document["made"] = {**provenance(command), "seconds": round(seconds, 1)}
     if a.json:
         print(json.dumps(document, indent=1))
     else:
         out = Console(width=None if sys.stdout.isatty() else 200)
         for doc in docs:
             out.print(table(doc))
-    if a.out:
-        path = Path(a.out)
-        command = shlex.join(["python", "-m", "cpbc.verify", *args])
+    made = cast(Record, document["made"])
+    for path in map(Path, a.out):
         path.write_text(json.dumps(document, indent=1) if path.suffix == ".json"
-                        else markdown(docs, command, time.perf_counter() - start))
+                        else markdown(docs, command, seconds, cast(str | None, made["commit"])))
     failed = any(r["violations"] for doc in docs for r in doc["results"])  # type: ignore[attr-defined]
     return 1 if failed else 0
 

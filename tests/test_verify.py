@@ -141,7 +141,7 @@ def test_a_part_one_scenario_is_refused_with_the_reason(capsys):
 
 
 def test_a_clearance_pairs_bar_does_not_split_a_report_cell():
-    from cpbc.verify import markdown_cell
+    from cpbc.reliability.report import markdown_cell
 
     cell = markdown_cell("0.01 (clearance[panda_hand|ball])")
     assert cell == "0.01 (clearance[panda_hand\\|ball])"
