@@ -1,34 +1,19 @@
-"""Shared pieces of the scenario specs: numbers (expressions, finite), names, the
-files a run writes, the size limits and the ``Strict`` base of every spec."""
+"""Shared pieces of the scenario specs: names, the files a run writes, the size limits, and
+(re-exported from cpbc.spec.fields, where the constraint kinds read them) the numbers and
+the ``Strict`` base of every spec."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from typing import Annotated
 
-from pydantic import (
-    AfterValidator,
-    BaseModel,
-    BeforeValidator,
-    ConfigDict,
-    Field,
-)
+from pydantic import AfterValidator, Field
 
-from cpbc.scenario.expressions import parse_number
+from cpbc.spec.fields import Gain, NonNegative, Number, Positive, Strict, Vector
 
+__all__ = ["CASE_FILES", "MAX_CASES", "MAX_RUNS", "RUN_FILES", "CaseName", "Gain",
+           "NonNegative", "Number", "Positive", "RunName", "SafeName", "Strict", "Vector"]
 
-def _finite(v: float) -> float:
-    if not math.isfinite(v):
-        raise ValueError("must be a finite number")
-    return v
-
-
-Number = Annotated[float, BeforeValidator(parse_number), AfterValidator(_finite)]
-Positive = Annotated[Number, Field(gt=0)]
-NonNegative = Annotated[Number, Field(ge=0)]
-Vector = list[Number]
-Gain = Positive | list[Positive]
 # Names become folder names of the output: one path component, no "." or "..", short
 # enough for any file system (a name is at most 255 bytes).
 SafeName = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$", max_length=100)]
@@ -62,7 +47,3 @@ RunName = Annotated[SafeName, AfterValidator(_not_in(CASE_FILES, "into each case
 #: campaign, for cpbc.reliability, or several scenarios.
 MAX_CASES = 500
 MAX_RUNS = 1000
-
-
-class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)

@@ -1,39 +1,26 @@
-"""The constraint and law kinds a scenario's ``type:`` may name, one module each, and
-:data:`KINDS`, the registry built from them (see cpbc.scenario.schema.kinds.registry for what a kind
-declares, where, and why the registry is a value).
+"""The constraint and law kinds a scenario's ``type:`` may name, and :data:`KINDS`, the registry
+of them (see cpbc.scenario.schema.kinds.registry for what a kind declares, where, and why the
+registry is a value).
 
-A new kind is one module here (its spec, its factory, its declarations, ``KIND``), one line
-in the tuple below, and its test; the schema, the JSON schema, the scenario reference, the
-build, the gain check and the results read it from there.
+The constraint kinds are declared in their constraints' modules (cpbc.constraints), the law
+kinds in this package's ``*_kind`` modules; :data:`KINDS` is what those modules declare, found
+by walking both packages in the order of their module names. A new kind is one module and
+its test; the schema, the JSON Schema, the scenario reference, the build, the gain check and
+the results read it from here.
 """
 
-from cpbc.scenario.schema.kinds import (
-    bpbc_kind,
-    cbf_qp_kind,
-    clearance_kind,
-    cpbc_kind,
-    joint_position_limit_kind,
-    joint_rate_limit_kind,
-    kinetic_energy_limit_kind,
-    linear_limit_kind,
-    pd_kind,
-    point_outside_sphere_kind,
-    rate_limit_kind,
-    recentred_kind,
+import cpbc.constraints
+import cpbc.scenario.schema.kinds as _laws
+from cpbc.constraints.constraint_kind import ConstraintKind
+from cpbc.scenario.schema.kinds.registry import (
+    Kinds,
+    LawKind,
+    declared_in,
+    declared_kinds,
 )
-from cpbc.scenario.schema.kinds.registry import ConstraintKind, KindError, Kinds, LawKind
+from cpbc.spec.type_names import KindError
 
-KINDS = Kinds(
-    constraints=(
-        joint_position_limit_kind.KIND,
-        linear_limit_kind.KIND,
-        point_outside_sphere_kind.KIND,
-        joint_rate_limit_kind.KIND,
-        rate_limit_kind.KIND,
-        kinetic_energy_limit_kind.KIND,
-        clearance_kind.KIND,
-    ),
-    laws=(pd_kind.KIND, cpbc_kind.KIND, recentred_kind.KIND, bpbc_kind.KIND, cbf_qp_kind.KIND),
-)
+KINDS = Kinds.of(declared_kinds(cpbc.constraints, _laws))
 
-__all__ = ["KINDS", "ConstraintKind", "KindError", "Kinds", "LawKind"]
+__all__ = ["KINDS", "ConstraintKind", "KindError", "Kinds", "LawKind", "declared_in",
+           "declared_kinds"]

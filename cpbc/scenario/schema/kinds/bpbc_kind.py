@@ -39,4 +39,7 @@ def build(spec: BPBCSpec, given: LawInputs) -> Controller:
                model_bounds=given.model_bounds(), **gains)
 
 
-KIND = LawKind(BPBCSpec, build, slopes=tanh_slopes, goal_types=("bpbc", "bpbc_ke"))
+KINDS = (LawKind(
+    BPBCSpec, build, slopes=tanh_slopes,
+    examples={"bpbc": {"constraints": ["rates"]}, "bpbc_ke": {"constraints": ["energy"]}},
+    goal_types=("bpbc", "bpbc_ke")),)

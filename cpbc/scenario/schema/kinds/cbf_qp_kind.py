@@ -93,4 +93,6 @@ def build(spec: CBFQPSpec, given: LawInputs) -> Controller:
         raise ScenarioError(f"{given.field}.type", str(exc)) from None
 
 
-KIND = LawKind(CBFQPSpec, build, slopes=LINEAR, goal_types=("cbf_qp",))
+KINDS = (LawKind(CBFQPSpec, build, slopes=LINEAR,
+                 examples={"cbf_qp": {"constraints": ["limits", "rates"]}},
+                 goal_types=("cbf_qp",)),)

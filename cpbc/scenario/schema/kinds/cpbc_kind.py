@@ -31,4 +31,8 @@ def build(spec: CPBCSpec, given: LawInputs) -> Controller:
                shaping=shaping(spec.shaping), **gains)
 
 
-KIND = LawKind(CPBCSpec, build, slopes=LINEAR, goal_types=("cpbc", "cpbc_ke"))
+KINDS = (LawKind(
+    CPBCSpec, build, slopes=LINEAR,
+    examples={"cpbc": {"constraints": ["limits", "rates"]},
+              "cpbc_ke": {"constraints": ["limits", "energy"]}},
+    goal_types=("cpbc", "cpbc_ke")),)

@@ -27,4 +27,5 @@ def build(spec: PDSpec, given: LawInputs) -> Controller:
     return law(given.model, given.target, **gains)
 
 
-KIND = LawKind(PDSpec, build, slopes=LINEAR, goal_types=("pd_gravity",))
+KINDS = (LawKind(PDSpec, build, slopes=LINEAR, examples={"pd": {}, "pd_gravity": {}},
+                 goal_types=("pd_gravity",)),)

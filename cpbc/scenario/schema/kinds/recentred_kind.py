@@ -35,4 +35,6 @@ def start_problem(law: Controller, x: Array, dx: Array, names: tuple[str, ...],
     return law.start_problem(law.state(x, dx), names, torque_limit, period)
 
 
-KIND = LawKind(RecentredSpec, build, slopes=LINEAR, start_problem=start_problem)
+KINDS = (LawKind(RecentredSpec, build, slopes=LINEAR,
+                 examples={"recentred": {"constraints": ["limits", "rates"]}},
+                 start_problem=start_problem),)
