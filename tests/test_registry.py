@@ -21,10 +21,11 @@ import pytest
 from pydantic import Field, ValidationError
 
 import cpbc.constraints
-import cpbc.scenario.schema.kinds as law_kinds
 from cpbc.arrays import Array
 from cpbc.constraints import ConfigurationConstraint
 from cpbc.constraints.margins import BY_KEY, OTHER, TYPES
+from cpbc.controllers.law_kind import Slopes
+from cpbc.controllers.pd import PDSpec, build_pd
 from cpbc.errors import ScenarioError
 from cpbc.json_schema import scenario_schema
 from cpbc.results.io import write_summaries
@@ -37,15 +38,13 @@ from cpbc.scenario.runner import run_all
 from cpbc.scenario.schema import ConstraintEntrySpec, scenario_model
 from cpbc.scenario.schema.kinds import (
     KINDS,
+    PACKAGES,
     ConstraintKind,
     KindError,
     Kinds,
     LawKind,
     declared_kinds,
 )
-from cpbc.scenario.schema.kinds.law_inputs import Slopes
-from cpbc.scenario.schema.kinds.pd_kind import PDSpec
-from cpbc.scenario.schema.kinds.pd_kind import build as build_pd
 from cpbc.viewer.outputs import write_run_outputs
 from tools import scenario_reference
 
@@ -81,16 +80,18 @@ def _json_mapping(schema: dict[str, Any], key: str) -> dict[str, str]:
 
 
 def test_the_registry_is_what_the_packages_declare() -> None:
-    """Every constraint module's and law kind module's ``KINDS``, in the order of their module
-    names (the walk is deterministic), and nothing else."""
+    """Every constraint and law module's ``KINDS`` (cpbc.constraints, cpbc.controllers,
+    cpbc.peers), in the order of their module names (the walk is deterministic), and nothing
+    else."""
     declared = [*cpbc.constraints.linear_limit.KINDS, *cpbc.constraints.rate_limit.KINDS]
     assert all(k in KINDS.constraints for k in declared)
-    assert KINDS == Kinds.of(declared_kinds(cpbc.constraints, law_kinds))
+    assert KINDS == Kinds.of(declared_kinds(*PACKAGES))
     assert KINDS.constraint_types == (
         "clearance", "kinetic_energy_limit", "joint_position_limit", "linear_limit",
         "point_outside_sphere", "joint_rate_limit", "rate_limit")
-    assert set(KINDS.law_types) == {"pd", "pd_gravity", "cpbc", "cpbc_ke", "recentred",
-                                    "bpbc", "bpbc_ke", "cbf_qp"}
+    assert KINDS.law_types == ("bpbc", "bpbc_ke", "cpbc", "cpbc_ke", "pd", "pd_gravity",
+                               "recentred", "cbf_qp")
+    assert KINDS.law("pd").spec.__module__ == "cpbc.controllers.pd"
 
 
 @pytest.mark.parametrize("type_name", KINDS.constraint_types)
@@ -267,7 +268,7 @@ def extra_package(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ModuleTy
 def _with_point_below(extra: ModuleType) -> Kinds:
     """The shipped kinds and the extra package's, found by the walk that finds the shipped
     ones."""
-    return Kinds.of(declared_kinds(cpbc.constraints, extra, law_kinds))
+    return Kinds.of(declared_kinds(cpbc.constraints, extra, *PACKAGES[1:]))
 
 
 def test_a_new_constraint_kind_reaches_schema_build_results_figures_and_docs(

@@ -1,12 +1,23 @@
 """The YAML scenario format, validated with pydantic. Every error names its field.
 
 One module per group of specs; the constraint and law kinds' specs are declared beside their
-factories (a constraint's in its module of cpbc.constraints, a law's in
-cpbc.scenario.schema.kinds) and reach the ``Scenario`` through the registry
+factories, at the end of their constraints' and laws' modules (cpbc.constraints,
+cpbc.controllers, cpbc.peers), and reach the ``Scenario`` through the registry
 (cpbc.scenario.schema.kinds.KINDS). The other names are re-exported here, so
 ``from cpbc.scenario.schema import Scenario`` and ``schema.RobotSpec`` keep working."""
 
 from cpbc.constraints.constraint_kind import ConstraintEntrySpec, FromModel
+from cpbc.controllers.law_specs import (
+    ConstrainedLawSpec,
+    GainsSpec,
+    IdentityShapingSpec,
+    LawSpec,
+    PostureGainsSpec,
+    PowerShapingSpec,
+    ShapingSpec,
+    TanhShapingSpec,
+    TaskGainsSpec,
+)
 from cpbc.scenario.schema.arm_specs import (
     CaseSpec,
     ConstraintSpec,
@@ -32,17 +43,6 @@ from cpbc.scenario.schema.common import (
     SafeName,
     Strict,
     Vector,
-)
-from cpbc.scenario.schema.controller_specs import (
-    ConstrainedLawSpec,
-    GainsSpec,
-    IdentityShapingSpec,
-    LawSpec,
-    PostureGainsSpec,
-    PowerShapingSpec,
-    ShapingSpec,
-    TanhShapingSpec,
-    TaskGainsSpec,
 )
 from cpbc.scenario.schema.obstacle_specs import (
     BoxObstacleSpec,

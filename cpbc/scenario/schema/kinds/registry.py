@@ -1,28 +1,24 @@
-"""What a law kind declares, and :class:`Kinds`, the registry of every constraint and law kind,
-found by walking the packages that declare them.
+""":class:`Kinds`, the registry of every constraint and law kind, found by walking the packages
+that declare them.
 
 **Where each declaration lives** (so that every import points down the layers model →
-constraints → controllers → simulation → results → scenario/CLI):
-
-- A constraint kind lives in its constraint's own module of ``cpbc.constraints``: the class
-  (with its margin type and unit, cpbc.constraints.margins) and, at the end of the module,
-  ``KINDS``, a tuple of :class:`~cpbc.constraints.constraint_kind.ConstraintKind` (its spec,
-  its factory, an example entry per type). The spec's vocabulary is in ``cpbc.spec``.
-- A law kind lives in one module of this package (``pd_kind``, ``bpbc_kind``, …), which ends
-  with ``KINDS``, a tuple of :class:`LawKind`: its spec, its factory, what the gain check
-  needs (:class:`Slopes`), an example entry per type and which of its types take a goal.
-  They stay in the scenario layer because what they are made of is the scenario's: the
-  gains given as ω_n, ζ and scaled by the arm's inertia, a goal's task and posture gains,
-  the reference governor's policy, the loop's period and torque limit (cpbc.simulation).
+constraints → controllers → simulation → results → scenario/CLI): in the kind's own module,
+after the class. A constraint module of ``cpbc.constraints`` ends with ``KINDS``, a tuple of
+:class:`~cpbc.constraints.constraint_kind.ConstraintKind` (its spec, its factory, the class
+whose ``margin_type`` says how the results report it, an example entry per type); a law
+module of ``cpbc.controllers`` or ``cpbc.peers`` with ``KINDS``, a tuple of
+:class:`~cpbc.controllers.law_kind.LawKind` (its spec, its factory, what the gain check needs,
+an example entry per type, which of its types take a goal). The specs' vocabulary is in
+``cpbc.spec`` and ``cpbc.controllers.law_specs``.
 
 **The registry is a value found by reading, not a global that fills itself.**
 :func:`declared_kinds` imports every module of a package, in sorted order, and collects the
 ``KINDS`` of those that have one; ``cpbc.scenario.schema.kinds.KINDS`` is the frozen
-:class:`Kinds` of ``cpbc.constraints`` and this package. No module registers itself, so a
-new kind is one module and its test, and a test that wants one more kind builds its own
-``Kinds`` (``KINDS.with_modules(module)``) and passes it along; the default stays as it was.
-The schema's discriminated unions, ``build``, the gain check and the generated docs all read
-it. Every entry is checked when a ``Kinds`` is built: a spec whose ``type:`` is not a tuple of
+:class:`Kinds` of those packages. No module registers itself, so a new kind is one module and
+its test, and a test that wants one more kind builds its own ``Kinds`` (from its own package,
+or ``KINDS.with_modules(module)``) and passes it along; the default stays as it was. The
+schema's discriminated unions, ``build``, the gain check and the generated docs all read it.
+Every entry is checked when a ``Kinds`` is built: a spec whose ``type:`` is not a tuple of
 literals, a type name given twice, a type without an example, a constraint class without a
 margin type the results know, or a law without the gain check's declaration is refused
 there, loudly.
@@ -32,55 +28,19 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import dataclass
 from types import ModuleType
-from typing import Annotated, Any, Generic, TypeVar, Union
+from typing import Annotated, Any, TypeVar, Union
 
 from pydantic import BaseModel, Field
 
-from cpbc.arrays import Array
 from cpbc.constraints.constraint_kind import ConstraintKind
 from cpbc.constraints.margins import TYPES
-from cpbc.controllers.controller import Controller
-from cpbc.scenario.schema.kinds.law_inputs import LawInputs, Slopes
-from cpbc.spec.type_names import KindError, type_names
+from cpbc.controllers.law_kind import LawKind
+from cpbc.spec.type_names import KindError
 
 S = TypeVar("S", bound=BaseModel)
-
-
-@dataclass(frozen=True)
-class LawKind(Generic[S]):
-    """A law kind of the ``controllers:`` list.
-
-    Attributes:
-        spec: its YAML entry (a pydantic model with ``type: Literal[...]``, the gains, ``name``).
-        build: the factory, spec → controller (ScenarioError naming the field).
-        slopes: what the gain check needs: the slopes of its spring and damping near the
-            target per unit of K_P and K_D (:class:`Slopes`; law_inputs.LINEAR for a law
-            linear in x̃ and ẋ, law_inputs.tanh_slopes for a saturating one). No default: a
-            law that does not say is refused.
-        examples: per type name, the keys (beside ``type`` and the gains) of a minimal entry
-            on the thesis's planar two-link arm whose constraints are ``limits`` (a
-            joint_position_limit), ``rates`` (a joint_rate_limit) and ``energy`` (a
-            kinetic_energy_limit) — what the contract test builds. No default.
-        goal_types: those of its type names that take a scenario goal (task-space terms).
-        start_problem: why the law cannot start from a case's state, if it can say so
-            (law, x, ẋ, coordinate names, torque limit, held period) → message or None.
-    """
-
-    spec: type[S]
-    build: Callable[[S, LawInputs], Controller]
-    slopes: Callable[[S, int, str], Slopes]
-    examples: Mapping[str, Mapping[str, Any]]
-    goal_types: tuple[str, ...] = ()
-    start_problem: Callable[
-        [Controller, Array, Array, tuple[str, ...], Array | None, float | None], str | None
-    ] | None = None
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        return type_names(self.spec)
 
 
 def _check_examples(kind: ConstraintKind[Any] | LawKind[Any]) -> None:
@@ -105,7 +65,7 @@ def _check_law(kind: LawKind[Any]) -> None:
     if not callable(kind.slopes):
         raise KindError(
             f"law kind {kind.names} declares no slopes for the gain check; give "
-            "slopes=law_inputs.LINEAR or law_inputs.tanh_slopes (or its own)")
+            "slopes=law_kind.LINEAR or law_kind.tanh_slopes (or its own)")
     unknown = set(kind.goal_types) - set(kind.names)
     if unknown:
         raise KindError(f"law kind {kind.names}: goal_types {sorted(unknown)} are not its types")
