@@ -25,4 +25,6 @@ Gain = Positive | list[Positive]
 
 
 class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # defer_build: a spec's validator is built when a scenario is first validated, not when
+    # its module is imported (the Python API imports every constraint and law module)
+    model_config = ConfigDict(extra="forbid", frozen=True, defer_build=True)
