@@ -31,7 +31,7 @@ import pkgutil
 from collections.abc import Iterable
 from dataclasses import dataclass
 from types import ModuleType
-from typing import Annotated, Any, TypeVar, Union
+from typing import Annotated, Any, Union
 
 from pydantic import BaseModel, Field
 
@@ -39,8 +39,6 @@ from cpbc.constraints.constraint_kind import ConstraintKind
 from cpbc.constraints.margins import TYPES
 from cpbc.controllers.law_kind import LawKind
 from cpbc.spec.type_names import KindError
-
-S = TypeVar("S", bound=BaseModel)
 
 
 def _check_examples(kind: ConstraintKind[Any] | LawKind[Any]) -> None:
@@ -56,8 +54,8 @@ def _check_constraint(kind: ConstraintKind[Any]) -> None:
     if declared not in TYPES:
         raise KindError(
             f"constraint kind {kind.names}: {kind.constraint.__name__} declares no margin type "
-            "the results know; set margin_type to one of cpbc.constraints.margins.TYPES (a new "
-            "unit is one more entry there)")
+            "the results know; set margin_type to one of cpbc.margin_kinds.TYPES (a new unit "
+            "is one more entry there)")
 
 
 def _check_law(kind: LawKind[Any]) -> None:
