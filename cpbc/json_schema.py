@@ -3,7 +3,7 @@
 One schema accepts both kinds of scenario: an arm's (:class:`cpbc.scenario.Scenario`) and a
 Part I system's (:class:`cpbc.scenario.schema.SystemScenario`, the files with a ``system:``
 block), as pydantic describes them. Where a scenario takes a number it also takes an
-expression such as ``"2*pi/3"`` (cpbc.scenario.expressions), so those places accept a string
+expression such as ``"2*pi/3"`` (cpbc.spec.expressions), so those places accept a string
 too. YAML files point to it with a first line
 ``# yaml-language-server: $schema=scenario.schema.json`` (VS Code's YAML extension, and
 other editors with the YAML language server).
@@ -30,8 +30,8 @@ from pydantic.json_schema import (
 )
 from pydantic_core import core_schema
 
-from cpbc.scenario.expressions import parse_number
 from cpbc.scenario.schema import Scenario, SystemScenario
+from cpbc.spec.expressions import parse_number
 
 DIALECT = "https://json-schema.org/draft/2020-12/schema"
 

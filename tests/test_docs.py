@@ -20,12 +20,14 @@ import os
 import re
 import subprocess
 import sys
+import typing
 from pathlib import Path
 
 import pytest
 from pydantic import BaseModel
 
 from cpbc.scenario import schema
+from cpbc.scenario.schema.kinds import KINDS
 from tools import scenario_reference
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -60,11 +62,23 @@ def test_scenario_reference_is_current() -> None:
         "docs/scenario-reference.md is stale: python -m tools.scenario_reference")
 
 
+def _models_in(annotation: object) -> list[type[BaseModel]]:
+    """The pydantic models an annotation names, however nested (unions, lists, Annotated)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    return [m for arg in typing.get_args(annotation) for m in _models_in(arg)]
+
+
 def test_every_scenario_field_is_described() -> None:
+    # the schema's own models and every registered kind's spec (declared in its constraint's
+    # or law's module), with the models their fields nest
     models = [cls for _, cls in inspect.getmembers(schema, inspect.isclass)
-              if issubclass(cls, BaseModel)
-              and cls.__module__.startswith(schema.__name__ + ".")]
-    assert len(models) > 40
+              if issubclass(cls, BaseModel) and cls.__module__.startswith("cpbc.")]
+    models += [k.spec for k in (*KINDS.constraints, *KINDS.laws)]
+    for cls in list(models):
+        models += [m for f in cls.model_fields.values() for m in _models_in(f.annotation)]
+    models = list(dict.fromkeys(models))
+    assert len(models) > 40 and any(m.__name__ == "PrimitiveSpec" for m in models)
     missing = [f"{cls.__name__}.{name}" for cls in models
                for name, field in cls.model_fields.items() if not field.description]
     assert not missing, f"fields without a description: {missing}"

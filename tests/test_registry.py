@@ -1,24 +1,33 @@
 """The kind registry (cpbc.scenario.schema.kinds): one contract over every registered constraint and
-law kind, the refusals of a kind that does not declare what it must, and a constraint kind
-added inside a test — one class and one declaration — reaching the schema, the build, the
-results, the figures and the docs without touching the default registry."""
+law kind (each built from the example entry it declares), the refusals of a kind that does
+not declare what it must, and a constraint kind added as one module — its class and its
+``KINDS``, written into a package of its own and found by the same walk that finds the
+shipped ones — reaching the schema, the build, the results, the figures and the docs without
+touching the default registry."""
 
 from __future__ import annotations
 
 import copy
+import importlib
+import sys
+import textwrap
+from collections.abc import Iterator
 from pathlib import Path
+from types import ModuleType
 from typing import Any, Literal
 
 import numpy as np
 import pytest
 from pydantic import Field, ValidationError
 
+import cpbc.constraints
 from cpbc.arrays import Array
 from cpbc.constraints import ConfigurationConstraint
-from cpbc.constraints.margins import BY_KEY, CLEARANCE, OTHER, TYPES
+from cpbc.constraints.margins import BY_KEY, OTHER, TYPES
+from cpbc.controllers.law_kind import Slopes
+from cpbc.controllers.pd import PDSpec, build_pd
 from cpbc.errors import ScenarioError
 from cpbc.json_schema import scenario_schema
-from cpbc.model import RobotModel
 from cpbc.results.io import write_summaries
 from cpbc.results.margin_types import grouped, types_of
 from cpbc.results.plots import margins_figure
@@ -27,10 +36,15 @@ from cpbc.run import write_logs
 from cpbc.scenario import Scenario, build
 from cpbc.scenario.runner import run_all
 from cpbc.scenario.schema import ConstraintEntrySpec, scenario_model
-from cpbc.scenario.schema.kinds import KINDS, ConstraintKind, KindError, Kinds, LawKind
-from cpbc.scenario.schema.kinds.law_inputs import Slopes
-from cpbc.scenario.schema.kinds.pd_kind import PDSpec
-from cpbc.scenario.schema.kinds.pd_kind import build as build_pd
+from cpbc.scenario.schema.kinds import (
+    KINDS,
+    PACKAGES,
+    ConstraintKind,
+    KindError,
+    Kinds,
+    LawKind,
+    declared_kinds,
+)
 from cpbc.viewer.outputs import write_run_outputs
 from tools import scenario_reference
 
@@ -54,30 +68,6 @@ BASE: dict[str, Any] = {
     "controllers": [{"type": "pd", "kp": 4, "kd": 2}],
 }
 
-# A minimal entry of every registered constraint type (a new kind adds its line here).
-CONSTRAINTS: dict[str, dict[str, Any]] = {
-    "joint_position_limit": {"lower": [-3, -3], "upper": [3, 3]},
-    "linear_limit": {"coefficients": [[-1, 1]], "lower": [-3], "upper": [3]},
-    "point_outside_sphere": {"frame": "end_point", "centre": [0, 2], "radius": 0.5},
-    "joint_rate_limit": {"bounds": [2, 2]},
-    "rate_limit": {"coefficients": [[1, 1]], "bounds": [3]},
-    "kinetic_energy_limit": {"limit": 10},
-    "clearance": {"links": [], "primitives": [{"link": "link2", "centre": [1, 0, 0],
-                                               "radius": 0.05}]},
-}
-# A minimal entry of every registered law type, on BASE's constraints.
-LAWS: dict[str, dict[str, Any]] = {
-    "pd": {},
-    "pd_gravity": {},
-    "cpbc": {"constraints": ["limits", "rates"]},
-    "cpbc_ke": {"constraints": ["limits", "energy"]},
-    "recentred": {"constraints": ["limits", "rates"]},
-    "bpbc": {"constraints": ["rates"]},
-    "bpbc_ke": {"constraints": ["energy"]},
-    "cbf_qp": {"constraints": ["limits", "rates"]},
-}
-
-
 def _built(tmp_path: Path, data: dict[str, Any], kinds: Kinds = KINDS) -> Any:
     scenario = scenario_model(kinds).model_validate(data)
     return build(scenario, tmp_path / "kinds.yaml", kinds)
@@ -89,16 +79,26 @@ def _json_mapping(schema: dict[str, Any], key: str) -> dict[str, str]:
     return arm["properties"][key]["items"]["discriminator"]["mapping"]
 
 
-def test_every_registered_kind_is_in_this_contract() -> None:
-    assert set(CONSTRAINTS) == set(KINDS.constraint_types)
-    assert set(LAWS) == set(KINDS.law_types)
+def test_the_registry_is_what_the_packages_declare() -> None:
+    """Every constraint and law module's ``KINDS`` (cpbc.constraints, cpbc.controllers,
+    cpbc.peers), in the order of their module names (the walk is deterministic), and nothing
+    else."""
+    declared = [*cpbc.constraints.linear_limit.KINDS, *cpbc.constraints.rate_limit.KINDS]
+    assert all(k in KINDS.constraints for k in declared)
+    assert KINDS == Kinds.of(declared_kinds(*PACKAGES))
+    assert KINDS.constraint_types == (
+        "clearance", "kinetic_energy_limit", "joint_position_limit", "linear_limit",
+        "point_outside_sphere", "joint_rate_limit", "rate_limit")
+    assert KINDS.law_types == ("bpbc", "bpbc_ke", "cpbc", "cpbc_ke", "pd", "pd_gravity",
+                               "recentred", "cbf_qp")
+    assert KINDS.law("pd").spec.__module__ == "cpbc.controllers.pd"
 
 
 @pytest.mark.parametrize("type_name", KINDS.constraint_types)
 def test_constraint_kind_contract(type_name: str, tmp_path: Path) -> None:
     kind = KINDS.constraint(type_name)
     data = copy.deepcopy(BASE)
-    data["constraints"] = [{"type": type_name, "name": "c", **CONSTRAINTS[type_name]}]
+    data["constraints"] = [{"type": type_name, "name": "c", **kind.examples[type_name]}]
     setup = _built(tmp_path, data)
     (c,) = (*setup.monitor.configuration, *setup.monitor.velocity)
     assert isinstance(c, kind.constraint)
@@ -127,7 +127,7 @@ def test_law_kind_contract(type_name: str, tmp_path: Path) -> None:
     if type_name == "cbf_qp":
         pytest.importorskip("daqp", reason="the peers extra")
     data = copy.deepcopy(BASE)
-    data["controllers"] = [{"type": type_name, "kp": 4, "kd": 2, **LAWS[type_name]}]
+    data["controllers"] = [{"type": type_name, "kp": 4, "kd": 2, **kind.examples[type_name]}]
     setup = _built(tmp_path, data)
     (entry,) = setup.controllers
     assert entry.name == type_name and entry.controller.type_name == type_name
@@ -162,7 +162,8 @@ def test_the_gain_check_reads_the_declared_slopes(tmp_path: Path) -> None:
 def test_a_law_kind_without_the_gain_checks_declaration_is_refused() -> None:
     with pytest.raises(TypeError, match="slopes"):
         LawKind(PDSpec, build_pd)  # type: ignore[call-arg]
-    quiet = LawKind(PDSpec, build_pd, slopes=None)  # type: ignore[arg-type]
+    quiet = LawKind(PDSpec, build_pd, slopes=None,  # type: ignore[arg-type]
+                    examples={"pd": {}, "pd_gravity": {}})
     with pytest.raises(KindError, match="declares no slopes for the gain check"):
         Kinds((), (quiet,))
 
@@ -178,9 +179,21 @@ def test_a_constraint_class_without_a_margin_type_is_refused() -> None:
     class UnlabelledSpec(ConstraintEntrySpec):
         type: Literal["unlabelled"] = Field(description="-")
 
-    kind = ConstraintKind(UnlabelledSpec, lambda spec, given: Unlabelled(), Unlabelled)
+    kind = ConstraintKind(UnlabelledSpec, lambda spec, given: Unlabelled(), Unlabelled,
+                          {"unlabelled": {}})
     with pytest.raises(KindError, match="declares no margin type"):
         KINDS.with_kinds(kind)
+
+
+def test_a_kind_without_an_example_for_each_type_is_refused() -> None:
+    """The contract test builds every type from the example its kind declares: a kind that
+    gives none for one of its types is refused when a registry is built."""
+    pd = KINDS.law("pd")
+    with pytest.raises(KindError, match=r"no example entry for \['pd_gravity'\]"):
+        Kinds((), (LawKind(PDSpec, build_pd, pd.slopes, {"pd": {}}),))
+    (rates,) = (k for k in KINDS.constraints if "rate_limit" in k.names)
+    with pytest.raises(KindError, match="no example entry"):
+        Kinds((ConstraintKind(rates.spec, rates.build, rates.constraint, {}),), ())
 
 
 def test_a_type_declared_twice_is_refused() -> None:
@@ -188,40 +201,81 @@ def test_a_type_declared_twice_is_refused() -> None:
         KINDS.with_kinds(KINDS.laws[0])
 
 
-# -- a constraint kind added in one place ---------------------------------------------------
-class PointBelow(ConfigurationConstraint):
+# -- a constraint kind added as one module --------------------------------------------------
+# The whole of a new constraint kind: its class (φ and its gradient, its margin type) and its
+# declaration (spec, factory, example), in one module.
+POINT_BELOW = textwrap.dedent('''
     """φ(x) = h − p_y(x) > 0: a frame's origin stays below the height h [m]."""
 
-    margin_type = CLEARANCE  # φ is a distance in m already
+    from typing import Literal
 
-    def __init__(self, model: RobotModel, frame: str, height: float, name: str) -> None:
-        self.model, self.frame_id, self.height = model, model.frame_id(frame), height
-        self.names = (name,)
+    import numpy as np
+    from pydantic import Field
 
-    def value(self, x: Array) -> Array:
-        return np.array([self.height - self.model.point_position(self.frame_id, x)[1]])
-
-    def gradient(self, x: Array) -> Array:
-        self.model.point_position(self.frame_id, x)
-        return -self.model.point_jacobian(self.frame_id, x)[1:2]
+    from cpbc.constraints.constraint_kind import ConstraintEntrySpec, ConstraintKind
+    from cpbc.constraints.constraint_types import ConfigurationConstraint
+    from cpbc.constraints.margins import CLEARANCE
 
 
-class PointBelowSpec(ConstraintEntrySpec):
-    type: Literal["point_below"] = Field(description="a frame's origin below a height")
-    name: str = Field(default="below", description="unique name")
-    frame: str = Field(description="the frame")
-    height: float = Field(description="the height [m]")
+    class PointBelow(ConfigurationConstraint):
+        margin_type = CLEARANCE  # φ is a distance in m already
+
+        def __init__(self, model, frame, height, name):
+            self.model, self.frame_id, self.height = model, model.frame_id(frame), height
+            self.names = (name,)
+
+        def value(self, x):
+            return np.array([self.height - self.model.point_position(self.frame_id, x)[1]])
+
+        def gradient(self, x):
+            self.model.point_position(self.frame_id, x)
+            return -self.model.point_jacobian(self.frame_id, x)[1:2]
 
 
-POINT_BELOW = ConstraintKind(
-    PointBelowSpec,
-    lambda spec, given: PointBelow(given.model, spec.frame, spec.height, spec.name),
-    PointBelow)
+    class PointBelowSpec(ConstraintEntrySpec):
+        type: Literal["point_below"] = Field(description="a frame's origin below a height")
+        name: str = Field(default="below", description="unique name")
+        frame: str = Field(description="the frame")
+        height: float = Field(description="the height [m]")
+
+
+    def build(spec, given):
+        return PointBelow(given.model, spec.frame, spec.height, spec.name)
+
+
+    KINDS = (ConstraintKind(PointBelowSpec, build, PointBelow,
+                            {"point_below": {"frame": "end_point", "height": 1.9}}),)
+''')
+
+
+@pytest.fixture(scope="module")
+def extra_package(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ModuleType]:
+    """A package ``extra_kinds`` holding the one module ``point_below.py``, importable for the
+    tests of this module and forgotten after them."""
+    root = tmp_path_factory.mktemp("extra")
+    (root / "extra_kinds").mkdir()
+    (root / "extra_kinds" / "__init__.py").write_text("", encoding="utf-8")
+    (root / "extra_kinds" / "point_below.py").write_text(POINT_BELOW, encoding="utf-8")
+    sys.path.insert(0, str(root))
+    try:
+        yield importlib.import_module("extra_kinds")
+    finally:
+        sys.path.remove(str(root))
+        for name in [m for m in sys.modules if m.split(".")[0] == "extra_kinds"]:
+            del sys.modules[name]
+
+
+def _with_point_below(extra: ModuleType) -> Kinds:
+    """The shipped kinds and the extra package's, found by the walk that finds the shipped
+    ones."""
+    return Kinds.of(declared_kinds(cpbc.constraints, extra, *PACKAGES[1:]))
 
 
 def test_a_new_constraint_kind_reaches_schema_build_results_figures_and_docs(
-        tmp_path: Path) -> None:
-    kinds = KINDS.with_kinds(POINT_BELOW)
+        tmp_path: Path, extra_package: ModuleType) -> None:
+    kinds = _with_point_below(extra_package)
+    kind = kinds.constraint("point_below")
+    assert kind.constraint.__module__ == "extra_kinds.point_below"
     data = copy.deepcopy(BASE)
     data["constraints"].append({"type": "point_below", "frame": "end_point", "height": 1.9})
     data["controllers"] = [{"type": "cpbc", "kp": 4, "kd": 2, "name": "law"}]
@@ -254,11 +308,14 @@ def test_a_new_constraint_kind_reaches_schema_build_results_figures_and_docs(
     assert "clearance [m]" in labels
 
 
-def test_a_registry_of_its_own_leaves_the_default_as_it_was() -> None:
+def test_a_registry_of_its_own_leaves_the_default_as_it_was(extra_package: ModuleType) -> None:
     before = (KINDS.constraint_types, KINDS.law_types)
-    mine = KINDS.with_kinds(POINT_BELOW)
+    mine = _with_point_below(extra_package)
+    module = importlib.import_module("extra_kinds.point_below")
     assert (KINDS.constraint_types, KINDS.law_types) == before
-    assert mine.constraint("point_below") is POINT_BELOW
+    assert mine.constraint("point_below") is module.KINDS[0]
+    # a module given by itself: appended to the shipped kinds
+    assert KINDS.with_modules(module).constraint_types == (*before[0], "point_below")
     assert scenario_model(KINDS) is Scenario
     with pytest.raises(KeyError, match="point_below"):
         KINDS.constraint("point_below")

@@ -131,7 +131,7 @@ def test_system_runs_write_the_arm_files_and_vocabulary(suspension) -> None:
     worse = by_run["fig3.6", "unconstrained"]
     assert worse["status"] == "constraint_violated" and worse["crossed_constraints"] == "x3"
     # the arm's format, type value unit (constraint); past its bound: a negative margin
-    assert worse["worst_margins"].startswith("other -") and worse["worst_margins"].endswith(
+    assert worse["worst_margins"].startswith("deflection -") and worse["worst_margins"].endswith(
         " m (x3)")
     assert float(by_run["fig3.6", "barrier"]["worst_margins"].split()[1]) > 0
     assert {e["status"] for e in (*mj.values(), *ref.values())} <= set(STATUSES)

@@ -17,8 +17,8 @@ from cpbc.constraints import KineticEnergyLimit, LinearLimit, PointOutsideSphere
 from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
 from cpbc.resources import models_dir, scenarios_dir
 from cpbc.scenario import Scenario, build, load_scenario
-from cpbc.scenario.expressions import parse_number
 from cpbc.scenario.schema.kinds import KINDS
+from cpbc.spec.expressions import parse_number
 
 # the arm scenarios; the Part I ones (a system: block) are tested in test_scenario_systems.py
 SHIPPED = sorted(p for p in scenarios_dir().glob("*.yaml")

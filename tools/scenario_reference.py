@@ -28,7 +28,8 @@ HEAD = """# Scenario reference
 
 Every key a scenario file takes, with its type, its default (*required* where it has none)
 and what it means, generated from the descriptions of the pydantic models in
-`cpbc/scenario/schema/` and `cpbc/scenario/schema/kinds/` (one module per constraint and law kind).
+`cpbc/scenario/schema/` and, for each constraint and law kind, at the end of its own module
+(`cpbc/constraints/`, `cpbc/controllers/`, `cpbc/peers/`).
 Numbers may be written as expressions (`2*pi/3`). An unknown key is an error naming it.
 `python -m cpbc.json_schema -o scenario.schema.json` writes the same models as a JSON Schema
 for editors. See [Scenarios](scenarios.md) for a worked example.

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
+from pydantic import Field
 
 from cpbc.arrays import Array
+from cpbc.constraints.constraint_kind import ConstraintEntrySpec, ConstraintInputs, ConstraintKind
 from cpbc.constraints.constraint_types import VelocityConstraint
 from cpbc.constraints.margins import ENERGY
 from cpbc.constraints.packing import Packed
@@ -12,6 +16,7 @@ from cpbc.errors import CpbcError
 from cpbc.kernels import barrier_set
 from cpbc.kernels.barriers import kinetic_energy_terms
 from cpbc.model.robot_model import ArmState, RobotModel
+from cpbc.spec.fields import Positive
 
 
 class KineticEnergyLimit(VelocityConstraint):
@@ -62,3 +67,20 @@ class KineticEnergyLimit(VelocityConstraint):
         if type(self).barrier_terms is not KineticEnergyLimit.barrier_terms:
             return None
         return Packed(barrier_set.ENERGY, (np.array([[self.limit]]),))
+
+
+# -- the scenario's ``type: kinetic_energy_limit`` -------------------------------------------
+class KineticEnergyLimitSpec(ConstraintEntrySpec):
+    type: Literal["kinetic_energy_limit"] = Field(description="½ẋᵀDẋ < Ω")
+    name: str = Field(
+        default="kinetic_energy", description=(
+            "unique name, used by controllers' constraints lists and in the summary"))
+    limit: Positive = Field(description="Ω [J]")
+
+
+def build(spec: KineticEnergyLimitSpec, given: ConstraintInputs) -> KineticEnergyLimit:
+    return KineticEnergyLimit(given.model, spec.limit, spec.name)
+
+
+KINDS = (ConstraintKind(KineticEnergyLimitSpec, build, KineticEnergyLimit,
+                        {"kinetic_energy_limit": {"limit": 10}}),)

@@ -3,10 +3,19 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
 from cpbc.arrays import Array, ArrayLike
+from cpbc.constraints.constraint_kind import (
+    ConstraintEntrySpec,
+    ConstraintInputs,
+    ConstraintKind,
+    FromModel,
+    row_labels,
+)
 from cpbc.constraints.constraint_types import ConfigurationConstraint
 from cpbc.constraints.margins import POSITION, MarginType, headroom, row_types
 from cpbc.constraints.packing import Packed
@@ -14,6 +23,7 @@ from cpbc.errors import CpbcError
 from cpbc.kernels import barrier_set
 from cpbc.kernels.barriers import linear_limit_terms
 from cpbc.model.robot_model import ArmState
+from cpbc.spec.fields import Vector
 
 
 class LinearLimit(ConfigurationConstraint):
@@ -126,3 +136,57 @@ def joint_position_limit(
     idx = list(range(n)) if joints is None else list(joints)
     rows = np.eye(n)[idx]
     return LinearLimit(rows, lower, upper, [f"position[{joint_names[i]}]" for i in idx])
+
+
+# -- the scenario's ``type: joint_position_limit`` and ``type: linear_limit`` ----------------
+class JointPositionLimitSpec(ConstraintEntrySpec):
+    type: Literal["joint_position_limit"] = Field(
+        description=(
+            "lower < x_i < upper on coordinates, φ = (x − l)(u − x)"))
+    name: str = Field(
+        default="joint_position_limit", description=(
+            "unique name, used by controllers' constraints lists and in the summary"))
+    joints: list[str] | None = Field(
+        default=None, description=(
+            "the constrained coordinates by joint name; all when omitted"))
+    lower: Vector | FromModel = Field(
+        description=(
+            "lower bounds [rad or m], or from_model (the model's joint ranges)"))
+    upper: Vector | FromModel = Field(
+        description=(
+            "upper bounds [rad or m], or from_model (the model's joint ranges)"))
+
+
+def build_joint_position_limit(spec: JointPositionLimitSpec,
+                               given: ConstraintInputs) -> LinearLimit:
+    idx = given.joints(spec.joints)
+    return joint_position_limit(given.limit(spec.lower, "position", 0, idx, "lower"),
+                                given.limit(spec.upper, "position", 1, idx, "upper"),
+                                given.names, idx)
+
+
+class LinearLimitSpec(ConstraintEntrySpec):
+    type: Literal["linear_limit"] = Field(
+        description=(
+            "lower < aᵀx < upper for each row a (the thesis's |θ2 − θ1| < 17π/18)"))
+    name: str = Field(
+        default="linear_limit", description=(
+            "unique name, used by controllers' constraints lists and in the summary"))
+    coefficients: list[Vector] = Field(description="the rows a, one per limit")
+    lower: Vector = Field(description="lower bound per row")
+    upper: Vector = Field(description="upper bound per row")
+
+
+def build_linear_limit(spec: LinearLimitSpec, given: ConstraintInputs) -> LinearLimit:
+    rows = given.rows(spec.coefficients)
+    k = rows.shape[0]
+    return LinearLimit(rows, given.vector(spec.lower, k, "lower"),
+                       given.vector(spec.upper, k, "upper"), row_labels(spec.name, k))
+
+
+KINDS = (
+    ConstraintKind(JointPositionLimitSpec, build_joint_position_limit, LinearLimit,
+                   {"joint_position_limit": {"lower": [-3, -3], "upper": [3, 3]}}),
+    ConstraintKind(LinearLimitSpec, build_linear_limit, LinearLimit,
+                   {"linear_limit": {"coefficients": [[-1, 1]], "lower": [-3], "upper": [3]}}),
+)

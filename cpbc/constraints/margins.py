@@ -4,22 +4,10 @@ The constraint functions themselves are in the units the control law needs: a po
 φ = (x − lower)(upper − x) is in rad², a rate limit ψ = ½(B² − ẋ²) in rad²/s², the thesis's
 obstacle ‖p − c‖² − r² in m², a kinetic-energy bound Ω − ½ẋᵀDẋ in J. Side by side those
 numbers say nothing. Every constraint class therefore declares, beside its formula, the type
-of its margins (``margin_type``, one of :data:`TYPES`) and, where φ is not already in that
-unit, how φ becomes a margin (``margins``):
+of its margins (``margin_type``, one of the types of cpbc.margin_kinds, re-exported here,
+where the table of types and units is) and, where φ is not already in that unit, how φ
+becomes a margin (``margins``).
 
-============  ===========================================  ======
-type          margin reported                              unit
-============  ===========================================  ======
-position      distance of the coordinate to its nearer     rad
-              limit (joint and relative-joint limits)
-rate          B − |aᵀẋ|, rate headroom                     rad/s
-travel        a position limit on prismatic joints         m
-speed         a rate limit on prismatic joints             m/s
-clearance     distance between robot and obstacle          m
-energy        Ω − ½ẋᵀDẋ, kinetic-energy headroom           J
-============  ===========================================  ======
-
-A limit whose row mixes revolute and prismatic coordinates has no one unit: it is "other".
 Each margin is zero exactly where the constraint's own function is (on the boundary of S),
 positive inside and negative outside, so its sign tells the same story. The results layer
 (cpbc.results.margin_types) reads these declarations; it names no constraint class.
@@ -27,39 +15,28 @@ positive inside and negative outside, so its sign tells the same story. The resu
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.margin_kinds import (
+    BY_KEY,
+    CLEARANCE,
+    ENERGY,
+    OTHER,
+    POSITION,
+    RATE,
+    SPEED,
+    TRAVEL,
+    TYPES,
+    MarginType,
+)
+
+__all__ = ["BY_KEY", "CLEARANCE", "ENERGY", "ON_LENGTHS", "OTHER", "POSITION", "RATE", "SPEED",
+           "TRAVEL", "TYPES", "HasMargins", "MarginType", "headroom", "row_types"]
 
 
-@dataclass(frozen=True)
-class MarginType:
-    """A family of constraints whose margins share a unit.
-
-    Attributes:
-        key: short name used in summary.json and the viewer ("position", "rate", …).
-        label: heading of its figure panel and table entry.
-        unit: unit of its margins.
-    """
-
-    key: str
-    label: str
-    unit: str
-
-
-POSITION = MarginType("position", "position limits", "rad")
-RATE = MarginType("rate", "rate limits", "rad/s")
-TRAVEL = MarginType("travel", "prismatic position limits", "m")
-SPEED = MarginType("speed", "prismatic rate limits", "m/s")
-CLEARANCE = MarginType("clearance", "clearance", "m")
-ENERGY = MarginType("energy", "kinetic energy", "J")
-OTHER = MarginType("other", "other constraints", "")
-#: Every type, in the order figures and tables show them.
-TYPES: tuple[MarginType, ...] = (POSITION, RATE, TRAVEL, SPEED, CLEARANCE, ENERGY, OTHER)
-BY_KEY = {t.key: t for t in TYPES}
 #: The type of a joint-coordinate limit's row that acts on prismatic joints only.
 ON_LENGTHS = {POSITION: TRAVEL, RATE: SPEED}
 

@@ -2,17 +2,28 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
 import pinocchio as pin
+from pydantic import Field
 
 from cpbc.arrays import Array, ArrayLike
+from cpbc.constraints.constraint_kind import (
+    Constraint,
+    ConstraintEntrySpec,
+    ConstraintInputs,
+    ConstraintKind,
+    SceneSphere,
+)
 from cpbc.constraints.constraint_types import ConfigurationConstraint
 from cpbc.constraints.margins import CLEARANCE
 from cpbc.constraints.packing import Packed
-from cpbc.errors import CpbcError
+from cpbc.errors import CpbcError, ScenarioError
 from cpbc.kernels import barrier_set
 from cpbc.kernels.barriers import point_sphere_terms
 from cpbc.model.robot_model import ArmState, RobotModel
+from cpbc.spec.fields import Positive, Vector
 
 
 class PointOutsideSphere(ConfigurationConstraint):
@@ -111,3 +122,42 @@ class PointOutsideSphere(ConfigurationConstraint):
         p_ddot = acc + np.cross(spin_dot, r) + np.cross(spin, np.cross(spin, r))
         d = placement.translation + r - self.centre
         return np.array([2.0 * float(p_dot @ p_dot) + 2.0 * float(d @ p_ddot)])
+
+
+# -- the scenario's ``type: point_outside_sphere`` -------------------------------------------
+class PointOutsideSphereSpec(ConstraintEntrySpec):
+    type: Literal["point_outside_sphere"] = Field(
+        description=(
+            "‖p − c‖² − r² > 0 for a frame's point p (the thesis's end-point obstacle)"))
+    name: str = Field(
+        default="obstacle", description=(
+            "unique name, used by controllers' constraints lists and in the summary"))
+    frame: str = Field(description="the model frame carrying the point")
+    offset: Vector | None = Field(
+        default=None, description=(
+            "the point in the frame [m]; the frame's origin when omitted"))
+    centre: Vector = Field(description="the sphere's centre in the world [m]")
+    radius: Positive = Field(description="the sphere's radius [m]")
+    # the thesis's obstacle is not a physical body
+    collides: bool = Field(
+        default=False, description=(
+            "make the sphere a physical body in MuJoCo (the thesis's obstacle is not)"))
+
+
+def build(spec: PointOutsideSphereSpec, given: ConstraintInputs) -> PointOutsideSphere:
+    centre = np.zeros(3)
+    if len(spec.centre) not in (2, 3):
+        raise ScenarioError(given.at("centre"), "needs 2 (planar) or 3 coordinates")
+    centre[: len(spec.centre)] = spec.centre
+    offset = None if spec.offset is None else given.vector(spec.offset, 3, "offset")
+    return PointOutsideSphere(given.model, spec.frame, centre, spec.radius, offset, spec.name)
+
+
+def scene(spec: PointOutsideSphereSpec, built: Constraint) -> SceneSphere:
+    assert isinstance(built, PointOutsideSphere)
+    return SceneSphere(spec.name, built.centre, spec.radius, spec.collides)
+
+
+KINDS = (ConstraintKind(PointOutsideSphereSpec, build, PointOutsideSphere,
+                        {"point_outside_sphere": {"frame": "end_point", "centre": [0, 2],
+                                                  "radius": 0.5}}, scene),)

@@ -3,10 +3,19 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
 from cpbc.arrays import Array, ArrayLike
+from cpbc.constraints.constraint_kind import (
+    ConstraintEntrySpec,
+    ConstraintInputs,
+    ConstraintKind,
+    FromModel,
+    row_labels,
+)
 from cpbc.constraints.constraint_types import VelocityConstraint
 from cpbc.constraints.margins import RATE, MarginType, headroom, row_types
 from cpbc.constraints.packing import Packed
@@ -14,6 +23,7 @@ from cpbc.errors import CpbcError
 from cpbc.kernels import barrier_set
 from cpbc.kernels.barriers import rate_limit_terms
 from cpbc.model.robot_model import ArmState
+from cpbc.spec.fields import Positive, Vector
 
 
 class RateLimit(VelocityConstraint):
@@ -111,3 +121,50 @@ def joint_rate_limit(
     n = len(joint_names)
     idx = list(range(n)) if joints is None else list(joints)
     return RateLimit(np.eye(n)[idx], bounds, [f"rate[{joint_names[i]}]" for i in idx])
+
+
+# -- the scenario's ``type: joint_rate_limit`` and ``type: rate_limit`` ----------------------
+class JointRateLimitSpec(ConstraintEntrySpec):
+    type: Literal["joint_rate_limit"] = Field(description="|ẋ_i| < B_i on coordinates")
+    name: str = Field(
+        default="joint_rate_limit", description=(
+            "unique name, used by controllers' constraints lists and in the summary"))
+    joints: list[str] | None = Field(
+        default=None, description=(
+            "the constrained coordinates by joint name; all when omitted"))
+    bounds: list[Positive] | FromModel = Field(
+        description=(
+            "the rate bounds B_i [rad/s or m/s], or from_model (the URDF's velocity limits)"))
+    # multiplies the bounds (e.g. 0.5 of the URDF's velocity limits)
+    scale: Positive = Field(
+        default=1.0, description=(
+            "factor on the bounds (0.5: half the URDF's velocity limits)"))
+
+
+def build_joint_rate_limit(spec: JointRateLimitSpec, given: ConstraintInputs) -> RateLimit:
+    idx = given.joints(spec.joints)
+    bounds = given.limit(spec.bounds, "velocity", 1, idx, "bounds")
+    return joint_rate_limit(spec.scale * bounds, given.names, idx)
+
+
+class RateLimitSpec(ConstraintEntrySpec):
+    type: Literal["rate_limit"] = Field(description="|aᵀẋ| < B for each row a")
+    name: str = Field(
+        default="rate_limit", description=(
+            "unique name, used by controllers' constraints lists and in the summary"))
+    coefficients: list[Vector] = Field(description="the rows a, one per bound")
+    bounds: list[Positive] = Field(description="the bound B per row")
+
+
+def build_rate_limit(spec: RateLimitSpec, given: ConstraintInputs) -> RateLimit:
+    rows = given.rows(spec.coefficients)
+    k = rows.shape[0]
+    return RateLimit(rows, given.vector(spec.bounds, k, "bounds"), row_labels(spec.name, k))
+
+
+KINDS = (
+    ConstraintKind(JointRateLimitSpec, build_joint_rate_limit, RateLimit,
+                   {"joint_rate_limit": {"bounds": [2, 2]}}),
+    ConstraintKind(RateLimitSpec, build_rate_limit, RateLimit,
+                   {"rate_limit": {"coefficients": [[1, 1]], "bounds": [3]}}),
+)

@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+from typing import Any, Literal
+
 import numpy as np
+from pydantic import Field
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.controllers.bpbc import bounded_damping
-from cpbc.controllers.controller import positive_vector
+from cpbc.controllers.bpbc import BPBC, bounded_damping
+from cpbc.controllers.controller import Controller, positive_vector
 from cpbc.controllers.cpbc_ke import CPBCKineticEnergy
+from cpbc.controllers.law_kind import LawInputs, LawKind, shaping, tanh_slopes
+from cpbc.controllers.law_specs import ConstrainedLawSpec, ShapingSpec
 from cpbc.controllers.potentials import (
     JointLogCoshSpring,
     Potential,
@@ -20,6 +25,7 @@ from cpbc.controllers.terms import StateDamping, TanhDamping
 from cpbc.errors import CpbcError
 from cpbc.model.bounds import ModelBounds, estimate_bounds
 from cpbc.model.robot_model import RobotModel
+from cpbc.spec.fields import Gain
 
 
 class BPBCKineticEnergy(CPBCKineticEnergy):
@@ -67,3 +73,36 @@ class BPBCKineticEnergy(CPBCKineticEnergy):
         g = self.model_bounds.gravity
         self.torque_bound = g + extra + (spring.stated + float(self.kd.max()))
         self.torque_bound_norm = g + extra + (spring.norm + float(np.linalg.norm(self.kd)))
+
+
+# -- the scenario's ``type: bpbc`` and ``bpbc_ke``: BPBC (cpbc.controllers.bpbc, Theorem 7.7)
+# and this law, whose spring K_P tanh(Ξx̃) and damping K_D tanh(Γẋ) saturate
+# (cpbc.controllers.law_kind) --------------------------------------------------------------
+class BPBCSpec(ConstrainedLawSpec):
+    type: Literal["bpbc", "bpbc_ke"] = Field(
+        description=(
+            "bpbc: Theorem 7.7, bounded torque, a joint_rate_limit on every joint; bpbc_ke: "
+            "Corollary 7.8, one kinetic_energy_limit"))
+    xi: Gain = Field(
+        default=1.0, description=(
+            "Ξ of the ln cosh potential: one number or one per coordinate"))
+    gamma: Gain = Field(
+        default=1.0, description=(
+            "Γ of the K_D tanh(Γẋ) damping: one number or one per coordinate"))
+    shaping: ShapingSpec | None = Field(
+        default=None, description=(
+            "the barrier's shaping s: identity, power (α) or tanh (σ)"))
+
+
+def build_bpbc(spec: BPBCSpec, given: LawInputs) -> Controller:
+    law = BPBC if spec.type == "bpbc" else BPBCKineticEnergy
+    gains: dict[str, Any] = dict(given.gains)
+    return law(given.model, given.target, given.constraint_set(spec.constraints),
+               xi=spec.xi, gamma=spec.gamma, shaping=shaping(spec.shaping),
+               model_bounds=given.model_bounds(), **gains)
+
+
+KINDS = (LawKind(
+    BPBCSpec, build_bpbc, slopes=tanh_slopes,
+    examples={"bpbc": {"constraints": ["rates"]}, "bpbc_ke": {"constraints": ["energy"]}},
+    goal_types=("bpbc", "bpbc_ke")),)

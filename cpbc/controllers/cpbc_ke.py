@@ -3,13 +3,18 @@
 from __future__ import annotations
 
 import math
+from typing import Any, Literal
 
 import numpy as np
+from pydantic import Field
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
 from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.controllers.controller import Controller, Evaluation, positive_vector
+from cpbc.controllers.cpbc import CPBC
+from cpbc.controllers.law_kind import LINEAR, LawInputs, LawKind, shaping
+from cpbc.controllers.law_specs import ConstrainedLawSpec, ShapingSpec
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
@@ -97,3 +102,29 @@ class CPBCKineticEnergy(Controller):
         gradient = self._no_barrier[0] if bar.gradient is None else bar.gradient
         cpbc_ke_torque(state.gravity, grad, damping, gradient, rho, psi, tau)
         return tau
+
+
+# -- the scenario's ``type: cpbc`` and ``cpbc_ke``: CPBC (cpbc.controllers.cpbc, Theorem 6.9)
+# and this law (cpbc.controllers.law_kind) -------------------------------------------------
+class CPBCSpec(ConstrainedLawSpec):
+    type: Literal["cpbc", "cpbc_ke"] = Field(
+        description=(
+            "cpbc: Theorem 6.9, any configuration and velocity constraints; cpbc_ke: "
+            "Corollary 6.11, configuration constraints and one kinetic_energy_limit"))
+    shaping: ShapingSpec | None = Field(
+        default=None, description=(
+            "the barrier's shaping s: identity, power (α) or tanh (σ)"))
+
+
+def build_cpbc(spec: CPBCSpec, given: LawInputs) -> Controller:
+    law = CPBC if spec.type == "cpbc" else CPBCKineticEnergy
+    gains: dict[str, Any] = dict(given.gains)
+    return law(given.model, given.target, given.constraint_set(spec.constraints),
+               shaping=shaping(spec.shaping), **gains)
+
+
+KINDS = (LawKind(
+    CPBCSpec, build_cpbc, slopes=LINEAR,
+    examples={"cpbc": {"constraints": ["limits", "rates"]},
+              "cpbc_ke": {"constraints": ["limits", "energy"]}},
+    goal_types=("cpbc", "cpbc_ke")),)

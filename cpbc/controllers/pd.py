@@ -2,8 +2,14 @@
 
 from __future__ import annotations
 
+from typing import Any, Literal
+
+from pydantic import Field
+
 from cpbc.arrays import Array
 from cpbc.controllers.controller import Controller, Evaluation, positive_vector
+from cpbc.controllers.law_kind import LINEAR, LawInputs, LawKind
+from cpbc.controllers.law_specs import LawSpec
 from cpbc.controllers.potentials import Configuration, JointSpring, Potential, require_posture
 from cpbc.controllers.terms import StateDamping
 from cpbc.model.robot_model import ArmState, RobotModel
@@ -76,3 +82,21 @@ class PDGravity(PD):
 
     def _bias(self, x: Array, state: ArmState | None) -> Array:
         return self.model.gravity(x) if state is None else state.gravity
+
+
+# -- the scenario's ``type: pd`` and ``pd_gravity`` (cpbc.controllers.law_kind) -------------
+class PDSpec(LawSpec):
+    type: Literal["pd", "pd_gravity"] = Field(
+        description=(
+            "pd: −K_P x̃ − K_D ẋ (the thesis's baseline); pd_gravity: g − K_P x̃ − K_D ẋ "
+            "(6.10). Constraints are only monitored"))
+
+
+def build_pd(spec: PDSpec, given: LawInputs) -> Controller:
+    law = PD if spec.type == "pd" else PDGravity
+    gains: dict[str, Any] = dict(given.gains)
+    return law(given.model, given.target, **gains)
+
+
+KINDS = (LawKind(PDSpec, build_pd, slopes=LINEAR, examples={"pd": {}, "pd_gravity": {}},
+                 goal_types=("pd_gravity",)),)

@@ -50,13 +50,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any, Literal
 
 import numpy as np
+from pydantic import Field
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
 from cpbc.constraints.linear_limit import LinearLimit
 from cpbc.controllers.controller import Controller, Evaluation, positive_vector
+from cpbc.controllers.law_kind import LINEAR, LawInputs, LawKind
+from cpbc.controllers.law_specs import ConstrainedLawSpec
 from cpbc.controllers.linalg import solve_spd
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model.robot_model import ArmState, RobotModel
@@ -243,3 +247,30 @@ class RecentredBarrier(Controller):
         assert bar.weight is not None  # velocity constraints give Π
         y = solve_spd(state.inertia + kinetic * bar.weight, a - c)
         return state.gravity + c + state.inertia @ y
+
+
+# -- the scenario's ``type: recentred`` (cpbc.controllers.law_kind) --------------------------
+class RecentredSpec(ConstrainedLawSpec):
+    type: Literal["recentred"] = Field(
+        description=(
+            "the re-centred barrier (Cases 2–3, eqs. 6.53–6.65): joint_position_limit and "
+            "velocity constraints"))
+
+
+def build_recentred(spec: RecentredSpec, given: LawInputs) -> Controller:
+    gains: dict[str, Any] = dict(given.gains)
+    return RecentredBarrier(given.model, given.target, given.constraint_set(spec.constraints),
+                            **gains)
+
+
+def start_problem_of(law: Controller, x: Array, dx: Array, names: tuple[str, ...],
+                     torque_limit: Array | None, period: float | None) -> str | None:
+    """RecentredBarrier.start_problem: the torque limit and, in a loop without the safeguard,
+    the first held period against its velocity constraints."""
+    assert isinstance(law, RecentredBarrier)
+    return law.start_problem(law.state(x, dx), names, torque_limit, period)
+
+
+KINDS = (LawKind(RecentredSpec, build_recentred, slopes=LINEAR,
+                 examples={"recentred": {"constraints": ["limits", "rates"]}},
+                 start_problem=start_problem_of),)

@@ -162,7 +162,7 @@ class RunSummary:
 
     def worst_margins(self) -> list[WorstMargin]:
         """Per constraint type, the constraint that came nearest its bound; a Part I
-        system's few quantities (all of type "other", in units of their own) one by one."""
+        system's few quantities one by one (each with its own type and unit)."""
         if self.system is None:
             return worst_by_type(self.min_margins, self.margin_types)
         return [WorstMargin(self.margin_types[n], self.margin_units.get(n, ""), n, v)

@@ -56,10 +56,6 @@ class SystemView:
     path: tuple[int, int] | None = None
 
 
-def _values(traj: SystemTrajectory, q: ConstrainedQuantity) -> Array:
-    return traj.input if q.source == "input" else traj.state[:, q.index]
-
-
 def _peak(v: Array, q: ConstrainedQuantity) -> tuple[float, float]:
     """(peak, bound) as magnitudes, from the side of (lower, upper) that ``v`` came closest
     to in proportion (max |v| and min(−lower, upper) when the interval is symmetric)."""
@@ -71,6 +67,14 @@ def _peak(v: Array, q: ConstrainedQuantity) -> tuple[float, float]:
     if top / q.upper >= bottom / q.lower:
         return abs(top), q.upper
     return abs(bottom), -q.lower
+
+
+def min_margin(traj: SystemTrajectory, q: ConstrainedQuantity) -> float:
+    """The smallest margin of a quantity in a run (ConstrainedQuantity.margins: the distance
+    to its nearer bound, in its unit) over the finite samples; NaN when there are none."""
+    m = q.margins(traj.state, traj.input)
+    m = m[np.isfinite(m)]
+    return float(np.min(m)) if m.size else math.nan
 
 
 def _judged(traj: SystemTrajectory, view: SystemView) -> Array:
@@ -93,7 +97,7 @@ def _crossings(traj: SystemTrajectory, constrained: Sequence[ConstrainedQuantity
     limits reached, and the first sample at a crossed constraint's bound (inf: none)."""
     peaks, bounds, crossed, reached, first = {}, {}, [], [], math.inf
     for q in constrained:
-        v = _values(traj, q)
+        v = q.values(traj.state, traj.input)
         out = np.nonzero((v <= q.lower) | (v >= q.upper))[0]
         peaks[q.name], bounds[q.name] = _peak(v[np.isfinite(v)], q)
         if out.size and q.limit:
@@ -148,8 +152,9 @@ def summarise_system(
         settle_time=settle, peak_joint_rates=[], rate_bounds=[], peak_torques=[u],
         peak_commanded_torques=[u], peak_joint_torques=[u],
         torque_limits=None if limit is None else [limit], peak_torque_norm=u,
-        torque_bound=None, min_margins={n: bounds[n] - p for n, p in peaks.items()},
-        margin_types={q.name: "other" for q in constrained}, crossed_constraints=crossed,
+        torque_bound=None, min_margins={q.name: min_margin(traj, q) for q in constrained},
+        margin_types={q.name: q.margin_type.key for q in constrained},
+        crossed_constraints=crossed,
         enforced_constraints=[q.name for q in constrained if barrier and not q.limit],
         max_lyapunov_increase=math.nan, initial_lyapunov=math.nan, max_contacts=0,
         saturated_steps=0, wall_time=traj.wall_time,

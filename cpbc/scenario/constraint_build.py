@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from cpbc.constraints import ConfigurationConstraint, RateLimit, VelocityConstraint
+from cpbc.constraints.constraint_kind import ConstraintEntrySpec, ConstraintInputs
 from cpbc.constraints.geometry import Obstacle
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model import RobotModel
@@ -12,9 +13,7 @@ from cpbc.model.loading import LoadedArm
 from cpbc.scenario import robots
 from cpbc.scenario import schema as s
 from cpbc.scenario.arm_setup import ObstacleGeom
-from cpbc.scenario.schema.constraint_specs import ConstraintEntrySpec
 from cpbc.scenario.schema.kinds import KINDS, ConstraintKind, Kinds
-from cpbc.scenario.schema.kinds.constraint_inputs import ConstraintInputs
 
 
 def _build_constraint(

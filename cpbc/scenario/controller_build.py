@@ -11,6 +11,7 @@ from typing import Any
 from cpbc.arrays import Array
 from cpbc.constraints import ConfigurationConstraint, VelocityConstraint
 from cpbc.controllers import Controller
+from cpbc.controllers.law_kind import LawInputs, Slopes, gain_vector
 from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
 from cpbc.model import RobotModel
 from cpbc.model.bounds import ModelBounds, estimate_bounds
@@ -19,7 +20,6 @@ from cpbc.scenario.arm_setup import CaseEntry, ControllerEntry
 from cpbc.scenario.gain_check import physical_gains, unstable_loop
 from cpbc.scenario.goal_build import GoalPlan, law_terms, linear_gains
 from cpbc.scenario.schema.kinds import KINDS, Kinds, LawKind
-from cpbc.scenario.schema.kinds.law_inputs import LawInputs, Slopes, gain_vector
 from cpbc.simulation import LoopSettings
 
 
@@ -119,7 +119,8 @@ def build_controllers(
         if check:
             _check_zoh(gains, model, states, sim, names, field)
         given = LawInputs(model, target, terms or {"kp": gains.kp, "kd": gains.kd}, built,
-                          model_bounds, loop, field, None if goal is None else goal.goal)
+                          model_bounds, loop.control_period, loop.torque_limit, field,
+                          None if goal is None else goal.goal)
         controllers.append(ControllerEntry(cspec.name or cspec.type,
                                            _build_controller(cspec, kind, given)))
     if len({c.name for c in controllers}) != len(controllers):

@@ -13,10 +13,10 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.geometry import Obstacle, point_rounded_box, quat_to_matrix, rpy_matrix
 from cpbc.constraints.point_outside_sphere import PointOutsideSphere
+from cpbc.controllers.law_kind import Slopes
 from cpbc.errors import CpbcError, ParameterError, ScenarioError
 from cpbc.model.robot_model import RobotModel
 from cpbc.scenario import schema as s
-from cpbc.scenario.schema.kinds.law_inputs import Slopes
 from cpbc.taskspace.gains import TaskGains, TaskGainSpec, linear_terms, task_gains
 from cpbc.taskspace.goal import AxisGoal, FrameGoal
 from cpbc.taskspace.ik import Preflight, preflight

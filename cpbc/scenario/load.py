@@ -13,12 +13,14 @@ from cpbc.errors import ScenarioError
 from cpbc.resources import scenarios_dir
 from cpbc.scenario import schema
 from cpbc.scenario.schema import Scenario, SystemScenario
+from cpbc.scenario.schema.kinds import KINDS
 
 
 def _union_tags() -> frozenset[str]:
     """The ``type`` values of the discriminated unions: pydantic puts the tag in the error
-    location (``controllers[1].cpbc.kp``), but it is no key of the scenario."""
-    tags: set[str] = set()
+    location (``controllers[1].cpbc.kp``), but it is no key of the scenario. Those of the
+    registered kinds and of the schema's own unions (obstacles, shaping, paths, systems)."""
+    tags: set[str] = {*KINDS.constraint_types, *KINDS.law_types}
     for obj in vars(schema).values():
         if isinstance(obj, type) and issubclass(obj, BaseModel) and "type" in obj.model_fields:
             tags.update(t for t in get_args(obj.model_fields["type"].annotation)

@@ -10,9 +10,9 @@ from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model import RobotModel
 from cpbc.scenario import schema as s
 from cpbc.scenario.arm_setup import ScenarioSetup
-from cpbc.scenario.values import model_limits, vector
 from cpbc.simulation import LoopSettings, substeps_per_control
 from cpbc.simulation.disturbances import MeasurementNoise
+from cpbc.spec.values import model_limits, vector
 
 
 def _check_length(sim: s.SimulationSpec, control_period: float) -> None:

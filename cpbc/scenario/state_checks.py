@@ -13,7 +13,7 @@ from cpbc.errors import InadmissibleStateError, ScenarioError
 from cpbc.model import RobotModel
 from cpbc.scenario import schema as s
 from cpbc.scenario.arm_setup import CaseEntry
-from cpbc.scenario.values import vector
+from cpbc.spec.values import vector
 
 
 def joint_ranges(model: RobotModel, plant: mujoco.MjModel) -> tuple[Array, Array]:

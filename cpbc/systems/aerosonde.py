@@ -37,6 +37,7 @@ import numpy as np
 
 from cpbc.backstepping.altitude_model import AltitudeModel
 from cpbc.errors import CpbcError, ModelError
+from cpbc.margin_kinds import ANGLE, CLIMB
 from cpbc.resources import models_dir
 from cpbc.systems.aerosim import (
     GRAVITY,
@@ -108,11 +109,11 @@ class AerosondePlant(Plant):
         b, e = self.climb_rate_limit, self.elevator_limit
         lo, hi = self.parameters.alpha_bounds
         return (
-            ConstrainedQuantity("vz", -b, b, "state", 1, "m/s"),
+            ConstrainedQuantity("vz", -b, b, "state", 1, CLIMB),
             # the stall and the elevator's travel are the aircraft's limits (AeroSim clips
             # both), not constraints of the problem: reported, not judged
-            ConstrainedQuantity("alpha", lo, hi, "state", 2, "rad", limit=True),
-            ConstrainedQuantity("elevator", -e, e, "input", 0, "rad", limit=True),
+            ConstrainedQuantity("alpha", lo, hi, "state", 2, ANGLE, limit=True),
+            ConstrainedQuantity("elevator", -e, e, "input", 0, ANGLE, limit=True),
         )
 
     def breakpoints(self) -> tuple[float, ...]:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 from cpbc.backstepping.barrier_terms import positive
 from cpbc.errors import CpbcError
+from cpbc.margin_kinds import STATE
 from cpbc.systems.ode_plant import ConstrainedQuantity, OdePlant, State
 
 
@@ -45,7 +46,7 @@ class IntegratorChain(OdePlant):
     @property
     def constrained(self) -> tuple[ConstrainedQuantity, ...]:
         return tuple(
-            ConstrainedQuantity(f"xi{i + 1}", -v, v, "state", i)
+            ConstrainedQuantity(f"xi{i + 1}", -v, v, "state", i, STATE)
             for i, v in enumerate(self.limits) if v is not None
         )
 

@@ -17,8 +17,11 @@ from pathlib import Path
 from typing import ClassVar, Literal
 
 import mujoco
+import numpy as np
 
+from cpbc.arrays import Array
 from cpbc.errors import CpbcError, ModelError
+from cpbc.margin_kinds import STATE, MarginType
 
 State = tuple[float, ...]
 
@@ -32,7 +35,8 @@ class ConstrainedQuantity:
         lower, upper: the open interval of allowed values.
         source: "state" (x[index]) or "input" (u).
         index: component of x (ignored for inputs).
-        unit: for reports.
+        margin_type: the type of its margin, with its unit (cpbc.margin_kinds): the results
+            group and label the margins by it.
         limit: a limit of the plant, not a constraint of the problem (an actuator that
             saturates, the stall): reported with its bound, and its crossing named
             (``RunSummary.system.limits_reached``), but no run is ``constraint_violated`` by it.
@@ -43,7 +47,7 @@ class ConstrainedQuantity:
     upper: float
     source: Literal["state", "input"] = "state"
     index: int = 0
-    unit: str = ""
+    margin_type: MarginType = STATE
     limit: bool = False
 
     def __post_init__(self) -> None:
@@ -56,10 +60,24 @@ class ConstrainedQuantity:
         """The quantity at state x and input u."""
         return u if self.source == "input" else x[self.index]
 
+    @property
+    def unit(self) -> str:
+        return self.margin_type.unit
+
+    def values(self, states: Array, inputs: Array) -> Array:
+        """The quantity along a run: states (N, n) and inputs (N,) → (N,)."""
+        return np.asarray(inputs if self.source == "input" else states[:, self.index], float)
+
+    def margins(self, states: Array, inputs: Array) -> Array:
+        """The margin along a run, the one definition the summary, the figures and the page
+        read: the distance to the nearer bound, min(v − lower, upper − v), in the quantity's
+        unit (> 0 inside, 0 on a bound, < 0 past it)."""
+        v = self.values(states, inputs)
+        return np.minimum(v - self.lower, self.upper - v)
+
     def margin(self, x: State, u: float) -> float:
-        """Distance to the nearer bound (> 0 inside)."""
-        v = self.value(x, u)
-        return min(v - self.lower, self.upper - v)
+        """The margin (:meth:`margins`) at state x and input u."""
+        return float(self.margins(np.asarray([x], float), np.asarray([u], float))[0])
 
 
 class OdePlant(ABC):

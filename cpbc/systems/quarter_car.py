@@ -22,6 +22,7 @@ import mujoco
 
 from cpbc.backstepping.suspension import QuarterCarConstants
 from cpbc.errors import ModelError
+from cpbc.margin_kinds import DEFLECTION
 from cpbc.resources import models_dir
 from cpbc.systems.ode_plant import ConstrainedQuantity, Plant, State, check_close
 from cpbc.systems.road import HaversineBump
@@ -52,7 +53,7 @@ class QuarterCar(Plant):
     @property
     def constrained(self) -> tuple[ConstrainedQuantity, ...]:
         lim = self.travel_limit
-        return (ConstrainedQuantity("x3", -lim, lim, "state", 2, "m"),)
+        return (ConstrainedQuantity("x3", -lim, lim, "state", 2, DEFLECTION),)
 
     @property
     def mjcf(self) -> Path:

@@ -18,6 +18,7 @@ import numpy as np
 
 from cpbc.backstepping.reaction_wheel import WheelPendulumConstants
 from cpbc.errors import ModelError
+from cpbc.margin_kinds import INPUT_TORQUE, RATE
 from cpbc.resources import models_dir
 from cpbc.systems.ode_plant import ConstrainedQuantity, Plant, State, check_close
 
@@ -46,8 +47,8 @@ class ReactionWheelPendulum(Plant):
     def constrained(self) -> tuple[ConstrainedQuantity, ...]:
         r, t = self.rate_limit, self.torque_limit
         return (
-            ConstrainedQuantity("dq1", -r, r, "state", 1, "rad/s"),
-            ConstrainedQuantity("tau", -t, t, "input", 0, "N m"),
+            ConstrainedQuantity("dq1", -r, r, "state", 1, RATE),
+            ConstrainedQuantity("tau", -t, t, "input", 0, INPUT_TORQUE),
         )
 
     @property

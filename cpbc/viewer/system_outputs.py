@@ -2,8 +2,9 @@
 figures, and the arm's page drawing the system's MJCF geometry replayed from the logged
 MuJoCo coordinates, with one timeline for the scene and the time plots; the plots show
 MuJoCo's coordinates and the input, the margins each constrained quantity's distance to its
-bound. A system that is only its ODE (the integrator chain) has no body to draw: its page is
-its time plots, the states against their bounds and the input."""
+nearer bound (ConstrainedQuantity.margins, as the summary's), grouped by its margin type. A
+system that is only its ODE (the integrator chain) has no body to draw: its page is its time
+plots, the states against their bounds and the input."""
 
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ def write_system_outputs(folder: Path, setup: SystemSetup, results: Sequence[Sys
     plots <case>/timeseries.png and, for a vehicle, path.png, cpbc.results.system_plots; the
     margins over time, margins.png, drawn as an arm's by cpbc.results.plots), and view.html.
     Returns the page."""
-    run = _system_run(folder, setup, results)
+    run = saved_system_run(folder, setup, results)
     if plots:
         for case, saved in zip(setup.cases, run.cases, strict=True):
             runs = [(r.controller, r.trajectory) for r in results if r.case == case.name]
@@ -96,10 +97,7 @@ def _saved(result: SystemResult, setup: SystemSetup, names: tuple[str, ...],
     else:
         qpos, qvel = traj.qpos, traj.qvel
     quantities = case.plant.constrained
-    margins = np.column_stack([
-        min(-q.lower, q.upper) - np.abs(traj.input if q.source == "input"
-                                        else traj.state[:, q.index])
-        for q in quantities])
+    margins = np.column_stack([q.margins(traj.state, traj.input) for q in quantities])
     n = qpos.shape[1]
     force = np.zeros((len(traj.time), n))
     force[:, 0] = traj.input  # the input in the first column, labelled in coordinate_names
@@ -107,14 +105,16 @@ def _saved(result: SystemResult, setup: SystemSetup, names: tuple[str, ...],
         controller=result.controller, case=result.case, time=traj.time, position=qpos,
         velocity=qvel, torque=force, joint_torque=force, margins=margins,
         margin_names=tuple(q.name for q in quantities),
-        margin_types=("other",) * len(quantities), lyapunov=np.full(len(traj.time), np.nan),
+        margin_types=tuple(q.margin_type.key for q in quantities),
+        lyapunov=np.full(len(traj.time), np.nan),
         target=np.zeros(n), coordinate_names=names, outcome=traj.outcome,
         summary=summary,
         coordinates=np.eye(n),
     )
 
 
-def _system_run(folder: Path, setup: SystemSetup, results: Sequence[SystemResult]) -> SavedRun:
+def saved_system_run(folder: Path, setup: SystemSetup,
+                     results: Sequence[SystemResult]) -> SavedRun:
     """The runs of a Part I scenario as a run folder's content: the system's MJCF (or, for
     a system that is only its ODE, :func:`ode_display_model`) and every run's signals."""
     plant = setup.cases[0].plant

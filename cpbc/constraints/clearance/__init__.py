@@ -14,9 +14,12 @@ The package, one concept per module:
   and self pairs);
 - ``layout``: the set-up of the pairs from the link covers, and the capsules' broad phase;
 - ``kinematics``: points fixed on links over Pinocchio's static regressor;
-- ``tables``: the constant wrench/cross tables of the hot path.
+- ``tables``: the constant wrench/cross tables of the hot path;
+- ``clearance_kind``: the scenario's ``type: clearance`` (its spec and factory), whose
+  ``KINDS`` the package exports (cpbc.constraints.constraint_kind).
 """
 
+from cpbc.constraints.clearance.clearance_kind import KINDS
 from cpbc.constraints.clearance.constraint import Clearance
 
-__all__ = ["Clearance"]
+__all__ = ["KINDS", "Clearance"]

@@ -1,9 +1,23 @@
 """The YAML scenario format, validated with pydantic. Every error names its field.
 
 One module per group of specs; the constraint and law kinds' specs are declared beside their
-factories in cpbc.scenario.schema.kinds. Every name is re-exported here, so
+factories, at the end of their constraints' and laws' modules (cpbc.constraints,
+cpbc.controllers, cpbc.peers), and reach the ``Scenario`` through the registry
+(cpbc.scenario.schema.kinds.KINDS). The other names are re-exported here, so
 ``from cpbc.scenario.schema import Scenario`` and ``schema.RobotSpec`` keep working."""
 
+from cpbc.constraints.constraint_kind import ConstraintEntrySpec, FromModel
+from cpbc.controllers.law_specs import (
+    ConstrainedLawSpec,
+    GainsSpec,
+    IdentityShapingSpec,
+    LawSpec,
+    PostureGainsSpec,
+    PowerShapingSpec,
+    ShapingSpec,
+    TanhShapingSpec,
+    TaskGainsSpec,
+)
 from cpbc.scenario.schema.arm_specs import (
     CaseSpec,
     ConstraintSpec,
@@ -30,30 +44,6 @@ from cpbc.scenario.schema.common import (
     Strict,
     Vector,
 )
-from cpbc.scenario.schema.constraint_specs import ConstraintEntrySpec, FromModel
-from cpbc.scenario.schema.controller_specs import (
-    ConstrainedLawSpec,
-    GainsSpec,
-    IdentityShapingSpec,
-    LawSpec,
-    PostureGainsSpec,
-    PowerShapingSpec,
-    ShapingSpec,
-    TanhShapingSpec,
-    TaskGainsSpec,
-)
-from cpbc.scenario.schema.kinds.bpbc_kind import BPBCSpec
-from cpbc.scenario.schema.kinds.cbf_qp_kind import CBFQPSpec
-from cpbc.scenario.schema.kinds.clearance_kind import ClearanceSpec, PrimitiveSpec
-from cpbc.scenario.schema.kinds.cpbc_kind import CPBCSpec
-from cpbc.scenario.schema.kinds.joint_position_limit_kind import JointPositionLimitSpec
-from cpbc.scenario.schema.kinds.joint_rate_limit_kind import JointRateLimitSpec
-from cpbc.scenario.schema.kinds.kinetic_energy_limit_kind import KineticEnergyLimitSpec
-from cpbc.scenario.schema.kinds.linear_limit_kind import LinearLimitSpec
-from cpbc.scenario.schema.kinds.pd_kind import PDSpec
-from cpbc.scenario.schema.kinds.point_outside_sphere_kind import PointOutsideSphereSpec
-from cpbc.scenario.schema.kinds.rate_limit_kind import RateLimitSpec
-from cpbc.scenario.schema.kinds.recentred_kind import RecentredSpec
 from cpbc.scenario.schema.obstacle_specs import (
     BoxObstacleSpec,
     CapsuleObstacleSpec,
@@ -107,17 +97,13 @@ __all__ = [
     "AltitudeCommandSpec",
     "AltitudeLawSpec",
     "AxisSpec",
-    "BPBCSpec",
     "BoxObstacleSpec",
-    "CBFQPSpec",
-    "CPBCSpec",
     "CapsuleObstacleSpec",
     "CaseName",
     "CaseSpec",
     "ChainGainsSpec",
     "ChainLawSpec",
     "CirclePathSpec",
-    "ClearanceSpec",
     "ConstrainedAltitudeGainsSpec",
     "ConstrainedAltitudeLawSpec",
     "ConstrainedLawSpec",
@@ -131,30 +117,21 @@ __all__ = [
     "GovernorSpec",
     "IdentityShapingSpec",
     "IntegratorChainSpec",
-    "JointPositionLimitSpec",
-    "JointRateLimitSpec",
-    "KineticEnergyLimitSpec",
     "LawSpec",
-    "LinearLimitSpec",
     "LissajousPathSpec",
     "NoiseSpec",
     "NonNegative",
     "Number",
     "ObstacleSpec",
     "OrientationSpec",
-    "PDSpec",
     "PathSpec",
     "PlaneObstacleSpec",
     "PlantMismatchSpec",
-    "PointOutsideSphereSpec",
     "Positive",
     "PostureGainsSpec",
     "PowerShapingSpec",
-    "PrimitiveSpec",
     "QuarterCarSpec",
-    "RateLimitSpec",
     "ReactionWheelSpec",
-    "RecentredSpec",
     "ReferenceSpec",
     "RobotSpec",
     "RunName",

@@ -6,6 +6,8 @@ from typing import TYPE_CHECKING, Annotated, Literal
 
 from pydantic import Field, create_model
 
+from cpbc.constraints.constraint_kind import ConstraintEntrySpec
+from cpbc.controllers.law_specs import LawSpec
 from cpbc.scenario.schema.common import (
     MAX_CASES,
     CaseName,
@@ -16,8 +18,6 @@ from cpbc.scenario.schema.common import (
     Strict,
     Vector,
 )
-from cpbc.scenario.schema.constraint_specs import ConstraintEntrySpec
-from cpbc.scenario.schema.controller_specs import LawSpec
 from cpbc.scenario.schema.kinds import KINDS, Kinds
 from cpbc.scenario.schema.obstacle_specs import ObstacleSpec
 from cpbc.scenario.schema.taskspace_specs import GoalSpec, ReferenceSpec

@@ -1,68 +1,17 @@
-"""Shared pieces of the scenario specs: numbers (expressions, finite), names, the
-files a run writes, the size limits and the ``Strict`` base of every spec."""
+"""Shared pieces of the scenario specs: the size limits, and (re-exported from cpbc.spec, where
+the kinds declared below the scenario layer read them) the numbers, the names, the files a
+run writes and the ``Strict`` base of every spec."""
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
-from typing import Annotated
+from cpbc.spec.fields import Gain, NonNegative, Number, Positive, Strict, Vector
+from cpbc.spec.names import CASE_FILES, RUN_FILES, CaseName, RunName, SafeName
 
-from pydantic import (
-    AfterValidator,
-    BaseModel,
-    BeforeValidator,
-    ConfigDict,
-    Field,
-)
-
-from cpbc.scenario.expressions import parse_number
-
-
-def _finite(v: float) -> float:
-    if not math.isfinite(v):
-        raise ValueError("must be a finite number")
-    return v
-
-
-Number = Annotated[float, BeforeValidator(parse_number), AfterValidator(_finite)]
-Positive = Annotated[Number, Field(gt=0)]
-NonNegative = Annotated[Number, Field(ge=0)]
-Vector = list[Number]
-Gain = Positive | list[Positive]
-# Names become folder names of the output: one path component, no "." or "..", short
-# enough for any file system (a name is at most 255 bytes).
-SafeName = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$", max_length=100)]
-#: What a run writes at the top of its output folder (cpbc.results.io, cpbc.results.saved_run,
-#: cpbc.viewer) and into each case's folder (the figures of cpbc.results.plots and
-#: cpbc.results.system_plots): a case, or a controller, of one of these names would collide.
-RUN_FILES = frozenset({"summary.json", "summary.csv", "scene.mjb", "scene.mjb.gz",
-                       "scene.json", "view.html"})
-CASE_FILES = frozenset({"positions.png", "rates.png", "torques.png", "lyapunov.png",
-                        "margins.png", "path.png", "timeseries.png", "task_error.png",
-                        "governor.png",
-                        "view.html"})
-
-
-def _not_in(reserved: frozenset[str], what: str) -> Callable[[str], str]:
-    def check(name: str) -> str:
-        if name in reserved:
-            raise ValueError(f"'{name}' is the name of a file the run writes {what}; "
-                             "rename it")
-        return name
-
-    return check
-
-
-CaseName = Annotated[SafeName, AfterValidator(_not_in(RUN_FILES, "into the output folder"))]
-RunName = Annotated[SafeName, AfterValidator(_not_in(CASE_FILES, "into each case's folder"))]
-
+__all__ = ["CASE_FILES", "MAX_CASES", "MAX_RUNS", "RUN_FILES", "CaseName", "Gain",
+           "NonNegative", "Number", "Positive", "RunName", "SafeName", "Strict", "Vector"]
 
 #: The most cases a scenario holds, and the most runs (cases × controllers): each case
 #: draws its figures and each run logs its trajectory and joins the page; more is a
 #: campaign, for cpbc.reliability, or several scenarios.
 MAX_CASES = 500
 MAX_RUNS = 1000
-
-
-class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)

@@ -1,23 +1,24 @@
-"""``type: clearance``: every link, covered by spheres or capsules, kept clear of the
-scene's obstacles (and declared link pairs of each other): a Clearance."""
+"""The scenario's ``type: clearance``: every link, covered by spheres or capsules, kept clear of
+the scene's obstacles (and declared link pairs of each other): a Clearance. The package
+exports its ``KINDS`` (cpbc.constraints.constraint_kind)."""
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
 from pydantic import Field
 
-from cpbc.constraints.clearance import Clearance
+from cpbc.constraints.clearance.constraint import Clearance
+from cpbc.constraints.constraint_kind import ConstraintEntrySpec, ConstraintInputs, ConstraintKind
 from cpbc.constraints.cover_cache import cached_cover
 from cpbc.constraints.covering import LinkPrimitive
 from cpbc.errors import CpbcError, ScenarioError
-from cpbc.model.loading import LoadedArm
 from cpbc.model.robot_model import RobotModel
-from cpbc.scenario.schema.common import NonNegative, Positive, Strict, Vector
-from cpbc.scenario.schema.constraint_specs import ConstraintEntrySpec
-from cpbc.scenario.schema.kinds.constraint_inputs import ConstraintInputs
-from cpbc.scenario.schema.kinds.registry import ConstraintKind
+from cpbc.spec.fields import NonNegative, Positive, Strict, Vector
+
+if TYPE_CHECKING:  # the URDF loader imports MuJoCo: only for the type
+    from cpbc.model.loading import LoadedArm
 
 
 class PrimitiveSpec(Strict):
@@ -142,4 +143,6 @@ def build(spec: ClearanceSpec, given: ConstraintInputs) -> Clearance:
         raise ScenarioError(f"{field}.{parameter}" if parameter else field, str(exc)) from None
 
 
-KIND = ConstraintKind(ClearanceSpec, build, Clearance)
+# The example covers the planar arm's second link by one declared sphere (it has no meshes).
+KINDS = (ConstraintKind(ClearanceSpec, build, Clearance, {"clearance": {
+    "links": [], "primitives": [{"link": "link2", "centre": [1, 0, 0], "radius": 0.05}]}}),)

@@ -1,28 +1,40 @@
-"""What a law kind's factory is given (its gains, the scenario's constraints, the loop), and
-what the gain check asks of each law kind (:class:`Slopes`)."""
+"""What a law kind declares, beside its law, for the scenario's ``controllers:`` list.
+
+A law module of this package (or of cpbc.peers) that a scenario may name ends with ``KINDS``,
+a tuple of :class:`LawKind`: its pydantic spec (on the bases of cpbc.controllers.law_specs,
+with the field descriptions the JSON Schema and the scenario reference are generated from),
+its factory (spec → controller, errors naming the field), what the gain check needs of it
+(:class:`Slopes`), a minimal example entry per type, which of its types take a goal. The
+scenario layer finds those declarations by walking the packages (cpbc.scenario.schema.kinds);
+nothing registers itself. Here too: what a factory is given (:class:`LawInputs`: its gains,
+the scenario's constraints, the loop's period and torque limit, a goal).
+"""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.constraints import ConfigurationConstraint, ConstraintSet, VelocityConstraint
-from cpbc.controllers import Identity, Power, Tanh
-from cpbc.controllers.shaping import Shaping
+from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
+from cpbc.controllers.controller import Controller
+from cpbc.controllers.law_specs import IdentityShapingSpec, PowerShapingSpec, ShapingSpec
+from cpbc.controllers.shaping import Identity, Power, Shaping, Tanh
 from cpbc.errors import ScenarioError
 from cpbc.model import RobotModel
 from cpbc.model.bounds import ModelBounds
-from cpbc.scenario.schema.controller_specs import (
-    IdentityShapingSpec,
-    PowerShapingSpec,
-    ShapingSpec,
-)
-from cpbc.simulation import LoopSettings
-from cpbc.taskspace.goal import FrameGoal
+from cpbc.spec.type_names import type_names
+
+if TYPE_CHECKING:
+    from pydantic import BaseModel
+
+    from cpbc.taskspace.goal import FrameGoal
+
+S = TypeVar("S", bound="BaseModel")
 
 
 def gain_vector(value: float | list[float], n: int, field: str) -> Array:
@@ -79,7 +91,8 @@ class LawInputs:
             task_damping (cpbc.scenario.goal_build.law_terms).
         constraints: every scenario constraint by name.
         model_bounds: the model's bounds (estimated once, when a law first asks).
-        loop: the loop's settings (control period, torque limit).
+        control_period: the loop's control period h [s].
+        torque_limit: the loop's symmetric torque limits, or None.
         field: the entry's place in the scenario (``controllers[1]``), for errors.
         goal: a goal or reference scenario's frame goal (``target`` is then its posture),
             else None.
@@ -90,7 +103,8 @@ class LawInputs:
     gains: Mapping[str, object]
     constraints: Mapping[str, ConfigurationConstraint | VelocityConstraint]
     model_bounds: Callable[[], ModelBounds]
-    loop: LoopSettings
+    control_period: float
+    torque_limit: Array | None
     field: str
     goal: FrameGoal | None = None
 
@@ -107,3 +121,37 @@ class LawInputs:
             [o for o in objs if isinstance(o, ConfigurationConstraint)],
             [o for o in objs if isinstance(o, VelocityConstraint)],
         )
+
+
+@dataclass(frozen=True)
+class LawKind(Generic[S]):
+    """A law kind of the ``controllers:`` list.
+
+    Attributes:
+        spec: its YAML entry (a pydantic model with ``type: Literal[...]``, the gains, ``name``).
+        build: the factory, spec → controller (ScenarioError naming the field).
+        slopes: what the gain check needs: the slopes of its spring and damping near the
+            target per unit of K_P and K_D (:class:`Slopes`; :func:`LINEAR` for a law linear
+            in x̃ and ẋ, :func:`tanh_slopes` for a saturating one). No default: a law that
+            does not say is refused.
+        examples: per type name, the keys (beside ``type`` and the gains) of a minimal entry
+            on the thesis's planar two-link arm whose constraints are ``limits`` (a
+            joint_position_limit), ``rates`` (a joint_rate_limit) and ``energy`` (a
+            kinetic_energy_limit) — what the contract test builds. No default.
+        goal_types: those of its type names that take a scenario goal (task-space terms).
+        start_problem: why the law cannot start from a case's state, if it can say so
+            (law, x, ẋ, coordinate names, torque limit, held period) → message or None.
+    """
+
+    spec: type[S]
+    build: Callable[[S, LawInputs], Controller]
+    slopes: Callable[[S, int, str], Slopes]
+    examples: Mapping[str, Mapping[str, Any]]
+    goal_types: tuple[str, ...] = ()
+    start_problem: Callable[
+        [Controller, Array, Array, tuple[str, ...], Array | None, float | None], str | None
+    ] | None = None
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return type_names(self.spec)

@@ -1,5 +1,6 @@
-"""What the ``controllers:`` items share: their gains, shaping, task and posture gains, and
-the bases of the law kinds' specs (each kind's own spec is in cpbc.scenario.schema.kinds)."""
+"""What the scenario's ``controllers:`` items share: their gains, shaping, task and posture
+gains, and the bases of the law kinds' specs (each kind's own spec is declared at the end of
+its law's module, cpbc.controllers.law_kind)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,8 @@ from pydantic import (
     model_validator,
 )
 
-from cpbc.scenario.schema.common import Gain, Positive, RunName, Strict
+from cpbc.spec.fields import Gain, Positive, Strict
+from cpbc.spec.names import RunName
 
 
 class IdentityShapingSpec(Strict):
@@ -136,7 +138,7 @@ class GainsSpec(Strict):
 
 class LawSpec(GainsSpec):
     """What every ``controllers:`` entry has: its gains, its ``type`` and its ``name``. Each
-    law kind (cpbc.scenario.schema.kinds) narrows ``type`` to its names and adds its own keys."""
+    law kind (cpbc.controllers.law_kind) narrows ``type`` to its names and adds its own keys."""
 
     type: str = Field(description="the law")
     name: RunName | None = Field(

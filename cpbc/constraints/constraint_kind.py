@@ -1,0 +1,145 @@
+"""What a constraint kind declares, beside its class, for the scenario's ``constraints:`` list.
+
+A constraint module of this package that a scenario may name ends with ``KINDS``, a tuple of
+:class:`ConstraintKind`: its pydantic spec (the YAML entry, with the field descriptions the
+JSON Schema and the scenario reference are generated from), its factory (spec → constraint,
+errors naming the field), the class it builds (whose ``margin_type`` says how the results
+report it, cpbc.constraints.margins) and a minimal example entry per type, which the
+contract test (tests/test_registry.py) builds. The scenario layer finds those declarations by
+walking this package (cpbc.scenario.schema.kinds); nothing registers itself.
+
+Here too: the base of every spec (:class:`ConstraintEntrySpec`) and what a factory is given
+(:class:`ConstraintInputs`: the robot, its coordinate names, the scene and the entry's field,
+with the checks every kind shares).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Generic, Literal, TypeVar
+
+import numpy as np
+from pydantic import BaseModel, Field
+
+from cpbc.arrays import Array
+from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
+from cpbc.constraints.geometry import Obstacle
+from cpbc.errors import ScenarioError
+from cpbc.model import RobotModel
+from cpbc.spec.fields import Strict
+from cpbc.spec.type_names import type_names
+from cpbc.spec.values import model_limits, vector
+
+if TYPE_CHECKING:  # the URDF loader imports MuJoCo: only for the type
+    from cpbc.model.loading import LoadedArm
+
+Constraint = ConfigurationConstraint | VelocityConstraint
+FromModel = Literal["from_model"]  # a limit read from the robot's URDF/MJCF
+S = TypeVar("S", bound=BaseModel)
+
+
+class ConstraintEntrySpec(Strict):
+    """What every ``constraints:`` entry has: its ``type`` and its unique ``name``. Each
+    constraint kind narrows ``type`` to its name, gives ``name`` its default and adds its own
+    keys."""
+
+    type: str = Field(description="the constraint")
+    name: str = Field(description=(
+        "unique name, used by controllers' constraints lists and in the summary"))
+
+
+@dataclass(frozen=True)
+class SceneSphere:
+    """A sphere a constraint entry places in the MuJoCo scene and the viewer (the thesis's
+    obstacle, say): ``collides`` makes it a physical body."""
+
+    name: str
+    centre: Array
+    radius: float
+    collides: bool
+
+
+@dataclass(frozen=True)
+class ConstraintInputs:
+    """A constraint entry's robot and scene.
+
+    Attributes:
+        model: the controller's robot model.
+        names: its coordinate names.
+        field: the entry's place in the scenario (``constraints[2]``), for errors.
+        arm: the URDF arm (None for an MJCF model), for covers from collision meshes.
+        obstacles: the scenario's obstacles by name.
+    """
+
+    model: RobotModel
+    names: tuple[str, ...]
+    field: str
+    arm: LoadedArm | None = None
+    obstacles: Mapping[str, Obstacle] | None = None
+
+    def at(self, key: str) -> str:
+        """The field of one of the entry's keys."""
+        return f"{self.field}.{key}"
+
+    def joints(self, joints: list[str] | None) -> list[int] | None:
+        """The indices of the entry's ``joints`` (None: all)."""
+        if joints is None:
+            return None
+        missing = [j for j in joints if j not in self.names]
+        if missing:
+            raise ScenarioError(self.at("joints"), f"unknown coordinates {missing}; the robot "
+                                f"has {list(self.names)}")
+        return [self.names.index(j) for j in joints]
+
+    def rows(self, coefficients: list[list[float]]) -> Array:
+        """The entry's ``coefficients`` as rows of n numbers."""
+        rows = np.asarray(coefficients, dtype=float)
+        if rows.ndim != 2 or rows.shape[1] != self.model.n:
+            raise ScenarioError(self.at("coefficients"), f"needs rows of {self.model.n} "
+                                f"coefficients, got shape {rows.shape}")
+        return rows
+
+    def vector(self, value: list[float], k: int, key: str) -> Array:
+        """One of the entry's vectors, of k numbers."""
+        return vector(value, k, self.at(key))
+
+    def limit(self, value: list[float] | str, kind: str, side: int, idx: list[int] | None,
+              key: str) -> Array:
+        """A limit vector as given, or ``from_model`` (side 0 lower, 1 upper) on joints idx."""
+        k = self.model.n if idx is None else len(idx)
+        if isinstance(value, str):
+            limits = model_limits(self.model, kind, self.at(key), idx)[side]
+            return limits if idx is None else limits[idx]
+        return self.vector(value, k, key)
+
+
+def row_labels(name: str, k: int) -> list[str]:
+    """The names of a k-row entry's constraints: its name, or name[i] per row."""
+    return [name] if k == 1 else [f"{name}[{i}]" for i in range(k)]
+
+
+@dataclass(frozen=True)
+class ConstraintKind(Generic[S]):
+    """A constraint kind of the ``constraints:`` list.
+
+    Attributes:
+        spec: its YAML entry (a pydantic model with ``type: Literal[...]`` and ``name``).
+        build: the factory, spec → constraint object (ScenarioError naming the field).
+        constraint: the class ``build`` returns; it declares the margins' type and unit.
+        examples: per type name, the keys (beside ``type`` and ``name``) of a minimal entry
+            on the thesis's planar two-link arm (the ``planar_2link`` model, coordinates
+            ``theta1``, ``theta2``, links ``link1``, ``link2``, frame ``end_point``) — what
+            the contract test builds. No default: a kind without one is refused.
+        scene: the sphere the entry places in the MuJoCo scene and the viewer, if any.
+    """
+
+    spec: type[S]
+    build: Callable[[S, ConstraintInputs], Constraint]
+    constraint: type[ConfigurationConstraint] | type[VelocityConstraint]
+    examples: Mapping[str, Mapping[str, Any]]
+    scene: Callable[[S, Constraint], SceneSphere] | None = None
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return type_names(self.spec)
