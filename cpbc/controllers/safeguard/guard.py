@@ -19,6 +19,7 @@ from cpbc.controllers.hold import hold_share
 from cpbc.controllers.rescue import Rescue
 from cpbc.controllers.safeguard.acceptance import Acceptance
 from cpbc.controllers.safeguard.braking import Brakes
+from cpbc.controllers.safeguard.predicted_margins import PredictedMargins
 from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_share
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.errors import CpbcError
@@ -107,6 +108,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         self.guarded = own if not extra or own.empty else ConstraintSet(
             own.n, (*own.configuration, *extra), own.velocity)
         self._extra = ConstraintSet(own.n, extra) if extra and not own.empty else None
+        self.along = PredictedMargins(self.guarded, law.model)
         at_target = self.guarded.margins(law.target, np.zeros(law.model.n))
         scale = self.settings.cushion * self.period / 0.01
         # δ_i; a constraint only the guard keeps may have the target beyond it (a joint limit
