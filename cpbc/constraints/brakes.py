@@ -33,7 +33,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
@@ -117,6 +116,9 @@ def _nearest_stop(box: TorqueBox, state: ArmState, bias: Array, h: float,
     if rows is not None and wanted is not None:
         a = np.vstack((a, rows @ a))
         target = np.concatenate((target, wanted + rows @ free))
+    # SciPy's optimiser loads here, on the guard's rare path: 0.1 s off every start-up
+    from scipy.optimize import lsq_linear
+
     tau_q = lsq_linear(a, target, bounds=(-box.limit, box.limit), method="bvls").x
     return tau_q if box.from_joint is None else box.from_joint.dot(tau_q)
 
