@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.kernels import kernel
+from cpbc.kernels import READ_ONLY, kernel
 from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES, float_table, int_table
 from cpbc.kernels.barriers import linear_limit_terms, rate_limit_terms
 from cpbc.kernels.clearance import Ints, sphere_clearances
@@ -199,6 +199,19 @@ def box_toward(limit: Array, to_joint: Array, from_joint: Array, mapped: bool, b
 # --- step 3: the margins along the prediction, and F of (S1), (S2) --------------------------
 
 
+@kernel(f"void({READ_ONLY}, {READ_ONLY}, float64, float64, float64[:], float64[:])")
+def floors(now: Array, cushion: Array, keep: float, keep_half: float, end_floor: Array,
+           mid_floor: Array) -> None:
+    """The floors of (S1): δ_i + e^{−κh}(m_i − δ_i) for every margin at the period's end,
+    δ_i + e^{−κh/2}(φ_i − δ_i) for the configuration ones at mid-period (as many as
+    ``mid_floor`` holds), from the margins ``now`` at the sample and the cushions δ."""
+    for i in range(now.shape[0]):
+        end_floor[i] = cushion[i] + keep * (now[i] - cushion[i])
+    for i in range(mid_floor.shape[0]):
+        mid_floor[i] = cushion[i] + keep_half * (now[i] - cushion[i])
+
+
+
 @kernel("void(int64[:, :], int64[:, :], float64[:, :], float64[:, :], float64[:, :],"
         " float64[:, :, :], float64[:, :])")
 def margins_along(plan: Ints, ints: Ints, floats: Array, xs: Array, dxs: Array, ys: Array,
@@ -299,3 +312,28 @@ def slack(config: Array, velocity: Array, inner: Array, ends: int, end_floor: Ar
                                  else v / sigma_floor[j])
         low = _least(low, braking)
     return low - 1.0
+
+
+@kernel("float64(int64[:, :], int64[:, :], float64[:, :], int64[:, :], int64[:, :], float64[:, :],"
+        " float64[:, :], float64[:, :, :], float64[:, :], float64[:, :], float64[:, :],"
+        " float64[:, :], float64[:, :], float64[:, :], float64[:, :], float64[:], float64[:],"
+        " float64[:], boolean[:], boolean, boolean, boolean)")
+def predicted_slack(config_plan: Ints, config_ints: Ints, config_floats: Array,
+                    velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array,
+                    rows: Array, placements: Array, ends: Array, speeds: Array,
+                    inner_x: Array, inner_v: Array, config: Array, velocity: Array,
+                    inner: Array, end_floor: Array, mid_floor: Array, sigma_floor: Array,
+                    past: Array, has_past: bool, has_config: bool, has_stop: bool) -> float:
+    """F of one prediction in one call: the packed velocity margins at the ends and inside
+    the period, the packed configuration margins at ``rows`` (``configuration_rows``, with
+    their joint ``placements``) into their columns (``margins_along``; the other columns
+    filled already), then ``slack``."""
+    margins_along(velocity_plan, velocity_ints, velocity_floats, ends, speeds, placements,
+                  velocity)
+    if inner.shape[1] > 0:
+        margins_along(velocity_plan, velocity_ints, velocity_floats, inner_x, inner_v,
+                      placements, inner)
+    if has_config:
+        margins_along(config_plan, config_ints, config_floats, rows, rows, placements, config)
+    return slack(config, velocity, inner, ends.shape[0], end_floor, mid_floor, sigma_floor,
+                 past, has_past, has_config, has_stop)

@@ -23,6 +23,7 @@ from cpbc.controllers.safeguard.predicted_margins import PredictedMargins
 from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_share
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.errors import CpbcError
+from cpbc.kernels.guard import floors
 from cpbc.model.robot_model import ArmState
 
 
@@ -176,11 +177,12 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         predict = self._predictor(state, bias)
         now = self._now(state.x, law_margins)
         delta, nc = self.cushion, self._n_config
-        floor = delta + self.keep * (now - delta)
+        floor, mid = np.empty(len(now)), np.empty(nc)
+        floors(now, delta, self.keep, self.keep_half, floor, mid)  # (S1)
         floor_mid = None
         past = None
         if nc:
-            floor_mid = delta[:nc] + self.keep_half * (now[:nc] - delta[:nc])
+            floor_mid = mid
             if self._extra is not None and not now[now.argmin()] > 0.0:
                 # An extra constraint (one only the guard keeps) is broken already: the arm
                 # went past a limit the law does not know of, from a state nothing could stop

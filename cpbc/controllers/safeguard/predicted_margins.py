@@ -23,7 +23,7 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.packing import Packed, PackedSet
 from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES
-from cpbc.kernels.guard import configuration_rows, margins_along, slack
+from cpbc.kernels.guard import configuration_rows, predicted_slack
 from cpbc.model.robot_model import RobotModel
 
 C = TypeVar("C", ConfigurationConstraint, VelocityConstraint)
@@ -88,12 +88,12 @@ class PredictedMargins:
             out[i] = pin.computeStaticRegressor(model, data, rows[i])
         return out
 
-    def _velocity_margins(self, xs: Array, dxs: Array) -> Array:
+    def _generic_velocity_margins(self, xs: Array, dxs: Array) -> Array:
+        """The velocity margins along rows, those of the constraints that do not pack filled
+        in (the kernel fills the others)."""
         out = np.empty((len(xs), self.nv))
         for at, k, v in self._generic_velocity:
             out[:, at:at + k] = v.values_along(xs, dxs)
-        pk = self._velocity
-        margins_along(pk.plan, pk.ints, pk.floats, xs, dxs, self._no_placements, out)
         return out
 
     def slack(self, predicted: Rows, end_floor: Array, mid_floor: Array | None,
@@ -101,21 +101,20 @@ class PredictedMargins:
         """F(τ) of (S1), with ``stop`` = (1/(2θA), floors) of (S2) too, over the predicted
         ``(mids, ends, speeds, inner_x, inner_v)`` (Acceptance._check)."""
         mids, ends, speeds, inner_x, inner_v = predicted
-        velocity = self._velocity_margins(ends, speeds)
-        inner = self._velocity_margins(inner_x, inner_v) if self.nv else velocity[:0]
-        config = self._no_config
+        velocity = self._generic_velocity_margins(ends, speeds)
+        inner = self._generic_velocity_margins(inner_x, inner_v) if self.nv else velocity[:0]
+        config, rows, placements = self._no_config, self._no_config, self._no_placements
         if mid_floor is not None:
             rows = np.empty(((2 if stop is None else 3) * len(ends), self.n))
             configuration_rows(mids, ends, speeds, 0.0 if stop is None else stop[0], rows)
             config = np.empty((len(rows), self.nc))
             for at, k, c in self._generic_config:
                 config[:, at:at + k] = c.values_along(rows)
-            pk = self._config
-            margins_along(pk.plan, pk.ints, pk.floats, rows, rows, self._placements(rows),
-                          config)
-        no_floor = self._no_floor
-        return slack(config, velocity, inner, len(ends), end_floor,
-                     no_floor if mid_floor is None else mid_floor,
-                     no_floor if stop is None else stop[1],
-                     self._no_past if past is None else past, past is not None,
-                     mid_floor is not None, stop is not None)
+            placements = self._placements(rows)
+        cp, vp, no_floor = self._config, self._velocity, self._no_floor
+        return predicted_slack(cp.plan, cp.ints, cp.floats, vp.plan, vp.ints, vp.floats, rows,
+                               placements, ends, speeds, inner_x, inner_v, config, velocity,
+                               inner, end_floor, no_floor if mid_floor is None else mid_floor,
+                               no_floor if stop is None else stop[1],
+                               self._no_past if past is None else past, past is not None,
+                               mid_floor is not None, stop is not None)

@@ -55,7 +55,7 @@ def predictor(model: RobotModel, state: ArmState, bias: Array, h: float, substep
             frozen_start(inertia, bias, t, x, dx, h, work, acc, smooth, speed)
             # continuous time: the model's acceleration at the predicted end
             after = model.forward_dynamics(smooth, speed, t) if corrector else acc
-            mids, ends, speeds, mid_speeds = (np.empty((rows, n)) for _ in range(4))
+            mids, ends, speeds, mid_speeds = np.empty((4, rows, n))
             frozen_rows(x, dx, acc, after, h, travel, mids, ends, speeds, mid_speeds)
             return mids, ends, speeds, mids, mid_speeds
 
