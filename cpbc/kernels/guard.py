@@ -75,6 +75,19 @@ def frozen_rows(x: Array, dx: Array, acc: Array, after: Array, h: float, travel:
             mid_speeds[1, i] = mid_speed + (0.125 * h) * late
 
 
+@kernel("void(float64[:, :], float64[:], float64[:], float64[:], float64, float64[:])")
+def hold_torque(inertia: Array, tau: Array, acc: Array, after: Array, share: float,
+                out: Array) -> None:
+    """τ − s D Δa, Δa = ``after`` − a the drift of the acceleration over the period
+    (cpbc.controllers.hold: the law's acceleration of the sample kept on average)."""
+    n = tau.shape[0]
+    for i in range(n):
+        t = 0.0
+        for j in range(n):
+            t += inertia[i, j] * (after[j] - acc[j])
+        out[i] = tau[i] - share * t
+
+
 @kernel("float64[:](float64[:, :], float64[:])")
 def _times(a: Array, v: Array) -> Array:
     """a v, row by row (numba's dot would load SciPy's BLAS)."""
