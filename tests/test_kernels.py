@@ -140,6 +140,20 @@ for setup in (planar_2link(), panda(states=8)):
                 out[f"{setup.robot}/{name}/{i}"] = law.torque(x, dx).tolist()
             except ConstraintViolation:
                 pass
+# the guard's kernels (cpbc.kernels.guard): its accept path, and blends, brakes and box
+# scalings from the law's torque pushed off by a fixed noise (the guard's own entry point)
+from cpbc.controllers.safeguard import SafeguardSettings, guarded
+setup = panda(states=8)
+rng = np.random.default_rng(5)
+for period in (0.001, 0.01):
+    guard = guarded(setup.controllers["cpbc"], period, SafeguardSettings(), setup.torque_limit)
+    for i, (x, dx) in enumerate(setup.states[:8]):
+        state = guard.state(x, dx)
+        law = guard.law.evaluate_state(state, margins=True)
+        for push in (0.0, 3.0, 30.0):
+            tau = law.torque + push * rng.standard_normal(len(x))
+            out[f"guard/{period}/{i}/{push}"] = guard._guard(state, tau, law.margins).tolist()
+    out[f"guard/{period}/counts"] = [guard.acted, guard.scaled]
 json.dump(out, sys.stdout)
 """
 
@@ -152,9 +166,13 @@ def _torques(jit_off: bool) -> dict[str, list[float]]:
 
 
 def test_the_kernels_run_uncompiled_give_the_same_torques() -> None:
-    """Every bench law (planar and Panda) with the kernels compiled and run as plain Python
-    (NUMBA_DISABLE_JIT=1): the same torques to 1e-12."""
+    """Every bench law (planar and Panda), and the Panda's guard accepting, blending and
+    scaling into the torque box, with the kernels compiled and run as plain Python
+    (NUMBA_DISABLE_JIT=1): the same torques (and guard decisions) to 1e-12."""
     compiled, plain = _torques(False), _torques(True)
     assert compiled.keys() == plain.keys() and len(compiled) >= 40
+    for period in ("0.001", "0.01"):
+        acted, scaled = compiled[f"guard/{period}/counts"]
+        assert acted >= 4 and scaled >= 2, (period, acted, scaled)
     for key, tau in compiled.items():
         np.testing.assert_allclose(tau, plain[key], rtol=1e-12, atol=1e-12, err_msg=key)

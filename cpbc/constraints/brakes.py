@@ -30,14 +30,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import stopping_margins
+from cpbc.kernels.guard import box_clip, box_toward
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -63,30 +63,33 @@ class TorqueBox:
             return cls(full)
         return cls(full, coords.matrix.T.copy(), coords.inverse.T.copy())
 
+    # L, Tᵀ, T⁻ᵀ and whether there is a map, as the kernels read them (writable float
+    # copies; 0 × 0 maps for joint coordinates)
+    _packed: tuple[Array, Array, Array, bool] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        none = np.zeros((0, 0))
+        object.__setattr__(self, "_packed", (
+            np.array(self.limit, dtype=float),
+            none if self.to_joint is None else np.array(self.to_joint, dtype=float),
+            none if self.from_joint is None else np.array(self.from_joint, dtype=float),
+            self.to_joint is not None))
+
     def joint(self, tau: Array) -> Array:
         return tau if self.to_joint is None else self.to_joint.dot(tau)
 
     def clip(self, tau: Array) -> Array:
-        """τ with each joint torque clipped to its limit."""
-        clipped = np.clip(self.joint(tau), -self.limit, self.limit)
-        return clipped if self.from_joint is None else self.from_joint.dot(clipped)
+        """τ with each joint torque clipped to its limit (cpbc.kernels.guard.box_clip)."""
+        out = np.empty(len(tau))
+        box_clip(*self._packed, tau, out)
+        return out
 
     def toward(self, bias: Array, tau: Array) -> Array:
         """b + t (τ − b) with the largest t ∈ [0, 1] inside the box: the acceleration
         D⁻¹(τ − b) keeps its direction and only shrinks (τ itself when it fits). Where b alone
-        exceeds a limit no scaling fits, and τ is clipped."""
-        tau_q = self.joint(tau)
-        limit = self.limit
-        if np.all(np.abs(tau_q) <= limit):
-            return tau
-        b_q = self.joint(bias)
-        if np.any(np.abs(b_q) > limit):
-            return self.clip(tau)
-        d = tau_q - b_q
-        with np.errstate(divide="ignore", invalid="ignore"):
-            room = np.where(d > 0, (limit - b_q) / d, np.where(d < 0, (-limit - b_q) / d, np.inf))
-        t = min(1.0, float(room.min()))
-        return bias + t * (tau - bias)
+        exceeds a limit no scaling fits, and τ is clipped (cpbc.kernels.guard.box_toward)."""
+        out = np.empty(len(tau))
+        return tau if box_toward(*self._packed, bias, tau, out) == 0 else out
 
 
 # a brake: (state, bias b, period h) -> the torque to hold over the period
@@ -113,6 +116,9 @@ def _nearest_stop(box: TorqueBox, state: ArmState, bias: Array, h: float,
     if rows is not None and wanted is not None:
         a = np.vstack((a, rows @ a))
         target = np.concatenate((target, wanted + rows @ free))
+    # SciPy's optimiser loads here, on the guard's rare path: 0.1 s off every start-up
+    from scipy.optimize import lsq_linear
+
     tau_q = lsq_linear(a, target, bounds=(-box.limit, box.limit), method="bvls").x
     return tau_q if box.from_joint is None else box.from_joint.dot(tau_q)
 

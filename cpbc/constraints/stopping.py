@@ -28,12 +28,13 @@ as initial states; states that pass it may still be lost.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.kernels.guard import uniform_deceleration
 from cpbc.model.robot_model import RobotModel
 
 
@@ -111,10 +112,15 @@ class Braking:
     limit: Array
     to_joint: Array | None = None
     share: float = 0.8
+    # L and Tᵀ as the kernel reads them (writable float copies; 0 × 0 for joint coordinates)
+    _packed: tuple[Array, Array] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.share <= 1.0:
             raise ValueError(f"braking share must be in (0, 1], got {self.share}")
+        object.__setattr__(self, "_packed", (
+            np.array(self.limit, dtype=float),
+            np.zeros((0, 0)) if self.to_joint is None else np.array(self.to_joint, dtype=float)))
 
     @classmethod
     def of(cls, model: RobotModel, limit: Array | float, share: float = 0.8) -> Braking:
@@ -124,18 +130,9 @@ class Braking:
         return cls(full, None if coords.is_identity else coords.matrix.T.copy(), share)
 
     def deceleration(self, inertia: Array, bias: Array, dx: Array) -> float:
-        """A: the largest deceleration along ẋ of the uniform brake (inf at rest)."""
-        speed = math.sqrt(float(dx.dot(dx)))
-        if speed == 0.0:
-            return math.inf
-        u = inertia.dot(dx)
-        beta = bias
-        if self.to_joint is not None:
-            u, beta = self.to_joint.dot(u), self.to_joint.dot(beta)
-        size = np.abs(u)
-        room = np.divide(self.limit + np.sign(u) * beta, size, out=np.full(len(u), math.inf),
-                         where=size > 0)
-        return float(room.min()) * speed  # u was D ẋ, not D ẋ/|ẋ|
+        """A: the largest deceleration along ẋ of the uniform brake (inf at rest;
+        cpbc.kernels.guard.uniform_deceleration)."""
+        return uniform_deceleration(inertia, bias, dx, *self._packed, self.to_joint is not None)
 
     def per_speed(self, inertia: Array, bias: Array, dx: Array) -> float:
         """1/(2θA), so that x_s = x + (|ẋ|/(2θA)) ẋ; 0 at rest, inf where the box leaves

@@ -24,8 +24,10 @@ settled). :func:`hold_share` gives the share s of Δa the plant has.
 
 from __future__ import annotations
 
+import numpy as np
+
 from cpbc.arrays import Array
-from cpbc.controllers.linalg import solve_spd
+from cpbc.kernels.guard import frozen_start, hold_torque
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -35,11 +37,13 @@ def hold_corrected(model: RobotModel, state: ArmState, bias: Array, tau: Array,
     over ``period``, to first order, on a plant whose acceleration drifts on average by s Δa
     over the period (s = ½ in continuous time, :func:`hold_share`). ``bias`` is
     C ẋ + g (+ f) at the sample."""
-    h = period
-    acc = solve_spd(state.inertia, tau - bias)
-    end = state.x + h * state.dx + (0.5 * h * h) * acc
-    drift = model.forward_dynamics(end, state.dx + h * acc, tau) - acc
-    return tau - share * state.inertia.dot(drift)
+    n = len(tau)
+    acc, end, speed, out = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    # a₀ = D⁻¹(τ − b) and the frozen prediction's end (x₁, ẋ₁) (cpbc.kernels.guard)
+    frozen_start(state.inertia, bias, tau, state.x, state.dx, period, np.empty((n, n)), acc,
+                 end, speed)
+    hold_torque(state.inertia, tau, acc, model.forward_dynamics(end, speed, tau), share, out)
+    return out
 
 
 # integrators that evaluate the dynamics once per step, at its start: (semi-)implicit Euler

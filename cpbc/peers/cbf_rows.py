@@ -82,6 +82,8 @@ def _configuration_rows(c: ConfigurationConstraint, x: Array, dx: Array, per_pai
         if phi.size and not phi.min() > 0:
             _violation(c, c.value(x))
         keep = moving & (phi < (c.influence or np.inf))
+        if c.sphere_count == len(c.names):  # spheres only: nothing reported besides
+            return phi[keep], grad[keep], curv[keep]
         full_phi, full_grad = c.evaluate(x)
         full_curv = c.curvature(x, dx)
         rest = slice(c.sphere_count, len(c.names))  # capsule primitives, as reported

@@ -224,10 +224,10 @@ class _ArmLoop:
         if guard is not None and guard.acted != self.acted:
             self.guarded_steps[self.k], self.acted = True, guard.acted
         tau_q = tau if self.identity else self.t_mat_t.dot(tau)
-        if self.limit is not None:
-            clipped = np.clip(tau_q, -self.limit, self.limit)
-            self.saturated += int(np.any(clipped != tau_q))
-            tau_q = clipped
+        limit = self.limit
+        if limit is not None and not (abs(tau_q) <= limit).all():  # the array methods: the
+            tau_q = tau_q.clip(-limit, limit)  # numpy functions cost 2-3 µs a step more
+            self.saturated += 1
         self.tau_q = tau_q
         return tau_q
 

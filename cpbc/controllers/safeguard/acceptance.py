@@ -19,50 +19,22 @@ from cpbc.model.robot_model import ArmState
 class Acceptance(GuardMembers):
     """(S1), (S2) and the blend: mixed into :class:`cpbc.controllers.safeguard.Safeguard`."""
 
-    @staticmethod
-    def _no_nan(m: Array) -> Array:
-        raise NotImplementedError
-
     def _check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None,
                stop: tuple[float, Array] | None = None,
                past: np.ndarray | None = None) -> Callable[[Array], float]:
         """F(τ) = min_i m_i/floor_i − 1 over the predicted end (and mid-period
         configuration) margins of every prediction, and with ``stop`` = (1/(2θA), floors)
         the braking margins σ_i at the predicted ends: ≥ 0 when τ keeps every margin above
-        its floor. ``past`` marks the margins already ≤ 0 (only the extra constraints can
-        be): their floor is their present value, compared by difference, and their braking
-        margin is not held (:meth:`_guard`)."""
-        guarded, no_nan, nc = self.guarded, self._no_nan, self._n_config
-        past_mid = None if past is None else past[:nc]
-        past_v = None if past is None else past[nc:]
-        has_velocity = bool(guarded.velocity)
+        its floor (``PredictedMargins.slack``, compiled). The velocity margins count inside
+        the period too, held to their end floor: under a held torque whose acceleration
+        turns within the period a rate can cross its bound and be back by the end (seen at
+        100 Hz once the torque was corrected for the hold). ``past`` marks the margins
+        already ≤ 0 (only the extra constraints can be): their floor is their present value,
+        compared by difference, and their braking margin is not held (:meth:`_guard`)."""
+        along = self.along
 
         def f(t: Array) -> float:
-            mids, ends, speeds, inner_x, inner_v = predict(t)
-            velocity = no_nan(guarded.velocity_margins_along(ends, speeds))
-            # the velocity margins inside the period too, held to their end floor: under a
-            # held torque whose acceleration turns within the period a rate can cross its
-            # bound and be back by the end (seen at 100 Hz once the torque was corrected
-            # for the hold)
-            inner = float(_shares(no_nan(guarded.velocity_margins_along(inner_x, inner_v)),
-                                  end_floor[nc:], past_v).min()) if has_velocity else math.inf
-            if mid_floor is None:
-                return min(inner, float(_shares(velocity, end_floor, past).min())) - 1.0
-            rows = [mids, ends]
-            if stop is not None:  # x_s = x₁ + (|ẋ₁|/(2θA)) ẋ₁, A frozen at the sample
-                speed = np.sqrt(np.einsum("ij,ij->i", speeds, speeds))
-                rows.append(ends + (stop[0] * speed)[:, None] * speeds)
-            config = no_nan(guarded.configuration_margins_along(np.concatenate(rows)))
-            r = len(ends)
-            end = np.concatenate((config[r:2 * r], velocity), axis=1)
-            low = min(inner, float(_shares(end, end_floor, past).min()),
-                      float(_shares(config[:r], mid_floor, past_mid).min()))
-            if stop is not None:
-                braking = config[2 * r:] / stop[1]
-                if past_mid is not None:
-                    braking = np.where(past_mid, np.inf, braking)
-                low = min(low, float(braking.min()))
-            return low - 1.0
+            return along.slack(predict(t), end_floor, mid_floor, stop, past)
 
         return f
 
@@ -128,11 +100,3 @@ class Acceptance(GuardMembers):
                 side = -1
         return (1.0 - hi) * tau + hi * brake
 
-
-def _shares(m: Array, floor: Array, past: np.ndarray | None) -> Array:
-    """m / floor per margin (≥ 1: the margin keeps its floor); where ``past`` (floor ≤ 0, the
-    margin broken already) 1 + (m − floor)/|floor| instead, which is ≥ 1 when m ≥ floor."""
-    if past is None:
-        return m / floor
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(past, 1.0 + (m - floor) / np.maximum(np.abs(floor), 1e-12), m / floor)

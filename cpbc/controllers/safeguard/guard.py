@@ -19,9 +19,11 @@ from cpbc.controllers.hold import hold_share
 from cpbc.controllers.rescue import Rescue
 from cpbc.controllers.safeguard.acceptance import Acceptance
 from cpbc.controllers.safeguard.braking import Brakes
+from cpbc.controllers.safeguard.predicted_margins import PredictedMargins
 from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_share
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.errors import CpbcError
+from cpbc.kernels.guard import floors
 from cpbc.model.robot_model import ArmState
 
 
@@ -107,6 +109,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         self.guarded = own if not extra or own.empty else ConstraintSet(
             own.n, (*own.configuration, *extra), own.velocity)
         self._extra = ConstraintSet(own.n, extra) if extra and not own.empty else None
+        self.along = PredictedMargins(self.guarded, law.model)
         at_target = self.guarded.margins(law.target, np.zeros(law.model.n))
         scale = self.settings.cushion * self.period / 0.01
         # δ_i; a constraint only the guard keeps may have the target beyond it (a joint limit
@@ -174,11 +177,12 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         predict = self._predictor(state, bias)
         now = self._now(state.x, law_margins)
         delta, nc = self.cushion, self._n_config
-        floor = delta + self.keep * (now - delta)
+        floor, mid = np.empty(len(now)), np.empty(nc)
+        floors(now, delta, self.keep, self.keep_half, floor, mid)  # (S1)
         floor_mid = None
         past = None
         if nc:
-            floor_mid = delta[:nc] + self.keep_half * (now[:nc] - delta[:nc])
+            floor_mid = mid
             if self._extra is not None and not now[now.argmin()] > 0.0:
                 # An extra constraint (one only the guard keeps) is broken already: the arm
                 # went past a limit the law does not know of, from a state nothing could stop

@@ -8,6 +8,7 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import Braking
 from cpbc.controllers.rescue import Rescue
+from cpbc.controllers.safeguard.predicted_margins import PredictedMargins
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.model.robot_model import RobotModel
 
@@ -19,6 +20,7 @@ class GuardMembers:
     period: float
     settings: SafeguardSettings
     guarded: ConstraintSet
+    along: PredictedMargins  # the guarded margins along a prediction, F (compiled)
     cushion: Array
     keep: float
     keep_half: float

@@ -10,7 +10,7 @@ from collections.abc import Callable
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.controllers.linalg import solve_spd
+from cpbc.kernels.guard import frozen_rows, frozen_start
 from cpbc.model.robot_model import ArmState, RobotModel
 
 # (mid-period positions, end positions, end rates, then positions and rates inside the
@@ -45,24 +45,19 @@ def predictor(model: RobotModel, state: ArmState, bias: Array, h: float, substep
     box."""
     x, dx = state.x, state.dx
     if substeps == 1:
-        coast_mid, coast = x + (0.5 * h) * dx, x + h * dx  # the motion without torque
-        inertia = state.inertia
+        inertia, n = state.inertia, len(x)
+        work = np.empty((n, n))  # the Cholesky factor of D
+        rows = 2 if corrector else 1
 
         def frozen(t: Array) -> tuple[Array, Array, Array, Array, Array]:
             t = saturate(t)
-            acc = solve_spd(inertia, t - bias)
-            mid = coast_mid + (0.125 * h * h) * acc
-            end, speed = coast + (travel * h * h) * acc, dx + h * acc
-            mid_speed = dx + (0.5 * h) * acc
-            if not corrector:
-                return mid[None], end[None], speed[None], mid[None], mid_speed[None]
-            # continuous time: the acceleration at the predicted end, linear in between
-            smooth = end if travel == 0.5 else coast + (0.5 * h * h) * acc
-            late = model.forward_dynamics(smooth, speed, t) - acc
-            mids = np.array((mid, mid + (h * h / 48.0) * late))
-            return (mids, np.array((end, smooth + (h * h / 6.0) * late)),
-                    np.array((speed, speed + (0.5 * h) * late)), mids,
-                    np.array((mid_speed, mid_speed + (0.125 * h) * late)))
+            acc, smooth, speed = np.empty(n), np.empty(n), np.empty(n)
+            frozen_start(inertia, bias, t, x, dx, h, work, acc, smooth, speed)
+            # continuous time: the model's acceleration at the predicted end
+            after = model.forward_dynamics(smooth, speed, t) if corrector else acc
+            mids, ends, speeds, mid_speeds = np.empty((4, rows, n))
+            frozen_rows(x, dx, acc, after, h, travel, mids, ends, speeds, mid_speeds)
+            return mids, ends, speeds, mids, mid_speeds
 
         return frozen
     return substepped(model, x, dx, h, substeps, saturate, corrector)

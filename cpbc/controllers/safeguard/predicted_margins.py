@@ -1,0 +1,120 @@
+"""Every guarded margin along one prediction of the period, and F of (S1) and (S2) there
+(step 3 of the package docstring): the guard's accept path in compiled kernels
+(cpbc.kernels.guard), with Pinocchio's joint placements at each predicted configuration
+between them.
+
+The constraints whose kinds have kernels (linear and rate limits, Clearance's sphere pairs)
+are packed once, at construction, in the tables of the constraint set's own barrier kernel
+(cpbc.constraints.packing); the others (a point outside a sphere, which reads a frame's
+kinematics; the kinetic-energy limit, which reads D at each predicted state; capsules; a
+subclass with its own ``value``) are asked through ``values_along``, column by column.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TypeVar
+
+import numpy as np
+import pinocchio as pin
+
+from cpbc.arrays import Array
+from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
+from cpbc.constraints.packing import Packed, PackedSet
+from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES
+from cpbc.kernels.guard import configuration_rows, predicted_slack
+from cpbc.model.robot_model import RobotModel
+
+C = TypeVar("C", ConfigurationConstraint, VelocityConstraint)
+Rows = tuple[Array, Array, Array, Array, Array]  # as a Predictor returns them
+
+
+def _own_values(c: ConfigurationConstraint | VelocityConstraint) -> bool:
+    """Whether ``c`` reports the margins its packed kind computes: no subclass below the
+    class that packs it overrides ``value`` or ``values_along``."""
+    cls = type(c)
+    owner = next(k for k in cls.__mro__ if "packed" in vars(k))
+    return all(getattr(cls, name) is getattr(owner, name) for name in ("value", "values_along"))
+
+
+def _split(constraints: Sequence[C], kinds: tuple[int, ...]
+           ) -> tuple[list[tuple[int, int, Packed]], list[tuple[int, int, C]]]:
+    """(first column, columns, packed) of the constraints a kernel evaluates along a
+    prediction, and (first column, columns, constraint) of the others."""
+    packed: list[tuple[int, int, Packed]] = []
+    generic: list[tuple[int, int, C]] = []
+    at = 0
+    for c in constraints:
+        k = len(c.names)
+        p = c.packed()
+        if p is not None and p.kind in kinds and _own_values(c):
+            packed.append((at, k, p))
+        else:
+            generic.append((at, k, c))
+        at += k
+    return packed, generic
+
+
+class PredictedMargins:
+    """The guarded margins along a prediction, and F = min_i m_i/floor_i − 1."""
+
+    def __init__(self, constraints: ConstraintSet, model: RobotModel) -> None:
+        config, self._generic_config = _split(constraints.configuration, (LINEAR, SPHERES))
+        velocity, self._generic_velocity = _split(constraints.velocity, (RATE,))
+        self._config = PackedSet.build(config)
+        self._velocity = PackedSet.build(velocity)
+        self.n = model.n
+        self.nc = constraints.n_configuration
+        self.nv = len(constraints.names) - self.nc
+        self._spheres = any(p.kind == SPHERES for _, _, p in config)
+        self._pin = model.model
+        self._data = self._pin.createData()  # its own: the joint placements of each row
+        self._placement_shape = pin.computeStaticRegressor(
+            self._pin, self._data, pin.neutral(self._pin)).shape
+        self._no_placements = np.zeros((0, 1, 1))
+        self._no_config = np.zeros((0, 0))
+        self._no_floor = np.zeros(0)
+        self._no_past = np.zeros(0, dtype=bool)
+
+    def _placements(self, rows: Array) -> Array:
+        """Pinocchio's joint placements (the static regressor) at every row, joint
+        coordinates (the sphere pairs pack only then)."""
+        if not self._spheres:
+            return self._no_placements
+        out = np.empty((len(rows), *self._placement_shape))
+        data, model = self._data, self._pin
+        for i in range(len(rows)):
+            out[i] = pin.computeStaticRegressor(model, data, rows[i])
+        return out
+
+    def _generic_velocity_margins(self, xs: Array, dxs: Array) -> Array:
+        """The velocity margins along rows, those of the constraints that do not pack filled
+        in (the kernel fills the others)."""
+        out = np.empty((len(xs), self.nv))
+        for at, k, v in self._generic_velocity:
+            out[:, at:at + k] = v.values_along(xs, dxs)
+        return out
+
+    def slack(self, predicted: Rows, end_floor: Array, mid_floor: Array | None,
+              stop: tuple[float, Array] | None, past: np.ndarray | None) -> float:
+        """F(τ) of (S1), with ``stop`` = (1/(2θA), floors) of (S2) too, over the predicted
+        ``(mids, ends, speeds, inner_x, inner_v)`` (Acceptance._check)."""
+        mids, ends, speeds, inner_x, inner_v = predicted
+        velocity = self._generic_velocity_margins(ends, speeds)
+        inner = self._generic_velocity_margins(inner_x, inner_v) if self.nv else velocity[:0]
+        config, rows, placements = self._no_config, self._no_config, self._no_placements
+        if mid_floor is not None:
+            rows = np.empty(((2 if stop is None else 3) * len(ends), self.n))
+            configuration_rows(mids, ends, speeds, 0.0 if stop is None else stop[0], rows)
+            config = np.empty((len(rows), self.nc))
+            for at, k, c in self._generic_config:
+                config[:, at:at + k] = c.values_along(rows)
+            placements = self._placements(rows)
+        cp, vp, no_floor = self._config, self._velocity, self._no_floor
+        return predicted_slack(cp.plan, cp.ints, cp.floats, vp.plan, vp.ints, vp.floats, rows,
+                               placements, ends, speeds, inner_x, inner_v, config, velocity,
+                               inner, end_floor, no_floor if mid_floor is None else mid_floor,
+                               no_floor if stop is None else stop[1],
+                               self._no_past if past is None else past, past is not None,
+                               mid_floor is not None, stop is not None)

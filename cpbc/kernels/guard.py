@@ -1,0 +1,352 @@
+"""The sampled-data safeguard's accept path (cpbc.controllers.safeguard): the frozen prediction
+of one period under a held torque, the margins at the predicted states of the constraints whose
+kinds have kernels, F of (S1) and (S2), the uniform brake's deceleration and the torque box.
+
+Between these calls the guard makes its Pinocchio calls (the model's acceleration at the
+predicted end, the joint placements at every predicted configuration); the rare paths (the
+slide, the brakes' search, the rescue) stay Python. The constraint formulas are not repeated
+here: the margins along a prediction are the set kernel's own (``linear_limit_terms``,
+``rate_limit_terms``, ``sphere_clearances``) over the tables the guard packs once
+(cpbc.constraints.packing, ``PackedSet``), row by row.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.kernels import READ_ONLY, kernel
+from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES, float_table, int_table
+from cpbc.kernels.barriers import linear_limit_terms, rate_limit_terms
+from cpbc.kernels.clearance import Ints, sphere_clearances
+from cpbc.kernels.small_solves import solve_spd
+
+# --- step 2 of the package docstring: the prediction, dynamics frozen at the sample ---------
+
+
+@kernel("void(float64[:, :], float64[:], float64[:], float64[:], float64[:], float64,"
+        " float64[:, :], float64[:], float64[:], float64[:])")
+def frozen_start(inertia: Array, bias: Array, tau: Array, x: Array, dx: Array, h: float,
+                 work: Array, acc: Array, smooth: Array, speed: Array) -> None:
+    """a = D⁻¹(τ − b) into ``acc``; the continuous-time end x + hẋ + ½h² a into ``smooth``
+    and ẋ + h a into ``speed``: where the model's acceleration is asked for the corrector."""
+    n = x.shape[0]
+    rhs = np.empty(n)
+    for i in range(n):
+        rhs[i] = tau[i] - bias[i]
+    solve_spd(inertia, rhs, work, acc)
+    half = 0.5 * h * h
+    for i in range(n):
+        smooth[i] = (x[i] + h * dx[i]) + half * acc[i]
+        speed[i] = dx[i] + h * acc[i]
+
+
+@kernel("void(float64[:], float64[:], float64[:], float64[:], float64, float64,"
+        " float64[:, :], float64[:, :], float64[:, :], float64[:, :])")
+def frozen_rows(x: Array, dx: Array, acc: Array, after: Array, h: float, travel: float,
+                mids: Array, ends: Array, speeds: Array, mid_speeds: Array) -> None:
+    """The frozen prediction under a held acceleration a (row 0):
+
+        x(h/2) = x + ½hẋ + ⅛h² a,   x(h) = x + hẋ + c h² a,   ẋ(h) = ẋ + h a,
+        ẋ(h/2) = ẋ + ½h a
+
+    (c = ``travel``: where the plant's own steps land); with a second row, the second-order
+    prediction in continuous time beside it, the acceleration taken as linear from a to the
+    model's ``after`` at the continuous-time end (Heun's; Δ = after − a):
+
+        x(h/2) + h²Δ/48,   x + hẋ + ½h² a + h²Δ/6,   ẋ(h) + ½hΔ,   ẋ(h/2) + ⅛hΔ."""
+    n = x.shape[0]
+    second = mids.shape[0] > 1
+    for i in range(n):
+        coast = x[i] + h * dx[i]
+        mid = (x[i] + (0.5 * h) * dx[i]) + (0.125 * h * h) * acc[i]
+        end = coast + (travel * h * h) * acc[i]
+        speed = dx[i] + h * acc[i]
+        mid_speed = dx[i] + (0.5 * h) * acc[i]
+        mids[0, i], ends[0, i], speeds[0, i], mid_speeds[0, i] = mid, end, speed, mid_speed
+        if second:
+            late = after[i] - acc[i]
+            smooth = end if travel == 0.5 else coast + (0.5 * h * h) * acc[i]
+            mids[1, i] = mid + (h * h / 48.0) * late
+            ends[1, i] = smooth + (h * h / 6.0) * late
+            speeds[1, i] = speed + (0.5 * h) * late
+            mid_speeds[1, i] = mid_speed + (0.125 * h) * late
+
+
+@kernel("void(float64[:, :], float64[:], float64[:], float64[:], float64, float64[:])")
+def hold_torque(inertia: Array, tau: Array, acc: Array, after: Array, share: float,
+                out: Array) -> None:
+    """τ − s D Δa, Δa = ``after`` − a the drift of the acceleration over the period
+    (cpbc.controllers.hold: the law's acceleration of the sample kept on average)."""
+    n = tau.shape[0]
+    for i in range(n):
+        t = 0.0
+        for j in range(n):
+            t += inertia[i, j] * (after[j] - acc[j])
+        out[i] = tau[i] - share * t
+
+
+@kernel("float64[:](float64[:, :], float64[:])")
+def _times(a: Array, v: Array) -> Array:
+    """a v, row by row (numba's dot would load SciPy's BLAS)."""
+    out = np.empty(a.shape[0])
+    for i in range(a.shape[0]):
+        t = 0.0
+        for j in range(v.shape[0]):
+            t += a[i, j] * v[j]
+        out[i] = t
+    return out
+
+
+# --- the braking margins' stopping points (cpbc.constraints.stopping.Braking) ---------------
+
+
+@kernel("void(float64[:, :], float64[:, :], float64[:, :], float64, float64[:, :])")
+def configuration_rows(mids: Array, ends: Array, speeds: Array, per_speed: float,
+                       rows: Array) -> None:
+    """The configurations whose margins the guard tests: the mid-period ones, the ends and,
+    when ``rows`` has room, where the uniform brake stops from each end,
+    x_s = x₁ + (|ẋ₁|/(2θA)) ẋ₁ (``per_speed`` = 1/(2θA), A frozen at the sample)."""
+    r, n = ends.shape[0], ends.shape[1]
+    for j in range(r):
+        for i in range(n):
+            rows[j, i] = mids[j, i]
+            rows[r + j, i] = ends[j, i]
+    if rows.shape[0] < 3 * r:
+        return
+    for j in range(r):
+        sq = 0.0
+        for i in range(n):
+            sq += speeds[j, i] * speeds[j, i]
+        f = per_speed * math.sqrt(sq)
+        for i in range(n):
+            rows[2 * r + j, i] = ends[j, i] + f * speeds[j, i]
+
+
+@kernel("float64(float64[:, :], float64[:], float64[:], float64[:], float64[:, :], boolean)")
+def uniform_deceleration(inertia: Array, bias: Array, dx: Array, limit: Array,
+                         to_joint: Array, mapped: bool) -> float:
+    """A = |ẋ| min_j (L_j + sign(u_j) β_j)/|u_j| with u = Tᵀ D ẋ, β = Tᵀ b (the largest
+    deceleration along ẋ of the uniform brake in the box, Braking's docstring; ``to_joint``
+    Tᵀ read only when ``mapped``); inf at rest."""
+    n = dx.shape[0]
+    sq = 0.0
+    for i in range(n):
+        sq += dx[i] * dx[i]
+    speed = math.sqrt(sq)
+    if speed == 0.0:
+        return math.inf
+    u = _times(inertia, dx)
+    beta = bias
+    if mapped:
+        u, beta = _times(to_joint, u), _times(to_joint, bias)
+    low = math.inf
+    nan = False
+    for j in range(n):
+        size = abs(u[j])
+        if size > 0.0:
+            room = (limit[j] + (1.0 if u[j] > 0.0 else -1.0) * beta[j]) / size
+            if room != room:
+                nan = True
+            elif room < low:
+                low = room
+    return (math.nan if nan else low) * speed
+
+
+# --- the torque box (cpbc.constraints.brakes.TorqueBox) -------------------------------------
+
+
+@kernel("void(float64[:], float64[:, :], float64[:, :], boolean, float64[:], float64[:])")
+def box_clip(limit: Array, to_joint: Array, from_joint: Array, mapped: bool, tau: Array,
+             out: Array) -> None:
+    """τ with each joint torque clipped to its limit: T⁻ᵀ clip(Tᵀτ, −L, L) (τ_q itself for
+    joint coordinates, ``mapped`` False)."""
+    tau_q = _times(to_joint, tau) if mapped else tau
+    clipped = np.empty(tau.shape[0])
+    for j in range(tau.shape[0]):
+        t = tau_q[j]
+        clipped[j] = -limit[j] if t < -limit[j] else (limit[j] if t > limit[j] else t)
+    if mapped:
+        clipped = _times(from_joint, clipped)
+    out[:] = clipped
+
+
+@kernel("int64(float64[:], float64[:, :], float64[:, :], boolean, float64[:], float64[:],"
+        " float64[:])")
+def box_toward(limit: Array, to_joint: Array, from_joint: Array, mapped: bool, bias: Array,
+               tau: Array, out: Array) -> int:
+    """b + t (τ − b) with the largest t ∈ [0, 1] that fits the box, into ``out``; returns 0
+    when τ fits as it is (``out`` untouched), 1 when scaled, 2 when b alone does not fit and
+    τ is clipped instead (``box_clip``)."""
+    n = tau.shape[0]
+    tau_q = _times(to_joint, tau) if mapped else tau
+    fits = True
+    for j in range(n):
+        if not abs(tau_q[j]) <= limit[j]:
+            fits = False
+    if fits:
+        return 0
+    b_q = _times(to_joint, bias) if mapped else bias
+    for j in range(n):
+        if abs(b_q[j]) > limit[j]:
+            box_clip(limit, to_joint, from_joint, mapped, tau, out)
+            return 2
+    low = math.inf
+    nan = False
+    for j in range(n):
+        d = tau_q[j] - b_q[j]
+        room = (limit[j] - b_q[j]) / d if d > 0 else ((-limit[j] - b_q[j]) / d if d < 0
+                                                        else math.inf)
+        if room != room:
+            nan = True
+        elif room < low:
+            low = room
+    t = 1.0 if nan or not low < 1.0 else low
+    for i in range(n):
+        out[i] = bias[i] + t * (tau[i] - bias[i])
+    return 1
+
+
+# --- step 3: the margins along the prediction, and F of (S1), (S2) --------------------------
+
+
+@kernel(f"void({READ_ONLY}, {READ_ONLY}, float64, float64, float64[:], float64[:])")
+def floors(now: Array, cushion: Array, keep: float, keep_half: float, end_floor: Array,
+           mid_floor: Array) -> None:
+    """The floors of (S1): δ_i + e^{−κh}(m_i − δ_i) for every margin at the period's end,
+    δ_i + e^{−κh/2}(φ_i − δ_i) for the configuration ones at mid-period (as many as
+    ``mid_floor`` holds), from the margins ``now`` at the sample and the cushions δ."""
+    for i in range(now.shape[0]):
+        end_floor[i] = cushion[i] + keep * (now[i] - cushion[i])
+    for i in range(mid_floor.shape[0]):
+        mid_floor[i] = cushion[i] + keep_half * (now[i] - cushion[i])
+
+
+
+@kernel("void(int64[:, :], int64[:, :], float64[:, :], float64[:, :], float64[:, :],"
+        " float64[:, :, :], float64[:, :])")
+def margins_along(plan: Ints, ints: Ints, floats: Array, xs: Array, dxs: Array, ys: Array,
+                  out: Array) -> None:
+    """The margins of every packed constraint (``plan``, cpbc.kernels.barrier_set) at every
+    row of ``xs`` (and ``dxs`` for the rates; ``ys`` the joint placements of each row, for
+    the sphere pairs) into their columns of ``out``, the constraint kinds' own kernels row by
+    row. Columns of constraints that do not pack are left as they are."""
+    n = xs.shape[1]
+    part = np.empty(n)
+    weight = np.empty((n, n))
+    for r in range(plan.shape[0]):
+        kind, at, k = plan[r, 0], plan[r, 1], plan[r, 2]
+        if kind == LINEAR:
+            constants = float_table(plan, floats, r, 0)
+            for i in range(xs.shape[0]):
+                linear_limit_terms(constants, xs[i], out[i, at:at + k], part)
+        elif kind == RATE:
+            constants = float_table(plan, floats, r, 0)
+            for i in range(dxs.shape[0]):
+                rate_limit_terms(constants, dxs[i], out[i, at:at + k], weight)
+        elif kind == SPHERES:
+            index = int_table(plan, ints, r, 0)[:, 0]
+            pairs = int_table(plan, ints, r, 1)
+            local, obstacles = float_table(plan, floats, r, 0), float_table(plan, floats, r, 1)
+            table = float_table(plan, floats, r, 2)
+            for i in range(xs.shape[0]):
+                sphere_clearances(ys[i], index, local, obstacles, pairs, table,
+                                  out[i, at:at + k])
+
+
+@kernel("float64(float64, float64)")
+def _lower(low: float, value: float) -> float:
+    """The smaller of two, NaN if either is (numpy's min over an array)."""
+    if value != value or low != low:
+        return math.nan
+    return value if value < low else low
+
+
+@kernel("float64(float64, float64)")
+def _least(low: float, value: float) -> float:
+    """Python's min(low, value): a NaN value is passed over, a NaN low kept."""
+    return value if value < low else low
+
+
+@kernel("float64(float64[:, :], int64, int64, int64, float64[:], boolean[:], boolean)")
+def _least_share(m: Array, first: int, last: int, col: int, floor: Array, past: Array,
+                 has_past: bool) -> float:
+    """min over rows [first, last) of m/floor per margin (≥ 1: the margin keeps its floor),
+    NaN margins counted as −∞; where ``past`` (the margin broken already) 1 + (m −
+    floor)/|floor| instead. ``col``: the column of m's first margin in ``floor``/``past``."""
+    low = math.inf
+    for i in range(first, last):
+        for j in range(m.shape[1]):
+            v = m[i, j]
+            if v != v:
+                v = -math.inf
+            f = floor[col + j]
+            if has_past and past[col + j]:
+                share = 1.0 + (v - f) / max(abs(f), 1e-12)
+            else:
+                share = v / f
+            low = _lower(low, share)
+    return low
+
+
+@kernel("float64(float64[:, :], float64[:, :], float64[:, :], int64, float64[:], float64[:],"
+        " float64[:], boolean[:], boolean, boolean, boolean)")
+def slack(config: Array, velocity: Array, inner: Array, ends: int, end_floor: Array,
+          mid_floor: Array, sigma_floor: Array, past: Array, has_past: bool, has_config: bool,
+          has_stop: bool) -> float:
+    """F = min_i m_i/floor_i − 1 (≥ 0: every margin keeps its floor; the package docstring,
+    (S1) and (S2)) over the margins along one prediction of ``ends`` rows: ``config`` the
+    configuration margins at the mid-period rows, the ends and (``has_stop``) the uniform
+    brake's stopping points, ``velocity`` the velocity margins at the ends, ``inner`` those
+    inside the period (held to their end floor). ``end_floor`` covers every margin, the
+    configuration ones first; ``mid_floor`` and ``sigma_floor`` the configuration ones.
+    ``past`` marks margins broken already: compared by difference, their braking margin not
+    held. Groups combine as the Python they replace did (a NaN group is passed over)."""
+    nc = config.shape[1] if has_config else 0
+    low = math.inf
+    if inner.shape[1] > 0:
+        low = _least_share(inner, 0, inner.shape[0], nc, end_floor, past, has_past)
+    end = _least_share(velocity, 0, velocity.shape[0], nc, end_floor, past, has_past)
+    if not has_config:
+        return _least(low, end) - 1.0
+    end = _lower(end, _least_share(config, ends, 2 * ends, 0, end_floor, past, has_past))
+    low = _least(_least(low, end),
+                 _least_share(config, 0, ends, 0, mid_floor, past, has_past))
+    if has_stop:
+        braking = math.inf
+        for i in range(2 * ends, 3 * ends):
+            for j in range(nc):
+                v = config[i, j]
+                if v != v:
+                    v = -math.inf
+                braking = _lower(braking, math.inf if has_past and past[j]
+                                 else v / sigma_floor[j])
+        low = _least(low, braking)
+    return low - 1.0
+
+
+@kernel("float64(int64[:, :], int64[:, :], float64[:, :], int64[:, :], int64[:, :], float64[:, :],"
+        " float64[:, :], float64[:, :, :], float64[:, :], float64[:, :], float64[:, :],"
+        " float64[:, :], float64[:, :], float64[:, :], float64[:, :], float64[:], float64[:],"
+        " float64[:], boolean[:], boolean, boolean, boolean)")
+def predicted_slack(config_plan: Ints, config_ints: Ints, config_floats: Array,
+                    velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array,
+                    rows: Array, placements: Array, ends: Array, speeds: Array,
+                    inner_x: Array, inner_v: Array, config: Array, velocity: Array,
+                    inner: Array, end_floor: Array, mid_floor: Array, sigma_floor: Array,
+                    past: Array, has_past: bool, has_config: bool, has_stop: bool) -> float:
+    """F of one prediction in one call: the packed velocity margins at the ends and inside
+    the period, the packed configuration margins at ``rows`` (``configuration_rows``, with
+    their joint ``placements``) into their columns (``margins_along``; the other columns
+    filled already), then ``slack``."""
+    margins_along(velocity_plan, velocity_ints, velocity_floats, ends, speeds, placements,
+                  velocity)
+    if inner.shape[1] > 0:
+        margins_along(velocity_plan, velocity_ints, velocity_floats, inner_x, inner_v,
+                      placements, inner)
+    if has_config:
+        margins_along(config_plan, config_ints, config_floats, rows, rows, placements, config)
+    return slack(config, velocity, inner, ends.shape[0], end_floor, mid_floor, sigma_floor,
+                 past, has_past, has_config, has_stop)
