@@ -1,0 +1,113 @@
+"""A law's terms packed for its one kernel call per step (cpbc.kernels.laws.cpbc_step,
+``cpbc_ke_step``): the potential, the damping, the task damping and the shaping hand their
+constants over (their ``packed``), stacked as the constraint set stacks its constraints'
+(cpbc.constraints.packing).
+
+A term packs only when its class keeps the formula the kernel computes: a subclass that
+overrides a term's method returns None from ``packed``, and so does a law whose class
+overrides a method the kernel stands in for (``_law``, ``_shaped_value``,
+``task_damping_force``). The law then takes its general path, method by method: nothing
+dispatches on type, and every override is honoured. The kernel reads one frame: the terms
+and the set's point constraint must all read the same frame, or the law takes the general
+path too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.packing import Packed, PackedSet
+from cpbc.errors import CpbcError
+from cpbc.kernels.law_terms import FRAME_KINDS, SHAPING
+from cpbc.model.robot_model import ArmState
+
+# x, ẋ, D, g, C ẋ, f, C, the frame's origin, axes and Jacobian, the joint placements and
+# Jacobians: the per-step arguments of cpbc.kernels.laws.cpbc_step
+KernelInputs = tuple[Array, Array, Array, Array, Array, Array, Array, Array, Array, Array,
+                     Array, Array]
+_EMPTY = np.zeros(0)
+_NO_MATRIX = np.zeros((0, 0))
+
+
+def packed_terms(term: object) -> tuple[Packed, ...] | None:
+    """A term's share of its law's kernel (its ``packed``), or None when it has none."""
+    packed = getattr(term, "packed", None)
+    return None if packed is None else packed()
+
+
+def shaping_term(shaping: object) -> tuple[Packed, ...] | None:
+    """The shaping's (kind, parameter) as a packed term, or None."""
+    packed = getattr(shaping, "packed", None)
+    found = None if packed is None else packed()
+    if found is None:
+        return None
+    return (Packed(SHAPING, (np.array([[float(found[0]), float(found[1])]]),)),)
+
+
+def keeps(cls: type, base: type, methods: Iterable[str]) -> bool:
+    """Whether ``cls`` keeps ``base``'s ``methods`` (a subclass overriding none of them)."""
+    return all(getattr(cls, m) is getattr(base, m) for m in methods)
+
+
+@dataclass(frozen=True, eq=False)
+class PackedLaw:
+    """A law's packed terms and the inputs of its kernel that do not change per step.
+
+    Attributes:
+        law: the class it was packed for (a law whose class changes packs again).
+        terms: the terms' tables (cpbc.kernels.law_terms), or None: the law takes its
+            general path.
+        constraints: the constraint set's tables.
+        frame: the one frame the terms and the set read (−1: none).
+    """
+
+    law: type
+    terms: PackedSet | None = None
+    constraints: PackedSet | None = None
+    frame: int = -1
+
+    @classmethod
+    def build(cls, law: type, parts: Sequence[tuple[Packed, ...] | None],
+              constraints: ConstraintSet) -> PackedLaw:
+        """From the terms' ``packed`` (None for one that does not pack) and the set."""
+        tables = constraints.packed_tables
+        if tables is None or any(p is None for p in parts):
+            return cls(law)
+        terms = [t for p in parts for t in p or ()]
+        frames = {t.frame for t in terms if t.kind in FRAME_KINDS}
+        if tables.frame >= 0:
+            frames.add(tables.frame)
+        if len(frames) > 1:
+            return cls(law)
+        return cls(law, PackedSet.build([(0, 0, t) for t in terms]), tables,
+                   frames.pop() if frames else -1)
+
+    def inputs(self, state: ArmState, constraints: ConstraintSet) -> KernelInputs:
+        """The kernel's arguments read from the state: x, ẋ, D, g, C ẋ, f, C, the frame's
+        origin, axes and Jacobian, the joint placements and Jacobians."""
+        frame = self.frame
+        if frame >= 0:
+            kin = state.frames.get(frame)
+            if kin is None:
+                raise CpbcError(f"the law reads frame {frame} from the state: build it with "
+                                "the law's state(x, dx)")
+            origin, rotation, jacobian = kin
+        else:
+            origin, rotation, jacobian = _NO_FRAME
+        y, jac = constraints.joint_kinematics(state)
+        coriolis = _NO_MATRIX if state.coriolis_matrix is None else state.coriolis_matrix
+        return (state.x, state.dx, state.inertia, state.gravity, state.coriolis_force,
+                state.dissipation, coriolis, origin, rotation, jacobian, y, jac)
+
+
+_NO_FRAME = (np.zeros(3), np.eye(3), np.zeros((6, 0)))
+
+
+def margins_out(count: int, margins: bool) -> Array:
+    """Where the kernel writes every margin (``margins``), else an empty array."""
+    return np.empty(count) if margins else _EMPTY
