@@ -7,7 +7,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
 from cpbc.controllers.controller import Controller, Evaluation, positive_vector
-from cpbc.controllers.packed_law import PackedLaw, keeps, margins_out, packed_terms, shaping_term
+from cpbc.controllers.packed_law import PackedLaw, keeps, packed_terms, shaping_term
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
@@ -92,7 +92,9 @@ class CPBC(Controller):
         return found
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
-        packed = self.packed_law()
+        packed = self._packed_law
+        if packed is None or packed.law is not type(self):
+            packed = self.packed_law()
         if packed.terms is not None:
             return self._packed_step(packed, state, margins)
         bar = self.constraints.barrier(state, margins)  # raises outside S
@@ -103,15 +105,11 @@ class CPBC(Controller):
 
     def _packed_step(self, packed: PackedLaw, state: ArmState, margins: bool) -> Evaluation:
         """τ, V and the margins from one kernel call (cpbc.kernels.laws.cpbc_step)."""
-        cs, terms, tables = self.constraints, packed.terms, packed.constraints
-        assert terms is not None and tables is not None
-        phi, value, tau = np.empty(len(cs.names)), margins_out(len(cs.names), margins), (
-            np.empty(self.model.n))
-        lyapunov, log_phi, log_psi = cpbc_step(
-            tables.plan, tables.ints, tables.floats, terms.plan, terms.floats,
-            *packed.inputs(state, cs), phi, value, tau)
+        phi, value, tau = packed.outputs(margins)
+        lyapunov, log_phi, log_psi = cpbc_step(*packed.tables, *packed.inputs(state), phi,
+                                               value, tau)
         if log_phi != log_phi or log_psi != log_psi:  # outside S
-            raise cs.violation(log_phi, phi)
+            raise self.constraints.violation(log_phi, phi)
         return Evaluation(tau, lyapunov, value if margins else None)
 
     def _shaped_value(self, bar: BarrierTerms, lag: float) -> float:

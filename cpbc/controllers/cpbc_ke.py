@@ -10,7 +10,7 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
 from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.controllers.controller import Controller, Evaluation, positive_vector
-from cpbc.controllers.packed_law import PackedLaw, keeps, margins_out, packed_terms, shaping_term
+from cpbc.controllers.packed_law import PackedLaw, keeps, packed_terms, shaping_term
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
@@ -99,7 +99,9 @@ class CPBCKineticEnergy(Controller):
         return found
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
-        packed = self.packed_law()
+        packed = self._packed_law
+        if packed is None or packed.law is not type(self):
+            packed = self.packed_law()
         if packed.terms is not None:
             return self._packed_step(packed, state, margins)
         kinetic = kinetic_energy(state.inertia, state.dx)
@@ -116,17 +118,13 @@ class CPBCKineticEnergy(Controller):
 
     def _packed_step(self, packed: PackedLaw, state: ArmState, margins: bool) -> Evaluation:
         """τ, V and the margins from one kernel call (cpbc.kernels.laws.cpbc_ke_step)."""
-        cs, terms, tables = self._config, packed.terms, packed.constraints
-        assert terms is not None and tables is not None
-        count = len(cs.names)
-        phi, value, tau = np.empty(count), margins_out(count, margins), np.empty(self.model.n)
-        lyapunov, log_phi, psi = cpbc_ke_step(
-            self.energy.limit, tables.plan, tables.ints, tables.floats, terms.plan,
-            terms.floats, *packed.inputs(state, cs), phi, value, tau)
+        phi, value, tau = packed.outputs(margins)
+        lyapunov, log_phi, psi = cpbc_ke_step(self.energy.limit, *packed.tables,
+                                              *packed.inputs(state), phi, value, tau)
         if not psi > 0:
             raise ConstraintViolation(self.energy.names[0], psi)
         if log_phi != log_phi:  # outside S
-            raise cs.violation(log_phi, phi)
+            raise self._config.violation(log_phi, phi)
         return Evaluation(tau, lyapunov, np.append(value, psi) if margins else None)
 
     def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float, psi: float

@@ -21,7 +21,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.constraints.packing import Packed, PackedSet
+from cpbc.constraints.packing import Ints, Packed, PackedSet
 from cpbc.errors import CpbcError
 from cpbc.kernels.law_terms import FRAME_KINDS, SHAPING
 from cpbc.model.robot_model import ArmState
@@ -30,6 +30,8 @@ from cpbc.model.robot_model import ArmState
 # Jacobians: the per-step arguments of cpbc.kernels.laws.cpbc_step
 KernelInputs = tuple[Array, Array, Array, Array, Array, Array, Array, Array, Array, Array,
                      Array, Array]
+# the set's plan, ints and floats, the terms' plan and floats
+Tables = tuple[Ints, Ints, Array, Ints, Array]
 _EMPTY = np.zeros(0)
 _NO_MATRIX = np.zeros((0, 0))
 
@@ -64,12 +66,30 @@ class PackedLaw:
             general path.
         constraints: the constraint set's tables.
         frame: the one frame the terms and the set read (−1: none).
+        kinematics: whether the set reads the joint placements and Jacobians.
+        margins: the number of the set's margins; n: the number of coordinates.
     """
 
     law: type
     terms: PackedSet | None = None
     constraints: PackedSet | None = None
     frame: int = -1
+    kinematics: bool = False
+    margins: int = 0
+    n: int = 0
+
+    @property
+    def tables(self) -> Tables:
+        """The kernel's constant arguments: the set's tables, then the terms'."""
+        assert self.constraints is not None and self.terms is not None
+        c, t = self.constraints, self.terms
+        return c.plan, c.ints, c.floats, t.plan, t.floats
+
+    def outputs(self, margins: bool) -> tuple[Array, Array, Array]:
+        """Where the kernel writes the barrier values, the margins (``margins``; else an
+        empty array) and τ."""
+        return (np.empty(self.margins), np.empty(self.margins) if margins else _EMPTY,
+                np.empty(self.n))
 
     @classmethod
     def build(cls, law: type, parts: Sequence[tuple[Packed, ...] | None],
@@ -85,9 +105,10 @@ class PackedLaw:
         if len(frames) > 1:
             return cls(law)
         return cls(law, PackedSet.build([(0, 0, t) for t in terms]), tables,
-                   frames.pop() if frames else -1)
+                   frames.pop() if frames else -1, constraints.needs_kinematics,
+                   len(constraints.names), constraints.n)
 
-    def inputs(self, state: ArmState, constraints: ConstraintSet) -> KernelInputs:
+    def inputs(self, state: ArmState) -> KernelInputs:
         """The kernel's arguments read from the state: x, ẋ, D, g, C ẋ, f, C, the frame's
         origin, axes and Jacobian, the joint placements and Jacobians."""
         frame = self.frame
@@ -99,15 +120,17 @@ class PackedLaw:
             origin, rotation, jacobian = kin
         else:
             origin, rotation, jacobian = _NO_FRAME
-        y, jac = constraints.joint_kinematics(state)
+        if self.kinematics:
+            y, jac = state.regressor, state.joint_jacobians
+            if y is None or jac is None:
+                raise CpbcError("clearance reads the state's joint kinematics: build the "
+                                "state with kinematics=True (a law's state(x, dx) does)")
+        else:
+            y, jac = _NO_JOINTS
         coriolis = _NO_MATRIX if state.coriolis_matrix is None else state.coriolis_matrix
         return (state.x, state.dx, state.inertia, state.gravity, state.coriolis_force,
                 state.dissipation, coriolis, origin, rotation, jacobian, y, jac)
 
 
 _NO_FRAME = (np.zeros(3), np.eye(3), np.zeros((6, 0)))
-
-
-def margins_out(count: int, margins: bool) -> Array:
-    """Where the kernel writes every margin (``margins``), else an empty array."""
-    return np.empty(count) if margins else _EMPTY
+_NO_JOINTS = (np.zeros((3, 0)), np.zeros((6, 0)))

@@ -125,6 +125,12 @@ class RobotModel:
         probe = pin.crba(model, self.data, np.linspace(0.3, 1.1, self.n)) if self.n > 1 else None
         self._crba_upper_only = probe is not None and not np.allclose(probe, probe.T)
         self._lower = np.tril_indices(self.n, -1)
+        # numpy views of the Pinocchio data's D, C q̇ + g, g, joint Jacobians and static
+        # regressor, which each pass rewrites in place: :meth:`state` copies them out (a view
+        # made once costs nothing per step; Pinocchio's accessors make a new one each call)
+        self._all_terms = (self.data.M, self.data.nle, self.data.g)
+        self._joint_jacobians = self.data.J
+        self._regressor = self.data.staticRegressor
 
     @property
     def length_joints(self) -> Array:
@@ -222,12 +228,13 @@ class RobotModel:
         found = _NO_FRAMES
         if kinematics or wanted:
             pin.computeAllTerms(model, data, q, dq)
-            m, nle, g = data.M, data.nle, data.g
+            m, nle, g = self._all_terms
             if wanted:
                 found = MappingProxyType({i: self._state_frame(i) for i in wanted})
             if kinematics:
-                jac = data.J.copy()
-                placements = pin.computeStaticRegressor(model, data, q).copy()
+                jac = self._joint_jacobians.copy()
+                pin.computeStaticRegressor(model, data, q)
+                placements = self._regressor.copy()
         else:
             m = pin.crba(model, data, q)
             nle = pin.nonLinearEffects(model, data, q, dq)
