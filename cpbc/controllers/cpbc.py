@@ -77,6 +77,14 @@ class CPBC(Controller):
         self.damping: Damping = LinearDamping(self.kd)
         self._no_barrier = zero_terms(model.n)
 
+    def state(self, x: Array, dx: Array) -> ArmState:
+        packed = self._packed_law
+        if packed is None or packed.law is not type(self):
+            packed = self.packed_law()
+        if packed.terms is None:
+            return super().state(x, dx)
+        return packed.state(self.model, x, dx)
+
     def packed_law(self) -> PackedLaw:
         """The law's packed terms (cpbc.controllers.packed_law); ``terms`` None when a term
         or the class's formula does not pack."""
@@ -87,7 +95,9 @@ class CPBC(Controller):
                      shaping_term(self.shaping)]
             if not keeps(type(self), CPBC, ("_law", "_shaped_value", "task_damping_force")):
                 parts.append(None)
-            found = PackedLaw.build(type(self), parts, self.constraints)
+            if not keeps(type(self), Controller, ("frames",)):
+                parts.append(None)
+            found = PackedLaw.build(type(self), parts, self.constraints, self.frames)
             self._packed_law = found
         return found
 

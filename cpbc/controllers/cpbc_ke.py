@@ -82,7 +82,12 @@ class CPBCKineticEnergy(Controller):
         """The per-step state of the configuration constraints and the potential: the law
         reads the energy limit through D alone (no C, which the limit's own barrier terms
         would need)."""
-        return self._config.state(self.model, x, dx, self.frames)
+        packed = self._packed_law
+        if packed is None or packed.law is not type(self):
+            packed = self.packed_law()
+        if packed.terms is None:
+            return self._config.state(self.model, x, dx, self.frames)
+        return packed.state(self.model, x, dx)
 
     def packed_law(self) -> PackedLaw:
         """The law's packed terms (cpbc.controllers.packed_law); ``terms`` None when a term
@@ -94,7 +99,9 @@ class CPBCKineticEnergy(Controller):
                      shaping_term(self.shaping)]
             if not keeps(type(self), CPBCKineticEnergy, ("_law", "task_damping_force")):
                 parts.append(None)
-            found = PackedLaw.build(type(self), parts, self._config)
+            if not keeps(type(self), Controller, ("frames",)):
+                parts.append(None)
+            found = PackedLaw.build(type(self), parts, self._config, self.frames)
             self._packed_law = found
         return found
 

@@ -24,12 +24,12 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.packing import Ints, Packed, PackedSet
 from cpbc.errors import CpbcError
 from cpbc.kernels.law_terms import FRAME_KINDS, SHAPING
-from cpbc.model.robot_model import ArmState
+from cpbc.model.robot_model import ArmState, RobotModel
 
 # x, ẋ, D, g, C ẋ, f, C, the frame's origin, axes and Jacobian, the joint placements and
 # Jacobians: the per-step arguments of cpbc.kernels.laws.cpbc_step
 KernelInputs = tuple[Array, Array, Array, Array, Array, Array, Array, Array, Array, Array,
-                     Array, Array]
+                     Array]
 # the set's plan, ints and floats, the terms' plan and floats
 Tables = tuple[Ints, Ints, Array, Ints, Array]
 _EMPTY = np.zeros(0)
@@ -68,6 +68,8 @@ class PackedLaw:
         frame: the one frame the terms and the set read (−1: none).
         kinematics: whether the set reads the joint placements and Jacobians.
         margins: the number of the set's margins; n: the number of coordinates.
+        frames: the frames the per-step state holds (the set's, then the law's).
+        coriolis: whether the state holds the matrix C (a kinetic-energy limit).
     """
 
     law: type
@@ -77,6 +79,8 @@ class PackedLaw:
     kinematics: bool = False
     margins: int = 0
     n: int = 0
+    frames: tuple[int, ...] = ()
+    coriolis: bool = False
 
     @property
     def tables(self) -> Tables:
@@ -91,35 +95,44 @@ class PackedLaw:
         return (np.empty(self.margins), np.empty(self.margins) if margins else _EMPTY,
                 np.empty(self.n))
 
+    def state(self, model: RobotModel, x: Array, dx: Array) -> ArmState:
+        """The per-step state the kernel reads (as ``ConstraintSet.state`` with the law's
+        frames builds it), from one call of ``model.state``."""
+        return model.state(x, dx, self.kinematics, self.frames, self.coriolis)
+
     @classmethod
     def build(cls, law: type, parts: Sequence[tuple[Packed, ...] | None],
-              constraints: ConstraintSet) -> PackedLaw:
-        """From the terms' ``packed`` (None for one that does not pack) and the set."""
+              constraints: ConstraintSet, frames: tuple[int, ...]) -> PackedLaw:
+        """From the terms' ``packed`` (None for one that does not pack), the set and the
+        frames the law reads besides the set's (``Controller.frames``)."""
         tables = constraints.packed_tables
-        if tables is None or any(p is None for p in parts):
+        if tables is None or any(p is None for p in parts) or (
+                type(constraints).state is not ConstraintSet.state):
             return cls(law)
         terms = [t for p in parts for t in p or ()]
-        frames = {t.frame for t in terms if t.kind in FRAME_KINDS}
+        read = {t.frame for t in terms if t.kind in FRAME_KINDS}
         if tables.frame >= 0:
-            frames.add(tables.frame)
-        if len(frames) > 1:
+            read.add(tables.frame)
+        if len(read) > 1:
             return cls(law)
         return cls(law, PackedSet.build([(0, 0, t) for t in terms]), tables,
-                   frames.pop() if frames else -1, constraints.needs_kinematics,
-                   len(constraints.names), constraints.n)
+                   read.pop() if read else -1, constraints.needs_kinematics,
+                   len(constraints.names), constraints.n,
+                   tuple(dict.fromkeys((*constraints.frames, *frames))),
+                   constraints.needs_coriolis)
 
     def inputs(self, state: ArmState) -> KernelInputs:
         """The kernel's arguments read from the state: x, ẋ, D, g, C ẋ, f, C, the frame's
-        origin, axes and Jacobian, the joint placements and Jacobians."""
+        placement and Jacobian, the joint placements and Jacobians."""
         frame = self.frame
         if frame >= 0:
             kin = state.frames.get(frame)
             if kin is None:
                 raise CpbcError(f"the law reads frame {frame} from the state: build it with "
                                 "the law's state(x, dx)")
-            origin, rotation, jacobian = kin
+            placement, jacobian = kin
         else:
-            origin, rotation, jacobian = _NO_FRAME
+            placement, jacobian = _NO_FRAME
         if self.kinematics:
             y, jac = state.regressor, state.joint_jacobians
             if y is None or jac is None:
@@ -129,8 +142,8 @@ class PackedLaw:
             y, jac = _NO_JOINTS
         coriolis = _NO_MATRIX if state.coriolis_matrix is None else state.coriolis_matrix
         return (state.x, state.dx, state.inertia, state.gravity, state.coriolis_force,
-                state.dissipation, coriolis, origin, rotation, jacobian, y, jac)
+                state.dissipation, coriolis, placement, jacobian, y, jac)
 
 
-_NO_FRAME = (np.zeros(3), np.eye(3), np.zeros((6, 0)))
+_NO_FRAME = (np.eye(4), np.zeros((6, 0)))
 _NO_JOINTS = (np.zeros((3, 0)), np.zeros((6, 0)))

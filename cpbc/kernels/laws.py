@@ -87,23 +87,25 @@ def shaped_value(lag: float, log_s: float) -> float:
 
 STEP = ("int64[:, :], int64[:, :], float64[:, :], int64[:, :], float64[:, :], float64[:],"
         " float64[:], float64[:, :], float64[:], float64[:], "  # x, ẋ, D, g, C ẋ
-        f"{READ_ONLY}, float64[:, :], float64[:], float64[:, :], float64[:, :],"  # f, C, frame
+        f"{READ_ONLY}, float64[:, :], float64[:, :], float64[:, :],"  # f, C, frame
         " float64[:, :], float64[:, :], float64[:], float64[:], float64[:]")
 
 
 @kernel(f"UniTuple(float64, 3)({STEP})")
 def cpbc_step(plan: Ints, ints: Ints, floats: Array, term_plan: Ints, term_floats: Array,
               x: Array, dx: Array, inertia: Array, gravity: Array, coriolis_force: Array,
-              dissipation: Array, coriolis: Array, origin: Array, rotation: Array,
-              frame_jacobian: Array, y: Array, jac: Array, phi: Array, value: Array,
-              tau: Array) -> tuple[float, float, float]:
+              dissipation: Array, coriolis: Array, placement: Array, frame_jacobian: Array,
+              y: Array, jac: Array, phi: Array, value: Array, tau: Array
+              ) -> tuple[float, float, float]:
     """One CPBC step (cpbc.controllers.cpbc.CPBC): the set's barrier sums (``set_barrier``,
     its tables ``plan``, ``ints``, ``floats``), U and ∂U/∂x, the damping and the shaping of
     the packed terms (cpbc.kernels.law_terms), L = ½ẋᵀDẋ + U, ρ = r(ΦΨ)·L and τ
-    (``cpbc_torque``, c = C ẋ + f) into ``tau``. Returns V, log Φ and log Ψ; outside S (a
+    (``cpbc_torque``, c = C ẋ + f) into ``tau``. The frame: its placement [R p; 0 1] and
+    Jacobian [J_v; J_ω]. Returns V, log Φ and log Ψ; outside S (a
     NaN log) V is NaN and ``tau`` is not written (the caller raises, naming the margin
     from ``phi``)."""
     n = x.shape[0]
+    origin, rotation = placement[:3, 3], placement[:3, :3]
     gradient, weight = np.empty(n), np.empty((n, n))
     log_phi, log_psi = set_barrier(plan, ints, floats, x, dx, inertia, coriolis, origin,
                                    rotation, frame_jacobian, y, jac, phi, gradient, weight,
@@ -130,8 +132,8 @@ def cpbc_step(plan: Ints, ints: Ints, floats: Array, term_plan: Ints, term_float
 @kernel(f"UniTuple(float64, 3)(float64, {STEP})")
 def cpbc_ke_step(limit: float, plan: Ints, ints: Ints, floats: Array, term_plan: Ints,
                  term_floats: Array, x: Array, dx: Array, inertia: Array, gravity: Array,
-                 coriolis_force: Array, dissipation: Array, coriolis: Array, origin: Array,
-                 rotation: Array, frame_jacobian: Array, y: Array, jac: Array, phi: Array,
+                 coriolis_force: Array, dissipation: Array, coriolis: Array,
+                 placement: Array, frame_jacobian: Array, y: Array, jac: Array, phi: Array,
                  value: Array, tau: Array) -> tuple[float, float, float]:
     """One CPBC-KE step (cpbc.controllers.cpbc_ke.CPBCKineticEnergy): ψ = Ω − ½ẋᵀDẋ
     (``limit`` Ω), the configuration constraints' barrier sums (``set_barrier``), U, ∂U/∂x,
@@ -143,6 +145,7 @@ def cpbc_ke_step(limit: float, plan: Ints, ints: Ints, floats: Array, term_plan:
     psi = limit - kinetic
     if not psi > 0.0:
         return math.nan, 0.0, psi
+    origin, rotation = placement[:3, 3], placement[:3, :3]
     gradient, weight = np.empty(n), np.empty((0, 0))
     log_phi, _ = set_barrier(plan, ints, floats, x, dx, inertia, coriolis, origin, rotation,
                              frame_jacobian, y, jac, phi, gradient, weight, value)

@@ -17,6 +17,7 @@ from cpbc.model.coordinates import LinearCoordinates
 from cpbc.model.frames import FrameKinematics, offset_jacobian
 
 _NO_FRAMES: Mapping[int, FrameKinematics] = MappingProxyType({})
+_WORLD_ALIGNED = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
 class ArmState(NamedTuple):
@@ -297,10 +298,8 @@ class RobotModel:
         of :meth:`state`."""
         # the frame's own placement only (one frame: cheaper than every frame's)
         placement = pin.updateFramePlacement(self.model, self.data, frame_id).homogeneous
-        j = pin.getFrameJacobian(
-            self.model, self.data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
-        return FrameKinematics(placement[:3, 3], placement[:3, :3],
-                               j if self._identity else j.dot(self._t_inv))
+        j = pin.getFrameJacobian(self.model, self.data, frame_id, _WORLD_ALIGNED)
+        return FrameKinematics(placement, j if self._identity else j.dot(self._t_inv))
 
     def _point(self, frame_id: int, j: Array, offset: Array | None) -> tuple[Array, Array]:
         """The point's position and Jacobian from its frame's placement and Jacobian j (6, n)."""
