@@ -125,14 +125,13 @@ class CPBCKineticEnergy(Controller):
 
     def _packed_step(self, packed: PackedLaw, state: ArmState, margins: bool) -> Evaluation:
         """τ, V and the margins from one kernel call (cpbc.kernels.laws.cpbc_ke_step)."""
-        phi, value, tau = packed.outputs(margins)
-        lyapunov, log_phi, psi = cpbc_ke_step(self.energy.limit, *packed.tables,
-                                              *packed.inputs(state), phi, value, tau)
+        args = packed.arguments(state, margins)  # ends with φ̃, the margins and τ
+        lyapunov, log_phi, psi = cpbc_ke_step(self.energy.limit, *args)
         if not psi > 0:
             raise ConstraintViolation(self.energy.names[0], psi)
         if log_phi != log_phi:  # outside S
-            raise self._config.violation(log_phi, phi)
-        return Evaluation(tau, lyapunov, np.append(value, psi) if margins else None)
+            raise self._config.violation(log_phi, args[-3])
+        return Evaluation(args[-1], lyapunov, np.append(args[-2], psi) if margins else None)
 
     def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float, psi: float
              ) -> Array:

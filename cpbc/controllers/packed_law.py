@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -26,10 +27,6 @@ from cpbc.errors import CpbcError
 from cpbc.kernels.law_terms import FRAME_KINDS, SHAPING
 from cpbc.model.robot_model import ArmState, RobotModel
 
-# x, ẋ, D, g, C ẋ, f, C, the frame's origin, axes and Jacobian, the joint placements and
-# Jacobians: the per-step arguments of cpbc.kernels.laws.cpbc_step
-KernelInputs = tuple[Array, Array, Array, Array, Array, Array, Array, Array, Array, Array,
-                     Array]
 # the set's plan, ints and floats, the terms' plan and floats
 Tables = tuple[Ints, Ints, Array, Ints, Array]
 _EMPTY = np.zeros(0)
@@ -64,7 +61,8 @@ class PackedLaw:
         law: the class it was packed for (a law whose class changes packs again).
         terms: the terms' tables (cpbc.kernels.law_terms), or None: the law takes its
             general path.
-        constraints: the constraint set's tables.
+        constants: the kernel's constant arguments: the set's plan, ints and floats
+            (cpbc.constraints.packing), the terms' plan and floats.
         frame: the one frame the terms and the set read (−1: none).
         kinematics: whether the set reads the joint placements and Jacobians.
         margins: the number of the set's margins; n: the number of coordinates.
@@ -74,26 +72,13 @@ class PackedLaw:
 
     law: type
     terms: PackedSet | None = None
-    constraints: PackedSet | None = None
+    constants: Tables = ()  # type: ignore[assignment]
     frame: int = -1
     kinematics: bool = False
     margins: int = 0
     n: int = 0
     frames: tuple[int, ...] = ()
     coriolis: bool = False
-
-    @property
-    def tables(self) -> Tables:
-        """The kernel's constant arguments: the set's tables, then the terms'."""
-        assert self.constraints is not None and self.terms is not None
-        c, t = self.constraints, self.terms
-        return c.plan, c.ints, c.floats, t.plan, t.floats
-
-    def outputs(self, margins: bool) -> tuple[Array, Array, Array]:
-        """Where the kernel writes the barrier values, the margins (``margins``; else an
-        empty array) and τ."""
-        return (np.empty(self.margins), np.empty(self.margins) if margins else _EMPTY,
-                np.empty(self.n))
 
     def state(self, model: RobotModel, x: Array, dx: Array) -> ArmState:
         """The per-step state the kernel reads (as ``ConstraintSet.state`` with the law's
@@ -115,15 +100,19 @@ class PackedLaw:
             read.add(tables.frame)
         if len(read) > 1:
             return cls(law)
-        return cls(law, PackedSet.build([(0, 0, t) for t in terms]), tables,
+        packed = PackedSet.build([(0, 0, t) for t in terms])
+        return cls(law, packed, (tables.plan, tables.ints, tables.floats, packed.plan,
+                                 packed.floats),
                    read.pop() if read else -1, constraints.needs_kinematics,
                    len(constraints.names), constraints.n,
                    tuple(dict.fromkeys((*constraints.frames, *frames))),
                    constraints.needs_coriolis)
 
-    def inputs(self, state: ArmState) -> KernelInputs:
-        """The kernel's arguments read from the state: x, ẋ, D, g, C ẋ, f, C, the frame's
-        placement and Jacobian, the joint placements and Jacobians."""
+    def arguments(self, state: ArmState, margins: bool) -> tuple[Any, ...]:
+        """The kernel's arguments: the tables (``constants``); x, ẋ, D, g, C ẋ, f, C, the
+        frame's placement and Jacobian, the joint placements and Jacobians, read from the
+        state; and where it writes the barrier values, the margins (with ``margins``, else
+        an empty array) and τ (the last three)."""
         frame = self.frame
         if frame >= 0:
             kin = state.frames.get(frame)
@@ -141,8 +130,10 @@ class PackedLaw:
         else:
             y, jac = _NO_JOINTS
         coriolis = _NO_MATRIX if state.coriolis_matrix is None else state.coriolis_matrix
-        return (state.x, state.dx, state.inertia, state.gravity, state.coriolis_force,
-                state.dissipation, coriolis, placement, jacobian, y, jac)
+        return (
+            *self.constants, state.x, state.dx, state.inertia, state.gravity, state.coriolis_force,
+            state.dissipation, coriolis, placement, jacobian, y, jac, np.empty(self.margins),
+            np.empty(self.margins) if margins else _EMPTY, np.empty(self.n))
 
 
 _NO_FRAME = (np.eye(4), np.zeros((6, 0)))
