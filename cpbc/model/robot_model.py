@@ -231,7 +231,10 @@ class RobotModel:
             pin.computeAllTerms(model, data, q, dq)
             m, nle, g = self._all_terms
             if wanted:
-                found = MappingProxyType({i: self._state_frame(i) for i in wanted})
+                read = {}
+                for i in wanted:  # a loop: a comprehension costs a function call per step
+                    read[i] = self._state_frame(i)
+                found = MappingProxyType(read)
             if kinematics:
                 jac = self._joint_jacobians.copy()
                 pin.computeStaticRegressor(model, data, q)
