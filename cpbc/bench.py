@@ -183,6 +183,71 @@ def time_governor(repeats: int, steps: int = 5000) -> float:
     return statistics.median(times) * 1e6
 
 
+def taskspace_pair(states: int = 64, seed: int = 0
+                   ) -> tuple[dict[str, Controller], list[tuple[Array, Array]]]:
+    """``panda_goal_pose``'s task-space CPBC as the scenario builds it, and a joint CPBC with
+    its constraint set, joint gains and shaping toward its posture (the IK posture), with
+    states admissible for that set spread from the case's start to the posture."""
+    from cpbc.scenario import build, load_scenario
+
+    setup = build(*load_scenario("panda_goal_pose"))
+    task = next(e.controller for e in setup.controllers if e.controller.type_name == "cpbc")
+    assert isinstance(task, CPBC)
+    joint = CPBC(task.model, setup.target, task.constraints, task.kp, task.kd, task.shaping)
+    rng = np.random.default_rng(seed)
+    start, posture = setup.cases[0].position, setup.target
+    picked: list[tuple[Array, Array]] = []
+    while len(picked) < states:
+        s = rng.uniform()
+        x = (1 - s) * start + s * posture + rng.normal(scale=0.05, size=start.shape[0])
+        dx = np.asarray(rng.normal(scale=0.1, size=start.shape[0]))
+        if np.all(task.constraints.margins(x, dx) > 0):
+            picked.append((x, dx))
+    return {"taskspace_cpbc": task, "joint_cpbc": joint}, picked
+
+
+def time_interleaved(controllers: dict[str, Controller], states: Sequence[tuple[Array, Array]],
+                     repeats: int, chunk: int = 8) -> dict[str, list[float]]:
+    """Every controller's mean cost of one torque call [µs] in each of ``repeats`` rounds;
+    within a round the controllers take turns on each ``chunk`` of states, so that a change
+    of the machine's load hits them alike."""
+    for ctrl in controllers.values():
+        time_torque(ctrl, states[:chunk], 1)
+    blocks: dict[str, list[float]] = {k: [] for k in controllers}
+    for _ in range(repeats):
+        spent = dict.fromkeys(controllers, 0.0)
+        for at in range(0, len(states), chunk):
+            part = states[at:at + chunk]
+            for k, ctrl in controllers.items():
+                start = time.perf_counter()
+                for x, dx in part:
+                    ctrl.torque(x, dx)
+                spent[k] += time.perf_counter() - start
+        for k in controllers:
+            blocks[k].append(spent[k] / len(states) * 1e6)
+    return blocks
+
+
+def taskspace_times(repeats: int) -> dict[str, float]:
+    """Bare task-space CPBC against bare joint CPBC on ``panda_goal_pose``'s arm and
+    constraints (``taskspace_pair``; target ≤ 1.2): medians [µs], the median of the
+    per-round ratios and their range."""
+    controllers, states = taskspace_pair()
+    blocks = time_interleaved(controllers, states, repeats)
+    ratios = [t / j for t, j in zip(blocks["taskspace_cpbc"], blocks["joint_cpbc"],
+                                    strict=True)]
+    return {"taskspace_cpbc_us": statistics.median(blocks["taskspace_cpbc"]),
+            "joint_cpbc_us": statistics.median(blocks["joint_cpbc"]),
+            "ratio": statistics.median(ratios), "ratio_min": min(ratios),
+            "ratio_max": max(ratios)}
+
+
+def _print_taskspace(ts: dict[str, float]) -> None:
+    print(f"panda_goal_pose, bare laws, same states: task-space CPBC {ts['taskspace_cpbc_us']:.1f}"
+          f" µs, joint CPBC {ts['joint_cpbc_us']:.1f} µs, ratio {ts['ratio']:.2f} (range "
+          f"{ts['ratio_min']:.2f}–{ts['ratio_max']:.2f}; target ≤ 1.2)")
+
+
 def _print_peers(torque_us: dict[str, float]) -> None:
     qp = torque_us["cbf_qp"]
     print(f"peers, same states: cbf_qp {qp:.1f} µs, cpbc guarded {torque_us['cpbc_guarded']:.1f}"
@@ -235,11 +300,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     blocks_us.update(peers)
     torque_us.update({k: statistics.median(v) for k, v in peers.items()})
     governor = time_governor(args.repeats)
+    taskspace = taskspace_times(args.repeats) if setup.robot == "panda" else None
     document = {"robot": setup.robot, "torque_us": torque_us,
                 "torque_us_range": {k: [min(v), max(v)] for k, v in blocks_us.items()},
                 "closed_loop_steps_per_second": loop,
                 "closed_loop_bare_law_steps_per_second": bare,
                 "cpbc_over_pd_gravity": ratio, "governor_us": governor,
+                "taskspace": taskspace,
                 "notes": setup.notes, "made": made(argv, args.repeats, len(setup.states))}
     if args.markdown:
         Path(args.markdown).write_text(bench_markdown([document]), encoding="utf-8")
@@ -258,6 +325,8 @@ def main(argv: Sequence[str] | None = None) -> int:
               + (" (target ≤ 3)" if setup.robot == "planar_2link" else
                  " (the ≤ 3 target is the planar arm's; none is set for this arm)"))
         print(f"reference governor: {governor:.2f} µs a step (target ≤ 2)")
+    if taskspace is not None and not args.json:
+        _print_taskspace(taskspace)
     if peers and not args.json:
         _print_peers(torque_us)
     if args.check:

@@ -129,15 +129,17 @@ def test_law_torques_equal_the_numpy_formulas_at_random_states() -> None:
 SCRIPT = """
 import json, sys
 import numpy as np
-from cpbc.bench import planar_2link
+from cpbc.bench import planar_2link, taskspace_pair
 from cpbc.bench_arms import panda
 from cpbc.errors import ConstraintViolation
 out = {}
-for setup in (planar_2link(), panda(states=8)):
-    for name, law in setup.controllers.items():
-        for i, (x, dx) in enumerate(setup.states[:8]):
+laws, states = taskspace_pair(states=8)
+sets = [(s.robot, s.controllers, s.states) for s in (planar_2link(), panda(states=8))]
+for robot, controllers, picked in sets + [("panda_goal_pose", laws, states)]:
+    for name, law in controllers.items():
+        for i, (x, dx) in enumerate(picked[:8]):
             try:
-                out[f"{setup.robot}/{name}/{i}"] = law.torque(x, dx).tolist()
+                out[f"{robot}/{name}/{i}"] = law.torque(x, dx).tolist()
             except ConstraintViolation:
                 pass
 # the guard's kernels (cpbc.kernels.guard): its accept path, and blends, brakes and box
@@ -166,9 +168,10 @@ def _torques(jit_off: bool) -> dict[str, list[float]]:
 
 
 def test_the_kernels_run_uncompiled_give_the_same_torques() -> None:
-    """Every bench law (planar and Panda), and the Panda's guard accepting, blending and
-    scaling into the torque box, with the kernels compiled and run as plain Python
-    (NUMBA_DISABLE_JIT=1): the same torques (and guard decisions) to 1e-12."""
+    """Every bench law (planar and Panda, and panda_goal_pose's task-space and joint CPBC),
+    and the Panda's guard accepting, blending and scaling into the torque box, with the
+    kernels compiled and run as plain Python (NUMBA_DISABLE_JIT=1): the same torques (and
+    guard decisions) to 1e-12."""
     compiled, plain = _torques(False), _torques(True)
     assert compiled.keys() == plain.keys() and len(compiled) >= 40
     for period in ("0.001", "0.01"):

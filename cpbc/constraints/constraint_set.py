@@ -212,7 +212,7 @@ class ConstraintSet:
                             "coriolis=True (a law's state(x, dx) does)")
         coriolis = self._no_matrix if state.coriolis_matrix is None else state.coriolis_matrix
         origin, rotation, frame_jac = self._point_frame(state)
-        y, jac = self._joints(state)
+        y, jac = self.joint_kinematics(state)
         inertia = state.inertia if self.needs_dynamics else self._no_matrix
         log_phi, log_psi = set_barrier(pk.plan, pk.ints, pk.floats, state.x, state.dx,
                                        inertia, coriolis, origin, rotation, frame_jac,
@@ -220,11 +220,8 @@ class ConstraintSet:
         if self._rest_config or self._rest_velocity:
             log_phi, log_psi = self._rest(state, margins, log_phi, log_psi, phi, gradient,
                                           weight, value)
-        nc = self.n_configuration
-        if log_phi != log_phi:  # a margin ≤ 0 or NaN
-            raise _violation(phi[:nc], self.names[:nc])
-        if log_psi != log_psi:
-            raise _violation(phi[nc:], self.names[nc:])
+        if log_phi != log_phi or log_psi != log_psi:  # a margin ≤ 0 or NaN
+            raise self.violation(log_phi, phi)
         return BarrierTerms(log_phi, log_psi, None if self._no_gradient else gradient,
                             weight if self.velocity else None, value if margins else None)
 
@@ -239,7 +236,24 @@ class ConstraintSet:
                             "it with the constraint set's frames (a law's state(x, dx))")
         return kin.position, kin.rotation, kin.jacobian
 
-    def _joints(self, state: ArmState) -> tuple[Array, Array]:
+    @property
+    def packed_tables(self) -> PackedSet | None:
+        """The tables of the set kernel when every constraint packs and the class keeps
+        ``barrier`` (a law may then call the kernel itself, cpbc.kernels.laws), else None."""
+        if self._rest_config or self._rest_velocity or (
+                type(self).barrier is not ConstraintSet.barrier):
+            return None
+        return self._packed
+
+    def violation(self, log_phi: float, phi: Array) -> ConstraintViolation:
+        """The worst margin outside S, from the barrier values ``phi`` (in the order of
+        ``names``) of a NaN log Φ (a configuration constraint), else of a NaN log Ψ."""
+        nc = self.n_configuration
+        if log_phi != log_phi:
+            return _violation(phi[:nc], self.names[:nc])
+        return _violation(phi[nc:], self.names[nc:])
+
+    def joint_kinematics(self, state: ArmState) -> tuple[Array, Array]:
         """The joint placements and Jacobians the clearance kernels read."""
         if not self.needs_kinematics:
             return self._no_joints

@@ -2,18 +2,17 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
 from cpbc.controllers.controller import Controller, Evaluation, positive_vector
+from cpbc.controllers.packed_law import PackedLaw, keeps, packed_terms, shaping_term
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
 from cpbc.kernels.energy import kinetic_energy
-from cpbc.kernels.laws import cpbc_torque, zero_terms
+from cpbc.kernels.laws import cpbc_step, cpbc_torque, shaped_value, zero_terms
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -40,9 +39,22 @@ class CPBC(Controller):
         potential: U; the joint spring ½x̃ᵀK_P x̃ toward ``target`` (eq. 6.7) when omitted.
         task_damping: F(x, ẋ) with ẋᵀF ≥ 0 added to K_D ẋ (cpbc.controllers.task_damping);
             then V̇ = −ẋᵀ(K_D ẋ + F + f)/s.
+
+    When the constraint set and every term pack (cpbc.controllers.packed_law) a step is one
+    kernel call (cpbc.kernels.laws.cpbc_step) over the same formulas; the packing is made
+    at the first step and again after any of its inputs (``constraints``, ``potential``,
+    ``damping``, ``task_damping``, ``shaping``) is set or the object's class changes.
     """
 
     type_name = "cpbc"
+    _packed_from = frozenset({"constraints", "potential", "damping", "task_damping",
+                              "shaping"})
+    _packed_law: PackedLaw | None = None
+
+    def __setattr__(self, name: str, value: object) -> None:
+        super().__setattr__(name, value)
+        if name in self._packed_from:  # pack again at the next step
+            super().__setattr__("_packed_law", None)
 
     def __init__(
         self,
@@ -65,18 +77,53 @@ class CPBC(Controller):
         self.damping: Damping = LinearDamping(self.kd)
         self._no_barrier = zero_terms(model.n)
 
+    def state(self, x: Array, dx: Array) -> ArmState:
+        packed = self._packed_law
+        if packed is None or packed.law is not type(self):
+            packed = self.packed_law()
+        if packed.terms is None:
+            return super().state(x, dx)
+        return packed.state(self.model, x, dx)
+
+    def packed_law(self) -> PackedLaw:
+        """The law's packed terms (cpbc.controllers.packed_law); ``terms`` None when a term
+        or the class's formula does not pack."""
+        found = self._packed_law
+        if found is None or found.law is not type(self):
+            parts = [packed_terms(self.potential), packed_terms(self.damping),
+                     () if self.task_damping is None else packed_terms(self.task_damping),
+                     shaping_term(self.shaping)]
+            if not keeps(type(self), CPBC, ("_law", "_shaped_value", "task_damping_force")):
+                parts.append(None)
+            if not keeps(type(self), Controller, ("frames",)):
+                parts.append(None)
+            found = PackedLaw.build(type(self), parts, self.constraints, self.frames)
+            self._packed_law = found
+        return found
+
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
+        packed = self._packed_law
+        if packed is None or packed.law is not type(self):
+            packed = self.packed_law()
+        if packed.terms is not None:
+            return self._packed_step(packed, state, margins)
         bar = self.constraints.barrier(state, margins)  # raises outside S
         potential, grad = self.potential.evaluate(state)
         lag = kinetic_energy(state.inertia, state.dx) + potential
         tau = self._law(state, bar, grad, lag)
         return Evaluation(tau, self._shaped_value(bar, lag), bar.margins)
 
+    def _packed_step(self, packed: PackedLaw, state: ArmState, margins: bool) -> Evaluation:
+        """τ, V and the margins from one kernel call (cpbc.kernels.laws.cpbc_step)."""
+        args = packed.arguments(state, margins)  # ends with φ̃, the margins and τ
+        lyapunov, log_phi, log_psi = cpbc_step(*args)
+        if log_phi != log_phi or log_psi != log_psi:  # outside S
+            raise self.constraints.violation(log_phi, args[-3])
+        return Evaluation(args[-1], lyapunov, args[-2] if margins else None)
+
     def _shaped_value(self, bar: BarrierTerms, lag: float) -> float:
         """V = L / s(ΦΨ), evaluated in logs."""
-        if lag <= 0.0:
-            return 0.0
-        return math.exp(math.log(lag) - self.shaping.log_s(bar.log_phi + bar.log_psi))
+        return shaped_value(lag, self.shaping.log_s(bar.log_phi + bar.log_psi))
 
     def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float) -> Array:
         """The law of the class docstring: τ from ∂U/∂x (``grad``), L and the barrier sums

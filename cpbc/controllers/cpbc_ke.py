@@ -15,12 +15,13 @@ from cpbc.controllers.controller import Controller, Evaluation, positive_vector
 from cpbc.controllers.cpbc import CPBC
 from cpbc.controllers.law_kind import LINEAR, LawInputs, LawKind, shaping
 from cpbc.controllers.law_specs import ConstrainedLawSpec, ShapingSpec
+from cpbc.controllers.packed_law import PackedLaw, keeps, packed_terms, shaping_term
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.kernels.energy import kinetic_energy
-from cpbc.kernels.laws import cpbc_ke_torque, zero_terms
+from cpbc.kernels.laws import cpbc_ke_step, cpbc_ke_torque, shaped_value, zero_terms
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -44,9 +45,20 @@ class CPBCKineticEnergy(Controller):
     with ∂U/∂x = K_P x̃ for the default potential (``potential``: any U with a posture
     spring, as in CPBC). No C, no D⁻¹: only D (inside ψ and L) and g.
     V̇ = −[ẋᵀK_Dẋ + (1 + ρ/ψ)ẋᵀf]/s ≤ 0; with ``task_damping`` F, K_D ẋ becomes K_D ẋ + F.
+
+    When the configuration constraints and every term pack, a step is one kernel call
+    (cpbc.kernels.laws.cpbc_ke_step), packed as CPBC packs (cpbc.controllers.cpbc.CPBC).
     """
 
     type_name = "cpbc_ke"
+    _packed_from = frozenset({"constraints", "energy", "potential", "damping",
+                              "task_damping", "shaping", "_config"})
+    _packed_law: PackedLaw | None = None
+
+    def __setattr__(self, name: str, value: object) -> None:
+        super().__setattr__(name, value)
+        if name in self._packed_from:  # pack again at the next step
+            super().__setattr__("_packed_law", None)
 
     def __init__(
         self,
@@ -75,9 +87,35 @@ class CPBCKineticEnergy(Controller):
         """The per-step state of the configuration constraints and the potential: the law
         reads the energy limit through D alone (no C, which the limit's own barrier terms
         would need)."""
-        return self._config.state(self.model, x, dx, self.frames)
+        packed = self._packed_law
+        if packed is None or packed.law is not type(self):
+            packed = self.packed_law()
+        if packed.terms is None:
+            return self._config.state(self.model, x, dx, self.frames)
+        return packed.state(self.model, x, dx)
+
+    def packed_law(self) -> PackedLaw:
+        """The law's packed terms (cpbc.controllers.packed_law); ``terms`` None when a term
+        or the class's formula does not pack."""
+        found = self._packed_law
+        if found is None or found.law is not type(self):
+            parts = [packed_terms(self.potential), packed_terms(self.damping),
+                     () if self.task_damping is None else packed_terms(self.task_damping),
+                     shaping_term(self.shaping)]
+            if not keeps(type(self), CPBCKineticEnergy, ("_law", "task_damping_force")):
+                parts.append(None)
+            if not keeps(type(self), Controller, ("frames",)):
+                parts.append(None)
+            found = PackedLaw.build(type(self), parts, self._config, self.frames)
+            self._packed_law = found
+        return found
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
+        packed = self._packed_law
+        if packed is None or packed.law is not type(self):
+            packed = self.packed_law()
+        if packed.terms is not None:
+            return self._packed_step(packed, state, margins)
         kinetic = kinetic_energy(state.inertia, state.dx)
         psi = self.energy.limit - kinetic
         if not psi > 0:
@@ -86,9 +124,19 @@ class CPBCKineticEnergy(Controller):
         potential, grad = self.potential.evaluate(state)
         lag = kinetic + potential
         log_x = bar.log_phi + math.log(psi)
-        value = 0.0 if lag <= 0 else math.exp(math.log(lag) - self.shaping.log_s(log_x))
+        value = shaped_value(lag, self.shaping.log_s(log_x))
         found = None if bar.margins is None else np.append(bar.margins, psi)
         return Evaluation(self._law(state, bar, grad, lag, psi), value, found)
+
+    def _packed_step(self, packed: PackedLaw, state: ArmState, margins: bool) -> Evaluation:
+        """τ, V and the margins from one kernel call (cpbc.kernels.laws.cpbc_ke_step)."""
+        args = packed.arguments(state, margins)  # ends with φ̃, the margins and τ
+        lyapunov, log_phi, psi = cpbc_ke_step(self.energy.limit, *args)
+        if not psi > 0:
+            raise ConstraintViolation(self.energy.names[0], psi)
+        if log_phi != log_phi:  # outside S
+            raise self._config.violation(log_phi, args[-3])
+        return Evaluation(args[-1], lyapunov, np.append(args[-2], psi) if margins else None)
 
     def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float, psi: float
              ) -> Array:

@@ -12,9 +12,13 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from cpbc.errors import ParameterError
+from cpbc.kernels import shaping as kinds
+from cpbc.kernels.shaping import shaping_terms
 
 
 class Shaping(Protocol):
+    """A shaping function; its formulas are cpbc.kernels.shaping.shaping_terms."""
+
     def ratio(self, log_x: float) -> float:
         """r(x) = x s'(x)/s(x) at x = exp(log_x)."""
         ...
@@ -29,10 +33,14 @@ class Identity:
     """s(x) = x: Theorem 6.9 itself; r = 1."""
 
     def ratio(self, log_x: float) -> float:
-        return 1.0
+        return shaping_terms(kinds.IDENTITY, 0.0, log_x)[0]
 
     def log_s(self, log_x: float) -> float:
-        return log_x
+        return shaping_terms(kinds.IDENTITY, 0.0, log_x)[1]
+
+    def packed(self) -> tuple[int, float] | None:
+        """(kind, parameter) of the shaping kernel, unless a subclass overrides a formula."""
+        return _packed(self, Identity, kinds.IDENTITY, 0.0)
 
 
 @dataclass(frozen=True)
@@ -46,10 +54,14 @@ class Power:
             raise ParameterError("alpha", f"shaping alpha must be > 0, got {self.alpha}")
 
     def ratio(self, log_x: float) -> float:
-        return self.alpha
+        return shaping_terms(kinds.POWER, self.alpha, log_x)[0]
 
     def log_s(self, log_x: float) -> float:
-        return self.alpha * log_x
+        return shaping_terms(kinds.POWER, self.alpha, log_x)[1]
+
+    def packed(self) -> tuple[int, float] | None:
+        """(kind, parameter) of the shaping kernel, unless a subclass overrides a formula."""
+        return _packed(self, Power, kinds.POWER, self.alpha)
 
 
 @dataclass(frozen=True)
@@ -66,15 +78,19 @@ class Tanh:
             raise ParameterError("sigma", f"shaping sigma must be > 0, got {self.sigma}")
 
     def ratio(self, log_x: float) -> float:
-        y = 2.0 * self.sigma * math.exp(min(log_x, 700.0))
-        if y < 1e-8:
-            return 1.0
-        if y > 700.0:
-            return 0.0
-        return y / math.sinh(y)
+        return shaping_terms(kinds.TANH, self.sigma, log_x)[0]
 
     def log_s(self, log_x: float) -> float:
-        y = self.sigma * math.exp(min(log_x, 700.0))
-        if y < 1e-8:
-            return math.log(self.sigma) + log_x
-        return math.log(math.tanh(y)) if y < 20.0 else 0.0
+        return shaping_terms(kinds.TANH, self.sigma, log_x)[1]
+
+    def packed(self) -> tuple[int, float] | None:
+        """(kind, parameter) of the shaping kernel, unless a subclass overrides a formula."""
+        return _packed(self, Tanh, kinds.TANH, self.sigma)
+
+
+def _packed(shaping: object, base: type, kind: int, parameter: float) -> tuple[int, float] | None:
+    """The kernel's (kind, parameter) when ``shaping``'s class keeps ``base``'s formulas."""
+    cls = type(shaping)
+    if cls.ratio is not base.ratio or cls.log_s is not base.log_s:  # type: ignore[attr-defined]
+        return None
+    return kind, parameter

@@ -21,10 +21,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.packing import Packed
 from cpbc.controllers.controller import positive_vector, vector3
 from cpbc.controllers.potentials.frame_position import point_offset
 from cpbc.controllers.potentials.potential import Placed, frame_at
 from cpbc.errors import ParameterError
+from cpbc.kernels.law_terms import TASK_DAMPING
 from cpbc.kernels.task import task_damping
 from cpbc.model.frames import jacobian_bounds
 from cpbc.model.robot_model import RobotModel
@@ -109,6 +111,15 @@ class TaskDamping:
         task_damping(kin.position, kin.rotation, kin.jacobian, self._point, self._gain6, bias,
                      dx, force)
         return force
+
+    def packed(self) -> tuple[Packed, ...] | None:
+        """The point, G and b for a law's kernel (cpbc.kernels.law_terms), unless a subclass
+        overrides ``force`` or ``_force``."""
+        cls = type(self)
+        if cls.force is not TaskDamping.force or cls._force is not TaskDamping._force:
+            return None
+        return (Packed(TASK_DAMPING, (self._point[None, :], self._gain6,
+                                      self._bias6[None, :]), frame=self.frame),)
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.packing import Packed
+from cpbc.kernels.law_terms import JOINT_DAMPING, TANH_DAMPING, joint_damping, tanh_damping
 
 if TYPE_CHECKING:
     from cpbc.controllers.potentials import Placed
@@ -28,7 +30,16 @@ class LinearDamping:
         self.kd = kd
 
     def force(self, dx: Array) -> Array:
-        return self.kd * dx
+        """(cpbc.kernels.law_terms.joint_damping)"""
+        out = np.empty(dx.shape[0])
+        joint_damping(self.kd, dx, out)
+        return out
+
+    def packed(self) -> tuple[Packed, ...] | None:
+        """K_D for a law's kernel, unless a subclass overrides ``force``."""
+        if type(self).force is not LinearDamping.force:
+            return None
+        return (Packed(JOINT_DAMPING, (self.kd[None, :],)),)
 
 
 class TanhDamping:
@@ -39,7 +50,16 @@ class TanhDamping:
         self.gamma = gamma
 
     def force(self, dx: Array) -> Array:
-        return self.kd * np.tanh(self.gamma * dx)
+        """(cpbc.kernels.law_terms.tanh_damping)"""
+        out = np.empty(dx.shape[0])
+        tanh_damping(self.kd, self.gamma, dx, out)
+        return out
+
+    def packed(self) -> tuple[Packed, ...] | None:
+        """K_D and Γ for a law's kernel, unless a subclass overrides ``force``."""
+        if type(self).force is not TanhDamping.force:
+            return None
+        return (Packed(TANH_DAMPING, (np.vstack([self.kd, self.gamma]),)),)
 
 
 class StateDamping(Protocol):

@@ -166,18 +166,20 @@ def forces_on_joints(centres: Array, force: Array, supports: Array, jac: Array, 
                      ) -> None:
     """b_k = Σ_s f_sᵀ J_k(s) over the spheres joint k moves: a force f at a point s fixed
     on a link drives joint k by fᵀ(v_k + ω_k × s) = fᵀv_k + (s × f)ᵀω_k, J = [v; ω]
-    Pinocchio's world joint Jacobian (6, n)."""
+    Pinocchio's world joint Jacobian (6, n). A sphere without force (no pair of it within
+    ℓ, the most of them) adds nothing and is skipped."""
     for k in range(b.shape[0]):
-        t = 0.0
-        for s in range(centres.shape[1]):
-            if supports[s, k] == 0.0:
-                continue
-            f0, f1, f2 = force[0, s], force[1, s], force[2, s]
-            c0, c1, c2 = centres[0, s], centres[1, s], centres[2, s]
-            t += (jac[0, k] * f0 + jac[1, k] * f1 + jac[2, k] * f2
-                  + jac[3, k] * (c1 * f2 - c2 * f1) + jac[4, k] * (c2 * f0 - c0 * f2)
-                  + jac[5, k] * (c0 * f1 - c1 * f0))
-        b[k] = t
+        b[k] = 0.0
+    for s in range(centres.shape[1]):
+        f0, f1, f2 = force[0, s], force[1, s], force[2, s]
+        if f0 == 0.0 and f1 == 0.0 and f2 == 0.0:
+            continue
+        c0, c1, c2 = centres[0, s], centres[1, s], centres[2, s]
+        m0, m1, m2 = c1 * f2 - c2 * f1, c2 * f0 - c0 * f2, c0 * f1 - c1 * f0  # s × f
+        for k in range(b.shape[0]):
+            if supports[s, k] != 0.0:
+                b[k] += (jac[0, k] * f0 + jac[1, k] * f1 + jac[2, k] * f2
+                         + jac[3, k] * m0 + jac[4, k] * m1 + jac[5, k] * m2)
 
 
 @kernel("float64(float64[:, :], float64[:, :], int64[:], float64[:, :], float64[:, :],"

@@ -1,11 +1,19 @@
-"""The laws' formulas, given the potential's force, the damping and the barrier sums."""
+"""The laws' formulas, given the potential's force, the damping and the barrier sums; and
+each law's whole step in one call (``cpbc_step``, ``cpbc_ke_step``) from the packed
+constants of its constraint set and its terms (cpbc.controllers.packed_law)."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
+from cpbc.kernels.barrier_set import VELOCITY_KINDS, set_barrier
+from cpbc.kernels.clearance import Ints
+from cpbc.kernels.energy import kinetic_energy
+from cpbc.kernels.law_terms import damping_terms, potential_terms, shaped
 from cpbc.kernels.small_solves import solve_spd
 
 
@@ -16,19 +24,6 @@ def zero_terms(n: int) -> tuple[Array, Array]:
     b.setflags(write=False)
     weight.setflags(write=False)
     return b, weight
-
-
-@kernel(f"float64({READ_ONLY}, {READ_ONLY}, {READ_ONLY}, float64[:])")
-def joint_spring(x: Array, goal: Array, stiffness: Array, grad: Array) -> float:
-    """U = ½ x̃ᵀ K x̃, x̃ = x − x_d (eq. 6.7), K diagonal: returns U, writes ∂U/∂x = K x̃
-    into ``grad``."""
-    total = 0.0
-    for i in range(x.shape[0]):
-        e = x[i] - goal[i]
-        g = stiffness[i] * e
-        grad[i] = g
-        total += e * g
-    return 0.5 * total
 
 
 @kernel("void(float64[:, :], float64[:], float64[:], float64[:], float64[:], "
@@ -80,3 +75,86 @@ def cpbc_ke_torque(gravity: Array, grad: Array, damping: Array, gradient: Array,
     scale = 1.0 + rho / psi
     for i in range(gravity.shape[0]):
         tau[i] = gravity[i] + (-grad[i] - damping[i] + rho * gradient[i]) / scale
+
+
+@kernel("float64(float64, float64)")
+def shaped_value(lag: float, log_s: float) -> float:
+    """V = L / s(ΦΨ), evaluated in logs (log s from cpbc.kernels.shaping); 0 when L ≤ 0."""
+    if lag <= 0.0:
+        return 0.0
+    return math.exp(math.log(lag) - log_s)
+
+
+STEP = ("int64[:, :], int64[:, :], float64[:, :], int64[:, :], float64[:, :], float64[:],"
+        " float64[:], float64[:, :], float64[:], float64[:], "  # x, ẋ, D, g, C ẋ
+        f"{READ_ONLY}, float64[:, :], float64[:, :], float64[:, :],"  # f, C, frame
+        " float64[:, :], float64[:, :], float64[:], float64[:], float64[:]")
+
+
+@kernel(f"UniTuple(float64, 3)({STEP})")
+def cpbc_step(plan: Ints, ints: Ints, floats: Array, term_plan: Ints, term_floats: Array,
+              x: Array, dx: Array, inertia: Array, gravity: Array, coriolis_force: Array,
+              dissipation: Array, coriolis: Array, placement: Array, frame_jacobian: Array,
+              y: Array, jac: Array, phi: Array, value: Array, tau: Array
+              ) -> tuple[float, float, float]:
+    """One CPBC step (cpbc.controllers.cpbc.CPBC): the set's barrier sums (``set_barrier``,
+    its tables ``plan``, ``ints``, ``floats``), U and ∂U/∂x, the damping and the shaping of
+    the packed terms (cpbc.kernels.law_terms), L = ½ẋᵀDẋ + U, ρ = r(ΦΨ)·L and τ
+    (``cpbc_torque``, c = C ẋ + f) into ``tau``. The frame: its placement [R p; 0 1] and
+    Jacobian [J_v; J_ω]. Returns V, log Φ and log Ψ; outside S (a
+    NaN log) V is NaN and ``tau`` is not written (the caller raises, naming the margin
+    from ``phi``)."""
+    n = x.shape[0]
+    origin, rotation = placement[:3, 3], placement[:3, :3]
+    gradient, weight = np.empty(n), np.empty((n, n))
+    log_phi, log_psi = set_barrier(plan, ints, floats, x, dx, inertia, coriolis, origin,
+                                   rotation, frame_jacobian, y, jac, phi, gradient, weight,
+                                   value)
+    if log_phi != log_phi or log_psi != log_psi:
+        return math.nan, log_phi, log_psi
+    grad, damping, bias = np.empty(n), np.empty(n), np.empty(n)
+    potential = potential_terms(term_plan, term_floats, x, origin, rotation, frame_jacobian,
+                                grad)
+    lag = kinetic_energy(inertia, dx) + potential
+    damping_terms(term_plan, term_floats, dx, origin, rotation, frame_jacobian, damping)
+    ratio, log_s = shaped(term_plan, term_floats, log_phi + log_psi)
+    for i in range(n):
+        bias[i] = coriolis_force[i] + dissipation[i]
+    constrained_rate = False
+    for r in range(plan.shape[0]):
+        if plan[r, 0] in VELOCITY_KINDS:
+            constrained_rate = True
+    cpbc_torque(inertia, gravity, bias, grad, damping, gradient, weight, constrained_rate,
+                ratio * lag, tau)
+    return shaped_value(lag, log_s), log_phi, log_psi
+
+
+@kernel(f"UniTuple(float64, 3)(float64, {STEP})")
+def cpbc_ke_step(limit: float, plan: Ints, ints: Ints, floats: Array, term_plan: Ints,
+                 term_floats: Array, x: Array, dx: Array, inertia: Array, gravity: Array,
+                 coriolis_force: Array, dissipation: Array, coriolis: Array,
+                 placement: Array, frame_jacobian: Array, y: Array, jac: Array, phi: Array,
+                 value: Array, tau: Array) -> tuple[float, float, float]:
+    """One CPBC-KE step (cpbc.controllers.cpbc_ke.CPBCKineticEnergy): ψ = Ω − ½ẋᵀDẋ
+    (``limit`` Ω), the configuration constraints' barrier sums (``set_barrier``), U, ∂U/∂x,
+    the damping and the shaping of the packed terms, ρ = r(Φψ)·L and τ (``cpbc_ke_torque``)
+    into ``tau``. Returns V, log Φ and ψ; when ψ ≤ 0 or log Φ is NaN, V is NaN and ``tau``
+    is not written (the caller raises)."""
+    n = x.shape[0]
+    kinetic = kinetic_energy(inertia, dx)
+    psi = limit - kinetic
+    if not psi > 0.0:
+        return math.nan, 0.0, psi
+    origin, rotation = placement[:3, 3], placement[:3, :3]
+    gradient, weight = np.empty(n), np.empty((0, 0))
+    log_phi, _ = set_barrier(plan, ints, floats, x, dx, inertia, coriolis, origin, rotation,
+                             frame_jacobian, y, jac, phi, gradient, weight, value)
+    if log_phi != log_phi:
+        return math.nan, log_phi, psi
+    grad, damping = np.empty(n), np.empty(n)
+    lag = kinetic + potential_terms(term_plan, term_floats, x, origin, rotation,
+                                    frame_jacobian, grad)
+    ratio, log_s = shaped(term_plan, term_floats, log_phi + math.log(psi))
+    damping_terms(term_plan, term_floats, dx, origin, rotation, frame_jacobian, damping)
+    cpbc_ke_torque(gravity, grad, damping, gradient, ratio * lag, psi, tau)
+    return shaped_value(lag, log_s), log_phi, psi

@@ -33,15 +33,24 @@ class FrameKinematics(NamedTuple):
     step, where a frozen dataclass costs several times more to make).
 
     Attributes:
-        position: the frame's origin in the world, shape (3,) [m].
-        rotation: R, the frame's axes in the world, shape (3, 3).
+        placement: the frame's placement [R p; 0 1] in the world, shape (4, 4); its
+            ``position`` p [m] and ``rotation`` R are views of it.
         jacobian: [∂p/∂x; J_ω], shape (6, n): the origin's velocity and the frame's angular
             velocity (world axes) per unit ẋ.
     """
 
-    position: Array
-    rotation: Array
+    placement: Array
     jacobian: Array
+
+    @property
+    def position(self) -> Array:
+        """The frame's origin in the world, shape (3,) [m]."""
+        return self.placement[:3, 3]
+
+    @property
+    def rotation(self) -> Array:
+        """R, the frame's axes in the world, shape (3, 3)."""
+        return self.placement[:3, :3]
 
     @property
     def linear(self) -> Array:

@@ -17,6 +17,7 @@ from cpbc.model.coordinates import LinearCoordinates
 from cpbc.model.frames import FrameKinematics, offset_jacobian
 
 _NO_FRAMES: Mapping[int, FrameKinematics] = MappingProxyType({})
+_WORLD_ALIGNED = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
 class ArmState(NamedTuple):
@@ -125,6 +126,12 @@ class RobotModel:
         probe = pin.crba(model, self.data, np.linspace(0.3, 1.1, self.n)) if self.n > 1 else None
         self._crba_upper_only = probe is not None and not np.allclose(probe, probe.T)
         self._lower = np.tril_indices(self.n, -1)
+        # numpy views of the Pinocchio data's D, C q̇ + g, g, joint Jacobians and static
+        # regressor, which each pass rewrites in place: :meth:`state` copies them out (a view
+        # made once costs nothing per step; Pinocchio's accessors make a new one each call)
+        self._all_terms = (self.data.M, self.data.nle, self.data.g)
+        self._joint_jacobians = self.data.J
+        self._regressor = self.data.staticRegressor
 
     @property
     def length_joints(self) -> Array:
@@ -222,12 +229,16 @@ class RobotModel:
         found = _NO_FRAMES
         if kinematics or wanted:
             pin.computeAllTerms(model, data, q, dq)
-            m, nle, g = data.M, data.nle, data.g
+            m, nle, g = self._all_terms
             if wanted:
-                found = MappingProxyType({i: self._state_frame(i) for i in wanted})
+                read = {}
+                for i in wanted:  # a loop: a comprehension costs a function call per step
+                    read[i] = self._state_frame(i)
+                found = MappingProxyType(read)
             if kinematics:
-                jac = data.J.copy()
-                placements = pin.computeStaticRegressor(model, data, q).copy()
+                jac = self._joint_jacobians.copy()
+                pin.computeStaticRegressor(model, data, q)
+                placements = self._regressor.copy()
         else:
             m = pin.crba(model, data, q)
             nle = pin.nonLinearEffects(model, data, q, dq)
@@ -290,10 +301,8 @@ class RobotModel:
         of :meth:`state`."""
         # the frame's own placement only (one frame: cheaper than every frame's)
         placement = pin.updateFramePlacement(self.model, self.data, frame_id).homogeneous
-        j = pin.getFrameJacobian(
-            self.model, self.data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
-        return FrameKinematics(placement[:3, 3], placement[:3, :3],
-                               j if self._identity else j.dot(self._t_inv))
+        j = pin.getFrameJacobian(self.model, self.data, frame_id, _WORLD_ALIGNED)
+        return FrameKinematics(placement, j if self._identity else j.dot(self._t_inv))
 
     def _point(self, frame_id: int, j: Array, offset: Array | None) -> tuple[Array, Array]:
         """The point's position and Jacobian from its frame's placement and Jacobian j (6, n)."""

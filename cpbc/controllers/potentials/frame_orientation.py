@@ -13,8 +13,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.packing import Packed
 from cpbc.controllers.potentials.potential import GradientBound, OnOneFrame, Placed, frame_at
 from cpbc.errors import ParameterError
+from cpbc.kernels.law_terms import AXIS_SPRING, ORIENTATION_SPRING
 from cpbc.kernels.task import axis_spring, orientation_spring
 from cpbc.model.frames import jacobian_bounds
 from cpbc.model.robot_model import RobotModel
@@ -93,6 +95,13 @@ class FrameOrientationSpring(OnOneFrame):
                                    grad)
         return value, grad
 
+    def packed(self) -> tuple[Packed, ...] | None:
+        """R_d and k for a law's kernel, unless a subclass overrides ``evaluate``."""
+        if type(self).evaluate is not FrameOrientationSpring.evaluate:
+            return None
+        return (Packed(ORIENTATION_SPRING, (self.rotation, np.array([[self.stiffness]])),
+                       frame=self.frame),)
+
 
 @dataclass(frozen=True)
 class FrameAxisSpring(OnOneFrame):
@@ -141,3 +150,10 @@ class FrameAxisSpring(OnOneFrame):
         value = axis_spring(kin.rotation, kin.jacobian, self.tool, self.world, self.stiffness,
                             grad)
         return value, grad
+
+    def packed(self) -> tuple[Packed, ...] | None:
+        """a_b, a_w and k for a law's kernel, unless a subclass overrides ``evaluate``."""
+        if type(self).evaluate is not FrameAxisSpring.evaluate:
+            return None
+        return (Packed(AXIS_SPRING, (np.vstack([self.tool, self.world]),
+                                     np.array([[self.stiffness]])), frame=self.frame),)

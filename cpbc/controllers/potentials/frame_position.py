@@ -8,10 +8,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.packing import Packed
 from cpbc.controllers.controller import positive_vector, vector3
 from cpbc.controllers.potentials.log_cosh import LogCoshSum
 from cpbc.controllers.potentials.potential import GradientBound, OnOneFrame, Placed, frame_at
 from cpbc.errors import ParameterError
+from cpbc.kernels.law_terms import POSITION_SPRING
 from cpbc.kernels.task import position_spring
 from cpbc.model.frames import jacobian_bounds
 from cpbc.model.robot_model import RobotModel
@@ -84,6 +86,16 @@ class FramePositionSpring(OnOneFrame):
         value = position_spring(kin.position, kin.rotation, kin.jacobian, self._point, goal,
                                 self.stiffness, grad)
         return value, grad
+
+    def packed(self) -> tuple[Packed, ...] | None:
+        """The point, p_d and K for a law's kernel (cpbc.kernels.law_terms), unless a
+        subclass overrides ``evaluate`` or ``evaluate_toward``."""
+        cls = type(self)
+        if cls.evaluate is not FramePositionSpring.evaluate or (
+                cls.evaluate_toward is not FramePositionSpring.evaluate_toward):
+            return None
+        return (Packed(POSITION_SPRING, (self._point[None, :], self.goal[None, :],
+                                         self.stiffness), frame=self.frame),)
 
 
 @dataclass(frozen=True)

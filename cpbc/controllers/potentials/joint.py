@@ -8,10 +8,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.packing import Packed
 from cpbc.controllers.controller import positive_vector
 from cpbc.controllers.potentials.log_cosh import LogCoshSum
 from cpbc.controllers.potentials.potential import GradientBound, OfTheJoints, Placed
-from cpbc.kernels.laws import joint_spring
+from cpbc.kernels.law_terms import JOINT_SPRING, LOG_COSH_SPRING, joint_spring
 
 
 def _set_point(target: object) -> Array:
@@ -47,9 +48,18 @@ class JointSpring(OfTheJoints):
 
     def evaluate_toward(self, at: Placed, goal: Array) -> tuple[float, Array]:
         """U and ∂U/∂x toward the set point ``goal`` in place of the spring's own (a moving
-        posture x_n(s), cpbc.reference.target) (cpbc.kernels.laws.joint_spring)."""
+        posture x_n(s), cpbc.reference.target) (cpbc.kernels.law_terms.joint_spring)."""
         grad = np.empty(goal.shape[0])
         return joint_spring(at.x, goal, self.stiffness, grad), grad
+
+    def packed(self) -> tuple[Packed, ...] | None:
+        """x_d and K for a law's kernel (cpbc.kernels.law_terms), unless a subclass
+        overrides ``evaluate`` or ``evaluate_toward``."""
+        cls = type(self)
+        if cls.evaluate is not JointSpring.evaluate or (
+                cls.evaluate_toward is not JointSpring.evaluate_toward):
+            return None
+        return (Packed(JOINT_SPRING, (np.vstack([self.target, self.stiffness]),)),)
 
 
 @dataclass(frozen=True)
@@ -89,3 +99,13 @@ class JointLogCoshSpring(OfTheJoints):
     def evaluate_toward(self, at: Placed, goal: Array) -> tuple[float, Array]:
         """U and ∂U/∂x toward the set point ``goal`` in place of the spring's own."""
         return self._spring.evaluate(at.x - goal)
+
+    def packed(self) -> tuple[Packed, ...] | None:
+        """x_d, K, ξ for a law's kernel (cpbc.kernels.law_terms), unless a subclass
+        overrides ``evaluate`` or ``evaluate_toward``."""
+        cls = type(self)
+        if cls.evaluate is not JointLogCoshSpring.evaluate or (
+                cls.evaluate_toward is not JointLogCoshSpring.evaluate_toward):
+            return None
+        gains, offset = self._spring.tables()
+        return (Packed(LOG_COSH_SPRING, (np.vstack([self.target, gains]), offset)),)

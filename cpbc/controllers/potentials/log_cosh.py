@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.kernels.law_terms import log_cosh_sum
 
 _LN2 = float(np.log(2.0))
 
@@ -34,7 +35,10 @@ class LogCoshSum:
         object.__setattr__(self, "_offset", float(np.sum(weight)) * _LN2)
 
     def evaluate(self, err: Array) -> tuple[float, Array]:
-        """U(e) and ∂U/∂e."""
-        y = self.xi * err
-        value = float(self._weight @ np.logaddexp(y, -y)) - self._offset
-        return value, self.stiffness * np.tanh(y)
+        """U(e) and ∂U/∂e (cpbc.kernels.law_terms.log_cosh_sum)."""
+        grad = np.empty(err.shape[0])
+        return log_cosh_sum(err, self.stiffness, self.xi, self._weight, self._offset, grad), grad
+
+    def tables(self) -> tuple[Array, Array]:
+        """[K; ξ; K/ξ] (3, m) and [[Σ K_i/ξ_i · ln 2]] for a law's kernel."""
+        return np.vstack([self.stiffness, self.xi, self._weight]), np.array([[self._offset]])

@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from cpbc.arrays import Array
+from cpbc.constraints.packing import Packed
 from cpbc.controllers.potentials.potential import GradientBound, Placed, Potential
 from cpbc.errors import CpbcError
 
@@ -50,6 +51,20 @@ class PotentialSum:
             value += u
             grad += g
         return value, grad
+
+    def packed(self) -> tuple[Packed, ...] | None:
+        """Every part's terms for a law's kernel (added in order, as ``evaluate`` adds
+        them), unless a part does not pack or a subclass overrides ``evaluate``."""
+        if type(self).evaluate is not PotentialSum.evaluate:
+            return None
+        terms: list[Packed] = []
+        for part in self.parts:
+            packed = getattr(part, "packed", None)
+            found = None if packed is None else packed()
+            if found is None:
+                return None
+            terms.extend(found)
+        return tuple(terms)
 
 
 def total(*parts: Potential) -> PotentialSum:

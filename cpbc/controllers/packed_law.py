@@ -1,0 +1,140 @@
+"""A law's terms packed for its one kernel call per step (cpbc.kernels.laws.cpbc_step,
+``cpbc_ke_step``): the potential, the damping, the task damping and the shaping hand their
+constants over (their ``packed``), stacked as the constraint set stacks its constraints'
+(cpbc.constraints.packing).
+
+A term packs only when its class keeps the formula the kernel computes: a subclass that
+overrides a term's method returns None from ``packed``, and so does a law whose class
+overrides a method the kernel stands in for (``_law``, ``_shaped_value``,
+``task_damping_force``). The law then takes its general path, method by method: nothing
+dispatches on type, and every override is honoured. The kernel reads one frame: the terms
+and the set's point constraint must all read the same frame, or the law takes the general
+path too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.packing import Ints, Packed, PackedSet
+from cpbc.errors import CpbcError
+from cpbc.kernels.law_terms import FRAME_KINDS, SHAPING
+from cpbc.model.robot_model import ArmState, RobotModel
+
+# the set's plan, ints and floats, the terms' plan and floats
+Tables = tuple[Ints, Ints, Array, Ints, Array]
+_EMPTY = np.zeros(0)
+_NO_MATRIX = np.zeros((0, 0))
+
+
+def packed_terms(term: object) -> tuple[Packed, ...] | None:
+    """A term's share of its law's kernel (its ``packed``), or None when it has none."""
+    packed = getattr(term, "packed", None)
+    return None if packed is None else packed()
+
+
+def shaping_term(shaping: object) -> tuple[Packed, ...] | None:
+    """The shaping's (kind, parameter) as a packed term, or None."""
+    packed = getattr(shaping, "packed", None)
+    found = None if packed is None else packed()
+    if found is None:
+        return None
+    return (Packed(SHAPING, (np.array([[float(found[0]), float(found[1])]]),)),)
+
+
+def keeps(cls: type, base: type, methods: Iterable[str]) -> bool:
+    """Whether ``cls`` keeps ``base``'s ``methods`` (a subclass overriding none of them)."""
+    return all(getattr(cls, m) is getattr(base, m) for m in methods)
+
+
+@dataclass(frozen=True, eq=False)
+class PackedLaw:
+    """A law's packed terms and the inputs of its kernel that do not change per step.
+
+    Attributes:
+        law: the class it was packed for (a law whose class changes packs again).
+        terms: the terms' tables (cpbc.kernels.law_terms), or None: the law takes its
+            general path.
+        constants: the kernel's constant arguments: the set's plan, ints and floats
+            (cpbc.constraints.packing), the terms' plan and floats.
+        frame: the one frame the terms and the set read (−1: none).
+        kinematics: whether the set reads the joint placements and Jacobians.
+        margins: the number of the set's margins; n: the number of coordinates.
+        frames: the frames the per-step state holds (the set's, then the law's).
+        coriolis: whether the state holds the matrix C (a kinetic-energy limit).
+    """
+
+    law: type
+    terms: PackedSet | None = None
+    constants: Tables = ()  # type: ignore[assignment]
+    frame: int = -1
+    kinematics: bool = False
+    margins: int = 0
+    n: int = 0
+    frames: tuple[int, ...] = ()
+    coriolis: bool = False
+
+    def state(self, model: RobotModel, x: Array, dx: Array) -> ArmState:
+        """The per-step state the kernel reads (as ``ConstraintSet.state`` with the law's
+        frames builds it), from one call of ``model.state``."""
+        return model.state(x, dx, self.kinematics, self.frames, self.coriolis)
+
+    @classmethod
+    def build(cls, law: type, parts: Sequence[tuple[Packed, ...] | None],
+              constraints: ConstraintSet, frames: tuple[int, ...]) -> PackedLaw:
+        """From the terms' ``packed`` (None for one that does not pack), the set and the
+        frames the law reads besides the set's (``Controller.frames``)."""
+        tables = constraints.packed_tables
+        if tables is None or any(p is None for p in parts) or (
+                type(constraints).state is not ConstraintSet.state):
+            return cls(law)
+        terms = [t for p in parts for t in p or ()]
+        read = {t.frame for t in terms if t.kind in FRAME_KINDS}
+        if tables.frame >= 0:
+            read.add(tables.frame)
+        if len(read) > 1:
+            return cls(law)
+        packed = PackedSet.build([(0, 0, t) for t in terms])
+        return cls(law, packed, (tables.plan, tables.ints, tables.floats, packed.plan,
+                                 packed.floats),
+                   read.pop() if read else -1, constraints.needs_kinematics,
+                   len(constraints.names), constraints.n,
+                   tuple(dict.fromkeys((*constraints.frames, *frames))),
+                   constraints.needs_coriolis)
+
+    def arguments(self, state: ArmState, margins: bool) -> tuple[Any, ...]:
+        """The kernel's arguments: the tables (``constants``); x, ẋ, D, g, C ẋ, f, C, the
+        frame's placement and Jacobian, the joint placements and Jacobians, read from the
+        state; and where it writes the barrier values, the margins (with ``margins``, else
+        an empty array) and τ (the last three)."""
+        frame = self.frame
+        if frame >= 0:
+            kin = state.frames.get(frame)
+            if kin is None:
+                raise CpbcError(f"the law reads frame {frame} from the state: build it with "
+                                "the law's state(x, dx)")
+            placement, jacobian = kin
+        else:
+            placement, jacobian = _NO_FRAME
+        if self.kinematics:
+            y, jac = state.regressor, state.joint_jacobians
+            if y is None or jac is None:
+                raise CpbcError("clearance reads the state's joint kinematics: build the "
+                                "state with kinematics=True (a law's state(x, dx) does)")
+        else:
+            y, jac = _NO_JOINTS
+        coriolis = _NO_MATRIX if state.coriolis_matrix is None else state.coriolis_matrix
+        return (
+            *self.constants, state.x, state.dx, state.inertia, state.gravity, state.coriolis_force,
+            state.dissipation, coriolis, placement, jacobian, y, jac, np.empty(self.margins),
+            np.empty(self.margins) if margins else _EMPTY, np.empty(self.n))
+
+
+_NO_FRAME = (np.eye(4), np.zeros((6, 0)))
+_NO_JOINTS = (np.zeros((3, 0)), np.zeros((6, 0)))

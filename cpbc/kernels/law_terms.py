@@ -1,0 +1,170 @@
+"""A law's potential and damping from its packed constants (cpbc.controllers.packed_law),
+for the laws' one kernel call per step (cpbc.kernels.laws): each term by its own kind's
+kernel (the joint terms here, the frame terms in cpbc.kernels.task, the shaping in
+cpbc.kernels.shaping).
+
+The terms are packed like a constraint set (cpbc.constraints.packing): ``plan`` has one row
+per term, [kind, 0, 0, (row, rows, columns) of each float table …], the tables stacked in
+``floats``. The kinds and their tables:
+
+- ``JOINT_SPRING``: [x_dᵀ; K] (2, n) (``joint_spring``, eq. 6.7);
+- ``POSITION_SPRING``: [o has_offset] (1, 4), p_d (1, 3), K (3, 3) (``position_spring``);
+- ``AXIS_SPRING``: [a_bᵀ; a_wᵀ] (2, 3), k (1, 1) (``axis_spring``);
+- ``ORIENTATION_SPRING``: R_d (3, 3), k (1, 1) (``orientation_spring``);
+- ``LOG_COSH_SPRING``: [x_dᵀ; K; ξ; K/ξ] (4, n), Σ K_i/ξ_i · ln 2 (1, 1) (``log_cosh_sum``
+  on x − x_d, eq. 7.18);
+- ``JOINT_DAMPING``: K_D (1, n) (``joint_damping``, eq. 6.10);
+- ``TANH_DAMPING``: [K_D; Γ] (2, n) (``tanh_damping``, eq. 7.17);
+- ``TASK_DAMPING``: [o has_offset] (1, 4), G (6, 6), b (1, 6) (``task_damping``);
+- ``SHAPING``: [kind parameter] (1, 2) (cpbc.kernels.shaping).
+
+Every frame term reads the one frame the caller passes (origin, axes, [J_v; J_ω]).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
+from cpbc.kernels.barrier_set import float_table
+from cpbc.kernels.clearance import Ints
+from cpbc.kernels.shaping import shaping_terms
+from cpbc.kernels.task import axis_spring, orientation_spring, position_spring, task_damping
+
+JOINT_SPRING, POSITION_SPRING, AXIS_SPRING, ORIENTATION_SPRING = 0, 1, 2, 3
+JOINT_DAMPING, TANH_DAMPING, TASK_DAMPING, SHAPING = 4, 5, 6, 7
+LOG_COSH_SPRING = 8
+FRAME_KINDS = (POSITION_SPRING, AXIS_SPRING, ORIENTATION_SPRING, TASK_DAMPING)
+FRAME = f"{READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}"
+
+
+@kernel(f"float64({READ_ONLY}, {READ_ONLY}, {READ_ONLY}, float64[:])")
+def joint_spring(x: Array, goal: Array, stiffness: Array, grad: Array) -> float:
+    """U = ½ x̃ᵀ K x̃, x̃ = x − x_d (eq. 6.7), K diagonal: returns U, writes ∂U/∂x = K x̃
+    into ``grad``."""
+    total = 0.0
+    for i in range(x.shape[0]):
+        e = x[i] - goal[i]
+        g = stiffness[i] * e
+        grad[i] = g
+        total += e * g
+    return 0.5 * total
+
+
+@kernel("float64(float64, float64)")
+def log_add_exp(a: float, b: float) -> float:
+    """ln(eᵃ + eᵇ) without overflow (numpy.logaddexp's formula)."""
+    if a == b:
+        return a + math.log(2.0)
+    t = a - b
+    if t > 0.0:
+        return a + math.log1p(math.exp(-t))
+    if t <= 0.0:
+        return b + math.log1p(math.exp(t))
+    return t  # NaN
+
+
+@kernel(f"float64({READ_ONLY}, {READ_ONLY}, {READ_ONLY}, {READ_ONLY}, float64, float64[:])")
+def log_cosh_sum(err: Array, stiffness: Array, xi: Array, weight: Array, offset: float,
+                 grad: Array) -> float:
+    """U(e) = Σ (K_i/ξ_i) ln cosh(ξ_i e_i) (eq. 7.18), with ``weight`` K/ξ and ``offset``
+    Σ K_i/ξ_i · ln 2, ln cosh y = ln(eʸ + e⁻ʸ) − ln 2 (no overflow); ∂U/∂e = K tanh(Ξe)
+    into ``grad``; returns U."""
+    total = 0.0
+    for i in range(err.shape[0]):
+        y = xi[i] * err[i]
+        total += weight[i] * log_add_exp(y, -y)
+        grad[i] = stiffness[i] * np.tanh(y)
+    return total - offset
+
+
+@kernel(f"void({READ_ONLY}, {READ_ONLY}, float64[:])")
+def joint_damping(gain: Array, dx: Array, force: Array) -> None:
+    """K_D ẋ (eq. 6.10), K_D diagonal, into ``force``."""
+    for i in range(dx.shape[0]):
+        force[i] = gain[i] * dx[i]
+
+
+@kernel(f"void({READ_ONLY}, {READ_ONLY}, {READ_ONLY}, float64[:])")
+def tanh_damping(gain: Array, gamma: Array, dx: Array, force: Array) -> None:
+    """K_D tanh(Γ ẋ) (eq. 7.17), bounded by K_D, into ``force``."""
+    for i in range(dx.shape[0]):
+        force[i] = gain[i] * np.tanh(gamma[i] * dx[i])
+
+
+@kernel(f"float64(int64[:, :], float64[:, :], float64[:], {FRAME}, float64[:])")
+def potential_terms(plan: Ints, floats: Array, x: Array, origin: Array, rotation: Array,
+                    jacobian: Array, grad: Array) -> float:
+    """U = Σ U_k of the packed springs (the other rows are skipped), ∂U/∂x = Σ ∂U_k/∂x into
+    ``grad``, added in the plan's order (as cpbc.controllers.potentials.PotentialSum)."""
+    n = x.shape[0]
+    part = np.empty(n)
+    for i in range(n):
+        grad[i] = 0.0
+    total = 0.0
+    for r in range(plan.shape[0]):
+        kind = plan[r, 0]
+        first = float_table(plan, floats, r, 0)
+        if kind == JOINT_SPRING:
+            u = joint_spring(x, first[0], first[1], part)
+        elif kind == POSITION_SPRING:
+            u = position_spring(origin, rotation, jacobian, first[0],
+                                float_table(plan, floats, r, 1)[0],
+                                float_table(plan, floats, r, 2), part)
+        elif kind == AXIS_SPRING:
+            u = axis_spring(rotation, jacobian, first[0], first[1],
+                            float_table(plan, floats, r, 1)[0, 0], part)
+        elif kind == LOG_COSH_SPRING:
+            err = np.empty(n)
+            for i in range(n):
+                err[i] = x[i] - first[0, i]
+            u = log_cosh_sum(err, first[1], first[2], first[3],
+                             float_table(plan, floats, r, 1)[0, 0], part)
+        elif kind == ORIENTATION_SPRING:
+            u = orientation_spring(rotation, jacobian, first,
+                                   float_table(plan, floats, r, 1)[0, 0], part)
+        else:
+            continue
+        total += u
+        for i in range(n):
+            grad[i] += part[i]
+    return total
+
+
+@kernel(f"void(int64[:, :], float64[:, :], float64[:], {FRAME}, float64[:])")
+def damping_terms(plan: Ints, floats: Array, dx: Array, origin: Array, rotation: Array,
+                  jacobian: Array, force: Array) -> None:
+    """The joint damping plus the task damping of the packed terms (the other rows are
+    skipped), added in the plan's order, into ``force``."""
+    n = dx.shape[0]
+    part = np.empty(n)
+    for i in range(n):
+        force[i] = 0.0
+    for r in range(plan.shape[0]):
+        kind = plan[r, 0]
+        first = float_table(plan, floats, r, 0)
+        if kind == JOINT_DAMPING:
+            joint_damping(first[0], dx, part)
+        elif kind == TANH_DAMPING:
+            tanh_damping(first[0], first[1], dx, part)
+        elif kind == TASK_DAMPING:
+            task_damping(origin, rotation, jacobian, first[0], float_table(plan, floats, r, 1),
+                         float_table(plan, floats, r, 2)[0], dx, part)
+        else:
+            continue
+        for i in range(n):
+            force[i] += part[i]
+
+
+@kernel("UniTuple(float64, 2)(int64[:, :], float64[:, :], float64)")
+def shaped(plan: Ints, floats: Array, log_x: float) -> tuple[float, float]:
+    """r(x) and log s(x) of the packed shaping (cpbc.kernels.shaping.shaping_terms); those
+    of s(x) = x when none is packed."""
+    for r in range(plan.shape[0]):
+        if plan[r, 0] == SHAPING:
+            row = float_table(plan, floats, r, 0)[0]
+            return shaping_terms(int(row[0]), row[1], log_x)
+    return shaping_terms(0, 0.0, log_x)

@@ -1,0 +1,130 @@
+"""A law's packed step (one kernel call, cpbc.controllers.packed_law) against its general
+path (method by method), and every override that must make a law leave the packed step."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from cpbc.bench import planar_2link, taskspace_pair
+from cpbc.bench_arms import panda
+from cpbc.controllers import CPBC, Power
+from cpbc.controllers.potentials import JointSpring
+from cpbc.controllers.task_damping import TaskDamping
+from cpbc.controllers.terms import LinearDamping
+from cpbc.errors import ConstraintViolation
+
+
+def _general(law):  # type: ignore[no-untyped-def]
+    """The same law as an instance of a subclass whose ``_law`` only calls the base class's:
+    the same formula, taken method by method."""
+
+    class General(type(law)):  # type: ignore[misc]
+        def _law(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+            return super()._law(*args, **kwargs)
+
+    copy = type(law).__new__(type(law))
+    copy.__dict__.update(law.__dict__)
+    copy.__class__ = General
+    return copy
+
+
+def _laws():  # type: ignore[no-untyped-def]
+    planar, arm = planar_2link(), panda(states=12)
+    for setup in (planar, arm):
+        for name in ("cpbc", "cpbc_ke", "bpbc", "bpbc_ke"):
+            if name in setup.controllers:
+                yield f"{setup.robot}/{name}", setup.controllers[name], setup.states
+    laws, states = taskspace_pair(states=12)
+    for name, law in laws.items():
+        yield f"panda_goal_pose/{name}", law, states
+
+
+@pytest.mark.parametrize("entry", list(_laws()), ids=lambda e: e[0])
+def test_the_packed_step_equals_the_general_path(entry) -> None:  # type: ignore[no-untyped-def]
+    """τ, V and every margin of the packed step equal the general path's to 1e-12, and a
+    state outside S raises the same violation."""
+    name, law, states = entry
+    general = _general(law)
+    assert law.packed_law().terms is not None, name
+    assert general.packed_law().terms is None, name
+    checked = 0
+    for x, dx in states:
+        fast, slow = law.evaluate_state(law.state(x, dx), margins=True), (
+            general.evaluate_state(general.state(x, dx), margins=True))
+        np.testing.assert_allclose(fast.torque, slow.torque, rtol=1e-12, atol=1e-12)
+        assert fast.lyapunov == pytest.approx(slow.lyapunov, rel=1e-12, abs=1e-14)
+        np.testing.assert_allclose(fast.margins, slow.margins, rtol=1e-12, atol=1e-14)
+        checked += 1
+    assert checked >= 10
+    x, dx = states[0]
+    far = (x, 1e3 * np.ones_like(dx)) if law.constraints.velocity else (x + 50.0, dx)
+    with pytest.raises(ConstraintViolation) as a:
+        law.torque(*far)
+    with pytest.raises(ConstraintViolation) as b:
+        general.torque(*far)
+    assert str(a.value) == str(b.value)
+
+
+class _Stiffer(JointSpring):
+    def evaluate(self, at):  # type: ignore[no-untyped-def]
+        value, grad = super().evaluate(at)
+        return value, grad + 1.0
+
+
+class _Harder(LinearDamping):
+    def force(self, dx):  # type: ignore[no-untyped-def]
+        return super().force(dx) + 1.0
+
+
+class _Steeper(Power):
+    def ratio(self, log_x: float) -> float:
+        return 2.0 * super().ratio(log_x)
+
+
+class _Pushing(TaskDamping):
+    def force(self, at, dx):  # type: ignore[no-untyped-def]
+        return super().force(at, dx) + 1.0
+
+
+@pytest.mark.parametrize("term", ["potential", "damping", "shaping", "task_damping"])
+def test_an_overridden_term_leaves_the_packed_step(term: str) -> None:
+    """A potential, damping, shaping or task damping whose class overrides its formula does
+    not pack: the law takes its general path, and the override reaches the torque."""
+    laws, states = taskspace_pair(states=6)
+    law = laws["taskspace_cpbc"]
+    base = CPBC(law.model, law.target, law.constraints, law.kp, law.kd, law.shaping,
+                law.potential, law.task_damping)
+    changed = CPBC(law.model, law.target, law.constraints, law.kp, law.kd, law.shaping,
+                   law.potential, law.task_damping)
+    if term == "potential":
+        changed.potential = _Stiffer(law.target, law.kp)
+        base.potential = JointSpring(law.target, law.kp)
+    elif term == "damping":
+        changed.damping = _Harder(law.kd)
+    elif term == "shaping":
+        changed.shaping = _Steeper(law.shaping.alpha)  # type: ignore[attr-defined]
+    else:
+        damping = law.task_damping
+        assert isinstance(damping, TaskDamping)
+        changed.task_damping = _Pushing(**{f.name: getattr(damping, f.name)
+                                           for f in dataclasses.fields(damping) if f.init})
+    assert base.packed_law().terms is not None
+    assert changed.packed_law().terms is None
+    for x, dx in states:
+        assert not np.allclose(changed.torque(x, dx), base.torque(x, dx), rtol=1e-9)
+
+
+def test_setting_a_term_packs_the_law_again() -> None:
+    """A law packs again when one of its terms is set after construction (as
+    cpbc.reference.target steers a law), so the kernel never reads stale constants."""
+    laws, states = taskspace_pair(states=4)
+    law = laws["joint_cpbc"]
+    x, dx = states[0]
+    before = law.torque(x, dx)
+    law.potential = JointSpring(law.target + 0.1, law.kp)
+    moved = _general(law).torque(x, dx)
+    np.testing.assert_allclose(law.torque(x, dx), moved, rtol=1e-12, atol=1e-12)
+    assert not np.allclose(law.torque(x, dx), before)
