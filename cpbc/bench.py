@@ -15,6 +15,7 @@ mode (it fell back to object mode, or ``NUMBA_DISABLE_JIT`` left it uncompiled;
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import shlex
 import statistics
@@ -119,13 +120,24 @@ ROBOTS: dict[str, Callable[[], BenchSetup]] = {"planar_2link": planar_2link, "pa
 def time_blocks(
     ctrl: Controller, states: Sequence[tuple[Array, Array]], repeats: int
 ) -> list[float]:
-    """The mean cost of one torque call in each of ``repeats`` blocks over ``states`` [µs]."""
+    """The mean cost of one torque call in each of ``repeats`` blocks over ``states`` [µs].
+
+    The garbage collector is paused inside a block, as ``timeit`` does: a collection that
+    happens to fall in one block (≈ 8 ms, seen on the guarded Panda) is the interpreter's
+    cost, not the law's, and made the guarded figure swing 3× between runs. A rare path the
+    law takes on some state (a rescue search) stays in the block's mean."""
     blocks = []
+    collecting = gc.isenabled()
     for _ in range(repeats):
-        start = time.perf_counter()
-        for x, dx in states:
-            ctrl.torque(x, dx)
-        blocks.append((time.perf_counter() - start) / len(states) * 1e6)
+        gc.disable()
+        try:
+            start = time.perf_counter()
+            for x, dx in states:
+                ctrl.torque(x, dx)
+            blocks.append((time.perf_counter() - start) / len(states) * 1e6)
+        finally:
+            if collecting:
+                gc.enable()
     return blocks
 
 
