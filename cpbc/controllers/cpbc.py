@@ -117,9 +117,10 @@ class CPBC(Controller):
         """τ, V and the margins from one kernel call (cpbc.kernels.laws.cpbc_step)."""
         args = packed.arguments(state, margins)  # ends with φ̃, the margins and τ
         lyapunov, log_phi, log_psi = cpbc_step(*args)
+        phi, shown, tau = packed.outputs(args[-1], margins)
         if log_phi != log_phi or log_psi != log_psi:  # outside S
-            raise self.constraints.violation(log_phi, args[-3])
-        return Evaluation(args[-1], lyapunov, args[-2] if margins else None)
+            raise self.constraints.violation(log_phi, phi)
+        return Evaluation(tau, lyapunov, shown)
 
     def _shaped_value(self, bar: BarrierTerms, lag: float) -> float:
         """V = L / s(ΦΨ), evaluated in logs."""

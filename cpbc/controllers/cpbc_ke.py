@@ -134,9 +134,10 @@ class CPBCKineticEnergy(Controller):
         lyapunov, log_phi, psi = cpbc_ke_step(self.energy.limit, *args)
         if not psi > 0:
             raise ConstraintViolation(self.energy.names[0], psi)
+        phi, shown, tau = packed.outputs(args[-1], margins)
         if log_phi != log_phi:  # outside S
-            raise self._config.violation(log_phi, args[-3])
-        return Evaluation(args[-1], lyapunov, np.append(args[-2], psi) if margins else None)
+            raise self._config.violation(log_phi, phi)
+        return Evaluation(tau, lyapunov, None if shown is None else np.append(shown, psi))
 
     def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float, psi: float
              ) -> Array:

@@ -25,11 +25,12 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.packing import Ints, Packed, PackedSet
 from cpbc.errors import CpbcError
 from cpbc.kernels.law_terms import FRAME_KINDS, SHAPING
+from cpbc.kernels.laws import pack_tables
 from cpbc.model.robot_model import ArmState, RobotModel
 
-# the set's plan, ints and floats, the terms' plan and floats
-Tables = tuple[Ints, Ints, Array, Ints, Array]
-_EMPTY = np.zeros(0)
+# the set's and the terms' tables packed in one int and one float array
+# (cpbc.kernels.laws.pack_tables)
+Tables = tuple[Ints, Array]
 _NO_MATRIX = np.zeros((0, 0))
 
 
@@ -62,7 +63,8 @@ class PackedLaw:
         terms: the terms' tables (cpbc.kernels.law_terms), or None: the law takes its
             general path.
         constants: the kernel's constant arguments: the set's plan, ints and floats
-            (cpbc.constraints.packing), the terms' plan and floats.
+            (cpbc.constraints.packing) and the terms' plan and floats, packed in two arrays
+            (cpbc.kernels.laws.pack_tables).
         frame: the one frame the terms and the set read (−1: none).
         kinematics: whether the set reads the joint placements and Jacobians.
         margins: the number of the set's margins; n: the number of coordinates.
@@ -101,10 +103,11 @@ class PackedLaw:
         if len(read) > 1:
             return cls(law)
         packed = PackedSet.build([(0, 0, t) for t in terms])
-        return cls(law, packed, (tables.plan, tables.ints, tables.floats, packed.plan,
-                                 packed.floats),
+        margins = len(constraints.names)
+        return cls(law, packed, pack_tables(margins, tables.plan, tables.ints, tables.floats,
+                                            packed.plan, packed.floats),
                    read.pop() if read else -1, constraints.needs_kinematics,
-                   len(constraints.names), constraints.n,
+                   margins, constraints.n,
                    tuple(dict.fromkeys((*constraints.frames, *frames))),
                    constraints.needs_coriolis)
 
@@ -132,8 +135,13 @@ class PackedLaw:
         coriolis = _NO_MATRIX if state.coriolis_matrix is None else state.coriolis_matrix
         return (
             *self.constants, state.x, state.dx, state.inertia, state.gravity, state.coriolis_force,
-            state.dissipation, coriolis, placement, jacobian, y, jac, np.empty(self.margins),
-            np.empty(self.margins) if margins else _EMPTY, np.empty(self.n))
+            state.dissipation, coriolis, placement, jacobian, y, jac,
+            np.empty(2 * self.margins + self.n if margins else self.margins + self.n))
+
+    def outputs(self, out: Array, margins: bool) -> tuple[Array, Array | None, Array]:
+        """φ̃, the margins (with ``margins``, else None) and τ from a step's ``out``."""
+        m = self.margins
+        return out[:m], out[m:-self.n] if margins else None, out[-self.n:]
 
 
 _NO_FRAME = (np.eye(4), np.zeros((6, 0)))
