@@ -131,34 +131,28 @@ def law_tables(ints: Ints, floats: Array) -> tuple[int, Ints, Ints, Array, Ints,
 
 
 # the tables, x, ẋ, D, g, C ẋ, f, C, the frame's placement and Jacobian, the joint
-# placements and Jacobians, and ``out``: [φ̃ (margins) | the margins (or nothing) | τ (n)]
+# placements and Jacobians, ``barriers`` [φ̃ (margins) | the margins (or nothing)] and τ
 STEP = ("int64[::1], float64[::1], float64[:], float64[:], float64[:, :], float64[:],"
         f" float64[:], {READ_ONLY}, float64[:, :], float64[:, :], float64[:, :],"
-        " float64[:, :], float64[:, :], float64[::1]")
-
-
-@kernel("UniTuple(float64[::1], 3)(int64, int64, float64[::1])")
-def step_outputs(margins: int, n: int, out: Array) -> tuple[Array, Array, Array]:
-    """φ̃, the margins (empty when not asked for) and τ: the parts of a step's ``out``."""
-    shown = out.shape[0] - margins - n
-    return out[:margins], out[margins:margins + shown], out[margins + shown:]
+        " float64[:, :], float64[:, :], float64[::1], float64[:]")
 
 
 @kernel(f"UniTuple(float64, 3)({STEP})")
 def cpbc_step(tables: Ints, table_floats: Array, x: Array, dx: Array, inertia: Array,
               gravity: Array, coriolis_force: Array, dissipation: Array, coriolis: Array,
-              placement: Array, frame_jacobian: Array, y: Array, jac: Array, out: Array
-              ) -> tuple[float, float, float]:
+              placement: Array, frame_jacobian: Array, y: Array, jac: Array, barriers: Array,
+              tau: Array) -> tuple[float, float, float]:
     """One CPBC step (cpbc.controllers.cpbc.CPBC): the set's barrier sums (``set_barrier``,
     its tables ``plan``, ``ints``, ``floats``), U and ∂U/∂x, the damping and the shaping of
     the packed terms (cpbc.kernels.law_terms), L = ½ẋᵀDẋ + U, ρ = r(ΦΨ)·L and τ
-    (``cpbc_torque``, c = C ẋ + f) into ``out``'s τ. The tables (``law_tables``) are
-    packed by ``pack_tables``. The frame: its placement [R p; 0 1] and Jacobian
-    [J_v; J_ω]. Returns V, log Φ and log Ψ; outside S (a NaN log) V is NaN and τ is not
-    written (the caller raises, naming the margin from φ̃)."""
+    (``cpbc_torque``, c = C ẋ + f) into ``tau``. The tables (``law_tables``) are packed
+    by ``pack_tables``. The frame: its placement [R p; 0 1] and Jacobian [J_v; J_ω].
+    ``barriers``: the barrier values φ̃, then — when it is twice as long — the margins.
+    Returns V, log Φ and log Ψ; outside S (a NaN log) V is NaN and τ is not written (the
+    caller raises, naming the margin from φ̃)."""
     n = x.shape[0]
     margins, plan, ints, floats, term_plan, term_floats = law_tables(tables, table_floats)
-    phi, value, tau = step_outputs(margins, n, out)
+    phi, value = barriers[:margins], barriers[margins:]
     origin, rotation = placement[:3, 3], placement[:3, :3]
     gradient, weight = np.empty(n), np.empty((n, n))
     log_phi, log_psi = set_barrier(plan, ints, floats, x, dx, inertia, coriolis, origin,
@@ -187,11 +181,11 @@ def cpbc_step(tables: Ints, table_floats: Array, x: Array, dx: Array, inertia: A
 def cpbc_ke_step(limit: float, tables: Ints, table_floats: Array, x: Array, dx: Array,
                  inertia: Array, gravity: Array, coriolis_force: Array, dissipation: Array,
                  coriolis: Array, placement: Array, frame_jacobian: Array, y: Array,
-                 jac: Array, out: Array) -> tuple[float, float, float]:
+                 jac: Array, barriers: Array, tau: Array) -> tuple[float, float, float]:
     """One CPBC-KE step (cpbc.controllers.cpbc_ke.CPBCKineticEnergy): ψ = Ω − ½ẋᵀDẋ
     (``limit`` Ω), the configuration constraints' barrier sums (``set_barrier``), U, ∂U/∂x,
     the damping and the shaping of the packed terms, ρ = r(Φψ)·L and τ (``cpbc_ke_torque``)
-    into ``out``'s τ (``cpbc_step``'s arguments). Returns V, log Φ and ψ; when ψ ≤ 0 or
+    into ``tau`` (``cpbc_step``'s arguments). Returns V, log Φ and ψ; when ψ ≤ 0 or
     log Φ is NaN, V is NaN and τ is not written (the caller raises)."""
     n = x.shape[0]
     kinetic = kinetic_energy(inertia, dx)
@@ -199,7 +193,7 @@ def cpbc_ke_step(limit: float, tables: Ints, table_floats: Array, x: Array, dx: 
     if not psi > 0.0:
         return math.nan, 0.0, psi
     margins, plan, ints, floats, term_plan, term_floats = law_tables(tables, table_floats)
-    phi, value, tau = step_outputs(margins, n, out)
+    phi, value = barriers[:margins], barriers[margins:]
     origin, rotation = placement[:3, 3], placement[:3, :3]
     gradient, weight = np.empty(n), np.empty((0, 0))
     log_phi, _ = set_barrier(plan, ints, floats, x, dx, inertia, coriolis, origin, rotation,
