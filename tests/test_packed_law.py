@@ -44,8 +44,8 @@ def _laws():  # type: ignore[no-untyped-def]
 
 @pytest.mark.parametrize("entry", list(_laws()), ids=lambda e: e[0])
 def test_the_packed_step_equals_the_general_path(entry) -> None:  # type: ignore[no-untyped-def]
-    """τ, V and every margin of the packed step equal the general path's to 1e-12, and a
-    state outside S raises the same violation."""
+    """τ, V and every margin of the packed step equal the general path's to 1e-12 (τ and V
+    the same without the margins), and a state outside S raises the same violation."""
     name, law, states = entry
     general = _general(law)
     assert law.packed_law().terms is not None, name
@@ -57,6 +57,10 @@ def test_the_packed_step_equals_the_general_path(entry) -> None:  # type: ignore
         np.testing.assert_allclose(fast.torque, slow.torque, rtol=1e-12, atol=1e-12)
         assert fast.lyapunov == pytest.approx(slow.lyapunov, rel=1e-12, abs=1e-14)
         np.testing.assert_allclose(fast.margins, slow.margins, rtol=1e-12, atol=1e-14)
+        bare = law.evaluate_state(law.state(x, dx))  # τ and V alike without the margins
+        assert bare.margins is None
+        np.testing.assert_array_equal(bare.torque, fast.torque)
+        assert bare.lyapunov == fast.lyapunov
         checked += 1
     assert checked >= 10
     x, dx = states[0]

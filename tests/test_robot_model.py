@@ -391,3 +391,24 @@ def test_a_name_shared_by_a_joint_and_a_link_means_the_link() -> None:
     assert arm.model.frames[fid].type == pin.FrameType.BODY
     c = PointOutsideSphere(model, "gripperStator", np.array([2.0, 0.0, 0.0]), 0.1)
     assert c.value(np.zeros(model.n))[0] > 0
+
+
+@pytest.mark.parametrize(("kinematics", "coriolis"), [(False, False), (True, False),
+                                                      (False, True)])
+def test_a_state_keeps_its_arrays_after_the_next_pass(joint_model, rng, kinematics, coriolis):
+    """The state owns what it holds (where Pinocchio's functions return arrays of their own
+    the state keeps them uncopied): a second pass at another state changes none of the first
+    state's arrays, and none shares memory with the model's Pinocchio data."""
+    x, dx = rng.uniform(-2, 2, 2), rng.normal(size=2)
+    first = joint_model.state(x, dx, kinematics=kinematics, coriolis=coriolis)
+    kept = [None if a is None else np.array(a) for a in first[:8] + first[9:]]
+    joint_model.state(x + 0.7, -dx, kinematics=kinematics, coriolis=coriolis)
+    data = joint_model.data
+    for a, b in zip(first[:8] + first[9:], kept, strict=True):
+        if a is None:
+            continue
+        np.testing.assert_array_equal(a, b)
+        for shared in (data.M, data.nle, data.g, data.J, data.staticRegressor, data.C):
+            assert not np.shares_memory(a, shared)
+    assert (first.regressor is not None) is kinematics
+    assert (first.coriolis_matrix is not None) is coriolis

@@ -115,11 +115,11 @@ class CPBC(Controller):
 
     def _packed_step(self, packed: PackedLaw, state: ArmState, margins: bool) -> Evaluation:
         """τ, V and the margins from one kernel call (cpbc.kernels.laws.cpbc_step)."""
-        args = packed.arguments(state, margins)  # ends with φ̃, the margins and τ
+        args = packed.arguments(state, margins)  # ends with [φ̃ | the margins] and τ
         lyapunov, log_phi, log_psi = cpbc_step(*args)
         if log_phi != log_phi or log_psi != log_psi:  # outside S
-            raise self.constraints.violation(log_phi, args[-3])
-        return Evaluation(args[-1], lyapunov, args[-2] if margins else None)
+            raise self.constraints.violation(log_phi, args[-2][:packed.margins])
+        return Evaluation(args[-1], lyapunov, args[-2][packed.margins:] if margins else None)
 
     def _shaped_value(self, bar: BarrierTerms, lag: float) -> float:
         """V = L / s(ΦΨ), evaluated in logs."""

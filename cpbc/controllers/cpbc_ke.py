@@ -130,13 +130,14 @@ class CPBCKineticEnergy(Controller):
 
     def _packed_step(self, packed: PackedLaw, state: ArmState, margins: bool) -> Evaluation:
         """τ, V and the margins from one kernel call (cpbc.kernels.laws.cpbc_ke_step)."""
-        args = packed.arguments(state, margins)  # ends with φ̃, the margins and τ
+        args = packed.arguments(state, margins)  # ends with [φ̃ | the margins] and τ
         lyapunov, log_phi, psi = cpbc_ke_step(self.energy.limit, *args)
         if not psi > 0:
             raise ConstraintViolation(self.energy.names[0], psi)
         if log_phi != log_phi:  # outside S
-            raise self._config.violation(log_phi, args[-3])
-        return Evaluation(args[-1], lyapunov, np.append(args[-2], psi) if margins else None)
+            raise self._config.violation(log_phi, args[-2][:packed.margins])
+        shown = np.append(args[-2][packed.margins:], psi) if margins else None
+        return Evaluation(args[-1], lyapunov, shown)
 
     def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float, psi: float
              ) -> Array:

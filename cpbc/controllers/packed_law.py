@@ -25,11 +25,12 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.packing import Ints, Packed, PackedSet
 from cpbc.errors import CpbcError
 from cpbc.kernels.law_terms import FRAME_KINDS, SHAPING
+from cpbc.kernels.laws import pack_tables
 from cpbc.model.robot_model import ArmState, RobotModel
 
-# the set's plan, ints and floats, the terms' plan and floats
-Tables = tuple[Ints, Ints, Array, Ints, Array]
-_EMPTY = np.zeros(0)
+# the set's and the terms' tables packed in one int and one float array
+# (cpbc.kernels.laws.pack_tables)
+Tables = tuple[Ints, Array]
 _NO_MATRIX = np.zeros((0, 0))
 
 
@@ -62,7 +63,8 @@ class PackedLaw:
         terms: the terms' tables (cpbc.kernels.law_terms), or None: the law takes its
             general path.
         constants: the kernel's constant arguments: the set's plan, ints and floats
-            (cpbc.constraints.packing), the terms' plan and floats.
+            (cpbc.constraints.packing) and the terms' plan and floats, packed in two arrays
+            (cpbc.kernels.laws.pack_tables).
         frame: the one frame the terms and the set read (−1: none).
         kinematics: whether the set reads the joint placements and Jacobians.
         margins: the number of the set's margins; n: the number of coordinates.
@@ -101,18 +103,21 @@ class PackedLaw:
         if len(read) > 1:
             return cls(law)
         packed = PackedSet.build([(0, 0, t) for t in terms])
-        return cls(law, packed, (tables.plan, tables.ints, tables.floats, packed.plan,
-                                 packed.floats),
+        margins = len(constraints.names)
+        return cls(law, packed, pack_tables(margins, tables.plan, tables.ints, tables.floats,
+                                            packed.plan, packed.floats),
                    read.pop() if read else -1, constraints.needs_kinematics,
-                   len(constraints.names), constraints.n,
+                   margins, constraints.n,
                    tuple(dict.fromkeys((*constraints.frames, *frames))),
                    constraints.needs_coriolis)
 
     def arguments(self, state: ArmState, margins: bool) -> tuple[Any, ...]:
         """The kernel's arguments: the tables (``constants``); x, ẋ, D, g, C ẋ, f, C, the
         frame's placement and Jacobian, the joint placements and Jacobians, read from the
-        state; and where it writes the barrier values, the margins (with ``margins``, else
-        an empty array) and τ (the last three)."""
+        state; and where it writes the barrier values φ̃ followed by the margins (with
+        ``margins``, else φ̃ alone), and τ (the last two). τ has an array of its own, the
+        barrier values share one: numpy's slicing costs more per step than numba's passing
+        an argument (about 120 ns against 40–70 ns here)."""
         frame = self.frame
         if frame >= 0:
             kin = state.frames.get(frame)
@@ -132,8 +137,8 @@ class PackedLaw:
         coriolis = _NO_MATRIX if state.coriolis_matrix is None else state.coriolis_matrix
         return (
             *self.constants, state.x, state.dx, state.inertia, state.gravity, state.coriolis_force,
-            state.dissipation, coriolis, placement, jacobian, y, jac, np.empty(self.margins),
-            np.empty(self.margins) if margins else _EMPTY, np.empty(self.n))
+            state.dissipation, coriolis, placement, jacobian, y, jac,
+            np.empty(2 * self.margins if margins else self.margins), np.empty(self.n))
 
 
 _NO_FRAME = (np.eye(4), np.zeros((6, 0)))

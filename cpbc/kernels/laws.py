@@ -85,26 +85,74 @@ def shaped_value(lag: float, log_s: float) -> float:
     return math.exp(math.log(lag) - log_s)
 
 
-STEP = ("int64[:, :], int64[:, :], float64[:, :], int64[:, :], float64[:, :], float64[:],"
-        " float64[:], float64[:, :], float64[:], float64[:], "  # x, ẋ, D, g, C ẋ
-        f"{READ_ONLY}, float64[:, :], float64[:, :], float64[:, :],"  # f, C, frame
-        " float64[:, :], float64[:, :], float64[:], float64[:], float64[:]")
+# the law's constant tables, packed once (``pack_tables``): ``ints`` starts with HEADER
+# entries — the margins, then (rows, columns) of the set's plan, ints and floats and of the
+# terms' plan and floats — and holds the int tables after it, ``floats`` the float tables;
+# each table row-major, in that order. One array of each: a kernel argument costs numba
+# about 70 ns to pass, whatever its size.
+HEADER = 11
+
+
+def pack_tables(margins: int, plan: Ints, ints: Ints, floats: Array, term_plan: Ints,
+                term_floats: Array) -> tuple[Ints, Array]:
+    """The law's constant tables in the two arrays ``law_tables`` reads."""
+    header = [margins]
+    for table in (plan, ints, floats, term_plan, term_floats):
+        header += table.shape
+    packed_ints = np.concatenate([np.array(header, dtype=np.int64), plan.ravel(),
+                                  ints.ravel(), term_plan.ravel()]).astype(np.int64)
+    return packed_ints, np.concatenate([floats.ravel(), term_floats.ravel()]).astype(float)
+
+
+TABLES = ("Tuple((int64, int64[:, ::1], int64[:, ::1], float64[:, ::1], int64[:, ::1],"
+          " float64[:, ::1]))")
+
+
+@kernel(f"{TABLES}(int64[::1], float64[::1])")
+def law_tables(ints: Ints, floats: Array) -> tuple[int, Ints, Ints, Array, Ints, Array]:
+    """The margins and the tables packed by ``pack_tables`` (views): the set's plan, ints
+    and floats (cpbc.kernels.barrier_set), the terms' plan and floats
+    (cpbc.kernels.law_terms)."""
+    i, f = HEADER, 0
+    r, c = ints[1], ints[2]
+    plan = ints[i:i + r * c].reshape((r, c))
+    i += r * c
+    r, c = ints[3], ints[4]
+    set_ints = ints[i:i + r * c].reshape((r, c))
+    i += r * c
+    r, c = ints[7], ints[8]
+    term_plan = ints[i:i + r * c].reshape((r, c))
+    r, c = ints[5], ints[6]
+    set_floats = floats[f:f + r * c].reshape((r, c))
+    f += r * c
+    r, c = ints[9], ints[10]
+    term_floats = floats[f:f + r * c].reshape((r, c))
+    return ints[0], plan, set_ints, set_floats, term_plan, term_floats
+
+
+# the tables, x, ẋ, D, g, C ẋ, f, C, the frame's placement and Jacobian, the joint
+# placements and Jacobians, ``barriers`` [φ̃ (margins) | the margins (or nothing)] and τ
+STEP = ("int64[::1], float64[::1], float64[:], float64[:], float64[:, :], float64[:],"
+        f" float64[:], {READ_ONLY}, float64[:, :], float64[:, :], float64[:, :],"
+        " float64[:, :], float64[:, :], float64[::1], float64[:]")
 
 
 @kernel(f"UniTuple(float64, 3)({STEP})")
-def cpbc_step(plan: Ints, ints: Ints, floats: Array, term_plan: Ints, term_floats: Array,
-              x: Array, dx: Array, inertia: Array, gravity: Array, coriolis_force: Array,
-              dissipation: Array, coriolis: Array, placement: Array, frame_jacobian: Array,
-              y: Array, jac: Array, phi: Array, value: Array, tau: Array
-              ) -> tuple[float, float, float]:
+def cpbc_step(tables: Ints, table_floats: Array, x: Array, dx: Array, inertia: Array,
+              gravity: Array, coriolis_force: Array, dissipation: Array, coriolis: Array,
+              placement: Array, frame_jacobian: Array, y: Array, jac: Array, barriers: Array,
+              tau: Array) -> tuple[float, float, float]:
     """One CPBC step (cpbc.controllers.cpbc.CPBC): the set's barrier sums (``set_barrier``,
     its tables ``plan``, ``ints``, ``floats``), U and ∂U/∂x, the damping and the shaping of
     the packed terms (cpbc.kernels.law_terms), L = ½ẋᵀDẋ + U, ρ = r(ΦΨ)·L and τ
-    (``cpbc_torque``, c = C ẋ + f) into ``tau``. The frame: its placement [R p; 0 1] and
-    Jacobian [J_v; J_ω]. Returns V, log Φ and log Ψ; outside S (a
-    NaN log) V is NaN and ``tau`` is not written (the caller raises, naming the margin
-    from ``phi``)."""
+    (``cpbc_torque``, c = C ẋ + f) into ``tau``. The tables (``law_tables``) are packed
+    by ``pack_tables``. The frame: its placement [R p; 0 1] and Jacobian [J_v; J_ω].
+    ``barriers``: the barrier values φ̃, then — when it is twice as long — the margins.
+    Returns V, log Φ and log Ψ; outside S (a NaN log) V is NaN and τ is not written (the
+    caller raises, naming the margin from φ̃)."""
     n = x.shape[0]
+    margins, plan, ints, floats, term_plan, term_floats = law_tables(tables, table_floats)
+    phi, value = barriers[:margins], barriers[margins:]
     origin, rotation = placement[:3, 3], placement[:3, :3]
     gradient, weight = np.empty(n), np.empty((n, n))
     log_phi, log_psi = set_barrier(plan, ints, floats, x, dx, inertia, coriolis, origin,
@@ -130,21 +178,22 @@ def cpbc_step(plan: Ints, ints: Ints, floats: Array, term_plan: Ints, term_float
 
 
 @kernel(f"UniTuple(float64, 3)(float64, {STEP})")
-def cpbc_ke_step(limit: float, plan: Ints, ints: Ints, floats: Array, term_plan: Ints,
-                 term_floats: Array, x: Array, dx: Array, inertia: Array, gravity: Array,
-                 coriolis_force: Array, dissipation: Array, coriolis: Array,
-                 placement: Array, frame_jacobian: Array, y: Array, jac: Array, phi: Array,
-                 value: Array, tau: Array) -> tuple[float, float, float]:
+def cpbc_ke_step(limit: float, tables: Ints, table_floats: Array, x: Array, dx: Array,
+                 inertia: Array, gravity: Array, coriolis_force: Array, dissipation: Array,
+                 coriolis: Array, placement: Array, frame_jacobian: Array, y: Array,
+                 jac: Array, barriers: Array, tau: Array) -> tuple[float, float, float]:
     """One CPBC-KE step (cpbc.controllers.cpbc_ke.CPBCKineticEnergy): ψ = Ω − ½ẋᵀDẋ
     (``limit`` Ω), the configuration constraints' barrier sums (``set_barrier``), U, ∂U/∂x,
     the damping and the shaping of the packed terms, ρ = r(Φψ)·L and τ (``cpbc_ke_torque``)
-    into ``tau``. Returns V, log Φ and ψ; when ψ ≤ 0 or log Φ is NaN, V is NaN and ``tau``
-    is not written (the caller raises)."""
+    into ``tau`` (``cpbc_step``'s arguments). Returns V, log Φ and ψ; when ψ ≤ 0 or
+    log Φ is NaN, V is NaN and τ is not written (the caller raises)."""
     n = x.shape[0]
     kinetic = kinetic_energy(inertia, dx)
     psi = limit - kinetic
     if not psi > 0.0:
         return math.nan, 0.0, psi
+    margins, plan, ints, floats, term_plan, term_floats = law_tables(tables, table_floats)
+    phi, value = barriers[:margins], barriers[margins:]
     origin, rotation = placement[:3, 3], placement[:3, :3]
     gradient, weight = np.empty(n), np.empty((0, 0))
     log_phi, _ = set_barrier(plan, ints, floats, x, dx, inertia, coriolis, origin, rotation,

@@ -63,6 +63,20 @@ class ArmState(NamedTuple):
     regressor: Array | None = None
 
 
+def _returns_own_arrays(model: pin.Model, data: pin.Data) -> bool:
+    """Whether Pinocchio's CRBA, gravity, static regressor and Coriolis matrix return arrays
+    of their own (eigenpy copies a function's result), not views of ``data`` that the next
+    pass overwrites: then :meth:`RobotModel.state` need not copy them again. Asked once,
+    of the installed Pinocchio."""
+    q = pin.neutral(model)
+    found = (pin.crba(model, data, q), pin.computeGeneralizedGravity(model, data, q),
+             pin.computeStaticRegressor(model, data, q),
+             pin.computeCoriolisMatrix(model, data, q, np.ones(model.nv)))
+    views = (data.M, data.g, data.staticRegressor, data.C)
+    return all(a.flags.owndata and not np.shares_memory(a, v)
+               for a, v in zip(found, views, strict=True))
+
+
 def _is_prismatic(shortname: str) -> bool:
     """Pinocchio's prismatic joints: JointModelPX/PY/PZ and JointModelPrismaticUnaligned."""
     return shortname in ("JointModelPX", "JointModelPY", "JointModelPZ") or (
@@ -132,6 +146,7 @@ class RobotModel:
         self._all_terms = (self.data.M, self.data.nle, self.data.g)
         self._joint_jacobians = self.data.J
         self._regressor = self.data.staticRegressor
+        self._own_results = _returns_own_arrays(model, self.data)
 
     @property
     def length_joints(self) -> Array:
@@ -209,7 +224,8 @@ class RobotModel:
         differ from the separate passes' in the last bit, 1e-15); with ``coriolis`` the
         matrix C (one more pass). Each frame of ``frames`` is read into ``ArmState.frames``
         and — with ``kinematics`` — the joint Jacobians and placements (the static
-        regressor, one more call) are copied into the state. Fresh arrays every call:
+        regressor, one more call) are copied into the state (a result Pinocchio returns as
+        an array of its own is kept, not copied again). Fresh arrays every call:
         nothing is kept between calls, and nothing in ``self.data`` is meant to be read
         afterwards."""
         model, data = self.model, self.data
@@ -222,8 +238,10 @@ class RobotModel:
         else:
             q, dq = np.empty(self.n), np.empty(self.n)
             to_joint(self._t_inv, x, dx, q, dq)
-        c_matrix = self._back(pin.computeCoriolisMatrix(model, data, q, dq).copy()) if (
-            coriolis) else None
+        c_matrix = None
+        if coriolis:
+            c_matrix = pin.computeCoriolisMatrix(model, data, q, dq)
+            c_matrix = self._back(c_matrix if self._own_results else c_matrix.copy())
         wanted = tuple(frames)
         jac = placements = None
         found = _NO_FRAMES
@@ -237,18 +255,21 @@ class RobotModel:
                 found = MappingProxyType(read)
             if kinematics:
                 jac = self._joint_jacobians.copy()
-                pin.computeStaticRegressor(model, data, q)
-                placements = self._regressor.copy()
+                placements = pin.computeStaticRegressor(model, data, q)
+                if not self._own_results:
+                    placements = self._regressor.copy()
+            owned = False  # m and g are the data's
         else:
             m = pin.crba(model, data, q)
             nle = pin.nonLinearEffects(model, data, q, dq)
             g = pin.computeGeneralizedGravity(model, data, q)
+            owned = self._own_results
         if self._crba_upper_only:
             m[self._lower] = m.T[self._lower]
         f = self.dissipation(dx)
         if self._identity:
-            return ArmState(x, dx, q, dq, m.copy(), nle - g, g.copy(), f, found, c_matrix,
-                            jac, placements)
+            return ArmState(x, dx, q, dq, m if owned else m.copy(), nle - g,
+                            g if owned else g.copy(), f, found, c_matrix, jac, placements)
         inertia, bias, gravity = np.empty((self.n, self.n)), np.empty(self.n), np.empty(self.n)
         to_controller(self._t_inv, m, nle, g, inertia, bias, gravity)
         return ArmState(x, dx, q, dq, inertia, bias, gravity, f, found, c_matrix, jac,
