@@ -72,7 +72,8 @@ def run_one(
         if progress is not None:
             progress(label, frac)
 
-    law = setup.controller(entry) if backend == "mujoco" else entry.controller
+    entry = setup.for_case(case, entry)  # its own set point when its start is wound
+    law = setup.controller(entry, case) if backend == "mujoco" else entry.controller
     if backend == "mujoco":
         traj = run_mujoco(
             plant or setup.make_plant(), law, setup.model.coordinates,
