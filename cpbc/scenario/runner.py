@@ -104,8 +104,8 @@ def run_one(
     elif setup.goal is not None:
         errors = task_errors(setup.model, setup.goal.goal, traj.position)
         outcome = task_outcome(setup.model, setup.goal.goal, setup.goal.preflight.verdict,
-                               traj, summary.status, setup.monitor.names, margins,
-                               setup.criteria.velocity_tolerance, errors)
+                               traj, summary.status, setup.monitor, margins, setup.criteria,
+                               errors, entry.controller)
         # a goal run settles when it enters the goal's band for good, not at the posture
         summary = replace(summary, **outcome.__dict__, settle_time=outcome.reach_time)
     load = setup.gravity_on_path.get(case.name)
