@@ -74,7 +74,7 @@ def _nominal(spec: CBFQPSpec, given: LawInputs) -> OperationalSpace | None:
     from cpbc.peers.osc import OperationalSpace, OSCGains
 
     task, posture = spec.task or TaskGainsSpec(), spec.posture or PostureGainsSpec()
-    return OperationalSpace(given.goal, given.target, OSCGains(
+    return OperationalSpace(given.model, given.goal, given.target, OSCGains(
         task.omega_n, task.zeta, task.rotation_omega_n or task.omega_n, posture.omega_n,
         posture.zeta))
 
