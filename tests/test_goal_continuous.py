@@ -81,3 +81,34 @@ def test_a_limit_on_a_continuous_joint_keeps_the_set_point() -> None:
     assert np.allclose(admissible_turns(x, start, periodic, limited), [0.2 + 2 * math.pi, 0])
     tight = ConstraintSet(2, [joint_position_limit([-1.0, -1.0], [1.0, 1.0], ("a", "b"))])
     assert np.allclose(admissible_turns(x, start, periodic, tight), x)
+
+
+def test_a_reference_s_posture_path_is_turned_for_a_wound_start(load_dict) -> None:
+    goal = {"frame": "j2s6s200_end_effector", "position": [-0.30, 0.10, 0.45],
+            "orientation": {"axis": {"tool": [0, 0, 1], "world": [0, 0, -1]}}}
+    planned = load_dict(_kinova(goal=goal, controllers=[
+        {"type": "pd_gravity", "name": "PD+g", "task": {"omega_n": 12, "zeta": 1},
+         "posture": {"omega_n": 2, "zeta": 1}}]))
+    assert planned.goal is not None
+    x0 = planned.goal.posture
+    p0 = planned.model.point_position(planned.goal.goal.frame, x0, None)
+    turns = 2 * math.pi * np.array([1, 0, 0, -1, 0, 1])
+    path = {"waypoints": {"points": [{"time": 0, "position": p0.tolist()},
+                                     {"time": 2, "position": (p0 + [0, 0.05, 0]).tolist()}],
+                          "interpolation": "min_jerk"}}
+    setup = load_dict(_kinova(
+        reference={"frame": goal["frame"], "orientation": goal["orientation"], "path": path},
+        cases=[{"name": "ik", "position": x0.tolist()},
+               {"name": "wound", "position": (x0 + turns).tolist()}],
+        simulation={"duration": 3.0, "timestep": 0.001},
+        controllers=[{"type": "cpbc", "name": "TS-CPBC",
+                      "task": {"omega_n": 12, "zeta": 1, "rotation_omega_n": 24},
+                      "posture": {"omega_n": 2, "zeta": 1},
+                      "shaping": {"type": "power", "alpha": 0.05}}]))
+    assert np.allclose(setup.case_targets["wound"] - setup.target, turns)
+    runs = [run_one(setup, c, setup.controllers[0], "mujoco") for c in setup.cases]
+    assert [r.summary.status for r in runs] == ["tracked", "tracked"]
+    travel = [r.trajectory.position[-1] - r.trajectory.position[0] for r in runs]
+    np.testing.assert_allclose(travel[1], travel[0], atol=1e-6)  # no turn unwound
+    assert runs[0].task_error is not None and runs[1].task_error is not None
+    np.testing.assert_allclose(runs[1].task_error, runs[0].task_error, atol=1e-6)

@@ -99,10 +99,17 @@ def holding(law: Controller, monitor: ConstraintSet, x: Array) -> str | None:
     size = float(np.linalg.norm(net))
     if size <= UNBALANCED * sum(float(np.linalg.norm(g)) for g in grads):
         return None
-    rates = np.concatenate([(c.gradient(x) @ (-net / size)) / c.value(x)
+    rates = np.concatenate([_log_rate(c.value(x), c.gradient(x) @ (-net / size))
                             for c in monitor.configuration])
     j = int(np.argmin(rates))
     return monitor.names[j] if rates[j] < 0 else None
+
+
+def _log_rate(phi: Array, slope: Array) -> Array:
+    """d ln φ along a direction (slope = ∇φ · direction); −inf for a crossed margin (the arm
+    rests against what the constraint stands for: a joint stop, an obstacle)."""
+    inside = phi > 0
+    return np.where(inside, slope / np.where(inside, phi, 1.0), -np.inf)
 
 
 def stall_kind(model: RobotModel, goal: FrameGoal, x: Array, names: Sequence[str],
