@@ -93,8 +93,9 @@ def test_a_reference_s_posture_path_is_turned_for_a_wound_start(load_dict) -> No
     x0 = planned.goal.posture
     p0 = planned.model.point_position(planned.goal.goal.frame, x0, None)
     turns = 2 * math.pi * np.array([1, 0, 0, -1, 0, 1])
+    p1 = p0 + np.array([0.0, 0.05, 0.0])
     path = {"waypoints": {"points": [{"time": 0, "position": p0.tolist()},
-                                     {"time": 2, "position": (p0 + [0, 0.05, 0]).tolist()}],
+                                     {"time": 2, "position": p1.tolist()}],
                           "interpolation": "min_jerk"}}
     setup = load_dict(_kinova(
         reference={"frame": goal["frame"], "orientation": goal["orientation"], "path": path},

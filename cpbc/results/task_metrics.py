@@ -15,11 +15,13 @@ Statuses of a goal run (never ``converged``: that is a joint set point's):
   ``diverged`` as for joint runs.
 
 "At rest" for a goal run is the task's, not the posture's: over the run's last stall window
-(SettleCriteria) the task error shrank by less than ``stall_progress`` and stayed within a
-band of ``BAND`` of its value (no swing through the goal). An arm creeping along a barrier
-(the safeguard braking it to rest and the law pushing it on, in turns), or drifting along
-its self-motion toward the posture while the hand stays put, makes no progress toward the
-goal; judged against the posture it read ``not_settled`` however long the run.
+(SettleCriteria, at least ``MIN_WINDOW``) the task error shrank by less than
+``stall_progress`` and stayed within a band of ``BAND`` of its value, and the frame's point
+travelled less than ``BAND`` of its distance to the goal (it creeps; it does not swing, nor
+set out on its way). An arm creeping along a barrier (the safeguard braking it to rest and
+the law pushing it on, in turns), or drifting along its self-motion while the hand stays
+put, makes no progress toward the goal; judged against the posture it read
+``not_settled`` however long the run.
 """
 
 from __future__ import annotations
@@ -43,6 +45,8 @@ from cpbc.taskspace.ik import ACTIVE_SHARE, ANGLE_LENGTH, SINGULAR
 _AT_REST = ("converged", "stalled")
 #: Over the stall window a stalled run's task error stays within this share of its value.
 BAND = 0.1
+#: The shortest stall window of a goal run [s]: a fifth of a short run says nothing.
+MIN_WINDOW = 1.0
 #: The law's springs balance each other at a rest when their net gradient is below this
 #: share of the sum of their gradients' norms; above it, something else holds the arm.
 UNBALANCED = 0.1
@@ -132,16 +136,24 @@ def stall_kind(model: RobotModel, goal: FrameGoal, x: Array, names: Sequence[str
     return "local_minimum" if held_by is None else f"barrier:{held_by}"
 
 
-def creeping(errors: Array, criteria: SettleCriteria) -> bool:
-    """The task error made no progress over the last stall window and stayed in its band
-    (module docstring); errors in metres and ANGLE_LENGTH metres a radian."""
-    window = max(2, int(len(errors) * criteria.stall_window))
-    combined = errors[-window:, 0] + ANGLE_LENGTH * errors[-window:, 1]
-    if not np.all(np.isfinite(combined)):
+def creeping(model: RobotModel, goal: FrameGoal, traj: Trajectory, errors: Array,
+             criteria: SettleCriteria) -> bool:
+    """The task error made no progress over the last stall window, stayed in its band, and
+    the frame's point hardly moved (module docstring); errors in metres and ANGLE_LENGTH
+    metres a radian."""
+    span = max(criteria.stall_window * float(traj.time[-1] - traj.time[0]), MIN_WINDOW)
+    start = int(np.searchsorted(traj.time, traj.time[-1] - span))
+    combined = errors[start:, 0] + ANGLE_LENGTH * errors[start:, 1]
+    if len(combined) < 2 or not np.all(np.isfinite(combined)):
         return False
     first = float(combined[0])
-    steady = float(combined.max() - combined.min()) <= BAND * first
-    return steady and first - float(combined[-1]) < criteria.stall_progress * first
+    if float(combined.max() - combined.min()) > BAND * first or (
+            first - float(combined[-1]) >= criteria.stall_progress * first):
+        return False
+    every = max(1, (len(combined) - 1) // 200)  # the point's path on ≤ 200 chords
+    points = np.array([model.point_position(goal.frame, x, goal.offset)
+                       for x in traj.position[start::every]])
+    return float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1))) < BAND * first
 
 
 def task_outcome(model: RobotModel, goal: FrameGoal, verdict: str, traj: Trajectory,
@@ -162,7 +174,8 @@ def task_outcome(model: RobotModel, goal: FrameGoal, verdict: str, traj: Traject
     if joint_status not in ("constraint_violated", "diverged", "held"):
         if inside[-1] and at_rest:
             status = "reached"
-        elif joint_status in _AT_REST or (not inside[-1] and creeping(errors, criteria)):
+        elif joint_status in _AT_REST or (
+                not inside[-1] and creeping(model, goal, traj, errors, criteria)):
             if verdict == "unreachable":
                 status = "unreachable"
             else:
