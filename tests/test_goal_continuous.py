@@ -35,7 +35,8 @@ def _kinova(**given: object) -> dict:
 
 def test_a_wound_start_reaches_the_goal_without_unwinding(load_dict) -> None:
     # Before: the wound case's posture spring pulled joints 1, 4, 6 back through their turns
-    # (6.5 and 7.7 rad of travel) and the run had not settled at 8 s.
+    # (joints 1 and 4 travelled −5.7 and +5.0 rad) and the hand was 107 mm off, not settled,
+    # at 8 s.
     setup = load_dict(_kinova(
         goal={"frame": "j2s6s200_end_effector", "position": [-0.30, 0.10, 0.45],
               "orientation": {"axis": {"tool": [0, 0, 1], "world": [0, 0, -1]}}},
