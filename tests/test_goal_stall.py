@@ -40,8 +40,8 @@ def _run(load_dict: Callable[[dict], ScenarioSetup], scenario: dict) -> RunSumma
 
 
 def test_a_goal_under_the_ball_is_held_by_the_ball_s_clearance(load_dict) -> None:
-    # The law rests 126 mm and 1.1 rad off, its wrist 61 mm from the ball's clearance (a
-    # share of 0.8 of its start margin). Its springs do not balance each other there (net
+    # The law rests 126 mm and 1.1 rad off, its wrist 61 mm from the ball's clearance
+    # (0.86 of its start margin). Its springs do not balance each other there (net
     # ∂U/∂x 42 against 46 in the parts): the barrier holds it. It read local_minimum.
     s = _run(load_dict, _ur10_under_ball())
     assert s.status == "stalled", s.status
