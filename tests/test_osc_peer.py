@@ -5,6 +5,7 @@ shipped task-space scenarios beside TS-CPBC, and a wrong ``nominal`` exits 2 nam
 from __future__ import annotations
 
 import copy
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -13,11 +14,13 @@ import pytest
 import yaml
 
 from cpbc.peers import CBFQP
+from cpbc.reference import tracking
 from cpbc.resources import scenarios_dir
 from cpbc.results.task_metrics import reach_time, task_errors
 from cpbc.run import main
 from cpbc.scenario import Scenario, build
 from cpbc.scenario.runner import run_one
+from cpbc.simulation.loop import run_mujoco
 
 
 def _shipped(name: str) -> dict[str, Any]:
@@ -45,21 +48,53 @@ def _open_panda() -> dict[str, Any]:
     return d
 
 
-def test_the_nominal_decouples_the_task_from_the_null_space(tmp_path) -> None:
-    """J D⁻¹ (τ_nom − C ẋ − g) = a_task: the posture term, projected by Nᵀ, moves no task
-    coordinate (checked at random states, rows of the axis goal: 3 + 2)."""
-    setup = _build(_with_peer(_open_panda(), constraints=[]), tmp_path)
+@pytest.mark.parametrize("offset", [None, [0.0, 0.0, 0.105]])
+def test_the_nominal_decouples_the_task_from_the_null_space(tmp_path, offset) -> None:
+    """J ẍ + J̇ẋ = a_task with ẍ = D⁻¹ (τ_nom − C ẋ − g): the posture term, projected by Nᵀ,
+    moves no task coordinate, and the J̇ẋ term (here by central differences of J along ẋ)
+    is cancelled (checked at random moving states, rows of the axis goal: 3 + 2; with and
+    without a TCP offset). Without J̇ẋ the task's acceleration was off by it: 0.27–2.3 (m/s²
+    or rad/s², largest row) at these states."""
+    d = _with_peer(_open_panda(), constraints=[])
+    if offset is not None:
+        d["goal"]["offset"] = offset
+    setup = _build(d, tmp_path)
     peer = setup.controllers[-1].controller
     assert isinstance(peer, CBFQP) and peer.osc is not None
     rng = np.random.default_rng(4)
     for _ in range(5):
-        x = setup.target + rng.uniform(-0.3, 0.3, 7)
-        state = peer.state(x, rng.uniform(-0.5, 0.5, 7))
+        x, dx = setup.target + rng.uniform(-0.3, 0.3, 7), rng.uniform(-1.0, 1.0, 7)
+        state = peer.state(x, dx)
         j, _, accel = peer.osc._task(state)
+        h = 1e-6
+        drift = (peer.osc._task(peer.state(x + h * dx, dx))[0]
+                 - peer.osc._task(peer.state(x - h * dx, dx))[0]) @ dx / (2 * h)
+        np.testing.assert_allclose(peer.osc.drift(state), drift, atol=1e-6)
         tau = peer.osc.torque(state)
         moved = j @ np.linalg.solve(state.inertia, tau - state.coriolis_force - state.gravity)
         # up to the Tikhonov floor (1e-9 of the trace) in the inversion of Λ
-        np.testing.assert_allclose(moved, accel, atol=1e-6 * np.abs(accel).max())
+        np.testing.assert_allclose(moved + drift, accel, atol=1e-6 * np.abs(accel).max())
+
+
+def test_a_streamed_target_moves_the_peer_s_goal(tmp_path) -> None:
+    # cpbc.reference's streamed target (set_target each step, teleoperation or a policy):
+    # the tracker started the stream at a spring law's goal and refused a law without one,
+    # the peer ("the law has no frame position spring to stream a target to").
+    d = _with_peer(_open_panda(), constraints=[])
+    d["controllers"] = d["controllers"][-1:]
+    setup = _build(d, tmp_path)
+    entry, goal = setup.controllers[0], setup.goal
+    assert goal is not None
+    law = tracking(entry.controller, 1e-3, run=setup.controller(entry))
+    moved = goal.goal.position + np.array([0.0, 0.05, -0.03])
+    law.set_target(moved)
+    traj = run_mujoco(setup.make_plant(), law, setup.model.coordinates, goal.posture,
+                      np.zeros(7), replace(setup.loop_settings, duration=2.5))
+    peer = entry.controller
+    assert isinstance(peer, CBFQP) and peer.osc is not None
+    np.testing.assert_allclose(peer.osc.target.position, moved)
+    errors = task_errors(setup.model, replace(goal.goal, position=moved), traj.position)
+    assert errors[0, 0] > 0.05 and errors[-1, 0] < 1e-3, errors[[0, -1]]
 
 
 def test_the_osc_nominal_alone_reaches_a_panda_goal(tmp_path) -> None:

@@ -2,7 +2,7 @@
 practitioner writes it (Khatib, IEEE J-RA 3(1), 1987; the form of OSCBF's pose-task
 controller, TASKSPACE §1.1):
 
-    τ_nom = Jᵀ Λ a_task + Nᵀ D a_null + C ẋ + g
+    τ_nom = Jᵀ Λ (a_task − J̇ẋ) + Nᵀ D a_null + C ẋ + g
     Λ = (J D⁻¹ Jᵀ)⁻¹,   Nᵀ = I − Jᵀ Λ J D⁻¹          (dynamically consistent null space)
     a_task = [ω_t² (p_d − p) + 2 ζ_t ω_t (ṗ_ff − ṗ);  −ω_r² e_R − 2 ζ_t ω_r ω]
     a_null = −ω_n² (x − x_n) − 2 ζ_n ω_n (ẋ − ẋ_n,ff)
@@ -10,14 +10,18 @@ controller, TASKSPACE §1.1):
 with J the task rows of the frame's Jacobian: J_v alone (no orientation), [J_v; J_ω] with
 e_R = ½ vee(R R_dᵀ − R_d Rᵀ) (a full orientation: ½ the trace spring's gradient, OSCBF's
 ``orientation_error_3D``), or [J_v; P J_ω] with e_R = a_w × R a_b and P the two world axes
-across a_w (an axis goal: its yaw is left to the null space). The task closes to
-ë = −2ζ_t ω_t ė − ω_t² e (up to J̇ẋ, which OSCBF leaves out too), so ``task: {omega_n,
-zeta, rotation_omega_n}`` and ``posture: {omega_n, zeta}`` mean what they mean for the
-task-space laws. Λ is inverted every step with a Tikhonov floor of 1e-9 of the trace of
-J D⁻¹ Jᵀ (a practitioner's guard; near a kinematic singularity Λ still grows large).
+across a_w (an axis goal: its yaw is left to the null space). J̇ẋ, the task rows'
+acceleration at ẍ = 0 (the point's classical acceleration: the origin's from Pinocchio, plus
+α × r + ω × (ω × r) for an offset r), makes the task close exactly to
+ë = −2ζ_t ω_t ė − ω_t² e (OSCBF leaves it out; without it a fast task is bent by the
+centripetal terms), so ``task: {omega_n, zeta, rotation_omega_n}`` and ``posture: {omega_n,
+zeta}`` mean what they mean for the task-space laws. Λ is inverted every step with a
+Tikhonov floor of 1e-9 of the trace of J D⁻¹ Jᵀ (a practitioner's guard; near a kinematic
+singularity Λ still grows large).
 
 It reads its goal, feed-forward and posture from a :class:`TaskTarget` (its own fixed one,
-or a moving reference's, cpbc.reference.target.MovingTarget, after :meth:`follow`).
+or a moving reference's, cpbc.reference.target.MovingTarget, after :meth:`follow`; a
+streamed target, cpbc.reference.tracker.ReferenceTracker.set_target, moves that one).
 """
 
 from __future__ import annotations
@@ -26,11 +30,12 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+import pinocchio as pin
 
 from cpbc.arrays import Array
 from cpbc.controllers.linalg import solve_spd
 from cpbc.model.frames import cross3
-from cpbc.model.robot_model import ArmState
+from cpbc.model.robot_model import ArmState, RobotModel
 from cpbc.taskspace.gains import fixed_rotations
 from cpbc.taskspace.goal import AxisGoal, FrameGoal
 
@@ -73,7 +78,7 @@ class OSCGains:
 
 
 class OperationalSpace:
-    """The nominal of the module docstring for ``goal`` with posture x_n.
+    """The nominal of the module docstring for ``goal`` with posture x_n, on ``model``.
 
     Attributes:
         goal: the frame goal (frame, offset, orientation).
@@ -81,10 +86,13 @@ class OperationalSpace:
         target: what it steers to (:meth:`follow` replaces it).
     """
 
-    def __init__(self, goal: FrameGoal, posture: Array, gains: OSCGains) -> None:
-        self.goal, self.gains = goal, gains
+    def __init__(self, model: RobotModel, goal: FrameGoal, posture: Array, gains: OSCGains
+                 ) -> None:
+        self.model, self.goal, self.gains = model, goal, gains
         self.target: TaskTarget = HeldTarget.at(goal.position, posture)
         self._across = fixed_rotations(goal)
+        self._data = model.model.createData()  # J̇ẋ's kinematics, apart from the state's
+        self._rest = np.zeros(model.model.nv)
 
     @property
     def frames(self) -> tuple[int, ...]:
@@ -115,6 +123,25 @@ class OperationalSpace:
         a_r = -g.rotation_omega**2 * e_r - 2.0 * g.zeta * g.rotation_omega * (jw @ state.dx)
         return np.vstack([jv, jw]), np.concatenate([e, e_r]), np.concatenate([accel, a_r])
 
+    def drift(self, state: ArmState) -> Array:
+        """J̇ẋ of the task rows (k,): the point's linear and the frame's angular acceleration
+        at ẍ = 0 (world axes), the angular one across an axis goal's axis."""
+        m, data = self.model.model, self._data
+        pin.forwardKinematics(m, data, state.q, state.dq, self._rest)
+        acc = pin.getFrameClassicalAcceleration(m, data, self.goal.frame,
+                                                pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        linear, angular = np.array(acc.linear), np.array(acc.angular)
+        if self.goal.offset is not None:
+            kin = state.frames[self.goal.frame]
+            r = kin.rotation @ self.goal.offset
+            omega = kin.angular @ state.dx
+            linear = linear + cross3(angular, r) + cross3(omega, cross3(omega, r))
+        if self.goal.rotation is None:
+            return linear
+        if isinstance(self.goal.rotation, AxisGoal):
+            angular = self._across @ angular
+        return np.concatenate([linear, angular])
+
     def _task_inertia(self, j: Array, d_inv_jt: Array) -> Array:
         mobility = j @ d_inv_jt
         mobility = mobility + TIKHONOV * float(np.trace(mobility)) * np.eye(len(mobility))
@@ -138,7 +165,8 @@ class OperationalSpace:
         tau_null = d @ a_null
         # Nᵀ τ_0 = τ_0 − Jᵀ Λ J D⁻¹ τ_0 (J D⁻¹ τ_0 = (D⁻¹Jᵀ)ᵀ τ_0, D symmetric)
         projected = tau_null - j.T @ (lam @ (d_inv_jt.T @ tau_null))
-        tau = j.T @ (lam @ accel) + projected + state.coriolis_force + state.gravity
+        tau = j.T @ (lam @ (accel - self.drift(state))) + projected + (
+            state.coriolis_force + state.gravity)
         scale = np.full(len(e), g.omega)
         scale[3:] = g.rotation_omega
         se = scale * e

@@ -25,7 +25,7 @@ from cpbc.controllers.controller import Controller, Evaluation, SafetyFilter
 from cpbc.model.robot_model import ArmState
 from cpbc.reference.governor import GovernorSettings, PathGovernor
 from cpbc.reference.plan import ReferencePlan, log_norm
-from cpbc.reference.target import MovingTarget, steer
+from cpbc.reference.target import Follower, MovingTarget, steer
 
 
 class ReferenceTracker(Controller):
@@ -175,9 +175,13 @@ def _between(table: Array, s: float, h: float) -> Array:
 
 
 def _spring_goal(law: Controller) -> Array:
-    """The goal of the law's frame position spring (the streamed target's start)."""
+    """The goal of the law's frame position spring, or of a follower's operational-space
+    nominal (the CBF-QP peer's ``osc``, cpbc.peers.osc): the streamed target's start."""
     from cpbc.controllers.potentials import PotentialSum
 
+    nominal = getattr(law, "osc", None) if isinstance(law, Follower) else None
+    if nominal is not None:
+        return np.array(nominal.target.position, dtype=float)
     pot = law.potential
     for part in pot.parts if isinstance(pot, PotentialSum) else (pot,):
         goal = getattr(part, "goal", None)

@@ -89,17 +89,36 @@ class ScenarioSetup:
     goal: GoalPlan | None = None
     # a reference scenario's path, governor and plans (``goal`` is then its first sample)
     reference: ReferenceSetup | None = None
+    # per case whose start is wound by whole turns of a continuous joint away from ``target``:
+    # its set point (the equivalent nearest its start, cpbc.taskspace.posture) and the laws
+    # built for it; the other cases run the laws of ``controllers``
+    case_targets: dict[str, Array] = dataclasses.field(default_factory=dict)
+    case_controllers: dict[str, list[ControllerEntry]] = dataclasses.field(
+        default_factory=dict)
 
-    def controller(self, entry: ControllerEntry) -> Controller:
+    def for_case(self, case: CaseEntry, entry: ControllerEntry) -> ControllerEntry:
+        """The entry's law for a case: built for the case's own set point when its start is
+        wound (``case_targets``), else the entry itself."""
+        laws = self.case_controllers.get(case.name)
+        if laws is None:
+            return entry
+        return next(e for e in laws if e.name == entry.name)
+
+    def controller(self, entry: ControllerEntry, case: CaseEntry | None = None) -> Controller:
         """The entry's law as the scenario runs it in the sampled-data loop: wrapped in the
         safeguard at the loop's control period and torque limit, when it has one; with a
-        reference, inside a fresh tracker (cpbc.reference.tracker) for one run."""
+        reference, inside a fresh tracker (cpbc.reference.tracker) for one run. With a
+        ``case``, the law of :meth:`for_case` (and its posture path turned likewise)."""
+        if case is not None:
+            entry = self.for_case(case, entry)
         loop = self.loop_settings
         run = guarded(entry.controller, loop.control_period, self.safeguard,
                       loop.torque_limit, self.also_keep)
         if self.reference is None:
             return run
-        return self.reference.tracker(entry.name, entry.controller, run, loop.control_period)
+        turned = None if case is None else self.case_targets.get(case.name)
+        return self.reference.tracker(entry.name, entry.controller, run, loop.control_period,
+                                      turns=None if turned is None else turned - self.target)
 
     def make_plant(self) -> MujocoPlant:
         """A fresh MuJoCo plant of the scenario's robot with its obstacles in the scene."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +46,7 @@ from cpbc.scenario.state_checks import (
     joint_ranges,
 )
 from cpbc.simulation import PlantSettings
+from cpbc.taskspace.posture import admissible_turns, continuous_mask
 
 __all__ = [
     "CaseEntry",
@@ -59,10 +61,11 @@ __all__ = [
 
 def _goal(scenario: s.Scenario, model: RobotModel, scene: dict[str, Obstacle],
           monitor: ConstraintSet, cases: list[CaseEntry], ranges: tuple[Array, Array],
-          scenario_file: Path) -> tuple[RefPath | None, GoalPlan] | None:
+          scenario_file: Path, periodic: Array | None) -> tuple[RefPath | None, GoalPlan] | None:
     """A goal scenario's goal, preflight (from the first case's start, then the middle of the
-    joint ranges and four seeded draws in them) and posture; a reference scenario's path and
-    the goal at its first sample; None for a joint target."""
+    joint ranges and four seeded draws in them) and posture (turned on the ``periodic``
+    joints to the equivalent nearest that start); a reference scenario's path and the goal at
+    its first sample; None for a joint target."""
     if scenario.goal is None and scenario.reference is None:
         return None
     lo, hi = (np.clip(r, -np.pi, np.pi) for r in ranges)
@@ -75,10 +78,20 @@ def _goal(scenario: s.Scenario, model: RobotModel, scene: dict[str, Obstacle],
 
     if scenario.reference is not None:
         return reference_goal(scenario.reference, model, scene, monitor, scenario_file,
-                              [c.position for c in cases], seeds, check)
+                              [c.position for c in cases], seeds, check, periodic)
     assert scenario.goal is not None
     goal = goal_of(scenario.goal, model, scene, monitor)
-    return None, plan(scenario.goal, goal, model, monitor, cases[0].position, seeds, check)
+    return None, plan(scenario.goal, goal, model, monitor, cases[0].position, seeds, check,
+                      periodic)
+
+
+def _case_targets(target: Array, cases: list[CaseEntry], periodic: Array | None,
+                  monitor: ConstraintSet) -> dict[str, Array]:
+    """The set point of each case whose start is wound by whole turns of a continuous joint
+    away from ``target``: the equivalent nearest its start (cpbc.taskspace.posture)."""
+    config = ConstraintSet(len(target), monitor.configuration)
+    turned = {c.name: admissible_turns(target, c.position, periodic, config) for c in cases}
+    return {name: x for name, x in turned.items() if not np.array_equal(x, target)}
 
 
 def build(scenario: s.Scenario, scenario_file: Path, kinds: Kinds = KINDS) -> ScenarioSetup:
@@ -104,21 +117,34 @@ def build(scenario: s.Scenario, scenario_file: Path, kinds: Kinds = KINDS) -> Sc
     )
     ranges = joint_ranges(model, plant)
     target, cases = initial_states(scenario, model, monitor, ranges)
-    planned = _goal(scenario, model, scene, monitor, cases, ranges, scenario_file)
+    periodic = continuous_mask(model, arm.continuous_joints if arm is not None else ())
+    planned = _goal(scenario, model, scene, monitor, cases, ranges, scenario_file, periodic)
     ref_path, goal = planned if planned is not None else (None, None)
     if goal is not None:
         target = goal.posture
     if ref_path is not None and sim.backend != "mujoco":
         raise ScenarioError("simulation.backend", "a reference runs in the sampled-data loop "
                             "only (its governor counts control periods): use backend: mujoco")
+    case_targets = _case_targets(target, cases, periodic, monitor)
     gravity_on_path: dict[str, GravityLoad] = {}
     if loop.torque_limit is not None:
-        gravity_on_path = check_gravity(model, target, [(c.name, c.position) for c in cases],
-                                        loop.torque_limit)
+        for case in cases:
+            gravity_on_path.update(check_gravity(model, case_targets.get(case.name, target),
+                                                 [(case.name, case.position)],
+                                                 loop.torque_limit))
         check_stoppable(cases, monitor, model, loop.torque_limit)
     controllers = build_controllers(scenario, model, target, cases, built, names, loop, goal,
                                     kinds)
+    case_controllers = {
+        c.name: build_controllers(scenario, model, case_targets[c.name], [c], built, names,
+                                  loop, None if goal is None else replace(
+                                      goal, posture=case_targets[c.name]), kinds)
+        for c in cases if c.name in case_targets}
     check_starts(controllers, scenario.controllers, cases, loop, names, sim.safeguard, kinds)
+    for wound in cases:
+        if wound.name in case_controllers:
+            check_starts(case_controllers[wound.name], scenario.controllers, [wound], loop,
+                         names, sim.safeguard, kinds)
     for i, c in enumerate(scenario.controllers):
         for key in ("on_infeasible", "reference_speed"):
             if getattr(c, key) is not None and scenario.reference is None:
@@ -142,6 +168,7 @@ def build(scenario: s.Scenario, scenario_file: Path, kinds: Kinds = KINDS) -> Sc
         if sim.safeguard else None,
         also_keep=monitor.configuration if sim.safeguard and sim.safeguard_monitored else (),
         gravity_on_path=gravity_on_path, goal=goal, reference=reference,
+        case_targets=case_targets, case_controllers=case_controllers,
     )
     check_disturbances(scenario, plant, model.n)
     return setup

@@ -20,6 +20,7 @@ from cpbc.scenario import schema as s
 from cpbc.taskspace.gains import TaskGains, TaskGainSpec, linear_terms, task_gains
 from cpbc.taskspace.goal import AxisGoal, FrameGoal
 from cpbc.taskspace.ik import Preflight, preflight
+from cpbc.taskspace.posture import admissible_turns
 from cpbc.taskspace.task_terms import Saturation, task_terms
 
 
@@ -100,11 +101,15 @@ class GoalPlan:
 
 
 def plan(spec: s.GoalSpec, goal: FrameGoal, model: RobotModel, monitor: ConstraintSet,
-         start: Array, seeds: list[Array], check: Callable[[Array, str], None]) -> GoalPlan:
+         start: Array, seeds: list[Array], check: Callable[[Array, str], None],
+         periodic: Array | None = None) -> GoalPlan:
     """Run the preflight from ``start`` (then ``seeds``) and choose x_n: the preflight's
-    posture (``ik``), the start (``start``) or the given one, checked by ``check``."""
+    posture (``ik``), the start (``start``) or the given one, checked by ``check``. The
+    preflight's posture is turned on the ``periodic`` (continuous) joints to the equivalent
+    nearest ``start`` (cpbc.taskspace.posture): a seed's branch may lie a turn away."""
     config = ConstraintSet(model.n, monitor.configuration)
     found = preflight(model, config, goal, start, seeds)
+    found = replace(found, posture=admissible_turns(found.posture, start, periodic, config))
     if spec.posture == "ik":
         posture = found.posture
     elif spec.posture == "start":

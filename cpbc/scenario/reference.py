@@ -6,7 +6,7 @@ governor reads (the posture path, its inadmissible stretches and the V normalisa
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path as FilePath
 
 import numpy as np
@@ -39,11 +39,15 @@ class ReferenceSetup:
     plans: Mapping[str, ReferencePlan]
 
     def tracker(self, name: str, law: Controller, run: Controller, period: float,
-                phase: float = 0.0) -> ReferenceTracker:
+                phase: float = 0.0, turns: Array | None = None) -> ReferenceTracker:
         """A fresh tracker of the law ``name`` for one run (``run``: the law as the loop runs
-        it, possibly inside its safeguard), starting at path time ``phase``."""
-        found = tracking(law, period, self.plans[name], self.settings[name], self.feedforward,
-                         run)
+        it, possibly inside its safeguard), starting at path time ``phase``; ``turns``: whole
+        turns of the continuous joints added to the posture path, for a run whose start is
+        wound (cpbc.taskspace.posture)."""
+        plan = self.plans[name]
+        if turns is not None:
+            plan = replace(plan, postures=plan.postures + turns)
+        found = tracking(law, period, plan, self.settings[name], self.feedforward, run)
         if phase > 0.0:
             found.start_at(phase)
         return found
@@ -103,8 +107,8 @@ def _renamed(exc: ScenarioError) -> ScenarioError:
 
 def reference_goal(spec: s.ReferenceSpec, model: RobotModel, scene: Mapping[str, Obstacle],
                    monitor: ConstraintSet, scenario_file: FilePath, starts: list[Array],
-                   seeds: list[Array], check: Callable[[Array, str], None]
-                   ) -> tuple[Path, GoalPlan]:
+                   seeds: list[Array], check: Callable[[Array, str], None],
+                   periodic: Array | None = None) -> tuple[Path, GoalPlan]:
     """The path and the goal at its first sample with its IK posture (the laws' build);
     refuses a case starting farther from the first sample than the tolerance."""
     path = _path(spec.path, scenario_file)
@@ -112,7 +116,7 @@ def reference_goal(spec: s.ReferenceSpec, model: RobotModel, scene: Mapping[str,
     goal_spec = _as_goal(spec, first)
     try:
         goal = goal_of(goal_spec, model, scene, monitor)
-        found = plan(goal_spec, goal, model, monitor, starts[0], seeds, check)
+        found = plan(goal_spec, goal, model, monitor, starts[0], seeds, check, periodic)
     except ScenarioError as exc:
         raise _renamed(exc) from None
     for i, x0 in enumerate(starts):

@@ -72,7 +72,8 @@ def run_one(
         if progress is not None:
             progress(label, frac)
 
-    law = setup.controller(entry) if backend == "mujoco" else entry.controller
+    entry = setup.for_case(case, entry)  # its own set point when its start is wound
+    law = setup.controller(entry, case) if backend == "mujoco" else entry.controller
     if backend == "mujoco":
         traj = run_mujoco(
             plant or setup.make_plant(), law, setup.model.coordinates,
@@ -103,8 +104,8 @@ def run_one(
     elif setup.goal is not None:
         errors = task_errors(setup.model, setup.goal.goal, traj.position)
         outcome = task_outcome(setup.model, setup.goal.goal, setup.goal.preflight.verdict,
-                               traj, summary.status, setup.monitor.names, margins,
-                               setup.criteria.velocity_tolerance, errors)
+                               traj, summary.status, setup.monitor, margins, setup.criteria,
+                               errors, entry.controller)
         # a goal run settles when it enters the goal's band for good, not at the posture
         summary = replace(summary, **outcome.__dict__, settle_time=outcome.reach_time)
     load = setup.gravity_on_path.get(case.name)

@@ -206,7 +206,8 @@ class Scenario(Strict):
     target: Vector | None = Field(
         default=None, description=(
             "the joint target x_d in controller coordinates; numbers may be expressions of pi"
-            " (give target or goal)"))
+            " (give target or goal); on a continuous joint each case takes the equivalent"
+            " nearest its start (x_d + 2πk)"))
     goal: GoalSpec | None = Field(
         default=None, description="a frame's goal pose instead of a joint target")
     reference: ReferenceSpec | None = Field(
