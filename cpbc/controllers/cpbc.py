@@ -7,7 +7,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
 from cpbc.controllers.controller import Controller, Evaluation, positive_vector
-from cpbc.controllers.packed_law import PackedLaw, keeps, packed_terms, shaping_term
+from cpbc.controllers.packed_law import PackedLaw, law_terms
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
@@ -90,13 +90,7 @@ class CPBC(Controller):
         or the class's formula does not pack."""
         found = self._packed_law
         if found is None or found.law is not type(self):
-            parts = [packed_terms(self.potential), packed_terms(self.damping),
-                     () if self.task_damping is None else packed_terms(self.task_damping),
-                     shaping_term(self.shaping)]
-            if not keeps(type(self), CPBC, ("_law", "_shaped_value", "task_damping_force")):
-                parts.append(None)
-            if not keeps(type(self), Controller, ("frames",)):
-                parts.append(None)
+            parts = law_terms(self, CPBC, ("_law", "_shaped_value", "task_damping_force"))
             found = PackedLaw.build(type(self), parts, self.constraints, self.frames)
             self._packed_law = found
         return found

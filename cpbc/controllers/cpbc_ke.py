@@ -15,7 +15,7 @@ from cpbc.controllers.controller import Controller, Evaluation, positive_vector
 from cpbc.controllers.cpbc import CPBC
 from cpbc.controllers.law_kind import LINEAR, LawInputs, LawKind, shaping
 from cpbc.controllers.law_specs import ConstrainedLawSpec, ShapingSpec
-from cpbc.controllers.packed_law import PackedLaw, keeps, packed_terms, shaping_term
+from cpbc.controllers.packed_law import PackedLaw, law_terms
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
@@ -99,13 +99,7 @@ class CPBCKineticEnergy(Controller):
         or the class's formula does not pack."""
         found = self._packed_law
         if found is None or found.law is not type(self):
-            parts = [packed_terms(self.potential), packed_terms(self.damping),
-                     () if self.task_damping is None else packed_terms(self.task_damping),
-                     shaping_term(self.shaping)]
-            if not keeps(type(self), CPBCKineticEnergy, ("_law", "task_damping_force")):
-                parts.append(None)
-            if not keeps(type(self), Controller, ("frames",)):
-                parts.append(None)
+            parts = law_terms(self, CPBCKineticEnergy, ("_law", "task_damping_force"))
             found = PackedLaw.build(type(self), parts, self._config, self.frames)
             self._packed_law = found
         return found

@@ -23,6 +23,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.packing import Ints, Packed, PackedSet
+from cpbc.controllers.controller import Controller
 from cpbc.errors import CpbcError
 from cpbc.kernels.law_terms import FRAME_KINDS, SHAPING
 from cpbc.kernels.laws import pack_tables
@@ -52,6 +53,20 @@ def shaping_term(shaping: object) -> tuple[Packed, ...] | None:
 def keeps(cls: type, base: type, methods: Iterable[str]) -> bool:
     """Whether ``cls`` keeps ``base``'s ``methods`` (a subclass overriding none of them)."""
     return all(getattr(cls, m) is getattr(base, m) for m in methods)
+
+
+def law_terms(law: Any, base: type, formulas: Sequence[str]) -> list[tuple[Packed, ...] | None]:
+    """A law's terms as its kernel packs them: potential, damping, task damping, shaping —
+    and a None (the general path) when ``type(law)`` overrides one of ``base``'s
+    ``formulas`` or the frames it asks the state for."""
+    parts = [packed_terms(law.potential), packed_terms(law.damping),
+             () if law.task_damping is None else packed_terms(law.task_damping),
+             shaping_term(law.shaping)]
+    if not keeps(type(law), base, formulas):
+        parts.append(None)
+    if not keeps(type(law), Controller, ("frames",)):
+        parts.append(None)
+    return parts
 
 
 @dataclass(frozen=True, eq=False)

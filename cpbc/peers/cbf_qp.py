@@ -332,7 +332,7 @@ def _nominal(spec: CBFQPSpec, given: LawInputs) -> OperationalSpace | None:
         raise ScenarioError(field, "osc steers a frame: give goal: or reference: in place "
                             "of target:, or nominal: pd_gravity")
     task, posture = spec.task or TaskGainsSpec(), spec.posture or PostureGainsSpec()
-    return OperationalSpace(given.goal, given.target, OSCGains(
+    return OperationalSpace(given.model, given.goal, given.target, OSCGains(
         task.omega_n, task.zeta, task.rotation_omega_n or task.omega_n, posture.omega_n,
         posture.zeta))
 
