@@ -13,7 +13,7 @@ from cpbc.controllers.bpbc import BPBC, bounded_damping
 from cpbc.controllers.controller import Controller, positive_vector
 from cpbc.controllers.cpbc_ke import CPBCKineticEnergy
 from cpbc.controllers.law_kind import LawInputs, LawKind, shaping, tanh_slopes
-from cpbc.controllers.law_specs import ConstrainedLawSpec, ShapingSpec
+from cpbc.controllers.law_specs import ShapedLawSpec
 from cpbc.controllers.potentials import (
     JointLogCoshSpring,
     Potential,
@@ -78,7 +78,7 @@ class BPBCKineticEnergy(CPBCKineticEnergy):
 # -- the scenario's ``type: bpbc`` and ``bpbc_ke``: BPBC (cpbc.controllers.bpbc, Theorem 7.7)
 # and this law, whose spring K_P tanh(Ξx̃) and damping K_D tanh(Γẋ) saturate
 # (cpbc.controllers.law_kind) --------------------------------------------------------------
-class BPBCSpec(ConstrainedLawSpec):
+class BPBCSpec(ShapedLawSpec):
     type: Literal["bpbc", "bpbc_ke"] = Field(
         description=(
             "bpbc: Theorem 7.7, bounded torque, a joint_rate_limit on every joint; bpbc_ke: "
@@ -89,9 +89,6 @@ class BPBCSpec(ConstrainedLawSpec):
     gamma: Gain = Field(
         default=1.0, description=(
             "Γ of the K_D tanh(Γẋ) damping: one number or one per coordinate"))
-    shaping: ShapingSpec | None = Field(
-        default=None, description=(
-            "the barrier's shaping s: identity, power (α) or tanh (σ)"))
 
 
 def build_bpbc(spec: BPBCSpec, given: LawInputs) -> Controller:

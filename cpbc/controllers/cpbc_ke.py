@@ -14,7 +14,7 @@ from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.controllers.controller import Controller, Evaluation, positive_vector
 from cpbc.controllers.cpbc import CPBC
 from cpbc.controllers.law_kind import LINEAR, LawInputs, LawKind, shaping
-from cpbc.controllers.law_specs import ConstrainedLawSpec, ShapingSpec
+from cpbc.controllers.law_specs import ShapedLawSpec
 from cpbc.controllers.packed_law import PackedLaw, law_terms
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
@@ -149,14 +149,11 @@ class CPBCKineticEnergy(Controller):
 
 # -- the scenario's ``type: cpbc`` and ``cpbc_ke``: CPBC (cpbc.controllers.cpbc, Theorem 6.9)
 # and this law (cpbc.controllers.law_kind) -------------------------------------------------
-class CPBCSpec(ConstrainedLawSpec):
+class CPBCSpec(ShapedLawSpec):
     type: Literal["cpbc", "cpbc_ke"] = Field(
         description=(
             "cpbc: Theorem 6.9, any configuration and velocity constraints; cpbc_ke: "
             "Corollary 6.11, configuration constraints and one kinetic_energy_limit"))
-    shaping: ShapingSpec | None = Field(
-        default=None, description=(
-            "the barrier's shaping s: identity, power (α) or tanh (σ)"))
 
 
 def build_cpbc(spec: CPBCSpec, given: LawInputs) -> Controller:

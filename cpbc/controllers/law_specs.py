@@ -152,3 +152,12 @@ class ConstrainedLawSpec(LawSpec):
     constraints: list[str] | None = Field(
         default=None, description=(
             "the scenario constraints it enforces, by name; all when omitted"))
+
+
+
+class ShapedLawSpec(ConstrainedLawSpec):
+    """A barrier law whose barrier takes a shaping s (CPBC and BPBC, Chapters 6–7)."""
+
+    shaping: ShapingSpec | None = Field(
+        default=None, description=(
+            "the barrier's shaping s: identity, power (α) or tanh (σ)"))
