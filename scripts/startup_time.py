@@ -1,6 +1,6 @@
 """Start-up of a fresh process: import cpbc, build a guarded Panda law, call ``torque`` once.
 
-Issue 28's target is "a fresh run's import plus first torque call ≤ 1 s" after
+The target is "a fresh run's import plus first torque call ≤ 1 s" after
 ``scripts/install.sh`` (numba's cache warm, so nothing compiles). Two paths, each timed in
 ``--runs`` fresh interpreters taking turns, printed as median and range of wall-clock and
 CPU seconds:

@@ -142,7 +142,7 @@ for robot, controllers, picked in sets + [("panda_goal_pose", laws, states)]:
                 out[f"{robot}/{name}/{i}"] = law.torque(x, dx).tolist()
             except ConstraintViolation:
                 pass
-# the guard's kernels (cpbc.kernels.guard): its accept path, and blends, brakes and box
+# the guard's kernels (cpbc.kernels.sampled_guard): its accept path, and blends, brakes and box
 # scalings from the law's torque pushed off by a fixed noise (the guard's own entry point)
 from cpbc.controllers.safeguard import SafeguardSettings, guarded
 setup = panda(states=8)

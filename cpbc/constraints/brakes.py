@@ -37,7 +37,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import stopping_margins
-from cpbc.kernels.guard import box_clip, box_toward
+from cpbc.kernels.sampled_guard import box_clip, box_toward
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -79,7 +79,7 @@ class TorqueBox:
         return tau if self.to_joint is None else self.to_joint.dot(tau)
 
     def clip(self, tau: Array) -> Array:
-        """τ with each joint torque clipped to its limit (cpbc.kernels.guard.box_clip)."""
+        """τ with each joint torque clipped to its limit (cpbc.kernels.sampled_guard.box_clip)."""
         out = np.empty(len(tau))
         box_clip(*self._packed, tau, out)
         return out
@@ -87,7 +87,8 @@ class TorqueBox:
     def toward(self, bias: Array, tau: Array) -> Array:
         """b + t (τ − b) with the largest t ∈ [0, 1] inside the box: the acceleration
         D⁻¹(τ − b) keeps its direction and only shrinks (τ itself when it fits). Where b alone
-        exceeds a limit no scaling fits, and τ is clipped (cpbc.kernels.guard.box_toward)."""
+        exceeds a limit no scaling fits, and τ is clipped
+        (cpbc.kernels.sampled_guard.box_toward)."""
         out = np.empty(len(tau))
         return tau if box_toward(*self._packed, bias, tau, out) == 0 else out
 

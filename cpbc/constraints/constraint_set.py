@@ -19,19 +19,6 @@ from cpbc.model.robot_model import ArmState, RobotModel
 Constraint = TypeVar("Constraint", ConfigurationConstraint, VelocityConstraint)
 
 
-def _log_sum(parts: Sequence[Array], names: Sequence[str]) -> float:
-    """Σ log of every margin in ``parts`` (cpbc.kernels.barriers.log_sum); ConstraintViolation
-    naming the worst one if any margin is ≤ 0 or NaN."""
-    total = 0.0
-    for m in parts:
-        total += log_sum(m)
-    if total != total:  # a margin ≤ 0 or NaN
-        margins = np.concatenate(parts)
-        i = int(np.argmin(np.nan_to_num(margins, nan=-np.inf)))
-        raise ConstraintViolation(names[i], float(margins[i]))
-    return total
-
-
 def _violation(margins: Array, names: Sequence[str]) -> ConstraintViolation:
     """The worst margin (≤ 0 or NaN) by name."""
     i = int(np.argmin(np.nan_to_num(margins, nan=-np.inf)))
@@ -170,16 +157,6 @@ class ConstraintSet:
         """Every ψ_j at (x, ẋ), in the order of ``names``."""
         parts = [c.value(x, dx, state) for c in self._velocity]
         return np.concatenate(parts) if parts else np.zeros(0)
-
-    def configuration_margins_along(self, xs: Array) -> Array:
-        """Every φ_i at every row of xs, shape (N, number of φ_i)."""
-        parts = [c.values_along(xs) for c in self._config]
-        return np.concatenate(parts, axis=1) if parts else np.zeros((len(xs), 0))
-
-    def velocity_margins_along(self, xs: Array, dxs: Array) -> Array:
-        """Every ψ_j at every row of (xs, dxs), shape (N, number of ψ_j)."""
-        parts = [c.values_along(xs, dxs) for c in self._velocity]
-        return np.concatenate(parts, axis=1) if parts else np.zeros((len(xs), 0))
 
     def margins_along(self, xs: Array, dxs: Array) -> Array:
         """Every margin at every sample, shape (N, m); NaN rows where the state is not finite."""

@@ -34,7 +34,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.kernels.guard import uniform_deceleration
+from cpbc.kernels.sampled_guard import uniform_deceleration
 from cpbc.model.robot_model import RobotModel
 
 
@@ -131,7 +131,7 @@ class Braking:
 
     def deceleration(self, inertia: Array, bias: Array, dx: Array) -> float:
         """A: the largest deceleration along ẋ of the uniform brake (inf at rest;
-        cpbc.kernels.guard.uniform_deceleration)."""
+        cpbc.kernels.sampled_guard.uniform_deceleration)."""
         return uniform_deceleration(inertia, bias, dx, *self._packed, self.to_joint is not None)
 
     def per_speed(self, inertia: Array, bias: Array, dx: Array) -> float:

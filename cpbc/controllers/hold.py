@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.kernels.guard import frozen_start, hold_torque
+from cpbc.kernels.sampled_guard import frozen_start, hold_torque
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -39,7 +39,7 @@ def hold_corrected(model: RobotModel, state: ArmState, bias: Array, tau: Array,
     C ẋ + g (+ f) at the sample."""
     n = len(tau)
     acc, end, speed, out = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    # a₀ = D⁻¹(τ − b) and the frozen prediction's end (x₁, ẋ₁) (cpbc.kernels.guard)
+    # a₀ = D⁻¹(τ − b) and the frozen prediction's end (x₁, ẋ₁) (cpbc.kernels.sampled_guard)
     frozen_start(state.inertia, bias, tau, state.x, state.dx, period, np.empty((n, n)), acc,
                  end, speed)
     hold_torque(state.inertia, tau, acc, model.forward_dynamics(end, speed, tau), share, out)

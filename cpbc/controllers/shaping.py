@@ -12,12 +12,12 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from cpbc.errors import ParameterError
-from cpbc.kernels import shaping as kinds
-from cpbc.kernels.shaping import shaping_terms
+from cpbc.kernels import barrier_shaping as kinds
+from cpbc.kernels.barrier_shaping import shaping_terms
 
 
 class Shaping(Protocol):
-    """A shaping function; its formulas are cpbc.kernels.shaping.shaping_terms."""
+    """A shaping function; its formulas are cpbc.kernels.barrier_shaping.shaping_terms."""
 
     def ratio(self, log_x: float) -> float:
         """r(x) = x s'(x)/s(x) at x = exp(log_x)."""

@@ -14,8 +14,8 @@ from numba.core.registry import CPUDispatcher
 
 MODULES = ("cpbc.kernels.small_solves", "cpbc.kernels.energy", "cpbc.kernels.barriers",
            "cpbc.kernels.laws", "cpbc.kernels.barrier_set", "cpbc.kernels.coordinate_maps",
-           "cpbc.kernels.task", "cpbc.kernels.clearance", "cpbc.kernels.guard",
-           "cpbc.kernels.shaping", "cpbc.kernels.law_terms")
+           "cpbc.kernels.task", "cpbc.kernels.clearance", "cpbc.kernels.sampled_guard",
+           "cpbc.kernels.barrier_shaping", "cpbc.kernels.law_terms")
 
 
 def kernels() -> Iterator[tuple[str, CPUDispatcher]]:

@@ -1,7 +1,7 @@
 """A law's potential and damping from its packed constants (cpbc.controllers.packed_law),
 for the laws' one kernel call per step (cpbc.kernels.laws): each term by its own kind's
 kernel (the joint terms here, the frame terms in cpbc.kernels.task, the shaping in
-cpbc.kernels.shaping).
+cpbc.kernels.barrier_shaping).
 
 The terms are packed like a constraint set (cpbc.constraints.packing): ``plan`` has one row
 per term, [kind, 0, 0, (row, rows, columns) of each float table …], the tables stacked in
@@ -16,7 +16,7 @@ per term, [kind, 0, 0, (row, rows, columns) of each float table …], the tables
 - ``JOINT_DAMPING``: K_D (1, n) (``joint_damping``, eq. 6.10);
 - ``TANH_DAMPING``: [K_D; Γ] (2, n) (``tanh_damping``, eq. 7.17);
 - ``TASK_DAMPING``: [o has_offset] (1, 4), G (6, 6), b (1, 6) (``task_damping``);
-- ``SHAPING``: [kind parameter] (1, 2) (cpbc.kernels.shaping).
+- ``SHAPING``: [kind parameter] (1, 2) (cpbc.kernels.barrier_shaping).
 
 Every frame term reads the one frame the caller passes (origin, axes, [J_v; J_ω]).
 """
@@ -30,8 +30,8 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
 from cpbc.kernels.barrier_set import float_table
+from cpbc.kernels.barrier_shaping import shaping_terms
 from cpbc.kernels.clearance import Ints
-from cpbc.kernels.shaping import shaping_terms
 from cpbc.kernels.task import axis_spring, orientation_spring, position_spring, task_damping
 
 JOINT_SPRING, POSITION_SPRING, AXIS_SPRING, ORIENTATION_SPRING = 0, 1, 2, 3
@@ -161,7 +161,7 @@ def damping_terms(plan: Ints, floats: Array, dx: Array, origin: Array, rotation:
 
 @kernel("UniTuple(float64, 2)(int64[:, :], float64[:, :], float64)")
 def shaped(plan: Ints, floats: Array, log_x: float) -> tuple[float, float]:
-    """r(x) and log s(x) of the packed shaping (cpbc.kernels.shaping.shaping_terms); those
+    """r(x) and log s(x) of the packed shaping (cpbc.kernels.barrier_shaping.shaping_terms); those
     of s(x) = x when none is packed."""
     for r in range(plan.shape[0]):
         if plan[r, 0] == SHAPING:

@@ -79,7 +79,7 @@ def cpbc_ke_torque(gravity: Array, grad: Array, damping: Array, gradient: Array,
 
 @kernel("float64(float64, float64)")
 def shaped_value(lag: float, log_s: float) -> float:
-    """V = L / s(ΦΨ), evaluated in logs (log s from cpbc.kernels.shaping); 0 when L ≤ 0."""
+    """V = L / s(ΦΨ), evaluated in logs (log s from cpbc.kernels.barrier_shaping); 0 when L ≤ 0."""
     if lag <= 0.0:
         return 0.0
     return math.exp(math.log(lag) - log_s)

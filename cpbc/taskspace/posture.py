@@ -1,4 +1,4 @@
-"""Continuous joints and the set points a law pulls toward (issue 26, TASKSPACE R14).
+"""Continuous joints and the set points a law pulls toward.
 
 A continuous joint (a URDF ``continuous`` joint: the Kinova Jaco2's joints 1, 4 and 6, the
 PR2's forearm and wrist rolls) has no stop: q and q + 2πk are one configuration, and the

@@ -31,10 +31,6 @@ AT_POINT[9:, 3] = 1.0
 AT_POINT.setflags(write=False)
 FORCE = np.vstack([np.eye(3)] * 4)
 FORCE.setflags(write=False)
-ONES3, ONES12 = np.ones(3), np.ones(12)  # sums over a short first axis: a dot is cheaper
-
-# 0-d arrays: numpy takes them faster than Python floats as ufunc operands
-ZERO, ONE, THREE = np.array(0.0), np.array(1.0), np.array(3.0)
 
 TINY = 1e-300
 

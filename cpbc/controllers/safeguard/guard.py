@@ -23,7 +23,7 @@ from cpbc.controllers.safeguard.predicted_margins import PredictedMargins
 from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_share
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.errors import CpbcError
-from cpbc.kernels.guard import floors
+from cpbc.kernels.sampled_guard import floors
 from cpbc.model.robot_model import ArmState
 
 
@@ -138,12 +138,6 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         self.scaled = 0
         self.uncorrected = 0
         self.rescues = 0
-
-    def reset_counts(self) -> None:
-        self.calls = self.acted = self.infeasible = self.scaled = self.uncorrected = 0
-        self.rescues = 0
-        if self.rescue is not None:
-            self.rescue.forget()
 
     # -- the Controller interface ------------------------------------------------------------
 

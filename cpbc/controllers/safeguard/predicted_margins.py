@@ -1,6 +1,6 @@
 """Every guarded margin along one prediction of the period, and F of (S1) and (S2) there
 (step 3 of the package docstring): the guard's accept path in compiled kernels
-(cpbc.kernels.guard), with Pinocchio's joint placements at each predicted configuration
+(cpbc.kernels.sampled_guard), with Pinocchio's joint placements at each predicted configuration
 between them.
 
 The constraints whose kinds have kernels (linear and rate limits, Clearance's sphere pairs)
@@ -23,7 +23,7 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.packing import Packed, PackedSet
 from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES
-from cpbc.kernels.guard import configuration_rows, predicted_slack
+from cpbc.kernels.sampled_guard import configuration_rows, predicted_slack
 from cpbc.model.robot_model import RobotModel
 
 C = TypeVar("C", ConfigurationConstraint, VelocityConstraint)

@@ -10,7 +10,7 @@ from collections.abc import Callable
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.kernels.guard import frozen_rows, frozen_start
+from cpbc.kernels.sampled_guard import frozen_rows, frozen_start
 from cpbc.model.robot_model import ArmState, RobotModel
 
 # (mid-period positions, end positions, end rates, then positions and rates inside the
