@@ -312,14 +312,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     blocks_us.update(peers)
     torque_us.update({k: statistics.median(v) for k, v in peers.items()})
     governor = time_governor(args.repeats)
-    taskspace = taskspace_times(args.repeats) if setup.robot == "panda" else None
-    document = {"robot": setup.robot, "torque_us": torque_us,
+    document: dict[str, object] = {"robot": setup.robot, "torque_us": torque_us,
                 "torque_us_range": {k: [min(v), max(v)] for k, v in blocks_us.items()},
                 "closed_loop_steps_per_second": loop,
                 "closed_loop_bare_law_steps_per_second": bare,
                 "cpbc_over_pd_gravity": ratio, "governor_us": governor,
-                "taskspace": taskspace,
                 "notes": setup.notes, "made": made(argv, args.repeats, len(setup.states))}
+    taskspace = None
+    if setup.robot == "panda":  # the task-space pair is panda_goal_pose's arm
+        taskspace = document["taskspace"] = taskspace_times(args.repeats)
     if args.markdown:
         Path(args.markdown).write_text(bench_markdown([document]), encoding="utf-8")
     if args.json:
