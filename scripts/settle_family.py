@@ -8,6 +8,10 @@ quartiles and the range of the settle time, its ratio to the CBF-QP's on the sam
 the reaches that did not converge.
 
     PYTHONPATH=. python scripts/settle_family.py [--pairs 20] [--shift 0.1] [--seed 0]
+        [--out docs/tables/settle_family.md]
+
+``--out`` writes the table as the Markdown fragment the reliability page includes, headed by
+the command, date, commit and run time.
 
 (``PYTHONPATH=.``: a script's own folder, not the checkout, heads Python's path, so without
 it an installed copy of cpbc would be measured instead of this one.)
@@ -16,10 +20,14 @@ it an installed copy of cpbc would be measured instead of this one.)
 from __future__ import annotations
 
 import argparse
+import shlex
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
+from cpbc.provenance import commit
 from cpbc.scenario import build, load_scenario
 from cpbc.scenario.runner import run_one
 from cpbc.scenario.schema import Scenario
@@ -42,6 +50,7 @@ def main() -> None:
     p.add_argument("--pairs", type=int, default=20)
     p.add_argument("--shift", type=float, default=0.1)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", help="also write the table here as a Markdown fragment")
     args = p.parse_args()
     spec, file = load_scenario("panda_cbf_qp")
     settle: dict[str, list[float]] = {}
@@ -59,20 +68,36 @@ def main() -> None:
                 failed.setdefault(entry.name, []).append(i)
         print(f"reach {i}: " + ", ".join(f"{n} {v[-1]:.3f} s" for n, v in settle.items()),
               flush=True)
+    took = time.time() - began
+    head = (f"{len(settle.get('CBF-QP', []))} reaches ({args.pairs} pairs, shift ±{args.shift} "
+            f"rad, seed {args.seed}), {time.strftime('%Y-%m-%d')}, {took:.0f} s")
+    print("\n" + head)
+    lines = table(settle, failed)
+    print("\n".join(lines))
+    if args.out:
+        command = "PYTHONPATH=. python " + shlex.join(["scripts/settle_family.py", *sys.argv[1:]])
+        Path(args.out).write_text(
+            f"Written by `{command}` at commit `{commit() or 'unknown'}`: {head}.\n\n"
+            + "\n".join(lines) + "\n", encoding="utf-8")
+
+
+def table(settle: dict[str, list[float]], failed: dict[str, list[int]]) -> list[str]:
+    """Per controller: settle time median (quartiles; range), its ratio to the CBF-QP's on the
+    same reach, and the reaches that did not converge, as Markdown rows."""
     peer = np.array(settle.get("CBF-QP", []))
-    print(f"\n{len(peer)} reaches ({args.pairs} pairs, shift ±{args.shift} rad, seed "
-          f"{args.seed}), {time.strftime('%Y-%m-%d')}, {time.time() - began:.0f} s")
-    print("controller | median settle [s] | quartiles | range | median ratio to CBF-QP "
-          "(quartiles, range) | not converged")
+    lines = ["| controller | settle [s] | ratio to CBF-QP | not converged |",
+             "|---|---|---|---|"]
     for name, values in settle.items():
         v = np.array(values)
         ratio = v / peer if peer.size == v.size else np.full(v.size, np.nan)
         q = np.nanpercentile(v, [0, 25, 50, 75, 100])
         r = np.nanpercentile(ratio, [0, 25, 50, 75, 100])
-        print(f"{name} | {q[2]:.3f} | {q[1]:.3f}–{q[3]:.3f} | {q[0]:.3f}–{q[4]:.3f} | "
-              f"{r[2]:.3f} ({r[1]:.3f}–{r[3]:.3f}, {r[0]:.3f}–{r[4]:.3f}) | "
-              f"{failed.get(name, [])}")
-
+        missed = failed.get(name, [])
+        which = f" (reaches {missed})" if missed else ""
+        lines.append(f"| {name} | {q[2]:.3f} ({q[1]:.3f}–{q[3]:.3f}; {q[0]:.3f}–{q[4]:.3f}) | "
+                     f"{r[2]:.3f} ({r[1]:.3f}–{r[3]:.3f}; {r[0]:.3f}–{r[4]:.3f}) | "
+                     f"{len(missed)} / {v.size}{which} |")
+    return lines
 
 if __name__ == "__main__":
     main()
