@@ -42,6 +42,10 @@ FRAGMENTS: dict[str, tuple[tuple[str, ...], str]] = {
     "docs/tables/reliability.md": (("docs/RELIABILITY.md",), "rows"),
     "docs/tables/taskspace-campaign.md": (
         tuple(f"docs/tables/taskspace/{name}.json" for name in TASK_SPACE), "by-rate"),
+    "docs/tables/peer-campaign.md": (
+        tuple(f"docs/tables/peer/{name}.json"
+              for name in ("panda_cbf_qp", "panda_cbf_qp_exponential", "ur5_cbf_qp")), "rows"),
+    "docs/tables/peer-ke-campaign.md": (("docs/tables/peer/panda_ke_cbf_qp.json",), "rows"),
 }
 DOCS_COMMAND = "python -m tools.verify_table --docs"
 
