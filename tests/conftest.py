@@ -31,6 +31,59 @@ def load_dict(tmp_path: Path) -> Callable[[dict], ScenarioSetup]:
 
     return _load
 
+TS_CPBC = {"type": "cpbc", "name": "TS-CPBC",
+           "task": {"omega_n": 12, "zeta": 1, "rotation_omega_n": 24},
+           "posture": {"omega_n": 2, "zeta": 1}}
+
+
+@pytest.fixture
+def ur10_under_ball() -> Callable[..., dict]:
+    """The UR10 tool just under a ball (no seed reaches the goal): a scenario dict for
+    ``duration`` seconds with one controller, TS-CPBC updated by ``law``."""
+
+    def _scenario(duration: float, **law: object) -> dict:
+        return {
+            "name": "ur10_under_ball", "robot": {"model": "ur10"},
+            "simulation": {"duration": duration, "timestep": 0.001},
+            "goal": {"frame": "tool0", "position": [0.6, 0.2, 0.36],
+                     "orientation": {"axis": {"tool": [0, 0, 1], "world": [0, 0, -1]}}},
+            "cases": [{"name": "start", "position": [0.0, -1.57, 1.57, -1.57, -1.57, 0.0]}],
+            "obstacles": [{"type": "plane", "name": "table", "point": [0, 0, -0.08]},
+                          {"type": "sphere", "name": "ball", "centre": [0.6, 0.2, 0.5],
+                           "radius": 0.1}],
+            "constraints": [
+                {"type": "joint_position_limit", "name": "ranges", "lower": "from_model",
+                 "upper": "from_model"},
+                {"type": "clearance", "name": "clearance", "margin": 0.01, "influence": 0.1}],
+            "controllers": [{**TS_CPBC, **law}],
+        }
+
+    return _scenario
+
+
+@pytest.fixture
+def kinova_behind_base() -> Callable[..., dict]:
+    """The Kinova Jaco2 from its upright start (the wrist all but singular) to a goal behind
+    the base, joints 2, 3 and 5 kept in range: a scenario dict for ``duration`` seconds with
+    one controller, TS-CPBC updated by ``law``."""
+
+    def _scenario(duration: float, **law: object) -> dict:
+        return {
+            "name": "kinova_behind", "robot": {"model": "kinova"},
+            "simulation": {"duration": duration, "timestep": 0.001},
+            "goal": {"frame": "j2s6s200_end_effector", "position": [-0.30, 0.10, 0.45],
+                     "orientation": {"axis": {"tool": [0, 0, 1], "world": [0, 0, -1]}}},
+            "cases": [{"name": "upright",
+                       "position": [-0.1, 3.0416, 3.0416, -0.1, 3.0416, -0.1]}],
+            "constraints": [{"type": "joint_position_limit", "name": "ranges",
+                             "lower": "from_model", "upper": "from_model",
+                             "joints": ["j2s6s200_joint_2", "j2s6s200_joint_3",
+                                        "j2s6s200_joint_5"]}],
+            "controllers": [{**TS_CPBC, **law}],
+        }
+
+    return _scenario
+
 
 @pytest.fixture(scope="session")
 def planar_path() -> Path:

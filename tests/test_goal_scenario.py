@@ -97,28 +97,13 @@ def test_preflight_verdicts(load_dict, data, position, verdict, named) -> None:
     assert np.all(config.configuration_margins(found.posture) > 0)
 
 
-def test_a_blocked_goal_keeps_the_posture_of_the_descent_from_the_start(load_dict) -> None:
+def test_a_blocked_goal_keeps_the_posture_of_the_descent_from_the_start(
+        load_dict, ur10_under_ball) -> None:
     # UR10 tool just under a ball: no seed reaches it. A seed on the far branch (pan −2.6 rad)
     # misses by less, but the law descends from the start: taking that branch's posture sent
     # the posture spring across the workspace and the arm wandered for 8 s.
-    start = [0.0, -1.57, 1.57, -1.57, -1.57, 0.0]
-    scenario = {
-        "name": "ur10_under_ball", "robot": {"model": "ur10"},
-        "simulation": {"duration": 1.0, "timestep": 0.001},
-        "goal": {"frame": "tool0", "position": [0.6, 0.2, 0.36],
-                 "orientation": {"axis": {"tool": [0, 0, 1], "world": [0, 0, -1]}}},
-        "cases": [{"name": "start", "position": start}],
-        "obstacles": [{"type": "plane", "name": "table", "point": [0, 0, -0.08]},
-                      {"type": "sphere", "name": "ball", "centre": [0.6, 0.2, 0.5],
-                       "radius": 0.1}],
-        "constraints": [
-            {"type": "joint_position_limit", "name": "ranges", "lower": "from_model",
-             "upper": "from_model"},
-            {"type": "clearance", "name": "clearance", "margin": 0.01, "influence": 0.1}],
-        "controllers": [{"type": "cpbc", "name": "TS-CPBC",
-                         "task": {"omega_n": 12, "zeta": 1, "rotation_omega_n": 24},
-                         "posture": {"omega_n": 2, "zeta": 1}}],
-    }
+    scenario = ur10_under_ball(1.0)
+    start = scenario["cases"][0]["position"]
     plan = load_dict(scenario).goal
     assert plan is not None
     assert plan.preflight.verdict == "blocked", plan.preflight.describe()
@@ -126,7 +111,8 @@ def test_a_blocked_goal_keeps_the_posture_of_the_descent_from_the_start(load_dic
     assert np.max(np.abs(plan.posture - np.array(start))) < 0.5, plan.posture
 
 
-def test_the_hold_check_pairs_each_state_s_jacobian_with_its_inertia(load_dict) -> None:
+def test_the_hold_check_pairs_each_state_s_jacobian_with_its_inertia(
+        load_dict, kinova_behind_base) -> None:
     # Kinova Jaco2 from the upright start (its wrist all but singular: joint 4 alone weighs
     # 3e-4 kg·m²) to a goal behind the base. The check once put the task springs through the
     # posture's Jacobian against the start's inertia — a law that never exists — and refused
@@ -134,19 +120,7 @@ def test_the_hold_check_pairs_each_state_s_jacobian_with_its_inertia(load_dict) 
     # stable, and the plant agrees: PD + g with those gains reaches the goal.
     from cpbc.scenario.runner import run_one
 
-    scenario = {
-        "name": "kinova_behind", "robot": {"model": "kinova"},
-        "simulation": {"duration": 8.0, "timestep": 0.001},
-        "goal": {"frame": "j2s6s200_end_effector", "position": [-0.30, 0.10, 0.45],
-                 "orientation": {"axis": {"tool": [0, 0, 1], "world": [0, 0, -1]}}},
-        "cases": [{"name": "upright", "position": [-0.1, 3.0416, 3.0416, -0.1, 3.0416, -0.1]}],
-        "constraints": [{"type": "joint_position_limit", "name": "ranges", "lower": "from_model",
-                         "upper": "from_model",
-                         "joints": ["j2s6s200_joint_2", "j2s6s200_joint_3", "j2s6s200_joint_5"]}],
-        "controllers": [{"type": "pd_gravity", "name": "TS-PD+g",
-                         "task": {"omega_n": 12, "zeta": 1, "rotation_omega_n": 24},
-                         "posture": {"omega_n": 2, "zeta": 1}}],
-    }
+    scenario = kinova_behind_base(8.0, type="pd_gravity", name="TS-PD+g")
     setup = load_dict(scenario)
     summary = run_one(setup, setup.cases[0], setup.controllers[0], "mujoco").summary
     assert summary.status == "reached", (summary.status, summary.task_error_final)

@@ -10,71 +10,40 @@ from cpbc.results.metrics import RunSummary
 from cpbc.scenario import ScenarioSetup
 from cpbc.scenario.runner import run_one
 
-TS_CPBC = {"type": "cpbc", "name": "TS-CPBC",
-           "task": {"omega_n": 12, "zeta": 1, "rotation_omega_n": 24},
-           "posture": {"omega_n": 2, "zeta": 1}}
-
-
-def _ur10_under_ball(**law: object) -> dict:
-    """The UR10 tool just under a ball (tests/test_goal_scenario.py), for 20 s."""
-    return {
-        "name": "ur10_under_ball", "robot": {"model": "ur10"},
-        "simulation": {"duration": 20.0, "timestep": 0.001},
-        "goal": {"frame": "tool0", "position": [0.6, 0.2, 0.36],
-                 "orientation": {"axis": {"tool": [0, 0, 1], "world": [0, 0, -1]}}},
-        "cases": [{"name": "start", "position": [0.0, -1.57, 1.57, -1.57, -1.57, 0.0]}],
-        "obstacles": [{"type": "plane", "name": "table", "point": [0, 0, -0.08]},
-                      {"type": "sphere", "name": "ball", "centre": [0.6, 0.2, 0.5],
-                       "radius": 0.1}],
-        "constraints": [
-            {"type": "joint_position_limit", "name": "ranges", "lower": "from_model",
-             "upper": "from_model"},
-            {"type": "clearance", "name": "clearance", "margin": 0.01, "influence": 0.1}],
-        "controllers": [{**TS_CPBC, **law}],
-    }
-
 
 def _run(load_dict: Callable[[dict], ScenarioSetup], scenario: dict) -> RunSummary:
     setup = load_dict(scenario)
     return run_one(setup, setup.cases[0], setup.controllers[0], "mujoco").summary
 
 
-def test_a_goal_under_the_ball_is_held_by_the_ball_s_clearance(load_dict) -> None:
+def test_a_goal_under_the_ball_is_held_by_the_ball_s_clearance(load_dict, ur10_under_ball
+                                                                ) -> None:
     # The law rests 126 mm and 1.1 rad off, its wrist 61 mm from the ball's clearance
     # (0.86 of its start margin). Its springs do not balance each other there (net
     # ∂U/∂x 42 against 46 in the parts): the barrier holds it. It read local_minimum.
-    s = _run(load_dict, _ur10_under_ball())
+    s = _run(load_dict, ur10_under_ball(20.0))
     assert s.status == "stalled", s.status
     kind = s.stall_kind or ""
     assert kind.startswith("barrier:clearance[") and kind.endswith("|ball]"), kind
 
 
-def test_an_arm_creeping_along_a_kept_clearance_is_stalled(load_dict) -> None:
+def test_an_arm_creeping_along_a_kept_clearance_is_stalled(load_dict, ur10_under_ball) -> None:
     # The law enforces the ranges only; the safeguard keeps the ball's clearance. The wrist
     # rides it (7e-5 of its 0.039 start margin) in stick-slip — braked to rest, pushed on —
     # at up to 0.06 rad/s, the hand 245 mm off and not closing in. Judged against the
     # posture (2 % of joint progress) it read not_settled at 20 s, and at 40 s.
-    s = _run(load_dict, _ur10_under_ball(constraints=["ranges"]))
+    s = _run(load_dict, ur10_under_ball(20.0, constraints=["ranges"]))
     assert s.status == "stalled", s.status
     assert s.stall_kind == "barrier:clearance[wrist_3_link|ball]", s.stall_kind
 
 
-def test_a_kinova_goal_held_off_by_the_shaped_barrier_names_its_joint(load_dict) -> None:
+def test_a_kinova_goal_held_off_by_the_shaped_barrier_names_its_joint(
+        load_dict, kinova_behind_base) -> None:
     # Kinova Jaco2 from the upright start to a goal behind the base, power shaping α = 0.2:
     # the law rests 110 mm off, where α U ∇ln φ of joint 3's range (0.24 rad from its stop,
     # 16 % of its start margin) gives 0.92 N·m against the task springs' 1.11. It read
     # local_minimum.
-    scenario = {
-        "name": "kinova_behind", "robot": {"model": "kinova"},
-        "simulation": {"duration": 6.0, "timestep": 0.001},
-        "goal": {"frame": "j2s6s200_end_effector", "position": [-0.30, 0.10, 0.45],
-                 "orientation": {"axis": {"tool": [0, 0, 1], "world": [0, 0, -1]}}},
-        "cases": [{"name": "upright", "position": [-0.1, 3.0416, 3.0416, -0.1, 3.0416, -0.1]}],
-        "constraints": [{"type": "joint_position_limit", "name": "ranges", "lower": "from_model",
-                         "upper": "from_model",
-                         "joints": ["j2s6s200_joint_2", "j2s6s200_joint_3", "j2s6s200_joint_5"]}],
-        "controllers": [{**TS_CPBC, "shaping": {"type": "power", "alpha": 0.2}}],
-    }
+    scenario = kinova_behind_base(6.0, shaping={"type": "power", "alpha": 0.2})
     s = _run(load_dict, scenario)
     assert s.status == "stalled", s.status
     assert s.stall_kind == "barrier:position[j2s6s200_joint_3]", s.stall_kind
