@@ -7,7 +7,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
 from cpbc.controllers.controller import Controller, Evaluation, positive_vector
-from cpbc.controllers.packed_law import PackedLaw, law_terms
+from cpbc.controllers.packed_law import PackedLaw, PacksItsLaw, law_terms
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
@@ -16,7 +16,7 @@ from cpbc.kernels.laws import cpbc_step, cpbc_torque, shaped_value, zero_terms
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
-class CPBC(Controller):
+class CPBC(PacksItsLaw, Controller):
     """Constrained PBC for configuration and velocity constraints (Theorem 6.9, eq. 6.24/6.70).
 
     With V = L / s(ΦΨ), L = ½ẋᵀDẋ + U(x̃), dividing (6.24) by s gives the equivalent
@@ -49,12 +49,6 @@ class CPBC(Controller):
     type_name = "cpbc"
     _packed_from = frozenset({"constraints", "potential", "damping", "task_damping",
                               "shaping"})
-    _packed_law: PackedLaw | None = None
-
-    def __setattr__(self, name: str, value: object) -> None:
-        super().__setattr__(name, value)
-        if name in self._packed_from:  # pack again at the next step
-            super().__setattr__("_packed_law", None)
 
     def __init__(
         self,
@@ -78,27 +72,17 @@ class CPBC(Controller):
         self._no_barrier = zero_terms(model.n)
 
     def state(self, x: Array, dx: Array) -> ArmState:
-        packed = self._packed_law
-        if packed is None or packed.law is not type(self):
-            packed = self.packed_law()
+        packed = self.packed_law()
         if packed.terms is None:
             return super().state(x, dx)
         return packed.state(self.model, x, dx)
 
-    def packed_law(self) -> PackedLaw:
-        """The law's packed terms (cpbc.controllers.packed_law); ``terms`` None when a term
-        or the class's formula does not pack."""
-        found = self._packed_law
-        if found is None or found.law is not type(self):
-            parts = law_terms(self, CPBC, ("_law", "_shaped_value", "task_damping_force"))
-            found = PackedLaw.build(type(self), parts, self.constraints, self.frames)
-            self._packed_law = found
-        return found
+    def _pack(self) -> PackedLaw:
+        parts = law_terms(self, CPBC, ("_law", "_shaped_value", "task_damping_force"))
+        return PackedLaw.build(type(self), parts, self.constraints, self.frames)
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
-        packed = self._packed_law
-        if packed is None or packed.law is not type(self):
-            packed = self.packed_law()
+        packed = self.packed_law()
         if packed.terms is not None:
             return self._packed_step(packed, state, margins)
         bar = self.constraints.barrier(state, margins)  # raises outside S

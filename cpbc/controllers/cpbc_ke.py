@@ -15,7 +15,7 @@ from cpbc.controllers.controller import Controller, Evaluation, positive_vector
 from cpbc.controllers.cpbc import CPBC
 from cpbc.controllers.law_kind import LINEAR, LawInputs, LawKind, shaping
 from cpbc.controllers.law_specs import ShapedLawSpec
-from cpbc.controllers.packed_law import PackedLaw, law_terms
+from cpbc.controllers.packed_law import PackedLaw, PacksItsLaw, law_terms
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
@@ -37,7 +37,7 @@ def single_energy_limit(constraints: ConstraintSet, law: str) -> KineticEnergyLi
     return ke[0]
 
 
-class CPBCKineticEnergy(Controller):
+class CPBCKineticEnergy(PacksItsLaw, Controller):
     """Corollary 6.11 (eq. 6.67) with shaping s, in log-barrier form:
 
         τ = g + [−(∂U/∂x + K_D ẋ) + ρ b_φ] / (1 + ρ/ψ),   ρ = r(ΦΨ)·L
@@ -53,12 +53,6 @@ class CPBCKineticEnergy(Controller):
     type_name = "cpbc_ke"
     _packed_from = frozenset({"constraints", "energy", "potential", "damping",
                               "task_damping", "shaping", "_config"})
-    _packed_law: PackedLaw | None = None
-
-    def __setattr__(self, name: str, value: object) -> None:
-        super().__setattr__(name, value)
-        if name in self._packed_from:  # pack again at the next step
-            super().__setattr__("_packed_law", None)
 
     def __init__(
         self,
@@ -87,27 +81,17 @@ class CPBCKineticEnergy(Controller):
         """The per-step state of the configuration constraints and the potential: the law
         reads the energy limit through D alone (no C, which the limit's own barrier terms
         would need)."""
-        packed = self._packed_law
-        if packed is None or packed.law is not type(self):
-            packed = self.packed_law()
+        packed = self.packed_law()
         if packed.terms is None:
             return self._config.state(self.model, x, dx, self.frames)
         return packed.state(self.model, x, dx)
 
-    def packed_law(self) -> PackedLaw:
-        """The law's packed terms (cpbc.controllers.packed_law); ``terms`` None when a term
-        or the class's formula does not pack."""
-        found = self._packed_law
-        if found is None or found.law is not type(self):
-            parts = law_terms(self, CPBCKineticEnergy, ("_law", "task_damping_force"))
-            found = PackedLaw.build(type(self), parts, self._config, self.frames)
-            self._packed_law = found
-        return found
+    def _pack(self) -> PackedLaw:
+        parts = law_terms(self, CPBCKineticEnergy, ("_law", "task_damping_force"))
+        return PackedLaw.build(type(self), parts, self._config, self.frames)
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
-        packed = self._packed_law
-        if packed is None or packed.law is not type(self):
-            packed = self.packed_law()
+        packed = self.packed_law()
         if packed.terms is not None:
             return self._packed_step(packed, state, margins)
         kinetic = kinetic_energy(state.inertia, state.dx)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -67,6 +67,32 @@ def law_terms(law: Any, base: type, formulas: Sequence[str]) -> list[tuple[Packe
     if not keeps(type(law), Controller, ("frames",)):
         parts.append(None)
     return parts
+
+
+class PacksItsLaw:
+    """A law that keeps its :class:`PackedLaw`: made at the first step (``_pack``) and again
+    after any attribute named in ``_packed_from`` is set or the object's class changes."""
+
+    _packed_from: ClassVar[frozenset[str]] = frozenset()
+    _packed_law: PackedLaw | None = None
+
+    def __setattr__(self, name: str, value: object) -> None:
+        super().__setattr__(name, value)
+        if name in self._packed_from:  # pack again at the next step
+            super().__setattr__("_packed_law", None)
+
+    def packed_law(self) -> PackedLaw:
+        """The law's packed terms; ``terms`` None when a term or the class's formula does
+        not pack."""
+        found = self._packed_law
+        if found is None or found.law is not type(self):
+            found = self._pack()
+            self._packed_law = found
+        return found
+
+    def _pack(self) -> PackedLaw:
+        """:meth:`PackedLaw.build` for this law's terms, constraints and frames."""
+        raise NotImplementedError
 
 
 @dataclass(frozen=True, eq=False)
