@@ -351,13 +351,5 @@ class RobotModel:
         return placement.translation.copy(), placement.rotation.copy()
 
     def point_jacobian(self, frame_id: int, x: Array, offset: Array | None = None) -> Array:
-        """∂p/∂x of a point fixed in a frame, shape (3, n). Call after point_position(x)."""
-        q = self._q(x)
-        j = pin.computeFrameJacobian(
-            self.model, self.data, q, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        )
-        jv = j[:3]
-        if offset is not None:
-            r = self.data.oMf[frame_id].rotation @ np.asarray(offset, dtype=float)
-            jv = jv - np.cross(r, j[3:].T).T  # v_p = v_o + ω × r
-        return jv if self._identity else jv @ self.coordinates.inverse
+        """∂p/∂x of a point fixed in a frame, shape (3, n) (:meth:`point_kinematics`)."""
+        return self.point_kinematics(frame_id, x, offset)[1]

@@ -122,7 +122,6 @@ def stall_kind(model: RobotModel, goal: FrameGoal, x: Array, names: Sequence[str
     """Why an arm rests away from a reachable goal (module docstring); ``margins`` is the
     run's margin history (N, m) in the order of ``names``; with the ``law`` and the
     ``monitor``'s constraints, also a barrier that holds the arm with a margin to spare."""
-    model.point_position(goal.frame, x, goal.offset)
     jv = model.point_jacobian(goal.frame, x, goal.offset)
     if np.linalg.svd(jv, compute_uv=False)[-1] < SINGULAR:
         return "singular"
