@@ -29,6 +29,7 @@ from cpbc.reliability.report import (
     CampaignTable,
     Record,
     campaign_table,
+    duration,
     fragment,
     plan_command,
     read_report,
@@ -58,9 +59,7 @@ def _name(path: Path) -> str:
 
 
 def _made(made: Record) -> str:
-    seconds = float(cast(float, made.get("seconds", -1)))
-    took = "" if seconds < 0 else (f" in {seconds / 60:.1f} min" if seconds >= 60
-                                   else f" in {seconds:.0f} s")
+    took = duration(cast(float | None, made.get("seconds")))
     return (f"`{made.get('command')}` on {made.get('date')}{took}, commit "
             f"`{made.get('commit') or 'unknown'}` (cpbc {made.get('cpbc')})")
 

@@ -146,10 +146,16 @@ def _section(table: CampaignTable) -> list[str]:
             *("| " + " | ".join(row) + " |" for row in table.rows)]
 
 
+def duration(seconds: float | None) -> str:
+    """" in 1.5 min" or " in 42 s" for a run's length; "" when it is not known."""
+    if seconds is None or seconds < 0:
+        return ""
+    return f" in {seconds / 60:.1f} min" if seconds >= 60 else f" in {seconds:.0f} s"
+
+
 def made_line(command: str, seconds: float | None, commit: str | None = None) -> str:
     """The report's first paragraph: the command, the version, the machine and the date."""
-    took = "" if seconds is None else (f" in {seconds / 60:.1f} min" if seconds >= 60
-                                          else f" in {seconds:.0f} s")
+    took = duration(seconds)
     at = f" (commit {commit})" if commit else ""
     return (f"Made by `{command or 'python -m cpbc.verify'}` with cpbc {__version__}{at}, "
             f"Python {platform.python_version()}, {os.cpu_count()} cores, on "
