@@ -21,7 +21,8 @@ import shlex
 import statistics
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -117,27 +118,33 @@ def panda() -> BenchSetup:
 ROBOTS: dict[str, Callable[[], BenchSetup]] = {"planar_2link": planar_2link, "panda": panda}
 
 
+@contextmanager
+def collector_paused() -> Iterator[None]:
+    """Python's garbage collector off inside a timed block, as ``timeit`` does: a collection
+    that happens to fall in one block (≈ 8 ms, seen on the guarded Panda) is the
+    interpreter's cost, not the law's, and made the guarded figure swing 3× between runs."""
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if collecting:
+            gc.enable()
+
+
 def time_blocks(
     ctrl: Controller, states: Sequence[tuple[Array, Array]], repeats: int
 ) -> list[float]:
-    """The mean cost of one torque call in each of ``repeats`` blocks over ``states`` [µs].
-
-    The garbage collector is paused inside a block, as ``timeit`` does: a collection that
-    happens to fall in one block (≈ 8 ms, seen on the guarded Panda) is the interpreter's
-    cost, not the law's, and made the guarded figure swing 3× between runs. A rare path the
-    law takes on some state (a rescue search) stays in the block's mean."""
+    """The mean cost of one torque call in each of ``repeats`` blocks over ``states`` [µs],
+    the collector paused in each (:func:`collector_paused`); a rare path the law takes on
+    some state (a rescue search) stays in the block's mean."""
     blocks = []
-    collecting = gc.isenabled()
     for _ in range(repeats):
-        gc.disable()
-        try:
+        with collector_paused():
             start = time.perf_counter()
             for x, dx in states:
                 ctrl.torque(x, dx)
             blocks.append((time.perf_counter() - start) / len(states) * 1e6)
-        finally:
-            if collecting:
-                gc.enable()
     return blocks
 
 
@@ -188,10 +195,11 @@ def time_governor(repeats: int, steps: int = 5000) -> float:
     gov = PathGovernor(GovernorSettings(), 1e9, 0.001, ((5e8, 6e8, "x"),))
     times = []
     for r in range(repeats):
-        start = time.perf_counter()
-        for k in range(steps):
-            gov.advance((r * steps + k) * 0.001, 0.1, 0.25)
-        times.append((time.perf_counter() - start) / steps)
+        with collector_paused():
+            start = time.perf_counter()
+            for k in range(steps):
+                gov.advance((r * steps + k) * 0.001, 0.1, 0.25)
+            times.append((time.perf_counter() - start) / steps)
     return statistics.median(times) * 1e6
 
 
@@ -222,19 +230,20 @@ def time_interleaved(controllers: dict[str, Controller], states: Sequence[tuple[
                      repeats: int, chunk: int = 8) -> dict[str, list[float]]:
     """Every controller's mean cost of one torque call [µs] in each of ``repeats`` rounds;
     within a round the controllers take turns on each ``chunk`` of states, so that a change
-    of the machine's load hits them alike."""
+    of the machine's load hits them alike; the collector paused in each round."""
     for ctrl in controllers.values():
         time_torque(ctrl, states[:chunk], 1)
     blocks: dict[str, list[float]] = {k: [] for k in controllers}
     for _ in range(repeats):
         spent = dict.fromkeys(controllers, 0.0)
-        for at in range(0, len(states), chunk):
-            part = states[at:at + chunk]
-            for k, ctrl in controllers.items():
-                start = time.perf_counter()
-                for x, dx in part:
-                    ctrl.torque(x, dx)
-                spent[k] += time.perf_counter() - start
+        with collector_paused():
+            for at in range(0, len(states), chunk):
+                part = states[at:at + chunk]
+                for k, ctrl in controllers.items():
+                    start = time.perf_counter()
+                    for x, dx in part:
+                        ctrl.torque(x, dx)
+                    spent[k] += time.perf_counter() - start
         for k in controllers:
             blocks[k].append(spent[k] / len(states) * 1e6)
     return blocks
