@@ -132,3 +132,56 @@ def test_setting_a_term_packs_the_law_again() -> None:
     moved = _general(law).torque(x, dx)
     np.testing.assert_allclose(law.torque(x, dx), moved, rtol=1e-12, atol=1e-12)
     assert not np.allclose(law.torque(x, dx), before)
+
+
+@pytest.mark.parametrize("entry", list(_laws()), ids=lambda e: e[0])
+def test_the_step_from_the_pass_equals_the_state_path(entry) -> None:  # type: ignore[no-untyped-def]
+    """torque, evaluate and lyapunov at (x, ẋ) go from the model's pass straight to the
+    kernel (its terms finished there: the planar arm's absolute link angles, the Coriolis
+    matrix of an energy limit, a task frame): the same numbers as evaluate_state(state)."""
+    name, law, states = entry
+    assert law.packed_law().from_pass, name
+    for x, dx in states:
+        slow = law.evaluate_state(law.state(x, dx))
+        tau, value = law.evaluate(x, dx)
+        np.testing.assert_allclose(tau, slow.torque, rtol=1e-13, atol=1e-13, err_msg=name)
+        np.testing.assert_allclose(law.torque(x, dx), slow.torque, rtol=1e-13, atol=1e-13)
+        assert value == pytest.approx(slow.lyapunov, rel=1e-13, abs=1e-15)
+        assert law.lyapunov(x, dx) == value
+
+
+def test_the_step_from_the_pass_reads_friction() -> None:
+    """With viscous friction the kernel reads c = C ẋ + f, f = F_d ẋ, as the state does
+    (the planar arm: F_d in its absolute link angles)."""
+    law = planar_2link().controllers["cpbc"]
+    from cpbc.model import RobotModel
+
+    model = law.model
+    law.model = RobotModel(model.model, model.coordinates, np.array([0.4, 0.7]),
+                           name=model.name)
+    law.constraints = law.constraints  # pack again for the new model
+    assert law.packed_law().from_pass
+    checked = 0
+    for x, dx in planar_2link().states[:12]:
+        slow = law.evaluate_state(law.state(x, dx))
+        np.testing.assert_allclose(law.torque(x, dx), slow.torque, rtol=1e-13, atol=1e-13)
+        assert not np.allclose(slow.torque, planar_2link().controllers["cpbc"].torque(x, dx),
+                               rtol=1e-6, atol=1e-9)  # the friction reaches the torque
+        checked += 1
+    assert checked == 12
+
+
+def test_an_overridden_state_path_leaves_the_step_from_the_pass() -> None:
+    """A law whose class overrides evaluate_state (here: adding a torque) is stepped through
+    its state path, so torque() honours the override."""
+    law = planar_2link().controllers["cpbc"]
+
+    class Nudged(CPBC):
+        def evaluate_state(self, state, margins=False):  # type: ignore[no-untyped-def]
+            out = super().evaluate_state(state, margins)
+            return out._replace(torque=out.torque + 1.0)
+
+    nudged = Nudged(law.model, law.target, law.constraints, law.kp, law.kd, law.shaping)
+    assert not nudged.packed_law().from_pass and nudged.packed_law().terms is not None
+    x, dx = planar_2link().states[0]
+    np.testing.assert_allclose(nudged.torque(x, dx), law.torque(x, dx) + 1.0, rtol=1e-12)

@@ -2,21 +2,29 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
-from cpbc.controllers.controller import Controller, Evaluation, positive_vector
+from cpbc.controllers.controller import Evaluation, positive_vector
 from cpbc.controllers.packed_law import PackedLaw, PacksItsLaw, law_terms
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
 from cpbc.kernels.energy import kinetic_energy
-from cpbc.kernels.laws import cpbc_step, cpbc_torque, shaped_value, zero_terms
+from cpbc.kernels.laws import (
+    cpbc_pass_step,
+    cpbc_step,
+    cpbc_torque,
+    shaped_value,
+    zero_terms,
+)
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
-class CPBC(PacksItsLaw, Controller):
+class CPBC(PacksItsLaw):
     """Constrained PBC for configuration and velocity constraints (Theorem 6.9, eq. 6.24/6.70).
 
     With V = L / s(ΦΨ), L = ½ẋᵀDẋ + U(x̃), dividing (6.24) by s gives the equivalent
@@ -79,7 +87,8 @@ class CPBC(PacksItsLaw, Controller):
 
     def _pack(self) -> PackedLaw:
         parts = law_terms(self, CPBC, ("_law", "_shaped_value", "task_damping_force"))
-        return PackedLaw.build(type(self), parts, self.constraints, self.frames)
+        return PackedLaw.build(type(self), parts, self.constraints, self.frames,
+                               self.model, CPBC)
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         packed = self.packed_law()
@@ -94,10 +103,20 @@ class CPBC(PacksItsLaw, Controller):
     def _packed_step(self, packed: PackedLaw, state: ArmState, margins: bool) -> Evaluation:
         """τ, V and the margins from one kernel call (cpbc.kernels.laws.cpbc_step)."""
         args = packed.arguments(state, margins)  # ends with [φ̃ | the margins] and τ
-        lyapunov, log_phi, log_psi = cpbc_step(*args)
-        if log_phi != log_phi or log_psi != log_psi:  # outside S
-            raise self.constraints.violation(log_phi, args[-2][:packed.margins])
+        lyapunov = self._checked(cpbc_step(*args), args[-2][:packed.margins])
         return Evaluation(args[-1], lyapunov, args[-2][packed.margins:] if margins else None)
+
+    def _pass_value(self, args: tuple[Any, ...]) -> float:
+        """V from cpbc.kernels.laws.cpbc_pass_step (the step from the model's pass)."""
+        return self._checked(cpbc_pass_step(*args), args[-2])
+
+    def _checked(self, found: tuple[float, float, float], phi: Array) -> float:
+        """V from a step kernel's (V, log Φ, log Ψ); raises, naming the margin from the
+        barrier values ``phi``, outside S (a NaN log)."""
+        lyapunov, log_phi, log_psi = found
+        if log_phi != log_phi or log_psi != log_psi:
+            raise self.constraints.violation(log_phi, phi)
+        return lyapunov
 
     def _shaped_value(self, bar: BarrierTerms, lag: float) -> float:
         """V = L / s(ΦΨ), evaluated in logs."""

@@ -21,7 +21,13 @@ from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.kernels.energy import kinetic_energy
-from cpbc.kernels.laws import cpbc_ke_step, cpbc_ke_torque, shaped_value, zero_terms
+from cpbc.kernels.laws import (
+    cpbc_ke_pass_step,
+    cpbc_ke_step,
+    cpbc_ke_torque,
+    shaped_value,
+    zero_terms,
+)
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -37,7 +43,7 @@ def single_energy_limit(constraints: ConstraintSet, law: str) -> KineticEnergyLi
     return ke[0]
 
 
-class CPBCKineticEnergy(PacksItsLaw, Controller):
+class CPBCKineticEnergy(PacksItsLaw):
     """Corollary 6.11 (eq. 6.67) with shaping s, in log-barrier form:
 
         τ = g + [−(∂U/∂x + K_D ẋ) + ρ b_φ] / (1 + ρ/ψ),   ρ = r(ΦΨ)·L
@@ -88,7 +94,8 @@ class CPBCKineticEnergy(PacksItsLaw, Controller):
 
     def _pack(self) -> PackedLaw:
         parts = law_terms(self, CPBCKineticEnergy, ("_law", "task_damping_force"))
-        return PackedLaw.build(type(self), parts, self._config, self.frames)
+        return PackedLaw.build(type(self), parts, self._config, self.frames,
+                               self.model, CPBCKineticEnergy)
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         packed = self.packed_law()
@@ -109,13 +116,24 @@ class CPBCKineticEnergy(PacksItsLaw, Controller):
     def _packed_step(self, packed: PackedLaw, state: ArmState, margins: bool) -> Evaluation:
         """τ, V and the margins from one kernel call (cpbc.kernels.laws.cpbc_ke_step)."""
         args = packed.arguments(state, margins)  # ends with [φ̃ | the margins] and τ
-        lyapunov, log_phi, psi = cpbc_ke_step(self.energy.limit, *args)
+        found = cpbc_ke_step(self.energy.limit, *args)
+        lyapunov = self._checked(found, args[-2][:packed.margins])
+        shown = np.append(args[-2][packed.margins:], found[2]) if margins else None
+        return Evaluation(args[-1], lyapunov, shown)
+
+    def _pass_value(self, args: tuple[Any, ...]) -> float:
+        """V from cpbc.kernels.laws.cpbc_ke_pass_step (the step from the model's pass)."""
+        return self._checked(cpbc_ke_pass_step(self.energy.limit, *args), args[-2])
+
+    def _checked(self, found: tuple[float, float, float], phi: Array) -> float:
+        """V from a step kernel's (V, log Φ, ψ); raises outside S (ψ ≤ 0, or a NaN log Φ:
+        naming the margin from the barrier values ``phi``)."""
+        lyapunov, log_phi, psi = found
         if not psi > 0:
             raise ConstraintViolation(self.energy.names[0], psi)
         if log_phi != log_phi:  # outside S
-            raise self._config.violation(log_phi, args[-2][:packed.margins])
-        shown = np.append(args[-2][packed.margins:], psi) if margins else None
-        return Evaluation(args[-1], lyapunov, shown)
+            raise self._config.violation(log_phi, phi)
+        return lyapunov
 
     def _law(self, state: ArmState, bar: BarrierTerms, grad: Array, lag: float, psi: float
              ) -> Array:

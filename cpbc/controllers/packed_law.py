@@ -69,12 +69,45 @@ def law_terms(law: Any, base: type, formulas: Sequence[str]) -> list[tuple[Packe
     return parts
 
 
-class PacksItsLaw:
+# the methods of a packed law's state path: a class that keeps them may step from the pass
+STATE_PATH = ("state", "evaluate_state", "_packed_step")
+
+
+class PacksItsLaw(Controller):
     """A law that keeps its :class:`PackedLaw`: made at the first step (``_pack``) and again
-    after any attribute named in ``_packed_from`` is set or the object's class changes."""
+    after any attribute named in ``_packed_from`` is set or the object's class changes.
+
+    ``torque``, ``evaluate`` and ``lyapunov`` at (x, ẋ) go from the model's pass straight to
+    the law's kernel (``PackedLaw.from_pass``: ``_pass_value``) — the same formulas as
+    ``evaluate_state(state(x, dx))``, without building the state — unless the law does not
+    pack or its class overrides a method of that path (``STATE_PATH``)."""
 
     _packed_from: ClassVar[frozenset[str]] = frozenset()
     _packed_law: PackedLaw | None = None
+
+    def torque(self, x: Array, dx: Array) -> Array:
+        packed = self.packed_law()
+        if not packed.from_pass:
+            return self.evaluate_state(self.state(x, dx)).torque
+        args = packed.pass_arguments(self.model, x, dx)
+        self._pass_value(args)
+        return args[-1]
+
+    def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
+        packed = self.packed_law()
+        if not packed.from_pass:
+            out = self.evaluate_state(self.state(x, dx))
+            return out.torque, out.lyapunov
+        args = packed.pass_arguments(self.model, x, dx)
+        return args[-1], self._pass_value(args)
+
+    def lyapunov(self, x: Array, dx: Array) -> float:
+        return self.evaluate(x, dx)[1]
+
+    def _pass_value(self, args: tuple[Any, ...]) -> float:
+        """V from the law's ``*_pass_step`` kernel on ``PackedLaw.pass_arguments`` (τ into
+        the last); raises outside S."""
+        raise NotImplementedError
 
     def __setattr__(self, name: str, value: object) -> None:
         super().__setattr__(name, value)
@@ -111,6 +144,10 @@ class PackedLaw:
         margins: the number of the set's margins; n: the number of coordinates.
         frames: the frames the per-step state holds (the set's, then the law's).
         coriolis: whether the state holds the matrix C (a kinetic-energy limit).
+        from_pass: whether a step may go from the model's pass straight to the kernel
+            (``pass_arguments``; the law's ``_pass_value``): the law's class keeps the
+            state path (``STATE_PATH``) of the class it was packed by and its state holds
+            no frame besides the one the kernel reads.
     """
 
     law: type
@@ -122,17 +159,29 @@ class PackedLaw:
     n: int = 0
     frames: tuple[int, ...] = ()
     coriolis: bool = False
+    from_pass: bool = False
 
     def state(self, model: RobotModel, x: Array, dx: Array) -> ArmState:
         """The per-step state the kernel reads (as ``ConstraintSet.state`` with the law's
         frames builds it), from one call of ``model.state``."""
         return model.state(x, dx, self.kinematics, self.frames, self.coriolis)
 
+    def pass_arguments(self, model: RobotModel, x: Array, dx: Array) -> tuple[Any, ...]:
+        """The arguments of the law's ``*_pass_step`` kernel: the tables, the model's pass
+        (``RobotModel.joint_pass``), where the kernel writes the barrier values and τ
+        (``arguments`` without the margins)."""
+        return (*self.constants,
+                *model.joint_pass(x, dx, self.kinematics, self.frame, self.coriolis),
+                np.empty(self.margins), np.empty(self.n))
+
     @classmethod
     def build(cls, law: type, parts: Sequence[tuple[Packed, ...] | None],
-              constraints: ConstraintSet, frames: tuple[int, ...]) -> PackedLaw:
-        """From the terms' ``packed`` (None for one that does not pack), the set and the
-        frames the law reads besides the set's (``Controller.frames``)."""
+              constraints: ConstraintSet, frames: tuple[int, ...], model: RobotModel,
+              base: type) -> PackedLaw:
+        """From the terms' ``packed`` (None for one that does not pack), the set, the
+        frames the law reads besides the set's (``Controller.frames``), the law's model
+        (its coordinates and friction, for a step from its pass) and the class whose
+        state path (``STATE_PATH``) a step from the pass stands in for."""
         tables = constraints.packed_tables
         if tables is None or any(p is None for p in parts) or (
                 type(constraints).state is not ConstraintSet.state):
@@ -145,12 +194,14 @@ class PackedLaw:
             return cls(law)
         packed = PackedSet.build([(0, 0, t) for t in terms])
         margins = len(constraints.names)
+        frame = read.pop() if read else -1
+        held = tuple(dict.fromkeys((*constraints.frames, *frames)))
         return cls(law, packed, pack_tables(margins, tables.plan, tables.ints, tables.floats,
-                                            packed.plan, packed.floats),
-                   read.pop() if read else -1, constraints.needs_kinematics,
-                   margins, constraints.n,
-                   tuple(dict.fromkeys((*constraints.frames, *frames))),
-                   constraints.needs_coriolis)
+                                            packed.plan, packed.floats,
+                                            model.coordinates.inverse, model.viscous_friction),
+                   frame, constraints.needs_kinematics, margins, constraints.n, held,
+                   constraints.needs_coriolis,
+                   keeps(law, base, STATE_PATH) and all(f == frame for f in held))
 
     def arguments(self, state: ArmState, margins: bool) -> tuple[Any, ...]:
         """The kernel's arguments: the tables (``constants``); x, ẋ, D, g, C ẋ, f, C, the

@@ -12,7 +12,8 @@ compiles nothing; ``--check`` fails when any kernel is not compiled in nopython 
 With ``NUMBA_DISABLE_JIT=1`` the same functions run as plain Python (the tests compare both).
 numba's cache does not follow calls across modules: after editing a kernel that another
 module's kernel calls (``barrier_set`` calls those of ``barriers``, ``clearance``, ``task``;
-``guard`` those of ``barrier_set``, ``barriers``, ``clearance``, ``small_solves``),
+``laws`` those of ``barrier_set``, ``coordinate_maps``, ``law_terms``; ``sampled_guard``
+those of ``barrier_set``, ``barriers``, ``clearance``, ``small_solves``),
 delete the cache files (``*.nbi``, ``*.nbc`` under ``cpbc/kernels/__pycache__``) and warm again.
 """
 

@@ -3,6 +3,8 @@ planar arm in absolute link angles): D_x = T⁻ᵀ D_q T⁻¹, g_x = T⁻ᵀ g_q
 
 from __future__ import annotations
 
+import numpy as np
+
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY_MATRIX, kernel
 
@@ -20,6 +22,21 @@ def to_joint(t_inv: Array, x: Array, dx: Array, q: Array, dq: Array) -> None:
         dq[i] = b
 
 
+@kernel(f"void({READ_ONLY_MATRIX}, float64[:, :], float64[:, :])")
+def congruence(t_inv: Array, matrix_q: Array, matrix: Array) -> None:
+    """M_x = T⁻ᵀ M_q T⁻¹ into ``matrix`` (a matrix of the joints' generalised forces)."""
+    n = matrix_q.shape[0]
+    for i in range(n):
+        for j in range(n):
+            s = 0.0
+            for k in range(n):
+                row = 0.0
+                for m in range(n):
+                    row += matrix_q[k, m] * t_inv[m, j]
+                s += t_inv[k, i] * row
+            matrix[i, j] = s
+
+
 @kernel(f"void({READ_ONLY_MATRIX}, float64[:, :], float64[:], float64[:], float64[:, :],"
         " float64[:], float64[:])")
 def to_controller(t_inv: Array, inertia_q: Array, nle: Array, gravity_q: Array,
@@ -34,12 +51,50 @@ def to_controller(t_inv: Array, inertia_q: Array, nle: Array, gravity_q: Array,
             g += t_inv[k, i] * gravity_q[k]
         bias[i] = b
         gravity[i] = g
-        for j in range(n):
+    congruence(t_inv, inertia_q, inertia)
+
+
+
+TERMS = ("Tuple((float64[:, :], float64[:], float64[:], float64[:, :], float64[:, :],"
+         " float64[:]))")
+
+
+@kernel(f"{TERMS}(boolean, boolean, float64[:, :], float64[:, :], float64[:],"
+        " float64[:, :], float64[:], float64[:], float64[:, :], float64[:, :])")
+def controller_terms(joints: bool, friction: bool, t_inv: Array, friction_matrix: Array,
+                     dx: Array, inertia_q: Array, nle: Array, gravity_q: Array,
+                     coriolis_q: Array, frame_jacobian_q: Array
+                     ) -> tuple[Array, Array, Array, Array, Array, Array]:
+    """The per-step state's terms from one Pinocchio pass in joint coordinates
+    (cpbc.model.robot_model.RobotModel.joint_pass), as ``RobotModel.state`` gives them: D,
+    C ẋ and g (``to_controller``), the matrix C = T⁻ᵀ C_q T⁻¹ (empty when not asked for),
+    the frame's Jacobian J_q T⁻¹ and f = F_d ẋ (``friction_matrix`` F_d in x-coordinates;
+    zero without ``friction``). With the joints as coordinates (``joints``) D, g, C and the
+    Jacobian are the pass's own arrays."""
+    n = dx.shape[0]
+    dissipation = np.zeros(n)
+    if friction:
+        for i in range(n):
+            s = 0.0
+            for j in range(n):
+                s += friction_matrix[i, j] * dx[j]
+            dissipation[i] = s
+    if joints:
+        bias = np.empty(n)
+        for i in range(n):
+            bias[i] = nle[i] - gravity_q[i]
+        return inertia_q, bias, gravity_q, coriolis_q, frame_jacobian_q, dissipation
+    inertia, bias, gravity = np.empty((n, n)), np.empty(n), np.empty(n)
+    to_controller(t_inv, inertia_q, nle, gravity_q, inertia, bias, gravity)
+    coriolis = np.empty((coriolis_q.shape[0], coriolis_q.shape[1]))
+    if coriolis_q.shape[0] > 0:
+        congruence(t_inv, coriolis_q, coriolis)
+    rows = frame_jacobian_q.shape[0]
+    frame_jacobian = np.empty((rows, frame_jacobian_q.shape[1]))
+    for r in range(rows):
+        for j in range(frame_jacobian.shape[1]):
             s = 0.0
             for k in range(n):
-                row = 0.0
-                for m in range(n):
-                    row += inertia_q[k, m] * t_inv[m, j]
-                s += t_inv[k, i] * row
-            inertia[i, j] = s
-
+                s += frame_jacobian_q[r, k] * t_inv[k, j]
+            frame_jacobian[r, j] = s
+    return inertia, bias, gravity, coriolis, frame_jacobian, dissipation

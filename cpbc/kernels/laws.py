@@ -12,6 +12,7 @@ from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
 from cpbc.kernels.barrier_set import VELOCITY_KINDS, set_barrier
 from cpbc.kernels.clearance import Ints
+from cpbc.kernels.coordinate_maps import controller_terms
 from cpbc.kernels.energy import kinetic_energy
 from cpbc.kernels.law_terms import damping_terms, potential_terms, shaped
 from cpbc.kernels.small_solves import solve_spd
@@ -87,25 +88,45 @@ def shaped_value(lag: float, log_s: float) -> float:
 
 # the law's constant tables, packed once (``pack_tables``): ``ints`` starts with HEADER
 # entries — the margins, then (rows, columns) of the set's plan, ints and floats and of the
-# terms' plan and floats — and holds the int tables after it, ``floats`` the float tables;
-# each table row-major, in that order. One array of each: a kernel argument costs numba
-# about 70 ns to pass, whatever its size.
-HEADER = 11
+# terms' plan and floats, then whether the coordinates are the joints' and whether the arm
+# has friction (``COORDINATES``) — and holds the int tables after it, ``floats`` the float
+# tables and last the model's T⁻¹ and F_d (``model_tables``); each table row-major, in that
+# order. One array of each: a kernel argument costs numba about 70 ns to pass, whatever its
+# size.
+HEADER, COORDINATES = 13, 11
 
 
 def pack_tables(margins: int, plan: Ints, ints: Ints, floats: Array, term_plan: Ints,
-                term_floats: Array) -> tuple[Ints, Array]:
-    """The law's constant tables in the two arrays ``law_tables`` reads."""
+                term_floats: Array, t_inv: Array, friction: Array) -> tuple[Ints, Array]:
+    """The law's constant tables in the two arrays ``law_tables`` and ``model_tables`` read;
+    ``t_inv`` T⁻¹ of the coordinates x = T q and ``friction`` F_d in x-coordinates."""
     header = [margins]
     for table in (plan, ints, floats, term_plan, term_floats):
         header += table.shape
+    header += [int(np.array_equal(t_inv, np.eye(len(t_inv)))), int(np.any(friction))]
     packed_ints = np.concatenate([np.array(header, dtype=np.int64), plan.ravel(),
                                   ints.ravel(), term_plan.ravel()]).astype(np.int64)
-    return packed_ints, np.concatenate([floats.ravel(), term_floats.ravel()]).astype(float)
+    return packed_ints, np.concatenate([floats.ravel(), term_floats.ravel(), t_inv.ravel(),
+                                        friction.ravel()]).astype(float)
 
 
-TABLES = ("Tuple((int64, int64[:, ::1], int64[:, ::1], float64[:, ::1], int64[:, ::1],"
-          " float64[:, ::1]))")
+TABLES = ("Tuple((int64, int64[:, :], int64[:, :], float64[:, :], int64[:, :],"
+          " float64[:, :]))")
+
+
+@kernel("int64[:, :](int64[::1], int64, int64, int64)")
+def int_rows(flat: Ints, start: int, rows: int, columns: int) -> Ints:
+    """flat[start : start + rows·columns] as a (rows, columns) view, row-major (numba's
+    reshape calls out to C, about 16 ns; a strided view costs nothing)."""
+    return np.lib.stride_tricks.as_strided(flat[start:], shape=(rows, columns),
+                                           strides=(columns * flat.itemsize, flat.itemsize))
+
+
+@kernel("float64[:, :](float64[::1], int64, int64, int64)")
+def float_rows(flat: Array, start: int, rows: int, columns: int) -> Array:
+    """``int_rows`` of a float array."""
+    return np.lib.stride_tricks.as_strided(flat[start:], shape=(rows, columns),
+                                           strides=(columns * flat.itemsize, flat.itemsize))
 
 
 @kernel(f"{TABLES}(int64[::1], float64[::1])")
@@ -113,21 +134,27 @@ def law_tables(ints: Ints, floats: Array) -> tuple[int, Ints, Ints, Array, Ints,
     """The margins and the tables packed by ``pack_tables`` (views): the set's plan, ints
     and floats (cpbc.kernels.barrier_set), the terms' plan and floats
     (cpbc.kernels.law_terms)."""
-    i, f = HEADER, 0
-    r, c = ints[1], ints[2]
-    plan = ints[i:i + r * c].reshape((r, c))
-    i += r * c
-    r, c = ints[3], ints[4]
-    set_ints = ints[i:i + r * c].reshape((r, c))
-    i += r * c
-    r, c = ints[7], ints[8]
-    term_plan = ints[i:i + r * c].reshape((r, c))
-    r, c = ints[5], ints[6]
-    set_floats = floats[f:f + r * c].reshape((r, c))
-    f += r * c
-    r, c = ints[9], ints[10]
-    term_floats = floats[f:f + r * c].reshape((r, c))
+    at = HEADER
+    plan = int_rows(ints, at, ints[1], ints[2])
+    at += ints[1] * ints[2]
+    set_ints = int_rows(ints, at, ints[3], ints[4])
+    at += ints[3] * ints[4]
+    term_plan = int_rows(ints, at, ints[7], ints[8])
+    set_floats = float_rows(floats, 0, ints[5], ints[6])
+    term_floats = float_rows(floats, ints[5] * ints[6], ints[9], ints[10])
     return ints[0], plan, set_ints, set_floats, term_plan, term_floats
+
+
+MODEL = "Tuple((boolean, boolean, float64[:, :], float64[:, :]))"
+
+
+@kernel(f"{MODEL}(int64[::1], float64[::1], int64)")
+def model_tables(ints: Ints, floats: Array, n: int) -> tuple[bool, bool, Array, Array]:
+    """Whether the coordinates are the joints' and whether the arm has friction, T⁻¹ and
+    F_d (views), packed by ``pack_tables``."""
+    at = floats.shape[0] - 2 * n * n
+    return (ints[COORDINATES] == 1, ints[COORDINATES + 1] == 1,
+            float_rows(floats, at, n, n), float_rows(floats, at + n * n, n, n))
 
 
 # the tables, x, ẋ, D, g, C ẋ, f, C, the frame's placement and Jacobian, the joint
@@ -207,3 +234,42 @@ def cpbc_ke_step(limit: float, tables: Ints, table_floats: Array, x: Array, dx: 
     damping_terms(term_plan, term_floats, dx, origin, rotation, frame_jacobian, damping)
     cpbc_ke_torque(gravity, grad, damping, gradient, ratio * lag, psi, tau)
     return shaped_value(lag, log_s), log_phi, psi
+
+
+# the tables, x, ẋ, and one Pinocchio pass in joint coordinates (RobotModel.joint_pass): D,
+# nle = C q̇ + g, g, C (or empty), the frame's placement and Jacobian, the joint placements
+# and Jacobians; then ``barriers`` and τ as in STEP
+PASS = ("int64[::1], float64[::1], float64[:], float64[:], float64[:, :], float64[:],"
+        " float64[:], float64[:, :], float64[:, :], float64[:, :], float64[:, :],"
+        " float64[:, :], float64[::1], float64[:]")
+
+
+@kernel(f"UniTuple(float64, 3)({PASS})")
+def cpbc_pass_step(tables: Ints, table_floats: Array, x: Array, dx: Array,
+                   inertia_q: Array, nle: Array, gravity_q: Array, coriolis_q: Array,
+                   placement: Array, frame_jacobian_q: Array, y: Array, jac: Array,
+                   barriers: Array, tau: Array) -> tuple[float, float, float]:
+    """``cpbc_step`` from the pass itself: the state's terms in controller coordinates
+    (cpbc.kernels.coordinate_maps.controller_terms, with the model's tables), then the
+    step."""
+    joints, friction, t_inv, friction_matrix = model_tables(tables, table_floats, x.shape[0])
+    inertia, bias, gravity, coriolis, frame_jacobian, dissipation = controller_terms(
+        joints, friction, t_inv, friction_matrix, dx, inertia_q, nle, gravity_q, coriolis_q,
+        frame_jacobian_q)
+    return cpbc_step(tables, table_floats, x, dx, inertia, gravity, bias, dissipation,
+                     coriolis, placement, frame_jacobian, y, jac, barriers, tau)
+
+
+@kernel(f"UniTuple(float64, 3)(float64, {PASS})")
+def cpbc_ke_pass_step(limit: float, tables: Ints, table_floats: Array, x: Array, dx: Array,
+                      inertia_q: Array, nle: Array, gravity_q: Array, coriolis_q: Array,
+                      placement: Array, frame_jacobian_q: Array, y: Array, jac: Array,
+                      barriers: Array, tau: Array) -> tuple[float, float, float]:
+    """``cpbc_ke_step`` from the pass itself (``cpbc_pass_step``)."""
+    joints, friction, t_inv, friction_matrix = model_tables(tables, table_floats, x.shape[0])
+    inertia, bias, gravity, coriolis, frame_jacobian, dissipation = controller_terms(
+        joints, friction, t_inv, friction_matrix, dx, inertia_q, nle, gravity_q, coriolis_q,
+        frame_jacobian_q)
+    return cpbc_ke_step(limit, tables, table_floats, x, dx, inertia, gravity, bias,
+                        dissipation, coriolis, placement, frame_jacobian, y, jac, barriers,
+                        tau)

@@ -18,6 +18,10 @@ from cpbc.model.frames import FrameKinematics, offset_jacobian
 
 _NO_FRAMES: Mapping[int, FrameKinematics] = MappingProxyType({})
 _WORLD_ALIGNED = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+# the empty inputs of RobotModel.joint_pass: no Coriolis matrix, no frame, no joint kinematics
+_NO_MATRIX = np.zeros((0, 0))
+_NO_FRAME = (np.eye(4), np.zeros((6, 0)))
+_NO_JOINTS = (np.zeros((3, 0)), np.zeros((6, 0)))
 
 
 class ArmState(NamedTuple):
@@ -229,15 +233,7 @@ class RobotModel:
         nothing is kept between calls, and nothing in ``self.data`` is meant to be read
         afterwards."""
         model, data = self.model, self.data
-        # the compiled kernels take writable float arrays: a law's own target (read-only) may
-        # be the state asked for
-        if not (x.flags.writeable and dx.flags.writeable):
-            x, dx = np.array(x, dtype=float), np.array(dx, dtype=float)
-        if self._identity:
-            q, dq = x, dx
-        else:
-            q, dq = np.empty(self.n), np.empty(self.n)
-            to_joint(self._t_inv, x, dx, q, dq)
+        x, dx, q, dq = self._joint_state(x, dx)
         c_matrix = None
         if coriolis:
             c_matrix = pin.computeCoriolisMatrix(model, data, q, dq)
@@ -245,9 +241,8 @@ class RobotModel:
         wanted = tuple(frames)
         jac = placements = None
         found = _NO_FRAMES
+        m, nle, g, owned = self._dynamics_pass(q, dq, bool(kinematics or wanted))
         if kinematics or wanted:
-            pin.computeAllTerms(model, data, q, dq)
-            m, nle, g = self._all_terms
             if wanted:
                 read = {}
                 for i in wanted:  # a loop: a comprehension costs a function call per step
@@ -258,14 +253,6 @@ class RobotModel:
                 placements = pin.computeStaticRegressor(model, data, q)
                 if not self._own_results:
                     placements = self._regressor.copy()
-            owned = False  # m and g are the data's
-        else:
-            m = pin.crba(model, data, q)
-            nle = pin.nonLinearEffects(model, data, q, dq)
-            g = pin.computeGeneralizedGravity(model, data, q)
-            owned = self._own_results
-        if self._crba_upper_only:
-            m[self._lower] = m.T[self._lower]
         f = self.dissipation(dx)
         if self._identity:
             return ArmState(x, dx, q, dq, m if owned else m.copy(), nle - g,
@@ -274,6 +261,64 @@ class RobotModel:
         to_controller(self._t_inv, m, nle, g, inertia, bias, gravity)
         return ArmState(x, dx, q, dq, inertia, bias, gravity, f, found, c_matrix, jac,
                         placements)
+
+    def joint_pass(self, x: Array, dx: Array, kinematics: bool, frame: int, coriolis: bool
+                   ) -> tuple[Array, ...]:
+        """The per-step state unfinished, for a compiled law that finishes and reads it at
+        once (cpbc.kernels.laws.cpbc_pass_step): x, ẋ and :meth:`state`'s one pass in joint
+        coordinates — D, nle = C q̇ + g, g, C (``coriolis``; else empty), the placement and
+        Jacobian of ``frame`` (≥ 0; else identity and empty), the joint placements and
+        Jacobians (``kinematics``; else empty). D, nle, g and the joint Jacobians are views of
+        the model's data, which its next pass overwrites: :meth:`state` copies them out and
+        changes their coordinates; here the caller's kernel does, before anything else
+        runs."""
+        model, data = self.model, self.data
+        x, dx, q, dq = self._joint_state(x, dx)
+        c_matrix = _NO_MATRIX
+        if coriolis:
+            c_matrix = pin.computeCoriolisMatrix(model, data, q, dq)
+            if not self._own_results:
+                c_matrix = c_matrix.copy()
+        m, nle, g, _ = self._dynamics_pass(q, dq, kinematics or frame >= 0)
+        placement, frame_jacobian = _NO_FRAME
+        if frame >= 0:
+            placement = pin.updateFramePlacement(model, data, frame).homogeneous
+            frame_jacobian = pin.getFrameJacobian(model, data, frame, _WORLD_ALIGNED)
+        y, jac = _NO_JOINTS
+        if kinematics:
+            y, jac = pin.computeStaticRegressor(model, data, q), self._joint_jacobians
+        return x, dx, m, nle, g, c_matrix, placement, frame_jacobian, y, jac
+
+    def _joint_state(self, x: Array, dx: Array) -> tuple[Array, Array, Array, Array]:
+        """x, ẋ (copied when read-only: the compiled kernels take writable float arrays, and
+        a law's own target may be the state asked for) and q, q̇."""
+        if not (x.flags.writeable and dx.flags.writeable):
+            x, dx = np.array(x, dtype=float), np.array(dx, dtype=float)
+        if self._identity:
+            return x, dx, x, dx
+        q, dq = np.empty(self.n), np.empty(self.n)
+        to_joint(self._t_inv, x, dx, q, dq)
+        return x, dx, q, dq
+
+    def _dynamics_pass(self, q: Array, dq: Array, all_terms: bool
+                       ) -> tuple[Array, Array, Array, bool]:
+        """D, nle = C q̇ + g and g in joint coordinates from one Pinocchio pass: with
+        ``all_terms`` the one that also gives every joint placement and Jacobian
+        (``computeAllTerms``), else CRBA, RNEA and gravity; and whether D and g are arrays
+        of their own (else views of the data)."""
+        model, data = self.model, self.data
+        if all_terms:
+            pin.computeAllTerms(model, data, q, dq)
+            m, nle, g = self._all_terms
+            owned = False
+        else:
+            m = pin.crba(model, data, q)
+            nle = pin.nonLinearEffects(model, data, q, dq)
+            g = pin.computeGeneralizedGravity(model, data, q)
+            owned = self._own_results
+        if self._crba_upper_only:
+            m[self._lower] = m.T[self._lower]
+        return m, nle, g, owned
 
     def dynamics(self, x: Array, dx: Array) -> ArmState:
         """The per-step state without kinematics (:meth:`state`)."""
