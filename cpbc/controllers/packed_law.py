@@ -148,6 +148,8 @@ class PackedLaw:
             (``pass_arguments``; the law's ``_pass_value``): the law's class keeps the
             state path (``STATE_PATH``) of the class it was packed by and its state holds
             no frame besides the one the kernel reads.
+        pass_reads: the frame the model's pass reads for that step (−1: none; the kernel
+            reads the law's frame from the joint kinematics, ``pack_tables``' ``frame``).
     """
 
     law: type
@@ -160,6 +162,7 @@ class PackedLaw:
     frames: tuple[int, ...] = ()
     coriolis: bool = False
     from_pass: bool = False
+    pass_reads: int = -1
 
     def state(self, model: RobotModel, x: Array, dx: Array) -> ArmState:
         """The per-step state the kernel reads (as ``ConstraintSet.state`` with the law's
@@ -171,7 +174,7 @@ class PackedLaw:
         (``RobotModel.joint_pass``), where the kernel writes the barrier values and τ
         (``arguments`` without the margins)."""
         return (*self.constants,
-                *model.joint_pass(x, dx, self.kinematics, self.frame, self.coriolis),
+                *model.joint_pass(x, dx, self.kinematics, self.pass_reads, self.coriolis),
                 np.empty(self.margins), np.empty(self.n))
 
     @classmethod
@@ -196,12 +199,17 @@ class PackedLaw:
         margins = len(constraints.names)
         frame = read.pop() if read else -1
         held = tuple(dict.fromkeys((*constraints.frames, *frames)))
+        # with the joint kinematics in the pass, the kernel reads the frame from them
+        on_joints = model.frame_on_joints(frame) if (
+            frame >= 0 and constraints.needs_kinematics) else None
         return cls(law, packed, pack_tables(margins, tables.plan, tables.ints, tables.floats,
                                             packed.plan, packed.floats,
-                                            model.coordinates.inverse, model.viscous_friction),
+                                            model.coordinates.inverse, model.viscous_friction,
+                                            on_joints),
                    frame, constraints.needs_kinematics, margins, constraints.n, held,
                    constraints.needs_coriolis,
-                   keeps(law, base, STATE_PATH) and all(f == frame for f in held))
+                   keeps(law, base, STATE_PATH) and all(f == frame for f in held),
+                   frame if on_joints is None else -1)
 
     def arguments(self, state: ArmState, margins: bool) -> tuple[Any, ...]:
         """The kernel's arguments: the tables (``constants``); x, ẋ, D, g, C ẋ, f, C, the

@@ -16,6 +16,7 @@ from cpbc.kernels.coordinate_maps import controller_terms
 from cpbc.kernels.energy import kinetic_energy
 from cpbc.kernels.law_terms import damping_terms, potential_terms, shaped
 from cpbc.kernels.small_solves import solve_spd
+from cpbc.kernels.task import frame_on_joints
 
 
 def zero_terms(n: int) -> tuple[Array, Array]:
@@ -89,25 +90,31 @@ def shaped_value(lag: float, log_s: float) -> float:
 # the law's constant tables, packed once (``pack_tables``): ``ints`` starts with HEADER
 # entries — the margins, then (rows, columns) of the set's plan, ints and floats and of the
 # terms' plan and floats, then whether the coordinates are the joints' and whether the arm
-# has friction (``COORDINATES``) — and holds the int tables after it, ``floats`` the float
-# tables and last the model's T⁻¹ and F_d (``model_tables``); each table row-major, in that
-# order. One array of each: a kernel argument costs numba about 70 ns to pass, whatever its
-# size.
-HEADER, COORDINATES = 13, 11
+# has friction (``COORDINATES``), then the column of the frame's joint in the static
+# regressor (−1: the pass reads the frame) — and holds the int tables after it, ``floats``
+# the float tables and last the model's T⁻¹, F_d and the frame's place on its joint
+# (``model_tables``); each table row-major, in that order. One array of each: a kernel
+# argument costs numba about 70 ns to pass, whatever its size.
+HEADER, COORDINATES, FRAME_COLUMN = 14, 11, 13
 
 
 def pack_tables(margins: int, plan: Ints, ints: Ints, floats: Array, term_plan: Ints,
-                term_floats: Array, t_inv: Array, friction: Array) -> tuple[Ints, Array]:
+                term_floats: Array, t_inv: Array, friction: Array,
+                frame: tuple[int, Array] | None = None) -> tuple[Ints, Array]:
     """The law's constant tables in the two arrays ``law_tables`` and ``model_tables`` read;
-    ``t_inv`` T⁻¹ of the coordinates x = T q and ``friction`` F_d in x-coordinates."""
+    ``t_inv`` T⁻¹ of the coordinates x = T q, ``friction`` F_d in x-coordinates and
+    ``frame`` the column and place of the frame the law reads, when the kernel computes it
+    from the joint kinematics (cpbc.kernels.task.frame_on_joints)."""
+    n = len(t_inv)
     header = [margins]
     for table in (plan, ints, floats, term_plan, term_floats):
         header += table.shape
-    header += [int(np.array_equal(t_inv, np.eye(len(t_inv)))), int(np.any(friction))]
+    column, local = (-1, np.zeros(13 + n)) if frame is None else frame
+    header += [int(np.array_equal(t_inv, np.eye(n))), int(np.any(friction)), column]
     packed_ints = np.concatenate([np.array(header, dtype=np.int64), plan.ravel(),
                                   ints.ravel(), term_plan.ravel()]).astype(np.int64)
     return packed_ints, np.concatenate([floats.ravel(), term_floats.ravel(), t_inv.ravel(),
-                                        friction.ravel()]).astype(float)
+                                        friction.ravel(), local]).astype(float)
 
 
 TABLES = ("Tuple((int64, int64[:, :], int64[:, :], float64[:, :], int64[:, :],"
@@ -145,16 +152,33 @@ def law_tables(ints: Ints, floats: Array) -> tuple[int, Ints, Ints, Array, Ints,
     return ints[0], plan, set_ints, set_floats, term_plan, term_floats
 
 
-MODEL = "Tuple((boolean, boolean, float64[:, :], float64[:, :]))"
+MODEL = "Tuple((boolean, boolean, float64[:, :], float64[:, :], float64[::1]))"
 
 
 @kernel(f"{MODEL}(int64[::1], float64[::1], int64)")
-def model_tables(ints: Ints, floats: Array, n: int) -> tuple[bool, bool, Array, Array]:
-    """Whether the coordinates are the joints' and whether the arm has friction, T⁻¹ and
-    F_d (views), packed by ``pack_tables``."""
-    at = floats.shape[0] - 2 * n * n
+def model_tables(ints: Ints, floats: Array, n: int
+                 ) -> tuple[bool, bool, Array, Array, Array]:
+    """Whether the coordinates are the joints' and whether the arm has friction, T⁻¹, F_d
+    and the frame's place on its joint (views), packed by ``pack_tables``."""
+    at = floats.shape[0] - 2 * n * n - 13 - n
     return (ints[COORDINATES] == 1, ints[COORDINATES + 1] == 1,
-            float_rows(floats, at, n, n), float_rows(floats, at + n * n, n, n))
+            float_rows(floats, at, n, n), float_rows(floats, at + n * n, n, n),
+            floats[at + 2 * n * n:])
+
+
+@kernel("UniTuple(float64[:, :], 2)(int64[::1], float64[:], float64[:, :], float64[:, :],"
+        " float64[:, :], float64[:, :], float64[::1])")
+def pass_frame(ints: Ints, x: Array, placement: Array, frame_jacobian_q: Array, y: Array,
+               jac: Array, local: Array) -> tuple[Array, Array]:
+    """The frame's placement and Jacobian (joint coordinates): the pass's, or — when the
+    tables give its joint's column — from the pass's joint kinematics
+    (cpbc.kernels.task.frame_on_joints)."""
+    column = ints[FRAME_COLUMN]
+    if column < 0:
+        return placement, frame_jacobian_q
+    placement, frame_jacobian_q = np.empty((4, 4)), np.empty((6, x.shape[0]))
+    frame_on_joints(y, jac, column, local, placement, frame_jacobian_q)
+    return placement, frame_jacobian_q
 
 
 # the tables, x, ẋ, D, g, C ẋ, f, C, the frame's placement and Jacobian, the joint
@@ -249,10 +273,13 @@ def cpbc_pass_step(tables: Ints, table_floats: Array, x: Array, dx: Array,
                    inertia_q: Array, nle: Array, gravity_q: Array, coriolis_q: Array,
                    placement: Array, frame_jacobian_q: Array, y: Array, jac: Array,
                    barriers: Array, tau: Array) -> tuple[float, float, float]:
-    """``cpbc_step`` from the pass itself: the state's terms in controller coordinates
-    (cpbc.kernels.coordinate_maps.controller_terms, with the model's tables), then the
-    step."""
-    joints, friction, t_inv, friction_matrix = model_tables(tables, table_floats, x.shape[0])
+    """``cpbc_step`` from the pass itself: the frame (``pass_frame``) and the state's terms
+    in controller coordinates (cpbc.kernels.coordinate_maps.controller_terms, with the
+    model's tables), then the step."""
+    joints, friction, t_inv, friction_matrix, local = model_tables(tables, table_floats,
+                                                                   x.shape[0])
+    placement, frame_jacobian_q = pass_frame(tables, x, placement, frame_jacobian_q, y, jac,
+                                             local)
     inertia, bias, gravity, coriolis, frame_jacobian, dissipation = controller_terms(
         joints, friction, t_inv, friction_matrix, dx, inertia_q, nle, gravity_q, coriolis_q,
         frame_jacobian_q)
@@ -266,7 +293,10 @@ def cpbc_ke_pass_step(limit: float, tables: Ints, table_floats: Array, x: Array,
                       placement: Array, frame_jacobian_q: Array, y: Array, jac: Array,
                       barriers: Array, tau: Array) -> tuple[float, float, float]:
     """``cpbc_ke_step`` from the pass itself (``cpbc_pass_step``)."""
-    joints, friction, t_inv, friction_matrix = model_tables(tables, table_floats, x.shape[0])
+    joints, friction, t_inv, friction_matrix, local = model_tables(tables, table_floats,
+                                                                   x.shape[0])
+    placement, frame_jacobian_q = pass_frame(tables, x, placement, frame_jacobian_q, y, jac,
+                                             local)
     inertia, bias, gravity, coriolis, frame_jacobian, dissipation = controller_terms(
         joints, friction, t_inv, friction_matrix, dx, inertia_q, nle, gravity_q, coriolis_q,
         frame_jacobian_q)

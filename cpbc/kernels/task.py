@@ -18,6 +18,43 @@ from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
 FRAME = f"{READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}"
 
 
+@kernel("void(float64[:, :], float64[:, :], int64, float64[:], float64[:, :], float64[:, :])")
+def frame_on_joints(y: Array, jac: Array, column: int, local: Array, placement: Array,
+                    jacobian: Array) -> None:
+    """A frame's placement [R p; 0 1] into ``placement`` and its Jacobian [J_v; J_ω] (6, n)
+    at its origin in world axes into ``jacobian``, from a pass's joint placements ``y``
+    (Pinocchio's static regressor, Y[:, c:c+4] = [t_j R_j]/s for the frame's joint j at
+    column c = ``column``) and world joint Jacobians ``jac`` = [v_k; ω_k] (6, n) — what
+    Pinocchio's frame placement and LOCAL_WORLD_ALIGNED frame Jacobian give:
+
+        p = t_j + R_j p_l = Y[:, c:c+4] [s, s p_l],   R = s Y[:, c+1:c+4] R_l,
+        J_v[:, k] = v_k + ω_k × p,   J_ω[:, k] = ω_k   for the joints k that move j, else 0.
+
+    ``local``: [s, s p_l (3), R_l row-major (9), the support mask (n)], p_l and R_l the
+    frame's placement on its joint (cpbc.model.robot_model.RobotModel.frame_on_joints)."""
+    n = jac.shape[1]
+    for i in range(3):
+        placement[i, 3] = (y[i, column] * local[0] + y[i, column + 1] * local[1]
+                           + y[i, column + 2] * local[2] + y[i, column + 3] * local[3])
+        for k in range(3):
+            placement[i, k] = local[0] * (y[i, column + 1] * local[4 + k]
+                                          + y[i, column + 2] * local[7 + k]
+                                          + y[i, column + 3] * local[10 + k])
+        placement[3, i] = 0.0
+    placement[3, 3] = 1.0
+    p0, p1, p2 = placement[0, 3], placement[1, 3], placement[2, 3]
+    for k in range(n):
+        if local[13 + k] == 0.0:
+            for r in range(6):
+                jacobian[r, k] = 0.0
+            continue
+        w0, w1, w2 = jac[3, k], jac[4, k], jac[5, k]
+        jacobian[0, k] = jac[0, k] + (w1 * p2 - w2 * p1)
+        jacobian[1, k] = jac[1, k] + (w2 * p0 - w0 * p2)
+        jacobian[2, k] = jac[2, k] + (w0 * p1 - w1 * p0)
+        jacobian[3, k], jacobian[4, k], jacobian[5, k] = w0, w1, w2
+
+
 @kernel(f"void({FRAME}, {READ_ONLY}, float64[:], float64[:, :])")
 def point_on_frame(origin: Array, rotation: Array, jacobian: Array, offset: Array,
                    point: Array, linear: Array) -> None:

@@ -289,6 +289,26 @@ class RobotModel:
             y, jac = pin.computeStaticRegressor(model, data, q), self._joint_jacobians
         return x, dx, m, nle, g, c_matrix, placement, frame_jacobian, y, jac
 
+    def frame_on_joints(self, frame_id: int) -> tuple[int, Array] | None:
+        """How a compiled law reads a frame from a pass's joint kinematics
+        (cpbc.kernels.task.frame_on_joints): the first column of its joint in the static
+        regressor Y = [t_1 R_1 … t_m R_m]/s and [s, s p_l, R_l row-major, the support mask
+        (n)], p_l and R_l its placement on the joint; None for a frame welded to the world."""
+        model = self.model
+        frame = model.frames[frame_id]
+        joint = frame.parentJoint
+        if joint == 0:
+            return None
+        y = pin.computeStaticRegressor(model, self.data, pin.neutral(model))
+        scale = float(np.sqrt(3.0) / np.linalg.norm(y[:, 1:4]))  # Y's R_1 block is R_1/s
+        support = np.zeros(self.n)
+        for k in model.supports[joint].tolist()[1:]:
+            moved = model.joints[k]
+            support[moved.idx_v:moved.idx_v + moved.nv] = 1.0
+        local = frame.placement
+        return 4 * (joint - 1), np.concatenate(
+            [[scale], scale * local.translation, local.rotation.reshape(-1), support])
+
     def _joint_state(self, x: Array, dx: Array) -> tuple[Array, Array, Array, Array]:
         """x, ẋ (copied when read-only: the compiled kernels take writable float arrays, and
         a law's own target may be the state asked for) and q, q̇."""
