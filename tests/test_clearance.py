@@ -122,7 +122,7 @@ def test_dense_sphere_barrier_is_the_pairwise_product_and_sum(influence, rng) ->
         if not np.all(c.value(x) > 0):
             continue
         phi_t, b = _terms(c, x)[:2]
-        phi, grad = c._pair_gradients(x, c._regressor(x))
+        phi, grad = c.sphere_pairs(x, np.zeros(7))[:2]
         shaped, ratio = c._shape(phi)
         expect = np.array(c._far_phi)
         b_ref = np.zeros(7)

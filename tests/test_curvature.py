@@ -79,3 +79,70 @@ def test_panda_peer_keeps_one_row_per_near_sphere_pair(panda):
     tau = law.evaluate_state(law.state(x, dx)).torque
     assert np.all(a @ tau >= lower - 1e-7) and np.all(a @ tau <= upper + 1e-7)
     assert np.all(np.abs(tau) <= law.torque_limit + 1e-9)
+
+
+def test_sphere_pairs_at_the_state_match_finite_differences(panda):
+    """The per-pair rows the CBF-QP peer reads (``sphere_pairs_at``, the compiled kernel on
+    the state's joint placements and Jacobians): φ_p against the clearance evaluated on its
+    own, ∇φ_p against central differences of φ_p, and κ_p against central differences of
+    ∇φ_p·ẋ along ẋ, at random Panda states near the table; and equal to the same kernel on a
+    Pinocchio pass of the clearance's own (``sphere_pairs``) to 1e-12."""
+    from cpbc.peers import CBFQP
+    from cpbc.reliability.verification import draw_state
+
+    law = next(e.controller for e in panda.controllers if isinstance(e.controller, CBFQP))
+    c = _clearance(panda)
+    rng = np.random.default_rng(4)
+    h = 1e-6
+    near = 0
+    for seed in range(12):
+        x = draw_state(panda, seed).position
+        dx = rng.uniform(-1.0, 1.0, 7)
+        phi, grad, curv, moving = c.sphere_pairs_at(law.state(x, dx))
+        own = c.sphere_pairs(x, dx)
+        for found, expect in zip((phi, grad, curv), own[:3], strict=True):
+            np.testing.assert_allclose(found, expect, rtol=1e-12, atol=1e-12)
+        assert np.array_equal(moving, own[3])
+        outside = c.sphere_pairs(x, np.zeros(7))[0]
+        np.testing.assert_allclose(phi, outside, rtol=0, atol=1e-15)
+        step = np.eye(7) * h
+        fd_grad = np.column_stack([(c.sphere_pairs(x + e, dx)[0] - c.sphere_pairs(x - e, dx)[0])
+                                   / (2 * h) for e in step])
+        smooth = np.all(np.abs(fd_grad - grad) < 1e-5, axis=1)  # away from region seams
+        assert smooth.mean() > 0.95
+        np.testing.assert_allclose(grad[smooth], fd_grad[smooth], atol=1e-7)
+        ahead = c.sphere_pairs(x + h * dx, dx)[1] @ dx
+        behind = c.sphere_pairs(x - h * dx, dx)[1] @ dx
+        fd_curv = (ahead - behind) / (2 * h)
+        np.testing.assert_allclose(curv[smooth], fd_curv[smooth],
+                                   atol=1e-6 * (1 + np.abs(fd_curv[smooth]).max()))
+        near += int(np.sum(moving & (phi < c.influence)))
+    assert near > 20  # pairs the peer keeps as rows were among those checked
+
+
+def test_peer_rows_read_the_state_only(panda, monkeypatch):
+    """The CBF-QP peer's rows take no Pinocchio pass of their own: every Pinocchio function
+    the constraints call counts zero calls while the rows are built from a state."""
+    import pinocchio as pin
+
+    from cpbc.peers import CBFQP
+    from cpbc.reliability.verification import draw_state
+
+    law = next(e.controller for e in panda.controllers if isinstance(e.controller, CBFQP))
+    x = draw_state(panda, 2).position
+    dx = np.array([0.05, -0.04, 0.03, 0.06, -0.08, 0.02, 0.1])
+    state = law.state(x, dx)
+    calls: list[str] = []
+    for name in ("computeStaticRegressor", "computeJointJacobians", "forwardKinematics",
+                 "computeJointJacobiansTimeVariation", "computeAllTerms", "crba",
+                 "updateFramePlacements", "rnea", "nonLinearEffects",
+                 "computeGeneralizedGravity", "computeCoriolisMatrix"):
+        real = getattr(pin, name)
+        monkeypatch.setattr(pin, name, lambda *a, _f=real, _n=name: calls.append(_n) or _f(*a))
+    a, _, _ = law.rows(state)
+    assert calls == []
+    c = _clearance(panda)
+    c.sphere_pairs(x, dx)  # the spy sees a pass of the clearance's own
+    assert "computeJointJacobians" in calls
+    phi = c.sphere_pairs(x, dx)[0]
+    assert len(a) > 14 and np.sum(phi < c.influence) > 0  # sphere rows among them

@@ -156,6 +156,13 @@ for period in (0.001, 0.01):
             tau = law.torque + push * rng.standard_normal(len(x))
             out[f"guard/{period}/{i}/{push}"] = guard._guard(state, tau, law.margins).tolist()
     out[f"guard/{period}/counts"] = [guard.acted, guard.scaled]
+# the CBF-QP peer's per-pair rows (cpbc.kernels.clearance.sphere_pair_rows), from the state
+from cpbc.constraints.clearance import Clearance
+law = setup.controllers["cpbc"]
+clearance = next(c for c in law.constraints.configuration if isinstance(c, Clearance))
+for i, (x, dx) in enumerate(setup.states[:8]):
+    phi, grad, curv, _ = clearance.sphere_pairs_at(law.state(x, dx))
+    out[f"sphere_pairs/{i}"] = np.concatenate([phi, grad.ravel(), curv]).tolist()
 json.dump(out, sys.stdout)
 """
 
@@ -169,9 +176,9 @@ def _torques(jit_off: bool) -> dict[str, list[float]]:
 
 def test_the_kernels_run_uncompiled_give_the_same_torques() -> None:
     """Every bench law (planar and Panda, and panda_goal_pose's task-space and joint CPBC),
-    and the Panda's guard accepting, blending and scaling into the torque box, with the
-    kernels compiled and run as plain Python (NUMBA_DISABLE_JIT=1): the same torques (and
-    guard decisions) to 1e-12."""
+    the Panda's guard accepting, blending and scaling into the torque box, and the CBF-QP
+    peer's per-pair sphere rows (φ, ∇φ, κ), with the kernels compiled and run as plain
+    Python (NUMBA_DISABLE_JIT=1): the same torques (guard decisions, rows) to 1e-12."""
     compiled, plain = _torques(False), _torques(True)
     assert compiled.keys() == plain.keys() and len(compiled) >= 40
     for period in ("0.001", "0.01"):

@@ -69,6 +69,13 @@ class ConfigurationConstraint(HasMargins, ABC):
         stopping test (cpbc.constraints.stopping) then neglects."""
         return np.zeros(len(self.names))
 
+    def motion_terms(self, state: ArmState) -> tuple[Array, Array, Array]:
+        """φ, ∇φ and ẋᵀ∇²φ ẋ at the per-step state (what a filter on φ̈ reads, e.g. the
+        CBF-QP peer's rows). Here from ``evaluate`` and ``curvature`` at (x, ẋ); a kind whose
+        evaluation takes kinematics reads them from the state instead (Clearance)."""
+        phi, grad = self.evaluate(state.x)
+        return phi, grad, self.curvature(state.x, state.dx)
+
     @classmethod
     def stacked(cls, parts: Sequence[ConfigurationConstraint]) -> ConfigurationConstraint:
         """One constraint that evaluates ``parts`` (all of this class) together, with their

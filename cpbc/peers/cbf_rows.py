@@ -4,8 +4,11 @@ With ẍ = D⁻¹(τ − b), b = C ẋ + g + f (eq. 6.1), a configuration constr
 
     φ̇ = ∇φ ẋ,   φ̈ = r τ − r b + κ,   r = ∇φ D⁻¹,   κ = ẋᵀ∇²φ ẋ                    (1)
 
-(κ from ``ConfigurationConstraint.curvature``; per sphere pair for a clearance,
-``Clearance.sphere_pairs``). Two variants:
+(φ, ∇φ and κ from ``ConfigurationConstraint.motion_terms`` at the per-step state; per
+sphere pair for a clearance, ``Clearance.sphere_pairs_at``: the compiled kernel
+cpbc.kernels.clearance.sphere_pair_rows, from the state's joint placements and Jacobians
+with the pair formulas the law's kernels use — no Pinocchio pass of the rows' own). Two
+variants:
 
 ``braking`` (what a practitioner builds today): a high-order CBF with the torque box in mind,
 
@@ -73,27 +76,27 @@ class Rows:
     soft: NDArray[np.bool_]
 
 
-def _configuration_rows(c: ConfigurationConstraint, x: Array, dx: Array, per_pair: bool
-                        ) -> tuple[Array, Array, Array]:
-    """φ, ∇φ and κ of a constraint's rows: one per moving sphere pair within the influence
-    distance for a clearance (with ``per_pair``), else its reported constraints."""
+def _configuration_rows(c: ConfigurationConstraint, state: ArmState, per_pair: bool
+                         ) -> tuple[Array, Array, Array]:
+    """φ, ∇φ and κ of a constraint's rows at the per-step state: one per moving sphere pair
+    within the influence distance for a clearance (with ``per_pair``), else its reported
+    constraints (``motion_terms``)."""
     if per_pair and isinstance(c, Clearance):
-        phi, grad, curv, moving = c.sphere_pairs(x, dx)
+        phi, grad, curv, moving = c.sphere_pairs_at(state)
         if phi.size and not phi.min() > 0:
-            _violation(c, c.value(x))
+            _violation(c, c.motion_terms(state)[0])
         keep = moving & (phi < (c.influence or np.inf))
         if c.sphere_count == len(c.names):  # spheres only: nothing reported besides
             return phi[keep], grad[keep], curv[keep]
-        full_phi, full_grad = c.evaluate(x)
-        full_curv = c.curvature(x, dx)
+        full_phi, full_grad, full_curv = c.motion_terms(state)
         rest = slice(c.sphere_count, len(c.names))  # capsule primitives, as reported
         return (np.concatenate([phi[keep], full_phi[rest]]),
                 np.vstack([grad[keep], full_grad[rest]]),
                 np.concatenate([curv[keep], full_curv[rest]]))
-    phi, grad = c.evaluate(x)
+    phi, grad, curv = c.motion_terms(state)
     if not np.all(phi > 0):  # outside S, as the laws refuse it
         _violation(c, phi)
-    return phi, grad, c.curvature(x, dx)
+    return phi, grad, curv
 
 
 def _violation(c: ConfigurationConstraint, phi: Array) -> None:
@@ -127,7 +130,7 @@ def barrier_rows(t: Tuning, constraints: ConstraintSet, state: ArmState) -> Rows
     b = state.coriolis_force + state.gravity + state.dissipation
     a_rows, lower, upper = [], [], []
     for c in constraints.configuration:
-        phi, grad, curv = _configuration_rows(c, x, dx, t.variant == "braking")
+        phi, grad, curv = _configuration_rows(c, state, t.variant == "braking")
         r = grad @ inv
         a_rows.append(r)
         lower.append(_lower_bound(t, phi, grad @ dx, r, r @ b, curv))

@@ -145,7 +145,6 @@ class Clearance(PairLayout, ConfigurationConstraint):
         self._zero = np.zeros(self._n)
         self._zero.setflags(write=False)
         self._no_value = np.empty(0)
-        self._motion_data = self._pin.createData()  # second order, apart from the state's
 
     # -- set-up (the pairs themselves: layout) -------------------------------------------
     def _split_static(self, samples: int = 8) -> None:
@@ -169,7 +168,7 @@ class Clearance(PairLayout, ConfigurationConstraint):
         slope = np.zeros(len(s.group))
         for _ in range(samples):
             q = rng.uniform(lo, hi)
-            g = self._pair_gradients(q, self._regressor(q))[1]
+            g = self._pair_rows(self._regressor(q), self._jacobians(q), np.zeros(self._n))[1]
             slope = np.maximum(slope, np.abs(g).max(axis=1))
         static = slope < 1e-12
         if not static.any():
@@ -201,28 +200,40 @@ class Clearance(PairLayout, ConfigurationConstraint):
 
     def evaluate(self, x: Array) -> tuple[Array, Array]:
         q = self._q(x)
-        y = self._regressor(q)
-        k = len(self.names)
-        grad = np.empty((k, self._n))
-        out = self.value(x)
-        s = self._spheres
-        if s is not None:
-            phi, g0 = self._pair_gradients(q, y)
-            # each reported constraint is its closest sphere pair
-            bounds = [*s.starts.tolist(), len(phi)]
-            closest = [lo + int(np.argmin(phi[lo:hi])) for lo, hi in pairwise(bounds)]
-            grad[s.start:s.stop] = g0[closest]
-        jacobian_rows = partial(self._rows_times_jacobians, self._jacobians(q))
-        for g in self._groups:
-            grad[g.start:g.stop] = g.gradient(*g.narrow(y), jacobian_rows)
-        if not self._identity:
-            grad = grad @ self._t_inv
-        return out, grad
+        phi, grad, _ = self._reported(self._regressor(q), self._jacobians(q),
+                                        np.zeros(self._n))
+        return phi, grad
 
     def gradient(self, x: Array) -> Array:
         return self.evaluate(x)[1]
 
-    # -- second order (cpbc.constraints.pair_motion) ----------------------------------------
+    def _reported(self, y: Array, jac: Array, dq: Array) -> tuple[Array, Array, Array]:
+        """The reported clearances, their gradients (controller coordinates) and the sphere
+        constraints' curvature along q̇ ``dq`` (the capsule entries 0) at the joint
+        placements y and joint Jacobians ``jac``. A sphere constraint's gradient and
+        curvature are its closest pair's."""
+        k = len(self.names)
+        grad, curv = np.empty((k, self._n)), np.zeros(k)
+        s = self._spheres
+        if s is not None:
+            phi, g0, c0 = self._pair_rows(y, jac, dq)
+            closest = self._closest(phi)
+            grad[s.start:s.stop], curv[s.start:s.stop] = g0[closest], c0[closest]
+        jacobian_rows = partial(self._rows_times_jacobians, jac)
+        for g in self._groups:
+            grad[g.start:g.stop] = g.gradient(*g.narrow(y), jacobian_rows)
+        if not self._identity:
+            grad = grad @ self._t_inv
+        return self._value(y), grad, curv
+
+    def _closest(self, phi: Array) -> list[int]:
+        """Each sphere constraint's closest pair, from every pair's clearance ``phi``."""
+        s = self._spheres
+        assert s is not None
+        bounds = [*s.starts.tolist(), len(phi)]
+        return [lo + int(np.argmin(phi[lo:hi])) for lo, hi in pairwise(bounds)]
+
+    # -- second order (cpbc.kernels.clearance, eqs. 1 and 2) -------------------------------
     @property
     def sphere_count(self) -> int:
         """How many reported constraints are sphere primitives' (they come first)."""
@@ -234,37 +245,62 @@ class Clearance(PairLayout, ConfigurationConstraint):
         gradient ∇φ_p (P, n), curvature ẋᵀ∇²φ_p ẋ (P,) and whether it can move (P,) bool.
 
         Each pair is smooth where the minimum over a link's spheres is not: a filter that
-        wants C¹ rows keeps one row per pair. Empty without sphere primitives.
+        wants C¹ rows keeps one row per pair. Empty without sphere primitives. At the
+        per-step state: ``sphere_pairs_at``.
         """
+        q = self._q(x)
+        return self._sphere_pairs(self._regressor(q), self._jacobians(q), self._q(dx))
+
+    def sphere_pairs_at(self, state: ArmState
+                        ) -> tuple[Array, Array, Array, NDArray[np.bool_]]:
+        """``sphere_pairs`` at the per-step state, from its joint placements and Jacobians
+        (``RobotModel.state(kinematics=True)``): no Pinocchio pass of its own."""
+        return self._sphere_pairs(*self._state_kinematics(state), state.dq)
+
+    def _sphere_pairs(self, y: Array, jac: Array, dq: Array
+                      ) -> tuple[Array, Array, Array, NDArray[np.bool_]]:
         s = self._spheres
         if s is None:
             n = self._n
             return np.zeros(0), np.zeros((0, n)), np.zeros(0), np.zeros(0, dtype=bool)
-        q, dq = self._q(x), self._q(dx)
-        y = self._regressor(q)
-        phi, grad = self._pair_gradients(q, y)
+        phi, grad, curv = self._pair_rows(y, jac, dq)
         if not self._identity:
             grad = grad @ self._t_inv
-        return phi, grad, self._pair_curvature(q, dq, y), s.moving > 0.0
+        return phi, grad, curv, s.moving > 0.0
 
     def curvature(self, x: Array, dx: Array) -> Array:
         """ẋᵀ∇²φ ẋ of each reported constraint: that of its closest sphere pair (as its
         gradient is), and for capsule primitives a central difference of the gradient along
         ẋ (step 1e-6 rad of motion; their closed forms are piecewise and not given here)."""
-        out = np.zeros(len(self.names))
-        s = self._spheres
-        if s is not None:
-            phi, _, curv, _ = self.sphere_pairs(x, dx)
-            bounds = [*s.starts.tolist(), len(phi)]
-            closest = [lo + int(np.argmin(phi[lo:hi])) for lo, hi in pairwise(bounds)]
-            out[s.start:s.stop] = curv[closest]
+        q = self._q(x)
+        out = self._reported(self._regressor(q), self._jacobians(q), self._q(dx))[2]
+        self._capsule_curvature(x, dx, out)
+        return out
+
+    def motion_terms(self, state: ArmState) -> tuple[Array, Array, Array]:
+        """φ, ∇φ and ẋᵀ∇²φ ẋ of the reported constraints (``evaluate``, ``curvature``) from
+        the state's joint placements and Jacobians; only the capsule primitives' curvature,
+        a difference of gradients away from the state, takes Pinocchio passes of its own."""
+        phi, grad, curv = self._reported(*self._state_kinematics(state), state.dq)
+        self._capsule_curvature(state.x, state.dx, curv)
+        return phi, grad, curv
+
+    def _capsule_curvature(self, x: Array, dx: Array, out: Array) -> None:
+        """The capsule primitives' entries of ``curvature`` into ``out``."""
         speed = float(np.linalg.norm(dx))
         if self._groups and speed > 0.0:
             t = 1e-6 / speed
             diff = self.gradient(x + t * dx) - self.gradient(x - t * dx)
-            rest = slice(0 if s is None else s.stop, len(self.names))
+            rest = slice(self.sphere_count, len(self.names))
             out[rest] = (diff @ dx)[rest] / (2.0 * t)
-        return out
+
+    @staticmethod
+    def _state_kinematics(state: ArmState) -> tuple[Array, Array]:
+        """The state's joint placements and Jacobians, which the clearance reads."""
+        if state.regressor is None or state.joint_jacobians is None:
+            raise CpbcError("clearance reads the state's joint kinematics: build the state "
+                            "with kinematics=True (a law's state(x, dx) does)")
+        return state.regressor, state.joint_jacobians
 
     # -- the localised barrier -------------------------------------------------------------
     def _shape(self, phi: Array) -> tuple[Array, Array]:
@@ -295,10 +331,7 @@ class Clearance(PairLayout, ConfigurationConstraint):
                       ) -> tuple[Array, Array, Array | None]:
         """φ̃, Σ ∇φ̃/φ̃ and (with ``margins``) the clearances φ, from the state's joint
         placements and Jacobians (``RobotModel.state(kinematics=True)``)."""
-        if state.regressor is None or state.joint_jacobians is None:
-            raise CpbcError("clearance reads the state's joint kinematics: build the state "
-                            "with kinematics=True (a law's state(x, dx) does)")
-        return self._barrier(state.x, state.regressor, state.joint_jacobians, margins)
+        return self._barrier(state.x, *self._state_kinematics(state), margins)
 
     def packed(self) -> Packed | None:
         """The sphere pairs' tables (cpbc.kernels.barrier_set), when every primitive is a

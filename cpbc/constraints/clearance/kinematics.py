@@ -40,6 +40,7 @@ class Kinematics:
     _nj: int  # joints (without the universe)
     _scale: float  # Pinocchio's static regressor times this is the joint placements
     _supports: Array  # (njoints, n) 1 where joint k moves joint j's link
+    _joint_supports: Array  # (n, n) 1 where coordinate i moves coordinate k's link (row k)
     _joint: list[int]  # each primitive's parent joint
     _local: list[tuple[Array, Array]]  # each primitive's ends in its joint's frame
 
@@ -68,6 +69,10 @@ class Kinematics:
             for k in pm.supports[j].tolist()[1:]:
                 jm = pm.joints[k]
                 self._supports[j, jm.idx_v: jm.idx_v + jm.nv] = 1.0
+        self._joint_supports = np.zeros((self._n, self._n))
+        for j in range(1, pm.njoints):
+            jm = pm.joints[j]
+            self._joint_supports[jm.idx_v: jm.idx_v + jm.nv] = self._supports[j]
         self._joint = []
         self._local = []
         for p in self.primitives:

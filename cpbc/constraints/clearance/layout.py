@@ -247,10 +247,6 @@ class PairLayout(SpherePairs):
             obstacles=np.array([np.concatenate([core.rotation.reshape(-1), core.centre])
                                 for core in cores]).reshape(-1, 12),
             pair_index=pair_index, pair_table=table,
-            pair_sphere=pair_index[:, 1].astype(np.intp),
-            pair_sphere2=pair_index[n_obs * n_sph:, 2].astype(np.intp),
-            pair_rot=np.array([core.rotation for core in cores for _ in spheres]
-                              + [np.eye(3)] * len(self_pairs)).reshape(-1, 3, 3),
             sphere_supports=self._masks(spheres),
             starts=np.flatnonzero(np.diff(grp, prepend=-1)).astype(np.intp),
             group=grp,

@@ -3,8 +3,8 @@ self pairs, all at once.
 
 ``Spheres`` holds the pairs' constant tables, packed for the compiled kernels
 (cpbc.kernels.clearance, where the formulas are); ``SpherePairs`` (a base of ``Clearance``)
-calls them for the pairs' distances, the law's factors and force, and reads their offsets
-for the gradients and the curvature along a motion.
+calls them for the pairs' distances, the law's factors and force, and each pair's gradient
+and curvature along a motion.
 """
 
 from __future__ import annotations
@@ -12,14 +12,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 
 from cpbc.arrays import Array
 from cpbc.constraints.clearance.capsules import CapsuleGroup
 from cpbc.constraints.clearance.kinematics import Kinematics
-from cpbc.constraints.clearance.tables import TINY, Index
-from cpbc.constraints.pair_motion import point_motion, rounded_box_curvature
-from cpbc.kernels.clearance import Ints, sphere_barrier, sphere_clearances, sphere_geometry
+from cpbc.constraints.clearance.tables import Index
+from cpbc.kernels.clearance import (
+    Ints,
+    sphere_barrier,
+    sphere_clearances,
+    sphere_geometry,
+    sphere_pair_rows,
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,9 +48,6 @@ class Spheres:
     obstacles: Array  # (O, 12): each obstacle core's rotation R (row-major) and centre
     pair_index: Ints  # (P, 4): obstacle (−1: self pair), sphere, second sphere, constraint
     pair_table: Array  # (P, 6): h (3), rsum, rsum_law, moving
-    pair_sphere: Index  # (P,) the (first) sphere of each pair
-    pair_sphere2: Index  # (Ps,) the second sphere of each self pair
-    pair_rot: Array  # (P, 3, 3) the obstacle's rotation R (I for a self pair)
     sphere_supports: Array  # (S, n) 1 where joint k moves sphere s's link
     starts: Index  # first pair of each reported constraint (a link against an obstacle/link)
     group: Index  # (P,) the constraint (index in ``names``) of each pair
@@ -73,14 +74,13 @@ class Spheres:
 
 
 class SpherePairs(Kinematics):
-    """The sphere pairs: their clearances and the law's terms (compiled kernels,
-    cpbc.kernels.clearance), their gradients and their curvature (``pair_motion``)."""
+    """The sphere pairs: their clearances, the law's terms, and each pair's gradient and
+    curvature along a motion (compiled kernels, cpbc.kernels.clearance)."""
 
     _spheres: Spheres | None
     _groups: list[CapsuleGroup]
     _far_phi: Array  # φ̃ of every constraint with no pair within ℓ
     _no_value: Array  # an empty array: ``sphere_barrier`` without the reported values
-    _motion_data: pin.Data  # second order, apart from the state's
 
     def _sphere_geometry(self, y: Array) -> tuple[Array, Array, Array, Array]:
         """The sphere centres (3, S), every pair's u (3, P), max(|u| − h, 0) (3, P) and core
@@ -113,39 +113,15 @@ class SpherePairs(Kinematics):
                               s.pair_index, s.pair_table, s.sphere_supports, self._far_phi,
                               self.influence or 0.0, phi_out, b, value)
 
-    def _pair_gradients(self, q: Array, y: Array) -> tuple[Array, Array]:
-        """Every sphere pair's clearance (P,) and its gradient (P, n), joint coordinates."""
+    def _pair_rows(self, y: Array, jac: Array, dq: Array) -> tuple[Array, Array, Array]:
+        """Every sphere pair's clearance (P,), gradient (P, n) and curvature q̇ᵀ∇²φ_p q̇
+        (P,), joint coordinates, at the joint placements y, joint Jacobians ``jac`` and rates
+        ``dq`` (cpbc.kernels.clearance.sphere_pair_rows)."""
         s = self._spheres
         assert s is not None
-        centres, u, outside, d = self._sphere_geometry(y)
-        local = np.copysign(outside, u) / np.maximum(d, TINY)
-        normal = np.einsum("pab,bp->pa", s.pair_rot, local)
-        jac = self._jacobians(q)
-        grad = self._rows_times_jacobians(jac, centres[:, s.pair_sphere].T, normal,
-                                          s.sphere_supports[s.pair_sphere])
-        if len(s.pair_sphere2):
-            at = s.n_obstacle
-            grad[at:] -= self._rows_times_jacobians(
-                jac, centres[:, s.pair_sphere2].T, normal[at:],
-                s.sphere_supports[s.pair_sphere2])
-        return d - s.rsum, grad
-
-    def _pair_curvature(self, q: Array, dq: Array, y: Array) -> Array:
-        """ẋᵀ∇²φ_p ẋ of every sphere pair (pair_motion, eqs. 1 and 2)."""
-        s = self._spheres
-        assert s is not None
-        data = self._motion_data
-        pin.computeJointJacobiansTimeVariation(self._pin, data, q, dq)
-        pin.computeJointJacobians(self._pin, data, q)
-        centres, u, _, _ = self._sphere_geometry(y)
-        vel, acc = point_motion(data.J, data.dJ, s.sphere_supports, dq,
-                                np.ascontiguousarray(centres.T))
-        rot = s.pair_rot
-        first = s.pair_sphere
-        du = np.einsum("pba,pb->ap", rot, vel[first])
-        ddu = np.einsum("pba,pb->ap", rot, acc[first])
-        if len(s.pair_sphere2):
-            at, second = s.n_obstacle, s.pair_sphere2
-            du[:, at:] -= vel[second].T
-            ddu[:, at:] -= acc[second].T
-        return rounded_box_curvature(u, du, ddu, s.half)
+        n_pair = len(s.group)
+        phi, grad, curv = np.empty(n_pair), np.empty((n_pair, self._n)), np.empty(n_pair)
+        sphere_pair_rows(y, jac, dq, s.sphere_index, s.sphere_local, s.obstacles,
+                         s.pair_index, s.pair_table, s.sphere_supports, self._joint_supports,
+                         phi, grad, curv)
+        return phi, grad, curv
