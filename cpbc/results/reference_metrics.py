@@ -9,22 +9,28 @@ Statuses of a reference run (never ``converged``: that is a joint set point's):
 * ``blocked`` with ``blocked_by`` (the constraint) and ``blocked_at`` ({time, path_time}
   of the block): the governor stopped before an inadmissible stretch and the run ended
   there (``stop``, or a stretch to the path's end);
-* ``stalled`` with ``stall_kind``: the path completed, the arm at rest away from its end;
+* ``stalled`` with ``stall_kind``: the path completed and the arm rests away from its last
+  point, or creeps there without progress, as a goal run's rest is judged against its goal
+  (cpbc.results.task_metrics: ``creeping`` on the error to the last point, and
+  ``stall_kind`` with the law, steered to that point, and the monitor's constraints, so a
+  barrier holding the arm with margin to spare is named, not called a local minimum);
 * ``held``, ``not_settled`` (the path not completed in the run, or the arm still moving
-  away from its end), ``constraint_violated`` and ``diverged`` as for joint runs.
+  and closing in on its last point), ``constraint_violated`` and ``diverged`` as for
+  joint runs.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.model.robot_model import RobotModel
 from cpbc.reference.tracker import ReferenceTracker
-from cpbc.results.task_metrics import stall_kind
+from cpbc.results.metrics import SettleCriteria
+from cpbc.results.task_metrics import creeping, stall_kind, task_errors
 from cpbc.simulation.trajectory import Trajectory
 from cpbc.taskspace.goal import FrameGoal
 
@@ -101,9 +107,11 @@ def _status(joint_status: str, finished: bool, stopped: bool, inside: bool,
 
 def reference_outcome(model: RobotModel, goal: FrameGoal, tracker: ReferenceTracker,
                       traj: Trajectory, log: ReferenceLog, joint_status: str,
-                      names: Sequence[str], margins: Array,
-                      velocity_tolerance: float) -> ReferenceOutcome:
-    """The run's outcome (module docstring) from its log and the joint status."""
+                      monitor: ConstraintSet, margins: Array,
+                      criteria: SettleCriteria) -> ReferenceOutcome:
+    """The run's outcome (module docstring) from its log and the joint status; ``monitor``
+    and ``margins`` (N, m): the run's constraints and margin history, to name a barrier
+    that holds the arm."""
     gov, plan = tracker.governor, tracker.plan
     assert gov is not None and plan is not None
     h = tracker.h
@@ -115,11 +123,17 @@ def reference_outcome(model: RobotModel, goal: FrameGoal, tracker: ReferenceTrac
     finished = gov.s >= plan.path.duration - 0.5 * h
     stopped = gov.blocked_now and (gov.settings.on_infeasible == "stop"
                                    or not np.isfinite(gov.blocked[1] if gov.blocked else 0))
-    at_rest = bool(np.max(np.abs(traj.velocity[-1])) < velocity_tolerance)
+    at_rest = bool(np.max(np.abs(traj.velocity[-1])) < criteria.velocity_tolerance)
+    last = replace(goal, position=end_point)
     status = _status(joint_status, finished, stopped, inside, at_rest)
+    if status == "not_settled" and finished and creeping(
+            model, last, traj, task_errors(model, last, traj.position), criteria):
+        status = "stalled"
     kind = None
     if status == "stalled":
-        kind = stall_kind(model, goal, traj.position[-1], names, margins)
+        # the law's springs are steered to the path's last point (the target stays there)
+        kind = stall_kind(model, last, traj.position[-1], monitor.names, margins,
+                          tracker.law, monitor)
     lag = log.path_lag
     applied_gap = [_gap(model, goal, x, a) for x, a in zip(traj.position, log.applied,
                                                            strict=True)]

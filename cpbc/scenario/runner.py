@@ -95,8 +95,7 @@ def run_one(
     if isinstance(law, ReferenceTracker) and setup.goal is not None:
         log = reference_log(setup.model, setup.goal.goal, law, traj)
         found = reference_outcome(setup.model, setup.goal.goal, law, traj, log,
-                                  summary.status, setup.monitor.names, margins,
-                                  setup.criteria.velocity_tolerance)
+                                  summary.status, setup.monitor, margins, setup.criteria)
         summary = replace(summary, **found.__dict__, settle_time=None)
         errors = log.task_error
         logged = {"path_time": log.path_time, "applied": log.applied,
