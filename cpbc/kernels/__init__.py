@@ -31,12 +31,18 @@ READ_ONLY = "Array(float64, 1, 'A', readonly=True)"
 READ_ONLY_MATRIX = "Array(float64, 2, 'A', readonly=True)"
 
 
-def kernel(signature: str) -> Callable[[F], F]:
+def kernel(signature: str, inline: bool = False) -> Callable[[F], F]:
     """numba's nopython compilation of one function for one signature, cached on disk;
-    numpy's floating-point semantics (x/0 is ±inf or NaN, as the numpy code it replaces)."""
+    numpy's floating-point semantics (x/0 is ±inf or NaN, as the numpy code it replaces).
+
+    ``inline``: a small kernel another kernel calls is written into its caller (numba's
+    ``inline="always"``): a call between compiled functions passes each array as a struct
+    and counts its references, about 10–50 ns a call, more than such a kernel's work. Kept
+    for the small ones: each inlined copy is compiled again in every caller."""
 
     def wrap(fn: F) -> F:
-        compiled = numba.njit(signature, cache=True, nogil=True, error_model="numpy")(fn)
+        compiled = numba.njit(signature, cache=True, nogil=True, error_model="numpy",
+                              inline="always" if inline else "never")(fn)
         return cast(F, compiled)
 
     return wrap

@@ -11,7 +11,7 @@ from cpbc.kernels import kernel
 IDENTITY, POWER, TANH = 0, 1, 2
 
 
-@kernel("UniTuple(float64, 2)(int64, float64, float64)")
+@kernel("UniTuple(float64, 2)(int64, float64, float64)", inline=True)
 def shaping_terms(kind: int, parameter: float, log_x: float) -> tuple[float, float]:
     """r(x) and log s(x) at x = exp(log_x) for
 

@@ -13,7 +13,8 @@ from cpbc.kernels.energy import kinetic_energy
 from cpbc.kernels.task import point_on_frame
 
 
-@kernel("void(float64[:, :], float64[:], float64[:], float64[:])")
+@kernel("void(float64[:, :], float64[:], float64[:], float64[:])",
+        inline=True)
 def linear_limit_terms(constants: Array, x: Array, phi: Array, gradient: Array) -> None:
     """Two-sided limits lower_i < a_iᵀx < upper_i as φ_i = (a_iᵀx − l_i)(u_i − a_iᵀx) (the
     joint limit of eq. 6.50 up to a constant factor; the relative limit φ₂ of Section 6.4):
@@ -37,7 +38,8 @@ def linear_limit_terms(constants: Array, x: Array, phi: Array, gradient: Array) 
                 gradient[j] += w * rows[i, j]
 
 
-@kernel("void(float64[:, :], float64[:], float64[:], float64[:, :])")
+@kernel("void(float64[:, :], float64[:], float64[:], float64[:, :])",
+        inline=True)
 def rate_limit_terms(constants: Array, dx: Array, psi: Array, weight: Array) -> None:
     """Rate limits |a_jᵀẋ| < B_j as ψ_j = Ω_j − ½(a_jᵀẋ)², Ω_j = B_j²/2, Q_j = a_j a_jᵀ
     (Remark 6.7, eq. 7.9): ψ into ``psi`` (k,) and Π = Σ a_j a_jᵀ/ψ_j into ``weight``
@@ -66,7 +68,8 @@ def rate_limit_terms(constants: Array, dx: Array, psi: Array, weight: Array) -> 
                         weight[a, b] += ra * rows[i, b]
 
 
-@kernel("float64(float64, float64[:, :], float64[:, :], float64[:], float64[:, :], float64[:])")
+@kernel("float64(float64, float64[:, :], float64[:, :], float64[:], float64[:, :], float64[:])",
+        inline=True)
 def kinetic_energy_terms(limit: float, inertia: Array, coriolis: Array, dx: Array,
                          weight: Array, gradient: Array) -> float:
     """A kinetic-energy limit ψ = Ω − ½ẋᵀD(x)ẋ (eq. 6.66, 7.33), Q = D, ∂ψ/∂x = −Cᵀẋ with
@@ -83,7 +86,8 @@ def kinetic_energy_terms(limit: float, inertia: Array, coriolis: Array, dx: Arra
     return psi
 
 
-@kernel(f"float64({READ_ONLY})")
+@kernel(f"float64({READ_ONLY})",
+        inline=True)
 def log_sum(margins: Array) -> float:
     """Σ log m_i of positive margins (log Φ = Σ log φ_i, log Ψ = Σ log ψ_j: the products Φ, Ψ
     are never formed); NaN when a margin is ≤ 0 or NaN."""
@@ -96,7 +100,8 @@ def log_sum(margins: Array) -> float:
     return total
 
 
-@kernel("void(float64[:], float64[:], float64[:, :], float64[:, :], float64[:], float64[:])")
+@kernel("void(float64[:], float64[:], float64[:, :], float64[:, :], float64[:], float64[:])",
+        inline=True)
 def point_sphere_terms(constants: Array, origin: Array, rotation: Array, jacobian: Array,
                        phi: Array, gradient: Array) -> None:
     """A point p kept outside a sphere, φ = ‖p − c‖² − r² (φ₁ of Section 6.4), ∇φ = 2(p − c)ᵀJ_p:

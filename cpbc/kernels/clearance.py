@@ -29,7 +29,7 @@ from cpbc.kernels import READ_ONLY, kernel
 Ints = NDArray[np.int64]  # the index tables
 
 
-@kernel("void(float64[:, :], int64[:], float64[:, :], float64[:, :])")
+@kernel("void(float64[:, :], int64[:], float64[:, :], float64[:, :])", inline=True)
 def sphere_centres(y: Array, sphere_index: Ints, sphere_local: Array, centres: Array) -> None:
     """The sphere centres (3, S) from the static regressor ``y``: s = M (t_j + R_j l)."""
     for s in range(sphere_index.shape[0]):
@@ -93,7 +93,7 @@ def sphere_values(u: Array, d: Array, pair_index: Ints, pair_table: Array, value
             value[c] = phi
 
 
-@kernel("UniTuple(float64, 2)(float64, float64)")
+@kernel("UniTuple(float64, 2)(float64, float64)", inline=True)
 def localised(phi: float, inv_ell: float) -> tuple[float, float]:
     """The localised barrier φ̃ = ℓ σ(φ/ℓ), σ(u) = 1 − (1 − min(u, 1))³
     (cpbc.constraints.clearance.Clearance): returns φ̃/ℓ and (dφ̃/dφ)/φ̃ · ℓ/3, i.e. with
@@ -115,7 +115,7 @@ def localised_terms(phi: Array, ell: float, shaped: Array, ratio: Array) -> None
         ratio[p] = 3.0 * inv_ell * slope
 
 
-@kernel("float64(float64[:], float64[:, :])")
+@kernel("float64(float64[:], float64[:, :])", inline=True)
 def smallest_law_clearance(d: Array, pair_table: Array) -> float:
     """min_p d_p − rsum_law_p (∞ on a pair that cannot move, ℓ given); NaN if any is."""
     low = math.inf
@@ -128,7 +128,7 @@ def smallest_law_clearance(d: Array, pair_table: Array) -> float:
     return low
 
 
-@kernel("float64(float64[:, :], float64[:, :], float64[:, :], int64, int64, int64)")
+@kernel("float64(float64[:, :], float64[:, :], float64[:, :], int64, int64, int64)", inline=True)
 def pair_direction(u: Array, outside: Array, obstacles: Array, o: int, p: int, i: int
                    ) -> float:
     """Component i of pair p's direction in the world, R sign(u) max(|u| − h, 0) = d n̂
@@ -171,7 +171,7 @@ def pair_forces(u: Array, outside: Array, d: Array, obstacles: Array, pair_index
 
 
 @kernel("void(float64[:, :], int64, float64, float64, float64, float64[:, :],"
-        " float64[:, :], float64, float64[:])")
+        " float64[:, :], float64, float64[:])", inline=True)
 def force_on_joints(centres: Array, s: int, f0: float, f1: float, f2: float,
                     supports: Array, jac: Array, sign: float, b: Array) -> None:
     """b_k += sign · fᵀ J_k(s) for the joints k that move sphere s: a force f at a point s

@@ -22,7 +22,7 @@ def to_joint(t_inv: Array, x: Array, dx: Array, q: Array, dq: Array) -> None:
         dq[i] = b
 
 
-@kernel(f"void({READ_ONLY_MATRIX}, float64[:, :], float64[:, :])")
+@kernel(f"void({READ_ONLY_MATRIX}, float64[:, :], float64[:, :])", inline=True)
 def congruence(t_inv: Array, matrix_q: Array, matrix: Array) -> None:
     """M_x = T⁻ᵀ M_q T⁻¹ into ``matrix`` (a matrix of the joints' generalised forces)."""
     n = matrix_q.shape[0]
@@ -38,7 +38,7 @@ def congruence(t_inv: Array, matrix_q: Array, matrix: Array) -> None:
 
 
 @kernel(f"void({READ_ONLY_MATRIX}, float64[:, :], float64[:], float64[:], float64[:, :],"
-        " float64[:], float64[:])")
+        " float64[:], float64[:])", inline=True)
 def to_controller(t_inv: Array, inertia_q: Array, nle: Array, gravity_q: Array,
                   inertia: Array, bias: Array, gravity: Array) -> None:
     """D_x = T⁻ᵀ D_q T⁻¹ into ``inertia``, C ẋ = T⁻ᵀ (nle − g_q) into ``bias`` and
@@ -60,7 +60,7 @@ TERMS = ("Tuple((float64[:, :], float64[:], float64[:], float64[:, :], float64[:
 
 
 @kernel(f"{TERMS}(boolean, boolean, float64[:, :], float64[:, :], float64[:],"
-        " float64[:, :], float64[:], float64[:], float64[:, :], float64[:, :])")
+        " float64[:, :], float64[:], float64[:], float64[:, :], float64[:, :])", inline=True)
 def controller_terms(joints: bool, friction: bool, t_inv: Array, friction_matrix: Array,
                      dx: Array, inertia_q: Array, nle: Array, gravity_q: Array,
                      coriolis_q: Array, frame_jacobian_q: Array

@@ -7,7 +7,7 @@ from cpbc.arrays import Array
 from cpbc.kernels import kernel
 
 
-@kernel("float64(float64[:, :], float64[:])")
+@kernel("float64(float64[:, :], float64[:])", inline=True)
 def kinetic_energy(inertia: Array, dx: Array) -> float:
     """½ ẋᵀ D ẋ, the kinetic part of L (eq. 6.7)."""
     n = dx.shape[0]

@@ -41,7 +41,7 @@ FRAME_KINDS = (POSITION_SPRING, AXIS_SPRING, ORIENTATION_SPRING, TASK_DAMPING)
 FRAME = f"{READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}"
 
 
-@kernel(f"float64({READ_ONLY}, {READ_ONLY}, {READ_ONLY}, float64[:])")
+@kernel(f"float64({READ_ONLY}, {READ_ONLY}, {READ_ONLY}, float64[:])", inline=True)
 def joint_spring(x: Array, goal: Array, stiffness: Array, grad: Array) -> float:
     """U = ½ x̃ᵀ K x̃, x̃ = x − x_d (eq. 6.7), K diagonal: returns U, writes ∂U/∂x = K x̃
     into ``grad``."""
@@ -54,7 +54,7 @@ def joint_spring(x: Array, goal: Array, stiffness: Array, grad: Array) -> float:
     return 0.5 * total
 
 
-@kernel("float64(float64, float64)")
+@kernel("float64(float64, float64)", inline=True)
 def log_add_exp(a: float, b: float) -> float:
     """ln(eᵃ + eᵇ) without overflow (numpy.logaddexp's formula)."""
     if a == b:
@@ -81,21 +81,21 @@ def log_cosh_sum(err: Array, stiffness: Array, xi: Array, weight: Array, offset:
     return total - offset
 
 
-@kernel(f"void({READ_ONLY}, {READ_ONLY}, float64[:])")
+@kernel(f"void({READ_ONLY}, {READ_ONLY}, float64[:])", inline=True)
 def joint_damping(gain: Array, dx: Array, force: Array) -> None:
     """K_D ẋ (eq. 6.10), K_D diagonal, into ``force``."""
     for i in range(dx.shape[0]):
         force[i] = gain[i] * dx[i]
 
 
-@kernel(f"void({READ_ONLY}, {READ_ONLY}, {READ_ONLY}, float64[:])")
+@kernel(f"void({READ_ONLY}, {READ_ONLY}, {READ_ONLY}, float64[:])", inline=True)
 def tanh_damping(gain: Array, gamma: Array, dx: Array, force: Array) -> None:
     """K_D tanh(Γ ẋ) (eq. 7.17), bounded by K_D, into ``force``."""
     for i in range(dx.shape[0]):
         force[i] = gain[i] * np.tanh(gamma[i] * dx[i])
 
 
-@kernel(f"float64(int64[:, :], float64[:, :], float64[:], {FRAME}, float64[:])")
+@kernel(f"float64(int64[:, :], float64[:, :], float64[:], {FRAME}, float64[:])", inline=True)
 def potential_terms(plan: Ints, floats: Array, x: Array, origin: Array, rotation: Array,
                     jacobian: Array, grad: Array) -> float:
     """U = Σ U_k of the packed springs (the other rows are skipped), ∂U/∂x = Σ ∂U_k/∂x into
@@ -134,7 +134,7 @@ def potential_terms(plan: Ints, floats: Array, x: Array, origin: Array, rotation
     return total
 
 
-@kernel(f"void(int64[:, :], float64[:, :], float64[:], {FRAME}, float64[:])")
+@kernel(f"void(int64[:, :], float64[:, :], float64[:], {FRAME}, float64[:])", inline=True)
 def damping_terms(plan: Ints, floats: Array, dx: Array, origin: Array, rotation: Array,
                   jacobian: Array, force: Array) -> None:
     """The joint damping plus the task damping of the packed terms (the other rows are
@@ -159,7 +159,7 @@ def damping_terms(plan: Ints, floats: Array, dx: Array, origin: Array, rotation:
             force[i] += part[i]
 
 
-@kernel("UniTuple(float64, 2)(int64[:, :], float64[:, :], float64)")
+@kernel("UniTuple(float64, 2)(int64[:, :], float64[:, :], float64)", inline=True)
 def shaped(plan: Ints, floats: Array, log_x: float) -> tuple[float, float]:
     """r(x) and log s(x) of the packed shaping (cpbc.kernels.barrier_shaping.shaping_terms); those
     of s(x) = x when none is packed."""

@@ -29,7 +29,7 @@ def zero_terms(n: int) -> tuple[Array, Array]:
 
 
 @kernel("void(float64[:, :], float64[:], float64[:], float64[:], float64[:], "
-        f"{READ_ONLY}, {READ_ONLY_MATRIX}, boolean, float64, float64[:])")
+        f"{READ_ONLY}, {READ_ONLY_MATRIX}, boolean, float64, float64[:])", inline=True)
 def cpbc_torque(inertia: Array, gravity: Array, bias: Array, grad: Array, damping: Array,
                 gradient: Array, weight: Array, constrained_rate: bool, rho: float, tau: Array
                 ) -> None:
@@ -65,7 +65,8 @@ def cpbc_torque(inertia: Array, gravity: Array, bias: Array, grad: Array, dampin
         tau[i] = rhs[i]
 
 
-@kernel(f"void(float64[:], float64[:], float64[:], {READ_ONLY}, float64, float64, float64[:])")
+@kernel(f"void(float64[:], float64[:], float64[:], {READ_ONLY}, float64, float64, float64[:])",
+        inline=True)
 def cpbc_ke_torque(gravity: Array, grad: Array, damping: Array, gradient: Array, rho: float,
                    psi: float, tau: Array) -> None:
     """CPBC-KE (Corollary 6.11, eq. 6.67) with shaping, in log-barrier form:
@@ -79,7 +80,8 @@ def cpbc_ke_torque(gravity: Array, grad: Array, damping: Array, gradient: Array,
         tau[i] = gravity[i] + (-grad[i] - damping[i] + rho * gradient[i]) / scale
 
 
-@kernel("float64(float64, float64)")
+@kernel("float64(float64, float64)",
+        inline=True)
 def shaped_value(lag: float, log_s: float) -> float:
     """V = L / s(ΦΨ), evaluated in logs (log s from cpbc.kernels.barrier_shaping); 0 when L ≤ 0."""
     if lag <= 0.0:
@@ -121,7 +123,8 @@ TABLES = ("Tuple((int64, int64[:, :], int64[:, :], float64[:, :], int64[:, :],"
           " float64[:, :]))")
 
 
-@kernel("int64[:, :](int64[::1], int64, int64, int64)")
+@kernel("int64[:, :](int64[::1], int64, int64, int64)",
+        inline=True)
 def int_rows(flat: Ints, start: int, rows: int, columns: int) -> Ints:
     """flat[start : start + rows·columns] as a (rows, columns) view, row-major (numba's
     reshape calls out to C, about 16 ns; a strided view costs nothing)."""
@@ -129,14 +132,16 @@ def int_rows(flat: Ints, start: int, rows: int, columns: int) -> Ints:
                                            strides=(columns * flat.itemsize, flat.itemsize))
 
 
-@kernel("float64[:, :](float64[::1], int64, int64, int64)")
+@kernel("float64[:, :](float64[::1], int64, int64, int64)",
+        inline=True)
 def float_rows(flat: Array, start: int, rows: int, columns: int) -> Array:
     """``int_rows`` of a float array."""
     return np.lib.stride_tricks.as_strided(flat[start:], shape=(rows, columns),
                                            strides=(columns * flat.itemsize, flat.itemsize))
 
 
-@kernel(f"{TABLES}(int64[::1], float64[::1])")
+@kernel(f"{TABLES}(int64[::1], float64[::1])",
+        inline=True)
 def law_tables(ints: Ints, floats: Array) -> tuple[int, Ints, Ints, Array, Ints, Array]:
     """The margins and the tables packed by ``pack_tables`` (views): the set's plan, ints
     and floats (cpbc.kernels.barrier_set), the terms' plan and floats
@@ -155,7 +160,8 @@ def law_tables(ints: Ints, floats: Array) -> tuple[int, Ints, Ints, Array, Ints,
 MODEL = "Tuple((boolean, boolean, float64[:, :], float64[:, :], float64[::1]))"
 
 
-@kernel(f"{MODEL}(int64[::1], float64[::1], int64)")
+@kernel(f"{MODEL}(int64[::1], float64[::1], int64)",
+        inline=True)
 def model_tables(ints: Ints, floats: Array, n: int
                  ) -> tuple[bool, bool, Array, Array, Array]:
     """Whether the coordinates are the joints' and whether the arm has friction, T⁻¹, F_d
@@ -167,7 +173,7 @@ def model_tables(ints: Ints, floats: Array, n: int
 
 
 @kernel("UniTuple(float64[:, :], 2)(int64[::1], float64[:], float64[:, :], float64[:, :],"
-        " float64[:, :], float64[:, :], float64[::1])")
+        " float64[:, :], float64[:, :], float64[::1])", inline=True)
 def pass_frame(ints: Ints, x: Array, placement: Array, frame_jacobian_q: Array, y: Array,
                jac: Array, local: Array) -> tuple[Array, Array]:
     """The frame's placement and Jacobian (joint coordinates): the pass's, or — when the

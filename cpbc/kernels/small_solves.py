@@ -37,7 +37,7 @@ def _solve_lu(a: Array, b: Array, work: Array, y: Array) -> None:
         y[i] = t / work[i, i]
 
 
-@kernel("void(float64[:, :], float64[:], float64[:, :], float64[:])")
+@kernel("void(float64[:, :], float64[:], float64[:, :], float64[:])", inline=True)
 def solve_spd(a: Array, b: Array, work: Array, y: Array) -> None:
     """y = a⁻¹ b for a symmetric positive definite a, by Cholesky a = L Lᵀ (L in ``work``,
     shape (n, n)); by Gaussian elimination with partial pivoting when a is not numerically

@@ -18,7 +18,8 @@ from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
 FRAME = f"{READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}"
 
 
-@kernel("void(float64[:, :], float64[:, :], int64, float64[:], float64[:, :], float64[:, :])")
+@kernel("void(float64[:, :], float64[:, :], int64, float64[:], float64[:, :], float64[:, :])",
+        inline=True)
 def frame_on_joints(y: Array, jac: Array, column: int, local: Array, placement: Array,
                     jacobian: Array) -> None:
     """A frame's placement [R p; 0 1] into ``placement`` and its Jacobian [J_v; J_ω] (6, n)
@@ -55,7 +56,8 @@ def frame_on_joints(y: Array, jac: Array, column: int, local: Array, placement: 
         jacobian[3, k], jacobian[4, k], jacobian[5, k] = w0, w1, w2
 
 
-@kernel(f"void({FRAME}, {READ_ONLY}, float64[:], float64[:, :])")
+@kernel(f"void({FRAME}, {READ_ONLY}, float64[:], float64[:, :])",
+        inline=True)
 def point_on_frame(origin: Array, rotation: Array, jacobian: Array, offset: Array,
                    point: Array, linear: Array) -> None:
     """p = origin + R o into ``point`` and J_p = J_v − [R o]× J_ω (v_p = v + ω × R o) into
