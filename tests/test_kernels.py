@@ -129,19 +129,31 @@ def test_law_torques_equal_the_numpy_formulas_at_random_states() -> None:
 SCRIPT = """
 import json, sys
 import numpy as np
+sys.path.insert(0, "tests")
+from bounded_goal import bounded_goal_laws
 from cpbc.bench import planar_2link, taskspace_pair
 from cpbc.bench_arms import panda
 from cpbc.errors import ConstraintViolation
 out = {}
 laws, states = taskspace_pair(states=8)
+bounded, bounded_states = bounded_goal_laws(states=8)
 sets = [(s.robot, s.controllers, s.states) for s in (planar_2link(), panda(states=8))]
-for robot, controllers, picked in sets + [("panda_goal_pose", laws, states)]:
+for robot, controllers, picked in sets + [("panda_goal_pose", laws, states),
+                                          ("panda_goal_bpbc", bounded, bounded_states)]:
     for name, law in controllers.items():
         for i, (x, dx) in enumerate(picked[:8]):
             try:
                 out[f"{robot}/{name}/{i}"] = law.torque(x, dx).tolist()
             except ConstraintViolation:
                 pass
+# the bounded task terms' own methods (their kernels, outside the law's step)
+law = bounded["bpbc"]
+for i, (x, dx) in enumerate(bounded_states):
+    state = law.state(x, dx)
+    for k, part in enumerate(law.potential.parts):
+        value, grad = part.evaluate(state)
+        out[f"panda_goal_bpbc/potential/{k}/{i}"] = [value, *grad.tolist()]
+    out[f"panda_goal_bpbc/task_damping/{i}"] = law.task_damping.force(state, dx).tolist()
 # the guard's kernels (cpbc.kernels.sampled_guard): its accept path, and blends, brakes and box
 # scalings from the law's torque pushed off by a fixed noise (the guard's own entry point)
 from cpbc.controllers.safeguard import SafeguardSettings, guarded
@@ -175,12 +187,14 @@ def _torques(jit_off: bool) -> dict[str, list[float]]:
 
 
 def test_the_kernels_run_uncompiled_give_the_same_torques() -> None:
-    """Every bench law (planar and Panda, and panda_goal_pose's task-space and joint CPBC),
-    the Panda's guard accepting, blending and scaling into the torque box, and the CBF-QP
+    """Every bench law (planar and Panda, panda_goal_pose's task-space and joint CPBC, and
+    its goal in task-space BPBC and BPBC-KE, tests/scenarios/panda_goal_bpbc.yaml), the
+    Panda's guard accepting, blending and scaling into the torque box, and the CBF-QP
     peer's per-pair sphere rows (φ, ∇φ, κ), with the kernels compiled and run as plain
     Python (NUMBA_DISABLE_JIT=1): the same torques (guard decisions, rows) to 1e-12."""
     compiled, plain = _torques(False), _torques(True)
     assert compiled.keys() == plain.keys() and len(compiled) >= 40
+    assert sum(k.startswith("panda_goal_bpbc/") for k in compiled) == 16 + 4 * 8
     for period in ("0.001", "0.01"):
         acted, scaled = compiled[f"guard/{period}/counts"]
         assert acted >= 4 and scaled >= 2, (period, acted, scaled)

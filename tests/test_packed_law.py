@@ -7,12 +7,13 @@ import dataclasses
 
 import numpy as np
 import pytest
+from bounded_goal import bounded_goal_laws
 
 from cpbc.bench import planar_2link, taskspace_pair
 from cpbc.bench_arms import panda
 from cpbc.controllers import CPBC, Power
-from cpbc.controllers.potentials import JointSpring
-from cpbc.controllers.task_damping import TaskDamping
+from cpbc.controllers.potentials import FramePositionLogCosh, JointSpring, PotentialSum
+from cpbc.controllers.task_damping import TaskDamping, TaskTanhDamping
 from cpbc.controllers.terms import LinearDamping
 from cpbc.errors import ConstraintViolation
 
@@ -40,6 +41,12 @@ def _laws():  # type: ignore[no-untyped-def]
     laws, states = taskspace_pair(states=12)
     for name, law in laws.items():
         yield f"panda_goal_pose/{name}", law, states
+    bounded, states = bounded_goal_laws(states=12)
+    for name, law in bounded.items():
+        yield f"panda_goal_bpbc/{name}", law, states
+    law = bounded_goal_laws(states=0)[0]["bpbc"]  # a feed-forward ṗ_ff ≠ 0 in the tanh
+    law.task_damping = dataclasses.replace(law.task_damping, feedforward=[0.05, -0.1, 0.02])
+    yield "panda_goal_bpbc/bpbc_feedforward", law, states
 
 
 @pytest.mark.parametrize("entry", list(_laws()), ids=lambda e: e[0])
@@ -91,6 +98,43 @@ class _Steeper(Power):
 class _Pushing(TaskDamping):
     def force(self, at, dx):  # type: ignore[no-untyped-def]
         return super().force(at, dx) + 1.0
+
+
+class _Pulled(FramePositionLogCosh):
+    def evaluate_toward(self, at, goal):  # type: ignore[no-untyped-def]
+        value, grad = super().evaluate_toward(at, goal)
+        return value, grad + 1.0
+
+
+class _Braking(TaskTanhDamping):
+    def force_with(self, at, dx, feedforward):  # type: ignore[no-untyped-def]
+        return super().force_with(at, dx, feedforward) + 1.0
+
+
+def _as(cls: type, term: object) -> object:
+    """``term``'s fields in an instance of ``cls`` (a subclass of its class)."""
+    return cls(**{f.name: getattr(term, f.name) for f in dataclasses.fields(term) if f.init})
+
+
+@pytest.mark.parametrize("term", ["position_log_cosh", "task_tanh_damping"])
+@pytest.mark.parametrize("name", ["bpbc", "bpbc_ke"])
+def test_an_overridden_bounded_task_term_leaves_the_packed_step(name: str, term: str) -> None:
+    """A ln cosh position spring or a tanh task damping whose class overrides its formula
+    (``evaluate_toward``, ``force_with``: the methods ``evaluate`` and ``force`` call) does
+    not pack: the bounded law takes its general path, and the override reaches the torque."""
+    (base, _), (changed, states) = bounded_goal_laws(states=0), bounded_goal_laws(states=6)
+    if term == "position_log_cosh":
+        position, *rest = changed[name].potential.parts  # type: ignore[attr-defined]
+        assert type(position) is FramePositionLogCosh
+        changed[name].potential = PotentialSum((_as(_Pulled, position), *rest))  # type: ignore[arg-type]
+    else:
+        assert type(changed[name].task_damping) is TaskTanhDamping  # type: ignore[attr-defined]
+        changed[name].task_damping = _as(_Braking, changed[name].task_damping)  # type: ignore[attr-defined]
+    assert base[name].packed_law().terms is not None  # type: ignore[attr-defined]
+    assert changed[name].packed_law().terms is None  # type: ignore[attr-defined]
+    for x, dx in states:
+        assert not np.allclose(changed[name].torque(x, dx), base[name].torque(x, dx),
+                               rtol=1e-9)
 
 
 @pytest.mark.parametrize("term", ["potential", "damping", "shaping", "task_damping"])

@@ -4,6 +4,8 @@ torque bound, and the refusal of unbounded task damping by the bounded-torque la
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from lyapunov_rates import measured_rate, stated_rate
@@ -126,6 +128,33 @@ def test_feedforward_slot_is_zero_for_a_fixed_goal_and_tracks_a_moving_point(
     v = state.frames[fid].linear @ dx
     moving = TaskDamping(fid, 10.0, feedforward=v)
     assert np.allclose(moving.force(state, dx), 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("offset", [None, [0.01, -0.02, 0.1]])
+def test_bounded_task_terms_equal_their_numpy_formulas(panda: RobotModel, offset) -> None:  # type: ignore[no-untyped-def]
+    """The ln cosh position spring and the tanh task damping (their kernels, in
+    cpbc.kernels.law_terms and cpbc.kernels.task) against the numpy code they replaced, on
+    the point of FrameKinematics.point: U, ∂U/∂x = J_pᵀ K tanh(Ξe) and
+    F = J_pᵀ D_x tanh(Γ_x (J_p ẋ − ṗ_ff)) to 1e-12, in and past saturation."""
+    spring = FramePositionLogCosh.named(panda, HAND, GOAL, [50.0, 60.0, 70.0], [5.0, 8.0, 3.0],
+                                        offset)
+    named = TaskTanhDamping.named(panda, HAND, [15.0, 10.0, 12.0], [2.0, 3.0, 1.5], offset)
+    tanh = TaskTanhDamping(named.frame, named.gain, named.gamma, named.reach, named.offset,
+                           np.array([0.1, -0.2, 0.05]))
+    weight = spring.stiffness / spring.xi
+    rng = np.random.default_rng(11)
+    for _ in range(50):
+        x, dx = rng.uniform(-2.0, 2.0, 7), rng.normal(scale=2.0, size=7)
+        state = panda.state(x, dx, frames=[spring.frame])
+        p, jv = state.frames[spring.frame].point(spring.offset)
+        y = spring.xi * (p - spring.goal)
+        value = float(np.sum(weight * (np.logaddexp(y, -y) - math.log(2.0))))
+        u, grad = spring.evaluate(state)
+        assert u == pytest.approx(value, rel=1e-12, abs=1e-12)
+        np.testing.assert_allclose(grad, jv.T @ (spring.stiffness * np.tanh(y)), rtol=1e-12,
+                                   atol=1e-12)
+        want = jv.T @ (tanh.gain * np.tanh(tanh.gamma * (jv @ dx - tanh.feedforward)))
+        np.testing.assert_allclose(tanh.force(state, dx), want, rtol=1e-12, atol=1e-12)
 
 
 def test_bounded_task_damping_enters_the_torque_bound_and_linear_is_refused(

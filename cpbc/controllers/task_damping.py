@@ -26,8 +26,8 @@ from cpbc.controllers.controller import positive_vector, vector3
 from cpbc.controllers.potentials.frame_position import point_offset
 from cpbc.controllers.potentials.potential import Placed, frame_at
 from cpbc.errors import ParameterError
-from cpbc.kernels.law_terms import TASK_DAMPING
-from cpbc.kernels.task import task_damping
+from cpbc.kernels.law_terms import TASK_DAMPING, TASK_TANH_DAMPING
+from cpbc.kernels.task import task_damping, task_tanh_damping
 from cpbc.model.frames import jacobian_bounds
 from cpbc.model.robot_model import RobotModel
 
@@ -140,6 +140,8 @@ class TaskTanhDamping:
     reach: float
     offset: Array | None = None
     feedforward: Array = field(default_factory=lambda: ZERO3)
+    _point: Array = field(init=False, repr=False, compare=False)  # the kernel's [o has]
+    _gains: Array = field(init=False, repr=False, compare=False)  # [D_x; Γ_x] (2, 3)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "gain", positive_vector(self.gain, 3, "task damping"))
@@ -147,6 +149,10 @@ class TaskTanhDamping:
         object.__setattr__(self, "feedforward", vector3(self.feedforward, "feedforward"))
         if self.offset is not None:
             object.__setattr__(self, "offset", vector3(self.offset, "offset"))
+        object.__setattr__(self, "_point", point_offset(self.offset))
+        gains = np.vstack([self.gain, self.gamma])
+        gains.setflags(write=False)
+        object.__setattr__(self, "_gains", gains)
 
     @classmethod
     def named(cls, model: RobotModel, frame: str, gain: object, gamma: object,
@@ -170,6 +176,20 @@ class TaskTanhDamping:
         return self.force_with(at, dx, self.feedforward)
 
     def force_with(self, at: Placed, dx: Array, feedforward: Array) -> Array:
-        """F with ṗ_ff = ``feedforward`` in place of the damping's own."""
-        _, jv = frame_at(at, self.frame).point(self.offset)
-        return jv.T @ (self.gain * np.tanh(self.gamma * (jv @ dx - feedforward)))
+        """F with ṗ_ff = ``feedforward`` in place of the damping's own
+        (cpbc.kernels.task.task_tanh_damping)."""
+        kin = frame_at(at, self.frame)
+        force = np.empty(dx.shape[0])
+        task_tanh_damping(kin.position, kin.rotation, kin.jacobian, self._point, self._gains,
+                          feedforward, dx, force)
+        return force
+
+    def packed(self) -> tuple[Packed, ...] | None:
+        """The point, [D_x; Γ_x] and ṗ_ff for a law's kernel (cpbc.kernels.law_terms),
+        unless a subclass overrides ``force`` or ``force_with``."""
+        cls = type(self)
+        if cls.force is not TaskTanhDamping.force or (
+                cls.force_with is not TaskTanhDamping.force_with):
+            return None
+        return (Packed(TASK_TANH_DAMPING, (self._point[None, :], self._gains,
+                                           self.feedforward[None, :]), frame=self.frame),)

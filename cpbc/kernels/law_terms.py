@@ -1,7 +1,7 @@
 """A law's potential and damping from its packed constants (cpbc.controllers.packed_law),
 for the laws' one kernel call per step (cpbc.kernels.laws): each term by its own kind's
-kernel (the joint terms here, the frame terms in cpbc.kernels.task, the shaping in
-cpbc.kernels.barrier_shaping).
+kernel (the joint terms here, and the ln cosh position spring, which shares their ln cosh
+sum; the other frame terms in cpbc.kernels.task; the shaping in cpbc.kernels.barrier_shaping).
 
 The terms are packed like a constraint set (cpbc.constraints.packing): ``plan`` has one row
 per term, [kind, 0, 0, (row, rows, columns) of each float table …], the tables stacked in
@@ -13,9 +13,13 @@ per term, [kind, 0, 0, (row, rows, columns) of each float table …], the tables
 - ``ORIENTATION_SPRING``: R_d (3, 3), k (1, 1) (``orientation_spring``);
 - ``LOG_COSH_SPRING``: [x_dᵀ; K; ξ; K/ξ] (4, n), Σ K_i/ξ_i · ln 2 (1, 1) (``log_cosh_sum``
   on x − x_d, eq. 7.18);
+- ``POSITION_LOG_COSH``: [o has_offset] (1, 4), p_d (1, 3), [K; ξ; K/ξ] (3, 3),
+  Σ K_i/ξ_i · ln 2 (1, 1) (``position_log_cosh``, eq. 7.18 on p − p_d);
 - ``JOINT_DAMPING``: K_D (1, n) (``joint_damping``, eq. 6.10);
 - ``TANH_DAMPING``: [K_D; Γ] (2, n) (``tanh_damping``, eq. 7.17);
 - ``TASK_DAMPING``: [o has_offset] (1, 4), G (6, 6), b (1, 6) (``task_damping``);
+- ``TASK_TANH_DAMPING``: [o has_offset] (1, 4), [diag D_x; diag Γ_x] (2, 3), ṗ_ff (1, 3)
+  (``task_tanh_damping``);
 - ``SHAPING``: [kind parameter] (1, 2) (cpbc.kernels.barrier_shaping).
 
 Every frame term reads the one frame the caller passes (origin, axes, [J_v; J_ω]).
@@ -32,12 +36,20 @@ from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
 from cpbc.kernels.barrier_set import float_table
 from cpbc.kernels.barrier_shaping import shaping_terms
 from cpbc.kernels.clearance import Ints
-from cpbc.kernels.task import axis_spring, orientation_spring, position_spring, task_damping
+from cpbc.kernels.task import (
+    axis_spring,
+    orientation_spring,
+    point_on_frame,
+    position_spring,
+    task_damping,
+    task_tanh_damping,
+)
 
 JOINT_SPRING, POSITION_SPRING, AXIS_SPRING, ORIENTATION_SPRING = 0, 1, 2, 3
 JOINT_DAMPING, TANH_DAMPING, TASK_DAMPING, SHAPING = 4, 5, 6, 7
-LOG_COSH_SPRING = 8
-FRAME_KINDS = (POSITION_SPRING, AXIS_SPRING, ORIENTATION_SPRING, TASK_DAMPING)
+LOG_COSH_SPRING, POSITION_LOG_COSH, TASK_TANH_DAMPING = 8, 9, 10
+FRAME_KINDS = (POSITION_SPRING, AXIS_SPRING, ORIENTATION_SPRING, TASK_DAMPING,
+               POSITION_LOG_COSH, TASK_TANH_DAMPING)
 FRAME = f"{READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}"
 
 
@@ -81,7 +93,25 @@ def log_cosh_sum(err: Array, stiffness: Array, xi: Array, weight: Array, offset:
     return total - offset
 
 
-@kernel(f"void({READ_ONLY}, {READ_ONLY}, float64[:])", inline=True)
+@kernel(f"float64({FRAME}, {READ_ONLY}, {READ_ONLY}, {READ_ONLY_MATRIX}, float64, float64[:])")
+def position_log_cosh(origin: Array, rotation: Array, jacobian: Array, offset: Array,
+                      goal: Array, gains: Array, log_offset: float, grad: Array) -> float:
+    """U = Σ (K_i/ξ_i) ln cosh(ξ_i e_i), e = p − p_d (``log_cosh_sum``, eq. 7.18 on the
+    point's position error; ``gains`` [K; ξ; K/ξ] (3, 3), ``log_offset`` Σ K_i/ξ_i · ln 2),
+    ∂U/∂x = J_pᵀ K tanh(Ξe) into ``grad``; returns U."""
+    n = grad.shape[0]
+    point, linear = np.empty(3), np.empty((3, n))
+    point_on_frame(origin, rotation, jacobian, offset, point, linear)
+    err, force = np.empty(3), np.empty(3)
+    for i in range(3):
+        err[i] = point[i] - goal[i]
+    u = log_cosh_sum(err, gains[0], gains[1], gains[2], log_offset, force)
+    for k in range(n):
+        grad[k] = linear[0, k] * force[0] + linear[1, k] * force[1] + linear[2, k] * force[2]
+    return u
+
+
+@kernel(f"void({READ_ONLY}, {READ_ONLY}, float64[:])")
 def joint_damping(gain: Array, dx: Array, force: Array) -> None:
     """K_D ẋ (eq. 6.10), K_D diagonal, into ``force``."""
     for i in range(dx.shape[0]):
@@ -126,6 +156,11 @@ def potential_terms(plan: Ints, floats: Array, x: Array, origin: Array, rotation
         elif kind == ORIENTATION_SPRING:
             u = orientation_spring(rotation, jacobian, first,
                                    float_table(plan, floats, r, 1)[0, 0], part)
+        elif kind == POSITION_LOG_COSH:
+            u = position_log_cosh(origin, rotation, jacobian, first[0],
+                                  float_table(plan, floats, r, 1)[0],
+                                  float_table(plan, floats, r, 2),
+                                  float_table(plan, floats, r, 3)[0, 0], part)
         else:
             continue
         total += u
@@ -153,6 +188,10 @@ def damping_terms(plan: Ints, floats: Array, dx: Array, origin: Array, rotation:
         elif kind == TASK_DAMPING:
             task_damping(origin, rotation, jacobian, first[0], float_table(plan, floats, r, 1),
                          float_table(plan, floats, r, 2)[0], dx, part)
+        elif kind == TASK_TANH_DAMPING:
+            task_tanh_damping(origin, rotation, jacobian, first[0],
+                              float_table(plan, floats, r, 1),
+                              float_table(plan, floats, r, 2)[0], dx, part)
         else:
             continue
         for i in range(n):

@@ -1,7 +1,8 @@
 """The task-space terms on a frame of the per-step state (TASKSPACE §2.2): the point of a
-frame and its Jacobian, the position spring, the orientation springs and the task damping
-(cpbc.controllers.potentials, cpbc.controllers.task_damping: their Python methods call
-these).
+frame and its Jacobian, the position spring, the orientation springs and the task damping,
+quadratic and bounded (cpbc.controllers.potentials, cpbc.controllers.task_damping: their
+Python methods call these; the ln cosh position spring, which reads the joint ln cosh sum,
+is in cpbc.kernels.law_terms).
 
 A frame arrives as its origin (3,), axes R (3, 3) and Jacobian [J_v; J_ω] (6, n) in world
 axes (cpbc.model.frames.FrameKinematics); a point fixed in it as ``offset`` = [o has_offset]
@@ -150,3 +151,23 @@ def task_damping(origin: Array, rotation: Array, jacobian: Array, offset: Array,
         for i in range(3):
             s += linear[i, k] * w[i] + jacobian[3 + i, k] * w[3 + i]
         force[k] = s
+
+
+@kernel(f"void({FRAME}, {READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY}, {READ_ONLY},"
+        " float64[:])")
+def task_tanh_damping(origin: Array, rotation: Array, jacobian: Array, offset: Array,
+                      gains: Array, feedforward: Array, dx: Array, force: Array) -> None:
+    """F = J_pᵀ D_x tanh(Γ_x (J_p ẋ − ṗ_ff)) on the point, ``gains`` [diag D_x; diag Γ_x]
+    (2, 3), ``feedforward`` ṗ_ff, into ``force``: bounded by ‖J_p‖ ‖diag D_x‖₂ (BPBC's
+    bounded task damping, TASKSPACE §2.2)."""
+    n = dx.shape[0]
+    point, linear = np.empty(3), np.empty((3, n))
+    point_on_frame(origin, rotation, jacobian, offset, point, linear)
+    w = np.empty(3)
+    for i in range(3):
+        v = 0.0
+        for k in range(n):
+            v += linear[i, k] * dx[k]
+        w[i] = gains[0, i] * np.tanh(gains[1, i] * (v - feedforward[i]))
+    for k in range(n):
+        force[k] = linear[0, k] * w[0] + linear[1, k] * w[1] + linear[2, k] * w[2]

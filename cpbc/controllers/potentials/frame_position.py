@@ -13,7 +13,7 @@ from cpbc.controllers.controller import positive_vector, vector3
 from cpbc.controllers.potentials.log_cosh import LogCoshSum
 from cpbc.controllers.potentials.potential import GradientBound, OnOneFrame, Placed, frame_at
 from cpbc.errors import ParameterError
-from cpbc.kernels.law_terms import POSITION_SPRING
+from cpbc.kernels.law_terms import POSITION_LOG_COSH, POSITION_SPRING, position_log_cosh
 from cpbc.kernels.task import position_spring
 from cpbc.model.frames import jacobian_bounds
 from cpbc.model.robot_model import RobotModel
@@ -119,7 +119,9 @@ class FramePositionLogCosh(OnOneFrame):
     xi: Array
     reach: float
     offset: Array | None = None
-    _spring: LogCoshSum = field(init=False, repr=False)
+    _point: Array = field(init=False, repr=False, compare=False)  # the kernel's [o has]
+    _gains: Array = field(init=False, repr=False, compare=False)  # [K; ξ; K/ξ] (3, 3)
+    _log_offset: float = field(init=False, repr=False, compare=False)  # Σ K_i/ξ_i · ln 2
 
     def __post_init__(self) -> None:
         stiffness = positive_vector(self.stiffness, 3, "stiffness")
@@ -129,7 +131,11 @@ class FramePositionLogCosh(OnOneFrame):
         object.__setattr__(self, "xi", xi)
         if self.offset is not None:
             object.__setattr__(self, "offset", vector3(self.offset, "offset"))
-        object.__setattr__(self, "_spring", LogCoshSum(stiffness, xi))
+        object.__setattr__(self, "_point", point_offset(self.offset))
+        gains, log_offset = LogCoshSum(stiffness, xi).tables()
+        gains.setflags(write=False)
+        object.__setattr__(self, "_gains", gains)
+        object.__setattr__(self, "_log_offset", float(log_offset[0, 0]))
 
     @classmethod
     def named(cls, model: RobotModel, frame: str, goal: object, stiffness: object,
@@ -150,7 +156,22 @@ class FramePositionLogCosh(OnOneFrame):
         return self.evaluate_toward(at, self.goal)
 
     def evaluate_toward(self, at: Placed, goal: Array) -> tuple[float, Array]:
-        """U and ∂U/∂x toward ``goal`` in place of the spring's own."""
-        p, jv = frame_at(at, self.frame).point(self.offset)
-        value, force = self._spring.evaluate(p - goal)
-        return value, jv.T @ force
+        """U and ∂U/∂x toward ``goal`` in place of the spring's own
+        (cpbc.kernels.law_terms.position_log_cosh)."""
+        kin = frame_at(at, self.frame)
+        grad = np.empty(kin.jacobian.shape[1])
+        value = position_log_cosh(kin.position, kin.rotation, kin.jacobian, self._point, goal,
+                                  self._gains, self._log_offset, grad)
+        return value, grad
+
+    def packed(self) -> tuple[Packed, ...] | None:
+        """The point, p_d, [K; ξ; K/ξ] and Σ K_i/ξ_i · ln 2 for a law's kernel
+        (cpbc.kernels.law_terms), unless a subclass overrides ``evaluate`` or
+        ``evaluate_toward``."""
+        cls = type(self)
+        if cls.evaluate is not FramePositionLogCosh.evaluate or (
+                cls.evaluate_toward is not FramePositionLogCosh.evaluate_toward):
+            return None
+        return (Packed(POSITION_LOG_COSH, (self._point[None, :], self.goal[None, :],
+                                           self._gains, np.array([[self._log_offset]])),
+                        frame=self.frame),)
