@@ -159,3 +159,80 @@ def test_a_rejoin_blend_is_checked_admissible(panda: RobotModel) -> None:
     assert blend_admissible(config, a, b, 0.01)  # a box is convex: the blend stays inside
     b[0] = 2.799  # the end itself closer than δ to the bound (φ = (x − l)(u − x))
     assert not blend_admissible(config, a, b, 0.05)
+
+
+def test_a_steered_law_packs_and_reads_the_moving_target(panda: RobotModel) -> None:
+    """A law steered to a MovingTarget keeps its one kernel call: its goal, feed-forward,
+    posture and posture feed-forward are packed rows refreshed from the target before each
+    step (Packed.live). As the target moves, τ and V equal the law's general path (method by
+    method) to 1e-12, and change with each of the four."""
+    fid = panda.frame_id("panda_hand")
+    from cpbc.constraints import ConstraintSet, joint_rate_limit
+
+    rates = joint_rate_limit(np.full(7, 2.0), list(panda.joint_names))
+    task = total(FramePositionSpring(fid, GOAL, 200.0),
+                 FrameAxisSpring.named(panda, "panda_hand", [0, 0, 1], [0, 0, -1], 2.0),
+                 JointSpring(HOME, 2.0))
+    law = CPBC(panda, HOME, ConstraintSet(7, [], [rates]), 20.0, 1.0, Power(0.2),
+               potential=task, task_damping=TaskDamping(fid, 20.0))
+    target = MovingTarget(GOAL, HOME)
+    steer(law, target)
+    assert law.packed_law().terms is not None and len(law.packed_law().live) == 4
+
+    class General(CPBC):
+        def _law(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+            return super()._law(*args, **kwargs)
+
+    general = General.__new__(General)
+    general.__dict__.update(law.__dict__)
+    general._packed_law = None
+    assert general.packed_law().terms is None
+    rng = np.random.default_rng(4)
+    x, dx = HOME + 0.1 * rng.standard_normal(7), 0.3 * rng.standard_normal(7)
+    seen = [law.evaluate(x, dx)[0]]
+    moves = [dict(position=GOAL + 0.03), dict(position=GOAL, velocity=np.array([0.1, 0, 0])),
+             dict(position=GOAL, posture=HOME + 0.1),
+             dict(position=GOAL, posture=HOME, posture_velocity=np.full(7, 0.2))]
+    for move in moves:
+        target.set(**move)
+        tau, value = law.evaluate(x, dx)
+        slow = general.evaluate_state(general.state(x, dx))
+        np.testing.assert_allclose(tau, slow.torque, rtol=1e-12, atol=1e-12)
+        assert value == pytest.approx(slow.lyapunov, rel=1e-12)
+        np.testing.assert_allclose(law.evaluate_state(law.state(x, dx)).torque, tau,
+                                   rtol=1e-12, atol=1e-12)
+        assert not np.allclose(tau, seen[-1], rtol=1e-9, atol=1e-9), move
+        seen.append(tau)
+
+
+@pytest.mark.parametrize("name", ["bpbc", "bpbc_ke"])
+def test_a_steered_bounded_law_packs_and_reads_the_moving_target(name: str) -> None:
+    """The bounded-torque laws' task terms (ln cosh position spring, ln cosh posture spring,
+    tanh task damping), steered: packed, and equal to their general path as the target's
+    position, feed-forward and posture move."""
+    from bounded_goal import bounded_goal_laws
+
+    laws, states = bounded_goal_laws(3)
+    law = laws[name]
+    posture = np.array(law.target, dtype=float)
+    goal = law.potential.parts[0].goal.copy()  # type: ignore[attr-defined]
+    target = MovingTarget(goal, posture)
+    steer(law, target)
+    assert law.packed_law().terms is not None and len(law.packed_law().live) == 3
+
+    class General(type(law)):  # type: ignore[misc]
+        def _law(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+            return super()._law(*args, **kwargs)
+
+    general = General.__new__(General)
+    general.__dict__.update(law.__dict__)
+    general._packed_law = None
+    assert general.packed_law().terms is None
+    for move in (dict(position=goal + 0.02), dict(position=goal, velocity=np.full(3, 0.05)),
+                 dict(position=goal, posture=posture + 0.05)):
+        target.set(**move)
+        for x, dx in states:
+            tau, value = law.evaluate(x, dx)
+            slow = general.evaluate_state(general.state(x, dx))
+            np.testing.assert_allclose(tau, slow.torque, rtol=1e-12, atol=1e-12)
+            assert value == pytest.approx(slow.lyapunov, rel=1e-12)

@@ -37,12 +37,17 @@ class Packed:
         floats: its constant float tables, 2-D, in the order the kind reads them.
         ints: its constant int tables, 2-D.
         frame: the frame whose kinematics the kernel reads (POINT), else −1.
+        live: (table, source) pairs: the first row of float table ``table`` mirrors the
+            1-D array ``source``, which its owner rewrites in place between steps (a moving
+            goal, cpbc.reference.target); the packed copy is refreshed from it before each
+            kernel call (cpbc.controllers.packed_law).
     """
 
     kind: int
     floats: tuple[Array, ...]
     ints: tuple[Ints, ...] = ()
     frame: int = -1
+    live: tuple[tuple[int, Array], ...] = ()
 
 
 def _stack(tables: Sequence[NDArray[Any]], dtype: type) -> NDArray[Any]:
@@ -69,6 +74,7 @@ class PackedSet:
     ints: Ints
     floats: Array
     frame: int
+    live: tuple[tuple[int, Array], ...] = ()  # (offset in floats.ravel(), source)
 
     @classmethod
     def build(cls, parts: Sequence[tuple[int, int, Packed]]) -> PackedSet:
@@ -79,11 +85,14 @@ class PackedSet:
         ints: list[Ints] = []
         frame = -1
         f_row = i_row = 0
+        live: list[tuple[int, Array]] = []  # (row in the stacked floats, source)
         table: NDArray[Any]
         for r, (at, k, p) in enumerate(parts):
             if len(p.floats) > FLOAT_TABLES or len(p.ints) > INT_TABLES:
                 raise ValueError(f"kind {p.kind} packs too many tables")
             plan[r, :3] = (p.kind, at, k)
+            live += [(f_row + sum(t.shape[0] for t in p.floats[:i]), source)
+                     for i, source in p.live]
             for t, table in enumerate(p.floats):
                 plan[r, FLOAT_AT + 3 * t:FLOAT_AT + 3 * t + 3] = (f_row, *table.shape)
                 floats.append(table)
@@ -94,4 +103,7 @@ class PackedSet:
                 i_row += table.shape[0]
             if p.kind == POINT:
                 frame = p.frame
-        return cls(plan, _stack(ints, np.int64), _stack(floats, np.float64), frame)
+        stacked = _stack(floats, np.float64)
+        width = stacked.shape[1]
+        return cls(plan, _stack(ints, np.int64), stacked, frame,
+                   tuple((row * width, source) for row, source in live))

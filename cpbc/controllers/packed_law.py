@@ -150,6 +150,8 @@ class PackedLaw:
             no frame besides the one the kernel reads.
         pass_reads: the frame the model's pass reads for that step (−1: none; the kernel
             reads the law's frame from the joint kinematics, ``pack_tables``' ``frame``).
+        live: (offset in the packed floats, source) of each row a term keeps in step with
+            a moving goal (``Packed.live``), refreshed before each kernel call.
     """
 
     law: type
@@ -163,6 +165,15 @@ class PackedLaw:
     coriolis: bool = False
     from_pass: bool = False
     pass_reads: int = -1
+    live: tuple[tuple[int, Array], ...] = ()
+
+    def refreshed(self) -> tuple[Ints, Array]:
+        """The constant tables, the rows of a moving goal (``live``) copied in from their
+        sources first."""
+        floats = self.constants[1]
+        for at, source in self.live:
+            floats[at:at + source.shape[0]] = source
+        return self.constants
 
     def state(self, model: RobotModel, x: Array, dx: Array) -> ArmState:
         """The per-step state the kernel reads (as ``ConstraintSet.state`` with the law's
@@ -173,7 +184,7 @@ class PackedLaw:
         """The arguments of the law's ``*_pass_step`` kernel: the tables, the model's pass
         (``RobotModel.joint_pass``), where the kernel writes the barrier values and τ
         (``arguments`` without the margins)."""
-        return (*self.constants,
+        return (*self.refreshed(),
                 *model.joint_pass(x, dx, self.kinematics, self.pass_reads, self.coriolis),
                 np.empty(self.margins), np.empty(self.n))
 
@@ -209,7 +220,8 @@ class PackedLaw:
                    frame, constraints.needs_kinematics, margins, constraints.n, held,
                    constraints.needs_coriolis,
                    keeps(law, base, STATE_PATH) and all(f == frame for f in held),
-                   frame if on_joints is None else -1)
+                   frame if on_joints is None else -1,
+                   tuple((tables.floats.size + at, source) for at, source in packed.live))
 
     def arguments(self, state: ArmState, margins: bool) -> tuple[Any, ...]:
         """The kernel's arguments: the tables (``constants``); x, ẋ, D, g, C ẋ, f, C, the
@@ -236,8 +248,8 @@ class PackedLaw:
             y, jac = _NO_JOINTS
         coriolis = _NO_MATRIX if state.coriolis_matrix is None else state.coriolis_matrix
         return (
-            *self.constants, state.x, state.dx, state.inertia, state.gravity, state.coriolis_force,
-            state.dissipation, coriolis, placement, jacobian, y, jac,
+            *self.refreshed(), state.x, state.dx, state.inertia, state.gravity,
+            state.coriolis_force, state.dissipation, coriolis, placement, jacobian, y, jac,
             np.empty(2 * self.margins if margins else self.margins), np.empty(self.n))
 
 

@@ -70,7 +70,6 @@ class TaskDamping:
     feedforward: Array = field(default_factory=lambda: ZERO3)
     angular: Array | float = 0.0
     _gain6: Array = field(init=False, repr=False, compare=False)
-    _bias6: Array = field(init=False, repr=False, compare=False)
     _point: Array = field(init=False, repr=False, compare=False)  # the kernel's [o has]
 
     def __post_init__(self) -> None:
@@ -80,7 +79,6 @@ class TaskDamping:
         gain6 = np.zeros((6, 6))
         gain6[:3, :3], gain6[3:, 3:] = self.gain, self.angular
         object.__setattr__(self, "_gain6", gain6)
-        object.__setattr__(self, "_bias6", gain6[:, :3] @ self.feedforward)
         object.__setattr__(self, "feedforward", vector3(self.feedforward, "feedforward"))
         if self.offset is not None:
             object.__setattr__(self, "offset", vector3(self.offset, "offset"))
@@ -97,29 +95,28 @@ class TaskDamping:
 
     def force(self, at: Placed, dx: Array) -> Array:
         """F, shape (n,), at a state holding the frame."""
-        return self._force(at, dx, self._bias6)
+        return self.force_with(at, dx, self.feedforward)
 
     def force_with(self, at: Placed, dx: Array, feedforward: Array) -> Array:
         """F with the feed-forward ṗ_ff = ``feedforward`` in place of the damping's own (a
-        moving reference, cpbc.reference.target)."""
-        return self._force(at, dx, self._gain6[:, :3] @ feedforward)
-
-    def _force(self, at: Placed, dx: Array, bias: Array) -> Array:
-        """(cpbc.kernels.task.task_damping)"""
+        moving reference, cpbc.reference.target) (cpbc.kernels.task.task_damping)."""
         kin = frame_at(at, self.frame)
         force = np.empty(dx.shape[0])
-        task_damping(kin.position, kin.rotation, kin.jacobian, self._point, self._gain6, bias,
-                     dx, force)
+        task_damping(kin.position, kin.rotation, kin.jacobian, self._point, self._gain6,
+                     feedforward, dx, force)
         return force
 
-    def packed(self) -> tuple[Packed, ...] | None:
-        """The point, G and b for a law's kernel (cpbc.kernels.law_terms), unless a subclass
-        overrides ``force`` or ``_force``."""
+    def packed(self, toward: Array | None = None) -> tuple[Packed, ...] | None:
+        """The point, G and ṗ_ff for a law's kernel (cpbc.kernels.law_terms), unless a
+        subclass overrides ``force`` or ``force_with``; with ``toward``, ṗ_ff is that array,
+        read again before each step (a moving reference: ``Packed.live``)."""
         cls = type(self)
-        if cls.force is not TaskDamping.force or cls._force is not TaskDamping._force:
+        if cls.force is not TaskDamping.force or cls.force_with is not TaskDamping.force_with:
             return None
+        feedforward = self.feedforward if toward is None else toward
         return (Packed(TASK_DAMPING, (self._point[None, :], self._gain6,
-                                      self._bias6[None, :]), frame=self.frame),)
+                                      feedforward[None, :]), frame=self.frame,
+                       live=() if toward is None else ((2, toward),)),)
 
 
 @dataclass(frozen=True)
@@ -184,12 +181,15 @@ class TaskTanhDamping:
                           feedforward, dx, force)
         return force
 
-    def packed(self) -> tuple[Packed, ...] | None:
+    def packed(self, toward: Array | None = None) -> tuple[Packed, ...] | None:
         """The point, [D_x; Γ_x] and ṗ_ff for a law's kernel (cpbc.kernels.law_terms),
-        unless a subclass overrides ``force`` or ``force_with``."""
+        unless a subclass overrides ``force`` or ``force_with``; ``toward`` as
+        :meth:`TaskDamping.packed`."""
         cls = type(self)
         if cls.force is not TaskTanhDamping.force or (
                 cls.force_with is not TaskTanhDamping.force_with):
             return None
+        feedforward = self.feedforward if toward is None else toward
         return (Packed(TASK_TANH_DAMPING, (self._point[None, :], self._gains,
-                                           self.feedforward[None, :]), frame=self.frame),)
+                                           feedforward[None, :]), frame=self.frame,
+                       live=() if toward is None else ((2, toward),)),)

@@ -17,7 +17,9 @@ per term, [kind, 0, 0, (row, rows, columns) of each float table …], the tables
   Σ K_i/ξ_i · ln 2 (1, 1) (``position_log_cosh``, eq. 7.18 on p − p_d);
 - ``JOINT_DAMPING``: K_D (1, n) (``joint_damping``, eq. 6.10);
 - ``TANH_DAMPING``: [K_D; Γ] (2, n) (``tanh_damping``, eq. 7.17);
-- ``TASK_DAMPING``: [o has_offset] (1, 4), G (6, 6), b (1, 6) (``task_damping``);
+- ``TASK_DAMPING``: [o has_offset] (1, 4), G (6, 6), ṗ_ff (1, 3) (``task_damping``);
+- ``JOINT_FEEDFORWARD``: K_D (1, n), ẋ_n,ff (1, n) (``joint_feedforward``: a moving
+  posture's share of the damping, cpbc.reference.target.SteeredDamping);
 - ``TASK_TANH_DAMPING``: [o has_offset] (1, 4), [diag D_x; diag Γ_x] (2, 3), ṗ_ff (1, 3)
   (``task_tanh_damping``);
 - ``SHAPING``: [kind parameter] (1, 2) (cpbc.kernels.barrier_shaping).
@@ -47,7 +49,7 @@ from cpbc.kernels.task import (
 
 JOINT_SPRING, POSITION_SPRING, AXIS_SPRING, ORIENTATION_SPRING = 0, 1, 2, 3
 JOINT_DAMPING, TANH_DAMPING, TASK_DAMPING, SHAPING = 4, 5, 6, 7
-LOG_COSH_SPRING, POSITION_LOG_COSH, TASK_TANH_DAMPING = 8, 9, 10
+LOG_COSH_SPRING, POSITION_LOG_COSH, TASK_TANH_DAMPING, JOINT_FEEDFORWARD = 8, 9, 10, 11
 FRAME_KINDS = (POSITION_SPRING, AXIS_SPRING, ORIENTATION_SPRING, TASK_DAMPING,
                POSITION_LOG_COSH, TASK_TANH_DAMPING)
 FRAME = f"{READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}"
@@ -111,7 +113,15 @@ def position_log_cosh(origin: Array, rotation: Array, jacobian: Array, offset: A
     return u
 
 
-@kernel(f"void({READ_ONLY}, {READ_ONLY}, float64[:])")
+@kernel(f"void({READ_ONLY}, {READ_ONLY}, float64[:])", inline=True)
+def joint_feedforward(gain: Array, velocity: Array, force: Array) -> None:
+    """−K_D ẋ_n,ff, K_D diagonal, into ``force``: the joint damping's share of a posture
+    moving at ẋ_n,ff (K_D (ẋ − ẋ_n,ff) in all)."""
+    for i in range(velocity.shape[0]):
+        force[i] = -gain[i] * velocity[i]
+
+
+@kernel(f"void({READ_ONLY}, {READ_ONLY}, float64[:])", inline=True)
 def joint_damping(gain: Array, dx: Array, force: Array) -> None:
     """K_D ẋ (eq. 6.10), K_D diagonal, into ``force``."""
     for i in range(dx.shape[0]):
@@ -188,6 +198,8 @@ def damping_terms(plan: Ints, floats: Array, dx: Array, origin: Array, rotation:
         elif kind == TASK_DAMPING:
             task_damping(origin, rotation, jacobian, first[0], float_table(plan, floats, r, 1),
                          float_table(plan, floats, r, 2)[0], dx, part)
+        elif kind == JOINT_FEEDFORWARD:
+            joint_feedforward(first[0], float_table(plan, floats, r, 1)[0], part)
         elif kind == TASK_TANH_DAMPING:
             task_tanh_damping(origin, rotation, jacobian, first[0],
                               float_table(plan, floats, r, 1),

@@ -129,9 +129,9 @@ def axis_spring(rotation: Array, jacobian: Array, tool: Array, world: Array,
 @kernel(f"void({FRAME}, {READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY}, {READ_ONLY},"
         " float64[:])")
 def task_damping(origin: Array, rotation: Array, jacobian: Array, offset: Array,
-                 gain: Array, bias: Array, dx: Array, force: Array) -> None:
+                 gain: Array, feedforward: Array, dx: Array, force: Array) -> None:
     """F = Jᵀ (G J ẋ − b), J = [J_p; J_ω] of the point, G = diag(D_x, D_ω) (6, 6) ``gain``,
-    b = G [ṗ_ff; 0] ``bias``, into ``force``."""
+    b = G [ṗ_ff; 0] (``feedforward`` ṗ_ff), into ``force``."""
     n = dx.shape[0]
     point, linear = np.empty(3), np.empty((3, n))
     point_on_frame(origin, rotation, jacobian, offset, point, linear)
@@ -142,7 +142,10 @@ def task_damping(origin: Array, rotation: Array, jacobian: Array, offset: Array,
             v[3 + i] += jacobian[3 + i, k] * dx[k]
     w = np.empty(6)
     for i in range(6):
-        s = -bias[i]
+        b = 0.0
+        for j in range(3):
+            b += gain[i, j] * feedforward[j]
+        s = -b
         for j in range(6):
             s += gain[i, j] * v[j]
         w[i] = s

@@ -16,6 +16,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.packing import Packed
 from cpbc.controllers.controller import Controller
 from cpbc.controllers.pd import PDGravity
 from cpbc.controllers.potentials import (
@@ -31,6 +32,7 @@ from cpbc.controllers.potentials import (
 from cpbc.controllers.task_damping import TaskDamping, TaskTanhDamping
 from cpbc.controllers.terms import LinearDamping
 from cpbc.errors import CpbcError
+from cpbc.kernels.law_terms import JOINT_FEEDFORWARD, joint_feedforward
 
 
 class MovingTarget:
@@ -89,8 +91,17 @@ class Steered:
         return self.spring.gradient_bound
 
     def evaluate(self, at: Placed) -> tuple[float, Array]:
-        goal = self.target.position if self.reads == "position" else self.target.posture
-        return self.spring.evaluate_toward(at, goal)
+        return self.spring.evaluate_toward(at, self._goal)
+
+    @property
+    def _goal(self) -> Array:
+        return self.target.position if self.reads == "position" else self.target.posture
+
+    def packed(self) -> tuple[Packed, ...] | None:
+        """The spring's terms for a law's kernel with its goal read from the target before
+        each step (``Packed.live``), unless the spring does not pack."""
+        packed = getattr(self.spring, "packed", None)
+        return None if packed is None else packed(toward=self._goal)
 
 
 @dataclass(frozen=True)
@@ -114,7 +125,20 @@ class SteeredDamping:
         force = self.damping.force_with(at, dx, self.target.velocity)
         if self.joint is None:
             return force
-        return force - self.joint * self.target.posture_velocity
+        share = np.empty(force.shape[0])
+        joint_feedforward(self.joint, self.target.posture_velocity, share)
+        return force + share
+
+    def packed(self) -> tuple[Packed, ...] | None:
+        """The damping's terms for a law's kernel with ṗ_ff read from the target before
+        each step (``Packed.live``), and the joint feed-forward's; None when the damping
+        does not pack."""
+        found = self.damping.packed(toward=self.target.velocity)
+        if found is None or self.joint is None:
+            return found
+        return (*found, Packed(JOINT_FEEDFORWARD, (self.joint[None, :],
+                                                   self.target.posture_velocity[None, :]),
+                               live=((1, self.target.posture_velocity),)))
 
 
 @runtime_checkable

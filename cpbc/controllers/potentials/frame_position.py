@@ -87,15 +87,18 @@ class FramePositionSpring(OnOneFrame):
                                 self.stiffness, grad)
         return value, grad
 
-    def packed(self) -> tuple[Packed, ...] | None:
+    def packed(self, toward: Array | None = None) -> tuple[Packed, ...] | None:
         """The point, p_d and K for a law's kernel (cpbc.kernels.law_terms), unless a
-        subclass overrides ``evaluate`` or ``evaluate_toward``."""
+        subclass overrides ``evaluate`` or ``evaluate_toward``; with ``toward``, p_d is that
+        array, read again before each step (a moving reference: ``Packed.live``)."""
         cls = type(self)
         if cls.evaluate is not FramePositionSpring.evaluate or (
                 cls.evaluate_toward is not FramePositionSpring.evaluate_toward):
             return None
-        return (Packed(POSITION_SPRING, (self._point[None, :], self.goal[None, :],
-                                         self.stiffness), frame=self.frame),)
+        goal = self.goal if toward is None else toward
+        return (Packed(POSITION_SPRING, (self._point[None, :], goal[None, :],
+                                         self.stiffness), frame=self.frame,
+                       live=() if toward is None else ((1, toward),)),)
 
 
 @dataclass(frozen=True)
@@ -164,14 +167,15 @@ class FramePositionLogCosh(OnOneFrame):
                                   self._gains, self._log_offset, grad)
         return value, grad
 
-    def packed(self) -> tuple[Packed, ...] | None:
+    def packed(self, toward: Array | None = None) -> tuple[Packed, ...] | None:
         """The point, p_d, [K; ξ; K/ξ] and Σ K_i/ξ_i · ln 2 for a law's kernel
         (cpbc.kernels.law_terms), unless a subclass overrides ``evaluate`` or
-        ``evaluate_toward``."""
+        ``evaluate_toward``; ``toward`` as :meth:`FramePositionSpring.packed`."""
         cls = type(self)
         if cls.evaluate is not FramePositionLogCosh.evaluate or (
                 cls.evaluate_toward is not FramePositionLogCosh.evaluate_toward):
             return None
-        return (Packed(POSITION_LOG_COSH, (self._point[None, :], self.goal[None, :],
+        goal = self.goal if toward is None else toward
+        return (Packed(POSITION_LOG_COSH, (self._point[None, :], goal[None, :],
                                            self._gains, np.array([[self._log_offset]])),
-                        frame=self.frame),)
+                       frame=self.frame, live=() if toward is None else ((1, toward),)),)

@@ -52,14 +52,17 @@ class JointSpring(OfTheJoints):
         grad = np.empty(goal.shape[0])
         return joint_spring(at.x, goal, self.stiffness, grad), grad
 
-    def packed(self) -> tuple[Packed, ...] | None:
+    def packed(self, toward: Array | None = None) -> tuple[Packed, ...] | None:
         """x_d and K for a law's kernel (cpbc.kernels.law_terms), unless a subclass
-        overrides ``evaluate`` or ``evaluate_toward``."""
+        overrides ``evaluate`` or ``evaluate_toward``; with ``toward``, x_d is that array,
+        read again before each step (a moving posture: ``Packed.live``)."""
         cls = type(self)
         if cls.evaluate is not JointSpring.evaluate or (
                 cls.evaluate_toward is not JointSpring.evaluate_toward):
             return None
-        return (Packed(JOINT_SPRING, (np.vstack([self.target, self.stiffness]),)),)
+        goal = self.target if toward is None else toward
+        return (Packed(JOINT_SPRING, (np.vstack([goal, self.stiffness]),),
+                       live=() if toward is None else ((0, toward),)),)
 
 
 @dataclass(frozen=True)
@@ -100,12 +103,15 @@ class JointLogCoshSpring(OfTheJoints):
         """U and ∂U/∂x toward the set point ``goal`` in place of the spring's own."""
         return self._spring.evaluate(at.x - goal)
 
-    def packed(self) -> tuple[Packed, ...] | None:
+    def packed(self, toward: Array | None = None) -> tuple[Packed, ...] | None:
         """x_d, K, ξ for a law's kernel (cpbc.kernels.law_terms), unless a subclass
-        overrides ``evaluate`` or ``evaluate_toward``."""
+        overrides ``evaluate`` or ``evaluate_toward``; ``toward`` as
+        :meth:`JointSpring.packed`."""
         cls = type(self)
         if cls.evaluate is not JointLogCoshSpring.evaluate or (
                 cls.evaluate_toward is not JointLogCoshSpring.evaluate_toward):
             return None
         gains, offset = self._spring.tables()
-        return (Packed(LOG_COSH_SPRING, (np.vstack([self.target, gains]), offset)),)
+        goal = self.target if toward is None else toward
+        return (Packed(LOG_COSH_SPRING, (np.vstack([goal, gains]), offset),
+                       live=() if toward is None else ((0, toward),)),)
