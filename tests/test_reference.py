@@ -161,6 +161,21 @@ def test_a_rejoin_blend_is_checked_admissible(panda: RobotModel) -> None:
     assert not blend_admissible(config, a, b, 0.05)
 
 
+def _general(law):  # type: ignore[no-untyped-def]
+    """The same law (its terms, the same target) as a subclass whose ``_law`` only calls
+    the base class's: the same formulas, taken method by method (the general path)."""
+
+    class General(type(law)):  # type: ignore[misc]
+        def _law(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+            return super()._law(*args, **kwargs)
+
+    general = General.__new__(General)
+    general.__dict__.update(law.__dict__)
+    general._packed_law = None
+    assert general.packed_law().terms is None
+    return general
+
+
 def test_a_steered_law_packs_and_reads_the_moving_target(panda: RobotModel) -> None:
     """A law steered to a MovingTarget keeps its one kernel call: its goal, feed-forward,
     posture and posture feed-forward are packed rows refreshed from the target before each
@@ -179,14 +194,7 @@ def test_a_steered_law_packs_and_reads_the_moving_target(panda: RobotModel) -> N
     steer(law, target)
     assert law.packed_law().terms is not None and len(law.packed_law().live) == 4
 
-    class General(CPBC):
-        def _law(self, *args, **kwargs):  # type: ignore[no-untyped-def]
-            return super()._law(*args, **kwargs)
-
-    general = General.__new__(General)
-    general.__dict__.update(law.__dict__)
-    general._packed_law = None
-    assert general.packed_law().terms is None
+    general = _general(law)
     rng = np.random.default_rng(4)
     x, dx = HOME + 0.1 * rng.standard_normal(7), 0.3 * rng.standard_normal(7)
     seen = [law.evaluate(x, dx)[0]]
@@ -220,14 +228,7 @@ def test_a_steered_bounded_law_packs_and_reads_the_moving_target(name: str) -> N
     steer(law, target)
     assert law.packed_law().terms is not None and len(law.packed_law().live) == 3
 
-    class General(type(law)):  # type: ignore[misc]
-        def _law(self, *args, **kwargs):  # type: ignore[no-untyped-def]
-            return super()._law(*args, **kwargs)
-
-    general = General.__new__(General)
-    general.__dict__.update(law.__dict__)
-    general._packed_law = None
-    assert general.packed_law().terms is None
+    general = _general(law)
     for move in (dict(position=goal + 0.02), dict(position=goal, velocity=np.full(3, 0.05)),
                  dict(position=goal, posture=posture + 0.05)):
         target.set(**move)

@@ -274,14 +274,20 @@ PASS = ("int64[::1], float64[::1], float64[:], float64[:], float64[:, :], float6
         " float64[:, :], float64[::1], float64[:]")
 
 
-@kernel(f"UniTuple(float64, 3)({PASS})")
-def cpbc_pass_step(tables: Ints, table_floats: Array, x: Array, dx: Array,
+FINISHED = ("Tuple((float64[:, :], float64[:, :], float64[:], float64[:], float64[:, :],"
+            " float64[:, :], float64[:]))")
+
+
+@kernel(f"{FINISHED}(int64[::1], float64[::1], float64[:], float64[:], float64[:, :],"
+        " float64[:], float64[:], float64[:, :], float64[:, :], float64[:, :], float64[:, :],"
+        " float64[:, :])", inline=True)
+def finished_state(tables: Ints, table_floats: Array, x: Array, dx: Array,
                    inertia_q: Array, nle: Array, gravity_q: Array, coriolis_q: Array,
-                   placement: Array, frame_jacobian_q: Array, y: Array, jac: Array,
-                   barriers: Array, tau: Array) -> tuple[float, float, float]:
-    """``cpbc_step`` from the pass itself: the frame (``pass_frame``) and the state's terms
-    in controller coordinates (cpbc.kernels.coordinate_maps.controller_terms, with the
-    model's tables), then the step."""
+                   placement: Array, frame_jacobian_q: Array, y: Array, jac: Array
+                   ) -> tuple[Array, Array, Array, Array, Array, Array, Array]:
+    """The step's state from the pass itself: the frame's placement (``pass_frame``), then D,
+    C ẋ, g, C, the frame's Jacobian and f in controller coordinates
+    (cpbc.kernels.coordinate_maps.controller_terms, with the model's tables)."""
     joints, friction, t_inv, friction_matrix, local = model_tables(tables, table_floats,
                                                                    x.shape[0])
     placement, frame_jacobian_q = pass_frame(tables, x, placement, frame_jacobian_q, y, jac,
@@ -289,6 +295,18 @@ def cpbc_pass_step(tables: Ints, table_floats: Array, x: Array, dx: Array,
     inertia, bias, gravity, coriolis, frame_jacobian, dissipation = controller_terms(
         joints, friction, t_inv, friction_matrix, dx, inertia_q, nle, gravity_q, coriolis_q,
         frame_jacobian_q)
+    return placement, inertia, bias, gravity, coriolis, frame_jacobian, dissipation
+
+
+@kernel(f"UniTuple(float64, 3)({PASS})")
+def cpbc_pass_step(tables: Ints, table_floats: Array, x: Array, dx: Array,
+                   inertia_q: Array, nle: Array, gravity_q: Array, coriolis_q: Array,
+                   placement: Array, frame_jacobian_q: Array, y: Array, jac: Array,
+                   barriers: Array, tau: Array) -> tuple[float, float, float]:
+    """``cpbc_step`` from the pass itself (``finished_state``)."""
+    placement, inertia, bias, gravity, coriolis, frame_jacobian, dissipation = (
+        finished_state(tables, table_floats, x, dx, inertia_q, nle, gravity_q, coriolis_q,
+                       placement, frame_jacobian_q, y, jac))
     return cpbc_step(tables, table_floats, x, dx, inertia, gravity, bias, dissipation,
                      coriolis, placement, frame_jacobian, y, jac, barriers, tau)
 
@@ -298,14 +316,10 @@ def cpbc_ke_pass_step(limit: float, tables: Ints, table_floats: Array, x: Array,
                       inertia_q: Array, nle: Array, gravity_q: Array, coriolis_q: Array,
                       placement: Array, frame_jacobian_q: Array, y: Array, jac: Array,
                       barriers: Array, tau: Array) -> tuple[float, float, float]:
-    """``cpbc_ke_step`` from the pass itself (``cpbc_pass_step``)."""
-    joints, friction, t_inv, friction_matrix, local = model_tables(tables, table_floats,
-                                                                   x.shape[0])
-    placement, frame_jacobian_q = pass_frame(tables, x, placement, frame_jacobian_q, y, jac,
-                                             local)
-    inertia, bias, gravity, coriolis, frame_jacobian, dissipation = controller_terms(
-        joints, friction, t_inv, friction_matrix, dx, inertia_q, nle, gravity_q, coriolis_q,
-        frame_jacobian_q)
+    """``cpbc_ke_step`` from the pass itself (``finished_state``)."""
+    placement, inertia, bias, gravity, coriolis, frame_jacobian, dissipation = (
+        finished_state(tables, table_floats, x, dx, inertia_q, nle, gravity_q, coriolis_q,
+                       placement, frame_jacobian_q, y, jac))
     return cpbc_ke_step(limit, tables, table_floats, x, dx, inertia, gravity, bias,
                         dissipation, coriolis, placement, frame_jacobian, y, jac, barriers,
                         tau)

@@ -234,10 +234,7 @@ class RobotModel:
         afterwards."""
         model, data = self.model, self.data
         x, dx, q, dq = self._joint_state(x, dx)
-        c_matrix = None
-        if coriolis:
-            c_matrix = pin.computeCoriolisMatrix(model, data, q, dq)
-            c_matrix = self._back(c_matrix if self._own_results else c_matrix.copy())
+        c_matrix = self._back(self._coriolis_pass(q, dq)) if coriolis else None
         wanted = tuple(frames)
         jac = placements = None
         found = _NO_FRAMES
@@ -274,11 +271,7 @@ class RobotModel:
         runs."""
         model, data = self.model, self.data
         x, dx, q, dq = self._joint_state(x, dx)
-        c_matrix = _NO_MATRIX
-        if coriolis:
-            c_matrix = pin.computeCoriolisMatrix(model, data, q, dq)
-            if not self._own_results:
-                c_matrix = c_matrix.copy()
+        c_matrix = self._coriolis_pass(q, dq) if coriolis else _NO_MATRIX
         m, nle, g, _ = self._dynamics_pass(q, dq, kinematics or frame >= 0)
         placement, frame_jacobian = _NO_FRAME
         if frame >= 0:
@@ -319,6 +312,11 @@ class RobotModel:
         q, dq = np.empty(self.n), np.empty(self.n)
         to_joint(self._t_inv, x, dx, q, dq)
         return x, dx, q, dq
+
+    def _coriolis_pass(self, q: Array, dq: Array) -> Array:
+        """C(q, q̇) in Christoffel form, joint coordinates, an array of its own."""
+        c_matrix = pin.computeCoriolisMatrix(self.model, self.data, q, dq)
+        return c_matrix if self._own_results else c_matrix.copy()
 
     def _dynamics_pass(self, q: Array, dq: Array, all_terms: bool
                        ) -> tuple[Array, Array, Array, bool]:
