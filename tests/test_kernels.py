@@ -200,3 +200,29 @@ def test_the_kernels_run_uncompiled_give_the_same_torques() -> None:
         assert acted >= 4 and scaled >= 2, (period, acted, scaled)
     for key, tau in compiled.items():
         np.testing.assert_allclose(tau, plain[key], rtol=1e-12, atol=1e-12, err_msg=key)
+
+
+def test_a_changed_kernel_source_drops_the_cached_kernels(tmp_path: Path) -> None:
+    """numba keys a cached kernel on its own file: after any kernel source changes, the
+    package's cached kernels are dropped (a caller compiled against the old callee would
+    compute with its old formula), and kept while nothing changes."""
+    from cpbc.kernels import STAMP, drop_stale_cache
+
+    (tmp_path / "a.py").write_text("x = 1\n")
+    (tmp_path / "b.py").write_text("y = 2\n")
+    cache = tmp_path / "__pycache__"
+    cache.mkdir()
+
+    def cached() -> None:
+        for name in ("a.f-1.py311.nbi", "a.f-1.py311.1.nbc"):
+            (cache / name).write_bytes(b"compiled")
+
+    cached()
+    assert drop_stale_cache(tmp_path)  # no stamp yet: nothing known about them
+    assert not list(cache.glob("*.nb?")) and (cache / STAMP).exists()
+    cached()
+    assert not drop_stale_cache(tmp_path)
+    assert len(list(cache.glob("*.nb?"))) == 2
+    (tmp_path / "b.py").write_text("y = 3\n")  # the callee's module changed
+    assert drop_stale_cache(tmp_path)
+    assert not list(cache.glob("*.nb?"))

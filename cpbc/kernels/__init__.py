@@ -10,21 +10,52 @@ Every kernel is compiled ahead of first use for the one signature its wrapper ca
 cpbc.kernels --warm`` compiles them once (scripts/install.sh runs it), so a fresh process
 compiles nothing; ``--check`` fails when any kernel is not compiled in nopython mode.
 With ``NUMBA_DISABLE_JIT=1`` the same functions run as plain Python (the tests compare both).
-numba's cache does not follow calls across modules: after editing a kernel that another
-module's kernel calls (``barrier_set`` calls those of ``barriers``, ``clearance``, ``task``;
-``laws`` those of ``barrier_set``, ``coordinate_maps``, ``law_terms``; ``sampled_guard``
-those of ``barrier_set``, ``barriers``, ``clearance``, ``small_solves``),
-delete the cache files (``*.nbi``, ``*.nbc`` under ``cpbc/kernels/__pycache__``) and warm again.
+numba keys a cached kernel on its own file only, so a kernel that calls into another module
+(``laws`` into ``barrier_set``, ``law_terms``, ``coordinate_maps``, ``task``; ``barrier_set``
+into ``barriers``, ``clearance``; ``sampled_guard`` into several) would be loaded stale after
+that module changed — and compute with the old formula. Importing this package therefore
+drops the cached kernels whenever any kernel source differs from the one they were compiled
+from (``drop_stale_cache``).
 """
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable
+from itertools import chain
+from pathlib import Path
 from typing import Any, TypeVar, cast
 
 import numba
 
 F = TypeVar("F", bound=Callable[..., Any])
+STAMP = "kernel-sources.sha256"  # the digest of the sources the cached kernels come from
+
+
+def drop_stale_cache(package: Path) -> bool:
+    """Delete numba's cached kernels (``*.nbi``, ``*.nbc`` under ``package/__pycache__``)
+    unless the digest of the package's sources equals the one stamped when they were
+    cached, and stamp the current one; whether it deleted. Best effort: a folder that cannot
+    be written is left as it is (numba then caches elsewhere, or not at all)."""
+    digest = hashlib.sha256(b"".join(p.read_bytes() for p in sorted(package.glob("*.py"))))
+    cache, found = package / "__pycache__", digest.hexdigest()
+    stamp = cache / STAMP
+    try:
+        if stamp.read_text(encoding="ascii") == found:
+            return False
+    except OSError:
+        pass
+    try:
+        for old in chain(cache.glob("*.nbi"), cache.glob("*.nbc")):
+            old.unlink()
+        cache.mkdir(exist_ok=True)
+        stamp.write_text(found, encoding="ascii")
+    except OSError:
+        return False
+    return True
+
+
+drop_stale_cache(Path(__file__).resolve().parent)
 
 # a float vector the kernel only reads, in a signature: it takes read-only arrays too
 READ_ONLY = "Array(float64, 1, 'A', readonly=True)"
