@@ -20,7 +20,7 @@ def _under_the_ball(ur10_under_ball: Callable[..., dict], duration: float) -> di
     """The UR10-under-the-ball goal as a 2 s minimum-jerk path from the start to it. The law
     enforces the ranges only; the safeguard keeps the ball's clearance. The governor's budget
     is lifted: with Γ = 1 J it slows the path to a halt at 0.72 s (the arm held off the ball
-    lags), which never completes, and the run reads not_settled for that."""
+    lags), which never completes (test_an_arm_held_while_the_governor_waits_is_stalled)."""
     d = ur10_under_ball(duration, constraints=["ranges"])
     goal = d.pop("goal")
     d["reference"] = {
@@ -61,3 +61,18 @@ def test_an_arm_still_closing_in_after_the_path_is_not_settled(load_dict, ur10_u
     s = _run(load_dict, _under_the_ball(ur10_under_ball, 3.0)).summary
     assert s.path_lag_final == 0.0 and s.blocked_by is None
     assert s.status == "not_settled", s.status
+
+
+def test_an_arm_held_while_the_governor_waits_is_stalled(load_dict, ur10_under_ball) -> None:
+    # With the default budget (1 J) the governor spends it as the safeguard holds the hand
+    # off the ball: s_v creeps toward 0.7236 s of path time (2.4e-7 s over the run's last
+    # 1.8 s), the path never completes, and the applied point rests. The arm rests away
+    # from it (0.003 rad/s at the end): stalled, the barrier named, as after a completed
+    # path; before, not_settled.
+    scenario = _under_the_ball(ur10_under_ball, 9.0)
+    del scenario["reference"]["governor"]
+    r = _run(load_dict, scenario)
+    s = r.summary
+    assert s.path_lag_final > 1.0 and s.blocked_by is None  # the path never completed
+    assert s.status == "stalled", (s.status, s.path_lag_final)
+    assert s.stall_kind == "barrier:clearance[wrist_3_link|ball]", s.stall_kind

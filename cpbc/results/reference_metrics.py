@@ -9,14 +9,17 @@ Statuses of a reference run (never ``converged``: that is a joint set point's):
 * ``blocked`` with ``blocked_by`` (the constraint) and ``blocked_at`` ({time, path_time}
   of the block): the governor stopped before an inadmissible stretch and the run ended
   there (``stop``, or a stretch to the path's end);
-* ``stalled`` with ``stall_kind``: the path completed and the arm rests away from its last
-  point, or creeps there without progress, as a goal run's rest is judged against its goal
-  (cpbc.results.task_metrics: ``creeping`` on the error to the last point, and
-  ``stall_kind`` with the law, steered to that point, and the monitor's constraints, so a
-  barrier holding the arm with margin to spare is named, not called a local minimum);
-* ``held``, ``not_settled`` (the path not completed in the run, or the arm still moving
-  and closing in on its last point), ``constraint_violated`` and ``diverged`` as for
-  joint runs.
+* ``stalled`` with ``stall_kind``: the reference rests — the path completed, or the
+  governor moved the applied point less than the position tolerance over the run's last
+  stall window without completing the path (its budget spent while the arm is held) — and
+  the arm rests away from where it rests, or creeps there without progress, as a goal
+  run's rest is judged against its goal (cpbc.results.task_metrics: ``creeping`` on the
+  error to that point, and ``stall_kind`` with the law, steered to that point, and the
+  monitor's constraints, so a barrier holding the arm with margin to spare is named, not
+  called a local minimum);
+* ``held``, ``not_settled`` (the reference still moving at the run's end, or the arm still
+  moving and closing in on it), ``constraint_violated`` and ``diverged`` as for joint
+  runs.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.model.robot_model import RobotModel
 from cpbc.reference.tracker import ReferenceTracker
 from cpbc.results.metrics import SettleCriteria
-from cpbc.results.task_metrics import creeping, stall_kind, task_errors
+from cpbc.results.task_metrics import creeping, stall_kind, stall_window_start, task_errors
 from cpbc.simulation.trajectory import Trajectory
 from cpbc.taskspace.goal import FrameGoal
 
@@ -92,17 +95,32 @@ def _pair(values: Array) -> dict[str, float]:
     return {"position": float(values[0]), "angle": float(values[1])}
 
 
-def _status(joint_status: str, finished: bool, stopped: bool, inside: bool,
-            at_rest: bool) -> str:
+def _status(joint_status: str, finished: bool, stopped: bool, inside: bool) -> str:
+    """The status before the stall rule: kept, blocked, tracked, or not_settled."""
     if joint_status in _KEPT:
         return joint_status
     if stopped:
         return "blocked"
     if finished and inside:
         return "tracked"
-    if finished and at_rest:
-        return "stalled"
     return "not_settled"
+
+
+def _resting_at(log: ReferenceLog, time: Array, finished: bool, blocked: bool,
+                end_point: Array, criteria: SettleCriteria, tolerance: float
+                ) -> Array | None:
+    """Where the applied reference rests at the run's end: the path's last point when the
+    governor finished it; the applied point when, without finishing and without a block,
+    the governor moved it less than the position ``tolerance`` over the last stall window
+    (its budget spent while the arm is held: s_v creeps toward a standstill); else None
+    (still moving, or waiting out a blocked stretch)."""
+    if finished:
+        return end_point
+    if blocked:
+        return None
+    start = stall_window_start(time, criteria)
+    moved = float(np.linalg.norm(log.applied[-1] - log.applied[start]))
+    return log.applied[-1] if start < len(time) - 1 and moved < tolerance else None
 
 
 def reference_outcome(model: RobotModel, goal: FrameGoal, tracker: ReferenceTracker,
@@ -124,16 +142,18 @@ def reference_outcome(model: RobotModel, goal: FrameGoal, tracker: ReferenceTrac
     stopped = gov.blocked_now and (gov.settings.on_infeasible == "stop"
                                    or not np.isfinite(gov.blocked[1] if gov.blocked else 0))
     at_rest = bool(np.max(np.abs(traj.velocity[-1])) < criteria.velocity_tolerance)
-    last = replace(goal, position=end_point)
-    status = _status(joint_status, finished, stopped, inside, at_rest)
-    if status == "not_settled" and finished and creeping(
-            model, last, traj, task_errors(model, last, traj.position), criteria):
-        status = "stalled"
-    kind = None
-    if status == "stalled":
-        # the law's springs are steered to the path's last point (the target stays there)
-        kind = stall_kind(model, last, traj.position[-1], monitor.names, margins,
-                          tracker.law, monitor)
+    status, kind = _status(joint_status, finished, stopped, inside), None
+    resting = _resting_at(log, traj.time, finished, gov.blocked_now, end_point, criteria,
+                          goal.tolerance[0])
+    if status == "not_settled" and resting is not None:
+        # the law's springs are steered to where the reference rests (the target stays)
+        aim = replace(goal, position=resting)
+        errors = task_errors(model, aim, traj.position)
+        away = bool(np.any(errors[-1] > np.asarray(goal.tolerance)))
+        if away and (at_rest or creeping(model, aim, traj, errors, criteria)):
+            status = "stalled"
+            kind = stall_kind(model, aim, traj.position[-1], monitor.names, margins,
+                              tracker.law, monitor)
     lag = log.path_lag
     applied_gap = [_gap(model, goal, x, a) for x, a in zip(traj.position, log.applied,
                                                            strict=True)]

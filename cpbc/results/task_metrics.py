@@ -135,13 +135,19 @@ def stall_kind(model: RobotModel, goal: FrameGoal, x: Array, names: Sequence[str
     return "local_minimum" if held_by is None else f"barrier:{held_by}"
 
 
+def stall_window_start(time: Array, criteria: SettleCriteria) -> int:
+    """The first sample of the run's last stall window: its ``stall_window`` share, at least
+    MIN_WINDOW seconds."""
+    span = max(criteria.stall_window * float(time[-1] - time[0]), MIN_WINDOW)
+    return int(np.searchsorted(time, time[-1] - span))
+
+
 def creeping(model: RobotModel, goal: FrameGoal, traj: Trajectory, errors: Array,
              criteria: SettleCriteria) -> bool:
     """The task error made no progress over the last stall window, stayed in its band, and
     the frame's point hardly moved (module docstring); errors in metres and ANGLE_LENGTH
     metres a radian."""
-    span = max(criteria.stall_window * float(traj.time[-1] - traj.time[0]), MIN_WINDOW)
-    start = int(np.searchsorted(traj.time, traj.time[-1] - span))
+    start = stall_window_start(traj.time, criteria)
     combined = errors[start:, 0] + ANGLE_LENGTH * errors[start:, 1]
     if len(combined) < 2 or not np.all(np.isfinite(combined)):
         return False
