@@ -77,3 +77,18 @@ def kernel(signature: str, inline: bool = False) -> Callable[[F], F]:
         return cast(F, compiled)
 
     return wrap
+
+
+def inner(signature: str) -> Callable[[F], F]:
+    """A small kernel that only other kernels call: written into each caller (numba's
+    ``inline="always"``, compiled with the caller's options) and never compiled on its own,
+    so importing the package loads nothing for it. ``signature`` records the types its
+    callers pass; ``python -m cpbc.kernels --check`` counts it apart (its callers' nopython
+    compilation covers it). A direct call from Python compiles it for the arguments given."""
+
+    def wrap(fn: F) -> F:
+        compiled = numba.njit(nogil=True, error_model="numpy", inline="always")(fn)
+        compiled.inner_signature = signature  # type: ignore[attr-defined]
+        return cast(F, compiled)
+
+    return wrap

@@ -35,6 +35,8 @@ def problems() -> list[str]:
         return ["no compiled kernels (NUMBA_DISABLE_JIT is set?)"]
     found = []
     for name, dispatcher in every:
+        if hasattr(dispatcher, "inner_signature"):
+            continue  # compiled only into its callers (cpbc.kernels.inner)
         if not dispatcher.targetoptions.get("nopython", False):
             found.append(f"{name}: not nopython")
         if not dispatcher.signatures:
@@ -51,20 +53,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--check", action="store_true", help="exit 1 unless all are nopython")
     args = parser.parse_args(argv)
     start = time.perf_counter()
-    names = [name for name, _ in kernels()]
-    if not names:
+    every = list(kernels())
+    if not every:
         print("no compiled kernels (NUMBA_DISABLE_JIT is set?)", file=sys.stderr)
         return 1 if args.check else 0
+    inner = sum(hasattr(d, "inner_signature") for _, d in every)
+    alone = len(every) - inner
     if args.warm:
-        print(f"{len(names)} kernels compiled or loaded from numba's cache in "
-              f"{time.perf_counter() - start:.2f} s")
+        print(f"{alone} kernels compiled or loaded from numba's cache in "
+              f"{time.perf_counter() - start:.2f} s ({inner} more compiled into their "
+              "callers only)")
     if args.check:
         found = problems()
         for line in found:
             print(line, file=sys.stderr)
         if found:
             return 1
-        print(f"{len(names)} kernels, all nopython")
+        print(f"{alone} kernels, all nopython ({inner} more inside them)")
     return 0
 
 

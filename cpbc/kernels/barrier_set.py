@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.kernels import kernel
+from cpbc.kernels import inner, kernel
 from cpbc.kernels.barriers import (
     kinetic_energy_terms,
     linear_limit_terms,
@@ -43,7 +43,7 @@ FLOAT_AT, FLOAT_TABLES, INT_AT, INT_TABLES = 3, 6, 21, 2
 PLAN_WIDTH = INT_AT + 3 * INT_TABLES
 
 
-@kernel("float64[:, :](int64[:, :], float64[:, :], int64, int64)", inline=True)
+@inner("float64[:, :](int64[:, :], float64[:, :], int64, int64)")
 def float_table(plan: Ints, floats: Array, row: int, table: int) -> Array:
     """The ``table``-th float table of the ``row``-th packed constraint (a view)."""
     at = FLOAT_AT + 3 * table
@@ -51,7 +51,7 @@ def float_table(plan: Ints, floats: Array, row: int, table: int) -> Array:
     return floats[start:start + rows, :cols]
 
 
-@kernel("int64[:, :](int64[:, :], int64[:, :], int64, int64)", inline=True)
+@inner("int64[:, :](int64[:, :], int64[:, :], int64, int64)")
 def int_table(plan: Ints, ints: Ints, row: int, table: int) -> Ints:
     """The ``table``-th int table of the ``row``-th packed constraint (a view)."""
     at = INT_AT + 3 * table

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.kernels import READ_ONLY_MATRIX, kernel
+from cpbc.kernels import READ_ONLY_MATRIX, inner, kernel
 
 
 @kernel(f"void({READ_ONLY_MATRIX}, float64[:], float64[:], float64[:], float64[:])")
@@ -22,7 +22,7 @@ def to_joint(t_inv: Array, x: Array, dx: Array, q: Array, dq: Array) -> None:
         dq[i] = b
 
 
-@kernel(f"void({READ_ONLY_MATRIX}, float64[:, :], float64[:, :])", inline=True)
+@inner(f"void({READ_ONLY_MATRIX}, float64[:, :], float64[:, :])")
 def congruence(t_inv: Array, matrix_q: Array, matrix: Array) -> None:
     """M_x = T⁻ᵀ M_q T⁻¹ into ``matrix`` (a matrix of the joints' generalised forces)."""
     n = matrix_q.shape[0]
@@ -59,8 +59,8 @@ TERMS = ("Tuple((float64[:, :], float64[:], float64[:], float64[:, :], float64[:
          " float64[:]))")
 
 
-@kernel(f"{TERMS}(boolean, boolean, float64[:, :], float64[:, :], float64[:],"
-        " float64[:, :], float64[:], float64[:], float64[:, :], float64[:, :])", inline=True)
+@inner(f"{TERMS}(boolean, boolean, float64[:, :], float64[:, :], float64[:],"
+        " float64[:, :], float64[:], float64[:], float64[:, :], float64[:, :])")
 def controller_terms(joints: bool, friction: bool, t_inv: Array, friction_matrix: Array,
                      dx: Array, inertia_q: Array, nle: Array, gravity_q: Array,
                      coriolis_q: Array, frame_jacobian_q: Array

@@ -34,7 +34,7 @@ import math
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
+from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, inner, kernel
 from cpbc.kernels.barrier_set import float_table
 from cpbc.kernels.barrier_shaping import shaping_terms
 from cpbc.kernels.clearance import Ints
@@ -68,7 +68,7 @@ def joint_spring(x: Array, goal: Array, stiffness: Array, grad: Array) -> float:
     return 0.5 * total
 
 
-@kernel("float64(float64, float64)", inline=True)
+@inner("float64(float64, float64)")
 def log_add_exp(a: float, b: float) -> float:
     """ln(eᵃ + eᵇ) without overflow (numpy.logaddexp's formula)."""
     if a == b:
@@ -135,7 +135,7 @@ def tanh_damping(gain: Array, gamma: Array, dx: Array, force: Array) -> None:
         force[i] = gain[i] * np.tanh(gamma[i] * dx[i])
 
 
-@kernel(f"float64(int64[:, :], float64[:, :], float64[:], {FRAME}, float64[:])", inline=True)
+@inner(f"float64(int64[:, :], float64[:, :], float64[:], {FRAME}, float64[:])")
 def potential_terms(plan: Ints, floats: Array, x: Array, origin: Array, rotation: Array,
                     jacobian: Array, grad: Array) -> float:
     """U = Σ U_k of the packed springs (the other rows are skipped), ∂U/∂x = Σ ∂U_k/∂x into
@@ -179,7 +179,7 @@ def potential_terms(plan: Ints, floats: Array, x: Array, origin: Array, rotation
     return total
 
 
-@kernel(f"void(int64[:, :], float64[:, :], float64[:], {FRAME}, float64[:])", inline=True)
+@inner(f"void(int64[:, :], float64[:, :], float64[:], {FRAME}, float64[:])")
 def damping_terms(plan: Ints, floats: Array, dx: Array, origin: Array, rotation: Array,
                   jacobian: Array, force: Array) -> None:
     """The joint damping plus the task damping of the packed terms (the other rows are
@@ -210,7 +210,7 @@ def damping_terms(plan: Ints, floats: Array, dx: Array, origin: Array, rotation:
             force[i] += part[i]
 
 
-@kernel("UniTuple(float64, 2)(int64[:, :], float64[:, :], float64)", inline=True)
+@inner("UniTuple(float64, 2)(int64[:, :], float64[:, :], float64)")
 def shaped(plan: Ints, floats: Array, log_x: float) -> tuple[float, float]:
     """r(x) and log s(x) of the packed shaping (cpbc.kernels.barrier_shaping.shaping_terms); those
     of s(x) = x when none is packed."""

@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
+from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, inner, kernel
 from cpbc.kernels.barrier_set import VELOCITY_KINDS, set_barrier
 from cpbc.kernels.clearance import Ints
 from cpbc.kernels.coordinate_maps import controller_terms
@@ -123,8 +123,7 @@ TABLES = ("Tuple((int64, int64[:, :], int64[:, :], float64[:, :], int64[:, :],"
           " float64[:, :]))")
 
 
-@kernel("int64[:, :](int64[::1], int64, int64, int64)",
-        inline=True)
+@inner("int64[:, :](int64[::1], int64, int64, int64)")
 def int_rows(flat: Ints, start: int, rows: int, columns: int) -> Ints:
     """flat[start : start + rows·columns] as a (rows, columns) view, row-major (numba's
     reshape calls out to C, about 16 ns; a strided view costs nothing)."""
@@ -132,16 +131,14 @@ def int_rows(flat: Ints, start: int, rows: int, columns: int) -> Ints:
                                            strides=(columns * flat.itemsize, flat.itemsize))
 
 
-@kernel("float64[:, :](float64[::1], int64, int64, int64)",
-        inline=True)
+@inner("float64[:, :](float64[::1], int64, int64, int64)")
 def float_rows(flat: Array, start: int, rows: int, columns: int) -> Array:
     """``int_rows`` of a float array."""
     return np.lib.stride_tricks.as_strided(flat[start:], shape=(rows, columns),
                                            strides=(columns * flat.itemsize, flat.itemsize))
 
 
-@kernel(f"{TABLES}(int64[::1], float64[::1])",
-        inline=True)
+@inner(f"{TABLES}(int64[::1], float64[::1])")
 def law_tables(ints: Ints, floats: Array) -> tuple[int, Ints, Ints, Array, Ints, Array]:
     """The margins and the tables packed by ``pack_tables`` (views): the set's plan, ints
     and floats (cpbc.kernels.barrier_set), the terms' plan and floats
@@ -160,8 +157,7 @@ def law_tables(ints: Ints, floats: Array) -> tuple[int, Ints, Ints, Array, Ints,
 MODEL = "Tuple((boolean, boolean, float64[:, :], float64[:, :], float64[::1]))"
 
 
-@kernel(f"{MODEL}(int64[::1], float64[::1], int64)",
-        inline=True)
+@inner(f"{MODEL}(int64[::1], float64[::1], int64)")
 def model_tables(ints: Ints, floats: Array, n: int
                  ) -> tuple[bool, bool, Array, Array, Array]:
     """Whether the coordinates are the joints' and whether the arm has friction, T⁻¹, F_d
@@ -172,8 +168,8 @@ def model_tables(ints: Ints, floats: Array, n: int
             floats[at + 2 * n * n:])
 
 
-@kernel("UniTuple(float64[:, :], 2)(int64[::1], float64[:], float64[:, :], float64[:, :],"
-        " float64[:, :], float64[:, :], float64[::1])", inline=True)
+@inner("UniTuple(float64[:, :], 2)(int64[::1], float64[:], float64[:, :], float64[:, :],"
+        " float64[:, :], float64[:, :], float64[::1])")
 def pass_frame(ints: Ints, x: Array, placement: Array, frame_jacobian_q: Array, y: Array,
                jac: Array, local: Array) -> tuple[Array, Array]:
     """The frame's placement and Jacobian (joint coordinates): the pass's, or — when the
@@ -278,9 +274,9 @@ FINISHED = ("Tuple((float64[:, :], float64[:, :], float64[:], float64[:], float6
             " float64[:, :], float64[:]))")
 
 
-@kernel(f"{FINISHED}(int64[::1], float64[::1], float64[:], float64[:], float64[:, :],"
+@inner(f"{FINISHED}(int64[::1], float64[::1], float64[:], float64[:], float64[:, :],"
         " float64[:], float64[:], float64[:, :], float64[:, :], float64[:, :], float64[:, :],"
-        " float64[:, :])", inline=True)
+        " float64[:, :])")
 def finished_state(tables: Ints, table_floats: Array, x: Array, dx: Array,
                    inertia_q: Array, nle: Array, gravity_q: Array, coriolis_q: Array,
                    placement: Array, frame_jacobian_q: Array, y: Array, jac: Array

@@ -14,13 +14,12 @@ from __future__ import annotations
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
+from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, inner, kernel
 
 FRAME = f"{READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}"
 
 
-@kernel("void(float64[:, :], float64[:, :], int64, float64[:], float64[:, :], float64[:, :])",
-        inline=True)
+@inner("void(float64[:, :], float64[:, :], int64, float64[:], float64[:, :], float64[:, :])")
 def frame_on_joints(y: Array, jac: Array, column: int, local: Array, placement: Array,
                     jacobian: Array) -> None:
     """A frame's placement [R p; 0 1] into ``placement`` and its Jacobian [J_v; J_ω] (6, n)
@@ -57,8 +56,7 @@ def frame_on_joints(y: Array, jac: Array, column: int, local: Array, placement: 
         jacobian[3, k], jacobian[4, k], jacobian[5, k] = w0, w1, w2
 
 
-@kernel(f"void({FRAME}, {READ_ONLY}, float64[:], float64[:, :])",
-        inline=True)
+@inner(f"void({FRAME}, {READ_ONLY}, float64[:], float64[:, :])")
 def point_on_frame(origin: Array, rotation: Array, jacobian: Array, offset: Array,
                    point: Array, linear: Array) -> None:
     """p = origin + R o into ``point`` and J_p = J_v − [R o]× J_ω (v_p = v + ω × R o) into
