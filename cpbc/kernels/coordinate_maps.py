@@ -54,7 +54,6 @@ def to_controller(t_inv: Array, inertia_q: Array, nle: Array, gravity_q: Array,
     congruence(t_inv, inertia_q, inertia)
 
 
-
 TERMS = ("Tuple((float64[:, :], float64[:], float64[:], float64[:, :], float64[:, :],"
          " float64[:]))")
 

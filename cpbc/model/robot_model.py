@@ -287,20 +287,40 @@ class RobotModel:
         (cpbc.kernels.task.frame_on_joints): the first column of its joint in the static
         regressor Y = [t_1 R_1 … t_m R_m]/s and [s, s p_l, R_l row-major, the support mask
         (n)], p_l and R_l its placement on the joint; None for a frame welded to the world."""
-        model = self.model
-        frame = model.frames[frame_id]
+        frame = self.model.frames[frame_id]
         joint = frame.parentJoint
         if joint == 0:
             return None
-        y = pin.computeStaticRegressor(model, self.data, pin.neutral(model))
-        scale = float(np.sqrt(3.0) / np.linalg.norm(y[:, 1:4]))  # Y's R_1 block is R_1/s
-        support = np.zeros(self.n)
-        for k in model.supports[joint].tolist()[1:]:
-            moved = model.joints[k]
-            support[moved.idx_v:moved.idx_v + moved.nv] = 1.0
-        local = frame.placement
+        scale, local = self.regressor_scale(), frame.placement
         return 4 * (joint - 1), np.concatenate(
-            [[scale], scale * local.translation, local.rotation.reshape(-1), support])
+            [[scale], scale * local.translation, local.rotation.reshape(-1),
+             self.joint_supports()[joint]])
+
+    def regressor_scale(self) -> float:
+        """s such that s·Y is every joint placement [t_1 R_1 … t_m R_m], Y Pinocchio's static
+        regressor (s is the total mass: Y's R_1 block is R_1/s), checked against the joint
+        placements of a pass of the model's own."""
+        model, data = self.model, self.data
+        q = pin.neutral(model) + 0.3
+        y = pin.computeStaticRegressor(model, data, q)
+        pin.forwardKinematics(model, data, q)
+        scale = float(np.sqrt(3.0) / np.linalg.norm(y[:, 1:4]))
+        rebuilt = np.hstack([np.column_stack([data.oMi[j].translation, data.oMi[j].rotation])
+                             for j in range(1, model.njoints)])
+        if not np.allclose(scale * y, rebuilt, atol=1e-9):  # pragma: no cover
+            raise ModelError("unexpected layout of Pinocchio's static regressor")
+        return scale
+
+    def joint_supports(self) -> Array:
+        """(joints + 1, n): row j is 1 on the coordinates of the joints that move joint j's
+        link (row 0, the world, is zero)."""
+        model = self.model
+        supports = np.zeros((model.njoints, self.n))
+        for j in range(1, model.njoints):
+            for k in model.supports[j].tolist()[1:]:
+                moved = model.joints[k]
+                supports[j, moved.idx_v:moved.idx_v + moved.nv] = 1.0
+        return supports
 
     def _joint_state(self, x: Array, dx: Array) -> tuple[Array, Array, Array, Array]:
         """x, ẋ (copied when read-only: the compiled kernels take writable float arrays, and

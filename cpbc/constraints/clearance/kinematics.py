@@ -51,24 +51,10 @@ class Kinematics:
         every joint placement, divided by the total mass M. A point l fixed in joint j's frame
         is then at M·Y[:, 4(j−1):4j] @ [1, l]: Y times a constant column.
         """
-        pm, data = self._pin, self._data
+        pm = self._pin
         self._nj = pm.njoints - 1
-        q = pin.neutral(pm) + 0.3
-        y = pin.computeStaticRegressor(pm, data, q)
-        pin.forwardKinematics(pm, data, q)
-        scale = np.sqrt(3.0) / np.linalg.norm(y[:, 1:4])
-        rebuilt = np.hstack(
-            [np.column_stack([data.oMi[j].translation, data.oMi[j].rotation])
-             for j in range(1, pm.njoints)]
-        )
-        if not np.allclose(scale * y, rebuilt, atol=1e-9):  # pragma: no cover
-            raise CpbcError("unexpected layout of Pinocchio's static regressor")
-        self._scale = float(scale)
-        self._supports = np.zeros((pm.njoints, self._n))
-        for j in range(1, pm.njoints):
-            for k in pm.supports[j].tolist()[1:]:
-                jm = pm.joints[k]
-                self._supports[j, jm.idx_v: jm.idx_v + jm.nv] = 1.0
+        self._scale = self.model.regressor_scale()
+        self._supports = self.model.joint_supports()
         self._joint_supports = np.zeros((self._n, self._n))
         for j in range(1, pm.njoints):
             jm = pm.joints[j]
