@@ -16,7 +16,7 @@ from cpbc.kernels.coordinate_maps import controller_terms
 from cpbc.kernels.energy import kinetic_energy
 from cpbc.kernels.law_terms import damping_terms, potential_terms, shaped
 from cpbc.kernels.small_solves import solve_spd
-from cpbc.kernels.task import frame_on_joints
+from cpbc.kernels.task import PLACE, frame_on_joints
 
 
 def zero_terms(n: int) -> tuple[Array, Array]:
@@ -111,7 +111,7 @@ def pack_tables(margins: int, plan: Ints, ints: Ints, floats: Array, term_plan: 
     header = [margins]
     for table in (plan, ints, floats, term_plan, term_floats):
         header += table.shape
-    column, local = (-1, np.zeros(13 + n)) if frame is None else frame
+    column, local = (-1, np.zeros(PLACE + n)) if frame is None else frame
     header += [int(np.array_equal(t_inv, np.eye(n))), int(np.any(friction)), column]
     packed_ints = np.concatenate([np.array(header, dtype=np.int64), plan.ravel(),
                                   ints.ravel(), term_plan.ravel()]).astype(np.int64)
@@ -162,7 +162,7 @@ def model_tables(ints: Ints, floats: Array, n: int
                  ) -> tuple[bool, bool, Array, Array, Array]:
     """Whether the coordinates are the joints' and whether the arm has friction, T⁻¹, F_d
     and the frame's place on its joint (views), packed by ``pack_tables``."""
-    at = floats.shape[0] - 2 * n * n - 13 - n
+    at = floats.shape[0] - 2 * n * n - PLACE - n
     return (ints[COORDINATES] == 1, ints[COORDINATES + 1] == 1,
             float_rows(floats, at, n, n), float_rows(floats, at + n * n, n, n),
             floats[at + 2 * n * n:])

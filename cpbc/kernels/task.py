@@ -17,6 +17,9 @@ from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, inner, kernel
 
 FRAME = f"{READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}"
+# the length of a frame's place on its joint, [s, s p_l, R_l row-major], before its support
+# mask (``frame_on_joints``'s ``local``)
+PLACE = 13
 
 
 @inner("void(float64[:, :], float64[:, :], int64, float64[:], float64[:, :], float64[:, :])")
@@ -45,7 +48,7 @@ def frame_on_joints(y: Array, jac: Array, column: int, local: Array, placement: 
     placement[3, 3] = 1.0
     p0, p1, p2 = placement[0, 3], placement[1, 3], placement[2, 3]
     for k in range(n):
-        if local[13 + k] == 0.0:
+        if local[PLACE + k] == 0.0:
             for r in range(6):
                 jacobian[r, k] = 0.0
             continue
