@@ -152,19 +152,6 @@ def time_blocks(
     return blocks
 
 
-def time_rounds(controllers: dict[str, Controller], states: Sequence[tuple[Array, Array]],
-                repeats: int) -> dict[str, list[float]]:
-    """``time_blocks`` of every controller, one block each per round for ``repeats`` rounds:
-    a spell of load on the machine falls on all of them alike, not on whichever controller
-    was being timed (a ratio to PD + g read 1.64x instead of 2.8x when a spell fell on the
-    PD + g blocks alone)."""
-    blocks: dict[str, list[float]] = {k: [] for k in controllers}
-    for _ in range(repeats):
-        for k, ctrl in controllers.items():
-            blocks[k] += time_blocks(ctrl, states, 1)
-    return blocks
-
-
 def time_torque(ctrl: Controller, states: Sequence[tuple[Array, Array]], repeats: int) -> float:
     """Median over ``repeats`` blocks of the mean cost of one torque call [µs]."""
     return statistics.median(time_blocks(ctrl, states, repeats))
@@ -201,7 +188,7 @@ def peer_times(setup: BenchSetup, repeats: int) -> dict[str, list[float]]:
     }
     for ctrl in contenders.values():
         time_torque(ctrl, setup.states[:8], 1)
-    return time_rounds(contenders, setup.states, repeats)
+    return time_interleaved(contenders, setup.states, repeats)
 
 
 def time_governor(repeats: int, steps: int = 5000) -> float:
@@ -326,7 +313,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     for ctrl in setup.controllers.values():  # warm up caches and lazy imports
         time_torque(ctrl, setup.states[:8], 1)
-    blocks_us = time_rounds(setup.controllers, setup.states, args.repeats)
+    blocks_us = time_interleaved(setup.controllers, setup.states, args.repeats)
     torque_us = {k: statistics.median(v) for k, v in blocks_us.items()}
     blocks = max(3, args.repeats // 3)
     loop = {k: time_loop(setup, c, args.loop_seconds, blocks)
