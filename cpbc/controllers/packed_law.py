@@ -14,7 +14,7 @@ path too.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -27,11 +27,12 @@ from cpbc.controllers.controller import Controller
 from cpbc.errors import CpbcError
 from cpbc.kernels.law_terms import FRAME_KINDS, SHAPING
 from cpbc.kernels.laws import pack_tables
-from cpbc.model.robot_model import ArmState, RobotModel
+from cpbc.model.robot_model import ArmState, PassReader, RobotModel
 
 # the set's and the terms' tables packed in one int and one float array
 # (cpbc.kernels.laws.pack_tables)
 Tables = tuple[Ints, Array]
+PassArguments = Callable[[Array, Array], tuple[Any, ...]]
 _NO_MATRIX = np.zeros((0, 0))
 
 
@@ -86,19 +87,22 @@ class PacksItsLaw(Controller):
     _packed_law: PackedLaw | None = None
 
     def torque(self, x: Array, dx: Array) -> Array:
-        packed = self.packed_law()
-        if not packed.from_pass:
+        packed = self._packed_law
+        if packed is None or packed.law is not type(self):
+            packed = self.packed_law()
+        step = packed.pass_arguments
+        if step is None:
             return self.evaluate_state(self.state(x, dx)).torque
-        args = packed.pass_arguments(self.model, x, dx)
+        args = step(x, dx)
         self._pass_value(args)
         return args[-1]
 
     def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
-        packed = self.packed_law()
-        if not packed.from_pass:
+        step = self.packed_law().pass_arguments
+        if step is None:
             out = self.evaluate_state(self.state(x, dx))
             return out.torque, out.lyapunov
-        args = packed.pass_arguments(self.model, x, dx)
+        args = step(x, dx)
         return args[-1], self._pass_value(args)
 
     def lyapunov(self, x: Array, dx: Array) -> float:
@@ -144,10 +148,12 @@ class PackedLaw:
         margins: the number of the set's margins; n: the number of coordinates.
         frames: the frames the per-step state holds (the set's, then the law's).
         coriolis: whether the state holds the matrix C (a kinetic-energy limit).
-        from_pass: whether a step may go from the model's pass straight to the kernel
-            (``pass_arguments``; the law's ``_pass_value``): the law's class keeps the
-            state path (``STATE_PATH``) of the class it was packed by and its state holds
-            no frame besides the one the kernel reads.
+        pass_arguments: for a step straight from the model's pass to the kernel (the law's
+            ``_pass_value``), the function of (x, ẋ) that gives the kernel's arguments
+            (``step_from_pass``), or None: the law builds the state. A step may go from
+            the pass when the law's class keeps the state path (``STATE_PATH``) of the
+            class it was packed by and its state holds no frame besides the one the kernel
+            reads.
         pass_reads: the frame the model's pass reads for that step (−1: none; the kernel
             reads the law's frame from the joint kinematics, ``pack_tables``' ``frame``).
         live: (offset in the packed floats, source) of each row a term keeps in step with
@@ -163,9 +169,14 @@ class PackedLaw:
     n: int = 0
     frames: tuple[int, ...] = ()
     coriolis: bool = False
-    from_pass: bool = False
+    pass_arguments: PassArguments | None = None
     pass_reads: int = -1
     live: tuple[tuple[int, Array], ...] = ()
+
+    @property
+    def from_pass(self) -> bool:
+        """Whether a step goes from the model's pass straight to the kernel."""
+        return self.pass_arguments is not None
 
     def refreshed(self) -> tuple[Ints, Array]:
         """The constant tables, the rows of a moving goal (``live``) copied in from their
@@ -179,14 +190,6 @@ class PackedLaw:
         """The per-step state the kernel reads (as ``ConstraintSet.state`` with the law's
         frames builds it), from one call of ``model.state``."""
         return model.state(x, dx, self.kinematics, self.frames, self.coriolis)
-
-    def pass_arguments(self, model: RobotModel, x: Array, dx: Array) -> tuple[Any, ...]:
-        """The arguments of the law's ``*_pass_step`` kernel: the tables, the model's pass
-        (``RobotModel.joint_pass``), where the kernel writes the barrier values and τ
-        (``arguments`` without the margins)."""
-        return (*self.refreshed(),
-                *model.joint_pass(x, dx, self.kinematics, self.pass_reads, self.coriolis),
-                np.empty(self.margins), np.empty(self.n))
 
     @classmethod
     def build(cls, law: type, parts: Sequence[tuple[Packed, ...] | None],
@@ -213,15 +216,17 @@ class PackedLaw:
         # with the joint kinematics in the pass, the kernel reads the frame from them
         on_joints = model.frame_on_joints(frame) if (
             frame >= 0 and constraints.needs_kinematics) else None
-        return cls(law, packed, pack_tables(margins, tables.plan, tables.ints, tables.floats,
-                                            packed.plan, packed.floats,
-                                            model.coordinates.inverse, model.viscous_friction,
-                                            on_joints),
-                   frame, constraints.needs_kinematics, margins, constraints.n, held,
-                   constraints.needs_coriolis,
-                   keeps(law, base, STATE_PATH) and all(f == frame for f in held),
-                   frame if on_joints is None else -1,
-                   tuple((tables.floats.size + at, source) for at, source in packed.live))
+        pass_reads = frame if on_joints is None else -1
+        from_pass = keeps(law, base, STATE_PATH) and all(f == frame for f in held)
+        constants = pack_tables(margins, tables.plan, tables.ints, tables.floats,
+                                packed.plan, packed.floats, model.coordinates.inverse,
+                                model.viscous_friction, on_joints)
+        live = tuple((tables.floats.size + at, source) for at, source in packed.live)
+        step = step_from_pass(constants, live, model.joint_pass(
+            constraints.needs_kinematics, pass_reads, constraints.needs_coriolis),
+            margins, constraints.n) if from_pass else None
+        return cls(law, packed, constants, frame, constraints.needs_kinematics, margins,
+                   constraints.n, held, constraints.needs_coriolis, step, pass_reads, live)
 
     def arguments(self, state: ArmState, margins: bool) -> tuple[Any, ...]:
         """The kernel's arguments: the tables (``constants``); x, ẋ, D, g, C ẋ, f, C, the
@@ -255,3 +260,25 @@ class PackedLaw:
 
 _NO_FRAME = (np.eye(4), np.zeros((6, 0)))
 _NO_JOINTS = (np.zeros((3, 0)), np.zeros((6, 0)))
+
+
+def step_from_pass(constants: Tables, live: tuple[tuple[int, Array], ...],
+                   reader: PassReader, margins: int, n: int) -> PassArguments:
+    """The function of (x, ẋ) that gives a law's ``*_pass_step`` kernel its arguments: the
+    tables (``constants``, the rows of a moving goal, ``live``, copied in first), the
+    model's pass (``reader``, cpbc.model.robot_model.RobotModel.joint_pass), where the
+    kernel writes the barrier values φ̃ and τ (a new array). φ̃ is read only to name the
+    margin when the state is outside S: it has one array, overwritten by every step (one
+    allocation fewer a step, about 90 ns)."""
+    ints, floats = constants
+    barrier_values, empty = np.empty(margins), np.empty
+
+    def arguments(x: Array, dx: Array) -> tuple[Any, ...]:
+        return (ints, floats, *reader(x, dx), barrier_values, empty(n))
+
+    def steered(x: Array, dx: Array) -> tuple[Any, ...]:
+        for at, source in live:
+            floats[at:at + source.shape[0]] = source
+        return (ints, floats, *reader(x, dx), barrier_values, empty(n))
+
+    return steered if live else arguments

@@ -15,7 +15,7 @@ from numba.core.registry import CPUDispatcher
 MODULES = ("cpbc.kernels.small_solves", "cpbc.kernels.energy", "cpbc.kernels.barriers",
            "cpbc.kernels.laws", "cpbc.kernels.barrier_set", "cpbc.kernels.coordinate_maps",
            "cpbc.kernels.task", "cpbc.kernels.clearance", "cpbc.kernels.sampled_guard",
-           "cpbc.kernels.barrier_shaping", "cpbc.kernels.law_terms")
+           "cpbc.kernels.barrier_shaping", "cpbc.kernels.law_terms", "cpbc.kernels.views")
 
 
 def kernels() -> Iterator[tuple[str, CPUDispatcher]]:

@@ -35,7 +35,8 @@ from cpbc.kernels.barriers import (
     point_sphere_terms,
     rate_limit_terms,
 )
-from cpbc.kernels.clearance import Ints, sphere_barrier, sphere_clearances
+from cpbc.kernels.clearance import sphere_barrier, sphere_clearances
+from cpbc.kernels.views import Ints, float_rows
 
 LINEAR, RATE, ENERGY, POINT, SPHERES = 0, 1, 2, 3, 4
 VELOCITY_KINDS = (RATE, ENERGY)
@@ -101,8 +102,8 @@ def set_barrier(plan: Ints, ints: Ints, floats: Array, x: Array, dx: Array, iner
     The state: x, ẋ, D, C (``ENERGY``), the frame's origin, axes and Jacobian [J_v; J_ω]
     (``POINT``), the joint placements and Jacobians (``SPHERES``)."""
     n = x.shape[0]
-    part = np.empty(n)
-    pi = np.empty((n, n))
+    work = np.empty(n + n * n)
+    part, pi = work[:n], float_rows(work, n, n, n)
     gradient[:] = 0.0
     weight[:] = 0.0
     log_phi, log_psi = 0.0, 0.0

@@ -11,6 +11,7 @@ from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, kernel
 from cpbc.kernels.energy import kinetic_energy
 from cpbc.kernels.task import point_on_frame
+from cpbc.kernels.views import float_rows
 
 
 @kernel("void(float64[:, :], float64[:], float64[:], float64[:])",
@@ -109,7 +110,8 @@ def point_sphere_terms(constants: Array, origin: Array, rotation: Array, jacobia
     at o in the frame (cpbc.kernels.task.point_on_frame). ``constants``: [c r² o has_offset],
     shape (8,)."""
     n = gradient.shape[0]
-    point, linear = np.empty(3), np.empty((3, n))
+    work = np.empty(3 + 3 * n)
+    point, linear = work[:3], float_rows(work, 3, 3, n)
     point_on_frame(origin, rotation, jacobian, constants[4:], point, linear)
     d0, d1, d2 = point[0] - constants[0], point[1] - constants[1], point[2] - constants[2]
     p = d0 * d0 + d1 * d1 + d2 * d2 - constants[3]

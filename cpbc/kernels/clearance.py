@@ -21,12 +21,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import NDArray
 
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, inner, kernel
-
-Ints = NDArray[np.int64]  # the index tables
+from cpbc.kernels.views import Ints, float_rows
 
 
 @inner("void(float64[:, :], int64[:], float64[:, :], float64[:, :])")
@@ -219,8 +217,11 @@ def sphere_barrier(y: Array, jac: Array, sphere_index: Ints, sphere_local: Array
     whatever the answer.
     """
     n_sph, n_pair = sphere_index.shape[0], pair_index.shape[0]
-    centres = np.empty((3, n_sph))
-    u, outside, d = np.empty((3, n_pair)), np.empty((3, n_pair)), np.empty(n_pair)
+    work = np.empty(6 * n_sph + 7 * n_pair)  # one allocation for the five arrays
+    centres, force = float_rows(work, 0, 3, n_sph), float_rows(work, 3 * n_sph, 3, n_sph)
+    at = 6 * n_sph
+    u, outside = float_rows(work, at, 3, n_pair), float_rows(work, at + 3 * n_pair, 3, n_pair)
+    d = work[at + 6 * n_pair:]
     sphere_centres(y, sphere_index, sphere_local, centres)
     sphere_offsets(centres, obstacles, pair_index, pair_table, u, outside, d)
     if value.shape[0] > 0:
@@ -231,7 +232,7 @@ def sphere_barrier(y: Array, jac: Array, sphere_index: Ints, sphere_local: Array
     stop = pair_index[n_pair - 1, 3] + 1  # the sphere constraints come first
     phi_out[:stop] = 1.0
     phi_out[stop:] = far_phi[stop:]
-    force = np.zeros((3, n_sph))
+    force[:, :] = 0.0
     pair_forces(u, outside, d, obstacles, pair_index, pair_table, ell, phi_out, force)
     for c in range(stop):
         phi_out[c] *= far_phi[c]

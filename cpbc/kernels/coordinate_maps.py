@@ -7,6 +7,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY_MATRIX, inner, kernel
+from cpbc.kernels.views import float_rows
 
 
 @kernel(f"void({READ_ONLY_MATRIX}, float64[:], float64[:], float64[:], float64[:])")
@@ -71,27 +72,32 @@ def controller_terms(joints: bool, friction: bool, t_inv: Array, friction_matrix
     zero without ``friction``). With the joints as coordinates (``joints``) D, g, C and the
     Jacobian are the pass's own arrays."""
     n = dx.shape[0]
-    dissipation = np.zeros(n)
-    if friction:
-        for i in range(n):
-            s = 0.0
+    c_rows, (rows, columns) = coriolis_q.shape[0], frame_jacobian_q.shape
+    # one allocation for the terms this makes
+    work = np.empty(2 * n if joints else 3 * n + n * n + c_rows * c_rows + rows * columns)
+    dissipation, bias = work[:n], work[n:2 * n]
+    for i in range(n):
+        s = 0.0
+        if friction:
             for j in range(n):
                 s += friction_matrix[i, j] * dx[j]
-            dissipation[i] = s
+        dissipation[i] = s
     if joints:
-        bias = np.empty(n)
         for i in range(n):
             bias[i] = nle[i] - gravity_q[i]
         return inertia_q, bias, gravity_q, coriolis_q, frame_jacobian_q, dissipation
-    inertia, bias, gravity = np.empty((n, n)), np.empty(n), np.empty(n)
+    gravity = work[2 * n:3 * n]
+    at = 3 * n
+    inertia = float_rows(work, at, n, n)
+    at += n * n
+    coriolis = float_rows(work, at, c_rows, c_rows)
+    at += c_rows * c_rows
+    frame_jacobian = float_rows(work, at, rows, columns)
     to_controller(t_inv, inertia_q, nle, gravity_q, inertia, bias, gravity)
-    coriolis = np.empty((coriolis_q.shape[0], coriolis_q.shape[1]))
-    if coriolis_q.shape[0] > 0:
+    if c_rows > 0:
         congruence(t_inv, coriolis_q, coriolis)
-    rows = frame_jacobian_q.shape[0]
-    frame_jacobian = np.empty((rows, frame_jacobian_q.shape[1]))
     for r in range(rows):
-        for j in range(frame_jacobian.shape[1]):
+        for j in range(columns):
             s = 0.0
             for k in range(n):
                 s += frame_jacobian_q[r, k] * t_inv[k, j]

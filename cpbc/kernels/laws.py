@@ -11,12 +11,12 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, inner, kernel
 from cpbc.kernels.barrier_set import VELOCITY_KINDS, set_barrier
-from cpbc.kernels.clearance import Ints
 from cpbc.kernels.coordinate_maps import controller_terms
 from cpbc.kernels.energy import kinetic_energy
 from cpbc.kernels.law_terms import damping_terms, potential_terms, shaped
 from cpbc.kernels.small_solves import solve_spd
 from cpbc.kernels.task import PLACE, frame_on_joints
+from cpbc.kernels.views import Ints, float_rows, int_rows
 
 
 def zero_terms(n: int) -> tuple[Array, Array]:
@@ -123,21 +123,6 @@ TABLES = ("Tuple((int64, int64[:, :], int64[:, :], float64[:, :], int64[:, :],"
           " float64[:, :]))")
 
 
-@inner("int64[:, :](int64[::1], int64, int64, int64)")
-def int_rows(flat: Ints, start: int, rows: int, columns: int) -> Ints:
-    """flat[start : start + rows·columns] as a (rows, columns) view, row-major (numba's
-    reshape calls out to C, about 16 ns; a strided view costs nothing)."""
-    return np.lib.stride_tricks.as_strided(flat[start:], shape=(rows, columns),
-                                           strides=(columns * flat.itemsize, flat.itemsize))
-
-
-@inner("float64[:, :](float64[::1], int64, int64, int64)")
-def float_rows(flat: Array, start: int, rows: int, columns: int) -> Array:
-    """``int_rows`` of a float array."""
-    return np.lib.stride_tricks.as_strided(flat[start:], shape=(rows, columns),
-                                           strides=(columns * flat.itemsize, flat.itemsize))
-
-
 @inner(f"{TABLES}(int64[::1], float64[::1])")
 def law_tables(ints: Ints, floats: Array) -> tuple[int, Ints, Ints, Array, Ints, Array]:
     """The margins and the tables packed by ``pack_tables`` (views): the set's plan, ints
@@ -178,7 +163,8 @@ def pass_frame(ints: Ints, x: Array, placement: Array, frame_jacobian_q: Array, 
     column = ints[FRAME_COLUMN]
     if column < 0:
         return placement, frame_jacobian_q
-    placement, frame_jacobian_q = np.empty((4, 4)), np.empty((6, x.shape[0]))
+    work = np.empty(16 + 6 * x.shape[0])
+    placement, frame_jacobian_q = float_rows(work, 0, 4, 4), float_rows(work, 16, 6, x.shape[0])
     frame_on_joints(y, jac, column, local, placement, frame_jacobian_q)
     return placement, frame_jacobian_q
 
@@ -207,13 +193,14 @@ def cpbc_step(tables: Ints, table_floats: Array, x: Array, dx: Array, inertia: A
     margins, plan, ints, floats, term_plan, term_floats = law_tables(tables, table_floats)
     phi, value = barriers[:margins], barriers[margins:]
     origin, rotation = placement[:3, 3], placement[:3, :3]
-    gradient, weight = np.empty(n), np.empty((n, n))
+    work = np.empty(4 * n + n * n)  # one allocation for the step's five arrays
+    gradient, grad, damping, bias = work[:n], work[n:2 * n], work[2 * n:3 * n], work[3 * n:4 * n]
+    weight = float_rows(work, 4 * n, n, n)
     log_phi, log_psi = set_barrier(plan, ints, floats, x, dx, inertia, coriolis, origin,
                                    rotation, frame_jacobian, y, jac, phi, gradient, weight,
                                    value)
     if log_phi != log_phi or log_psi != log_psi:
         return math.nan, log_phi, log_psi
-    grad, damping, bias = np.empty(n), np.empty(n), np.empty(n)
     potential = potential_terms(term_plan, term_floats, x, origin, rotation, frame_jacobian,
                                 grad)
     lag = kinetic_energy(inertia, dx) + potential
@@ -248,12 +235,13 @@ def cpbc_ke_step(limit: float, tables: Ints, table_floats: Array, x: Array, dx: 
     margins, plan, ints, floats, term_plan, term_floats = law_tables(tables, table_floats)
     phi, value = barriers[:margins], barriers[margins:]
     origin, rotation = placement[:3, 3], placement[:3, :3]
-    gradient, weight = np.empty(n), np.empty((0, 0))
+    work = np.empty(3 * n)  # one allocation for the step's arrays (Π is empty)
+    gradient, grad, damping = work[:n], work[n:2 * n], work[2 * n:]
+    weight = float_rows(work, 0, 0, 0)
     log_phi, _ = set_barrier(plan, ints, floats, x, dx, inertia, coriolis, origin, rotation,
                              frame_jacobian, y, jac, phi, gradient, weight, value)
     if log_phi != log_phi:
         return math.nan, log_phi, psi
-    grad, damping = np.empty(n), np.empty(n)
     lag = kinetic + potential_terms(term_plan, term_floats, x, origin, rotation,
                                     frame_jacobian, grad)
     ratio, log_s = shaped(term_plan, term_floats, log_phi + math.log(psi))

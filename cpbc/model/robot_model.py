@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from types import MappingProxyType
 from typing import NamedTuple
@@ -22,6 +22,9 @@ _WORLD_ALIGNED = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _NO_MATRIX = np.zeros((0, 0))
 _NO_FRAME = (np.eye(4), np.zeros((6, 0)))
 _NO_JOINTS = (np.zeros((3, 0)), np.zeros((6, 0)))
+# RobotModel.joint_pass's function of (x, ẋ): x, ẋ, D, nle, g, C, the frame's placement and
+# Jacobian, the joint placements and Jacobians
+PassReader = Callable[[Array, Array], tuple[Array, ...]]
 
 
 class ArmState(NamedTuple):
@@ -259,28 +262,60 @@ class RobotModel:
         return ArmState(x, dx, q, dq, inertia, bias, gravity, f, found, c_matrix, jac,
                         placements)
 
-    def joint_pass(self, x: Array, dx: Array, kinematics: bool, frame: int, coriolis: bool
-                   ) -> tuple[Array, ...]:
+    def joint_pass(self, kinematics: bool, frame: int, coriolis: bool) -> PassReader:
         """The per-step state unfinished, for a compiled law that finishes and reads it at
-        once (cpbc.kernels.laws.cpbc_pass_step): x, ẋ and :meth:`state`'s one pass in joint
-        coordinates — D, nle = C q̇ + g, g, C (``coriolis``; else empty), the placement and
-        Jacobian of ``frame`` (≥ 0; else identity and empty), the joint placements and
-        Jacobians (``kinematics``; else empty). D, nle, g and the joint Jacobians are views of
-        the model's data, which its next pass overwrites: :meth:`state` copies them out and
-        changes their coordinates; here the caller's kernel does, before anything else
-        runs."""
-        model, data = self.model, self.data
-        x, dx, q, dq = self._joint_state(x, dx)
-        c_matrix = self._coriolis_pass(q, dq) if coriolis else _NO_MATRIX
-        m, nle, g, _ = self._dynamics_pass(q, dq, kinematics or frame >= 0)
-        placement, frame_jacobian = _NO_FRAME
-        if frame >= 0:
-            placement = pin.updateFramePlacement(model, data, frame).homogeneous
-            frame_jacobian = pin.getFrameJacobian(model, data, frame, _WORLD_ALIGNED)
-        y, jac = _NO_JOINTS
-        if kinematics:
-            y, jac = pin.computeStaticRegressor(model, data, q), self._joint_jacobians
-        return x, dx, m, nle, g, c_matrix, placement, frame_jacobian, y, jac
+        once (cpbc.kernels.laws.cpbc_pass_step): a function of (x, ẋ) giving x, ẋ and
+        :meth:`state`'s one pass in joint coordinates — D, nle = C q̇ + g, g, C
+        (``coriolis``; else empty), the placement and Jacobian of ``frame`` (≥ 0; else
+        identity and empty), the joint placements and Jacobians (``kinematics``; else
+        empty). D, nle, g and the joint Jacobians are views of the model's data, which its
+        next pass overwrites: :meth:`state` copies them out and changes their coordinates;
+        here the caller's kernel does, before anything else runs.
+
+        The choices are made here, once, not at every step, and the function reads only
+        names bound here (a global or attribute lookup costs 20–40 ns; a step would make a
+        dozen). Its q and q̇ (other coordinates than the joints') are two arrays of its
+        own, overwritten by each call, as Pinocchio's data is."""
+        model, data, n, t_inv = self.model, self.data, self.n, self._t_inv
+        identity, mirror, lower = self._identity, self._crba_upper_only, self._lower
+        m, nle, g = self._all_terms
+        joints_jac = self._joint_jacobians
+        all_terms = kinematics or frame >= 0
+        coriolis_pass, no_matrix = self._coriolis_pass, _NO_MATRIX
+        no_frame, no_joints, aligned = _NO_FRAME, _NO_JOINTS, _WORLD_ALIGNED
+        joint_q, joint_dq = np.empty(n), np.empty(n)
+        crba, rnea, gravity = pin.crba, pin.nonLinearEffects, pin.computeGeneralizedGravity
+        every_term, frame_placement = pin.computeAllTerms, pin.updateFramePlacement
+        frame_jacobian_of, regressor = pin.getFrameJacobian, pin.computeStaticRegressor
+        copied = np.array
+
+        def read(x: Array, dx: Array) -> tuple[Array, ...]:
+            if not (x.flags.writeable and dx.flags.writeable):  # numba types read-only
+                x, dx = copied(x, dtype=float), copied(dx, dtype=float)  # arrays apart
+            if identity:
+                q, dq = x, dx
+            else:
+                q, dq = joint_q, joint_dq
+                to_joint(t_inv, x, dx, q, dq)
+            c_matrix = coriolis_pass(q, dq) if coriolis else no_matrix
+            if all_terms:
+                every_term(model, data, q, dq)
+                mass, bias, weight = m, nle, g
+            else:
+                mass, bias, weight = crba(model, data, q), rnea(model, data, q, dq), gravity(
+                    model, data, q)
+            if mirror:
+                mass[lower] = mass.T[lower]
+            placement, frame_jacobian = no_frame
+            if frame >= 0:
+                placement = frame_placement(model, data, frame).homogeneous
+                frame_jacobian = frame_jacobian_of(model, data, frame, aligned)
+            y, jac = no_joints
+            if kinematics:
+                y, jac = regressor(model, data, q), joints_jac
+            return x, dx, mass, bias, weight, c_matrix, placement, frame_jacobian, y, jac
+
+        return read
 
     def frame_on_joints(self, frame_id: int) -> tuple[int, Array] | None:
         """How a compiled law reads a frame from a pass's joint kinematics
