@@ -219,3 +219,15 @@ def test_shipped_panda_reach_both_ways_settles_within_a_tenth_of_the_qp(tmp_path
         assert law["status"] == qp["status"] == "converged"
         assert law["settle_time"] <= 1.1 * qp["settle_time"], name
         assert min(law["min_margins"].values()) > 0 and not law["crossed_constraints"]
+
+
+def test_the_peer_state_carries_what_its_point_rows_read_and_the_law_state_does_not(tmp_path):
+    """The obstacle's rows read the joint Jacobians (its curvature), so the peer's per-step
+    state carries them; the CPBC law beside it reads the frame only and its state has none."""
+    setup = _setup(ARM, tmp_path)
+    law, peer = setup.controllers[0].controller, _peer(setup)
+    x, dx = np.array([0.4, 1.1]), np.array([0.2, -0.1])
+    assert peer.state(x, dx).joint_jacobians is not None
+    assert law.state(x, dx).joint_jacobians is None
+    a, _, _ = peer.rows(peer.state(x, dx))
+    assert len(a) == 4  # the obstacle, the relative angle, the two rates (two-sided rows)

@@ -84,6 +84,9 @@ class ConstraintSet:
             raise CpbcError(f"duplicate constraint names: {dup}; give each constraint its own name")
         self.needs_dynamics = any(c.needs_dynamics for c in self.velocity)
         self.needs_kinematics = any(c.needs_kinematics for c in self.configuration)
+        # what a filter on φ̈ reads besides (``motion_terms``; ``state(..., motion=True)``)
+        self.motion_kinematics = self.needs_kinematics or any(
+            c.motion_kinematics for c in self.configuration)
         self.needs_coriolis = any(c.needs_coriolis for c in self.velocity)
         self.frames: tuple[int, ...] = tuple(
             dict.fromkeys(f for c in self.configuration for f in c.frames))
@@ -134,12 +137,14 @@ class ConstraintSet:
     def empty(self) -> bool:
         return not self.names
 
-    def state(self, model: RobotModel, x: Array, dx: Array, frames: Iterable[int] = ()
-              ) -> ArmState:
+    def state(self, model: RobotModel, x: Array, dx: Array, frames: Iterable[int] = (),
+              motion: bool = False) -> ArmState:
         """The per-step state these constraints read (with ``frames`` besides, e.g. a
-        potential's), from one call of ``model.state``."""
+        potential's), from one call of ``model.state``; with ``motion``, what their
+        ``motion_terms`` read too (the joint kinematics of a point's curvature)."""
         wanted = tuple(dict.fromkeys((*self.frames, *frames))) if frames else self.frames
-        return model.state(x, dx, kinematics=self.needs_kinematics, frames=wanted,
+        kinematics = self.motion_kinematics if motion else self.needs_kinematics
+        return model.state(x, dx, kinematics=kinematics, frames=wanted,
                            coriolis=self.needs_coriolis)
 
     def margins(self, x: Array, dx: Array, state: ArmState | None = None) -> Array:

@@ -27,12 +27,15 @@ class ConfigurationConstraint(HasMargins, ABC):
         needs_kinematics: whether ``barrier_terms`` reads the state's joint placements and
             Jacobians (``RobotModel.state(kinematics=True)``).
         frames: the frames whose kinematics ``barrier_terms`` reads from ``ArmState.frames``.
+        motion_kinematics: whether ``motion_terms`` reads the state's joint Jacobians even
+            where ``barrier_terms`` does not (``ConstraintSet.state(..., motion=True)``).
         margin_type: the type and unit of its margins, declared by each concrete class
             (cpbc.constraints.margins).
     """
 
     names: tuple[str, ...]
     needs_kinematics: bool = False
+    motion_kinematics: bool = False
     frames: tuple[int, ...] = ()
     stacks: bool = False  # whether neighbours of this class are evaluated as one (stacked)
 
@@ -72,7 +75,8 @@ class ConfigurationConstraint(HasMargins, ABC):
     def motion_terms(self, state: ArmState) -> tuple[Array, Array, Array]:
         """φ, ∇φ and ẋᵀ∇²φ ẋ at the per-step state (what a filter on φ̈ reads, e.g. the
         CBF-QP peer's rows). Here from ``evaluate`` and ``curvature`` at (x, ẋ); a kind whose
-        evaluation takes kinematics reads them from the state instead (Clearance)."""
+        evaluation takes kinematics reads them from the state instead (Clearance,
+        PointOutsideSphere)."""
         phi, grad = self.evaluate(state.x)
         return phi, grad, self.curvature(state.x, state.dx)
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-import pinocchio as pin
 from pydantic import Field
 
 from cpbc.arrays import Array, ArrayLike
+from cpbc.constraints.clearance.kinematics import coordinate_supports
 from cpbc.constraints.constraint_kind import (
     Constraint,
     ConstraintEntrySpec,
@@ -21,7 +21,8 @@ from cpbc.constraints.margins import CLEARANCE
 from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.kernels import barrier_set
-from cpbc.kernels.barriers import point_sphere_terms
+from cpbc.kernels.barriers import point_sphere_motion, point_sphere_terms
+from cpbc.model.frames import FrameKinematics
 from cpbc.model.robot_model import ArmState, RobotModel
 from cpbc.spec.fields import Positive, Vector
 
@@ -42,6 +43,7 @@ class PointOutsideSphere(ConfigurationConstraint):
     """
 
     margin_type = CLEARANCE
+    motion_kinematics = True  # its curvature reads the joint Jacobians (``motion_terms``)
 
     def margins(self, values: Array) -> Array:
         """φ = d² − r² as d − r [m]."""
@@ -69,7 +71,11 @@ class PointOutsideSphere(ConfigurationConstraint):
         self._r2 = self.radius**2
         self.offset = None if offset is None else np.asarray(offset, dtype=float).reshape(3)
         self.names = (name or f"clearance[{frame}]",)
-        self._motion_data = model.model.createData()  # second order, apart from the state's
+        # the coordinates that move the frame's link, and each coordinate's link: what the
+        # curvature reads with the state's joint Jacobians (cpbc.kernels.clearance.sphere_motion)
+        joint = model.model.frames[self.frame_id].parentJoint
+        self._supports = model.joint_supports()[joint][None, :]
+        self._coordinate_supports = coordinate_supports(model)
         # the kernel's constants [c r² o has_offset]
         self._constants = np.concatenate(
             [centre, [self._r2], np.zeros(3) if self.offset is None else self.offset,
@@ -91,10 +97,7 @@ class PointOutsideSphere(ConfigurationConstraint):
                       ) -> tuple[Array, Array, Array | None]:
         """φ, ∇φ/φ = 2 (p − c)ᵀ J_p / φ and φ again, from the frame's kinematics held by
         the state (``frames``) (cpbc.kernels.barriers.point_sphere_terms)."""
-        kin = state.frames.get(self.frame_id)
-        if kin is None:
-            raise CpbcError(f"{self.names[0]} reads frame {self.frame_id} from the state: "
-                            "build it with the constraint set's frames (a law's state(x, dx))")
+        kin = self._state_frame(state)
         phi, b = np.empty(1), np.empty(len(kin.jacobian[0]))
         point_sphere_terms(self._constants, kin.position, kin.rotation, kin.jacobian, phi, b)
         return phi, b, phi
@@ -105,23 +108,33 @@ class PointOutsideSphere(ConfigurationConstraint):
             return None
         return Packed(barrier_set.POINT, (self._constants[None, :],), frame=self.frame_id)
 
+    def motion_terms(self, state: ArmState) -> tuple[Array, Array, Array]:
+        """φ, ∇φ and ẋᵀ∇²φ ẋ = 2‖ṗ‖² + 2 (p − c)·p̈₀ from the frame's kinematics and the
+        joint Jacobians the state holds (cpbc.kernels.barriers.point_sphere_motion): no
+        Pinocchio pass of its own."""
+        kin = self._state_frame(state)
+        if state.joint_jacobians is None:
+            raise CpbcError(f"{self.names[0]}'s curvature reads the state's joint Jacobians: "
+                            "build the state with kinematics=True (the constraint set's "
+                            "state(model, x, dx, motion=True), as the CBF-QP peer does)")
+        phi, grad, curv = np.empty(1), np.empty((1, len(kin.jacobian[0]))), np.empty(1)
+        point_sphere_motion(self._constants, kin.position, kin.rotation, kin.jacobian,
+                            state.joint_jacobians, state.dq, self._supports,
+                            self._coordinate_supports, phi, grad[0], curv)
+        return phi, grad, curv
+
     def curvature(self, x: Array, dx: Array) -> Array:
-        """ẋᵀ∇²φ ẋ = 2‖ṗ‖² + 2 (p − c)·p̈₀, p̈₀ the point's acceleration at ẍ = 0: the frame
-        origin's classical acceleration plus α × r + ω × (ω × r) for the offset r."""
-        pm, data = self.model.model, self._motion_data
-        q, dq = self.model.joint_coordinates(x), self.model.joint_coordinates(dx)
-        pin.forwardKinematics(pm, data, q, dq, np.zeros_like(dq))
-        pin.updateFramePlacements(pm, data)
-        frame = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        vel = pin.getFrameVelocity(pm, data, self.frame_id, frame)
-        acc = pin.getFrameClassicalAcceleration(pm, data, self.frame_id, frame).linear
-        spin, placement = vel.angular, data.oMf[self.frame_id]
-        r = np.zeros(3) if self.offset is None else placement.rotation @ self.offset
-        p_dot = vel.linear + np.cross(spin, r)
-        spin_dot = pin.getFrameAcceleration(pm, data, self.frame_id, frame).angular
-        p_ddot = acc + np.cross(spin_dot, r) + np.cross(spin, np.cross(spin, r))
-        d = placement.translation + r - self.centre
-        return np.array([2.0 * float(p_dot @ p_dot) + 2.0 * float(d @ p_ddot)])
+        """ẋᵀ∇²φ ẋ at (x, ẋ) (``motion_terms``), from one Pinocchio pass there."""
+        state = self.model.state(x, dx, kinematics=True, frames=self.frames)
+        return self.motion_terms(state)[2]
+
+    def _state_frame(self, state: ArmState) -> FrameKinematics:
+        """The frame's placement and Jacobian, which the state holds for this constraint."""
+        kin = state.frames.get(self.frame_id)
+        if kin is None:
+            raise CpbcError(f"{self.names[0]} reads frame {self.frame_id} from the state: "
+                            "build it with the constraint set's frames (a law's state(x, dx))")
+        return kin
 
 
 # -- the scenario's ``type: point_outside_sphere`` -------------------------------------------

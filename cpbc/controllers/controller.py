@@ -96,7 +96,13 @@ class Controller(ABC):
         """The per-step state this law reads: the model's dynamics terms and, when a
         constraint or the potential needs them, its kinematics — computed once, read by law,
         constraints and potential."""
-        return self.constraints.state(self.model, x, dx, self.frames)
+        return self.constraints.state(self.model, x, dx, self.frames, self.reads_motion)
+
+    @property
+    def reads_motion(self) -> bool:
+        """Whether it reads the constraints' second-order terms (``motion_terms``: a filter
+        on φ̈) from the per-step state, which then carries what they read."""
+        return False
 
     @property
     def frames(self) -> tuple[int, ...]:

@@ -8,7 +8,8 @@ import math
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.kernels import READ_ONLY, kernel
+from cpbc.kernels import READ_ONLY, inner, kernel
+from cpbc.kernels.clearance import sphere_motion
 from cpbc.kernels.energy import kinetic_energy
 from cpbc.kernels.task import point_on_frame
 from cpbc.kernels.views import float_rows
@@ -101,21 +102,65 @@ def log_sum(margins: Array) -> float:
     return total
 
 
+@inner("float64(float64[:], float64[:], float64[:, :], float64[:, :], float64[:],"
+       " float64[:, :], float64[:])")
+def point_sphere(constants: Array, origin: Array, rotation: Array, jacobian: Array,
+                 point: Array, linear: Array, half_gradient: Array) -> float:
+    """A point p kept outside a sphere, φ = ‖p − c‖² − r² (φ₁ of Section 6.4), returned, with
+    ∇φ = 2(p − c)ᵀJ_p: p into ``point`` (3,) and half of ∇φ, (p − c)ᵀJ_p, into
+    ``half_gradient`` (n,), overwritten; p and J_p of the point at o in the frame
+    (cpbc.kernels.task.point_on_frame) into ``point`` and ``linear`` (3, n).
+    ``constants``: [c r² o has_offset], shape (8,)."""
+    n = half_gradient.shape[0]
+    point_on_frame(origin, rotation, jacobian, constants[4:], point, linear)
+    d0, d1, d2 = point[0] - constants[0], point[1] - constants[1], point[2] - constants[2]
+    for k in range(n):
+        half_gradient[k] = d0 * linear[0, k] + d1 * linear[1, k] + d2 * linear[2, k]
+    return d0 * d0 + d1 * d1 + d2 * d2 - constants[3]
+
+
 @kernel("void(float64[:], float64[:], float64[:, :], float64[:, :], float64[:], float64[:])",
         inline=True)
 def point_sphere_terms(constants: Array, origin: Array, rotation: Array, jacobian: Array,
                        phi: Array, gradient: Array) -> None:
-    """A point p kept outside a sphere, φ = ‖p − c‖² − r² (φ₁ of Section 6.4), ∇φ = 2(p − c)ᵀJ_p:
-    φ into ``phi[0]`` and ∇φ/φ into ``gradient`` (n,), overwritten; p and J_p of the point
-    at o in the frame (cpbc.kernels.task.point_on_frame). ``constants``: [c r² o has_offset],
-    shape (8,)."""
+    """The point's φ (``point_sphere``) into ``phi[0]`` and ∇φ/φ into ``gradient`` (n,),
+    overwritten: the laws' log-barrier terms."""
     n = gradient.shape[0]
-    work = np.empty(3 + 3 * n)
-    point, linear = work[:3], float_rows(work, 3, 3, n)
-    point_on_frame(origin, rotation, jacobian, constants[4:], point, linear)
-    d0, d1, d2 = point[0] - constants[0], point[1] - constants[1], point[2] - constants[2]
-    p = d0 * d0 + d1 * d1 + d2 * d2 - constants[3]
+    work = np.empty(3 + 3 * n)  # one allocation for p and J_p
+    p = point_sphere(constants, origin, rotation, jacobian, work[:3],
+                     float_rows(work, 3, 3, n), gradient)
     phi[0] = p
     scale = 2.0 / p
-    for k in range(n):
-        gradient[k] = (d0 * linear[0, k] + d1 * linear[1, k] + d2 * linear[2, k]) * scale
+    for k in range(gradient.shape[0]):
+        gradient[k] *= scale
+
+
+@kernel("void(float64[:], float64[:], float64[:, :], float64[:, :], float64[:, :],"
+        " float64[:], float64[:, :], float64[:, :], float64[:], float64[:], float64[:])")
+def point_sphere_motion(constants: Array, origin: Array, rotation: Array, jacobian: Array,
+                        joint_jacobians: Array, dq: Array, supports: Array,
+                        joint_supports: Array, phi: Array, gradient: Array,
+                        curvature: Array) -> None:
+    """The point's φ (``point_sphere``) into ``phi[0]``, ∇φ into ``gradient`` (n,) and
+    ẋᵀ∇²φ ẋ into ``curvature[0]``: φ̈ at ẍ = 0,
+
+        ẋᵀ∇²φ ẋ = 2‖ṗ‖² + 2 (p − c)·p̈₀,
+
+    with ṗ and p̈₀ the velocity and the acceleration at q̈ = 0 of p, a point fixed on the
+    frame's link (cpbc.kernels.clearance.sphere_motion, its eq. 2), from the joint Jacobians
+    ``joint_jacobians`` (6, n) and rates ``dq`` in joint coordinates; ``supports`` (1, n) is
+    1 on the coordinates that move the frame, ``joint_supports`` (n, n) as in
+    ``sphere_motion``. The frame's ``jacobian`` is in the controller's coordinates x = T q,
+    and so is ∇φ; the curvature does not depend on them (T is constant: ẍ = 0 is q̈ = 0)."""
+    centre = np.empty((3, 1))
+    p = point_sphere(constants, origin, rotation, jacobian, centre[:, 0],
+                     np.empty((3, gradient.shape[0])), gradient)
+    phi[0] = p
+    for k in range(gradient.shape[0]):
+        gradient[k] *= 2.0
+    vel, acc = np.empty((3, 1)), np.empty((3, 1))
+    sphere_motion(centre, joint_jacobians, dq, supports, joint_supports, vel, acc)
+    bend = 0.0
+    for i in range(3):
+        bend += vel[i, 0] * vel[i, 0] + (centre[i, 0] - constants[i]) * acc[i, 0]
+    curvature[0] = 2.0 * bend

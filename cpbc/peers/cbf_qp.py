@@ -179,6 +179,11 @@ class CBFQP(SafetyFilter):
     def frames(self) -> tuple[int, ...]:
         return () if self.osc is None else self.osc.frames
 
+    @property
+    def reads_motion(self) -> bool:
+        """Its rows read φ, ∇φ and ẋᵀ∇²φ ẋ (cpbc.peers.cbf_rows) from the per-step state."""
+        return True
+
     def follow(self, target: TaskTarget) -> None:
         """Steer the operational-space nominal to a moving reference's target (written in
         place each step by cpbc.reference); a PD + gravity nominal has no task to steer."""

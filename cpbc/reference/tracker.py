@@ -77,6 +77,11 @@ class ReferenceTracker(Controller):
         """The frames the wrapped law reads (its potential's, or a peer nominal's)."""
         return self.law.frames
 
+    @property
+    def reads_motion(self) -> bool:
+        """Whether the wrapped law reads the constraints' second-order terms (a peer's)."""
+        return self.law.reads_motion
+
     def start_at(self, phase: float) -> None:
         """Begin the path at path time ``phase`` (outside its stretches) instead of 0: the
         governor's s_v and clock, and the target at the path's point and posture there."""
