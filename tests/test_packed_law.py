@@ -229,3 +229,28 @@ def test_an_overridden_state_path_leaves_the_step_from_the_pass() -> None:
     assert not nudged.packed_law().from_pass and nudged.packed_law().terms is not None
     x, dx = planar_2link().states[0]
     np.testing.assert_allclose(nudged.torque(x, dx), law.torque(x, dx) + 1.0, rtol=1e-12)
+
+
+@pytest.mark.parametrize("robot", ["planar", "panda"])
+def test_the_step_from_the_pass_takes_read_only_and_integer_states(robot: str) -> None:
+    """numba refuses read-only arrays; the law steps again from copies: a read-only state
+    (the planar arm's absolute link angles go through to_joint first, the Panda's joint
+    coordinates straight to Pinocchio), and a state given as integers, give the torque of
+    writable floats, and the pass is not left half done (the next step is right too)."""
+    setup = planar_2link() if robot == "planar" else panda(states=2)
+    for name in ("cpbc", "cpbc_ke"):
+        law = setup.controllers[name]
+        x, dx = setup.states[1]
+        expected, value = law.evaluate(x.copy(), dx.copy())
+        frozen_x, frozen_dx = x.copy(), dx.copy()
+        frozen_x.setflags(write=False)
+        frozen_dx.setflags(write=False)
+        np.testing.assert_array_equal(law.torque(frozen_x, frozen_dx), expected)
+        tau, v = law.evaluate(frozen_x, dx.copy())
+        np.testing.assert_array_equal(tau, expected)
+        assert v == value
+        np.testing.assert_array_equal(law.torque(x.copy(), dx.copy()), expected)
+    if robot == "planar":  # the rest state [0, 0] is inside S (not so the Panda's)
+        law = setup.controllers["cpbc"]
+        whole = np.zeros(2, dtype=np.int64), np.zeros(2, dtype=np.int64)
+        np.testing.assert_array_equal(law.torque(*whole), law.torque(np.zeros(2), np.zeros(2)))

@@ -93,8 +93,11 @@ class PacksItsLaw(Controller):
         step = packed.pass_arguments
         if step is None:
             return self.evaluate_state(self.state(x, dx)).torque
-        args = step(x, dx)
-        self._pass_value(args)
+        try:
+            args = step(x, dx)
+            self._pass_value(args)
+        except TypeError:  # numba's kernels refuse read-only arrays (``_copied_step``)
+            args = self._copied_step(step, x, dx)[0]
         return args[-1]
 
     def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
@@ -102,8 +105,20 @@ class PacksItsLaw(Controller):
         if step is None:
             out = self.evaluate_state(self.state(x, dx))
             return out.torque, out.lyapunov
-        args = step(x, dx)
-        return args[-1], self._pass_value(args)
+        try:
+            args = step(x, dx)
+            value = self._pass_value(args)
+        except TypeError:
+            args, value = self._copied_step(step, x, dx)
+        return args[-1], value
+
+    def _copied_step(self, step: PassArguments, x: Array, dx: Array
+                     ) -> tuple[tuple[Any, ...], float]:
+        """The step from the pass at writable float copies of (x, ẋ). numba types a
+        read-only array (a law's own target, say) apart and raises TypeError: asking once
+        here is cheaper than checking the flags at every step (about 80 ns)."""
+        args = step(np.array(x, dtype=float), np.array(dx, dtype=float))
+        return args, self._pass_value(args)
 
     def lyapunov(self, x: Array, dx: Array) -> float:
         return self.evaluate(x, dx)[1]

@@ -275,7 +275,9 @@ class RobotModel:
         The choices are made here, once, not at every step, and the function reads only
         names bound here (a global or attribute lookup costs 20–40 ns; a step would make a
         dozen). Its q and q̇ (other coordinates than the joints') are two arrays of its
-        own, overwritten by each call, as Pinocchio's data is."""
+        own, overwritten by each call, as Pinocchio's data is. x and ẋ are passed on as
+        given: the compiled kernels refuse read-only arrays with a TypeError, on which the
+        law steps again from copies (cpbc.controllers.packed_law)."""
         model, data, n, t_inv = self.model, self.data, self.n, self._t_inv
         identity, mirror, lower = self._identity, self._crba_upper_only, self._lower
         m, nle, g = self._all_terms
@@ -287,11 +289,8 @@ class RobotModel:
         crba, rnea, gravity = pin.crba, pin.nonLinearEffects, pin.computeGeneralizedGravity
         every_term, frame_placement = pin.computeAllTerms, pin.updateFramePlacement
         frame_jacobian_of, regressor = pin.getFrameJacobian, pin.computeStaticRegressor
-        copied = np.array
 
         def read(x: Array, dx: Array) -> tuple[Array, ...]:
-            if not (x.flags.writeable and dx.flags.writeable):  # numba types read-only
-                x, dx = copied(x, dtype=float), copied(dx, dtype=float)  # arrays apart
             if identity:
                 q, dq = x, dx
             else:
