@@ -27,7 +27,7 @@ from cpbc.controllers.controller import Controller
 from cpbc.errors import CpbcError
 from cpbc.kernels.law_terms import FRAME_KINDS, SHAPING
 from cpbc.kernels.laws import pack_tables
-from cpbc.model.robot_model import ArmState, PassReader, RobotModel
+from cpbc.model.robot_model import ArmState, RobotModel
 
 # the set's and the terms' tables packed in one int and one float array
 # (cpbc.kernels.laws.pack_tables)
@@ -237,9 +237,9 @@ class PackedLaw:
                                 packed.plan, packed.floats, model.coordinates.inverse,
                                 model.viscous_friction, on_joints)
         live = tuple((tables.floats.size + at, source) for at, source in packed.live)
-        step = step_from_pass(constants, live, model.joint_pass(
-            constraints.needs_kinematics, pass_reads, constraints.needs_coriolis),
-            margins, constraints.n) if from_pass else None
+        step = step_from_pass(constants, live, model, constraints.needs_kinematics,
+                              pass_reads, constraints.needs_coriolis,
+                              margins) if from_pass else None
         return cls(law, packed, constants, frame, constraints.needs_kinematics, margins,
                    constraints.n, held, constraints.needs_coriolis, step, pass_reads, live)
 
@@ -277,23 +277,23 @@ _NO_FRAME = (np.eye(4), np.zeros((6, 0)))
 _NO_JOINTS = (np.zeros((3, 0)), np.zeros((6, 0)))
 
 
-def step_from_pass(constants: Tables, live: tuple[tuple[int, Array], ...],
-                   reader: PassReader, margins: int, n: int) -> PassArguments:
+def step_from_pass(constants: Tables, live: tuple[tuple[int, Array], ...], model: RobotModel,
+                   kinematics: bool, frame: int, coriolis: bool, margins: int
+                   ) -> PassArguments:
     """The function of (x, ẋ) that gives a law's ``*_pass_step`` kernel its arguments: the
-    tables (``constants``, the rows of a moving goal, ``live``, copied in first), the
-    model's pass (``reader``, cpbc.model.robot_model.RobotModel.joint_pass), where the
+    model's pass (cpbc.model.robot_model.RobotModel.joint_pass) with the tables
+    (``constants``; the rows of a moving goal, ``live``, copied in first), where the
     kernel writes the barrier values φ̃ and τ (a new array). φ̃ is read only to name the
     margin when the state is outside S: it has one array, overwritten by every step (one
     allocation fewer a step, about 90 ns)."""
-    ints, floats = constants
-    barrier_values, empty = np.empty(margins), np.empty
-
-    def arguments(x: Array, dx: Array) -> tuple[Any, ...]:
-        return (ints, floats, *reader(x, dx), barrier_values, empty(n))
+    reader = model.joint_pass(kinematics, frame, coriolis, constants, np.empty(margins))
+    if not live:
+        return reader
+    floats = constants[1]
 
     def steered(x: Array, dx: Array) -> tuple[Any, ...]:
         for at, source in live:
             floats[at:at + source.shape[0]] = source
-        return (ints, floats, *reader(x, dx), barrier_values, empty(n))
+        return reader(x, dx)
 
-    return steered if live else arguments
+    return steered

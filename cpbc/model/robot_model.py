@@ -5,10 +5,11 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from types import MappingProxyType
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import NDArray
 
 from cpbc.arrays import Array
 from cpbc.errors import ModelError
@@ -22,9 +23,10 @@ _WORLD_ALIGNED = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _NO_MATRIX = np.zeros((0, 0))
 _NO_FRAME = (np.eye(4), np.zeros((6, 0)))
 _NO_JOINTS = (np.zeros((3, 0)), np.zeros((6, 0)))
-# RobotModel.joint_pass's function of (x, ẋ): x, ẋ, D, nle, g, C, the frame's placement and
-# Jacobian, the joint placements and Jacobians
-PassReader = Callable[[Array, Array], tuple[Array, ...]]
+# RobotModel.joint_pass's function of (x, ẋ): a compiled law's arguments — its tables, x, ẋ,
+# D, nle, g, C, the frame's placement and Jacobian, the joint placements and Jacobians, the
+# arrays it writes
+PassReader = Callable[[Array, Array], tuple[NDArray[Any], ...]]
 
 
 class ArmState(NamedTuple):
@@ -262,15 +264,19 @@ class RobotModel:
         return ArmState(x, dx, q, dq, inertia, bias, gravity, f, found, c_matrix, jac,
                         placements)
 
-    def joint_pass(self, kinematics: bool, frame: int, coriolis: bool) -> PassReader:
+    def joint_pass(self, kinematics: bool, frame: int, coriolis: bool,
+                   tables: tuple[NDArray[np.int64], Array], work: Array) -> PassReader:
         """The per-step state unfinished, for a compiled law that finishes and reads it at
-        once (cpbc.kernels.laws.cpbc_pass_step): a function of (x, ẋ) giving x, ẋ and
-        :meth:`state`'s one pass in joint coordinates — D, nle = C q̇ + g, g, C
-        (``coriolis``; else empty), the placement and Jacobian of ``frame`` (≥ 0; else
-        identity and empty), the joint placements and Jacobians (``kinematics``; else
-        empty). D, nle, g and the joint Jacobians are views of the model's data, which its
-        next pass overwrites: :meth:`state` copies them out and changes their coordinates;
-        here the caller's kernel does, before anything else runs.
+        once (cpbc.kernels.laws.cpbc_pass_step): a function of (x, ẋ) giving that kernel's
+        arguments — its two constant ``tables``, x, ẋ and :meth:`state`'s one pass in joint
+        coordinates (D, nle = C q̇ + g, g, C (``coriolis``; else empty), the placement and
+        Jacobian of ``frame`` (≥ 0; else identity and empty), the joint placements and
+        Jacobians (``kinematics``; else empty)), then ``work`` and a new array of n
+        entries, where the kernel writes. D, nle, g and the joint Jacobians are views of
+        the model's data, which its next pass overwrites: :meth:`state` copies them out and
+        changes their coordinates; here the caller's kernel does, before anything else
+        runs. The whole tuple is made here at once: built from a tuple this returned, it
+        costs about 110 ns more a step.
 
         The choices are made here, once, not at every step, and the function reads only
         names bound here (a global or attribute lookup costs 20–40 ns; a step would make a
@@ -279,6 +285,8 @@ class RobotModel:
         given: the compiled kernels refuse read-only arrays with a TypeError, on which the
         law steps again from copies (cpbc.controllers.packed_law)."""
         model, data, n, t_inv = self.model, self.data, self.n, self._t_inv
+        first, second = tables
+        empty = np.empty
         identity, mirror, lower = self._identity, self._crba_upper_only, self._lower
         m, nle, g = self._all_terms
         joints_jac = self._joint_jacobians
@@ -290,7 +298,7 @@ class RobotModel:
         every_term, frame_placement = pin.computeAllTerms, pin.updateFramePlacement
         frame_jacobian_of, regressor = pin.getFrameJacobian, pin.computeStaticRegressor
 
-        def read(x: Array, dx: Array) -> tuple[Array, ...]:
+        def read(x: Array, dx: Array) -> tuple[NDArray[Any], ...]:
             if identity:
                 q, dq = x, dx
             else:
@@ -312,7 +320,8 @@ class RobotModel:
             y, jac = no_joints
             if kinematics:
                 y, jac = regressor(model, data, q), joints_jac
-            return x, dx, mass, bias, weight, c_matrix, placement, frame_jacobian, y, jac
+            return (first, second, x, dx, mass, bias, weight, c_matrix, placement,
+                    frame_jacobian, y, jac, work, empty(n))
 
         return read
 
