@@ -135,13 +135,13 @@ def tanh_damping(gain: Array, gamma: Array, dx: Array, force: Array) -> None:
         force[i] = gain[i] * np.tanh(gamma[i] * dx[i])
 
 
-@inner(f"float64(int64[:, :], float64[:, :], float64[:], {FRAME}, float64[:])")
+@inner(f"float64(int64[:, :], float64[:, :], float64[:], {FRAME}, float64[:], float64[:])")
 def potential_terms(plan: Ints, floats: Array, x: Array, origin: Array, rotation: Array,
-                    jacobian: Array, grad: Array) -> float:
+                    jacobian: Array, grad: Array, part: Array) -> float:
     """U = Σ U_k of the packed springs (the other rows are skipped), ∂U/∂x = Σ ∂U_k/∂x into
-    ``grad``, added in the plan's order (as cpbc.controllers.potentials.PotentialSum)."""
+    ``grad``, added in the plan's order (as cpbc.controllers.potentials.PotentialSum);
+    ``part`` (n,) is work space."""
     n = x.shape[0]
-    part = np.empty(n)
     for i in range(n):
         grad[i] = 0.0
     total = 0.0
@@ -179,13 +179,12 @@ def potential_terms(plan: Ints, floats: Array, x: Array, origin: Array, rotation
     return total
 
 
-@inner(f"void(int64[:, :], float64[:, :], float64[:], {FRAME}, float64[:])")
+@inner(f"void(int64[:, :], float64[:, :], float64[:], {FRAME}, float64[:], float64[:])")
 def damping_terms(plan: Ints, floats: Array, dx: Array, origin: Array, rotation: Array,
-                  jacobian: Array, force: Array) -> None:
+                  jacobian: Array, force: Array, part: Array) -> None:
     """The joint damping plus the task damping of the packed terms (the other rows are
-    skipped), added in the plan's order, into ``force``."""
+    skipped), added in the plan's order, into ``force``; ``part`` (n,) is work space."""
     n = dx.shape[0]
-    part = np.empty(n)
     for i in range(n):
         force[i] = 0.0
     for r in range(plan.shape[0]):

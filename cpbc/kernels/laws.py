@@ -193,18 +193,18 @@ def cpbc_step(tables: Ints, table_floats: Array, x: Array, dx: Array, inertia: A
     margins, plan, ints, floats, term_plan, term_floats = law_tables(tables, table_floats)
     phi, value = barriers[:margins], barriers[margins:]
     origin, rotation = placement[:3, 3], placement[:3, :3]
-    work = np.empty(4 * n + n * n)  # one allocation for the step's five arrays
+    work = np.empty(5 * n + n * n)  # one allocation for the step's arrays
     gradient, grad, damping, bias = work[:n], work[n:2 * n], work[2 * n:3 * n], work[3 * n:4 * n]
-    weight = float_rows(work, 4 * n, n, n)
+    part, weight = work[4 * n:5 * n], float_rows(work, 5 * n, n, n)
     log_phi, log_psi = set_barrier(plan, ints, floats, x, dx, inertia, coriolis, origin,
                                    rotation, frame_jacobian, y, jac, phi, gradient, weight,
                                    value)
     if log_phi != log_phi or log_psi != log_psi:
         return math.nan, log_phi, log_psi
     potential = potential_terms(term_plan, term_floats, x, origin, rotation, frame_jacobian,
-                                grad)
+                                grad, part)
     lag = kinetic_energy(inertia, dx) + potential
-    damping_terms(term_plan, term_floats, dx, origin, rotation, frame_jacobian, damping)
+    damping_terms(term_plan, term_floats, dx, origin, rotation, frame_jacobian, damping, part)
     ratio, log_s = shaped(term_plan, term_floats, log_phi + log_psi)
     for i in range(n):
         bias[i] = coriolis_force[i] + dissipation[i]
@@ -235,17 +235,17 @@ def cpbc_ke_step(limit: float, tables: Ints, table_floats: Array, x: Array, dx: 
     margins, plan, ints, floats, term_plan, term_floats = law_tables(tables, table_floats)
     phi, value = barriers[:margins], barriers[margins:]
     origin, rotation = placement[:3, 3], placement[:3, :3]
-    work = np.empty(3 * n)  # one allocation for the step's arrays (Π is empty)
-    gradient, grad, damping = work[:n], work[n:2 * n], work[2 * n:]
+    work = np.empty(4 * n)  # one allocation for the step's arrays (Π is empty)
+    gradient, grad, damping, part = work[:n], work[n:2 * n], work[2 * n:3 * n], work[3 * n:]
     weight = float_rows(work, 0, 0, 0)
     log_phi, _ = set_barrier(plan, ints, floats, x, dx, inertia, coriolis, origin, rotation,
                              frame_jacobian, y, jac, phi, gradient, weight, value)
     if log_phi != log_phi:
         return math.nan, log_phi, psi
     lag = kinetic + potential_terms(term_plan, term_floats, x, origin, rotation,
-                                    frame_jacobian, grad)
+                                    frame_jacobian, grad, part)
     ratio, log_s = shaped(term_plan, term_floats, log_phi + math.log(psi))
-    damping_terms(term_plan, term_floats, dx, origin, rotation, frame_jacobian, damping)
+    damping_terms(term_plan, term_floats, dx, origin, rotation, frame_jacobian, damping, part)
     cpbc_ke_torque(gravity, grad, damping, gradient, ratio * lag, psi, tau)
     return shaped_value(lag, log_s), log_phi, psi
 
