@@ -8,7 +8,6 @@ import numpy as np
 from pydantic import Field
 
 from cpbc.arrays import Array, ArrayLike
-from cpbc.constraints.clearance.kinematics import coordinate_supports
 from cpbc.constraints.constraint_kind import (
     Constraint,
     ConstraintEntrySpec,
@@ -75,7 +74,7 @@ class PointOutsideSphere(ConfigurationConstraint):
         # curvature reads with the state's joint Jacobians (cpbc.kernels.clearance.sphere_motion)
         joint = model.model.frames[self.frame_id].parentJoint
         self._supports = model.joint_supports()[joint][None, :]
-        self._coordinate_supports = coordinate_supports(model)
+        self._coordinate_supports = model.coordinate_supports()
         # the kernel's constants [c r² o has_offset]
         self._constants = np.concatenate(
             [centre, [self._r2], np.zeros(3) if self.offset is None else self.offset,

@@ -365,6 +365,17 @@ class RobotModel:
                 supports[j, moved.idx_v:moved.idx_v + moved.nv] = 1.0
         return supports
 
+    def coordinate_supports(self) -> Array:
+        """(n, n): row k is 1 on the coordinates of the joints that move coordinate k's link
+        (:meth:`joint_supports` by coordinate), what cpbc.kernels.clearance.sphere_motion
+        reads as ``joint_supports``."""
+        model, supports = self.model, self.joint_supports()
+        out = np.zeros((self.n, self.n))
+        for j in range(1, model.njoints):
+            moved = model.joints[j]
+            out[moved.idx_v:moved.idx_v + moved.nv] = supports[j]
+        return out
+
     def _joint_state(self, x: Array, dx: Array) -> tuple[Array, Array, Array, Array]:
         """x, ẋ (copied when read-only: the compiled kernels take writable float arrays, and
         a law's own target may be the state asked for) and q, q̇."""

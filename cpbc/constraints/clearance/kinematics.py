@@ -21,18 +21,6 @@ from cpbc.errors import CpbcError
 from cpbc.model.robot_model import RobotModel
 
 
-def coordinate_supports(model: RobotModel) -> Array:
-    """(n, n): row k is 1 on the coordinates that move coordinate k's link
-    (``RobotModel.joint_supports`` by coordinate), what cpbc.kernels.clearance.sphere_motion
-    reads as ``joint_supports``."""
-    pm, supports = model.model, model.joint_supports()
-    out = np.zeros((model.n, model.n))
-    for j in range(1, pm.njoints):
-        jm = pm.joints[j]
-        out[jm.idx_v: jm.idx_v + jm.nv] = supports[j]
-    return out
-
-
 class Kinematics:
     """What the parts of ``Clearance`` share: its settings, the robot's Pinocchio model and
     data, and points fixed on links as columns over the static regressor."""
@@ -67,7 +55,7 @@ class Kinematics:
         self._nj = pm.njoints - 1
         self._scale = self.model.regressor_scale()
         self._supports = self.model.joint_supports()
-        self._joint_supports = coordinate_supports(self.model)
+        self._joint_supports = self.model.coordinate_supports()
         self._joint = []
         self._local = []
         for p in self.primitives:
