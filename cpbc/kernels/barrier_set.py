@@ -18,8 +18,8 @@ with the float tables' triples from column ``FLOAT_AT`` and the int tables' from
 - ``POINT``: a point outside a sphere, [c r² o has_offset] (1, 8) (``point_sphere_terms``),
   on the frame the caller passes;
 - ``SPHERES``: the clearance's sphere pairs: sphere_local, obstacles, pair_table, supports,
-  far_phi (a column) and ℓ (1, 1, 0 for none); ints sphere_index (a column), pair_index
-  (``cpbc.kernels.clearance``).
+  far_phi (a column), ℓ (1, 1, 0 for none) and group_table; ints sphere_index (a column),
+  pair_index and group_index (``cpbc.kernels.clearance``).
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from cpbc.kernels.views import Ints, float_rows
 
 LINEAR, RATE, ENERGY, POINT, SPHERES = 0, 1, 2, 3, 4
 VELOCITY_KINDS = (RATE, ENERGY)
-FLOAT_AT, FLOAT_TABLES, INT_AT, INT_TABLES = 3, 6, 21, 2
+FLOAT_AT, FLOAT_TABLES, INT_AT, INT_TABLES = 3, 7, 24, 3
 PLAN_WIDTH = INT_AT + 3 * INT_TABLES
 
 
@@ -67,15 +67,16 @@ def _spheres(plan: Ints, ints: Ints, floats: Array, row: int, y: Array, jac: Arr
     """The clearance's sphere pairs (``sphere_barrier``): φ̃ into ``phi``, Σ ∇φ̃/φ̃ into
     ``part`` (zero with no pair within ℓ: φ̃ is then the far values; and outside S, where
     ``phi`` holds the clearances themselves), the reported clearances into a non-empty
-    ``value``; returns the smallest law clearance."""
+    ``value``; returns the smallest law clearance (exact below ℓ, ``sphere_barrier``)."""
     far = float_table(plan, floats, row, 4)[:, 0]
     ell = float_table(plan, floats, row, 5)[0, 0]
     index = int_table(plan, ints, row, 0)[:, 0]
     pairs = int_table(plan, ints, row, 1)
     local, obstacles = float_table(plan, floats, row, 0), float_table(plan, floats, row, 1)
     table, supports = float_table(plan, floats, row, 2), float_table(plan, floats, row, 3)
-    low = sphere_barrier(y, jac, index, local, obstacles, pairs, table, supports, far, ell,
-                         phi, part, value)
+    groups, bounds = int_table(plan, ints, row, 2), float_table(plan, floats, row, 6)
+    low = sphere_barrier(y, jac, index, local, obstacles, pairs, table, groups, bounds,
+                         supports, far, ell, phi, part, value)
     if low > 0.0 and (ell == 0.0 or low < ell):
         return low
     part[:] = 0.0

@@ -62,9 +62,11 @@ class Clearance(PairLayout, ConfigurationConstraint):
     gradient, once the pair is farther apart than ℓ. This is Theorem 6.9 applied to the
     constraints φ̃_p, so its guarantees hold unchanged, and a pair beyond ℓ is *exactly*
     inactive: when no pair is within ℓ the barrier costs the distance computation only, and
-    capsule groups are skipped after a conservative bounding-sphere test. Once one sphere
-    pair is within ℓ, the sphere kernel (cpbc.kernels.clearance.sphere_barrier) skips the
-    pairs beyond ℓ (factor exactly 1, zero slope) as a written branch. With
+    capsule groups are skipped after a conservative bounding-sphere test. The sphere kernel
+    (cpbc.kernels.clearance.sphere_barrier) skips the groups of sphere pairs (a link against
+    an obstacle) that a bounding sphere proves beyond ℓ before it computes their distances,
+    and the pairs beyond ℓ among the rest (factor exactly 1, zero slope) as a written
+    branch: φ̃ and its gradient come out bit for bit as with every pair computed. With
     ``influence=None`` the barrier is φ_p itself (the plain thesis form).
 
     ``value`` and ``gradient`` report the clearance φ_p itself [m] (what the run summary
@@ -179,6 +181,7 @@ class Clearance(PairLayout, ConfigurationConstraint):
         s.moving[static] = 0.0
         if self.influence is not None:
             s.rsum_law[static] = -np.inf
+            s.bound_groups()
 
     # -- ConfigurationConstraint ----------------------------------------------------------
     def value(self, x: Array) -> Array:
@@ -342,8 +345,9 @@ class Clearance(PairLayout, ConfigurationConstraint):
                 or self._groups or not self._identity):
             return None
         tables = (s.sphere_local, s.obstacles, s.pair_table, s.sphere_supports,
-                  self._far_phi[:, None], np.array([[self.influence or 0.0]]))
-        return Packed(barrier_set.SPHERES, tables, (s.sphere_index[:, None], s.pair_index))
+                  self._far_phi[:, None], np.array([[self.influence or 0.0]]), s.group_table)
+        return Packed(barrier_set.SPHERES, tables,
+                      (s.sphere_index[:, None], s.pair_index, s.group_index))
 
     def _barrier(self, x: Array, y: Array, jac: Array, with_value: bool
                  ) -> tuple[Array, Array, Array | None]:

@@ -23,7 +23,7 @@ from cpbc.constraints.clearance.capsules import (
     CapsuleSelf,
     CapsuleSphere,
 )
-from cpbc.constraints.clearance.spheres import SpherePairs, Spheres
+from cpbc.constraints.clearance.spheres import SpherePairs, Spheres, pair_groups
 from cpbc.constraints.clearance.tables import Index
 from cpbc.constraints.geometry import (
     BoxObstacle,
@@ -239,15 +239,18 @@ class PairLayout(SpherePairs):
         pair_index[:, 3] = grp
         columns = self._columns(spheres, 0)  # (4 nj, S), four entries of each column nonzero
         first = np.array([4 * (self._joint[i] - 1) for i in spheres], dtype=np.int64)
-        return Spheres(
+        local = np.ascontiguousarray(
+            np.array([columns[j:j + 4, s] for s, j in enumerate(first)]).reshape(-1, 4))
+        group_index, group_table = pair_groups(pair_index, first, local)
+        out = Spheres(
             start=0, stop=int(grp[-1]) + 1, n_obstacle=n_obs * n_sph,
-            sphere_index=first,
-            sphere_local=np.ascontiguousarray(
-                np.array([columns[j:j + 4, s] for s, j in enumerate(first)]).reshape(-1, 4)),
+            sphere_index=first, sphere_local=local,
             obstacles=np.array([np.concatenate([core.rotation.reshape(-1), core.centre])
                                 for core in cores]).reshape(-1, 12),
             pair_index=pair_index, pair_table=table,
             sphere_supports=self._masks(spheres),
             starts=np.flatnonzero(np.diff(grp, prepend=-1)).astype(np.intp),
-            group=grp,
+            group=grp, group_index=group_index, group_table=group_table,
         )
+        out.bound_groups()
+        return out

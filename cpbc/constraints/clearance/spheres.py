@@ -25,6 +25,41 @@ from cpbc.kernels.clearance import (
     sphere_pair_rows,
 )
 
+ROUNDING = 1e-9  # [m] the broad phase's allowance for rounding, far above that of the
+# centres and distances (~1e-15 m at an arm's scale), far below any influence distance
+
+
+def pair_groups(pair_index: Ints, sphere_index: Ints, sphere_local: Array
+                ) -> tuple[Ints, Array]:
+    """The law's broad-phase groups (cpbc.kernels.clearance): each run of pairs of one
+    reported constraint whose spheres share a joint, with its bounding point and radius.
+
+    Returns ``group_index`` (G, 5) [first pair, one past the last, obstacle (−1: self
+    pairs), the joint's first regressor column, the first group with the same bounding
+    point] and ``group_table`` (G, 6) [M·[1, l_c], r, reach]: l_c the centre of the box
+    around the group's sphere centres l_s (in the joint's frame), r = max ‖l_s − l_c‖;
+    reach is set by ``Spheres.bound_groups``.
+    """
+    key = np.column_stack([pair_index[:, 3], sphere_index[pair_index[:, 1]]])
+    key[pair_index[:, 0] < 0, 1] = -1  # self pairs: one group per constraint
+    first = np.flatnonzero(np.any(np.diff(key, axis=0, prepend=-2) != 0, axis=1))
+    stop = np.append(first[1:], len(pair_index))
+    group_index = np.column_stack([first, stop, pair_index[first, 0],
+                                   sphere_index[pair_index[first, 1]], np.zeros_like(first)]
+                                  ).astype(np.int64)
+    group_table = np.zeros((len(first), 6))
+    seen: dict[tuple[int, ...], int] = {}  # a link's spheres against each obstacle: one point
+    for g, (a, b) in enumerate(zip(first, stop, strict=True)):
+        spheres = pair_index[a:b, 1]
+        local = sphere_local[spheres]  # M·[1, l_s]
+        centres = local[:, 1:] / local[:, :1]
+        centre = 0.5 * (centres.min(axis=0) + centres.max(axis=0))
+        group_table[g, :4] = local[0, 0] * np.concatenate([[1.0], centre])
+        group_table[g, 4] = np.linalg.norm(centres - centre, axis=1).max()
+        shared = (-1,) if group_index[g, 2] < 0 else tuple(spheres.tolist())
+        group_index[g, 4] = seen.setdefault(shared, g) if shared != (-1,) else g
+    return group_index, group_table
+
 
 @dataclass(frozen=True, eq=False)
 class Spheres:
@@ -51,6 +86,14 @@ class Spheres:
     sphere_supports: Array  # (S, n) 1 where joint k moves sphere s's link
     starts: Index  # first pair of each reported constraint (a link against an obstacle/link)
     group: Index  # (P,) the constraint (index in ``names``) of each pair
+    group_index: Ints  # (G, 5) the broad phase's groups (``pair_groups``)
+    group_table: Array  # (G, 6): M·[1, l_c], r, reach
+
+    def bound_groups(self) -> None:
+        """Each group's reach, r + the largest rsum_law of its pairs + ``ROUNDING`` (−∞ when
+        none of them can move): again whenever rsum_law changes."""
+        largest = np.maximum.reduceat(self.rsum_law, self.group_index[:, 0])
+        self.group_table[:, 5] = self.group_table[:, 4] + largest + ROUNDING
 
     @property
     def half(self) -> Array:
@@ -110,8 +153,9 @@ class SpherePairs(Kinematics):
         s = self._spheres
         assert s is not None
         return sphere_barrier(y, jac, s.sphere_index, s.sphere_local, s.obstacles,
-                              s.pair_index, s.pair_table, s.sphere_supports, self._far_phi,
-                              self.influence or 0.0, phi_out, b, value)
+                              s.pair_index, s.pair_table, s.group_index, s.group_table,
+                              s.sphere_supports, self._far_phi, self.influence or 0.0,
+                              phi_out, b, value)
 
     def _pair_rows(self, y: Array, jac: Array, dq: Array) -> tuple[Array, Array, Array]:
         """Every sphere pair's clearance (P,), gradient (P, n) and curvature q̇ᵀ∇²φ_p q̇
