@@ -169,8 +169,9 @@ class PackedLaw:
             the pass when the law's class keeps the state path (``STATE_PATH``) of the
             class it was packed by and its state holds no frame besides the one the kernel
             reads.
-        pass_reads: the frame the model's pass reads for that step (−1: none; the kernel
-            reads the law's frame from the joint kinematics, ``pack_tables``' ``frame``).
+        pass_reads: the frame the model's pass reads for that step (−1: none, or the
+            kernel reads the law's frame from the joint kinematics, ``pack_tables``'
+            ``frame``, as it does for any frame on a joint).
         live: (offset in the packed floats, source) of each row a term keeps in step with
             a moving goal (``Packed.live``), refreshed before each kernel call.
     """
@@ -228,16 +229,18 @@ class PackedLaw:
         margins = len(constraints.names)
         frame = read.pop() if read else -1
         held = tuple(dict.fromkeys((*constraints.frames, *frames)))
-        # with the joint kinematics in the pass, the kernel reads the frame from them
-        on_joints = model.frame_on_joints(frame) if (
-            frame >= 0 and constraints.needs_kinematics) else None
+        # the kernel reads a frame on a joint from the pass's joint kinematics: the static
+        # regressor is one Pinocchio call where the frame's placement and Jacobian are two
+        # (planar CPBC about 0.15 us a step less), and a clearance's pass has it already
+        on_joints = model.frame_on_joints(frame) if frame >= 0 else None
         pass_reads = frame if on_joints is None else -1
         from_pass = keeps(law, base, STATE_PATH) and all(f == frame for f in held)
         constants = pack_tables(margins, tables.plan, tables.ints, tables.floats,
                                 packed.plan, packed.floats, model.coordinates.inverse,
                                 model.viscous_friction, on_joints)
         live = tuple((tables.floats.size + at, source) for at, source in packed.live)
-        step = step_from_pass(constants, live, model, constraints.needs_kinematics,
+        step = step_from_pass(constants, live, model,
+                              constraints.needs_kinematics or on_joints is not None,
                               pass_reads, constraints.needs_coriolis,
                               margins) if from_pass else None
         return cls(law, packed, constants, frame, constraints.needs_kinematics, margins,
