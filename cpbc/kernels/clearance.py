@@ -276,10 +276,11 @@ def near_offsets(y: Array, sphere_index: Ints, sphere_local: Array, obstacles: A
                  centres: Array, u: Array, outside: Array, d: Array) -> None:
     """The centres, u, max(|u| − h, 0) and d (``link_point``, ``pair_offset``) of the pairs
     of the near groups only; the other columns are left unwritten. With self pairs (never
-    skipped; they come last) every centre is computed once, else each pair's sphere with
-    its pair (a sphere near two obstacles twice, the same)."""
+    skipped; they come last) or every group near (the reported clearances asked for) every
+    centre is computed once, else each pair's sphere with its pair (a sphere near two
+    obstacles twice, the same)."""
     n_pair = pair_index.shape[0]
-    with_self = pair_index[n_pair - 1, 0] < 0
+    with_self = pair_index[n_pair - 1, 0] < 0 or near.min() > 0.0
     if with_self:
         sphere_centres(y, sphere_index, sphere_local, centres)
     for g in range(group_index.shape[0]):
