@@ -254,3 +254,17 @@ def test_the_step_from_the_pass_takes_read_only_and_integer_states(robot: str) -
         law = setup.controllers["cpbc"]
         whole = np.zeros(2, dtype=np.int64), np.zeros(2, dtype=np.int64)
         np.testing.assert_array_equal(law.torque(*whole), law.torque(np.zeros(2), np.zeros(2)))
+
+
+@pytest.mark.parametrize("entry", list(_laws()), ids=lambda e: e[0])
+def test_a_law_that_has_stepped_pickles(entry) -> None:  # type: ignore[no-untyped-def]
+    """A law is sent to worker processes whole: after a step (its packed law made, with a
+    step bound to the model's Pinocchio data) it pickles, and the copy steps alike."""
+    import pickle
+
+    name, law, states = entry
+    x, dx = states[0]
+    tau = law.torque(x, dx)
+    copy = pickle.loads(pickle.dumps(law))
+    np.testing.assert_array_equal(copy.torque(x, dx), tau, err_msg=name)
+    assert copy.packed_law().from_pass == law.packed_law().from_pass

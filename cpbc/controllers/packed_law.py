@@ -128,6 +128,14 @@ class PacksItsLaw(Controller):
         the last); raises outside S."""
         raise NotImplementedError
 
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without its packed law, which is made again at the next step: its step
+        from the pass is a function bound to this process's Pinocchio data (a law is sent
+        to worker processes whole)."""
+        state = dict(self.__dict__)
+        state.pop("_packed_law", None)
+        return state
+
     def __setattr__(self, name: str, value: object) -> None:
         super().__setattr__(name, value)
         if name in self._packed_from:  # pack again at the next step
