@@ -108,11 +108,7 @@ class CPBC(PacksItsLaw):
 
     def _pass_value(self, args: tuple[Any, ...]) -> float:
         """V from cpbc.kernels.laws.cpbc_pass_step (the step from the model's pass)."""
-        found = cpbc_pass_step(*args)
-        lyapunov = found[0]
-        if lyapunov == lyapunov:  # V is NaN outside S only
-            return lyapunov
-        return self._checked(found, args[-2])
+        return self._checked(cpbc_pass_step(*args), args[-2])
 
     def _checked(self, found: tuple[float, float, float], phi: Array) -> float:
         """V from a step kernel's (V, log Φ, log Ψ); raises, naming the margin from the

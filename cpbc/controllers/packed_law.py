@@ -205,9 +205,7 @@ class PackedLaw:
     def refreshed(self) -> tuple[Ints, Array]:
         """The constant tables, the rows of a moving goal (``live``) copied in from their
         sources first."""
-        floats = self.constants[1]
-        for at, source in self.live:
-            floats[at:at + source.shape[0]] = source
+        copy_live(self.constants[1], self.live)
         return self.constants
 
     def state(self, model: RobotModel, x: Array, dx: Array) -> ArmState:
@@ -288,6 +286,13 @@ _NO_FRAME = (np.eye(4), np.zeros((6, 0)))
 _NO_JOINTS = (np.zeros((3, 0)), np.zeros((6, 0)))
 
 
+def copy_live(floats: Array, live: tuple[tuple[int, Array], ...]) -> None:
+    """The rows of a moving goal (``PackedLaw.live``) copied from their sources into the
+    packed ``floats``."""
+    for at, source in live:
+        floats[at:at + source.shape[0]] = source
+
+
 def step_from_pass(constants: Tables, live: tuple[tuple[int, Array], ...], model: RobotModel,
                    kinematics: bool, frame: int, coriolis: bool, margins: int
                    ) -> PassArguments:
@@ -303,8 +308,7 @@ def step_from_pass(constants: Tables, live: tuple[tuple[int, Array], ...], model
     floats = constants[1]
 
     def steered(x: Array, dx: Array) -> tuple[Any, ...]:
-        for at, source in live:
-            floats[at:at + source.shape[0]] = source
+        copy_live(floats, live)
         return reader(x, dx)
 
     return steered
