@@ -56,8 +56,8 @@ def pair_groups(pair_index: Ints, sphere_index: Ints, sphere_local: Array
         centre = 0.5 * (centres.min(axis=0) + centres.max(axis=0))
         group_table[g, :4] = local[0, 0] * np.concatenate([[1.0], centre])
         group_table[g, 4] = np.linalg.norm(centres - centre, axis=1).max()
-        shared = (-1,) if group_index[g, 2] < 0 else tuple(spheres.tolist())
-        group_index[g, 4] = seen.setdefault(shared, g) if shared != (-1,) else g
+        group_index[g, 4] = g if group_index[g, 2] < 0 else seen.setdefault(
+            tuple(spheres.tolist()), g)  # self pairs: a point of their own
     return group_index, group_table
 
 
