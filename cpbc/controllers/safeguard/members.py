@@ -35,6 +35,7 @@ class GuardMembers:
     braking: Braking | None
     _n_config: int
     _sigma_floor: Array
+    _holding: Array | None  # the torque the actuators hold, under a torque-rate limit
 
     def _box(self, bias: Array, tau: Array) -> Array:
         raise NotImplementedError

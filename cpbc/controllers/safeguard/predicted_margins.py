@@ -13,7 +13,7 @@ subclass with its own ``value``) are asked through ``values_along``, column by c
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TypeVar
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 import pinocchio as pin
@@ -28,6 +28,26 @@ from cpbc.model.robot_model import RobotModel
 
 C = TypeVar("C", ConfigurationConstraint, VelocityConstraint)
 Rows = tuple[Array, Array, Array, Array, Array]  # as a Predictor returns them
+_AT_REST = np.zeros(0)
+
+
+class BrakingTest(NamedTuple):
+    """What (S2) asks at the predicted ends: the uniform brake's stopping points x_s
+    (cpbc.kernels.sampled_guard.configuration_rows) and the floors of σ_i there.
+
+    Attributes:
+        per_speed: 1/(2θA) of the uniform brake (stopping.Braking.per_speed).
+        floor: the floors of σ_i (their cushions δ_i).
+        ramp: T, the time the brake takes to build under a torque-rate limit [s]; 0 without.
+        start: ẋ at the sample (read when ``ramp`` > 0).
+        period: h [s] (read when ``ramp`` > 0).
+    """
+
+    per_speed: float
+    floor: Array
+    ramp: float = 0.0
+    start: Array = _AT_REST
+    period: float = 1.0
 
 
 def _own_values(c: ConfigurationConstraint | VelocityConstraint) -> bool:
@@ -97,7 +117,7 @@ class PredictedMargins:
         return out
 
     def slack(self, predicted: Rows, end_floor: Array, mid_floor: Array | None,
-              stop: tuple[float, Array] | None, past: np.ndarray | None) -> float:
+              stop: BrakingTest | None, past: np.ndarray | None) -> float:
         """F(τ) of (S1), with ``stop`` = (1/(2θA), floors) of (S2) too, over the predicted
         ``(mids, ends, speeds, inner_x, inner_v)`` (Acceptance._check)."""
         mids, ends, speeds, inner_x, inner_v = predicted
@@ -106,7 +126,11 @@ class PredictedMargins:
         config, rows, placements = self._no_config, self._no_config, self._no_placements
         if mid_floor is not None:
             rows = np.empty(((2 if stop is None else 3) * len(ends), self.n))
-            configuration_rows(mids, ends, speeds, 0.0 if stop is None else stop[0], rows)
+            if stop is None:
+                configuration_rows(mids, ends, speeds, _AT_REST, 1.0, 0.0, 0.0, rows)
+            else:
+                configuration_rows(mids, ends, speeds, stop.start, stop.period, stop.per_speed,
+                                   stop.ramp, rows)
             config = np.empty((len(rows), self.nc))
             for at, k, c in self._generic_config:
                 config[:, at:at + k] = c.values_along(rows)
