@@ -169,9 +169,12 @@ class Braking:
         return 1.0 / (2.0 * self.share * a)
 
     def margins(self, constraints: ConstraintSet, model: RobotModel, x: Array,
-                dx: Array) -> tuple[Array, float]:
+                dx: Array, held: Array | None = None,
+                period: float = 0.0) -> tuple[Array, float]:
         """σ_i for every configuration constraint (in the order of their names), and the
-        distance |x_s − x| the brake travels [controller units]."""
+        distance |x_s − x| the brake travels [controller units]. Under a torque-rate limit
+        the brake first ramps from the torque ``held`` (the gravity torque when omitted)
+        for :meth:`ramp` plus one ``period``, the arm coasting meanwhile."""
         if not constraints.configuration:
             return np.zeros(0), 0.0
         state = model.state(x, dx)
@@ -180,5 +183,7 @@ class Braking:
         if per_speed == math.inf:
             return np.full(constraints.n_configuration, -math.inf), math.inf
         speed = math.sqrt(float(dx.dot(dx)))
-        return constraints.configuration_margins(x + (per_speed * speed) * dx), \
-            per_speed * speed * speed
+        lead = 0.0 if self.rate is None or per_speed == 0.0 else period + self.ramp(
+            state.inertia, bias, dx, state.gravity if held is None else held, per_speed)
+        return constraints.configuration_margins(x + (lead + per_speed * speed) * dx), \
+            (lead + per_speed * speed) * speed

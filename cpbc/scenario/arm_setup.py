@@ -85,6 +85,9 @@ class ScenarioSetup:
     # per case, the load on its path to the target that leaves a motor no room to brake
     # over gravity (cpbc.scenario.preflight): a warning before the run, a cause after it
     gravity_on_path: dict[str, GravityLoad] = dataclasses.field(default_factory=dict)
+    # per case that starts outside the safeguard's braking set V although a rescue brake
+    # stops it (cpbc.scenario.state_checks.check_stoppable): a note before the run
+    outside_braking_set: dict[str, str] = dataclasses.field(default_factory=dict)
     # a goal scenario's goal, preflight and posture (``target`` is then the posture x_n)
     goal: GoalPlan | None = None
     # a reference scenario's path, governor and plans (``goal`` is then its first sample)

@@ -33,11 +33,19 @@ class Acceptance(GuardMembers):
         already ≤ 0 (only the extra constraints can be): their floor is their present value,
         compared by difference, and their braking margin is not held (:meth:`_guard`)."""
         along = self.along
+        ramp = self._ramp
+        if ramp is None or not along.nv:
+            def f(t: Array) -> float:
+                return along.slack(predict(t), end_floor, mid_floor, stop, past)
 
-        def f(t: Array) -> float:
-            return along.slack(predict(t), end_floor, mid_floor, stop, past)
+            return f
 
-        return f
+        def ramped(t: Array) -> float:
+            rows = predict(t)
+            return min(along.slack(rows, end_floor, mid_floor, stop, past),
+                       along.ramp_slack(rows, ramp))
+
+        return ramped
 
     def _braking_floor(self, state: ArmState, bias: Array,
                        held: Array | None = None) -> BrakingTest | None:

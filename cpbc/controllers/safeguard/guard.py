@@ -19,7 +19,7 @@ from cpbc.controllers.hold import hold_share
 from cpbc.controllers.rescue import Rescue
 from cpbc.controllers.safeguard.acceptance import Acceptance
 from cpbc.controllers.safeguard.braking import Brakes
-from cpbc.controllers.safeguard.predicted_margins import PredictedMargins
+from cpbc.controllers.safeguard.predicted_margins import PredictedMargins, RampTest
 from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_share
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.errors import CpbcError
@@ -143,6 +143,9 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         self._torque_box = None if box_limit is None else TorqueBox.of(law.model, box_limit)
         self._step_box = self._torque_box  # the box of this step (narrowed by the rate)
         self._holding: Array | None = None  # the torque the actuators hold (controller coords)
+        self._ramp: RampTest | None = None  # this step's velocity lookahead (rate limit)
+        nc_all = self.guarded.n_configuration
+        self._velocity_floor = np.maximum(self.cushion[nc_all:], 1e-300)
         # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)
         self.braking = None if torque_limit is None or not self._n_config else Braking.of(
             law.model, torque_limit, rate=self.rate_limit)
@@ -189,8 +192,12 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         candidate is tested as clipped there (the predictor saturates into ``_step_box``)
         and the torque returned lies in it."""
         assert self._torque_box is not None and self._rate_step is not None
+        box = self._torque_box
         held = state.gravity if self._holding is None else self._holding
-        self._step_box = self._torque_box.around(self._torque_box.joint(held), self._rate_step)
+        self._step_box = box.around(box.joint(held), self._rate_step)
+        assert self.rate_limit is not None
+        self._ramp = RampTest(state.dx, self.period, state.inertia, box.to_joint,
+                              self.rate_limit, self._velocity_floor)
         tau = self._step_box.clip(self._guard(state, law, law_margins))
         self._holding = tau
         return tau

@@ -23,7 +23,7 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.packing import Packed, PackedSet
 from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES
-from cpbc.kernels.sampled_guard import configuration_rows, predicted_slack
+from cpbc.kernels.sampled_guard import configuration_rows, margins_along, predicted_slack
 from cpbc.model.robot_model import RobotModel
 
 C = TypeVar("C", ConfigurationConstraint, VelocityConstraint)
@@ -48,6 +48,30 @@ class BrakingTest(NamedTuple):
     ramp: float = 0.0
     start: Array = _AT_REST
     period: float = 1.0
+
+
+class RampTest(NamedTuple):
+    """What the velocity margins ask under a torque-rate limit: the held torque cannot
+    change at once, so a joint goes on accelerating after the period while the torque
+    ramps. Taking back the period's acceleration a = (ẋ₁ − ẋ₀)/h (frozen dynamics, D a of
+    torque) takes T = max_j |(Tᵀ D a)_j| / ρ_j, over which the rates move on by ½ T a:
+    every velocity margin at (x₁, ẋ₁ + ½ T a) must keep its cushion.
+
+    Attributes:
+        start: ẋ₀ at the sample.
+        period: h [s].
+        inertia: D at the sample.
+        to_joint: Tᵀ, or None for joint coordinates.
+        rate: ρ per joint [N·m/s].
+        floor: the velocity margins' cushions δ_j (their floors here).
+    """
+
+    start: Array
+    period: float
+    inertia: Array
+    to_joint: Array | None
+    rate: Array
+    floor: Array
 
 
 def _own_values(c: ConfigurationConstraint | VelocityConstraint) -> bool:
@@ -115,6 +139,26 @@ class PredictedMargins:
         for at, k, v in self._generic_velocity:
             out[:, at:at + k] = v.values_along(xs, dxs)
         return out
+
+    def velocity_margins(self, xs: Array, dxs: Array) -> Array:
+        """Every velocity margin at the rows (x, ẋ), one row each."""
+        out = self._generic_velocity_margins(xs, dxs)
+        vp = self._velocity
+        margins_along(vp.plan, vp.ints, vp.floats, xs, dxs, self._no_placements, out)
+        return out
+
+    def ramp_slack(self, predicted: Rows, ramp: RampTest) -> float:
+        """min_j m_j/δ_j − 1 of the velocity margins where the rates peak while the torque
+        ramps back from the period's acceleration (:class:`RampTest`)."""
+        _, ends, speeds, _, _ = predicted
+        acc = (speeds - ramp.start) / ramp.period  # one row per prediction
+        push = acc @ ramp.inertia.T
+        if ramp.to_joint is not None:
+            push = push @ ramp.to_joint.T
+        lead = np.max(np.abs(push) / ramp.rate, axis=1)
+        m = self.velocity_margins(ends, speeds + (0.5 * lead)[:, None] * acc)
+        m = np.where(np.isnan(m), -np.inf, m)
+        return float(np.min(m / ramp.floor)) - 1.0
 
     def slack(self, predicted: Rows, end_floor: Array, mid_floor: Array | None,
               stop: BrakingTest | None, past: np.ndarray | None) -> float:
