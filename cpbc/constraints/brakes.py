@@ -232,22 +232,32 @@ def brings_to_rest(brake: Brake, model: RobotModel, margins: Callable[[Array, Ar
     return Stop(False, periods, low)
 
 
+def ramped(box: TorqueBox, tau: Array, rate_step: Array | None,
+           held_q: Array | None) -> Array:
+    """τ clipped to the box and, under a torque-rate limit (``rate_step`` = ρh per joint),
+    reached from the held joint torque ``held_q`` along the straight line toward it as far as
+    one step allows, τ_h + s(τ − τ_h): every joint's torque arrives together, and the change
+    of acceleration keeps its direction."""
+    tau = box.clip(tau)
+    if rate_step is None or held_q is None:
+        return tau
+    held = held_q if box.from_joint is None else box.from_joint.dot(held_q)
+    return box.around(held_q, rate_step).toward(held, tau)
+
+
 def model_advance(model: RobotModel, box: TorqueBox, x: Array, dx: Array, h: float,
                   steps: int, rate_step: Array | None = None,
                   held: Array | None = None) -> Advance:
     """The model as a plant from (x, ẋ): ``steps`` semi-implicit Euler steps per period of
     its forward dynamics, the torque clipped to the box; under a torque-rate limit
     (``rate_step`` = ρh per joint, from the torque ``held`` the actuators hold, controller
-    coordinates) clipped also to what one period can reach from the last torque held, as
-    the motors would."""
+    coordinates) ramped from the last torque held as one period allows (:func:`ramped`)."""
     now = [x.copy(), dx.copy()]
     dt = h / steps
     last = [None if held is None else box.joint(held)]
 
     def advance(tau: Array) -> tuple[Array, Array] | None:
-        held_q = last[0]
-        tau = box.clip(tau) if rate_step is None or held_q is None else box.around(
-            held_q, rate_step).clip(tau)
+        tau = ramped(box, tau, rate_step, last[0])
         last[0] = box.joint(tau)
         xs, vs = now
         rows_x, rows_v = [], []

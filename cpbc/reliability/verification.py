@@ -42,6 +42,7 @@ from cpbc.constraints.brakes import (
     brakes,
     brings_to_rest,
     first_stop,
+    ramped,
 )
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import Braking, stopping_margins
@@ -192,9 +193,7 @@ def _true_advance(plant: MujocoPlant, box: TorqueBox, t_mat: Array, substeps: in
     last = [held]
 
     def advance(tau: Array) -> tuple[Array, Array] | None:
-        now = last[0]
-        tau_q = box.joint(box.clip(tau) if rate_step is None or now is None
-                          else box.around(now, rate_step).clip(tau))
+        tau_q = box.joint(ramped(box, tau, rate_step, last[0]))
         last[0] = tau_q
         plant.apply(tau_q)
         qs, dqs = [], []

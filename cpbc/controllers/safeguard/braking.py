@@ -81,9 +81,13 @@ class Brakes(GuardMembers):
                                np.maximum(floor[:nc], 1e-300) if nc else None)(t) >= 0.0
 
         tau = self.rescue.torque(state, bias, now, holds, self.calls, self._holding)
-        if tau is not None:
-            self.rescues += 1
-        return tau
+        if tau is None:
+            return None
+        self.rescues += 1
+        # under a rate limit the motors ramp toward the brake along the line from the held
+        # torque (_box), as the rescue's search held it (brakes.ramped): a brake clipped
+        # joint by joint kicked the Panda's light wrist through its rate bound
+        return tau if self._rate_step is None else self._box(bias, tau)
 
     def _infeasible(self, state: ArmState, bias: Array, stop: Array, predict: Predictor,
                     now: Array, floor: Array, floor_mid: Array | None) -> Array:

@@ -194,6 +194,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         assert self._torque_box is not None and self._rate_step is not None
         box = self._torque_box
         held = state.gravity if self._holding is None else self._holding
+        self._holding = held  # this step's anchor (_box)
         self._step_box = box.around(box.joint(held), self._rate_step)
         assert self.rate_limit is not None
         self._ramp = RampTest(state.dx, self.period, state.inertia, box.to_joint,
@@ -270,8 +271,19 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         """τ scaled toward the bias b = C ẋ + g + f until it fits the torque box
         (:meth:`TorqueBox.toward`): the acceleration D⁻¹(τ − b) keeps its direction and only
         shrinks, so no joint is spun up by the coupling through D, as clipping each joint
-        would (τ itself when it fits, or when there is no limit)."""
-        return tau if self._step_box is None else self._step_box.toward(bias, tau)
+        would (τ itself when it fits, or when there is no limit). Under a torque-rate limit
+        the step from the held torque τ_h toward it is then scaled into what one step
+        reaches, τ_h + s(τ − τ_h): the change of acceleration keeps its direction too (a
+        brake clipped joint by joint into the rate box spun the Panda's base joint up
+        through its rate bound)."""
+        box = self._torque_box
+        if box is None:
+            return tau
+        boxed = box.toward(bias, tau)
+        step, held = self._step_box, self._holding
+        if self._rate_step is None or step is None or held is None:
+            return boxed
+        return step.toward(held, boxed)
 
     def _saturate(self, tau: Array) -> Array:
         return tau if self._step_box is None else self._step_box.clip(tau)

@@ -36,6 +36,7 @@ class GuardMembers:
     _n_config: int
     _sigma_floor: Array
     _holding: Array | None  # the torque the actuators hold, under a torque-rate limit
+    _rate_step: Array | None  # ρh per joint, under a torque-rate limit
     _ramp: RampTest | None  # this step's velocity lookahead under a torque-rate limit
 
     def _box(self, bias: Array, tau: Array) -> Array:
