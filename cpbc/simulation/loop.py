@@ -10,6 +10,7 @@ constraint_violated), the progress reports and the wall-clock time.
 
 from __future__ import annotations
 
+import gc
 import math
 import time as _time
 from collections.abc import Callable
@@ -157,7 +158,20 @@ class LoopEnd:
 def run_loop(loop: SampledLoop[S, U], steps: int, substeps: int, period: float,
              progress: Progress | None = None) -> LoopEnd:
     """Run ``steps`` control periods of ``substeps`` physics steps each (samples at
-    0, period, …, steps·period)."""
+    0, period, …, steps·period), with Python's cyclic garbage collector off: a collection
+    inside the loop is a pause of milliseconds at a random step (a control deadline's
+    worst enemy); what the loop allocates is freed by reference counting as it goes."""
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        return _steps(loop, steps, substeps, period, progress)
+    finally:
+        if collecting:
+            gc.enable()
+
+
+def _steps(loop: SampledLoop[S, U], steps: int, substeps: int, period: float,
+           progress: Progress | None) -> LoopEnd:
     outcome, violated, k = "completed", None, 0
     report_every = max(1, steps // 50)
     # the step's calls bound once (attribute look-ups cost per step)
