@@ -135,6 +135,10 @@ class RunSummary:
     peak_torque_rate: list[float] | None = None
     torque_rate_limits: list[float] | None = None
     rate_limited_steps: int = 0
+    # the controller's (law and safeguard) longest and mean call in the loop [µs]: against
+    # a control deadline (None on the reference backend)
+    controller_time_max_us: float | None = None
+    controller_time_mean_us: float | None = None
     task_error_max: dict[str, float] | None = None
     reach_time: float | None = None
     # a reference run's (cpbc.results.reference_metrics): the error to the applied reference
@@ -314,7 +318,13 @@ def summarise(
         torque_rate_limits=None if torque_rate_limits is None else [
             float(v) for v in torque_rate_limits],
         rate_limited_steps=traj.rate_limited_steps,
+        controller_time_max_us=_us(traj.controller_time_max),
+        controller_time_mean_us=_us(traj.controller_time_mean),
     )
+
+
+def _us(seconds: float | None) -> float | None:
+    return None if seconds is None else 1e6 * seconds
 
 
 def _peaks(values: Array) -> list[float]:

@@ -169,9 +169,19 @@ def summary_table(summaries: Sequence[RunSummary], coordinate_names: Sequence[st
             rise = s.max_lyapunov_increase
             cells += ["-" if math.isnan(rise) else f"{rise:.2g}", safeguard_cell(s)]
         # a reference's samples are not its steps: its rate says nothing
-        cells.append("-" if s.steps_per_second is None else f"{s.steps_per_second:,.0f}")
+        cells.append(_rate_cell(s))
         t.add_row(*cells)
     return t
+
+
+def _rate_cell(s: RunSummary) -> str:
+    """Steps per second, and the controller's slowest call (against a control deadline)."""
+    if s.steps_per_second is None:
+        return "-"
+    slowest = s.controller_time_max_us
+    tail = "" if slowest is None else (f"\n({slowest / 1e3:.3g} ms)" if slowest >= 1e3
+                                       else f"\n({slowest:.0f} µs)")
+    return f"{s.steps_per_second:,.0f}{tail}"
 
 
 def _final_error(s: RunSummary) -> str:

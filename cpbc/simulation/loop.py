@@ -236,6 +236,8 @@ class _ArmLoop:
         self.rate_limited = 0
         self.held_q: Array | None = None  # the joint torque the motors hold (set by start)
         self.peak_step = np.zeros(n)  # the largest |Δτ_q| between commands
+        self.compute_max = 0.0  # the controller's longest call [s] (the loop's deadline)
+        self.compute_total = 0.0
 
     def start(self, x0: Array) -> None:
         """Before the first control instant: the motors hold the gravity torque of the
@@ -258,7 +260,12 @@ class _ArmLoop:
     def control(self, t: float, state: tuple[Array, Array]) -> Array | None:
         x, dx = state
         rejected = self.sample.rejected
+        start = _time.perf_counter()
         tau, v = self.sample(x, dx)
+        spent = _time.perf_counter() - start
+        self.compute_total += spent
+        if spent > self.compute_max:
+            self.compute_max = spent
         self.tau, self.v = tau, v
         if not math.isfinite(sum(tau.tolist())):
             self.log.record(t, v, x, dx, tau, np.full(len(tau), np.nan), force=True)
@@ -351,6 +358,8 @@ def run_mujoco(
         guarded_steps=arm.guarded_steps[: k + 1] if guard else None,
         rate_limited_steps=arm.rate_limited,
         peak_torque_rate=arm.peak_step / settings.control_period,
+        controller_time_max=arm.compute_max,
+        controller_time_mean=arm.compute_total / max(k + 1, 1),
     )
 
 

@@ -47,6 +47,9 @@ class Trajectory:
         peak_torque_rate: per joint, the largest |Δτ_q|/h between successive commands, the
             first one from the torque held before the run [N·m/s] (None: not measured, the
             reference backend).
+        controller_time_max, controller_time_mean: the wall time of the controller's
+            longest call and of its mean call in the loop (the law with its safeguard, the
+            state's Pinocchio pass included) [s]; None for the reference backend.
     """
 
     time: Array
@@ -71,6 +74,8 @@ class Trajectory:
     rescues: int = 0
     rate_limited_steps: int = 0
     peak_torque_rate: Array | None = None
+    controller_time_max: float | None = None
+    controller_time_mean: float | None = None
 
     @property
     def steps_per_second(self) -> float:
