@@ -18,9 +18,8 @@ from cpbc.model.joint_dynamics import JointDynamics
 from cpbc.model.loading import load_arm
 from cpbc.resources import models_dir
 
-# an FR3's rotor inertia and friction (franky-sim's MuJoCo model, docs: REALARM)
-FR3_ARMATURE = [0.195, 0.195, 0.195, 0.195, 0.074, 0.074, 0.074]
-FR3_COULOMB = [1.137, 1.137, 1.137, 1.137, 0.763, 0.44, 0.248]
+# an FR3's rotor inertia (franky-sim's MuJoCo model)
+FR3_ARMATURE = np.array([0.195, 0.195, 0.195, 0.195, 0.074, 0.074, 0.074])
 
 
 def test_pinocchio_inertia_with_armature_equals_mujoco_full_m() -> None:
@@ -92,9 +91,9 @@ def test_bad_friction_is_refused_by_name(kwargs: dict, word: str) -> None:
 
 def test_bad_joint_dynamics_are_refused_by_name() -> None:
     with pytest.raises(ModelError, match="armature"):
-        JointDynamics([0.1, -1.0], [0.0, 0.0], [0.0, 0.0])
+        JointDynamics(np.array([0.1, -1.0]), np.zeros(2), np.zeros(2))
     with pytest.raises(ModelError, match="coulomb"):
-        JointDynamics([0.1, 0.1], [0.0, 0.0], [0.0, 0.0, 0.0])
+        JointDynamics(np.array([0.1, 0.1]), np.zeros(2), np.zeros(3))
 
 
 def _declaring_mjcf(folder: Path) -> Path:
