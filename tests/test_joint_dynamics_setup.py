@@ -128,3 +128,15 @@ def test_no_compensation_asked_in_link_angles_is_accepted(load_dict) -> None:
                                 friction={"coulomb": 0.3, "compensate": False}))
     assert setup.controllers[0].friction_compensation is None
     assert setup.model.has_friction
+
+
+def test_a_worker_rebuilds_the_same_joint_dynamics() -> None:
+    """A worker process rebuilds the scenario from its JSON dump (cpbc.scenario.runner):
+    the friction spec and from_model survive it."""
+    from cpbc.scenario.runner import scenario_in_worker, worker_payload
+    from cpbc.scenario.schema import Scenario
+
+    for robot in ({"armature": [0.2, 0.1], "friction": {"coulomb": 0.4, "compensate": False}},
+                  {"armature": "from_model", "friction": "from_model"}):
+        scenario = Scenario.model_validate(_scenario(**robot))
+        assert scenario_in_worker(worker_payload(scenario)) == scenario
