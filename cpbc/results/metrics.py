@@ -155,6 +155,11 @@ class RunSummary:
     margin_units: dict[str, str] = field(default_factory=dict)
     # a Part I system's run: its own quantities; None for an arm's
     system: SystemOutcome | None = None
+    # an arm's joints as the model and the plant had them (cpbc.model.joint_dynamics):
+    # ``friction`` {coulomb, viscous (per joint), smoothing ε, compensation ε_c or None}
+    # and the rotor inertia ``armature`` per joint; None for a Part I system's run
+    friction: dict[str, object] | None = None
+    armature: list[float] | None = None
 
     @property
     def safeguard_share(self) -> float:

@@ -108,6 +108,10 @@ def run_one(
                                errors, entry.controller)
         # a goal run settles when it enters the goal's band for good, not at the posture
         summary = replace(summary, **outcome.__dict__, settle_time=outcome.reach_time)
+    joints = setup.joint_dynamics.summary()
+    summary = replace(summary, armature=joints.pop("armature"), friction={
+        **joints, "smoothing": setup.model.friction_smoothing,
+        "compensation": entry.friction_compensation})
     load = setup.gravity_on_path.get(case.name)
     if load is not None and summary.failed:
         summary = replace(summary, cause=load.describe())
