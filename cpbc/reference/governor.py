@@ -32,8 +32,20 @@ POLICIES = ("stop", "rejoin")
 
 @dataclass(frozen=True)
 class GovernorSettings:
-    """Γ ``budget`` [J], κ ``gain`` [1/s], ρ_max ``catch_up`` (≥ 1), v_max ``max_speed``
-    [m/s], δ ``margin`` of S_δ (configuration margin units), ``on_infeasible``."""
+    """The reference governor's settings (module docstring), all checked at construction
+    (``ValueError`` naming the field).
+
+    Attributes:
+        budget: Γ [J], > 0: the applied reference moves only while V̄ < Γ.
+        gain: κ [1/s], > 0: how fast the pace falls as V̄ nears Γ.
+        catch_up: ρ_max, ≥ 1: the path's rate while the applied path time lags its clock.
+        max_speed: v_max [m/s], > 0: the fastest the applied point moves (a path's jump, a
+            streamed target's jump of any size).
+        margin: δ, ≥ 0: the configuration margin of S_δ a planned path's posture keeps.
+        on_infeasible: ``stop`` or ``rejoin`` at an inadmissible stretch of a path.
+        max_joint_speed: [rad/s or m/s], > 0: the fastest the applied posture moves toward
+            a streamed joint target.
+    """
 
     budget: float = 1.0
     gain: float = 20.0
@@ -41,9 +53,10 @@ class GovernorSettings:
     max_speed: float = 1.0
     margin: float = 0.03
     on_infeasible: str = "stop"
+    max_joint_speed: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("budget", "gain", "max_speed"):
+        for name in ("budget", "gain", "max_speed", "max_joint_speed"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"governor.{name} must be > 0")
         if not self.catch_up >= 1 or not self.margin >= 0:
