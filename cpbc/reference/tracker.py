@@ -89,6 +89,8 @@ class ReferenceTracker(Controller):
         self.requested = self.moving.position.copy()
         self.requested_velocity = np.zeros(3)
         self.requested_posture: Array | None = None  # a streamed joint target, else None
+        self.home = self.moving.posture.copy()  # the law's x_n, where a point stream keeps it
+        self._posture_away = False  # whether the applied posture is off x_n or streamed
         self.requested_posture_velocity = np.zeros(self.model.n)
         self._last: tuple[Array, Array] | None = None  # the state of the last step
         self.pace = 1.0  # the last step's share min(κΔ, 1) of the governor's top speed
@@ -120,8 +122,9 @@ class ReferenceTracker(Controller):
     def set_target(self, position: ArrayLike, velocity: ArrayLike | None = None) -> None:
         """Stream a target point for the law's frame: ``position`` p_r [m] in the world
         frame, 3 finite numbers, and its ``velocity`` ṗ_r [m/s] for the feed-forward (None:
-        zero), from the next step on; it replaces a streamed joint target. The applied
-        point moves toward it at the governor's pace, however far it is.
+        zero), from the next step on; it replaces a streamed joint target (the posture
+        then returns to the law's x_n). The applied point moves toward it at the
+        governor's pace, however far it is.
 
         Raises:
             ParameterError: (a ``ValueError``) ``position`` or ``velocity`` is not 3 finite
@@ -158,6 +161,7 @@ class ReferenceTracker(Controller):
         self.requested_velocity[:] = jv @ v
         self.requested_posture = x
         self.requested_posture_velocity[:] = v
+        self._posture_away = True
 
     def state(self, x: Array, dx: Array) -> ArmState:
         """The per-step state at (x, ẋ), each n finite numbers (else ParameterError naming
@@ -234,20 +238,22 @@ class ReferenceTracker(Controller):
         self.log_applied.append(self.moving.position.copy())
 
     def _follow_stream(self, v: float) -> None:
-        """One ERG step of the applied point (and, for a joint target, the posture) toward
-        the requested one; the feed-forward is passed once there, no faster than the pace."""
+        """One ERG step of the applied point toward the requested one, and of the applied
+        posture toward a streamed joint target (after one, back to the law's x_n once a
+        point is streamed again), at one share of the way for both; the feed-forward is
+        passed once there, no faster than the pace."""
         st, target = self.settings, self.moving
-        vbar = v * self.stream_norm  # normalised at the (fixed) posture x_n
+        vbar = v * self.stream_norm  # normalised at the law's posture x_n
         pace = min(st.gain * max(0.0, st.budget - vbar) / st.budget, 1.0)
         self.pace = pace
         gap = self.requested - target.position
         share = _share(float(np.linalg.norm(gap)), self.h * pace * st.max_speed)
-        posture = self.requested_posture
-        if posture is None:
+        if not self._posture_away:  # the posture rests at x_n: the point alone moves
             target.set(target.position + share * gap,
                        _capped(self.requested_velocity, pace * st.max_speed, share))
             return
-        turn = posture - target.posture
+        goal = self.home if self.requested_posture is None else self.requested_posture
+        turn = goal - target.posture
         share = min(share, _share(float(np.linalg.norm(turn)),
                                   self.h * pace * st.max_joint_speed))
         target.set(target.position + share * gap,
@@ -255,6 +261,7 @@ class ReferenceTracker(Controller):
                    target.posture + share * turn,
                    _capped(self.requested_posture_velocity, pace * st.max_joint_speed,
                            share))
+        self._posture_away = self.requested_posture is not None or share < 1.0
 
 
 class GuardedReferenceTracker(ReferenceTracker, SafetyFilter):
