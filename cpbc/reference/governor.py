@@ -18,7 +18,7 @@ stretch whose blend fails is planned as lasting to the path's end, so rejoin sto
 non-increasing for a frozen reference. v_max keeps the applied reference Lipschitz even
 where the path jumps (a CSV glitch).
 
-Per step the governor does scalar arithmetic only (:meth:`PathGovernor.advance`); the
+Per step the governor does scalar arithmetic only (``PathGovernor.advance``); the
 tables it reads (normalisation and stretches) are built offline.
 """
 
@@ -75,7 +75,7 @@ class Block:
 
 
 class PathGovernor:
-    """s_v and its state; :meth:`advance` once per control period.
+    """s_v and its state; ``advance`` once per control period.
 
     Attributes:
         s: the applied path time s_v; ``rate``: the last ṡ_v; ``blend``: during a rejoin, the

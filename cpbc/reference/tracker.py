@@ -1,8 +1,8 @@
-"""A law that follows a moving reference: :class:`ReferenceTracker` wraps a law built for a
-goal, steers its springs and damping to a :class:`~cpbc.reference.target.MovingTarget`, and
+"""A law that follows a moving reference: ``ReferenceTracker`` wraps a law built for a
+goal, steers its springs and damping to a ``MovingTarget``, and
 each control step (one ``evaluate`` call) moves the target, either along a planned path
-under the :class:`~cpbc.reference.governor.PathGovernor`, or toward a streamed target set
-with :meth:`ReferenceTracker.set_target` (teleoperation, a learned policy), by the classical
+under the ``PathGovernor``, or toward a streamed target set
+with ``ReferenceTracker.set_target`` (teleoperation, a learned policy), by the classical
 ERG attraction
 
     v ← v + h · min(κ Δ, 1) · v_max · (r − v)/max(|r − v|, v_max h),   Δ = max(0, Γ − V̄)/Γ
@@ -38,7 +38,12 @@ STALLED_JOINTS = 0.01  # [rad/s or m/s]: joints all slower than this are at rest
 
 
 class ReferenceTracker(Controller):
-    """``law`` with a moving target (module docstring).
+    """A law that follows a moving target: a planned path under the reference governor, or
+    targets streamed by a policy or a teleoperator (``set_target``,
+    ``set_joint_target``) at any rate, each moved toward at the governor's pace
+    (the ERG attraction of this module). It is a controller like any law: ask it for a
+    torque at the control rate (``torque(x, dx)``, or the loop of
+    cpbc.simulation.loop.run_mujoco).
 
     Args:
         law: a law built for a goal (a task potential with a posture spring).
@@ -49,16 +54,19 @@ class ReferenceTracker(Controller):
         feedforward: pass ṗ_ff = ṡ_v dp/ds to the task damping (else ṗ_ff = 0).
         run: the controller that computes the torque, when not ``law`` itself: the law
             wrapped in its sampled-data safeguard (cpbc.controllers.safeguard.guarded), which
-            holds the same, steered, law object. Use :func:`tracking` to get a tracker that
+            holds the same, steered, law object. Use ``tracking`` to get a tracker that
             reports such a safeguard's counts to the loop.
 
     Raises:
         ParameterError: (a ``ValueError``) ``period`` is not a finite number > 0, or ``law``
             has no frame position spring to steer.
 
-    Attributes: ``requested`` the streamed point [m] (``requested_posture`` the streamed
-    joint target, or None), ``moving`` the applied target; along a plan, logged once per
-    step, ``log_s`` s_v, ``log_blocked`` and ``log_applied`` the applied point.
+    Attributes:
+        requested: the streamed point p_r [m] (for a joint target, its forward kinematics).
+        requested_posture: the streamed joint target, or None.
+        moving: the applied target (point, posture and their feed-forward) the law reads.
+        pace: the last step's share min(κΔ, 1) of the governor's top speeds.
+        log_s: along a plan, s_v per step (``log_blocked``, ``log_applied`` likewise).
 
     A law follows one tracker at a time: a second tracker on the same law steers it to its
     own target, and the first one's targets no longer reach it.
@@ -285,8 +293,25 @@ class GuardedReferenceTracker(ReferenceTracker, SafetyFilter):
 def tracking(law: Controller, period: float, plan: ReferencePlan | None = None,
              settings: GovernorSettings | None = None, feedforward: bool = True,
              run: Controller | None = None) -> ReferenceTracker:
-    """A :class:`ReferenceTracker`, or a :class:`GuardedReferenceTracker` when ``run`` is a
-    safety filter."""
+    """A law that follows a moving target: a ``ReferenceTracker``, or a
+    ``GuardedReferenceTracker`` (which reports the safeguard's counts to the loop) when
+    ``run`` is a safety filter.
+
+    Args:
+        law: a law built for a goal (a task potential: a frame position spring and a
+            posture spring).
+        period: the control period h [s], > 0: the tracker's clock is its count of steps.
+        plan: a planned path, or None to stream targets (``set_target``,
+            ``set_joint_target``), starting at the law's goal.
+        settings: the reference governor's settings (``GovernorSettings()`` when omitted).
+        feedforward: pass the reference's velocity to the task damping.
+        run: the controller that computes the torque (the law in its safeguard), when not
+            ``law`` itself.
+
+    Raises:
+        ParameterError: (a ``ValueError``) ``period`` is not a finite number > 0, or ``law``
+            has no frame position spring to steer.
+    """
     cls = GuardedReferenceTracker if isinstance(run, SafetyFilter) else ReferenceTracker
     return cls(law, period, plan, settings, feedforward, run)
 

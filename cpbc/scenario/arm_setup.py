@@ -109,7 +109,7 @@ class ScenarioSetup:
         """The entry's law as the scenario runs it in the sampled-data loop: wrapped in the
         safeguard at the loop's control period and torque limit, when it has one; with a
         reference, inside a fresh tracker (cpbc.reference.tracker) for one run. With a
-        ``case``, the law of :meth:`for_case` (and its posture path turned likewise)."""
+        ``case``, the law of ``for_case`` (and its posture path turned likewise)."""
         if case is not None:
             entry = self.for_case(case, entry)
         loop = self.loop_settings
