@@ -99,6 +99,7 @@ class ReferenceTracker(Controller):
         self.requested_posture: Array | None = None  # a streamed joint target, else None
         self.home = self.moving.posture.copy()  # the law's x_n, where a point stream keeps it
         self._posture_away = False  # whether the applied posture is off x_n or streamed
+        self._arrived = False  # the applied point is at a still requested point, x_n at rest
         self.requested_posture_velocity = np.zeros(self.model.n)
         self._last: tuple[Array, Array] | None = None  # the state of the last step
         self.pace = 1.0  # the last step's share min(κΔ, 1) of the governor's top speed
@@ -146,6 +147,7 @@ class ReferenceTracker(Controller):
         self.requested_velocity[:] = 0.0 if v is None else v
         self.requested_posture = None
         self.requested_posture_velocity[:] = 0.0
+        self._arrived = False
 
     def set_joint_target(self, joints: ArrayLike, velocity: ArrayLike | None = None
                          ) -> None:
@@ -170,12 +172,13 @@ class ReferenceTracker(Controller):
         self.requested_posture = x
         self.requested_posture_velocity[:] = v
         self._posture_away = True
+        self._arrived = False
 
     def state(self, x: Array, dx: Array) -> ArmState:
-        """The per-step state at (x, ẋ), each n finite numbers (else ParameterError naming
-        ``x`` or ``dx``)."""
+        """The per-step state the torque's controller reads at (x, ẋ), each n finite
+        numbers (else ParameterError naming ``x`` or ``dx``)."""
         n = self.model.n
-        return super().state(state_vector(x, n, "x"), state_vector(dx, n, "dx"))
+        return self.run.state(state_vector(x, n, "x"), state_vector(dx, n, "dx"))
 
     @property
     def blocked_by(self) -> str | None:
@@ -254,11 +257,14 @@ class ReferenceTracker(Controller):
         vbar = v * self.stream_norm  # normalised at the law's posture x_n
         pace = min(st.gain * max(0.0, st.budget - vbar) / st.budget, 1.0)
         self.pace = pace
+        if self._arrived:  # at a still target: nothing moves
+            return
         gap = self.requested - target.position
         share = _share(float(np.linalg.norm(gap)), self.h * pace * st.max_speed)
         if not self._posture_away:  # the posture rests at x_n: the point alone moves
             target.set(target.position + share * gap,
                        _capped(self.requested_velocity, pace * st.max_speed, share))
+            self._arrived = share == 1.0 and not self.requested_velocity.any()
             return
         goal = self.home if self.requested_posture is None else self.requested_posture
         turn = goal - target.posture
