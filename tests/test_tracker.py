@@ -67,6 +67,7 @@ def test_a_bad_target_is_refused_and_the_previous_one_stays(
         law.set_target(position, velocity)  # type: ignore[arg-type]
     assert isinstance(err.value, ParameterError) and err.value.parameter == field
     assert str(err.value).startswith(f"{field} must be")
+    assert "frame 'panda_hand'" in str(err.value)  # in the user's terms
     np.testing.assert_array_equal(law.requested, good)
     np.testing.assert_array_equal(law.requested_velocity, [0.01, 0.0, 0.0])
 

@@ -64,6 +64,8 @@ class ReferenceTracker(Controller):
     Attributes:
         requested: the streamed point p_r [m] (for a joint target, its forward kinematics).
         requested_posture: the streamed joint target, or None.
+        frame_name: the frame whose point a streamed point target moves (``frame`` its id,
+            ``offset`` the point in its axes, None for its origin).
         moving: the applied target (point, posture and their feed-forward) the law reads.
         pace: the last step's share min(κΔ, 1) of the governor's top speeds.
         log_s: along a plan, s_v per step (``log_blocked``, ``log_applied`` likewise).
@@ -82,6 +84,7 @@ class ReferenceTracker(Controller):
         self.type_name = law.type_name  # type: ignore[misc]
         self.law, self.h, self.plan, self.feedforward = law, h, plan, feedforward
         self.frame, self.offset = frame, offset
+        self.frame_name = str(self.model.model.frames[frame].name)
         self.settings = settings or GovernorSettings()
         if plan is not None:
             start = plan.points[0]
@@ -139,10 +142,11 @@ class ReferenceTracker(Controller):
             ParameterError: (a ``ValueError``) ``position`` or ``velocity`` is not 3 finite
                 numbers; the previous target stays in force.
         """
-        p = finite_vector(position, 3, "position", "the frame's target point in the world "
-                                                   "frame [m]")
+        p = finite_vector(position, 3, "position", f"the target point of frame "
+                                                   f"'{self.frame_name}' in the world [m]")
         v = None if velocity is None else finite_vector(
-            velocity, 3, "velocity", "the target point's velocity [m/s]")
+            velocity, 3, "velocity", "the velocity of the target point of frame "
+                                     f"'{self.frame_name}' [m/s]")
         self.requested[:] = p
         self.requested_velocity[:] = 0.0 if v is None else v
         self.requested_posture = None
@@ -162,7 +166,8 @@ class ReferenceTracker(Controller):
                 numbers; the previous target stays in force.
         """
         n = self.model.n
-        x = finite_vector(joints, n, "joints", "the joint target in the law's coordinates")
+        x = finite_vector(joints, n, "joints", "a target for joints "
+                                               f"{', '.join(self.model.joint_names)}")
         v = np.zeros(n) if velocity is None else finite_vector(
             velocity, n, "velocity", "the joint target's velocity")
         kin = self.model.state(x, v, frames=(self.frame,)).frames[self.frame]
