@@ -104,6 +104,9 @@ class RobotModel:
         viscous_friction: joint viscous friction F_d in the *joint* coordinates, shape (n,)
             (diagonal) or (n, n); zero when omitted.
         name: a label for summaries.
+        torque_rate_limits: the joint torque-rate limits the robot declares, shape (n,)
+            [N·m/s] (no robot file format has a tag for them: a built-in arm sets them), or
+            None.
     """
 
     def __init__(
@@ -112,6 +115,7 @@ class RobotModel:
         coordinates: LinearCoordinates | None = None,
         viscous_friction: Array | None = None,
         name: str = "robot",
+        torque_rate_limits: Array | None = None,
     ) -> None:
         if model.nq != model.nv:
             raise ModelError(
@@ -122,6 +126,8 @@ class RobotModel:
         self.model = model
         self.data = model.createData()
         self.n = model.nv
+        self.torque_rate_limits = None if torque_rate_limits is None else np.broadcast_to(
+            np.asarray(torque_rate_limits, dtype=float), (self.n,)).copy()
         self.coordinates = coordinates or LinearCoordinates.identity(self.n)
         if self.coordinates.matrix.shape != (self.n, self.n):
             raise ModelError(

@@ -82,6 +82,17 @@ def _torques(s: RunSummary, names: Sequence[str]) -> str:
     return f"{peaks[i]:.3g}{'=' if i in at else '<'}{lims[i]:.3g} (joint {i + 1}){tail}"
 
 
+def _torque_rate(s: RunSummary) -> str:
+    """The peak joint torque rate against the motors' rate limit, when they have one."""
+    if s.torque_rate_limits is None or not s.peak_torque_rate:
+        return ""
+    ratios = [p / lim for p, lim in zip(s.peak_torque_rate, s.torque_rate_limits, strict=True)]
+    i = max(range(len(ratios)), key=lambda k: ratios[k])
+    mark = "≤" if ratios[i] <= 1.0 + 1e-9 else "[red]>[/red]"
+    return (f"torque rate {s.peak_torque_rate[i]:.4g}{mark}{s.torque_rate_limits[i]:.4g} "
+            f"N·m/s (joint {i + 1})")
+
+
 def _margins(s: RunSummary) -> str:
     """Per constraint type, the constraint nearest its bound, in the type's unit."""
     parts = []
@@ -200,6 +211,11 @@ def run_notes(s: RunSummary) -> str:
     notes = []
     if s.saturated_steps:
         notes.append(f"torque saturated in {s.saturated_steps} steps")
+    if s.rate_limited_steps:
+        notes.append(f"torque rate clipped by the motors in {s.rate_limited_steps} steps")
+    rate = _torque_rate(s)
+    if rate:
+        notes.append(rate)
     if s.safeguard_share > SAFEGUARD_NOTE:
         notes.append(f"safeguard acted on {s.safeguard_share:.0%} of steps")
     if s.rejected_samples:

@@ -86,6 +86,9 @@ class ScenarioSetup:
     # per case, the load on its path to the target that leaves a motor no room to brake
     # over gravity (cpbc.scenario.preflight): a warning before the run, a cause after it
     gravity_on_path: dict[str, GravityLoad] = dataclasses.field(default_factory=dict)
+    # per case that starts outside the safeguard's braking set V although a rescue brake
+    # stops it (cpbc.scenario.state_checks.check_stoppable): a note before the run
+    outside_braking_set: dict[str, str] = dataclasses.field(default_factory=dict)
     # a goal scenario's goal, preflight and posture (``target`` is then the posture x_n)
     goal: GoalPlan | None = None
     # a reference scenario's path, governor and plans (``goal`` is then its first sample)
@@ -114,7 +117,7 @@ class ScenarioSetup:
             entry = self.for_case(case, entry)
         loop = self.loop_settings
         run = guarded(entry.controller, loop.control_period, self.safeguard,
-                      loop.torque_limit, self.also_keep)
+                      loop.torque_limit, self.also_keep, loop.torque_rate_limit)
         if self.reference is None:
             return run
         turned = None if case is None else self.case_targets.get(case.name)

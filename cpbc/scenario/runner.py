@@ -90,6 +90,7 @@ def run_one(
         entry.name, case.name, entry.controller, setup.monitor, traj, setup.criteria,
         setup.rate_bounds, margins, setup.loop_settings.torque_limit,
         setup.model.coordinates.matrix, setup.model.length_coordinates,
+        setup.loop_settings.torque_rate_limit,
     )
     errors, logged = None, None
     if isinstance(law, ReferenceTracker) and setup.goal is not None:

@@ -133,6 +133,14 @@ class SimulationSpec(Strict):
     torque_limit_scale: Positive = Field(
         default=1.0, description=(
             "factor on the model's effort limits (from_model and auto)"))
+    # the motors' torque-rate limit: the plant clips a command beyond it (as a motor would)
+    # and the safeguard chooses only within it; None: unlimited
+    torque_rate_limit: Positive | list[Positive] | Literal["from_model", "none"] | None = Field(
+        default=None, description=(
+            "joint torque-rate limits |dτ/dt| ≤ ρ [N·m/s]: one number, one per joint, "
+            "from_model (a built-in arm that declares one), or none. The plant applies it "
+            "and the safeguard chooses only within it; the first command ramps from the "
+            "gravity torque at the start"))
     log_every: Annotated[int, Field(ge=1)] = Field(
         default=1, description=(
             "keep every k-th control sample in the log"))
