@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike
 from cpbc.arrays import Array
 from cpbc.controllers.controller import Controller, Evaluation, SafetyFilter
 from cpbc.errors import ParameterError
-from cpbc.model.robot_model import ArmState
+from cpbc.model.robot_model import ArmState, RobotModel
 from cpbc.reference.governor import GovernorSettings, PathGovernor
 from cpbc.reference.holding import holding_constraint
 from cpbc.reference.plan import ReferencePlan, log_norm
@@ -85,6 +85,10 @@ class ReferenceTracker(Controller):
         self.law, self.h, self.plan, self.feedforward = law, h, plan, feedforward
         self.frame, self.offset = frame, offset
         self.frame_name = str(self.model.model.frames[frame].name)
+        # the frame's kinematics between steps (a joint target, blocked_by) on data of its
+        # own: the law's model data holds its step's pass, which nothing else may touch
+        self._kinematics = RobotModel(law.model.model, law.model.coordinates,
+                                      name=law.model.name)
         self.settings = settings or GovernorSettings()
         if plan is not None:
             start = plan.points[0]
@@ -170,7 +174,7 @@ class ReferenceTracker(Controller):
                                                f"{', '.join(self.model.joint_names)}")
         v = np.zeros(n) if velocity is None else finite_vector(
             velocity, n, "velocity", "the joint target's velocity")
-        kin = self.model.state(x, v, frames=(self.frame,)).frames[self.frame]
+        kin = self._kinematics.state(x, v, frames=(self.frame,)).frames[self.frame]
         p, jv = kin.point(self.offset)
         self.requested[:] = p
         self.requested_velocity[:] = jv @ v
@@ -209,7 +213,7 @@ class ReferenceTracker(Controller):
             reached = float(np.max(np.abs(pull))) <= REACHED_JOINTS
             moving = float(np.max(np.abs(dx))) > STALLED_JOINTS
         else:
-            kin = self.model.state(x, dx, frames=(self.frame,)).frames[self.frame]
+            kin = self._kinematics.state(x, dx, frames=(self.frame,)).frames[self.frame]
             p, jv = kin.point(self.offset)
             error = p - self.requested
             pull = -(jv.T @ error)
