@@ -204,3 +204,17 @@ def test_a_joint_target_past_a_limit_is_reported(setup: ScenarioSetup) -> None:
     _run(law, plant, 7000)  # j7 rings against its barrier at 4-6 s, then rests
     assert 2.5 < plant.data.qpos[6] < 2.8973
     assert law.blocked_by == "position[panda_joint7]"
+
+
+@pytest.mark.parametrize("huge", [1e300, -1e200, 1e15])
+def test_a_huge_but_finite_target_leaves_the_torque_finite(setup: ScenarioSetup,
+                                                           huge: float) -> None:
+    law, plant = _tracker(setup), _plant(setup)
+    law.set_target([huge, 0.0, huge], [huge, huge, 0.0])
+    _run(law, plant, 200)  # asserts a finite torque at every step
+    law.set_joint_target(np.full(7, huge), np.full(7, -huge))
+    _run(law, plant, 200)
+    assert np.all(np.isfinite(law.moving.position)) and np.all(np.isfinite(law.moving.posture))
+    law.set_target(setup.goal.goal.position)  # type: ignore[union-attr]
+    _run(law, plant, 2500)
+    assert np.linalg.norm(_hand(setup, law, plant.data.qpos) - law.requested) < 0.01

@@ -269,7 +269,7 @@ class ReferenceTracker(Controller):
         if self._arrived:  # at a still target: nothing moves
             return
         gap = self.requested - target.position
-        share = _share(float(np.linalg.norm(gap)), self.h * pace * st.max_speed)
+        share = _share(math.hypot(*gap), self.h * pace * st.max_speed)
         if not self._posture_away:  # the posture rests at x_n: the point alone moves
             target.set(target.position + share * gap,
                        _capped(self.requested_velocity, pace * st.max_speed, share))
@@ -277,7 +277,7 @@ class ReferenceTracker(Controller):
             return
         goal = self.home if self.requested_posture is None else self.requested_posture
         turn = goal - target.posture
-        share = min(share, _share(float(np.linalg.norm(turn)),
+        share = min(share, _share(math.hypot(*turn),
                                   self.h * pace * st.max_joint_speed))
         target.set(target.position + share * gap,
                    _capped(self.requested_velocity, pace * st.max_speed, share),
@@ -355,7 +355,7 @@ def _capped(velocity: Array, speed: float, share: float) -> Array | None:
     None (zero) on the way."""
     if share < 1.0 or not speed > 0:
         return None
-    size = float(np.linalg.norm(velocity))
+    size = math.hypot(*velocity)
     return velocity if size <= speed else velocity * (speed / size)
 
 
