@@ -6,6 +6,7 @@ size is paced by the governor; a target the constraints hold the arm off is repo
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +15,8 @@ from cpbc.errors import ParameterError
 from cpbc.reference import GovernorSettings, ReferenceTracker, tracking
 from cpbc.scenario import ScenarioSetup, build, load_scenario
 from cpbc.simulation.plant import MujocoPlant
+
+SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 
 
 @pytest.fixture(scope="module")
@@ -218,3 +221,79 @@ def test_a_huge_but_finite_target_leaves_the_torque_finite(setup: ScenarioSetup,
     law.set_target(setup.goal.goal.position)  # type: ignore[union-attr]
     _run(law, plant, 2500)
     assert np.linalg.norm(_hand(setup, law, plant.data.qpos) - law.requested) < 0.01
+
+
+def _rotation_about_x(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _hand_rotation(setup: ScenarioSetup, x: np.ndarray) -> np.ndarray:
+    hand = setup.model.frame_id("panda_hand")
+    return setup.model.state(x, np.zeros(7), frames=(hand,)).frames[hand].rotation.copy()
+
+
+def test_a_pose_is_followed_by_the_laws_axis_spring(setup: ScenarioSetup) -> None:
+    # the law's gripper-down axis spring turns the tool axis to R_r a_b (its yaw free); the
+    # posture spring, still toward x_n, leaves 13 mrad and 2 mm (a compromise)
+    law, plant = _tracker(setup), _plant(setup)
+    start = _hand_rotation(setup, plant.data.qpos)
+    aim = _rotation_about_x(0.4) @ start
+    goal = law.requested + np.array([0.0, 0.0, 0.03])
+    law.set_pose(goal, aim)
+    _run(law, plant, 3000)
+    axis = _hand_rotation(setup, plant.data.qpos)[:, 2]
+    assert np.arccos(min(1.0, float(axis @ aim[:, 2]))) < 0.02
+    assert np.linalg.norm(_hand(setup, law, plant.data.qpos) - goal) < 0.005
+    assert law.moving.rotation is not None
+    np.testing.assert_allclose(law.moving.rotation, aim, atol=1e-12)
+
+
+def test_a_pose_turns_no_faster_than_the_governor_allows(setup: ScenarioSetup) -> None:
+    from cpbc.reference.rotations import angle_between
+
+    law, plant = _tracker(setup, settings=GovernorSettings(max_angular_speed=0.5)), \
+        _plant(setup)
+    start = _hand_rotation(setup, plant.data.qpos)
+    law.set_pose(law.requested, _rotation_about_x(2.5) @ start)
+    assert law.moving.rotation is not None
+    before = law.moving.rotation.copy()
+    for _ in range(300):
+        _run(law, plant, 1)
+        # 0.5 rad/s × 1 ms, to the angle's own rounding (from a quaternion's square roots)
+        assert angle_between(before, law.moving.rotation) <= 0.5e-3 + 1e-8
+        before = law.moving.rotation.copy()
+    assert angle_between(start, law.moving.rotation) > 0.0
+
+
+@pytest.mark.parametrize(("rotation", "says"), [
+    (np.eye(3) * 2.0, "not a rotation"),
+    (np.diag([1.0, 1.0, -1.0]), "not a rotation"),  # a reflection
+    ([1.0, 0.0, 0.0], "shape (3,)"),
+    ([np.nan, 0.0, 0.0, 1.0], "finite"),
+    ([2.0, 0.0, 0.0, 0.0], "norm 2"),
+])
+def test_a_bad_orientation_is_refused_and_the_previous_pose_stays(
+        setup: ScenarioSetup, rotation: object, says: str) -> None:
+    law = _tracker(setup)
+    good = law.requested + np.array([0.0, 0.0, 0.02])
+    law.set_pose(good, [1.0, 0.0, 0.0, 0.0])  # a unit quaternion: the world's axes
+    with pytest.raises(ValueError, match=re.escape(says)) as err:
+        law.set_pose(good + 0.1, rotation)  # type: ignore[arg-type]
+    assert isinstance(err.value, ParameterError) and err.value.parameter == "rotation"
+    np.testing.assert_array_equal(law.requested, good)
+    np.testing.assert_array_equal(law.requested_rotation, np.eye(3))
+
+
+def test_a_pose_for_a_law_without_an_orientation_spring_is_refused(
+        tmp_path: Path) -> None:
+    text = (SCENARIOS / "panda_goal_pose.yaml").read_text()
+    text = text.replace("  orientation:\n    axis: {tool: [0, 0, 1], world: [0, 0, -1]}\n", "")
+    text = text.replace(", rotation_omega_n: 24", "")
+    path = tmp_path / "panda_goal_point.yaml"
+    path.write_text(text)
+    point = build(*load_scenario(path))
+    law = _tracker(point)
+    with pytest.raises(ValueError, match=r"^rotation: the law has no orientation or axis"):
+        law.set_pose(law.requested, np.eye(3))
+    assert law.moving.rotation is None and law.requested_rotation is None

@@ -45,6 +45,8 @@ class GovernorSettings:
         on_infeasible: ``stop`` or ``rejoin`` at an inadmissible stretch of a path.
         max_joint_speed: [rad/s or m/s], > 0: the fastest the applied posture moves toward
             a streamed joint target.
+        max_angular_speed: [rad/s], > 0: the fastest the applied orientation turns toward a
+            streamed one.
     """
 
     budget: float = 1.0
@@ -54,9 +56,10 @@ class GovernorSettings:
     margin: float = 0.03
     on_infeasible: str = "stop"
     max_joint_speed: float = 1.0
+    max_angular_speed: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("budget", "gain", "max_speed", "max_joint_speed"):
+        for name in ("budget", "gain", "max_speed", "max_joint_speed", "max_angular_speed"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"governor.{name} must be > 0")
         if not self.catch_up >= 1 or not self.margin >= 0:

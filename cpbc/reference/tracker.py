@@ -23,11 +23,13 @@ from numpy.typing import ArrayLike
 
 from cpbc.arrays import Array
 from cpbc.controllers.controller import Controller, Evaluation, SafetyFilter
+from cpbc.controllers.potentials import FrameAxisSpring, FrameOrientationSpring
 from cpbc.errors import ParameterError
 from cpbc.model.robot_model import ArmState, RobotModel
 from cpbc.reference.governor import GovernorSettings, PathGovernor
 from cpbc.reference.holding import holding_constraint
 from cpbc.reference.plan import ReferencePlan, log_norm
+from cpbc.reference.rotations import angle_between, rotation_matrix, turned_toward
 from cpbc.reference.stream_checks import finite_vector, positive_period, state_vector
 from cpbc.reference.target import Follower, MovingTarget, Steered, steer
 
@@ -39,7 +41,7 @@ STALLED_JOINTS = 0.01  # [rad/s or m/s]: joints all slower than this are at rest
 
 class ReferenceTracker(Controller):
     """A law that follows a moving target: a planned path under the reference governor, or
-    targets streamed by a policy or a teleoperator (``set_target``,
+    targets streamed by a policy or a teleoperator (``set_target``, ``set_pose``,
     ``set_joint_target``) at any rate, each moved toward at the governor's pace
     (the ERG attraction of this module). It is a controller like any law: ask it for a
     torque at the control rate (``torque(x, dx)``, or the loop of
@@ -64,6 +66,7 @@ class ReferenceTracker(Controller):
     Attributes:
         requested: the streamed point p_r [m] (for a joint target, its forward kinematics).
         requested_posture: the streamed joint target, or None.
+        requested_rotation: the streamed orientation R_r, or None.
         frame_name: the frame whose point a streamed point target moves (``frame`` its id,
             ``offset`` the point in its axes, None for its origin).
         moving: the applied target (point, posture and their feed-forward) the law reads.
@@ -107,6 +110,8 @@ class ReferenceTracker(Controller):
         self.home = self.moving.posture.copy()  # the law's x_n, where a point stream keeps it
         self._posture_away = False  # whether the applied posture is off x_n or streamed
         self._arrived = False  # the applied point is at a still requested point, x_n at rest
+        self.requested_rotation: Array | None = None  # a streamed orientation, else None
+        self._rotation_away = False  # whether the applied rotation is turning toward it
         self.requested_posture_velocity = np.zeros(self.model.n)
         self._last: tuple[Array, Array] | None = None  # the state of the last step
         self.pace = 1.0  # the last step's share min(κΔ, 1) of the governor's top speed
@@ -146,16 +151,76 @@ class ReferenceTracker(Controller):
             ParameterError: (a ``ValueError``) ``position`` or ``velocity`` is not 3 finite
                 numbers; the previous target stays in force.
         """
-        p = finite_vector(position, 3, "position", f"the target point of frame "
-                                                   f"'{self.frame_name}' in the world [m]")
-        v = None if velocity is None else finite_vector(
-            velocity, 3, "velocity", "the velocity of the target point of frame "
-                                     f"'{self.frame_name}' [m/s]")
+        p, v = self._point(position, velocity)
         self.requested[:] = p
         self.requested_velocity[:] = 0.0 if v is None else v
         self.requested_posture = None
         self.requested_posture_velocity[:] = 0.0
         self._arrived = False
+
+    def set_pose(self, position: ArrayLike, rotation: ArrayLike,
+                 velocity: ArrayLike | None = None) -> None:
+        """Stream a pose for the law's frame: its point's ``position`` as
+        ``set_target``, and its ``rotation`` R_r in the world, a 3 × 3 rotation matrix
+        or a unit quaternion (w, x, y, z), toward which the law's orientation spring is
+        turned (an axis spring: its world axis to R_r a_b, the rotation about it left
+        free) along the shortest rotation, at most ``max_angular_speed`` at the governor's
+        pace; ``velocity`` ṗ_r is the point's (no angular feed-forward). A later point
+        target keeps the orientation.
+
+        The first pose steers the law's orientation spring, which then takes the law's
+        general path (no compiled step): slower per step than a point stream.
+
+        Raises:
+            ParameterError: (a ``ValueError``) ``position``, ``rotation`` or ``velocity`` is
+                not as above, or the law has no orientation spring on the frame; the
+                previous target stays in force.
+        """
+        p, v = self._point(position, velocity)
+        r = rotation_matrix(rotation, "rotation")
+        if self.moving.rotation is None:
+            self._steer_orientation()
+        self.requested[:] = p
+        self.requested_velocity[:] = 0.0 if v is None else v
+        self.requested_posture = None
+        self.requested_posture_velocity[:] = 0.0
+        self.requested_rotation = r
+        self._rotation_away = True
+        self._arrived = False
+
+    def _point(self, position: ArrayLike, velocity: ArrayLike | None
+               ) -> tuple[Array, Array | None]:
+        """A streamed point and its velocity, checked."""
+        p = finite_vector(position, 3, "position", f"the target point of frame "
+                                                   f"'{self.frame_name}' in the world [m]")
+        v = None if velocity is None else finite_vector(
+            velocity, 3, "velocity", "the velocity of the target point of frame "
+                                     f"'{self.frame_name}' [m/s]")
+        return p, v
+
+    def _steer_orientation(self) -> None:
+        """Steer the law's orientation (or axis) spring on the frame to the applied
+        rotation, which starts at the spring's goal (an axis spring's: the frame's rotation
+        at the law's posture x_n)."""
+        parts = getattr(self.law.potential, "parts", (self.law.potential,))
+        springs = [getattr(q, "spring", q) for q in parts]
+        found = [q for q in springs if isinstance(q, FrameOrientationSpring | FrameAxisSpring)
+                 and q.frame == self.frame]
+        if not found or isinstance(self.law, Follower):
+            raise ParameterError("rotation", "rotation: the law has no orientation or axis "
+                                             f"spring on frame '{self.frame_name}' to stream "
+                                             "an orientation to: stream points (set_target), "
+                                             "or build the law for a goal with an orientation")
+        spring = found[0]
+        if isinstance(spring, FrameOrientationSpring):
+            start = np.array(spring.rotation, dtype=float)
+        else:
+            kin = self._kinematics.state(self.home, np.zeros(self.model.n),
+                                         frames=(self.frame,)).frames[self.frame]
+            start = np.array(kin.rotation, dtype=float)
+        self.moving.rotation = start
+        steer(self.law, self.moving)
+        self.potential = self.law.potential
 
     def set_joint_target(self, joints: ArrayLike, velocity: ArrayLike | None = None
                          ) -> None:
@@ -270,7 +335,7 @@ class ReferenceTracker(Controller):
             return
         gap = self.requested - target.position
         share = _share(math.hypot(*gap), self.h * pace * st.max_speed)
-        if not self._posture_away:  # the posture rests at x_n: the point alone moves
+        if not (self._posture_away or self._rotation_away):  # the point alone moves
             target.set(target.position + share * gap,
                        _capped(self.requested_velocity, pace * st.max_speed, share))
             self._arrived = share == 1.0 and not self.requested_velocity.any()
@@ -279,6 +344,12 @@ class ReferenceTracker(Controller):
         turn = goal - target.posture
         share = min(share, _share(math.hypot(*turn),
                                   self.h * pace * st.max_joint_speed))
+        rotation, aim = target.rotation, self.requested_rotation
+        if self._rotation_away and rotation is not None and aim is not None:
+            share = min(share, _share(angle_between(rotation, aim),
+                                      self.h * pace * st.max_angular_speed))
+            rotation[:] = turned_toward(rotation, aim, share)
+            self._rotation_away = share < 1.0
         target.set(target.position + share * gap,
                    _capped(self.requested_velocity, pace * st.max_speed, share),
                    target.posture + share * turn,
@@ -321,7 +392,7 @@ def tracking(law: Controller, period: float, plan: ReferencePlan | None = None,
         law: a law built for a goal (a task potential: a frame position spring and a
             posture spring).
         period: the control period h [s], > 0: the tracker's clock is its count of steps.
-        plan: a planned path, or None to stream targets (``set_target``,
+        plan: a planned path, or None to stream targets (``set_target``, ``set_pose``,
             ``set_joint_target``), starting at the law's goal.
         settings: the reference governor's settings (``GovernorSettings()`` when omitted).
         feedforward: pass the reference's velocity to the task damping.
