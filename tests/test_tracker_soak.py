@@ -1,8 +1,9 @@
 """A soak of the streamed target (cpbc.reference.tracker): the user's own 1 kHz MuJoCo loop
 (``mujoco.mj_step`` and the tracker's torque) on the Panda beside a ball and above a table,
-10 s of a 50 Hz policy streaming everything a policy can send — NaN, inf, wrong lengths,
+11 s of a 50 Hz policy streaming everything a policy can send — NaN, inf, wrong lengths,
 1 m jumps, points inside the ball and under the table, joint targets past their limits,
-bursts at 1 kHz, 2 s of silence — then valid targets again. Checked at every step from
+poses at random orientations and malformed orientations, bursts at 1 kHz, 2 s of silence —
+then valid targets again. Checked at every step from
 MuJoCo's own state: every monitored constraint (joint ranges, rates, the ball's and the
 table's clearance) keeps a positive margin, no arm geom touches an obstacle, the torque is
 finite and within the arm's limits; and within ``RESUME`` seconds of valid targets returning
@@ -57,7 +58,7 @@ def _bad(rng: np.random.Generator, k: int) -> Message:
 
 
 def _policy(rng: np.random.Generator, t: float, goal: np.ndarray, posture: np.ndarray,
-            ball: np.ndarray, walk: np.ndarray) -> list[Message]:
+            ball: np.ndarray, start: np.ndarray, walk: np.ndarray) -> list[Message]:
     """What the policy sends at time t: (kind, value) pairs, each a point unless named."""
     tick = round(t * RATE) // POLICY
     if t < 1.5:  # a random walk, a bad message every fourth tick
@@ -71,7 +72,13 @@ def _policy(rng: np.random.Generator, t: float, goal: np.ndarray, posture: np.nd
         past = np.resize([3.0, 2.0, -3.0, 3.0, 3.0, -3.0, 4.0], len(posture))
         far = posture + past * (tick % 2 * 2 - 1)
         return [("joints", far), ("short joints", far[:4]), ("nan joints", far * np.nan)]
-    return [("point", walk)]  # 4.5-6 s and from 8 s: the walk again
+    if t < 4.9:  # poses at random orientations, and malformed orientations
+        turn = np.random.default_rng(tick).normal(size=4)  # rng's draws stay as they were
+        return [("pose", (walk, turn / np.linalg.norm(turn))), ("bad pose", (walk, turn)),
+                ("bad pose", (walk, -start))]
+    if t < 5.0:  # the start's orientation again
+        return [("pose", (walk, start))]
+    return [("point", walk)]  # from 8 s: the walk again
 
 
 def _burst(rng: np.random.Generator, t: float, goal: np.ndarray) -> list[Message]:
@@ -85,12 +92,14 @@ def _burst(rng: np.random.Generator, t: float, goal: np.ndarray) -> list[Message
 
 def _send(law: ReferenceTracker, soak: Soak, t: float, kind: str, value: object) -> None:
     """Send one message; a malformed one must be refused, a well-formed one accepted."""
-    malformed = kind not in ("point", "joints")
+    malformed = kind not in ("point", "joints", "pose")
     if malformed:
         soak.sent[kind] = soak.sent.get(kind, 0) + 1
     try:
         if kind.endswith("joints"):
             law.set_joint_target(value)  # type: ignore[arg-type]
+        elif kind.endswith("pose"):
+            law.set_pose(*value)  # type: ignore[misc]
         else:
             law.set_target(value)  # type: ignore[arg-type]
     except ValueError:
@@ -119,6 +128,9 @@ def _soak(setup: ScenarioSetup) -> Soak:
     plant.reset(setup.goal.posture, np.zeros(model.nv))
     goal, posture = setup.goal.goal.position, setup.goal.posture
     ball = next(ob.centre for ob in setup.obstacles if ob.name == "ball")
+    hand = law.frame
+    start = setup.model.state(posture, np.zeros(model.nv),
+                              frames=(hand,)).frames[hand].rotation.copy()
     limit = setup.loop_settings.torque_limit
     rng = np.random.default_rng(7)
     walk = goal.copy()
@@ -131,7 +143,7 @@ def _soak(setup: ScenarioSetup) -> Soak:
         if 5.0 <= t < 6.0:
             messages = _burst(rng, t, goal)
         elif k % POLICY == 0 and not SILENCE[0] <= t < SILENCE[1]:
-            messages = _policy(rng, t, goal, posture, ball, walk)
+            messages = _policy(rng, t, goal, posture, ball, start, walk)
         for kind, value in messages:
             _send(law, soak, t, kind, value)
         tau = law.torque(data.qpos, data.qvel)  # the user's loop: their state, our torque
