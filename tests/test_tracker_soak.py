@@ -128,9 +128,8 @@ def _soak(setup: ScenarioSetup) -> Soak:
     plant.reset(setup.goal.posture, np.zeros(model.nv))
     goal, posture = setup.goal.goal.position, setup.goal.posture
     ball = next(ob.centre for ob in setup.obstacles if ob.name == "ball")
-    hand = law.frame
     start = setup.model.state(posture, np.zeros(model.nv),
-                              frames=(hand,)).frames[hand].rotation.copy()
+                              frames=(law.frame,)).frames[law.frame].rotation.copy()
     limit = setup.loop_settings.torque_limit
     rng = np.random.default_rng(7)
     walk = goal.copy()
