@@ -23,8 +23,9 @@ class ModelError(CpbcError):
         return type(self), (str(self), self.parameter)
 
 
-class ParameterError(CpbcError):
-    """A named constructor argument is invalid (``kp``, ``mass_scale``, …).
+class ParameterError(CpbcError, ValueError):
+    """A named constructor argument is invalid (``kp``, ``mass_scale``, …): a ``ValueError``
+    too, as Python callers expect of a bad argument.
 
     Attributes:
         parameter: the argument's name, so that a caller can map it to its own field.

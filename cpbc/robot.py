@@ -23,6 +23,7 @@ import pinocchio as pin
 import yaml
 
 from cpbc.errors import CpbcError, ModelError
+from cpbc.model.actuators import apply_actuator_efforts
 from cpbc.model.arms import ARMS
 from cpbc.model.gravity_load import BRAKING_DECELERATION, holdable_near, joint_loads
 from cpbc.model.loading import load_arm
@@ -89,32 +90,10 @@ def _describe_mjcf(path: Path, model_name: str) -> RobotDescription:
     limited = mj.jnt_limited[:n].astype(bool)
     lower = np.where(limited, mj.jnt_range[:n, 0], -np.inf)
     upper = np.where(limited, mj.jnt_range[:n, 1], np.inf)
+    effort = apply_actuator_efforts(pm, mj)  # what from_model reads when it runs
     limits = JointLimits(tuple(pm.names[1:]), lower, upper, np.full(n, np.inf),
-                         actuator_efforts(mj, n))
+                         np.where(effort > 0, effort, np.inf))
     return RobotDescription(model_name, f"MJCF {path}", limits, _frames(pm), pin_model=pm)
-
-
-def actuator_efforts(mj: mujoco.MjModel, n: int) -> np.ndarray:
-    """The effort limit [N·m or N] of each of the first ``n`` joints from the actuators that
-    drive it, inf where none limits it: |gear| times the smaller bound of a limited
-    ``forcerange`` and, for a direct-torque actuator (fixed gain, no bias: ``motor``), of a
-    limited ``ctrlrange`` times the gain. Several actuators on one joint add up (inf if one of
-    them is unlimited)."""
-    total, driven = np.zeros(n), np.zeros(n, dtype=bool)
-    for a in range(mj.nu):
-        joint = int(mj.actuator_trnid[a, 0])
-        if mj.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_JOINT or not 0 <= joint < n:
-            continue
-        bounds = [np.inf]
-        if mj.actuator_forcelimited[a]:
-            bounds.append(np.min(np.abs(mj.actuator_forcerange[a])))
-        direct = (mj.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
-                  and mj.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE)
-        if mj.actuator_ctrllimited[a] and direct:
-            bounds.append(abs(mj.actuator_gainprm[a, 0]) * np.min(np.abs(mj.actuator_ctrlrange[a])))
-        total[joint] += abs(mj.actuator_gear[a, 0]) * min(bounds)
-        driven[joint] = True
-    return np.where(driven, total, np.inf)
 
 
 def describe(name_or_path: str, locked: Mapping[str, float] | None = None

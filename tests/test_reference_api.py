@@ -14,6 +14,7 @@ from cpbc.scenario import build, load_scenario
 from cpbc.simulation.loop import run_mujoco
 
 PAGE = Path(__file__).resolve().parents[1] / "docs" / "task-space.md"
+API_PAGE = PAGE.with_name("api.md")
 
 
 def test_the_docs_example_runs(capsys: object) -> None:
@@ -40,3 +41,17 @@ def test_a_streamed_target_is_followed() -> None:
     p = model.point_position(goal.goal.frame, traj.position[-1], goal.goal.offset)
     assert traj.outcome == "completed"
     assert np.linalg.norm(p - law.requested) < 0.01
+
+
+def test_the_api_pages_policy_loop_runs() -> None:
+    """The user's own MuJoCo loop of docs/api.md, a policy at 50 Hz and the law at 1 kHz,
+    brings the hand to the streamed point."""
+    code = re.search(r"<!-- policy-loop -->\n```python\n(.*?)```", API_PAGE.read_text(), re.S)
+    assert code is not None
+    assert len(code.group(1).strip().splitlines()) <= 16
+    scope: dict[str, object] = {}
+    exec(compile(code.group(1), "api example", "exec"), scope)
+    law, setup, data = scope["law"], scope["setup"], scope["data"]
+    hand = setup.model.point_position(law.frame, data.qpos, law.offset)  # type: ignore[attr-defined]
+    assert np.linalg.norm(hand - law.requested) < 0.01  # type: ignore[attr-defined]
+    assert law.blocked_by is None  # type: ignore[attr-defined]

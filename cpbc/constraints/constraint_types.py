@@ -63,6 +63,11 @@ class ConfigurationConstraint(HasMargins, ABC):
         phi, grad = self.evaluate(state.x)
         return phi, (1.0 / phi) @ grad, phi
 
+    def barrier_ratio(self, phi: Array) -> Array:
+        """(dφ̃/dφ)/φ̃ at the margins ``phi``: what turns ∇φ_i into the law's ∇φ̃_i/φ̃_i;
+        1/φ unless the law is given other functions φ̃ (a localised Clearance)."""
+        return 1.0 / phi
+
     def values_along(self, xs: Array) -> Array:
         """φ at each row of xs, shape (N, k); vectorised by subclasses where they can."""
         return np.array([self.value(x) for x in xs]).reshape(len(xs), len(self.names))

@@ -42,7 +42,8 @@ class CPBC(PacksItsLaw):
         model: the controller's robot model.
         target: x_d, inside S (the posture x_n with a task potential).
         constraints: the enforced constraints.
-        kp, kd: diagonal gains (number or list of n), > 0.
+        kp: the diagonal stiffness K_P (a number or a list of n), > 0.
+        kd: the diagonal damping K_D (a number or a list of n), > 0.
         shaping: s(x); Identity (Theorem 6.9) when omitted.
         potential: U; the joint spring ½x̃ᵀK_P x̃ toward ``target`` (eq. 6.7) when omitted.
         task_damping: F(x, ẋ) with ẋᵀF ≥ 0 added to K_D ẋ (cpbc.controllers.task_damping);

@@ -38,7 +38,7 @@ FRICTION_SMOOTHING = 0.05
 
 class ArmState(NamedTuple):
     """Everything a law and its constraints read at one control step, computed once by
-    :meth:`RobotModel.state`: the state and the terms of D(q) q̈ + C(q, q̇) q̇ + g(q) + f(q̇) = τ
+    ``RobotModel.state``: the state and the terms of D(q) q̈ + C(q, q̇) q̇ + g(q) + f(q̇) = τ
     (eq. 6.1), in controller coordinates.
 
     It is the only place a law, its constraints and its potential read the arm from: none of
@@ -55,7 +55,7 @@ class ArmState(NamedTuple):
         gravity: g, shape (n,).
         dissipation: f(ẋ) = F_d ẋ + T⁻ᵀ F_c tanh(q̇/ε), shape (n,) (RobotModel.dissipation).
         frames: the placement and Jacobian of every frame asked for (``frames=`` of
-            :meth:`RobotModel.state`, e.g. those a task potential reads), by frame id; empty
+            ``RobotModel.state``, e.g. those a task potential reads), by frame id; empty
             when none was asked for.
         coriolis_matrix: C(x, ẋ) in Christoffel form, shape (n, n), with ``coriolis=True``
             (the kinetic-energy limit's ∂ψ/∂x = −Cᵀẋ), else None.
@@ -82,7 +82,7 @@ class ArmState(NamedTuple):
 def _returns_own_arrays(model: pin.Model, data: pin.Data) -> bool:
     """Whether Pinocchio's CRBA, gravity, static regressor and Coriolis matrix return arrays
     of their own (eigenpy copies a function's result), not views of ``data`` that the next
-    pass overwrites: then :meth:`RobotModel.state` need not copy them again. Asked once,
+    pass overwrites: then ``RobotModel.state`` need not copy them again. Asked once,
     of the installed Pinocchio."""
     q = pin.neutral(model)
     found = (pin.crba(model, data, q), pin.computeGeneralizedGravity(model, data, q),
@@ -189,7 +189,7 @@ class RobotModel:
         self._crba_upper_only = probe is not None and not np.allclose(probe, probe.T)
         self._lower = np.tril_indices(self.n, -1)
         # numpy views of the Pinocchio data's D, C q̇ + g, g, joint Jacobians and static
-        # regressor, which each pass rewrites in place: :meth:`state` copies them out (a view
+        # regressor, which each pass rewrites in place: ``state`` copies them out (a view
         # made once costs nothing per step; Pinocchio's accessors make a new one each call)
         self._all_terms = (self.data.M, self.data.nle, self.data.g)
         self._joint_jacobians = self.data.J
@@ -199,7 +199,7 @@ class RobotModel:
     @property
     def length_joints(self) -> Array:
         """Which joints are prismatic (their coordinate a length [m], their torque a force
-        [N]), in the order of :attr:`joint_names`."""
+        [N]), in the order of ``joint_names``."""
         return np.array([_is_prismatic(j.shortname()) for j in self.model.joints[1:]],
                         dtype=bool)
 
@@ -317,12 +317,12 @@ class RobotModel:
                    tables: tuple[NDArray[np.int64], Array], work: Array) -> PassReader:
         """The per-step state unfinished, for a compiled law that finishes and reads it at
         once (cpbc.kernels.laws.cpbc_pass_step): a function of (x, ẋ) giving that kernel's
-        arguments — its two constant ``tables``, x, ẋ and :meth:`state`'s one pass in joint
+        arguments — its two constant ``tables``, x, ẋ and ``state``'s one pass in joint
         coordinates (D, nle = C q̇ + g, g, C (``coriolis``; else empty), the placement and
         Jacobian of ``frame`` (≥ 0; else identity and empty), the joint placements and
         Jacobians (``kinematics``; else empty)), then ``work`` and a new array of n
         entries, where the kernel writes. D, nle, g and the joint Jacobians are views of
-        the model's data, which its next pass overwrites: :meth:`state` copies them out and
+        the model's data, which its next pass overwrites: ``state`` copies them out and
         changes their coordinates; here the caller's kernel does, before anything else
         runs. The whole tuple is made here at once: built from a tuple this returned, it
         costs about 110 ns more a step.
@@ -417,7 +417,7 @@ class RobotModel:
 
     def coordinate_supports(self) -> Array:
         """(n, n): row k is 1 on the coordinates of the joints that move coordinate k's link
-        (:meth:`joint_supports` by coordinate), what cpbc.kernels.clearance.sphere_motion
+        (``joint_supports`` by coordinate), what cpbc.kernels.clearance.sphere_motion
         reads as ``joint_supports``."""
         model, supports = self.model, self.joint_supports()
         out = np.zeros((self.n, self.n))
@@ -463,7 +463,7 @@ class RobotModel:
         return m, nle, g, owned
 
     def dynamics(self, x: Array, dx: Array) -> ArmState:
-        """The per-step state without kinematics (:meth:`state`)."""
+        """The per-step state without kinematics (``state``)."""
         return self.state(x, dx)
 
     def kinetic_energy(self, x: Array, dx: Array) -> float:
@@ -506,7 +506,7 @@ class RobotModel:
 
     def _state_frame(self, frame_id: int) -> FrameKinematics:
         """A frame's placement and Jacobian (controller coordinates) from the kinematics pass
-        of :meth:`state`."""
+        of ``state``."""
         # the frame's own placement only (one frame: cheaper than every frame's)
         placement = pin.updateFramePlacement(self.model, self.data, frame_id).homogeneous
         j = pin.getFrameJacobian(self.model, self.data, frame_id, _WORLD_ALIGNED)
@@ -538,5 +538,5 @@ class RobotModel:
         return placement.translation.copy(), placement.rotation.copy()
 
     def point_jacobian(self, frame_id: int, x: Array, offset: Array | None = None) -> Array:
-        """∂p/∂x of a point fixed in a frame, shape (3, n) (:meth:`point_kinematics`)."""
+        """∂p/∂x of a point fixed in a frame, shape (3, n) (``point_kinematics``)."""
         return self.point_kinematics(frame_id, x, offset)[1]

@@ -18,7 +18,7 @@ stretch whose blend fails is planned as lasting to the path's end, so rejoin sto
 non-increasing for a frozen reference. v_max keeps the applied reference Lipschitz even
 where the path jumps (a CSV glitch).
 
-Per step the governor does scalar arithmetic only (:meth:`PathGovernor.advance`); the
+Per step the governor does scalar arithmetic only (``PathGovernor.advance``); the
 tables it reads (normalisation and stretches) are built offline.
 """
 
@@ -32,8 +32,22 @@ POLICIES = ("stop", "rejoin")
 
 @dataclass(frozen=True)
 class GovernorSettings:
-    """Γ ``budget`` [J], κ ``gain`` [1/s], ρ_max ``catch_up`` (≥ 1), v_max ``max_speed``
-    [m/s], δ ``margin`` of S_δ (configuration margin units), ``on_infeasible``."""
+    """The reference governor's settings (module docstring), all checked at construction
+    (``ValueError`` naming the field).
+
+    Attributes:
+        budget: Γ [J], > 0: the applied reference moves only while V̄ < Γ.
+        gain: κ [1/s], > 0: how fast the pace falls as V̄ nears Γ.
+        catch_up: ρ_max, ≥ 1: the path's rate while the applied path time lags its clock.
+        max_speed: v_max [m/s], > 0: the fastest the applied point moves (a path's jump, a
+            streamed target's jump of any size).
+        margin: δ, ≥ 0: the configuration margin of S_δ a planned path's posture keeps.
+        on_infeasible: ``stop`` or ``rejoin`` at an inadmissible stretch of a path.
+        max_joint_speed: [rad/s or m/s], > 0: the fastest the applied posture moves toward
+            a streamed joint target.
+        max_angular_speed: [rad/s], > 0: the fastest the applied orientation turns toward a
+            streamed one.
+    """
 
     budget: float = 1.0
     gain: float = 20.0
@@ -41,9 +55,11 @@ class GovernorSettings:
     max_speed: float = 1.0
     margin: float = 0.03
     on_infeasible: str = "stop"
+    max_joint_speed: float = 1.0
+    max_angular_speed: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("budget", "gain", "max_speed"):
+        for name in ("budget", "gain", "max_speed", "max_joint_speed", "max_angular_speed"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"governor.{name} must be > 0")
         if not self.catch_up >= 1 or not self.margin >= 0:
@@ -62,7 +78,7 @@ class Block:
 
 
 class PathGovernor:
-    """s_v and its state; :meth:`advance` once per control period.
+    """s_v and its state; ``advance`` once per control period.
 
     Attributes:
         s: the applied path time s_v; ``rate``: the last ṡ_v; ``blend``: during a rejoin, the

@@ -20,6 +20,8 @@ from cpbc.constraints.packing import Packed
 from cpbc.controllers.controller import Controller
 from cpbc.controllers.pd import PDGravity
 from cpbc.controllers.potentials import (
+    FrameAxisSpring,
+    FrameOrientationSpring,
     FramePositionLogCosh,
     FramePositionSpring,
     GradientBound,
@@ -38,13 +40,15 @@ from cpbc.kernels.law_terms import JOINT_FEEDFORWARD, joint_feedforward
 class MovingTarget:
     """The applied reference: ``position`` p_d (3,), ``velocity`` ṗ_ff (3,) and ``posture``
     x_n (n,) and its feed-forward ``posture_velocity`` ẋ_n,ff (n,), written in place by
-    :meth:`set`."""
+    :meth:`set`; and ``rotation`` R_d (3, 3), written in place, once a streamed orientation
+    steers the law's orientation spring (None before)."""
 
     def __init__(self, position: Array, posture: Array) -> None:
         self.position = np.array(position, dtype=float)
         self.velocity = np.zeros(3)
         self.posture = np.array(posture, dtype=float)
         self.posture_velocity = np.zeros_like(self.posture)
+        self.rotation: Array | None = None
 
     def set(self, position: Array, velocity: Array | None = None,
             posture: Array | None = None, posture_velocity: Array | None = None) -> None:
@@ -66,13 +70,16 @@ class _Steerable(Protocol):
     @property
     def gradient_bound(self) -> GradientBound | None: ...
 
+    def evaluate(self, at: Placed) -> tuple[float, Array]: ...
+
     def evaluate_toward(self, at: Placed, goal: Array) -> tuple[float, Array]: ...
 
 
 @dataclass(frozen=True)
 class Steered:
-    """A spring whose goal is the target's ``position`` (a frame spring) or ``posture`` (a
-    joint spring)."""
+    """A spring whose goal is the target's ``position`` (a frame spring), ``posture`` (a
+    joint spring), ``rotation`` (an orientation spring) or the ``axis`` R_d a_b of its
+    rotation (an axis spring, which leaves the rotation about that axis free)."""
 
     spring: _Steerable
     target: MovingTarget
@@ -95,13 +102,23 @@ class Steered:
 
     @property
     def _goal(self) -> Array:
-        return self.target.position if self.reads == "position" else self.target.posture
+        if self.reads == "position":
+            return self.target.position
+        if self.reads == "posture":
+            return self.target.posture
+        rotation = self.target.rotation
+        assert rotation is not None  # steered only once the target has one
+        return rotation if self.reads == "rotation" else rotation @ self.spring.tool  # type: ignore[attr-defined]
 
     def packed(self) -> tuple[Packed, ...] | None:
         """The spring's terms for a law's kernel with its goal read from the target before
-        each step (``Packed.live``), unless the spring does not pack."""
+        each step (``Packed.live``), unless the spring does not pack; a steered orientation
+        does not (its goal is a matrix, or a vector computed from one: the law then takes
+        its general path)."""
         packed = getattr(self.spring, "packed", None)
-        return None if packed is None else packed(toward=self._goal)
+        if packed is None or self.reads in ("rotation", "axis"):
+            return None
+        return packed(toward=self._goal)
 
 
 @dataclass(frozen=True)
@@ -151,16 +168,23 @@ class Follower(Protocol):
 
 def _steer_part(part: Potential, target: MovingTarget) -> Potential:
     if isinstance(part, Steered):  # steered before (an earlier run): to the new target
+        if part.reads in ("rotation", "axis") and target.rotation is None:
+            return part.spring  # its own goal again: the new target streams no orientation
         return Steered(part.spring, target, part.reads)
     if isinstance(part, FramePositionSpring | FramePositionLogCosh):
         return Steered(part, target, "position")
     if isinstance(part, JointSpring | JointLogCoshSpring):
         return Steered(part, target, "posture")
+    if target.rotation is not None and isinstance(part, FrameOrientationSpring):
+        return Steered(part, target, "rotation")
+    if target.rotation is not None and isinstance(part, FrameAxisSpring):
+        return Steered(part, target, "axis")
     return part
 
 
 def steer(law: Controller, target: MovingTarget) -> Controller:
-    """Make ``law`` read its frame goal, posture and feed-forward from ``target`` (in place;
+    """Make ``law`` read its frame goal, posture and feed-forward (and, once ``target`` has a
+    rotation, its orientation or axis goal) from ``target`` (in place;
     the law is returned; a law steered before reads the new target). The law needs a task
     potential (a sum with one frame position spring) and, for the feed-forward, task
     damping. A :class:`Follower` is handed the target instead."""

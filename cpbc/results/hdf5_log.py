@@ -193,6 +193,6 @@ def read_run(log: h5py.File, case: str, controller: str) -> dict[str, Any]:
 
 
 def load_log(path: Path | str, case: str, controller: str) -> dict[str, Any]:
-    """:func:`read_run` of a ``trajectories.h5`` at ``path``."""
+    """``read_run`` of a ``trajectories.h5`` at ``path``."""
     with h5py.File(path, "r") as f:
         return read_run(f, case, controller)

@@ -1,8 +1,8 @@
 """What a run did, judged from its data: status, settle time, peaks, margins, V.
 
-:class:`RunSummary` is the one record of a run, an arm's (:func:`summarise`) or a Part I
+``RunSummary`` is the one record of a run, an arm's (``summarise``) or a Part I
 system's (cpbc.results.system_metrics): the same status vocabulary and the same fields where
-they apply, a Part I run's own quantities in its :class:`SystemOutcome` (``system``)."""
+they apply, a Part I run's own quantities in its ``SystemOutcome`` (``system``)."""
 
 from __future__ import annotations
 
@@ -258,7 +258,7 @@ def summarise(
     """Condense a trajectory into a RunSummary.
 
     Args:
-        margins: :func:`margin_history` of the run, when already computed.
+        margins: ``margin_history`` of the run, when already computed.
         torque_limits: the plant's joint torque limits, shape (n,), or None.
         coordinates: T of x = T q (the identity when omitted).
         lengths: which coordinates are lengths (RobotModel.length_coordinates), for the

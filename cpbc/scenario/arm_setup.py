@@ -21,6 +21,7 @@ from cpbc.controllers import Controller
 from cpbc.controllers.safeguard import SafeguardSettings, guarded
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model import LinearCoordinates, RobotModel
+from cpbc.model.actuators import apply_actuator_efforts
 from cpbc.model.arms import ARMS
 from cpbc.model.gravity_load import GravityLoad
 from cpbc.model.joint_dynamics import JointDynamics
@@ -124,7 +125,7 @@ class ScenarioSetup:
         """The entry's law as the scenario runs it in the sampled-data loop: wrapped in the
         safeguard at the loop's control period and torque limit, when it has one; with a
         reference, inside a fresh tracker (cpbc.reference.tracker) for one run. With a
-        ``case``, the law of :meth:`for_case` (and its posture path turned likewise)."""
+        ``case``, the law of ``for_case`` (and its posture path turned likewise)."""
         if case is not None:
             entry = self.for_case(case, entry)
         loop = self.loop_settings
@@ -231,12 +232,15 @@ def _coordinates(robot: s.RobotSpec, n: int) -> LinearCoordinates:
 
 
 def _robot_model(
-    path: Path, robot: s.RobotSpec, arm: LoadedArm | None = None
+    path: Path, robot: s.RobotSpec, arm: LoadedArm | None = None,
+    plant: mujoco.MjModel | None = None,
 ) -> RobotModel:
     if arm is not None:  # a copy: the reference plant must not share the controller's model
         probe = RobotModel(pin.Model(arm.model), name=arm.name)
     else:
         probe = RobotModel.from_mjcf(path)
+        if plant is not None:  # an MJCF declares its efforts on its actuators
+            apply_actuator_efforts(probe.model, plant)
     coords = _coordinates(robot, probe.n)
     joints = joint_dynamics(robot, probe.model, None if arm is None else arm.urdf_text)
     return RobotModel(joints.on_pinocchio(probe.model), coords, joints.viscous,
@@ -268,9 +272,9 @@ def load_robot(scenario: s.Scenario, scenario_file: Path) -> tuple[
     arm = robots.load_scenario_arm(scenario.robot, scenario_file.parent)
     path = arm.urdf_path if arm is not None else _model_path(scenario.robot, scenario_file.parent)
     try:
-        model = _robot_model(path, scenario.robot, arm=arm)
         plant = (arm.mujoco_model() if arm is not None
                  else mujoco.MjModel.from_xml_path(str(path)))
+        model = _robot_model(path, scenario.robot, arm=arm, plant=plant)
     except ScenarioError:
         raise
     except (CpbcError, ValueError) as exc:

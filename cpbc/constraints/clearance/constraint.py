@@ -316,6 +316,10 @@ class Clearance(PairLayout, ConfigurationConstraint):
         localised_terms(phi, ell, shaped, ratio)
         return shaped, ratio
 
+    def barrier_ratio(self, phi: Array) -> Array:
+        """(dφ̃/dφ)/φ̃: zero for a pair beyond the influence distance."""
+        return self._shape(phi)[1]
+
     def _near_groups(self, y: Array) -> list[CapsuleGroup]:
         """Capsule groups with a pair that may be within the influence distance."""
         if not self._groups:

@@ -89,15 +89,21 @@ class FrameOrientationSpring(OnOneFrame):
 
     def evaluate(self, at: Placed) -> tuple[float, Array]:
         """(cpbc.kernels.task.orientation_spring)"""
+        return self.evaluate_toward(at, self.rotation)
+
+    def evaluate_toward(self, at: Placed, goal: Array) -> tuple[float, Array]:
+        """U and ∂U/∂x with R_d = ``goal`` in place of the spring's own (a streamed
+        orientation, cpbc.reference.target)."""
         kin = frame_at(at, self.frame)
         grad = np.empty(kin.jacobian.shape[1])
-        value = orientation_spring(kin.rotation, kin.jacobian, self.rotation, self.stiffness,
-                                   grad)
+        value = orientation_spring(kin.rotation, kin.jacobian, goal, self.stiffness, grad)
         return value, grad
 
     def packed(self) -> tuple[Packed, ...] | None:
         """R_d and k for a law's kernel, unless a subclass overrides ``evaluate``."""
-        if type(self).evaluate is not FrameOrientationSpring.evaluate:
+        cls = type(self)
+        if cls.evaluate is not FrameOrientationSpring.evaluate or (
+                cls.evaluate_toward is not FrameOrientationSpring.evaluate_toward):
             return None
         return (Packed(ORIENTATION_SPRING, (self.rotation, np.array([[self.stiffness]])),
                        frame=self.frame),)
@@ -145,15 +151,21 @@ class FrameAxisSpring(OnOneFrame):
 
     def evaluate(self, at: Placed) -> tuple[float, Array]:
         """(cpbc.kernels.task.axis_spring)"""
+        return self.evaluate_toward(at, self.world)
+
+    def evaluate_toward(self, at: Placed, goal: Array) -> tuple[float, Array]:
+        """U and ∂U/∂x with a_w = ``goal`` (a unit vector) in place of the spring's own (a
+        streamed orientation R_r: a_w = R_r a_b, cpbc.reference.target)."""
         kin = frame_at(at, self.frame)
         grad = np.empty(kin.jacobian.shape[1])
-        value = axis_spring(kin.rotation, kin.jacobian, self.tool, self.world, self.stiffness,
-                            grad)
+        value = axis_spring(kin.rotation, kin.jacobian, self.tool, goal, self.stiffness, grad)
         return value, grad
 
     def packed(self) -> tuple[Packed, ...] | None:
         """a_b, a_w and k for a law's kernel, unless a subclass overrides ``evaluate``."""
-        if type(self).evaluate is not FrameAxisSpring.evaluate:
+        cls = type(self)
+        if cls.evaluate is not FrameAxisSpring.evaluate or (
+                cls.evaluate_toward is not FrameAxisSpring.evaluate_toward):
             return None
         return (Packed(AXIS_SPRING, (np.vstack([self.tool, self.world]),
                                      np.array([[self.stiffness]])), frame=self.frame),)

@@ -160,7 +160,8 @@ class SimulationSpec(Strict):
         default="mujoco", description=(
             "mujoco (sampled-data loop) or reference (SciPy solve_ivp on Pinocchio's forward "
             "dynamics, continuous-time control)"))
-    # symmetric actuator limits; "from_model": the URDF's effort limits (× torque_limit_scale);
+    # symmetric actuator limits; "from_model": the model's effort limits (a URDF's effort
+    # tags, an MJCF's actuators: cpbc.model.actuators) (× torque_limit_scale);
     # "auto" (the default): the same when the model declares them for every joint, else none;
     # "none" (or null): no limit. The default is a value, not "left out", so that a scenario
     # rebuilt from its JSON dump (a worker process) gets the same limits.

@@ -1,0 +1,52 @@
+"""What a policy streams, checked before it is used: a streamed target (a point, a joint
+vector) and its velocity, the control period and the state the tracker is asked at. A value
+that fails raises :class:`~cpbc.errors.ParameterError` (a ``ValueError``) naming the argument
+and what it must be, and nothing is written: the previous target stays in force."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.errors import ParameterError
+
+
+def finite_vector(value: object, size: int, name: str, meaning: str) -> Array:
+    """``value`` as a new float array of ``size`` finite numbers; ``meaning`` says what they
+    are (units, frame) in the message when it is not."""
+    try:
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(name, f"{name} must be {size} finite numbers ({meaning}), got "
+                                   f"{value!r}") from None
+    if a.shape != (size,):
+        raise ParameterError(name, f"{name} must be {size} finite numbers ({meaning}), got "
+                                   f"shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ParameterError(name, f"{name} must be {size} finite numbers ({meaning}), got "
+                                   f"{a.tolist()}")
+    return a
+
+
+def positive_period(period: object) -> float:
+    """The control period h [s] as a finite float > 0."""
+    try:
+        h = float(period)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        h = math.nan
+    if not (math.isfinite(h) and h > 0):
+        raise ParameterError("period", "period must be the control period in seconds, a "
+                                       f"finite number > 0, got {period!r}")
+    return h
+
+
+def state_vector(value: Array, size: int, name: str) -> Array:
+    """A joint state the tracker is asked at: ``value`` itself when it is an array of ``size``
+    finite numbers (one dot product checks finiteness on the hot path), else the checked
+    copy; raises when it cannot be."""
+    if getattr(value, "shape", None) == (size,) and math.isfinite(float(value @ value)):
+        return value
+    meaning = "joint positions [rad or m]" if name == "x" else "joint velocities"
+    return finite_vector(value, size, name, meaning)
