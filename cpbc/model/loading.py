@@ -275,6 +275,10 @@ def load_urdf(
         )
     if model.nv == 0:
         raise ModelError(f"{path.name} has no joint to drive (every joint is fixed or locked)")
+    if not any(model.inertias[j].mass > 0 for j in range(1, model.njoints)):
+        raise ModelError(f"{path.name}: no moving link has a mass (every <inertial> is missing "
+                         "or has mass 0), and the laws need the arm's inertia: give the links "
+                         "their <inertial> mass and inertia")
     lower, upper, vel, eff = _limits(model)
     return LoadedArm(
         name or path.stem, path, text, model, collision, locked, tuple(model.names[1:]),
