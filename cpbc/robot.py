@@ -49,6 +49,8 @@ class RobotDescription:
         continuous: joints driven as unbounded revolute joints.
         pin_model: Pinocchio model of the driven joints (for the inertia of the gains).
         regularised: joints whose link inertia was raised to the least MuJoCo accepts.
+        estimated: joints whose link the file gives a mass and an all-zero inertia, given a
+            solid box's of its geometry (cpbc.model.solid_inertias).
         package_dirs: the ``package://`` folders it was loaded with (absolute; a folder or
             NAME=FOLDER), for the skeleton's ``robot.package_dirs``.
     """
@@ -63,6 +65,7 @@ class RobotDescription:
     pin_model: pin.Model | None = field(default=None, compare=False, repr=False)
     regularised: tuple[str, ...] = ()
     package_dirs: tuple[str, ...] = ()
+    estimated: tuple[str, ...] = ()
 
 
 def _frames(model: pin.Model) -> tuple[str, ...]:
@@ -81,7 +84,7 @@ def _describe_urdf(name_or_path: str, locked: Mapping[str, float] | None = None,
                          arm.velocity_limit, arm.effort_limit)
     return RobotDescription(model, summary, limits, _frames(arm.model), covered,
                             dict(arm.locked_joints), arm.continuous_joints, arm.model,
-                            arm.regularised, tuple(package_dirs))
+                            arm.regularised, tuple(package_dirs), arm.estimated)
 
 
 def _describe_mjcf(path: Path, model_name: str) -> RobotDescription:
@@ -299,6 +302,11 @@ def report(d: RobotDescription) -> str:
             "inertia raised to the least MuJoCo accepts (by at most 1e-6 kg·m², in both "
             "engines) on the links of: " + ", ".join(d.regularised), 96,
             subsequent_indent="  ")
+    if d.estimated:
+        lines += textwrap.wrap(
+            "inertia estimated from the mass and the geometry, as a solid box of uniform "
+            "density bounding the link (the file gives a mass and an all-zero inertia "
+            "tensor) on the links of: " + ", ".join(d.estimated), 96, subsequent_indent="  ")
     if d.locked:
         lines.append("locked by default: " + ", ".join(f"{k} = {v:g}" for k, v in
                                                        d.locked.items()))
