@@ -273,6 +273,12 @@ def _print_taskspace(ts: dict[str, float]) -> None:
           f"{ts['ratio_min']:.2f}–{ts['ratio_max']:.2f}; target ≤ 1.2)")
 
 
+def _print_tail(tail: dict[str, object]) -> None:
+    cells = ", ".join(f"{k} {tail[k]:.0f}" for k in ("p50", "p99", "p999", "p9999", "max"))
+    print(f"guarded step in closed loop [µs]: {cells} over {tail['steps']:,} steps "
+          f"({tail['acting_steps']:,} acting, {tail['rescues']} rescues)")
+
+
 def _print_peers(torque_us: dict[str, float]) -> None:
     qp = torque_us["cbf_qp"]
     print(f"peers, same states: cbf_qp {qp:.1f} µs, cpbc guarded {torque_us['cpbc_guarded']:.1f}"
@@ -288,6 +294,33 @@ def made(argv: Sequence[str] | None, repeats: int, states: int) -> dict[str, obj
             "blocks": repeats, "calls_per_block": states}
 
 
+def _print_text(setup: BenchSetup, document: dict[str, object], torque_us: dict[str, float],
+                loop: dict[str, float], bare: dict[str, float], peers: dict[str, list[float]],
+                tail: dict[str, object] | None) -> None:
+    """The figures as text (without --json)."""
+    ratio = float(document["cpbc_over_pd_gravity"])  # type: ignore[arg-type]
+    governor = float(document["governor_us"])  # type: ignore[arg-type]
+    taskspace = document.get("taskspace")
+    print(f"robot: {setup.robot} ({setup.notes})")
+    print(f"{'controller':<12} {'torque [µs]':>12} {'loop [steps/s]':>15} "
+          f"{'bare law loop':>14}")
+    for k in setup.controllers:
+        extra = f"{bare[k]:>14,.0f}" if k in bare else f"{'':>14}"
+        print(f"{k:<12} {torque_us[k]:>12.1f} {loop[k]:>15,.0f} {extra}")
+    print("loop: with the default sampled-data safeguard around the constrained laws; "
+          "bare law loop: without it")
+    target = COST_TARGETS[setup.robot]
+    print(f"cpbc / pd_gravity cost ratio: {ratio:.2f} (target ≤ {target}: "
+          + ("met)" if ratio <= target else "not met)"))
+    print(f"reference governor: {governor:.2f} µs a step (target ≤ 2)")
+    if taskspace is not None:
+        _print_taskspace(taskspace)  # type: ignore[arg-type]
+    if peers:
+        _print_peers(torque_us)
+    if tail is not None:
+        _print_tail(tail)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m cpbc.bench", description=__doc__)
     p.add_argument("--robot", choices=sorted(ROBOTS), default="planar_2link")
@@ -299,6 +332,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                    "kernel is not compiled in nopython mode")
     p.add_argument("--peers", action="store_true",
                    help="also time the guarded law and the cbf_qp peer (needs cpbc[peers])")
+    p.add_argument("--tail-steps", type=int, default=100_000,
+                   help="with --peers on the panda: guarded closed-loop steps to time for "
+                   "the tail (guarded_tail_us; cpbc.bench_tail)")
     p.add_argument("--markdown", metavar="PATH",
                    help="also write the figures as a Markdown fragment (cpbc.bench_report)")
     args = p.parse_args(argv)
@@ -330,30 +366,19 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "closed_loop_bare_law_steps_per_second": bare,
                 "cpbc_over_pd_gravity": ratio, "governor_us": governor,
                 "notes": setup.notes, "made": made(argv, args.repeats, len(setup.states))}
-    taskspace = None
     if setup.robot == "panda":  # the task-space pair is panda_goal_pose's arm
-        taskspace = document["taskspace"] = taskspace_times(args.repeats)
+        document["taskspace"] = taskspace_times(args.repeats)
+    tail = None
+    if peers and setup.robot == "panda":  # the closed loop's worst steps, for a deadline
+        from cpbc.bench_tail import guarded_tail
+
+        tail = document["guarded_tail_us"] = guarded_tail(args.tail_steps)
     if args.markdown:
         Path(args.markdown).write_text(bench_markdown([document]), encoding="utf-8")
     if args.json:
         print(json.dumps(document))
     else:
-        print(f"robot: {setup.robot} ({setup.notes})")
-        print(f"{'controller':<12} {'torque [µs]':>12} {'loop [steps/s]':>15} "
-              f"{'bare law loop':>14}")
-        for k in setup.controllers:
-            extra = f"{bare[k]:>14,.0f}" if k in bare else f"{'':>14}"
-            print(f"{k:<12} {torque_us[k]:>12.1f} {loop[k]:>15,.0f} {extra}")
-        print("loop: with the default sampled-data safeguard around the constrained laws; "
-              "bare law loop: without it")
-        target = COST_TARGETS[setup.robot]
-        print(f"cpbc / pd_gravity cost ratio: {ratio:.2f} (target ≤ {target}: "
-              + ("met)" if ratio <= target else "not met)"))
-        print(f"reference governor: {governor:.2f} µs a step (target ≤ 2)")
-    if taskspace is not None and not args.json:
-        _print_taskspace(taskspace)
-    if peers and not args.json:
-        _print_peers(torque_us)
+        _print_text(setup, document, torque_us, loop, bare, peers, tail)
     if args.check:
         from cpbc.kernels.__main__ import problems
 

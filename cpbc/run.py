@@ -166,6 +166,8 @@ def _warn(setup: ScenarioSetup, err: Console) -> None:
     out."""
     for case, load in setup.gravity_on_path.items():
         err.print(f"[yellow]warning:[/yellow] {escape(warning(case, load))}", highlight=False)
+    for note in setup.outside_braking_set.values():
+        err.print(f"[yellow]note:[/yellow] {escape(note)}", highlight=False)
     undeclared = undeclared_efforts(setup)
     if undeclared:
         n = setup.model.n

@@ -44,7 +44,7 @@ from rich.table import Table
 
 from cpbc.errors import CpbcError
 from cpbc.provenance import provenance
-from cpbc.reliability.report import margin_text, markdown, row_share, shown
+from cpbc.reliability.report import margin_text, markdown, rate_cell, row_share, shown
 from cpbc.reliability.verification import (
     CLASSES,
     Block,
@@ -127,10 +127,12 @@ def conditions(setup: ScenarioSetup) -> Record:
     """What a campaign's guarantee is conditional on: the physics, the actuators' limits and
     whether the laws run with their safeguard."""
     limit = setup.loop_settings.torque_limit
+    rate = setup.loop_settings.torque_rate_limit
     return {
         "integrator": setup.plant_settings.integrator,
         "timestep": setup.plant_settings.timestep,
         "torque_limit": None if limit is None else [float(v) for v in limit],
+        "torque_rate_limit": None if rate is None else [float(v) for v in rate],
         "safeguard": setup.safeguard is not None,
         # the monitored constraints the safeguard keeps besides each law's own (judged too)
         "also_kept": sorted({n.split("[")[0] for c in setup.also_keep for n in c.names})
@@ -207,7 +209,7 @@ def table(doc: Record) -> Table:
     for col in ("controller", "rate", "stoppable runs", "violations", "deeper than 1e-6",
                 "worst depth", "worst margin", *(f"{k} (violated)" for k in CLASSES[1:]),
                 "filter acted", "rows acted", "infeasible steps", "rescues",
-                "torque on a limit", "failing seeds"):
+                "torque on a limit", "peak torque rate (clipped)", "failing seeds"):
         t.add_column(col)
     for r in doc["results"]:  # type: ignore[attr-defined]
         nv = r["non_viable"]
@@ -217,7 +219,7 @@ def table(doc: Record) -> Table:
                   str(r["deep_violations"]), f"{r['worst_depth']:.2g}", margin_text(r),
                   *(f"{nv[k]['runs']} ({nv[k]['violations']})" for k in CLASSES[1:]),
                   f"{r['filter_share']:.1%}", f"{row_share(r):.1%}", str(r["infeasible_steps"]),
-                  str(r.get("rescues", 0)), f"{r['torque_limit_share']:.1%}",
+                  str(r.get("rescues", 0)), f"{r['torque_limit_share']:.1%}", rate_cell(r),
                   ",".join(seeds[:8]) + ("…" if len(seeds) > 8 else ""))
     return t
 

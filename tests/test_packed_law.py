@@ -215,6 +215,37 @@ def test_the_step_from_the_pass_reads_friction() -> None:
     assert checked == 12
 
 
+@pytest.mark.parametrize("robot", ["planar", "panda"])
+def test_the_step_from_the_pass_reads_coulomb_friction(robot: str) -> None:
+    """With Coulomb friction the kernel's f = F_d ẋ + T⁻ᵀ F_c tanh(T⁻¹ẋ/ε) (the pass's
+    joint_friction) equals the state's (RobotModel.dissipation) to rounding: the planar arm
+    in its absolute link angles, the Panda in its joints; and it reaches the torque."""
+    from cpbc.model import RobotModel
+
+    setup = planar_2link() if robot == "planar" else panda(states=12)
+    law = setup.controllers["cpbc"]
+    plain = setup.controllers["cpbc"]
+    model = law.model
+    n = model.n
+    law = type(law).__new__(type(law))
+    law.__dict__.update(plain.__dict__)
+    law.model = RobotModel(model.model, model.coordinates, np.linspace(0.05, 0.2, n),
+                           name=model.name, coulomb_friction=np.linspace(1.2, 0.3, n),
+                           friction_smoothing=0.05)
+    law.constraints = law.constraints  # pack again for the new model
+    assert law.packed_law().from_pass
+    checked = 0
+    for x, dx in setup.states[:12]:
+        slow = law.evaluate_state(law.state(x, dx))
+        np.testing.assert_allclose(law.torque(x, dx), slow.torque, rtol=1e-13, atol=1e-12)
+        np.testing.assert_allclose(_general(law).torque(x, dx), slow.torque, rtol=1e-12,
+                                   atol=1e-11)
+        if np.any(dx):
+            assert not np.allclose(slow.torque, plain.torque(x, dx), rtol=1e-6, atol=1e-9)
+        checked += 1
+    assert checked == 12
+
+
 def test_an_overridden_state_path_leaves_the_step_from_the_pass() -> None:
     """A law whose class overrides evaluate_state (here: adding a torque) is stepped through
     its state path, so torque() honours the override."""

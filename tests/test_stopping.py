@@ -74,12 +74,9 @@ def test_a_savable_state_is_saved_by_the_torque_the_test_assumes(joint_model: Ro
     assert _lowest_margin(joint_model, cons, x, dx, best) > 0
 
 
-def _refusal(tmp_path: Path, capsys: pytest.CaptureFixture[str], q4: float,
-             velocity: str) -> str:
-    """The CLI's answer to panda_cpbc_sphere started with joint 4 at ``q4`` and the given
-    velocity: exit 2, nothing written; the message."""
+def _case(tmp_path: Path, q4: float, velocity: str, duration: float) -> Path:
+    """panda_cpbc_sphere started with joint 4 at ``q4`` and the given velocity."""
     from cpbc.resources import scenarios_dir
-    from cpbc.run import main
 
     text = (scenarios_dir() / "panda_cpbc_sphere.yaml").read_text()
     start = "    position: [-0.179, 0.172, -0.497, -2.085, 0.103, 2.233, 0.785]\n"
@@ -87,9 +84,19 @@ def _refusal(tmp_path: Path, capsys: pytest.CaptureFixture[str], q4: float,
     near = f"    position: [-0.179, 0.172, -0.497, {q4}, 0.103, 2.233, 0.785]\n"
     case = text.replace(start, near + f"    velocity: {velocity}\n")
     path = tmp_path / "case.yaml"
-    path.write_text(case.replace("duration: 5.0", "duration: 0.01"))
+    path.write_text(case.replace("duration: 5.0", f"duration: {duration}"))
+    return path
+
+
+def _refusal(tmp_path: Path, capsys: pytest.CaptureFixture[str], q4: float,
+             velocity: str) -> str:
+    """The CLI's answer to panda_cpbc_sphere started with joint 4 at ``q4`` and the given
+    velocity: exit 2, nothing written; the message."""
+    from cpbc.run import main
+
     out = tmp_path / "out"
-    assert main([str(path), "--out", str(out), "--quiet", "--no-plots"]) == 2
+    assert main([str(_case(tmp_path, q4, velocity, 0.01)), "--out", str(out), "--quiet",
+                 "--no-plots"]) == 2
     assert not out.exists()
     return capsys.readouterr().err
 
@@ -99,18 +106,33 @@ def test_a_scenario_case_that_cannot_be_stopped_is_refused(tmp_path, capsys) -> 
     rate bound): no torque within the URDF's 87 N·m stops that in time. The CLI says so,
     names the field and exits 2 without writing anything."""
     err = _refusal(tmp_path, capsys, -0.0699, "[0, 0, 0, 1.0, 0, 0, 0]")
-    assert "cases[0].velocity" in err and "outside the braking set" in err
+    assert "cases[0].velocity" in err and "cannot be stopped inside the constraints" in err
     assert "no torque within the limits can stop it" in err
     assert "position[panda_joint4]" in err
 
 
-def test_a_case_only_a_dedicated_brake_could_save_is_refused_and_says_so(tmp_path, capsys
-                                                                       ) -> None:
+def test_a_case_outside_v_that_a_rescue_brake_stops_runs_and_crosses_nothing(
+        tmp_path, capsys) -> None:
     """0.01 rad short of joint 4's stop at 0.6 rad/s while the shoulder (joint 2) swings at
-    1 rad/s: the whole box aimed at joint 4 alone would stop it in time; the brake that
-    slows every joint together must also stop the heavy shoulder and would not."""
-    err = _refusal(tmp_path, capsys, -0.0798, "[0, 1.0, 0, 0.6, 0, 0, 0]")
-    assert "outside the braking set" in err and "aimed at that constraint alone" in err
+    1 rad/s: the brake that slows every joint together must also stop the heavy shoulder and
+    would not stop joint 4 in time (the start is outside V), but a brake that lets each joint
+    decelerate as the box allows does. Such a start was refused; it runs now, the CLI says
+    it starts outside V, and nothing is crossed."""
+    import json
+
+    from cpbc.run import main
+
+    out = tmp_path / "out"
+    path = _case(tmp_path, -0.0798, "[0, 1.0, 0, 0.6, 0, 0, 0]", 0.4)
+    assert main([str(path), "--out", str(out), "--quiet", "--no-plots"]) == 0
+    err = capsys.readouterr().err
+    assert "starts outside the safeguard's braking set V" in err
+    assert "position[panda_joint4]" in err
+    runs = {r["controller"]: r for r in json.loads((out / "summary.json").read_text())}
+    cpbc = runs["CPBC"]
+    assert cpbc["status"] != "constraint_violated"
+    assert min(v for k, v in cpbc["min_margins"].items() if k.startswith("position")) > 0
+    assert cpbc["rescues"] > 0  # the guard's own brake could not: its rescue held one
 
 
 # -- the braking set -------------------------------------------------------------------------

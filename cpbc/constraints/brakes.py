@@ -43,17 +43,22 @@ from cpbc.model.robot_model import ArmState, RobotModel
 
 @dataclass(frozen=True, eq=False)
 class TorqueBox:
-    """The actuators' box |Tᵀ τ| ≤ L in controller coordinates.
+    """The actuators' box lower ≤ Tᵀ τ ≤ upper in controller coordinates: |Tᵀ τ| ≤ L, or, at
+    one control step under a torque-rate limit, that box narrowed to the torques one step can
+    reach from the one the actuators hold (:meth:`around`).
 
     Attributes:
         limit: L, joint coordinates, shape (n,) [N·m].
         to_joint: Tᵀ (τ_q = Tᵀ τ), or None for joint coordinates.
         from_joint: T⁻ᵀ (τ = T⁻ᵀ τ_q), or None for joint coordinates.
+        lower, upper: the box's joint-torque bounds; −L and L when omitted.
     """
 
     limit: Array
     to_joint: Array | None = None
     from_joint: Array | None = None
+    lower: Array | None = None
+    upper: Array | None = None
 
     @classmethod
     def of(cls, model: RobotModel, limit: Array | float) -> TorqueBox:
@@ -63,17 +68,34 @@ class TorqueBox:
             return cls(full)
         return cls(full, coords.matrix.T.copy(), coords.inverse.T.copy())
 
-    # L, Tᵀ, T⁻ᵀ and whether there is a map, as the kernels read them (writable float
-    # copies; 0 × 0 maps for joint coordinates)
-    _packed: tuple[Array, Array, Array, bool] = field(init=False, repr=False)
+    # lower, upper, Tᵀ, T⁻ᵀ and whether there is a map, as the kernels read them (writable
+    # float copies; 0 × 0 maps for joint coordinates)
+    _packed: tuple[Array, Array, Array, Array, bool] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         none = np.zeros((0, 0))
+        limit = np.array(self.limit, dtype=float)
         object.__setattr__(self, "_packed", (
-            np.array(self.limit, dtype=float),
+            -limit if self.lower is None else np.array(self.lower, dtype=float),
+            limit if self.upper is None else np.array(self.upper, dtype=float),
             none if self.to_joint is None else np.array(self.to_joint, dtype=float),
             none if self.from_joint is None else np.array(self.from_joint, dtype=float),
             self.to_joint is not None))
+
+    @property
+    def bounds(self) -> tuple[Array, Array]:
+        """(lower, upper) of the joint torques [N·m]."""
+        return self._packed[0], self._packed[1]
+
+    def around(self, held_q: Array, step: Array) -> TorqueBox:
+        """The torques one control step can reach from the joint torques ``held_q`` that the
+        actuators hold, under a rate limit of ``step`` = ρh per joint: |τ_q − held_q| ≤ ρh
+        within the box. Where the held torque lies outside the box (a limit lowered under
+        it), the reachable interval is the one nearest to the box."""
+        lower, upper = self.bounds
+        lo = np.minimum(np.maximum(lower, held_q - step), upper)
+        hi = np.maximum(np.minimum(upper, held_q + step), lower)
+        return TorqueBox(self.limit, self.to_joint, self.from_joint, lo, hi)
 
     def joint(self, tau: Array) -> Array:
         return tau if self.to_joint is None else self.to_joint.dot(tau)
@@ -120,7 +142,7 @@ def _nearest_stop(box: TorqueBox, state: ArmState, bias: Array, h: float,
     # SciPy's optimiser loads here, on the guard's rare path: 0.1 s off every start-up
     from scipy.optimize import lsq_linear
 
-    tau_q = lsq_linear(a, target, bounds=(-box.limit, box.limit), method="bvls").x
+    tau_q = lsq_linear(a, target, bounds=box.bounds, method="bvls").x
     return tau_q if box.from_joint is None else box.from_joint.dot(tau_q)
 
 
@@ -210,15 +232,33 @@ def brings_to_rest(brake: Brake, model: RobotModel, margins: Callable[[Array, Ar
     return Stop(False, periods, low)
 
 
+def ramped(box: TorqueBox, tau: Array, rate_step: Array | None,
+           held_q: Array | None) -> Array:
+    """τ clipped to the box and, under a torque-rate limit (``rate_step`` = ρh per joint),
+    reached from the held joint torque ``held_q`` along the straight line toward it as far as
+    one step allows, τ_h + s(τ − τ_h): every joint's torque arrives together, and the change
+    of acceleration keeps its direction."""
+    tau = box.clip(tau)
+    if rate_step is None or held_q is None:
+        return tau
+    held = held_q if box.from_joint is None else box.from_joint.dot(held_q)
+    return box.around(held_q, rate_step).toward(held, tau)
+
+
 def model_advance(model: RobotModel, box: TorqueBox, x: Array, dx: Array, h: float,
-                  steps: int) -> Advance:
+                  steps: int, rate_step: Array | None = None,
+                  held: Array | None = None) -> Advance:
     """The model as a plant from (x, ẋ): ``steps`` semi-implicit Euler steps per period of
-    its forward dynamics, the torque clipped to the box."""
+    its forward dynamics, the torque clipped to the box; under a torque-rate limit
+    (``rate_step`` = ρh per joint, from the torque ``held`` the actuators hold, controller
+    coordinates) ramped from the last torque held as one period allows (:func:`ramped`)."""
     now = [x.copy(), dx.copy()]
     dt = h / steps
+    last = [None if held is None else box.joint(held)]
 
     def advance(tau: Array) -> tuple[Array, Array] | None:
-        tau = box.clip(tau)
+        tau = ramped(box, tau, rate_step, last[0])
+        last[0] = box.joint(tau)
         xs, vs = now
         rows_x, rows_v = [], []
         for _ in range(steps):

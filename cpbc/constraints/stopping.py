@@ -103,15 +103,22 @@ class Braking:
     initial state: the uniform brake cannot stop it in time (another brake within the box may:
     :mod:`cpbc.constraints.brakes`, which the safeguard's rescue holds there).
 
+    Under a torque-rate limit |τ̇_q| ≤ ρ the brake is not there at once: from the torque τ_h
+    the actuators hold it takes T = max_j |τ_b,j − τ_h,j| / ρ_j to build (:meth:`ramp`; 87 ms
+    for 87 N·m at 1000 N·m/s), and the stopping point moves ahead by what the arm travels
+    meanwhile (cpbc.kernels.sampled_guard.configuration_rows), so V shrinks with τ_max/ρ.
+
     Attributes:
         limit: L, the joint torque limits, shape (n,) [N·m].
         to_joint: Tᵀ of τ_q = Tᵀ τ, or None for joint coordinates.
         share: θ ∈ (0, 1].
+        rate: ρ, the joint torque-rate limits, shape (n,) [N·m/s], or None.
     """
 
     limit: Array
     to_joint: Array | None = None
     share: float = 0.8
+    rate: Array | None = None
     # L and Tᵀ as the kernel reads them (writable float copies; 0 × 0 for joint coordinates)
     _packed: tuple[Array, Array] = field(init=False, repr=False)
 
@@ -123,11 +130,28 @@ class Braking:
             np.zeros((0, 0)) if self.to_joint is None else np.array(self.to_joint, dtype=float)))
 
     @classmethod
-    def of(cls, model: RobotModel, limit: Array | float, share: float = 0.8) -> Braking:
-        """The brake of ``model`` (its coordinates) within joint torque limits ``limit``."""
+    def of(cls, model: RobotModel, limit: Array | float, share: float = 0.8,
+           rate: Array | None = None) -> Braking:
+        """The brake of ``model`` (its coordinates) within joint torque limits ``limit`` (and
+        torque-rate limits ``rate``)."""
         coords = model.coordinates
         full = np.broadcast_to(np.asarray(limit, dtype=float), (model.n,)).copy()
-        return cls(full, None if coords.is_identity else coords.matrix.T.copy(), share)
+        return cls(full, None if coords.is_identity else coords.matrix.T.copy(), share,
+                   None if rate is None else np.broadcast_to(
+                       np.asarray(rate, dtype=float), (model.n,)).copy())
+
+    def ramp(self, inertia: Array, bias: Array, dx: Array, held: Array,
+             per_speed: float) -> float:
+        """T: the time the uniform brake b − θA D ẋ/|ẋ| takes to build from the torque
+        ``held`` (controller coordinates) at the rate limit, 0 without one (``per_speed`` =
+        1/(2θA), from :meth:`per_speed`)."""
+        if self.rate is None:
+            return 0.0
+        speed = math.sqrt(float(dx.dot(dx)))
+        gap = bias - inertia.dot(dx) / (2.0 * per_speed * speed) - held
+        if self.to_joint is not None:
+            gap = self.to_joint.dot(gap)
+        return float(np.max(np.abs(gap) / self.rate))
 
     def deceleration(self, inertia: Array, bias: Array, dx: Array) -> float:
         """A: the largest deceleration along ẋ of the uniform brake (inf at rest;
@@ -145,9 +169,12 @@ class Braking:
         return 1.0 / (2.0 * self.share * a)
 
     def margins(self, constraints: ConstraintSet, model: RobotModel, x: Array,
-                dx: Array) -> tuple[Array, float]:
+                dx: Array, held: Array | None = None,
+                period: float = 0.0) -> tuple[Array, float]:
         """σ_i for every configuration constraint (in the order of their names), and the
-        distance |x_s − x| the brake travels [controller units]."""
+        distance |x_s − x| the brake travels [controller units]. Under a torque-rate limit
+        the brake first ramps from the torque ``held`` (the gravity torque when omitted)
+        for :meth:`ramp` plus one ``period``, the arm coasting meanwhile."""
         if not constraints.configuration:
             return np.zeros(0), 0.0
         state = model.state(x, dx)
@@ -156,5 +183,7 @@ class Braking:
         if per_speed == math.inf:
             return np.full(constraints.n_configuration, -math.inf), math.inf
         speed = math.sqrt(float(dx.dot(dx)))
-        return constraints.configuration_margins(x + (per_speed * speed) * dx), \
-            per_speed * speed * speed
+        lead = 0.0 if self.rate is None or per_speed == 0.0 else period + self.ramp(
+            state.inertia, bias, dx, state.gravity if held is None else held, per_speed)
+        return constraints.configuration_margins(x + (lead + per_speed * speed) * dx), \
+            (lead + per_speed * speed) * speed

@@ -98,6 +98,7 @@ class BPBC(CPBC):
         self.model_bounds = model_bounds or estimate_bounds(model)
         zb = self.model_bounds
         rate_norm = float(np.linalg.norm(bounds))
-        tail = zb.gravity + zb.coriolis * rate_norm**2 + zb.friction * rate_norm + extra
+        tail = (zb.gravity + zb.coriolis * rate_norm**2 + zb.friction * rate_norm + zb.coulomb
+                + extra)
         self.torque_bound = tail + (spring.stated + float(self.kd.max()))
         self.torque_bound_norm = tail + (spring.norm + float(np.linalg.norm(self.kd)))

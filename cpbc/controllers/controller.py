@@ -167,3 +167,7 @@ class SafetyFilter(Controller):
     def restarted(self) -> SafetyFilter:
         """The same filter with its counts at zero, for a new run."""
         return self
+
+    def holding(self, tau: Array) -> None:
+        """The torque the actuators hold now (controller coordinates), for a filter that
+        limits the torque's rate of change; others ignore it."""

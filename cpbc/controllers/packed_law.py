@@ -243,7 +243,8 @@ class PackedLaw:
         from_pass = keeps(law, base, STATE_PATH) and all(f == frame for f in held)
         constants = pack_tables(margins, tables.plan, tables.ints, tables.floats,
                                 packed.plan, packed.floats, model.coordinates.inverse,
-                                model.viscous_friction, on_joints)
+                                model.viscous_friction, model.coulomb_friction,
+                                model.friction_smoothing, on_joints)
         live = tuple((tables.floats.size + at, source) for at, source in packed.live)
         step = step_from_pass(constants, live, model,
                               constraints.needs_kinematics or on_joints is not None,

@@ -50,11 +50,16 @@ class Rescue:
         period: the control period h [s].
         steps: prediction sub-steps per period.
         horizon: the longest braking predicted [s].
+        rate_step: ρh, how far the joint torques can move in one period under a torque-rate
+            limit, or None: each brake is then held as the motors would let it ramp from
+            the torque held at the sample (model_advance).
     """
 
     def __init__(self, model: RobotModel, guarded: ConstraintSet, box: TorqueBox,
-                 cushion: Array, period: float, steps: int, horizon: float = 2.0) -> None:
+                 cushion: Array, period: float, steps: int, horizon: float = 2.0,
+                 rate_step: Array | None = None) -> None:
         self.model, self.guarded, self.box = model, guarded, box
+        self.rate_step = rate_step
         self.cushion, self.period, self.steps, self.horizon = cushion, period, steps, horizon
         self.table = brakes(box, guarded, model)
         self.committed: str | None = None
@@ -63,13 +68,14 @@ class Rescue:
         self.searches = 0
 
     def torque(self, state: ArmState, bias: Array, now: Array,
-               holds: Callable[[Array, Array], bool], step: int) -> Array | None:
+               holds: Callable[[Array, Array], bool], step: int,
+               held: Array | None = None) -> Array | None:
         """The committed brake's torque if it was held at the step before ``step`` (the
         guard's count of control steps) and ``holds(τ, floor)`` accepts it (its one-period
         prediction keeps every margin above the floor of the search that committed it), else
         the first brake whose model braking keeps every margin above its floor until rest
         (the module docstring; then committed), else None. ``now``: the margins m_i at the
-        sample."""
+        sample; ``held``: the torque the actuators hold (under a torque-rate limit)."""
         if (self.committed is not None and self.floor is not None
                 and self.held_at == step - 1):
             tau = self.table[self.committed](state, bias, self.period)
@@ -82,22 +88,23 @@ class Rescue:
         # already; then with none (every margin positive in the model)
         cushioned = np.minimum(self.cushion, 0.5 * np.maximum(now, 0.0))
         for floor in (cushioned, np.zeros_like(cushioned)):
-            name = self._search(state, floor)
+            name = self._search(state, floor, held)
             if name is not None:
                 self.committed, self.floor, self.held_at = name, floor, step
                 return self.box.clip(self.table[name](state, bias, self.period))
         return None
 
-    def _search(self, state: ArmState, floor: Array) -> str | None:
-        """The first brake of ORDER that, held in the model until rest, keeps every margin
-        above ``floor``."""
+    def _search(self, state: ArmState, floor: Array, held: Array | None) -> str | None:
+        """The first brake of ORDER that, held in the model until rest (ramped from ``held``
+        under a torque-rate limit), keeps every margin above ``floor``."""
 
         def margins(xs: Array, dxs: Array) -> Array:
             return self.guarded.margins_along(xs, dxs) - floor
 
         for name in ORDER:
             advance = model_advance(self.model, self.box, state.x, state.dx, self.period,
-                                    self.steps)
+                                    self.steps, self.rate_step,
+                                    state.gravity if held is None else held)
             stop = brings_to_rest(self.table[name], self.model, margins, advance, state.x,
                                   state.dx, self.period, horizon=self.horizon)
             if stop.stopped:

@@ -94,29 +94,33 @@ def shaped_value(lag: float, log_s: float) -> float:
 # terms' plan and floats, then whether the coordinates are the joints' and whether the arm
 # has friction (``COORDINATES``), then the column of the frame's joint in the static
 # regressor (−1: the pass reads the frame) — and holds the int tables after it, ``floats``
-# the float tables and last the model's T⁻¹, F_d and the frame's place on its joint
-# (``model_tables``); each table row-major, in that order. One array of each: a kernel
+# the float tables and last the model's T⁻¹, F_d, F_c, its ε and the frame's place on its
+# joint (``model_tables``); each table row-major, in that order. One array of each: a kernel
 # argument costs numba about 70 ns to pass, whatever its size.
 HEADER, COORDINATES, FRAME_COLUMN = 14, 11, 13
 
 
 def pack_tables(margins: int, plan: Ints, ints: Ints, floats: Array, term_plan: Ints,
-                term_floats: Array, t_inv: Array, friction: Array,
-                frame: tuple[int, Array] | None = None) -> tuple[Ints, Array]:
+                term_floats: Array, t_inv: Array, friction: Array, coulomb: Array,
+                smoothing: float, frame: tuple[int, Array] | None = None
+                ) -> tuple[Ints, Array]:
     """The law's constant tables in the two arrays ``law_tables`` and ``model_tables`` read;
-    ``t_inv`` T⁻¹ of the coordinates x = T q, ``friction`` F_d in x-coordinates and
-    ``frame`` the column and place of the frame the law reads, when the kernel computes it
-    from the joint kinematics (cpbc.kernels.task.frame_on_joints)."""
+    ``t_inv`` T⁻¹ of the coordinates x = T q, ``friction`` F_d in x-coordinates,
+    ``coulomb`` F_c per joint and ``smoothing`` its ε (cpbc.kernels.coordinate_maps
+    .joint_friction) and ``frame`` the column and place of the frame the law reads, when
+    the kernel computes it from the joint kinematics (cpbc.kernels.task.frame_on_joints)."""
     n = len(t_inv)
     header = [margins]
     for table in (plan, ints, floats, term_plan, term_floats):
         header += table.shape
     column, local = (-1, np.zeros(PLACE + n)) if frame is None else frame
-    header += [int(np.array_equal(t_inv, np.eye(n))), int(np.any(friction)), column]
+    header += [int(np.array_equal(t_inv, np.eye(n))),
+               int(np.any(friction) or np.any(coulomb)), column]
     packed_ints = np.concatenate([np.array(header, dtype=np.int64), plan.ravel(),
                                   ints.ravel(), term_plan.ravel()]).astype(np.int64)
     return packed_ints, np.concatenate([floats.ravel(), term_floats.ravel(), t_inv.ravel(),
-                                        friction.ravel(), local]).astype(float)
+                                        friction.ravel(), coulomb, [smoothing],
+                                        local]).astype(float)
 
 
 TABLES = ("Tuple((int64, int64[:, :], int64[:, :], float64[:, :], int64[:, :],"
@@ -139,18 +143,21 @@ def law_tables(ints: Ints, floats: Array) -> tuple[int, Ints, Ints, Array, Ints,
     return ints[0], plan, set_ints, set_floats, term_plan, term_floats
 
 
-MODEL = "Tuple((boolean, boolean, float64[:, :], float64[:, :], float64[::1]))"
+MODEL = ("Tuple((boolean, boolean, float64[:, :], float64[:, :], float64[::1], float64,"
+         " float64[::1]))")
 
 
 @inner(f"{MODEL}(int64[::1], float64[::1], int64)")
 def model_tables(ints: Ints, floats: Array, n: int
-                 ) -> tuple[bool, bool, Array, Array, Array]:
-    """Whether the coordinates are the joints' and whether the arm has friction, T⁻¹, F_d
-    and the frame's place on its joint (views), packed by ``pack_tables``."""
-    at = floats.shape[0] - 2 * n * n - PLACE - n
+                 ) -> tuple[bool, bool, Array, Array, Array, float, Array]:
+    """Whether the coordinates are the joints' and whether the arm has friction, T⁻¹, F_d,
+    F_c, its ε and the frame's place on its joint (views), packed by ``pack_tables``."""
+    at = floats.shape[0] - 2 * n * n - n - 1 - PLACE - n
+    friction_at = at + 2 * n * n
     return (ints[COORDINATES] == 1, ints[COORDINATES + 1] == 1,
             float_rows(floats, at, n, n), float_rows(floats, at + n * n, n, n),
-            floats[at + 2 * n * n:])
+            floats[friction_at:friction_at + n], floats[friction_at + n],
+            floats[friction_at + n + 1:])
 
 
 @inner("UniTuple(float64[:, :], 2)(int64[::1], float64[:], float64[:, :], float64[:, :],"
@@ -272,13 +279,13 @@ def finished_state(tables: Ints, table_floats: Array, x: Array, dx: Array,
     """The step's state from the pass itself: the frame's placement (``pass_frame``), then D,
     C ẋ, g, C, the frame's Jacobian and f in controller coordinates
     (cpbc.kernels.coordinate_maps.controller_terms, with the model's tables)."""
-    joints, friction, t_inv, friction_matrix, local = model_tables(tables, table_floats,
-                                                                   x.shape[0])
+    joints, friction, t_inv, friction_matrix, coulomb, smoothing, local = model_tables(
+        tables, table_floats, x.shape[0])
     placement, frame_jacobian_q = pass_frame(tables, x, placement, frame_jacobian_q, y, jac,
                                              local)
     inertia, bias, gravity, coriolis, frame_jacobian, dissipation = controller_terms(
-        joints, friction, t_inv, friction_matrix, dx, inertia_q, nle, gravity_q, coriolis_q,
-        frame_jacobian_q)
+        joints, friction, t_inv, friction_matrix, coulomb, smoothing, dx, inertia_q, nle,
+        gravity_q, coriolis_q, frame_jacobian_q)
     return placement, inertia, bias, gravity, coriolis, frame_jacobian, dissipation
 
 

@@ -103,12 +103,22 @@ def _times(a: Array, v: Array) -> Array:
 # --- the braking margins' stopping points (cpbc.constraints.stopping.Braking) ---------------
 
 
-@kernel("void(float64[:, :], float64[:, :], float64[:, :], float64, float64[:, :])")
-def configuration_rows(mids: Array, ends: Array, speeds: Array, per_speed: float,
-                       rows: Array) -> None:
+@kernel("void(float64[:, :], float64[:, :], float64[:, :], float64[:], float64, float64,"
+        " float64, float64[:, :])")
+def configuration_rows(mids: Array, ends: Array, speeds: Array, start: Array, h: float,
+                       per_speed: float, ramp: float, rows: Array) -> None:
     """The configurations whose margins the guard tests: the mid-period ones, the ends and,
     when ``rows`` has room, where the uniform brake stops from each end,
-    x_s = x₁ + (|ẋ₁|/(2θA)) ẋ₁ (``per_speed`` = 1/(2θA), A frozen at the sample)."""
+    x_s = x₁ + (|ẋ₁|/(2θA)) ẋ₁ (``per_speed`` = 1/(2θA), A frozen at the sample).
+
+    Under a torque-rate limit the brake takes ``ramp`` = T seconds to build from the torque
+    held over the period (Braking.ramp). Along ê = ẋ₁/|ẋ₁| the arm then travels at most
+
+        |ẋ₁| T + ½ a⁺ T² + max(|ẋ₁| + ½(a − θA) T, 0)² / (2θA),
+
+    a = ê · (ẋ₁ − ẋ₀)/h the period's acceleration along ê (``start`` = ẋ₀), a⁺ = max(a, 0):
+    no deceleration credited while the torque ramps and the held one's acceleration kept,
+    then the speed the linear ramp leaves (from a to −θA over T) braked at θA."""
     r, n = ends.shape[0], ends.shape[1]
     for j in range(r):
         for i in range(n):
@@ -120,7 +130,17 @@ def configuration_rows(mids: Array, ends: Array, speeds: Array, per_speed: float
         sq = 0.0
         for i in range(n):
             sq += speeds[j, i] * speeds[j, i]
-        f = per_speed * math.sqrt(sq)
+        speed = math.sqrt(sq)
+        if ramp > 0.0 and speed > 0.0:
+            along = 0.0
+            for i in range(n):
+                along += speeds[j, i] * (speeds[j, i] - start[i])
+            acc = along / (speed * h)
+            left = max(speed + 0.5 * (acc - 0.5 / per_speed) * ramp, 0.0)
+            f = (speed * ramp + 0.5 * max(acc, 0.0) * ramp * ramp
+                 + left * left * per_speed) / speed
+        else:
+            f = per_speed * speed
         for i in range(n):
             rows[2 * r + j, i] = ends[j, i] + f * speeds[j, i]
 
@@ -158,46 +178,47 @@ def uniform_deceleration(inertia: Array, bias: Array, dx: Array, limit: Array,
 # --- the torque box (cpbc.constraints.brakes.TorqueBox) -------------------------------------
 
 
-@kernel("void(float64[:], float64[:, :], float64[:, :], boolean, float64[:], float64[:])")
-def box_clip(limit: Array, to_joint: Array, from_joint: Array, mapped: bool, tau: Array,
-             out: Array) -> None:
-    """τ with each joint torque clipped to its limit: T⁻ᵀ clip(Tᵀτ, −L, L) (τ_q itself for
-    joint coordinates, ``mapped`` False)."""
+@kernel("void(float64[:], float64[:], float64[:, :], float64[:, :], boolean, float64[:],"
+        " float64[:])")
+def box_clip(lower: Array, upper: Array, to_joint: Array, from_joint: Array, mapped: bool,
+             tau: Array, out: Array) -> None:
+    """τ with each joint torque clipped to its interval: T⁻ᵀ clip(Tᵀτ, lower, upper) (τ_q
+    itself for joint coordinates, ``mapped`` False)."""
     tau_q = _times(to_joint, tau) if mapped else tau
     clipped = np.empty(tau.shape[0])
     for j in range(tau.shape[0]):
         t = tau_q[j]
-        clipped[j] = -limit[j] if t < -limit[j] else (limit[j] if t > limit[j] else t)
+        clipped[j] = lower[j] if t < lower[j] else (upper[j] if t > upper[j] else t)
     if mapped:
         clipped = _times(from_joint, clipped)
     out[:] = clipped
 
 
-@kernel("int64(float64[:], float64[:, :], float64[:, :], boolean, float64[:], float64[:],"
-        " float64[:])")
-def box_toward(limit: Array, to_joint: Array, from_joint: Array, mapped: bool, bias: Array,
-               tau: Array, out: Array) -> int:
-    """b + t (τ − b) with the largest t ∈ [0, 1] that fits the box, into ``out``; returns 0
-    when τ fits as it is (``out`` untouched), 1 when scaled, 2 when b alone does not fit and
-    τ is clipped instead (``box_clip``)."""
+@kernel("int64(float64[:], float64[:], float64[:, :], float64[:, :], boolean, float64[:],"
+        " float64[:], float64[:])")
+def box_toward(lower: Array, upper: Array, to_joint: Array, from_joint: Array, mapped: bool,
+               bias: Array, tau: Array, out: Array) -> int:
+    """b + t (τ − b) with the largest t ∈ [0, 1] that fits the box lower ≤ Tᵀτ ≤ upper, into
+    ``out``; returns 0 when τ fits as it is (``out`` untouched), 1 when scaled, 2 when b alone
+    does not fit and τ is clipped instead (``box_clip``)."""
     n = tau.shape[0]
     tau_q = _times(to_joint, tau) if mapped else tau
     fits = True
     for j in range(n):
-        if not abs(tau_q[j]) <= limit[j]:
+        if not lower[j] <= tau_q[j] <= upper[j]:
             fits = False
     if fits:
         return 0
     b_q = _times(to_joint, bias) if mapped else bias
     for j in range(n):
-        if abs(b_q[j]) > limit[j]:
-            box_clip(limit, to_joint, from_joint, mapped, tau, out)
+        if b_q[j] < lower[j] or b_q[j] > upper[j]:  # (a NaN bias scales, as before)
+            box_clip(lower, upper, to_joint, from_joint, mapped, tau, out)
             return 2
     low = math.inf
     nan = False
     for j in range(n):
         d = tau_q[j] - b_q[j]
-        room = (limit[j] - b_q[j]) / d if d > 0 else ((-limit[j] - b_q[j]) / d if d < 0
+        room = (upper[j] - b_q[j]) / d if d > 0 else ((lower[j] - b_q[j]) / d if d < 0
                                                         else math.inf)
         if room != room:
             nan = True

@@ -1,4 +1,4 @@
-"""Model constants for the bounded-torque laws (Assumptions 7.4–7.6): ζ_g, ζ_c, ζ_f.
+"""Model constants for the bounded-torque laws (Assumptions 7.4–7.6): ζ_g, ζ_c, ζ_f, ζ_0.
 
 Sup-norms over the configuration space have no closed form for a general arm; they are
 estimated here by seeded sampling followed by local refinement, so they are numerical
@@ -19,11 +19,14 @@ from cpbc.model.robot_model import RobotModel
 
 @dataclass(frozen=True)
 class ModelBounds:
-    """ζ_g ≥ ‖g(x)‖, ζ_c ≥ ‖C(x, v)‖/‖v‖, ζ_f = ‖F_d‖ (spectral norms)."""
+    """ζ_g ≥ ‖g(x)‖, ζ_c ≥ ‖C(x, v)‖/‖v‖, ζ_f = ‖F_d‖ (spectral norms), and ζ_0 ≥ ‖T⁻ᵀ F_c
+    tanh(q̇/ε)‖, the Coulomb friction's bound: ‖f(ẋ)‖ ≤ ζ_f ‖ẋ‖ + ζ_0 (Assumption 7.6 with
+    a constant for the dry friction, which no linear bound in ‖ẋ‖ holds near ẋ = 0)."""
 
     gravity: float
     coriolis: float
     friction: float
+    coulomb: float = 0.0
 
 
 def _box(model: RobotModel, lower: Array | None, upper: Array | None) -> tuple[Array, Array]:
@@ -70,4 +73,7 @@ def estimate_bounds(
         )
         zeta_c = max(zeta_c, float(-res.fun))
     zeta_f = float(np.linalg.norm(model.viscous_friction, 2))
-    return ModelBounds(zeta_g, zeta_c, zeta_f)
+    # ‖T⁻ᵀ F_c tanh(·)‖ ≤ ‖T⁻¹‖₂ ‖F_c‖ (each |tanh| < 1)
+    zeta_0 = float(np.linalg.norm(model.coordinates.inverse, 2)
+                   * np.linalg.norm(model.coulomb_friction))
+    return ModelBounds(zeta_g, zeta_c, zeta_f, zeta_0)

@@ -12,8 +12,9 @@ and collision meshes. What this module adds on top of the two parsers:
   joint order; this is checked, not assumed.
 * **A clean plant.** One ``motor`` (gear 1, no control or force limit) per remaining joint;
   gravity (0, 0, −9.81) in both engines; URDF ``<dynamics damping/friction>`` and armature
-  set to zero in MuJoCo because the controller's model does not contain them (use the
-  scenario's ``robot.viscous_friction`` to model viscous friction in both engines). The URDF
+  set to zero in MuJoCo here: the joints' rotor inertia and friction are one value
+  (cpbc.model.joint_dynamics, the scenario's ``robot.armature`` and ``robot.friction``) that
+  the caller puts in both engines, what the file declares included only when asked for. The URDF
   joint ranges stay in MuJoCo as hard stops. Collision meshes of links that can move collide
   with obstacles only (``contype=1, conaffinity=0``: no self-contacts, nothing for links
   welded to the world), so MuJoCo's contact count is a witness of robot–obstacle contact.

@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 
 from cpbc.arrays import Array
 from cpbc.errors import ModelError
-from cpbc.kernels.coordinate_maps import to_controller, to_joint
+from cpbc.kernels.coordinate_maps import joint_friction, to_controller, to_joint
 from cpbc.model.coordinates import LinearCoordinates
 from cpbc.model.frames import FrameKinematics, offset_jacobian
 
@@ -27,6 +27,13 @@ _NO_JOINTS = (np.zeros((3, 0)), np.zeros((6, 0)))
 # D, nle, g, C, the frame's placement and Jacobian, the joint placements and Jacobians, the
 # arrays it writes
 PassReader = Callable[[Array, Array], tuple[NDArray[Any], ...]]
+# ε of the model's Coulomb friction F_c tanh(q̇/ε) [rad/s or m/s]: the rate below which the
+# model's friction fades. A joint's smoothed friction is stiff in q̇ (slope F_c/ε), and the law
+# feeds part of it forward once per control period (τ's c = C ẋ + f): at 0.05 rad/s the
+# FR3's largest level (1.137 N·m) has slope 23 N·m·s/rad, h·F_c/(ε D_ii) ≈ 0.1 at 1 kHz for
+# its lightest wrist (D_ii ≈ 0.2 kg·m² with armature) — no chatter of the feed-forward around
+# q̇ = 0 — while at the joints' working rates (≥ 0.2 rad/s) tanh is within 2 % of the sign.
+FRICTION_SMOOTHING = 0.05
 
 
 class ArmState(NamedTuple):
@@ -46,7 +53,7 @@ class ArmState(NamedTuple):
         coriolis_force: C(x, ẋ) ẋ, shape (n,) (from RNEA; the matrix C is
             ``RobotModel.coriolis``).
         gravity: g, shape (n,).
-        dissipation: f(ẋ) = F_d ẋ, shape (n,).
+        dissipation: f(ẋ) = F_d ẋ + T⁻ᵀ F_c tanh(q̇/ε), shape (n,) (RobotModel.dissipation).
         frames: the placement and Jacobian of every frame asked for (``frames=`` of
             :meth:`RobotModel.state`, e.g. those a task potential reads), by frame id; empty
             when none was asked for.
@@ -86,6 +93,18 @@ def _returns_own_arrays(model: pin.Model, data: pin.Data) -> bool:
                for a, v in zip(found, views, strict=True))
 
 
+def _coulomb(levels: Array | None, n: int) -> Array:
+    """Each joint's Coulomb friction level, shape (n,), finite and ≥ 0 (read-only)."""
+    fc = np.zeros(n) if levels is None else np.array(levels, dtype=float)
+    if fc.shape == ():
+        fc = np.full(n, float(fc))
+    if fc.shape != (n,) or not np.all(np.isfinite(fc)) or np.any(fc < 0):
+        raise ModelError(f"coulomb_friction must be {n} finite levels ≥ 0 (or one), "
+                         f"got {levels}", "coulomb_friction")
+    fc.setflags(write=False)
+    return fc
+
+
 def _is_prismatic(shortname: str) -> bool:
     """Pinocchio's prismatic joints: JointModelPX/PY/PZ and JointModelPrismaticUnaligned."""
     return shortname in ("JointModelPX", "JointModelPY", "JointModelPZ") or (
@@ -98,12 +117,23 @@ class RobotModel:
     All methods take and return controller coordinates. With the identity map they are the
     model's own joint coordinates.
 
+    The joints' rotor inertia (armature) is the Pinocchio model's ``armature``: its CRBA, RNEA
+    and ABA add it to D's diagonal (the motor's inertia reflected through the gear), as
+    MuJoCo's ``dof_armature`` does; set it on the model before building this.
+
     Args:
         model: a Pinocchio model whose configuration and velocity spaces coincide (nq == nv).
         coordinates: the linear map x = T q; identity when omitted.
         viscous_friction: joint viscous friction F_d in the *joint* coordinates, shape (n,)
             (diagonal) or (n, n); zero when omitted.
         name: a label for summaries.
+        torque_rate_limits: the joint torque-rate limits the robot declares, shape (n,)
+            [N·m/s] (no robot file format has a tag for them: a built-in arm sets them), or
+            None.
+        coulomb_friction: each joint's Coulomb (dry) friction level F_c ≥ 0 [N·m or N],
+            shape (n,); zero when omitted.
+        friction_smoothing: ε > 0 of the smoothed sign tanh(q̇/ε) of the Coulomb friction
+            [rad/s or m/s] (``FRICTION_SMOOTHING``).
     """
 
     def __init__(
@@ -112,6 +142,9 @@ class RobotModel:
         coordinates: LinearCoordinates | None = None,
         viscous_friction: Array | None = None,
         name: str = "robot",
+        torque_rate_limits: Array | None = None,
+        coulomb_friction: Array | None = None,
+        friction_smoothing: float = FRICTION_SMOOTHING,
     ) -> None:
         if model.nq != model.nv:
             raise ModelError(
@@ -125,6 +158,8 @@ class RobotModel:
         self.model = model
         self.data = model.createData()
         self.n = model.nv
+        self.torque_rate_limits = None if torque_rate_limits is None else np.broadcast_to(
+            np.asarray(torque_rate_limits, dtype=float), (self.n,)).copy()
         self.coordinates = coordinates or LinearCoordinates.identity(self.n)
         if self.coordinates.matrix.shape != (self.n, self.n):
             raise ModelError(
@@ -144,7 +179,11 @@ class RobotModel:
                 f"viscous_friction must have shape ({self.n},) or ({self.n}, {self.n})"
             )
         self.viscous_friction = self.coordinates.matrix_from_joint(fd)  # F_d in x-coordinates
-        self._has_friction = bool(np.any(fd))
+        self.coulomb_friction = _coulomb(coulomb_friction, self.n)
+        if not (np.isfinite(friction_smoothing) and friction_smoothing > 0):
+            raise ModelError(f"friction_smoothing must be > 0, got {friction_smoothing}")
+        self.friction_smoothing = float(friction_smoothing)
+        self._has_friction = bool(np.any(fd) or np.any(self.coulomb_friction))
         self._no_dissipation = np.zeros(self.n)
         self._no_dissipation.setflags(write=False)
         self.joint_names: tuple[str, ...] = tuple(model.names[1:])
@@ -189,8 +228,13 @@ class RobotModel:
 
     @property
     def has_friction(self) -> bool:
-        """Whether the model has viscous friction (f ≠ 0)."""
+        """Whether the model has viscous or Coulomb friction (f ≠ 0)."""
         return self._has_friction
+
+    @property
+    def armature(self) -> Array:
+        """Each joint's rotor inertia in D [kg·m² or kg], joint coordinates (a copy)."""
+        return np.array(self.model.armature, dtype=float)
 
     # -- coordinates -------------------------------------------------------------------------
     def _q(self, x: Array) -> Array:
@@ -223,10 +267,15 @@ class RobotModel:
         return self._back_vec(g.copy())
 
     def dissipation(self, dx: Array) -> Array:
-        """f(ẋ) = F_d ẋ, shape (n,)."""
+        """f(ẋ) = F_d ẋ + T⁻ᵀ F_c tanh(T⁻¹ẋ/ε), shape (n,)
+        (cpbc.kernels.coordinate_maps.joint_friction)."""
         if not self._has_friction:
             return self._no_dissipation
-        return self.viscous_friction.dot(dx)
+        f = np.empty(self.n)
+        joint_friction(self._identity, self._t_inv, self.viscous_friction,
+                       self.coulomb_friction, self.friction_smoothing,
+                       np.asarray(dx, dtype=float), f)
+        return f
 
     def state(self, x: Array, dx: Array, kinematics: bool = False,
               frames: Iterable[int] = (), coriolis: bool = False) -> ArmState:
@@ -430,7 +479,7 @@ class RobotModel:
         q, dq = self._q(x), self._q(dx)
         tau_q = tau if self._identity else self.coordinates.torque_to_joint(tau)
         if self._has_friction:
-            tau_q = tau_q - self.coordinates.torque_to_joint(self.viscous_friction @ dx)
+            tau_q = tau_q - self.coordinates.torque_to_joint(self.dissipation(dx))
         ddq = pin.aba(self.model, self.data, q, dq, tau_q)
         return ddq if self._identity else self.coordinates.from_joint(ddq)
 

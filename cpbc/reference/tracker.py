@@ -160,6 +160,11 @@ class GuardedReferenceTracker(ReferenceTracker, SafetyFilter):
         assert isinstance(run, SafetyFilter)
         return run.row_active_steps
 
+    def holding(self, tau: Array) -> None:
+        run = self.run
+        assert isinstance(run, SafetyFilter)
+        run.holding(tau)
+
 
 def tracking(law: Controller, period: float, plan: ReferencePlan | None = None,
              settings: GovernorSettings | None = None, feedforward: bool = True,

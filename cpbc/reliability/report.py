@@ -45,8 +45,13 @@ EXPLAINED = (
     "steps at which it could not meet every row within the box (the guard's "
     "fallback, the peer's slack); *rescues*: steps at which the guard held its "
     "rescue's brake (`cpbc.controllers.rescue`); *torque on a limit*: the share of "
-    "steps with a joint torque on its actuator limit. A violation is judged on the "
-    "true state at every physics step, for every constraint the controller keeps: "
+    "steps with a joint torque on its actuator limit; *peak torque rate (clipped)*, under "
+    "a torque-rate limit, the largest joint torque rate of any run as a share of its limit "
+    "and the steps at which the plant had to clip a command the controller asked for. "
+    "Under a torque-rate limit every brake of the classification ramps from the gravity "
+    "torque at the start at the limit (`cpbc.constraints.brakes.ramped`). "
+    "A violation is judged on the true state at every physics step, for every constraint the "
+    "controller keeps: "
     "the law's own and, with the safeguard, the scenario's monitored constraints it "
     "keeps besides (`simulation.safeguard_monitored`). Reproduce one failure with "
     "`--seeds K --rates R`.")
@@ -106,12 +111,20 @@ def _limits(limit: object) -> str:
     return " / ".join(f"{v:g}" for v in values) + " N·m"
 
 
+def _rate_limits(rate: object) -> str:
+    if rate is None:
+        return ""
+    values = sorted({float(v) for v in rate})  # type: ignore[attr-defined]
+    return ", torque-rate limits " + " / ".join(f"{v:g}" for v in values) + " N·m/s"
+
+
 def _conditions(doc: Record) -> str:
     plan = cast(Record, doc["plan"])
     where = cast(Record, doc.get("conditions", {}))
     return (f"States: {len(cast(list, plan['seeds']))} (seeds {plan['seed']}…), horizon "
             f"{plan['horizon']} s; physics {where.get('integrator', '?')} at "
             f"{where.get('timestep', '?')} s; torque limits {_limits(where.get('torque_limit'))}"
+            f"{_rate_limits(where.get('torque_rate_limit'))}"
             f"; safeguard {'on' if where.get('safeguard', True) else 'off'}{_also(where)}; "
             f"mismatch {plan['mismatch'] or 'none'}, noise {plan['noise'] or 'none'}.")
 
@@ -127,9 +140,21 @@ def _row(r: Mapping) -> dict[str, str]:
     cells.update({
         "filter acted": f"{r['filter_share']:.1%}", "rows acted": f"{row_share(dict(r)):.1%}",
         "infeasible steps": str(r["infeasible_steps"]), "rescues": str(r.get("rescues", 0)),
-        "torque on a limit": f"{r['torque_limit_share']:.1%}",
-        "failing seeds": ", ".join(str(f["seed"]) for f in r["failures"])})
+        "torque on a limit": f"{r['torque_limit_share']:.1%}"})
+    if r.get("peak_rate_share") is not None:  # a campaign under a torque-rate limit
+        cells["peak torque rate (clipped)"] = rate_cell(r)
+    cells["failing seeds"] = ", ".join(str(f["seed"]) for f in r["failures"])
     return cells
+
+
+def rate_cell(r: Mapping) -> str:
+    """Under a torque-rate limit, the largest peak joint torque rate of any run as a share of
+    its limit, and (in brackets) the steps at which the plant had to clip a command; "-"
+    without a limit."""
+    share = r.get("peak_rate_share")
+    if share is None:
+        return "-"
+    return f"{float(share):.0%} ({int(r.get('rate_clipped_steps', 0))})"
 
 
 def campaign_table(doc: Record) -> CampaignTable:

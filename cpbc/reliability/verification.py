@@ -42,6 +42,7 @@ from cpbc.constraints.brakes import (
     brakes,
     brings_to_rest,
     first_stop,
+    ramped,
 )
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import Braking, stopping_margins
@@ -144,7 +145,9 @@ def in_braking_set(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Arra
         lost, _, _ = stopping_margins(setup.monitor, setup.model, x, dx, full)
         if lost.size and not np.all(lost > 0):
             return False
-        sigma, _ = Braking.of(setup.model, full).margins(setup.monitor, setup.model, x, dx)
+        rate = setup.loop_settings.torque_rate_limit
+        sigma, _ = Braking.of(setup.model, full, rate=rate).margins(
+            setup.monitor, setup.model, x, dx, setup.model.gravity(x), period)
         if sigma.size and not np.all(sigma > 0):
             return False
     return viable(kept, x, dx, period)
@@ -154,10 +157,15 @@ def stopping_brake(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Arra
                    period: float, plant: MujocoPlant | None = None) -> str | None:
     """The first brake (cpbc.constraints.brakes) that, held at ``period`` in the true plant
     within the torque box, brings the arm to rest with every margin of ``kept`` positive at
-    every physics step; None if none does. ``plant``: the true plant to brake in (a fresh
-    one of the scenario's by default)."""
+    every physics step; None if none does. Under a torque-rate limit each brake ramps from
+    the gravity torque at the start (what the run's own first command starts from) at the
+    rate the motors allow. ``plant``: the true plant to brake in (a fresh one of the
+    scenario's by default)."""
     limit = setup.loop_settings.torque_limit
+    rate = setup.loop_settings.torque_rate_limit
     box = TorqueBox.of(setup.model, math.inf if limit is None else limit)
+    held = None if rate is None else box.joint(setup.model.gravity(x))
+    step = None if rate is None else rate * period
     plant = plant or setup.make_plant()
     coords = setup.model.coordinates
     substeps = max(round(period / plant.model.opt.timestep), 1)
@@ -166,22 +174,28 @@ def stopping_brake(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Arra
     def run(brake: Brake) -> Stop:
         plant.reset(coords.to_joint(x), coords.to_joint(dx))
         return brings_to_rest(brake, setup.model, kept.margins_along,
-                              _true_advance(plant, box, coords.matrix, substeps),
+                              _true_advance(plant, box, coords.matrix, substeps, step, held),
                               x, dx, period)
 
     return first_stop(tuple(table), table, run)[0]
 
 
-def _true_advance(plant: MujocoPlant, box: TorqueBox, t_mat: Array, substeps: int) -> Advance:
-    """The true plant as a plant for brings_to_rest: τ clipped to the box, held for one
-    control period, every physics step reported (controller coordinates). A step that acted
+def _true_advance(plant: MujocoPlant, box: TorqueBox, t_mat: Array, substeps: int,
+                  rate_step: Array | None = None, held: Array | None = None) -> Advance:
+    """The true plant as a plant for brings_to_rest: τ clipped to the box (and, under a
+    torque-rate limit ``rate_step`` = ρh, to what one period reaches from the joint torque
+    last held, ``held`` before the first), held for one control period, every physics step
+    reported (controller coordinates). A step that acted
     through a contact or a joint's range stop ends the braking unstopped (None): a force
     outside the torque box stopped the arm then, not the brake (a UR5 started 3 ms above a
     floor its law did not keep was classed stoppable by a brake that rested on the floor)."""
     data = plant.data
+    last = [held]
 
     def advance(tau: Array) -> tuple[Array, Array] | None:
-        plant.apply(box.joint(box.clip(tau)))
+        tau_q = box.joint(ramped(box, tau, rate_step, last[0]))
+        last[0] = tau_q
+        plant.apply(tau_q)
         qs, dqs = [], []
         for _ in range(substeps):
             plant.step(1)
@@ -230,6 +244,14 @@ def _steps_at_limit(joint_torque: Array, limit: Array | None) -> int:
     return int(np.sum(np.any(applied >= np.asarray(limit) * (1 - 1e-6), axis=1)))
 
 
+def _rate_share(peak: Array | None, limit: Array | None) -> float | None:
+    """The largest peak joint torque rate of a run as a share of its limit (None without
+    one): ≤ 1 when every command stayed within what the motors can do."""
+    if peak is None or limit is None:
+        return None
+    return float(np.max(np.asarray(peak) / np.asarray(limit)))
+
+
 def run_block(block: Block) -> list[Record]:
     """Every run of a block, one record each. Builds the scenario in this process."""
     plan = block.plan
@@ -264,6 +286,8 @@ def run_block(block: Block) -> list[Record]:
             "infeasible": int(traj.safeguard_infeasible),
             "rows_acted": int(traj.filter_row_steps), "rescues": int(traj.rescues),
             "at_limit": _steps_at_limit(traj.joint_torque, settings.torque_limit),
+            "rate_clipped": int(traj.rate_limited_steps),
+            "peak_rate_share": _rate_share(traj.peak_torque_rate, settings.torque_rate_limit),
             "position": s.position.tolist(), "velocity": s.velocity.tolist(),
             **({} if setup.reference is None else {"phase": phase}),
         })
@@ -317,6 +341,12 @@ def summarise(plan: Plan, records: Iterable[Record]) -> Record:
             / max(steps, 1),
             "rescues": sum(int(r.get("rescues", 0)) for r in group),  # type: ignore[call-overload]
             "torque_limit_share": sum(int(r["at_limit"]) for r in group) / max(steps, 1),  # type: ignore[call-overload]
+            # under a torque-rate limit: the steps at which the plant had to clip a command
+            # (the controller asked for more than the motors can do) and the largest peak
+            # rate as a share of the limit, over every run
+            "rate_clipped_steps": sum(int(r.get("rate_clipped", 0)) for r in group),  # type: ignore[call-overload]
+            "peak_rate_share": max((float(r["peak_rate_share"]) for r in group  # type: ignore[arg-type]
+                                    if r.get("peak_rate_share") is not None), default=None),
         })
     doc = asdict(plan)
     doc["rates"] = list(plan.rates)

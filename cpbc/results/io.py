@@ -28,7 +28,8 @@ CSV_COLUMNS = (
     "wall_time", "steps_per_second", "cause", "stall_kind", "task_error_final",
     "task_error_rms", "task_error_max", "reach_time", "tracking_error_applied_rms",
     "path_lag_final", "path_lag_max", "governor", "blocked_by", "blocked_at",
-    "violated_constraint",
+    "peak_torque_rate", "torque_rate_limits", "rate_limited_steps", "controller_time_max_us",
+    "controller_time_mean_us", "violated_constraint",
 )
 #: Lists the files a run wrote into its folder, one relative path a line; a later run into
 #: the same folder replaces these and nothing else.
@@ -55,7 +56,8 @@ def _csv_row(s: RunSummary) -> dict[str, object]:
         items = getattr(s, k)
         row[k] = "" if items is None else " ".join(f"{n}={v:.6g}" for n, v in items.items())
     for k in ("peak_joint_rates", "rate_bounds", "peak_torques", "peak_commanded_torques",
-              "torque_limits", "crossed_constraints"):
+              "torque_limits", "crossed_constraints", "peak_torque_rate",
+              "torque_rate_limits"):
         row[k] = " ".join("-" if v is None else (f"{v:.6g}" if isinstance(v, float) else str(v))
                           for v in getattr(s, k) or [])
     return row

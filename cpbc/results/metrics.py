@@ -128,6 +128,17 @@ class RunSummary:
     stall_kind: str | None = None
     task_error_final: dict[str, float] | None = None
     task_error_rms: dict[str, float] | None = None
+    # per joint, the largest change of the applied joint torque between control instants over
+    # the period, the first from the torque held before the run [N·m/s] (None: not measured,
+    # the reference backend); the motors' rate limits (None: none); the steps at which the
+    # plant's rate limit clipped the command
+    peak_torque_rate: list[float] | None = None
+    torque_rate_limits: list[float] | None = None
+    rate_limited_steps: int = 0
+    # the controller's (law and safeguard) longest and mean call in the loop [µs]: against
+    # a control deadline (None on the reference backend)
+    controller_time_max_us: float | None = None
+    controller_time_mean_us: float | None = None
     task_error_max: dict[str, float] | None = None
     reach_time: float | None = None
     # a reference run's (cpbc.results.reference_metrics): the error to the applied reference
@@ -144,6 +155,11 @@ class RunSummary:
     margin_units: dict[str, str] = field(default_factory=dict)
     # a Part I system's run: its own quantities; None for an arm's
     system: SystemOutcome | None = None
+    # an arm's joints as the model and the plant had them (cpbc.model.joint_dynamics):
+    # ``friction`` {coulomb, viscous (per joint), smoothing ε, compensation ε_c or None}
+    # and the rotor inertia ``armature`` per joint; None for a Part I system's run
+    friction: dict[str, object] | None = None
+    armature: list[float] | None = None
 
     @property
     def safeguard_share(self) -> float:
@@ -237,6 +253,7 @@ def summarise(
     torque_limits: Array | None = None,
     coordinates: Array | None = None,
     lengths: Array | None = None,
+    torque_rate_limits: Array | None = None,
 ) -> RunSummary:
     """Condense a trajectory into a RunSummary.
 
@@ -246,6 +263,7 @@ def summarise(
         coordinates: T of x = T q (the identity when omitted).
         lengths: which coordinates are lengths (RobotModel.length_coordinates), for the
             margins' units; all angles when omitted.
+        torque_rate_limits: the plant's joint torque-rate limits, shape (n,), or None.
     """
     margins = margin_history(monitor, traj) if margins is None else margins
     lyapunov = traj.lyapunov
@@ -300,7 +318,18 @@ def summarise(
         rescues=getattr(traj, "rescues", 0),
         rejected_samples=traj.rejected_samples,
         margin_units={n: BY_KEY[t].unit for n, t in types.items()},
+        peak_torque_rate=None if traj.peak_torque_rate is None else [
+            float(v) for v in traj.peak_torque_rate],
+        torque_rate_limits=None if torque_rate_limits is None else [
+            float(v) for v in torque_rate_limits],
+        rate_limited_steps=traj.rate_limited_steps,
+        controller_time_max_us=_us(traj.controller_time_max),
+        controller_time_mean_us=_us(traj.controller_time_mean),
     )
+
+
+def _us(seconds: float | None) -> float | None:
+    return None if seconds is None else 1e6 * seconds
 
 
 def _peaks(values: Array) -> list[float]:

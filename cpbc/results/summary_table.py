@@ -82,6 +82,17 @@ def _torques(s: RunSummary, names: Sequence[str]) -> str:
     return f"{peaks[i]:.3g}{'=' if i in at else '<'}{lims[i]:.3g} (joint {i + 1}){tail}"
 
 
+def _torque_rate(s: RunSummary) -> str:
+    """The peak joint torque rate against the motors' rate limit, when they have one."""
+    if s.torque_rate_limits is None or not s.peak_torque_rate:
+        return ""
+    ratios = [p / lim for p, lim in zip(s.peak_torque_rate, s.torque_rate_limits, strict=True)]
+    i = max(range(len(ratios)), key=lambda k: ratios[k])
+    mark = "≤" if ratios[i] <= 1.0 + 1e-9 else "[red]>[/red]"
+    return (f"torque rate {s.peak_torque_rate[i]:.4g}{mark}{s.torque_rate_limits[i]:.4g} "
+            f"N·m/s (joint {i + 1})")
+
+
 def _margins(s: RunSummary) -> str:
     """Per constraint type, the constraint nearest its bound, in the type's unit."""
     parts = []
@@ -158,9 +169,19 @@ def summary_table(summaries: Sequence[RunSummary], coordinate_names: Sequence[st
             rise = s.max_lyapunov_increase
             cells += ["-" if math.isnan(rise) else f"{rise:.2g}", safeguard_cell(s)]
         # a reference's samples are not its steps: its rate says nothing
-        cells.append("-" if s.steps_per_second is None else f"{s.steps_per_second:,.0f}")
+        cells.append(_rate_cell(s))
         t.add_row(*cells)
     return t
+
+
+def _rate_cell(s: RunSummary) -> str:
+    """Steps per second, and the controller's slowest call (against a control deadline)."""
+    if s.steps_per_second is None:
+        return "-"
+    slowest = s.controller_time_max_us
+    tail = "" if slowest is None else (f"\n({slowest / 1e3:.3g} ms)" if slowest >= 1e3
+                                       else f"\n({slowest:.0f} µs)")
+    return f"{s.steps_per_second:,.0f}{tail}"
 
 
 def _final_error(s: RunSummary) -> str:
@@ -204,6 +225,11 @@ def run_notes(s: RunSummary) -> str:
         notes.append(f"crossed monitored {monitored}")
     if s.saturated_steps:
         notes.append(f"torque saturated in {s.saturated_steps} steps")
+    if s.rate_limited_steps:
+        notes.append(f"torque rate clipped by the motors in {s.rate_limited_steps} steps")
+    rate = _torque_rate(s)
+    if rate:
+        notes.append(rate)
     if s.safeguard_share > SAFEGUARD_NOTE:
         notes.append(f"safeguard acted on {s.safeguard_share:.0%} of steps")
     if s.rejected_samples:

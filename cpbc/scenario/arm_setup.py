@@ -23,6 +23,7 @@ from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model import LinearCoordinates, RobotModel
 from cpbc.model.arms import ARMS
 from cpbc.model.gravity_load import GravityLoad
+from cpbc.model.joint_dynamics import JointDynamics
 from cpbc.model.loading import LoadedArm, finish_mujoco_model
 from cpbc.model.mjcf_arm import check_mjcf_arm
 from cpbc.resources import builtin_models
@@ -30,6 +31,7 @@ from cpbc.results.metrics import SettleCriteria
 from cpbc.scenario import robots
 from cpbc.scenario import schema as s
 from cpbc.scenario.goal_build import GoalPlan
+from cpbc.scenario.joint_dynamics_setup import friction_spec, joint_dynamics
 from cpbc.scenario.reference import ReferenceSetup
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings
 from cpbc.simulation.disturbances import PlantMismatch
@@ -37,8 +39,13 @@ from cpbc.simulation.disturbances import PlantMismatch
 
 @dataclass(frozen=True)
 class ControllerEntry:
+    """A scenario's law by name; ``friction_compensation``: the width ε_c [rad] of the
+    potential that beats the joints' Coulomb friction, when the law has it
+    (cpbc.controllers.potentials.friction), else None."""
+
     name: str
     controller: Controller
+    friction_compensation: float | None = None
 
 
 @dataclass(frozen=True)
@@ -86,6 +93,9 @@ class ScenarioSetup:
     # per case, the load on its path to the target that leaves a motor no room to brake
     # over gravity (cpbc.scenario.preflight): a warning before the run, a cause after it
     gravity_on_path: dict[str, GravityLoad] = dataclasses.field(default_factory=dict)
+    # per case that starts outside the safeguard's braking set V although a rescue brake
+    # stops it (cpbc.scenario.state_checks.check_stoppable): a note before the run
+    outside_braking_set: dict[str, str] = dataclasses.field(default_factory=dict)
     # a goal scenario's goal, preflight and posture (``target`` is then the posture x_n)
     goal: GoalPlan | None = None
     # a reference scenario's path, governor and plans (``goal`` is then its first sample)
@@ -96,6 +106,12 @@ class ScenarioSetup:
     case_targets: dict[str, Array] = dataclasses.field(default_factory=dict)
     case_controllers: dict[str, list[ControllerEntry]] = dataclasses.field(
         default_factory=dict)
+
+    @property
+    def joint_dynamics(self) -> JointDynamics:
+        """The joints' rotor inertia and friction, in the controller's model and the plant
+        alike (``robot.armature``, ``robot.friction``)."""
+        return model_joint_dynamics(self.model)
 
     def for_case(self, case: CaseEntry, entry: ControllerEntry) -> ControllerEntry:
         """The entry's law for a case: built for the case's own set point when its start is
@@ -114,7 +130,7 @@ class ScenarioSetup:
             entry = self.for_case(case, entry)
         loop = self.loop_settings
         run = guarded(entry.controller, loop.control_period, self.safeguard,
-                      loop.torque_limit, self.also_keep)
+                      loop.torque_limit, self.also_keep, loop.torque_rate_limit)
         if self.reference is None:
             return run
         turned = None if case is None else self.case_targets.get(case.name)
@@ -143,13 +159,7 @@ class ScenarioSetup:
         model = spec.compile()
         if self.arm is not None:
             finish_mujoco_model(model, self.arm.joint_names)
-        if self.model.viscous_friction.any():
-            fd = np.diag(
-                self.model.coordinates.matrix.T
-                @ self.model.viscous_friction
-                @ self.model.coordinates.matrix
-            )
-            model.dof_damping[:] = fd
+        self.joint_dynamics.on_mujoco(model)  # what the controller's model has
         mismatch = _mismatch(self.scenario.robot.plant)
         if mismatch is not None:
             mismatch.apply(model)  # the plant only: the controller's model stays nominal
@@ -229,14 +239,18 @@ def _robot_model(
     else:
         probe = RobotModel.from_mjcf(path)
     coords = _coordinates(robot, probe.n)
-    fd = np.asarray(robot.viscous_friction, dtype=float)
-    if fd.ndim == 0:
-        fd = np.full(probe.n, float(fd))
-    if fd.shape != (probe.n,):
-        raise ScenarioError(
-            "robot.viscous_friction", f"needs 1 or {probe.n} entries, got {fd.size}"
-        )
-    return RobotModel(probe.model, coords, fd, name=probe.name)
+    joints = joint_dynamics(robot, probe.model, None if arm is None else arm.urdf_text)
+    return RobotModel(joints.on_pinocchio(probe.model), coords, joints.viscous,
+                      name=probe.name, coulomb_friction=joints.coulomb,
+                      friction_smoothing=friction_spec(robot).smoothing)
+
+
+def model_joint_dynamics(model: RobotModel) -> JointDynamics:
+    """The rotor inertia and the joints' friction of a controller's model (joint
+    coordinates): its Pinocchio model's armature, F_d's diagonal and F_c."""
+    t = model.coordinates.matrix
+    return JointDynamics(model.armature, np.diag(t.T @ model.viscous_friction @ t).copy(),
+                         model.coulomb_friction)
 
 
 def coordinate_names(robot: s.RobotSpec, model: RobotModel) -> tuple[str, ...]:

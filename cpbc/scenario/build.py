@@ -127,12 +127,14 @@ def build(scenario: s.Scenario, scenario_file: Path, kinds: Kinds = KINDS) -> Sc
                             "only (its governor counts control periods): use backend: mujoco")
     case_targets = _case_targets(target, cases, periodic, monitor)
     gravity_on_path: dict[str, GravityLoad] = {}
+    outside_v: dict[str, str] = {}
     if loop.torque_limit is not None:
         for case in cases:
             gravity_on_path.update(check_gravity(model, case_targets.get(case.name, target),
                                                  [(case.name, case.position)],
                                                  loop.torque_limit))
-        check_stoppable(cases, monitor, model, loop.torque_limit)
+        outside_v = check_stoppable(cases, monitor, model, loop.torque_limit,
+                                    loop.control_period, loop.torque_rate_limit)
     controllers = build_controllers(scenario, model, target, cases, built, names, loop, goal,
                                     kinds)
     case_controllers = {
@@ -167,7 +169,8 @@ def build(scenario: s.Scenario, scenario_file: Path, kinds: Kinds = KINDS) -> Sc
                                     else None)
         if sim.safeguard else None,
         also_keep=monitor.configuration if sim.safeguard and sim.safeguard_monitored else (),
-        gravity_on_path=gravity_on_path, goal=goal, reference=reference,
+        gravity_on_path=gravity_on_path, outside_braking_set=outside_v, goal=goal,
+        reference=reference,
         case_targets=case_targets, case_controllers=case_controllers,
     )
     check_disturbances(scenario, plant, model.n)

@@ -5,7 +5,7 @@ and the law on the scenario's constraints."""
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -14,6 +14,8 @@ from cpbc.arrays import Array
 from cpbc.constraints import ConfigurationConstraint, VelocityConstraint
 from cpbc.controllers import Controller
 from cpbc.controllers.law_kind import LawInputs, Slopes, gain_vector
+from cpbc.controllers.potentials import JointLogCoshSpring, total
+from cpbc.controllers.potentials.friction import friction_compensation
 from cpbc.errors import CpbcError, InadmissibleStateError, ScenarioError
 from cpbc.model import RobotModel
 from cpbc.model.bounds import ModelBounds, estimate_bounds
@@ -21,6 +23,7 @@ from cpbc.scenario import schema as s
 from cpbc.scenario.arm_setup import CaseEntry, ControllerEntry
 from cpbc.scenario.gain_check import UnstableLoop, physical_gains, unstable_loop
 from cpbc.scenario.goal_build import GoalPlan, law_terms, linear_gains
+from cpbc.scenario.joint_dynamics_setup import friction_spec
 from cpbc.scenario.schema.kinds import KINDS, Kinds, LawKind
 from cpbc.simulation import LoopSettings
 
@@ -160,6 +163,54 @@ def _stable_scale(stable: Callable[[float], bool], smallest: float = 1e-3) -> fl
     return lo
 
 
+def _compensation(scenario: s.Scenario, model: RobotModel, target: Array,
+                  goal: GoalPlan | None) -> JointLogCoshSpring | None:
+    """The potential that beats the joints' Coulomb friction toward ``target``
+    (cpbc.controllers.potentials.friction), for a joint-target scenario whose model has
+    Coulomb friction and does not turn it off; None otherwise. It is a term in the joints:
+    the controller's coordinates must be the joints'."""
+    spec = friction_spec(scenario.robot)
+    if goal is not None or not spec.compensate or not np.any(model.coulomb_friction):
+        return None
+    if not model.coordinates.is_identity:
+        raise ScenarioError("robot.friction.compensate", "the Coulomb friction's compensation "
+                            "is a term in the joints: use robot.coordinates: joint, or set "
+                            "compensate: false")
+    return friction_compensation(target, model.coulomb_friction, spec.compensation_width)
+
+
+def _with_gains(gains: _Gains, term: JointLogCoshSpring | None) -> _Gains:
+    """The gains the held-loop check sees: with the compensation, its stiffness at the
+    target F̂_c/ε_c added to the law's (its linearisation at x̃ = 0)."""
+    if term is None:
+        return gains
+    extra = term.stiffness * term.xi
+    linear = gains.linear
+    return _Gains(gains.kp, gains.kd, lambda x: (linear(x)[0] + extra, linear(x)[1]))
+
+
+def _with_term(frequency: Frequency, term: JointLogCoshSpring | None) -> Frequency:
+    """A natural frequency whose scaled gains the held-loop check sees with ``term``."""
+    if term is None:
+        return frequency
+    scaled = frequency.gains
+    return replace(frequency, gains=lambda k: _with_gains(scaled(k), term))
+
+
+def _compensated(spec: s.LawSpec, kind: LawKind[Any], given: LawInputs, law: Controller,
+                 term: JointLogCoshSpring | None) -> Controller | None:
+    """The law built again with the compensation added to its potential, when the law has
+    a potential and its kind passes one on (cpbc.scenario.goal_build.law_terms gives one
+    the same way); None for a law without (the re-centred barrier, the CBF-QP)."""
+    potential = getattr(law, "potential", None)
+    if term is None or potential is None:
+        return None
+    summed = total(potential, term)
+    again = _build_controller(spec, kind, replace(given, gains={**given.gains,
+                                                                "potential": summed}))
+    return again if getattr(again, "potential", None) is summed else None
+
+
 def _build_controller(spec: s.LawSpec, kind: LawKind[Any], given: LawInputs) -> Controller:
     """The kind's law of an entry; the law's own errors name the entry's key they come from."""
     try:
@@ -206,19 +257,25 @@ def build_controllers(
     sim = scenario.simulation
     check = sim.check_gains and sim.backend == "mujoco"  # the reference holds nothing
     states = [target] + [c.position for c in cases]
+    term = _compensation(scenario, model, target, goal)
     controllers = []
     for i, cspec in enumerate(scenario.controllers):
         field = f"controllers[{i}]"
         kind = kinds.law(cspec.type)
         gains, terms = _entry_gains(cspec, kind, model, target, goal, kinds, field)
-        if check:
-            _check_zoh(gains, model, states, sim, names, field,
-                       natural_frequencies(cspec, kind, model, target, goal, field))
         given = LawInputs(model, target, terms or {"kp": gains.kp, "kd": gains.kd}, built,
                           model_bounds, loop.control_period, loop.torque_limit, field,
                           None if goal is None else goal.goal)
-        controllers.append(ControllerEntry(cspec.name or cspec.type,
-                                           _build_controller(cspec, kind, given)))
+        law = _build_controller(cspec, kind, given)
+        compensated = _compensated(cspec, kind, given, law, term)
+        if check:
+            extra = term if compensated else None
+            frequencies = [_with_term(f, extra) for f in
+                           natural_frequencies(cspec, kind, model, target, goal, field)]
+            _check_zoh(_with_gains(gains, extra), model, states, sim, names, field, frequencies)
+        controllers.append(ControllerEntry(
+            cspec.name or cspec.type, law if compensated is None else compensated,
+            None if compensated is None else friction_spec(scenario.robot).compensation_width))
     if len({c.name for c in controllers}) != len(controllers):
         raise ScenarioError("controllers", "controller names must be unique; set 'name' on each")
     return controllers

@@ -29,6 +29,10 @@ def _union_tags() -> frozenset[str]:
 
 
 _TAGS = _union_tags()
+# the specs' class names, which pydantic puts in the location of a union of a spec and a
+# literal (``robot.friction.FrictionSpec.coulomb``); no key of a scenario is one
+_SPECS = frozenset(name for name, obj in vars(schema).items()
+                   if isinstance(obj, type) and issubclass(obj, BaseModel))
 
 
 def _path(loc: tuple[object, ...]) -> str:
@@ -38,6 +42,7 @@ def _path(loc: tuple[object, ...]) -> str:
             out += f"[{part}]"
         elif isinstance(part, str) and (
             part.startswith(("function-", "tagged-union", "list[", "literal[")) or part in _TAGS
+            or part in _SPECS
         ):
             continue  # pydantic's internal union branch labels
         else:

@@ -58,6 +58,24 @@ def undeclared_efforts(setup: ScenarioSetup) -> tuple[str, ...]:
                  if not np.isfinite(v))
 
 
+def _rate_limit(sim: s.SimulationSpec, model: RobotModel) -> Array | None:
+    """The joint torque-rate limits [N·m/s] the scenario asks for, or None."""
+    rate = sim.torque_rate_limit
+    if rate is None or rate == "none":
+        return None
+    field = "simulation.torque_rate_limit"
+    if rate == "from_model":
+        if model.torque_rate_limits is None:
+            raise ScenarioError(field, f"the model '{model.name}' declares no torque-rate "
+                                "limit: give one number or one per joint [N·m/s]")
+        return model.torque_rate_limits.copy()
+    if not model.coordinates.is_identity and isinstance(rate, list):
+        raise ScenarioError(field, "per-joint rate limits are in joint coordinates: give one "
+                            "number, or use robot.coordinates: joint")
+    values = rate if isinstance(rate, list) else [rate] * model.n
+    return vector(values, model.n, field)
+
+
 def loop_settings(sim: s.SimulationSpec, model: RobotModel) -> LoopSettings:
     n = model.n
     control_period = sim.control_period or sim.timestep
@@ -88,4 +106,5 @@ def loop_settings(sim: s.SimulationSpec, model: RobotModel) -> LoopSettings:
         sim.duration, control_period, limit, sim.log_every,
         noise=noise,
         max_log_samples=sim.max_log_samples,
+        torque_rate_limit=_rate_limit(sim, model),
     )

@@ -90,6 +90,7 @@ def run_one(
         entry.name, case.name, entry.controller, setup.monitor, traj, setup.criteria,
         setup.rate_bounds, margins, setup.loop_settings.torque_limit,
         setup.model.coordinates.matrix, setup.model.length_coordinates,
+        setup.loop_settings.torque_rate_limit,
     )
     errors, logged = None, None
     if isinstance(law, ReferenceTracker) and setup.goal is not None:
@@ -108,6 +109,10 @@ def run_one(
                                beyond_reach=setup.goal.preflight.beyond_reach is not None)
         # a goal run settles when it enters the goal's band for good, not at the posture
         summary = replace(summary, **outcome.__dict__, settle_time=outcome.reach_time)
+    joints = setup.joint_dynamics.summary()
+    summary = replace(summary, armature=joints.pop("armature"), friction={
+        **joints, "smoothing": setup.model.friction_smoothing,
+        "compensation": entry.friction_compensation})
     load = setup.gravity_on_path.get(case.name)
     if load is not None and summary.failed:
         summary = replace(summary, cause=load.describe())

@@ -3,11 +3,22 @@ the joint ranges and the admissible set, and each start inside the braking set."
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints import ConstraintSet
+from cpbc.constraints.brakes import (
+    Brake,
+    Stop,
+    TorqueBox,
+    brakes,
+    brings_to_rest,
+    first_stop,
+    model_advance,
+)
 from cpbc.constraints.stopping import Braking, stopping_margins
 from cpbc.errors import InadmissibleStateError, ScenarioError
 from cpbc.model import RobotModel
@@ -82,26 +93,74 @@ def initial_states(
 
 
 def check_stoppable(cases: list[CaseEntry], monitor: ConstraintSet, model: RobotModel,
-                     limit: Array) -> None:
-    """Refuse an initial state outside the braking set V: the safeguard's brake, within the
-    torque limits, would stop the arm past a configuration boundary
-    (cpbc.constraints.stopping.Braking); say whether any torque in the box could."""
-    braking = Braking.of(model, limit)
+                    limit: Array, period: float, rate: Array | None = None) -> dict[str, str]:
+    """Refuse an initial state that no brake within the torque (and torque-rate) limits
+    stops before a configuration boundary, in the controller's model: the uniform brake of
+    the braking set V (cpbc.constraints.stopping.Braking) and, outside V, the rescue's
+    brakes held until rest (cpbc.constraints.brakes, ramped from the gravity torque at the
+    start under a rate limit). A start outside V that one of those stops runs (the
+    safeguard's rescue holds that brake); it is returned, per case, as a note to print."""
+    braking = Braking.of(model, limit, rate=rate)
+    outside: dict[str, str] = {}
     for i, case in enumerate(cases):
-        sigma, travel = braking.margins(monitor, model, case.position, case.velocity)
-        if not sigma.size or np.all(sigma > 0):
+        sigma, travel = braking.margins(monitor, model, case.position, case.velocity,
+                                        period=period)
+        in_v = not sigma.size or bool(np.all(sigma > 0))
+        # under a rate limit a moving start may lose a velocity margin while the torque
+        # ramps, which V (configuration margins) does not see: a brake must show it stops
+        if in_v and (rate is None or not np.any(case.velocity)):
             continue
-        k = int(np.argmin(sigma))
+        brake = _stopping_brake(monitor, model, limit, rate, period, case)
+        k = int(np.argmin(sigma)) if sigma.size else 0
         speed = float(np.linalg.norm(case.velocity))
+        where = (f"at {speed:.4g} rad/s the brake that slows every joint together within the "
+                 f"motors' limits travels {travel:.4g} rad to stop, which ends past "
+                 f"'{monitor.names[k]}' (margin {sigma[k]:.4g} there)") if not in_v else (
+                 f"at {speed:.4g} rad/s, with the torque ramping at the motors' rate limit")
+        if brake is not None:
+            if not in_v:
+                outside[case.name] = (
+                    f"case '{case.name}' starts outside the safeguard's braking set V: "
+                    f"{where}; the {brake.replace('_', ' ')} brake stops it in the model, "
+                    "and the safeguard's rescue holds it there")
+            continue
+        _refuse(i, case, monitor, model, limit, rate, where, k, in_v)
+    return outside
+
+
+def _refuse(i: int, case: CaseEntry, monitor: ConstraintSet, model: RobotModel,
+            limit: Array, rate: Array | None, where: str, k: int, in_v: bool) -> None:
+    """The refusal of a start no brake stops (check_stoppable)."""
+    if in_v:
+        verdict = ("no brake within the torque and torque-rate limits (uniform, "
+                   "least-squares, aimed), ramped from the gravity torque, keeps every "
+                   "constraint")
+    else:
         lost, _, _ = stopping_margins(monitor, model, case.position, case.velocity, limit)
         verdict = ("no torque within the limits can stop it in time either" if lost[k] <= 0
-                   else "a brake aimed at that constraint alone might, but the safeguard's "
-                   "brake must slow every joint at once")
-        raise ScenarioError(
-            f"cases[{i}].velocity",
-            f"case '{case.name}' is outside the braking set: at {speed:.4g} rad/s the "
-            f"actuators' torque limits leave a brake that slows every joint together "
-            f"{travel:.4g} rad of travel to stop, which ends past '{monitor.names[k]}' "
-            f"(margin {sigma[k]:.4g} there; cpbc.constraints.stopping.Braking); {verdict}. "
-            "Start slower or farther from that boundary, or raise simulation.torque_limit",
-        )
+                   else "nor does any of the rescue's brakes (least-squares, aimed)")
+    raise ScenarioError(
+        f"cases[{i}].velocity",
+        f"case '{case.name}' cannot be stopped inside the constraints: {where}; "
+        f"{verdict}. Start slower or farther from that boundary, or raise "
+        "simulation.torque_limit" + ("" if rate is None else
+                                     " or simulation.torque_rate_limit"),
+    )
+
+
+def _stopping_brake(monitor: ConstraintSet, model: RobotModel, limit: Array,
+                    rate: Array | None, period: float, case: CaseEntry) -> str | None:
+    """The first of the rescue's brakes that, held in the model at ``period`` (ramped at
+    ``rate`` from the gravity torque), brings the case's start to rest with every
+    configuration margin positive; None if none does."""
+    box = TorqueBox.of(model, limit)
+    table = brakes(box, monitor, model)
+    x, dx = case.position, case.velocity
+    steps = max(math.ceil(period / 0.001 - 1e-9), 1)
+
+    def run(brake: Brake) -> Stop:
+        advance = model_advance(model, box, x, dx, period, steps,
+                                None if rate is None else rate * period, model.gravity(x))
+        return brings_to_rest(brake, model, monitor.margins_along, advance, x, dx, period)
+
+    return first_stop(("least_squares", "aimed", "uniform"), table, run)[0]

@@ -10,6 +10,7 @@ constraint_violated), the progress reports and the wall-clock time.
 
 from __future__ import annotations
 
+import gc
 import math
 import time as _time
 from collections.abc import Callable
@@ -45,6 +46,10 @@ class LoopSettings:
         duration: simulated time [s], > 0.
         control_period: controller period [s]; a whole multiple of the physics timestep.
         torque_limit: symmetric joint torque limits |τ_q,i| ≤ limit_i [N·m], or None.
+        torque_rate_limit: joint torque-rate limits |Δτ_q,i| ≤ ρ_i h per control period
+            [N·m/s], or None. The plant applies it as a motor would (a command beyond it is
+            clipped and counted); the run's first command moves from the torque held before
+            it, the gravity torque at the start (an arm held at rest).
         log_every: keep every k-th control sample (long runs).
         noise: Gaussian noise on the state the controller sees, or None.
         max_log_samples: the log never holds more samples than this: when full, it drops
@@ -57,6 +62,7 @@ class LoopSettings:
     log_every: int = 1
     noise: MeasurementNoise | None = None
     max_log_samples: int = 100_000
+    torque_rate_limit: Array | None = None
 
     def __post_init__(self) -> None:
         if not self.duration > 0:
@@ -65,6 +71,9 @@ class LoopSettings:
             raise CpbcError(f"control_period must be > 0, got {self.control_period}")
         if self.max_log_samples < 2:
             raise CpbcError(f"max_log_samples must be ≥ 2, got {self.max_log_samples}")
+        rate = self.torque_rate_limit
+        if rate is not None and not np.all(np.asarray(rate, dtype=float) > 0):
+            raise CpbcError(f"torque_rate_limit must be > 0 [N·m/s], got {rate}")
 
 
 def substeps_per_control(control_period: float, timestep: float) -> int:
@@ -84,8 +93,10 @@ class _Sampler:
     noise, if any; a measured state it refuses while the true one is inside S is a
     *rejected* sample, answered by ``_fallback``."""
 
-    def __init__(self, controller: Controller, noise: MeasurementNoise | None, n: int) -> None:
+    def __init__(self, controller: Controller, noise: MeasurementNoise | None, n: int,
+                 period: float) -> None:
         self.controller = controller
+        self.period = period
         self.noise = noise if noise is not None and noise.active else None
         if self.noise is not None:
             self.sigma_x, self.sigma_dx = self.noise.sigmas(n)
@@ -93,7 +104,7 @@ class _Sampler:
         self.n = n
         self.rejected = 0
 
-    def __call__(self, x: Array, dx: Array, held: Array | None) -> tuple[Array, float]:
+    def __call__(self, x: Array, dx: Array) -> tuple[Array, float]:
         """τ and the true V; ConstraintViolation when the true state has left S too."""
         if self.noise is None:
             return self.controller.evaluate(x, dx)
@@ -106,7 +117,7 @@ class _Sampler:
             if not _inside(ctrl, x, dx):
                 raise
             self.rejected += 1  # the measurement left S, the arm did not
-            tau = _fallback(ctrl, xm, dxm, ctrl.model.gravity(xm) if held is None else held)
+            tau = _fallback(ctrl, xm, dxm, self.period)
         return tau, _true_lyapunov(ctrl, x, dx)
 
 
@@ -147,7 +158,20 @@ class LoopEnd:
 def run_loop(loop: SampledLoop[S, U], steps: int, substeps: int, period: float,
              progress: Progress | None = None) -> LoopEnd:
     """Run ``steps`` control periods of ``substeps`` physics steps each (samples at
-    0, period, …, steps·period)."""
+    0, period, …, steps·period), with Python's cyclic garbage collector off: a collection
+    inside the loop is a pause of milliseconds at a random step (a control deadline's
+    worst enemy); what the loop allocates is freed by reference counting as it goes."""
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        return _steps(loop, steps, substeps, period, progress)
+    finally:
+        if collecting:
+            gc.enable()
+
+
+def _steps(loop: SampledLoop[S, U], steps: int, substeps: int, period: float,
+           progress: Progress | None) -> LoopEnd:
     outcome, violated, k = "completed", None, 0
     report_every = max(1, steps // 50)
     # the step's calls bound once (attribute look-ups cost per step)
@@ -193,7 +217,7 @@ class _ArmLoop:
         self.identity = coordinates.is_identity
         self.limit = settings.torque_limit
         self.log = TrajectoryLog(n, steps + 1, settings.log_every, settings.max_log_samples)
-        self.sample = _Sampler(controller, settings.noise, n)
+        self.sample = _Sampler(controller, settings.noise, n, settings.control_period)
         self.qpos, self.qvel = plant.data.qpos, plant.data.qvel
         self.tau: Array | None = None
         self.v = math.nan
@@ -202,6 +226,26 @@ class _ArmLoop:
         self.guard = controller if isinstance(controller, SafetyFilter) else None
         self.acted = self.guard.acted if self.guard else 0  # the guard's count before this step
         self.guarded_steps = np.zeros(steps + 1 if self.guard else 0, dtype=bool)
+        self.period = settings.control_period
+        rate = settings.torque_rate_limit
+        self.rate_step = None if rate is None else np.broadcast_to(
+            np.asarray(rate, dtype=float) * self.period, (n,))
+        # a command that ends on the rate box's edge is within it: held ± ρh computed by the
+        # guard and the difference taken here may round apart by an ulp
+        self.rate_tolerance = None if self.rate_step is None else self.rate_step * (1 + 1e-9)
+        self.rate_limited = 0
+        self.held_q: Array | None = None  # the joint torque the motors hold (set by start)
+        self.peak_step = np.zeros(n)  # the largest |Δτ_q| between commands
+        self.compute_max = 0.0  # the controller's longest call [s] (the loop's deadline)
+        self.compute_total = 0.0
+
+    def start(self, x0: Array) -> None:
+        """Before the first control instant: the motors hold the gravity torque of the
+        controller's model at the start, and a guard that knows the rate limit is told so."""
+        gravity = self.sample.controller.model.gravity(x0)
+        self.held_q = gravity if self.identity else self.t_mat_t.dot(gravity)
+        if self.guard is not None and self.rate_step is not None:
+            self.guard.holding(gravity)
 
     def observe(self) -> tuple[Array, Array] | None:
         if self.identity:
@@ -215,7 +259,13 @@ class _ArmLoop:
 
     def control(self, t: float, state: tuple[Array, Array]) -> Array | None:
         x, dx = state
-        tau, v = self.sample(x, dx, self.tau)
+        rejected = self.sample.rejected
+        start = _time.perf_counter()
+        tau, v = self.sample(x, dx)
+        spent = _time.perf_counter() - start
+        self.compute_total += spent
+        if spent > self.compute_max:
+            self.compute_max = spent
         self.tau, self.v = tau, v
         if not math.isfinite(sum(tau.tolist())):
             self.log.record(t, v, x, dx, tau, np.full(len(tau), np.nan), force=True)
@@ -228,7 +278,20 @@ class _ArmLoop:
         if limit is not None and not (abs(tau_q) <= limit).all():  # the array methods: the
             tau_q = tau_q.clip(-limit, limit)  # numpy functions cost 2-3 µs a step more
             self.saturated += 1
+        held = self.held_q
+        if held is not None:
+            change = tau_q - held
+            step = self.rate_step
+            if step is not None and not (abs(change) <= self.rate_tolerance).all():
+                tau_q = held + change.clip(-step, step)  # what the motors can do
+                self.rate_limited += 1
+                change = tau_q - held
+            np.maximum(self.peak_step, abs(change), out=self.peak_step)
+        self.held_q = tau_q
         self.tau_q = tau_q
+        if self.sample.rejected != rejected and guard is not None and self.rate_step is not None:
+            # the guard did not choose this torque: it ramps on from what the motors hold
+            guard.holding(tau_q if self.identity else np.linalg.solve(self.t_mat_t, tau_q))
         return tau_q
 
     def record(self, t: float, state: tuple[Array, Array], tau_q: Array, last: bool) -> None:
@@ -269,14 +332,15 @@ def run_mujoco(
     then asks the plant: if the true state is inside S, the sample is *rejected* and counted
     in ``Trajectory.rejected_samples``: the law is evaluated at the measured rate scaled back
     just inside S (rate_into_set), or, when a configuration margin was measured ≤ 0, the
-    previous torque is held (gravity compensation at the first sample) — what a real
-    controller, which cannot know the true state, can do. If the true state is outside S
+    model's one-period brake at the measured state — what a real controller, which cannot
+    know the true state, can do. If the true state is outside S
     too, the run ends as ``constraint_violated``.
     """
     substeps = substeps_per_control(settings.control_period, plant.model.opt.timestep)
     steps = round(settings.duration / settings.control_period)
     plant.reset(coordinates.inverse @ x0, coordinates.inverse @ dx0)
     arm = _ArmLoop(plant, controller, coordinates, settings, steps)
+    arm.start(x0)
     end = run_loop(arm, steps, substeps, settings.control_period, progress)
     k, guard = end.last_step, arm.guard
     tt, xs, dxs, taus, tau_qs, vs = arm.log.arrays()
@@ -292,6 +356,10 @@ def run_mujoco(
         rescues=guard.rescues if guard else 0,
         rejected_samples=arm.sample.rejected,
         guarded_steps=arm.guarded_steps[: k + 1] if guard else None,
+        rate_limited_steps=arm.rate_limited,
+        peak_torque_rate=arm.peak_step / settings.control_period,
+        controller_time_max=arm.compute_max,
+        controller_time_mean=arm.compute_total / max(k + 1, 1),
     )
 
 
@@ -363,16 +431,21 @@ def run_system_mujoco(
                             system.qpos[:n], system.qvel[:n])
 
 
-def _fallback(law: Controller, xm: Array, dxm: Array, held: Array) -> Array:
+def _fallback(law: Controller, xm: Array, dxm: Array, period: float) -> Array:
     """The torque for a measurement the law refused: the law at the measured rate scaled
-    back into S (when only velocity constraints are broken), else the held torque."""
+    back into S (when only velocity constraints are broken), else the model's brake that
+    stops the measured motion in one period, b − D ẋ/h (the plant's torque box and rate
+    limit clip it as they clip every command): never the last torque held, which may be
+    what drives the arm out."""
     dxp = rate_into_set(law.constraints, xm, dxm)
-    if dxp is None:
-        return held
-    try:
-        return law.evaluate(xm, dxp)[0]
-    except ConstraintViolation:
-        return held
+    if dxp is not None:
+        try:
+            return law.evaluate(xm, dxp)[0]
+        except ConstraintViolation:
+            pass
+    state = law.model.state(xm, dxm)
+    return (state.coriolis_force + state.gravity + state.dissipation
+            - state.inertia.dot(dxm) / period)
 
 
 def _inside(controller: Controller, x: Array, dx: Array) -> bool:

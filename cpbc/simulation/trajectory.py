@@ -39,9 +39,17 @@ class Trajectory:
             the guard's every step).
         rescues: control steps at which the safeguard held its rescue's brake.
         rejected_samples: noisy measurements outside S (true state inside) that the law
-            refused; the previous torque was held.
+            refused; the law at a rate scaled into S, or a brake, was held instead.
         guarded_steps: per control step, whether the safeguard replaced the law's torque
             (None without a safeguard).
+        rate_limited_steps: control steps in which the motors' torque-rate limit clipped the
+            command (0 under a safeguard that knows the limit: it never asks for more).
+        peak_torque_rate: per joint, the largest |Δτ_q|/h between successive commands, the
+            first one from the torque held before the run [N·m/s] (None: not measured, the
+            reference backend).
+        controller_time_max, controller_time_mean: the wall time of the controller's
+            longest call and of its mean call in the loop (the law with its safeguard, the
+            state's Pinocchio pass included) [s]; None for the reference backend.
     """
 
     time: Array
@@ -64,6 +72,10 @@ class Trajectory:
     guarded_steps: Array | None = None
     filter_row_steps: int = 0
     rescues: int = 0
+    rate_limited_steps: int = 0
+    peak_torque_rate: Array | None = None
+    controller_time_max: float | None = None
+    controller_time_mean: float | None = None
 
     @property
     def steps_per_second(self) -> float:

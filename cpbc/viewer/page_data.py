@@ -97,10 +97,19 @@ def _shared_scene(run: SavedRun, settings: ViewSettings) -> tuple[CaseScene, dic
 
 
 def _status(summary: SummaryEntry) -> str:
-    """A run's status, and its cause when the summary names one."""
+    """A run's status, and its cause when the summary names one; under a torque-rate limit
+    its peak rate against the limit; the controller's slowest call."""
     status = str(summary.get("status", ""))
     cause = summary.get("cause")
-    return f"{status}; cause: {cause}" if cause else status
+    parts = [f"{status}; cause: {cause}" if cause else status]
+    peak, limits = summary.get("peak_torque_rate"), summary.get("torque_rate_limits")
+    if isinstance(peak, list) and isinstance(limits, list) and peak and limits:
+        share = max(float(p) / float(lim) for p, lim in zip(peak, limits, strict=True))
+        parts.append(f"peak torque rate {share:.0%} of its limit")
+    slowest = summary.get("controller_time_max_us")
+    if isinstance(slowest, (int, float)):
+        parts.append(f"slowest controller call {float(slowest):.0f} µs")
+    return "; ".join(parts)
 
 
 def _case_scene(run: SavedRun, case: SavedCase, shared: CaseScene) -> dict[str, Any]:

@@ -12,6 +12,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.controllers.hold import hold_corrected
 from cpbc.controllers.safeguard.members import GuardMembers
+from cpbc.controllers.safeguard.predicted_margins import BrakingTest
 from cpbc.controllers.safeguard.prediction import Predictor
 from cpbc.model.robot_model import ArmState
 
@@ -20,7 +21,7 @@ class Acceptance(GuardMembers):
     """(S1), (S2) and the blend: mixed into :class:`cpbc.controllers.safeguard.Safeguard`."""
 
     def _check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None,
-               stop: tuple[float, Array] | None = None,
+               stop: BrakingTest | None = None,
                past: np.ndarray | None = None) -> Callable[[Array], float]:
         """F(τ) = min_i m_i/floor_i − 1 over the predicted end (and mid-period
         configuration) margins of every prediction, and with ``stop`` = (1/(2θA), floors)
@@ -32,24 +33,41 @@ class Acceptance(GuardMembers):
         already ≤ 0 (only the extra constraints can be): their floor is their present value,
         compared by difference, and their braking margin is not held (:meth:`_guard`)."""
         along = self.along
+        ramp = self._ramp
+        if ramp is None or not along.nv:
+            def f(t: Array) -> float:
+                return along.slack(predict(t), end_floor, mid_floor, stop, past)
 
-        def f(t: Array) -> float:
-            return along.slack(predict(t), end_floor, mid_floor, stop, past)
+            return f
 
-        return f
+        def ramped(t: Array) -> float:
+            rows = predict(t)
+            return min(along.slack(rows, end_floor, mid_floor, stop, past),
+                       along.ramp_slack(rows, ramp))
 
-    def _braking_floor(self, state: ArmState, bias: Array) -> tuple[float, Array] | None:
-        """(1/(2θA), the floors of the braking margins σ_i: their cushions δ_i), or None
-        without a torque box, at rest, or where the box leaves no deceleration (then no
-        torque can help and σ is not held). σ is held above its cushion, not by the decay
-        rule (S1): that would cost a second evaluation of every constraint per step, at the
-        stopping point of the sample, and φ itself is held by (S1) already."""
-        if self.braking is None:
+        return ramped
+
+    def _braking_floor(self, state: ArmState, bias: Array,
+                       held: Array | None = None) -> BrakingTest | None:
+        """(1/(2θA), the floors of the braking margins σ_i: their cushions δ_i, and under a
+        torque-rate limit the brake's ramp time from the torque ``held``), or None without a
+        torque box, at rest, or where the box leaves no deceleration (then no torque can
+        help and σ is not held). σ is held above its cushion, not by the decay rule (S1):
+        that would cost a second evaluation of every constraint per step, at the stopping
+        point of the sample, and φ itself is held by (S1) already. The ramp is taken from
+        the held torque plus one period: a candidate lies within ρh of it."""
+        braking = self.braking
+        if braking is None:
             return None
-        per_speed = self.braking.per_speed(state.inertia, bias, state.dx)
+        per_speed = braking.per_speed(state.inertia, bias, state.dx)
         if per_speed == 0.0 or per_speed == math.inf:
             return None
-        return per_speed, self._sigma_floor
+        if braking.rate is None:
+            return BrakingTest(per_speed, self._sigma_floor)
+        ramp = braking.ramp(state.inertia, bias, state.dx,
+                            state.gravity if held is None else held, per_speed)
+        return BrakingTest(per_speed, self._sigma_floor, ramp + self.period, state.dx,
+                           self.period)
 
     def _held(self, state: ArmState, bias: Array, law: Array,
               slack: Callable[[Array], float]) -> tuple[Array, float]:

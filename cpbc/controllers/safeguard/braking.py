@@ -13,6 +13,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.safeguard.members import GuardMembers
+from cpbc.controllers.safeguard.predicted_margins import BrakingTest
 from cpbc.controllers.safeguard.prediction import Predictor
 from cpbc.model.robot_model import ArmState
 
@@ -21,7 +22,7 @@ class Brakes(GuardMembers):
     """The replacement torques: mixed into :class:`cpbc.controllers.safeguard.Safeguard`."""
 
     def _check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None,
-               stop: tuple[float, Array] | None = None,
+               stop: BrakingTest | None = None,
                past: np.ndarray | None = None) -> Callable[[Array], float]:
         raise NotImplementedError
 
@@ -79,10 +80,14 @@ class Brakes(GuardMembers):
             return self._check(predict, np.maximum(floor, 1e-300),
                                np.maximum(floor[:nc], 1e-300) if nc else None)(t) >= 0.0
 
-        tau = self.rescue.torque(state, bias, now, holds, self.calls)
-        if tau is not None:
-            self.rescues += 1
-        return tau
+        tau = self.rescue.torque(state, bias, now, holds, self.calls, self._holding)
+        if tau is None:
+            return None
+        self.rescues += 1
+        # under a rate limit the motors ramp toward the brake along the line from the held
+        # torque (_box), as the rescue's search held it (brakes.ramped): a brake clipped
+        # joint by joint kicked the Panda's light wrist through its rate bound
+        return tau if self._rate_step is None else self._box(bias, tau)
 
     def _infeasible(self, state: ArmState, bias: Array, stop: Array, predict: Predictor,
                     now: Array, floor: Array, floor_mid: Array | None) -> Array:
@@ -180,7 +185,7 @@ class Brakes(GuardMembers):
         return np.concatenate([c.gradient(x) for c in self.guarded.configuration])
 
     def _slide(self, state: ArmState, bias: Array, tau: Array, now: Array, end_floor: Array,
-               mid_floor: Array, stop: tuple[float, Array] | None) -> Array:
+               mid_floor: Array, stop: BrakingTest | None) -> Array:
         """The law's torque less what drives the arm into the configuration boundaries:
         its acceleration a = D⁻¹(τ − b) projected onto the half-spaces that (S1) asks of
         each configuration margin to first order,

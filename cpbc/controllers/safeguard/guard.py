@@ -19,7 +19,7 @@ from cpbc.controllers.hold import hold_share
 from cpbc.controllers.rescue import Rescue
 from cpbc.controllers.safeguard.acceptance import Acceptance
 from cpbc.controllers.safeguard.braking import Brakes
-from cpbc.controllers.safeguard.predicted_margins import PredictedMargins
+from cpbc.controllers.safeguard.predicted_margins import PredictedMargins, RampTest
 from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_share
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.errors import CpbcError
@@ -33,18 +33,23 @@ def guarded(
     settings: SafeguardSettings | None,
     torque_limit: Array | float | None = None,
     also_keep: Sequence[ConfigurationConstraint] = (),
+    rate_limit: Array | float | None = None,
 ) -> Controller:
     """The law as a sampled-data loop at period h should run it: wrapped in a Safeguard with
     ``settings`` when it enforces constraints, else the law itself (also with no settings).
 
-    ``torque_limit`` is the plant's joint torque saturation (a number or one per joint)."""
+    ``torque_limit`` is the plant's joint torque saturation and ``rate_limit`` its joint
+    torque-rate limit [N·m/s] (each a number or one per joint)."""
     if isinstance(law, SafetyFilter):  # a filter already (a peer): fresh counts, no wrap
         return law.restarted()
     if settings is None or law.constraints.empty:
         return law
+    n = law.model.n
     limit = None if torque_limit is None else np.broadcast_to(
-        np.asarray(torque_limit, dtype=float), (law.model.n,))
-    return Safeguard(law, period, settings, limit, also_keep)
+        np.asarray(torque_limit, dtype=float), (n,))
+    rate = None if rate_limit is None else np.broadcast_to(
+        np.asarray(rate_limit, dtype=float), (n,))
+    return Safeguard(law, period, settings, limit, also_keep, rate)
 
 
 class Safeguard(Acceptance, Brakes, SafetyFilter):
@@ -62,6 +67,12 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
             not know of, the plant's joint ranges) that the safeguard keeps as well: (S1)
             on them makes it brake before the arm reaches them. Those the law enforces
             already are skipped.
+        rate_limit: joint torque-rate limits |τ̇_q| ≤ ρ (the motors'), shape (n,)
+            [N·m/s]. Each step the guard chooses only among torques within ρh of the one
+            the actuators hold (:meth:`holding`; its own last torque, or the gravity torque
+            at its first state) and inside the torque box, tests every candidate as clipped
+            there, and keeps the braking margins σ with the time the brake takes to ramp
+            up (stopping.Braking.ramp): nothing after the guard need change its torque.
 
     Attributes:
         calls: control instants seen.
@@ -83,6 +94,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         settings: SafeguardSettings | None = None,
         torque_limit: Array | None = None,
         also_keep: Sequence[ConfigurationConstraint] = (),
+        rate_limit: Array | None = None,
     ) -> None:
         if not (math.isfinite(period) and period > 0):
             raise CpbcError(f"safeguard period must be > 0, got {period}")
@@ -122,16 +134,26 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         self._n_config = nc
         self._n_own_config = own.n_configuration
         self.torque_limit = None if torque_limit is None else np.asarray(torque_limit, float)
-        self._torque_box = None if torque_limit is None else TorqueBox.of(law.model,
-                                                                          torque_limit)
+        self.rate_limit = None if rate_limit is None else np.asarray(rate_limit, float)
+        # ρh: how far one step can move each joint torque (None: as far as the box allows)
+        self._rate_step: Array | None = None if self.rate_limit is None else (
+            self.rate_limit * self.period)
+        box_limit = torque_limit if torque_limit is not None else (
+            None if rate_limit is None else np.full(law.model.n, math.inf))
+        self._torque_box = None if box_limit is None else TorqueBox.of(law.model, box_limit)
+        self._step_box = self._torque_box  # the box of this step (narrowed by the rate)
+        self._holding: Array | None = None  # the torque the actuators hold (controller coords)
+        self._ramp: RampTest | None = None  # this step's velocity lookahead (rate limit)
+        nc_all = self.guarded.n_configuration
+        self._velocity_floor = np.maximum(self.cushion[nc_all:], 1e-300)
         # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)
         self.braking = None if torque_limit is None or not self._n_config else Braking.of(
-            law.model, torque_limit)
+            law.model, torque_limit, rate=self.rate_limit)
         self._sigma_floor = np.maximum(self.cushion[: self._n_config], 1e-300)
         # where no torque of its own will do: brakes better than the uniform one (rescue.py)
         self.rescue = None if self.braking is None or self._torque_box is None else Rescue(
             law.model, self.guarded, self._torque_box, self.cushion,
-            self.period, self.substeps)
+            self.period, self.substeps, rate_step=self._rate_step)
         self.calls = 0
         self.acted = 0
         self.infeasible = 0
@@ -152,8 +174,34 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         if self.constraints.empty:
             return out
         assert out.margins is not None  # asked for
-        tau = self._guard(state, out.torque, out.margins)
+        if self._rate_step is None:
+            tau = self._guard(state, out.torque, out.margins)
+        else:
+            tau = self._rate_limited(state, out.torque, out.margins)
         return Evaluation(tau, out.lyapunov, out.margins if margins else None)
+
+    def holding(self, tau: Array) -> None:
+        """Tell the guard the torque the actuators hold now (controller coordinates): the
+        next step's torque lies within ρh of it. The guard's own last torque is assumed
+        otherwise, and at its first step the gravity torque of its first state (an arm held
+        at rest; a Franka's own gravity compensation)."""
+        self._holding = np.array(tau, dtype=float)
+
+    def _rate_limited(self, state: ArmState, law: Array, law_margins: Array) -> Array:
+        """The guard's step inside the box one step can reach from the held torque: every
+        candidate is tested as clipped there (the predictor saturates into ``_step_box``)
+        and the torque returned lies in it."""
+        assert self._torque_box is not None and self._rate_step is not None
+        box = self._torque_box
+        held = state.gravity if self._holding is None else self._holding
+        self._holding = held  # this step's anchor (_box)
+        self._step_box = box.around(box.joint(held), self._rate_step)
+        assert self.rate_limit is not None
+        self._ramp = RampTest(state.dx, self.period, state.inertia, box.to_joint,
+                              self.rate_limit, self._velocity_floor)
+        tau = self._step_box.clip(self._guard(state, law, law_margins))
+        self._holding = tau
+        return tau
 
     def lyapunov(self, x: Array, dx: Array) -> float:
         """The law's V, which the guard leaves as it is: the law alone is asked, no guard runs
@@ -187,7 +235,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
                 past = now <= 0.0
                 floor = np.where(past, now, floor)
                 floor_mid = np.where(past[:nc], now[:nc], floor_mid)
-        stop = self._braking_floor(state, bias)
+        stop = self._braking_floor(state, bias, self._holding)
         slack = self._check(predict, floor, floor_mid, stop, past)  # (S1)
         tau, f0 = self._held(state, bias, tau, slack)
         if f0 >= 0.0:
@@ -223,11 +271,22 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         """τ scaled toward the bias b = C ẋ + g + f until it fits the torque box
         (:meth:`TorqueBox.toward`): the acceleration D⁻¹(τ − b) keeps its direction and only
         shrinks, so no joint is spun up by the coupling through D, as clipping each joint
-        would (τ itself when it fits, or when there is no limit)."""
-        return tau if self._torque_box is None else self._torque_box.toward(bias, tau)
+        would (τ itself when it fits, or when there is no limit). Under a torque-rate limit
+        the step from the held torque τ_h toward it is then scaled into what one step
+        reaches, τ_h + s(τ − τ_h): the change of acceleration keeps its direction too (a
+        brake clipped joint by joint into the rate box spun the Panda's base joint up
+        through its rate bound)."""
+        box = self._torque_box
+        if box is None:
+            return tau
+        boxed = box.toward(bias, tau)
+        step, held = self._step_box, self._holding
+        if self._rate_step is None or step is None or held is None:
+            return boxed
+        return step.toward(held, boxed)
 
     def _saturate(self, tau: Array) -> Array:
-        return tau if self._torque_box is None else self._torque_box.clip(tau)
+        return tau if self._step_box is None else self._step_box.clip(tau)
 
     @staticmethod
     def _no_nan(m: Array) -> Array:

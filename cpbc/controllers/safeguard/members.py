@@ -8,7 +8,7 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import Braking
 from cpbc.controllers.rescue import Rescue
-from cpbc.controllers.safeguard.predicted_margins import PredictedMargins
+from cpbc.controllers.safeguard.predicted_margins import PredictedMargins, RampTest
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.model.robot_model import RobotModel
 
@@ -35,6 +35,9 @@ class GuardMembers:
     braking: Braking | None
     _n_config: int
     _sigma_floor: Array
+    _holding: Array | None  # the torque the actuators hold, under a torque-rate limit
+    _rate_step: Array | None  # ρh per joint, under a torque-rate limit
+    _ramp: RampTest | None  # this step's velocity lookahead under a torque-rate limit
 
     def _box(self, bias: Array, tau: Array) -> Array:
         raise NotImplementedError

@@ -13,7 +13,7 @@ subclass with its own ``value``) are asked through ``values_along``, column by c
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TypeVar
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 import pinocchio as pin
@@ -23,11 +23,61 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.packing import Packed, PackedSet
 from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES
-from cpbc.kernels.sampled_guard import configuration_rows, predicted_slack
+from cpbc.kernels.sampled_guard import configuration_rows, margins_along, predicted_slack
 from cpbc.model.robot_model import RobotModel
 
 C = TypeVar("C", ConfigurationConstraint, VelocityConstraint)
 Rows = tuple[Array, Array, Array, Array, Array]  # as a Predictor returns them
+_AT_REST = np.zeros(0)
+# the share of the ramp time T over which the rates are taken to go on at the period's
+# acceleration: ½ for a torque that ramps straight back to b with the dynamics frozen; 1
+# for what coupling and the moving bias add (on the Panda at 1000 N·m/s the base joint's
+# rate went on past ½ T a by 0.08 rad/s while the shoulder's and elbow's torques ramped)
+RAMP_SHARE = 1.0
+
+
+class BrakingTest(NamedTuple):
+    """What (S2) asks at the predicted ends: the uniform brake's stopping points x_s
+    (cpbc.kernels.sampled_guard.configuration_rows) and the floors of σ_i there.
+
+    Attributes:
+        per_speed: 1/(2θA) of the uniform brake (stopping.Braking.per_speed).
+        floor: the floors of σ_i (their cushions δ_i).
+        ramp: T, the time the brake takes to build under a torque-rate limit [s]; 0 without.
+        start: ẋ at the sample (read when ``ramp`` > 0).
+        period: h [s] (read when ``ramp`` > 0).
+    """
+
+    per_speed: float
+    floor: Array
+    ramp: float = 0.0
+    start: Array = _AT_REST
+    period: float = 1.0
+
+
+class RampTest(NamedTuple):
+    """What the velocity margins ask under a torque-rate limit: the held torque cannot
+    change at once, so a joint goes on accelerating after the period while the torque
+    ramps. Taking back the period's acceleration a = (ẋ₁ − ẋ₀)/h (frozen dynamics, D a of
+    torque) takes T = max_j |(Tᵀ D a)_j| / ρ_j, over which the rates move on by ½ T a with
+    the dynamics frozen, and by more as the bias and the coupling move: every velocity
+    margin at (x₁, ẋ₁ + s T a) must keep its cushion, s = RAMP_SHARE.
+
+    Attributes:
+        start: ẋ₀ at the sample.
+        period: h [s].
+        inertia: D at the sample.
+        to_joint: Tᵀ, or None for joint coordinates.
+        rate: ρ per joint [N·m/s].
+        floor: the velocity margins' cushions δ_j (their floors here).
+    """
+
+    start: Array
+    period: float
+    inertia: Array
+    to_joint: Array | None
+    rate: Array
+    floor: Array
 
 
 def _own_values(c: ConfigurationConstraint | VelocityConstraint) -> bool:
@@ -96,8 +146,28 @@ class PredictedMargins:
             out[:, at:at + k] = v.values_along(xs, dxs)
         return out
 
+    def velocity_margins(self, xs: Array, dxs: Array) -> Array:
+        """Every velocity margin at the rows (x, ẋ), one row each."""
+        out = self._generic_velocity_margins(xs, dxs)
+        vp = self._velocity
+        margins_along(vp.plan, vp.ints, vp.floats, xs, dxs, self._no_placements, out)
+        return out
+
+    def ramp_slack(self, predicted: Rows, ramp: RampTest) -> float:
+        """min_j m_j/δ_j − 1 of the velocity margins where the rates peak while the torque
+        ramps back from the period's acceleration (:class:`RampTest`)."""
+        _, ends, speeds, _, _ = predicted
+        acc = (speeds - ramp.start) / ramp.period  # one row per prediction
+        push = acc @ ramp.inertia.T
+        if ramp.to_joint is not None:
+            push = push @ ramp.to_joint.T
+        lead = np.max(np.abs(push) / ramp.rate, axis=1)
+        m = self.velocity_margins(ends, speeds + (RAMP_SHARE * lead)[:, None] * acc)
+        m = np.where(np.isnan(m), -np.inf, m)
+        return float(np.min(m / ramp.floor)) - 1.0
+
     def slack(self, predicted: Rows, end_floor: Array, mid_floor: Array | None,
-              stop: tuple[float, Array] | None, past: np.ndarray | None) -> float:
+              stop: BrakingTest | None, past: np.ndarray | None) -> float:
         """F(τ) of (S1), with ``stop`` = (1/(2θA), floors) of (S2) too, over the predicted
         ``(mids, ends, speeds, inner_x, inner_v)`` (Acceptance._check)."""
         mids, ends, speeds, inner_x, inner_v = predicted
@@ -106,7 +176,11 @@ class PredictedMargins:
         config, rows, placements = self._no_config, self._no_config, self._no_placements
         if mid_floor is not None:
             rows = np.empty(((2 if stop is None else 3) * len(ends), self.n))
-            configuration_rows(mids, ends, speeds, 0.0 if stop is None else stop[0], rows)
+            if stop is None:
+                configuration_rows(mids, ends, speeds, _AT_REST, 1.0, 0.0, 0.0, rows)
+            else:
+                configuration_rows(mids, ends, speeds, stop.start, stop.period, stop.per_speed,
+                                   stop.ramp, rows)
             config = np.empty((len(rows), self.nc))
             for at, k, c in self._generic_config:
                 config[:, at:at + k] = c.values_along(rows)

@@ -8,6 +8,8 @@ from pydantic import Field, create_model
 
 from cpbc.constraints.constraint_kind import ConstraintEntrySpec
 from cpbc.controllers.law_specs import LawSpec
+from cpbc.controllers.potentials.friction import FRICTION_COMPENSATION_WIDTH
+from cpbc.model.robot_model import FRICTION_SMOOTHING
 from cpbc.scenario.schema.common import (
     MAX_CASES,
     CaseName,
@@ -58,14 +60,42 @@ class PlantMismatchSpec(Strict):
             "dry friction added to the plant [N·m]: one number, or one per joint"))
 
 
+class FrictionSpec(Strict):
+    """Each joint's friction, in the controller's model (f of eq. 6.1) and the MuJoCo plant
+    (``dof_damping``, ``dof_frictionloss``): Coulomb and viscous levels, each one number,
+    one per joint, or ``from_model`` (what the model file declares), and the law's
+    compensation of the Coulomb friction (cpbc.controllers.potentials.friction)."""
+
+    coulomb: NonNegative | list[NonNegative] | Literal["from_model"] = Field(
+        default=0.0, description=(
+            "Coulomb (dry) friction F_c [N·m or N]: one number, one per joint, or from_model "
+            "(an MJCF joint's frictionloss, a URDF's <dynamics friction>)"))
+    viscous: NonNegative | list[NonNegative] | Literal["from_model"] = Field(
+        default=0.0, description=(
+            "viscous friction F_d [N·m·s/rad]: one number, one per joint, or from_model (an "
+            "MJCF joint's damping, a URDF's <dynamics damping>)"))
+    smoothing: Positive = Field(
+        default=FRICTION_SMOOTHING, description=(
+            "ε of the model's Coulomb friction F_c tanh(q̇/ε) [rad/s]"))
+    compensate: Annotated[bool, Field(strict=True)] = Field(
+        default=True, description=(
+            "joint-target laws add Σ F_c ε_c ln cosh(q̃/ε_c) to their potential, which beats "
+            "the Coulomb friction near the target and keeps the constraint guarantee"))
+    compensation_width: Positive = Field(
+        default=FRICTION_COMPENSATION_WIDTH, description=(
+            "ε_c of the compensation [rad]: the error below which its force fades"))
+
+
 class RobotSpec(Strict):
     """The arm. ``model`` is a built-in name (see cpbc.resources), an example-robot-data arm
     (``panda``, ``ur5``, … see cpbc.model.arms.ARMS) or a path to an MJCF (.xml) or URDF
     (.urdf) file, relative to the scenario file. ``coordinates`` are the controller's:
     ``joint`` (the model's own), ``absolute`` (absolute link angles θ = T q of a planar chain)
-    or a matrix T. ``viscous_friction`` is F_d (diagonal, joint coordinates) in the plant and
-    the model. URDF arms only: ``locked_joints`` freezes joints at values (a named arm's
-    gripper is locked by default), ``package_dirs`` are extra folders for ``package://``."""
+    or a matrix T. ``armature`` and ``friction`` are the joints' rotor inertia and friction in
+    both engines (``from_model``: as the model file declares them; none by default);
+    ``viscous_friction`` is the older name of ``friction.viscous``. URDF arms only:
+    ``locked_joints`` freezes joints at values (a named arm's gripper is locked by default),
+    ``package_dirs`` are extra folders for ``package://``."""
 
     model: str = Field(
         default="planar_2link", description=(
@@ -78,7 +108,16 @@ class RobotSpec(Strict):
     viscous_friction: NonNegative | list[NonNegative] = Field(
         default=0.0, description=(
             "F_d, diagonal viscous friction in joint coordinates, in plant and model: one "
-            "number or one per joint"))
+            "number or one per joint (the older name of friction.viscous: give one of them)"))
+    armature: NonNegative | list[NonNegative] | Literal["from_model", "none"] = Field(
+        default="none", description=(
+            "each joint's rotor inertia in D and the plant [kg·m²]: one number, one per "
+            "joint, from_model (an MJCF joint's armature, a URDF's <dynamics armature>) or "
+            "none"))
+    friction: FrictionSpec | Literal["from_model", "none"] = Field(
+        default="none", description=(
+            "each joint's Coulomb and viscous friction in the model and the plant: "
+            "{coulomb, viscous, ...}, from_model (both as the model file declares) or none"))
     locked_joints: dict[str, Number] = Field(
         default={}, description=(
             "URDF arms: joints frozen at these values in both engines (a named arm's gripper "
@@ -134,6 +173,14 @@ class SimulationSpec(Strict):
     torque_limit_scale: Positive = Field(
         default=1.0, description=(
             "factor on the model's effort limits (from_model and auto)"))
+    # the motors' torque-rate limit: the plant clips a command beyond it (as a motor would)
+    # and the safeguard chooses only within it; None: unlimited
+    torque_rate_limit: Positive | list[Positive] | Literal["from_model", "none"] | None = Field(
+        default=None, description=(
+            "joint torque-rate limits |dτ/dt| ≤ ρ [N·m/s]: one number, one per joint, "
+            "from_model (a built-in arm that declares one), or none. The plant applies it "
+            "and the safeguard chooses only within it; the first command ramps from the "
+            "gravity torque at the start"))
     log_every: Annotated[int, Field(ge=1)] = Field(
         default=1, description=(
             "keep every k-th control sample in the log"))

@@ -1,0 +1,115 @@
+"""The guarded step's time distribution in closed loop (``python -m cpbc.bench --peers``'s
+``guarded_tail_us``): what a hard control deadline asks of the law with its safeguard.
+
+A median says what a step usually costs; a 1 kHz loop on a robot fails on its worst step.
+This runs ``panda_cpbc_sphere`` (the Panda, URDF torque limits, joint and rate limits, a
+ball and a table) from the verification campaign's seeded starts — most of them near a
+boundary, so the safeguard intervenes, searches its brakes and rescues — and times every
+guarded call, ``evaluate(x, ẋ)`` (the state's Pinocchio pass, the law and the guard), in
+the MuJoCo loop, with Python's garbage collector off as the loop runs it. It reports the
+median, the 99th, 99.9th and 99.99th percentiles and the maximum over all steps, the same
+for the steps at which the guard replaced the law's torque, and how many steps of each
+kind there were. Nothing is asserted: figures for the docs and for a deadline budget.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.controllers.controller import Evaluation, SafetyFilter
+from cpbc.model.robot_model import ArmState
+from cpbc.simulation import run_mujoco
+
+QUANTILES = {"p50": 50.0, "p99": 99.0, "p999": 99.9, "p9999": 99.99}
+
+
+class TimedFilter(SafetyFilter):
+    """A safety filter that times each of its guard's calls (ns) and marks the steps at
+    which the guard acted; everything else is the guard's."""
+
+    def __init__(self, guard: SafetyFilter) -> None:
+        super().__init__(guard.model, guard.target, guard.constraints)
+        self.guard = guard
+        self.times: list[int] = []
+        self.acting: list[bool] = []
+
+    def state(self, x: Array, dx: Array) -> ArmState:
+        return self.guard.state(x, dx)
+
+    def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
+        return self.guard.evaluate_state(state, margins)
+
+    def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
+        guard = self.guard
+        before = guard.acted
+        start = time.perf_counter_ns()
+        out = guard.evaluate(x, dx)
+        self.times.append(time.perf_counter_ns() - start)
+        self.acting.append(guard.acted != before)
+        self.acted, self.infeasible, self.rescues = guard.acted, guard.infeasible, guard.rescues
+        return out
+
+    def lyapunov(self, x: Array, dx: Array) -> float:
+        return self.guard.lyapunov(x, dx)
+
+    def holding(self, tau: Array) -> None:
+        self.guard.holding(tau)
+
+
+def quantiles(times_ns: Sequence[int]) -> dict[str, float]:
+    """p50 … p9999 and max of ``times_ns`` [µs] (empty: NaN)."""
+    if not len(times_ns):
+        return {**{k: float("nan") for k in QUANTILES}, "max": float("nan")}
+    us = np.asarray(times_ns, dtype=float) / 1e3
+    return {**{k: float(np.percentile(us, q)) for k, q in QUANTILES.items()},
+            "max": float(us.max())}
+
+
+def guarded_tail(steps: int = 100_000, seconds: float = 0.5, seed: int = 0,
+                 rate_limit: float | None = None) -> dict[str, object]:
+    """The guarded CPBC of panda_cpbc_sphere timed over at least ``steps`` control steps of
+    ``seconds``-long runs from the campaign's seeded starts (``rate_limit``: a torque-rate
+    limit [N·m/s] for plant and guard, or the scenario's none)."""
+    from cpbc.reliability.campaign import campaign_setup, sample_states
+
+    setup = campaign_setup("panda_cpbc_sphere")
+    if rate_limit is not None:
+        limit = np.full(setup.model.n, float(rate_limit))
+        setup = replace(setup, loop_settings=replace(setup.loop_settings,
+                                                     torque_rate_limit=limit))
+    entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
+    settings = replace(setup.loop_settings, duration=seconds)
+    plant = setup.make_plant()
+    per_run = round(seconds / settings.control_period) + 1
+    runs = max(1, -(-steps // per_run))
+    times: list[int] = []
+    acting: list[bool] = []
+    counts = {"runs": 0, "rescues": 0, "infeasible": 0}
+    states = sample_states(setup, runs * 2, seed)  # some end early: draw spare starts
+    for s in states:
+        if len(times) >= steps:
+            break
+        guard = setup.controller(entry)
+        assert isinstance(guard, SafetyFilter)
+        timed = TimedFilter(guard)
+        timed.evaluate(s.position, s.velocity)  # warm this run's paths, not timed
+        timed.times.clear()
+        timed.acting.clear()
+        run_mujoco(plant, timed, setup.model.coordinates, s.position, s.velocity, settings)
+        times.extend(timed.times)
+        acting.extend(timed.acting)
+        counts["runs"] += 1
+        counts["rescues"] += guard.rescues
+        counts["infeasible"] += guard.infeasible
+    acted = [t for t, a in zip(times, acting, strict=True) if a]
+    every = quantiles(times)
+    return {**every, "steps": len(times), "acting_steps": len(acted),
+            "acting": quantiles(acted), "max_over_p50": every["max"] / every["p50"],
+            **counts, "rate_limit": rate_limit,
+            "setup": f"panda_cpbc_sphere's guarded CPBC, {seconds:g} s runs from the "
+                     f"campaign's starts (seed {seed}), 1 kHz, garbage collector off"}

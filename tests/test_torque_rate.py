@@ -1,0 +1,150 @@
+"""The motors' torque-rate limit (simulation.torque_rate_limit): the plant applies it as a
+motor would, the safeguard chooses only within it, runs start from the gravity torque, the
+summary reports the peak rate; checked from the logged joint torques of real MuJoCo runs."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cpbc.constraints.brakes import TorqueBox
+from cpbc.constraints.stopping import Braking
+from cpbc.resources import scenarios_dir
+from cpbc.run import main
+from cpbc.scenario import build, load_scenario
+from cpbc.scenario.runner import run_one
+
+START = "    position: [-0.179, 0.172, -0.497, -2.085, 0.103, 2.233, 0.785]\n"
+
+
+def _sphere(tmp_path: Path, rate: str | float | None, duration: float,
+            velocity: list[float] | None = None) -> Path:
+    """panda_cpbc_sphere (URDF torque limits 87/12 N·m, joint and half rate limits, a ball
+    and a table) with a torque-rate limit, a duration and a start velocity."""
+    text = (scenarios_dir() / "panda_cpbc_sphere.yaml").read_text()
+    assert START in text and "  control_period: 0.001\n" in text
+    if rate is not None:
+        text = text.replace("  control_period: 0.001\n",
+                            f"  control_period: 0.001\n  torque_rate_limit: {rate}\n")
+    if velocity is not None:
+        text = text.replace(START, START + f"    velocity: {velocity}\n")
+    path = tmp_path / "rate.yaml"
+    path.write_text(text.replace("duration: 5.0", f"duration: {duration}"))
+    return path
+
+
+def _logged_steps(setup, name: str):
+    """One controller's run of the scenario's case: its trajectory and summary."""
+    entry = next(e for e in setup.controllers if e.name == name)
+    return run_one(setup, setup.cases[0], entry, "mujoco")
+
+
+def _check_steps(traj, setup, rho: np.ndarray) -> float:
+    """Every applied joint torque step, the first from the gravity torque at the start,
+    against ρh; returns the largest |Δτ|/(ρh)."""
+    h = setup.loop_settings.control_period
+    held = setup.model.gravity(setup.cases[0].position)  # joint coordinates (T = I)
+    torques = np.vstack((held, traj.joint_torque))
+    assert setup.loop_settings.log_every == 1 and len(traj.joint_torque) == traj.control_steps
+    return float(np.max(np.abs(np.diff(torques, axis=0)) / (rho * h)))
+
+
+@pytest.mark.parametrize(("value", "says"), [
+    (-5, "simulation.torque_rate_limit"),
+    ("[1000, 1000]", "simulation.torque_rate_limit"),
+    ("from_model", "declares no torque-rate limit"),
+])
+def test_a_bad_rate_limit_is_refused_naming_the_field(tmp_path, capsys, value, says) -> None:
+    out = tmp_path / "out"
+    assert main([str(_sphere(tmp_path, value, 0.01)), "--out", str(out), "--quiet",
+                 "--no-plots"]) == 2
+    err = capsys.readouterr().err
+    assert says in err and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_the_plant_limits_an_unguarded_law_and_the_guard_never_asks_beyond_it(tmp_path) -> None:
+    """PD + g knows nothing of the limit: its first command jumps from the gravity torque and
+    the plant clips it (counted). The guarded CPBC chooses only within ρh of the held torque:
+    the plant never clips it, every logged step is within ρh, and nothing is crossed."""
+    setup = build(*load_scenario(_sphere(tmp_path, 1000, 0.4)))
+    rho = setup.loop_settings.torque_rate_limit
+    assert rho is not None and np.all(rho == 1000.0)
+    pd = _logged_steps(setup, "PD+g")
+    assert pd.summary.rate_limited_steps > 0
+    assert _check_steps(pd.trajectory, setup, rho) <= 1 + 1e-9
+    cpbc = _logged_steps(setup, "CPBC")
+    assert cpbc.summary.rate_limited_steps == 0
+    share = _check_steps(cpbc.trajectory, setup, rho)
+    assert 0.99 < share <= 1 + 1e-9  # it ramps at the limit, and no faster
+    assert max(cpbc.summary.peak_torque_rate) <= 1000.0 * (1 + 1e-9)
+    assert cpbc.summary.torque_rate_limits == [1000.0] * 7
+    assert cpbc.summary.status != "constraint_violated"
+    assert min(cpbc.summary.min_margins.values()) > 0
+
+
+def test_the_summary_reports_the_peak_rate_against_its_limit(tmp_path) -> None:
+    out = tmp_path / "out"
+    assert main([str(_sphere(tmp_path, 1000, 0.05)), "--out", str(out), "--quiet",
+                 "--no-plots"]) == 0
+    runs = {r["controller"]: r for r in json.loads((out / "summary.json").read_text())}
+    assert runs["CPBC"]["torque_rate_limits"] == [1000.0] * 7
+    assert len(runs["CPBC"]["peak_torque_rate"]) == 7
+    assert runs["CPBC"]["rate_limited_steps"] == 0 < runs["PD+g"]["rate_limited_steps"]
+    # without a limit the peak rate is still measured, the limits are null
+    assert main([str(_sphere(tmp_path, None, 0.05)), "--out", str(tmp_path / "free"),
+                 "--quiet", "--no-plots"]) == 0
+    free = json.loads((tmp_path / "free" / "summary.json").read_text())
+    assert all(r["torque_rate_limits"] is None and r["rate_limited_steps"] == 0 for r in free)
+    assert max(free[0]["peak_torque_rate"]) > 1000.0  # PD + g's first step
+
+
+@pytest.mark.parametrize("rho", [1000.0, 435.0])
+def test_a_start_moving_at_half_the_rate_bound_keeps_every_constraint(tmp_path, rho) -> None:
+    """The Panda moving at half its (halved) rate bounds toward the target, under 1000 N·m/s
+    and under 435 N·m/s, at which the 87 N·m brake takes 200 ms to build: the start is
+    accepted, and the guarded CPBC crosses nothing and never asks beyond the rate."""
+    setup0 = build(*load_scenario(_sphere(tmp_path, rho, 0.01)))
+    bound = np.array(setup0.rate_bounds, dtype=float)
+    toward = np.sign(setup0.target - setup0.cases[0].position)
+    velocity = (0.5 * bound * toward).tolist()
+    setup = build(*load_scenario(_sphere(tmp_path, rho, 0.6, velocity)))
+    run = _logged_steps(setup, "CPBC")
+    assert run.summary.status != "constraint_violated"
+    assert min(run.summary.min_margins.values()) > 0
+    assert run.summary.rate_limited_steps == 0
+    assert _check_steps(run.trajectory, setup, np.full(7, rho)) <= 1 + 1e-9
+
+
+def test_the_reachable_box_of_one_step() -> None:
+    """TorqueBox.around: within ρh of the held torque and inside the box; a held torque
+    beyond a limit reaches the limit's edge only."""
+    box = TorqueBox(np.array([10.0, 10.0, 10.0]))
+    step = box.around(np.array([0.0, 9.5, 12.0]), np.array([1.0, 1.0, 1.0]))
+    lo, hi = step.bounds
+    np.testing.assert_array_equal(lo, [-1.0, 8.5, 10.0])
+    np.testing.assert_array_equal(hi, [1.0, 10.0, 10.0])
+    np.testing.assert_array_equal(step.clip(np.array([5.0, -5.0, 0.0])), [1.0, 8.5, 10.0])
+    # toward the bias: a bias inside the box scales the torque toward it, keeping direction
+    inside = box.around(np.zeros(3), np.full(3, 2.0))
+    scaled = inside.toward(np.zeros(3), np.array([4.0, 2.0, -1.0]))
+    np.testing.assert_allclose(scaled, [2.0, 1.0, -0.5])
+
+
+def test_the_brake_ramp_time_is_the_slowest_joints(joint_model) -> None:
+    """Braking.ramp: the time the uniform brake b − θA D ẋ/|ẋ| takes to build from the held
+    torque, joint by joint at ρ, the slowest joint setting it."""
+    limit = np.array([50.0, 20.0])
+    x, dx = np.array([0.2, 0.4]), np.array([1.0, -0.5])
+    st = joint_model.state(x, dx)
+    bias = st.coriolis_force + st.gravity + st.dissipation
+    braking = Braking.of(joint_model, limit, rate=np.array([100.0, 40.0]))
+    per_speed = braking.per_speed(st.inertia, bias, dx)
+    brake = bias - st.inertia @ dx / (2 * per_speed * np.linalg.norm(dx))
+    held = np.array([3.0, -2.0])
+    expected = max(abs(brake[0] - held[0]) / 100.0, abs(brake[1] - held[1]) / 40.0)
+    assert braking.ramp(st.inertia, bias, dx, held, per_speed) == pytest.approx(expected)
+    assert Braking.of(joint_model, limit).ramp(st.inertia, bias, dx, held, per_speed) == 0.0
