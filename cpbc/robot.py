@@ -27,7 +27,9 @@ from cpbc.model.actuators import apply_actuator_efforts
 from cpbc.model.arms import ARMS
 from cpbc.model.gravity_load import BRAKING_DECELERATION, holdable_near, joint_loads
 from cpbc.model.loading import load_arm
+from cpbc.model.mjcf_arm import check_mjcf_arm
 from cpbc.model.robot_model import RobotModel
+from cpbc.model.urdf_text import package_dir
 from cpbc.resources import builtin_models
 from cpbc.scenario.gain_check import physical_gains, spectral_radius
 from cpbc.scenario.robots import xml_root
@@ -48,6 +50,10 @@ class RobotDescription:
         continuous: joints driven as unbounded revolute joints.
         pin_model: Pinocchio model of the driven joints (for the inertia of the gains).
         regularised: joints whose link inertia was raised to the least MuJoCo accepts.
+        estimated: joints whose link the file gives a mass and an all-zero inertia, given a
+            solid box's of its geometry (cpbc.model.solid_inertias).
+        package_dirs: the ``package://`` folders it was loaded with (absolute; a folder or
+            NAME=FOLDER), for the skeleton's ``robot.package_dirs``.
     """
 
     model: str
@@ -59,15 +65,17 @@ class RobotDescription:
     continuous: tuple[str, ...] = ()
     pin_model: pin.Model | None = field(default=None, compare=False, repr=False)
     regularised: tuple[str, ...] = ()
+    package_dirs: tuple[str, ...] = ()
+    estimated: tuple[str, ...] = ()
 
 
 def _frames(model: pin.Model) -> tuple[str, ...]:
     return tuple(dict.fromkeys(f.name for f in model.frames if f.name != "universe"))
 
 
-def _describe_urdf(name_or_path: str, locked: Mapping[str, float] | None = None
-                   ) -> RobotDescription:
-    arm = load_arm(name_or_path, locked)
+def _describe_urdf(name_or_path: str, locked: Mapping[str, float] | None = None,
+                   package_dirs: Sequence[str] = ()) -> RobotDescription:
+    arm = load_arm(name_or_path, locked, package_dirs)
     model = name_or_path if name_or_path in ARMS else str(Path(name_or_path).resolve())
     covered = tuple(dict.fromkeys(
         arm.model.frames[g.parentFrame].name for g in arm.collision_model.geometryObjects
@@ -77,12 +85,13 @@ def _describe_urdf(name_or_path: str, locked: Mapping[str, float] | None = None
                          arm.velocity_limit, arm.effort_limit)
     return RobotDescription(model, summary, limits, _frames(arm.model), covered,
                             dict(arm.locked_joints), arm.continuous_joints, arm.model,
-                            arm.regularised)
+                            arm.regularised, tuple(package_dirs), arm.estimated)
 
 
 def _describe_mjcf(path: Path, model_name: str) -> RobotDescription:
     try:
         mj = mujoco.MjModel.from_xml_path(str(path))
+        check_mjcf_arm(path, mj)
         pm = pin.buildModelFromMJCF(str(path))
     except (ValueError, RuntimeError) as exc:
         raise ModelError(f"could not load {path}: {exc}") from None
@@ -96,10 +105,11 @@ def _describe_mjcf(path: Path, model_name: str) -> RobotDescription:
     return RobotDescription(model_name, f"MJCF {path}", limits, _frames(pm), pin_model=pm)
 
 
-def describe(name_or_path: str, locked: Mapping[str, float] | None = None
-             ) -> RobotDescription:
+def describe(name_or_path: str, locked: Mapping[str, float] | None = None,
+             package_dirs: Sequence[str] = ()) -> RobotDescription:
     """The description of a built-in model, an example-robot-data arm, or a model file
-    (a URDF's ``locked`` joints frozen at their values besides its defaults)."""
+    (a URDF's ``locked`` joints frozen at their values besides its defaults, its
+    ``package://`` meshes also looked up in ``package_dirs``)."""
     builtin = builtin_models()
     if name_or_path in builtin:
         return _describe_mjcf(builtin[name_or_path], name_or_path)
@@ -120,7 +130,7 @@ def describe(name_or_path: str, locked: Mapping[str, float] | None = None
                 f"unknown robot '{name_or_path}': give a built-in model "
                 f"({', '.join(builtin)}), an example-robot-data arm "
                 f"({', '.join(sorted(ARMS))}) or a path to a .urdf or .xml file")
-    return _describe_urdf(name_or_path, locked)
+    return _describe_urdf(name_or_path, locked, package_dirs)
 
 
 OMEGAS = (10.0, 5.0, 2.0, 1.0)  # rad/s, tried in turn for the skeleton's gains
@@ -177,6 +187,8 @@ def scenario_for(d: RobotDescription, duration: float = 5.0,
     data = skeleton(d.model, d.limits, duration, omega_n=omega or OMEGAS[-1], target=target)
     if locked:
         data["robot"]["locked_joints"] = dict(locked)
+    if d.package_dirs:
+        data["robot"]["package_dirs"] = list(d.package_dirs)
     return data
 
 
@@ -208,17 +220,18 @@ def _massless(d: RobotDescription) -> dict[str, float]:
     return _at_zero(d, d.regularised)
 
 
-def for_skeleton(name_or_path: str) -> tuple[RobotDescription, dict[str, float]]:
+def for_skeleton(name_or_path: str, package_dirs: Sequence[str] = ()
+                 ) -> tuple[RobotDescription, dict[str, float]]:
     """The arm's description and the joints its skeleton locks (at 0 moved into their ranges)
     besides the arm's defaults: those whose motors cannot hold the arm up anywhere near the
     suggested target, then those a sampled-data law cannot drive at 1 kHz (massless links)."""
-    d = describe(name_or_path)
+    d = describe(name_or_path, package_dirs=package_dirs)
     locked: dict[str, float] = {}
     for find in (_overloaded, _massless):
         found = find(d)
         if found:
             locked |= found
-            d = describe(name_or_path, {**d.locked, **found})
+            d = describe(name_or_path, {**d.locked, **found}, package_dirs)
     return d, locked
 
 
@@ -268,6 +281,11 @@ def report(d: RobotDescription) -> str:
             "inertia raised to the least MuJoCo accepts (by at most 1e-6 kg·m², in both "
             "engines) on the links of: " + ", ".join(d.regularised), 96,
             subsequent_indent="  ")
+    if d.estimated:
+        lines += textwrap.wrap(
+            "inertia estimated from the mass and the geometry, as a solid box of uniform "
+            "density bounding the link (the file gives a mass and an all-zero inertia "
+            "tensor) on the links of: " + ", ".join(d.estimated), 96, subsequent_indent="  ")
     if d.locked:
         lines.append("locked by default: " + ", ".join(f"{k} = {v:g}" for k, v in
                                                        d.locked.items()))
@@ -286,13 +304,30 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("robot", help="a built-in model, an example-robot-data arm "
                    f"({', '.join(sorted(ARMS))}), or a path to a .urdf or .xml file")
     p.add_argument("--duration", type=float, default=5.0, help="of the scenario [s]")
+    p.add_argument("--package-dir", action="append", default=[], metavar="NAME=PATH",
+                   help="the folder of package://NAME/ meshes, when it is not called NAME "
+                   "(repeatable; a bare PATH is a folder holding packages)")
     return p
+
+
+def package_dirs(given: Sequence[str]) -> tuple[str, ...]:
+    """The ``--package-dir`` entries with absolute folders; ModelError naming the first
+    whose folder does not exist."""
+    out = []
+    for entry in given:
+        name, folder = package_dir(entry)
+        if not folder.is_dir():
+            raise ModelError(f"--package-dir {entry}: {folder} is not a folder; give "
+                             "NAME=PATH with PATH the folder that package://NAME/ stands for",
+                             "package_dirs")
+        out.append(str(folder.resolve()) if name is None else f"{name}={folder.resolve()}")
+    return tuple(out)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        d, locked = for_skeleton(args.robot)
+        d, locked = for_skeleton(args.robot, package_dirs(args.package_dir))
     except CpbcError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

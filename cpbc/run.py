@@ -21,6 +21,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from cpbc.constraints.clearance import Clearance
+from cpbc.constraints.clearance.unclearable import SLACK
 from cpbc.errors import CpbcError
 from cpbc.progress_bars import run_progress
 from cpbc.results import (
@@ -143,10 +144,26 @@ def write_logs(folder: Path, setup: ScenarioSetup, results: Sequence[RunResult])
                              r.reference)
 
 
+def left_out_pairs(setup: ScenarioSetup) -> list[str]:
+    """One line per default clearance that left out cover primitives no configuration takes
+    clear of an obstacle (cpbc.constraints.clearance.unclearable)."""
+    lines = []
+    for c in setup.monitor.configuration:
+        pairs = c.left_out if isinstance(c, Clearance) else ()
+        if pairs:
+            names = ", ".join(f"{p} in {o}" for p, o in pairs)
+            lines.append(f"clearance '{c.names[0].split('[')[0]}' leaves out {names}: within "
+                         f"{SLACK * 100:g} cm of the obstacle or inside it at every sampled "
+                         "configuration, no motion clears them; give clearance.links to "
+                         "choose the covered links yourself")
+    return lines
+
+
 def _warn(setup: ScenarioSetup, err: Console) -> None:
     """One line per case whose path to the target leaves a motor no room to brake over
-    gravity (cpbc.scenario.preflight), and one when the motors' limits are declared for some
-    joints only (the run then has none)."""
+    gravity (cpbc.scenario.preflight), one when the motors' limits are declared for some
+    joints only (the run then has none), and the cover primitives a default clearance left
+    out."""
     for case, load in setup.gravity_on_path.items():
         err.print(f"[yellow]warning:[/yellow] {escape(warning(case, load))}", highlight=False)
     for note in setup.outside_braking_set.values():
@@ -159,6 +176,8 @@ def _warn(setup: ScenarioSetup, err: Console) -> None:
                   f"{escape(', '.join(undeclared[:4]))}{', …' if len(undeclared) > 4 else ''}): "
                   "those run without a torque limit; give simulation.torque_limit to set "
                   "every joint's", highlight=False)
+    for line in left_out_pairs(setup):
+        err.print(f"[yellow]note:[/yellow] {escape(line)}", highlight=False)
     if setup.goal is not None:
         goal = setup.goal
         err.print(f"goal preflight ({goal.goal.frame_name}): "

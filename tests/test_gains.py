@@ -184,3 +184,48 @@ def test_a_coupled_mode_is_reported_with_the_damping_that_is_stable() -> None:
     assert spectral_radius(kp, lowered, d, 0.01) < 1
     lowered[bad.index] = 1.01 * bad.stable_kd
     assert spectral_radius(kp, lowered, d, 0.01) > 1
+
+
+def _named_value(message: str, name: str) -> float:
+    """The value the refusal names for ``name`` ("lower NAME[ (default v)] to X or less")."""
+    tail = message.split(f"lower {name}", 1)[1]
+    return float(tail.split(" to ", 1)[1].split(" or less", 1)[0])
+
+
+def test_gains_written_as_omega_n_are_answered_in_omega_n(tmp_path: Path) -> None:
+    """The Panda with omega_n = 40 at 5 ms: the refusal names the omega_n to lower to, not a
+    K_D; the loop is stable just below that value and refused just above it."""
+    data = _scenario("panda", {"omega_n": 40, "zeta": 0.8}, 0.005, 1.0)
+    with pytest.raises(ScenarioError) as info:
+        _setup(tmp_path, data)
+    message = str(info.value)
+    assert "lower kd" not in message and "lower omega_n to " in message, message
+    edge = _named_value(message, "omega_n")
+    assert 1.0 < edge < 40.0
+    data["controllers"][0]["omega_n"] = 0.999 * edge
+    _setup(tmp_path, data)  # accepted
+    data["controllers"][0]["omega_n"] = 1.01 * edge
+    with pytest.raises(ScenarioError, match="zero-order hold"):
+        _setup(tmp_path, data)
+
+
+def test_task_gains_are_answered_in_the_frequency_that_helps(tmp_path: Path) -> None:
+    """panda_goal_pose's task-space CPBC with task: {omega_n: 6} at 100 Hz: the unstable mode
+    is the joint damping of the posture spring the entry left at its default, so the
+    refusal names posture.omega_n (and its default), and the value it names is the edge."""
+    from cpbc.resources import scenarios_dir
+
+    data = yaml.safe_load((scenarios_dir() / "panda_goal_pose.yaml").read_text())
+    data["simulation"].update(control_period=0.01, duration=0.1)
+    data["controllers"] = [{"type": "cpbc", "name": "TS-CPBC", "task": {"omega_n": 6},
+                            "shaping": {"type": "power", "alpha": 0.2}}]
+    with pytest.raises(ScenarioError) as info:
+        _setup(tmp_path, data)
+    message = str(info.value)
+    assert "lower kd" not in message and "lower posture.omega_n (default 2) to" in message
+    edge = _named_value(message, "posture.omega_n (default 2)")
+    data["controllers"][0]["posture"] = {"omega_n": 0.995 * edge}
+    _setup(tmp_path, data)  # accepted
+    data["controllers"][0]["posture"] = {"omega_n": 1.01 * edge}
+    with pytest.raises(ScenarioError, match="zero-order hold"):
+        _setup(tmp_path, data)

@@ -41,6 +41,12 @@ def _refused(load_dict: Callable[[dict], ScenarioSetup], d: dict, field: str, wo
     (lambda d: d["goal"].update(position=[0.1, 1.8, 0.0]), "goal.position", "obstacle"),
     (lambda d: d["goal"].update(orientation={"rpy": [0, 0, 1], "quat": [1, 0, 0, 0]}),
      "goal.orientation", "exactly one"),
+    (lambda d: d["goal"].update(orientation={"quat": [1, 0, 0]}), "goal.orientation.quat",
+     "needs 4 numbers [w, x, y, z], got 3"),
+    (lambda d: d["goal"].update(orientation={"quat": [1, 0, 0, 1]}), "goal.orientation.quat",
+     "norm 1.41421, not 1"),
+    (lambda d: d["goal"].update(orientation={"quat": [0, 0, 0, 0]}), "goal.orientation.quat",
+     "the identity is [1, 0, 0, 0]"),
     (lambda d: d["goal"].update(posture=[0.0, 3.1]), "goal.posture", ""),
     (lambda d: d["controllers"][0].update(type="pd", shaping=None) or d["controllers"][0].pop(
         "shaping"), "controllers[0].type", "pd_gravity"),
@@ -51,6 +57,16 @@ def test_bad_goals_are_refused_naming_the_field(load_dict, data, edit, field, wo
     d = copy.deepcopy(data)
     edit(d)
     _refused(load_dict, d, field, word)
+
+
+def test_a_quaternion_written_to_four_digits_is_taken(load_dict, data) -> None:
+    d = copy.deepcopy(data)
+    d["goal"]["orientation"] = {"quat": [0.7071, 0, 0, 0.7071]}  # norm 0.99999
+    setup = load_dict(d)
+    assert setup.goal is not None
+    rotation = setup.goal.goal.rotation
+    assert isinstance(rotation, np.ndarray)
+    assert np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-12)
 
 
 def test_task_gains_without_a_goal_are_refused(load_dict, data) -> None:

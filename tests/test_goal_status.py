@@ -68,3 +68,46 @@ def test_a_radial_error_at_the_outstretched_pose_is_a_singular_stall(run) -> Non
     assert s.status == "stalled" and s.stall_kind == "singular"
     assert s.task_error_final is not None
     assert s.task_error_final["position"] == pytest.approx(1.5, abs=1e-3)
+
+
+def _panda_goal(tmp_path: Path, duration: float, position: list[float] | None = None):
+    """scenarios/panda_goal_pose.yaml's task-space CPBC alone, for ``duration`` s, to its own
+    goal or to ``position``."""
+    d = yaml.safe_load((scenarios_dir() / "panda_goal_pose.yaml").read_text())
+    d["simulation"]["duration"] = duration
+    d["controllers"] = [c for c in d["controllers"] if c["type"] == "cpbc"]
+    if position is not None:
+        d["goal"]["position"] = position
+    path = tmp_path / "panda_goal.yaml"
+    path.write_text(yaml.safe_dump(d))
+    return build(*load_scenario(path))
+
+
+def test_a_goal_held_in_its_band_while_the_joints_still_drift_is_reached(tmp_path) -> None:
+    """The Panda's hand holds its goal to microns from 2.2 s on while the posture spring
+    still moves the joints along their self-motion: reached, not not_settled."""
+    import numpy as np
+
+    setup = _panda_goal(tmp_path, 4.0)
+    result = run_one(setup, setup.cases[0], setup.controllers[0], "mujoco")
+    s = result.summary
+    assert s.reach_time is not None and s.reach_time < 4.0 - 1.0  # held the last second
+    assert s.task_error_final is not None and s.task_error_final["position"] < 1e-4
+    # the joints still move: "at rest" alone would not call it reached
+    assert np.max(np.abs(result.trajectory.velocity[-1])) > setup.criteria.velocity_tolerance
+    assert s.status == "reached"
+
+
+def test_a_goal_beyond_the_arms_reach_is_unreachable_before_and_after_a_short_run(
+        tmp_path) -> None:
+    """10 m from a Panda with a ball in its workspace: the preflight's descent runs into the
+    ball's clearance, but no posture reaches the goal, so no constraint is blamed; a run
+    shorter than the stall window is not judged as a stall."""
+    setup = _panda_goal(tmp_path, 0.3, [10.0, 0.0, 0.5])
+    assert setup.goal is not None
+    found = setup.goal.preflight
+    assert found.verdict == "unreachable" and found.blocked_by is None, found.describe()
+    assert found.beyond_reach == pytest.approx(9.0, abs=0.1)
+    assert "beyond the arm's reach" in found.describe()
+    s = run_one(setup, setup.cases[0], setup.controllers[0], "mujoco").summary
+    assert s.status == "unreachable" and s.stall_kind is None

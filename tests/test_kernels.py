@@ -226,3 +226,33 @@ def test_a_changed_kernel_source_drops_the_cached_kernels(tmp_path: Path) -> Non
     (tmp_path / "b.py").write_text("y = 3\n")  # the callee's module changed
     assert drop_stale_cache(tmp_path)
     assert not list(cache.glob("*.nb?"))
+
+
+def test_warm_says_each_module_as_it_is_compiled() -> None:
+    from cpbc.kernels.__main__ import MODULES, kernels, warm
+
+    lines: list[str] = []
+    every = warm(lines.append)
+    assert len(lines) == len(MODULES)
+    counts = []
+    for i, (line, name) in enumerate(zip(lines, MODULES, strict=True), 1):
+        head, _, rest = line.partition(": ")
+        assert head == f"[{i}/{len(MODULES)}] {name}", line
+        counts.append(int(rest.split(" kernels, ")[0]))
+    assert sum(counts) == len(every) == len(list(kernels()))
+    assert all(counts)  # every module holds kernels of its own
+
+
+def test_warm_compiles_each_module_after_the_kernel_modules_it_imports() -> None:
+    """Importing a module compiles the kernel modules it imports first: in MODULES' order,
+    each step of the progress compiles only its own kernels."""
+    import ast
+
+    from cpbc.kernels.__main__ import MODULES
+
+    folder = Path(__file__).parents[1] / "cpbc" / "kernels"
+    for i, name in enumerate(MODULES):
+        tree = ast.parse((folder / f"{name.rsplit('.', 1)[1]}.py").read_text())
+        imported = {node.module for node in ast.walk(tree)
+                    if isinstance(node, ast.ImportFrom) and node.module in MODULES}
+        assert imported <= set(MODULES[:i]), (name, imported - set(MODULES[:i]))

@@ -129,12 +129,29 @@ def test_missing_mesh_is_named(tmp_path: Path) -> None:
         load_urdf(urdf)
 
 
+def test_a_package_in_a_folder_of_another_name_is_mapped_by_name(tmp_path: Path) -> None:
+    """rtb-data's iiwa: package://kuka_lbr_iiwa_support/ lives in a folder called
+    kuka_lbr_iiwa. Unmapped, the error says how to map it; mapped, the arm loads."""
+    mesh = arm_urdf("panda").parents[1] / "meshes" / "collision" / "link1.stl"
+    folder = tmp_path / "kuka_lbr_iiwa"
+    (folder / "meshes").mkdir(parents=True)
+    (folder / "meshes" / "arm.stl").write_bytes(mesh.read_bytes())
+    urdf = tmp_path / "urdf" / "one.urdf"
+    urdf.parent.mkdir()
+    urdf.write_text(_ONE_LINK.format(mesh="package://kuka_lbr_iiwa_support/meshes/arm.stl"))
+    with pytest.raises(ModelError, match=r"kuka_lbr_iiwa_support=FOLDER in robot\.package_dirs"):
+        load_urdf(urdf)
+    arm = load_urdf(urdf, package_dirs=[f"kuka_lbr_iiwa_support={folder}"])
+    assert arm.joint_names == ("j1",)
+    assert str(folder / "meshes" / "arm.stl") in arm.urdf_text
+
+
 def test_relative_and_package_meshes_resolve(tmp_path: Path) -> None:
     share = arm_urdf("panda").parents[4]  # .../share
     mesh = share / "example-robot-data/robots/panda_description/meshes/collision/link1.stl"
     found = resolve_mesh_uri(
         "package://example-robot-data/robots/panda_description/meshes/collision/link1.stl",
-        tmp_path / "x.urdf", [share],
+        tmp_path / "x.urdf", [(None, share)],
     )
     assert found == mesh.resolve()
     (tmp_path / "meshes").mkdir()

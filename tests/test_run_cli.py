@@ -454,3 +454,20 @@ def test_summary_csv_names_the_violated_constraint(tmp_path: Path) -> None:
         rows = list(reader)
     assert reader.fieldnames is not None and reader.fieldnames[-1] == "violated_constraint"
     assert [r["violated_constraint"] for r in rows] == ["", "obstacle", "", ""]
+
+
+def test_status_says_when_the_run_crossed_what_it_only_monitored(ch7_run, capsys):
+    """thesis_ch7's PD monitors the rate bounds (it enforces nothing) and crosses both: its
+    status cell says so next to ``converged``; BPBC enforces them and its cell has no such
+    note."""
+    from cpbc.results.metrics import RunSummary
+    from cpbc.results.summary_table import status_text
+
+    _, out, _ = ch7_run
+    runs = [RunSummary(**{k: v for k, v in r.items() if k in RunSummary.__dataclass_fields__})
+            for r in json.loads((out / "summary.json").read_text())]
+    pd = [s for s in runs if s.controller == "PD"]
+    assert pd and all(s.crossed_constraints == ["rate[theta1]", "rate[theta2]"] for s in pd)
+    assert all("crossed monitored rate[theta1], rate[theta2]" in status_text(s) for s in pd)
+    bpbc = [s for s in runs if s.controller == "BPBC"]
+    assert bpbc and all("crossed" not in status_text(s) for s in bpbc)

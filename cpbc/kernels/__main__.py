@@ -8,23 +8,42 @@ import argparse
 import importlib
 import sys
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 from numba.core.registry import CPUDispatcher
 
-MODULES = ("cpbc.kernels.small_solves", "cpbc.kernels.energy", "cpbc.kernels.barriers",
-           "cpbc.kernels.laws", "cpbc.kernels.barrier_set", "cpbc.kernels.coordinate_maps",
-           "cpbc.kernels.task", "cpbc.kernels.clearance", "cpbc.kernels.sampled_guard",
-           "cpbc.kernels.barrier_shaping", "cpbc.kernels.law_terms", "cpbc.kernels.views")
+# each after the kernel modules it imports, so that each step of --warm's progress compiles
+# its own kernels (importing a module compiles those it imports first)
+MODULES = tuple(f"cpbc.kernels.{m}" for m in (
+    "views", "small_solves", "energy", "task", "clearance", "coordinate_maps",
+    "barrier_shaping", "barriers", "barrier_set", "law_terms", "laws", "sampled_guard"))
+
+
+def module_kernels(name: str) -> list[tuple[str, CPUDispatcher]]:
+    """The kernels of one module, by qualified name (importing it compiles or loads them)."""
+    module = importlib.import_module(name)
+    return [(f"{name}.{attr}", value) for attr, value in vars(module).items()
+            if isinstance(value, CPUDispatcher) and value.__module__ == name]
 
 
 def kernels() -> Iterator[tuple[str, CPUDispatcher]]:
     """Every kernel of the package, by qualified name (importing compiles or loads it)."""
     for name in MODULES:
-        module = importlib.import_module(name)
-        for attr, value in vars(module).items():
-            if isinstance(value, CPUDispatcher) and value.__module__ == name:
-                yield f"{name}.{attr}", value
+        yield from module_kernels(name)
+
+
+def warm(say: Callable[[str], None]) -> list[tuple[str, CPUDispatcher]]:
+    """Every kernel, compiled (or loaded from numba's cache) module by module, saying after
+    each module which it was, how many of how many, and how long it took: a cold compile
+    takes minutes, and a silent one looks hung."""
+    every = []
+    for i, name in enumerate(MODULES, 1):
+        start = time.perf_counter()
+        found = module_kernels(name)
+        every += found
+        say(f"[{i}/{len(MODULES)}] {name}: {len(found)} kernels, "
+            f"{time.perf_counter() - start:.1f} s")
+    return every
 
 
 def problems() -> list[str]:
@@ -53,7 +72,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--check", action="store_true", help="exit 1 unless all are nopython")
     args = parser.parse_args(argv)
     start = time.perf_counter()
-    every = list(kernels())
+    every = warm(lambda line: print(line, flush=True)) if args.warm else list(kernels())
     if not every:
         print("no compiled kernels (NUMBA_DISABLE_JIT is set?)", file=sys.stderr)
         return 1 if args.check else 0

@@ -39,6 +39,7 @@ from cpbc.arrays import Array
 from cpbc.errors import ModelError
 from cpbc.model.arms import ARMS, arm_urdf, available_arms
 from cpbc.model.inertias import apply_joint_inertias, regularise_inertias
+from cpbc.model.solid_inertias import estimate_point_masses
 from cpbc.model.urdf_text import resolve_urdf_meshes, sort_joints, unbound_continuous_joints
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
@@ -103,6 +104,9 @@ class LoadedArm:
         regularised: driven joints whose link inertia (with the links welded to it) MuJoCo
             would refuse, raised to the nearest it accepts in both engines
             (cpbc.model.inertias).
+        estimated: driven joints whose link the URDF gives a mass and an all-zero inertia
+            tensor, given the inertia of a solid box of its geometry in both engines
+            (cpbc.model.solid_inertias).
     """
 
     name: str
@@ -119,6 +123,7 @@ class LoadedArm:
     tip: str | None = None
     continuous_joints: tuple[str, ...] = ()
     regularised: tuple[str, ...] = ()
+    estimated: tuple[str, ...] = ()
 
     @property
     def n(self) -> int:
@@ -276,12 +281,26 @@ def load_urdf(
         )
     if model.nv == 0:
         raise ModelError(f"{path.name} has no joint to drive (every joint is fixed or locked)")
+    if not any(model.inertias[j].mass > 0 for j in range(1, model.njoints)):
+        raise ModelError(f"{path.name}: no moving link has a mass (every <inertial> is missing "
+                         "or has mass 0), and the laws need the arm's inertia: give the links "
+                         "their <inertial> mass and inertia")
     lower, upper, vel, eff = _limits(model)
+    estimated = estimate_point_masses(model, [lambda: collision, lambda: _visual(model, text)])
     return LoadedArm(
         name or path.stem, path, text, model, collision, locked, tuple(model.names[1:]),
         lower, upper, vel, eff, continuous_joints=continuous,
-        regularised=regularise_inertias(model),
+        regularised=regularise_inertias(model), estimated=estimated,
     )
+
+
+def _visual(model: pin.Model, text: str) -> pin.GeometryModel:
+    """The URDF's visual geometry on ``model`` (its links' frames survive the locking);
+    none when Pinocchio cannot build it."""
+    try:
+        return pin.buildGeomFromUrdfString(model, text, pin.GeometryType.VISUAL)
+    except (RuntimeError, ValueError):
+        return pin.GeometryModel()
 
 
 def _locked(full: pin.Model, given: Mapping[str, float], driven: Sequence[str] | None,

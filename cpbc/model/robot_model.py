@@ -151,6 +151,9 @@ class RobotModel:
                 f"model '{name}' has nq={model.nq} != nv={model.nv}; only arms with revolute "
                 "or prismatic joints (no continuous/free joints) are supported"
             )
+        if model.nv == 0:
+            raise ModelError(f"model '{name}' has no joint to drive: an arm needs at least one "
+                             "revolute or prismatic joint")
         self.name = name
         self.model = model
         self.data = model.createData()

@@ -27,41 +27,67 @@ _TYPED = re.compile(r"""\btype\s*=""")
 _ROBOT_END = re.compile(r"</robot\s*>\s*$")
 
 
-def _package_dirs(urdf: Path, extra: Sequence[str | Path]) -> list[Path]:
-    """Folders in which ``package://NAME/...`` is looked up as ``folder/NAME/...`` (after the
-    URDF's own folders, see :func:`resolve_mesh_uri`).
+#: A folder for ``package://``: (NAME, folder) maps ``package://NAME/rest`` to
+#: ``folder/rest``; (None, folder) looks it up as ``folder/NAME/rest``.
+PackageDir = tuple[str | None, Path]
+
+
+def package_dir(entry: str | Path) -> PackageDir:
+    """One entry of ``package_dirs``: ``NAME=FOLDER`` (the folder of package NAME, whatever
+    the folder is called) or a folder that holds packages."""
+    name, sep, folder = str(entry).partition("=")
+    if sep and name and "/" not in name:
+        return name, Path(folder)
+    return None, Path(entry)
+
+
+def _package_dirs(urdf: Path, extra: Sequence[str | Path]) -> list[PackageDir]:
+    """Folders in which ``package://NAME/...`` is looked up (after the URDF's own folders,
+    see :func:`resolve_mesh_uri`): ``extra`` (folders, or ``NAME=FOLDER``), then
+    ``ROS_PACKAGE_PATH``, example-robot-data and the URDF's parent folders.
 
     Raises:
         ModelError: one of ``extra`` is not an existing folder.
     """
-    missing = [str(p) for p in extra if not Path(p).is_dir()]
+    given = [package_dir(p) for p in extra]
+    missing = [str(p) for p in extra if not package_dir(p)[1].is_dir()]
     if missing:
         raise ModelError(f"package_dirs {missing} do not exist or are not folders",
                          "package_dirs")
-    dirs = [Path(p) for p in extra]
-    dirs += [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
+    dirs = [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
     share = example_robot_data_share()
     if share is not None:
         dirs.append(share)
     dirs += list(urdf.resolve().parents)
-    return list(dict.fromkeys(dirs))
+    return list(dict.fromkeys([*given, *((None, d) for d in dirs)]))
 
 
-def resolve_mesh_uri(uri: str, urdf: Path, package_dirs: Sequence[Path]) -> Path:
+def _looked_up(package: str, rest: str, urdf: Path,
+               package_dirs: Sequence[PackageDir]) -> list[Path]:
+    """Where ``package://package/rest`` may be, in order."""
+    looked = [d / rest for d in urdf.resolve().parents if d.name == package]
+    for name, d in package_dirs:
+        if name is not None:
+            looked += [d / rest] if name == package else []
+            continue
+        looked.append(d / package / rest)
+        if d.name == package:
+            looked.append(d / rest)
+    return looked
+
+
+def resolve_mesh_uri(uri: str, urdf: Path, package_dirs: Sequence[PackageDir]) -> Path:
     """Absolute path of a URDF mesh reference; ModelError naming the URI if it is missing.
 
     ``package://NAME/rest`` is first looked up from the URDF's own location (the nearest of
     its parent folders called NAME), so that a package shipped with its URDF wins over a
-    namesake elsewhere, then as ``folder/NAME/rest`` in each of ``package_dirs``.
+    namesake elsewhere, then in each of ``package_dirs`` (:data:`PackageDir`).
     """
     looked: list[Path] = []
+    package = None
     if uri.startswith("package://"):
         package, _, rest = uri[len("package://"):].partition("/")
-        looked += [d / rest for d in urdf.resolve().parents if d.name == package]
-        for d in package_dirs:
-            looked.append(d / package / rest)
-            if d.name == package:
-                looked.append(d / rest)
+        looked = _looked_up(package, rest, urdf, package_dirs)
     elif uri.startswith("file://"):
         looked.append(Path(uri[len("file://"):]))
     else:
@@ -71,7 +97,10 @@ def resolve_mesh_uri(uri: str, urdf: Path, package_dirs: Sequence[Path]) -> Path
         if p.is_file():
             return p.resolve()
     where = ", ".join(str(p) for p in looked[:4]) + (" …" if len(looked) > 4 else "")
-    raise ModelError(f"mesh '{uri}' referenced by {urdf} not found (looked in {where})")
+    hint = (f"; if package '{package}' is a folder of another name, map it: "
+            f"{package}=FOLDER in robot.package_dirs (cpbc.robot: --package-dir "
+            f"{package}=FOLDER)" if package else "")
+    raise ModelError(f"mesh '{uri}' referenced by {urdf} not found (looked in {where}){hint}")
 
 
 def resolve_urdf_meshes(

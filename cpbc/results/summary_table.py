@@ -216,9 +216,13 @@ SAFEGUARD_NOTE = 0.5
 
 
 def run_notes(s: RunSummary) -> str:
-    """What went on outside the proof: saturated torque, a safeguard that did most of the
-    work, refused noisy measurements, a Part I plant's limits reached."""
+    """What went on outside the proof: constraints crossed that the law only monitored,
+    saturated torque, a safeguard that did most of the work, refused noisy measurements, a
+    Part I plant's limits reached."""
     notes = []
+    monitored = monitored_crossings(s)
+    if monitored:
+        notes.append(f"crossed monitored {monitored}")
     if s.saturated_steps:
         notes.append(f"torque saturated in {s.saturated_steps} steps")
     if s.rate_limited_steps:
@@ -233,6 +237,25 @@ def run_notes(s: RunSummary) -> str:
     if s.system is not None and s.system.limits_reached:
         notes.append(f"reached the plant's limit: {', '.join(s.system.limits_reached)}")
     return "".join(f"; {n}" for n in notes)
+
+
+#: Up to this many crossed constraints are named one by one; more are counted by type.
+NAMED_CROSSINGS = 3
+
+
+def monitored_crossings(s: RunSummary) -> str:
+    """The constraints the run crossed that its law did not enforce (it only monitored
+    them): by name, or counted by type when many ("7 rate, 1 clearance"); empty when none.
+    A run that ends at its target while crossing them must not read as a clean one."""
+    enforced = set(s.enforced_constraints)
+    crossed = [n for n in s.crossed_constraints if n not in enforced]
+    if len(crossed) <= NAMED_CROSSINGS:
+        return ", ".join(crossed)
+    by_type: dict[str, int] = {}
+    for n in crossed:
+        kind = s.margin_types.get(n, "other")
+        by_type[kind] = by_type.get(kind, 0) + 1
+    return ", ".join(f"{k} {kind}" for kind, k in by_type.items())
 
 
 def safeguard_cell(s: RunSummary) -> str:

@@ -3,8 +3,11 @@ run, when it entered the goal's band for good, and the status of a goal run.
 
 Statuses of a goal run (never ``converged``: that is a joint set point's):
 
-* ``reached``: the task error ends inside the goal's tolerance, at rest;
-* ``unreachable``: at rest away from the goal, which the preflight found out of reach;
+* ``reached``: the task error ends inside the goal's tolerance, at rest, or stays inside it
+  over the run's last stall window (the hand holds the goal while the joints still drift);
+* ``unreachable``: at rest away from the goal, which the preflight found out of reach; or,
+  for a goal beyond the arm's reach (cpbc.taskspace.reach), not reached, however the run
+  ended (short, moving, creeping): no run could have reached it;
 * ``stalled`` with ``stall_kind``: at rest away from a goal the preflight did not rule out:
   ``singular`` (σ_min of the point's Jacobian below the preflight's threshold: the error
   produces no torque), ``barrier:<name>`` (a constraint holds the arm off: its margin shrank
@@ -142,6 +145,13 @@ def stall_window_start(time: Array, criteria: SettleCriteria) -> int:
     return int(np.searchsorted(time, time[-1] - span))
 
 
+def held_in_band(time: Array, inside: Array, criteria: SettleCriteria) -> bool:
+    """The task error stayed within the goal's tolerance over the whole last stall window:
+    the goal is held, though the joints may still drift along the arm's self-motion (a
+    redundant arm whose posture spring pulls slower than the task's)."""
+    return bool(np.all(inside[stall_window_start(time, criteria):]))
+
+
 def creeping(model: RobotModel, goal: FrameGoal, traj: Trajectory, errors: Array,
              criteria: SettleCriteria) -> bool:
     """The task error made no progress over the last stall window, stayed in its band, and
@@ -164,7 +174,7 @@ def creeping(model: RobotModel, goal: FrameGoal, traj: Trajectory, errors: Array
 def task_outcome(model: RobotModel, goal: FrameGoal, verdict: str, traj: Trajectory,
                  joint_status: str, monitor: ConstraintSet, margins: Array,
                  criteria: SettleCriteria, errors: Array | None = None,
-                 law: Controller | None = None) -> TaskOutcome:
+                 law: Controller | None = None, beyond_reach: bool = False) -> TaskOutcome:
     """The goal run's outcome from its trajectory, the preflight's ``verdict`` and the joint
     status judge_status gave it (against the posture); ``errors``: :func:`task_errors` of
     the run, when already computed; ``law``: the run's law, to tell a barrier holding the
@@ -177,8 +187,10 @@ def task_outcome(model: RobotModel, goal: FrameGoal, verdict: str, traj: Traject
     at_rest = bool(np.max(np.abs(traj.velocity[-1])) < criteria.velocity_tolerance)
     status, kind = joint_status, None
     if joint_status not in ("constraint_violated", "diverged", "held"):
-        if inside[-1] and at_rest:
+        if inside[-1] and (at_rest or held_in_band(traj.time, inside, criteria)):
             status = "reached"
+        elif not inside[-1] and beyond_reach:
+            status = "unreachable"
         elif joint_status in _AT_REST or (
                 not inside[-1] and creeping(model, goal, traj, errors, criteria)):
             if verdict == "unreachable":

@@ -26,6 +26,7 @@ from cpbc.model.arms import ARMS
 from cpbc.model.gravity_load import GravityLoad
 from cpbc.model.joint_dynamics import JointDynamics
 from cpbc.model.loading import LoadedArm, finish_mujoco_model
+from cpbc.model.mjcf_arm import check_mjcf_arm
 from cpbc.resources import builtin_models
 from cpbc.results.metrics import SettleCriteria
 from cpbc.scenario import robots
@@ -272,6 +273,8 @@ def load_robot(scenario: s.Scenario, scenario_file: Path) -> tuple[
     arm = robots.load_scenario_arm(scenario.robot, scenario_file.parent)
     path = arm.urdf_path if arm is not None else _model_path(scenario.robot, scenario_file.parent)
     try:
+        if arm is None and path.is_file():  # MuJoCo first: it tells why Pinocchio sees no arm
+            check_mjcf_arm(path, mujoco.MjModel.from_xml_path(str(path)))
         plant = (arm.mujoco_model() if arm is not None
                  else mujoco.MjModel.from_xml_path(str(path)))
         model = _robot_model(path, scenario.robot, arm=arm, plant=plant)

@@ -21,7 +21,7 @@ from cpbc.model import RobotModel
 from cpbc.model.bounds import ModelBounds, estimate_bounds
 from cpbc.scenario import schema as s
 from cpbc.scenario.arm_setup import CaseEntry, ControllerEntry
-from cpbc.scenario.gain_check import physical_gains, unstable_loop
+from cpbc.scenario.gain_check import UnstableLoop, physical_gains, unstable_loop
 from cpbc.scenario.goal_build import GoalPlan, law_terms, linear_gains
 from cpbc.scenario.joint_dynamics_setup import friction_spec
 from cpbc.scenario.schema.kinds import KINDS, Kinds, LawKind
@@ -39,35 +39,128 @@ class _Gains:
 
 
 def _gains(spec: s.LawSpec, slopes: Slopes, model: RobotModel, target: Array,
-           field: str) -> _Gains:
-    """K_P, K_D as given, or from ω_n and ζ with D_ii at the target (cpbc.scenario.gain_check),
-    divided by the law's slopes; its stiffness and damping near the target are K_P and K_D
-    times them."""
+           field: str, scale: float = 1.0) -> _Gains:
+    """K_P, K_D as given, or from ω_n (times ``scale``) and ζ with D_ii at the target
+    (cpbc.scenario.gain_check), divided by the law's slopes; its stiffness and damping near
+    the target are K_P and K_D times them."""
     n = model.n
     if spec.kp is not None and spec.kd is not None:
         kp, kd = gain_vector(spec.kp, n, f"{field}.kp"), gain_vector(spec.kd, n, f"{field}.kd")
     else:
         omega = gain_vector(spec.omega_n, n, f"{field}.omega_n")  # type: ignore[arg-type]
         zeta = gain_vector(spec.zeta, n, f"{field}.zeta")  # type: ignore[arg-type]
-        kp, kd = physical_gains(omega, zeta, model.inertia(target).diagonal())
+        kp, kd = physical_gains(scale * omega, zeta, model.inertia(target).diagonal())
         kp, kd = kp / slopes.spring, kd / slopes.damping
     stiffness, damping = kp * slopes.spring, kd * slopes.damping
     return _Gains(kp, kd, lambda x: (stiffness, damping))
 
 
-def _check_zoh(
-    gains: _Gains, model: RobotModel, states: list[Array], sim: s.SimulationSpec,
-    names: tuple[str, ...], field: str,
-) -> None:
-    """Refuse gains whose held loop is unstable at the control period (cpbc.scenario.gain_check)."""
+def _unstable(gains: _Gains, model: RobotModel, states: list[Array], sim: s.SimulationSpec,
+              names: tuple[str, ...]) -> UnstableLoop | None:
+    """The first state at which the held loop is unstable at the control period, described
+    (cpbc.scenario.gain_check); None when it is stable at every one."""
     euler_step = 0.0 if sim.integrator == "RK4" else sim.timestep
     period = sim.control_period or sim.timestep
     for x in states:
         stiffness, damping = gains.linear(x)
         bad = unstable_loop(stiffness, damping, [model.inertia(x)], period, names, euler_step)
         if bad is not None:
-            raise ScenarioError(field, bad.advice() + "; simulation.check_gains: false runs "
-                                "it anyway")
+            return bad
+    return None
+
+
+def _check_zoh(
+    gains: _Gains, model: RobotModel, states: list[Array], sim: s.SimulationSpec,
+    names: tuple[str, ...], field: str, frequencies: Sequence[Frequency] = (),
+) -> None:
+    """Refuse gains whose held loop is unstable at the control period. Gains written as
+    natural frequencies are answered in those: for each, the largest value at which, the
+    others kept, the loop is stable (a default the entry did not write among them)."""
+    bad = _unstable(gains, model, states, sim, names)
+    if bad is None:
+        return
+    fixes = []
+    for f in frequencies:
+        def stable(k: float, f: Frequency = f) -> bool:
+            try:
+                return _unstable(f.gains(k), model, states, sim, names) is None
+            except ScenarioError:  # gains the law refuses (a task below its posture)
+                return False
+
+        scale = _stable_scale(stable)
+        if scale is not None:
+            default = "" if f.given else f" (default {_times(f.value, 1.0)})"
+            fixes.append(f"lower {f.name}{default} to {_times(f.value, scale)} or less")
+    raise ScenarioError(field, bad.advice(", or ".join(fixes) if fixes else None)
+                        + "; simulation.check_gains: false runs it anyway")
+
+
+def _times(values: Array, scale: float) -> str:
+    """``values`` times ``scale``, as written: one number, or a list."""
+    v = np.atleast_1d(np.asarray(values, dtype=float)) * scale
+    return f"{v[0]:.4g}" if v.size == 1 else "[" + ", ".join(f"{x:.4g}" for x in v) + "]"
+
+
+@dataclass(frozen=True)
+class Frequency:
+    """A natural frequency an entry's gains are made from: its name in the scenario, its
+    value, whether the entry wrote it (else it is its default), and the entry's gains with
+    it scaled by k (the others kept)."""
+
+    name: str
+    value: Array
+    given: bool
+    gains: Callable[[float], _Gains]
+
+
+def natural_frequencies(spec: s.LawSpec, kind: LawKind[Any], model: RobotModel,
+                        target: Array, goal: GoalPlan | None, field: str) -> list[Frequency]:
+    """The natural frequencies of an entry whose gains are written as such (``omega_n``, or
+    a goal's ``task`` and ``posture``); none for an entry written as K_P and K_D."""
+    slopes = kind.slopes(spec, model.n, field)
+    if goal is not None and (spec.task is not None or spec.posture is not None):
+        task, posture = spec.task or s.TaskGainsSpec(), spec.posture or s.PostureGainsSpec()
+
+        def scaled(part: str, key: str) -> Callable[[float], _Gains]:
+            def gains(k: float) -> _Gains:
+                given = task if part == "task" else posture
+                value = getattr(given, key) if getattr(given, key) is not None else task.omega_n
+                changed = spec.model_copy(update={
+                    "task": task, "posture": posture,
+                    part: given.model_copy(update={key: k * value})})
+                terms, found = law_terms(changed, model, goal, field, slopes)
+                return _Gains(terms["kp"], terms["kd"],  # type: ignore[arg-type]
+                              lambda x: linear_gains(model, goal, found, x))
+            return gains
+
+        out = [Frequency("task.omega_n", np.array(task.omega_n), spec.task is not None,
+                         scaled("task", "omega_n"))]
+        if task.rotation_omega_n is not None:
+            out.append(Frequency("task.rotation_omega_n", np.array(task.rotation_omega_n),
+                                 True, scaled("task", "rotation_omega_n")))
+        out.append(Frequency("posture.omega_n", np.array(posture.omega_n),
+                             spec.posture is not None, scaled("posture", "omega_n")))
+        return out
+    if goal is None and spec.kp is None and spec.omega_n is not None:
+        omega = gain_vector(spec.omega_n, model.n, f"{field}.omega_n")
+        shown = omega[:1] if np.all(omega == omega[0]) else omega
+        return [Frequency("omega_n", shown, True,
+                          lambda k: _gains(spec, slopes, model, target, field, k))]
+    return []
+
+
+def _stable_scale(stable: Callable[[float], bool], smallest: float = 1e-3) -> float | None:
+    """The largest k in [smallest, 1) with ``stable(k)`` (k = 1 is not), to 0.1 % by
+    bisection after halving down to a stable one; None when even ``smallest`` is not."""
+    hi, lo = 1.0, 0.5
+    while not stable(lo):
+        hi, lo = lo, lo / 2
+        if lo < smallest:
+            return None
+    while hi - lo > 1e-3 * lo:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return lo
 
 
 def _compensation(scenario: s.Scenario, model: RobotModel, target: Array,
@@ -94,6 +187,14 @@ def _with_gains(gains: _Gains, term: JointLogCoshSpring | None) -> _Gains:
     extra = term.stiffness * term.xi
     linear = gains.linear
     return _Gains(gains.kp, gains.kd, lambda x: (linear(x)[0] + extra, linear(x)[1]))
+
+
+def _with_term(frequency: Frequency, term: JointLogCoshSpring | None) -> Frequency:
+    """A natural frequency whose scaled gains the held-loop check sees with ``term``."""
+    if term is None:
+        return frequency
+    scaled = frequency.gains
+    return replace(frequency, gains=lambda k: _with_gains(scaled(k), term))
 
 
 def _compensated(spec: s.LawSpec, kind: LawKind[Any], given: LawInputs, law: Controller,
@@ -168,8 +269,10 @@ def build_controllers(
         law = _build_controller(cspec, kind, given)
         compensated = _compensated(cspec, kind, given, law, term)
         if check:
-            _check_zoh(_with_gains(gains, term if compensated else None), model, states, sim,
-                       names, field)
+            extra = term if compensated else None
+            frequencies = [_with_term(f, extra) for f in
+                           natural_frequencies(cspec, kind, model, target, goal, field)]
+            _check_zoh(_with_gains(gains, extra), model, states, sim, names, field, frequencies)
         controllers.append(ControllerEntry(
             cspec.name or cspec.type, law if compensated is None else compensated,
             None if compensated is None else friction_spec(scenario.robot).compensation_width))

@@ -149,18 +149,23 @@ class UnstableLoop:
     longest_period: float
     stable_kd: float | None = None
 
-    def advice(self) -> str:
-        """What is wrong and the ways out, in numbers."""
+    def gain_fix(self) -> str:
+        """The way out in K_P and K_D (the gains as a user gives kp, kd)."""
         m, h, kp, kd = self.inertia, self.period, self.kp, self.kd
         if kd * h >= 2.0 * m:
-            fix = f"K_D h ≥ 2 D_eff: lower kd below {2 * m / h:.4g}"
-        elif kp * h >= 2.0 * kd:
-            fix = f"K_P h ≥ 2 K_D: raise kd above {kp * h / 2:.4g} or lower kp"
-        elif self.stable_kd is not None:
-            fix = (f"a coupled mode: lower kd of '{self.name}' below {self.stable_kd:.4g} "
-                   "(or omega_n, zeta)")
-        else:
-            fix = "a coupled mode: lower omega_n or zeta"
+            return f"K_D h ≥ 2 D_eff: lower kd below {2 * m / h:.4g}"
+        if kp * h >= 2.0 * kd:
+            return f"K_P h ≥ 2 K_D: raise kd above {kp * h / 2:.4g} or lower kp"
+        if self.stable_kd is not None:
+            return (f"a coupled mode: lower kd of '{self.name}' below {self.stable_kd:.4g} "
+                    "(or omega_n, zeta)")
+        return "a coupled mode: lower omega_n or zeta"
+
+    def advice(self, fix: str | None = None) -> str:
+        """What is wrong and the ways out, in numbers; ``fix``: the way out in the units the
+        gains were written in (natural frequencies), instead of :meth:`gain_fix`."""
+        m, h, kp, kd = self.inertia, self.period, self.kp, self.kd
+        fix = self.gain_fix() if fix is None else fix
         return (f"the gains are unstable under the zero-order hold at control period "
                 f"h = {h:.3g} s (spectral radius {self.radius:.4g} ≥ 1), mostly in coordinate "
                 f"'{self.name}' (effective inertia {m:.3g}, K_P = {kp:.4g}, K_D = {kd:.4g}; "

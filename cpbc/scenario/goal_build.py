@@ -51,10 +51,26 @@ def _rotation(spec: s.OrientationSpec | None) -> Array | AxisGoal | None:
                         _unit3(spec.axis.world, "goal.orientation.axis.world"))
     if spec.rpy is not None:
         return rpy_matrix(_vector3(spec.rpy, "goal.orientation.rpy"))
-    q = np.asarray(spec.quat, dtype=float)
-    if q.shape != (4,) or np.linalg.norm(q) < 1e-12:
-        raise ScenarioError("goal.orientation.quat", "needs 4 numbers [w, x, y, z], not zero")
-    return quat_to_matrix(q / np.linalg.norm(q))
+    return quat_to_matrix(_unit_quaternion(spec.quat, "goal.orientation.quat"))
+
+
+#: How far a quaternion's norm may be from 1: what numbers written to four digits leave
+#: (0.7071 for √½); farther, the numbers are not the rotation the user meant.
+QUAT_NORM_TOLERANCE = 1e-3
+
+
+def _unit_quaternion(values: object, field: str) -> Array:
+    """[w, x, y, z] of unit norm (within QUAT_NORM_TOLERANCE, then made exact)."""
+    q = np.asarray(values, dtype=float)
+    if q.shape != (4,):
+        raise ScenarioError(field, f"needs 4 numbers [w, x, y, z], got {q.size}")
+    norm = float(np.linalg.norm(q))
+    if abs(norm - 1.0) > QUAT_NORM_TOLERANCE:
+        fix = ("the identity is [1, 0, 0, 0]" if norm < 1e-12 else
+               f"divide each number by {norm:.6g}")
+        raise ScenarioError(field, f"has norm {norm:.6g}, not 1: a rotation's quaternion "
+                            f"is a unit one ({fix})")
+    return q / norm
 
 
 def _check_free(goal: Array, scene: Mapping[str, Obstacle], monitor: ConstraintSet,

@@ -24,6 +24,7 @@ from cpbc.constraints.geometry import (
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model.arms import ARMS
 from cpbc.model.loading import LoadedArm, load_arm, load_urdf
+from cpbc.model.urdf_text import package_dir
 from cpbc.scenario import schema as s
 
 GEOM_TYPES = {
@@ -64,6 +65,14 @@ def is_urdf_robot(robot: s.RobotSpec, base: Path | None = None) -> bool:
     return xml_root(path) == "robot"
 
 
+def package_entry(entry: str, base: Path) -> str:
+    """An entry of ``robot.package_dirs`` (a folder, or NAME=FOLDER) with its folder taken
+    relative to ``base`` (the scenario's folder) unless absolute."""
+    name, folder = package_dir(entry)
+    path = folder if folder.is_absolute() else base / folder
+    return str(path) if name is None else f"{name}={path}"
+
+
 def load_scenario_arm(robot: s.RobotSpec, base: Path) -> LoadedArm | None:
     """The URDF arm of a scenario, or None when its robot is an MJCF model."""
     if not is_urdf_robot(robot, base):
@@ -72,7 +81,7 @@ def load_scenario_arm(robot: s.RobotSpec, base: Path) -> LoadedArm | None:
                 "robot.locked_joints", "locking joints needs a URDF robot (a name or .urdf path)"
             )
         return None
-    dirs = [p if Path(p).is_absolute() else base / p for p in robot.package_dirs]
+    dirs = [package_entry(p, base) for p in robot.package_dirs]
     try:
         if robot.model in ARMS:
             return load_arm(robot.model, robot.locked_joints, dirs)

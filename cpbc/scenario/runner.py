@@ -105,7 +105,8 @@ def run_one(
         errors = task_errors(setup.model, setup.goal.goal, traj.position)
         outcome = task_outcome(setup.model, setup.goal.goal, setup.goal.preflight.verdict,
                                traj, summary.status, setup.monitor, margins, setup.criteria,
-                               errors, entry.controller)
+                               errors, entry.controller,
+                               beyond_reach=setup.goal.preflight.beyond_reach is not None)
         # a goal run settles when it enters the goal's band for good, not at the posture
         summary = replace(summary, **outcome.__dict__, settle_time=outcome.reach_time)
     joints = setup.joint_dynamics.summary()

@@ -17,7 +17,8 @@ reaches the goal, is held off it by a constraint, or cannot reach it at all:
   (``posture: ik``), consistent with the goal and strictly inside S;
 * ``blocked``: a constraint's margin shrank to a small share of its value at the seed while
   the error stays above tolerance; that constraint is named;
-* ``unreachable``: neither; the closest approach is reported.
+* ``unreachable``: neither; the closest approach is reported. A goal beyond the arm's reach
+  (cpbc.taskspace.reach) is ``unreachable`` whatever the descent ran into on its way.
 
 Several seeds (the start first, then others the caller gives) guard against local minima:
 the first one that reaches the goal wins. When none does, the descent from the start is the
@@ -39,6 +40,7 @@ from cpbc.errors import ConstraintViolation
 from cpbc.model.frames import FrameKinematics
 from cpbc.model.robot_model import RobotModel
 from cpbc.taskspace.goal import AxisGoal, FrameGoal, TaskError
+from cpbc.taskspace.reach import reach
 
 BARRIER_WEIGHT = 1e-7  # μ [m²]
 ANGLE_LENGTH = 0.3  # w [m/rad]
@@ -58,6 +60,8 @@ class Preflight:
         nearest: (name, margin) of the smallest margin at the posture; None without
             configuration constraints.
         singular_start: σ_min(J_v) at the start is below ``SINGULAR``.
+        beyond_reach: how far the goal lies beyond the arm's reach [m], when it does (no
+            posture reaches it); None when it is within reach.
     """
 
     verdict: str
@@ -66,6 +70,7 @@ class Preflight:
     blocked_by: str | None
     nearest: tuple[str, float] | None
     singular_start: bool
+    beyond_reach: float | None = None
 
     def describe(self) -> str:
         """One line for the console."""
@@ -74,6 +79,9 @@ class Preflight:
             text = f"reachable (IK error {err}); posture {np.round(self.posture, 3).tolist()}"
         elif self.verdict == "blocked":
             text = f"blocked_by: {self.blocked_by} (closest {err})"
+        elif self.beyond_reach is not None:
+            text = (f"unreachable: {self.beyond_reach:.3g} m beyond the arm's reach "
+                    f"(closest {err})")
         else:
             text = f"unreachable (distance {err})"
         if self.singular_start:
@@ -192,8 +200,12 @@ def preflight(model: RobotModel, constraints: ConstraintSet, goal: FrameGoal, st
             share = best.margins / np.maximum(seed_point.margins, 1e-300)
             j = int(np.argmin(share))
             blocked = names[j] if share[j] < ACTIVE_SHARE else None
+    beyond = reach(model, goal).beyond(goal.position) - goal.tolerance[0]
     if goal.reached(error):
         verdict, blocked = "reachable", None
+    elif beyond > 0:  # no posture reaches it: no constraint is to blame
+        verdict, blocked = "unreachable", None
     else:
         verdict = "blocked" if blocked is not None else "unreachable"
-    return Preflight(verdict, best.x, error, blocked, nearest, _singular(model, goal, start))
+    return Preflight(verdict, best.x, error, blocked, nearest, _singular(model, goal, start),
+                     beyond if beyond > 0 else None)

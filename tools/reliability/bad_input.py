@@ -16,6 +16,7 @@ from pathlib import Path
 
 import yaml
 
+from cpbc.resources import scenarios_dir
 from cpbc.run import main
 
 # A small valid scenario that uses every part of the format the variants touch: an obstacle,
@@ -192,6 +193,17 @@ def with_yaml(text: str) -> Make:
     return lambda data, _folder: yaml.safe_dump(data, sort_keys=False) + text
 
 
+def goal_quat(quat: list[float]) -> Make:
+    """scenarios/planar_ch6_taskspace.yaml with its goal's orientation given as ``quat``."""
+
+    def make(_data: dict, _folder: Path) -> str:
+        data = yaml.safe_load((scenarios_dir() / "planar_ch6_taskspace.yaml").read_text())
+        data["goal"]["orientation"] = {"quat": quat}
+        return yaml.safe_dump(data, sort_keys=False)
+
+    return make
+
+
 def arm(model: str, target: list[object], position: list[object], **extra: object) -> Make:
     """A short PD + gravity scenario of a URDF arm, in its own joint coordinates."""
 
@@ -211,7 +223,7 @@ def arm(model: str, target: list[object], position: list[object], **extra: objec
 
 
 def urdf(joint_type: str = "revolute", inertia: str = 'ixx="0.01" iyy="0.01" izz="0.01"',
-         mesh: tuple[str, str] | None = None) -> Make:
+         mesh: tuple[str, str] | None = None, mass: float = 1.0) -> Make:
     """robot.model is a one-joint URDF in the folder (with a mesh file ``mesh`` = (name,
     content) on its link, if given)."""
 
@@ -223,7 +235,7 @@ def urdf(joint_type: str = "revolute", inertia: str = 'ixx="0.01" iyy="0.01" izz
                         "</collision>")
         (folder / "arm.urdf").write_text(
             f'<robot name="one"><link name="base"/><link name="arm"><inertial>'
-            f'<mass value="1"/><inertia {inertia} ixy="0" ixz="0" iyz="0"/></inertial>'
+            f'<mass value="{mass:g}"/><inertia {inertia} ixy="0" ixz="0" iyz="0"/></inertial>'
             f'{geometry}</link><joint name="j1" type="{joint_type}"><parent link="base"/>'
             '<child link="arm"/><axis xyz="0 0 1"/>'
             '<limit lower="-1" upper="1" effort="5" velocity="2"/></joint></robot>')
@@ -494,6 +506,23 @@ VARIANTS: list[BadInput] = [
     BadInput("urdf_unreadable_collada", "model file", "robot.model",
              urdf(mesh=("arm.dae", "<COLLADA>half a file"))),
     BadInput("urdf_floating_joint", "model file", "robot.model", urdf("floating")),
+    BadInput("urdf_massless", "model file", "robot.model",
+             urdf(inertia='ixx="0" iyy="0" izz="0"', mass=0.0)),
+    BadInput("mjcf_without_joints", "model file", "robot.model",
+             model_file("<mujoco><worldbody><body name='b'><geom type='sphere' size='0.1'/>"
+                        "</body></worldbody></mujoco>")),
+    BadInput("mjcf_arm_after_a_mocap_body", "model file", "robot.model",
+             model_file("<mujoco><worldbody><body mocap='true' name='handle'><geom "
+                        "type='box' size='0.01 0.01 0.01' contype='0' conaffinity='0'/></body>"
+                        "<body name='l1'><joint name='j1' type='hinge' axis='0 0 1'/><geom "
+                        "type='capsule' size='0.05' fromto='0 0 0 0.3 0 0' mass='1'/></body>"
+                        "</worldbody></mujoco>")),
+    BadInput("goal_quat_three_numbers", "wrong shape", "goal.orientation.quat",
+             goal_quat([1.0, 0.0, 0.0])),
+    BadInput("goal_quat_not_unit", "inadmissible", "goal.orientation.quat",
+             goal_quat([1.0, 0.0, 0.0, 1.0])),
+    BadInput("goal_quat_zero", "inadmissible", "goal.orientation.quat",
+             goal_quat([0.0, 0.0, 0.0, 0.0])),
     BadInput("xacro_source", "model file", "robot.model",
              model_file('<robot xmlns:xacro="http://ros.org/wiki/xacro" name="a">'
                         '<xacro:include filename="arm.xacro"/></robot>', "arm.urdf.xacro")),

@@ -10,6 +10,7 @@ import numpy as np
 from pydantic import Field
 
 from cpbc.constraints.clearance.constraint import Clearance
+from cpbc.constraints.clearance.unclearable import unclearable
 from cpbc.constraints.constraint_kind import ConstraintEntrySpec, ConstraintInputs, ConstraintKind
 from cpbc.constraints.cover_cache import cached_cover
 from cpbc.constraints.covering import LinkPrimitive
@@ -59,7 +60,9 @@ class ClearanceSpec(ConstraintEntrySpec):
     links: list[str] | None = Field(
         default=None, description=(
             "links covered automatically from their collision meshes; all moving links with "
-            "collision geometry when omitted, none with []"))
+            "collision geometry when omitted (less the cover primitives no configuration "
+            "takes 1 cm clear of an obstacle, as at a floor the arm stands on: the run says "
+            "which), none with []"))
     cover: Literal["spheres", "capsules"] = Field(
         default="spheres", description=(
             "cover each link with spheres or capsules (capsules cost about 5.5× per step)"))
@@ -127,6 +130,12 @@ def build(spec: ClearanceSpec, given: ConstraintInputs) -> Clearance:
         raise ScenarioError(f"{field}.obstacles",
                             f"unknown obstacles {unknown}; the scenario has {list(obstacles)}")
     prims = _primitives(spec, given.arm, model, field)
+    left_out: list[tuple[str, str]] = []
+    if spec.links is None and given.arm is not None:  # the default: every covered link
+        declared, auto = prims[:len(spec.primitives or [])], prims[len(spec.primitives or []):]
+        left_out = unclearable(model.model, auto, [obstacles[o] for o in names], spec.margin)
+        dropped = {name for name, _ in left_out}
+        prims = declared + [p for p in auto if p.name not in dropped]
     covered = sorted({p.frame for p in prims})
     for i, (a, b) in enumerate(spec.self_collision):
         missing = [f for f in (a, b) if f not in covered]
@@ -135,9 +144,11 @@ def build(spec: ClearanceSpec, given: ConstraintInputs) -> Clearance:
                    if missing else "names one link twice")
             raise ScenarioError(f"{field}.self_collision[{i}]", f"pair ({a}, {b}): {why}")
     try:
-        return Clearance(model, prims, [obstacles[o] for o in names], spec.margin,
-                         spec.influence, [(p[0], p[1]) for p in spec.self_collision],
-                         spec.name)
+        built = Clearance(model, prims, [obstacles[o] for o in names], spec.margin,
+                          spec.influence, [(p[0], p[1]) for p in spec.self_collision],
+                          spec.name)
+        built.left_out = tuple(left_out)
+        return built
     except CpbcError as exc:
         parameter = getattr(exc, "parameter", None)
         raise ScenarioError(f"{field}.{parameter}" if parameter else field, str(exc)) from None

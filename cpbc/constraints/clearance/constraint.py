@@ -92,6 +92,9 @@ class Clearance(PairLayout, ConfigurationConstraint):
 
     margin_type = CLEARANCE  # φ_p is in m already
     needs_kinematics = True  # the law's pass reads the state's joint Jacobians
+    #: (primitive, obstacle) pairs of an automatic cover that no configuration clears, left
+    #: out by the scenario's default clearance (cpbc.constraints.clearance.unclearable)
+    left_out: tuple[tuple[str, str], ...] = ()
 
     def __init__(
         self,

@@ -124,7 +124,8 @@ class RobotSpec(Strict):
             "is locked by default)"))
     package_dirs: list[str] = Field(
         default=[], description=(
-            "URDF arms: extra folders searched for package:// meshes"))
+            "URDF arms: extra folders searched for package:// meshes; NAME=FOLDER maps "
+            "package://NAME/ to FOLDER (a package in a folder of another name)"))
     plant: PlantMismatchSpec | None = Field(
         default=None, description=(
             "how the MuJoCo plant differs from the controller's model (the plant only)"))

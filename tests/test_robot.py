@@ -1,0 +1,73 @@
+"""``python -m cpbc.robot`` (cpbc.robot) on files a new user brings: a ``package://`` name
+that differs from its folder (``--package-dir NAME=PATH``), whose skeleton runs as printed."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from cpbc import robot, run
+from cpbc.model.arms import arm_urdf
+
+ONE_LINK = """<robot name="one">
+  <link name="base"/>
+  <link name="arm">
+    <inertial><mass value="1"/><origin xyz="0.1 0 0"/>
+      <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><geometry><mesh filename="package://arm_support/meshes/arm.stl"/></geometry>
+    </collision>
+  </link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="arm"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="5" velocity="2"/></joint>
+</robot>
+"""
+
+
+@pytest.fixture
+def arm(tmp_path: Path) -> tuple[Path, Path]:
+    """A URDF whose meshes are package://arm_support/…, in a folder called arm_files (as
+    rtb-data's iiwa: kuka_lbr_iiwa_support in kuka_lbr_iiwa), and that folder."""
+    folder = tmp_path / "arm_files"
+    (folder / "meshes").mkdir(parents=True)
+    mesh = arm_urdf("panda").parents[1] / "meshes" / "collision" / "link1.stl"
+    (folder / "meshes" / "arm.stl").write_bytes(mesh.read_bytes())
+    (folder / "urdf").mkdir()
+    urdf = folder / "urdf" / "arm.urdf"
+    urdf.write_text(ONE_LINK)
+    return urdf, folder
+
+
+def test_an_unmapped_package_is_refused_saying_how_to_map_it(
+        arm: tuple[Path, Path], capsys: pytest.CaptureFixture[str]) -> None:
+    urdf, _ = arm
+    assert robot.main([str(urdf)]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1
+    assert "--package-dir arm_support=FOLDER" in err
+
+
+def test_a_mapped_package_loads_and_its_skeleton_runs_as_printed(
+        arm: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    urdf, folder = arm
+    assert robot.main([str(urdf), "--package-dir", f"arm_support={folder}",
+                       "--duration", "0.5"]) == 0
+    printed = capsys.readouterr().out
+    assert f"package_dirs: [arm_support={folder.resolve()}]" in printed
+    scenario = tmp_path / "skeleton.yaml"
+    scenario.write_text(printed)
+    out = tmp_path / "out"
+    assert run.main([str(scenario), "--quiet", "--no-plots", "--workers", "1",
+                     "--out", str(out)]) == 0, capsys.readouterr().err
+    for s in json.loads((out / "summary.json").read_text()):
+        assert s["status"] not in ("diverged", "constraint_violated"), s
+        assert s["crossed_constraints"] == [], s
+
+
+def test_a_package_dir_that_is_not_a_folder_is_refused_naming_the_option(
+        arm: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    urdf, _ = arm
+    assert robot.main([str(urdf), "--package-dir", f"arm_support={tmp_path / 'nope'}"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and "--package-dir arm_support=" in err and "is not a folder" in err
