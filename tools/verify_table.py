@@ -26,6 +26,7 @@ from typing import cast
 
 from cpbc.reliability.report import (
     LAYOUTS,
+    RATE_COLUMNS,
     CampaignTable,
     Record,
     campaign_table,
@@ -47,7 +48,10 @@ FRAGMENTS: dict[str, tuple[tuple[str, ...], str]] = {
         tuple(f"docs/tables/peer/{name}.json"
               for name in ("panda_cbf_qp", "panda_cbf_qp_exponential", "ur5_cbf_qp")), "rows"),
     "docs/tables/peer-ke-campaign.md": (("docs/tables/peer/panda_ke_cbf_qp.json",), "rows"),
+    "docs/tables/rate-campaign.md": (("docs/tables/rate/campaign.json",), "rows"),
 }
+# fragments whose table has columns other than their layout's
+COLUMNS: dict[str, tuple[str, ...]] = {"docs/tables/rate-campaign.md": RATE_COLUMNS}
 DOCS_COMMAND = "python -m tools.verify_table --docs"
 
 
@@ -109,7 +113,7 @@ def docs_fragments() -> dict[Path, str]:
         missing = [n for n in names if not (ROOT / n).is_file()]
         if not inputs:
             raise SystemExit(f"{out}: none of its inputs exists ({', '.join(names)})")
-        text = render(inputs, layout, command=DOCS_COMMAND)
+        text = render(inputs, layout, COLUMNS.get(out), command=DOCS_COMMAND)
         if missing:
             text += ("\nNot yet measured (no input file): "
                      + ", ".join(f"`{n}`" for n in missing) + ".\n")

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -14,10 +14,12 @@ from numpy.typing import NDArray
 from cpbc.arrays import Array
 from cpbc.errors import ModelError
 from cpbc.kernels.coordinate_maps import joint_friction, to_controller, to_joint
+from cpbc.model.arm_state import NO_FRAMES as _NO_FRAMES
+from cpbc.model.arm_state import ArmState
 from cpbc.model.coordinates import LinearCoordinates
 from cpbc.model.frames import FrameKinematics, offset_jacobian
+from cpbc.model.joint_dynamics import coulomb_levels
 
-_NO_FRAMES: Mapping[int, FrameKinematics] = MappingProxyType({})
 _WORLD_ALIGNED = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 # the empty inputs of RobotModel.joint_pass: no Coriolis matrix, no frame, no joint kinematics
 _NO_MATRIX = np.zeros((0, 0))
@@ -36,49 +38,6 @@ PassReader = Callable[[Array, Array], tuple[NDArray[Any], ...]]
 FRICTION_SMOOTHING = 0.05
 
 
-class ArmState(NamedTuple):
-    """Everything a law and its constraints read at one control step, computed once by
-    ``RobotModel.state``: the state and the terms of D(q) q̈ + C(q, q̇) q̇ + g(q) + f(q̇) = τ
-    (eq. 6.1), in controller coordinates.
-
-    It is the only place a law, its constraints and its potential read the arm from: none of
-    them reads the model's Pinocchio data behind it. What a reader needs beyond the dynamics
-    terms it asks for when the state is built (``RobotModel.state``: ``kinematics``,
-    ``frames``, ``coriolis``); the fields it did not ask for are None or empty.
-
-    Attributes:
-        x, dx: the state, shape (n,).
-        q, dq: the same in the model's joint coordinates (the same arrays with the identity map).
-        inertia: D, shape (n, n).
-        coriolis_force: C(x, ẋ) ẋ, shape (n,) (from RNEA; the matrix C is
-            ``RobotModel.coriolis``).
-        gravity: g, shape (n,).
-        dissipation: f(ẋ) = F_d ẋ + T⁻ᵀ F_c tanh(q̇/ε), shape (n,) (RobotModel.dissipation).
-        frames: the placement and Jacobian of every frame asked for (``frames=`` of
-            ``RobotModel.state``, e.g. those a task potential reads), by frame id; empty
-            when none was asked for.
-        coriolis_matrix: C(x, ẋ) in Christoffel form, shape (n, n), with ``coriolis=True``
-            (the kinetic-energy limit's ∂ψ/∂x = −Cᵀẋ), else None.
-        joint_jacobians: Pinocchio's world joint Jacobians J = [v; ω] (6, n) in *joint*
-            coordinates, with ``kinematics=True`` (clearance), else None.
-        regressor: every joint placement Y = [t_1 R_1 … t_m R_m]/M (3, 4m), Pinocchio's
-            static regressor (M the total mass), with ``kinematics=True``, else None.
-    """
-
-    x: Array
-    dx: Array
-    q: Array
-    dq: Array
-    inertia: Array
-    coriolis_force: Array
-    gravity: Array
-    dissipation: Array
-    frames: Mapping[int, FrameKinematics] = _NO_FRAMES
-    coriolis_matrix: Array | None = None
-    joint_jacobians: Array | None = None
-    regressor: Array | None = None
-
-
 def _returns_own_arrays(model: pin.Model, data: pin.Data) -> bool:
     """Whether Pinocchio's CRBA, gravity, static regressor and Coriolis matrix return arrays
     of their own (eigenpy copies a function's result), not views of ``data`` that the next
@@ -91,18 +50,6 @@ def _returns_own_arrays(model: pin.Model, data: pin.Data) -> bool:
     views = (data.M, data.g, data.staticRegressor, data.C)
     return all(a.flags.owndata and not np.shares_memory(a, v)
                for a, v in zip(found, views, strict=True))
-
-
-def _coulomb(levels: Array | None, n: int) -> Array:
-    """Each joint's Coulomb friction level, shape (n,), finite and ≥ 0 (read-only)."""
-    fc = np.zeros(n) if levels is None else np.array(levels, dtype=float)
-    if fc.shape == ():
-        fc = np.full(n, float(fc))
-    if fc.shape != (n,) or not np.all(np.isfinite(fc)) or np.any(fc < 0):
-        raise ModelError(f"coulomb_friction must be {n} finite levels ≥ 0 (or one), "
-                         f"got {levels}", "coulomb_friction")
-    fc.setflags(write=False)
-    return fc
 
 
 def _is_prismatic(shortname: str) -> bool:
@@ -179,7 +126,7 @@ class RobotModel:
                 f"viscous_friction must have shape ({self.n},) or ({self.n}, {self.n})"
             )
         self.viscous_friction = self.coordinates.matrix_from_joint(fd)  # F_d in x-coordinates
-        self.coulomb_friction = _coulomb(coulomb_friction, self.n)
+        self.coulomb_friction = coulomb_levels(coulomb_friction, self.n)
         if not (np.isfinite(friction_smoothing) and friction_smoothing > 0):
             raise ModelError(f"friction_smoothing must be > 0, got {friction_smoothing}")
         self.friction_smoothing = float(friction_smoothing)

@@ -246,6 +246,8 @@ ROWS_COLUMNS = ("controller", RATE, VIOLATED_OF_RUNS, "deeper than 1e-6",
                 "torque on a limit")
 BY_RATE_COLUMNS = ("controller", RUNS, VIOLATIONS, "deeper than 1e-6", "filter acted",
                    "rescues", "not_stoppable (violated)")
+# a campaign under a torque-rate limit: the rows and the peak rate against its limit
+RATE_COLUMNS = (*ROWS_COLUMNS, "peak torque rate (clipped)")
 LAYOUTS = {"rows": ROWS_COLUMNS, "by-rate": BY_RATE_COLUMNS}
 
 
