@@ -1,9 +1,11 @@
 """The arms cpbc knows by name: those of the ``example-robot-data`` package (which ships URDFs
-and meshes but not its Python loader), with the joints each locks by default (its gripper, or
+and meshes but not its Python loader) and the Franka FR3 of ``franky-sim`` (which ships its
+URDF, from Franka's own description), with the joints each locks by default (its gripper, or
 the rest of a larger robot)."""
 
 from __future__ import annotations
 
+import importlib.util
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -13,10 +15,11 @@ from cpbc.errors import ModelError
 
 @dataclass(frozen=True)
 class ArmEntry:
-    """An arm shipped by ``example-robot-data``.
+    """An arm shipped by ``example-robot-data`` (or by ``franky-sim``: ``package``).
 
     Attributes:
-        urdf: URDF path relative to the package's ``robots/`` folder.
+        urdf: URDF path relative to the package's ``robots/`` folder (franky-sim: its
+            ``assets/`` folder).
         locked_joints: joints frozen by default (grippers), with their values [rad or m].
         summary: one line for listings.
         tip: the link at the tool centre point; the MuJoCo model gets a site ``end_point``
@@ -30,7 +33,12 @@ class ArmEntry:
     summary: str = ""
     tip: str | None = None
     driven: tuple[str, ...] | None = None
+    package: str = "example-robot-data"
 
+
+#: The Python package that ships franky-sim's files, and how cpbc installs it.
+FRANKY_SIM = "franky_sim"
+FRANKA_EXTRA = "pip install 'cpbc[franka]'"
 
 # Baxter is two 7-DOF arms on a fixed torso: each is an arm of its own, the rest locked.
 _BAXTER_OTHERS = {"head_pan": 0.0, "l_gripper_l_finger_joint": 0.0,
@@ -132,6 +140,14 @@ ARMS: dict[str, ArmEntry] = {
         "Kinova arm on an ANYmal B, 6 DOF (legs locked)", "j2s6s200_end_effector",
         tuple(f"j2s6s200_joint_{i}" for i in range(1, 7)),
     ),
+    # Franka's URDF of the FR3 with its hand, as franky-sim ships it (the simulator's own
+    # gravity compensation reads the same links): the fingers locked closed. Its limits are
+    # the URDF's: velocities 2.62 rad/s on joints 1-4, 5.26, 4.18, 5.26; torques 87/12 N m.
+    "fr3": ArmEntry(
+        "fr3.urdf", {"fr3_finger_joint1": 0.0, "fr3_finger_joint2": 0.0},
+        "Franka Research 3, 7 DOF (fingers locked closed; from franky-sim)", "fr3_hand_tcp",
+        package=FRANKY_SIM,
+    ),
 }
 
 
@@ -167,10 +183,25 @@ def available_arms() -> list[str]:
     return sorted(ARMS)
 
 
+def _franky_sim_asset(name: str, file: str) -> Path:
+    """A file of franky-sim's ``assets/`` folder, found without importing franky-sim (which
+    would load its simulators)."""
+    spec = importlib.util.find_spec(FRANKY_SIM)
+    if spec is None or spec.origin is None:
+        raise ModelError(f"robot '{name}' comes from the franky-sim package, which is not "
+                         f"installed ({FRANKA_EXTRA})")
+    path = Path(spec.origin).parent / "assets" / file
+    if not path.is_file():
+        raise ModelError(f"franky-sim is installed but lacks {path}")
+    return path
+
+
 def arm_urdf(name: str) -> Path:
-    """The URDF file of a named ``example-robot-data`` arm."""
+    """The URDF file of a named arm (``example-robot-data``'s, or franky-sim's FR3)."""
     if name not in ARMS:
         raise ModelError(f"unknown robot '{name}'; available: {', '.join(available_arms())}")
+    if ARMS[name].package == FRANKY_SIM:
+        return _franky_sim_asset(name, ARMS[name].urdf)
     share = example_robot_data_share()
     if share is None:
         raise ModelError(

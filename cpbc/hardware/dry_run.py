@@ -1,0 +1,109 @@
+"""``--dry-run``: everything before a motion, without moving. Connect, read the state, check
+it lies inside the admissible set and the braking set, compare cpbc's model with the
+robot's own (mass matrix and gravity at the measured state), and time the controller on
+states recorded from the robot."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.errors import ConstraintViolation, ScenarioError
+from cpbc.hardware.backend import MeasuredState, RobotBackend, RobotDynamics
+from cpbc.hardware.runner import check_fits, check_start, warm
+from cpbc.scenario.arm_setup import ControllerEntry, ScenarioSetup
+
+
+@dataclass(frozen=True)
+class ModelTolerance:
+    """How far cpbc's model may be from the robot's before a run is refused.
+
+    Attributes:
+        mass: per joint, |D_ii − M_ii| / M_ii (the diagonal of the mass matrix: what a
+            missing rotor inertia or a wrong load changes first).
+        gravity: per joint, |g_cpbc − g_robot| [N·m] beyond ``gravity_share`` of |g_robot|.
+        gravity_share: the part of the robot's gravity torque allowed on top.
+    """
+
+    mass: float = 0.15
+    gravity: float = 1.0
+    gravity_share: float = 0.05
+
+
+@dataclass(frozen=True)
+class DryRunReport:
+    """What a dry run found (it raises on what it refuses)."""
+
+    state: MeasuredState
+    mass_error: Array
+    gravity_error: Array
+    compute_us: dict[str, float]
+    samples: int
+
+    def describe(self, joints: tuple[str, ...]) -> list[str]:
+        worst_m, worst_g = int(np.argmax(self.mass_error)), int(np.argmax(self.gravity_error))
+        t = self.compute_us
+        return [
+            "state: q = [" + ", ".join(f"{v:.4f}" for v in self.state.position) + "] rad, "
+            f"|q̇| max {np.max(np.abs(self.state.velocity)):.3g} rad/s: inside the "
+            "admissible set and the braking set",
+            f"model: mass-matrix diagonal within {100 * self.mass_error[worst_m]:.2f} % "
+            f"(worst {joints[worst_m]}), gravity within {self.gravity_error[worst_g]:.3f} "
+            f"N m (worst {joints[worst_g]})",
+            f"controller on {self.samples} recorded states: p50 {t['p50']:.0f} µs, p99 "
+            f"{t['p99']:.0f} µs, max {t['max']:.0f} µs",
+        ]
+
+
+def compare_models(setup: ScenarioSetup, robot: RobotDynamics, q: Array,
+                   tolerance: ModelTolerance) -> tuple[Array, Array]:
+    """Per joint, the relative error of cpbc's mass-matrix diagonal and the absolute error
+    of its gravity torque against the robot's. Raises ScenarioError naming the joint
+    beyond ``tolerance``."""
+    model = setup.model
+    ours_m, ours_g = np.diag(model.inertia(q)), model.gravity(q)
+    theirs_m = np.diag(robot.mass)
+    mass_error = np.abs(ours_m - theirs_m) / np.abs(theirs_m)
+    gravity_error = np.abs(ours_g - robot.gravity)
+    allowed = tolerance.gravity + tolerance.gravity_share * np.abs(robot.gravity)
+    for i, joint in enumerate(model.joint_names):
+        if mass_error[i] > tolerance.mass:
+            raise ScenarioError("robot.model", f"{joint}: cpbc's inertia D_ii = "
+                                f"{ours_m[i]:.4g} kg m² differs from the robot's "
+                                f"{theirs_m[i]:.4g} by {100 * mass_error[i]:.1f} %, beyond "
+                                f"{100 * tolerance.mass:g} %: check the model and its load")
+        if gravity_error[i] > allowed[i]:
+            raise ScenarioError("robot.model", f"{joint}: cpbc's gravity torque "
+                                f"{ours_g[i]:.4g} N m differs from the robot's "
+                                f"{robot.gravity[i]:.4g} by {gravity_error[i]:.3g}, beyond "
+                                f"{allowed[i]:.3g} N m: check the model and its load")
+    return mass_error, gravity_error
+
+
+def dry_run(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBackend,
+            tolerance: ModelTolerance | None = None, samples: int = 200) -> DryRunReport:
+    """Every check before a motion, and the controller timed on ``samples`` states read
+    from the robot (the robot is not moved)."""
+    check_fits(setup, backend.limits(), backend.joint_names)
+    state = backend.read()
+    check_start(setup, state)
+    mass_error, gravity_error = compare_models(
+        setup, backend.dynamics(state), state.position, tolerance or ModelTolerance())
+    recorded = [backend.read() for _ in range(samples)]
+    warm(setup, entry, state, backend)
+    controller = setup.controller(entry)
+    spent = []
+    for s in recorded:
+        began = time.perf_counter()
+        try:
+            controller.evaluate(s.position, s.velocity)
+        except ConstraintViolation:
+            pass  # a refusal is timed too: the runner then brakes
+        spent.append(time.perf_counter() - began)
+    us = np.array(spent) * 1e6
+    timing = {"p50": float(np.percentile(us, 50)), "p99": float(np.percentile(us, 99)),
+              "max": float(us.max())}
+    return DryRunReport(state, mass_error, gravity_error, timing, samples)
