@@ -80,8 +80,8 @@ def _fault(run: HardwareRun) -> None:
     fault = run.motion.fault
     assert fault is not None
     where = ("no state read" if fault.state is None else
-             "last state q = " + np.array2string(fault.state.position, precision=4) +
-             ", q̇ = " + np.array2string(fault.state.velocity, precision=4))
+             "last state q = " + np.array2string(fault.state.position, precision=4, max_line_width=300) +
+             ", q̇ = " + np.array2string(fault.state.velocity, precision=4, max_line_width=300))
     print(f"error: the robot stopped the motion: {fault.name} ({fault.detail}); {where}",
           file=sys.stderr)
 

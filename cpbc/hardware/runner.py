@@ -205,16 +205,19 @@ def write_run(out: Path, setup: ScenarioSetup, run: HardwareRun) -> None:
 def lockstep_for(setup: ScenarioSetup, torque_rate: float = 1000.0) -> LockstepBackend:
     """The scenario's arm as a lock-step robot: its MuJoCo plant started at the first case,
     a separate copy of its model as the robot's own (gravity compensation, mass matrix),
-    the torque box of ``simulation.torque_limit``, the model's velocity limits and the
-    scenario's control period; ``torque_rate`` [N·m/s] on every joint (the FR3's by
-    default)."""
+    the model's effort limits as its torque box (the scenario's where it declares none),
+    the model's velocity limits and the scenario's control period; ``torque_rate``
+    [N·m/s] on every joint (the FR3's by default)."""
     model = setup.model
     own = RobotModel(pin.Model(model.model), name=model.name)  # not the controller's data
-    box = setup.loop_settings.torque_limit
-    if box is None:
-        raise ScenarioError("simulation.torque_limit", "a robot has a torque box: give "
-                            "from_model or the motors' limits")
-    limits = RobotLimits(np.asarray(box, dtype=float), np.full(model.n, float(torque_rate)),
+    effort = np.array(model.model.effortLimit, dtype=float)
+    given = setup.loop_settings.torque_limit
+    if not np.all(np.isfinite(effort) & (effort > 0)):
+        if given is None:
+            raise ScenarioError("simulation.torque_limit", "a robot has a torque box: give "
+                                "the motors' limits")
+        effort = np.asarray(given, dtype=float)
+    limits = RobotLimits(effort, np.full(model.n, float(torque_rate)),
                          np.array(model.model.velocityLimit, dtype=float),
                          setup.loop_settings.control_period)
     case = setup.cases[0]
