@@ -25,10 +25,10 @@ import pytest
 import yaml
 
 from cpbc.errors import ParameterError
+from cpbc.hardware import runner
 from cpbc.hardware.__main__ import main
 from cpbc.hardware.backend import RobotLimits
 from cpbc.hardware.franka import FR3_LIMITS, fault_name
-from cpbc.hardware import runner
 from cpbc.hardware.motion import MotionLog, MotionSettings
 from cpbc.hardware.rules import check_rules
 from cpbc.hardware.runner import HardwareRun, choose_controller, lockstep_for, run_on_robot

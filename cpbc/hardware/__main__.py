@@ -79,9 +79,11 @@ def _report(run: HardwareRun, out: Path) -> None:
 def _fault(run: HardwareRun) -> None:
     fault = run.motion.fault
     assert fault is not None
-    where = ("no state read" if fault.state is None else
-             "last state q = " + np.array2string(fault.state.position, precision=4, max_line_width=300) +
-             ", q̇ = " + np.array2string(fault.state.velocity, precision=4, max_line_width=300))
+    where = "no state read"
+    if fault.state is not None:
+        q, dq = (np.array2string(v, precision=4, max_line_width=300)
+                 for v in (fault.state.position, fault.state.velocity))
+        where = f"last state q = {q}, q̇ = {dq}"
     print(f"error: the robot stopped the motion: {fault.name} ({fault.detail}); {where}",
           file=sys.stderr)
 
