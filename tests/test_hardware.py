@@ -270,3 +270,27 @@ def test_fr3_limits_are_the_robots_published_ones(setup: ScenarioSetup) -> None:
     assert setup.model.joint_names == tuple(f"fr3_joint{i}" for i in range(1, 8))
     assert setup.arm is not None and set(setup.arm.locked_joints) == {
         "fr3_finger_joint1", "fr3_finger_joint2"}
+
+
+def test_a_refused_state_brakes_at_the_robots_torque_rate(tmp_path: Path) -> None:
+    """The robot's arm three times as heavy as cpbc's model (its own gravity compensation
+    the model's): holding the start, the law is pushed out of a rate bound and refuses the
+    state; the runner then ramps to its brake at 1 N m per cycle and finishes the motion."""
+    data = yaml.safe_load(SCENARIO.read_text())
+    data["robot"]["plant"] = {"mass_scale": 3.0}
+    data["target"] = data["cases"][0]["position"]
+    data["simulation"]["duration"] = 1.0
+    path = tmp_path / "heavy.yaml"
+    path.write_text(yaml.safe_dump(data))
+    heavy = build(*load_scenario(path))
+    run = run_on_robot(heavy, choose_controller(heavy, None), lockstep_for(heavy),
+                       MotionSettings(1.0, DEADLINE, brake_time=0.2))
+    motion = run.motion
+    assert motion.ending == "constraint_violated" and motion.violated is not None
+    assert run.summary.cause is not None and motion.violated in run.summary.cause
+    refused = int(np.argmax(motion.braking)) - 1  # the row the law refused: answered by the brake
+    assert np.isnan(motion.torque[refused]).all() and np.isfinite(
+        motion.commanded_torque[refused]).all()
+    assert motion.braking[refused + 1:].all() and motion.braking.sum() == 199
+    sent = motion.commanded_torque[refused - 1:]
+    assert np.all(np.abs(np.diff(sent, axis=0)) <= FR3_LIMITS.torque_step + 1e-12)
