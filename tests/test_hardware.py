@@ -235,10 +235,16 @@ def test_fault_names_are_read_from_libfranka_messages() -> None:
     assert fault_name(NetworkException("libfranka: UDP receive: Timeout")) == "network"
 
 
-def test_bad_motion_settings_name_the_argument() -> None:
+def test_bad_settings_and_limits_name_the_argument() -> None:
     with pytest.raises(ParameterError) as found:
         MotionSettings(2.0, deadline=0.0)
     assert found.value.parameter == "deadline"
+    with pytest.raises(ParameterError) as found:
+        RobotLimits(np.ones(2), np.ones(3), np.ones(2), 0.001)
+    assert found.value.parameter == "torque_rate"
+    with pytest.raises(ParameterError) as found:
+        RobotLimits(np.ones(2), np.ones(2), np.ones(2), 0.0)
+    assert found.value.parameter == "period"
 
 
 def _cli(*args: str) -> tuple[int, str]:

@@ -7,3 +7,29 @@ pylibfranka, :mod:`~cpbc.hardware.lockstep` over MuJoCo), one motion
 (:mod:`~cpbc.hardware.rules`). Top layer (beside cpbc.run: the scenario builder and the
 results below): :mod:`~cpbc.hardware.runner` and :mod:`~cpbc.hardware.dry_run`.
 """
+
+from cpbc.hardware.backend import (
+    MeasuredState,
+    RobotBackend,
+    RobotDynamics,
+    RobotFault,
+    RobotLimits,
+)
+from cpbc.hardware.lockstep import LockstepBackend
+from cpbc.hardware.motion import ENDINGS, MotionLog, MotionSettings, run_motion
+from cpbc.hardware.rules import RuleReport, check_rules
+
+__all__ = [
+    "ENDINGS",
+    "LockstepBackend",
+    "MeasuredState",
+    "MotionLog",
+    "MotionSettings",
+    "RobotBackend",
+    "RobotDynamics",
+    "RobotFault",
+    "RobotLimits",
+    "RuleReport",
+    "check_rules",
+    "run_motion",
+]

@@ -16,7 +16,7 @@ from typing import Protocol
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.errors import CpbcError
+from cpbc.errors import CpbcError, ParameterError
 
 
 @dataclass(frozen=True)
@@ -52,6 +52,18 @@ class RobotLimits:
     torque_rate: Array
     velocity: Array
     period: float
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.period) and self.period > 0):
+            raise ParameterError("period", f"must be a number > 0 [s], got {self.period}")
+        n = np.shape(self.torque)
+        for name in ("torque", "torque_rate", "velocity"):
+            value = np.array(getattr(self, name), dtype=float)
+            if value.shape != n or value.ndim != 1 or not np.all(value > 0):
+                raise ParameterError(name, f"needs one number > 0 per joint ({n[0] if n else 0}"
+                                     f" like torque), got {getattr(self, name)!r}")
+            value.flags.writeable = False
+            object.__setattr__(self, name, value)
 
     @property
     def torque_step(self) -> Array:
