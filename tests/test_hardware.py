@@ -204,8 +204,10 @@ def test_a_dropped_connection_ends_with_exit_1_and_the_files(franky: FrankySim,
     with h5py.File(out / "trajectories.h5") as f:
         time_ = f["robot/CPBC/time"][()]
         assert 0.5 < time_[-1] < 1.9  # cut short, at the fault
+    assert (out / "view.html").is_file()
     summary = yaml.safe_load((out / "summary.json").read_text())[0]
     assert summary["cause"].startswith("robot_error: robot error network")
+    assert summary["extra"]["lost_states"] >= 0 and summary["extra"]["compute_us_max"] > 0
 
 
 def test_rules_count_the_first_command_and_every_step() -> None:
@@ -269,10 +271,20 @@ def test_cli_bad_input_is_one_line_and_exit_2(tmp_path: Path) -> None:
     assert "Traceback" not in err and not out.exists()
 
 
+#: The FR3's joint ranges in Franka's FCI documentation (q_min, q_max) [rad].
+FCI_RANGES = np.array([[-2.7437, 2.7437], [-1.7837, 1.7837], [-2.9007, 2.9007],
+                       [-3.0421, -0.1518], [-2.8065, 2.8065], [0.5445, 4.5169],
+                       [-3.0159, 3.0159]])
+
+
 def test_fr3_limits_are_the_robots_published_ones(setup: ScenarioSetup) -> None:
     model = setup.model.model
     np.testing.assert_array_equal(model.effortLimit, FR3_LIMITS.torque)
     np.testing.assert_array_equal(model.velocityLimit, FR3_LIMITS.velocity)
+    # the URDF's ranges are wider on six joints: the FCI's replace them in both engines
+    np.testing.assert_array_equal(model.lowerPositionLimit, FCI_RANGES[:, 0])
+    np.testing.assert_array_equal(model.upperPositionLimit, FCI_RANGES[:, 1])
+    np.testing.assert_array_equal(setup.make_plant().model.jnt_range, FCI_RANGES)
     assert setup.model.joint_names == tuple(f"fr3_joint{i}" for i in range(1, 8))
     assert setup.arm is not None and set(setup.arm.locked_joints) == {
         "fr3_finger_joint1", "fr3_finger_joint2"}

@@ -180,8 +180,9 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
 
 
 def write_run(out: Path, setup: ScenarioSetup, run: HardwareRun) -> None:
-    """summary.json, summary.csv and trajectories.h5 into ``out`` (staged: all or nothing),
-    the log with ``commanded_torque``, ``compute_time``, ``lost`` and ``braking`` too."""
+    """summary.json, summary.csv, trajectories.h5 and the page (view.html, no figures) into
+    ``out`` (staged: all or nothing), the log with ``commanded_torque``, ``compute_time``,
+    ``lost`` and ``braking`` too."""
     model = setup.model
     labels = ArmLabels(
         setup.coordinate_names, tuple(bool(v) for v in model.length_coordinates),
@@ -200,6 +201,9 @@ def write_run(out: Path, setup: ScenarioSetup, run: HardwareRun) -> None:
                 "braking": (motion.braking.astype(np.uint8), "", ()),
             })
         write_summaries(scratch, [run.summary])
+        from cpbc.viewer.outputs import write_run_outputs  # the page's modules: after the motion
+
+        write_run_outputs(scratch, setup, plots=False)
 
 
 def lockstep_for(setup: ScenarioSetup, torque_rate: float = 1000.0) -> LockstepBackend:

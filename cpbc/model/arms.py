@@ -26,6 +26,9 @@ class ArmEntry:
             there (the point the viewer traces).
         driven: for the arm of a larger robot (a mobile manipulator, a quadruped carrying an
             arm): the joints to drive; every other joint is locked (``load_urdf``).
+        ranges: joint ranges [rad] that replace the URDF's, in both engines (the robot
+            maker's published ranges where its URDF's are wider).
+        package: the Python package that ships the URDF.
     """
 
     urdf: str
@@ -33,6 +36,7 @@ class ArmEntry:
     summary: str = ""
     tip: str | None = None
     driven: tuple[str, ...] | None = None
+    ranges: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     package: str = "example-robot-data"
 
 
@@ -46,6 +50,15 @@ _BAXTER_OTHERS = {"head_pan": 0.0, "l_gripper_l_finger_joint": 0.0,
                   "r_gripper_r_finger_joint": 0.0}
 _BAXTER_LEFT = {f"left_{j}": 0.0 for j in ("s0", "s1", "e0", "e1", "w0", "w1", "w2")}
 _BAXTER_RIGHT = {f"right_{j}": 0.0 for j in ("s0", "s1", "e0", "e1", "w0", "w1", "w2")}
+
+# The FR3's joint ranges [rad], Franka's FCI documentation ("Robot and interface
+# specifications": q_min, q_max).
+_FR3_RANGES = {
+    "fr3_joint1": (-2.7437, 2.7437), "fr3_joint2": (-1.7837, 1.7837),
+    "fr3_joint3": (-2.9007, 2.9007), "fr3_joint4": (-3.0421, -0.1518),
+    "fr3_joint5": (-2.8065, 2.8065), "fr3_joint6": (0.5445, 4.5169),
+    "fr3_joint7": (-3.0159, 3.0159),
+}
 
 ARMS: dict[str, ArmEntry] = {
     "panda": ArmEntry(
@@ -141,12 +154,14 @@ ARMS: dict[str, ArmEntry] = {
         tuple(f"j2s6s200_joint_{i}" for i in range(1, 7)),
     ),
     # Franka's URDF of the FR3 with its hand, as franky-sim ships it (the simulator's own
-    # gravity compensation reads the same links): the fingers locked closed. Its limits are
-    # the URDF's: velocities 2.62 rad/s on joints 1-4, 5.26, 4.18, 5.26; torques 87/12 N m.
+    # gravity compensation reads the same links): the fingers locked closed. Velocities
+    # (2.62 rad/s on joints 1-4, 5.26, 4.18, 5.26) and torques (87/12 N m) are the URDF's;
+    # its joint ranges on joints 1, 2, 4-7 are wider than the FCI's published ones (which
+    # franky-sim's MuJoCo plant also stops at): those replace them.
     "fr3": ArmEntry(
         "fr3.urdf", {"fr3_finger_joint1": 0.0, "fr3_finger_joint2": 0.0},
         "Franka Research 3, 7 DOF (fingers locked closed; from franky-sim)", "fr3_hand_tcp",
-        package=FRANKY_SIM,
+        ranges=_FR3_RANGES, package=FRANKY_SIM,
     ),
 }
 
