@@ -8,6 +8,7 @@ fr3_reach_ball.yaml); every check is on the logged states and commands.
 
 from __future__ import annotations
 
+import _thread
 import contextlib
 import importlib.util
 import io
@@ -109,6 +110,13 @@ def _later_steps(run: HardwareRun) -> str:
     return "largest later step [" + ", ".join(f"{v:.3g}" for v in steps) + "] N m"
 
 
+def _brake_ramp(motion: MotionLog) -> np.ndarray:
+    """The command's steps from the law's last command sent to the motion's end."""
+    last_law = np.flatnonzero(np.isfinite(motion.torque[:, 0])
+                              & np.isfinite(motion.commanded_torque[:, 0]))[-1]
+    return np.diff(motion.commanded_torque[last_law:], axis=0)
+
+
 def _margins_hold(run: HardwareRun) -> None:
     """Every constraint's margin > 0 on every measured state, the brake's too."""
     worst = {n: float(np.min(run.margins[:, i])) for i, n in enumerate(run.summary.min_margins)}
@@ -157,8 +165,12 @@ def test_reach_on_franky_sim_keeps_every_constraint(franky: FrankySim,
 
 
 def _lockstep_run(setup: ScenarioSetup) -> HardwareRun:
-    return run_on_robot(setup, choose_controller(setup, "CPBC"), lockstep_for(setup),
-                        _settings(setup))
+    backend = lockstep_for(setup)
+    run = run_on_robot(setup, choose_controller(setup, "CPBC"), backend, _settings(setup))
+    held = backend.read().held  # what the robot holds after the motion: its last command
+    assert held is not None
+    np.testing.assert_array_equal(held, run.motion.commanded_torque[-1])
+    return run
 
 
 def test_lockstep_reach_is_deterministic_and_keeps_every_constraint(
@@ -174,8 +186,7 @@ def test_lockstep_reach_is_deterministic_and_keeps_every_constraint(
     # at the robot's torque rate and ends on 0
     brake = first.motion.braking
     assert np.all(np.isnan(first.motion.torque[brake]))
-    ramp = np.diff(first.motion.commanded_torque[np.argmax(brake) - 1:], axis=0)
-    assert np.all(np.abs(ramp) <= FR3_LIMITS.torque_step + 1e-12)
+    assert np.all(np.abs(_brake_ramp(first.motion)) <= FR3_LIMITS.torque_step + 1e-12)
     assert np.all(first.motion.commanded_torque[-1] == 0)
     print(f"lock-step reach: {first.rules.describe()}; {_later_steps(first)}")
 
@@ -208,6 +219,32 @@ def test_a_dropped_connection_ends_with_exit_1_and_the_files(franky: FrankySim,
     summary = yaml.safe_load((out / "summary.json").read_text())[0]
     assert summary["cause"].startswith("robot_error: robot error network")
     assert summary["extra"]["lost_states"] >= 0 and summary["extra"]["compute_us_max"] > 0
+
+
+@needs_franky
+def test_ctrl_c_brakes_finishes_and_writes(franky: FrankySim, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    interrupt = threading.Timer(0.5, _thread.interrupt_main)  # Ctrl-C 0.5 s into the motion
+    drive = runner.run_motion
+    runs: list[MotionLog] = []
+
+    def drive_then_interrupt(*args: Any) -> MotionLog:
+        interrupt.start()
+        runs.append(drive(*args))
+        return runs[-1]
+
+    with pytest.MonkeyPatch.context() as patch, contextlib.redirect_stderr(io.StringIO()), \
+            contextlib.redirect_stdout(io.StringIO()):
+        patch.setattr(runner, "run_motion", drive_then_interrupt)
+        code = main([str(SCENARIO), "--robot-ip", franky.host, "--out", str(out),
+                     "--deadline-ms", str(DEADLINE * 1e3)])
+    interrupt.cancel()
+    assert code == 130
+    (motion,) = runs
+    assert motion.ending == "interrupted" and motion.fault is None
+    assert 0 < motion.time[np.argmax(motion.braking)] < 1.5  # cut short, then braked
+    assert np.all(np.abs(_brake_ramp(motion)) <= FR3_LIMITS.torque_step + 1e-12)
+    assert (out / "trajectories.h5").is_file() and (out / "summary.json").is_file()
 
 
 def test_rules_count_the_first_command_and_every_step() -> None:

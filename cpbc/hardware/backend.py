@@ -28,12 +28,15 @@ class MeasuredState:
         time: the robot's clock [s] (its own, not this computer's).
         lost: control cycles the robot ran since the previous state was read, beyond the
             one expected (states this controller never saw; 0 in lock-step).
+        held: the command the robot holds (commanded convention) [N·m], or None when it
+            does not say: where a rate-limited first command starts from.
     """
 
     position: Array
     velocity: Array
     time: float
     lost: int = 0
+    held: Array | None = None
 
 
 @dataclass(frozen=True)

@@ -87,7 +87,8 @@ class FrankaBackend:
 
     def _measured(self, raw: Any, lost: int = 0) -> MeasuredState:
         self._raw = raw
-        self._last = MeasuredState(np.array(raw.q), np.array(raw.dq), raw.time.to_sec(), lost)
+        self._last = MeasuredState(np.array(raw.q), np.array(raw.dq), raw.time.to_sec(), lost,
+                                   np.array(raw.tau_J_d))
         return self._last
 
     def _fault(self, exc: BaseException) -> RobotFault:

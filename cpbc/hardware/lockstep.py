@@ -47,6 +47,7 @@ class LockstepBackend:
         self._substeps = round(ratio)
         self._cycle = 0
         self._moving = False
+        self._held = np.zeros(n)
         plant.reset(np.asarray(position, dtype=float), np.asarray(velocity, dtype=float))
 
     @property
@@ -58,7 +59,7 @@ class LockstepBackend:
 
     def read(self) -> MeasuredState:
         q, dq = self._plant.state()
-        return MeasuredState(q, dq, self._cycle * self._limits.period)
+        return MeasuredState(q, dq, self._cycle * self._limits.period, 0, self._held.copy())
 
     def start(self) -> MeasuredState:
         self._moving = True
@@ -70,7 +71,8 @@ class LockstepBackend:
         box = self._limits.torque
         q = self._plant.data.qpos
         # the robot's own additions: its torque box first, then its gravity compensation
-        self._plant.apply(np.clip(torque, -box, box) + self._gravity(q.copy()))
+        self._held = np.clip(torque, -box, box)
+        self._plant.apply(self._held + self._gravity(q.copy()))
         self._plant.step(self._substeps)
         if self._plant.unstable():
             raise RobotFault("instability_detected", "the plant's physics went unstable",

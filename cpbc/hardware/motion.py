@@ -137,36 +137,45 @@ class _Ending:
     detail: str = ""
 
 
-def _drive(backend: RobotBackend, controller: Controller, steps: int, deadline: float,
-           rec: _Recorder, sent: Array, end: _Ending) -> tuple[MeasuredState, int] | None:
-    """The controller's ``steps`` cycles. Returns the state (and its row) that an early end
-    left unanswered, or None. ``sent`` holds the last command sent (updated in place)."""
+def _drive(backend: RobotBackend, controller: Controller, state: MeasuredState, steps: int,
+           deadline: float, rec: _Recorder, sent: Array,
+           end: _Ending) -> tuple[MeasuredState, int] | None:
+    """The controller's ``steps`` cycles from the motion's first ``state``. Returns the state
+    (and its row) that an early end left unanswered, or None. ``sent`` holds the last
+    command sent (updated in place)."""
     clock = time.perf_counter
-    state = backend.start()
-    for k in range(steps):
-        if k:
-            state = backend.read()
-        row = rec.state(state)
-        began = clock()
-        try:
-            tau, v = controller.evaluate(state.position, state.velocity)
-        except ConstraintViolation as exc:
-            end.ending, end.violated, end.detail = "constraint_violated", exc.constraint, str(exc)
-            return state, row
-        except Exception as exc:  # any failure of the controller: brake, then report it
-            end.ending, end.detail = "controller_error", f"{type(exc).__name__}: {exc}"
-            return state, row
-        command = tau - backend.added_torque(state)
-        spent = clock() - began
-        rec.torque[row], rec.lyapunov[row], rec.compute[row] = tau, v, spent
-        if spent > deadline:
-            end.ending = "deadline_missed"
-            end.detail = (f"cycle {k} computed for {spent * 1e3:.3g} ms, beyond the deadline "
-                          f"of {deadline * 1e3:.3g} ms")
-            return state, row
-        backend.write(command)
-        rec.command[row] = command
-        sent[:] = command
+    pending = None
+    try:
+        for k in range(steps):
+            if k:
+                state = backend.read()
+            row = rec.state(state)
+            pending = state, row
+            began = clock()
+            try:
+                tau, v = controller.evaluate(state.position, state.velocity)
+            except ConstraintViolation as exc:
+                end.ending, end.violated = "constraint_violated", exc.constraint
+                end.detail = str(exc)
+                return pending
+            except Exception as exc:  # any failure of the controller: brake, then report it
+                end.ending, end.detail = "controller_error", f"{type(exc).__name__}: {exc}"
+                return pending
+            command = tau - backend.added_torque(state)
+            spent = clock() - began
+            rec.torque[row], rec.lyapunov[row], rec.compute[row] = tau, v, spent
+            if spent > deadline:
+                end.ending = "deadline_missed"
+                end.detail = (f"cycle {k} computed for {spent * 1e3:.3g} ms, beyond the "
+                              f"deadline of {deadline * 1e3:.3g} ms")
+                return pending
+            backend.write(command)
+            pending = None  # answered (Python checks for Ctrl-C between the two lines only)
+            rec.command[row] = command
+            sent[:] = command
+    except KeyboardInterrupt:  # the state read, if any, is the brake's to answer
+        end.ending, end.detail = "interrupted", "interrupted (Ctrl-C)"
+        return pending
     return None
 
 
@@ -223,11 +232,8 @@ def run_motion(backend: RobotBackend, controller: Controller,
     gc.freeze()  # what exists now is never scanned again; nothing is collected in the loop
     gc.disable()
     try:
-        pending = None
-        try:
-            pending = _drive(backend, controller, steps, settings.deadline, rec, sent, end)
-        except KeyboardInterrupt:
-            end.ending, end.detail = "interrupted", "interrupted (Ctrl-C)"
+        first = backend.start()
+        pending = _drive(backend, controller, first, steps, settings.deadline, rec, sent, end)
         if _brake(backend, limits, settings, rec, sent, pending):
             end.detail += "; Ctrl-C pressed again while braking: the brake ran to its end"
     except RobotFault as fault:
