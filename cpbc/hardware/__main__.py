@@ -49,6 +49,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--dry-run", action="store_true", help="check the state, the model and "
                    "the controller's time, and exit without moving")
     p.add_argument("--out", type=Path, help="output folder (default: runs/<scenario>-robot)")
+    p.add_argument("--realtime", action="store_true", help="franka: insist on a real-time "
+                   "kernel (libfranka's kEnforce; for a real robot)")
     p.add_argument("--deadline-ms", type=float, default=1.0, help="the longest computation "
                    "of a cycle [ms]; a longer one brakes and ends the motion (default 1)")
     return p
@@ -61,7 +63,7 @@ def _backend(args: argparse.Namespace, setup: ScenarioSetup) -> RobotBackend:
         raise CpbcError("--robot-ip: give the robot's address (or --backend lockstep)")
     from cpbc.hardware.franka import FrankaBackend  # pylibfranka only for a Franka
 
-    return FrankaBackend(args.robot_ip)
+    return FrankaBackend(args.robot_ip, realtime=args.realtime)
 
 
 def _report(run: HardwareRun, out: Path) -> None:

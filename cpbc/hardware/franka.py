@@ -56,21 +56,23 @@ def fault_name(exc: BaseException) -> str:
 
 
 class FrankaBackend:
-    """A :class:`~cpbc.hardware.backend.RobotBackend` for a Franka at ``address``.
+    """A :class:`~cpbc.hardware.backend.RobotBackend` for a Franka at ``address``; with
+    ``realtime``, libfranka insists on a real-time kernel (``RealtimeConfig.kEnforce``, what
+    a real robot wants), else it runs on any (``kIgnore``: a simulator, a test).
 
     Raises:
         RobotFault: the robot cannot be reached (``network``) or refuses the connection.
     """
 
     def __init__(self, address: str, limits: RobotLimits = FR3_LIMITS,
-                 joint_names: tuple[str, ...] = FR3_JOINTS) -> None:
+                 joint_names: tuple[str, ...] = FR3_JOINTS, realtime: bool = False) -> None:
         franka = _bindings()
         self._franka = franka
         self._limits, self._names = limits, joint_names
         self._errors = (franka.FrankaException, RuntimeError)
         try:
-            # kIgnore: this computer may have no real-time kernel (use kEnforce on one)
-            self._robot = franka.Robot(address, franka.RealtimeConfig.kIgnore)
+            config = franka.RealtimeConfig.kEnforce if realtime else franka.RealtimeConfig.kIgnore
+            self._robot = franka.Robot(address, config)
             self._model = self._robot.load_model()
         except self._errors as exc:
             raise RobotFault(fault_name(exc), f"cannot connect to {address}: {exc}") from None
