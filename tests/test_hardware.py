@@ -25,10 +25,11 @@ import numpy as np
 import pytest
 import yaml
 
-from cpbc.errors import ParameterError
+from cpbc.errors import ParameterError, ScenarioError
 from cpbc.hardware import runner
 from cpbc.hardware.__main__ import main
-from cpbc.hardware.backend import RobotLimits
+from cpbc.hardware.backend import RobotDynamics, RobotLimits
+from cpbc.hardware.dry_run import ModelTolerance, compare_models
 from cpbc.hardware.franka import FR3_LIMITS, fault_name
 from cpbc.hardware.motion import MotionLog, MotionSettings
 from cpbc.hardware.rules import check_rules
@@ -245,6 +246,23 @@ def test_ctrl_c_brakes_finishes_and_writes(franky: FrankySim, tmp_path: Path) ->
     assert 0 < motion.time[np.argmax(motion.braking)] < 1.5  # cut short, then braked
     assert np.all(np.abs(_brake_ramp(motion)) <= FR3_LIMITS.torque_step + 1e-12)
     assert (out / "trajectories.h5").is_file() and (out / "summary.json").is_file()
+
+
+def test_a_model_far_from_the_robots_is_refused_naming_the_joint(
+        setup: ScenarioSetup) -> None:
+    q = np.array(setup.cases[0].position)
+    model = setup.model
+    robot = RobotDynamics(model.inertia(q), model.gravity(q))
+    mass_error, gravity_error = compare_models(setup, robot, q, ModelTolerance())
+    assert mass_error.max() == 0 and gravity_error.max() == 0
+    heavier = robot.gravity.copy()
+    heavier[1] += 3.0  # past 1 N m + 5 % of the shoulder's ≈ 30 N m
+    with pytest.raises(ScenarioError, match=r"^robot\.model: fr3_joint2: cpbc's gravity"):
+        compare_models(setup, RobotDynamics(robot.mass, heavier), q, ModelTolerance())
+    lighter = robot.mass.copy()
+    lighter[6, 6] *= 0.5  # a wrist without its rotor inertia, say
+    with pytest.raises(ScenarioError, match=r"fr3_joint7: cpbc's inertia"):
+        compare_models(setup, RobotDynamics(lighter, robot.gravity), q, ModelTolerance())
 
 
 def test_rules_count_the_first_command_and_every_step() -> None:
