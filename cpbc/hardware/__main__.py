@@ -69,6 +69,8 @@ def _backend(args: argparse.Namespace, setup: ScenarioSetup) -> RobotBackend:
 def _report(run: HardwareRun, out: Path) -> None:
     s, motion = run.summary, run.motion
     x = s.extra
+    if run.start_note:
+        print(f"note: {run.start_note}")
     print(f"{run.controller}: {motion.ending} after {s.end_time:.3f} s; status {s.status}, "
           f"final error {s.final_error:.4g}")
     print(f"cycle computation: p50 {x['compute_us_p50']:.0f} µs, p99 "

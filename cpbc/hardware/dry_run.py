@@ -44,14 +44,15 @@ class DryRunReport:
     compute_us: dict[str, float]
     law_us: dict[str, float]
     samples: int
+    start_note: str | None = None
 
     def describe(self, joints: tuple[str, ...]) -> list[str]:
         worst_m, worst_g = int(np.argmax(self.mass_error)), int(np.argmax(self.gravity_error))
         t, law = self.compute_us, self.law_us
         return [
             "state: q = [" + ", ".join(f"{v:.4f}" for v in self.state.position) + "] rad, "
-            f"|q̇| max {np.max(np.abs(self.state.velocity)):.3g} rad/s: inside the "
-            "admissible set and the braking set",
+            f"|q̇| max {np.max(np.abs(self.state.velocity)):.3g} rad/s: "
+            + (self.start_note or "inside the admissible set and the braking set"),
             f"model: mass-matrix diagonal within {100 * self.mass_error[worst_m]:.2f} % "
             f"(worst {joints[worst_m]}), gravity within {self.gravity_error[worst_g]:.3f} "
             f"N m (worst {joints[worst_g]})",
@@ -92,14 +93,14 @@ def dry_run(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBackend,
     from the robot (the robot is not moved)."""
     check_fits(setup, backend.limits(), backend.joint_names)
     state = backend.read()
-    check_start(setup, state)
+    note = check_start(setup, state)
     mass_error, gravity_error = compare_models(
         setup, backend.dynamics(state), state.position, tolerance or ModelTolerance())
     recorded = [backend.read() for _ in range(samples)]
     warm(setup, entry, state, backend)
     law = _timed(entry.controller, recorded)
     guarded = _timed(setup.controller(entry), recorded)
-    return DryRunReport(state, mass_error, gravity_error, guarded, law, samples)
+    return DryRunReport(state, mass_error, gravity_error, guarded, law, samples, note)
 
 
 def _timed(controller: Controller, states: list[MeasuredState]) -> dict[str, float]:

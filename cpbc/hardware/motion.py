@@ -1,5 +1,8 @@
 """One torque-controlled motion on a robot: per cycle read the state, ask the controller,
-command τ_d = τ − (what the robot adds), and log it; then brake to rest and finish.
+command τ_d = τ − (what the robot adds), and log it; then brake to rest and finish. The
+first cycle commands 0, as a Franka requires; a controller that limits its torque's rate
+(the safeguard under ``simulation.torque_rate_limit``) is told each cycle what the robot
+holds, so that its command lies within the robot's rate box around the last.
 
 Nothing clips or filters the controller's torque on its way to the robot: a command that
 breaks the robot's rules is the controller's (the checks in cpbc.hardware.rules find it in
@@ -14,12 +17,13 @@ from __future__ import annotations
 import gc
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.controllers.controller import Controller
+from cpbc.controllers.controller import Controller, SafetyFilter
 from cpbc.errors import ConstraintViolation, ParameterError
 from cpbc.hardware.backend import MeasuredState, RobotBackend, RobotFault, RobotLimits
 
@@ -140,18 +144,26 @@ class _Ending:
 def _drive(backend: RobotBackend, controller: Controller, state: MeasuredState, steps: int,
            deadline: float, rec: _Recorder, sent: Array,
            end: _Ending) -> tuple[MeasuredState, int] | None:
-    """The controller's ``steps`` cycles from the motion's first ``state``. Returns the state
+    """The motion's ``steps`` cycles from its first ``state``: the first answered with 0 (a
+    Franka's first command; its own gravity compensation holds the arm), every later one by
+    the controller, told first what the robot holds (:func:`_holder`). Returns the state
     (and its row) that an early end left unanswered, or None. ``sent`` holds the last
     command sent (updated in place)."""
     clock = time.perf_counter
+    hold = _holder(controller)
     pending = None
     try:
-        for k in range(steps):
-            if k:
-                state = backend.read()
+        row = rec.state(state)
+        backend.write(sent)  # 0
+        rec.command[row] = sent
+        for k in range(1, steps):
+            state = backend.read()
             row = rec.state(state)
             pending = state, row
             began = clock()
+            added = backend.added_torque(state)
+            if hold is not None:
+                hold(sent + added)
             try:
                 tau, v = controller.evaluate(state.position, state.velocity)
             except ConstraintViolation as exc:
@@ -161,7 +173,7 @@ def _drive(backend: RobotBackend, controller: Controller, state: MeasuredState, 
             except Exception as exc:  # any failure of the controller: brake, then report it
                 end.ending, end.detail = "controller_error", f"{type(exc).__name__}: {exc}"
                 return pending
-            command = tau - backend.added_torque(state)
+            command = tau - added
             spent = clock() - began
             rec.torque[row], rec.lyapunov[row], rec.compute[row] = tau, v, spent
             if spent > deadline:
@@ -176,6 +188,16 @@ def _drive(backend: RobotBackend, controller: Controller, state: MeasuredState, 
     except KeyboardInterrupt:  # the state read, if any, is the brake's to answer
         end.ending, end.detail = "interrupted", "interrupted (Ctrl-C)"
         return pending
+    return None
+
+
+def _holder(controller: Controller) -> Callable[[Array], None] | None:
+    """How to tell ``controller`` the torque the robot holds (its own convention: the last
+    command plus what the robot adds at the new state), when it limits the torque's rate
+    of change from it: then each command lies within the rate box of the last, as the
+    robot's rule asks; None for a controller that does not."""
+    if isinstance(controller, SafetyFilter):  # a guarded reference tracker too
+        return controller.holding
     return None
 
 

@@ -55,7 +55,8 @@ def choose_controller(setup: ScenarioSetup, name: str | None) -> ControllerEntry
 
 def check_fits(setup: ScenarioSetup, limits: RobotLimits, joints: tuple[str, ...]) -> None:
     """Refuse a scenario that is not for this robot or reaches past its limits, naming the
-    field: its joints, coordinates, control period, torque limit and rate bounds."""
+    field: its joints, coordinates, control period, torque and torque-rate limits and rate
+    bounds."""
     model = setup.model
     if model.joint_names != joints:
         raise ScenarioError("robot.model", f"the scenario's joints {list(model.joint_names)} "
@@ -71,6 +72,11 @@ def check_fits(setup: ScenarioSetup, limits: RobotLimits, joints: tuple[str, ...
     if box is None or np.any(box > limits.torque * (1 + 1e-9)):
         raise ScenarioError("simulation.torque_limit", "must lie inside the robot's torque "
                             f"limits {limits.torque.tolist()} N m (from_model reads them)")
+    rate = setup.loop_settings.torque_rate_limit
+    if rate is None or np.any(rate > limits.torque_rate * (1 + 1e-9)):
+        raise ScenarioError("simulation.torque_rate_limit", "must lie inside the robot's "
+                            f"torque-rate limits {limits.torque_rate.tolist()} N m/s (give "
+                            "from_model): a command may change by no more in a cycle")
     for i, bound in enumerate(setup.rate_bounds):
         if bound is not None and bound > limits.velocity[i] * (1 + 1e-9):
             raise ScenarioError("constraints", f"the rate bound {bound:g} rad/s of "
@@ -78,20 +84,25 @@ def check_fits(setup: ScenarioSetup, limits: RobotLimits, joints: tuple[str, ...
                                 f"{limits.velocity[i]:g} rad/s")
 
 
-def check_start(setup: ScenarioSetup, state: MeasuredState) -> None:
-    """Refuse a measured state outside the admissible set or the braking set."""
+def check_start(setup: ScenarioSetup, state: MeasuredState) -> str | None:
+    """Refuse a measured state outside the admissible set, or that no brake within the
+    torque (and torque-rate) limits stops; a state outside the braking set that the
+    safeguard's rescue brake stops runs, and the note saying so is returned."""
     try:
         check_admissible(setup.monitor, state.position, state.velocity,
                          "the robot's measured state", "robot state")
     except InadmissibleStateError as exc:
         raise ScenarioError("robot state", str(exc)) from None
-    box = setup.loop_settings.torque_limit
-    if box is not None:
-        try:
-            check_stoppable([CaseEntry(CASE, state.position, state.velocity)], setup.monitor,
-                            setup.model, box)
-        except ScenarioError as exc:
-            raise ScenarioError("robot state", exc.message) from None
+    loop = setup.loop_settings
+    if loop.torque_limit is None:
+        return None
+    try:
+        notes = check_stoppable([CaseEntry(CASE, state.position, state.velocity)],
+                                setup.monitor, setup.model, loop.torque_limit,
+                                loop.control_period, loop.torque_rate_limit)
+    except ScenarioError as exc:
+        raise ScenarioError("robot state", exc.message) from None
+    return notes.get(CASE)
 
 
 def warm(setup: ScenarioSetup, entry: ControllerEntry, state: MeasuredState,
@@ -122,6 +133,7 @@ class HardwareRun:
     summary: RunSummary
     rules: RuleReport
     task_error: Array | None = None
+    start_note: str | None = None  # a start outside the braking set that a rescue stops
 
 
 def _trajectory(motion: MotionLog, guard: Controller) -> Trajectory:
@@ -161,7 +173,7 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
     limits = backend.limits()
     check_fits(setup, limits, backend.joint_names)
     state = backend.read()
-    check_start(setup, state)
+    note = check_start(setup, state)
     warm(setup, entry, state, backend)
     guard = setup.controller(entry)
     motion = run_motion(backend, guard, settings)
@@ -176,7 +188,7 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
     if setup.goal is not None:
         errors = task_errors(setup.model, setup.goal.goal, traj.position)
     rules = check_rules(motion.commanded_torque, limits, margins, setup.monitor.names)
-    return HardwareRun(entry.name, motion, traj, margins, summary, rules, errors)
+    return HardwareRun(entry.name, motion, traj, margins, summary, rules, errors, note)
 
 
 def write_run(out: Path, setup: ScenarioSetup, run: HardwareRun) -> None:

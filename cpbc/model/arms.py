@@ -28,6 +28,8 @@ class ArmEntry:
             arm): the joints to drive; every other joint is locked (``load_urdf``).
         ranges: joint ranges [rad] that replace the URDF's, in both engines (the robot
             maker's published ranges where its URDF's are wider).
+        torque_rate: the motors' torque-rate limit [N·m/s] the robot maker publishes (what
+            ``simulation.torque_rate_limit: from_model`` reads), or None.
         package: the Python package that ships the URDF.
     """
 
@@ -37,6 +39,7 @@ class ArmEntry:
     tip: str | None = None
     driven: tuple[str, ...] | None = None
     ranges: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    torque_rate: float | None = None
     package: str = "example-robot-data"
 
 
@@ -157,11 +160,12 @@ ARMS: dict[str, ArmEntry] = {
     # gravity compensation reads the same links): the fingers locked closed. Velocities
     # (2.62 rad/s on joints 1-4, 5.26, 4.18, 5.26) and torques (87/12 N m) are the URDF's;
     # its joint ranges on joints 1, 2, 4-7 are wider than the FCI's published ones (which
-    # franky-sim's MuJoCo plant also stops at): those replace them.
+    # franky-sim's MuJoCo plant also stops at): those replace them. Its torque rate: 1000
+    # N m/s on every joint (FCI; libfranka's kMaxTorqueRate), beyond which it aborts.
     "fr3": ArmEntry(
         "fr3.urdf", {"fr3_finger_joint1": 0.0, "fr3_finger_joint2": 0.0},
         "Franka Research 3, 7 DOF (fingers locked closed; from franky-sim)", "fr3_hand_tcp",
-        ranges=_FR3_RANGES, package=FRANKY_SIM,
+        ranges=_FR3_RANGES, torque_rate=1000.0, package=FRANKY_SIM,
     ),
 }
 

@@ -104,6 +104,8 @@ class LoadedArm:
             would refuse, raised to the nearest it accepts in both engines
             (cpbc.model.inertias).
         ranges: joint ranges that replace the URDF's in both engines (:func:`narrow`).
+        torque_rate_limits: the motors' torque-rate limits a named arm declares [N·m/s],
+            shape (n,), or None.
     """
 
     name: str
@@ -121,6 +123,7 @@ class LoadedArm:
     continuous_joints: tuple[str, ...] = ()
     regularised: tuple[str, ...] = ()
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
+    torque_rate_limits: Array | None = None
 
     @property
     def n(self) -> int:
@@ -352,6 +355,8 @@ def load_arm(
                         entry.driven)
         arm.tip = entry.tip
         narrow(arm, entry.ranges)
+        if entry.torque_rate is not None:
+            arm.torque_rate_limits = np.full(arm.n, entry.torque_rate)
         return arm
     path = Path(name_or_path)
     if path.suffix.lower() not in (".urdf", ".xml"):  # a URDF saved as .xml is common
