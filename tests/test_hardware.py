@@ -368,3 +368,25 @@ def test_a_refused_state_brakes_at_the_robots_torque_rate(tmp_path: Path) -> Non
     assert motion.braking[refused + 1:].all() and motion.braking.sum() == 199
     sent = motion.commanded_torque[refused - 1:]
     assert np.all(np.abs(np.diff(sent, axis=0)) <= FR3_LIMITS.torque_step + 1e-12)
+
+
+def test_a_missed_deadline_brakes_exits_1_and_writes(tmp_path: Path) -> None:
+    """No computation of a guarded step takes a microsecond: the first controlled cycle
+    overruns, its late command is not sent, the motion brakes from the last command sent
+    (the first, 0) and the files say why."""
+    out = tmp_path / "run"
+    err = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()) as printed, contextlib.redirect_stderr(err):
+        code = main([str(SCENARIO), "--backend", "lockstep", "--deadline-ms", "0.001",
+                     "--out", str(out)])
+    assert code == 1, err.getvalue()
+    assert "deadline_missed" in printed.getvalue()
+    with h5py.File(out / "trajectories.h5") as f:
+        run = f["robot/CPBC"]
+        sent, braking = run["commanded_torque"][()], run["braking"][()].astype(bool)
+        computed = run["compute_time"][()]
+    assert computed[1] > 1e-6 and np.all(np.isnan(computed[2:]))
+    assert np.all(sent[0] == 0) and braking[2:].all()
+    assert np.all(np.abs(np.diff(sent, axis=0)) <= FR3_LIMITS.torque_step + 1e-12)
+    summary = yaml.safe_load((out / "summary.json").read_text())[0]
+    assert summary["cause"].startswith("deadline_missed: cycle 1 computed for")
