@@ -221,6 +221,8 @@ def test_a_dropped_connection_ends_with_exit_1_and_the_files(franky: FrankySim,
     summary = yaml.safe_load((out / "summary.json").read_text())[0]
     assert summary["cause"].startswith("robot_error: robot error network")
     assert summary["extra"]["lost_states"] >= 0 and summary["extra"]["compute_us_max"] > 0
+    assert summary["torque_rate_limits"] == [1000.0] * 7
+    assert max(summary["peak_torque_rate"]) <= 1000.0 * (1 + 1e-9)  # the rule, in the summary
 
 
 @needs_franky

@@ -1,6 +1,6 @@
 """A scenario's controller on a robot: the checks that the scenario fits the robot and the
 robot's state fits the scenario, the warm-up, one motion (cpbc.hardware.motion), and the
-same files as ``cpbc.run`` writes (summary.json, summary.csv, trajectories.h5).
+same files as ``cpbc.run`` writes (summary.json, summary.csv, trajectories.h5, view.html).
 
 The scenario's ``cases`` are not used: the motion starts from the state the robot reports.
 """
@@ -136,14 +136,18 @@ class HardwareRun:
     start_note: str | None = None  # a start outside the braking set that a rescue stops
 
 
-def _trajectory(motion: MotionLog, guard: Controller) -> Trajectory:
+def _trajectory(motion: MotionLog, guard: Controller, period: float) -> Trajectory:
     """The motion as the results layer reads a run: the applied torque is the command
-    (gravity excluded: what the robot's torque box bounds)."""
+    (gravity excluded: what the robot's torque box and rate limit bound), its peak rate
+    counted from the 0 the robot held before the motion."""
     outcome = "constraint_violated" if motion.ending == "constraint_violated" else "completed"
     end_time = float(motion.time[-1]) if motion.time.size else 0.0
     steps = int(motion.controlled.sum())
     wall = float(np.nansum(motion.compute_time))
     safe = guard if isinstance(guard, SafetyFilter) else None
+    sent = motion.commanded_torque[np.all(np.isfinite(motion.commanded_torque), axis=1)]
+    steps_d = np.abs(np.diff(sent, axis=0, prepend=np.zeros((1, sent.shape[1]))))
+    peak_rate = (steps_d.max(axis=0) if len(sent) else np.zeros(sent.shape[1])) / period
     return Trajectory(
         motion.time, motion.position, motion.velocity, motion.torque,
         motion.commanded_torque, motion.lyapunov, outcome, end_time, motion.violated, wall,
@@ -152,6 +156,7 @@ def _trajectory(motion: MotionLog, guard: Controller) -> Trajectory:
         safeguard_infeasible=safe.infeasible if safe else 0,
         filter_row_steps=safe.row_active_steps if safe else 0,
         rescues=safe.rescues if safe else 0,
+        peak_torque_rate=peak_rate,
     )
 
 
@@ -177,17 +182,18 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
     warm(setup, entry, state, backend)
     guard = setup.controller(entry)
     motion = run_motion(backend, guard, settings)
-    traj = _trajectory(motion, guard)
+    traj = _trajectory(motion, guard, limits.period)
     margins = margin_history(setup.monitor, traj)
     summary = summarise(entry.name, CASE, entry.controller, setup.monitor, traj,
                         setup.criteria, setup.rate_bounds, margins, limits.torque, None,
-                        setup.model.length_coordinates)
+                        setup.model.length_coordinates, limits.torque_rate)
+    rules = check_rules(motion.commanded_torque, limits, margins, setup.monitor.names)
     cause = None if motion.ending == "completed" else f"{motion.ending}: {motion.detail}"
-    summary = replace(summary, extra={**summary.extra, **_timing(motion)}, cause=cause)
+    extra = {**summary.extra, **_timing(motion), "steps_over_rate": float(rules.steps_over)}
+    summary = replace(summary, extra=extra, cause=cause)
     errors = None
     if setup.goal is not None:
         errors = task_errors(setup.model, setup.goal.goal, traj.position)
-    rules = check_rules(motion.commanded_torque, limits, margins, setup.monitor.names)
     return HardwareRun(entry.name, motion, traj, margins, summary, rules, errors, note)
 
 
