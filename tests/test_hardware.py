@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 import yaml
 
-from cpbc.errors import ParameterError, ScenarioError
+from cpbc.errors import InadmissibleStateError, ParameterError, ScenarioError
 from cpbc.hardware import runner
 from cpbc.hardware.__main__ import main
 from cpbc.hardware.backend import RobotDynamics, RobotLimits
@@ -392,3 +392,41 @@ def test_a_missed_deadline_brakes_exits_1_and_writes(tmp_path: Path) -> None:
     assert np.all(np.abs(np.diff(sent, axis=0)) <= FR3_LIMITS.torque_step + 1e-12)
     summary = yaml.safe_load((out / "summary.json").read_text())[0]
     assert summary["cause"].startswith("deadline_missed: cycle 1 computed for")
+
+
+def _seeded_targets(count: int, seed: int) -> list[list[float]]:
+    """``count`` targets around the reach's, drawn from ``seed`` on joints 1-4 (the ball's
+    side of the workspace); the builder refuses those outside the admissible set."""
+    base = np.array(yaml.safe_load(SCENARIO.read_text())["target"])
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(count):
+        step = np.zeros(7)
+        step[:4] = rng.uniform(-0.3, 0.3, 4)
+        out.append([float(v) for v in base + step])
+    return out
+
+
+def test_seeded_reaches_on_the_lockstep_backend_keep_the_robots_rules(tmp_path: Path) -> None:
+    data = yaml.safe_load(SCENARIO.read_text())
+    ran, refused = [], 0
+    for i, target in enumerate(_seeded_targets(30, seed=7)):
+        if len(ran) == 10:
+            break
+        data["target"] = target
+        path = tmp_path / f"reach{i}.yaml"
+        path.write_text(yaml.safe_dump(data))
+        try:
+            setup = build(*load_scenario(path))
+        except (ScenarioError, InadmissibleStateError):  # a target inside the margins
+            refused += 1
+            continue
+        run = run_on_robot(setup, choose_controller(setup, None), lockstep_for(setup),
+                           _settings(setup))
+        assert run.motion.ending == "completed", (i, run.motion.detail)
+        assert run.rules.kept, (i, run.rules.describe())
+        _margins_hold(run)
+        ran.append(run.summary.final_error)
+    assert len(ran) == 10, refused
+    print(f"{len(ran)} seeded lock-step reaches: final joint errors "
+          + ", ".join(f"{e:.3g}" for e in ran) + f" rad; {refused} targets refused")
