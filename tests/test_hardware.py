@@ -409,7 +409,8 @@ def _seeded_targets(count: int, seed: int) -> list[list[float]]:
 
 def test_seeded_reaches_on_the_lockstep_backend_keep_the_robots_rules(tmp_path: Path) -> None:
     data = yaml.safe_load(SCENARIO.read_text())
-    ran, refused = [], 0
+    ran: list[float] = []
+    refused = 0
     for i, target in enumerate(_seeded_targets(30, seed=7)):
         if len(ran) == 10:
             break
