@@ -23,9 +23,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.brakes import TorqueBox, ramped
 from cpbc.controllers.controller import Controller, SafetyFilter
 from cpbc.errors import ConstraintViolation, ParameterError
 from cpbc.hardware.backend import MeasuredState, RobotBackend, RobotFault, RobotLimits
+from cpbc.model.robot_model import RobotModel
 
 #: How a motion ended.
 ENDINGS = ("completed", "constraint_violated", "deadline_missed", "controller_error",
@@ -40,23 +42,17 @@ class MotionSettings:
         duration: the controller's share of the motion [s] (the brake comes after).
         deadline: the longest computation of one cycle [s]; a cycle that takes longer
             ends the motion (its late command is not sent).
-        brake_rate: the brake's damping per unit of inertia [1/s]: it ramps, at the robot's
-            torque rate, from the last command toward −rate · M_ii(q) · q̇_i per joint
-            (M the robot's own mass matrix where the brake begins), inside the torque box.
-            Scaled by the inertia, the sampled brake is stable on every joint (a fixed
-            damping that holds a shoulder makes a 2 g·m² wrist oscillate at 1 kHz).
         brake_time: the longest brake [s]; the motion is finished then, at rest or not.
         rest_speed: the joint speed below which the arm counts as at rest [rad/s].
     """
 
     duration: float
     deadline: float = 0.001
-    brake_rate: float = 20.0
     brake_time: float = 1.0
     rest_speed: float = 0.01
 
     def __post_init__(self) -> None:
-        for name in ("duration", "deadline", "brake_rate", "brake_time", "rest_speed"):
+        for name in ("duration", "deadline", "brake_time", "rest_speed"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ParameterError(name, f"{name} must be a finite number > 0, got {value}")
@@ -201,17 +197,25 @@ def _holder(controller: Controller) -> Callable[[Array], None] | None:
     return None
 
 
-def _brake(backend: RobotBackend, limits: RobotLimits, settings: MotionSettings,
-           rec: _Recorder, sent: Array, pending: tuple[MeasuredState, int] | None) -> int:
-    """Ramp from the last command toward a damping brake at the robot's torque rate until
-    the arm rests (or ``brake_time`` has passed), then finish the motion: on 0 when at rest
-    (then within a step of it), else on the last brake command. ``pending`` is a state the
-    controller left unanswered, answered first. Returns the Ctrl-C presses it outlasted."""
-    box, step = limits.torque, limits.torque_step
-    cycles = max(1, round(settings.brake_time / limits.period))
+def _brake(backend: RobotBackend, model: RobotModel, limits: RobotLimits,
+           settings: MotionSettings, rec: _Recorder, sent: Array,
+           pending: tuple[MeasuredState, int] | None) -> int:
+    """Brake until the arm rests (or ``brake_time`` has passed), then finish the motion: on
+    0 when at rest (then within a step of it), else on the last brake command. ``pending``
+    is a state the controller left unanswered, answered first. Returns the Ctrl-C presses it
+    outlasted.
+
+    The brake is the safeguard's uniform one (cpbc.constraints.brakes), in the controller's
+    model: b − D q̇/h scaled into the robot's torque box, reached from what the robot holds
+    as far as one step of its torque rate allows (``brakes.ramped``): every joint slows in
+    proportion to its speed, and the command never steps by more than the robot allows.
+    It is the brake that defines the safeguard's braking set: from a state the safeguard
+    kept in that set it stops the arm before every configuration boundary, in the model.
+    (It knows no target: after a deadline the last law's torque is not trusted.)"""
+    step, period = limits.torque_step, limits.period
+    cycles = max(1, round(settings.brake_time / period))
     command = sent.copy()
     ignored = 0
-    damping: Array | None = None
     for i in range(cycles):
         try:
             if pending is None:
@@ -219,12 +223,18 @@ def _brake(backend: RobotBackend, limits: RobotLimits, settings: MotionSettings,
                 row = rec.state(state, braking=True)
             else:
                 (state, row), pending = pending, None
-            if damping is None:
-                damping = settings.brake_rate * np.diag(backend.dynamics(state).mass)
-            target = np.clip(-damping * state.velocity, -box, box)
-            command = command + np.clip(target - command, -step, step)
+            added = backend.added_torque(state)
+            arm = model.state(state.position, state.velocity)
+            bias = arm.coriolis_force + arm.gravity + arm.dissipation
+            # the robot's box bounds the command, gravity excluded: τ − added
+            box = TorqueBox(limits.torque, lower=added - limits.torque,
+                            upper=added + limits.torque)
+            stop = box.toward(bias, bias - arm.inertia.dot(arm.dx) / period)
+            held = command
+            command = ramped(box, stop, step, held + added) - added
+            # at rest, and 0 one step from what the robot holds: end on 0
             rests = bool(np.max(np.abs(state.velocity)) < settings.rest_speed
-                         and np.all(np.abs(command) <= step))
+                         and np.all(np.abs(held) <= step))
             if rests or i == cycles - 1:
                 final = np.zeros_like(command) if rests else command
                 backend.finish(final)
@@ -256,7 +266,7 @@ def run_motion(backend: RobotBackend, controller: Controller,
     try:
         first = backend.start()
         pending = _drive(backend, controller, first, steps, settings.deadline, rec, sent, end)
-        if _brake(backend, limits, settings, rec, sent, pending):
+        if _brake(backend, controller.model, limits, settings, rec, sent, pending):
             end.detail += "; Ctrl-C pressed again while braking: the brake ran to its end"
     except RobotFault as fault:
         return rec.log("robot_error", end.violated, f"{fault}", fault)
