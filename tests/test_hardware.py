@@ -12,9 +12,6 @@ import _thread
 import contextlib
 import importlib.util
 import io
-import os
-import subprocess
-import sys
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -34,6 +31,7 @@ from cpbc.hardware.franka import FR3_LIMITS, fault_name
 from cpbc.hardware.motion import MotionLog, MotionSettings
 from cpbc.hardware.rules import check_rules
 from cpbc.hardware.runner import HardwareRun, choose_controller, lockstep_for, run_on_robot
+from cpbc.hardware.simulator import FrankySim, loopback_address
 from cpbc.scenario import ScenarioSetup, build, load_scenario
 
 SCENARIO = Path(__file__).resolve().parent / "scenarios" / "fr3_reach_ball.yaml"
@@ -45,50 +43,12 @@ needs_franky = pytest.mark.skipif(
 #: A cycle on this shared machine may take milliseconds (issue 36's timings); these tests
 #: judge the commands, not the computer, so the deadline only catches a hang.
 DEADLINE = 0.5
-READY = "Connect to the server"
-
-
-class FrankySim:
-    """franky-sim in its own process on a loopback address of its own (another test run
-    on this machine may hold 127.0.0.1:1337); stopped by its PID."""
-
-    def __init__(self, host: str) -> None:
-        self.host = host
-        self.lines: list[str] = []
-        env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "franky_sim.run_server", "--simulator", "mujoco",
-             "--hostname", host],
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
-        ready = threading.Event()
-
-        def watch() -> None:
-            assert self.process.stdout is not None
-            for line in self.process.stdout:
-                self.lines.append(line)
-                if READY in line:
-                    ready.set()
-
-        threading.Thread(target=watch, daemon=True).start()
-        if not ready.wait(60):
-            self.stop()
-            raise RuntimeError(f"franky-sim did not start within 60 s: {''.join(self.lines)}")
-
-    def stop(self) -> None:
-        if self.process.poll() is None:
-            self.process.kill()
-        self.process.wait(timeout=10)
-
-
-def _loopback() -> str:
-    """A loopback address for this process's simulators."""
-    return f"127.{os.getpid() % 200 + 20}.{(os.getpid() // 200) % 250 + 1}.1"
 
 
 @pytest.fixture
 def franky() -> Iterator[FrankySim]:
     """A fresh franky-sim (the FR3 at its start posture, at rest)."""
-    sim = FrankySim(_loopback())
+    sim = FrankySim(loopback_address())
     try:
         yield sim
     finally:
