@@ -277,6 +277,8 @@ def _cli(*args: str) -> tuple[int, str]:
 def test_cli_bad_input_is_one_line_and_exit_2(tmp_path: Path) -> None:
     code, err = _cli(str(SCENARIO))
     assert code == 2 and err.startswith("error: --robot-ip:") and err.count("\n") == 1
+    code, err = _cli(str(SCENARIO), "--backend", "lockstep", "--deadline-ms", "-1")
+    assert code == 2 and err.startswith("error: --deadline-ms:") and err.count("\n") == 1
     code, err = _cli(str(SCENARIO), "--backend", "lockstep", "--controller", "PD")
     assert code == 2 and "--controller: no controller 'PD'" in err
     data = yaml.safe_load(SCENARIO.read_text())

@@ -102,6 +102,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                             "scenario")
         setup = build(loaded, file)
         entry = choose_controller(setup, args.controller)
+        if not args.deadline_ms > 0:
+            raise CpbcError(f"--deadline-ms: give a time > 0 [ms], got {args.deadline_ms}")
         settings = MotionSettings(loaded.simulation.duration, args.deadline_ms * 1e-3)
         backend = _backend(args, setup)
         if args.dry_run:
