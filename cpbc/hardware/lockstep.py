@@ -26,7 +26,8 @@ class LockstepBackend:
             period (a whole number of the plant's timesteps).
         gravity: the gravity torque the "robot" adds, from its own model (q → g(q)).
         mass: the robot's own mass matrix (q → M(q)), for the dry run's comparison.
-        position, velocity: the state the plant starts from.
+        position: the joint positions the plant starts from [rad].
+        velocity: the joint velocities it starts with [rad/s].
     """
 
     def __init__(self, plant: MujocoPlant, joint_names: tuple[str, ...], limits: RobotLimits,
