@@ -23,8 +23,9 @@ class ModelTolerance:
     """How far cpbc's model may be from the robot's before a run is refused.
 
     Attributes:
-        mass: per joint, |D_ii − M_ii| / M_ii (the diagonal of the mass matrix: what a
-            missing rotor inertia or a wrong load changes first).
+        mass: per joint, |D_ii − M_ii| / M_ii (the diagonal of the mass matrix, the links'
+            alone: cpbc's declared armature taken out, as franky-sim's Model leaves its
+            rotors out; what a wrong load changes first).
         gravity: per joint, |g_cpbc − g_robot| [N·m] beyond ``gravity_share`` of |g_robot|.
         gravity_share: the part of the robot's gravity torque allowed on top.
     """
@@ -68,14 +69,16 @@ def compare_models(setup: ScenarioSetup, robot: RobotDynamics, q: Array,
     of its gravity torque against the robot's. Raises ScenarioError naming the joint
     beyond ``tolerance``."""
     model = setup.model
-    ours_m, ours_g = np.diag(model.inertia(q)), model.gravity(q)
+    # the links' inertia only: cpbc's D counts the armature the scenario declares
+    # (robot.armature), franky-sim's Model leaves the rotors out (a real FR3's: not checked)
+    ours_m, ours_g = np.diag(model.inertia(q)) - model.armature, model.gravity(q)
     theirs_m = np.diag(robot.mass)
     mass_error = np.abs(ours_m - theirs_m) / np.abs(theirs_m)
     gravity_error = np.abs(ours_g - robot.gravity)
     allowed = tolerance.gravity + tolerance.gravity_share * np.abs(robot.gravity)
     for i, joint in enumerate(model.joint_names):
         if mass_error[i] > tolerance.mass:
-            raise ScenarioError("robot.model", f"{joint}: cpbc's inertia D_ii = "
+            raise ScenarioError("robot.model", f"{joint}: cpbc's link inertia D_ii = "
                                 f"{ours_m[i]:.4g} kg m² differs from the robot's "
                                 f"{theirs_m[i]:.4g} by {100 * mass_error[i]:.1f} %, beyond "
                                 f"{100 * tolerance.mass:g} %: check the model and its load")
