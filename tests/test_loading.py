@@ -12,7 +12,7 @@ import pytest
 
 from cpbc.errors import ModelError
 from cpbc.model.arms import ARMS, arm_urdf, available_arms
-from cpbc.model.loading import LoadedArm, load_arm, load_urdf
+from cpbc.model.loading import LoadedArm, load_arm, load_urdf, narrow
 from cpbc.model.urdf_text import resolve_mesh_uri
 
 
@@ -374,3 +374,17 @@ def test_the_arm_of_a_larger_robot_drives_only_its_arm(name: str, robot_joints: 
     mj = arm.mujoco_model()
     assert mj.nv == len(entry.driven)
     _agreement(arm, mj, rng)
+
+
+def test_narrowed_ranges_reach_both_engines_and_stay_inside_the_urdfs() -> None:
+    arm = load_arm("ur5")
+    narrow(arm, {"elbow_joint": (-1.0, 2.0)})
+    i = arm.joint_names.index("elbow_joint")
+    assert (arm.position_lower[i], arm.position_upper[i]) == (-1.0, 2.0)
+    assert tuple(arm.model.lowerPositionLimit[[i]]) == (-1.0,)
+    assert tuple(arm.mujoco_model().jnt_range[i]) == (-1.0, 2.0)
+    with pytest.raises(ModelError, match="not inside the URDF's") as found:
+        narrow(arm, {"elbow_joint": (-10.0, 2.0)})
+    assert found.value.parameter == "ranges"
+    with pytest.raises(ModelError, match="not a driven joint"):
+        narrow(arm, {"nope": (0.0, 1.0)})

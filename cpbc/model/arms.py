@@ -1,9 +1,11 @@
 """The arms cpbc knows by name: those of the ``example-robot-data`` package (which ships URDFs
-and meshes but not its Python loader), with the joints each locks by default (its gripper, or
+and meshes but not its Python loader) and the Franka FR3 of ``franky-sim`` (which ships its
+URDF, from Franka's own description), with the joints each locks by default (its gripper, or
 the rest of a larger robot)."""
 
 from __future__ import annotations
 
+import importlib.util
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -13,16 +15,22 @@ from cpbc.errors import ModelError
 
 @dataclass(frozen=True)
 class ArmEntry:
-    """An arm shipped by ``example-robot-data``.
+    """An arm shipped by ``example-robot-data`` (or by ``franky-sim``: ``package``).
 
     Attributes:
-        urdf: URDF path relative to the package's ``robots/`` folder.
+        urdf: URDF path relative to the package's ``robots/`` folder (franky-sim: its
+            ``assets/`` folder).
         locked_joints: joints frozen by default (grippers), with their values [rad or m].
         summary: one line for listings.
         tip: the link at the tool centre point; the MuJoCo model gets a site ``end_point``
             there (the point the viewer traces).
         driven: for the arm of a larger robot (a mobile manipulator, a quadruped carrying an
             arm): the joints to drive; every other joint is locked (``load_urdf``).
+        ranges: joint ranges [rad] that replace the URDF's, in both engines (the robot
+            maker's published ranges where its URDF's are wider).
+        torque_rate: the motors' torque-rate limit [N·m/s] the robot maker publishes (what
+            ``simulation.torque_rate_limit: from_model`` reads), or None.
+        package: the Python package that ships the URDF.
     """
 
     urdf: str
@@ -30,7 +38,14 @@ class ArmEntry:
     summary: str = ""
     tip: str | None = None
     driven: tuple[str, ...] | None = None
+    ranges: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    torque_rate: float | None = None
+    package: str = "example-robot-data"
 
+
+#: The Python package that ships franky-sim's files, and how cpbc installs it.
+FRANKY_SIM = "franky_sim"
+FRANKA_EXTRA = "pip install 'cpbc[franka]'"
 
 # Baxter is two 7-DOF arms on a fixed torso: each is an arm of its own, the rest locked.
 _BAXTER_OTHERS = {"head_pan": 0.0, "l_gripper_l_finger_joint": 0.0,
@@ -38,6 +53,15 @@ _BAXTER_OTHERS = {"head_pan": 0.0, "l_gripper_l_finger_joint": 0.0,
                   "r_gripper_r_finger_joint": 0.0}
 _BAXTER_LEFT = {f"left_{j}": 0.0 for j in ("s0", "s1", "e0", "e1", "w0", "w1", "w2")}
 _BAXTER_RIGHT = {f"right_{j}": 0.0 for j in ("s0", "s1", "e0", "e1", "w0", "w1", "w2")}
+
+# The FR3's joint ranges [rad], Franka's FCI documentation ("Robot and interface
+# specifications": q_min, q_max).
+_FR3_RANGES = {
+    "fr3_joint1": (-2.7437, 2.7437), "fr3_joint2": (-1.7837, 1.7837),
+    "fr3_joint3": (-2.9007, 2.9007), "fr3_joint4": (-3.0421, -0.1518),
+    "fr3_joint5": (-2.8065, 2.8065), "fr3_joint6": (0.5445, 4.5169),
+    "fr3_joint7": (-3.0159, 3.0159),
+}
 
 ARMS: dict[str, ArmEntry] = {
     "panda": ArmEntry(
@@ -132,6 +156,17 @@ ARMS: dict[str, ArmEntry] = {
         "Kinova arm on an ANYmal B, 6 DOF (legs locked)", "j2s6s200_end_effector",
         tuple(f"j2s6s200_joint_{i}" for i in range(1, 7)),
     ),
+    # Franka's URDF of the FR3 with its hand, as franky-sim ships it (the simulator's own
+    # gravity compensation reads the same links): the fingers locked closed. Velocities
+    # (2.62 rad/s on joints 1-4, 5.26, 4.18, 5.26) and torques (87/12 N m) are the URDF's;
+    # its joint ranges on joints 1, 2, 4-7 are wider than the FCI's published ones (which
+    # franky-sim's MuJoCo plant also stops at): those replace them. Its torque rate: 1000
+    # N m/s on every joint (FCI; libfranka's kMaxTorqueRate), beyond which it aborts.
+    "fr3": ArmEntry(
+        "fr3.urdf", {"fr3_finger_joint1": 0.0, "fr3_finger_joint2": 0.0},
+        "Franka Research 3, 7 DOF (fingers locked closed; from franky-sim)", "fr3_hand_tcp",
+        ranges=_FR3_RANGES, torque_rate=1000.0, package=FRANKY_SIM,
+    ),
 }
 
 
@@ -167,10 +202,25 @@ def available_arms() -> list[str]:
     return sorted(ARMS)
 
 
+def _franky_sim_asset(name: str, file: str) -> Path:
+    """A file of franky-sim's ``assets/`` folder, found without importing franky-sim (which
+    would load its simulators)."""
+    spec = importlib.util.find_spec(FRANKY_SIM)
+    if spec is None or spec.origin is None:
+        raise ModelError(f"robot '{name}' comes from the franky-sim package, which is not "
+                         f"installed ({FRANKA_EXTRA})")
+    path = Path(spec.origin).parent / "assets" / file
+    if not path.is_file():
+        raise ModelError(f"franky-sim is installed but lacks {path}")
+    return path
+
+
 def arm_urdf(name: str) -> Path:
-    """The URDF file of a named ``example-robot-data`` arm."""
+    """The URDF file of a named arm (``example-robot-data``'s, or franky-sim's FR3)."""
     if name not in ARMS:
         raise ModelError(f"unknown robot '{name}'; available: {', '.join(available_arms())}")
+    if ARMS[name].package == FRANKY_SIM:
+        return _franky_sim_asset(name, ARMS[name].urdf)
     share = example_robot_data_share()
     if share is None:
         raise ModelError(

@@ -28,7 +28,7 @@ both engines read is made by :mod:`cpbc.model.urdf_text`.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import mujoco
@@ -107,6 +107,9 @@ class LoadedArm:
         estimated: driven joints whose link the URDF gives a mass and an all-zero inertia
             tensor, given the inertia of a solid box of its geometry in both engines
             (cpbc.model.solid_inertias).
+        ranges: joint ranges that replace the URDF's in both engines (:func:`narrow`).
+        torque_rate_limits: the motors' torque-rate limits a named arm declares [N·m/s],
+            shape (n,), or None.
     """
 
     name: str
@@ -124,6 +127,8 @@ class LoadedArm:
     continuous_joints: tuple[str, ...] = ()
     regularised: tuple[str, ...] = ()
     estimated: tuple[str, ...] = ()
+    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
+    torque_rate_limits: Array | None = None
 
     @property
     def n(self) -> int:
@@ -147,6 +152,8 @@ class LoadedArm:
         for eq in list(spec.equalities):  # e.g. a mimic of a locked finger
             spec.delete(eq)
         apply_joint_inertias(spec, self.model)
+        for joint_name, (lo, hi) in self.ranges.items():
+            spec.joint(joint_name).range = [lo, hi]
         for joint_name in self.continuous_joints:
             if spec.joint(joint_name) is not None:
                 spec.joint(joint_name).limited = mujoco.mjtLimited.mjLIMITED_FALSE
@@ -333,6 +340,23 @@ def _all_but(full: pin.Model, driven: Sequence[str], path: Path) -> dict[str, fl
     return out
 
 
+def narrow(arm: LoadedArm, ranges: Mapping[str, tuple[float, float]]) -> None:
+    """Replace driven joints' ranges in the Pinocchio model, the arm's limits and (through
+    ``arm.ranges``) its MuJoCo twin; each must lie inside the URDF's."""
+    for joint_name, (lo, hi) in ranges.items():
+        if joint_name not in arm.joint_names:
+            raise ModelError(f"cannot set the range of '{joint_name}': not a driven joint of "
+                             f"{arm.name}", "ranges")
+        i = arm.joint_names.index(joint_name)
+        if not arm.position_lower[i] <= lo < hi <= arm.position_upper[i]:
+            raise ModelError(f"range [{lo}, {hi}] of '{joint_name}' is not inside the URDF's "
+                             f"[{arm.position_lower[i]}, {arm.position_upper[i]}]", "ranges")
+        idx = arm.model.joints[arm.model.getJointId(joint_name)].idx_q
+        arm.model.lowerPositionLimit[idx], arm.model.upperPositionLimit[idx] = lo, hi
+        arm.position_lower[i], arm.position_upper[i] = lo, hi
+        arm.ranges[joint_name] = (lo, hi)
+
+
 def load_arm(
     name_or_path: str | Path,
     locked_joints: Mapping[str, float] | None = None,
@@ -349,6 +373,9 @@ def load_arm(
         arm = load_urdf(arm_urdf(name_or_path), locked, name_or_path, package_dirs,
                         entry.driven)
         arm.tip = entry.tip
+        narrow(arm, entry.ranges)
+        if entry.torque_rate is not None:
+            arm.torque_rate_limits = np.full(arm.n, entry.torque_rate)
         return arm
     path = Path(name_or_path)
     if path.suffix.lower() not in (".urdf", ".xml"):  # a URDF saved as .xml is common

@@ -149,6 +149,17 @@ def write_trajectory(log: h5py.File, case: str, controller: str, traj: Trajector
                  units, labels_)
 
 
+def write_signals(log: h5py.File, case: str, controller: str,
+                  signals: Mapping[str, tuple[Array, str | Sequence[str], Sequence[str]]]
+                  ) -> None:
+    """More per-sample signals into the run ``/<case>/<controller>`` that
+    :func:`write_trajectory` wrote: each as (data, units, column names), in double
+    precision (a robot's commands and timings are read back to the last bit)."""
+    g = log[f"{case}/{controller}"]
+    for name, (data, units, names) in signals.items():
+        _dataset(g, name, np.asarray(data), units, names)
+
+
 def _unit_of(name: str) -> str:
     """The unit in a name's brackets ("tau [N m]" → "N m"); empty without."""
     found = re.search(r"\[([^\]]*)\]", name)

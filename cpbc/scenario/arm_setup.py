@@ -244,9 +244,11 @@ def _robot_model(
             apply_actuator_efforts(probe.model, plant)
     coords = _coordinates(robot, probe.n)
     joints = joint_dynamics(robot, probe.model, None if arm is None else arm.urdf_text)
+    rates = None if arm is None else arm.torque_rate_limits
     return RobotModel(joints.on_pinocchio(probe.model), coords, joints.viscous,
                       name=probe.name, coulomb_friction=joints.coulomb,
-                      friction_smoothing=friction_spec(robot).smoothing)
+                      friction_smoothing=friction_spec(robot).smoothing,
+                      torque_rate_limits=rates)
 
 
 def model_joint_dynamics(model: RobotModel) -> JointDynamics:
