@@ -57,8 +57,8 @@ class TimedFilter(SafetyFilter):
     def lyapunov(self, x: Array, dx: Array) -> float:
         return self.guard.lyapunov(x, dx)
 
-    def holding(self, tau: Array) -> None:
-        self.guard.holding(tau)
+    def holding(self, tau: Array, added: Array | None = None) -> None:
+        self.guard.holding(tau, added)
 
 
 def quantiles(times_ns: Sequence[int]) -> dict[str, float]:

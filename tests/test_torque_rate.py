@@ -152,3 +152,31 @@ def test_the_brake_ramp_time_is_the_slowest_joints(joint_model) -> None:
     expected = max(abs(brake[0] - held[0]) / 100.0, abs(brake[1] - held[1]) / 40.0)
     assert braking.ramp(st.inertia, bias, dx, held, per_speed) == pytest.approx(expected)
     assert Braking.of(joint_model, limit).ramp(st.inertia, bias, dx, held, per_speed) == 0.0
+
+
+def test_a_robot_that_adds_gravity_bounds_the_command_not_the_torque(tmp_path) -> None:
+    """A Franka adds its own gravity compensation g_r to every command and bounds the
+    command τ − g_r by 87/12 N·m. Told what the robot adds (holding(τ_h, added)), the guard
+    keeps every command inside that box and within ρh of the last, from commands held at
+    the box's edges (random signs) on the campaign's starts near the boundaries; told
+    nothing, it bounds τ itself: held torques beyond that box are pulled back into it at
+    once (a step over ρh) or commands fall outside the robot's box."""
+    from cpbc.reliability.campaign import sample_states
+
+    setup = build(*load_scenario(_sphere(tmp_path, 1000, 0.01)))
+    entry = next(e for e in setup.controllers if e.name == "CPBC")
+    limit = setup.loop_settings.torque_limit
+    assert limit is not None
+    rng = np.random.default_rng(0)
+    broken = {True: 0, False: 0}
+    for s in sample_states(setup, 40, seed=3):
+        added = setup.model.gravity(s.position)  # what the robot adds at this state
+        command = (limit - 0.5) * rng.choice((-1.0, 1.0), size=7)  # held near the edges
+        for told in (True, False):
+            guard = setup.controller(entry)
+            guard.holding(command + added, added if told else None)
+            sent = guard.torque(s.position, s.velocity) - added
+            over_rate = np.any(np.abs(sent - command) > 1.0 + 1e-9)  # ρh = 1 N·m
+            outside = np.any(np.abs(sent) > limit * (1 + 1e-9))
+            broken[told] += int(over_rate or outside)
+    assert broken[True] == 0 < broken[False]

@@ -168,6 +168,7 @@ class SafetyFilter(Controller):
         """The same filter with its counts at zero, for a new run."""
         return self
 
-    def holding(self, tau: Array) -> None:
-        """The torque the actuators hold now (controller coordinates), for a filter that
-        limits the torque's rate of change; others ignore it."""
+    def holding(self, tau: Array, added: Array | None = None) -> None:
+        """The torque the actuators hold now (controller coordinates), and the torque the
+        robot adds to every command itself (``added``), for a filter that limits the
+        torque's rate of change; others ignore them."""

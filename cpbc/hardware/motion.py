@@ -159,7 +159,7 @@ def _drive(backend: RobotBackend, controller: Controller, state: MeasuredState, 
             began = clock()
             added = backend.added_torque(state)
             if hold is not None:
-                hold(sent + added)
+                hold(sent + added, added)
             try:
                 tau, v = controller.evaluate(state.position, state.velocity)
             except ConstraintViolation as exc:
@@ -187,11 +187,12 @@ def _drive(backend: RobotBackend, controller: Controller, state: MeasuredState, 
     return None
 
 
-def _holder(controller: Controller) -> Callable[[Array], None] | None:
+def _holder(controller: Controller) -> Callable[[Array, Array], None] | None:
     """How to tell ``controller`` the torque the robot holds (its own convention: the last
-    command plus what the robot adds at the new state), when it limits the torque's rate
-    of change from it: then each command lies within the rate box of the last, as the
-    robot's rule asks; None for a controller that does not."""
+    command plus what the robot adds at the new state) and what the robot adds, when it
+    limits the torque's rate of change from it: then each command lies within the rate box
+    of the last and within the robot's box, which bounds the command, gravity excluded, as
+    the robot's rules ask; None for a controller that does not."""
     if isinstance(controller, SafetyFilter):  # a guarded reference tracker too
         return controller.holding
     return None

@@ -375,10 +375,10 @@ class GuardedReferenceTracker(ReferenceTracker, SafetyFilter):
         assert isinstance(run, SafetyFilter)
         return run.row_active_steps
 
-    def holding(self, tau: Array) -> None:
+    def holding(self, tau: Array, added: Array | None = None) -> None:
         run = self.run
         assert isinstance(run, SafetyFilter)
-        run.holding(tau)
+        run.holding(tau, added)
 
 
 def tracking(law: Controller, period: float, plan: ReferencePlan | None = None,

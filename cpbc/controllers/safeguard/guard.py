@@ -143,6 +143,8 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         self._torque_box = None if box_limit is None else TorqueBox.of(law.model, box_limit)
         self._step_box = self._torque_box  # the box of this step (narrowed by the rate)
         self._holding: Array | None = None  # the torque the actuators hold (controller coords)
+        self._added: Array | None = None  # the torque the robot adds itself (holding)
+        self._static_box = self._torque_box  # the torque box of this step (moved by _added)
         self._ramp: RampTest | None = None  # this step's velocity lookahead (rate limit)
         nc_all = self.guarded.n_configuration
         self._velocity_floor = np.maximum(self.cushion[nc_all:], 1e-300)
@@ -180,12 +182,15 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
             tau = self._rate_limited(state, out.torque, out.margins)
         return Evaluation(tau, out.lyapunov, out.margins if margins else None)
 
-    def holding(self, tau: Array) -> None:
+    def holding(self, tau: Array, added: Array | None = None) -> None:
         """Tell the guard the torque the actuators hold now (controller coordinates): the
         next step's torque lies within ρh of it. The guard's own last torque is assumed
         otherwise, and at its first step the gravity torque of its first state (an arm held
-        at rest; a Franka's own gravity compensation)."""
+        at rest; a Franka's own gravity compensation). ``added``: the torque the robot adds
+        to every command itself at this state (a Franka's gravity compensation), whose box
+        then bounds the command, τ − added, not τ: the guard's box moves by it."""
         self._holding = np.array(tau, dtype=float)
+        self._added = None if added is None else np.array(added, dtype=float)
 
     def _rate_limited(self, state: ArmState, law: Array, law_margins: Array) -> Array:
         """The guard's step inside the box one step can reach from the held torque: every
@@ -193,6 +198,12 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         and the torque returned lies in it."""
         assert self._torque_box is not None and self._rate_step is not None
         box = self._torque_box
+        if self._added is not None:  # the robot's box bounds the command, τ − added
+            lower, upper = box.bounds
+            shift = box.joint(self._added)
+            box = TorqueBox(box.limit, box.to_joint, box.from_joint, lower + shift,
+                            upper + shift)
+        self._static_box = box
         held = state.gravity if self._holding is None else self._holding
         self._holding = held  # this step's anchor (_box)
         self._step_box = box.around(box.joint(held), self._rate_step)
@@ -276,7 +287,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         reaches, τ_h + s(τ − τ_h): the change of acceleration keeps its direction too (a
         brake clipped joint by joint into the rate box spun the Panda's base joint up
         through its rate bound)."""
-        box = self._torque_box
+        box = self._static_box
         if box is None:
             return tau
         boxed = box.toward(bias, tau)
