@@ -22,7 +22,7 @@ import yaml
 from cpbc.errors import CpbcError, InadmissibleStateError
 from cpbc.hardware.franka import FrankaBackend
 from cpbc.hardware.motion import MotionSettings
-from cpbc.hardware.runner import HardwareRun, choose_controller, run_on_robot
+from cpbc.hardware.robot_run import HardwareRun, choose_controller, run_on_robot
 from cpbc.hardware.simulator import FrankySim, loopback_address
 from cpbc.scenario import build, load_scenario
 

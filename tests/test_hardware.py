@@ -23,14 +23,14 @@ import pytest
 import yaml
 
 from cpbc.errors import InadmissibleStateError, ParameterError, ScenarioError
-from cpbc.hardware import runner
+from cpbc.hardware import robot_run
 from cpbc.hardware.__main__ import main
 from cpbc.hardware.backend import RobotDynamics, RobotLimits
 from cpbc.hardware.dry_run import ModelTolerance, compare_models
 from cpbc.hardware.franka import FR3_LIMITS, fault_name
 from cpbc.hardware.motion import MotionLog, MotionSettings
+from cpbc.hardware.robot_run import HardwareRun, choose_controller, lockstep_for, run_on_robot
 from cpbc.hardware.rules import check_rules
-from cpbc.hardware.runner import HardwareRun, choose_controller, lockstep_for, run_on_robot
 from cpbc.hardware.simulator import FrankySim, loopback_address
 from cpbc.scenario import ScenarioSetup, build, load_scenario
 
@@ -159,7 +159,7 @@ def test_a_dropped_connection_ends_with_exit_1_and_the_files(franky: FrankySim,
     out = tmp_path / "run"
     killer = threading.Timer(1.0, franky.stop)  # 1 s into the motion
     err = io.StringIO()
-    drive = runner.run_motion
+    drive = robot_run.run_motion
 
     def drive_then_drop(*args: Any) -> MotionLog:
         killer.start()
@@ -167,7 +167,7 @@ def test_a_dropped_connection_ends_with_exit_1_and_the_files(franky: FrankySim,
 
     with pytest.MonkeyPatch.context() as patch, contextlib.redirect_stderr(err), \
             contextlib.redirect_stdout(io.StringIO()):
-        patch.setattr(runner, "run_motion", drive_then_drop)
+        patch.setattr(robot_run, "run_motion", drive_then_drop)
         code = main([str(SCENARIO), "--robot-ip", franky.host, "--out", str(out),
                      "--deadline-ms", str(DEADLINE * 1e3)])
     killer.cancel()
@@ -189,7 +189,7 @@ def test_a_dropped_connection_ends_with_exit_1_and_the_files(franky: FrankySim,
 def test_ctrl_c_brakes_finishes_and_writes(franky: FrankySim, tmp_path: Path) -> None:
     out = tmp_path / "run"
     interrupt = threading.Timer(0.5, _thread.interrupt_main)  # Ctrl-C 0.5 s into the motion
-    drive = runner.run_motion
+    drive = robot_run.run_motion
     runs: list[MotionLog] = []
 
     def drive_then_interrupt(*args: Any) -> MotionLog:
@@ -199,7 +199,7 @@ def test_ctrl_c_brakes_finishes_and_writes(franky: FrankySim, tmp_path: Path) ->
 
     with pytest.MonkeyPatch.context() as patch, contextlib.redirect_stderr(io.StringIO()), \
             contextlib.redirect_stdout(io.StringIO()):
-        patch.setattr(runner, "run_motion", drive_then_interrupt)
+        patch.setattr(robot_run, "run_motion", drive_then_interrupt)
         code = main([str(SCENARIO), "--robot-ip", franky.host, "--out", str(out),
                      "--deadline-ms", str(DEADLINE * 1e3)])
     interrupt.cancel()

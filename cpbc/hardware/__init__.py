@@ -5,7 +5,7 @@ Low layer (beside cpbc.simulation; model and controllers below): the robot proto
 pylibfranka, :mod:`~cpbc.hardware.lockstep` over MuJoCo), one motion
 (:mod:`~cpbc.hardware.motion`) and the robot's rules checked on its log
 (:mod:`~cpbc.hardware.rules`). Top layer (beside cpbc.run: the scenario builder and the
-results below): :mod:`~cpbc.hardware.runner` and :mod:`~cpbc.hardware.dry_run`.
+results below): :mod:`~cpbc.hardware.robot_run` and :mod:`~cpbc.hardware.dry_run`.
 """
 
 from cpbc.hardware.backend import (

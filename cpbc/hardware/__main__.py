@@ -21,8 +21,8 @@ import numpy as np
 from cpbc.errors import CpbcError
 from cpbc.hardware.backend import RobotBackend, RobotFault
 from cpbc.hardware.motion import MotionSettings
-from cpbc.hardware.runner import HardwareRun, choose_controller, lockstep_for, run_on_robot
-from cpbc.hardware.runner import write_run as write_files
+from cpbc.hardware.robot_run import HardwareRun, choose_controller, lockstep_for, run_on_robot
+from cpbc.hardware.robot_run import write_run as write_files
 from cpbc.scenario import build
 from cpbc.scenario.arm_setup import ScenarioSetup
 from cpbc.scenario.load import load_any

@@ -14,7 +14,7 @@ from cpbc.arrays import Array
 from cpbc.controllers.controller import Controller
 from cpbc.errors import ConstraintViolation, ScenarioError
 from cpbc.hardware.backend import MeasuredState, RobotBackend, RobotDynamics
-from cpbc.hardware.runner import check_fits, check_start, warm
+from cpbc.hardware.robot_run import check_fits, check_start, warm
 from cpbc.scenario.arm_setup import ControllerEntry, ScenarioSetup
 
 

@@ -17,8 +17,8 @@ from cpbc.kernels.coordinate_maps import joint_friction, to_controller, to_joint
 from cpbc.model.arm_state import NO_FRAMES as _NO_FRAMES
 from cpbc.model.arm_state import ArmState
 from cpbc.model.coordinates import LinearCoordinates
+from cpbc.model.coulomb import coulomb_levels
 from cpbc.model.frames import FrameKinematics, offset_jacobian
-from cpbc.model.joint_dynamics import coulomb_levels
 
 _WORLD_ALIGNED = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 # the empty inputs of RobotModel.joint_pass: no Coriolis matrix, no frame, no joint kinematics
