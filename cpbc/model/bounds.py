@@ -66,10 +66,13 @@ def estimate_bounds(
     zeta_c = float(c_vals.max())
     n = model.n
     for i in np.argsort(c_vals)[-3:]:
+        # ‖C(x, v)‖/‖v‖ depends on v's direction only: v kept in the box |v_j| ≤ 1, which
+        # holds every direction (unbounded, L-BFGS-B's line search once looped without end
+        # in a worker process on the planar arm, whose bound is flat along v's length)
         res = minimize(
             lambda z: -_coriolis_norm(model, z[:n], z[n:]),
-            np.concatenate([xs[i], vs[i]]),
-            bounds=bounds + [(None, None)] * n,
+            np.concatenate([xs[i], vs[i] / np.max(np.abs(vs[i]))]),
+            bounds=bounds + [(-1.0, 1.0)] * n, options={"maxiter": 200},
         )
         zeta_c = max(zeta_c, float(-res.fun))
     zeta_f = float(np.linalg.norm(model.viscous_friction, 2))
