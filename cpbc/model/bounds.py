@@ -67,12 +67,14 @@ def estimate_bounds(
     n = model.n
     for i in np.argsort(c_vals)[-3:]:
         # ‖C(x, v)‖/‖v‖ depends on v's direction only: v kept in the box |v_j| ≤ 1, which
-        # holds every direction (unbounded, L-BFGS-B's line search once looped without end
-        # in a worker process on the planar arm, whose bound is flat along v's length)
+        # holds every direction; Powell's derivative-free search with a bounded number of
+        # evaluations (scipy's L-BFGS-B looped without end here, inside one iteration, in
+        # the worker processes of a parallel run on the planar arm: 15+ min of CPU each)
         res = minimize(
             lambda z: -_coriolis_norm(model, z[:n], z[n:]),
             np.concatenate([xs[i], vs[i] / np.max(np.abs(vs[i]))]),
-            bounds=bounds + [(-1.0, 1.0)] * n, options={"maxiter": 200},
+            bounds=bounds + [(-1.0, 1.0)] * n, method="Powell",
+            options={"maxfev": 400 * n, "xtol": 1e-6, "ftol": 1e-10},
         )
         zeta_c = max(zeta_c, float(-res.fun))
     zeta_f = float(np.linalg.norm(model.viscous_friction, 2))
