@@ -14,8 +14,8 @@ says it for one state by construction. Three brakes, each computed from the mode
 
       min ‖D⁻¹(T⁻ᵀ τ_q − b) + ẋ/h‖   subject to   −L ≤ τ_q ≤ L
 
-  (SciPy's bounded least squares): each joint decelerates as hard as the box lets it, not
-  only as hard as the weakest joint lets all of them;
+  (a compiled bounded least squares, cpbc.kernels.bounded_lsq): each joint decelerates as
+  hard as the box lets it, not only as hard as the weakest joint lets all of them;
 * the **aimed** brake: the same problem with one more row, weighted ``aim_weight``, that asks
   the approach v_i = −∇φ_i · ẋ of the configuration constraint with the least first-order
   stopping margin (:func:`cpbc.constraints.stopping.stopping_margins`) to stop within the
@@ -37,6 +37,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import stopping_margins
+from cpbc.kernels.bounded_lsq import bounded_least_squares
 from cpbc.kernels.sampled_guard import box_clip, box_toward
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -139,10 +140,9 @@ def _nearest_stop(box: TorqueBox, state: ArmState, bias: Array, h: float,
     if rows is not None and wanted is not None:
         a = np.vstack((a, rows @ a))
         target = np.concatenate((target, wanted + rows @ free))
-    # SciPy's optimiser loads here, on the guard's rare path: 0.1 s off every start-up
-    from scipy.optimize import lsq_linear
-
-    tau_q = lsq_linear(a, target, bounds=box.bounds, method="bvls").x
+    tau_q = np.empty(a.shape[1])
+    lower, upper = box.bounds
+    bounded_least_squares(np.ascontiguousarray(a), target, lower, upper, tau_q)
     return tau_q if box.from_joint is None else box.from_joint.dot(tau_q)
 
 
