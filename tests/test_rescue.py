@@ -7,9 +7,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from cpbc.constraints.brakes import TorqueBox
+from cpbc.constraints.brakes import Rollout, TorqueBox, brakes, model_advance
 from cpbc.controllers.rescue import Rescue
+from cpbc.controllers.safeguard import SafeguardSettings
 from cpbc.controllers.safeguard.prediction import predictor, travel_share
+from cpbc.errors import CpbcError
 from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
 from cpbc.reliability.verification import draw_state, stopping_brake
 from cpbc.scenario import build, load_scenario
@@ -91,3 +93,83 @@ def test_the_guard_keeps_the_clearance_of_the_figure8_from_a_stoppable_state(fig
                         safeguard=setup.safeguard, phase=setup.reference.phase(entry.name, 19))
     assert not check.violated, (check.constraint, check.min_margin)
     assert check.trajectory.rescues > 0  # the rescue did hold brakes on the way
+
+
+def _rescue_at(figure8, seed, budget):
+    setup, _, kept = figure8
+    s = draw_state(setup, seed)
+    box = TorqueBox.of(setup.model, setup.loop_settings.torque_limit)
+    rescue = Rescue(setup.model, kept, box, np.full(len(kept.names), 1e-5), H, 1, budget=budget)
+    state = setup.model.state(s.position, s.velocity)
+    bias = state.coriolis_force + state.gravity + state.dissipation
+    return rescue, state, bias, kept.margins(s.position, s.velocity)
+
+
+def test_a_rollout_run_in_pieces_ends_as_one_run_to_its_end(figure8):
+    """A check spread over control periods (the rescue's budget) decides as the same check
+    run at once: same outcome, periods and least margin."""
+    setup, _, kept = figure8
+    s = draw_state(setup, 19)
+    box = TorqueBox.of(setup.model, setup.loop_settings.torque_limit)
+    table = brakes(box, kept, setup.model)
+    outcomes = []
+    for piece in (None, 3):
+        advance = model_advance(setup.model, box, s.position, s.velocity, H, 1)
+        check = Rollout(table["least_squares"], setup.model, kept.margins_along, advance,
+                        s.position, s.velocity, H, horizon=2.0)
+        stop, calls = check.run(piece), 1
+        while stop is None:
+            assert check.held == 3 * calls  # exactly the budget each call
+            stop, calls = check.run(piece), calls + 1
+        outcomes.append((stop, calls))
+    (whole, one), (pieces, many) = outcomes
+    assert one == 1 and many > 1 and whole.periods > 3
+    assert whole == pieces
+
+
+def test_under_a_budget_the_rescue_holds_the_brake_under_check_and_goes_on_checking(figure8):
+    """With a budget of 2 model periods a period the first brake is committed before its
+    check ends, held while the check runs on ahead, and the check ends with the brake the
+    unbounded search chose."""
+    rescue, state, bias, now = _rescue_at(figure8, 19, budget=2)
+    unbounded, *_ = _rescue_at(figure8, 19, budget=None)
+
+    def holds(_tau, _floor):
+        return True
+
+    assert unbounded.torque(state, bias, now, holds, 10) is not None
+    assert rescue.torque(state, bias, now, holds, 10) is not None
+    assert rescue.committed == "least_squares" and rescue._check is not None
+    assert rescue._check.held == 2
+    step = 11
+    while rescue._check is not None:  # held period after period, checked 2 periods ahead
+        assert rescue.torque(state, bias, now, holds, step) is not None
+        step += 1
+    assert rescue.searches == 1 and rescue.committed == unbounded.committed
+    assert step - 10 > 5  # the check took several periods
+
+
+def test_a_check_that_fails_ahead_of_the_arm_moves_to_the_next_brake(figure8):
+    """A committed brake whose check sees a margin fall below its floor is left for the next
+    candidate, checked from the arm's state then (here: a floor no brake keeps)."""
+    rescue, state, bias, now = _rescue_at(figure8, 19, budget=1)
+
+    def holds(_tau, _floor):
+        return True
+
+    assert rescue.torque(state, bias, now, holds, 10) is not None
+    first = rescue._candidate
+    check = rescue._check
+    assert check is not None
+    # from here on the check finds every margin below its floor
+    check.margins = lambda xs, dxs: np.full((len(xs), len(now)), -1.0)
+    rescue.torque(state, bias, now, holds, 11)
+    assert rescue._candidate == first + 1 and rescue.committed == "aimed"
+    assert rescue.searches == 1  # moved on, not searched afresh
+
+
+def test_a_budget_below_one_period_is_refused(figure8):
+    with pytest.raises(ValueError, match="budget"):
+        _rescue_at(figure8, 19, budget=0)
+    with pytest.raises(CpbcError, match="rescue_budget"):
+        SafeguardSettings(rescue_budget=0)

@@ -18,7 +18,7 @@ says it for one state by construction. Three brakes, each computed from the mode
   hard as the box lets it, not only as hard as the weakest joint lets all of them;
 * the **aimed** brake: the same problem with one more row, weighted ``aim_weight``, that asks
   the approach v_i = −∇φ_i · ẋ of the configuration constraint with the least first-order
-  stopping margin (:func:`cpbc.constraints.stopping.stopping_margins`) to stop within the
+  stopping margin (:func:`cpbc.constraints.stopping.stopping_terms`) to stop within the
   period, ∇φ_i · ẍ = v_i / h; the least-squares brake when nothing approaches.
 
 :func:`brings_to_rest` holds a brake period after period in a given plant (the model, or the
@@ -36,7 +36,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.constraints.stopping import stopping_margins
+from cpbc.constraints.stopping import stopping_terms
 from cpbc.kernels.bounded_lsq import bounded_least_squares
 from cpbc.kernels.sampled_guard import box_clip, box_toward
 from cpbc.model.robot_model import ArmState, RobotModel
@@ -163,12 +163,11 @@ def aimed_brake(box: TorqueBox, constraints: ConstraintSet, model: RobotModel,
     def brake(state: ArmState, bias: Array, h: float) -> Array:
         if not constraints.configuration:
             return _nearest_stop(box, state, bias, h, None, None)
-        s, speed, _ = stopping_margins(constraints, model, state.x, state.dx, box.limit)
+        s, speed, _, grads = stopping_terms(constraints, model, state, bias, box.limit)
         approaching = np.flatnonzero(speed > 0)
         if not approaching.size:
             return _nearest_stop(box, state, bias, h, None, None)
         i = int(approaching[np.argmin(s[approaching])])
-        grads = np.concatenate([c.gradient(state.x) for c in constraints.configuration])
         g = grads[i]
         norm = math.sqrt(float(g.dot(g)))
         if norm == 0.0:
@@ -206,30 +205,73 @@ class Stop:
     low: float
 
 
+class Rollout:
+    """One brake held in a plant from (x, ẋ), period after period, until the arm rests with
+    every margin above its floor, or a margin falls to it, or ``horizon`` seconds pass; run a
+    bounded number of periods at a time (:meth:`run`), so that a check can be spread over
+    several control periods (the rescue's budget, cpbc.controllers.rescue).
+
+    Args:
+        brake: recomputed at every sample from ``model``.
+        model: the model the brake is computed from.
+        margins: each reported step's margins less their floors (rows).
+        advance: the plant that holds the brake's torque for a period.
+        x, dx: the start.
+        h: the control period [s].
+        rest: max|ẋ| under which the arm rests.
+        horizon: the longest braking held [s].
+    """
+
+    def __init__(self, brake: Brake, model: RobotModel,
+                 margins: Callable[[Array, Array], Array], advance: Advance, x: Array,
+                 dx: Array, h: float, rest: float = 1e-3, horizon: float = 3.0) -> None:
+        self.brake, self.model, self.margins, self.advance = brake, model, margins, advance
+        self.x, self.dx, self.h, self.rest = x, dx, h, rest
+        self.periods = max(math.ceil(horizon / h), 1)
+        self.held = 0  # periods held so far
+        self.low = math.inf  # the least margin less its floor so far
+        self.outcome: Stop | None = None
+
+    def run(self, budget: int | None = None) -> Stop | None:
+        """Hold the brake for at most ``budget`` more periods (to the end without one); the
+        outcome once it is decided, else None (the check goes on at the next call)."""
+        if self.outcome is not None:
+            return self.outcome
+        end = self.periods if budget is None else min(self.periods, self.held + budget)
+        while self.held < end:
+            if float(np.max(np.abs(self.dx))) <= self.rest:
+                return self._decided(Stop(self.low > 0.0, self.held, self.low))
+            state = self.model.state(self.x, self.dx)
+            bias = state.coriolis_force + state.gravity + state.dissipation
+            rows = self.advance(self.brake(state, bias, self.h))
+            self.held += 1
+            if rows is None:
+                return self._decided(Stop(False, self.held, -math.inf))
+            xs, dxs = rows
+            m = self.margins(xs, dxs)
+            least = float(np.min(np.where(np.isnan(m), -np.inf, m))) if m.size else math.inf
+            self.low = min(self.low, least)
+            if not self.low > 0.0:
+                return self._decided(Stop(False, self.held, self.low))
+            self.x, self.dx = xs[-1], dxs[-1]
+        if self.held >= self.periods:
+            return self._decided(Stop(False, self.periods, self.low))
+        return None
+
+    def _decided(self, stop: Stop) -> Stop:
+        self.outcome = stop
+        return stop
+
+
 def brings_to_rest(brake: Brake, model: RobotModel, margins: Callable[[Array, Array], Array],
                    advance: Advance, x: Array, dx: Array, h: float, rest: float = 1e-3,
                    horizon: float = 3.0) -> Stop:
     """Hold ``brake`` (recomputed at every sample from ``model``) in the plant ``advance``
     from (x, ẋ) until max|ẋ| ≤ ``rest``; ``margins`` gives each reported step's margins less
-    their floors (rows). At most ``horizon`` seconds."""
-    low = math.inf
-    periods = max(math.ceil(horizon / h), 1)
-    for k in range(periods):
-        if float(np.max(np.abs(dx))) <= rest:
-            return Stop(low > 0.0, k, low)
-        state = model.state(x, dx)
-        bias = state.coriolis_force + state.gravity + state.dissipation
-        rows = advance(brake(state, bias, h))
-        if rows is None:
-            return Stop(False, k + 1, -math.inf)
-        xs, dxs = rows
-        m = margins(xs, dxs)
-        least = float(np.min(np.where(np.isnan(m), -np.inf, m))) if m.size else math.inf
-        low = min(low, least)
-        if not low > 0.0:
-            return Stop(False, k + 1, low)
-        x, dx = xs[-1], dxs[-1]
-    return Stop(False, periods, low)
+    their floors (rows). At most ``horizon`` seconds (:class:`Rollout`, run to its end)."""
+    stop = Rollout(brake, model, margins, advance, x, dx, h, rest, horizon).run()
+    assert stop is not None  # decided: no budget
+    return stop
 
 
 def ramped(box: TorqueBox, tau: Array, rate_step: Array | None,

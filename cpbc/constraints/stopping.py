@@ -35,7 +35,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.kernels.sampled_guard import uniform_deceleration
-from cpbc.model.robot_model import RobotModel
+from cpbc.model.robot_model import ArmState, RobotModel
 
 
 def stopping_margins(
@@ -55,20 +55,33 @@ def stopping_margins(
         return empty, empty, empty
     state = model.state(x, dx)
     bias = state.coriolis_force + state.gravity + state.dissipation
-    values, gradients = zip(*(c.evaluate(x) for c in constraints.configuration), strict=True)
-    phi, grads = np.concatenate(values), np.concatenate(gradients)
-    curvature = np.concatenate([c.curvature(x, dx) for c in constraints.configuration])
+    margins, speed, decel, _ = stopping_terms(constraints, model, state, bias, torque_limit)
+    return margins, speed, decel
+
+
+def stopping_terms(constraints: ConstraintSet, model: RobotModel, state: ArmState,
+                   bias: Array, torque_limit: Array) -> tuple[Array, Array, Array, Array]:
+    """:func:`stopping_margins` at a per-step state whose bias b is known, with the
+    gradients ∇φ_i as well (rows): φ, ∇φ and ẋᵀ∇²φ ẋ from each constraint's
+    ``motion_terms`` (the state's kinematics, no Pinocchio pass of their own; a state
+    built without them is built again with them)."""
+    if state.joint_jacobians is None:
+        state = model.state(state.x, state.dx, kinematics=True)
+    terms = [c.motion_terms(state) for c in constraints.configuration]
+    phi = np.concatenate([t[0] for t in terms])
+    grads = np.concatenate([t[1] for t in terms])
+    curvature = np.concatenate([t[2] for t in terms])
     inv_d_grads = np.linalg.solve(state.inertia, grads.T)  # D⁻¹ ∇φᵀ, (n, k)
     w = model.coordinates.inverse @ inv_d_grads  # T⁻¹ D⁻¹ ∇φᵀ: a torque in joint units
     # Σ_j |w_jk| L_j, where a joint without a limit (L_j = ∞) adds ∞ only if it moves φ_k
     reach = np.where(w != 0.0, np.abs(w) * np.broadcast_to(torque_limit, (model.n,))[:, None],
                      0.0).sum(axis=0)
     decel = reach - inv_d_grads.T @ bias + curvature
-    speed = -(grads @ dx)
+    speed = -(grads @ state.dx)
     with np.errstate(divide="ignore", invalid="ignore"):
         lost = np.where(decel > 0, speed * speed / (2.0 * decel), np.inf)
     margins = np.where(speed > 0, phi - lost, phi)
-    return margins, speed, decel
+    return margins, speed, decel, grads
 
 
 

@@ -22,6 +22,22 @@ the hand 4 mm through the table's clearance, where the uniform brake would have 
 That is the whole promise: from a state where the model says one of these brakes stops the
 arm inside S, the guard holds that brake. The search runs only on the guard's infeasible path;
 the accept path does not change.
+
+**A bounded step.** Holding a brake until rest in the model costs a period of model
+(Pinocchio's passes, the brake, the margins: 30–100 µs on the Panda) per period of braking,
+and a brake under a torque-rate limit takes 0.1–0.3 s to stop the arm: a search could take
+tens of milliseconds, and a 1 kHz loop on a robot must answer within its period. With a
+*budget* of B model periods per control period (``SafeguardSettings.rescue_budget``, 4 by
+default) each check is a :class:`cpbc.constraints.brakes.Rollout` run B periods at a time:
+a candidate whose check has not ended when the budget runs out is committed and held, and its
+check goes on in the next periods, B model periods ahead of the arm per period held (the
+brake the arm holds is the one the check holds, from the same state). Should the check see a
+margin fall below its floor, the next candidate is checked from the arm's state then, with
+the remaining candidates of the same order; when none is left the guard's own fallback
+answers. What this gives up: a brake is held before its check has seen the arm to rest, so
+a brake that fails late is left later than the unbounded search would have left it (after
+1/B of the time to the failure). ``rescue_budget=None`` restores the search that ends in the
+period it starts.
 """
 
 from __future__ import annotations
@@ -31,7 +47,7 @@ from collections.abc import Callable
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.constraints.brakes import TorqueBox, brakes, brings_to_rest, model_advance
+from cpbc.constraints.brakes import Rollout, TorqueBox, brakes, model_advance
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -53,64 +69,97 @@ class Rescue:
         rate_step: ρh, how far the joint torques can move in one period under a torque-rate
             limit, or None: each brake is then held as the motors would let it ramp from
             the torque held at the sample (model_advance).
+        budget: the periods of the model the search may hold brakes for in one control
+            period, all candidates together, or None for no bound (the search then ends in
+            the period it starts). With a budget a check that has not ended when the budget
+            runs out goes on in the next periods, B model periods ahead per period held,
+            while the guard holds the brake under check (the module docstring).
     """
 
     def __init__(self, model: RobotModel, guarded: ConstraintSet, box: TorqueBox,
                  cushion: Array, period: float, steps: int, horizon: float = 2.0,
-                 rate_step: Array | None = None) -> None:
+                 rate_step: Array | None = None, budget: int | None = None) -> None:
+        if budget is not None and budget < 1:
+            raise ValueError(f"rescue budget must be ≥ 1 period, got {budget}")
         self.model, self.guarded, self.box = model, guarded, box
-        self.rate_step = rate_step
+        self.rate_step, self.budget = rate_step, budget
         self.cushion, self.period, self.steps, self.horizon = cushion, period, steps, horizon
         self.table = brakes(box, guarded, model)
         self.committed: str | None = None
         self.floor: Array | None = None  # the floor of the search that committed the brake
         self.held_at: int | None = None  # the control step at which it was last held
         self.searches = 0
+        # the check of the committed brake while it goes on (a budget), and where in the
+        # order of candidates (two rounds of ORDER: cushioned floor, then none) it stands
+        self._check: Rollout | None = None
+        self._candidate = 0
+        self._floors: tuple[Array, Array] = (cushion, np.zeros_like(cushion))
 
     def torque(self, state: ArmState, bias: Array, now: Array,
                holds: Callable[[Array, Array], bool], step: int,
                held: Array | None = None) -> Array | None:
         """The committed brake's torque if it was held at the step before ``step`` (the
-        guard's count of control steps) and ``holds(τ, floor)`` accepts it (its one-period
-        prediction keeps every margin above the floor of the search that committed it), else
-        the first brake whose model braking keeps every margin above its floor until rest
-        (the module docstring; then committed), else None. ``now``: the margins m_i at the
-        sample; ``held``: the torque the actuators hold (under a torque-rate limit)."""
+        guard's count of control steps), ``holds(τ, floor)`` accepts it (its one-period
+        prediction keeps every margin above the floor of the search that committed it) and
+        its check has not failed, else the first brake whose model braking keeps every
+        margin above its floor until rest — or, under a budget, whose check has not failed
+        when the budget runs out — (the module docstring; then committed), else None.
+        ``now``: the margins m_i at the sample; ``held``: the torque the actuators hold
+        (under a torque-rate limit)."""
+        budget = self.budget
         if (self.committed is not None and self.floor is not None
                 and self.held_at == step - 1):
             tau = self.table[self.committed](state, bias, self.period)
             if holds(tau, self.floor):
-                self.held_at = step
-                return tau
-        self.committed = None
-        self.searches += 1
-        # first with a cushion: a margin keeps δ_i, or half of itself where it is below δ_i
-        # already; then with none (every margin positive in the model)
-        cushioned = np.minimum(self.cushion, 0.5 * np.maximum(now, 0.0))
-        for floor in (cushioned, np.zeros_like(cushioned)):
-            name = self._search(state, floor, held)
-            if name is not None:
+                stop = None if self._check is None else self._check.run(budget)
+                if self._check is None or stop is None or stop.stopped:
+                    if stop is not None:
+                        self._check = None  # passed: nothing left to check
+                    self.held_at = step
+                    return tau
+                # its check failed ahead of the arm: the next candidate, from here
+                return self._search(state, bias, now, step, held, self._candidate + 1,
+                                    budget)
+        return self._search(state, bias, now, step, held, 0, budget)
+
+    def _search(self, state: ArmState, bias: Array, now: Array, step: int,
+                held: Array | None, first: int, budget: int | None) -> Array | None:
+        """The first candidate from ``first`` on (ORDER with the cushioned floor, then with
+        none) whose check passes, or under a budget has not failed when it runs out."""
+        self.committed, self._check = None, None
+        if first == 0:
+            self.searches += 1
+            # first with a cushion: a margin keeps δ_i, or half of itself where it is below
+            # δ_i already; then with none (every margin positive in the model)
+            cushioned = np.minimum(self.cushion, 0.5 * np.maximum(now, 0.0))
+            self._floors = (cushioned, np.zeros_like(cushioned))
+        left = budget
+        for k in range(first, 2 * len(ORDER)):
+            name, floor = ORDER[k % len(ORDER)], self._floors[k // len(ORDER)]
+            check = self._rollout(state, name, floor, held)
+            stop = check.run(left)
+            if stop is None or stop.stopped:
                 self.committed, self.floor, self.held_at = name, floor, step
+                self._candidate, self._check = k, (check if stop is None else None)
                 return self.box.clip(self.table[name](state, bias, self.period))
+            if left is not None:
+                left = max(left - check.held, 1)  # every candidate gets at least a period
         return None
 
-    def _search(self, state: ArmState, floor: Array, held: Array | None) -> str | None:
-        """The first brake of ORDER that, held in the model until rest (ramped from ``held``
-        under a torque-rate limit), keeps every margin above ``floor``."""
+    def _rollout(self, state: ArmState, name: str, floor: Array,
+                 held: Array | None) -> Rollout:
+        """The check of brake ``name`` from the state: held in the model until rest (ramped
+        from ``held`` under a torque-rate limit), every margin above ``floor``."""
 
         def margins(xs: Array, dxs: Array) -> Array:
             return self.guarded.margins_along(xs, dxs) - floor
 
-        for name in ORDER:
-            advance = model_advance(self.model, self.box, state.x, state.dx, self.period,
-                                    self.steps, self.rate_step,
-                                    state.gravity if held is None else held)
-            stop = brings_to_rest(self.table[name], self.model, margins, advance, state.x,
-                                  state.dx, self.period, horizon=self.horizon)
-            if stop.stopped:
-                return name
-        return None
+        advance = model_advance(self.model, self.box, state.x, state.dx, self.period,
+                                self.steps, self.rate_step,
+                                state.gravity if held is None else held)
+        return Rollout(self.table[name], self.model, margins, advance, state.x, state.dx,
+                       self.period, horizon=self.horizon)
 
     def forget(self) -> None:
         self.committed = self.floor = self.held_at = None
-
+        self._check = None

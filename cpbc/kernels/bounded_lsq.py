@@ -32,7 +32,8 @@ from cpbc.kernels.small_solves import _solve_lu
 
 @kernel("void(float64[:, :], float64[:], float64[:], boolean[:], float64[:], int64[:])",
         inline=True)
-def _free_solve(gram: Array, rhs: Array, z: Array, free: Array, y: Array, idx: Array) -> None:
+def _free_solve(gram: Array, rhs: Array, z: Array, free: np.ndarray, y: Array,
+                idx: np.ndarray) -> None:
     """The minimiser over the free variables (indices ``idx``) with the bound ones held at z:
     their rows of AᵀA z = Aᵀt, into y."""
     n, k = z.shape[0], idx.shape[0]
@@ -51,8 +52,8 @@ def _free_solve(gram: Array, rhs: Array, z: Array, free: Array, y: Array, idx: A
 
 @kernel("void(float64[:], float64[:], float64[:], boolean[:], float64[:], int64[:])",
         inline=True)
-def _step_toward(lower: Array, upper: Array, z: Array, free: Array, y: Array,
-                 idx: Array) -> None:
+def _step_toward(lower: Array, upper: Array, z: Array, free: np.ndarray, y: Array,
+                 idx: np.ndarray) -> None:
     """z moved toward y (free variables ``idx``) as far as the box allows, binding the
     variable that sets the step and any other the step carries onto a bound."""
     k = idx.shape[0]
@@ -79,7 +80,7 @@ def _step_toward(lower: Array, upper: Array, z: Array, free: Array, y: Array,
 
 @kernel("void(float64[:, :], float64[:], float64[:], float64[:], boolean[:], float64[:])",
         inline=True)
-def _free_minimiser(gram: Array, rhs: Array, lower: Array, upper: Array, free: Array,
+def _free_minimiser(gram: Array, rhs: Array, lower: Array, upper: Array, free: np.ndarray,
                     z: Array) -> None:
     """Step 2 of the module docstring: z (feasible, updated in place) moved to the minimiser
     over the free variables with the bound ones held, or as far toward it as the box allows,
@@ -103,7 +104,7 @@ def _free_minimiser(gram: Array, rhs: Array, lower: Array, upper: Array, free: A
 
 @kernel("int64(float64[:, :], float64[:], float64[:], boolean[:], float64[:], float64)",
         inline=True)
-def _most_downhill(gram: Array, rhs: Array, z: Array, free: Array, lower: Array,
+def _most_downhill(gram: Array, rhs: Array, z: Array, free: np.ndarray, lower: Array,
                    scale: float) -> int:
     """Step 3: the bound variable whose w_j = (Aᵀ(t − A z))_j points furthest into the box
     (beyond ``scale``), or −1 when none does (optimal)."""

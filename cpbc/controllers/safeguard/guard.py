@@ -155,7 +155,8 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         # where no torque of its own will do: brakes better than the uniform one (rescue.py)
         self.rescue = None if self.braking is None or self._torque_box is None else Rescue(
             law.model, self.guarded, self._torque_box, self.cushion,
-            self.period, self.substeps, rate_step=self._rate_step)
+            self.period, self.substeps, rate_step=self._rate_step,
+            budget=self.settings.rescue_budget)
         self.calls = 0
         self.acted = 0
         self.infeasible = 0

@@ -12,6 +12,10 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.errors import CpbcError
 
+# the rescue's default budget [model periods per control period]: its checks cost 30–100 µs
+# a period on the Panda, so the rescue adds at most a few hundred µs to a step
+RESCUE_BUDGET = 4
+
 
 @dataclass(frozen=True)
 class SafeguardSettings:
@@ -58,6 +62,10 @@ class SafeguardSettings:
             arm, RK4): on a 7-joint arm near its rate bounds the acceleration changes
             enough within 1 ms (Coriolis terms of fast joints) that the frozen one alone
             misses a rate margin by more than its cushion.
+        rescue_budget: the periods of the model the rescue may hold its brakes for in one
+            control period (cpbc.controllers.rescue.Rescue's ``budget``), None for no bound:
+            a bound on the guard's worst step, at the price of committing to a brake whose
+            check is still going on (B model periods ahead of the arm per period held).
     """
 
     decay_rate: float = 50.0
@@ -71,6 +79,7 @@ class SafeguardSettings:
     velocity_cushion: float | None = None
     hold_correction: bool = True
     plant_step: float | None = None
+    rescue_budget: int | None = RESCUE_BUDGET
 
     def __post_init__(self) -> None:
         for name in ("decay_rate", "braking"):
@@ -88,6 +97,8 @@ class SafeguardSettings:
             raise CpbcError("safeguard substeps and backoffs must be ≥ 1")
         if self.brake_search < 0:
             raise CpbcError(f"safeguard brake_search must be ≥ 0, got {self.brake_search}")
+        if self.rescue_budget is not None and self.rescue_budget < 1:
+            raise CpbcError(f"safeguard rescue_budget must be ≥ 1, got {self.rescue_budget}")
         if not (math.isfinite(self.max_step) and self.max_step > 0):
             raise CpbcError(f"safeguard max_step must be > 0, got {self.max_step}")
 
