@@ -13,6 +13,7 @@ import pytest
 from cpbc.controllers.potentials import Configuration, PotentialSum
 from cpbc.controllers.potentials.friction import friction_compensation
 from cpbc.errors import ScenarioError
+from cpbc.results.summary_table import joint_dynamics_note, run_notes
 from cpbc.scenario.runner import run_one
 
 TARGET = [0.179, 0.172, 0.497, -2.085, -0.103, 2.233, 0.785]
@@ -92,6 +93,16 @@ def test_a_heavy_wrist_reaches_the_goal_with_the_compensation_and_stalls_without
                                           "smoothing": 0.05, "compensation": 0.001}
     assert bare.summary.friction is not None
     assert bare.summary.friction["compensation"] is None
+    # the table's notes say what the model had
+    assert ("model with Coulomb friction ≤ 2 N·m (compensated), viscous ≤ 0.21 N·m·s/rad, "
+            "armature ≤ 0.195 kg·m²") in run_notes(with_term.summary)
+    assert "Coulomb friction ≤ 2 N·m (not compensated)" in run_notes(bare.summary)
+
+
+def test_a_model_without_friction_or_armature_adds_no_note() -> None:
+    assert joint_dynamics_note({"coulomb": [0.0] * 7, "viscous": [0.0] * 7,
+                                "compensation": None}, [0.0] * 7) == ""
+    assert joint_dynamics_note(None, None) == ""
 
 
 def test_the_held_loop_check_sees_the_term_stiffness(load_dict) -> None:

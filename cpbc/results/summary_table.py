@@ -6,7 +6,7 @@ its bounds."""
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 from rich.markup import escape
 from rich.table import Table
@@ -91,6 +91,25 @@ def _torque_rate(s: RunSummary) -> str:
     mark = "≤" if ratios[i] <= 1.0 + 1e-9 else "[red]>[/red]"
     return (f"torque rate {s.peak_torque_rate[i]:.4g}{mark}{s.torque_rate_limits[i]:.4g} "
             f"N·m/s (joint {i + 1})")
+
+
+def joint_dynamics_note(friction: Mapping[str, object] | None,
+                        armature: Sequence[float] | None) -> str:
+    """The friction and rotor inertia the model used, when it had any: the largest Coulomb
+    and viscous coefficients, whether the law compensated the Coulomb friction, the largest
+    armature ("" for none)."""
+    parts = []
+    friction = friction or {}
+    coulomb, viscous = friction.get("coulomb"), friction.get("viscous")
+    if isinstance(coulomb, list) and coulomb and max(coulomb) > 0:
+        compensated = friction.get("compensation") is not None
+        parts.append(f"Coulomb friction ≤ {max(coulomb):.3g} N·m"
+                     f" ({'compensated' if compensated else 'not compensated'})")
+    if isinstance(viscous, list) and viscous and max(viscous) > 0:
+        parts.append(f"viscous ≤ {max(viscous):.3g} N·m·s/rad")
+    if armature and max(armature) > 0:
+        parts.append(f"armature ≤ {max(armature):.3g} kg·m²")
+    return ", ".join(parts)
 
 
 def _margins(s: RunSummary) -> str:
@@ -230,6 +249,9 @@ def run_notes(s: RunSummary) -> str:
     rate = _torque_rate(s)
     if rate:
         notes.append(rate)
+    joints = joint_dynamics_note(s.friction, s.armature)
+    if joints:
+        notes.append(f"model with {joints}")
     if s.safeguard_share > SAFEGUARD_NOTE:
         notes.append(f"safeguard acted on {s.safeguard_share:.0%} of steps")
     if s.rejected_samples:

@@ -36,6 +36,7 @@ from cpbc.results.palette import (
     controller_colour,
 )
 from cpbc.results.saved_run import SavedCase, SavedRun, SavedTrajectory, SummaryEntry
+from cpbc.results.summary_table import joint_dynamics_note
 from cpbc.results.thinning import Index, envelope
 from cpbc.viewer.goal_marker import draw_goal
 from cpbc.viewer.recorder import CommandRecorder
@@ -98,7 +99,8 @@ def _shared_scene(run: SavedRun, settings: ViewSettings) -> tuple[CaseScene, dic
 
 def _status(summary: SummaryEntry) -> str:
     """A run's status, and its cause when the summary names one; under a torque-rate limit
-    its peak rate against the limit; the controller's slowest call."""
+    its peak rate against the limit; the controller's slowest call; the friction and rotor
+    inertia of the model, when it had any."""
     status = str(summary.get("status", ""))
     cause = summary.get("cause")
     parts = [f"{status}; cause: {cause}" if cause else status]
@@ -109,6 +111,11 @@ def _status(summary: SummaryEntry) -> str:
     slowest = summary.get("controller_time_max_us")
     if isinstance(slowest, (int, float)):
         parts.append(f"slowest controller call {float(slowest):.0f} µs")
+    friction, armature = summary.get("friction"), summary.get("armature")
+    joints = joint_dynamics_note(friction if isinstance(friction, dict) else None,
+                                 armature if isinstance(armature, list) else None)
+    if joints:
+        parts.append(f"model with {joints}")
     return "; ".join(parts)
 
 
