@@ -215,12 +215,13 @@ class SimulationSpec(Strict):
             "the safeguard holds the law's acceleration over the period, not its torque (τ − "
             "s D Δa with the plant's share s); false holds the law's torque"))
     # how many periods of the model the rescue may hold its brakes for in one control period
-    # (cpbc.controllers.rescue): the bound on the guard's worst step; null: no bound
+    # (cpbc.controllers.rescue): a bound on the guard's worst step, at a cost in runs kept;
+    # null (the default): no bound
     safeguard_rescue_budget: Annotated[int, Field(strict=True, ge=1)] | None = Field(
         default=RESCUE_BUDGET, description=(
             "periods of the model the safeguard's rescue may check its brakes for in one "
             "control period (a bound on the worst step; a check goes on in the next periods "
-            "while its brake is held); null for no bound"))
+            "while its brake is held, which keeps fewer runs); null for no bound"))
     noise: NoiseSpec | None = Field(
         default=None, description=(
             "Gaussian noise on the state the controller sees (MuJoCo backend)"))
