@@ -120,7 +120,7 @@ def plans_from(a: argparse.Namespace) -> list[Plan]:
     seeds = None if a.seeds is None else tuple(int(v) for v in _numbers(a.seeds, "--seeds"))
     mismatch, noise = _mismatch(a.mismatch), _noise(a.noise)
     return [Plan(_scenario(name), a.seed, a.states, tuple(rates), a.horizon, mismatch, noise,
-                 seeds) for name in a.scenario]
+                 seeds, a.disturb) for name in a.scenario]
 
 
 def conditions(setup: ScenarioSetup) -> Record:
@@ -128,11 +128,14 @@ def conditions(setup: ScenarioSetup) -> Record:
     whether the laws run with their safeguard."""
     limit = setup.loop_settings.torque_limit
     rate = setup.loop_settings.torque_rate_limit
+    error = setup.loop_settings.model_error
     return {
         "integrator": setup.plant_settings.integrator,
         "timestep": setup.plant_settings.timestep,
         "torque_limit": None if limit is None else [float(v) for v in limit],
         "torque_rate_limit": None if rate is None else [float(v) for v in rate],
+        # the declared bound on the model's acceleration error the safeguard holds
+        "model_error": None if error is None else [float(v) for v in error],
         "safeguard": setup.safeguard is not None,
         # the monitored constraints the safeguard keeps besides each law's own (judged too)
         "also_kept": sorted({n.split("[")[0] for c in setup.also_keep for n in c.names})
@@ -150,6 +153,12 @@ def check_plan(plan: Plan) -> tuple[list[str], Record]:
                          "scenarios (the repository's tools/part1_campaign.py runs Part I "
                          "campaigns)")
     setup = build(loaded, file)
+    if plan.disturb and setup.loop_settings.model_error is None:
+        raise UsageError(f"--disturb: {plan.scenario} declares no model error; give "
+                         "simulation.model_error: {acceleration: ā} [rad/s²]")
+    if plan.disturb and not setup.model.coordinates.is_identity:
+        raise UsageError(f"--disturb: {plan.scenario} runs in other than joint coordinates; "
+                         "the disturbance is drawn per joint (use robot.coordinates: joint)")
     names = [e.name for e in checked_controllers(setup)]
     if not names:
         raise UsageError(f"{plan.scenario}: no controller enforces a constraint; nothing to "
@@ -233,6 +242,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--horizon", type=float, default=0.5, help="seconds per run (default 0.5)")
     p.add_argument("--seed", type=int, default=0, help="state i is drawn with seed + i")
     p.add_argument("--seeds", help="run only these state seeds (to reproduce failures)")
+    p.add_argument("--disturb", action="store_true",
+                   help="the plant adds an acceleration disturbance at the corners of the "
+                        "scenario's declared simulation.model_error")
     p.add_argument("--mismatch", help="plant perturbation per run, e.g. mass=0.1,damping=0.05")
     p.add_argument("--noise", help="measurement noise SIGMA_POSITION,SIGMA_VELOCITY")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1)

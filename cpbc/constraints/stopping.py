@@ -126,12 +126,16 @@ class Braking:
         to_joint: Tᵀ of τ_q = Tᵀ τ, or None for joint coordinates.
         share: θ ∈ (0, 1].
         rate: ρ, the joint torque-rate limits, shape (n,) [N·m/s], or None.
+        disturbance: ā, a bound on the model's acceleration error per coordinate (a
+            declared model error), or None: the deceleration along the motion is lowered by
+            its share Σ_j |ẋ_j| ā_j / |ẋ| (the error's most against the brake).
     """
 
     limit: Array
     to_joint: Array | None = None
     share: float = 0.8
     rate: Array | None = None
+    disturbance: Array | None = None
     # L and Tᵀ as the kernel reads them (writable float copies; 0 × 0 for joint coordinates)
     _packed: tuple[Array, Array] = field(init=False, repr=False)
 
@@ -144,14 +148,16 @@ class Braking:
 
     @classmethod
     def of(cls, model: RobotModel, limit: Array | float, share: float = 0.8,
-           rate: Array | None = None) -> Braking:
+           rate: Array | None = None, disturbance: Array | None = None) -> Braking:
         """The brake of ``model`` (its coordinates) within joint torque limits ``limit`` (and
-        torque-rate limits ``rate``)."""
+        torque-rate limits ``rate``, and a model error ``disturbance``)."""
         coords = model.coordinates
         full = np.broadcast_to(np.asarray(limit, dtype=float), (model.n,)).copy()
         return cls(full, None if coords.is_identity else coords.matrix.T.copy(), share,
                    None if rate is None else np.broadcast_to(
-                       np.asarray(rate, dtype=float), (model.n,)).copy())
+                       np.asarray(rate, dtype=float), (model.n,)).copy(),
+                   None if disturbance is None else np.broadcast_to(
+                       np.asarray(disturbance, dtype=float), (model.n,)).copy())
 
     def ramp(self, inertia: Array, bias: Array, dx: Array, held: Array,
              per_speed: float) -> float:
@@ -168,8 +174,13 @@ class Braking:
 
     def deceleration(self, inertia: Array, bias: Array, dx: Array) -> float:
         """A: the largest deceleration along ẋ of the uniform brake (inf at rest;
-        cpbc.kernels.sampled_guard.uniform_deceleration)."""
-        return uniform_deceleration(inertia, bias, dx, *self._packed, self.to_joint is not None)
+        cpbc.kernels.sampled_guard.uniform_deceleration), less a model error's share along
+        the motion (``disturbance``)."""
+        a = uniform_deceleration(inertia, bias, dx, *self._packed, self.to_joint is not None)
+        if self.disturbance is None or a == math.inf:
+            return a
+        speed = math.sqrt(float(dx.dot(dx)))
+        return a - float(np.abs(dx).dot(self.disturbance)) / speed
 
     def per_speed(self, inertia: Array, bias: Array, dx: Array) -> float:
         """1/(2θA), so that x_s = x + (|ẋ|/(2θA)) ẋ; 0 at rest, inf where the box leaves

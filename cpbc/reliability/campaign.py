@@ -152,7 +152,8 @@ def guarded_run(
     constraints) at the settings' period and torque limit when it is given; with a
     reference, inside its tracker, starting at path time ``phase``."""
     law = sg.guarded(entry.controller, settings.control_period, safeguard,
-                     settings.torque_limit, setup.also_keep, settings.torque_rate_limit)
+                     settings.torque_limit, setup.also_keep, settings.torque_rate_limit,
+                     settings.model_error)
     if setup.reference is not None:
         law = setup.reference.tracker(entry.name, entry.controller, law,
                                       settings.control_period, phase)

@@ -125,8 +125,21 @@ def _conditions(doc: Record) -> str:
             f"{plan['horizon']} s; physics {where.get('integrator', '?')} at "
             f"{where.get('timestep', '?')} s; torque limits {_limits(where.get('torque_limit'))}"
             f"{_rate_limits(where.get('torque_rate_limit'))}"
-            f"; safeguard {'on' if where.get('safeguard', True) else 'off'}{_also(where)}; "
+            f"; safeguard {'on' if where.get('safeguard', True) else 'off'}{_also(where)}"
+            f"{_model_error(where, plan)}; "
             f"mismatch {plan['mismatch'] or 'none'}, noise {plan['noise'] or 'none'}.")
+
+
+def _model_error(where: Record, plan: Record) -> str:
+    """The declared model error the safeguard holds, and whether the plant was disturbed
+    inside it."""
+    error = where.get("model_error")
+    if not error:
+        return ""
+    values = sorted({float(v) for v in cast(list, error)})
+    drawn = ", the plant disturbed at its corners" if plan.get("disturb") else ""
+    return (", declared model error " + " / ".join(f"{v:g}" for v in values)
+            + f" rad/s²{drawn}")
 
 
 def _row(r: Mapping) -> dict[str, str]:
@@ -237,6 +250,8 @@ def plan_command(doc: Record) -> str:
         args += ["--mismatch", ",".join(f"{k}={v:g}" for k, v in mismatch.items())]
     if plan.get("noise"):
         args += ["--noise", ",".join(f"{v:g}" for v in cast(list, plan["noise"]))]
+    if plan.get("disturb"):
+        args.append("--disturb")
     return shlex.join(args)
 
 

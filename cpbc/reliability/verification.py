@@ -60,7 +60,7 @@ from cpbc.reliability.sampling import SampledState
 from cpbc.scenario import ScenarioSetup, build, load_scenario
 from cpbc.scenario.build import ControllerEntry
 from cpbc.simulation import MujocoPlant
-from cpbc.simulation.disturbances import MeasurementNoise, PlantMismatch
+from cpbc.simulation.disturbances import AccelerationDisturbance, MeasurementNoise, PlantMismatch
 
 CLASSES = ("stoppable", "not_stoppable")
 TOLERANCE = 1e-6  # a run is "deep" when some margin fell below −TOLERANCE (its own units)
@@ -91,6 +91,9 @@ class Plan:
         mismatch: plant perturbation per run, or None.
         noise: (σ_x, σ_ẋ) on what the controller sees, or None.
         seeds: run exactly these state seeds.
+        disturb: the plant adds an acceleration disturbance at the corners of the
+            scenario's declared model error (``simulation.model_error``;
+            cpbc.simulation.disturbance), seeded per state.
     """
 
     scenario: str
@@ -101,6 +104,7 @@ class Plan:
     mismatch: Mismatch | None = None
     noise: tuple[float, float] | None = None
     seeds: tuple[int, ...] | None = None
+    disturb: bool = False
 
     def state_seeds(self) -> tuple[int, ...]:
         return self.seeds if self.seeds is not None else tuple(
@@ -236,6 +240,15 @@ def _plant(setup: ScenarioSetup, plan: Plan, seed: int, base: RecordingPlant) ->
     return plant
 
 
+def _disturbance(setup: ScenarioSetup, plan: Plan, seed: int) -> AccelerationDisturbance | None:
+    """The plant's disturbance inside the declared model error (joint coordinates: the
+    campaign refuses ``disturb`` on other coordinates), or None."""
+    bound = setup.loop_settings.model_error
+    if not plan.disturb or bound is None:
+        return None
+    return AccelerationDisturbance(bound, seed)
+
+
 def _steps_at_limit(joint_torque: Array, limit: Array | None) -> int:
     """Control steps at which some applied joint torque sat on its limit."""
     if limit is None:
@@ -267,6 +280,7 @@ def run_block(block: Block) -> list[Record]:
         settings = replace(
             setup.loop_settings, duration=plan.horizon, control_period=period, log_every=1,
             noise=None if plan.noise is None else MeasurementNoise(*plan.noise, seed=seed),
+            disturbance=_disturbance(setup, plan, seed),
         )
         brake = stopping_brake(setup, kept, s.position, s.velocity, period, base)
         kind = "stoppable" if brake else "not_stoppable"

@@ -131,7 +131,8 @@ class ScenarioSetup:
             entry = self.for_case(case, entry)
         loop = self.loop_settings
         run = guarded(entry.controller, loop.control_period, self.safeguard,
-                      loop.torque_limit, self.also_keep, loop.torque_rate_limit)
+                      loop.torque_limit, self.also_keep, loop.torque_rate_limit,
+                      loop.model_error)
         if self.reference is None:
             return run
         turned = None if case is None else self.case_targets.get(case.name)

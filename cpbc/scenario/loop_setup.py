@@ -107,4 +107,17 @@ def loop_settings(sim: s.SimulationSpec, model: RobotModel) -> LoopSettings:
         noise=noise,
         max_log_samples=sim.max_log_samples,
         torque_rate_limit=_rate_limit(sim, model),
+        model_error=_model_error(sim, model),
     )
+
+
+def _model_error(sim: s.SimulationSpec, model: RobotModel) -> Array | None:
+    """The declared acceleration error ā in controller coordinates (|T| ā_q: x = T q), or
+    None."""
+    if sim.model_error is None:
+        return None
+    given = sim.model_error.acceleration
+    bound = vector(given if isinstance(given, list) else [given] * model.n, model.n,
+                   "simulation.model_error.acceleration")
+    coords = model.coordinates
+    return bound if coords.is_identity else np.abs(coords.matrix) @ bound

@@ -5,6 +5,16 @@
 * :class:`PlantMismatch` — edits of the MuJoCo plant only (masses and inertias scaled per
   body, joint damping, armature, dry friction), so that the controller's Pinocchio model and
   the physics differ.
+* :class:`AccelerationDisturbance` — a plant inside a declared model error: the MuJoCo arm
+  plus an acceleration disturbance |d_j| ≤ ā_j, as ``python -m cpbc.verify --disturb`` draws
+  one (the declared error of ``simulation.model_error``,
+  cpbc.controllers.safeguard.model_error). Each control period the disturbance takes a
+  corner of the box, d = ā ⊙ s with random signs s_j = ±1 (seeded): the largest error the
+  declaration allows, in every direction over a run. It enters as the generalised force
+  M(q) d added to the command (M the plant's own mass matrix, rotor inertia included, from
+  the physics step before: it lags the state by one step, a relative error of order h in d),
+  so the plant's acceleration moves by d from what it would be — whatever the plant's own
+  difference from the controller's model adds on top.
 """
 
 from __future__ import annotations
@@ -153,3 +163,34 @@ class PlantMismatch:
             tuple(rng.uniform(0, armature, ndof).tolist()),
             tuple(rng.uniform(0, frictionloss, ndof).tolist()),
         )
+
+
+@dataclass(frozen=True)
+class AccelerationDisturbance:
+    """An acceleration disturbance within ``bound`` [joint coordinates, per joint], its signs
+    drawn anew each control period from ``seed``."""
+
+    bound: Array
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        _per_entry(self.bound, len(self.bound), "disturbance bound", positive=False)
+
+    def drawn(self) -> Disturber:
+        """A fresh run's draws."""
+        return Disturber(np.asarray(self.bound, dtype=float), np.random.default_rng(self.seed))
+
+
+class Disturber:
+    """One run's disturbance: the generalised force of the next control period."""
+
+    def __init__(self, bound: Array, rng: np.random.Generator) -> None:
+        self.bound, self.rng = bound, rng
+        self._force = np.empty(len(bound))
+
+    def force(self, model: mujoco.MjModel, data: mujoco.MjData) -> Array:
+        """M(q) d for a fresh corner d of the box (the module docstring,
+        :class:`AccelerationDisturbance`)."""
+        d = self.bound * self.rng.choice((-1.0, 1.0), size=len(self.bound))
+        mujoco.mj_mulM(model, data, self._force, d)
+        return self._force

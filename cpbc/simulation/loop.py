@@ -24,7 +24,7 @@ from cpbc.arrays import Array
 from cpbc.controllers.controller import Controller, SafetyFilter
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model.coordinates import LinearCoordinates
-from cpbc.simulation.disturbances import MeasurementNoise, rate_into_set
+from cpbc.simulation.disturbances import AccelerationDisturbance, MeasurementNoise, rate_into_set
 from cpbc.simulation.plant import INSTABILITY_WARNINGS, MujocoPlant
 from cpbc.simulation.trajectory import SystemTrajectory, Trajectory, TrajectoryLog
 
@@ -54,6 +54,13 @@ class LoopSettings:
         noise: Gaussian noise on the state the controller sees, or None.
         max_log_samples: the log never holds more samples than this: when full, it drops
             every other sample and halves its rate (memory stays bounded on long runs).
+        model_error: the declared bound ā on the controller model's acceleration error per
+            coordinate (controller coordinates), which the safeguard holds as a
+            disturbance (cpbc.controllers.safeguard.model_error), or None. The plant does
+            not read it.
+        disturbance: an acceleration disturbance the plant adds to its own dynamics (a
+            plant drawn inside a declared model error, cpbc.simulation.disturbance), or
+            None.
     """
 
     duration: float
@@ -63,6 +70,8 @@ class LoopSettings:
     noise: MeasurementNoise | None = None
     max_log_samples: int = 100_000
     torque_rate_limit: Array | None = None
+    model_error: Array | None = None
+    disturbance: AccelerationDisturbance | None = None
 
     def __post_init__(self) -> None:
         if not self.duration > 0:
@@ -238,6 +247,7 @@ class _ArmLoop:
         self.peak_step = np.zeros(n)  # the largest |Δτ_q| between commands
         self.compute_max = 0.0  # the controller's longest call [s] (the loop's deadline)
         self.compute_total = 0.0
+        self.disturber = None if settings.disturbance is None else settings.disturbance.drawn()
 
     def start(self, x0: Array) -> None:
         """Before the first control instant: the motors hold the gravity torque of the
@@ -305,7 +315,9 @@ class _ArmLoop:
 
     def hold(self, tau_q: Array, substeps: int) -> bool:
         plant = self.plant
-        plant.apply(tau_q)
+        disturber = self.disturber
+        plant.apply(tau_q if disturber is None else
+                    tau_q + disturber.force(plant.model, plant.data))
         plant.step(substeps)
         if plant.unstable():
             return False

@@ -19,6 +19,7 @@ from cpbc.controllers.hold import hold_share
 from cpbc.controllers.rescue import Rescue
 from cpbc.controllers.safeguard.acceptance import Acceptance
 from cpbc.controllers.safeguard.braking import Brakes
+from cpbc.controllers.safeguard.model_error import margin_losses
 from cpbc.controllers.safeguard.predicted_margins import PredictedMargins, RampTest
 from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_share
 from cpbc.controllers.safeguard.settings import SafeguardSettings
@@ -34,12 +35,14 @@ def guarded(
     torque_limit: Array | float | None = None,
     also_keep: Sequence[ConfigurationConstraint] = (),
     rate_limit: Array | float | None = None,
+    model_error: Array | float | None = None,
 ) -> Controller:
     """The law as a sampled-data loop at period h should run it: wrapped in a Safeguard with
     ``settings`` when it enforces constraints, else the law itself (also with no settings).
 
-    ``torque_limit`` is the plant's joint torque saturation and ``rate_limit`` its joint
-    torque-rate limit [N·m/s] (each a number or one per joint)."""
+    ``torque_limit`` is the plant's joint torque saturation, ``rate_limit`` its joint
+    torque-rate limit [N·m/s] and ``model_error`` the declared bound on the model's
+    acceleration error [per coordinate, rad/s² or m/s²] (each a number or one per joint)."""
     if isinstance(law, SafetyFilter):  # a filter already (a peer): fresh counts, no wrap
         return law.restarted()
     if settings is None or law.constraints.empty:
@@ -49,7 +52,9 @@ def guarded(
         np.asarray(torque_limit, dtype=float), (n,))
     rate = None if rate_limit is None else np.broadcast_to(
         np.asarray(rate_limit, dtype=float), (n,))
-    return Safeguard(law, period, settings, limit, also_keep, rate)
+    error = None if model_error is None else np.broadcast_to(
+        np.asarray(model_error, dtype=float), (n,))
+    return Safeguard(law, period, settings, limit, also_keep, rate, error)
 
 
 class Safeguard(Acceptance, Brakes, SafetyFilter):
@@ -73,6 +78,10 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
             at its first state) and inside the torque box, tests every candidate as clipped
             there, and keeps the braking margins σ with the time the brake takes to ramp
             up (stopping.Braking.ramp): nothing after the guard need change its torque.
+        model_error: ā, the declared bound on the model's acceleration error |a − â| ≤ ā
+            per coordinate, shape (n,): every floor of (S1) is raised by what such an error
+            can take off its margin in one period, and the braking set's deceleration is
+            lowered by it (:mod:`cpbc.controllers.safeguard.model_error`).
 
     Attributes:
         calls: control instants seen.
@@ -95,6 +104,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         torque_limit: Array | None = None,
         also_keep: Sequence[ConfigurationConstraint] = (),
         rate_limit: Array | None = None,
+        model_error: Array | None = None,
     ) -> None:
         if not (math.isfinite(period) and period > 0):
             raise CpbcError(f"safeguard period must be > 0, got {period}")
@@ -135,6 +145,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         self._n_own_config = own.n_configuration
         self.torque_limit = None if torque_limit is None else np.asarray(torque_limit, float)
         self.rate_limit = None if rate_limit is None else np.asarray(rate_limit, float)
+        self.model_error = None if model_error is None else np.asarray(model_error, float)
         # ρh: how far one step can move each joint torque (None: as far as the box allows)
         self._rate_step: Array | None = None if self.rate_limit is None else (
             self.rate_limit * self.period)
@@ -150,7 +161,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         self._velocity_floor = np.maximum(self.cushion[nc_all:], 1e-300)
         # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)
         self.braking = None if torque_limit is None or not self._n_config else Braking.of(
-            law.model, torque_limit, rate=self.rate_limit)
+            law.model, torque_limit, rate=self.rate_limit, disturbance=self.model_error)
         self._sigma_floor = np.maximum(self.cushion[: self._n_config], 1e-300)
         # where no torque of its own will do: brakes better than the uniform one (rescue.py)
         self.rescue = None if self.braking is None or self._torque_box is None else Rescue(
@@ -233,6 +244,11 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         delta, nc = self.cushion, self._n_config
         floor, mid = np.empty(len(now)), np.empty(nc)
         floors(now, delta, self.keep, self.keep_half, floor, mid)  # (S1)
+        if self.model_error is not None:  # ... whatever the declared error does
+            end_loss, mid_loss = margin_losses(self.guarded, state, self.model_error,
+                                               self.period, self.travel)
+            floor += end_loss
+            mid += mid_loss
         floor_mid = None
         past = None
         if nc:

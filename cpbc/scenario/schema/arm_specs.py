@@ -148,6 +148,16 @@ class NoiseSpec(Strict):
             "seed of the noise generator"))
 
 
+class ModelErrorSpec(Strict):
+    """A bound on how far the arm's acceleration may differ from the controller model's, which
+    the safeguard holds as a disturbance (cpbc.controllers.safeguard.model_error)."""
+
+    acceleration: NonNegative | list[NonNegative] = Field(
+        description=(
+            "ā: |a − â| ≤ ā per joint [rad/s² or m/s²], one number or one per joint: what "
+            "the model's error (masses, friction, payload) can do to the acceleration"))
+
+
 class SimulationSpec(Strict):
     duration: Positive = Field(description="simulated time of each run [s]")
     timestep: Positive = Field(default=0.001, description="MuJoCo's physics timestep [s]")
@@ -214,6 +224,13 @@ class SimulationSpec(Strict):
         default=True, description=(
             "the safeguard holds the law's acceleration over the period, not its torque (τ − "
             "s D Δa with the plant's share s); false holds the law's torque"))
+    # the model's declared error: a bound on the acceleration it gets wrong, held by the
+    # safeguard as a disturbance; None: the model is taken as exact
+    model_error: ModelErrorSpec | None = Field(
+        default=None, description=(
+            "a declared bound on the model's acceleration error, {acceleration: ā}, that the "
+            "safeguard holds as a disturbance (python -m cpbc.verify --disturb draws plants "
+            "inside it)"))
     # how many periods of the model the rescue may hold its brakes for in one control period
     # (cpbc.controllers.rescue): a bound on the guard's worst step, at a cost in runs kept;
     # null (the default): no bound

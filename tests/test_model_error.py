@@ -1,0 +1,126 @@
+"""A declared model error (simulation.model_error, cpbc.controllers.safeguard.model_error): the
+margins it can take in a period, the braking set's lower deceleration, and on the Panda with
+its motors' rate limit a plant disturbed at the corners of the declared bound, kept only when
+the guard knows the bound."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.linear_limit import joint_position_limit
+from cpbc.constraints.rate_limit import joint_rate_limit
+from cpbc.constraints.stopping import Braking
+from cpbc.controllers.safeguard.model_error import margin_losses
+from cpbc.model.robot_model import RobotModel
+from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
+from cpbc.reliability.verification import draw_state
+from cpbc.resources import models_dir
+from cpbc.scenario import build, load_scenario
+from cpbc.simulation.disturbances import AccelerationDisturbance
+from cpbc.verify import main as verify_main
+
+ROOT = Path(__file__).resolve().parents[1]
+RATE_CAMPAIGN = ROOT / "tools" / "campaigns" / "panda_sphere_rate.yaml"
+ERROR = 5.0  # rad/s², every joint
+
+
+def _declared(tmp_path: Path, error: float | None = ERROR) -> Path:
+    text = RATE_CAMPAIGN.read_text()
+    if error is not None:
+        text = text.replace("simulation:\n",
+                            f"simulation:\n  model_error: {{acceleration: {error}}}\n", 1)
+    out = tmp_path / "panda_error.yaml"
+    out.write_text(text)
+    return out
+
+
+@pytest.fixture(scope="module")
+def planar_model() -> RobotModel:
+    return RobotModel.from_mjcf(models_dir() / "planar_2link.xml")
+
+
+def test_the_losses_are_the_first_order_reach_of_the_error(planar_model) -> None:
+    """A joint limit's margin φ (its product form) loses c h² |∂φ/∂x_j| ā_j at the end and
+    ⅛h² |∂φ/∂x_j| ā_j at mid-period; a rate ψ = ½v̄² − ½ẋ_j² loses h |ẋ_j| ā_j + ½h² ā_j²."""
+    model = planar_model
+    names = ["a", "b"]
+    cons = ConstraintSet(2, (joint_position_limit([-1.0, -1.0], [1.0, 1.0], names),),
+                         (joint_rate_limit([2.0, 2.0], names),))
+    x, dx = np.array([0.1, -0.2]), np.array([0.5, -1.5])
+    state = model.state(x, dx)
+    bound, h, c = np.array([3.0, 7.0]), 0.002, 0.5
+    end, mid = margin_losses(cons, state, bound, h, c)
+    nc = cons.n_configuration
+    assert nc == 2  # one margin a joint
+    slope = np.abs(np.diag(cons.configuration[0].gradient(x)))
+    assert slope == pytest.approx([0.2, 0.4])  # (upper − x) − (x − lower)
+    assert end[:nc] == pytest.approx(c * h * h * slope * bound)
+    assert mid == pytest.approx(0.125 * h * h * slope * bound)
+    assert end[nc:] == pytest.approx(h * np.abs(dx) * bound + 0.5 * h * h * bound**2)
+
+
+def test_the_braking_deceleration_is_lowered_by_the_errors_share_along_the_motion(
+        planar_model) -> None:
+    model = planar_model
+    x, dx = np.array([0.1, -0.2]), np.array([0.6, -0.8])
+    state = model.state(x, dx)
+    bias = state.coriolis_force + state.gravity
+    plain = Braking.of(model, 20.0).deceleration(state.inertia, bias, dx)
+    bound = np.array([1.0, 2.0])
+    lowered = Braking.of(model, 20.0, disturbance=bound).deceleration(state.inertia, bias, dx)
+    assert lowered == pytest.approx(plain - (0.6 * 1.0 + 0.8 * 2.0))
+
+
+@pytest.fixture(scope="module")
+def disturbed_panda(tmp_path_factory):
+    path = _declared(tmp_path_factory.mktemp("error"))
+    setup = build(*load_scenario(str(path)))
+    entry = next(e for e in setup.controllers if e.name == "CPBC")
+    return setup, entry
+
+
+@pytest.mark.parametrize("seed", [30, 34])
+def test_a_plant_disturbed_inside_the_declared_error_is_kept_only_when_declared(
+        disturbed_panda, seed) -> None:
+    """Seeds whose starts a brake stops: disturbed at the corners of ±5 rad/s², the guard
+    that knows the bound keeps every margin on MuJoCo's state; the one that does not lets a
+    rate cross (its law cancels the model's acceleration at the bound; the error pushes)."""
+    setup, entry = disturbed_panda
+    period = 0.001
+    base = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    kept = kept_constraints(setup, entry, period, setup.safeguard)
+    s = draw_state(setup, seed)
+    n = setup.model.n
+    outcomes = {}
+    for declared in (True, False):
+        settings = replace(setup.loop_settings, duration=0.5, log_every=1,
+                           model_error=np.full(n, ERROR) if declared else None,
+                           disturbance=AccelerationDisturbance(np.full(n, ERROR), seed))
+        check = checked_run(base, setup, entry, s.position, s.velocity, settings, kept,
+                            safeguard=setup.safeguard)
+        outcomes[declared] = check
+    assert not outcomes[True].violated and outcomes[True].min_margin > 0.0
+    assert outcomes[False].violated and outcomes[False].constraint.startswith("rate[")
+
+
+def test_verify_disturbs_only_a_scenario_that_declares_an_error(tmp_path, capsys) -> None:
+    undeclared = _declared(tmp_path, None)
+    assert verify_main([str(undeclared), "--states", "1", "--rates", "1000", "--disturb"]) == 2
+    err = capsys.readouterr().err
+    assert "--disturb" in err and "simulation.model_error" in err and "Traceback" not in err
+
+
+def test_verify_states_the_declared_error_and_the_disturbance(tmp_path, capsys) -> None:
+    path = _declared(tmp_path)
+    assert verify_main([str(path), "--seeds", "34", "--rates", "1000", "--horizon", "0.1",
+                        "--disturb", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    campaign = doc["campaigns"][0] if "campaigns" in doc else doc
+    assert campaign["conditions"]["model_error"] == [ERROR] * 7
+    assert campaign["plan"]["disturb"] is True
