@@ -60,7 +60,12 @@ from cpbc.reliability.sampling import SampledState
 from cpbc.scenario import ScenarioSetup, build, load_scenario
 from cpbc.scenario.build import ControllerEntry
 from cpbc.simulation import MujocoPlant
-from cpbc.simulation.disturbances import AccelerationDisturbance, MeasurementNoise, PlantMismatch
+from cpbc.simulation.disturbances import (
+    AccelerationDisturbance,
+    Disturber,
+    MeasurementNoise,
+    PlantMismatch,
+)
 
 CLASSES = ("stoppable", "not_stoppable")
 TOLERANCE = 1e-6  # a run is "deep" when some margin fell below −TOLERANCE (its own units)
@@ -158,13 +163,16 @@ def in_braking_set(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Arra
 
 
 def stopping_brake(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Array,
-                   period: float, plant: MujocoPlant | None = None) -> str | None:
+                   period: float, plant: MujocoPlant | None = None,
+                   disturbance: AccelerationDisturbance | None = None) -> str | None:
     """The first brake (cpbc.constraints.brakes) that, held at ``period`` in the true plant
     within the torque box, brings the arm to rest with every margin of ``kept`` positive at
     every physics step; None if none does. Under a torque-rate limit each brake ramps from
     the gravity torque at the start (what the run's own first command starts from) at the
     rate the motors allow. ``plant``: the true plant to brake in (a fresh one of the
-    scenario's by default)."""
+    scenario's by default); ``disturbance``: the run's, which the brakes meet too (the same
+    draws, period by period: a start is stoppable in the plant as it is disturbed), and
+    which keeps the rates jittering by h ā: the arm rests below 10⁻³ + 2hā."""
     limit = setup.loop_settings.torque_limit
     rate = setup.loop_settings.torque_rate_limit
     box = TorqueBox.of(setup.model, math.inf if limit is None else limit)
@@ -174,32 +182,40 @@ def stopping_brake(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Arra
     coords = setup.model.coordinates
     substeps = max(round(period / plant.model.opt.timestep), 1)
     table = brakes(box, kept, setup.model)
+    rest = 1e-3 if disturbance is None else 1e-3 + 2.0 * period * float(
+        np.max(disturbance.bound))
 
     def run(brake: Brake) -> Stop:
         plant.reset(coords.to_joint(x), coords.to_joint(dx))
         return brings_to_rest(brake, setup.model, kept.margins_along,
-                              _true_advance(plant, box, coords.matrix, substeps, step, held),
-                              x, dx, period)
+                              _true_advance(plant, box, coords.matrix, substeps, step, held,
+                                            None if disturbance is None
+                                            else disturbance.drawn()),
+                              x, dx, period, rest=rest)
 
     return first_stop(tuple(table), table, run)[0]
 
 
 def _true_advance(plant: MujocoPlant, box: TorqueBox, t_mat: Array, substeps: int,
-                  rate_step: Array | None = None, held: Array | None = None) -> Advance:
+                  rate_step: Array | None = None, held: Array | None = None,
+                  disturber: Disturber | None = None) -> Advance:
     """The true plant as a plant for brings_to_rest: τ clipped to the box (and, under a
     torque-rate limit ``rate_step`` = ρh, to what one period reaches from the joint torque
     last held, ``held`` before the first), held for one control period, every physics step
     reported (controller coordinates). A step that acted
     through a contact or a joint's range stop ends the braking unstopped (None): a force
     outside the torque box stopped the arm then, not the brake (a UR5 started 3 ms above a
-    floor its law did not keep was classed stoppable by a brake that rested on the floor)."""
+    floor its law did not keep was classed stoppable by a brake that rested on the floor).
+    ``disturber``: the run's disturbance, added to each period's command as the loop adds
+    it."""
     data = plant.data
     last = [held]
 
     def advance(tau: Array) -> tuple[Array, Array] | None:
         tau_q = box.joint(ramped(box, tau, rate_step, last[0]))
         last[0] = tau_q
-        plant.apply(tau_q)
+        plant.apply(tau_q if disturber is None
+                    else tau_q + disturber.force(plant.model, plant.data))
         qs, dqs = [], []
         for _ in range(substeps):
             plant.step(1)
@@ -282,7 +298,8 @@ def run_block(block: Block) -> list[Record]:
             noise=None if plan.noise is None else MeasurementNoise(*plan.noise, seed=seed),
             disturbance=_disturbance(setup, plan, seed),
         )
-        brake = stopping_brake(setup, kept, s.position, s.velocity, period, base)
+        brake = stopping_brake(setup, kept, s.position, s.velocity, period, base,
+                               settings.disturbance)
         kind = "stoppable" if brake else "not_stoppable"
         in_v = in_braking_set(setup, kept, s.position, s.velocity, period)
         phase = 0.0 if setup.reference is None else setup.reference.phase(entry.name, seed)
