@@ -164,11 +164,7 @@ class ConstraintSet:
         return np.concatenate(parts) if parts else np.zeros(0)
 
     def margins_along(self, xs: Array, dxs: Array) -> Array:
-        """Every margin at every sample, shape (N, m); NaN rows where the state is not finite.
-        One or two finite samples (a rescue's rollout at 1 kHz) are asked one by one
-        (``margins``): the kinds' vectorised paths cost 3–4× more for so few rows."""
-        if len(xs) <= 2 and np.isfinite(xs).all() and np.isfinite(dxs).all():
-            return np.array([self.margins(x, dx) for x, dx in zip(xs, dxs, strict=True)])
+        """Every margin at every sample, shape (N, m); NaN rows where the state is not finite."""
         out = np.full((len(xs), len(self.names)), np.nan)
         ok = np.all(np.isfinite(xs), axis=1) & np.all(np.isfinite(dxs), axis=1)
         parts = [c.values_along(xs[ok]) for c in self._config]

@@ -64,9 +64,10 @@ def stopping_terms(constraints: ConstraintSet, model: RobotModel, state: ArmStat
     """:func:`stopping_margins` at a per-step state whose bias b is known, with the
     gradients ∇φ_i as well (rows): φ, ∇φ and ẋᵀ∇²φ ẋ from each constraint's
     ``motion_terms`` (the state's kinematics, no Pinocchio pass of their own; a state
-    built without them is built again with them)."""
-    if state.joint_jacobians is None:
-        state = model.state(state.x, state.dx, kinematics=True)
+    built without what they read is built again, by ``ConstraintSet.state``)."""
+    lacks_frames = any(f not in state.frames for f in constraints.frames)
+    if lacks_frames or (constraints.motion_kinematics and state.joint_jacobians is None):
+        state = constraints.state(model, state.x, state.dx, motion=True)
     terms = [c.motion_terms(state) for c in constraints.configuration]
     phi = np.concatenate([t[0] for t in terms])
     grads = np.concatenate([t[1] for t in terms])
