@@ -16,7 +16,8 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.linear_limit import joint_position_limit
 from cpbc.constraints.rate_limit import joint_rate_limit
 from cpbc.constraints.stopping import Braking
-from cpbc.controllers.safeguard.model_error import margin_losses
+from cpbc.controllers.safeguard import guard as guard_module
+from cpbc.controllers.safeguard.model_error import friction_error, margin_losses
 from cpbc.model.robot_model import RobotModel
 from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
 from cpbc.reliability.verification import draw_state
@@ -124,3 +125,43 @@ def test_verify_states_the_declared_error_and_the_disturbance(tmp_path, capsys) 
     campaign = doc["campaigns"][0] if "campaigns" in doc else doc
     assert campaign["conditions"]["model_error"] == [ERROR] * 7
     assert campaign["plan"]["disturb"] is True
+
+
+def test_the_smooth_coulomb_friction_error_is_all_of_it_near_rest_and_none_at_speed(
+        planar_model) -> None:
+    model = RobotModel.from_mjcf(models_dir() / "planar_2link.xml",
+                                 coulomb_friction=np.array([0.5, 0.2]))
+    x = np.array([0.1, -0.2])
+    at_rest = model.state(x, np.zeros(2))
+    bound = friction_error(model, at_rest)
+    assert bound == pytest.approx(np.abs(np.linalg.inv(at_rest.inertia)) @ [0.5, 0.2])
+    fast = model.state(x, np.array([2.0, -3.0]))
+    assert np.all(friction_error(model, fast) < 1e-12)
+    assert friction_error(planar_model, at_rest) is None  # no Coulomb friction
+
+
+FR3_CAMPAIGN = ROOT / "tools" / "campaigns" / "fr3_sphere_rate.yaml"
+
+
+def test_the_fr3s_friction_error_held_keeps_a_rate_the_smooth_model_alone_lets_cross(
+        monkeypatch) -> None:
+    """FR3 with franky-sim's friction, 1000 N·m/s, 1 kHz, seed 13 (a start a brake stops):
+    as joints' rates pass through zero the plant's dry friction leaves the model's smooth one
+    by up to F_c; the guard that holds that error keeps every margin, the guard that takes
+    the model as exact lets a rate cross."""
+    setup = build(*load_scenario(str(FR3_CAMPAIGN)))
+    entry = next(e for e in setup.controllers if e.name == "CPBC")
+    base = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
+    s = draw_state(setup, 13)
+    settings = replace(setup.loop_settings, duration=0.5, log_every=1)
+
+    def run():
+        return checked_run(base, setup, entry, s.position, s.velocity, settings, kept,
+                           safeguard=setup.safeguard)
+
+    held = run()
+    assert not held.violated and held.min_margin > 0.0
+    monkeypatch.setattr(guard_module, "friction_error", lambda model, state: None)
+    exact = run()
+    assert exact.violated and exact.constraint.startswith("rate[")

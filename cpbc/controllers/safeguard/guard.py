@@ -19,7 +19,7 @@ from cpbc.controllers.hold import hold_share
 from cpbc.controllers.rescue import Rescue
 from cpbc.controllers.safeguard.acceptance import Acceptance
 from cpbc.controllers.safeguard.braking import Brakes
-from cpbc.controllers.safeguard.model_error import margin_losses
+from cpbc.controllers.safeguard.model_error import friction_error, margin_losses
 from cpbc.controllers.safeguard.predicted_margins import PredictedMargins, RampTest
 from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_share
 from cpbc.controllers.safeguard.settings import SafeguardSettings
@@ -146,6 +146,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         self.torque_limit = None if torque_limit is None else np.asarray(torque_limit, float)
         self.rate_limit = None if rate_limit is None else np.asarray(rate_limit, float)
         self.model_error = None if model_error is None else np.asarray(model_error, float)
+        self._coulomb = bool(np.any(law.model.coulomb_friction))
         # ρh: how far one step can move each joint torque (None: as far as the box allows)
         self._rate_step: Array | None = None if self.rate_limit is None else (
             self.rate_limit * self.period)
@@ -244,9 +245,10 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         delta, nc = self.cushion, self._n_config
         floor, mid = np.empty(len(now)), np.empty(nc)
         floors(now, delta, self.keep, self.keep_half, floor, mid)  # (S1)
-        if self.model_error is not None:  # ... whatever the declared error does
-            end_loss, mid_loss = margin_losses(self.guarded, state, self.model_error,
-                                               self.period, self.travel)
+        error = self._error_bound(state)
+        if error is not None:  # ... whatever the model's error does (model_error.py)
+            end_loss, mid_loss = margin_losses(self.guarded, state, error, self.period,
+                                               self.travel)
             floor += end_loss
             mid += mid_loss
         floor_mid = None
@@ -294,6 +296,14 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
                 reverse, f_rev = self._brake(bias, stop, lam), f_lam
             brake, f1 = reverse, f_rev
         return self._blend(tau, brake, f0, f1, slack)
+
+    def _error_bound(self, state: ArmState) -> Array | None:
+        """The bound on the model's acceleration error at this state: the declared one plus
+        its smooth Coulomb friction's (model_error.friction_error), or None."""
+        friction = friction_error(self.model, state) if self._coulomb else None
+        if friction is None:
+            return self.model_error
+        return friction if self.model_error is None else friction + self.model_error
 
     def _box(self, bias: Array, tau: Array) -> Array:
         """τ scaled toward the bias b = C ẋ + g + f until it fits the torque box

@@ -18,6 +18,17 @@ the braking set's deceleration is lowered by the error's share along the motion
 (:class:`cpbc.constraints.stopping.Braking`, ``disturbance``). The curvature of φ and the
 change of Π_k over the period are left out (second order in h).
 
+**The Coulomb friction's own error.** The model's Coulomb friction is smooth, F_c tanh(q̇/ε);
+a real joint's (and MuJoCo's ``frictionloss``) is set-valued at rest and reaches F_c within a
+fraction of ε. The two differ by up to F_c,j (1 − tanh(|q̇_j|/ε)) at joint j — all of F_c near
+rest, nothing at speed — and through D⁻¹ that force error moves every coordinate's
+acceleration (:func:`friction_error`, added to the declared bound whenever the model has
+Coulomb friction). Measured on the FR3 (franky-sim's friction, 1000 N·m/s, 1 kHz): as a wrist
+joint's rate passed through zero, the arm's acceleration left the model's by 0.8–1.2 rad/s²
+on joints 2 and 4 and pushed joint 1 through its rate bound; 18 of 185 runs from stoppable
+starts crossed a rate bound before the guard held this error, with the joint's speed taken
+one ε lower than measured (it may cross zero within the period).
+
 This is why the bare guard let velocity margins break under a ±20 % mass error (docs/
 ROBUSTNESS.md, "Model mismatch"): a law that rides a velocity bound cancels the *model's*
 acceleration there, and the model error alone pushes through; the raised floor keeps the
@@ -30,7 +41,20 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.model.robot_model import ArmState
+from cpbc.model.robot_model import ArmState, RobotModel
+
+
+def friction_error(model: RobotModel, state: ArmState) -> Array | None:
+    """The bound on the acceleration error of the model's smooth Coulomb friction (the module
+    docstring): |D⁻¹ T⁻ᵀ| (F_c ⊙ (1 − tanh(max(|q̇| − ε, 0)/ε))) per coordinate, or None
+    for a model without Coulomb friction."""
+    levels = model.coulomb_friction
+    if not np.any(levels):
+        return None
+    eps = model.friction_smoothing
+    slack = levels * (1.0 - np.tanh(np.maximum(np.abs(state.dq) - eps, 0.0) / eps))
+    force = slack if model.coordinates.is_identity else np.abs(model.coordinates.inverse.T) @ slack
+    return np.abs(np.linalg.inv(state.inertia)) @ force
 
 
 def margin_losses(constraints: ConstraintSet, state: ArmState, bound: Array, period: float,
