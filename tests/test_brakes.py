@@ -31,6 +31,30 @@ def test_least_squares_brake_stays_in_the_box_and_stops_faster_than_it_can(panda
     assert acc.dot(s.velocity) < 0  # it decelerates
 
 
+def test_the_nearest_reachable_torque_costs_the_acceleration_least(panda):
+    """Under a rate limit a torque far outside the step box is reached with the least
+    acceleration error any torque in the box has: less than scaling the whole step into the
+    box (which starved the FR3's light last joint) and than clipping joint by joint."""
+    setup, _ = panda
+    rng = np.random.default_rng(3)
+    box = TorqueBox.of(setup.model, setup.loop_settings.torque_limit)
+    for seed in range(20):
+        s = draw_state(setup, seed)
+        inertia = setup.model.inertia(s.position)
+        held = rng.uniform(-0.5, 0.5, 7) * box.limit
+        step = box.around(held, np.full(7, 1.0))  # 1 N·m a period
+        wanted = rng.uniform(-1, 1, 7) * box.limit
+        accel = box.acceleration_map(inertia)
+        near = step.nearest(accel, wanted)
+        lower, upper = step.bounds
+        assert np.all(near >= lower - 1e-9) and np.all(near <= upper + 1e-9)
+        errors = [np.linalg.norm(np.linalg.solve(inertia, tau - wanted))
+                  for tau in (near, step.toward(held, wanted), step.clip(wanted))]
+        assert errors[0] <= min(errors[1:]) + 1e-9
+    inside = (lower + upper) / 2
+    assert step.nearest(accel, inside) is inside  # a torque that fits is returned as it is
+
+
 # States outside the guard's braking set V (its uniform brake cannot stop them) that another
 # brake within the torque box stops in the true plant; the guard without its rescue broke each
 # of them (by 0.7 to 3 mrad, most within the first period). Found by python -m cpbc.verify.

@@ -47,6 +47,7 @@ from cpbc.constraints.brakes import (
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import Braking, stopping_margins
 from cpbc.controllers.safeguard import viable
+from cpbc.model.robot_model import RobotModel
 from cpbc.peers.cbf_qp import CBFQP
 from cpbc.reliability.campaign import (
     RecordingPlant,
@@ -190,7 +191,7 @@ def stopping_brake(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Arra
         return brings_to_rest(brake, setup.model, kept.margins_along,
                               _true_advance(plant, box, coords.matrix, substeps, step, held,
                                             None if disturbance is None
-                                            else disturbance.drawn()),
+                                            else disturbance.drawn(), setup.model),
                               x, dx, period, rest=rest)
 
     return first_stop(tuple(table), table, run)[0]
@@ -198,7 +199,8 @@ def stopping_brake(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Arra
 
 def _true_advance(plant: MujocoPlant, box: TorqueBox, t_mat: Array, substeps: int,
                   rate_step: Array | None = None, held: Array | None = None,
-                  disturber: Disturber | None = None) -> Advance:
+                  disturber: Disturber | None = None,
+                  model: RobotModel | None = None) -> Advance:
     """The true plant as a plant for brings_to_rest: τ clipped to the box (and, under a
     torque-rate limit ``rate_step`` = ρh, to what one period reaches from the joint torque
     last held, ``held`` before the first), held for one control period, every physics step
@@ -207,12 +209,15 @@ def _true_advance(plant: MujocoPlant, box: TorqueBox, t_mat: Array, substeps: in
     outside the torque box stopped the arm then, not the brake (a UR5 started 3 ms above a
     floor its law did not keep was classed stoppable by a brake that rested on the floor).
     ``disturber``: the run's disturbance, added to each period's command as the loop adds
-    it."""
+    it; ``model``: the controller's, whose inertia at the measured state reaches the brake
+    under the rate limit as the safeguard reaches its torques (brakes.ramped)."""
     data = plant.data
     last = [held]
 
     def advance(tau: Array) -> tuple[Array, Array] | None:
-        tau_q = box.joint(ramped(box, tau, rate_step, last[0]))
+        inertia = None if model is None or rate_step is None else model.inertia(
+            t_mat @ data.qpos)
+        tau_q = box.joint(ramped(box, tau, rate_step, last[0], inertia))
         last[0] = tau_q
         plant.apply(tau_q if disturber is None
                     else tau_q + disturber.force(plant.model, plant.data))

@@ -158,6 +158,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         self._added: Array | None = None  # the torque the robot adds itself (holding)
         self._static_box = self._torque_box  # the torque box of this step (moved by _added)
         self._ramp: RampTest | None = None  # this step's velocity lookahead (rate limit)
+        self._accel = np.zeros((0, 0))  # D⁻¹T⁻ᵀ at this step's state (rate limit)
         nc_all = self.guarded.n_configuration
         self._velocity_floor = np.maximum(self.cushion[nc_all:], 1e-300)
         # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)
@@ -220,6 +221,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         held = state.gravity if self._holding is None else self._holding
         self._holding = held  # this step's anchor (_box)
         self._step_box = box.around(box.joint(held), self._rate_step)
+        self._accel = box.acceleration_map(state.inertia)  # what _box reaches by
         assert self.rate_limit is not None
         self._ramp = RampTest(state.dx, self.period, state.inertia, box.to_joint,
                               self.rate_limit, self._velocity_floor)
@@ -310,18 +312,20 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         (:meth:`TorqueBox.toward`): the acceleration D⁻¹(τ − b) keeps its direction and only
         shrinks, so no joint is spun up by the coupling through D, as clipping each joint
         would (τ itself when it fits, or when there is no limit). Under a torque-rate limit
-        the step from the held torque τ_h toward it is then scaled into what one step
-        reaches, τ_h + s(τ − τ_h): the change of acceleration keeps its direction too (a
-        brake clipped joint by joint into the rate box spun the Panda's base joint up
-        through its rate bound)."""
+        it is then reached as nearly as one step can: the torque within ρh of the held one
+        whose acceleration is nearest to its own (:meth:`TorqueBox.nearest`). A brake
+        clipped joint by joint into the rate box spun the Panda's base joint up through its
+        rate bound (the coupling through D); the whole step scaled into the rate box,
+        τ_h + s(τ − τ_h), starved the joints with room to move (the FR3's last joint kept
+        11 N·m for 15 ms while its motion had to turn, and ran through its rate bound)."""
         box = self._static_box
         if box is None:
             return tau
         boxed = box.toward(bias, tau)
-        step, held = self._step_box, self._holding
-        if self._rate_step is None or step is None or held is None:
+        step = self._step_box
+        if self._rate_step is None or step is None or self._holding is None:
             return boxed
-        return step.toward(held, boxed)
+        return step.nearest(self._accel, boxed)
 
     def _saturate(self, tau: Array) -> Array:
         return tau if self._step_box is None else self._step_box.clip(tau)
