@@ -54,17 +54,29 @@ class MovingTarget:
         self.posture_velocity = np.zeros_like(self.posture)
         self.rotation: Array | None = None
         self.axes: Array | None = None
+        self._fed = self._posture_fed = False  # a feed-forward is nonzero (set by set)
+
+    @property
+    def fed(self) -> bool:
+        """Whether a feed-forward (ṗ_ff, ω_ff or ẋ_n,ff) was last set nonzero."""
+        return self._fed or self._posture_fed
 
     def set(self, position: Array, velocity: Array | None = None,
             posture: Array | None = None, posture_velocity: Array | None = None,
             angular_velocity: Array | None = None) -> None:
-        """Move the target (velocities to zero when not given; the posture kept)."""
+        """Move the target (velocities to zero when not given; the posture kept). A zero
+        feed-forward is written once, not at every step (the tracker's hot path)."""
         self.position[:] = position
-        self.velocity[:] = 0.0 if velocity is None else velocity
+        fed = velocity is not None or angular_velocity is not None
+        if fed or self._fed:
+            self.velocity[:] = 0.0 if velocity is None else velocity
+            self.angular_velocity[:] = 0.0 if angular_velocity is None else angular_velocity
+            self._fed = fed
         if posture is not None:
             self.posture[:] = posture
-        self.posture_velocity[:] = 0.0 if posture_velocity is None else posture_velocity
-        self.angular_velocity[:] = 0.0 if angular_velocity is None else angular_velocity
+        if posture_velocity is not None or self._posture_fed:
+            self.posture_velocity[:] = 0.0 if posture_velocity is None else posture_velocity
+            self._posture_fed = posture_velocity is not None
 
     def orient(self, rotation: Array, tool: Array | None = None) -> None:
         """Give the target an orientation R_d = ``rotation`` (new arrays: a law steered

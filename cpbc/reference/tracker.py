@@ -110,6 +110,8 @@ class ReferenceTracker(Controller):
         self.home = self.moving.posture.copy()  # the law's x_n, where a point stream keeps it
         self._posture_away = False  # whether the applied posture is off x_n or streamed
         self._arrived = False  # the applied point is at a still requested point, x_n at rest
+        self._fed = self._spinning = False  # a nonzero ṗ_r, ω_r is streamed
+        self._gap = np.zeros(3)  # work space of the point's step
         self.requested_rotation: Array | None = None  # a streamed orientation, else None
         self.requested_angular_velocity = np.zeros(3)  # its ω_r, the angular feed-forward
         self._rotation_away = False  # whether the applied rotation is turning toward it
@@ -158,6 +160,7 @@ class ReferenceTracker(Controller):
         self.requested_posture = None
         self.requested_posture_velocity[:] = 0.0
         self.requested_angular_velocity[:] = 0.0
+        self._fed, self._spinning = bool(v is not None and v.any()), False
         self._arrived = False
 
     def set_pose(self, position: ArrayLike, rotation: ArrayLike,
@@ -195,6 +198,8 @@ class ReferenceTracker(Controller):
         self.requested_posture = None
         self.requested_posture_velocity[:] = 0.0
         self.requested_angular_velocity[:] = 0.0 if w is None else w
+        self._fed = bool(v is not None and v.any())
+        self._spinning = bool(w is not None and w.any())
         self.requested_rotation = r
         self._rotation_away = True
         self._arrived = False
@@ -256,6 +261,7 @@ class ReferenceTracker(Controller):
         self.requested_posture = x
         self.requested_posture_velocity[:] = v
         self.requested_angular_velocity[:] = 0.0
+        self._fed, self._spinning = bool(self.requested_velocity.any()), False
         self._posture_away = True
         self._arrived = False
 
@@ -263,6 +269,11 @@ class ReferenceTracker(Controller):
         """The per-step state the torque's controller reads at (x, ẋ), each n finite
         numbers (else ParameterError naming ``x`` or ``dx``)."""
         n = self.model.n
+        shape = (n,)
+        # the hot path: both arrays of n finite numbers, checked by one finite sum of squares
+        if getattr(x, "shape", None) == shape == getattr(dx, "shape", None) and (
+                math.isfinite(float(x.dot(x) + dx.dot(dx)))):
+            return self.run.state(x, dx)
         return self.run.state(state_vector(x, n, "x"), state_vector(dx, n, "dx"))
 
     @property
@@ -344,15 +355,11 @@ class ReferenceTracker(Controller):
         self.pace = pace
         if self._arrived:  # at a still target: nothing moves
             return
+        if not (self._posture_away or self._rotation_away):  # the point alone moves
+            self._move_point(pace)
+            return
         gap = self.requested - target.position
         share = _share(math.hypot(*gap), self.h * pace * st.max_speed)
-        if not (self._posture_away or self._rotation_away):  # the point alone moves
-            target.set(target.position + share * gap,
-                       _capped(self.requested_velocity, pace * st.max_speed, share),
-                       angular_velocity=self._spin(pace))
-            self._arrived = share == 1.0 and not (self.requested_velocity.any()
-                                                  or self.requested_angular_velocity.any())
-            return
         goal = self.home if self.requested_posture is None else self.requested_posture
         turn = goal - target.posture
         share = min(share, _share(math.hypot(*turn),
@@ -370,10 +377,28 @@ class ReferenceTracker(Controller):
                            share), self._spin(pace))
         self._posture_away = self.requested_posture is not None or share < 1.0
 
+    def _move_point(self, pace: float) -> None:
+        """The applied point's step toward the requested one alone (the hot path: in place,
+        with nothing to write when the pace is zero and no feed-forward is streamed)."""
+        target, speed = self.moving, self.settings.max_speed
+        step = self.h * pace * speed
+        if step == 0.0 and not (self._fed or self._spinning or target.fed):
+            return  # held where it is (V̄ at or over the budget)
+        gap = np.subtract(self.requested, target.position, out=self._gap)
+        distance = math.hypot(*gap)  # no overflow for a huge finite target
+        if distance <= step:
+            target.set(self.requested, _capped(self.requested_velocity, pace * speed, 1.0)
+                       if self._fed else None, angular_velocity=self._spin(pace))
+            self._arrived = not (self._fed or self._spinning)
+            return
+        gap *= step / distance
+        gap += target.position
+        target.set(gap)
+
     def _spin(self, pace: float) -> Array | None:
         """The angular feed-forward ω_r once the applied orientation has reached the
         streamed one, no faster than the pace allows; None (zero) before."""
-        if self._rotation_away:
+        if self._rotation_away or not self._spinning:
             return None
         return _capped(self.requested_angular_velocity, pace * self.settings.max_angular_speed,
                        1.0)
