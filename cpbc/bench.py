@@ -278,11 +278,12 @@ def _print_stream(st: dict[str, float]) -> None:
           f"{st['fixed_us']:.1f} µs with the fixed goal, ratio {st['ratio']:.3f} (range "
           f"{st['ratio_min']:.3f}–{st['ratio_max']:.3f}; target ≤ 1.1)")
     for key in ("streamed", "fixed"):
-        cells = ", ".join(f"{q} {st[f'{key}_{q}_us']:.0f}" for q in ("p50", "p99", "p999",
-                                                                      "max"))
-        print(f"  {key} call in closed loop [µs]: {cells}; p99.9/p50 "
-              f"{st[f'{key}_p999_over_p50']:.2f}" + (" (target ≤ 3)" if key == "streamed"
-                                                     else ""))
+        for clock, what in (("", "wall"), ("cpu_", "CPU")):
+            cells = ", ".join(f"{q} {st[f'{key}_{clock}{q}_us']:.0f}"
+                              for q in ("p50", "p99", "p999", "max"))
+            print(f"  {key} call in closed loop, {what} time [µs]: {cells}; p99.9/p50 "
+                  f"{st[f'{key}_{clock}p999_over_p50']:.2f}"
+                  + (" (target ≤ 3)" if key == "streamed" and not clock else ""))
 
 
 def _print_tail(tail: dict[str, object]) -> None:

@@ -10,7 +10,8 @@ calls), against the same law, built apart, with its fixed goal.
 - The call's tail: every ``torque`` call timed in a closed 1 kHz MuJoCo loop from the goal's
   posture (the user's own loop, the collector off), the two laws in lock step on a plant
   each; p50, p99, p99.9 and the maximum [µs], and p99.9/p50 (target ≤ 3 for the streamed
-  call).
+  call), in wall time and in the thread's CPU time (``cpu_``: without the time the process
+  was preempted, which a loaded machine adds to the wall time's tail).
 
 Nothing is asserted: figures for the docs.
 """
@@ -113,6 +114,8 @@ def call_tail(fixed: Controller, streamed: ReferenceTracker, policy: _Policy,
     plants = {"fixed": setup.make_plant(), "streamed": setup.make_plant()}
     laws: dict[str, Controller] = {"fixed": fixed, "streamed": streamed}
     times: dict[str, list[int]] = {k: [] for k in laws}
+    cpu: dict[str, list[int]] = {k: [] for k in laws}
+    wall, thread = time.perf_counter_ns, time.thread_time_ns
     for plant in plants.values():
         plant.reset(posture, np.zeros(len(posture)))
     gc.disable()
@@ -122,18 +125,21 @@ def call_tail(fixed: Controller, streamed: ReferenceTracker, policy: _Policy,
             for key, law in laws.items():
                 plant = plants[key]
                 data = plant.data
-                start = time.perf_counter_ns()
+                start, start_cpu = wall(), thread()
                 tau = law.torque(data.qpos, data.qvel)
-                times[key].append(time.perf_counter_ns() - start)
+                end, end_cpu = wall(), thread()
+                times[key].append(end - start)
+                cpu[key].append(end_cpu - start_cpu)
                 plant.apply(tau)
                 plant.step(1)
     finally:
         gc.enable()
     out: dict[str, float] = {}
-    for key, found in times.items():
-        q = quantiles(found[100:])  # the first steps warm the caches
-        out.update({f"{key}_{name}_us": value for name, value in q.items()})
-        out[f"{key}_p999_over_p50"] = q["p999"] / q["p50"]
+    for key in laws:
+        for clock, found in (("", times[key]), ("cpu_", cpu[key])):
+            q = quantiles(found[100:])  # the first steps warm the caches
+            out.update({f"{key}_{clock}{name}_us": value for name, value in q.items()})
+            out[f"{key}_{clock}p999_over_p50"] = q["p999"] / q["p50"]
     return out
 
 
