@@ -18,7 +18,7 @@ from gymnasium.utils.env_checker import check_env
 from cpbc.gym import ScenarioEnv, make_env
 from cpbc.scenario import ScenarioSetup, build, load_scenario
 
-STEPS = 3000  # env steps of the random policy here (20 Hz: 150 s of the arm's time)
+STEPS = 1500  # env steps of the random policy here (20 Hz: 75 s of the arm's time)
 
 
 @pytest.fixture(scope="module")
