@@ -273,6 +273,19 @@ def _print_taskspace(ts: dict[str, float]) -> None:
           f"{ts['ratio_min']:.2f}–{ts['ratio_max']:.2f}; target ≤ 1.2)")
 
 
+def _print_stream(st: dict[str, float]) -> None:
+    print(f"streamed target (cpbc.bench_stream): {st['streamed_us']:.1f} µs against "
+          f"{st['fixed_us']:.1f} µs with the fixed goal, ratio {st['ratio']:.3f} (range "
+          f"{st['ratio_min']:.3f}–{st['ratio_max']:.3f}; target ≤ 1.1)")
+    for key in ("streamed", "fixed"):
+        for clock, what in (("", "wall"), ("cpu_", "CPU")):
+            cells = ", ".join(f"{q} {st[f'{key}_{clock}{q}_us']:.0f}"
+                              for q in ("p50", "p99", "p999", "max"))
+            print(f"  {key} call in closed loop, {what} time [µs]: {cells}; p99.9/p50 "
+                  f"{st[f'{key}_{clock}p999_over_p50']:.2f}"
+                  + (" (target ≤ 3)" if key == "streamed" and not clock else ""))
+
+
 def _print_tail(tail: dict[str, object]) -> None:
     cells = ", ".join(f"{k} {tail[k]:.0f}" for k in ("p50", "p99", "p999", "p9999", "max"))
     print(f"guarded step in closed loop [µs]: {cells} over {tail['steps']:,} steps "
@@ -315,6 +328,9 @@ def _print_text(setup: BenchSetup, document: dict[str, object], torque_us: dict[
     print(f"reference governor: {governor:.2f} µs a step (target ≤ 2)")
     if taskspace is not None:
         _print_taskspace(taskspace)  # type: ignore[arg-type]
+    stream = document.get("stream")
+    if stream is not None:
+        _print_stream(stream)  # type: ignore[arg-type]
     if peers:
         _print_peers(torque_us)
     if tail is not None:
@@ -368,6 +384,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "notes": setup.notes, "made": made(argv, args.repeats, len(setup.states))}
     if setup.robot == "panda":  # the task-space pair is panda_goal_pose's arm
         document["taskspace"] = taskspace_times(args.repeats)
+        from cpbc.bench_stream import stream_times
+
+        document["stream"] = stream_times(taskspace_pair()[1], args.repeats)
     tail = None
     if peers and setup.robot == "panda":  # the closed loop's worst steps, for a deadline
         from cpbc.bench_tail import guarded_tail

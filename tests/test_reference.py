@@ -213,6 +213,45 @@ def test_a_steered_law_packs_and_reads_the_moving_target(panda: RobotModel) -> N
         seen.append(tau)
 
 
+@pytest.mark.parametrize("orientation", ["axis", "rotation"])
+def test_a_steered_orientation_packs_and_reads_the_moving_target(panda: RobotModel,
+                                                                 orientation: str) -> None:
+    """A law whose axis (or orientation) spring is steered to a streamed orientation keeps
+    its one kernel call: R_d (or [a_b; R_d a_b]) and the angular feed-forward ω_ff are packed
+    rows refreshed from the target before each step. As the target turns and ω_ff changes,
+    τ and V equal the general path's to 1e-12, and change with each."""
+    from cpbc.constraints import ConstraintSet
+    from cpbc.controllers.potentials import FrameOrientationSpring
+
+    fid = panda.frame_id("panda_hand")
+    down = np.diag([1.0, -1.0, -1.0])
+    spring = (FrameAxisSpring.named(panda, "panda_hand", [0, 0, 1], [0, 0, -1], 2.0)
+              if orientation == "axis" else FrameOrientationSpring(fid, down, 2.0, 1.0))
+    task = total(FramePositionSpring(fid, GOAL, 200.0), spring, JointSpring(HOME, 2.0))
+    law = CPBC(panda, HOME, ConstraintSet(7), 20.0, 1.0, Power(0.2), potential=task,
+               task_damping=TaskDamping(fid, 20.0, angular=5.0))
+    target = MovingTarget(GOAL, HOME)
+    target.orient(down, np.array([0.0, 0.0, 1.0]) if orientation == "axis" else None)
+    steer(law, target)
+    assert law.packed_law().terms is not None
+
+    general = _general(law)
+    rng = np.random.default_rng(5)
+    x, dx = HOME + 0.1 * rng.standard_normal(7), 0.3 * rng.standard_normal(7)
+    seen = [law.evaluate(x, dx)[0]]
+    c, s = np.cos(0.3), np.sin(0.3)
+    tilt = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+    for turn, spin in ((tilt @ down, None), (tilt @ down, np.array([0.2, -0.1, 0.3]))):
+        target.turn(turn)
+        target.set(GOAL, angular_velocity=spin)
+        tau, value = law.evaluate(x, dx)
+        slow = general.evaluate_state(general.state(x, dx))
+        np.testing.assert_allclose(tau, slow.torque, rtol=1e-12, atol=1e-12)
+        assert value == pytest.approx(slow.lyapunov, rel=1e-12)
+        assert not np.allclose(tau, seen[-1], rtol=1e-9, atol=1e-9), (turn, spin)
+        seen.append(tau)
+
+
 @pytest.mark.parametrize("name", ["bpbc", "bpbc_ke"])
 def test_a_steered_bounded_law_packs_and_reads_the_moving_target(name: str) -> None:
     """The bounded-torque laws' task terms (ln cosh position spring, ln cosh posture spring,

@@ -37,10 +37,10 @@ class Packed:
         floats: its constant float tables, 2-D, in the order the kind reads them.
         ints: its constant int tables, 2-D.
         frame: the frame whose kinematics the kernel reads (POINT), else −1.
-        live: (table, source) pairs: the first row of float table ``table`` mirrors the
-            1-D array ``source``, which its owner rewrites in place between steps (a moving
-            goal, cpbc.reference.target); the packed copy is refreshed from it before each
-            kernel call (cpbc.controllers.packed_law).
+        live: (table, source) pairs: the rows of float table ``table`` mirror the rows of
+            ``source`` (a 1-D ``source``: the first row), which its owner rewrites in place
+            between steps (a moving goal, cpbc.reference.target); the packed copy is
+            refreshed from it before each kernel call (cpbc.controllers.packed_law).
     """
 
     kind: int
@@ -91,8 +91,10 @@ class PackedSet:
             if len(p.floats) > FLOAT_TABLES or len(p.ints) > INT_TABLES:
                 raise ValueError(f"kind {p.kind} packs too many tables")
             plan[r, :3] = (p.kind, at, k)
-            live += [(f_row + sum(t.shape[0] for t in p.floats[:i]), source)
-                     for i, source in p.live]
+            for i, source in p.live:
+                first = f_row + sum(t.shape[0] for t in p.floats[:i])
+                rows = source if source.ndim == 2 else source[None, :]
+                live += [(first + j, row) for j, row in enumerate(rows)]
             for t, table in enumerate(p.floats):
                 plan[r, FLOAT_AT + 3 * t:FLOAT_AT + 3 * t + 3] = (f_row, *table.shape)
                 floats.append(table)

@@ -99,7 +99,9 @@ class TaskDamping:
 
     def force_with(self, at: Placed, dx: Array, feedforward: Array) -> Array:
         """F with the feed-forward ṗ_ff = ``feedforward`` in place of the damping's own (a
-        moving reference, cpbc.reference.target) (cpbc.kernels.task.task_damping)."""
+        moving reference, cpbc.reference.target), or [ṗ_ff; ω_ff] (6,) with an angular
+        one: F = J_vᵀ D_x (J_v ẋ − ṗ_ff) + J_ωᵀ D_ω (J_ω ẋ − ω_ff)
+        (cpbc.kernels.task.task_damping)."""
         kin = frame_at(at, self.frame)
         force = np.empty(dx.shape[0])
         task_damping(kin.position, kin.rotation, kin.jacobian, self._point, self._gain6,
@@ -108,8 +110,9 @@ class TaskDamping:
 
     def packed(self, toward: Array | None = None) -> tuple[Packed, ...] | None:
         """The point, G and ṗ_ff for a law's kernel (cpbc.kernels.law_terms), unless a
-        subclass overrides ``force`` or ``force_with``; with ``toward``, ṗ_ff is that array,
-        read again before each step (a moving reference: ``Packed.live``)."""
+        subclass overrides ``force`` or ``force_with``; with ``toward``, ṗ_ff (or
+        [ṗ_ff; ω_ff]) is that array, read again before each step (a moving reference:
+        ``Packed.live``)."""
         cls = type(self)
         if cls.force is not TaskDamping.force or cls.force_with is not TaskDamping.force_with:
             return None

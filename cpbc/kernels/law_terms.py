@@ -17,7 +17,8 @@ per term, [kind, 0, 0, (row, rows, columns) of each float table …], the tables
   Σ K_i/ξ_i · ln 2 (1, 1) (``position_log_cosh``, eq. 7.18 on p − p_d);
 - ``JOINT_DAMPING``: K_D (1, n) (``joint_damping``, eq. 6.10);
 - ``TANH_DAMPING``: [K_D; Γ] (2, n) (``tanh_damping``, eq. 7.17);
-- ``TASK_DAMPING``: [o has_offset] (1, 4), G (6, 6), ṗ_ff (1, 3) (``task_damping``);
+- ``TASK_DAMPING``: [o has_offset] (1, 4), G (6, 6), ṗ_ff (1, 3) or [ṗ_ffᵀ ω_ffᵀ] (1, 6)
+  (``task_damping``);
 - ``JOINT_FEEDFORWARD``: K_D (1, n), ẋ_n,ff (1, n) (``joint_feedforward``: a moving
   posture's share of the damping, cpbc.reference.target.SteeredDamping);
 - ``TASK_TANH_DAMPING``: [o has_offset] (1, 4), [diag D_x; diag Γ_x] (2, 3), ṗ_ff (1, 3)

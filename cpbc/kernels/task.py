@@ -132,7 +132,8 @@ def axis_spring(rotation: Array, jacobian: Array, tool: Array, world: Array,
 def task_damping(origin: Array, rotation: Array, jacobian: Array, offset: Array,
                  gain: Array, feedforward: Array, dx: Array, force: Array) -> None:
     """F = Jᵀ (G J ẋ − b), J = [J_p; J_ω] of the point, G = diag(D_x, D_ω) (6, 6) ``gain``,
-    b = G [ṗ_ff; 0] (``feedforward`` ṗ_ff), into ``force``."""
+    b = G [ṗ_ff; ω_ff] (``feedforward``: ṗ_ff (3,), ω_ff = 0, or [ṗ_ff; ω_ff] (6,)), into
+    ``force``."""
     n = dx.shape[0]
     point, linear = np.empty(3), np.empty((3, n))
     point_on_frame(origin, rotation, jacobian, offset, point, linear)
@@ -144,7 +145,7 @@ def task_damping(origin: Array, rotation: Array, jacobian: Array, offset: Array,
     w = np.empty(6)
     for i in range(6):
         b = 0.0
-        for j in range(3):
+        for j in range(feedforward.shape[0]):
             b += gain[i, j] * feedforward[j]
         s = -b
         for j in range(6):

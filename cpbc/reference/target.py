@@ -38,26 +38,58 @@ from cpbc.kernels.law_terms import JOINT_FEEDFORWARD, joint_feedforward
 
 
 class MovingTarget:
-    """The applied reference: ``position`` p_d (3,), ``velocity`` ṗ_ff (3,) and ``posture``
-    x_n (n,) and its feed-forward ``posture_velocity`` ẋ_n,ff (n,), written in place by
-    :meth:`set`; and ``rotation`` R_d (3, 3), written in place, once a streamed orientation
-    steers the law's orientation spring (None before)."""
+    """The applied reference: ``position`` p_d (3,), ``velocity`` ṗ_ff (3,),
+    ``angular_velocity`` ω_ff (3,) (world axes; the two are the halves of ``twist``
+    [ṗ_ff; ω_ff], which the task damping reads), ``posture`` x_n (n,) and its feed-forward
+    ``posture_velocity`` ẋ_n,ff (n,), written in place by :meth:`set`; and ``rotation``
+    R_d (3, 3), written in place by :meth:`turn`, once a streamed orientation steers the
+    law's orientation spring (None before), with ``axes`` [a_b; R_d a_b] (2, 3) when it
+    steers an axis spring of tool axis a_b (None otherwise)."""
 
     def __init__(self, position: Array, posture: Array) -> None:
         self.position = np.array(position, dtype=float)
-        self.velocity = np.zeros(3)
+        self.twist = np.zeros(6)
+        self.velocity, self.angular_velocity = self.twist[:3], self.twist[3:]
         self.posture = np.array(posture, dtype=float)
         self.posture_velocity = np.zeros_like(self.posture)
         self.rotation: Array | None = None
+        self.axes: Array | None = None
+        self._fed = self._posture_fed = False  # a feed-forward is nonzero (set by set)
+
+    @property
+    def fed(self) -> bool:
+        """Whether a feed-forward (ṗ_ff, ω_ff or ẋ_n,ff) was last set nonzero."""
+        return self._fed or self._posture_fed
 
     def set(self, position: Array, velocity: Array | None = None,
-            posture: Array | None = None, posture_velocity: Array | None = None) -> None:
-        """Move the target (velocities to zero when not given; the posture kept)."""
+            posture: Array | None = None, posture_velocity: Array | None = None,
+            angular_velocity: Array | None = None) -> None:
+        """Move the target (velocities to zero when not given; the posture kept). A zero
+        feed-forward is written once, not at every step (the tracker's hot path)."""
         self.position[:] = position
-        self.velocity[:] = 0.0 if velocity is None else velocity
+        fed = velocity is not None or angular_velocity is not None
+        if fed or self._fed:
+            self.velocity[:] = 0.0 if velocity is None else velocity
+            self.angular_velocity[:] = 0.0 if angular_velocity is None else angular_velocity
+            self._fed = fed
         if posture is not None:
             self.posture[:] = posture
-        self.posture_velocity[:] = 0.0 if posture_velocity is None else posture_velocity
+        if posture_velocity is not None or self._posture_fed:
+            self.posture_velocity[:] = 0.0 if posture_velocity is None else posture_velocity
+            self._posture_fed = posture_velocity is not None
+
+    def orient(self, rotation: Array, tool: Array | None = None) -> None:
+        """Give the target an orientation R_d = ``rotation`` (new arrays: a law steered
+        after this reads them), and with ``tool`` a_b the axes [a_b; R_d a_b] too."""
+        self.rotation = np.array(rotation, dtype=float)
+        self.axes = None if tool is None else np.vstack([tool, self.rotation @ tool])
+
+    def turn(self, rotation: Array) -> None:
+        """Turn the target's orientation to ``rotation`` (in place, with its axes)."""
+        assert self.rotation is not None  # oriented first
+        self.rotation[:] = rotation
+        if self.axes is not None:
+            self.axes[1] = self.rotation @ self.axes[0]
 
 
 class _Steerable(Protocol):
@@ -112,19 +144,25 @@ class Steered:
 
     def packed(self) -> tuple[Packed, ...] | None:
         """The spring's terms for a law's kernel with its goal read from the target before
-        each step (``Packed.live``), unless the spring does not pack; a steered orientation
-        does not (its goal is a matrix, or a vector computed from one: the law then takes
-        its general path)."""
+        each step (``Packed.live``), unless the spring does not pack: an axis spring reads
+        the target's ``axes`` (which :meth:`MovingTarget.turn` keeps at R_d a_b), and takes
+        the general path when they are another tool axis's."""
         packed = getattr(self.spring, "packed", None)
-        if packed is None or self.reads in ("rotation", "axis"):
+        if packed is None:
             return None
+        if self.reads == "axis":
+            axes = self.target.axes
+            if axes is None or not np.array_equal(axes[0], self.spring.tool):  # type: ignore[attr-defined]
+                return None
+            return packed(toward=axes)
         return packed(toward=self._goal)
 
 
 @dataclass(frozen=True)
 class SteeredDamping:
-    """Task damping whose feed-forward is the target's ``velocity``, less K_D ẋ_n,ff when
-    the law's joint damping ``joint`` K_D is linear (module docstring)."""
+    """Task damping whose feed-forward is the target's ``twist`` [ṗ_ff; ω_ff] (its
+    ``velocity`` ṗ_ff for tanh damping, which damps no rotation), less K_D ẋ_n,ff when the
+    law's joint damping ``joint`` K_D is linear (module docstring)."""
 
     damping: TaskDamping | TaskTanhDamping
     target: MovingTarget
@@ -138,8 +176,13 @@ class SteeredDamping:
     def force_bound(self) -> float | None:
         return self.damping.force_bound
 
+    @property
+    def _feedforward(self) -> Array:
+        target = self.target
+        return target.twist if isinstance(self.damping, TaskDamping) else target.velocity
+
     def force(self, at: Placed, dx: Array) -> Array:
-        force = self.damping.force_with(at, dx, self.target.velocity)
+        force = self.damping.force_with(at, dx, self._feedforward)
         if self.joint is None:
             return force
         share = np.empty(force.shape[0])
@@ -147,10 +190,10 @@ class SteeredDamping:
         return force + share
 
     def packed(self) -> tuple[Packed, ...] | None:
-        """The damping's terms for a law's kernel with ṗ_ff read from the target before
-        each step (``Packed.live``), and the joint feed-forward's; None when the damping
+        """The damping's terms for a law's kernel with the feed-forward read from the target
+        before each step (``Packed.live``), and the joint feed-forward's; None when the damping
         does not pack."""
-        found = self.damping.packed(toward=self.target.velocity)
+        found = self.damping.packed(toward=self._feedforward)
         if found is None or self.joint is None:
             return found
         return (*found, Packed(JOINT_FEEDFORWARD, (self.joint[None, :],

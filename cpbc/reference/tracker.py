@@ -110,7 +110,10 @@ class ReferenceTracker(Controller):
         self.home = self.moving.posture.copy()  # the law's x_n, where a point stream keeps it
         self._posture_away = False  # whether the applied posture is off x_n or streamed
         self._arrived = False  # the applied point is at a still requested point, x_n at rest
+        self._fed = self._spinning = False  # a nonzero ṗ_r, ω_r is streamed
+        self._gap = np.zeros(3)  # work space of the point's step
         self.requested_rotation: Array | None = None  # a streamed orientation, else None
+        self.requested_angular_velocity = np.zeros(3)  # its ω_r, the angular feed-forward
         self._rotation_away = False  # whether the applied rotation is turning toward it
         self.requested_posture_velocity = np.zeros(self.model.n)
         self._last: tuple[Array, Array] | None = None  # the state of the last step
@@ -156,34 +159,47 @@ class ReferenceTracker(Controller):
         self.requested_velocity[:] = 0.0 if v is None else v
         self.requested_posture = None
         self.requested_posture_velocity[:] = 0.0
+        self.requested_angular_velocity[:] = 0.0
+        self._fed, self._spinning = bool(v is not None and v.any()), False
         self._arrived = False
 
     def set_pose(self, position: ArrayLike, rotation: ArrayLike,
-                 velocity: ArrayLike | None = None) -> None:
+                 velocity: ArrayLike | None = None,
+                 angular_velocity: ArrayLike | None = None) -> None:
         """Stream a pose for the law's frame: its point's ``position`` as
         ``set_target``, and its ``rotation`` R_r in the world, a 3 × 3 rotation matrix
         or a unit quaternion (w, x, y, z), toward which the law's orientation spring is
         turned (an axis spring: its world axis to R_r a_b, the rotation about it left
         free) along the shortest rotation, at most ``max_angular_speed`` at the governor's
-        pace; ``velocity`` ṗ_r is the point's (no angular feed-forward). A later point
-        target keeps the orientation.
+        pace; ``velocity`` ṗ_r [m/s] is the point's feed-forward and ``angular_velocity``
+        ω_r [rad/s] (world axes; None: zero) the frame's: once the applied orientation is
+        R_r, the task damping damps J_ω ẋ − ω_r (no faster than ``max_angular_speed`` at
+        the governor's pace; an axis goal's damping leaves the spin about its axis free, and
+        the bounded laws' tanh damping has no angular term to read it). A later point
+        target keeps the orientation (with no angular feed-forward).
 
-        The first pose steers the law's orientation spring, which then takes the law's
-        general path (no compiled step): slower per step than a point stream.
+        The first pose steers the law's orientation spring to the applied orientation; the
+        law keeps its compiled step, which reads it (and ω_r) before each step.
 
         Raises:
-            ParameterError: (a ``ValueError``) ``position``, ``rotation`` or ``velocity`` is
-                not as above, or the law has no orientation spring on the frame; the
-                previous target stays in force.
+            ParameterError: (a ``ValueError``) ``position``, ``rotation``, ``velocity`` or
+                ``angular_velocity`` is not as above, or the law has no orientation spring
+                on the frame; the previous target stays in force.
         """
         p, v = self._point(position, velocity)
         r = rotation_matrix(rotation, "rotation")
+        w = None if angular_velocity is None else finite_vector(
+            angular_velocity, 3, "angular_velocity",
+            f"the angular velocity of frame '{self.frame_name}' in the world [rad/s]")
         if self.moving.rotation is None:
             self._steer_orientation()
         self.requested[:] = p
         self.requested_velocity[:] = 0.0 if v is None else v
         self.requested_posture = None
         self.requested_posture_velocity[:] = 0.0
+        self.requested_angular_velocity[:] = 0.0 if w is None else w
+        self._fed = bool(v is not None and v.any())
+        self._spinning = bool(w is not None and w.any())
         self.requested_rotation = r
         self._rotation_away = True
         self._arrived = False
@@ -213,12 +229,11 @@ class ReferenceTracker(Controller):
                                              "or build the law for a goal with an orientation")
         spring = found[0]
         if isinstance(spring, FrameOrientationSpring):
-            start = np.array(spring.rotation, dtype=float)
+            self.moving.orient(spring.rotation)
         else:
             kin = self._kinematics.state(self.home, np.zeros(self.model.n),
                                          frames=(self.frame,)).frames[self.frame]
-            start = np.array(kin.rotation, dtype=float)
-        self.moving.rotation = start
+            self.moving.orient(kin.rotation, spring.tool)
         steer(self.law, self.moving)
         self.potential = self.law.potential
 
@@ -245,6 +260,8 @@ class ReferenceTracker(Controller):
         self.requested_velocity[:] = jv @ v
         self.requested_posture = x
         self.requested_posture_velocity[:] = v
+        self.requested_angular_velocity[:] = 0.0
+        self._fed, self._spinning = bool(self.requested_velocity.any()), False
         self._posture_away = True
         self._arrived = False
 
@@ -252,6 +269,11 @@ class ReferenceTracker(Controller):
         """The per-step state the torque's controller reads at (x, ẋ), each n finite
         numbers (else ParameterError naming ``x`` or ``dx``)."""
         n = self.model.n
+        shape = (n,)
+        # the hot path: both arrays of n finite numbers, checked by one finite sum of squares
+        if getattr(x, "shape", None) == shape == getattr(dx, "shape", None) and (
+                math.isfinite(float(x.dot(x) + dx.dot(dx)))):
+            return self.run.state(x, dx)
         return self.run.state(state_vector(x, n, "x"), state_vector(dx, n, "dx"))
 
     @property
@@ -333,13 +355,11 @@ class ReferenceTracker(Controller):
         self.pace = pace
         if self._arrived:  # at a still target: nothing moves
             return
+        if not (self._posture_away or self._rotation_away):  # the point alone moves
+            self._move_point(pace)
+            return
         gap = self.requested - target.position
         share = _share(math.hypot(*gap), self.h * pace * st.max_speed)
-        if not (self._posture_away or self._rotation_away):  # the point alone moves
-            target.set(target.position + share * gap,
-                       _capped(self.requested_velocity, pace * st.max_speed, share))
-            self._arrived = share == 1.0 and not self.requested_velocity.any()
-            return
         goal = self.home if self.requested_posture is None else self.requested_posture
         turn = goal - target.posture
         share = min(share, _share(math.hypot(*turn),
@@ -348,14 +368,40 @@ class ReferenceTracker(Controller):
         if self._rotation_away and rotation is not None and aim is not None:
             share = min(share, _share(angle_between(rotation, aim),
                                       self.h * pace * st.max_angular_speed))
-            rotation[:] = turned_toward(rotation, aim, share)
+            target.turn(turned_toward(rotation, aim, share))
             self._rotation_away = share < 1.0
         target.set(target.position + share * gap,
                    _capped(self.requested_velocity, pace * st.max_speed, share),
                    target.posture + share * turn,
                    _capped(self.requested_posture_velocity, pace * st.max_joint_speed,
-                           share))
+                           share), self._spin(pace))
         self._posture_away = self.requested_posture is not None or share < 1.0
+
+    def _move_point(self, pace: float) -> None:
+        """The applied point's step toward the requested one alone (the hot path: in place,
+        with nothing to write when the pace is zero and no feed-forward is streamed)."""
+        target, speed = self.moving, self.settings.max_speed
+        step = self.h * pace * speed
+        if step == 0.0 and not (self._fed or self._spinning or target.fed):
+            return  # held where it is (V̄ at or over the budget)
+        gap = np.subtract(self.requested, target.position, out=self._gap)
+        distance = math.hypot(*gap)  # no overflow for a huge finite target
+        if distance <= step:
+            target.set(self.requested, _capped(self.requested_velocity, pace * speed, 1.0)
+                       if self._fed else None, angular_velocity=self._spin(pace))
+            self._arrived = not (self._fed or self._spinning)
+            return
+        gap *= step / distance
+        gap += target.position
+        target.set(gap)
+
+    def _spin(self, pace: float) -> Array | None:
+        """The angular feed-forward ω_r once the applied orientation has reached the
+        streamed one, no faster than the pace allows; None (zero) before."""
+        if self._rotation_away or not self._spinning:
+            return None
+        return _capped(self.requested_angular_velocity, pace * self.settings.max_angular_speed,
+                       1.0)
 
 
 class GuardedReferenceTracker(ReferenceTracker, SafetyFilter):

@@ -99,14 +99,17 @@ class FrameOrientationSpring(OnOneFrame):
         value = orientation_spring(kin.rotation, kin.jacobian, goal, self.stiffness, grad)
         return value, grad
 
-    def packed(self) -> tuple[Packed, ...] | None:
-        """R_d and k for a law's kernel, unless a subclass overrides ``evaluate``."""
+    def packed(self, toward: Array | None = None) -> tuple[Packed, ...] | None:
+        """R_d and k for a law's kernel, unless a subclass overrides ``evaluate``; with
+        ``toward`` (3 × 3), R_d is that array, read again before each step (a streamed
+        orientation: ``Packed.live``)."""
         cls = type(self)
         if cls.evaluate is not FrameOrientationSpring.evaluate or (
                 cls.evaluate_toward is not FrameOrientationSpring.evaluate_toward):
             return None
-        return (Packed(ORIENTATION_SPRING, (self.rotation, np.array([[self.stiffness]])),
-                       frame=self.frame),)
+        goal = self.rotation if toward is None else toward
+        return (Packed(ORIENTATION_SPRING, (goal, np.array([[self.stiffness]])),
+                       frame=self.frame, live=() if toward is None else ((0, toward),)),)
 
 
 @dataclass(frozen=True)
@@ -161,11 +164,14 @@ class FrameAxisSpring(OnOneFrame):
         value = axis_spring(kin.rotation, kin.jacobian, self.tool, goal, self.stiffness, grad)
         return value, grad
 
-    def packed(self) -> tuple[Packed, ...] | None:
-        """a_b, a_w and k for a law's kernel, unless a subclass overrides ``evaluate``."""
+    def packed(self, toward: Array | None = None) -> tuple[Packed, ...] | None:
+        """a_b, a_w and k for a law's kernel, unless a subclass overrides ``evaluate``; with
+        ``toward``, the rows [a_b; a_w] (2 × 3) are that array, read again before each step
+        (a streamed orientation R_r, a_w = R_r a_b: ``Packed.live``)."""
         cls = type(self)
         if cls.evaluate is not FrameAxisSpring.evaluate or (
                 cls.evaluate_toward is not FrameAxisSpring.evaluate_toward):
             return None
-        return (Packed(AXIS_SPRING, (np.vstack([self.tool, self.world]),
-                                     np.array([[self.stiffness]])), frame=self.frame),)
+        axes = np.vstack([self.tool, self.world]) if toward is None else toward
+        return (Packed(AXIS_SPRING, (axes, np.array([[self.stiffness]])), frame=self.frame,
+                       live=() if toward is None else ((0, toward),)),)
