@@ -25,6 +25,7 @@ import yaml
 from cpbc.errors import CpbcError, ModelError
 from cpbc.model.actuators import apply_actuator_efforts
 from cpbc.model.arms import ARMS
+from cpbc.model.collision_geoms import covered_bodies
 from cpbc.model.gravity_load import BRAKING_DECELERATION, holdable_near, joint_loads
 from cpbc.model.loading import load_arm
 from cpbc.model.mjcf_arm import check_mjcf_arm
@@ -45,7 +46,8 @@ class RobotDescription:
         summary: one line about the arm.
         limits: the driven joints and their declared limits.
         frames: every frame of the Pinocchio model below the world.
-        covered_links: moving links with collision geometry (URDF arms only).
+        covered_links: moving links with collision geometry (an MJCF's: with a colliding
+            geom).
         locked: joints frozen by default, with their values.
         continuous: joints driven as unbounded revolute joints.
         pin_model: Pinocchio model of the driven joints (for the inertia of the gains).
@@ -102,7 +104,8 @@ def _describe_mjcf(path: Path, model_name: str) -> RobotDescription:
     effort = apply_actuator_efforts(pm, mj)  # what from_model reads when it runs
     limits = JointLimits(tuple(pm.names[1:]), lower, upper, np.full(n, np.inf),
                          np.where(effort > 0, effort, np.inf))
-    return RobotDescription(model_name, f"MJCF {path}", limits, _frames(pm), pin_model=pm)
+    return RobotDescription(model_name, f"MJCF {path}", limits, _frames(pm),
+                            covered_bodies(mj), pin_model=pm)
 
 
 def describe(name_or_path: str, locked: Mapping[str, float] | None = None,

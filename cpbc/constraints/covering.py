@@ -2,8 +2,9 @@
 
 The clearance constraints need each link as a few swept spheres with exact distances, not
 as a triangle mesh. For every link that carries collision geometry, this module gathers the
-geometry's points in the link frame (mesh vertices read with trimesh, URDF boxes, cylinders
-and spheres sampled on circumscribing polygons) and fits the capsule of least volume that
+geometry's points in the link frame (a URDF's mesh vertices read with trimesh, an MJCF's as
+MuJoCo compiled them, cpbc.model.collision_geoms; boxes, cylinders, capsules, spheres and
+ellipsoids by polytopes that circumscribe them) and fits the capsule of least volume that
 contains them all. A capsule is convex, so it then contains the convex hull of the points
 and with it the whole link surface: the cover is conservative.
 
@@ -29,7 +30,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import coal
 import numpy as np
@@ -37,6 +38,9 @@ import pinocchio as pin
 
 from cpbc.arrays import Array
 from cpbc.errors import CpbcError, ModelError
+
+if TYPE_CHECKING:  # read through its attributes; its module imports MuJoCo
+    from cpbc.model.collision_geoms import CollisionGeom
 
 
 def _trimesh() -> Any:
@@ -258,6 +262,39 @@ def sphere_chain(
     return [(start + (end - start) * (i / (k - 1)), r) for i in range(k)]
 
 
+def geom_points(geom: CollisionGeom) -> Array:
+    """Points whose convex hull contains an MJCF collision geom, in its link's frame
+    (MuJoCo's sizes: a capsule's and a cylinder's half-length along the geom's z)."""
+    size = geom.size
+    if geom.kind == "mesh":
+        local = geom.vertices
+    elif geom.kind == "box":
+        local = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)]) * size
+    elif geom.kind in ("sphere", "ellipsoid"):
+        # an affine image of a polytope around the unit sphere holds the ellipsoid
+        axes = np.full(3, size[0]) if geom.kind == "sphere" else size
+        local = _sphere_points(1.0) * axes
+    elif geom.kind == "capsule":
+        ball = _sphere_points(float(size[0]))
+        local = np.vstack([ball - [0, 0, size[1]], ball + [0, 0, size[1]]])
+    elif geom.kind == "cylinder":
+        ring = _polygon(float(size[0]), 24)
+        local = np.vstack([ring - [0, 0, size[1]], ring + [0, 0, size[1]]])
+    else:
+        raise ModelError(f"collision geom '{geom.name}' of link '{geom.frame}' is a "
+                         f"{geom.kind}, which no cover can hold: make it visual (contype and "
+                         "conaffinity 0) or declare the link's primitives")
+    return np.asarray(local, dtype=float) @ geom.rotation.T + geom.translation
+
+
+def geoms_points(geoms: Sequence[CollisionGeom]) -> dict[str, Array]:
+    """Collision points of every link of an MJCF arm, in its own frame: {frame: (N, 3)}."""
+    out: dict[str, list[Array]] = {}
+    for geom in geoms:
+        out.setdefault(geom.frame, []).append(geom_points(geom))
+    return {k: np.vstack(v) for k, v in out.items()}
+
+
 def cover_links(
     model: pin.Model,
     collision: pin.GeometryModel,
@@ -284,13 +321,30 @@ def cover_links(
     Raises:
         ModelError: a requested link has no collision geometry or is not in the model.
     """
+    _check_settings(padding, kind)
+    return cover_points(link_points(model, collision), moving_frames(model), links, padding,
+                        kind, tolerance)
+
+
+def _check_settings(padding: float, kind: str) -> None:
     if padding < 0:
         raise CpbcError(f"padding must be ≥ 0, got {padding}")
     if kind not in ("spheres", "capsules"):
         raise CpbcError(f"cover kind must be 'spheres' or 'capsules', got {kind!r}")
-    points = link_points(model, collision)
+
+
+def cover_points(
+    points: dict[str, Array],
+    moving: set[str],
+    links: Sequence[str] | None = None,
+    padding: float = 0.0,
+    kind: str = "spheres",
+    tolerance: float = 0.01,
+) -> list[LinkPrimitive]:
+    """:func:`cover_links` on each link's collision points ({frame: (N, 3)}, in its frame;
+    ``moving``: the frames that move, covered when ``links`` is omitted)."""
+    _check_settings(padding, kind)
     if links is None:
-        moving = moving_frames(model)
         chosen = [name for name in points if name in moving]
     else:
         missing = [name for name in links if name not in points]
