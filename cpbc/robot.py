@@ -56,6 +56,9 @@ class RobotDescription:
             solid box's of its geometry (cpbc.model.solid_inertias).
         package_dirs: the ``package://`` folders it was loaded with (absolute; a folder or
             NAME=FOLDER), for the skeleton's ``robot.package_dirs``.
+        rotor_driven: an MJCF's joints whose links have next to no inertia of their own
+            (:data:`LEAST_INERTIA`) but a declared armature: the skeleton takes the file's
+            armature (``robot.armature: from_model``), which ``pin_model`` then holds.
     """
 
     model: str
@@ -69,6 +72,28 @@ class RobotDescription:
     regularised: tuple[str, ...] = ()
     package_dirs: tuple[str, ...] = ()
     estimated: tuple[str, ...] = ()
+    rotor_driven: tuple[str, ...] = ()
+
+
+#: A joint whose link, with all it carries, has less inertia about the joint than this
+#: [kg·m² or kg] cannot be driven at 1 kHz without the rotor's (dm-control's Jaco: 6e-13).
+LEAST_INERTIA = 1e-6
+
+
+def _rotor_driven(pm: pin.Model, mj: mujoco.MjModel) -> tuple[str, ...]:
+    """Joints of an MJCF whose own inertia at the neutral pose is below LEAST_INERTIA and
+    that the file gives an armature; ``pm`` is left with the file's armature then, with none
+    otherwise (what the scenario's ``robot.armature`` defaults to)."""
+    bare = pin.Model(pm)
+    bare.armature = np.zeros(pm.nv)
+    own = np.diag(pin.crba(bare, bare.createData(), pin.neutral(bare)))
+    declared = np.asarray(mj.dof_armature[:pm.nv], dtype=float)
+    light = (own < LEAST_INERTIA) & (declared > 0)
+    if not light.any():  # the scenario's default: no armature
+        pm.armature = np.zeros(pm.nv)
+        return ()
+    pm.armature = declared
+    return tuple(pm.names[1 + int(i)] for i in np.flatnonzero(light))
 
 
 def _frames(model: pin.Model) -> tuple[str, ...]:
@@ -105,7 +130,7 @@ def _describe_mjcf(path: Path, model_name: str) -> RobotDescription:
     limits = JointLimits(tuple(pm.names[1:]), lower, upper, np.full(n, np.inf),
                          np.where(effort > 0, effort, np.inf))
     return RobotDescription(model_name, f"MJCF {path}", limits, _frames(pm),
-                            covered_bodies(mj), pin_model=pm)
+                            covered_bodies(mj), pin_model=pm, rotor_driven=_rotor_driven(pm, mj))
 
 
 def describe(name_or_path: str, locked: Mapping[str, float] | None = None,
@@ -190,6 +215,8 @@ def scenario_for(d: RobotDescription, duration: float = 5.0,
     data = skeleton(d.model, d.limits, duration, omega_n=omega or OMEGAS[-1], target=target)
     if locked:
         data["robot"]["locked_joints"] = dict(locked)
+    if d.rotor_driven:
+        data["robot"]["armature"] = "from_model"
     if d.package_dirs:
         data["robot"]["package_dirs"] = list(d.package_dirs)
     return data
@@ -283,6 +310,12 @@ def report(d: RobotDescription) -> str:
         lines += textwrap.wrap(
             "inertia raised to the least MuJoCo accepts (by at most 1e-6 kg·m², in both "
             "engines) on the links of: " + ", ".join(d.regularised), 96,
+            subsequent_indent="  ")
+    if d.rotor_driven:
+        lines += textwrap.wrap(
+            "armature from the file (robot.armature: from_model): without it the links of "
+            f"{', '.join(d.rotor_driven)} have less than {LEAST_INERTIA:g} kg·m² of inertia "
+            "about their joints, which no law can drive at 1 kHz", 96,
             subsequent_indent="  ")
     if d.estimated:
         lines += textwrap.wrap(
