@@ -5,7 +5,7 @@ with the cover's distance; a cover must never read more clearance than the geoms
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from functools import cache
 from pathlib import Path
 
@@ -17,7 +17,10 @@ import pytest
 from cpbc.constraints.cover_cache import cached_cover, cached_point_cover
 from cpbc.constraints.covering import LinkPrimitive, geoms_points, moving_frames
 from cpbc.model.collision_geoms import covered_bodies, mjcf_collision_geoms
+from cpbc.errors import ScenarioError
 from cpbc.model.loading import load_arm
+from cpbc.resources import models_dir
+from cpbc.scenario import ScenarioSetup
 
 SHAPES = Path(__file__).parent / "models" / "shapes_arm.xml"
 BALL = 0.03  # the probe ball's radius [m]
@@ -127,3 +130,26 @@ def test_a_hand_written_cover_that_leaves_a_geom_out_is_caught() -> None:
     whole = [LinkPrimitive("fore", "fore", np.array([0.14, 0, 0]), np.array([0.14, 0, 0]),
                            0.14)]
     assert _worst_overread(mj, model, whole, configurations=6, seed=4) <= 1e-6
+
+
+def _scenario(model: str, clearance: dict) -> dict:
+    return {"name": "s", "robot": {"model": model}, "simulation": {"duration": 0.1},
+            "target": [0.3, 0.2, 0.0], "cases": [{"name": "a", "position": [0.0, 0.0, 0.0]}],
+            "obstacles": [{"type": "sphere", "name": "ball", "centre": [0.6, 0.4, 0.3],
+                           "radius": 0.05}],
+            "constraints": [{"type": "clearance", **clearance}],
+            "controllers": [{"type": "cpbc", "name": "CPBC", "omega_n": 4, "zeta": 1}]}
+
+
+def test_a_scenario_clearance_covers_an_mjcf_arm_from_its_geoms(
+        load_dict: Callable[[dict], ScenarioSetup]) -> None:
+    setup = load_dict(_scenario(str(SHAPES), {}))
+    names = setup.monitor.configuration[0].names
+    assert {n.split("|")[0].split("#")[0].removeprefix("clearance[") for n in names} == {
+        "upper", "fore", "hand"}, names
+
+
+def test_an_mjcf_without_colliding_geoms_is_told_to_declare_primitives(
+        load_dict: Callable[[dict], ScenarioSetup]) -> None:
+    with pytest.raises(ScenarioError, match="no moving body of the model has a colliding geom"):
+        load_dict(_scenario(str(models_dir() / "planar_2link.xml"), {}))

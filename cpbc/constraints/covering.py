@@ -266,6 +266,7 @@ def geom_points(geom: CollisionGeom) -> Array:
     """Points whose convex hull contains an MJCF collision geom, in its link's frame
     (MuJoCo's sizes: a capsule's and a cylinder's half-length along the geom's z)."""
     size = geom.size
+    half = np.array([0.0, 0.0, size[1]])  # a capsule's or cylinder's half-length on z
     if geom.kind == "mesh":
         local = geom.vertices
     elif geom.kind == "box":
@@ -276,10 +277,10 @@ def geom_points(geom: CollisionGeom) -> Array:
         local = _sphere_points(1.0) * axes
     elif geom.kind == "capsule":
         ball = _sphere_points(float(size[0]))
-        local = np.vstack([ball - [0, 0, size[1]], ball + [0, 0, size[1]]])
+        local = np.vstack([ball - half, ball + half])
     elif geom.kind == "cylinder":
         ring = _polygon(float(size[0]), 24)
-        local = np.vstack([ring - [0, 0, size[1]], ring + [0, 0, size[1]]])
+        local = np.vstack([ring - half, ring + half])
     else:
         raise ModelError(f"collision geom '{geom.name}' of link '{geom.frame}' is a "
                          f"{geom.kind}, which no cover can hold: make it visual (contype and "
