@@ -40,6 +40,7 @@ from cpbc.scenario import build
 from cpbc.scenario.build import ScenarioSetup, undeclared_efforts
 from cpbc.scenario.load import load_any
 from cpbc.scenario.preflight import warning
+from cpbc.scenario.reference import approach_notes
 from cpbc.scenario.runner import (
     LazyPool,
     RunProgress,
@@ -159,6 +160,15 @@ def left_out_pairs(setup: ScenarioSetup) -> list[str]:
     return lines
 
 
+def _approaches(setup: ScenarioSetup) -> list[str]:
+    """The cases that start away from the reference's first sample (approached first)."""
+    ref, spec = setup.reference, setup.scenario.reference
+    if ref is None or spec is None:
+        return []
+    return approach_notes(ref.goal, ref.path, setup.model, spec.tolerance.position,
+                          [(c.name, c.position) for c in setup.cases])
+
+
 def _warn(setup: ScenarioSetup, err: Console) -> None:
     """One line per case whose path to the target leaves a motor no room to brake over
     gravity (cpbc.scenario.preflight), one when the motors' limits are declared for some
@@ -176,7 +186,7 @@ def _warn(setup: ScenarioSetup, err: Console) -> None:
                   f"{escape(', '.join(undeclared[:4]))}{', …' if len(undeclared) > 4 else ''}): "
                   "those run without a torque limit; give simulation.torque_limit to set "
                   "every joint's", highlight=False)
-    for line in left_out_pairs(setup):
+    for line in left_out_pairs(setup) + _approaches(setup):
         err.print(f"[yellow]note:[/yellow] {escape(line)}", highlight=False)
     if setup.goal is not None:
         goal = setup.goal
