@@ -16,8 +16,8 @@ import pytest
 
 from cpbc.constraints.cover_cache import cached_cover, cached_point_cover
 from cpbc.constraints.covering import LinkPrimitive, geoms_points, moving_frames
-from cpbc.model.collision_geoms import covered_bodies, mjcf_collision_geoms
 from cpbc.errors import ScenarioError
+from cpbc.model.collision_geoms import covered_bodies, mjcf_collision_geoms
 from cpbc.model.loading import load_arm
 from cpbc.resources import models_dir
 from cpbc.scenario import ScenarioSetup

@@ -75,6 +75,22 @@ def _colliding(mj: mujoco.MjModel) -> list[int]:
             and int(mj.body_weldid[mj.geom_bodyid[g]]) != 0]
 
 
+def obstacle_contacts_only(mj: mujoco.MjModel) -> None:
+    """Let the arm's geoms touch the scene's obstacles only, as a URDF arm's plant does
+    (cpbc.model.loading): a colliding geom of a body that moves gets contype 1 and
+    conaffinity 0 (obstacles have conaffinity 1), one of a body of the arm welded to the
+    world (its base) neither. Geoms of the world body itself (a floor in the file) keep their
+    own. Without this an MJCF's own contacts act in the plant where the controller's model
+    has none: robosuite-models' ARX5 base mesh reaches 2 mm into its first link's at every
+    configuration, and their friction held joint1 still."""
+    arm = mj.body_rootid[mj.geom_bodyid] != 0
+    colliding = (mj.geom_contype != 0) | (mj.geom_conaffinity != 0)
+    moving = mj.body_weldid[mj.geom_bodyid] != 0
+    mj.geom_contype[arm & colliding & moving] = 1
+    mj.geom_conaffinity[arm & colliding] = 0
+    mj.geom_contype[arm & colliding & ~moving] = 0
+
+
 def covered_bodies(mj: mujoco.MjModel) -> tuple[str, ...]:
     """The moving bodies that carry a collision geom (what an automatic cover covers)."""
     names = (mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_BODY, int(mj.geom_bodyid[g])) or ""
