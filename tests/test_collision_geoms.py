@@ -27,7 +27,10 @@ BALL = 0.03  # the probe ball's radius [m]
 
 
 def _with_probe(spec: mujoco.MjSpec) -> mujoco.MjModel:
-    """The arm with a mocap ball (colliding with nothing: only measured)."""
+    """The arm with a mocap ball (colliding with nothing: only measured), its distances by
+    MuJoCo's native convex collision (dm-control's Jaco turns it off, and the older one
+    reads a ball 6 cm off a mesh as touching it)."""
+    spec.option.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_NATIVECCD)
     probe = spec.worldbody.add_body(name="probe", mocap=True)
     probe.add_geom(name="probe", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[BALL, 0, 0],
                    contype=0, conaffinity=0)
