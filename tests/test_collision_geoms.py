@@ -14,12 +14,14 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from cpbc.constraints.clearance import Clearance
 from cpbc.constraints.cover_cache import cached_cover, cached_point_cover
 from cpbc.constraints.covering import LinkPrimitive, geoms_points, moving_frames
 from cpbc.errors import ScenarioError
 from cpbc.model.collision_geoms import covered_bodies, mjcf_collision_geoms
 from cpbc.model.loading import load_arm
 from cpbc.resources import models_dir
+from cpbc.run import uncovered_links
 from cpbc.scenario import ScenarioSetup
 
 SHAPES = Path(__file__).parent / "models" / "shapes_arm.xml"
@@ -131,7 +133,7 @@ def test_a_hand_written_cover_that_leaves_a_geom_out_is_caught() -> None:
     short = [LinkPrimitive("fore", "fore", np.array([0.1, 0, 0]), np.array([0.1, 0, 0]), 0.11)]
     assert _worst_overread(mj, model, short, configurations=6, seed=4) > 0.01
     whole = [LinkPrimitive("fore", "fore", np.array([0.14, 0, 0]), np.array([0.14, 0, 0]),
-                           0.14)]
+                           0.15)]
     assert _worst_overread(mj, model, whole, configurations=6, seed=4) <= 1e-6
 
 
@@ -156,3 +158,22 @@ def test_an_mjcf_without_colliding_geoms_is_told_to_declare_primitives(
         load_dict: Callable[[dict], ScenarioSetup]) -> None:
     with pytest.raises(ScenarioError, match="no moving body of the model has a colliding geom"):
         load_dict(_scenario(str(models_dir() / "planar_2link.xml"), {}))
+
+
+@pytest.mark.parametrize(("centre", "radius", "outside"), [
+    (0.1, 0.11, True),     # the hand-written sphere that reads 1-4 cm too much above
+    (0.14, 0.15, False)])  # the one that holds the link
+def test_a_declared_cover_is_checked_against_the_links_geoms(
+        load_dict: Callable[[dict], ScenarioSetup], centre: float, radius: float,
+        outside: bool) -> None:
+    setup = load_dict(_scenario(str(SHAPES), {"links": [], "primitives": [
+        {"link": "fore", "centre": [centre, 0, 0], "radius": radius}]}))
+    clearance = setup.monitor.configuration[0]
+    assert isinstance(clearance, Clearance)
+    if outside:
+        (link, gap), = clearance.uncovered
+        assert link == "fore" and 0.01 < gap < 0.1
+        (line,) = uncovered_links(setup)  # what cpbc.run warns
+        assert f"declared on 'fore' leave its collision geometry up to {gap * 1000:.3g} mm" in line
+    else:
+        assert clearance.uncovered == () and uncovered_links(setup) == []

@@ -262,6 +262,29 @@ def sphere_chain(
     return [(start + (end - start) * (i / (k - 1)), r) for i in range(k)]
 
 
+def surface_points(points: Array) -> Array:
+    """The corners of the convex hull of ``points`` (N, 3), its facets' centroids and its
+    edges' midpoints: what a declared cover is checked on (:func:`uncovered`)."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    try:
+        hull = _trimesh().convex.convex_hull(pts)
+    except Exception:  # flat or degenerate: the points themselves
+        return pts
+    corners = np.asarray(hull.vertices)[np.asarray(hull.faces)]  # (F, 3, 3)
+    edges = 0.5 * (corners + np.roll(corners, 1, axis=1))
+    return np.vstack([np.asarray(hull.vertices), corners.mean(axis=1), edges.reshape(-1, 3)])
+
+
+def uncovered(points: Array, primitives: Sequence[LinkPrimitive]) -> float:
+    """How far the farthest of ``points`` (a link's frame) lies outside the union of
+    ``primitives`` [m] (≤ 0: every point inside). On :func:`surface_points` of a link's
+    collision points it is what a declared cover may read beyond the link's clearance
+    (up to the facets' bulge between the points checked)."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    gaps = np.min([p.distance_to_points(pts) - p.radius for p in primitives], axis=0)
+    return float(np.max(gaps))
+
+
 def geom_points(geom: CollisionGeom) -> Array:
     """Points whose convex hull contains an MJCF collision geom, in its link's frame
     (MuJoCo's sizes: a capsule's and a cylinder's half-length along the geom's z)."""

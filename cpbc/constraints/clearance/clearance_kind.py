@@ -9,11 +9,19 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field
 
+from cpbc.arrays import Array
 from cpbc.constraints.clearance.constraint import Clearance
 from cpbc.constraints.clearance.unclearable import unclearable
 from cpbc.constraints.constraint_kind import ConstraintEntrySpec, ConstraintInputs, ConstraintKind
 from cpbc.constraints.cover_cache import cached_cover, cached_point_cover
-from cpbc.constraints.covering import LinkPrimitive, geoms_points, moving_frames
+from cpbc.constraints.covering import (
+    LinkPrimitive,
+    geoms_points,
+    link_points,
+    moving_frames,
+    surface_points,
+    uncovered,
+)
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model.robot_model import RobotModel
 from cpbc.spec.fields import NonNegative, Positive, Strict, Vector
@@ -104,6 +112,39 @@ def _declared(spec: ClearanceSpec, model: RobotModel, field: str) -> list[LinkPr
     return declared
 
 
+#: How far a link's collision geometry may reach outside its declared primitives before the
+#: run warns [m].
+UNCOVERED_SLACK = 0.001
+
+
+def _collision_points(given: ConstraintInputs) -> dict[str, Array]:
+    """Each link's collision points in its frame: a URDF arm's meshes and shapes, or an
+    MJCF's colliding geoms."""
+    if given.arm is not None:
+        return link_points(given.arm.model, given.arm.collision_model)
+    return geoms_points(given.collision() if given.collision is not None else ())
+
+
+def _uncovered(declared: list[LinkPrimitive], given: ConstraintInputs
+               ) -> tuple[tuple[str, float], ...]:
+    """The declared links whose collision geometry reaches more than UNCOVERED_SLACK
+    outside their primitives, and by how much."""
+    if not declared:
+        return ()
+    try:
+        points = _collision_points(given)
+    except CpbcError:  # a geometry no cover holds: nothing to check the declared against
+        return ()
+    out = []
+    for link in dict.fromkeys(p.frame for p in declared):
+        if link in points:
+            gap = uncovered(surface_points(points[link]), [p for p in declared
+                                                           if p.frame == link])
+            if gap > UNCOVERED_SLACK:
+                out.append((link, gap))
+    return tuple(out)
+
+
 def _automatic(spec: ClearanceSpec, given: ConstraintInputs) -> list[LinkPrimitive]:
     """The cover of the links' collision geometry: a URDF arm's meshes and shapes, or an
     MJCF's colliding geoms."""
@@ -159,6 +200,7 @@ def build(spec: ClearanceSpec, given: ConstraintInputs) -> Clearance:
                           spec.influence, [(p[0], p[1]) for p in spec.self_collision],
                           spec.name)
         built.left_out = tuple(left_out)
+        built.uncovered = _uncovered(prims[:len(spec.primitives or [])], given)
         return built
     except CpbcError as exc:
         parameter = getattr(exc, "parameter", None)
