@@ -206,13 +206,22 @@ def suggested_pose(d: RobotDescription) -> tuple[np.ndarray, np.ndarray]:
     return home(lim, lowered)
 
 
-def scenario_for(d: RobotDescription, duration: float = 5.0,
+#: The skeleton's default duration [s], and in periods of its ω_n when that is longer: a
+#: critically damped joint is within 1 % at ω_n t ≈ 6.6, but the xArm7's wrist joints,
+#: coupled, ring until ω_n t ≈ 10 at ω_n = 2, and the settle window comes on top.
+DURATION, SETTLE_PERIODS = 5.0, 20.0
+
+
+def scenario_for(d: RobotDescription, duration: float | None = None,
                  locked: Mapping[str, float] | None = None) -> dict:
     """The skeleton scenario of an arm, with gains its held loop tolerates at 1 kHz (the
-    smallest tried where none does), and the joints ``locked`` besides the arm's defaults."""
+    smallest tried where none does), and the joints ``locked`` besides the arm's defaults;
+    ``duration`` by default long enough for those gains to settle (:data:`SETTLE_PERIODS`)."""
     target, start = suggested_pose(d)
-    omega = stable_omega(d, [target, start])
-    data = skeleton(d.model, d.limits, duration, omega_n=omega or OMEGAS[-1], target=target)
+    omega = stable_omega(d, [target, start]) or OMEGAS[-1]
+    if duration is None:
+        duration = max(DURATION, SETTLE_PERIODS / omega)
+    data = skeleton(d.model, d.limits, duration, omega_n=omega, target=target)
     if locked:
         data["robot"]["locked_joints"] = dict(locked)
     if d.rotor_driven:
@@ -339,7 +348,9 @@ def _parser() -> argparse.ArgumentParser:
                     "scenario to start from.")
     p.add_argument("robot", help="a built-in model, an example-robot-data arm "
                    f"({', '.join(sorted(ARMS))}), or a path to a .urdf or .xml file")
-    p.add_argument("--duration", type=float, default=5.0, help="of the scenario [s]")
+    p.add_argument("--duration", type=float, default=None, help=(
+        f"of the scenario [s] (default {DURATION:g}, or {SETTLE_PERIODS:g}/omega_n when the "
+        "gains are slower)"))
     p.add_argument("--package-dir", action="append", default=[], metavar="NAME=PATH",
                    help="the folder of package://NAME/ meshes, when it is not called NAME "
                    "(repeatable; a bare PATH is a folder holding packages)")
