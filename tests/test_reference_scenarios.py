@@ -78,7 +78,7 @@ def test_a_start_a_few_mm_from_the_first_sample_is_approached_first(load_dict) -
     s = r.summary  # as from the first sample: blocked at the pan limit, nothing crossed
     assert s.status == "blocked" and s.blocked_by == "position[shoulder_pan_joint]"
     assert s.crossed_constraints == []
-    assert s.tracking_error_applied_rms < 0.003
+    assert s.tracking_error_applied_rms is not None and s.tracking_error_applied_rms < 0.003
 
 
 def test_a_policy_without_a_reference_is_refused(load_dict) -> None:
