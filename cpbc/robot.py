@@ -25,6 +25,7 @@ import yaml
 from cpbc.errors import CpbcError, ModelError
 from cpbc.model.actuators import apply_actuator_efforts
 from cpbc.model.arms import ARMS
+from cpbc.model.collision_geoms import covered_bodies
 from cpbc.model.gravity_load import BRAKING_DECELERATION, holdable_near, joint_loads
 from cpbc.model.loading import load_arm
 from cpbc.model.mjcf_arm import check_mjcf_arm
@@ -45,7 +46,8 @@ class RobotDescription:
         summary: one line about the arm.
         limits: the driven joints and their declared limits.
         frames: every frame of the Pinocchio model below the world.
-        covered_links: moving links with collision geometry (URDF arms only).
+        covered_links: moving links with collision geometry (an MJCF's: with a colliding
+            geom).
         locked: joints frozen by default, with their values.
         continuous: joints driven as unbounded revolute joints.
         pin_model: Pinocchio model of the driven joints (for the inertia of the gains).
@@ -54,6 +56,9 @@ class RobotDescription:
             solid box's of its geometry (cpbc.model.solid_inertias).
         package_dirs: the ``package://`` folders it was loaded with (absolute; a folder or
             NAME=FOLDER), for the skeleton's ``robot.package_dirs``.
+        rotor_driven: an MJCF's joints whose links have next to no inertia of their own
+            (:data:`LEAST_INERTIA`) but a declared armature: the skeleton takes the file's
+            armature (``robot.armature: from_model``), which ``pin_model`` then holds.
     """
 
     model: str
@@ -67,6 +72,28 @@ class RobotDescription:
     regularised: tuple[str, ...] = ()
     package_dirs: tuple[str, ...] = ()
     estimated: tuple[str, ...] = ()
+    rotor_driven: tuple[str, ...] = ()
+
+
+#: A joint whose link, with all it carries, has less inertia about the joint than this
+#: [kg·m² or kg] cannot be driven at 1 kHz without the rotor's (dm-control's Jaco: 6e-13).
+LEAST_INERTIA = 1e-6
+
+
+def _rotor_driven(pm: pin.Model, mj: mujoco.MjModel) -> tuple[str, ...]:
+    """Joints of an MJCF whose own inertia at the neutral pose is below LEAST_INERTIA and
+    that the file gives an armature; ``pm`` is left with the file's armature then, with none
+    otherwise (what the scenario's ``robot.armature`` defaults to)."""
+    bare = pin.Model(pm)
+    bare.armature = np.zeros(pm.nv)
+    own = np.diag(pin.crba(bare, bare.createData(), pin.neutral(bare)))
+    declared = np.asarray(mj.dof_armature[:pm.nv], dtype=float)
+    light = (own < LEAST_INERTIA) & (declared > 0)
+    if not light.any():  # the scenario's default: no armature
+        pm.armature = np.zeros(pm.nv)
+        return ()
+    pm.armature = declared
+    return tuple(pm.names[1 + int(i)] for i in np.flatnonzero(light))
 
 
 def _frames(model: pin.Model) -> tuple[str, ...]:
@@ -102,7 +129,8 @@ def _describe_mjcf(path: Path, model_name: str) -> RobotDescription:
     effort = apply_actuator_efforts(pm, mj)  # what from_model reads when it runs
     limits = JointLimits(tuple(pm.names[1:]), lower, upper, np.full(n, np.inf),
                          np.where(effort > 0, effort, np.inf))
-    return RobotDescription(model_name, f"MJCF {path}", limits, _frames(pm), pin_model=pm)
+    return RobotDescription(model_name, f"MJCF {path}", limits, _frames(pm),
+                            covered_bodies(mj), pin_model=pm, rotor_driven=_rotor_driven(pm, mj))
 
 
 def describe(name_or_path: str, locked: Mapping[str, float] | None = None,
@@ -178,15 +206,26 @@ def suggested_pose(d: RobotDescription) -> tuple[np.ndarray, np.ndarray]:
     return home(lim, lowered)
 
 
-def scenario_for(d: RobotDescription, duration: float = 5.0,
+#: The skeleton's default duration [s], and in periods of its ω_n when that is longer: a
+#: critically damped joint is within 1 % at ω_n t ≈ 6.6, but the xArm7's wrist joints,
+#: coupled, ring until ω_n t ≈ 10 at ω_n = 2, and the settle window comes on top.
+DURATION, SETTLE_PERIODS = 5.0, 20.0
+
+
+def scenario_for(d: RobotDescription, duration: float | None = None,
                  locked: Mapping[str, float] | None = None) -> dict:
     """The skeleton scenario of an arm, with gains its held loop tolerates at 1 kHz (the
-    smallest tried where none does), and the joints ``locked`` besides the arm's defaults."""
+    smallest tried where none does), and the joints ``locked`` besides the arm's defaults;
+    ``duration`` by default long enough for those gains to settle (:data:`SETTLE_PERIODS`)."""
     target, start = suggested_pose(d)
-    omega = stable_omega(d, [target, start])
-    data = skeleton(d.model, d.limits, duration, omega_n=omega or OMEGAS[-1], target=target)
+    omega = stable_omega(d, [target, start]) or OMEGAS[-1]
+    if duration is None:
+        duration = max(DURATION, SETTLE_PERIODS / omega)
+    data = skeleton(d.model, d.limits, duration, omega_n=omega, target=target)
     if locked:
         data["robot"]["locked_joints"] = dict(locked)
+    if d.rotor_driven:
+        data["robot"]["armature"] = "from_model"
     if d.package_dirs:
         data["robot"]["package_dirs"] = list(d.package_dirs)
     return data
@@ -281,6 +320,12 @@ def report(d: RobotDescription) -> str:
             "inertia raised to the least MuJoCo accepts (by at most 1e-6 kg·m², in both "
             "engines) on the links of: " + ", ".join(d.regularised), 96,
             subsequent_indent="  ")
+    if d.rotor_driven:
+        lines += textwrap.wrap(
+            "armature from the file (robot.armature: from_model): without it the links of "
+            f"{', '.join(d.rotor_driven)} have less than {LEAST_INERTIA:g} kg·m² of inertia "
+            "about their joints, which no law can drive at 1 kHz", 96,
+            subsequent_indent="  ")
     if d.estimated:
         lines += textwrap.wrap(
             "inertia estimated from the mass and the geometry, as a solid box of uniform "
@@ -303,7 +348,9 @@ def _parser() -> argparse.ArgumentParser:
                     "scenario to start from.")
     p.add_argument("robot", help="a built-in model, an example-robot-data arm "
                    f"({', '.join(sorted(ARMS))}), or a path to a .urdf or .xml file")
-    p.add_argument("--duration", type=float, default=5.0, help="of the scenario [s]")
+    p.add_argument("--duration", type=float, default=None, help=(
+        f"of the scenario [s] (default {DURATION:g}, or {SETTLE_PERIODS:g}/omega_n when the "
+        "gains are slower)"))
     p.add_argument("--package-dir", action="append", default=[], metavar="NAME=PATH",
                    help="the folder of package://NAME/ meshes, when it is not called NAME "
                    "(repeatable; a bare PATH is a folder holding packages)")

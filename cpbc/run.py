@@ -40,6 +40,7 @@ from cpbc.scenario import build
 from cpbc.scenario.build import ScenarioSetup, undeclared_efforts
 from cpbc.scenario.load import load_any
 from cpbc.scenario.preflight import warning
+from cpbc.scenario.reference import approach_notes
 from cpbc.scenario.runner import (
     LazyPool,
     RunProgress,
@@ -159,6 +160,28 @@ def left_out_pairs(setup: ScenarioSetup) -> list[str]:
     return lines
 
 
+def uncovered_links(setup: ScenarioSetup) -> list[str]:
+    """One line per link whose declared clearance primitives leave part of its collision
+    geometry outside (cpbc.constraints.covering.uncovered)."""
+    lines = []
+    for c in setup.monitor.configuration:
+        for link, gap in c.uncovered if isinstance(c, Clearance) else ():
+            lines.append(f"clearance '{c.names[0].split('[')[0]}': the primitives declared "
+                         f"on '{link}' leave its collision geometry up to {gap * 1000:.3g} mm "
+                         "outside them, so its clearance may read that much more than the "
+                         "link has; grow them, or leave the link to the automatic cover")
+    return lines
+
+
+def _approaches(setup: ScenarioSetup) -> list[str]:
+    """The cases that start away from the reference's first sample (approached first)."""
+    ref, spec = setup.reference, setup.scenario.reference
+    if ref is None or spec is None:
+        return []
+    return approach_notes(ref.goal, ref.path, setup.model, spec.tolerance.position,
+                          [(c.name, c.position) for c in setup.cases])
+
+
 def _warn(setup: ScenarioSetup, err: Console) -> None:
     """One line per case whose path to the target leaves a motor no room to brake over
     gravity (cpbc.scenario.preflight), one when the motors' limits are declared for some
@@ -176,8 +199,10 @@ def _warn(setup: ScenarioSetup, err: Console) -> None:
                   f"{escape(', '.join(undeclared[:4]))}{', …' if len(undeclared) > 4 else ''}): "
                   "those run without a torque limit; give simulation.torque_limit to set "
                   "every joint's", highlight=False)
-    for line in left_out_pairs(setup):
+    for line in left_out_pairs(setup) + _approaches(setup):
         err.print(f"[yellow]note:[/yellow] {escape(line)}", highlight=False)
+    for line in uncovered_links(setup):
+        err.print(f"[yellow]warning:[/yellow] {escape(line)}", highlight=False)
     if setup.goal is not None:
         goal = setup.goal
         err.print(f"goal preflight ({goal.goal.frame_name}): "

@@ -16,6 +16,7 @@ from cpbc.errors import CpbcError
 from cpbc.resources import scenarios_dir
 from cpbc.results.metrics import RunSummary
 from cpbc.scenario import ScenarioSetup
+from cpbc.scenario.reference import approach_notes
 from cpbc.scenario.runner import RunResult, run_one
 
 UR5 = scenarios_dir() / "ur5_circle_joint_limit.yaml"
@@ -43,8 +44,6 @@ def _jump_csv(tmp_path: Path) -> str:
 
 @pytest.mark.parametrize(("edit", "field", "word"), [
     (lambda d, _: d.update(target=[0.0] * 6), "reference", "not both"),
-    (lambda d, _: d["cases"][0].update(position=[0.1, -1.56, 1.57, -1.58, -1.57, 0.0]),
-     "cases[0].position", "first sample"),
     (lambda d, _: d["reference"].update(frame="no_frame"), "reference.frame", "tool0"),
     (lambda d, t: d["reference"].update(path={"csv": str(t / "missing.csv")}),
      "reference.path.csv", "cannot be read"),
@@ -64,6 +63,22 @@ def test_bad_references_are_refused_naming_the_field(load_dict, tmp_path, edit, 
         load_dict(d)
     assert getattr(err.value, "field", None) == field, str(err.value)
     assert word in str(err.value)
+
+
+def test_a_start_a_few_mm_from_the_first_sample_is_approached_first(load_dict) -> None:
+    """Issue 40: 3.4 mm from the first sample at a 2 mm tolerance was refused; the law now
+    brings the frame there while the governor holds the path back, and the run says so."""
+    d = _data("ur5_circle_joint_limit")
+    d["cases"][0]["position"][0] += 0.012  # the pan: the tool 6 mm off the first sample
+    setup, r = _run(load_dict, d, "TS-CPBC-stop", 0.8)
+    assert setup.reference is not None
+    notes = approach_notes(setup.reference.goal, setup.reference.path, setup.model, 0.002,
+                           [(c.name, c.position) for c in setup.cases])
+    assert len(notes) == 1 and "starts 6.02 mm from the reference's first sample" in notes[0]
+    s = r.summary  # as from the first sample: blocked at the pan limit, nothing crossed
+    assert s.status == "blocked" and s.blocked_by == "position[shoulder_pan_joint]"
+    assert s.crossed_constraints == []
+    assert s.tracking_error_applied_rms is not None and s.tracking_error_applied_rms < 0.003
 
 
 def test_a_policy_without_a_reference_is_refused(load_dict) -> None:

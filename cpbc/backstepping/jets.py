@@ -16,6 +16,7 @@ arguments. Coefficients may be floats or float64 arrays of one shape (grid evalu
 from __future__ import annotations
 
 import math
+import operator
 from collections.abc import Sequence
 from typing import Any
 
@@ -65,44 +66,62 @@ class Jet:
         return Jet([(k + 1) * self.c[k + 1] for k in range(self.order)])
 
     # -- arithmetic ---------------------------------------------------------------------------
+    # A law calls these some 10⁶ times a run (ch5_aerosonde: 27 jet operations per law
+    # evaluation, the law at every stage of the continuous-time integration), so they build
+    # results through _jet (no copy, no check) and add a constant to c0 only; the sums run in
+    # the order of the series' definitions, so every coefficient is as before to the bit.
     def _pair(self, other: Jet | Coef) -> tuple[tuple[Coef, ...], tuple[Coef, ...]]:
         if isinstance(other, Jet):
             n = min(len(self.c), len(other.c))
             return self.c[:n], other.c[:n]
         return self.c, (other,) + (0.0,) * self.order
 
+    def _operand(self, other: Jet) -> tuple[tuple[Coef, ...], tuple[Coef, ...]]:
+        a, b = self.c, other.c
+        if len(a) == len(b):
+            return a, b
+        n = min(len(a), len(b))
+        return a[:n], b[:n]
+
     def __add__(self, other: Jet | Coef) -> Jet:
-        a, b = self._pair(other)
-        return Jet([p + q for p, q in zip(a, b, strict=True)])
+        if isinstance(other, Jet):
+            return _jet(tuple(map(operator.add, *self._operand(other))))
+        c = self.c
+        return _jet((c[0] + other, *[p + 0.0 for p in c[1:]]))
 
     __radd__ = __add__
 
     def __neg__(self) -> Jet:
-        return Jet([-p for p in self.c])
+        return _jet(tuple(map(operator.neg, self.c)))
 
     def __sub__(self, other: Jet | Coef) -> Jet:
-        a, b = self._pair(other)
-        return Jet([p - q for p, q in zip(a, b, strict=True)])
+        if isinstance(other, Jet):
+            return _jet(tuple(map(operator.sub, *self._operand(other))))
+        c = self.c
+        return _jet((c[0] - other, *[p - 0.0 for p in c[1:]]))
 
     def __rsub__(self, other: Coef) -> Jet:
         return (-self) + other
 
     def __mul__(self, other: Jet | Coef) -> Jet:
         if not isinstance(other, Jet):
-            return Jet([p * other for p in self.c])
-        a, b = self._pair(other)
-        return Jet([sum(a[j] * b[k - j] for j in range(k + 1)) for k in range(len(a))])
+            return _jet(tuple([p * other for p in self.c]))
+        a, b = self._operand(other)
+        if len(a) == 3:  # the order the Chapter 5 laws use, written out
+            return _jet((a[0] * b[0], a[0] * b[1] + a[1] * b[0],
+                         a[0] * b[2] + a[1] * b[1] + a[2] * b[0]))
+        return _jet(tuple([sum(a[j] * b[k - j] for j in range(k + 1)) for k in range(len(a))]))
 
     __rmul__ = __mul__
 
     def __truediv__(self, other: Jet | Coef) -> Jet:
         if not isinstance(other, Jet):
-            return Jet([p / other for p in self.c])
-        a, b = self._pair(other)
+            return _jet(tuple(p / other for p in self.c))
+        a, b = self._operand(other)
         q: list[Coef] = []
         for k in range(len(a)):
             q.append((a[k] - sum(b[j] * q[k - j] for j in range(1, k + 1))) / b[0])
-        return Jet(q)
+        return _jet(tuple(q))
 
     def __rtruediv__(self, other: Coef) -> Jet:
         return Jet([other] + [0.0] * self.order) / self
@@ -117,6 +136,13 @@ class Jet:
 
     def __repr__(self) -> str:
         return f"Jet({list(self.c)!r})"
+
+
+def _jet(coefficients: tuple[Coef, ...]) -> Jet:
+    """A Jet of a non-empty tuple, taken as it is (the arithmetic's results)."""
+    j = object.__new__(Jet)
+    j.c = coefficients
+    return j
 
 
 def coefficient(v: Jet | Coef, k: int) -> Coef:

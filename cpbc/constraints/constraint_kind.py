@@ -31,7 +31,8 @@ from cpbc.spec.fields import Strict
 from cpbc.spec.type_names import type_names
 from cpbc.spec.values import model_limits, vector
 
-if TYPE_CHECKING:  # the URDF loader imports MuJoCo: only for the type
+if TYPE_CHECKING:  # the loaders import MuJoCo: only for the types
+    from cpbc.model.collision_geoms import CollisionGeom
     from cpbc.model.loading import LoadedArm
 
 Constraint = ConfigurationConstraint | VelocityConstraint
@@ -70,6 +71,8 @@ class ConstraintInputs:
         field: the entry's place in the scenario (``constraints[2]``), for errors.
         arm: the URDF arm (None for an MJCF model), for covers from collision meshes.
         obstacles: the scenario's obstacles by name.
+        collision: reads an MJCF robot's collision geoms (cpbc.model.collision_geoms), for
+            covers, when called; None for a URDF arm (its collision meshes are on ``arm``).
     """
 
     model: RobotModel
@@ -77,6 +80,7 @@ class ConstraintInputs:
     field: str
     arm: LoadedArm | None = None
     obstacles: Mapping[str, Obstacle] | None = None
+    collision: Callable[[], tuple[CollisionGeom, ...]] | None = None
 
     def at(self, key: str) -> str:
         """The field of one of the entry's keys."""

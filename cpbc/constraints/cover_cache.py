@@ -25,7 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from cpbc.constraints import covering
-from cpbc.constraints.covering import LinkPrimitive, cover_links
+from cpbc.constraints.covering import LinkPrimitive, cover_links, cover_points
 from cpbc.model.meshes import cache_dir
 
 
@@ -45,6 +45,32 @@ def cached_cover(
     if stored is not None:
         return stored
     prims = cover_links(model, collision, links, padding, kind, tolerance)
+    _write(path, prims)
+    return prims
+
+
+def cached_point_cover(
+    points: dict[str, np.ndarray],
+    moving: set[str],
+    links: Sequence[str] | None = None,
+    padding: float = 0.0,
+    kind: str = "spheres",
+    tolerance: float = 0.01,
+) -> list[LinkPrimitive]:
+    """:func:`cpbc.constraints.covering.cover_points` (an MJCF arm's links), cached as
+    :func:`cached_cover` is, under a hash of the points themselves."""
+    h = hashlib.sha256()
+    h.update(Path(covering.__file__).read_bytes())
+    h.update(repr((None if links is None else list(links), float(padding), kind,
+                   float(tolerance), sorted(moving))).encode())
+    for name in sorted(points):
+        h.update(name.encode())
+        h.update(np.ascontiguousarray(points[name], dtype=float).tobytes())
+    path = cache_dir() / "covers" / f"{h.hexdigest()[:32]}.npz"
+    stored = _read(path)
+    if stored is not None:
+        return stored
+    prims = cover_points(points, moving, links, padding, kind, tolerance)
     _write(path, prims)
     return prims
 

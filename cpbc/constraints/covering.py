@@ -2,8 +2,9 @@
 
 The clearance constraints need each link as a few swept spheres with exact distances, not
 as a triangle mesh. For every link that carries collision geometry, this module gathers the
-geometry's points in the link frame (mesh vertices read with trimesh, URDF boxes, cylinders
-and spheres sampled on circumscribing polygons) and fits the capsule of least volume that
+geometry's points in the link frame (a URDF's mesh vertices read with trimesh, an MJCF's as
+MuJoCo compiled them, cpbc.model.collision_geoms; boxes, cylinders, capsules, spheres and
+ellipsoids by polytopes that circumscribe them) and fits the capsule of least volume that
 contains them all. A capsule is convex, so it then contains the convex hull of the points
 and with it the whole link surface: the cover is conservative.
 
@@ -29,7 +30,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import coal
 import numpy as np
@@ -37,6 +38,9 @@ import pinocchio as pin
 
 from cpbc.arrays import Array
 from cpbc.errors import CpbcError, ModelError
+
+if TYPE_CHECKING:  # read through its attributes; its module imports MuJoCo
+    from cpbc.model.collision_geoms import CollisionGeom
 
 
 def _trimesh() -> Any:
@@ -258,6 +262,63 @@ def sphere_chain(
     return [(start + (end - start) * (i / (k - 1)), r) for i in range(k)]
 
 
+def surface_points(points: Array) -> Array:
+    """The corners of the convex hull of ``points`` (N, 3), its facets' centroids and its
+    edges' midpoints: what a declared cover is checked on (:func:`uncovered`)."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    try:
+        hull = _trimesh().convex.convex_hull(pts)
+    except Exception:  # flat or degenerate: the points themselves
+        return pts
+    corners = np.asarray(hull.vertices)[np.asarray(hull.faces)]  # (F, 3, 3)
+    edges = 0.5 * (corners + np.roll(corners, 1, axis=1))
+    return np.vstack([np.asarray(hull.vertices), corners.mean(axis=1), edges.reshape(-1, 3)])
+
+
+def uncovered(points: Array, primitives: Sequence[LinkPrimitive]) -> float:
+    """How far the farthest of ``points`` (a link's frame) lies outside the union of
+    ``primitives`` [m] (≤ 0: every point inside). On :func:`surface_points` of a link's
+    collision points it is what a declared cover may read beyond the link's clearance
+    (up to the facets' bulge between the points checked)."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    gaps = np.min([p.distance_to_points(pts) - p.radius for p in primitives], axis=0)
+    return float(np.max(gaps))
+
+
+def geom_points(geom: CollisionGeom) -> Array:
+    """Points whose convex hull contains an MJCF collision geom, in its link's frame
+    (MuJoCo's sizes: a capsule's and a cylinder's half-length along the geom's z)."""
+    size = geom.size
+    half = np.array([0.0, 0.0, size[1]])  # a capsule's or cylinder's half-length on z
+    if geom.kind == "mesh":
+        local = geom.vertices
+    elif geom.kind == "box":
+        local = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)]) * size
+    elif geom.kind in ("sphere", "ellipsoid"):
+        # an affine image of a polytope around the unit sphere holds the ellipsoid
+        axes = np.full(3, size[0]) if geom.kind == "sphere" else size
+        local = _sphere_points(1.0) * axes
+    elif geom.kind == "capsule":
+        ball = _sphere_points(float(size[0]))
+        local = np.vstack([ball - half, ball + half])
+    elif geom.kind == "cylinder":
+        ring = _polygon(float(size[0]), 24)
+        local = np.vstack([ring - half, ring + half])
+    else:
+        raise ModelError(f"collision geom '{geom.name}' of link '{geom.frame}' is a "
+                         f"{geom.kind}, which no cover can hold: make it visual (contype and "
+                         "conaffinity 0) or declare the link's primitives")
+    return np.asarray(local, dtype=float) @ geom.rotation.T + geom.translation
+
+
+def geoms_points(geoms: Sequence[CollisionGeom]) -> dict[str, Array]:
+    """Collision points of every link of an MJCF arm, in its own frame: {frame: (N, 3)}."""
+    out: dict[str, list[Array]] = {}
+    for geom in geoms:
+        out.setdefault(geom.frame, []).append(geom_points(geom))
+    return {k: np.vstack(v) for k, v in out.items()}
+
+
 def cover_links(
     model: pin.Model,
     collision: pin.GeometryModel,
@@ -284,13 +345,30 @@ def cover_links(
     Raises:
         ModelError: a requested link has no collision geometry or is not in the model.
     """
+    _check_settings(padding, kind)
+    return cover_points(link_points(model, collision), moving_frames(model), links, padding,
+                        kind, tolerance)
+
+
+def _check_settings(padding: float, kind: str) -> None:
     if padding < 0:
         raise CpbcError(f"padding must be ≥ 0, got {padding}")
     if kind not in ("spheres", "capsules"):
         raise CpbcError(f"cover kind must be 'spheres' or 'capsules', got {kind!r}")
-    points = link_points(model, collision)
+
+
+def cover_points(
+    points: dict[str, Array],
+    moving: set[str],
+    links: Sequence[str] | None = None,
+    padding: float = 0.0,
+    kind: str = "spheres",
+    tolerance: float = 0.01,
+) -> list[LinkPrimitive]:
+    """:func:`cover_links` on each link's collision points ({frame: (N, 3)}, in its frame;
+    ``moving``: the frames that move, covered when ``links`` is omitted)."""
+    _check_settings(padding, kind)
     if links is None:
-        moving = moving_frames(model)
         chosen = [name for name in points if name in moving]
     else:
         missing = [name for name in links if name not in points]

@@ -23,6 +23,7 @@ from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model import LinearCoordinates, RobotModel
 from cpbc.model.actuators import apply_actuator_efforts
 from cpbc.model.arms import ARMS
+from cpbc.model.collision_geoms import obstacle_contacts_only
 from cpbc.model.gravity_load import GravityLoad
 from cpbc.model.joint_dynamics import JointDynamics
 from cpbc.model.loading import LoadedArm, finish_mujoco_model
@@ -161,6 +162,8 @@ class ScenarioSetup:
         model = spec.compile()
         if self.arm is not None:
             finish_mujoco_model(model, self.arm.joint_names)
+        else:
+            obstacle_contacts_only(model)
         self.joint_dynamics.on_mujoco(model)  # what the controller's model has
         mismatch = _mismatch(self.scenario.robot.plant)
         if mismatch is not None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,7 @@ from cpbc.controllers.hold import ONE_STAGE
 from cpbc.controllers.safeguard import SafeguardSettings
 from cpbc.errors import ScenarioError
 from cpbc.model import RobotModel
+from cpbc.model.collision_geoms import mjcf_collision_geoms
 from cpbc.model.gravity_load import GravityLoad
 from cpbc.reference.paths import Path as RefPath
 from cpbc.results.metrics import SettleCriteria
@@ -107,8 +109,9 @@ def build(scenario: s.Scenario, scenario_file: Path, kinds: Kinds = KINDS) -> Sc
     sim = scenario.simulation
     loop = loop_settings(sim, model)
     obstacles, scene = scene_obstacles(scenario.obstacles)
+    collision = None if arm is not None else partial(mjcf_collision_geoms, plant, model.model)
     built, rate_bounds = scenario_constraints(scenario, model, names, arm, scene, obstacles,
-                                              kinds)
+                                              kinds, collision)
     check_distinct(built, [c.name for c in scenario.constraints])
     monitor = ConstraintSet(
         model.n,

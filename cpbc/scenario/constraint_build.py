@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from cpbc.constraints import ConfigurationConstraint, RateLimit, VelocityConstraint
@@ -9,6 +10,7 @@ from cpbc.constraints.constraint_kind import ConstraintEntrySpec, ConstraintInpu
 from cpbc.constraints.geometry import Obstacle
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model import RobotModel
+from cpbc.model.collision_geoms import CollisionGeom
 from cpbc.model.loading import LoadedArm
 from cpbc.scenario import robots
 from cpbc.scenario import schema as s
@@ -46,10 +48,11 @@ def scene_obstacles(specs: list[s.ObstacleSpec]) -> tuple[list[ObstacleGeom], di
 def scenario_constraints(
     scenario: s.Scenario, model: RobotModel, names: tuple[str, ...], arm: LoadedArm | None,
     scene: dict[str, Obstacle], obstacles: list[ObstacleGeom], kinds: Kinds = KINDS,
+    collision: Callable[[], tuple[CollisionGeom, ...]] | None = None,
 ) -> tuple[dict[str, ConfigurationConstraint | VelocityConstraint], list[float | None]]:
     """Every scenario constraint by name (built by its kind), and the per-coordinate rate
     bounds (for the table); the spheres the entries place in the scene are appended to
-    ``obstacles``."""
+    ``obstacles``. ``collision`` reads an MJCF robot's collision geoms, for covers."""
     built: dict[str, ConfigurationConstraint | VelocityConstraint] = {}
     rate_bounds: list[float | None] = [None] * model.n
     for i, cs in enumerate(scenario.constraints):
@@ -58,7 +61,7 @@ def scenario_constraints(
             raise ScenarioError(f"{field}.name", f"duplicate constraint name '{cs.name}'")
         kind = kinds.constraint(cs.type)
         c = built[cs.name] = _build_constraint(
-            cs, kind, ConstraintInputs(model, names, field, arm, scene))
+            cs, kind, ConstraintInputs(model, names, field, arm, scene, collision))
         if isinstance(c, RateLimit) and c.joint_index is not None:
             for j, b in zip(c.joint_index, c.bounds, strict=True):
                 rate_bounds[int(j)] = float(b)

@@ -4,22 +4,27 @@ exports its ``KINDS`` (cpbc.constraints.constraint_kind)."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Annotated, Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field
 
+from cpbc.arrays import Array
 from cpbc.constraints.clearance.constraint import Clearance
 from cpbc.constraints.clearance.unclearable import unclearable
 from cpbc.constraints.constraint_kind import ConstraintEntrySpec, ConstraintInputs, ConstraintKind
-from cpbc.constraints.cover_cache import cached_cover
-from cpbc.constraints.covering import LinkPrimitive
+from cpbc.constraints.cover_cache import cached_cover, cached_point_cover
+from cpbc.constraints.covering import (
+    LinkPrimitive,
+    geoms_points,
+    link_points,
+    moving_frames,
+    surface_points,
+    uncovered,
+)
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model.robot_model import RobotModel
 from cpbc.spec.fields import NonNegative, Positive, Strict, Vector
-
-if TYPE_CHECKING:  # the URDF loader imports MuJoCo: only for the type
-    from cpbc.model.loading import LoadedArm
 
 
 class PrimitiveSpec(Strict):
@@ -84,8 +89,7 @@ class ClearanceSpec(ConstraintEntrySpec):
             "link pairs kept apart from each other"))
 
 
-def _primitives(spec: ClearanceSpec, arm: LoadedArm | None, model: RobotModel,
-                field: str) -> list[LinkPrimitive]:
+def _declared(spec: ClearanceSpec, model: RobotModel, field: str) -> list[LinkPrimitive]:
     declared = []
     per_link: dict[str, int] = {}
     for p in spec.primitives or []:
@@ -105,18 +109,66 @@ def _primitives(spec: ClearanceSpec, arm: LoadedArm | None, model: RobotModel,
                                           np.asarray(end, dtype=float), p.radius))
         except CpbcError as exc:
             raise ScenarioError(f, str(exc)) from None
-    if spec.links == [] or (spec.links is None and spec.primitives and arm is None):
+    return declared
+
+
+#: How far a link's collision geometry may reach outside its declared primitives before the
+#: run warns [m].
+UNCOVERED_SLACK = 0.001
+
+
+def _collision_points(given: ConstraintInputs) -> dict[str, Array]:
+    """Each link's collision points in its frame: a URDF arm's meshes and shapes, or an
+    MJCF's colliding geoms."""
+    if given.arm is not None:
+        return link_points(given.arm.model, given.arm.collision_model)
+    return geoms_points(given.collision() if given.collision is not None else ())
+
+
+def _uncovered(declared: list[LinkPrimitive], given: ConstraintInputs
+               ) -> tuple[tuple[str, float], ...]:
+    """The declared links whose collision geometry reaches more than UNCOVERED_SLACK
+    outside their primitives, and by how much."""
+    if not declared:
+        return ()
+    try:
+        points = _collision_points(given)
+    except CpbcError:  # a geometry no cover holds: nothing to check the declared against
+        return ()
+    out = []
+    for link in dict.fromkeys(p.frame for p in declared):
+        if link in points:
+            gap = uncovered(surface_points(points[link]), [p for p in declared
+                                                           if p.frame == link])
+            if gap > UNCOVERED_SLACK:
+                out.append((link, gap))
+    return tuple(out)
+
+
+def _automatic(spec: ClearanceSpec, given: ConstraintInputs) -> list[LinkPrimitive]:
+    """The cover of the links' collision geometry: a URDF arm's meshes and shapes, or an
+    MJCF's colliding geoms."""
+    arm = given.arm
+    if arm is not None:
+        return cached_cover(arm.model, arm.collision_model, spec.links, spec.padding,
+                            spec.cover, spec.cover_tolerance)
+    points = geoms_points(given.collision() if given.collision is not None else ())
+    if not points and spec.links is None and not spec.primitives:
+        raise CpbcError("no moving body of the model has a colliding geom (contype or "
+                        "conaffinity non-zero) to cover; declare 'primitives'")
+    return cached_point_cover(points, moving_frames(given.model.model), spec.links,
+                              spec.padding, spec.cover, spec.cover_tolerance)
+
+
+def _primitives(spec: ClearanceSpec, given: ConstraintInputs) -> list[LinkPrimitive]:
+    declared = _declared(spec, given.model, given.field)
+    if spec.links == []:
         return declared
-    if arm is None:
-        raise ScenarioError(f"{field}.links", "automatic covers need a URDF robot with "
-                            "collision meshes; declare 'primitives' for an MJCF robot")
-    links = spec.links
     taken = {p.frame for p in declared}
     try:
-        auto = cached_cover(arm.model, arm.collision_model, links, spec.padding, spec.cover,
-                           spec.cover_tolerance)
+        auto = _automatic(spec, given)
     except CpbcError as exc:
-        raise ScenarioError(f"{field}.links", str(exc)) from None
+        raise ScenarioError(f"{given.field}.links", str(exc)) from None
     return declared + [p for p in auto if p.frame not in taken]
 
 
@@ -129,9 +181,9 @@ def build(spec: ClearanceSpec, given: ConstraintInputs) -> Clearance:
     if unknown:
         raise ScenarioError(f"{field}.obstacles",
                             f"unknown obstacles {unknown}; the scenario has {list(obstacles)}")
-    prims = _primitives(spec, given.arm, model, field)
+    prims = _primitives(spec, given)
     left_out: list[tuple[str, str]] = []
-    if spec.links is None and given.arm is not None:  # the default: every covered link
+    if spec.links is None:  # the default: every covered link
         declared, auto = prims[:len(spec.primitives or [])], prims[len(spec.primitives or []):]
         left_out = unclearable(model.model, auto, [obstacles[o] for o in names], spec.margin)
         dropped = {name for name, _ in left_out}
@@ -148,6 +200,7 @@ def build(spec: ClearanceSpec, given: ConstraintInputs) -> Clearance:
                           spec.influence, [(p[0], p[1]) for p in spec.self_collision],
                           spec.name)
         built.left_out = tuple(left_out)
+        built.uncovered = _uncovered(prims[:len(spec.primitives or [])], given)
         return built
     except CpbcError as exc:
         parameter = getattr(exc, "parameter", None)

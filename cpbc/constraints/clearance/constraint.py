@@ -95,6 +95,9 @@ class Clearance(PairLayout, ConfigurationConstraint):
     #: (primitive, obstacle) pairs of an automatic cover that no configuration clears, left
     #: out by the scenario's default clearance (cpbc.constraints.clearance.unclearable)
     left_out: tuple[tuple[str, str], ...] = ()
+    #: (link, distance [m]) of links whose declared primitives leave part of their collision
+    #: geometry outside, by that much (cpbc.constraints.covering.uncovered)
+    uncovered: tuple[tuple[str, float], ...] = ()
 
     def __init__(
         self,

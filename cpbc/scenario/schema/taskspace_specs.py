@@ -152,8 +152,8 @@ class ReferenceSpec(Strict):
             "only"))
     tolerance: ToleranceSpec = Field(
         default=ToleranceSpec(), description=(
-            "the band of tracked at the path's end, and the most the start may be from the "
-            "first sample"))
+            "the band of tracked at the path's end; a start farther than it from the first "
+            "sample is approached first (the run says so)"))
     feedforward: Literal["none", "velocity"] = Field(
         default="velocity", description=(
             "velocity: the task damping reads the applied reference's velocity; none: zero"))
