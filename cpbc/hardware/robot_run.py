@@ -187,9 +187,11 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
     summary = summarise(entry.name, CASE, entry.controller, setup.monitor, traj,
                         setup.criteria, setup.rate_bounds, margins, limits.torque, None,
                         setup.model.length_coordinates, limits.torque_rate)
-    rules = check_rules(motion.commanded_torque, limits, margins, setup.monitor.names)
+    rules = check_rules(motion.commanded_torque, limits, margins, setup.monitor.names,
+                        motion.position, motion.velocity)
     cause = None if motion.ending == "completed" else f"{motion.ending}: {motion.detail}"
-    extra = {**summary.extra, **_timing(motion), "steps_over_rate": float(rules.steps_over)}
+    extra = {**summary.extra, **_timing(motion), "steps_over_rate": float(rules.steps_over),
+             "velocity_over_limit": float(rules.velocity_over)}
     summary = replace(summary, extra=extra, cause=cause)
     errors = None
     if setup.goal is not None:
@@ -228,10 +230,14 @@ def lockstep_for(setup: ScenarioSetup, torque_rate: float = 1000.0) -> LockstepB
     """The scenario's arm as a lock-step robot: its MuJoCo plant started at the first case,
     a separate copy of its model as the robot's own (gravity compensation, mass matrix),
     the model's effort limits as its torque box (the scenario's where it declares none),
-    the model's velocity limits and the scenario's control period; ``torque_rate``
+    the model's velocity limits (and a named arm's position-dependent ones) and the
+    scenario's control period; ``torque_rate``
     [N·m/s] on every joint (the FR3's by default)."""
     model = setup.model
-    own = RobotModel(pin.Model(model.model), name=model.name)  # not the controller's data
+    own_model = pin.Model(model.model)  # not the controller's data
+    # its Model as libfranka's (franky-sim's): the links' inertia without the rotors
+    own_model.armature[:] = 0.0
+    own = RobotModel(own_model, name=model.name)
     effort = np.array(model.model.effortLimit, dtype=float)
     given = setup.loop_settings.torque_limit
     if not np.all(np.isfinite(effort) & (effort > 0)):
@@ -241,7 +247,8 @@ def lockstep_for(setup: ScenarioSetup, torque_rate: float = 1000.0) -> LockstepB
         effort = np.asarray(given, dtype=float)
     limits = RobotLimits(effort, np.full(model.n, float(torque_rate)),
                          np.array(model.model.velocityLimit, dtype=float),
-                         setup.loop_settings.control_period)
+                         setup.loop_settings.control_period,
+                         None if setup.arm is None else setup.arm.velocity_limits)
     case = setup.cases[0]
     return LockstepBackend(setup.make_plant(), model.joint_names, limits, own.gravity,
                            own.inertia, case.position, case.velocity)
