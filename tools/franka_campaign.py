@@ -241,6 +241,11 @@ def _line(r: dict[str, Any]) -> str:
             f"{r['lost_states']} rescues {r['rescues']} ({r['wall_s']} s)")
 
 
+def _cell(text: str) -> str:
+    """Text for a Markdown table's cell (a clearance's name holds a '|')."""
+    return text.replace("|", "\\|")
+
+
 def _fmt(value: float | None, scale: float = 1.0, digits: int = 3) -> str:
     return "–" if value is None or not np.isfinite(value) else f"{scale * value:.{digits}g}"
 
@@ -284,14 +289,15 @@ def render(doc: dict[str, Any]) -> str:
     for r in doc["runs"]:
         cu = r["compute_us"]
         if r["kind"] == "reach":
-            error = f"{_fmt(r['joint_error'], digits=2)} rad, {_fmt(r['tip_error'], 1e3, 2)} mm"
+            error = f"{_fmt(r['joint_error'], digits=2)} rad, {_fmt(r['tip_error'], 1e3)} mm"
         else:
             error = (f"{_fmt(r['tip_error'], 1e3, 2)} mm, {_fmt(r['angle_error'], digits=2)} "
                      f"rad; off the path ≤ {_fmt(r['off_path'], 1e3, 2)} mm")
         lines.append(
             f"| {r['name']} | {r['ending']} | {r['status']} | {r['max_step']:.3g} | "
-            f"{r['min_margin']:.3g} | {error} | {cu['p50']:.0f} / {cu['p99']:.0f} / "
-            f"{cu['p999']:.0f} / {cu['max']:.0f} | {r['lost_states']} | {r['rescues']} |")
+            f"{r['min_margin']:.3g} ({_cell(r['min_margin_name'])}) | {error} | "
+            f"{cu['p50']:.0f} / {cu['p99']:.0f} / {cu['p999']:.0f} / {cu['max']:.0f} | "
+            f"{r['lost_states']} | {r['rescues']} |")
     return "\n".join(lines) + "\n"
 
 
