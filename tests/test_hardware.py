@@ -528,3 +528,21 @@ def test_a_reference_path_on_franky_sim(franky: FrankySim) -> None:
     finally:
         backend.close()
     print(f"franky-sim circle: {_follows_the_circle(setup, run)}")
+
+
+def test_a_trackers_law_is_packed_before_the_first_cycle() -> None:
+    """Building a reference tracker steers the scenario's law in place, which drops its
+    packed terms (the first step would pack them again, 0.4-1 ms); the runner packs them
+    before the motion, and the tracker's first step finds them."""
+    from cpbc.controllers.packed_law import PacksItsLaw
+
+    setup = build(*load_scenario(CIRCLE))
+    entry = choose_controller(setup, None)
+    guard = setup.controller(entry)
+    law = entry.controller
+    assert isinstance(law, PacksItsLaw) and law._packed_law is None
+    robot_run.pack(law)
+    packed = law._packed_law
+    assert packed is not None and packed.terms is not None
+    guard.evaluate(setup.cases[0].position, np.zeros(7))
+    assert law._packed_law is packed  # not packed again
