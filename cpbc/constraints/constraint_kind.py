@@ -137,12 +137,14 @@ class ConstraintInputs:
             if bounds[j] <= 0 or bounds[j] > allowed[i] * (1 + 1e-12):
                 # the range on which half the peak velocity is allowed, as a hint
                 room_lo, room_hi = limits.range_for(0.5 * limits.peak)
+                found = (f"allows no speed toward the ends of the joint range [{lo[i]:.4g}, "
+                         f"{hi[i]:.4g}]:" if allowed[i] <= 0 else
+                         f"allows {allowed[i]:.4g} rad/s on the joint range [{lo[i]:.4g}, "
+                         f"{hi[i]:.4g}], the bound is {bounds[j]:.4g}: give at most that, or")
                 raise ScenarioError(self.at(key), (
                     f"{self.names[i]}: the robot's position-dependent velocity limit "
-                    f"(libfranka's rate_limiting.h) allows {allowed[i]:.4g} rad/s on the "
-                    f"joint range [{lo[i]:.4g}, {hi[i]:.4g}], the bound is {bounds[j]:.4g}: "
-                    "give a smaller bound or narrow the joint_position_limit (within "
-                    f"[{room_lo[i]:.4g}, {room_hi[i]:.4g}] it allows "
+                    f"(libfranka's rate_limiting.h) {found} narrow the joint_position_limit "
+                    f"(within [{room_lo[i]:.4g}, {room_hi[i]:.4g}] it allows "
                     f"{0.5 * limits.peak[i]:.4g} rad/s)"))
         return bounds
 
