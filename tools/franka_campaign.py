@@ -6,14 +6,16 @@ each judged from its log against the Franka's rules and the targets of issue 37.
     python -m tools.franka_campaign --reaches 5 --paths 1 --out /tmp/c   # a smaller one
     python -m tools.franka_campaign --render-only      # the fragment from the stored JSON
 
-Every motion starts a franky-sim of its own (a process on a loopback address, stopped by its
-PID), so each starts from franky-sim's posture at rest. A reach aims at the test reach's target
-(tests/scenarios/fr3_reach_ball.yaml) moved by up to ±0.3 rad on joints 1-4; targets the
-scenario builder refuses (inside a constraint's margin, say) are counted, not run. A path is a
-circle of the hand (tests/scenarios/fr3_circle.yaml) of seeded radius, speed, start direction
-and sense, starting where the hand is. Writes ``franka-campaign.json`` (every run, the totals,
-the command, date, commit and the machine's load) and ``franka-campaign.md`` (the tables the
-docs include) into ``--out`` (default docs/tables).
+Reaches come in pairs on a franky-sim of their own (a process on a loopback address, stopped
+by its PID): out from franky-sim's start posture at rest to the test reach's target
+(tests/scenarios/fr3_reach_ball.yaml) moved by up to ±0.3 rad on joints 1-4, and back to the
+start posture from wherever the first left the arm — past the ball both ways; targets the
+scenario builder refuses (inside a constraint's margin, say) are counted, not run, and a way
+back whose start the runner refuses is counted as not reached. A path, on a franky-sim of its
+own, is a circle of the hand (tests/scenarios/fr3_circle.yaml) of seeded radius, speed, start
+direction and sense, starting where the hand is. Writes ``franka-campaign.json`` (every run,
+the totals, the command, date, commit and the machine's load) and ``franka-campaign.md`` (the
+tables the docs include) into ``--out`` (default docs/tables).
 
 franky-sim runs on its own wall clock and holds the last command while a cycle computes late:
 the cycle times are this computer's, and a loaded machine's say little about an idle one's.
@@ -54,18 +56,22 @@ JOINT_TOLERANCE, TIP_TOLERANCE, P999_TARGET = 0.005, 0.002, 300.0
 REACH_SECONDS = 3.0  # the test reach's 2 s and one more: the friction's last millimetres
 
 
-def reach_scenarios(count: int, seed: int) -> list[tuple[str, dict[str, Any]]]:
-    """``count`` reach scenarios (and a few spare: some targets are refused)."""
+def reach_scenarios(count: int, seed: int) -> list[tuple[dict[str, Any], dict[str, Any]]]:
+    """``count`` pairs of reach scenarios (and spares: some targets are refused): out to a
+    seeded target, and back to the start posture — past the ball both ways."""
     base = yaml.safe_load(REACH.read_text(encoding="utf-8"))
+    home = base["cases"][0]["position"]
     rng = np.random.default_rng(seed)
     out = []
     for i in range(3 * count):
         step = np.zeros(7)
         step[:4] = rng.uniform(-0.3, 0.3, 4)
-        data = {**base, "name": f"reach{i:02d}",
-                "target": [round(float(v), 4) for v in np.asarray(base["target"]) + step]}
-        data["simulation"] = {**base["simulation"], "duration": REACH_SECONDS}
-        out.append((data["name"], data))
+        simulation = {**base["simulation"], "duration": REACH_SECONDS}
+        target = [round(float(v), 4) for v in np.asarray(base["target"]) + step]
+        out.append(({**base, "name": f"reach{i:02d}", "target": target,
+                     "simulation": simulation},
+                    {**base, "name": f"reach{i:02d}b", "target": home,
+                     "simulation": simulation}))
     return out
 
 
@@ -137,23 +143,46 @@ def record(kind: str, data: dict, setup: ScenarioSetup, run: HardwareRun, wall: 
     return out
 
 
-def run_one(kind: str, data: dict, folder: Path, deadline: float) -> dict[str, Any] | None:
-    """One motion on a fresh franky-sim; None when the builder refuses its target."""
-    path = folder / f"{data['name']}.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
-    try:
-        setup = build(*load_scenario(path))
-    except (CpbcError, InadmissibleStateError):  # a target inside a constraint's margin
-        return None
-    settings = MotionSettings(data["simulation"]["duration"], deadline)
-    begun = time.perf_counter()
-    with FrankySim(loopback_address()) as sim:
-        backend = FrankaBackend(sim.host)
+def refused_start(name: str, detail: str) -> dict[str, Any]:
+    """A motion whose start the runner refused (the arm rests where no scenario may start,
+    after the motion before it): counted, not reached."""
+    nan = float("nan")
+    return {"name": name, "kind": "reach", "ending": "start_refused", "status": "-",
+            "kept": False, "first_command": 0.0, "max_step": 0.0, "steps_over": 0,
+            "outside_box": 0, "min_margin": nan, "min_margin_name": detail,
+            "crossing_states": 0, "velocity_over": 0,
+            "compute_us": {"p50": nan, "p99": nan, "p999": nan, "max": nan},
+            "lost_states": 0, "brake_cycles": 0, "rescues": 0, "wall_s": 0.0,
+            "joint_error": nan, "tip_error": nan, "reached": False, "_compute": []}
+
+
+def run_session(motions: list[tuple[str, dict]], folder: Path, deadline: float
+                ) -> list[dict[str, Any]] | None:
+    """Motions one after the other on one fresh franky-sim (a reach out and back); None when
+    the builder refuses one of their targets."""
+    setups = []
+    for _, data in motions:
+        path = folder / f"{data['name']}.yaml"
+        path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
         try:
-            run = run_on_robot(setup, choose_controller(setup, None), backend, settings)
-        finally:
-            backend.close()
-    return record(kind, data, setup, run, time.perf_counter() - begun)
+            setups.append(build(*load_scenario(path)))
+        except (CpbcError, InadmissibleStateError):  # a target inside a constraint's margin
+            return None
+    found = []
+    with FrankySim(loopback_address()) as sim:
+        for (kind, data), setup in zip(motions, setups, strict=True):
+            settings = MotionSettings(data["simulation"]["duration"], deadline)
+            begun = time.perf_counter()
+            backend = FrankaBackend(sim.host)
+            try:
+                run = run_on_robot(setup, choose_controller(setup, None), backend, settings)
+            except CpbcError as exc:  # the start is refused: nothing moved
+                found.append(refused_start(data["name"], str(exc).split(": ")[-1][:60]))
+                break
+            finally:
+                backend.close()
+            found.append(record(kind, data, setup, run, time.perf_counter() - begun))
+    return found
 
 
 def _pooled(values: list[np.ndarray]) -> dict[str, float]:
@@ -176,7 +205,9 @@ def totals(runs: list[dict[str, Any]], refused: int, compute: list[np.ndarray]
         "max_step": max((r["max_step"] for r in runs), default=0.0),
         "runs_crossing": sum(r["crossing_states"] > 0 for r in runs),
         "crossing_states": sum(r["crossing_states"] for r in runs),
-        "min_margin": min((r["min_margin"] for r in runs), default=float("nan")),
+        "min_margin": min((r["min_margin"] for r in runs if np.isfinite(r["min_margin"])),
+                          default=float("nan")),
+        "starts_refused": sum(r["ending"] == "start_refused" for r in runs),
         "velocity_over": sum(r["velocity_over"] for r in runs),
         "lost_states": sum(r["lost_states"] for r in runs),
         "runs_with_lost_states": sum(r["lost_states"] > 0 for r in runs),
@@ -203,19 +234,21 @@ def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
     load_before = os.getloadavg()
     begun = time.perf_counter()
     start_tip = _start_tip()
-    motions = [("reach", d) for _, d in reach_scenarios(n_reaches, seed)]
-    motions += [("path", d) for _, d in path_scenarios(n_paths, seed, start_tip)]
+    sessions = [[("reach", out), ("reach", back)]
+                for out, back in reach_scenarios((n_reaches + 1) // 2, seed)]
+    sessions += [[("path", d)] for _, d in path_scenarios(n_paths, seed, start_tip)]
     with tempfile.TemporaryDirectory() as folder:
-        for kind, data in motions:
-            if kind == "reach" and sum(r["kind"] == "reach" for r in runs) == n_reaches:
+        for session in sessions:
+            if session[0][0] == "reach" and sum(r["kind"] == "reach" for r in runs) >= n_reaches:
                 continue
-            found = run_one(kind, data, Path(folder), deadline)
+            found = run_session(session, Path(folder), deadline)
             if found is None:
                 refused += 1
                 continue
-            compute.append(np.asarray(found.pop("_compute", []), dtype=float))
-            runs.append(found)
-            print(_line(found), flush=True)
+            for r in found:
+                compute.append(np.asarray(r.pop("_compute"), dtype=float))
+                runs.append(r)
+                print(_line(r), flush=True)
     return {
         "command": command, "date": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
         "commit": _git_commit(), "seed": seed, "deadline_ms": deadline * 1e3,
@@ -273,7 +306,8 @@ def render(doc: dict[str, Any]) -> str:
         "past them |",
         f"| ≥ 95 % of reachable goals within {JOINT_TOLERANCE} rad / "
         f"{1e3 * TIP_TOLERANCE:g} mm | {t['reaches_reached']} of {reachable} "
-        f"({share:.0f} %); {t['reaches_refused']} targets refused by the builder |",
+        f"({share:.0f} %; {t.get('starts_refused', 0)} ways back refused at their start); "
+        f"{t['reaches_refused']} targets refused by the builder |",
         f"| paths tracked | {t['paths_tracked']} of {t['paths']} |",
         f"| controller p99.9 ≤ {P999_TARGET:g} µs (idle machine) | p50 {c['p50']:.0f}, "
         f"p99 {c['p99']:.0f}, p99.9 {c['p999']:.0f}, max {c['max']:.0f} µs "
@@ -288,6 +322,10 @@ def render(doc: dict[str, Any]) -> str:
     ]
     for r in doc["runs"]:
         cu = r["compute_us"]
+        if r["ending"] == "start_refused":
+            lines.append(f"| {r['name']} | start refused | – | – | {_cell(r['min_margin_name'])}"
+                         " | – | – | – | – |")
+            continue
         if r["kind"] == "reach":
             error = f"{_fmt(r['joint_error'], digits=2)} rad, {_fmt(r['tip_error'], 1e3)} mm"
         else:
