@@ -108,8 +108,12 @@ def _describe_urdf(name_or_path: str, locked: Mapping[str, float] | None = None,
         arm.model.frames[g.parentFrame].name for g in arm.collision_model.geometryObjects
         if g.parentJoint > 0))
     summary = ARMS[name_or_path].summary if name_or_path in ARMS else f"URDF {arm.urdf_path}"
+    kept = None
+    if arm.velocity_limits is not None:
+        lo, hi = arm.velocity_limits.range_for(0.5 * arm.velocity_limits.peak)
+        kept = np.maximum(lo, arm.position_lower), np.minimum(hi, arm.position_upper)
     limits = JointLimits(arm.joint_names, arm.position_lower, arm.position_upper,
-                         arm.velocity_limit, arm.effort_limit)
+                         arm.velocity_limit, arm.effort_limit, kept)
     return RobotDescription(model, summary, limits, _frames(arm.model), covered,
                             dict(arm.locked_joints), arm.continuous_joints, arm.model,
                             arm.regularised, tuple(package_dirs), arm.estimated)

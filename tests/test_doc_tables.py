@@ -174,3 +174,15 @@ def test_bench_refuses_a_markdown_path_in_a_missing_folder(tmp_path, capsys) -> 
     assert main(["--markdown", str(tmp_path / "no" / "speed.md")]) == 2
     assert "--markdown" in capsys.readouterr().err
     assert not (tmp_path / "no").exists()
+
+
+def test_the_franka_campaign_fragment_is_what_its_stored_run_renders() -> None:
+    from tools import franka_campaign
+
+    stored = json.loads((franka_campaign.OUT / franka_campaign.JSON_NAME).read_text("utf-8"))
+    assert (franka_campaign.OUT / franka_campaign.TABLE_NAME).read_text("utf-8") == \
+        franka_campaign.render(stored), \
+        "docs/tables/franka-campaign.md is stale: python -m tools.franka_campaign --render-only"
+    totals = stored["totals"]
+    assert totals["reaches"] == len([r for r in stored["runs"] if r["kind"] == "reach"]) >= 50
+    assert totals["paths"] >= 10

@@ -34,6 +34,10 @@ def test_skeleton_runs_in_both_engines(name: str, tmp_path: Path) -> None:
     # arm's skeleton target needs 21.7 of joint 1's 22.3 N·m for gravity alone, and the
     # clipped CPBC breaks joint 2's range there (MuJoCo's guarded run keeps it).
     data["simulation"]["torque_limit"] = "none"
+    # Dry friction differs between the engines by design (MuJoCo's frictionloss is a
+    # constraint, the reference's F_c tanh(q̇/ε)); over 50 ms an arm with it (the fr3's own,
+    # by default) hardly moves, and that difference is all the comparison would see.
+    data["robot"]["friction"] = "none"
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     setup = build(*load_scenario(path))

@@ -69,10 +69,13 @@ class ConstraintInputs:
         model: the controller's robot model.
         names: its coordinate names.
         field: the entry's place in the scenario (``constraints[2]``), for errors.
-        arm: the URDF arm (None for an MJCF model), for covers from collision meshes.
+        arm: the URDF arm (None for an MJCF model), for covers from collision meshes and
+            its position-dependent velocity limits.
         obstacles: the scenario's obstacles by name.
         collision: reads an MJCF robot's collision geoms (cpbc.model.collision_geoms), for
             covers, when called; None for a URDF arm (its collision meshes are on ``arm``).
+        joint_range: the joint range the scenario keeps (its joint position limits inside
+            the model's ranges), lower and upper per joint, or None: the model's.
     """
 
     model: RobotModel
@@ -81,6 +84,7 @@ class ConstraintInputs:
     arm: LoadedArm | None = None
     obstacles: Mapping[str, Obstacle] | None = None
     collision: Callable[[], tuple[CollisionGeom, ...]] | None = None
+    joint_range: tuple[Array, Array] | None = None
 
     def at(self, key: str) -> str:
         """The field of one of the entry's keys."""
@@ -116,6 +120,37 @@ class ConstraintInputs:
             limits = model_limits(self.model, kind, self.at(key), idx)[side]
             return limits if idx is None else limits[idx]
         return self.vector(value, k, key)
+
+
+    def rate_bounds(self, value: list[float] | str, scale: float, idx: list[int] | None,
+                    key: str) -> Array:
+        """Joint rate bounds B_i as given (or ``from_model``: the model's velocity limits),
+        times ``scale``. For an arm whose velocity limits depend on the joint's position
+        (the fr3), ``from_model`` is also at most the largest constant bound inside them
+        over the scenario's joint range, and bounds past that are refused."""
+        bounds = scale * self.limit(value, "velocity", 1, idx, key)
+        limits = None if self.arm is None else self.arm.velocity_limits
+        if limits is None:
+            return bounds
+        lo, hi = self.joint_range or model_limits(self.model, "position", self.at(key))
+        allowed = limits.constant_bound(lo, hi)
+        chosen = list(range(self.model.n)) if idx is None else idx
+        if isinstance(value, str):
+            bounds = np.minimum(bounds, scale * allowed[chosen])
+        for j, i in enumerate(chosen):
+            if bounds[j] <= 0 or bounds[j] > allowed[i] * (1 + 1e-12):
+                # the range on which half the peak velocity is allowed, as a hint
+                room_lo, room_hi = limits.range_for(0.5 * limits.peak)
+                found = (f"allows no speed toward the ends of the joint range [{lo[i]:.4g}, "
+                         f"{hi[i]:.4g}]:" if allowed[i] <= 0 else
+                         f"allows {allowed[i]:.4g} rad/s on the joint range [{lo[i]:.4g}, "
+                         f"{hi[i]:.4g}], the bound is {bounds[j]:.4g}: give at most that, or")
+                raise ScenarioError(self.at(key), (
+                    f"{self.names[i]}: the robot's position-dependent velocity limit "
+                    f"(libfranka's rate_limiting.h) {found} narrow the joint_position_limit "
+                    f"(within [{room_lo[i]:.4g}, {room_hi[i]:.4g}] it allows "
+                    f"{0.5 * limits.peak[i]:.4g} rad/s)"))
+        return bounds
 
 
 def row_labels(name: str, k: int) -> list[str]:

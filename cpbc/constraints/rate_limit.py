@@ -134,7 +134,9 @@ class JointRateLimitSpec(ConstraintEntrySpec):
             "the constrained coordinates by joint name; all when omitted"))
     bounds: list[Positive] | FromModel = Field(
         description=(
-            "the rate bounds B_i [rad/s or m/s], or from_model (the URDF's velocity limits)"))
+            "the rate bounds B_i [rad/s or m/s], or from_model (the URDF's velocity limits; "
+            "on an arm with position-dependent ones, the fr3, at most the largest constant "
+            "bound inside them on the scenario's joint range)"))
     # multiplies the bounds (e.g. 0.5 of the URDF's velocity limits)
     scale: Positive = Field(
         default=1.0, description=(
@@ -143,8 +145,8 @@ class JointRateLimitSpec(ConstraintEntrySpec):
 
 def build_joint_rate_limit(spec: JointRateLimitSpec, given: ConstraintInputs) -> RateLimit:
     idx = given.joints(spec.joints)
-    bounds = given.limit(spec.bounds, "velocity", 1, idx, "bounds")
-    return joint_rate_limit(spec.scale * bounds, given.names, idx)
+    return joint_rate_limit(given.rate_bounds(spec.bounds, spec.scale, idx, "bounds"),
+                            given.names, idx)
 
 
 class RateLimitSpec(ConstraintEntrySpec):

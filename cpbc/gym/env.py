@@ -41,7 +41,7 @@ from cpbc.reference.tracker import ReferenceTracker, tracking
 from cpbc.scenario import ScenarioSetup, build, load_scenario
 from cpbc.scenario.arm_setup import ControllerEntry
 from cpbc.scenario.state_checks import joint_ranges
-from cpbc.simulation.loop import _ArmLoop, substeps_per_control
+from cpbc.simulation.loop import ArmLoop, substeps_per_control
 
 ACTIONS = ("pose_delta", "position_delta", "joint_target", "joint_delta")
 STARTS = 100  # seeded draws of a start inside S before the env starts at x_n itself
@@ -179,7 +179,7 @@ class ScenarioEnv(gymnasium.Env[dict[str, Any], Action]):
             "frame_orientation": spaces.Box(-1.0, 1.0, (4,), np.float64),
         })
         self.tracker: ReferenceTracker | None = None
-        self._arm: _ArmLoop | None = None
+        self._arm: ArmLoop | None = None
         self._steps = 0
         self._over = True
 
@@ -202,7 +202,7 @@ class ScenarioEnv(gymnasium.Env[dict[str, Any], Action]):
         coords = setup.model.coordinates
         self.plant.reset(coords.inverse @ x0, np.zeros(setup.model.n))
         steps = self.settings.max_episode_steps * self.steps_per_action
-        self._arm = _ArmLoop(self.plant, self.tracker, coords, self._loop_settings, steps)
+        self._arm = ArmLoop(self.plant, self.tracker, coords, self._loop_settings, steps)
         self._arm.start(x0)
         self._steps, self._over = 0, False
         x, dx = self._state()
@@ -239,14 +239,14 @@ class ScenarioEnv(gymnasium.Env[dict[str, Any], Action]):
         return obs, self._reward(obs, info), terminated, truncated, info
 
     @staticmethod
-    def _counts(arm: _ArmLoop) -> tuple[int, int, int, int]:
+    def _counts(arm: ArmLoop) -> tuple[int, int, int, int]:
         """The safeguard's counts (acted, infeasible, rescues) and the clipped torques."""
         g = arm.guard
         if g is None:
             return 0, 0, 0, arm.saturated
         return g.acted, g.infeasible, g.rescues, arm.saturated
 
-    def _run(self, arm: _ArmLoop, low: Array) -> tuple[str | None, int]:
+    def _run(self, arm: ArmLoop, low: Array) -> tuple[str | None, int]:
         """One policy period of control periods (the loop's observe, control, hold), the
         smallest margins from MuJoCo's state after each written into ``low``; the outcome
         (None while the run goes on) and the most arm-obstacle contacts."""

@@ -17,6 +17,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.errors import CpbcError, ParameterError
+from cpbc.model.velocity_limits import PositionDependentVelocity
 
 
 @dataclass(frozen=True)
@@ -49,12 +50,15 @@ class RobotLimits:
             Franka aborts the motion beyond (a simulator may not check it).
         velocity: |q̇_i| ≤ velocity_i [rad/s].
         period: the robot's control period [s].
+        velocity_limits: the robot's position-dependent velocity limits L(q) ≤ q̇ ≤ U(q)
+            (a Franka aborts beyond: ``joint_velocity_violation``), or None.
     """
 
     torque: Array
     torque_rate: Array
     velocity: Array
     period: float
+    velocity_limits: PositionDependentVelocity | None = None
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.period) and self.period > 0):
@@ -67,6 +71,9 @@ class RobotLimits:
                                      f" like torque), got {getattr(self, name)!r}")
             value.flags.writeable = False
             object.__setattr__(self, name, value)
+        if self.velocity_limits is not None and self.velocity_limits.n != n[0]:
+            raise ParameterError("velocity_limits", f"has {self.velocity_limits.n} joints, "
+                                 f"the robot {n[0]}")
 
     @property
     def torque_step(self) -> Array:

@@ -19,7 +19,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.errors import CpbcError, ParameterError
 from cpbc.hardware.backend import MeasuredState, RobotDynamics, RobotFault, RobotLimits
-from cpbc.model.arms import FRANKA_EXTRA
+from cpbc.model.arms import FR3_VELOCITY_LIMITS, FRANKA_EXTRA
 
 #: The FR3's rules (Franka's FCI documentation; the torque rate is libfranka's
 #: ``kMaxTorqueRate``): per joint, joints 1-7.
@@ -28,6 +28,7 @@ FR3_LIMITS = RobotLimits(
     torque_rate=np.full(7, 1000.0),
     velocity=np.array([2.62, 2.62, 2.62, 2.62, 5.26, 4.18, 5.26]),
     period=0.001,
+    velocity_limits=FR3_VELOCITY_LIMITS,
 )
 FR3_JOINTS = tuple(f"fr3_joint{i}" for i in range(1, 8))
 #: What libfranka's Model needs in the state to compute gravity: a simulator may leave the

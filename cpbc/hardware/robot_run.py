@@ -22,10 +22,12 @@ from cpbc.hardware.lockstep import LockstepBackend
 from cpbc.hardware.motion import MotionLog, MotionSettings, run_motion
 from cpbc.hardware.rules import RuleReport, check_rules
 from cpbc.model import RobotModel
+from cpbc.reference.tracker import ReferenceTracker
 from cpbc.results import ArmLabels, log_file, staged_output, write_summaries, write_trajectory
 from cpbc.results.hdf5_log import LOG_FILE, write_signals
 from cpbc.results.margin_types import types_of
 from cpbc.results.metrics import RunSummary, margin_history, summarise
+from cpbc.results.reference_metrics import reference_log, reference_outcome
 from cpbc.results.task_metrics import task_errors
 from cpbc.scenario.arm_setup import CaseEntry, ControllerEntry, ScenarioSetup
 from cpbc.scenario.state_checks import check_admissible, check_stoppable
@@ -122,6 +124,15 @@ def warm(setup: ScenarioSetup, entry: ControllerEntry, state: MeasuredState,
     backend.added_torque(backend.read())
 
 
+def pack(law: Controller) -> None:
+    """Pack the law's terms now (cpbc.controllers.packed_law), not in the first cycle: a
+    reference tracker steers the scenario's law in place when it is built, which the next
+    step would pack again (0.4-1 ms on a shared machine: past a 1 ms deadline)."""
+    packed_law = getattr(law, "packed_law", None)
+    if callable(packed_law):
+        packed_law()
+
+
 @dataclass(frozen=True)
 class HardwareRun:
     """A motion with what cpbc.run would have made of it."""
@@ -181,18 +192,28 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
     note = check_start(setup, state)
     warm(setup, entry, state, backend)
     guard = setup.controller(entry)
+    pack(entry.controller)
     motion = run_motion(backend, guard, settings)
     traj = _trajectory(motion, guard, limits.period)
     margins = margin_history(setup.monitor, traj)
     summary = summarise(entry.name, CASE, entry.controller, setup.monitor, traj,
                         setup.criteria, setup.rate_bounds, margins, limits.torque, None,
                         setup.model.length_coordinates, limits.torque_rate)
-    rules = check_rules(motion.commanded_torque, limits, margins, setup.monitor.names)
+    rules = check_rules(motion.commanded_torque, limits, margins, setup.monitor.names,
+                        motion.position, motion.velocity)
     cause = None if motion.ending == "completed" else f"{motion.ending}: {motion.detail}"
-    extra = {**summary.extra, **_timing(motion), "steps_over_rate": float(rules.steps_over)}
+    extra = {**summary.extra, **_timing(motion), "steps_over_rate": float(rules.steps_over),
+             "velocity_over_limit": float(rules.velocity_over)}
     summary = replace(summary, extra=extra, cause=cause)
     errors = None
-    if setup.goal is not None:
+    if isinstance(guard, ReferenceTracker) and setup.goal is not None:
+        # judged as cpbc.run judges a reference run: tracked, blocked, stalled, …
+        log = reference_log(setup.model, setup.goal.goal, guard, traj)
+        found = reference_outcome(setup.model, setup.goal.goal, guard, traj, log,
+                                  summary.status, setup.monitor, margins, setup.criteria)
+        summary = replace(summary, **found.__dict__, settle_time=None)
+        errors = log.task_error
+    elif setup.goal is not None:
         errors = task_errors(setup.model, setup.goal.goal, traj.position)
     return HardwareRun(entry.name, motion, traj, margins, summary, rules, errors, note)
 
@@ -228,10 +249,14 @@ def lockstep_for(setup: ScenarioSetup, torque_rate: float = 1000.0) -> LockstepB
     """The scenario's arm as a lock-step robot: its MuJoCo plant started at the first case,
     a separate copy of its model as the robot's own (gravity compensation, mass matrix),
     the model's effort limits as its torque box (the scenario's where it declares none),
-    the model's velocity limits and the scenario's control period; ``torque_rate``
+    the model's velocity limits (and a named arm's position-dependent ones) and the
+    scenario's control period; ``torque_rate``
     [N·m/s] on every joint (the FR3's by default)."""
     model = setup.model
-    own = RobotModel(pin.Model(model.model), name=model.name)  # not the controller's data
+    own_model = pin.Model(model.model)  # not the controller's data
+    # its Model as libfranka's (franky-sim's): the links' inertia without the rotors
+    own_model.armature[:] = 0.0
+    own = RobotModel(own_model, name=model.name)
     effort = np.array(model.model.effortLimit, dtype=float)
     given = setup.loop_settings.torque_limit
     if not np.all(np.isfinite(effort) & (effort > 0)):
@@ -241,7 +266,8 @@ def lockstep_for(setup: ScenarioSetup, torque_rate: float = 1000.0) -> LockstepB
         effort = np.asarray(given, dtype=float)
     limits = RobotLimits(effort, np.full(model.n, float(torque_rate)),
                          np.array(model.model.velocityLimit, dtype=float),
-                         setup.loop_settings.control_period)
+                         setup.loop_settings.control_period,
+                         None if setup.arm is None else setup.arm.velocity_limits)
     case = setup.cases[0]
     return LockstepBackend(setup.make_plant(), model.joint_names, limits, own.gravity,
                            own.inertia, case.position, case.velocity)

@@ -10,7 +10,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from cpbc.errors import ModelError
+from cpbc.model.velocity_limits import PositionDependentVelocity
 
 
 @dataclass(frozen=True)
@@ -31,6 +34,12 @@ class ArmEntry:
         torque_rate: the motors' torque-rate limit [N·m/s] the robot maker publishes (what
             ``simulation.torque_rate_limit: from_model`` reads), or None.
         package: the Python package that ships the URDF.
+        armature, viscous, coulomb: per driven joint, the rotor inertia [kg·m²], viscous
+            [N·m·s/rad] and Coulomb friction [N·m] that replace what the URDF declares
+            (what ``robot.armature`` and ``robot.friction: from_model`` read, and their
+            default ``auto``), or None: the URDF's.
+        velocity_limits: the robot maker's position-dependent joint velocity limits, which
+            ``joint_rate_limit`` bounds must lie inside, or None.
     """
 
     urdf: str
@@ -41,6 +50,15 @@ class ArmEntry:
     ranges: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     torque_rate: float | None = None
     package: str = "example-robot-data"
+    armature: tuple[float, ...] | None = None
+    viscous: tuple[float, ...] | None = None
+    coulomb: tuple[float, ...] | None = None
+    velocity_limits: PositionDependentVelocity | None = None
+
+    @property
+    def declares_dynamics(self) -> bool:
+        """Whether the entry declares its joints' rotor inertia and friction."""
+        return self.armature is not None
 
 
 #: The Python package that ships franky-sim's files, and how cpbc installs it.
@@ -62,6 +80,25 @@ _FR3_RANGES = {
     "fr3_joint5": (-2.8065, 2.8065), "fr3_joint6": (0.5445, 4.5169),
     "fr3_joint7": (-3.0159, 3.0159),
 }
+
+# The FR3's joints as franky-sim's MuJoCo plant models them (its assets/fr3.xml, franky-sim
+# 1.0.4: the class default armature 0.195, damping 0.21, frictionloss 1.137; joints 5-7
+# override armature 0.074 and frictionloss 0.763, 0.44, 0.248). Franka publishes no such
+# values; the URDF's <dynamics damping="0.003" friction="0.2"> are not what the plant runs.
+_FR3_ARMATURE = (0.195, 0.195, 0.195, 0.195, 0.074, 0.074, 0.074)
+_FR3_VISCOUS = (0.21,) * 7
+_FR3_COULOMB = (1.137, 1.137, 1.137, 1.137, 0.763, 0.44, 0.248)
+
+# The FR3's position-dependent joint velocity limits: Franka's FCI documentation ("Limits for
+# Franka Research 3"), as libfranka's rate_limiting.h computes them (0.15, commit 155ddac):
+# v, c, k and the two ends a+, a- per joint (cpbc.model.velocity_limits for the formula).
+FR3_VELOCITY_LIMITS = PositionDependentVelocity(
+    peak=np.array([2.62, 2.62, 2.62, 2.62, 5.26, 4.18, 5.26]),
+    offset=np.array([0.30, 0.20, 0.20, 0.30, 0.35, 0.35, 0.35]),
+    gain=np.array([12.0, 5.17, 7.0, 8.0, 34.0, 11.0, 34.0]),
+    upper_end=np.array([2.7501, 1.7918, 2.9065, -0.1458, 2.8101, 4.5205, 3.0196]),
+    lower_end=np.array([-2.7501, -1.7918, -2.9065, -3.0481, -2.8101, 0.54092, -3.0196]),
+)
 
 ARMS: dict[str, ArmEntry] = {
     "panda": ArmEntry(
@@ -161,11 +198,14 @@ ARMS: dict[str, ArmEntry] = {
     # (2.62 rad/s on joints 1-4, 5.26, 4.18, 5.26) and torques (87/12 N m) are the URDF's;
     # its joint ranges on joints 1, 2, 4-7 are wider than the FCI's published ones (which
     # franky-sim's MuJoCo plant also stops at): those replace them. Its torque rate: 1000
-    # N m/s on every joint (FCI; libfranka's kMaxTorqueRate), beyond which it aborts.
+    # N m/s on every joint (FCI; libfranka's kMaxTorqueRate), beyond which it aborts. Its
+    # rotor inertia and joint friction: franky-sim's fr3.xml (above), used by default.
     "fr3": ArmEntry(
         "fr3.urdf", {"fr3_finger_joint1": 0.0, "fr3_finger_joint2": 0.0},
         "Franka Research 3, 7 DOF (fingers locked closed; from franky-sim)", "fr3_hand_tcp",
         ranges=_FR3_RANGES, torque_rate=1000.0, package=FRANKY_SIM,
+        armature=_FR3_ARMATURE, viscous=_FR3_VISCOUS, coulomb=_FR3_COULOMB,
+        velocity_limits=FR3_VELOCITY_LIMITS,
     ),
 }
 

@@ -41,6 +41,7 @@ from cpbc.model.arms import ARMS, arm_urdf, available_arms
 from cpbc.model.inertias import apply_joint_inertias, regularise_inertias
 from cpbc.model.solid_inertias import estimate_point_masses
 from cpbc.model.urdf_text import resolve_urdf_meshes, sort_joints, unbound_continuous_joints
+from cpbc.model.velocity_limits import PositionDependentVelocity
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
 
@@ -110,6 +111,9 @@ class LoadedArm:
         ranges: joint ranges that replace the URDF's in both engines (:func:`narrow`).
         torque_rate_limits: the motors' torque-rate limits a named arm declares [N·m/s],
             shape (n,), or None.
+        declared_dynamics: a named arm's own rotor inertia, viscous and Coulomb friction
+            per joint (they replace the URDF's ``<dynamics>``), or None.
+        velocity_limits: a named arm's position-dependent joint velocity limits, or None.
     """
 
     name: str
@@ -129,6 +133,8 @@ class LoadedArm:
     estimated: tuple[str, ...] = ()
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
     torque_rate_limits: Array | None = None
+    declared_dynamics: tuple[Array, Array, Array] | None = None
+    velocity_limits: PositionDependentVelocity | None = None
 
     @property
     def n(self) -> int:
@@ -376,6 +382,10 @@ def load_arm(
         narrow(arm, entry.ranges)
         if entry.torque_rate is not None:
             arm.torque_rate_limits = np.full(arm.n, entry.torque_rate)
+        if entry.armature is not None:
+            arm.declared_dynamics = (np.array(entry.armature), np.array(entry.viscous),
+                                     np.array(entry.coulomb))
+        arm.velocity_limits = entry.velocity_limits
         return arm
     path = Path(name_or_path)
     if path.suffix.lower() not in (".urdf", ".xml"):  # a URDF saved as .xml is common

@@ -247,7 +247,8 @@ def _robot_model(
         if plant is not None:  # an MJCF declares its efforts on its actuators
             apply_actuator_efforts(probe.model, plant)
     coords = _coordinates(robot, probe.n)
-    joints = joint_dynamics(robot, probe.model, None if arm is None else arm.urdf_text)
+    joints = joint_dynamics(robot, probe.model, None if arm is None else arm.urdf_text,
+                            None if arm is None else arm.declared_dynamics)
     rates = None if arm is None else arm.torque_rate_limits
     return RobotModel(joints.on_pinocchio(probe.model), coords, joints.viscous,
                       name=probe.name, coulomb_friction=joints.coulomb,

@@ -5,9 +5,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
+
+from cpbc.arrays import Array
 from cpbc.constraints import ConfigurationConstraint, RateLimit, VelocityConstraint
 from cpbc.constraints.constraint_kind import ConstraintEntrySpec, ConstraintInputs
 from cpbc.constraints.geometry import Obstacle
+from cpbc.constraints.linear_limit import JointPositionLimitSpec
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model import RobotModel
 from cpbc.model.collision_geoms import CollisionGeom
@@ -45,6 +49,27 @@ def scene_obstacles(specs: list[s.ObstacleSpec]) -> tuple[list[ObstacleGeom], di
     return obstacles, scene
 
 
+def joint_range(scenario: s.Scenario, model: RobotModel, names: tuple[str, ...],
+                arm: LoadedArm | None) -> tuple[Array, Array] | None:
+    """The joint range the scenario keeps: the model's ranges narrowed by every
+    ``joint_position_limit`` entry; None unless the arm's velocity limits depend on the
+    joints' positions (what the range is for) and the controller's coordinates are the
+    model's joints."""
+    if arm is None or arm.velocity_limits is None or not model.coordinates.is_identity:
+        return None
+    lo = np.array(model.model.lowerPositionLimit, dtype=float)
+    hi = np.array(model.model.upperPositionLimit, dtype=float)
+    for i, cs in enumerate(scenario.constraints):
+        if not isinstance(cs, JointPositionLimitSpec):
+            continue
+        given = ConstraintInputs(model, names, f"constraints[{i}]")
+        idx = given.joints(cs.joints)
+        chosen = list(range(model.n)) if idx is None else idx
+        lo[chosen] = np.maximum(lo[chosen], given.limit(cs.lower, "position", 0, idx, "lower"))
+        hi[chosen] = np.minimum(hi[chosen], given.limit(cs.upper, "position", 1, idx, "upper"))
+    return lo, hi
+
+
 def scenario_constraints(
     scenario: s.Scenario, model: RobotModel, names: tuple[str, ...], arm: LoadedArm | None,
     scene: dict[str, Obstacle], obstacles: list[ObstacleGeom], kinds: Kinds = KINDS,
@@ -55,13 +80,14 @@ def scenario_constraints(
     ``obstacles``. ``collision`` reads an MJCF robot's collision geoms, for covers."""
     built: dict[str, ConfigurationConstraint | VelocityConstraint] = {}
     rate_bounds: list[float | None] = [None] * model.n
+    kept = joint_range(scenario, model, names, arm)
     for i, cs in enumerate(scenario.constraints):
         field = f"constraints[{i}]"
         if cs.name in built:
             raise ScenarioError(f"{field}.name", f"duplicate constraint name '{cs.name}'")
         kind = kinds.constraint(cs.type)
         c = built[cs.name] = _build_constraint(
-            cs, kind, ConstraintInputs(model, names, field, arm, scene, collision))
+            cs, kind, ConstraintInputs(model, names, field, arm, scene, collision, kept))
         if isinstance(c, RateLimit) and c.joint_index is not None:
             for j, b in zip(c.joint_index, c.bounds, strict=True):
                 rate_bounds[int(j)] = float(b)

@@ -4,7 +4,10 @@ The target is the middle of every joint's range (0 where a joint has none) unles
 gives one (``cpbc.robot`` lowers it where the motors cannot carry the arm there), the case
 starts a little off it toward the middle of the ranges, the gains are physical (ω_n, ζ; see
 cpbc.scenario.gain_check), and the admissible set is the arm's own: the position ranges of the
-joints that have one and, when every joint declares one, half its rate limits.
+joints that have one and, when every joint declares one, half its rate limits. For an arm
+whose velocity limits fall toward the ends of its ranges (the fr3), the ranges are narrowed
+to where those limits allow half the peak velocity, and the rate bounds are what they allow
+there (``from_model``).
 """
 
 from __future__ import annotations
@@ -25,6 +28,8 @@ class JointLimits:
         lower, upper: position range [rad or m], ±inf where there is none.
         velocity: rate limit [rad/s or m/s], inf where there is none.
         effort: effort limit [N·m or N], inf where there is none.
+        kept: for an arm with position-dependent velocity limits, the range (lower,
+            upper) inside its own on which they allow half the peak velocity, else None.
     """
 
     names: tuple[str, ...]
@@ -32,6 +37,7 @@ class JointLimits:
     upper: Array
     velocity: Array
     effort: Array
+    kept: tuple[Array, Array] | None = None
 
     @property
     def bounded(self) -> list[int]:
@@ -68,12 +74,16 @@ def skeleton(model: str, limits: JointLimits, duration: float = 5.0,
     if bounded:
         entry: dict = {"type": "joint_position_limit", "name": "joint_ranges",
                        "lower": "from_model", "upper": "from_model"}
+        if limits.kept is not None:  # rounded inward: the bounds stay inside the limits
+            entry["lower"] = [float(v) for v in np.ceil(limits.kept[0][bounded] * 1e3) / 1e3]
+            entry["upper"] = [float(v) for v in np.floor(limits.kept[1][bounded] * 1e3) / 1e3]
         if len(bounded) < len(limits.names):
             entry["joints"] = [limits.names[i] for i in bounded]
         constraints.append(entry)
     if np.all(np.isfinite(limits.velocity)):
         constraints.append({"type": "joint_rate_limit", "name": "joint_rates",
-                            "bounds": "from_model", "scale": 0.5})
+                            "bounds": "from_model",
+                            "scale": 0.5 if limits.kept is None else 1.0})
     controllers: list[dict] = [
         {"type": "pd_gravity", "name": "PD_gravity", "omega_n": omega_n, "zeta": zeta},
     ]

@@ -212,7 +212,7 @@ def _steps(loop: SampledLoop[S, U], steps: int, substeps: int, period: float,
     return LoopEnd(outcome, violated, k, _time.perf_counter() - start)
 
 
-class _ArmLoop:
+class ArmLoop:
     """An arm in MuJoCo under a law in controller coordinates x = T q: the state (x, ẋ), the
     law through the measurement noise, the torque mapped to the joints and clipped at the
     plant's limits, the safeguard's steps counted, the largest contact count kept."""
@@ -351,7 +351,7 @@ def run_mujoco(
     substeps = substeps_per_control(settings.control_period, plant.model.opt.timestep)
     steps = round(settings.duration / settings.control_period)
     plant.reset(coordinates.inverse @ x0, coordinates.inverse @ dx0)
-    arm = _ArmLoop(plant, controller, coordinates, settings, steps)
+    arm = ArmLoop(plant, controller, coordinates, settings, steps)
     arm.start(x0)
     end = run_loop(arm, steps, substeps, settings.control_period, progress)
     k, guard = end.last_step, arm.guard

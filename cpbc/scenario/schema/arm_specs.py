@@ -93,7 +93,8 @@ class RobotSpec(Strict):
     (.urdf) file, relative to the scenario file. ``coordinates`` are the controller's:
     ``joint`` (the model's own), ``absolute`` (absolute link angles θ = T q of a planar chain)
     or a matrix T. ``armature`` and ``friction`` are the joints' rotor inertia and friction in
-    both engines (``from_model``: as the model file declares them; none by default);
+    both engines (``from_model``: as the model file, or a named arm that declares its own,
+    declares them; ``auto``, the default: a named arm's own — the fr3's —, else none);
     ``viscous_friction`` is the older name of ``friction.viscous``. URDF arms only:
     ``locked_joints`` freezes joints at values (a named arm's gripper is locked by default),
     ``package_dirs`` are extra folders for ``package://``."""
@@ -110,15 +111,18 @@ class RobotSpec(Strict):
         default=0.0, description=(
             "F_d, diagonal viscous friction in joint coordinates, in plant and model: one "
             "number or one per joint (the older name of friction.viscous: give one of them)"))
-    armature: NonNegative | list[NonNegative] | Literal["from_model", "none"] = Field(
-        default="none", description=(
+    armature: NonNegative | list[NonNegative] | Literal["from_model", "auto", "none"] = Field(
+        default="auto", description=(
             "each joint's rotor inertia in D and the plant [kg·m²]: one number, one per "
-            "joint, from_model (an MJCF joint's armature, a URDF's <dynamics armature>) or "
-            "none"))
-    friction: FrictionSpec | Literal["from_model", "none"] = Field(
-        default="none", description=(
+            "joint, from_model (an MJCF joint's armature, a URDF's <dynamics armature>, a "
+            "named arm's own), auto (from_model for a named arm that declares its own, the "
+            "fr3; else none) or none"))
+    friction: FrictionSpec | Literal["from_model", "auto", "none"] = Field(
+        default="auto", description=(
             "each joint's Coulomb and viscous friction in the model and the plant: "
-            "{coulomb, viscous, ...}, from_model (both as the model file declares) or none"))
+            "{coulomb, viscous, ...}, from_model (both as the model file or a named arm "
+            "declares), auto (from_model for a named arm that declares its own, the fr3; "
+            "else none) or none"))
     locked_joints: dict[str, Number] = Field(
         default={}, description=(
             "URDF arms: joints frozen at these values in both engines (a named arm's gripper "
