@@ -19,15 +19,17 @@ the braking set's deceleration is lowered by the error's share along the motion
 change of Π_k over the period are left out (second order in h).
 
 **The Coulomb friction's own error.** The model's Coulomb friction is smooth, F_c tanh(q̇/ε);
-a real joint's (and MuJoCo's ``frictionloss``) is set-valued at rest and reaches F_c within a
-fraction of ε. The two differ by up to F_c,j (1 − tanh(|q̇_j|/ε)) at joint j — all of F_c near
-rest, nothing at speed — and through D⁻¹ that force error moves every coordinate's
-acceleration (:func:`friction_error`, added to the declared bound whenever the model has
-Coulomb friction). Measured on the FR3 (franky-sim's friction, 1000 N·m/s, 1 kHz): as a wrist
-joint's rate passed through zero, the arm's acceleration left the model's by 0.8–1.2 rad/s²
-on joints 2 and 4 and pushed joint 1 through its rate bound; 18 of 185 runs from stoppable
-starts crossed a rate bound before the guard held this error, with the joint's speed taken
-one ε lower than measured (it may cross zero within the period).
+a real joint's is set-valued at rest and has its own shape at low speed (MuJoCo's
+``frictionloss`` is a soft constraint that builds up over a speed of its own; a real drive
+has stiction and a Stribeck dip). Both lie in [−F_c, F_c] and agree in sign once the joint
+moves, so they differ by at most F_c,j at joint j, and through D⁻¹ that force error moves
+every coordinate's acceleration (:func:`friction_error`, added to the declared bound whenever
+the model has Coulomb friction). Measured on the FR3 (franky-sim's friction, 1000 N·m/s,
+1 kHz): as a wrist joint's rate passed through zero, the arm's acceleration left the model's
+by 0.8–1.2 rad/s² on joints 2 and 4 and pushed joint 1 through its rate bound; 18 of 185 runs
+from stoppable starts crossed a rate bound before the guard held this error. A bound that
+credited the smooth model near F_c at speed (F_c (1 − tanh(|q̇|/ε))) left the UR5's shoulder
+0.7 rad/s² short where MuJoCo's friction was still building up at 0.1 rad/s.
 
 This is why the bare guard let velocity margins break under a ±20 % mass error (docs/
 ROBUSTNESS.md, "Model mismatch"): a law that rides a velocity bound cancels the *model's*
@@ -46,14 +48,13 @@ from cpbc.model.robot_model import ArmState, RobotModel
 
 def friction_error(model: RobotModel, state: ArmState) -> Array | None:
     """The bound on the acceleration error of the model's smooth Coulomb friction (the module
-    docstring): |D⁻¹ T⁻ᵀ| (F_c ⊙ (1 − tanh(max(|q̇| − ε, 0)/ε))) per coordinate, or None
-    for a model without Coulomb friction."""
+    docstring): |D⁻¹| |T⁻ᵀ| F_c per coordinate, or None for a model without Coulomb
+    friction."""
     levels = model.coulomb_friction
     if not np.any(levels):
         return None
-    eps = model.friction_smoothing
-    slack = levels * (1.0 - np.tanh(np.maximum(np.abs(state.dq) - eps, 0.0) / eps))
-    force = slack if model.coordinates.is_identity else np.abs(model.coordinates.inverse.T) @ slack
+    coords = model.coordinates
+    force = levels if coords.is_identity else np.abs(coords.inverse.T) @ levels
     return np.abs(np.linalg.inv(state.inertia)) @ force
 
 
