@@ -28,7 +28,7 @@ class Brakes(GuardMembers):
 
     def _brake(self, bias: Array, stop: Array, lam: float) -> Array:
         """The braking torque b − λ D ẋ/h, scaled into the torque box (:meth:`_box`)."""
-        return self._box(bias, bias - lam * stop)
+        return self._box(bias, bias - lam * stop, brake=True)
 
     def _search_braking(
         self, bias: Array, stop: Array, slack: Callable[[Array], float], f_stop: float,
@@ -84,10 +84,10 @@ class Brakes(GuardMembers):
         if tau is None:
             return None
         self.rescues += 1
-        # under a rate limit the motors ramp toward the brake along the line from the held
-        # torque (_box), as the rescue's search held it (brakes.ramped): a brake clipped
-        # joint by joint kicked the Panda's light wrist through its rate bound
-        return tau if self._rate_step is None else self._box(bias, tau)
+        # under a rate limit the brake is reached as the rescue's search held it
+        # (brakes.ramped, _box): a brake clipped joint by joint kicked the Panda's light
+        # wrist through its rate bound
+        return tau if self._rate_step is None else self._box(bias, tau, brake=True)
 
     def _infeasible(self, state: ArmState, bias: Array, stop: Array, predict: Predictor,
                     now: Array, floor: Array, floor_mid: Array | None) -> Array:
@@ -144,7 +144,7 @@ class Brakes(GuardMembers):
         elif escape is not None and holding is not None:
             start = bias - stop  # ends the period at rest ...
             for s in (1.0, 1.5, 2.0):  # ... plus the push to the end velocity s·v
-                push = self._box(bias, start + s * escape)
+                push = self._box(bias, start + s * escape, brake=True)
                 if holding(push) >= 0.0:
                     return push
         return self._brake(bias, stop, lam)

@@ -307,25 +307,30 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
             return self.model_error
         return friction if self.model_error is None else friction + self.model_error
 
-    def _box(self, bias: Array, tau: Array) -> Array:
+    def _box(self, bias: Array, tau: Array, brake: bool = False) -> Array:
         """τ scaled toward the bias b = C ẋ + g + f until it fits the torque box
         (:meth:`TorqueBox.toward`): the acceleration D⁻¹(τ − b) keeps its direction and only
         shrinks, so no joint is spun up by the coupling through D, as clipping each joint
         would (τ itself when it fits, or when there is no limit). Under a torque-rate limit
-        it is then reached as nearly as one step can: the torque within ρh of the held one
-        whose acceleration is nearest to its own (:meth:`TorqueBox.nearest`). A brake
-        clipped joint by joint into the rate box spun the Panda's base joint up through its
-        rate bound (the coupling through D); the whole step scaled into the rate box,
-        τ_h + s(τ − τ_h), starved the joints with room to move (the FR3's last joint kept
-        11 N·m for 15 ms while its motion had to turn, and ran through its rate bound)."""
+        it is then reached from the held torque τ_h as far as one step allows: the law's
+        torque and what follows it (the slide) along the straight line τ_h + s(τ − τ_h),
+        which keeps the direction of the change of acceleration the law asks for (a reach
+        that bent it took the FR3's hand 23 mm off a circle it tracked within 2 mm); a
+        ``brake`` (the brakes, the escape, the rescue's) as the torque within ρh of τ_h
+        whose acceleration is nearest to its own (:meth:`TorqueBox.nearest`), which gives
+        every joint as much of its own interval as it needs: scaled along the straight
+        line, the FR3's light last joint kept −11 N·m for 15 ms (0.14 of its 1 N·m a
+        period) while its motion had to turn, and ran through its rate bound. (Clipped joint
+        by joint, a brake far outside the rate box spun the Panda's base joint up through
+        its rate bound: the coupling through D.)"""
         box = self._static_box
         if box is None:
             return tau
         boxed = box.toward(bias, tau)
-        step = self._step_box
-        if self._rate_step is None or step is None or self._holding is None:
+        step, held = self._step_box, self._holding
+        if self._rate_step is None or step is None or held is None:
             return boxed
-        return step.nearest(self._accel, boxed)
+        return step.nearest(self._accel, boxed) if brake else step.toward(held, boxed)
 
     def _saturate(self, tau: Array) -> Array:
         return tau if self._step_box is None else self._step_box.clip(tau)

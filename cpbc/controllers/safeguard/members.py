@@ -39,5 +39,5 @@ class GuardMembers:
     _rate_step: Array | None  # ρh per joint, under a torque-rate limit
     _ramp: RampTest | None  # this step's velocity lookahead under a torque-rate limit
 
-    def _box(self, bias: Array, tau: Array) -> Array:
+    def _box(self, bias: Array, tau: Array, brake: bool = False) -> Array:
         raise NotImplementedError
