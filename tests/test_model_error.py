@@ -86,24 +86,24 @@ def disturbed_panda(tmp_path_factory):
     return setup, entry
 
 
-@pytest.mark.parametrize("seed", [30, 34])
+@pytest.mark.parametrize("seed", [34])
 def test_a_plant_disturbed_inside_the_declared_error_is_kept_only_when_declared(
         disturbed_panda, seed) -> None:
-    """Seeds whose starts a brake stops: disturbed at the corners of ±5 rad/s², the guard
+    """A start a brake stops: disturbed at the corners of ±5 rad/s², the guard
     that knows the bound keeps every margin on MuJoCo's state; the one that does not lets a
     rate cross (its law cancels the model's acceleration at the bound; the error pushes)."""
     setup, entry = disturbed_panda
     period = 0.001
-    base = RecordingPlant(setup.make_plant().model, setup.plant_settings)
     kept = kept_constraints(setup, entry, period, setup.safeguard)
     s = draw_state(setup, seed)
     n = setup.model.n
     outcomes = {}
     for declared in (True, False):
+        plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
         settings = replace(setup.loop_settings, duration=0.5, log_every=1,
                            model_error=np.full(n, ERROR) if declared else None,
                            disturbance=AccelerationDisturbance(np.full(n, ERROR), seed))
-        check = checked_run(base, setup, entry, s.position, s.velocity, settings, kept,
+        check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
                             safeguard=setup.safeguard)
         outcomes[declared] = check
     assert not outcomes[True].violated and outcomes[True].min_margin > 0.0
@@ -142,9 +142,10 @@ def test_the_smooth_coulomb_friction_error_is_its_level_through_the_inverse_iner
 FR3_CAMPAIGN = ROOT / "tools" / "campaigns" / "fr3_sphere_rate.yaml"
 
 
+@pytest.mark.parametrize("seed", [74, 119])
 def test_the_fr3s_friction_error_held_keeps_a_rate_the_smooth_model_alone_lets_cross(
-        monkeypatch) -> None:
-    """FR3 with franky-sim's friction, 1000 N·m/s, 1 kHz, seed 65 (a start a brake stops):
+        monkeypatch, seed) -> None:
+    """FR3 with franky-sim's friction, 1000 N·m/s, 1 kHz, from starts a brake stops:
     as joints' rates pass through zero the plant's dry friction leaves the model's smooth one
     by up to F_c; the guard that holds that error keeps every margin, the guard that takes
     the model as exact lets a rate cross."""
@@ -152,7 +153,7 @@ def test_the_fr3s_friction_error_held_keeps_a_rate_the_smooth_model_alone_lets_c
     entry = next(e for e in setup.controllers if e.name == "CPBC")
     base = RecordingPlant(setup.make_plant().model, setup.plant_settings)
     kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
-    s = draw_state(setup, 65)
+    s = draw_state(setup, seed)
     settings = replace(setup.loop_settings, duration=0.5, log_every=1)
 
     def run():

@@ -27,7 +27,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import kernel
-from cpbc.kernels.small_solves import _solve_lu
+from cpbc.kernels.small_solves import solve_lu
 
 
 @kernel("void(float64[:, :], float64[:], float64[:], boolean[:], float64[:], int64[:])",
@@ -47,7 +47,7 @@ def _free_solve(gram: Array, rhs: Array, z: Array, free: np.ndarray, y: Array,
                 b[p] -= gram[i, j] * z[j]
         for q in range(k):
             sub[p, q] = gram[i, idx[q]]
-    _solve_lu(sub, b, np.empty((k, k)), y)
+    solve_lu(sub, b, np.empty((k, k)), y)
 
 
 @kernel("void(float64[:], float64[:], float64[:], boolean[:], float64[:], int64[:])",
@@ -136,7 +136,7 @@ def bounded_least_squares(a: Array, target: Array, lower: Array, upper: Array,
             for j in range(n):
                 gram[i, j] += a[r, i] * a[r, j]
     z = np.empty(n)
-    _solve_lu(gram, rhs, np.empty((n, n)), z)  # step 1: unconstrained, then clipped
+    solve_lu(gram, rhs, np.empty((n, n)), z)  # step 1: unconstrained, then clipped
     free = np.ones(n, dtype=np.bool_)
     for j in range(n):
         if not lower[j] <= z[j] <= upper[j]:

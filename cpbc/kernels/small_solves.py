@@ -9,7 +9,7 @@ from cpbc.kernels import kernel
 
 
 @kernel("void(float64[:, :], float64[:], float64[:, :], float64[:])")
-def _solve_lu(a: Array, b: Array, work: Array, y: Array) -> None:
+def solve_lu(a: Array, b: Array, work: Array, y: Array) -> None:
     """y = a⁻¹ b by Gaussian elimination with partial pivoting (``work`` holds the factors)."""
     n = b.shape[0]
     for i in range(n):
@@ -70,4 +70,4 @@ def solve_spd(a: Array, b: Array, work: Array, y: Array) -> None:
                 t -= work[k, i] * y[k]
             y[i] = t / work[i, i]
         return
-    _solve_lu(a, b, work, y)
+    solve_lu(a, b, work, y)
