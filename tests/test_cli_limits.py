@@ -26,6 +26,13 @@ from cpbc.scenario.load import MAX_FILE_BYTES
 from tools.reliability.bad_input import BASE
 
 
+def _ctrl_c_heard() -> None:
+    """In the child before it starts: Ctrl-C as a terminal's foreground job hears it. A
+    pytest started in the background by a shell without job control ignores SIGINT, and its
+    children would inherit that (Python then installs no KeyboardInterrupt handler)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _scenario(folder: Path, change: dict[str, object] | None = None) -> Path:
     data = copy.deepcopy(BASE)
     data["controllers"] = data["controllers"][:2]
@@ -213,7 +220,7 @@ def test_interrupted_run_removes_its_scratch_folder(tmp_path: Path, how: str) ->
     proc = subprocess.Popen(
         [sys.executable, "-c", "from cpbc.run import cli; cli()", str(scenario), "--out",
          str(out), "--workers", "2"],  # with the figure helpers, forked at the start
-        cwd=Path(__file__).parents[1], start_new_session=True,
+        cwd=Path(__file__).parents[1], start_new_session=True, preexec_fn=_ctrl_c_heard,
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 30

@@ -12,6 +12,7 @@ import _thread
 import contextlib
 import importlib.util
 import io
+import signal
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -198,12 +199,18 @@ def test_ctrl_c_brakes_finishes_and_writes(franky: FrankySim, tmp_path: Path) ->
         runs.append(drive(*args))
         return runs[-1]
 
-    with pytest.MonkeyPatch.context() as patch, contextlib.redirect_stderr(io.StringIO()), \
-            contextlib.redirect_stdout(io.StringIO()):
-        patch.setattr(robot_run, "run_motion", drive_then_interrupt)
-        code = main([str(SCENARIO), "--robot-ip", franky.host, "--out", str(out),
-                     "--deadline-ms", str(DEADLINE * 1e3)])
-    interrupt.cancel()
+    # interrupt_main does nothing where SIGINT is ignored (a pytest started in the background
+    # by a shell without job control): hear it as a terminal's foreground job does
+    heard = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.MonkeyPatch.context() as patch, contextlib.redirect_stderr(io.StringIO()), \
+                contextlib.redirect_stdout(io.StringIO()):
+            patch.setattr(robot_run, "run_motion", drive_then_interrupt)
+            code = main([str(SCENARIO), "--robot-ip", franky.host, "--out", str(out),
+                         "--deadline-ms", str(DEADLINE * 1e3)])
+    finally:
+        interrupt.cancel()
+        signal.signal(signal.SIGINT, heard)
     assert code == 130
     (motion,) = runs
     assert motion.ending == "interrupted" and motion.fault is None

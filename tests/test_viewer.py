@@ -35,6 +35,13 @@ from cpbc.viewer.scene import CaseScene, ViewSettings
 from cpbc.viewer.server import MeshcatServer
 from cpbc.viewer.shapes import geom_geometry, tube
 
+
+def _ctrl_c_heard() -> None:
+    """In the child before it starts: Ctrl-C as a terminal's foreground job hears it. A
+    pytest started in the background by a shell without job control ignores SIGINT, and its
+    children would inherit that (Python then installs no KeyboardInterrupt handler)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
 needs_chromium = pytest.mark.skipif(
     find_chromium() is None,
     reason="Debian's chromium is not installed (bash scripts/install.sh --test installs it)",
@@ -390,7 +397,7 @@ def test_live_view_streams_the_run_on_loopback(tmp_path):
     proc = subprocess.Popen(
         [sys.executable, "-m", "cpbc.run", str(scenario(tmp_path)), "--out", str(out), "--view",
          "--quiet", "--no-plots"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_ctrl_c_heard,
     )
     try:
         url = _read_url(proc, r"meshcat viewer \(live\): (http://\S+)")
@@ -426,7 +433,7 @@ def test_live_view_streams_the_run_on_loopback(tmp_path):
 def test_replay_serves_a_saved_run(run_folder, tmp_path):
     proc = subprocess.Popen(
         [sys.executable, "-m", "cpbc.viewer", str(run_folder), "--case", "moving"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_ctrl_c_heard,
     )
     try:
         url = _read_url(proc, r"\(case 'moving'\): (http://127\.0\.0\.1:\S+)")
