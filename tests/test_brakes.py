@@ -44,15 +44,14 @@ def test_the_nearest_reachable_torque_costs_the_acceleration_least(panda):
         held = rng.uniform(-0.5, 0.5, 7) * box.limit
         step = box.around(held, np.full(7, 1.0))  # 1 N·m a period
         wanted = rng.uniform(-1, 1, 7) * box.limit
-        accel = box.acceleration_map(inertia)
-        near = step.nearest(accel, wanted)
+        near = step.nearest(inertia, wanted)
         lower, upper = step.bounds
         assert np.all(near >= lower - 1e-9) and np.all(near <= upper + 1e-9)
         errors = [np.linalg.norm(np.linalg.solve(inertia, tau - wanted))
                   for tau in (near, step.toward(held, wanted), step.clip(wanted))]
         assert errors[0] <= min(errors[1:]) + 1e-9
     inside = (lower + upper) / 2
-    assert step.nearest(accel, inside) is inside  # a torque that fits is returned as it is
+    assert step.nearest(inertia, inside) is inside  # a torque that fits is returned as it is
 
 
 # States outside the guard's braking set V (its uniform brake cannot stop them) that another

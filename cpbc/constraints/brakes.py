@@ -102,15 +102,15 @@ class TorqueBox:
         return tau if self.to_joint is None else self.to_joint.dot(tau)
 
     def acceleration_map(self, inertia: Array) -> Array:
-        """A = D⁻¹T⁻ᵀ: the acceleration a joint torque τ_q gives (what :meth:`nearest`
-        reads; once per state)."""
+        """A = D⁻¹T⁻ᵀ: the acceleration a joint torque τ_q gives."""
         inv_d = np.linalg.inv(inertia)
         return np.ascontiguousarray(inv_d if self.from_joint is None else inv_d @ self.from_joint)
 
-    def nearest(self, accel: Array, tau: Array) -> Array:
+    def nearest(self, inertia: Array, tau: Array) -> Array:
         """τ itself when it fits the box, else the torque in the box whose acceleration is
         nearest to τ's, min ‖A(τ_q' − τ_q)‖ over lower ≤ τ_q' ≤ upper (A =
-        :meth:`acceleration_map`; cpbc.kernels.bounded_lsq): each joint uses as much of
+        :meth:`acceleration_map` of the inertia D, formed only then;
+        cpbc.kernels.bounded_lsq): each joint uses as much of
         its own interval as the acceleration asks, and the joints that cannot follow cost
         the acceleration as little as the coupling through D allows. (Scaling the whole
         change into the box — :meth:`toward` — lets the joint with the least room set every
@@ -120,6 +120,7 @@ class TorqueBox:
         lower, upper = self.bounds
         if np.all(tau_q >= lower) and np.all(tau_q <= upper):
             return tau
+        accel = self.acceleration_map(inertia)
         out = np.empty(len(tau_q))
         bounded_least_squares(accel, accel.dot(tau_q), lower, upper, out)
         return out if self.from_joint is None else self.from_joint.dot(out)
@@ -156,16 +157,15 @@ def _nearest_stop(box: TorqueBox, state: ArmState, bias: Array, h: float,
                   rows: Array | None, wanted: Array | None) -> Array:
     """The torque in the box nearest (least squares) to ẍ = −ẋ/h, with extra weighted rows
     ``rows`` · ẍ = ``wanted`` on top."""
-    inv_d = np.linalg.inv(state.inertia)
-    a = inv_d if box.from_joint is None else inv_d @ box.from_joint  # ẍ = A τ_q − D⁻¹b
-    free = inv_d.dot(bias)
+    a = box.acceleration_map(state.inertia)  # ẍ = A τ_q − D⁻¹b
+    free = a.dot(box.joint(bias))  # D⁻¹T⁻ᵀ Tᵀ b
     target = free - state.dx / h
     if rows is not None and wanted is not None:
         a = np.vstack((a, rows @ a))
         target = np.concatenate((target, wanted + rows @ free))
     tau_q = np.empty(a.shape[1])
     lower, upper = box.bounds
-    bounded_least_squares(np.ascontiguousarray(a), target, lower, upper, tau_q)
+    bounded_least_squares(a, target, lower, upper, tau_q)
     return tau_q if box.from_joint is None else box.from_joint.dot(tau_q)
 
 
@@ -310,7 +310,7 @@ def ramped(box: TorqueBox, tau: Array, rate_step: Array | None,
         return tau
     step = box.around(held_q, rate_step)
     if inertia is not None:
-        return step.nearest(box.acceleration_map(inertia), tau)
+        return step.nearest(inertia, tau)
     held = held_q if box.from_joint is None else box.from_joint.dot(held_q)
     return step.toward(held, tau)
 

@@ -99,7 +99,7 @@ class Plan:
         seeds: run exactly these state seeds.
         disturb: the plant adds an acceleration disturbance at the corners of the
             scenario's declared model error (``simulation.model_error``;
-            cpbc.simulation.disturbance), seeded per state.
+            cpbc.simulation.disturbances), seeded per state.
     """
 
     scenario: str

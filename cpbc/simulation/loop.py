@@ -59,7 +59,7 @@ class LoopSettings:
             disturbance (cpbc.controllers.safeguard.model_error), or None. The plant does
             not read it.
         disturbance: an acceleration disturbance the plant adds to its own dynamics (a
-            plant drawn inside a declared model error, cpbc.simulation.disturbance), or
+            plant drawn inside a declared model error, cpbc.simulation.disturbances), or
             None.
     """
 

@@ -158,7 +158,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         self._added: Array | None = None  # the torque the robot adds itself (holding)
         self._static_box = self._torque_box  # the torque box of this step (moved by _added)
         self._ramp: RampTest | None = None  # this step's velocity lookahead (rate limit)
-        self._accel = np.zeros((0, 0))  # D⁻¹T⁻ᵀ at this step's state (rate limit)
+        self._inertia = np.zeros((0, 0))  # D at this step's state (rate limit: _box)
         nc_all = self.guarded.n_configuration
         self._velocity_floor = np.maximum(self.cushion[nc_all:], 1e-300)
         # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)
@@ -221,7 +221,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         held = state.gravity if self._holding is None else self._holding
         self._holding = held  # this step's anchor (_box)
         self._step_box = box.around(box.joint(held), self._rate_step)
-        self._accel = box.acceleration_map(state.inertia)  # what _box reaches by
+        self._inertia = state.inertia  # what _box reaches a brake by
         assert self.rate_limit is not None
         self._ramp = RampTest(state.dx, self.period, state.inertia, box.to_joint,
                               self.rate_limit, self._velocity_floor)
@@ -330,7 +330,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         step, held = self._step_box, self._holding
         if self._rate_step is None or step is None or held is None:
             return boxed
-        return step.nearest(self._accel, boxed) if brake else step.toward(held, boxed)
+        return step.nearest(self._inertia, boxed) if brake else step.toward(held, boxed)
 
     def _saturate(self, tau: Array) -> Array:
         return tau if self._step_box is None else self._step_box.clip(tau)
