@@ -18,7 +18,7 @@ import hashlib
 import os
 import tempfile
 import zipfile
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -40,13 +40,8 @@ def cached_cover(
     """:func:`cpbc.constraints.covering.cover_links`, read from the cache when it holds this
     input, else fitted and stored."""
     key = cover_key(model, collision, links, padding, kind, tolerance)
-    path = cache_dir() / "covers" / f"{key}.npz"
-    stored = _read(path)
-    if stored is not None:
-        return stored
-    prims = cover_links(model, collision, links, padding, kind, tolerance)
-    _write(path, prims)
-    return prims
+    return _stored_or_fitted(key, lambda: cover_links(model, collision, links, padding, kind,
+                                                      tolerance))
 
 
 def cached_point_cover(
@@ -66,11 +61,18 @@ def cached_point_cover(
     for name in sorted(points):
         h.update(name.encode())
         h.update(np.ascontiguousarray(points[name], dtype=float).tobytes())
-    path = cache_dir() / "covers" / f"{h.hexdigest()[:32]}.npz"
+    return _stored_or_fitted(h.hexdigest()[:32], lambda: cover_points(
+        points, moving, links, padding, kind, tolerance))
+
+
+def _stored_or_fitted(key: str, fit: Callable[[], list[LinkPrimitive]]
+                      ) -> list[LinkPrimitive]:
+    """The cover stored under ``key``, else ``fit()``'s, stored there."""
+    path = cache_dir() / "covers" / f"{key}.npz"
     stored = _read(path)
     if stored is not None:
         return stored
-    prims = cover_points(points, moving, links, padding, kind, tolerance)
+    prims = fit()
     _write(path, prims)
     return prims
 
