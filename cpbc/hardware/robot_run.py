@@ -27,7 +27,7 @@ from cpbc.results import ArmLabels, log_file, staged_output, write_summaries, wr
 from cpbc.results.hdf5_log import LOG_FILE, write_signals
 from cpbc.results.margin_types import types_of
 from cpbc.results.metrics import RunSummary, margin_history, summarise
-from cpbc.results.reference_metrics import reference_log, reference_outcome
+from cpbc.results.reference_metrics import judged_reference
 from cpbc.results.task_metrics import task_errors
 from cpbc.scenario.arm_setup import CaseEntry, ControllerEntry, ScenarioSetup
 from cpbc.scenario.state_checks import check_admissible, check_stoppable
@@ -208,10 +208,8 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
     errors = None
     if isinstance(guard, ReferenceTracker) and setup.goal is not None:
         # judged as cpbc.run judges a reference run: tracked, blocked, stalled, …
-        log = reference_log(setup.model, setup.goal.goal, guard, traj)
-        found = reference_outcome(setup.model, setup.goal.goal, guard, traj, log,
-                                  summary.status, setup.monitor, margins, setup.criteria)
-        summary = replace(summary, **found.__dict__, settle_time=None)
+        summary, log = judged_reference(setup.model, setup.goal.goal, guard, traj, summary,
+                                        setup.monitor, margins, setup.criteria)
         errors = log.task_error
     elif setup.goal is not None:
         errors = task_errors(setup.model, setup.goal.goal, traj.position)

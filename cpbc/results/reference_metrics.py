@@ -32,7 +32,7 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.model.robot_model import RobotModel
 from cpbc.reference.tracker import ReferenceTracker
-from cpbc.results.metrics import SettleCriteria
+from cpbc.results.metrics import RunSummary, SettleCriteria
 from cpbc.results.task_metrics import creeping, stall_kind, stall_window_start, task_errors
 from cpbc.simulation.trajectory import Trajectory
 from cpbc.taskspace.goal import FrameGoal
@@ -171,3 +171,16 @@ def reference_outcome(model: RobotModel, goal: FrameGoal, tracker: ReferenceTrac
 
 def _gap(model: RobotModel, goal: FrameGoal, x: Array, applied: Array) -> float:
     return float(np.linalg.norm(model.point_position(goal.frame, x, goal.offset) - applied))
+
+
+def judged_reference(model: RobotModel, goal: FrameGoal, tracker: ReferenceTracker,
+                     traj: Trajectory, summary: RunSummary, monitor: ConstraintSet,
+                     margins: Array, criteria: SettleCriteria
+                     ) -> tuple[RunSummary, ReferenceLog]:
+    """A reference run's summary judged from its log (:func:`reference_log`,
+    :func:`reference_outcome`: tracked, blocked, stalled, …; no settle time), and the log,
+    as ``cpbc.run`` and ``cpbc.hardware`` judge one."""
+    log = reference_log(model, goal, tracker, traj)
+    found = reference_outcome(model, goal, tracker, traj, log, summary.status, monitor,
+                              margins, criteria)
+    return replace(summary, **found.__dict__, settle_time=None), log

@@ -25,7 +25,7 @@ from cpbc.errors import ScenarioError
 from cpbc.reference.tracker import ReferenceTracker
 from cpbc.results.drawing import quiet_on_interrupt
 from cpbc.results.metrics import RunSummary, margin_history, summarise
-from cpbc.results.reference_metrics import reference_log, reference_outcome
+from cpbc.results.reference_metrics import judged_reference
 from cpbc.results.system_metrics import summarise_system
 from cpbc.results.task_metrics import task_errors, task_outcome
 from cpbc.scenario.build import CaseEntry, ControllerEntry, ScenarioSetup, build
@@ -94,10 +94,8 @@ def run_one(
     )
     errors, logged = None, None
     if isinstance(law, ReferenceTracker) and setup.goal is not None:
-        log = reference_log(setup.model, setup.goal.goal, law, traj)
-        found = reference_outcome(setup.model, setup.goal.goal, law, traj, log,
-                                  summary.status, setup.monitor, margins, setup.criteria)
-        summary = replace(summary, **found.__dict__, settle_time=None)
+        summary, log = judged_reference(setup.model, setup.goal.goal, law, traj, summary,
+                                        setup.monitor, margins, setup.criteria)
         errors = log.task_error
         logged = {"path_time": log.path_time, "applied": log.applied,
                   "requested": log.requested, "blocked": log.blocked, "path_lag": log.path_lag}
