@@ -166,7 +166,7 @@ for period in (0.001, 0.01):
         law = guard.law.evaluate_state(state, margins=True)
         for push in (0.0, 3.0, 30.0):
             tau = law.torque + push * rng.standard_normal(len(x))
-            out[f"guard/{period}/{i}/{push}"] = guard._guard(state, tau, law.margins).tolist()
+            out[f"guard/{period}/{i}/{push}"] = guard.filter(state, tau, law.margins).tolist()
     out[f"guard/{period}/counts"] = [guard.acted, guard.scaled]
 # the CBF-QP peer's per-pair rows (cpbc.kernels.clearance.sphere_pair_rows), from the state
 from cpbc.constraints.clearance import Clearance

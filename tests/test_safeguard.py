@@ -153,8 +153,8 @@ def test_braking_search_finds_a_factor_between_stop_and_reverse(
         seen.append(lam)
         return 0.01 - (lam - 1.5) ** 2  # passes for λ in (1.4, 1.6)
 
-    lam, f = guard._search_braking(np.zeros(1), np.ones(1), slack, slack(-np.ones(1)),
-                                   slack(-2 * np.ones(1)))
+    lam, f = guard.brakes.search_braking(np.zeros(1), np.ones(1), slack,
+                                         slack(-np.ones(1)), slack(-2 * np.ones(1)))
     assert f >= 0 and 1.4 < lam < 1.6
     assert len(seen) <= 2 + guard.settings.brake_search
 
@@ -165,13 +165,13 @@ def test_braking_search_returns_the_best_when_none_passes(recentred: RecentredBa
     def slack(t: np.ndarray) -> float:
         return -0.5 - (_lambda_of(t) - 1.3) ** 2  # best at λ = 1.3, never ≥ 0
 
-    lam, f = guard._search_braking(np.zeros(1), np.ones(1), slack, slack(-np.ones(1)),
-                                   slack(-2 * np.ones(1)))
+    lam, f = guard.brakes.search_braking(np.zeros(1), np.ones(1), slack,
+                                         slack(-np.ones(1)), slack(-2 * np.ones(1)))
     assert f < 0 and abs(lam - 1.3) < 0.1  # five golden-section steps on [1, 2]
     assert f == pytest.approx(slack(-lam * np.ones(1)))
     off = Safeguard(recentred, 0.01, SafeguardSettings(brake_search=0))
-    lam0, _ = off._search_braking(np.zeros(1), np.ones(1), slack, slack(-np.ones(1)),
-                                  slack(-2 * np.ones(1)))
+    lam0, _ = off.brakes.search_braking(np.zeros(1), np.ones(1), slack,
+                                        slack(-np.ones(1)), slack(-2 * np.ones(1)))
     assert lam0 == 1.0  # no search: the better of stopping and reversing
 
 
@@ -185,9 +185,9 @@ def test_fallback_is_the_calmest_brake_that_keeps_the_cushion(
     def positivity(t: np.ndarray) -> float:
         return _lambda_of(t) - 1.4  # (S0) holds for λ ≥ 1.4
 
-    lam = _lambda_of(guard._fallback(np.zeros(1), np.ones(1), positivity))
+    lam = _lambda_of(guard.brakes.fallback(np.zeros(1), np.ones(1), positivity))
     assert 1.4 <= lam < 1.45
-    assert _lambda_of(guard._fallback(np.zeros(1), np.ones(1), lambda t: 1.0)) == 1.0
+    assert _lambda_of(guard.brakes.fallback(np.zeros(1), np.ones(1), lambda t: 1.0)) == 1.0
 
 
 @pytest.mark.parametrize("d1, v1, d2, v2", [(1.5e-4, 0.04, 2e-4, 0.05),
@@ -412,7 +412,7 @@ def test_a_brake_that_does_not_fit_slows_every_joint(joint_model: RobotModel) ->
     h = 0.01
     guard = Safeguard(law, h, torque_limit=limit)
     x, dx = np.array([0.0, 0.45]), np.array([-0.44, -0.03])
-    brake = guard._brake(*_bias_and_stop(law, x, dx, h), 1.0)
+    brake = guard.brakes.brake(*_bias_and_stop(law, x, dx, h), 1.0)
     assert np.all(np.abs(brake) <= limit * (1 + 1e-12))
     a, _ = _joint_accel(law, x, dx, brake)
     assert np.all(np.abs(dx + h * a) < np.abs(dx))  # every joint slower
@@ -453,7 +453,7 @@ def test_the_braking_margins_keep_states_the_one_period_test_lets_go() -> None:
         assert not kept.violated and kept.trajectory.safeguard_steps > 0
         guard = setup.controller(entry)
         assert isinstance(guard, Safeguard)
-        guard.braking = None  # the same guard without σ
+        guard.acceptance.braking = None  # the same guard without σ
         law = replace(entry, controller=guard)
         lost = checked_run(plant, setup, law, s.position, s.velocity, settings,
                            safeguard=None)
@@ -527,13 +527,13 @@ def test_the_slide_removes_only_the_push_into_the_boundary(bpbc: BPBC) -> None:
     bias = state.coriolis_force + state.gravity
     law_acc = solve_spd(state.inertia, out.torque - bias)
     assert law_acc[0] > 0  # into the wall (θ₁ ≤ 0.3)
-    now = guard._now(x, out.margins)
-    delta, nc = guard.cushion, guard._n_config
+    now = guard.margins_now(x, out.margins)
+    delta, nc = guard.cushion, guard.guarded.n_configuration
     floor = np.maximum(delta + guard.keep * (now - delta), 1e-300)
     floor_mid = np.maximum(delta[:nc] + guard.keep_half * (now[:nc] - delta[:nc]), 1e-300)
-    slack = guard._check(guard._predictor(state, bias), floor, floor_mid)
+    slack = guard.acceptance.check(guard.predictor(state, bias), floor, floor_mid)
     assert slack(out.torque) < 0
-    slid = guard._slide(state, bias, out.torque, now, floor, floor_mid, None)
+    slid = guard.brakes.slide(state, bias, out.torque, now, floor, floor_mid, None)
     acc = solve_spd(state.inertia, slid - bias)
     assert acc[0] < 0 and acc[1] == pytest.approx(law_acc[1], rel=1e-9)
     assert slack(slid) >= 0
