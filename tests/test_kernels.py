@@ -157,10 +157,12 @@ for i, (x, dx) in enumerate(bounded_states):
 # the guard's kernels (cpbc.kernels.sampled_guard): its accept path, and blends, brakes and box
 # scalings from the law's torque pushed off by a fixed noise (the guard's own entry point)
 from cpbc.controllers.safeguard import SafeguardSettings, guarded
+from cpbc.model.input_bounds import InputBounds
 setup = panda(states=8)
 rng = np.random.default_rng(5)
 for period in (0.001, 0.01):
-    guard = guarded(setup.controllers["cpbc"], period, SafeguardSettings(), setup.torque_limit)
+    guard = guarded(setup.controllers["cpbc"], InputBounds(period, setup.torque_limit),
+                    SafeguardSettings())
     for i, (x, dx) in enumerate(setup.states[:8]):
         state = guard.state(x, dx)
         law = guard.law.evaluate_state(state, margins=True)

@@ -23,38 +23,32 @@ from cpbc.controllers.safeguard.predicted_margins import PredictedMargins, RampT
 from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_share
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.controllers.safeguard.step_box import StepBox
-from cpbc.errors import CpbcError
 from cpbc.kernels.sampled_guard import floors
+from cpbc.model.input_bounds import InputBounds
 from cpbc.model.robot_model import ArmState
 
 
 def guarded(
     law: Controller,
-    period: float,
+    bounds: InputBounds,
     settings: SafeguardSettings | None,
-    torque_limit: Array | float | None = None,
     also_keep: Sequence[ConfigurationConstraint] = (),
-    rate_limit: Array | float | None = None,
     model_error: Array | float | None = None,
 ) -> Controller:
-    """The law as a sampled-data loop at period h should run it: wrapped in a Safeguard with
-    ``settings`` when it enforces constraints, else the law itself (also with no settings).
+    """The law as a sampled-data loop at the period of ``bounds`` should run it: wrapped in a
+    Safeguard with ``settings`` when it enforces constraints, else the law itself (also with
+    no settings).
 
-    ``torque_limit`` is the plant's joint torque saturation, ``rate_limit`` its joint
-    torque-rate limit [N·m/s] and ``model_error`` the declared bound on the model's
-    acceleration error [per coordinate, rad/s² or m/s²] (each a number or one per joint)."""
+    ``bounds`` are the control period and the plant's joint torque and torque-rate limits;
+    ``model_error`` the declared bound on the model's acceleration error [per coordinate,
+    rad/s² or m/s²] (a number or one per joint)."""
     if isinstance(law, SafetyFilter):  # a filter already (a peer): fresh counts, no wrap
         return law.restarted()
     if settings is None or law.constraints.empty:
         return law
-    n = law.model.n
-    limit = None if torque_limit is None else np.broadcast_to(
-        np.asarray(torque_limit, dtype=float), (n,))
-    rate = None if rate_limit is None else np.broadcast_to(
-        np.asarray(rate_limit, dtype=float), (n,))
     error = None if model_error is None else np.broadcast_to(
-        np.asarray(model_error, dtype=float), (n,))
-    return Safeguard(law, period, settings, limit, also_keep, rate, error)
+        np.asarray(model_error, dtype=float), (law.model.n,))
+    return Safeguard(law, bounds, settings, also_keep, error)
 
 
 class Safeguard(SafetyFilter):
@@ -62,22 +56,21 @@ class Safeguard(SafetyFilter):
 
     Args:
         law: the constrained law (its ``constraints`` and ``model`` are used).
-        period: control period h [s].
+        bounds: the control period h and the actuators' limits (cpbc.model.input_bounds).
+            Torque |τ_q| ≤ L per joint: every torque the safeguard returns or predicts with
+            lies in this box; the law's torque, the brakes and the escape are scaled toward
+            C ẋ + g + f until they fit (StepBox.fit), which keeps the direction of the
+            acceleration they ask for. Torque rate |τ̇_q| ≤ ρ per joint [N·m/s]: each step
+            the guard chooses only among torques within ρh of the one the actuators hold
+            (:meth:`holding`; its own last torque, or the gravity torque at its first
+            state) and inside the torque box, tests every candidate as clipped there, and
+            keeps the braking margins σ with the time the brake takes to ramp up
+            (stopping.Braking.ramp): nothing after the guard need change its torque.
         settings: κ, λ, prediction sub-steps, back-off steps.
-        torque_limit: joint torque limits |τ_q| ≤ limit (the actuators'), shape (n,). Every
-            torque the safeguard returns or predicts with lies in this box: the law's torque,
-            the brakes and the escape are scaled toward C ẋ + g + f until they fit
-            (StepBox.fit), which keeps the direction of the acceleration they ask for.
         also_keep: configuration constraints the law does not enforce (obstacles it does
             not know of, the plant's joint ranges) that the safeguard keeps as well: (S1)
             on them makes it brake before the arm reaches them. Those the law enforces
             already are skipped.
-        rate_limit: joint torque-rate limits |τ̇_q| ≤ ρ (the motors'), shape (n,)
-            [N·m/s]. Each step the guard chooses only among torques within ρh of the one
-            the actuators hold (:meth:`holding`; its own last torque, or the gravity torque
-            at its first state) and inside the torque box, tests every candidate as clipped
-            there, and keeps the braking margins σ with the time the brake takes to ramp
-            up (stopping.Braking.ramp): nothing after the guard need change its torque.
         model_error: ā, the declared bound on the model's acceleration error |a − â| ≤ ā
             per coordinate, shape (n,): every floor of (S1) is raised by what such an error
             can take off its margin in one period, and the braking set's deceleration is
@@ -105,18 +98,15 @@ class Safeguard(SafetyFilter):
     def __init__(
         self,
         law: Controller,
-        period: float,
+        bounds: InputBounds,
         settings: SafeguardSettings | None = None,
-        torque_limit: Array | None = None,
         also_keep: Sequence[ConfigurationConstraint] = (),
-        rate_limit: Array | None = None,
         model_error: Array | None = None,
     ) -> None:
-        if not (math.isfinite(period) and period > 0):
-            raise CpbcError(f"safeguard period must be > 0, got {period}")
         super().__init__(law.model, law.target, law.constraints)
         self.law = law
-        self.period = float(period)
+        self.bounds = bounds
+        self.period = float(bounds.period)
         self.settings = settings = settings or SafeguardSettings()
         self.keep = settings.keep_fraction(self.period)
         self.keep_half = math.sqrt(self.keep)
@@ -146,11 +136,12 @@ class Safeguard(SafetyFilter):
             self.cushion[nc:] = (settings.velocity_cushion * self.period / 0.01
                                  * np.abs(at_target[nc:]))
         self._n_own_config = own.n_configuration
-        self.torque_limit = None if torque_limit is None else np.asarray(torque_limit, float)
-        self.rate_limit = None if rate_limit is None else np.asarray(rate_limit, float)
+        n = law.model.n
+        torque_limit = None if bounds.torque is None else np.broadcast_to(bounds.torque, (n,))
+        self.rate_limit = None if bounds.rate is None else np.broadcast_to(bounds.rate, (n,))
         self.model_error = None if model_error is None else np.asarray(model_error, float)
         self._coulomb = bool(np.any(law.model.coulomb_friction))
-        self.box = StepBox(law.model, self.torque_limit, self.rate_limit, self.period)
+        self.box = StepBox(law.model, torque_limit, self.rate_limit, self.period)
         self._velocity_floor = np.maximum(self.cushion[nc:], 1e-300)
         # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)
         braking = None if torque_limit is None or not nc else Braking.of(
