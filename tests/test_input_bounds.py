@@ -43,7 +43,7 @@ def test_a_scenario_builds_its_bounds_once_and_every_reader_reads_them() -> None
     campaign's set-up): the guard the loop runs, the plant's loop and a CBF-QP built on the
     same bounds all hold the one value the scenario built."""
     path = ROOT / "tools" / "campaigns" / "fr3_sphere_rate.yaml"
-    setup = build(load_scenario(path), path)
+    setup = build(*load_scenario(path))
     bounds = setup.loop_settings.bounds
     assert bounds.torque is not None and bounds.rate is not None
     entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
