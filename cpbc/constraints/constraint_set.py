@@ -158,6 +158,14 @@ class ConstraintSet:
         parts = [c.value(x) for c in self._config]
         return np.concatenate(parts) if parts else np.zeros(0)
 
+    def configuration_gradients(self, state: ArmState) -> Array:
+        """Every ∇φ_i at the per-step state, shape (number of φ_i, n), in the order of
+        ``names`` (each kind's ``gradient_at``: from the state's kinematics where it reads
+        them)."""
+        if not self._config:
+            return np.zeros((0, self.n))
+        return np.concatenate([c.gradient_at(state) for c in self._config])
+
     def velocity_margins(self, x: Array, dx: Array, state: ArmState | None = None) -> Array:
         """Every ψ_j at (x, ẋ), in the order of ``names``."""
         parts = [c.value(x, dx, state) for c in self._velocity]

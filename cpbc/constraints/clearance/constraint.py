@@ -143,6 +143,7 @@ class Clearance(PairLayout, ConfigurationConstraint):
         self._pin = model.model
         self._data = self._pin.createData()  # its own, for evaluations away from the state
         self._n = model.n
+        self._at_rest = np.zeros(model.n)  # q̇ = 0: the pair rows without their curvature
         self._identity = model.coordinates.is_identity
         self._t_inv = model.coordinates.inverse
         self._setup_kinematics()
@@ -215,6 +216,24 @@ class Clearance(PairLayout, ConfigurationConstraint):
 
     def gradient(self, x: Array) -> Array:
         return self.evaluate(x)[1]
+
+    def gradient_at(self, state: ArmState) -> Array:
+        """∂φ/∂x at the per-step state, from its joint placements and Jacobians (no
+        Pinocchio pass; ``gradient`` at x for a state built without them): each sphere
+        constraint's closest pair's row (cpbc.kernels.clearance.sphere_pair_rows), each
+        capsule group's own."""
+        if state.regressor is None or state.joint_jacobians is None:
+            return self.gradient(state.x)
+        y, jac = state.regressor, state.joint_jacobians
+        grad = np.empty((len(self.names), self._n))
+        s = self._spheres
+        if s is not None:
+            phi, rows, _ = self._pair_rows(y, jac, self._at_rest)
+            grad[s.start:s.stop] = rows[self._closest(phi)]
+        jacobian_rows = partial(self._rows_times_jacobians, jac)
+        for g in self._groups:
+            grad[g.start:g.stop] = g.gradient(*g.narrow(y), jacobian_rows)
+        return grad if self._identity else grad @ self._t_inv
 
     def _reported(self, y: Array, jac: Array, dq: Array) -> tuple[Array, Array, Array]:
         """The reported clearances, their gradients (controller coordinates) and the sphere

@@ -131,7 +131,7 @@ class Brakes:
         hold_end = np.minimum(delta, self.keep * now)
         hold_end[:nc] = floor[:nc]
         hold_mid = np.minimum(floor_mid, self.keep_half * now[:nc])
-        escape = self._escape(state.x, state.dx, state.inertia, now, hold_end, hold_mid)
+        escape = self._escape(state, now, hold_end, hold_mid)
         return self.fallback(bias, stop, positivity, escape, check(frozen, hold_end, hold_mid))
 
     def fallback(self, bias: Array, stop: Array, positivity: Slack,
@@ -165,10 +165,8 @@ class Brakes:
                     return push
         return self.brake(bias, stop, lam)
 
-    def _escape(
-        self, x: Array, dx: Array, inertia: Array, now: Array, end_floor: Array,
-        mid_floor: Array,
-    ) -> Array:
+    def _escape(self, state: ArmState, now: Array, end_floor: Array, mid_floor: Array
+                ) -> Array:
         """The push D v/h of a braking torque that ends the period at a velocity v pushing
         off the nearby configuration boundaries — for when one factor λ for every joint
         cannot both keep one joint off its limit and let another move away from its own.
@@ -189,19 +187,15 @@ class Brakes:
         """
         h = self.period
         nc = self.n_config
-        grads = self._gradients(x)
-        rate = grads @ dx
+        grads = self.guarded.configuration_gradients(state)
+        rate = grads @ state.dx
         c = self.travel
         need = np.maximum(((end_floor[:nc] - now[:nc]) / h - (1.0 - c) * rate) / c,
                           8.0 * (mid_floor - now[:nc]) / h - 3.0 * rate)
-        return inertia @ _project(grads, need, np.zeros_like(dx)) / h
-
-    def _gradients(self, x: Array) -> Array:
-        """∇φ_i of every guarded configuration constraint, shape (number of φ_i, n)."""
-        return np.concatenate([c.gradient(x) for c in self.guarded.configuration])
+        return state.inertia @ _project(grads, need, np.zeros_like(state.dx)) / h
 
     def slide(self, state: ArmState, bias: Array, tau: Array, now: Array, end_floor: Array,
-               mid_floor: Array, stop: BrakingTest | None) -> Array:
+              mid_floor: Array, stop: BrakingTest | None) -> Array:
         """The law's torque less what drives the arm into the configuration boundaries:
         its acceleration a = D⁻¹(τ − b) projected onto the half-spaces that (S1) asks of
         each configuration margin to first order,
@@ -219,7 +213,7 @@ class Brakes:
         again with that half-space added."""
         h = self.period
         nc = self.n_config
-        grads = self._gradients(state.x)
+        grads = self.guarded.configuration_gradients(state)
         rate = grads @ state.dx
         phi = now[:nc]
         # aimed a little past each floor (a twentieth of the step, and 10⁻⁴ of the floor for

@@ -67,7 +67,7 @@ def margin_losses(constraints: ConstraintSet, state: ArmState, bound: Array, per
     x, dx = state.x, state.dx
     parts, mid = [], np.zeros(constraints.n_configuration)
     if constraints.configuration:
-        grads = np.concatenate([c.gradient(x) for c in constraints.configuration])
+        grads = constraints.configuration_gradients(state)
         reach = np.abs(grads) @ bound
         parts.append(travel * h * h * reach)
         mid = 0.125 * h * h * reach
