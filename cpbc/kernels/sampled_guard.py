@@ -114,11 +114,16 @@ def configuration_rows(mids: Array, ends: Array, speeds: Array, start: Array, h:
     Under a torque-rate limit the brake takes ``ramp`` = T seconds to build from the torque
     held over the period (Braking.ramp). Along ê = ẋ₁/|ẋ₁| the arm then travels at most
 
-        |ẋ₁| T + ½ a⁺ T² + max(|ẋ₁| + ½(a − θA) T, 0)² / (2θA),
+        |ẋ₁| T + ½ a⁺ T² + (|ẋ₁| + ½ a⁺ T)² / (2θA),
 
     a = ê · (ẋ₁ − ẋ₀)/h the period's acceleration along ê (``start`` = ẋ₀), a⁺ = max(a, 0):
-    no deceleration credited while the torque ramps and the held one's acceleration kept,
-    then the speed the linear ramp leaves (from a to −θA over T) braked at θA."""
+    no deceleration credited while the torque ramps — the held one's acceleration kept for
+    the travel, fading to nothing for the speed — then braked at θA. (Crediting the linear
+    ramp from a to −θA, a speed of |ẋ₁| + ½(a − θA)T after it, was too hopeful: on the UR5
+    of the rate campaign, from two starts inside V, (S2) passed for 30 periods while the σ
+    that credits nothing fell below zero; then no brake was left and a link crossed the
+    floor's clearance by 0.1–0.5 mm. Braking.margins, by which ``cpbc.verify`` classes
+    starts, credits nothing either.)"""
     r, n = ends.shape[0], ends.shape[1]
     for j in range(r):
         for i in range(n):
@@ -136,8 +141,9 @@ def configuration_rows(mids: Array, ends: Array, speeds: Array, start: Array, h:
             for i in range(n):
                 along += speeds[j, i] * (speeds[j, i] - start[i])
             acc = along / (speed * h)
-            left = max(speed + 0.5 * (acc - 0.5 / per_speed) * ramp, 0.0)
-            f = (speed * ramp + 0.5 * max(acc, 0.0) * ramp * ramp
+            lead = max(acc, 0.0)
+            left = speed + 0.5 * lead * ramp
+            f = (speed * ramp + 0.5 * lead * ramp * ramp
                  + left * left * per_speed) / speed
         else:
             f = per_speed * speed
