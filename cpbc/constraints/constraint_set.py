@@ -11,6 +11,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.packing import Packed, PackedSet
+from cpbc.constraints.python_terms import PythonTerms
 from cpbc.errors import ConstraintViolation, CpbcError, InadmissibleStateError
 from cpbc.kernels.barrier_set import POINT, RATE, set_barrier
 from cpbc.kernels.barriers import log_sum
@@ -121,6 +122,13 @@ class ConstraintSet:
         self._packed = PackedSet.build(parts)
         self._rest_config = tuple(rest_config)
         self._rest_velocity = tuple(rest_velocity)
+        # a law's plan: the same, with the others' terms asked in Python before its call
+        rest: list[tuple[int, ConfigurationConstraint | VelocityConstraint]] = [
+            *rest_config, *rest_velocity]
+        self._python = tuple(PythonTerms(c, self.n) for _, c in rest)
+        every = parts + [(at, len(c.names), p.packed())
+                         for (at, c), p in zip(rest, self._python, strict=True)]
+        self._law_packed = PackedSet.build(sorted(every, key=lambda part: part[0]))
         # b = 0 always (rate limits only): the laws skip it
         self._no_gradient = not self._config and not rest_velocity and all(
             p.kind == RATE for _, _, p in parts)
@@ -220,12 +228,19 @@ class ConstraintSet:
 
     @property
     def packed_tables(self) -> PackedSet | None:
-        """The tables of the set kernel when every constraint packs and the class keeps
-        ``barrier`` (a law may then call the kernel itself, cpbc.kernels.laws), else None."""
-        if self._rest_config or self._rest_velocity or (
-                type(self).barrier is not ConstraintSet.barrier):
+        """The tables of the set kernel for a law's one kernel call (cpbc.kernels.laws):
+        every constraint that packs, and a row for each that does not, whose terms
+        ``python_terms`` writes before each call; None when the class overrides
+        ``barrier``."""
+        if type(self).barrier is not ConstraintSet.barrier:
             return None
-        return self._packed
+        return self._law_packed
+
+    @property
+    def python_terms(self) -> tuple[PythonTerms, ...]:
+        """The constraints that pack nothing, asked in Python before a law's kernel call
+        (``packed_tables``' rows for them), in the set's order."""
+        return self._python
 
     def violation(self, log_phi: float, phi: Array) -> ConstraintViolation:
         """The worst margin outside S, from the barrier values ``phi`` (in the order of
