@@ -79,6 +79,26 @@ def law_terms(law: Any, base: type, formulas: Sequence[str]) -> list[tuple[Packe
     return parts
 
 
+def python_path_notes(law: object) -> list[str]:
+    """Pack ``law`` now (or the law a wrapper holds as ``law``) and return what it says
+    (its :class:`PythonPathWarning` notes) instead of warning: for a caller that reports them
+    its own way, once, at build (cpbc.run). Other warnings go on as they were."""
+    inner = getattr(law, "law", law)
+    pack = getattr(inner, "packed_law", None)
+    if not callable(pack):
+        return []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PythonPathWarning)
+        pack()
+    notes = []
+    for w in caught:
+        if issubclass(w.category, PythonPathWarning):
+            notes.append(str(w.message))
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return notes
+
+
 # the methods of a packed law's state path: a class that keeps them may step from the pass
 STATE_PATH = ("state", "evaluate_state", "_packed_step")
 
