@@ -13,7 +13,7 @@ from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityC
 from cpbc.constraints.packing import Packed, PackedSet
 from cpbc.constraints.python_terms import PythonTerms
 from cpbc.errors import ConstraintViolation, CpbcError, InadmissibleStateError
-from cpbc.kernels.barrier_set import POINT, RATE, set_barrier
+from cpbc.kernels.barrier_set import RATE, set_barrier
 from cpbc.kernels.barriers import log_sum
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -106,8 +106,9 @@ class ConstraintSet:
         frame, at = -1, 0
         for c in self._config:
             p = c.packed()
-            if p is not None and (p.kind != POINT or frame in (-1, p.frame)):
-                frame = p.frame if p.kind == POINT else frame
+            # the set's kernel reads one frame: a kind on another frame is asked in Python
+            if p is not None and (p.frame < 0 or frame in (-1, p.frame)):
+                frame = max(frame, p.frame)
                 parts.append((at, len(c.names), p))
             else:
                 rest_config.append((at, c))

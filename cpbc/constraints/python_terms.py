@@ -92,4 +92,5 @@ class PythonTerms:
                 pass
         return (f"{law}: constraint '{c.names[0].split('[')[0]}' ({type(c).__name__}) has "
                 f"no kernel in its set's plan: its barrier terms run in Python at every "
-                f"step{cost}; the law's other terms stay in its one kernel call")
+                f"step{cost}, and the law builds its per-step state in Python for them; the "
+                f"law's other terms stay in its one kernel call")
