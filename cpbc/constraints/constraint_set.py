@@ -98,8 +98,9 @@ class ConstraintSet:
 
     def _pack(self) -> None:
         """The constants of every constraint that packs, for one kernel call per step
-        (cpbc.constraints.packing); the others (a subclass's own formula, capsules, a second
-        point frame) are asked through ``barrier_terms`` after it, at their margins."""
+        (cpbc.kernels.tables); the others (a kind without a kernel, a subclass's own
+        formula, capsules, a second frame) are asked through ``barrier_terms`` — after the
+        set's own kernel call (``barrier``), before a law's (``python_terms``)."""
         parts: list[tuple[int, int, Packed]] = []
         rest_config: list[tuple[int, ConfigurationConstraint]] = []
         rest_velocity: list[tuple[int, VelocityConstraint]] = []

@@ -139,7 +139,7 @@ def position_log_cosh(origin: Array, rotation: Array, jacobian: Array, offset: A
 
 
 POSITION_LOG_COSH = 9  # its code; its tables: the point (1, 4), p_d (1, 3), [K; ξ; K/ξ]
-POINT_AT, GOAL_AT, GAINS_AT, OFFSET_AT = range(4)  # (3, 3), Σ K_i/ξ_i · ln 2 (1, 1)
+COSH_POINT, COSH_GOAL, COSH_GAINS, COSH_OFFSET = range(4)  # (3, 3), Σ K_i/ξ_i · ln 2 (1, 1)
 
 
 def pack_position_log_cosh(point: Array, goal: Array, gains: Array, log_offset: float,
@@ -148,7 +148,7 @@ def pack_position_log_cosh(point: Array, goal: Array, gains: Array, log_offset: 
     ``goal`` before each step)."""
     return Packed(POSITION_LOG_COSH, (point[None, :], goal[None, :], gains,
                                       np.array([[log_offset]])),
-                  frame=frame, live=((GOAL_AT, goal),) if moving else ())
+                  frame=frame, live=((COSH_GOAL, goal),) if moving else ())
 
 
 @inner(f"float64({ROW})")
@@ -156,10 +156,10 @@ def position_log_cosh_row(plan: Ints, floats: Array, row: int, x: Array, origin:
                           rotation: Array, jacobian: Array, grad: Array) -> float:
     """A packed ln cosh position spring (``position_log_cosh``)."""
     return position_log_cosh(origin, rotation, jacobian,
-                             float_table(plan, floats, row, POINT_AT)[0],
-                             float_table(plan, floats, row, GOAL_AT)[0],
-                             float_table(plan, floats, row, GAINS_AT),
-                             float_table(plan, floats, row, OFFSET_AT)[0, 0], grad)
+                             float_table(plan, floats, row, COSH_POINT)[0],
+                             float_table(plan, floats, row, COSH_GOAL)[0],
+                             float_table(plan, floats, row, COSH_GAINS),
+                             float_table(plan, floats, row, COSH_OFFSET)[0, 0], grad)
 
 
 @kernel(f"void({READ_ONLY}, {READ_ONLY}, float64[:])", inline=True)

@@ -15,6 +15,7 @@ from cpbc.kernels.coordinate_maps import controller_terms
 from cpbc.kernels.energy import kinetic_energy
 from cpbc.kernels.law_terms import damping_terms, potential_terms, shaped
 from cpbc.kernels.small_solves import solve_spd
+from cpbc.kernels.tables import KIND
 from cpbc.kernels.task import PLACE, frame_on_joints
 from cpbc.kernels.views import Ints, float_rows, int_rows
 
@@ -222,7 +223,7 @@ def cpbc_step(tables: Ints, table_floats: Array, x: Array, dx: Array, inertia: A
         bias[i] = coriolis_force[i] + dissipation[i]
     constrained_rate = False
     for r in range(plan.shape[0]):
-        if plan[r, 0] in VELOCITY_KINDS:
+        if plan[r, KIND] in VELOCITY_KINDS:
             constrained_rate = True
     cpbc_torque(inertia, gravity, bias, grad, damping, gradient, weight, constrained_rate,
                 ratio * lag, tau)
