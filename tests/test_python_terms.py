@@ -153,3 +153,35 @@ def test_outside_s_the_python_constraint_is_named_as_on_the_general_path() -> No
     with pytest.raises(ConstraintViolation) as slow:
         _general(law).torque(x, np.zeros(2))
     assert str(fast.value) == str(slow.value)
+
+
+CAPSULES = {
+    "name": "capsules",
+    "robot": {"model": "planar_2link"},
+    "simulation": {"duration": 0.01},
+    "target": [0.5, 0.5],
+    "cases": [{"name": "rest", "position": [0.2, 0.3]}],
+    "obstacles": [{"type": "sphere", "name": "ball", "centre": [0.0, 2.0, 0.0],
+                   "radius": 0.3}],
+    "constraints": [{"type": "clearance", "name": "clear", "links": [], "primitives": [
+        {"link": "link2", "start": [0, 0, 0], "end": [1, 0, 0], "radius": 0.05}]}],
+    "controllers": [{"type": "cpbc", "name": "law", "kp": 4, "kd": 2}],
+}
+
+
+def test_the_command_line_says_it_once_after_the_build(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """A shipped kind the set's kernel cannot take (a clearance's capsules): cpbc.run names
+    it in one note, and runs."""
+    import yaml
+
+    from cpbc.run import main
+
+    path = tmp_path / "capsules.yaml"
+    path.write_text(yaml.safe_dump(CAPSULES, sort_keys=False), encoding="utf-8")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PythonPathWarning)  # said as a note, not a warning
+        assert main([str(path), "--out", str(tmp_path / "out"), "--quiet", "--no-plots",
+                     "--workers", "1"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("has no kernel") == 1
+    assert "note: cpbc: constraint 'clear' (Clearance) has no kernel" in " ".join(err.split())
