@@ -185,3 +185,19 @@ def test_the_command_line_says_it_once_after_the_build(tmp_path, capsys) -> None
     err = capsys.readouterr().err
     assert err.count("has no kernel") == 1
     assert "note: cpbc: constraint 'clear' (Clearance) has no kernel" in " ".join(err.split())
+
+
+def test_a_law_with_a_python_constraint_pickles_and_says_nothing_again() -> None:
+    """Sent to a worker process whole, the law packs again there, steps alike, and does not
+    repeat its note."""
+    import pickle
+
+    law = _laws()["cpbc"]
+    x, dx = planar_2link().states[1]
+    with pytest.warns(PythonPathWarning):
+        tau = law.torque(x, dx)
+    copy = pickle.loads(pickle.dumps(law))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PythonPathWarning)
+        np.testing.assert_array_equal(copy.torque(x, dx), tau)
+    assert copy.packed_law().python and copy.packed_law().terms is not None
