@@ -3,7 +3,8 @@
 the tables and their readers are beside each other in the kind's module, not here.
 
 The registry of the kinds a set's plan holds (``KINDS``; a new kind with a kernel is its
-module and one line here, in ``KINDS`` and in ``set_barrier``'s dispatch):
+kernel module and two lines here: its code in ``KINDS``, its row in ``set_barrier``'s
+dispatch):
 
 - ``LINEAR``, ``RATE``, ``ENERGY``, ``POINT``: cpbc.kernels.barriers (the point on the
   frame the caller passes);

@@ -6,9 +6,9 @@ cpbc.kernels.task, the shaping's formula in cpbc.kernels.barrier_shaping.
 
 The terms are packed like a constraint set (cpbc.kernels.tables). The registry of the kinds
 a law's plan holds (a new term with a kernel is its formula, its ``pack_*`` and its row
-reader, and one line here, in its list and in ``potential_terms``' or ``damping_terms``'
-dispatch): ``POTENTIAL_KINDS``, ``DAMPING_KINDS``, ``SHAPING``; ``FRAME_KINDS`` read the one
-frame the caller passes (origin, axes, [J_v; J_ω]).
+reader, and two lines here: its code in its list, its row in ``potential_terms``' or
+``damping_terms``' dispatch): ``POTENTIAL_KINDS``, ``DAMPING_KINDS``, ``SHAPING``;
+``FRAME_KINDS`` read the one frame the caller passes (origin, axes, [J_v; J_ω]).
 """
 
 from __future__ import annotations
