@@ -170,7 +170,7 @@ for period in (0.001, 0.01):
             tau = law.torque + push * rng.standard_normal(len(x))
             out[f"guard/{period}/{i}/{push}"] = guard.filter(state, tau, law.margins).tolist()
     out[f"guard/{period}/counts"] = [guard.acted, guard.scaled]
-# the CBF-QP peer's per-pair rows (cpbc.kernels.clearance.sphere_pair_rows), from the state
+# the CBF-QP peer's per-pair rows (cpbc.kernels.clearance_motion.sphere_pair_rows), from the state
 from cpbc.constraints.clearance import Clearance
 law = setup.controllers["cpbc"]
 clearance = next(c for c in law.constraints.configuration if isinstance(c, Clearance))

@@ -99,8 +99,9 @@ class ConfigurationConstraint(HasMargins, ABC):
         return parts[0]
 
     def packed(self) -> Packed | None:
-        """This constraint's share of its set's barrier kernel (cpbc.constraints.packing),
-        or None: the set then asks ``barrier_terms``. Kinds with a kernel override this."""
+        """This constraint's share of its set's barrier kernel (its kind's ``pack_*``,
+        beside its kernel; cpbc.kernels.tables), or None: its ``barrier_terms`` is asked in
+        Python (cpbc.constraints.python_terms). Kinds with a kernel override this."""
         return None
 
 
@@ -156,6 +157,7 @@ class VelocityConstraint(HasMargins, ABC):
         return parts[0]
 
     def packed(self) -> Packed | None:
-        """This constraint's share of its set's barrier kernel (cpbc.constraints.packing),
-        or None: the set then asks ``barrier_terms``. Kinds with a kernel override this."""
+        """This constraint's share of its set's barrier kernel (its kind's ``pack_*``,
+        beside its kernel; cpbc.kernels.tables), or None: its ``barrier_terms`` is asked in
+        Python (cpbc.constraints.python_terms). Kinds with a kernel override this."""
         return None

@@ -25,8 +25,7 @@ from cpbc.constraints.geometry import Obstacle
 from cpbc.constraints.margins import CLEARANCE
 from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError, ParameterError
-from cpbc.kernels import barrier_set
-from cpbc.kernels.clearance import localised_terms
+from cpbc.kernels.clearance import localised_terms, pack_sphere_pairs
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -373,10 +372,9 @@ class Clearance(PairLayout, ConfigurationConstraint):
         if (type(self).barrier_terms is not Clearance.barrier_terms or s is None
                 or self._groups or not self._identity):
             return None
-        tables = (s.sphere_local, s.obstacles, s.pair_table, s.sphere_supports,
-                  self._far_phi[:, None], np.array([[self.influence or 0.0]]), s.group_table)
-        return Packed(barrier_set.SPHERES, tables,
-                      (s.sphere_index[:, None], s.pair_index, s.group_index))
+        return pack_sphere_pairs(s.sphere_local, s.obstacles, s.pair_table, s.sphere_supports,
+                                 self._far_phi, self.influence, s.group_table, s.sphere_index,
+                                 s.pair_index, s.group_index)
 
     def _barrier(self, x: Array, y: Array, jac: Array, with_value: bool
                  ) -> tuple[Array, Array, Array | None]:
