@@ -18,10 +18,26 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, kernel
-from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES, float_table, int_table
-from cpbc.kernels.barriers import linear_limit_terms, rate_limit_terms
-from cpbc.kernels.clearance import Ints, sphere_clearances
+from cpbc.kernels.barriers import (
+    LINEAR,
+    LINEAR_CONSTANTS,
+    RATE,
+    RATE_CONSTANTS,
+    linear_limit_terms,
+    rate_limit_terms,
+)
+from cpbc.kernels.clearance import (
+    OBSTACLES,
+    PAIR_INDEX,
+    PAIR_TABLE,
+    SPHERE_INDEX,
+    SPHERE_LOCAL,
+    SPHERES,
+    Ints,
+    sphere_clearances,
+)
 from cpbc.kernels.small_solves import solve_spd
+from cpbc.kernels.tables import COUNT, FIRST, KIND, float_table, int_table
 
 # --- step 2 of the package docstring: the prediction, dynamics frozen at the sample ---------
 
@@ -264,20 +280,21 @@ def margins_along(plan: Ints, ints: Ints, floats: Array, xs: Array, dxs: Array, 
     part = np.empty(n)
     weight = np.empty((n, n))
     for r in range(plan.shape[0]):
-        kind, at, k = plan[r, 0], plan[r, 1], plan[r, 2]
+        kind, at, k = plan[r, KIND], plan[r, FIRST], plan[r, COUNT]
         if kind == LINEAR:
-            constants = float_table(plan, floats, r, 0)
+            constants = float_table(plan, floats, r, LINEAR_CONSTANTS)
             for i in range(xs.shape[0]):
                 linear_limit_terms(constants, xs[i], out[i, at:at + k], part)
         elif kind == RATE:
-            constants = float_table(plan, floats, r, 0)
+            constants = float_table(plan, floats, r, RATE_CONSTANTS)
             for i in range(dxs.shape[0]):
                 rate_limit_terms(constants, dxs[i], out[i, at:at + k], weight)
         elif kind == SPHERES:
-            index = int_table(plan, ints, r, 0)[:, 0]
-            pairs = int_table(plan, ints, r, 1)
-            local, obstacles = float_table(plan, floats, r, 0), float_table(plan, floats, r, 1)
-            table = float_table(plan, floats, r, 2)
+            index = int_table(plan, ints, r, SPHERE_INDEX)[:, 0]
+            pairs = int_table(plan, ints, r, PAIR_INDEX)
+            local = float_table(plan, floats, r, SPHERE_LOCAL)
+            obstacles = float_table(plan, floats, r, OBSTACLES)
+            table = float_table(plan, floats, r, PAIR_TABLE)
             for i in range(xs.shape[0]):
                 sphere_clearances(ys[i], index, local, obstacles, pairs, table,
                                   out[i, at:at + k])
