@@ -281,7 +281,7 @@ class Safeguard(SafetyFilter):
                 lam, f_lam = brakes.search_braking(bias, stop, slack, f1, f_rev)
                 if f_lam < 0.0:
                     self.infeasible += 1
-                    rescued = brakes.rescued(state, bias, predict, now, self.calls, error)
+                    rescued = brakes.rescued(state, bias, predict, now, self.calls)
                     if rescued is not None:
                         return rescued
                     return brakes.infeasible(state, bias, stop, predict, now, floor,
