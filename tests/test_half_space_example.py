@@ -18,7 +18,7 @@ from test_registry import BASE, _built
 from cpbc.constraints.constraint_types import ConfigurationConstraint
 from cpbc.controllers.packed_law import python_path_notes
 from cpbc.kernels.barrier_set import LINEAR, RATE
-from cpbc.kernels.python_terms import PYTHON_CONFIGURATION
+from cpbc.kernels.python_rows import PYTHON_CONFIGURATION
 from cpbc.scenario.schema.kinds import KINDS
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "docs" / "examples" / "half_space.py"

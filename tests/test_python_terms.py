@@ -20,7 +20,7 @@ from cpbc.errors import ConstraintViolation
 from cpbc.kernels.barrier_set import LINEAR, POINT
 from cpbc.kernels.barriers import ENERGY
 from cpbc.kernels.barriers import RATE as RATE_KIND
-from cpbc.kernels.python_terms import PYTHON_CONFIGURATION, PYTHON_VELOCITY
+from cpbc.kernels.python_rows import PYTHON_CONFIGURATION, PYTHON_VELOCITY
 from cpbc.model.robot_model import ArmState, RobotModel
 
 

@@ -98,7 +98,7 @@ class ConstraintSet:
 
     def _pack(self) -> None:
         """The constants of every constraint that packs, for one kernel call per step
-        (cpbc.kernels.tables); the others (a kind without a kernel, a subclass's own
+        (cpbc.kernels.plan_tables); the others (a kind without a kernel, a subclass's own
         formula, capsules, a second frame) are asked through ``barrier_terms`` — after the
         set's own kernel call (``barrier``), before a law's (``python_terms``)."""
         parts: list[tuple[int, int, Packed]] = []

@@ -100,7 +100,7 @@ class ConfigurationConstraint(HasMargins, ABC):
 
     def packed(self) -> Packed | None:
         """This constraint's share of its set's barrier kernel (its kind's ``pack_*``,
-        beside its kernel; cpbc.kernels.tables), or None: its ``barrier_terms`` is asked in
+        beside its kernel; cpbc.kernels.plan_tables), or None: its ``barrier_terms`` is asked in
         Python (cpbc.constraints.python_terms). Kinds with a kernel override this."""
         return None
 
@@ -158,6 +158,6 @@ class VelocityConstraint(HasMargins, ABC):
 
     def packed(self) -> Packed | None:
         """This constraint's share of its set's barrier kernel (its kind's ``pack_*``,
-        beside its kernel; cpbc.kernels.tables), or None: its ``barrier_terms`` is asked in
+        beside its kernel; cpbc.kernels.plan_tables), or None: its ``barrier_terms`` is asked in
         Python (cpbc.constraints.python_terms). Kinds with a kernel override this."""
         return None

@@ -1,5 +1,5 @@
 """A constraint without a kernel in a law's one kernel call: its ``barrier_terms`` asked in
-Python before each call, its answer copied into the law's tables (cpbc.kernels.python_terms),
+Python before each call, its answer copied into the law's tables (cpbc.kernels.python_rows),
 so that only its own terms leave the compiled path — and a note that says so, once, with
 what it costs.
 
@@ -18,8 +18,8 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.errors import CpbcError
-from cpbc.kernels.python_terms import pack_python_terms
-from cpbc.kernels.tables import Packed
+from cpbc.kernels.plan_tables import Packed
+from cpbc.kernels.python_rows import pack_python_terms
 from cpbc.model.robot_model import ArmState
 
 TIMED_CALLS = 20  # the calls timed at build (the fastest counts)

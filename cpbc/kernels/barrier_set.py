@@ -1,5 +1,5 @@
 """A constraint set's log-barrier sums in one kernel call: every constraint the set packed
-(cpbc.kernels.tables) in the set's order, each by its own kind's row reader — the formulas,
+(cpbc.kernels.plan_tables) in the set's order, each by its own kind's row reader — the formulas,
 the tables and their readers are beside each other in the kind's module, not here.
 
 The registry of the kinds a set's plan holds (``KINDS``; a new kind with a kernel is its
@@ -10,7 +10,7 @@ dispatch):
   frame the caller passes);
 - ``SPHERES``: the clearance's sphere pairs, cpbc.kernels.clearance;
 - ``PYTHON_CONFIGURATION``, ``PYTHON_VELOCITY``: a constraint without a kernel, its terms
-  computed in Python before the call, cpbc.kernels.python_terms.
+  computed in Python before the call, cpbc.kernels.python_rows.
 """
 
 from __future__ import annotations
@@ -31,13 +31,13 @@ from cpbc.kernels.barriers import (
     rate_limit_row,
 )
 from cpbc.kernels.clearance import SPHERES, sphere_pairs_row
-from cpbc.kernels.python_terms import (
+from cpbc.kernels.plan_tables import COUNT, FIRST, KIND, float_table, int_table
+from cpbc.kernels.python_rows import (
     PYTHON_CONFIGURATION,
     PYTHON_VELOCITY,
     python_configuration_row,
     python_velocity_row,
 )
-from cpbc.kernels.tables import COUNT, FIRST, KIND, float_table, int_table
 from cpbc.kernels.views import Ints, float_rows
 
 KINDS = (LINEAR, RATE, ENERGY, POINT, SPHERES, PYTHON_CONFIGURATION, PYTHON_VELOCITY)

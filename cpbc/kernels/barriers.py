@@ -1,6 +1,6 @@
 """The constraints' log-barrier terms (the laws' b_φ = Σ ∇φ_i/φ_i, Π = Σ Q_j/ψ_j,
 b_ψ = Σ ∂_xψ_j/ψ_j), one kernel per constraint kind — and, beside each, the kind's code in a
-set's plan, its tables (``pack_*``, cpbc.kernels.tables) and its row reader (``*_row``, what
+set's plan, its tables (``pack_*``, cpbc.kernels.plan_tables) and its row reader (``*_row``, what
 cpbc.kernels.barrier_set dispatches to, one line per kind).
 
 A row reader writes every output of its constraint's share: its barrier values into
@@ -18,7 +18,7 @@ from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, inner, kernel
 from cpbc.kernels.clearance_motion import sphere_motion
 from cpbc.kernels.energy import kinetic_energy
-from cpbc.kernels.tables import Ints, Packed, float_table
+from cpbc.kernels.plan_tables import Ints, Packed, float_table
 from cpbc.kernels.task import point_on_frame
 from cpbc.kernels.views import float_rows
 

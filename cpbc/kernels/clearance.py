@@ -34,7 +34,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, inner, kernel
-from cpbc.kernels.tables import Packed, float_table, int_table
+from cpbc.kernels.plan_tables import Packed, float_table, int_table
 from cpbc.kernels.views import Ints, float_rows
 
 SPHERES = 4  # the kind's code in a set's plan (cpbc.kernels.barrier_set's registry)

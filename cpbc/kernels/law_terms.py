@@ -4,7 +4,7 @@ reader, beside its formula, its code and its tables (``pack_*``) — the joint t
 ln cosh position spring (which shares their ln cosh sum) here, the other frame terms in
 cpbc.kernels.task, the shaping's formula in cpbc.kernels.barrier_shaping.
 
-The terms are packed like a constraint set (cpbc.kernels.tables). The registry of the kinds
+The terms are packed like a constraint set (cpbc.kernels.plan_tables). The registry of the kinds
 a law's plan holds (a new term with a kernel is its formula, its ``pack_*`` and its row
 reader, and two lines here: its code in its list, its row in ``potential_terms``' or
 ``damping_terms``' dispatch): ``POTENTIAL_KINDS``, ``DAMPING_KINDS``, ``SHAPING``;
@@ -20,7 +20,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, inner, kernel
 from cpbc.kernels.barrier_shaping import shaping_terms
-from cpbc.kernels.tables import KIND, Ints, Packed, float_table
+from cpbc.kernels.plan_tables import KIND, Ints, Packed, float_table
 from cpbc.kernels.task import (
     AXIS_SPRING,
     FRAME,

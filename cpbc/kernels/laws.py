@@ -14,8 +14,8 @@ from cpbc.kernels.barrier_set import VELOCITY_KINDS, set_barrier
 from cpbc.kernels.coordinate_maps import controller_terms
 from cpbc.kernels.energy import kinetic_energy
 from cpbc.kernels.law_terms import damping_terms, potential_terms, shaped
+from cpbc.kernels.plan_tables import KIND
 from cpbc.kernels.small_solves import solve_spd
-from cpbc.kernels.tables import KIND
 from cpbc.kernels.task import PLACE, frame_on_joints
 from cpbc.kernels.views import Ints, float_rows, int_rows
 

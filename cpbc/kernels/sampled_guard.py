@@ -36,8 +36,8 @@ from cpbc.kernels.clearance import (
     Ints,
     sphere_clearances,
 )
+from cpbc.kernels.plan_tables import COUNT, FIRST, KIND, float_table, int_table
 from cpbc.kernels.small_solves import solve_spd
-from cpbc.kernels.tables import COUNT, FIRST, KIND, float_table, int_table
 
 # --- step 2 of the package docstring: the prediction, dynamics frozen at the sample ---------
 

@@ -9,7 +9,7 @@ axes (cpbc.model.frames.FrameKinematics); a point fixed in it as ``offset`` = [o
 (4,), o in the frame's axes.
 
 Beside each term: its kind's code in a law's plan (cpbc.kernels.law_terms' registry), its
-tables (``pack_*``, cpbc.kernels.tables; a ``moving`` goal or feed-forward is read again
+tables (``pack_*``, cpbc.kernels.plan_tables; a ``moving`` goal or feed-forward is read again
 from its array before each step, ``Packed.live``) and its row reader (``*_row``).
 """
 
@@ -19,7 +19,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, inner, kernel
-from cpbc.kernels.tables import Ints, Packed, float_table
+from cpbc.kernels.plan_tables import Ints, Packed, float_table
 
 FRAME = f"{READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}"
 # a potential row's arguments (the tables, its row, x, the frame, ∂U/∂x) and a damping

@@ -13,7 +13,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import inner
-from cpbc.kernels.tables import Ints, Packed, float_table
+from cpbc.kernels.plan_tables import Ints, Packed, float_table
 
 PYTHON_CONFIGURATION, PYTHON_VELOCITY = 5, 6  # the kinds' codes in a set's plan
 VALUES, GRADIENT, MARGINS, WEIGHT = 0, 1, 2, 2  # its float tables: (1, k), (1, n), …
