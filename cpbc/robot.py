@@ -59,6 +59,7 @@ class RobotDescription:
         rotor_driven: an MJCF's joints whose links have next to no inertia of their own
             (:data:`LEAST_INERTIA`) but a declared armature: the skeleton takes the file's
             armature (``robot.armature: from_model``), which ``pin_model`` then holds.
+        mjcf: read from an MJCF file, whose joints a scenario cannot lock.
     """
 
     model: str
@@ -73,6 +74,7 @@ class RobotDescription:
     package_dirs: tuple[str, ...] = ()
     estimated: tuple[str, ...] = ()
     rotor_driven: tuple[str, ...] = ()
+    mjcf: bool = False
 
 
 #: A joint whose link, with all it carries, has less inertia about the joint than this
@@ -134,7 +136,8 @@ def _describe_mjcf(path: Path, model_name: str) -> RobotDescription:
     limits = JointLimits(tuple(pm.names[1:]), lower, upper, np.full(n, np.inf),
                          np.where(effort > 0, effort, np.inf))
     return RobotDescription(model_name, f"MJCF {path}", limits, _frames(pm),
-                            covered_bodies(mj), pin_model=pm, rotor_driven=_rotor_driven(pm, mj))
+                            covered_bodies(mj), pin_model=pm, rotor_driven=_rotor_driven(pm, mj),
+                            mjcf=True)
 
 
 def describe(name_or_path: str, locked: Mapping[str, float] | None = None,
@@ -272,6 +275,14 @@ def for_skeleton(name_or_path: str, package_dirs: Sequence[str] = ()
     locked: dict[str, float] = {}
     for find in (_overloaded, _massless):
         found = find(d)
+        if found and d.mjcf:  # a skeleton locking them would be refused by cpbc.run
+            effort = dict(zip(d.limits.names, d.limits.effort, strict=True))
+            raise ModelError(
+                f"{name_or_path}: the motors of " + ", ".join(
+                    f"{j} ({effort[j]:.4g} N·m)" for j in found) + " cannot hold the arm up "
+                "near any target tried, and an MJCF arm's joints cannot be locked (robot."
+                "locked_joints needs a URDF): raise their effort limits in the file (the "
+                "motor's ctrlrange × gear, its forcerange or the joint's actuatorfrcrange)")
         if found:
             locked |= found
             d = describe(name_or_path, {**d.locked, **found}, package_dirs)

@@ -18,6 +18,18 @@ from cpbc.scenario import ScenarioSetup, build, load_scenario
 FiniteDifference = Callable[..., np.ndarray]
 
 
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
+    """One process when the command names tests of one file only (``pytest tests/test_x.py``,
+    ``…::test_y``): starting the workers (each imports Pinocchio, MuJoCo and the kernels)
+    would take longer than the file. Else None: pytest-xdist's count of the cores
+    (pyproject's addopts, ``-n auto``)."""
+    files = {arg.split("::")[0] for arg in config.args}
+    if len(files) == 1 and Path(next(iter(files))).is_file():
+        return 0
+    return None
+
+
 @pytest.fixture
 def load_dict(tmp_path: Path) -> Callable[[dict], ScenarioSetup]:
     """Write a scenario dict to YAML in tmp_path, load and build it."""

@@ -139,3 +139,28 @@ def test_a_skeleton_with_slow_gains_lasts_long_enough_to_settle(
                      "--out", str(out)]) == 0, capsys.readouterr().err
     for s in json.loads((out / "summary.json").read_text()):
         assert s["status"] == "converged" and s["crossed_constraints"] == [], s
+
+
+# robosuite-models' ALOHA in miniature: the wrist's motor (±0.5 N·m) cannot hold its link
+# level (1.5 N·m of gravity), and its range leaves no posture where it hangs
+WEAK_WRIST = """<mujoco><worldbody><body name="base">
+  <body name="l1"><joint name="j1" type="hinge" axis="0 0 1" range="-3 3"/>
+    <geom type="cylinder" size="0.05 0.05" pos="0 0 0.05" mass="1"/>
+    <body name="l2" pos="0 0 0.1"><joint name="j2" type="hinge" axis="0 1 0" range="-0.1 0.1"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/></body></body>
+  </body></worldbody>
+  <actuator><motor joint="j1" ctrlrange="-50 50"/><motor joint="j2" ctrlrange="-0.5 0.5"/>
+  </actuator></mujoco>"""
+
+
+def test_an_mjcf_arm_its_motors_cannot_hold_is_refused_not_given_a_lock_it_cannot_run(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A URDF's skeleton locks such a joint; an MJCF's joints cannot be locked, and the
+    skeleton that locked them was refused by cpbc.run ("locking joints needs a URDF")."""
+    path = tmp_path / "weak_wrist.xml"
+    path.write_text(WEAK_WRIST)
+    assert robot.main([str(path)]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1, err
+    assert "the motors of j2 (0.5 N·m) cannot hold the arm up" in err
+    assert "MJCF arm's joints cannot be locked" in err and "effort limits in the file" in err
