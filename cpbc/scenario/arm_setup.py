@@ -133,7 +133,7 @@ class ScenarioSetup:
         loop = self.loop_settings
         run = guarded(entry.controller, loop.control_period, self.safeguard,
                       loop.torque_limit, self.also_keep, loop.torque_rate_limit,
-                      loop.model_error)
+                      loop.model_error, loop.declared_error)
         if self.reference is None:
             return run
         turned = None if case is None else self.case_targets.get(case.name)

@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings, viable
 from cpbc.errors import ConstraintViolation
@@ -177,6 +178,17 @@ class MismatchLevel:
     armature: float = 0.0
     frictionloss: float = 0.0
 
+    def declared(self) -> dict[str, object]:
+        """The ``simulation.model_error`` a scenario declares for plants of this family:
+        every link's mass and inertia within ±max(mass, inertia), and up to the rotor
+        inertia, damping and dry friction the family may add."""
+        out: dict[str, object] = {"inertia": max(self.mass, self.inertia)}
+        for name, value in (("armature", self.armature), ("damping", self.damping),
+                            ("friction", self.frictionloss)):
+            if value:
+                out[name] = value
+        return out
+
 
 def mismatch_campaign(
     setup: ScenarioSetup,
@@ -187,16 +199,21 @@ def mismatch_campaign(
     unguarded_types: Sequence[str] = ("cpbc_ke", "bpbc_ke"),
     log_every: int = 10,
     log: Log = _quiet,
+    declared: Callable[[MismatchLevel], ScenarioSetup] | None = None,
 ) -> list[Record]:
     """Every controller on every case of the scenario (full duration, the scenario's control
     period), on ``draws`` seeded perturbed plants per level, with the default safeguard; the
-    laws of ``unguarded_types`` also without it. Violations are judged on the true plant:
-    kinetic-energy limits with MuJoCo's (perturbed) mass matrix, the rest by kinematics."""
+    laws of ``unguarded_types`` also without it; with ``declared``, each constrained law
+    also as the scenario that declares the level's error builds it (``declared(level)``,
+    its ``simulation.model_error``: :meth:`MismatchLevel.declared`). Violations are judged
+    on the true plant: kinetic-energy limits with MuJoCo's (perturbed) mass matrix against
+    the scenario's Ω, the rest by kinematics."""
     rng = np.random.default_rng(seed)
     nominal = setup.make_plant()
     nbody, ndof = nominal.model.nbody - 1, nominal.model.nv
     out: list[Record] = []
     for level in levels:
+        knows = None if declared is None else declared(level)
         for d in range(draws):
             mismatch = PlantMismatch.random(
                 rng, nbody, ndof, level.mass, level.inertia, level.damping, level.armature,
@@ -205,15 +222,20 @@ def mismatch_campaign(
             plant = setup.make_plant()
             mismatch.apply(plant.model)
             for entry in setup.controllers:
-                variants = [True]
+                variants = [(setup, entry, True)]
                 if entry.controller.type_name in unguarded_types:
-                    variants.append(False)
-                for guarded in variants:
-                    settings = replace(setup.loop_settings, log_every=log_every, noise=None)
-                    for case in setup.cases:
+                    variants.append((setup, entry, False))
+                if knows is not None and not entry.controller.constraints.empty:
+                    variants.append((knows, next(
+                        e for e in knows.controllers if e.name == entry.name), True))
+                for run_setup, run_entry, guarded in variants:
+                    settings = replace(run_setup.loop_settings, log_every=log_every,
+                                       noise=None)
+                    for case in run_setup.cases:
                         out.append(_mismatch_run(
-                            plant, setup, entry, case.name, case.position, case.velocity,
-                            settings, scenario, level.name, d, guarded,
+                            plant, run_setup, run_entry, case.name, case.position,
+                            case.velocity, settings, scenario, level.name, d, guarded,
+                            setup.monitor,
                         ))
             log(f"{scenario} mismatch {level.name} draw {d + 1}/{draws} done")
     return out
@@ -222,13 +244,14 @@ def mismatch_campaign(
 def _mismatch_run(
     plant: MujocoPlant, setup: ScenarioSetup, entry: ControllerEntry, case: str,
     x0: Array, dx0: Array, settings: LoopSettings, scenario: str, level: str, draw: int,
-    guarded: bool,
+    guarded: bool, monitor: ConstraintSet,
 ) -> Record:
+    """One run on the perturbed plant, judged against ``monitor`` (the scenario's own
+    constraints, its Ω, whatever the law keeps)."""
     coords = setup.model.coordinates
     safeguard = (setup.safeguard or SafeguardSettings()) if guarded else None
     traj = guarded_run(plant, setup, entry, x0, dx0, settings, safeguard)
     status, settle = judge_status(traj, entry.controller.target, setup.criteria)
-    monitor = setup.monitor
     xs, dxs = traj.position, traj.velocity
     parts: list[tuple[tuple[str, ...], Array]] = [
         (c.names, c.values_along(xs)) for c in monitor.configuration
@@ -251,7 +274,8 @@ def _mismatch_run(
     return {
         "scenario": scenario, "controller": entry.name, "type": entry.controller.type_name,
         "case": case, "level": level, "draw": draw, "safeguard": guarded,
-        "status": status, "end_time": traj.end_time, "violated": traj.violated,
+        "declared": settings.declared_error is not None, "status": status,
+        "end_time": traj.end_time, "violated": traj.violated,
         "final_error": float(np.max(np.abs(traj.position[-1] - entry.controller.target))),
         "settle_time": settle, "true_min_margin": worst, "true_min_constraint": worst_name,
         "true_violation": bool(worst <= 0 or status == "constraint_violated"),

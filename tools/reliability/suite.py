@@ -174,9 +174,14 @@ def mismatch(config: Config, log: Log) -> dict[str, object]:
     for name in config.all_scenarios():
         arm = config.is_arm(name)
         setup = cp.campaign_setup(name, integrator=None)  # the scenario's own integrator
+
+        def declared(level: cp.MismatchLevel, name: str = name) -> cp.ScenarioSetup:
+            return cp.campaign_setup(name, integrator=None, model_error=level.declared())
+
         out[name] = cp.mismatch_campaign(
             setup, name, ARM_LEVELS if arm else PLANAR_LEVELS,
-            config.arm_mismatch_draws if arm else config.mismatch_draws, config.seed, log=log)
+            config.arm_mismatch_draws if arm else config.mismatch_draws, config.seed, log=log,
+            declared=declared)
         out[name + "/levels"] = [asdict(v) for v in (ARM_LEVELS if arm else PLANAR_LEVELS)]
     return out
 

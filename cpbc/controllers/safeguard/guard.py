@@ -19,7 +19,12 @@ from cpbc.controllers.hold import hold_share
 from cpbc.controllers.rescue import Rescue
 from cpbc.controllers.safeguard.acceptance import Acceptance
 from cpbc.controllers.safeguard.braking import Brakes
-from cpbc.controllers.safeguard.model_error import friction_error, margin_losses
+from cpbc.controllers.safeguard.model_error import (
+    DeclaredError,
+    friction_error,
+    margin_losses,
+    measurement_losses,
+)
 from cpbc.controllers.safeguard.predicted_margins import PredictedMargins, RampTest
 from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_share
 from cpbc.controllers.safeguard.settings import SafeguardSettings
@@ -36,13 +41,15 @@ def guarded(
     also_keep: Sequence[ConfigurationConstraint] = (),
     rate_limit: Array | float | None = None,
     model_error: Array | float | None = None,
+    declared: DeclaredError | None = None,
 ) -> Controller:
     """The law as a sampled-data loop at period h should run it: wrapped in a Safeguard with
     ``settings`` when it enforces constraints, else the law itself (also with no settings).
 
     ``torque_limit`` is the plant's joint torque saturation, ``rate_limit`` its joint
     torque-rate limit [N·m/s] and ``model_error`` the declared bound on the model's
-    acceleration error [per coordinate, rad/s² or m/s²] (each a number or one per joint)."""
+    acceleration error [per coordinate, rad/s² or m/s²] (each a number or one per joint);
+    ``declared`` the declared inertia and measurement errors (model_error.DeclaredError)."""
     if isinstance(law, SafetyFilter):  # a filter already (a peer): fresh counts, no wrap
         return law.restarted()
     if settings is None or law.constraints.empty:
@@ -54,7 +61,7 @@ def guarded(
         np.asarray(rate_limit, dtype=float), (n,))
     error = None if model_error is None else np.broadcast_to(
         np.asarray(model_error, dtype=float), (n,))
-    return Safeguard(law, period, settings, limit, also_keep, rate, error)
+    return Safeguard(law, period, settings, limit, also_keep, rate, error, declared)
 
 
 class Safeguard(Acceptance, Brakes, SafetyFilter):
@@ -82,6 +89,10 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
             per coordinate, shape (n,): every floor of (S1) is raised by what such an error
             can take off its margin in one period, and the braking set's deceleration is
             lowered by it (:mod:`cpbc.controllers.safeguard.model_error`).
+        declared: a declared relative inertia error, held at each step as the acceleration
+            error it makes at the law's acceleration (model_error.InertiaError), and
+            measurement errors, whose reach is added to the floors too
+            (model_error.measurement_losses); or None.
 
     Attributes:
         calls: control instants seen.
@@ -105,6 +116,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         also_keep: Sequence[ConfigurationConstraint] = (),
         rate_limit: Array | None = None,
         model_error: Array | None = None,
+        declared: DeclaredError | None = None,
     ) -> None:
         if not (math.isfinite(period) and period > 0):
             raise CpbcError(f"safeguard period must be > 0, got {period}")
@@ -146,6 +158,9 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         self.torque_limit = None if torque_limit is None else np.asarray(torque_limit, float)
         self.rate_limit = None if rate_limit is None else np.asarray(rate_limit, float)
         self.model_error = None if model_error is None else np.asarray(model_error, float)
+        self.declared = declared
+        self._inertia_error = None if declared is None else declared.acceleration_bound(
+            law.model)
         self._coulomb = bool(np.any(law.model.coulomb_friction))
         # ρh: how far one step can move each joint torque (None: as far as the box allows)
         self._rate_step: Array | None = None if self.rate_limit is None else (
@@ -247,12 +262,7 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         delta, nc = self.cushion, self._n_config
         floor, mid = np.empty(len(now)), np.empty(nc)
         floors(now, delta, self.keep, self.keep_half, floor, mid)  # (S1)
-        error = self._error_bound(state)
-        if error is not None:  # ... whatever the model's error does (model_error.py)
-            end_loss, mid_loss = margin_losses(self.guarded, state, error, self.period,
-                                               self.travel)
-            floor += end_loss
-            mid += mid_loss
+        self._raise_floors(state, bias, tau, floor, mid)
         floor_mid = None
         past = None
         if nc:
@@ -299,13 +309,34 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
             brake, f1 = reverse, f_rev
         return self._blend(tau, brake, f0, f1, slack)
 
-    def _error_bound(self, state: ArmState) -> Array | None:
+    def _raise_floors(self, state: ArmState, bias: Array, tau: Array, floor: Array,
+                      mid: Array) -> None:
+        """The floors of (S1) raised, in place, by whatever the model's error
+        (model_error.margin_losses) and the measurement's (measurement_losses) can take off
+        each margin in one period."""
+        error = self._error_bound(state, bias, tau)
+        if error is not None:
+            end_loss, mid_loss = margin_losses(self.guarded, state, error, self.period,
+                                               self.travel)
+            floor += end_loss
+            mid += mid_loss
+        if self.declared is not None and self.declared.measured:
+            end_loss, mid_loss = measurement_losses(self.guarded, state, self.declared,
+                                                    self.period)
+            floor += end_loss
+            mid += mid_loss
+
+    def _error_bound(self, state: ArmState, bias: Array, tau: Array) -> Array | None:
         """The bound on the model's acceleration error at this state: the declared one plus
-        its smooth Coulomb friction's (model_error.friction_error), or None."""
-        friction = friction_error(self.model, state) if self._coulomb else None
-        if friction is None:
-            return self.model_error
-        return friction if self.model_error is None else friction + self.model_error
+        its smooth Coulomb friction's (model_error.friction_error) plus a declared inertia
+        error's at the law's acceleration D⁻¹(τ − b) (model_error.InertiaError), or None."""
+        parts = [p for p in (self.model_error,
+                             friction_error(self.model, state) if self._coulomb else None)
+                 if p is not None]
+        if self._inertia_error is not None:
+            accel = np.asarray(np.linalg.solve(state.inertia, tau - bias), dtype=float)
+            parts.append(self._inertia_error.bound(state, accel))
+        return sum(parts[1:], parts[0]) if parts else None
 
     def _box(self, bias: Array, tau: Array, brake: bool = False) -> Array:
         """τ scaled toward the bias b = C ẋ + g + f until it fits the torque box
