@@ -78,7 +78,7 @@ def _periods(d: Data) -> list[str]:
 def _mismatch(d: Data) -> list[str]:
     by: dict[str, list[Data]] = defaultdict(list)
     for scenario, recs in d.items():
-        if scenario.endswith("/levels"):
+        if "/" in scenario:
             continue
         for r in recs:
             if r["safeguard"] or r["type"] not in ("cpbc_ke", "bpbc_ke"):
@@ -91,7 +91,7 @@ def _mismatch(d: Data) -> list[str]:
                      + (f", {enf} broke an enforced constraint" if rs[0]["enforces"] else ""))
     kinds: dict[str, int] = defaultdict(int)
     for scenario, recs in d.items():
-        if scenario.endswith("/levels"):
+        if "/" in scenario:
             continue
         for r in recs:
             if r["enforced_violation"]:
@@ -119,7 +119,7 @@ def ke_verdict(data: Data) -> str:
     d = data.get("mismatch")
     if not d:
         return ""
-    ke = [r for k, recs in d.items() if not k.endswith("/levels") for r in recs
+    ke = [r for k, recs in d.items() if "/" not in k for r in recs
           if r["type"] in ("cpbc_ke", "bpbc_ke")]
     if not ke:
         return ""

@@ -311,9 +311,10 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
 
     def _raise_floors(self, state: ArmState, bias: Array, tau: Array, floor: Array,
                       mid: Array) -> None:
-        """The floors of (S1) raised, in place, by whatever the model's error
-        (model_error.margin_losses) and the measurement's (measurement_losses) can take off
-        each margin in one period."""
+        """The floors of (S1) raised, in place, by whatever the model's error can take off
+        each margin in one period (model_error.margin_losses), and to at least what a
+        measurement error can hide above the cushion (measurement_losses): the true margin
+        then ends above its cushion too."""
         error = self._error_bound(state, bias, tau)
         if error is not None:
             end_loss, mid_loss = margin_losses(self.guarded, state, error, self.period,
@@ -323,8 +324,8 @@ class Safeguard(Acceptance, Brakes, SafetyFilter):
         if self.declared is not None and self.declared.measured:
             end_loss, mid_loss = measurement_losses(self.guarded, state, self.declared,
                                                     self.period)
-            floor += end_loss
-            mid += mid_loss
+            np.maximum(floor, end_loss + self.cushion, out=floor)
+            np.maximum(mid, mid_loss + self.cushion[: len(mid)], out=mid)
 
     def _error_bound(self, state: ArmState, bias: Array, tau: Array) -> Array | None:
         """The bound on the model's acceleration error at this state: the declared one plus

@@ -145,9 +145,11 @@ def measurement_losses(constraints: ConstraintSet, state: ArmState, declared: De
     φ_i loses Σ_j |∂φ_i/∂x_j| (p̄_j + t v̄_j) to first order; a velocity margin
     ψ_k = ω_k − ½ẋᵀΠ_k ẋ, taken at the measured rate, exceeds the true one by at most
     Σ_j |(Π_k ẋ)_j| v̄_j + ½ v̄ᵀ|Π_k| v̄ (exact for a constant Π_k; the change of ω_k and Π_k
-    with the position error is left out). Holding the measured margins that much above the
-    floors of (S1) keeps the true ones positive while the measurement errors stay inside
-    the declared bounds (a Gaussian noise does not: declare a few σ and count the rest)."""
+    with the position error is left out). Holding every measured margin at least that much
+    above its cushion δ_i (a floor of its own beside (S1)'s, which is taken from the
+    measured margin and so cannot carry (S1)'s induction to the true one) keeps the true
+    margins above δ_i while the measurement errors stay inside the declared bounds (a
+    Gaussian noise does not: declare a few σ and count the rest)."""
     h, n = period, constraints.n
     p = np.zeros(n) if declared.position is None else np.broadcast_to(declared.position, (n,))
     v = np.zeros(n) if declared.velocity is None else np.broadcast_to(declared.velocity, (n,))
