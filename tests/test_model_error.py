@@ -15,6 +15,7 @@ import pytest
 import yaml
 
 from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.constraints.linear_limit import joint_position_limit
 from cpbc.constraints.rate_limit import joint_rate_limit
 from cpbc.constraints.stopping import Braking
@@ -271,6 +272,7 @@ def test_the_arms_energy_stays_within_1_plus_e_of_the_models_and_the_laws_keep_l
     (ke,) = setup.monitor.velocity
     law = next(e for e in setup.controllers if e.name == "CPBC-KE").controller
     (kept,) = law.constraints.velocity
+    assert isinstance(ke, KineticEnergyLimit) and isinstance(kept, KineticEnergyLimit)
     assert kept.names == ke.names and kept.limit == pytest.approx(ke.limit / 1.25)
 
 
@@ -298,7 +300,8 @@ def test_a_plant_inside_the_declared_inertia_error_is_kept_only_when_declared() 
     rate cross (the law cancels the model's acceleration at the bound, the error pushes);
     the scenario that declares inertia: 0.2 keeps every margin on MuJoCo's state."""
     checks = {}
-    for declared in (None, {"inertia": 0.2}):
+    declarations: tuple[dict[str, object] | None, ...] = (None, {"inertia": 0.2})
+    for declared in declarations:
         setup = campaign_setup("panda_cpbc_sphere", integrator=None, model_error=declared)
         entry = next(e for e in setup.controllers if e.name == "CPBC")
         plant = setup.make_plant().model
@@ -309,7 +312,7 @@ def test_a_plant_inside_the_declared_inertia_error_is_kept_only_when_declared() 
         checks[declared is not None] = checked_run(
             RecordingPlant(plant, setup.plant_settings), setup, entry, case.position,
             case.velocity, settings, safeguard=setup.safeguard)
-    assert checks[False].violated and checks[False].constraint.startswith("rate[")
+    assert checks[False].violated and str(checks[False].constraint).startswith("rate[")
     assert not checks[True].violated and checks[True].min_margin > 0.0
 
 

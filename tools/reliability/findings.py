@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import statistics
 from collections import Counter, defaultdict
+from typing import cast
 
 Data = dict[str, object]
 
@@ -123,7 +124,8 @@ def _mismatch(d: Data) -> list[str]:
 def _declared_mismatch(d: Data) -> str:
     """The declared runs: what broke on the plant, what converged, what the guard held still,
     and how close the bound came to the drawn plants' true error."""
-    runs = [r for k, recs in d.items() if "/" not in k for r in recs if r.get("declared")]
+    runs = [r for k, recs in d.items() if "/" not in k for r in cast(list[Data], recs)
+            if r.get("declared")]
     if not runs:
         return "not run."
     by_level: dict[str, list[Data]] = defaultdict(list)
@@ -141,17 +143,23 @@ def _declared_mismatch(d: Data) -> str:
                        f"{', '.join(f'{k} {v}' for k, v in sorted(where.items()))})"
                        if broke else "")
             + f"; {_counts(rs)}")
-    tight = [t for k, recs in d.items() if k.endswith("/tightness") for t in recs]
+    tight = [t for k, recs in d.items() if k.endswith("/tightness")
+             for t in cast(list[Data], recs)]
     tail = ""
     if tight:
-        worst = max(float(t["max_ratio"]) for t in tight)
-        low = min(float(t["median_ratio"]) for t in tight)
-        high = max(float(t["median_ratio"]) for t in tight)
+        worst = max(_number(t["max_ratio"]) for t in tight)
+        low = min(_number(t["median_ratio"]) for t in tight)
+        high = max(_number(t["median_ratio"]) for t in tight)
         tail = (f" The bound held on every drawn plant (largest true error / bound "
                 f"{worst:.2f}; the median ratio per scenario and family {low:.2f}–{high:.2f}: "
                 "a worst case over independent links' errors, which random draws rarely "
                 "line up).")
     return "; ".join(parts) + "." + tail
+
+
+def _number(value: object) -> float:
+    """A number of the stored data (JSON: int or float)."""
+    return float(cast(float, value))
 
 
 def _counts(rs: list[Data]) -> str:
@@ -205,8 +213,8 @@ def _ke_declared(declared: list[Data]) -> str:
             "Ω/(1 + e) of the model's energy")
     if not declared:
         return text + "."
-    over = sum(float(r["ke_peak_over_limit"]) > 1.0 for r in declared)
-    peak = max(float(r["ke_peak_over_limit"]) for r in declared)
+    energy = [float(cast(float, r["ke_peak_over_limit"])) for r in declared]
+    over, peak = sum(e > 1.0 for e in energy), max(energy)
     return (text + f": declared so, {over} of {len(declared)} perturbed runs took the plant's "
             f"true energy over Ω (peak {peak:.3g} × Ω), {_counts(declared)}.")
 
@@ -260,7 +268,7 @@ def _noise(d: Data) -> list[str]:
 
 def _declared_noise(d: Data) -> str:
     """The constrained laws' runs with the measurement error declared at k σ."""
-    runs = [r for recs in d.values() for r in recs if r.get("declared")]
+    runs = [r for recs in d.values() for r in cast(list[Data], recs) if r.get("declared")]
     if not runs:
         return "- **Noise, the error declared**: not run."
     k = runs[0].get("bound_sigmas")
@@ -269,8 +277,8 @@ def _declared_noise(d: Data) -> str:
         rs = [r for r in runs if r["level"] == level]
         bad = [r for r in rs if r["status"] in ("constraint_violated", "diverged", "crashed")]
         room = [r for r in bad if r.get("declarable", True)]
-        beyond = sum(int(r.get("beyond", 0)) for r in rs)
-        beyond_bad = sum(int(r.get("beyond", 0)) for r in bad)
+        beyond = sum(int(_number(r.get("beyond", 0))) for r in rs)
+        beyond_bad = sum(int(_number(r.get("beyond", 0))) for r in bad)
         names = ", ".join(sorted({f"{r['scenario']}/{r['controller']}/{r['case']}"
                                   for r in bad}))
         parts.append(

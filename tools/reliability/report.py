@@ -5,6 +5,7 @@ from __future__ import annotations
 import statistics
 from collections import Counter, defaultdict
 from collections.abc import Callable, Iterable, Sequence
+from typing import cast
 
 Data = dict[str, object]
 
@@ -172,11 +173,11 @@ def _tightness(data: Data) -> str:
     for key, recs in data.items():
         if not key.endswith("/tightness"):
             continue
-        for r in recs:
+        for r in cast(list[Data], recs):
             rows.append([key.split("/")[0], r["level"], r["states"], _g(r["max_ratio"]),
                          _g(r["median_ratio"]),
-                         ", ".join(_g(v) for v in r["max_error"]),
-                         ", ".join(_g(v) for v in r["median_bound"])])
+                         ", ".join(_g(v) for v in cast(list[float], r["max_error"])),
+                         ", ".join(_g(v) for v in cast(list[float], r["median_bound"]))])
     if not rows:
         return ""
     return _table(["scenario", "plants drawn inside", "states", "largest true error / bound",
@@ -196,7 +197,7 @@ def _noise(data: Data) -> str:
                 f"{rs[0]['sigma_velocity']:g} rad/s)",
                 "–" if sigmas is None else f"{sigmas:g} σ"
                 + ("" if all(r.get("declarable", True) for r in rs) else " (no room)"),
-                "–" if sigmas is None else sum(int(r.get("beyond", 0)) for r in rs),
+                "–" if sigmas is None else sum(int(cast(int, r.get("beyond", 0))) for r in rs),
                 len(rs), _status_counts(rs),
                 sum(int(r.get("rejected_samples", 0)) for r in rs),
                 _g(min((float(r["min_enforced_margin"]) for r in rs
@@ -305,7 +306,7 @@ def render(data: Data, command: str) -> str:
                   str(data.get("periods_method", "")), "", _periods(data["periods"]), ""]
     if "mismatch" in data:
         table, ke = _mismatch(data["mismatch"])
-        tight = _tightness(data["mismatch"])
+        tight = _tightness(cast(Data, data["mismatch"]))
         if tight:
             table += ("\n\n**The declared error's bound** (`model_error.InertiaError`) against "
                       "the true error of plants drawn inside it (`robustness.bound_tightness`):"

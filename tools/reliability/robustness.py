@@ -253,8 +253,11 @@ def bound_tightness(setup: ScenarioSetup, level: MismatchLevel, plants: int, sta
     skipped. The bound must hold at every one: ``max_ratio`` ≤ 1."""
     rng = np.random.default_rng(seed)
     model = setup.model
-    declared = DeclaredError(**{k: v if k == "inertia" else np.full(model.n, v)
-                                for k, v in level.declared().items() if k != "friction"})
+    def joint(value: float) -> Array | None:
+        return np.full(model.n, value) if value else None
+
+    declared = DeclaredError(max(level.mass, level.inertia), joint(level.armature),
+                             joint(level.damping))
     bound = declared.acceleration_bound(model)
     assert bound is not None
     t_mat, t_inv = model.coordinates.matrix, model.coordinates.inverse
