@@ -135,6 +135,14 @@ class DeclaredError:
         return self.position is not None or self.velocity is not None
 
 
+def _contracts(g: Array) -> bool:
+    """Whether G ≥ 0 has spectral radius below 1: at once when a row or column sum bound
+    says so, else from its eigenvalues."""
+    if min(float(g.sum(axis=1).max()), float(g.sum(axis=0).max())) < 1.0:
+        return True
+    return float(np.max(np.abs(np.linalg.eigvals(g)))) < 1.0
+
+
 def measurement_losses(constraints: ConstraintSet, state: ArmState, declared: DeclaredError,
                        period: float) -> tuple[Array, Array]:
     """What a measured state off by |x̃ − x| ≤ p̄, |ẋ̃ − ẋ| ≤ v̄ can hide of each margin of
@@ -220,16 +228,17 @@ class InertiaError:
         self._data = pin_model.createData()
         bodies = len(pin_model.inertias) - 1
         pieces = np.zeros((10 * bodies, 2 * bodies))  # each link's mass and rotation pieces
-        spatial = []
+        spatial = np.zeros((2 * bodies, 6, 6))  # each piece's spatial inertia, joint frame
         for k in range(bodies):
             link = pin_model.inertias[k + 1]
             mass = pin.Inertia(link.mass, link.lever, np.zeros((3, 3)))
             rotation = pin.Inertia(0.0, link.lever, link.inertia)
             pieces[10 * k:10 * k + 10, 2 * k] = mass.toDynamicParameters()
             pieces[10 * k:10 * k + 10, 2 * k + 1] = rotation.toDynamicParameters()
-            spatial.append((k + 1, mass.matrix(), rotation.matrix()))
+            spatial[2 * k], spatial[2 * k + 1] = mass.matrix(), rotation.matrix()
         self._pieces = pieces
-        self._spatial = spatial  # (joint, its link's mass piece, rotation piece), 6 × 6
+        self._spatial = spatial
+        self._jacobians = np.zeros((2 * bodies, 6, n))  # each piece's link's, joint frame
 
     def bound(self, state: ArmState, accel: Array) -> Array:
         """ā of the class docstring at ``state`` for the model acceleration ``accel``
@@ -255,15 +264,18 @@ class InertiaError:
             first += e * np.abs(inv @ per_piece).sum(axis=1)
             force += e * np.abs(per_piece).sum(axis=1)
             pin.computeJointJacobians(pin_model, data, q)
-            for body, mass, rotation in self._spatial:  # e Σ_p |D̂⁻¹ D_p|, D_p = J_kᵀ I_p J_k
-                jac = pin.getJointJacobian(pin_model, data, body, pin.ReferenceFrame.LOCAL)
-                spread += e * (np.abs(inv @ (jac.T @ mass @ jac))
-                               + np.abs(inv @ (jac.T @ rotation @ jac)))
+            jac = self._jacobians
+            for k in range(len(jac) // 2):
+                jac[2 * k] = jac[2 * k + 1] = pin.getJointJacobian(
+                    pin_model, data, k + 1, pin.ReferenceFrame.LOCAL)
+            # e Σ_p |D̂⁻¹ D_p|, D_p = J_kᵀ I_p J_k
+            pieces = np.transpose(jac, (0, 2, 1)) @ (self._spatial @ jac)
+            spread += e * np.abs(np.matmul(inv, pieces)).sum(axis=0)
         diag = np.sqrt(np.diag(inv))
         out = diag * math.sqrt(float(force @ np.abs(inv) @ force)) / (1 - e)
         if not np.any(armature):  # −eD̂ ⪯ ΔD ⪯ eD̂: |(D̂⁻¹ΔD y)_j| ≤ e √(D̂⁻¹)_jj ‖y‖_D̂
             out = np.minimum(out, first + e / (1 - e) * diag * math.sqrt(
                 float(first @ np.abs(inertia) @ first)))
-        if float(np.max(np.abs(np.linalg.eigvals(spread)))) < 1.0:
+        if _contracts(spread):
             out = np.minimum(out, np.linalg.solve(np.eye(len(first)) - spread, first))
         return out if coords.is_identity else np.abs(coords.matrix) @ out
