@@ -165,7 +165,10 @@ def _store(path: Path, section: str, result: dict[str, object], wall: int,
         wall_s = data.setdefault("wall_s", {})
         key = section if not config.scenarios else f"{section}:{','.join(config.scenarios)}"
         wall_s[key] = wall  # type: ignore[index]
-        data["environment"] = suite.environment()
+        # the report's environment is its first run's; each section run since is noted
+        environment = suite.environment()
+        data.setdefault("environment", environment)
+        data.setdefault("section_environment", {})[section] = environment  # type: ignore[index]
         data["config"] = {k: v for k, v in asdict(config).items()
                           if k not in ("safeguard", "scenarios")} | {
             "safeguard": asdict(config.safeguard)}
