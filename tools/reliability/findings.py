@@ -124,8 +124,9 @@ def _mismatch(d: Data) -> list[str]:
 def _declared_mismatch(d: Data) -> str:
     """The declared runs: what broke on the plant, what converged, what the guard held still,
     and how close the bound came to the drawn plants' true error."""
-    runs = [r for k, recs in d.items() if "/" not in k for r in cast(list[Data], recs)
-            if r.get("declared")]
+    every = [r for k, recs in d.items() if "/" not in k for r in cast(list[Data], recs)
+             if r["enforces"] and r["safeguard"]]
+    runs = [r for r in every if r.get("declared")]
     if not runs:
         return "not run."
     by_level: dict[str, list[Data]] = defaultdict(list)
@@ -142,7 +143,8 @@ def _declared_mismatch(d: Data) -> str:
             "plant" + (f" ({', '.join(f'{k} {v}' for k, v in sorted(what.items()))}: "
                        f"{', '.join(f'{k} {v}' for k, v in sorted(where.items()))})"
                        if broke else "")
-            + f"; {_counts(rs)}")
+            + f"; {_counts(rs)}" + _final_errors(rs, [
+                r for r in every if r["level"] == level and not r.get("declared")]))
     tight = [t for k, recs in d.items() if k.endswith("/tightness")
              for t in cast(list[Data], recs)]
     tail = ""
@@ -155,6 +157,24 @@ def _declared_mismatch(d: Data) -> str:
                 "a worst case over independent links' errors, which random draws rarely "
                 "line up).")
     return "; ".join(parts) + "." + tail
+
+
+def _final_errors(declared: list[Data], exact: list[Data]) -> str:
+    """The median final joint error of the declared runs against the same laws taking the
+    model as exact, on the planar arm and on the URDF arms apart."""
+    def median(rs: list[Data]) -> str:
+        return f"{statistics.median(_number(r['final_error']) for r in rs):.3g}" if rs else "–"
+
+    def planar(r: Data) -> bool:
+        return str(r["scenario"]).startswith(("thesis_", "planar_"))
+
+    parts = []
+    for name, keep in (("planar", planar), ("arms", lambda r: not planar(r))):
+        mine = [r for r in declared if keep(r)]
+        if mine:
+            parts.append(f"{name} {median(mine)} rad "
+                         f"(taken as exact: {median([r for r in exact if keep(r)])})")
+    return "; median final error " + ", ".join(parts) if parts else ""
 
 
 def _number(value: object) -> float:
