@@ -52,6 +52,7 @@ from cpbc.controllers import (
 from cpbc.controllers.safeguard import SafeguardSettings, guarded
 from cpbc.errors import CpbcError
 from cpbc.model import LinearCoordinates, RobotModel
+from cpbc.model.input_bounds import InputBounds
 from cpbc.provenance import provenance
 from cpbc.resources import models_dir
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, run_mujoco
@@ -164,8 +165,8 @@ def time_loop(
     default sampled-data safeguard around a constrained law or (``safeguard=False``) the bare
     law."""
     plant = setup.make_plant()
-    settings = LoopSettings(seconds, 0.001)
-    law = guarded(ctrl, settings.control_period, SafeguardSettings() if safeguard else None)
+    settings = LoopSettings(seconds, InputBounds(0.001))
+    law = guarded(ctrl, settings.bounds, SafeguardSettings() if safeguard else None)
     rates = []
     for _ in range(repeats):
         traj = run_mujoco(plant, law, setup.coordinates, *setup.start, settings)
@@ -182,9 +183,10 @@ def peer_times(setup: BenchSetup, repeats: int) -> dict[str, list[float]]:
     law = setup.controllers["cpbc"]
     period = 0.001
     contenders: dict[str, Controller] = {
-        "cpbc_guarded": guarded(law, period, SafeguardSettings(), setup.torque_limit),
+        "cpbc_guarded": guarded(law, InputBounds(period, setup.torque_limit),
+                                SafeguardSettings()),
         "cbf_qp": CBFQP(law.model, law.target, law.constraints, law.kp, law.kd,  # type: ignore[attr-defined]
-                        gain=20.0, period=period, torque_limit=setup.torque_limit),
+                        gain=20.0, bounds=InputBounds(period, setup.torque_limit)),
     }
     for ctrl in contenders.values():
         time_torque(ctrl, setup.states[:8], 1)

@@ -86,14 +86,14 @@ def guarded_tail(steps: int = 100_000, seconds: float = 0.5, seed: int = 0,
     setup = campaign_setup("panda_cpbc_sphere")
     if rate_limit is not None:
         limit = np.full(setup.model.n, float(rate_limit))
-        setup = replace(setup, loop_settings=replace(setup.loop_settings,
-                                                     torque_rate_limit=limit))
+        bounds = replace(setup.loop_settings.bounds, rate=limit)
+        setup = replace(setup, loop_settings=replace(setup.loop_settings, bounds=bounds))
     if rescue_budget is not None and setup.safeguard is not None:
         setup = replace(setup, safeguard=replace(setup.safeguard, rescue_budget=rescue_budget))
     entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
     settings = replace(setup.loop_settings, duration=seconds)
     plant = setup.make_plant()
-    per_run = round(seconds / settings.control_period) + 1
+    per_run = round(seconds / settings.bounds.period) + 1
     runs = max(1, -(-steps // per_run))
     times: list[int] = []
     cpu: list[int] = []

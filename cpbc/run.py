@@ -22,6 +22,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from cpbc.constraints.clearance import Clearance
 from cpbc.constraints.clearance.unclearable import SLACK
+from cpbc.controllers.packed_law import python_path_notes
 from cpbc.errors import CpbcError
 from cpbc.progress_bars import run_progress
 from cpbc.results import (
@@ -199,6 +200,9 @@ def _warn(setup: ScenarioSetup, err: Console) -> None:
                   f"{escape(', '.join(undeclared[:4]))}{', …' if len(undeclared) > 4 else ''}): "
                   "those run without a torque limit; give simulation.torque_limit to set "
                   "every joint's", highlight=False)
+    for entry in setup.controllers:  # a constraint without a kernel, said once, here
+        for line in python_path_notes(entry.controller):
+            err.print(f"[yellow]note:[/yellow] {escape(line)}", highlight=False)
     for line in left_out_pairs(setup) + _approaches(setup):
         err.print(f"[yellow]note:[/yellow] {escape(line)}", highlight=False)
     for line in uncovered_links(setup):

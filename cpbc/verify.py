@@ -126,8 +126,8 @@ def plans_from(a: argparse.Namespace) -> list[Plan]:
 def conditions(setup: ScenarioSetup) -> Record:
     """What a campaign's guarantee is conditional on: the physics, the actuators' limits and
     whether the laws run with their safeguard."""
-    limit = setup.loop_settings.torque_limit
-    rate = setup.loop_settings.torque_rate_limit
+    limit = setup.loop_settings.bounds.torque
+    rate = setup.loop_settings.bounds.rate
     error = setup.loop_settings.model_error
     return {
         "integrator": setup.plant_settings.integrator,

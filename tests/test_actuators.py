@@ -103,8 +103,8 @@ def _scenario(tmp_path: Path, model: Path, torque_limit: str, rest: list[float])
 def test_a_scenario_runs_with_the_actuators_limits(arm: Path, tmp_path: Path) -> None:
     # auto: where declared (j5 runs unlimited); from_model refuses the joint without one
     setup = build(*load_scenario(_scenario(tmp_path, arm, "auto", [0.0] * 5)))
-    assert setup.loop_settings.torque_limit is not None
-    np.testing.assert_array_equal(setup.loop_settings.torque_limit, EFFORTS)
+    assert setup.loop_settings.bounds.torque is not None
+    np.testing.assert_array_equal(setup.loop_settings.bounds.torque, EFFORTS)
     with pytest.raises(Exception, match=r"no effort limit for joints \['j5'\]"):
         build(*load_scenario(_scenario(tmp_path, arm, "from_model", [0.0] * 5)))
 
@@ -123,6 +123,6 @@ def test_robosuites_panda_runs_with_its_printed_efforts(tmp_path: Path) -> None:
              / "robot.xml")
     setup = build(*load_scenario(_scenario(tmp_path, panda, "from_model",
                                            [0.0, 0.0, 0.0, -1.57, 0.0, 1.87, 0.0])))
-    assert setup.loop_settings.torque_limit is not None
-    np.testing.assert_array_equal(setup.loop_settings.torque_limit, [80] * 5 + [12] * 2)
+    assert setup.loop_settings.bounds.torque is not None
+    np.testing.assert_array_equal(setup.loop_settings.bounds.torque, [80] * 5 + [12] * 2)
     np.testing.assert_array_equal(describe(str(panda)).limits.effort, [80] * 5 + [12] * 2)

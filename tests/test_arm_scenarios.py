@@ -71,11 +71,11 @@ def test_limits_come_from_the_urdf(tmp_path: Path) -> None:
     np.testing.assert_allclose(limits.lower, setup.arm.position_lower)
     np.testing.assert_allclose(limits.upper, setup.arm.position_upper)
     np.testing.assert_allclose(rates.bounds, 0.5 * setup.arm.velocity_limit)
-    np.testing.assert_allclose(setup.loop_settings.torque_limit, setup.arm.effort_limit)
+    np.testing.assert_allclose(setup.loop_settings.bounds.torque, setup.arm.effort_limit)
     assert isinstance(clearance, Clearance)
     assert setup.rate_bounds == pytest.approx((0.5 * setup.arm.velocity_limit).tolist())
     ur5 = _build(tmp_path, _shipped("ur5_bpbc"))
-    np.testing.assert_allclose(ur5.loop_settings.torque_limit, [75, 75, 75, 14, 14, 14])
+    np.testing.assert_allclose(ur5.loop_settings.bounds.torque, [75, 75, 75, 14, 14, 14])
 
 
 def test_obstacles_are_bodies_in_the_mujoco_scene(tmp_path: Path) -> None:

@@ -24,7 +24,7 @@ def test_least_squares_brake_stays_in_the_box_and_stops_faster_than_it_can(panda
     s = draw_state(setup, 5)
     state = setup.model.state(s.position, s.velocity)
     bias = state.coriolis_force + state.gravity + state.dissipation
-    box = TorqueBox.of(setup.model, setup.loop_settings.torque_limit)
+    box = TorqueBox.of(setup.model, setup.loop_settings.bounds.torque)
     tau = least_squares_brake(box)(state, bias, 0.001)
     assert np.all(np.abs(box.joint(tau)) <= box.limit * (1 + 1e-9))
     acc = np.linalg.solve(state.inertia, tau - bias)
@@ -37,7 +37,7 @@ def test_the_nearest_reachable_torque_costs_the_acceleration_least(panda):
     box (which starved the FR3's light last joint) and than clipping joint by joint."""
     setup, _ = panda
     rng = np.random.default_rng(3)
-    box = TorqueBox.of(setup.model, setup.loop_settings.torque_limit)
+    box = TorqueBox.of(setup.model, setup.loop_settings.bounds.torque)
     for seed in range(20):
         s = draw_state(setup, seed)
         inertia = setup.model.inertia(s.position)
@@ -73,7 +73,8 @@ def test_the_guard_keeps_states_only_a_better_brake_can_stop(scenario, rate, see
     s = draw_state(setup, seed)
     assert not in_braking_set(setup, kept, s.position, s.velocity, h)
     assert stopping_brake(setup, kept, s.position, s.velocity, h, plant) is not None
-    settings = replace(setup.loop_settings, duration=0.3, control_period=h, log_every=1,
+    settings = replace(setup.loop_settings, duration=0.3,
+        bounds=replace(setup.loop_settings.bounds, period=h), log_every=1,
                        noise=None)
     check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
                         safeguard=setup.safeguard)

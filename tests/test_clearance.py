@@ -17,6 +17,7 @@ from cpbc.constraints.geometry import (
     PlaneObstacle,
     SphereObstacle,
 )
+from cpbc.constraints.linear_limit import joint_position_limit
 from cpbc.errors import ConstraintViolation, CpbcError, ModelError
 from cpbc.model import LinearCoordinates, RobotModel
 from cpbc.model.loading import LoadedArm, load_arm
@@ -185,6 +186,27 @@ def test_names_are_per_link_and_obstacle() -> None:
     assert "clearance[panda_link1|panda_hand]" in c.names
     assert len(c.names) == 10 * len(OBSTACLES) + len(SELF)
     assert len(set(c.names)) == len(c.names)
+
+
+@pytest.mark.parametrize("kind", ["spheres", "capsules", "mixed"])
+def test_the_gradient_at_a_state_is_the_gradient_at_its_configuration(kind, rng) -> None:
+    """gradient_at reads the per-step state's kinematics (the guard's path: no Pinocchio
+    pass), and a set's rows stack its constraints' in the order of its names: the same rows
+    as ``gradient`` at x; a state built without kinematics falls back to ``gradient``."""
+    c = _clearance(kind)
+    _, model = _panda()
+    lower, upper = -np.full(7, 2.8), np.full(7, 2.8)
+    limits = joint_position_limit(lower, upper, [f"j{i}" for i in range(7)])
+    both = ConstraintSet(7, [limits, c])
+    for x in _states(rng, 6):
+        dx = rng.normal(size=7)
+        state = model.state(x, dx, kinematics=True)
+        np.testing.assert_allclose(c.gradient_at(state), c.gradient(x), rtol=1e-12,
+                                   atol=1e-14)
+        np.testing.assert_allclose(both.configuration_gradients(state),
+                                   np.vstack([limits.gradient(x), c.gradient(x)]),
+                                   rtol=1e-12, atol=1e-14)
+        np.testing.assert_array_equal(c.gradient_at(model.state(x, dx)), c.gradient(x))
 
 
 def test_controller_coordinates(rng, central_difference) -> None:

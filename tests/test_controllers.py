@@ -33,6 +33,7 @@ from cpbc.controllers.potentials import Configuration
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model import LinearCoordinates, RobotModel
+from cpbc.model.input_bounds import InputBounds
 from cpbc.resources import models_dir
 
 PLANAR = models_dir() / "planar_2link.xml"
@@ -339,7 +340,7 @@ def test_overriding_a_laws_formula_changes_its_torque(tilted: RobotModel, index:
         # placement from Pinocchio; the packed step reads it from the joint kinematics
         assert shifted.evaluate(x, dx)[1] == pytest.approx(law.evaluate(x, dx)[1], rel=1e-12)
         if not law.constraints.empty:  # the guard asks the subclass, not the base class
-            guarded = Safeguard(shifted, 0.001,
+            guarded = Safeguard(shifted, InputBounds(0.001),
                                 SafeguardSettings(decay_rate=1e6, hold_correction=False))
             np.testing.assert_allclose(guarded.torque(x, dx), tau + extra, rtol=1e-12,
                                        atol=1e-12)

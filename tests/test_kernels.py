@@ -157,18 +157,20 @@ for i, (x, dx) in enumerate(bounded_states):
 # the guard's kernels (cpbc.kernels.sampled_guard): its accept path, and blends, brakes and box
 # scalings from the law's torque pushed off by a fixed noise (the guard's own entry point)
 from cpbc.controllers.safeguard import SafeguardSettings, guarded
+from cpbc.model.input_bounds import InputBounds
 setup = panda(states=8)
 rng = np.random.default_rng(5)
 for period in (0.001, 0.01):
-    guard = guarded(setup.controllers["cpbc"], period, SafeguardSettings(), setup.torque_limit)
+    guard = guarded(setup.controllers["cpbc"], InputBounds(period, setup.torque_limit),
+                    SafeguardSettings())
     for i, (x, dx) in enumerate(setup.states[:8]):
         state = guard.state(x, dx)
         law = guard.law.evaluate_state(state, margins=True)
         for push in (0.0, 3.0, 30.0):
             tau = law.torque + push * rng.standard_normal(len(x))
-            out[f"guard/{period}/{i}/{push}"] = guard._guard(state, tau, law.margins).tolist()
+            out[f"guard/{period}/{i}/{push}"] = guard.filter(state, tau, law.margins).tolist()
     out[f"guard/{period}/counts"] = [guard.acted, guard.scaled]
-# the CBF-QP peer's per-pair rows (cpbc.kernels.clearance.sphere_pair_rows), from the state
+# the CBF-QP peer's per-pair rows (cpbc.kernels.clearance_motion.sphere_pair_rows), from the state
 from cpbc.constraints.clearance import Clearance
 law = setup.controllers["cpbc"]
 clearance = next(c for c in law.constraints.configuration if isinstance(c, Clearance))

@@ -11,6 +11,7 @@ from cpbc.constraints import ConstraintSet, joint_rate_limit
 from cpbc.controllers import BPBC, Power
 from cpbc.errors import CpbcError
 from cpbc.model import RobotModel
+from cpbc.model.input_bounds import InputBounds
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, run_mujoco
 from cpbc.simulation.trajectory import TrajectoryLog
 
@@ -53,14 +54,14 @@ def test_unbounded_log_grows_as_before() -> None:
 def test_ten_minutes_at_1_khz_fit_the_default_cap() -> None:
     """600 001 samples of a 7-joint arm would take 144 MB; the default cap keeps ≤ 24 MB."""
     steps = 600_001
-    settings = LoopSettings(600.0, 0.001)
+    settings = LoopSettings(600.0, InputBounds(0.001))
     log = TrajectoryLog(7, steps, settings.log_every, settings.max_log_samples)
     assert log.nbytes <= settings.max_log_samples * (4 * 7 + 2) * 8 <= 25e6
 
 
 def test_max_log_samples_is_checked() -> None:
     with pytest.raises(CpbcError, match="max_log_samples"):
-        LoopSettings(1.0, 0.001, max_log_samples=1)
+        LoopSettings(1.0, InputBounds(0.001), max_log_samples=1)
 
 
 def test_closed_loop_log_size_is_independent_of_duration(absolute_model: RobotModel,
@@ -72,7 +73,7 @@ def test_closed_loop_log_size_is_independent_of_duration(absolute_model: RobotMo
     out = {}
     for duration in (1.0, 4.0):
         traj = run_mujoco(plant, law, absolute_model.coordinates, np.zeros(2), np.zeros(2),
-                          LoopSettings(duration, 0.001, max_log_samples=256))
+                          LoopSettings(duration, InputBounds(0.001), max_log_samples=256))
         assert traj.outcome == "completed"
         assert traj.control_steps == round(duration / 0.001) + 1
         assert traj.time[-1] == pytest.approx(duration)

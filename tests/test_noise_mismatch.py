@@ -17,6 +17,7 @@ from cpbc.controllers import BPBC, Controller, Power
 from cpbc.controllers.controller import Evaluation
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model import ArmState, RobotModel
+from cpbc.model.input_bounds import InputBounds
 from cpbc.reliability.campaign import campaign_setup
 from cpbc.results.metrics import STATUSES
 from cpbc.scenario import build, load_scenario
@@ -52,7 +53,7 @@ def run(plant: MujocoPlant, law: Controller, settings: LoopSettings, dx0=(0.0, 0
 
 
 def test_noise_is_seeded_and_seen_only_by_the_controller(bpbc: BPBC, plant) -> None:
-    base = LoopSettings(0.3, 0.001)
+    base = LoopSettings(0.3, InputBounds(0.001))
     clean = run(plant, bpbc, base)
     a = run(plant, bpbc, replace(base, noise=MeasurementNoise(1e-3, 1e-2, seed=4)))
     b = run(plant, bpbc, replace(base, noise=MeasurementNoise(1e-3, 1e-2, seed=4)))
@@ -78,7 +79,7 @@ def test_noise_sizes_are_checked() -> None:
 def test_noisy_sample_outside_S_is_refused_and_the_run_goes_on(bpbc, plant) -> None:
     """Starting at 99.9 % of the rate bound with rate noise σ = 5 mrad/s, many samples are
     measured outside S; the arm is not, and the run completes."""
-    settings = LoopSettings(1.0, 0.001, noise=MeasurementNoise(0.0, 0.005, seed=1))
+    settings = LoopSettings(1.0, InputBounds(0.001), noise=MeasurementNoise(0.0, 0.005, seed=1))
     traj = run(plant, bpbc, settings, dx0=(0.2997, 0.0))
     assert traj.outcome == "completed"
     assert traj.rejected_samples > 0
@@ -101,7 +102,7 @@ class Pushing(Controller):
 def test_true_state_outside_S_ends_the_run_as_violated(absolute_model, plant) -> None:
     rates = ConstraintSet(2, velocity=[joint_rate_limit(RATES, ["t1", "t2"])])
     law = Pushing(absolute_model, np.zeros(2), rates)
-    settings = LoopSettings(1.0, 0.001,
+    settings = LoopSettings(1.0, InputBounds(0.001),
                             noise=MeasurementNoise(0.0, 0.01, seed=2))
     traj = run(plant, law, settings)
     assert traj.outcome == "constraint_violated"

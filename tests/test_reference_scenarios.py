@@ -96,7 +96,7 @@ def test_the_joint_limit_circle_blocks_within_one_period_naming_the_pan(load_dic
     assert s.blocked_at is not None and not s.crossed_constraints
     assert setup.reference is not None
     start = setup.reference.plans["TS-CPBC-stop"].postures_path.stretches[0][0]
-    h = setup.loop_settings.control_period
+    h = setup.loop_settings.bounds.period
     assert 0.0 <= start - s.blocked_at["path_time"] <= h
     assert r.reference is not None and r.reference["blocked"][-1]
     assert s.min_margins["position[shoulder_pan_joint]"] > 0

@@ -25,6 +25,7 @@ from cpbc.arrays import Array
 from cpbc.constraints import ConfigurationConstraint
 from cpbc.constraints.margins import BY_KEY, OTHER, TYPES
 from cpbc.controllers.law_kind import Slopes
+from cpbc.controllers.packed_law import python_path_notes
 from cpbc.controllers.pd import PDSpec, build_pd
 from cpbc.errors import ScenarioError
 from cpbc.json_schema import scenario_schema
@@ -292,6 +293,10 @@ def test_a_new_constraint_kind_reaches_schema_build_results_figures_and_docs(
     setup = _built(tmp_path, data, kinds)
     law = setup.controllers[0].controller
     assert "below" in law.constraints.names  # the law enforces it (all constraints)
+    # it has no kernel: it alone runs in Python, and cpbc.run says so once, at build
+    (note,) = python_path_notes(law)
+    assert "'below' (PointBelow) has no kernel" in note and "µs a step" in note
+    assert python_path_notes(law) == []
     results = run_all(setup)
     summary = results[0].summary
     assert summary.margin_types["below"] == "clearance"

@@ -41,7 +41,7 @@ def test_the_prediction_ends_where_a_one_step_plant_lands(figure8):
     s = draw_state(setup, 62)
     state = setup.model.state(s.position, s.velocity)
     bias = state.coriolis_force + state.gravity + state.dissipation
-    box = TorqueBox.of(setup.model, setup.loop_settings.torque_limit)
+    box = TorqueBox.of(setup.model, setup.loop_settings.bounds.torque)
     tau = box.clip(bias + state.inertia @ np.linspace(-40.0, 40.0, setup.model.n))
     plant = setup.make_plant()
     coords = setup.model.coordinates
@@ -62,7 +62,7 @@ def test_a_committed_brake_is_held_only_in_the_next_period(figure8):
     (the guard's own torque passed) ends it, and the next failure searches afresh."""
     setup, _, kept = figure8
     s = draw_state(setup, 19)
-    box = TorqueBox.of(setup.model, setup.loop_settings.torque_limit)
+    box = TorqueBox.of(setup.model, setup.loop_settings.bounds.torque)
     rescue = Rescue(setup.model, kept, box, np.full(len(kept.names), 1e-5), H, 1)
     state = setup.model.state(s.position, s.velocity)
     bias = state.coriolis_force + state.gravity + state.dissipation
@@ -87,7 +87,8 @@ def test_the_guard_keeps_the_clearance_of_the_figure8_from_a_stoppable_state(fig
     s = draw_state(setup, 19)
     plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
     assert stopping_brake(setup, kept, s.position, s.velocity, H, plant) is not None
-    settings = replace(setup.loop_settings, duration=0.5, control_period=H, log_every=1)
+    settings = replace(setup.loop_settings, duration=0.5,
+        bounds=replace(setup.loop_settings.bounds, period=H), log_every=1)
     assert setup.reference is not None
     check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
                         safeguard=setup.safeguard, phase=setup.reference.phase(entry.name, 19))
@@ -98,7 +99,7 @@ def test_the_guard_keeps_the_clearance_of_the_figure8_from_a_stoppable_state(fig
 def _rescue_at(figure8, seed, budget):
     setup, _, kept = figure8
     s = draw_state(setup, seed)
-    box = TorqueBox.of(setup.model, setup.loop_settings.torque_limit)
+    box = TorqueBox.of(setup.model, setup.loop_settings.bounds.torque)
     rescue = Rescue(setup.model, kept, box, np.full(len(kept.names), 1e-5), H, 1, budget=budget)
     state = setup.model.state(s.position, s.velocity)
     bias = state.coriolis_force + state.gravity + state.dissipation
@@ -110,7 +111,7 @@ def test_a_rollout_run_in_pieces_ends_as_one_run_to_its_end(figure8):
     run at once: same outcome, periods and least margin."""
     setup, _, kept = figure8
     s = draw_state(setup, 19)
-    box = TorqueBox.of(setup.model, setup.loop_settings.torque_limit)
+    box = TorqueBox.of(setup.model, setup.loop_settings.bounds.torque)
     table = brakes(box, kept, setup.model)
     outcomes = []
     for piece in (None, 3):

@@ -161,7 +161,7 @@ def test_a_worker_rebuilds_every_setting_of_the_scenario(source: str, tmp_path: 
     here, there = build(scenario, file), build(rebuilt, file)
     assert _settings(there) == _settings(here)
     if source in ("talos_arm", "ur10"):
-        np.testing.assert_array_equal(there.loop_settings.torque_limit, there.arm.effort_limit)
+        np.testing.assert_array_equal(there.loop_settings.bounds.torque, there.arm.effort_limit)
 
 
 def _timing_free(summary: dict[str, object]) -> dict[str, object]:

@@ -19,6 +19,7 @@ from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings, guarded, viable
 from cpbc.errors import CpbcError
 from cpbc.model import RobotModel
+from cpbc.model.input_bounds import InputBounds
 from cpbc.reliability.campaign import (
     RecordingPlant,
     campaign_setup,
@@ -61,9 +62,9 @@ def test_far_from_the_boundary_the_law_is_untouched(bpbc: BPBC) -> None:
     """Far from every bound the guard hands back the law's torque corrected for the hold
     (and, with the correction off, the law's own torque), without acting."""
     x, dx = np.array([0.3, 0.4]), np.array([0.01, -0.02])
-    bare = Safeguard(bpbc, 0.01, SafeguardSettings(hold_correction=False))
+    bare = Safeguard(bpbc, InputBounds(0.01), SafeguardSettings(hold_correction=False))
     np.testing.assert_array_equal(bare.torque(x, dx), bpbc.torque(x, dx))
-    guard = Safeguard(bpbc, 0.01)
+    guard = Safeguard(bpbc, InputBounds(0.01))
     state = bpbc.state(x, dx)
     bias = state.coriolis_force + state.gravity + state.dissipation
     np.testing.assert_array_equal(
@@ -77,7 +78,7 @@ def test_back_off_meets_the_discrete_barrier_condition(recentred: RecentredBarri
     (≈ 2 kN·m at 100 Hz) breaks (S1); the blended torque meets it, at the end of the period
     and half-way."""
     h = 0.01
-    guard = Safeguard(recentred, h)
+    guard = Safeguard(recentred, InputBounds(h))
     x, dx = np.array([0.7, -1.29]), np.array([0.09, -0.3])
     raw = recentred.torque(x, dx)
     tau = guard.torque(x, dx)
@@ -98,7 +99,7 @@ def test_back_off_meets_the_discrete_barrier_condition(recentred: RecentredBarri
 def test_back_off_takes_the_smallest_blend_it_can_find(recentred: RecentredBarrier) -> None:
     """A blend a little closer to the law than the one chosen already fails (S1)."""
     h = 0.01
-    guard = Safeguard(recentred, h)
+    guard = Safeguard(recentred, InputBounds(h))
     x, dx = np.array([0.7, -1.29]), np.array([0.09, -0.3])
     raw = recentred.torque(x, dx)
     tau = guard.torque(x, dx)
@@ -130,7 +131,7 @@ def test_viability_is_the_quarter_period_excursion(recentred: RecentredBarrier) 
 
 def test_torque_limit_is_inside_the_prediction(recentred: RecentredBarrier) -> None:
     """With motors too weak to brake, even the brake fails (S1): counted as infeasible."""
-    guard = Safeguard(recentred, 0.01, torque_limit=np.array([1e-3, 1e-3]))
+    guard = Safeguard(recentred, InputBounds(0.01, np.array([1e-3, 1e-3])))
     x, dx = np.array([0.7, -1.295]), np.array([0.09, -0.3])
     guard.torque(x, dx)
     assert guard.acted == 1 and guard.infeasible == 1
@@ -145,7 +146,7 @@ def test_braking_search_finds_a_factor_between_stop_and_reverse(
     recentred: RecentredBarrier,
 ) -> None:
     """Stopping (λ = 1) and reversing (λ = 2) both fail; some λ between passes."""
-    guard = Safeguard(recentred, 0.01)
+    guard = Safeguard(recentred, InputBounds(0.01))
     seen: list[float] = []
 
     def slack(t: np.ndarray) -> float:
@@ -153,25 +154,25 @@ def test_braking_search_finds_a_factor_between_stop_and_reverse(
         seen.append(lam)
         return 0.01 - (lam - 1.5) ** 2  # passes for λ in (1.4, 1.6)
 
-    lam, f = guard._search_braking(np.zeros(1), np.ones(1), slack, slack(-np.ones(1)),
-                                   slack(-2 * np.ones(1)))
+    lam, f = guard.brakes.search_braking(np.zeros(1), np.ones(1), slack,
+                                         slack(-np.ones(1)), slack(-2 * np.ones(1)))
     assert f >= 0 and 1.4 < lam < 1.6
     assert len(seen) <= 2 + guard.settings.brake_search
 
 
 def test_braking_search_returns_the_best_when_none_passes(recentred: RecentredBarrier) -> None:
-    guard = Safeguard(recentred, 0.01)
+    guard = Safeguard(recentred, InputBounds(0.01))
 
     def slack(t: np.ndarray) -> float:
         return -0.5 - (_lambda_of(t) - 1.3) ** 2  # best at λ = 1.3, never ≥ 0
 
-    lam, f = guard._search_braking(np.zeros(1), np.ones(1), slack, slack(-np.ones(1)),
-                                   slack(-2 * np.ones(1)))
+    lam, f = guard.brakes.search_braking(np.zeros(1), np.ones(1), slack,
+                                         slack(-np.ones(1)), slack(-2 * np.ones(1)))
     assert f < 0 and abs(lam - 1.3) < 0.1  # five golden-section steps on [1, 2]
     assert f == pytest.approx(slack(-lam * np.ones(1)))
-    off = Safeguard(recentred, 0.01, SafeguardSettings(brake_search=0))
-    lam0, _ = off._search_braking(np.zeros(1), np.ones(1), slack, slack(-np.ones(1)),
-                                  slack(-2 * np.ones(1)))
+    off = Safeguard(recentred, InputBounds(0.01), SafeguardSettings(brake_search=0))
+    lam0, _ = off.brakes.search_braking(np.zeros(1), np.ones(1), slack,
+                                        slack(-np.ones(1)), slack(-2 * np.ones(1)))
     assert lam0 == 1.0  # no search: the better of stopping and reversing
 
 
@@ -180,14 +181,14 @@ def test_fallback_is_the_calmest_brake_that_keeps_the_cushion(
 ) -> None:
     """With no torque meeting (S1) the fallback keeps the margins above the cushion (S0)
     with the smallest braking factor (least reversal of the motion) it can find."""
-    guard = Safeguard(recentred, 0.01)
+    guard = Safeguard(recentred, InputBounds(0.01))
 
     def positivity(t: np.ndarray) -> float:
         return _lambda_of(t) - 1.4  # (S0) holds for λ ≥ 1.4
 
-    lam = _lambda_of(guard._fallback(np.zeros(1), np.ones(1), positivity))
+    lam = _lambda_of(guard.brakes.fallback(np.zeros(1), np.ones(1), positivity))
     assert 1.4 <= lam < 1.45
-    assert _lambda_of(guard._fallback(np.zeros(1), np.ones(1), lambda t: 1.0)) == 1.0
+    assert _lambda_of(guard.brakes.fallback(np.zeros(1), np.ones(1), lambda t: 1.0)) == 1.0
 
 
 @pytest.mark.parametrize("d1, v1, d2, v2", [(1.5e-4, 0.04, 2e-4, 0.05),
@@ -201,7 +202,8 @@ def test_escape_pushes_off_one_limit_and_stops_the_joint_leaving_another(
     over the period and dips mid-period by no more than the decay share) and only stops
     joint 2 (judged by the closed-form prediction: one step of 10 ms)."""
     # the law's torque held as it is (with the hold correction it meets (S1) here)
-    guard = Safeguard(recentred, 0.01, SafeguardSettings(max_step=0.01, hold_correction=False))
+    guard = Safeguard(recentred, InputBounds(0.01),
+                      SafeguardSettings(max_step=0.01, hold_correction=False))
     cons = recentred.constraints
     x, dx = np.array([1.4 - d1, -1.3 + d2]), np.array([v1, v2])
     assert viable(cons, x, dx, 0.01)
@@ -229,13 +231,13 @@ def test_settings_are_checked(kwargs: dict) -> None:
 
 def test_period_is_checked(bpbc: BPBC) -> None:
     with pytest.raises(CpbcError, match="period"):
-        Safeguard(bpbc, 0.0)
+        Safeguard(bpbc, InputBounds(0.0))
 
 
 def test_sub_stepped_prediction_agrees_with_the_frozen_one(bpbc: BPBC) -> None:
     x, dx = np.array([0.3, 0.4]), np.array([0.29, 0.1])
-    a = Safeguard(bpbc, 0.002).torque(x, dx)
-    b = Safeguard(bpbc, 0.002, SafeguardSettings(substeps=4)).torque(x, dx)
+    a = Safeguard(bpbc, InputBounds(0.002)).torque(x, dx)
+    b = Safeguard(bpbc, InputBounds(0.002), SafeguardSettings(substeps=4)).torque(x, dx)
     np.testing.assert_allclose(a, b, rtol=1e-6)
 
 
@@ -274,11 +276,12 @@ def test_loop_reports_the_safeguard_and_can_switch_it_off(recentred: RecentredBa
     plant = MujocoPlant.from_file(planar_path, PlantSettings(0.001, "Euler"))
     x0, dx0 = np.array([0.7, -1.29]), np.array([0.09, -0.3])
     coords = recentred.model.coordinates
-    on = run_mujoco(plant, guarded(recentred, 0.01, SafeguardSettings()), coords, x0, dx0,
-                    LoopSettings(0.2, 0.01))
-    off = run_mujoco(plant, guarded(recentred, 0.01, None), coords, x0, dx0,
-                     LoopSettings(0.2, 0.01))
-    assert guarded(recentred, 0.01, None) is recentred
+    on = run_mujoco(plant, guarded(recentred, InputBounds(0.01), SafeguardSettings()), coords,
+                    x0, dx0,
+                    LoopSettings(0.2, InputBounds(0.01)))
+    off = run_mujoco(plant, guarded(recentred, InputBounds(0.01), None), coords, x0, dx0,
+                     LoopSettings(0.2, InputBounds(0.01)))
+    assert guarded(recentred, InputBounds(0.01), None) is recentred
     assert on.outcome == "completed" and on.safeguard_steps > 0
     assert off.safeguard_steps == 0
 
@@ -295,8 +298,9 @@ def test_also_keeps_a_constraint_the_law_only_monitors(bpbc: BPBC, planar_path,
     x0, dx0 = np.array([0.2, 0.2]), np.array([0.29, 0.15])
     low = {}
     for keep in ((), (wall,)):
-        traj = run_mujoco(plant, guarded(bpbc, period, SafeguardSettings(), also_keep=keep),
-                          coords, x0, dx0, LoopSettings(1.0, period))
+        law = guarded(bpbc, InputBounds(period), SafeguardSettings(), also_keep=keep)
+        traj = run_mujoco(plant, law,
+                          coords, x0, dx0, LoopSettings(1.0, InputBounds(period)))
         assert traj.outcome == "completed"
         xs, dxs = plant.fine_states(coords.matrix)
         low[len(keep)] = float(wall.values_along(xs).min())
@@ -307,13 +311,14 @@ def test_also_keeps_a_constraint_the_law_only_monitors(bpbc: BPBC, planar_path,
 
 def test_an_extra_constraint_already_broken_does_not_break_the_guard(bpbc: BPBC) -> None:
     wall = joint_position_limit(np.array([-1.0, -10.0]), np.array([0.3, 10.0]), ["t1", "t2"])
-    guard = Safeguard(bpbc, 0.01, also_keep=(wall,))
+    guard = Safeguard(bpbc, InputBounds(0.01), also_keep=(wall,))
     tau = guard.torque(np.array([0.31, 0.2]), np.array([0.1, 0.0]))  # past the wall
     assert np.all(np.isfinite(tau)) and guard.acted == 1
-    assert len(Safeguard(bpbc, 0.01, also_keep=bpbc.constraints.configuration).guarded) == 2
+    kept = Safeguard(bpbc, InputBounds(0.01), also_keep=bpbc.constraints.configuration)
+    assert len(kept.guarded) == 2
     same_names = joint_position_limit(np.array([-1.0, -10.0]), np.array([0.3, 10.0]),
                                       ["t1", "t2"])
-    twice = Safeguard(bpbc, 0.01, also_keep=(wall, same_names))  # one copy is kept
+    twice = Safeguard(bpbc, InputBounds(0.01), also_keep=(wall, same_names))  # one copy is kept
     assert len(twice.guarded) == 2 + 2
 
 
@@ -356,7 +361,8 @@ def test_summary_and_scenario_key(tmp_path) -> None:
     setup.cases = [replace(setup.cases[0], position=np.array([0.7, -1.29]),
                            velocity=np.array([0.09, -0.3]))]
     setup.controllers = [c for c in setup.controllers if c.name == "recentred"]
-    setup.loop_settings = replace(setup.loop_settings, duration=0.2, control_period=0.01)
+    setup.loop_settings = replace(setup.loop_settings, duration=0.2,
+        bounds=replace(setup.loop_settings.bounds, period=0.01))
     (on,) = run_all(setup)
     assert on.summary.safeguard_steps > 0
     assert on.summary.as_dict()["safeguard_steps"] == on.summary.safeguard_steps
@@ -379,8 +385,8 @@ def test_every_guarded_torque_fits_the_torque_box_with_its_direction_kept(
     scaled toward C ẋ + g + f, never clipped joint by joint."""
     limit = np.array([3.0, 1.0])
     # the law's own torque, not its hold-corrected one, is what is compared below
-    guard = Safeguard(recentred, 0.01, SafeguardSettings(hold_correction=False),
-                      torque_limit=limit)
+    guard = Safeguard(recentred, InputBounds(0.01, limit),
+                      SafeguardSettings(hold_correction=False))
     rng = np.random.default_rng(7)
     shrunk = 0
     for _ in range(200):
@@ -410,9 +416,9 @@ def test_a_brake_that_does_not_fit_slows_every_joint(joint_model: RobotModel) ->
     law = RecentredBarrier(joint_model, np.zeros(2), cons, 5, 2)
     limit = np.array([2.9, 5.8])
     h = 0.01
-    guard = Safeguard(law, h, torque_limit=limit)
+    guard = Safeguard(law, InputBounds(h, limit))
     x, dx = np.array([0.0, 0.45]), np.array([-0.44, -0.03])
-    brake = guard._brake(*_bias_and_stop(law, x, dx, h), 1.0)
+    brake = guard.brakes.brake(*_bias_and_stop(law, x, dx, h), 1.0)
     assert np.all(np.abs(brake) <= limit * (1 + 1e-12))
     a, _ = _joint_accel(law, x, dx, brake)
     assert np.all(np.abs(dx + h * a) < np.abs(dx))  # every joint slower
@@ -439,7 +445,7 @@ def test_the_braking_margins_keep_states_the_one_period_test_lets_go() -> None:
     without σ."""
     off = SafeguardSettings(hold_correction=False)
     setup = replace(campaign_setup("panda_cpbc_sphere"), safeguard=off)
-    limit = setup.loop_settings.torque_limit
+    limit = setup.loop_settings.bounds.torque
     assert limit is not None and limit.max() == 87.0
     entry = constrained(setup)[0]
     braking = Braking.of(setup.model, limit)
@@ -453,7 +459,7 @@ def test_the_braking_margins_keep_states_the_one_period_test_lets_go() -> None:
         assert not kept.violated and kept.trajectory.safeguard_steps > 0
         guard = setup.controller(entry)
         assert isinstance(guard, Safeguard)
-        guard.braking = None  # the same guard without σ
+        guard.acceptance.braking = None  # the same guard without σ
         law = replace(entry, controller=guard)
         lost = checked_run(plant, setup, law, s.position, s.velocity, settings,
                            safeguard=None)
@@ -469,12 +475,13 @@ def test_within_the_urdf_torque_limits_no_state_of_the_braking_set_is_lost(perio
     that slows every joint together cannot stop them in time) are lost — the sample reaches
     the edge of what the actuators allow."""
     setup = campaign_setup("panda_cpbc_sphere")
-    limit = setup.loop_settings.torque_limit
+    limit = setup.loop_settings.bounds.torque
     assert limit is not None and limit.max() == 87.0
     entry = constrained(setup)[0]
     braking = Braking.of(setup.model, limit)
     plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
-    settings = replace(setup.loop_settings, duration=0.3, control_period=period, noise=None)
+    settings = replace(setup.loop_settings, duration=0.3,
+        bounds=replace(setup.loop_settings.bounds, period=period), noise=None)
     inside, outside_lost, acted = 0, 0, 0
     for s in sample_states(setup, 30, seed=11):
         sigma, _ = braking.margins(setup.monitor, setup.model, s.position, s.velocity)
@@ -503,14 +510,16 @@ def test_a_run_the_guard_holds_at_a_boundary_is_held_not_stalled(bpbc: BPBC,
     plant = MujocoPlant.from_file(planar_path, settings)
     coords = bpbc.model.coordinates
     x0, dx0 = np.array([0.2, 0.2]), np.zeros(2)
-    held = run_mujoco(plant, guarded(bpbc, 0.001, SafeguardSettings(), also_keep=(wall,)),
-                      coords, x0, dx0, LoopSettings(60.0, 0.001))
+    walled = guarded(bpbc, InputBounds(0.001), SafeguardSettings(), also_keep=(wall,))
+    held = run_mujoco(plant, walled,
+                      coords, x0, dx0, LoopSettings(60.0, InputBounds(0.001)))
     assert judge_status(held, bpbc.target, SettleCriteria())[0] == "held"
     assert held.guarded_steps is not None and held.guarded_steps[-12000:].mean() > 0.5
     assert abs(held.position[-1, 1] - np.pi) < 0.01  # link 2 went on to its target
     assert 0 < 0.3 - held.position[-1, 0] < 0.01  # link 1 rests against the wall
-    free = run_mujoco(plant, guarded(bpbc, 0.001, SafeguardSettings()), coords, x0, dx0,
-                      LoopSettings(60.0, 0.001))
+    free = run_mujoco(plant, guarded(bpbc, InputBounds(0.001), SafeguardSettings()), coords,
+                      x0, dx0,
+                      LoopSettings(60.0, InputBounds(0.001)))
     assert free.guarded_steps is not None and not free.guarded_steps.any()
     assert judge_status(free, bpbc.target, SettleCriteria())[0] == "converged"
 
@@ -520,20 +529,20 @@ def test_the_slide_removes_only_the_push_into_the_boundary(bpbc: BPBC) -> None:
     link 1 into the wall: the guard's slide keeps the law's acceleration of link 2 as it is,
     turns link 1's round so that its margin grows as (S1) asks, and passes (S1)."""
     wall = joint_position_limit(np.array([-1.0, -10.0]), np.array([0.3, 10.0]), ["t1", "t2"])
-    guard = Safeguard(bpbc, 0.001, also_keep=(wall,))
+    guard = Safeguard(bpbc, InputBounds(0.001), also_keep=(wall,))
     x, dx = np.array([0.3 - 9e-4, 0.5]), np.zeros(2)  # just inside its cushion
     state = guard.state(x, dx)
     out = bpbc.evaluate_state(state, margins=True)
     bias = state.coriolis_force + state.gravity
     law_acc = solve_spd(state.inertia, out.torque - bias)
     assert law_acc[0] > 0  # into the wall (θ₁ ≤ 0.3)
-    now = guard._now(x, out.margins)
-    delta, nc = guard.cushion, guard._n_config
+    now = guard.margins_now(x, out.margins)
+    delta, nc = guard.cushion, guard.guarded.n_configuration
     floor = np.maximum(delta + guard.keep * (now - delta), 1e-300)
     floor_mid = np.maximum(delta[:nc] + guard.keep_half * (now[:nc] - delta[:nc]), 1e-300)
-    slack = guard._check(guard._predictor(state, bias), floor, floor_mid)
+    slack = guard.acceptance.check(guard.predictor(state, bias), floor, floor_mid)
     assert slack(out.torque) < 0
-    slid = guard._slide(state, bias, out.torque, now, floor, floor_mid, None)
+    slid = guard.brakes.slide(state, bias, out.torque, now, floor, floor_mid, None)
     acc = solve_spd(state.inertia, slid - bias)
     assert acc[0] < 0 and acc[1] == pytest.approx(law_acc[1], rel=1e-9)
     assert slack(slid) >= 0
@@ -563,7 +572,8 @@ def test_margins_are_held_under_the_plants_own_integrator(scenario: str, seed: i
     kept = kept_constraints(setup, entry, 1 / rate, setup.safeguard)
     assert classify(setup, kept, s.position, s.velocity, 1 / rate) == "stoppable"
     plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
-    settings = replace(setup.loop_settings, duration=0.5, control_period=1 / rate, noise=None)
+    settings = replace(setup.loop_settings, duration=0.5,
+        bounds=replace(setup.loop_settings.bounds, period=1 / rate), noise=None)
     for corrector, kept in ((True, True), (False, scenario.startswith("panda"))):
         check = checked_run(plant, setup, entry, s.position, s.velocity, settings,
                             safeguard=SafeguardSettings(corrector=corrector,
@@ -667,7 +677,8 @@ def test_velocity_margins_are_held_inside_the_period(scenario: str, seed: int) -
     kept = kept_constraints(setup, entry, 0.01, setup.safeguard)
     assert classify(setup, kept, s.position, s.velocity, 0.01) == "stoppable"
     plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
-    settings = replace(setup.loop_settings, duration=0.5, control_period=0.01, noise=None)
+    settings = replace(setup.loop_settings, duration=0.5,
+        bounds=replace(setup.loop_settings.bounds, period=0.01), noise=None)
     assert setup.safeguard is not None and setup.safeguard.hold_correction
     check = checked_run(plant, setup, entry, s.position, s.velocity, settings,
                         safeguard=setup.safeguard)
@@ -679,7 +690,7 @@ def test_lyapunov_runs_no_guard_and_moves_no_count(bpbc: BPBC) -> None:
     so a noisy run, whose loop asks for the true state's V beside every guarded call, guards
     each control step once (it guarded twice: 30 002 calls over 15 001 steps on
     planar_cpbc_ke)."""
-    guard = Safeguard(bpbc, 0.001)
+    guard = Safeguard(bpbc, InputBounds(0.001))
     x, dx = np.array([0.3, 0.4]), np.array([0.25, -0.15])  # near the rate bounds: it acts
     guard.torque(x, dx)
     counts = (guard.calls, guard.acted, guard.infeasible, guard.scaled, guard.uncorrected)

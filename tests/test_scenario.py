@@ -186,9 +186,9 @@ def test_minimal_scenario_builds(load_dict, minimal):
     np.testing.assert_allclose(setup.target, [1.0, 1.5])
     np.testing.assert_array_equal(setup.cases[0].velocity, [0.0, 0.0])  # default
     assert [e.name for e in setup.controllers] == ["PD", "CPBC"]
-    assert setup.loop_settings.control_period == 0.001  # defaults to the timestep
+    assert setup.loop_settings.bounds.period == 0.001  # defaults to the timestep
     assert setup.loop_settings.duration == 0.05
-    assert setup.loop_settings.torque_limit is None
+    assert setup.loop_settings.bounds.torque is None
     assert [o.name for o in setup.obstacles] == ["obstacle"]
     assert not setup.obstacles[0].collides
 
@@ -638,9 +638,9 @@ def test_a_urdf_arm_gets_its_motors_torque_limits_unless_told_otherwise(tmp_path
         path = tmp_path / f"{name}.yaml"
         path.write_text(text.replace(line, replacement))
         spec, file = load_scenario(path)
-        limits[name] = build(spec, file).loop_settings.torque_limit
+        limits[name] = build(spec, file).loop_settings.bounds.torque
     np.testing.assert_array_equal(limits["absent"], [87, 87, 87, 87, 12, 12, 12])
     np.testing.assert_array_equal(limits["half"], [43.5, 43.5, 43.5, 43.5, 6, 6, 6])
     assert limits["none"] is None
     spec, file = load_scenario("thesis_ch7")
-    assert build(spec, file).loop_settings.torque_limit is None
+    assert build(spec, file).loop_settings.bounds.torque is None

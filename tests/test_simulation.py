@@ -10,6 +10,7 @@ from cpbc.controllers import BPBC, PD, Controller, Power
 from cpbc.controllers.controller import Evaluation
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model import ArmState, LinearCoordinates, RobotModel
+from cpbc.model.input_bounds import InputBounds
 from cpbc.resources import models_dir
 from cpbc.simulation import (
     LoopSettings,
@@ -40,7 +41,7 @@ def plant(integrator: str = "RK4", timestep: float = 0.001) -> MujocoPlant:
 
 
 def test_mujoco_and_reference_agree(model: RobotModel, bpbc: BPBC) -> None:
-    settings = LoopSettings(3.0, 0.001)
+    settings = LoopSettings(3.0, InputBounds(0.001))
     x0, dx0 = np.zeros(2), np.array([-0.2, -0.1])
     mj = run_mujoco(plant(), bpbc, ABSOLUTE, x0, dx0, settings)
     ref = run_reference(RobotModel.from_mjcf(PATH, coordinates=ABSOLUTE), bpbc, x0, dx0,
@@ -54,14 +55,16 @@ def test_mujoco_and_reference_agree(model: RobotModel, bpbc: BPBC) -> None:
 
 
 def test_lyapunov_is_logged_and_does_not_increase(bpbc: BPBC) -> None:
-    traj = run_mujoco(plant(), bpbc, ABSOLUTE, np.zeros(2), np.zeros(2), LoopSettings(2.0, 0.001))
+    traj = run_mujoco(plant(), bpbc, ABSOLUTE, np.zeros(2), np.zeros(2),
+                      LoopSettings(2.0, InputBounds(0.001)))
     assert traj.lyapunov.shape == traj.time.shape
     np.testing.assert_allclose(traj.lyapunov[0], bpbc.lyapunov(np.zeros(2), np.zeros(2)))
     assert np.max(np.diff(traj.lyapunov)) <= 1e-9 * traj.lyapunov[0]
 
 
 def test_joint_torque_is_transpose_map_of_controller_torque(bpbc: BPBC) -> None:
-    traj = run_mujoco(plant(), bpbc, ABSOLUTE, np.zeros(2), np.zeros(2), LoopSettings(0.2, 0.001))
+    traj = run_mujoco(plant(), bpbc, ABSOLUTE, np.zeros(2), np.zeros(2),
+                      LoopSettings(0.2, InputBounds(0.001)))
     np.testing.assert_allclose(traj.joint_torque, traj.torque @ ABSOLUTE.matrix)
 
 
@@ -69,7 +72,7 @@ def test_torque_limit_saturates_and_is_counted(model: RobotModel) -> None:
     pd = PD(model, np.array([np.pi, np.pi]), [2, 10], [4, 20])
     limit = np.array([5.0, 5.0])
     traj = run_mujoco(plant(), pd, ABSOLUTE, np.zeros(2), np.zeros(2),
-                      LoopSettings(1.0, 0.001, torque_limit=limit))
+                      LoopSettings(1.0, InputBounds(0.001, limit)))
     assert traj.saturated_steps > 0
     assert np.max(np.abs(traj.joint_torque)) <= 5.0 + 1e-12
     assert np.max(np.abs(traj.torque @ ABSOLUTE.matrix)) > 5.0  # what was asked for
@@ -84,7 +87,7 @@ def test_control_period_must_be_whole_multiple_of_timestep() -> None:
 def test_zero_order_hold_holds_torque_between_control_instants(model: RobotModel) -> None:
     pd = PD(model, np.array([1.0, 1.0]), 5, 1)
     traj = run_mujoco(plant("Euler"), pd, ABSOLUTE, np.zeros(2), np.zeros(2),
-                      LoopSettings(0.1, 0.01))
+                      LoopSettings(0.1, InputBounds(0.01)))
     assert len(traj.time) == 11
     assert traj.control_steps == 11
 
@@ -108,7 +111,7 @@ class Refusing(Controller):
 
 def test_nan_torque_ends_run_as_diverged(model: RobotModel) -> None:
     traj = run_mujoco(plant(), Exploding(model, np.zeros(2)), ABSOLUTE, np.zeros(2),
-                      np.zeros(2), LoopSettings(2.0, 0.001))
+                      np.zeros(2), LoopSettings(2.0, InputBounds(0.001)))
     assert traj.outcome == "diverged"
     assert 0 < traj.end_time < 2.0
     assert np.all(np.isfinite(traj.position))
@@ -116,7 +119,7 @@ def test_nan_torque_ends_run_as_diverged(model: RobotModel) -> None:
 
 def test_constraint_crossing_ends_run_with_time_and_name(model: RobotModel) -> None:
     traj = run_mujoco(plant(), Refusing(model, np.zeros(2)), ABSOLUTE, np.zeros(2),
-                      np.zeros(2), LoopSettings(2.0, 0.001))
+                      np.zeros(2), LoopSettings(2.0, InputBounds(0.001)))
     assert traj.outcome == "constraint_violated"
     assert traj.violated == "wall"
     assert 0 < traj.end_time < 2.0
@@ -125,7 +128,7 @@ def test_constraint_crossing_ends_run_with_time_and_name(model: RobotModel) -> N
 
 def test_log_decimation_keeps_every_kth_sample_and_the_last(bpbc: BPBC) -> None:
     traj = run_mujoco(plant(), bpbc, ABSOLUTE, np.zeros(2), np.zeros(2),
-                      LoopSettings(1.0, 0.001, log_every=10))
+                      LoopSettings(1.0, InputBounds(0.001), log_every=10))
     assert traj.control_steps == 1001
     assert len(traj.time) == 101
     assert traj.time[-1] == pytest.approx(1.0)
@@ -150,7 +153,7 @@ def test_mujoco_reset_after_blow_up_is_reported_as_divergence(
 ) -> None:
     monkeypatch.chdir(tmp_path)  # MuJoCo writes MUJOCO_LOG.TXT into the working directory
     traj = run_mujoco(plant(), Violent(model, np.zeros(2)), ABSOLUTE, np.zeros(2), np.zeros(2),
-                      LoopSettings(1.0, 0.001))
+                      LoopSettings(1.0, InputBounds(0.001)))
     assert traj.outcome == "diverged"
     assert traj.end_time < 0.01
 
@@ -188,7 +191,7 @@ class _Watched(Controller):
 def test_reference_names_the_constraint_the_trajectory_crossed(model: RobotModel) -> None:
     rates = ConstraintSet(2, velocity=[joint_rate_limit([50.0, 0.3], ["first", "second"])])
     law = _Watched(PD(model, np.array([1.0, 1.5]), [4, 4], [2, 2]), rates)
-    traj = run_reference(model, law, np.zeros(2), np.zeros(2), LoopSettings(2.0, 0.01))
+    traj = run_reference(model, law, np.zeros(2), np.zeros(2), LoopSettings(2.0, InputBounds(0.01)))
     assert traj.outcome == "constraint_violated"
     assert traj.violated == "rate[second]"  # a rejected stage, from NaN, named the first
 
@@ -196,7 +199,8 @@ def test_reference_names_the_constraint_the_trajectory_crossed(model: RobotModel
 def test_violated_run_logs_the_torque_held_until_the_crossing(model: RobotModel) -> None:
     rates = ConstraintSet(2, velocity=[joint_rate_limit([50.0, 0.3], ["first", "second"])])
     law = _Watched(PD(model, np.array([1.0, 1.5]), [4, 4], [2, 2]), rates)
-    traj = run_mujoco(plant(), law, ABSOLUTE, np.zeros(2), np.zeros(2), LoopSettings(2.0, 0.01))
+    traj = run_mujoco(plant(), law, ABSOLUTE, np.zeros(2), np.zeros(2),
+                      LoopSettings(2.0, InputBounds(0.01)))
     assert traj.outcome == "constraint_violated"
     assert np.all(np.isfinite(traj.torque)) and np.all(np.isfinite(traj.joint_torque))
     np.testing.assert_array_equal(traj.torque[-1], traj.torque[-2])  # zero-order hold

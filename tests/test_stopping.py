@@ -140,7 +140,7 @@ def _panda_states(count: int, seed: int) -> tuple[RobotModel, np.ndarray, list]:
     from cpbc.reliability.campaign import campaign_setup, sample_states
 
     setup = campaign_setup("panda_cpbc_sphere")
-    limit = setup.loop_settings.torque_limit
+    limit = setup.loop_settings.bounds.torque
     assert limit is not None
     return setup.model, limit, sample_states(setup, count, seed)
 

@@ -45,7 +45,7 @@ def _logged_steps(setup, name: str):
 def _check_steps(traj, setup, rho: np.ndarray) -> float:
     """Every applied joint torque step, the first from the gravity torque at the start,
     against ρh; returns the largest |Δτ|/(ρh)."""
-    h = setup.loop_settings.control_period
+    h = setup.loop_settings.bounds.period
     held = setup.model.gravity(setup.cases[0].position)  # joint coordinates (T = I)
     torques = np.vstack((held, traj.joint_torque))
     assert setup.loop_settings.log_every == 1 and len(traj.joint_torque) == traj.control_steps
@@ -71,7 +71,7 @@ def test_the_plant_limits_an_unguarded_law_and_the_guard_never_asks_beyond_it(tm
     the plant clips it (counted). The guarded CPBC chooses only within ρh of the held torque:
     the plant never clips it, every logged step is within ρh, and nothing is crossed."""
     setup = build(*load_scenario(_sphere(tmp_path, 1000, 0.4)))
-    rho = setup.loop_settings.torque_rate_limit
+    rho = setup.loop_settings.bounds.rate
     assert rho is not None and np.all(rho == 1000.0)
     pd = _logged_steps(setup, "PD+g")
     assert pd.summary.rate_limited_steps > 0
@@ -165,7 +165,7 @@ def test_a_robot_that_adds_gravity_bounds_the_command_not_the_torque(tmp_path) -
 
     setup = build(*load_scenario(_sphere(tmp_path, 1000, 0.01)))
     entry = next(e for e in setup.controllers if e.name == "CPBC")
-    limit = setup.loop_settings.torque_limit
+    limit = setup.loop_settings.bounds.torque
     assert limit is not None
     rng = np.random.default_rng(0)
     broken = {True: 0, False: 0}

@@ -118,7 +118,7 @@ def _obstacle_contacts(model: mujoco.MjModel, data: mujoco.MjData,
 
 
 def _soak(setup: ScenarioSetup) -> Soak:
-    assert setup.goal is not None and setup.loop_settings.torque_limit is not None
+    assert setup.goal is not None and setup.loop_settings.bounds.torque is not None
     entry = setup.controllers[-1]  # task-space CPBC in its safeguard
     law = tracking(entry.controller, 1.0 / RATE, run=setup.controller(entry))
     plant = setup.make_plant()
@@ -130,7 +130,7 @@ def _soak(setup: ScenarioSetup) -> Soak:
     ball = next(ob.centre for ob in setup.obstacles if ob.name == "ball")
     start = setup.model.state(posture, np.zeros(model.nv),
                               frames=(law.frame,)).frames[law.frame].rotation.copy()
-    limit = setup.loop_settings.torque_limit
+    limit = setup.loop_settings.bounds.torque
     rng = np.random.default_rng(7)
     walk = goal.copy()
     soak = Soak()

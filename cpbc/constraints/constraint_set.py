@@ -11,8 +11,9 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.packing import Packed, PackedSet
+from cpbc.constraints.python_terms import PythonTerms
 from cpbc.errors import ConstraintViolation, CpbcError, InadmissibleStateError
-from cpbc.kernels.barrier_set import POINT, RATE, set_barrier
+from cpbc.kernels.barrier_set import RATE, set_barrier
 from cpbc.kernels.barriers import log_sum
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -97,16 +98,18 @@ class ConstraintSet:
 
     def _pack(self) -> None:
         """The constants of every constraint that packs, for one kernel call per step
-        (cpbc.constraints.packing); the others (a subclass's own formula, capsules, a second
-        point frame) are asked through ``barrier_terms`` after it, at their margins."""
+        (cpbc.kernels.tables); the others (a kind without a kernel, a subclass's own
+        formula, capsules, a second frame) are asked through ``barrier_terms`` — after the
+        set's own kernel call (``barrier``), before a law's (``python_terms``)."""
         parts: list[tuple[int, int, Packed]] = []
         rest_config: list[tuple[int, ConfigurationConstraint]] = []
         rest_velocity: list[tuple[int, VelocityConstraint]] = []
         frame, at = -1, 0
         for c in self._config:
             p = c.packed()
-            if p is not None and (p.kind != POINT or frame in (-1, p.frame)):
-                frame = p.frame if p.kind == POINT else frame
+            # the set's kernel reads one frame: a kind on another frame is asked in Python
+            if p is not None and (p.frame < 0 or frame in (-1, p.frame)):
+                frame = max(frame, p.frame)
                 parts.append((at, len(c.names), p))
             else:
                 rest_config.append((at, c))
@@ -121,6 +124,13 @@ class ConstraintSet:
         self._packed = PackedSet.build(parts)
         self._rest_config = tuple(rest_config)
         self._rest_velocity = tuple(rest_velocity)
+        # a law's plan: the same, with the others' terms asked in Python before its call
+        rest: list[tuple[int, ConfigurationConstraint | VelocityConstraint]] = [
+            *rest_config, *rest_velocity]
+        self._python = tuple(PythonTerms(c, self.n) for _, c in rest)
+        every = parts + [(at, len(c.names), p.packed())
+                         for (at, c), p in zip(rest, self._python, strict=True)]
+        self._law_packed = PackedSet.build(sorted(every, key=lambda part: part[0]))
         # b = 0 always (rate limits only): the laws skip it
         self._no_gradient = not self._config and not rest_velocity and all(
             p.kind == RATE for _, _, p in parts)
@@ -157,6 +167,14 @@ class ConstraintSet:
         """Every φ_i at x, in the order of ``names``."""
         parts = [c.value(x) for c in self._config]
         return np.concatenate(parts) if parts else np.zeros(0)
+
+    def configuration_gradients(self, state: ArmState) -> Array:
+        """Every ∇φ_i at the per-step state, shape (number of φ_i, n), in the order of
+        ``names`` (each kind's ``gradient_at``: from the state's kinematics where it reads
+        them)."""
+        if not self._config:
+            return np.zeros((0, self.n))
+        return np.concatenate([c.gradient_at(state) for c in self._config])
 
     def velocity_margins(self, x: Array, dx: Array, state: ArmState | None = None) -> Array:
         """Every ψ_j at (x, ẋ), in the order of ``names``."""
@@ -220,12 +238,19 @@ class ConstraintSet:
 
     @property
     def packed_tables(self) -> PackedSet | None:
-        """The tables of the set kernel when every constraint packs and the class keeps
-        ``barrier`` (a law may then call the kernel itself, cpbc.kernels.laws), else None."""
-        if self._rest_config or self._rest_velocity or (
-                type(self).barrier is not ConstraintSet.barrier):
+        """The tables of the set kernel for a law's one kernel call (cpbc.kernels.laws):
+        every constraint that packs, and a row for each that does not, whose terms
+        ``python_terms`` writes before each call; None when the class overrides
+        ``barrier``."""
+        if type(self).barrier is not ConstraintSet.barrier:
             return None
-        return self._packed
+        return self._law_packed
+
+    @property
+    def python_terms(self) -> tuple[PythonTerms, ...]:
+        """The constraints that pack nothing, asked in Python before a law's kernel call
+        (``packed_tables``' rows for them), in the set's order."""
+        return self._python
 
     def violation(self, log_phi: float, phi: Array) -> ConstraintViolation:
         """The worst margin outside S, from the barrier values ``phi`` (in the order of

@@ -77,6 +77,11 @@ class ConfigurationConstraint(HasMargins, ABC):
         stopping test (cpbc.constraints.stopping) then neglects."""
         return np.zeros(len(self.names))
 
+    def gradient_at(self, state: ArmState) -> Array:
+        """∂φ/∂x at the per-step state, shape (k, n): ``gradient`` at its x here; a kind
+        whose gradient takes kinematics reads them from the state instead (Clearance)."""
+        return self.gradient(state.x)
+
     def motion_terms(self, state: ArmState) -> tuple[Array, Array, Array]:
         """φ, ∇φ and ẋᵀ∇²φ ẋ at the per-step state (what a filter on φ̈ reads, e.g. the
         CBF-QP peer's rows). Here from ``evaluate`` and ``curvature`` at (x, ẋ); a kind whose
@@ -94,8 +99,9 @@ class ConfigurationConstraint(HasMargins, ABC):
         return parts[0]
 
     def packed(self) -> Packed | None:
-        """This constraint's share of its set's barrier kernel (cpbc.constraints.packing),
-        or None: the set then asks ``barrier_terms``. Kinds with a kernel override this."""
+        """This constraint's share of its set's barrier kernel (its kind's ``pack_*``,
+        beside its kernel; cpbc.kernels.tables), or None: its ``barrier_terms`` is asked in
+        Python (cpbc.constraints.python_terms). Kinds with a kernel override this."""
         return None
 
 
@@ -151,6 +157,7 @@ class VelocityConstraint(HasMargins, ABC):
         return parts[0]
 
     def packed(self) -> Packed | None:
-        """This constraint's share of its set's barrier kernel (cpbc.constraints.packing),
-        or None: the set then asks ``barrier_terms``. Kinds with a kernel override this."""
+        """This constraint's share of its set's barrier kernel (its kind's ``pack_*``,
+        beside its kernel; cpbc.kernels.tables), or None: its ``barrier_terms`` is asked in
+        Python (cpbc.constraints.python_terms). Kinds with a kernel override this."""
         return None

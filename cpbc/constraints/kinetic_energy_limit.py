@@ -13,8 +13,7 @@ from cpbc.constraints.constraint_types import VelocityConstraint
 from cpbc.constraints.margins import ENERGY
 from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError
-from cpbc.kernels import barrier_set
-from cpbc.kernels.barriers import kinetic_energy_terms
+from cpbc.kernels.barriers import kinetic_energy_terms, pack_kinetic_energy_limit
 from cpbc.model.robot_model import ArmState, RobotModel
 from cpbc.spec.fields import Positive
 
@@ -66,7 +65,7 @@ class KineticEnergyLimit(VelocityConstraint):
         """Ω for the kernel, unless a subclass overrides ``barrier_terms``."""
         if type(self).barrier_terms is not KineticEnergyLimit.barrier_terms:
             return None
-        return Packed(barrier_set.ENERGY, (np.array([[self.limit]]),))
+        return pack_kinetic_energy_limit(self.limit)
 
 
 # -- the scenario's ``type: kinetic_energy_limit`` -------------------------------------------

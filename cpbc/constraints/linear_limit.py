@@ -20,8 +20,7 @@ from cpbc.constraints.constraint_types import ConfigurationConstraint
 from cpbc.constraints.margins import POSITION, MarginType, headroom, row_types
 from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError
-from cpbc.kernels import barrier_set
-from cpbc.kernels.barriers import linear_limit_terms
+from cpbc.kernels.barriers import LINEAR_CONSTANTS, linear_limit_terms, pack_linear_limit
 from cpbc.model.robot_model import ArmState
 from cpbc.spec.fields import Vector
 
@@ -76,8 +75,8 @@ class LinearLimit(ConfigurationConstraint):
         self._sum = lower + upper
         for a in (self.rows, self.lower, self.upper, self.centre, self.half_width, self._sum):
             a.setflags(write=False)
-        # the kernel's constants, packed into one array (writable: numba's typed signature)
-        self._constants = np.column_stack([rows, lower, upper])
+        self._packed = pack_linear_limit(rows, lower, upper)  # the kernel's tables
+        self._constants = self._packed.floats[LINEAR_CONSTANTS]
 
     def value(self, x: Array) -> Array:
         y = self.rows.dot(x)
@@ -95,7 +94,7 @@ class LinearLimit(ConfigurationConstraint):
         """The kernel's constants, unless a subclass overrides ``barrier_terms``."""
         if type(self).barrier_terms is not LinearLimit.barrier_terms:
             return None
-        return Packed(barrier_set.LINEAR, (self._constants,))
+        return self._packed
 
     @classmethod
     def stacked(cls, parts: Sequence[ConfigurationConstraint]) -> LinearLimit:

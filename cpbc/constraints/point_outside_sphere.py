@@ -19,8 +19,12 @@ from cpbc.constraints.constraint_types import ConfigurationConstraint
 from cpbc.constraints.margins import CLEARANCE
 from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError, ScenarioError
-from cpbc.kernels import barrier_set
-from cpbc.kernels.barriers import point_sphere_motion, point_sphere_terms
+from cpbc.kernels.barriers import (
+    POINT_CONSTANTS,
+    pack_point_sphere,
+    point_sphere_motion,
+    point_sphere_terms,
+)
 from cpbc.model.frames import FrameKinematics
 from cpbc.model.robot_model import ArmState, RobotModel
 from cpbc.spec.fields import Positive, Vector
@@ -71,14 +75,13 @@ class PointOutsideSphere(ConfigurationConstraint):
         self.offset = None if offset is None else np.asarray(offset, dtype=float).reshape(3)
         self.names = (name or f"clearance[{frame}]",)
         # the coordinates that move the frame's link, and each coordinate's link: what the
-        # curvature reads with the state's joint Jacobians (cpbc.kernels.clearance.sphere_motion)
+        # curvature reads with the state's joint Jacobians
+        # (cpbc.kernels.clearance_motion.sphere_motion)
         joint = model.model.frames[self.frame_id].parentJoint
         self._supports = model.joint_supports()[joint][None, :]
         self._coordinate_supports = model.coordinate_supports()
-        # the kernel's constants [c r² o has_offset]
-        self._constants = np.concatenate(
-            [centre, [self._r2], np.zeros(3) if self.offset is None else self.offset,
-             [0.0 if self.offset is None else 1.0]])
+        self._packed = pack_point_sphere(centre, self.radius, self.offset, self.frame_id)
+        self._constants = self._packed.floats[POINT_CONSTANTS][0]  # the kernel's
 
     def value(self, x: Array) -> Array:
         d = self.model.point_position(self.frame_id, x, self.offset) - self.centre
@@ -105,7 +108,7 @@ class PointOutsideSphere(ConfigurationConstraint):
         """The kernel's constants and frame, unless a subclass overrides ``barrier_terms``."""
         if type(self).barrier_terms is not PointOutsideSphere.barrier_terms:
             return None
-        return Packed(barrier_set.POINT, (self._constants[None, :],), frame=self.frame_id)
+        return self._packed
 
     def motion_terms(self, state: ArmState) -> tuple[Array, Array, Array]:
         """φ, ∇φ and ẋᵀ∇²φ ẋ = 2‖ṗ‖² + 2 (p − c)·p̈₀ from the frame's kinematics and the

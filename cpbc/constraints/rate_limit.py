@@ -20,8 +20,7 @@ from cpbc.constraints.constraint_types import VelocityConstraint
 from cpbc.constraints.margins import RATE, MarginType, headroom, row_types
 from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError
-from cpbc.kernels import barrier_set
-from cpbc.kernels.barriers import rate_limit_terms
+from cpbc.kernels.barriers import RATE_CONSTANTS, pack_rate_limit, rate_limit_terms
 from cpbc.model.robot_model import ArmState
 from cpbc.spec.fields import Positive, Vector
 
@@ -66,7 +65,8 @@ class RateLimit(VelocityConstraint):
             raise CpbcError("rate limit: a joint is bounded twice in one constraint")
         for a in (self.rows, self.bounds):
             a.setflags(write=False)
-        self._constants = np.column_stack([rows, self._omega])  # the kernel's, packed
+        self._packed = pack_rate_limit(rows, self._omega)  # the kernel's tables
+        self._constants = self._packed.floats[RATE_CONSTANTS]
 
     @property
     def is_per_joint(self) -> bool:
@@ -82,7 +82,7 @@ class RateLimit(VelocityConstraint):
         """The kernel's constants, unless a subclass overrides ``barrier_terms``."""
         if type(self).barrier_terms is not RateLimit.barrier_terms:
             return None
-        return Packed(barrier_set.RATE, (self._constants,))
+        return self._packed
 
     @classmethod
     def stacked(cls, parts: Sequence[VelocityConstraint]) -> RateLimit:

@@ -27,6 +27,7 @@ from cpbc.controllers.shaping import Identity, Power, Shaping, Tanh
 from cpbc.errors import ScenarioError
 from cpbc.model import RobotModel
 from cpbc.model.bounds import ModelBounds
+from cpbc.model.input_bounds import InputBounds
 from cpbc.spec.type_names import type_names
 
 if TYPE_CHECKING:
@@ -91,8 +92,8 @@ class LawInputs:
             task_damping (cpbc.scenario.goal_build.law_terms).
         constraints: every scenario constraint by name.
         model_bounds: the model's bounds (estimated once, when a law first asks).
-        control_period: the loop's control period h [s].
-        torque_limit: the loop's symmetric torque limits, or None.
+        bounds: the loop's control period h and the actuators' torque and torque-rate
+            limits (cpbc.model.input_bounds).
         field: the entry's place in the scenario (``controllers[1]``), for errors.
         goal: a goal or reference scenario's frame goal (``target`` is then its posture),
             else None.
@@ -103,8 +104,7 @@ class LawInputs:
     gains: Mapping[str, object]
     constraints: Mapping[str, ConfigurationConstraint | VelocityConstraint]
     model_bounds: Callable[[], ModelBounds]
-    control_period: float
-    torque_limit: Array | None
+    bounds: InputBounds
     field: str
     goal: FrameGoal | None = None
 

@@ -9,11 +9,14 @@ overrides a method the kernel stands in for (``_law``, ``_shaped_value``,
 ``task_damping_force``). The law then takes its general path, method by method: nothing
 dispatches on type, and every override is honoured. The kernel reads one frame: the terms
 and the set's point constraint must all read the same frame, or the law takes the general
-path too.
+path too. A constraint that packs nothing costs only its own terms: they are asked in Python
+before each call and copied into the law's tables (cpbc.constraints.python_terms), and the
+law says so once, when it packs (:class:`PythonPathWarning`).
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -23,9 +26,10 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.packing import Ints, Packed, PackedSet
+from cpbc.constraints.python_terms import PythonTerms
 from cpbc.controllers.controller import Controller
 from cpbc.errors import CpbcError
-from cpbc.kernels.law_terms import FRAME_KINDS, SHAPING
+from cpbc.kernels.law_terms import FRAME_KINDS, pack_shaping
 from cpbc.kernels.laws import pack_tables
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -34,6 +38,11 @@ from cpbc.model.robot_model import ArmState, RobotModel
 Tables = tuple[Ints, Array]
 PassArguments = Callable[[Array, Array], tuple[Any, ...]]
 _NO_MATRIX = np.zeros((0, 0))
+
+
+class PythonPathWarning(UserWarning):
+    """A law's constraint runs in Python at every step (it has no kernel): said once, when
+    the law packs, with what it costs."""
 
 
 def packed_terms(term: object) -> tuple[Packed, ...] | None:
@@ -48,7 +57,7 @@ def shaping_term(shaping: object) -> tuple[Packed, ...] | None:
     found = None if packed is None else packed()
     if found is None:
         return None
-    return (Packed(SHAPING, (np.array([[float(found[0]), float(found[1])]]),)),)
+    return (pack_shaping(*found),)
 
 
 def keeps(cls: type, base: type, methods: Iterable[str]) -> bool:
@@ -70,6 +79,26 @@ def law_terms(law: Any, base: type, formulas: Sequence[str]) -> list[tuple[Packe
     return parts
 
 
+def python_path_notes(law: object) -> list[str]:
+    """Pack ``law`` now (or the law a wrapper holds as ``law``) and return what it says
+    (its :class:`PythonPathWarning` notes) instead of warning: for a caller that reports them
+    its own way, once, at build (cpbc.run). Other warnings go on as they were."""
+    inner = getattr(law, "law", law)
+    pack = getattr(inner, "packed_law", None)
+    if not callable(pack):
+        return []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PythonPathWarning)
+        pack()
+    notes = []
+    for w in caught:
+        if issubclass(w.category, PythonPathWarning):
+            notes.append(str(w.message))
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return notes
+
+
 # the methods of a packed law's state path: a class that keeps them may step from the pass
 STATE_PATH = ("state", "evaluate_state", "_packed_step")
 
@@ -85,6 +114,7 @@ class PacksItsLaw(Controller):
 
     _packed_from: ClassVar[frozenset[str]] = frozenset()
     _packed_law: PackedLaw | None = None
+    _said: tuple[str, ...] = ()  # the notes the law has said (``PythonPathWarning``)
 
     def torque(self, x: Array, dx: Array) -> Array:
         packed = self._packed_law
@@ -148,7 +178,24 @@ class PacksItsLaw(Controller):
         if found is None or found.law is not type(self):
             found = self._pack()
             self._packed_law = found
+            if found.python:
+                self._say(found)
         return found
+
+    def _say(self, packed: PackedLaw) -> None:
+        """Which constraints run in Python and what they cost, once (a warning per new
+        note), measured at the target at rest."""
+        try:
+            state = packed.state(self.model, self.target, np.zeros_like(self.target))
+        except (CpbcError, ArithmeticError, ValueError):  # no state at the target
+            state = None
+        name = getattr(self, "type_name", type(self).__name__)
+        notes = tuple(t.note(name, state) for t in packed.python)
+        said = tuple(note.split(", about")[0] for note in notes)  # the cost varies
+        if said != self._said:
+            self._said = said
+            for note in notes:
+                warnings.warn(note, PythonPathWarning, stacklevel=3)
 
     def _pack(self) -> PackedLaw:
         """:meth:`PackedLaw.build` for this law's terms, constraints and frames."""
@@ -181,7 +228,10 @@ class PackedLaw:
             kernel reads the law's frame from the joint kinematics, ``pack_tables``'
             ``frame``, as it does for any frame on a joint).
         live: (its place in the packed floats, a view; source) of each row a term keeps in
-            step with a moving goal (``Packed.live``), refreshed before each kernel call.
+            step with a moving goal, or a constraint without a kernel its terms
+            (``Packed.live``), refreshed before each kernel call.
+        python: the set's constraints without a kernel, asked before each call
+            (cpbc.constraints.python_terms; the law then builds the state).
     """
 
     law: type
@@ -196,6 +246,7 @@ class PackedLaw:
     pass_arguments: PassArguments | None = None
     pass_reads: int = -1
     live: tuple[tuple[Array, Array], ...] = ()
+    python: tuple[PythonTerms, ...] = ()
 
     @property
     def from_pass(self) -> bool:
@@ -203,8 +254,8 @@ class PackedLaw:
         return self.pass_arguments is not None
 
     def refreshed(self) -> tuple[Ints, Array]:
-        """The constant tables, the rows of a moving goal (``live``) copied in from their
-        sources first."""
+        """The constant tables, the rows of a moving goal and the terms of a constraint
+        without a kernel (``live``) copied in from their sources first."""
         copy_live(self.live)
         return self.constants
 
@@ -240,7 +291,9 @@ class PackedLaw:
         # (planar CPBC about 0.15 us a step less), and a clearance's pass has it already
         on_joints = model.frame_on_joints(frame) if frame >= 0 else None
         pass_reads = frame if on_joints is None else -1
-        from_pass = keeps(law, base, STATE_PATH) and all(f == frame for f in held)
+        python = constraints.python_terms
+        from_pass = keeps(law, base, STATE_PATH) and all(f == frame for f in held) and (
+            not python)
         constants = pack_tables(margins, tables.plan, tables.ints, tables.floats,
                                 packed.plan, packed.floats, model.coordinates.inverse,
                                 model.viscous_friction, model.coulomb_friction,
@@ -248,14 +301,16 @@ class PackedLaw:
         flat, start = constants[1], tables.floats.size
         # each live row's place in the packed floats as a view, made once (a slice a step
         # costs about 0.1 µs a row)
-        live = tuple((flat[start + at:start + at + source.shape[0]], source)
-                     for at, source in packed.live)
+        live = tuple((flat[at:at + source.shape[0]], source) for at, source in tables.live)
+        live += tuple((flat[start + at:start + at + source.shape[0]], source)
+                      for at, source in packed.live)
         step = step_from_pass(constants, live, model,
                               constraints.needs_kinematics or on_joints is not None,
                               pass_reads, constraints.needs_coriolis,
                               margins) if from_pass else None
         return cls(law, packed, constants, frame, constraints.needs_kinematics, margins,
-                   constraints.n, held, constraints.needs_coriolis, step, pass_reads, live)
+                   constraints.n, held, constraints.needs_coriolis, step, pass_reads, live,
+                   python)
 
     def arguments(self, state: ArmState, margins: bool) -> tuple[Any, ...]:
         """The kernel's arguments: the tables (``constants``); x, ẋ, D, g, C ẋ, f, C, the
@@ -280,6 +335,8 @@ class PackedLaw:
                                 "state with kinematics=True (a law's state(x, dx) does)")
         else:
             y, jac = _NO_JOINTS
+        for terms in self.python:
+            terms.fill(state, margins)
         coriolis = _NO_MATRIX if state.coriolis_matrix is None else state.coriolis_matrix
         return (
             *self.refreshed(), state.x, state.dx, state.inertia, state.gravity,

@@ -26,8 +26,12 @@ from cpbc.controllers.controller import positive_vector, vector3
 from cpbc.controllers.potentials.frame_position import point_offset
 from cpbc.controllers.potentials.potential import Placed, frame_at
 from cpbc.errors import ParameterError
-from cpbc.kernels.law_terms import TASK_DAMPING, TASK_TANH_DAMPING
-from cpbc.kernels.task import task_damping, task_tanh_damping
+from cpbc.kernels.task import (
+    pack_task_damping,
+    pack_task_tanh_damping,
+    task_damping,
+    task_tanh_damping,
+)
 from cpbc.model.frames import jacobian_bounds
 from cpbc.model.robot_model import RobotModel
 
@@ -117,9 +121,8 @@ class TaskDamping:
         if cls.force is not TaskDamping.force or cls.force_with is not TaskDamping.force_with:
             return None
         feedforward = self.feedforward if toward is None else toward
-        return (Packed(TASK_DAMPING, (self._point[None, :], self._gain6,
-                                      feedforward[None, :]), frame=self.frame,
-                       live=() if toward is None else ((2, toward),)),)
+        return (pack_task_damping(self._point, self._gain6, feedforward, self.frame,
+                                  moving=toward is not None),)
 
 
 @dataclass(frozen=True)
@@ -193,6 +196,5 @@ class TaskTanhDamping:
                 cls.force_with is not TaskTanhDamping.force_with):
             return None
         feedforward = self.feedforward if toward is None else toward
-        return (Packed(TASK_TANH_DAMPING, (self._point[None, :], self._gains,
-                                           feedforward[None, :]), frame=self.frame,
-                       live=() if toward is None else ((2, toward),)),)
+        return (pack_task_tanh_damping(self._point, self._gains, feedforward, self.frame,
+                                       moving=toward is not None),)

@@ -9,7 +9,12 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.packing import Packed
-from cpbc.kernels.law_terms import JOINT_DAMPING, TANH_DAMPING, joint_damping, tanh_damping
+from cpbc.kernels.law_terms import (
+    joint_damping,
+    pack_joint_damping,
+    pack_tanh_damping,
+    tanh_damping,
+)
 
 if TYPE_CHECKING:
     from cpbc.controllers.potentials import Placed
@@ -39,7 +44,7 @@ class LinearDamping:
         """K_D for a law's kernel, unless a subclass overrides ``force``."""
         if type(self).force is not LinearDamping.force:
             return None
-        return (Packed(JOINT_DAMPING, (self.kd[None, :],)),)
+        return (pack_joint_damping(self.kd),)
 
 
 class TanhDamping:
@@ -59,7 +64,7 @@ class TanhDamping:
         """K_D and Γ for a law's kernel, unless a subclass overrides ``force``."""
         if type(self).force is not TanhDamping.force:
             return None
-        return (Packed(TANH_DAMPING, (np.vstack([self.kd, self.gamma]),)),)
+        return (pack_tanh_damping(self.kd, self.gamma),)
 
 
 class StateDamping(Protocol):

@@ -149,7 +149,7 @@ class ScenarioEnv(gymnasium.Env[dict[str, Any], Action]):
         self.setup, self.settings, self.action = setup, settings, action
         self.entry = _entry(setup, settings.controller)
         loop = setup.loop_settings
-        h = loop.control_period
+        h = loop.bounds.period
         try:
             self.steps_per_action = substeps_per_control(1.0 / settings.policy_rate, h)
         except CpbcError:
@@ -196,7 +196,7 @@ class ScenarioEnv(gymnasium.Env[dict[str, Any], Action]):
         super().reset(seed=seed)
         setup, entry = self.setup, self.entry
         x0 = self._start()
-        h = setup.loop_settings.control_period
+        h = setup.loop_settings.bounds.period
         self.tracker = tracking(entry.controller, h, settings=self.settings.governor,
                                 run=setup.controller(entry))
         coords = setup.model.coordinates
@@ -251,7 +251,7 @@ class ScenarioEnv(gymnasium.Env[dict[str, Any], Action]):
         smallest margins from MuJoCo's state after each written into ``low``; the outcome
         (None while the run goes on) and the most arm-obstacle contacts."""
         monitor, data, contacts = self.setup.monitor, self.plant.data, 0
-        period = self.setup.loop_settings.control_period
+        period = self.setup.loop_settings.bounds.period
         for _ in range(self.steps_per_action):
             state = arm.observe()
             if state is None:

@@ -66,15 +66,15 @@ def check_fits(setup: ScenarioSetup, limits: RobotLimits, joints: tuple[str, ...
     if not model.coordinates.is_identity:
         raise ScenarioError("robot.coordinates", "a robot is driven in its joint coordinates: "
                             "use coordinates: joint")
-    period = setup.loop_settings.control_period
+    period = setup.loop_settings.bounds.period
     if not math.isclose(period, limits.period, rel_tol=1e-9):
         raise ScenarioError("simulation.control_period", f"{period:g} s, but the robot's "
                             f"control period is {limits.period:g} s: give {limits.period:g}")
-    box = setup.loop_settings.torque_limit
+    box = setup.loop_settings.bounds.torque
     if box is None or np.any(box > limits.torque * (1 + 1e-9)):
         raise ScenarioError("simulation.torque_limit", "must lie inside the robot's torque "
                             f"limits {limits.torque.tolist()} N m (from_model reads them)")
-    rate = setup.loop_settings.torque_rate_limit
+    rate = setup.loop_settings.bounds.rate
     if rate is None or np.any(rate > limits.torque_rate * (1 + 1e-9)):
         raise ScenarioError("simulation.torque_rate_limit", "must lie inside the robot's "
                             f"torque-rate limits {limits.torque_rate.tolist()} N m/s (give "
@@ -96,12 +96,12 @@ def check_start(setup: ScenarioSetup, state: MeasuredState) -> str | None:
     except InadmissibleStateError as exc:
         raise ScenarioError("robot state", str(exc)) from None
     loop = setup.loop_settings
-    if loop.torque_limit is None:
+    if loop.bounds.torque is None:
         return None
     try:
         notes = check_stoppable([CaseEntry(CASE, state.position, state.velocity)],
-                                setup.monitor, setup.model, loop.torque_limit,
-                                loop.control_period, loop.torque_rate_limit)
+                                setup.monitor, setup.model, loop.bounds.torque,
+                                loop.bounds.period, loop.bounds.rate)
     except ScenarioError as exc:
         raise ScenarioError("robot state", exc.message) from None
     return notes.get(CASE)
@@ -256,7 +256,7 @@ def lockstep_for(setup: ScenarioSetup, torque_rate: float = 1000.0) -> LockstepB
     own_model.armature[:] = 0.0
     own = RobotModel(own_model, name=model.name)
     effort = np.array(model.model.effortLimit, dtype=float)
-    given = setup.loop_settings.torque_limit
+    given = setup.loop_settings.bounds.torque
     if not np.all(np.isfinite(effort) & (effort > 0)):
         if given is None:
             raise ScenarioError("simulation.torque_limit", "a robot has a torque box: give "
@@ -264,7 +264,7 @@ def lockstep_for(setup: ScenarioSetup, torque_rate: float = 1000.0) -> LockstepB
         effort = np.asarray(given, dtype=float)
     limits = RobotLimits(effort, np.full(model.n, float(torque_rate)),
                          np.array(model.model.velocityLimit, dtype=float),
-                         setup.loop_settings.control_period,
+                         setup.loop_settings.bounds.period,
                          None if setup.arm is None else setup.arm.velocity_limits)
     case = setup.cases[0]
     return LockstepBackend(setup.make_plant(), model.joint_names, limits, own.gravity,

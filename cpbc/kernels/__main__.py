@@ -15,8 +15,10 @@ from numba.core.registry import CPUDispatcher
 # each after the kernel modules it imports, so that each step of --warm's progress compiles
 # its own kernels (importing a module compiles those it imports first)
 MODULES = tuple(f"cpbc.kernels.{m}" for m in (
-    "views", "small_solves", "bounded_lsq", "energy", "task", "clearance", "coordinate_maps",
-    "barrier_shaping", "barriers", "barrier_set", "law_terms", "laws", "sampled_guard"))
+    "views", "small_solves", "bounded_lsq", "energy", "tables", "task", "clearance",
+    "clearance_motion", "coordinate_maps",
+    "barrier_shaping", "barriers", "python_terms", "barrier_set", "law_terms", "laws",
+    "sampled_guard"))
 
 
 def module_kernels(name: str) -> list[tuple[str, CPUDispatcher]]:

@@ -1,5 +1,12 @@
 """The constraints' log-barrier terms (the laws' b_φ = Σ ∇φ_i/φ_i, Π = Σ Q_j/ψ_j,
-b_ψ = Σ ∂_xψ_j/ψ_j), one kernel per constraint kind."""
+b_ψ = Σ ∂_xψ_j/ψ_j), one kernel per constraint kind — and, beside each, the kind's code in a
+set's plan, its tables (``pack_*``, cpbc.kernels.tables) and its row reader (``*_row``, what
+cpbc.kernels.barrier_set dispatches to, one line per kind).
+
+A row reader writes every output of its constraint's share: its barrier values into
+``phi``, its Σ ∇φ̃/φ̃ (or ∂_xψ/ψ) into ``gradient`` (overwritten, zero where it has none),
+Π into ``weight`` (velocity kinds) and, when ``shown`` is not empty, its margins into it.
+"""
 
 from __future__ import annotations
 
@@ -9,10 +16,18 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, inner, kernel
-from cpbc.kernels.clearance import sphere_motion
+from cpbc.kernels.clearance_motion import sphere_motion
 from cpbc.kernels.energy import kinetic_energy
+from cpbc.kernels.tables import Ints, Packed, float_table
 from cpbc.kernels.task import point_on_frame
 from cpbc.kernels.views import float_rows
+
+# each kind's code in a set's plan (cpbc.kernels.barrier_set's registry), and its tables
+LINEAR, RATE, ENERGY, POINT = 0, 1, 2, 3
+LINEAR_CONSTANTS = 0  # [a_iᵀ l_i u_i] row by row (k, n + 2)
+RATE_CONSTANTS = 0  # [a_jᵀ Ω_j] row by row (k, n + 1)
+ENERGY_LIMIT = 0  # Ω (1, 1)
+POINT_CONSTANTS = 0  # [c r² o has_offset] (1, 8)
 
 
 @kernel("void(float64[:, :], float64[:], float64[:], float64[:])",
@@ -38,6 +53,22 @@ def linear_limit_terms(constants: Array, x: Array, phi: Array, gradient: Array) 
         for j in range(n):
             if rows[i, j] != 0.0:
                 gradient[j] += w * rows[i, j]
+
+
+def pack_linear_limit(rows: Array, lower: Array, upper: Array) -> Packed:
+    """The linear limit's tables: ``LINEAR_CONSTANTS`` [a_iᵀ l_i u_i] (writable: numba's
+    typed signature)."""
+    return Packed(LINEAR, (np.column_stack([rows, lower, upper]),))
+
+
+@inner("void(int64[:, :], float64[:, :], int64, float64[:], float64[:], float64[:],"
+       " float64[:])")
+def linear_limit_row(plan: Ints, floats: Array, row: int, x: Array, phi: Array,
+                     gradient: Array, shown: Array) -> None:
+    """A packed linear limit's share (``linear_limit_terms``); its margins are φ."""
+    linear_limit_terms(float_table(plan, floats, row, LINEAR_CONSTANTS), x, phi, gradient)
+    if shown.shape[0] > 0:
+        shown[:] = phi
 
 
 @kernel("void(float64[:, :], float64[:], float64[:], float64[:, :])",
@@ -70,6 +101,22 @@ def rate_limit_terms(constants: Array, dx: Array, psi: Array, weight: Array) -> 
                         weight[a, b] += ra * rows[i, b]
 
 
+def pack_rate_limit(rows: Array, omega: Array) -> Packed:
+    """The rate limit's tables: ``RATE_CONSTANTS`` [a_jᵀ Ω_j]."""
+    return Packed(RATE, (np.column_stack([rows, omega]),))
+
+
+@inner("void(int64[:, :], float64[:, :], int64, float64[:], float64[:], float64[:, :],"
+       " float64[:], float64[:])")
+def rate_limit_row(plan: Ints, floats: Array, row: int, dx: Array, psi: Array,
+                   weight: Array, gradient: Array, shown: Array) -> None:
+    """A packed rate limit's share (``rate_limit_terms``): ∂ψ/∂x = 0."""
+    rate_limit_terms(float_table(plan, floats, row, RATE_CONSTANTS), dx, psi, weight)
+    gradient[:] = 0.0
+    if shown.shape[0] > 0:
+        shown[:] = psi
+
+
 @kernel("float64(float64, float64[:, :], float64[:, :], float64[:], float64[:, :], float64[:])",
         inline=True)
 def kinetic_energy_terms(limit: float, inertia: Array, coriolis: Array, dx: Array,
@@ -86,6 +133,23 @@ def kinetic_energy_terms(limit: float, inertia: Array, coriolis: Array, dx: Arra
             s += coriolis[b, a] * dx[b]
         gradient[a] = -s / psi
     return psi
+
+
+def pack_kinetic_energy_limit(limit: float) -> Packed:
+    """The energy limit's tables: ``ENERGY_LIMIT`` Ω (1, 1)."""
+    return Packed(ENERGY, (np.array([[limit]]),))
+
+
+@inner("void(int64[:, :], float64[:, :], int64, float64[:, :], float64[:, :], float64[:],"
+       " float64[:], float64[:, :], float64[:], float64[:])")
+def kinetic_energy_row(plan: Ints, floats: Array, row: int, inertia: Array, coriolis: Array,
+                       dx: Array, psi: Array, weight: Array, gradient: Array,
+                       shown: Array) -> None:
+    """A packed energy limit's share (``kinetic_energy_terms``)."""
+    psi[0] = kinetic_energy_terms(float_table(plan, floats, row, ENERGY_LIMIT)[0, 0],
+                                  inertia, coriolis, dx, weight, gradient)
+    if shown.shape[0] > 0:
+        shown[:] = psi
 
 
 @kernel(f"float64({READ_ONLY})",
@@ -135,6 +199,25 @@ def point_sphere_terms(constants: Array, origin: Array, rotation: Array, jacobia
         gradient[k] *= scale
 
 
+def pack_point_sphere(centre: Array, radius: float, offset: Array | None, frame: int
+                      ) -> Packed:
+    """The point constraint's tables: ``POINT_CONSTANTS`` [c r² o has_offset] (1, 8), on
+    ``frame``, whose kinematics the set passes."""
+    point = np.zeros(4) if offset is None else np.append(offset, 1.0)
+    return Packed(POINT, (np.concatenate([centre, [radius**2], point])[None, :],), frame=frame)
+
+
+@inner("void(int64[:, :], float64[:, :], int64, float64[:], float64[:, :], float64[:, :],"
+       " float64[:], float64[:], float64[:])")
+def point_sphere_row(plan: Ints, floats: Array, row: int, origin: Array, rotation: Array,
+                     jacobian: Array, phi: Array, gradient: Array, shown: Array) -> None:
+    """A packed point constraint's share (``point_sphere_terms``) on the set's frame."""
+    point_sphere_terms(float_table(plan, floats, row, POINT_CONSTANTS)[0], origin, rotation,
+                       jacobian, phi, gradient)
+    if shown.shape[0] > 0:
+        shown[:] = phi
+
+
 @kernel("void(float64[:], float64[:], float64[:, :], float64[:, :], float64[:, :],"
         " float64[:], float64[:, :], float64[:, :], float64[:], float64[:], float64[:])")
 def point_sphere_motion(constants: Array, origin: Array, rotation: Array, jacobian: Array,
@@ -147,7 +230,7 @@ def point_sphere_motion(constants: Array, origin: Array, rotation: Array, jacobi
         ẋᵀ∇²φ ẋ = 2‖ṗ‖² + 2 (p − c)·p̈₀,
 
     with ṗ and p̈₀ the velocity and the acceleration at q̈ = 0 of p, a point fixed on the
-    frame's link (cpbc.kernels.clearance.sphere_motion, its eq. 2), from the joint Jacobians
+    frame's link (cpbc.kernels.clearance_motion.sphere_motion, its eq. 2), from the joint Jacobians
     ``joint_jacobians`` (6, n) and rates ``dq`` in joint coordinates; ``supports`` (1, n) is
     1 on the coordinates that move the frame, ``joint_supports`` (n, n) as in
     ``sphere_motion``. The frame's ``jacobian`` is in the controller's coordinates x = T q,

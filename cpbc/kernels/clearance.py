@@ -21,6 +21,9 @@ The tables these read are packed once, when the ``Clearance`` is built
   the group's sphere centres, reach = r + the largest rsum_law + an allowance for rounding.
   Every pair p of the group has d_p − rsum_law_p ≥ d(c) − reach (triangle inequality), d(c)
   the core distance of the point c: when that is > ℓ, all are beyond ℓ (``near_groups``).
+
+In a constraint set's plan (cpbc.kernels.barrier_set) the pairs are the kind ``SPHERES``:
+``pack_sphere_pairs`` packs these tables, ``sphere_pairs_row`` reads them back.
 """
 
 from __future__ import annotations
@@ -31,7 +34,14 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, inner, kernel
+from cpbc.kernels.tables import Packed, float_table, int_table
 from cpbc.kernels.views import Ints, float_rows
+
+SPHERES = 4  # the kind's code in a set's plan (cpbc.kernels.barrier_set's registry)
+# its float tables, then its int tables (the module docstring's; ``far`` a column, ``ell``
+# ℓ (1, 1), 0 for none; ``sphere_index`` a column)
+SPHERE_LOCAL, OBSTACLES, PAIR_TABLE, SUPPORTS, FAR_PHI, ELL, GROUP_TABLE = range(7)
+SPHERE_INDEX, PAIR_INDEX, GROUP_INDEX = range(3)
 
 
 @inner("UniTuple(float64, 3)(float64[:, :], int64, float64[:, :], int64)")
@@ -370,127 +380,47 @@ def sphere_clearances(y: Array, sphere_index: Ints, sphere_local: Array, obstacl
     sphere_values(u, d, pair_index, pair_table, value)
 
 
-# -- the pairs one by one, with their motion: the CBF-QP peer's rows --------------------------
-# Along a motion with q̈ = 0 a sphere centre s, fixed on a link moved by the joints in
-# ``supports``, has the twist V = Σ_k q̇_k J_k and the spatial acceleration A = Σ_k q̇_k J̇_k,
-# J = [v; ω] Pinocchio's world joint Jacobian (at the world origin) and J̇_k = V_k ×ᵐ J_k
-# with V_k the twist of joint k's own link (J_k ×ᵐ J_k = 0, so joint k may be counted in V_k;
-# ×ᵐ the motion cross product [v₁; ω₁] ×ᵐ [v₂; ω₂] = [ω₁ × v₂ + v₁ × ω₂; ω₁ × ω₂]). Then
-#
-#     ṡ = V_v + V_ω × s,   s̈₀ = A_v + A_ω × s + V_ω × ṡ,                               (2)
-#
-# and with u = Rᵀ(s − c), u̇ = Rᵀṡ, ü = Rᵀs̈₀ (s₁ − s₂ for a self pair, R = I), the core
-# distance d = ‖w‖, w = max(|u| − h, 0), has, in the face, edge or corner region u is in
-# (A the components with |u_k| > h_k, where the Hessian of d is (I − n̂n̂ᵀ)/d),
-#
-#     d²φ/dt² = n̂ · ü + (‖u̇_A‖² − (n̂ · u̇)²)/d,   n̂ = sign(u) w / d.                    (1)
-#
-# φ is C¹ but only piecewise C² (the regions meet on planes): (1) is the curvature of the
-# region u is in.
+def pack_sphere_pairs(sphere_local: Array, obstacles: Array, pair_table: Array,
+                      supports: Array, far_phi: Array, ell: float | None, group_table: Array,
+                      sphere_index: Ints, pair_index: Ints, group_index: Ints) -> Packed:
+    """The sphere pairs' tables for a set's plan (the names above; ``far_phi`` (C,), ℓ
+    None for none)."""
+    floats = [np.zeros((0, 0))] * 7
+    floats[SPHERE_LOCAL], floats[OBSTACLES], floats[PAIR_TABLE] = (
+        sphere_local, obstacles, pair_table)
+    floats[SUPPORTS], floats[FAR_PHI], floats[GROUP_TABLE] = (
+        supports, far_phi[:, None], group_table)
+    floats[ELL] = np.array([[ell or 0.0]])
+    ints = [np.zeros((0, 0), dtype=np.int64)] * 3
+    ints[SPHERE_INDEX], ints[PAIR_INDEX], ints[GROUP_INDEX] = (
+        sphere_index[:, None], pair_index, group_index)
+    return Packed(SPHERES, tuple(floats), tuple(ints))
 
 
-@kernel("void(float64[:, :], float64[:, :], float64[:], float64[:, :], float64[:, :],"
-        " float64[:, :], float64[:, :])")
-def sphere_motion(centres: Array, jac: Array, dq: Array, supports: Array,
-                  joint_supports: Array, vel: Array, acc: Array) -> None:
-    """Each sphere centre's velocity ṡ and acceleration at q̈ = 0, s̈₀ (eq. 2), into ``vel``
-    and ``acc`` (3, S), from the joint Jacobians ``jac`` (6, n) and rates ``dq``;
-    ``joint_supports`` (n, n): 1 where joint i moves joint k's link (row k)."""
-    n = dq.shape[0]
-    drift = np.zeros((6, n))  # q̇_k J̇_k
-    for k in range(n):
-        v0 = v1 = v2 = w0 = w1 = w2 = 0.0  # V_k
-        for i in range(n):
-            if joint_supports[k, i] != 0.0:
-                v0 += dq[i] * jac[0, i]
-                v1 += dq[i] * jac[1, i]
-                v2 += dq[i] * jac[2, i]
-                w0 += dq[i] * jac[3, i]
-                w1 += dq[i] * jac[4, i]
-                w2 += dq[i] * jac[5, i]
-        a0, a1, a2 = jac[0, k], jac[1, k], jac[2, k]
-        b0, b1, b2 = jac[3, k], jac[4, k], jac[5, k]
-        drift[0, k] = dq[k] * (w1 * a2 - w2 * a1 + v1 * b2 - v2 * b1)
-        drift[1, k] = dq[k] * (w2 * a0 - w0 * a2 + v2 * b0 - v0 * b2)
-        drift[2, k] = dq[k] * (w0 * a1 - w1 * a0 + v0 * b1 - v1 * b0)
-        drift[3, k] = dq[k] * (w1 * b2 - w2 * b1)
-        drift[4, k] = dq[k] * (w2 * b0 - w0 * b2)
-        drift[5, k] = dq[k] * (w0 * b1 - w1 * b0)
-    twist, accel = np.empty(6), np.empty(6)
-    for s in range(centres.shape[1]):
-        twist[:] = 0.0
-        accel[:] = 0.0
-        for k in range(n):
-            if supports[s, k] != 0.0:
-                for r in range(6):
-                    twist[r] += dq[k] * jac[r, k]
-                    accel[r] += drift[r, k]
-        c0, c1, c2 = centres[0, s], centres[1, s], centres[2, s]
-        w0, w1, w2 = twist[3], twist[4], twist[5]
-        d0 = twist[0] + w1 * c2 - w2 * c1
-        d1 = twist[1] + w2 * c0 - w0 * c2
-        d2 = twist[2] + w0 * c1 - w1 * c0
-        vel[0, s], vel[1, s], vel[2, s] = d0, d1, d2
-        acc[0, s] = accel[0] + accel[4] * c2 - accel[5] * c1 + w1 * d2 - w2 * d1
-        acc[1, s] = accel[1] + accel[5] * c0 - accel[3] * c2 + w2 * d0 - w0 * d2
-        acc[2, s] = accel[2] + accel[3] * c1 - accel[4] * c0 + w0 * d1 - w1 * d0
-
-
-@kernel("float64(float64[:, :], float64[:, :], float64[:], float64[:, :], int64[:, :], int64,"
-        " float64[:, :], float64[:, :])")
-def pair_curvature(u: Array, outside: Array, d: Array, obstacles: Array, pair_index: Ints,
-                   p: int, vel: Array, acc: Array) -> float:
-    """d²φ_p/dt² at q̈ = 0 (eq. 1) of pair p, d_p > 0, from its spheres' ``vel`` and ``acc``
-    (``sphere_motion``)."""
-    o, s, s2 = pair_index[p, 0], pair_index[p, 1], pair_index[p, 2]
-    inv = 1.0 / d[p]
-    along = across = normal_acc = 0.0
-    for k in range(3):
-        if o >= 0:  # u̇ = Rᵀṡ, ü = Rᵀs̈₀
-            du = obstacles[o, k] * vel[0, s] + obstacles[o, 3 + k] * vel[1, s] + (
-                obstacles[o, 6 + k] * vel[2, s])
-            ddu = obstacles[o, k] * acc[0, s] + obstacles[o, 3 + k] * acc[1, s] + (
-                obstacles[o, 6 + k] * acc[2, s])
-        else:
-            du, ddu = vel[k, s] - vel[k, s2], acc[k, s] - acc[k, s2]
-        normal = math.copysign(outside[k, p], u[k, p]) * inv
-        along += normal * du
-        normal_acc += normal * ddu
-        if outside[k, p] > 0.0:
-            across += du * du
-    return normal_acc + (across - along * along) * inv
-
-
-@kernel("void(float64[:, :], float64[:, :], float64[:], int64[:], float64[:, :],"
-        " float64[:, :], int64[:, :], float64[:, :], float64[:, :], float64[:, :],"
-        " float64[:], float64[:, :], float64[:])")
-def sphere_pair_rows(y: Array, jac: Array, dq: Array, sphere_index: Ints, sphere_local: Array,
-                     obstacles: Array, pair_index: Ints, pair_table: Array, supports: Array,
-                     joint_supports: Array, phi: Array, grad: Array, curv: Array) -> None:
-    """Every sphere pair on its own at the joint placements ``y``, joint Jacobians ``jac``
-    (6, n) and rates ``dq``: its clearance φ_p = d_p − rsum_p into ``phi`` (P,), its gradient
-    ∇φ_p = n̂_pᵀ J(s_p) (minus J(s₂) for a self pair; envelope theorem, ``force_on_joints``)
-    into ``grad`` (P, n) and q̇ᵀ∇²φ_p q̇ (eq. 1, ``pair_curvature``) into ``curv`` (P,),
-    joint coordinates. A centre inside a core (d_p = 0) has neither: zeros."""
-    n_sph, n_pair = sphere_index.shape[0], pair_index.shape[0]
-    centres = np.empty((3, n_sph))
-    u, outside, d = np.empty((3, n_pair)), np.empty((3, n_pair)), np.empty(n_pair)
-    sphere_centres(y, sphere_index, sphere_local, centres)
-    sphere_offsets(centres, obstacles, pair_index, pair_table, u, outside, d)
-    vel, acc = np.empty((3, n_sph)), np.empty((3, n_sph))
-    sphere_motion(centres, jac, dq, supports, joint_supports, vel, acc)
-    grad[:, :] = 0.0
-    for p in range(n_pair):
-        phi[p] = d[p] - pair_table[p, 3]
-        curv[p] = 0.0
-        if not d[p] > 0.0:
-            continue
-        o, s, s2 = pair_index[p, 0], pair_index[p, 1], pair_index[p, 2]
-        inv = 1.0 / d[p]
-        n0 = pair_direction(u, outside, obstacles, o, p, 0) * inv
-        n1 = pair_direction(u, outside, obstacles, o, p, 1) * inv
-        n2 = pair_direction(u, outside, obstacles, o, p, 2) * inv
-        force_on_joints(centres, s, n0, n1, n2, supports, jac, 1.0, grad[p])
-        if o < 0:
-            force_on_joints(centres, s2, n0, n1, n2, supports, jac, -1.0, grad[p])
-        curv[p] = pair_curvature(u, outside, d, obstacles, pair_index, p, vel, acc)
+@kernel("void(int64[:, :], int64[:, :], float64[:, :], int64, float64[:, :],"
+        " float64[:, :], float64[:], float64[:], float64[:])")
+def sphere_pairs_row(plan: Ints, ints: Ints, floats: Array, row: int, y: Array, jac: Array,
+                     phi: Array, gradient: Array, shown: Array) -> None:
+    """A packed clearance's sphere pairs (``sphere_barrier``): φ̃ into ``phi``, Σ ∇φ̃/φ̃
+    into ``gradient`` (zero with no pair within ℓ: φ̃ is then the far values; and outside
+    S, where ``phi`` holds the clearances themselves, which the set reports), the reported
+    clearances into a non-empty ``shown``."""
+    far = float_table(plan, floats, row, FAR_PHI)[:, 0]
+    ell = float_table(plan, floats, row, ELL)[0, 0]
+    index = int_table(plan, ints, row, SPHERE_INDEX)[:, 0]
+    pairs = int_table(plan, ints, row, PAIR_INDEX)
+    local = float_table(plan, floats, row, SPHERE_LOCAL)
+    obstacles = float_table(plan, floats, row, OBSTACLES)
+    table = float_table(plan, floats, row, PAIR_TABLE)
+    supports = float_table(plan, floats, row, SUPPORTS)
+    groups = int_table(plan, ints, row, GROUP_INDEX)
+    bounds = float_table(plan, floats, row, GROUP_TABLE)
+    low = sphere_barrier(y, jac, index, local, obstacles, pairs, table, groups, bounds,
+                         supports, far, ell, phi, gradient, shown)
+    if low > 0.0 and (ell == 0.0 or low < ell):
+        return
+    gradient[:] = 0.0
+    if low > 0.0:  # no pair within ℓ
+        phi[:] = far
+    else:  # outside S (or NaN): the clearances themselves, the set raises
+        sphere_clearances(y, index, local, obstacles, pairs, table, phi)

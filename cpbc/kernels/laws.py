@@ -15,6 +15,7 @@ from cpbc.kernels.coordinate_maps import controller_terms
 from cpbc.kernels.energy import kinetic_energy
 from cpbc.kernels.law_terms import damping_terms, potential_terms, shaped
 from cpbc.kernels.small_solves import solve_spd
+from cpbc.kernels.tables import KIND
 from cpbc.kernels.task import PLACE, frame_on_joints
 from cpbc.kernels.views import Ints, float_rows, int_rows
 
@@ -97,7 +98,11 @@ def shaped_value(lag: float, log_s: float) -> float:
 # the float tables and last the model's T⁻¹, F_d, F_c, its ε and the frame's place on its
 # joint (``model_tables``); each table row-major, in that order. One array of each: a kernel
 # argument costs numba about 70 ns to pass, whatever its size.
-HEADER, COORDINATES, FRAME_COLUMN = 14, 11, 13
+# the header's entries: the margins; the (rows, columns) of each table from its column
+MARGINS, SET_PLAN, SET_INTS, SET_FLOATS, TERM_PLAN, TERM_FLOATS = 0, 1, 3, 5, 7, 9
+COORDINATES = TERM_FLOATS + 2  # then whether the arm has friction
+FRAME_COLUMN = COORDINATES + 2
+HEADER = FRAME_COLUMN + 1
 
 
 def pack_tables(margins: int, plan: Ints, ints: Ints, floats: Array, term_plan: Ints,
@@ -133,14 +138,15 @@ def law_tables(ints: Ints, floats: Array) -> tuple[int, Ints, Ints, Array, Ints,
     and floats (cpbc.kernels.barrier_set), the terms' plan and floats
     (cpbc.kernels.law_terms)."""
     at = HEADER
-    plan = int_rows(ints, at, ints[1], ints[2])
-    at += ints[1] * ints[2]
-    set_ints = int_rows(ints, at, ints[3], ints[4])
-    at += ints[3] * ints[4]
-    term_plan = int_rows(ints, at, ints[7], ints[8])
-    set_floats = float_rows(floats, 0, ints[5], ints[6])
-    term_floats = float_rows(floats, ints[5] * ints[6], ints[9], ints[10])
-    return ints[0], plan, set_ints, set_floats, term_plan, term_floats
+    plan = int_rows(ints, at, ints[SET_PLAN], ints[SET_PLAN + 1])
+    at += ints[SET_PLAN] * ints[SET_PLAN + 1]
+    set_ints = int_rows(ints, at, ints[SET_INTS], ints[SET_INTS + 1])
+    at += ints[SET_INTS] * ints[SET_INTS + 1]
+    term_plan = int_rows(ints, at, ints[TERM_PLAN], ints[TERM_PLAN + 1])
+    set_floats = float_rows(floats, 0, ints[SET_FLOATS], ints[SET_FLOATS + 1])
+    term_floats = float_rows(floats, ints[SET_FLOATS] * ints[SET_FLOATS + 1],
+                             ints[TERM_FLOATS], ints[TERM_FLOATS + 1])
+    return ints[MARGINS], plan, set_ints, set_floats, term_plan, term_floats
 
 
 MODEL = ("Tuple((boolean, boolean, float64[:, :], float64[:, :], float64[::1], float64,"
@@ -217,7 +223,7 @@ def cpbc_step(tables: Ints, table_floats: Array, x: Array, dx: Array, inertia: A
         bias[i] = coriolis_force[i] + dissipation[i]
     constrained_rate = False
     for r in range(plan.shape[0]):
-        if plan[r, 0] in VELOCITY_KINDS:
+        if plan[r, KIND] in VELOCITY_KINDS:
             constrained_rate = True
     cpbc_torque(inertia, gravity, bias, grad, damping, gradient, weight, constrained_rate,
                 ratio * lag, tau)

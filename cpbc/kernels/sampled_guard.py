@@ -18,10 +18,26 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, kernel
-from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES, float_table, int_table
-from cpbc.kernels.barriers import linear_limit_terms, rate_limit_terms
-from cpbc.kernels.clearance import Ints, sphere_clearances
+from cpbc.kernels.barriers import (
+    LINEAR,
+    LINEAR_CONSTANTS,
+    RATE,
+    RATE_CONSTANTS,
+    linear_limit_terms,
+    rate_limit_terms,
+)
+from cpbc.kernels.clearance import (
+    OBSTACLES,
+    PAIR_INDEX,
+    PAIR_TABLE,
+    SPHERE_INDEX,
+    SPHERE_LOCAL,
+    SPHERES,
+    Ints,
+    sphere_clearances,
+)
 from cpbc.kernels.small_solves import solve_spd
+from cpbc.kernels.tables import COUNT, FIRST, KIND, float_table, int_table
 
 # --- step 2 of the package docstring: the prediction, dynamics frozen at the sample ---------
 
@@ -114,11 +130,16 @@ def configuration_rows(mids: Array, ends: Array, speeds: Array, start: Array, h:
     Under a torque-rate limit the brake takes ``ramp`` = T seconds to build from the torque
     held over the period (Braking.ramp). Along ê = ẋ₁/|ẋ₁| the arm then travels at most
 
-        |ẋ₁| T + ½ a⁺ T² + max(|ẋ₁| + ½(a − θA) T, 0)² / (2θA),
+        |ẋ₁| T + ½ a⁺ T² + (|ẋ₁| + ½ a⁺ T)² / (2θA),
 
     a = ê · (ẋ₁ − ẋ₀)/h the period's acceleration along ê (``start`` = ẋ₀), a⁺ = max(a, 0):
-    no deceleration credited while the torque ramps and the held one's acceleration kept,
-    then the speed the linear ramp leaves (from a to −θA over T) braked at θA."""
+    no deceleration credited while the torque ramps — the held one's acceleration kept for
+    the travel, fading to nothing for the speed — then braked at θA. (Crediting the linear
+    ramp from a to −θA, a speed of |ẋ₁| + ½(a − θA)T after it, was too hopeful: on the UR5
+    of the rate campaign, from two starts inside V, (S2) passed for 30 periods while the σ
+    that credits nothing fell below zero; then no brake was left and a link crossed the
+    floor's clearance by 0.1–0.5 mm. Braking.margins, by which ``cpbc.verify`` classes
+    starts, credits nothing either.)"""
     r, n = ends.shape[0], ends.shape[1]
     for j in range(r):
         for i in range(n):
@@ -136,8 +157,9 @@ def configuration_rows(mids: Array, ends: Array, speeds: Array, start: Array, h:
             for i in range(n):
                 along += speeds[j, i] * (speeds[j, i] - start[i])
             acc = along / (speed * h)
-            left = max(speed + 0.5 * (acc - 0.5 / per_speed) * ramp, 0.0)
-            f = (speed * ramp + 0.5 * max(acc, 0.0) * ramp * ramp
+            lead = max(acc, 0.0)
+            left = speed + 0.5 * lead * ramp
+            f = (speed * ramp + 0.5 * lead * ramp * ramp
                  + left * left * per_speed) / speed
         else:
             f = per_speed * speed
@@ -258,20 +280,21 @@ def margins_along(plan: Ints, ints: Ints, floats: Array, xs: Array, dxs: Array, 
     part = np.empty(n)
     weight = np.empty((n, n))
     for r in range(plan.shape[0]):
-        kind, at, k = plan[r, 0], plan[r, 1], plan[r, 2]
+        kind, at, k = plan[r, KIND], plan[r, FIRST], plan[r, COUNT]
         if kind == LINEAR:
-            constants = float_table(plan, floats, r, 0)
+            constants = float_table(plan, floats, r, LINEAR_CONSTANTS)
             for i in range(xs.shape[0]):
                 linear_limit_terms(constants, xs[i], out[i, at:at + k], part)
         elif kind == RATE:
-            constants = float_table(plan, floats, r, 0)
+            constants = float_table(plan, floats, r, RATE_CONSTANTS)
             for i in range(dxs.shape[0]):
                 rate_limit_terms(constants, dxs[i], out[i, at:at + k], weight)
         elif kind == SPHERES:
-            index = int_table(plan, ints, r, 0)[:, 0]
-            pairs = int_table(plan, ints, r, 1)
-            local, obstacles = float_table(plan, floats, r, 0), float_table(plan, floats, r, 1)
-            table = float_table(plan, floats, r, 2)
+            index = int_table(plan, ints, r, SPHERE_INDEX)[:, 0]
+            pairs = int_table(plan, ints, r, PAIR_INDEX)
+            local = float_table(plan, floats, r, SPHERE_LOCAL)
+            obstacles = float_table(plan, floats, r, OBSTACLES)
+            table = float_table(plan, floats, r, PAIR_TABLE)
             for i in range(xs.shape[0]):
                 sphere_clearances(ys[i], index, local, obstacles, pairs, table,
                                   out[i, at:at + k])

@@ -7,6 +7,10 @@ is in cpbc.kernels.law_terms).
 A frame arrives as its origin (3,), axes R (3, 3) and Jacobian [J_v; J_ω] (6, n) in world
 axes (cpbc.model.frames.FrameKinematics); a point fixed in it as ``offset`` = [o has_offset]
 (4,), o in the frame's axes.
+
+Beside each term: its kind's code in a law's plan (cpbc.kernels.law_terms' registry), its
+tables (``pack_*``, cpbc.kernels.tables; a ``moving`` goal or feed-forward is read again
+from its array before each step, ``Packed.live``) and its row reader (``*_row``).
 """
 
 from __future__ import annotations
@@ -15,8 +19,12 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, inner, kernel
+from cpbc.kernels.tables import Ints, Packed, float_table
 
 FRAME = f"{READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}"
+# a potential row's arguments (the tables, its row, x, the frame, ∂U/∂x) and a damping
+# row's (the tables, its row, ẋ, the frame, the force)
+ROW = f"int64[:, :], float64[:, :], int64, float64[:], {FRAME}, float64[:]"
 # the length of a frame's place on its joint, [s, s p_l, R_l row-major], before its support
 # mask (``frame_on_joints``'s ``local``)
 PLACE = 13
@@ -94,6 +102,27 @@ def position_spring(origin: Array, rotation: Array, jacobian: Array, offset: Arr
     return 0.5 * (e0 * f[0] + e1 * f[1] + e2 * f[2])
 
 
+POSITION_SPRING = 1  # its code; its tables: the point (1, 4), p_d (1, 3), K (3, 3)
+POSITION_POINT, POSITION_GOAL, POSITION_STIFFNESS = range(3)
+
+
+def pack_position_spring(point: Array, goal: Array, stiffness: Array, frame: int,
+                         moving: bool = False) -> Packed:
+    """The position spring's tables on ``frame`` (``moving``: p_d read from ``goal``)."""
+    return Packed(POSITION_SPRING, (point[None, :], goal[None, :], stiffness), frame=frame,
+                  live=((POSITION_GOAL, goal),) if moving else ())
+
+
+@inner(f"float64({ROW})")
+def position_spring_row(plan: Ints, floats: Array, row: int, x: Array, origin: Array,
+                        rotation: Array, jacobian: Array, grad: Array) -> float:
+    """A packed position spring (``position_spring``)."""
+    return position_spring(origin, rotation, jacobian,
+                           float_table(plan, floats, row, POSITION_POINT)[0],
+                           float_table(plan, floats, row, POSITION_GOAL)[0],
+                           float_table(plan, floats, row, POSITION_STIFFNESS), grad)
+
+
 @kernel(f"float64({READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}, float64,"
         " float64[:])")
 def orientation_spring(rotation: Array, jacobian: Array, goal: Array, stiffness: float,
@@ -111,6 +140,26 @@ def orientation_spring(rotation: Array, jacobian: Array, goal: Array, stiffness:
     return stiffness * (3.0 - (m[0, 0] + m[1, 1] + m[2, 2]))
 
 
+ORIENTATION_SPRING = 3  # its code; its tables: R_d (3, 3), k (1, 1)
+ORIENTATION_GOAL, ORIENTATION_STIFFNESS = range(2)
+
+
+def pack_orientation_spring(goal: Array, stiffness: float, frame: int, moving: bool = False
+                            ) -> Packed:
+    """The orientation spring's tables on ``frame`` (``moving``: R_d read from ``goal``)."""
+    return Packed(ORIENTATION_SPRING, (goal, np.array([[stiffness]])), frame=frame,
+                  live=((ORIENTATION_GOAL, goal),) if moving else ())
+
+
+@inner(f"float64({ROW})")
+def orientation_spring_row(plan: Ints, floats: Array, row: int, x: Array, origin: Array,
+                           rotation: Array, jacobian: Array, grad: Array) -> float:
+    """A packed orientation spring (``orientation_spring``)."""
+    return orientation_spring(rotation, jacobian,
+                              float_table(plan, floats, row, ORIENTATION_GOAL),
+                              float_table(plan, floats, row, ORIENTATION_STIFFNESS)[0, 0], grad)
+
+
 @kernel(f"float64({READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}, {READ_ONLY}, {READ_ONLY}, float64,"
         " float64[:])")
 def axis_spring(rotation: Array, jacobian: Array, tool: Array, world: Array,
@@ -125,6 +174,27 @@ def axis_spring(rotation: Array, jacobian: Array, tool: Array, world: Array,
     for k in range(grad.shape[0]):
         grad[k] = stiffness * (jacobian[3, k] * c0 + jacobian[4, k] * c1 + jacobian[5, k] * c2)
     return stiffness * (1.0 - (world[0] * a[0] + world[1] * a[1] + world[2] * a[2]))
+
+
+AXIS_SPRING = 2  # its code; its tables: [a_bᵀ; a_wᵀ] (2, 3), k (1, 1)
+AXIS_AXES, AXIS_STIFFNESS = range(2)
+
+
+def pack_axis_spring(axes: Array, stiffness: float, frame: int, moving: bool = False
+                     ) -> Packed:
+    """The axis spring's tables on ``frame``, ``axes`` [a_b; a_w] (``moving``: read from
+    ``axes`` before each step)."""
+    return Packed(AXIS_SPRING, (axes, np.array([[stiffness]])), frame=frame,
+                  live=((AXIS_AXES, axes),) if moving else ())
+
+
+@inner(f"float64({ROW})")
+def axis_spring_row(plan: Ints, floats: Array, row: int, x: Array, origin: Array,
+                    rotation: Array, jacobian: Array, grad: Array) -> float:
+    """A packed axis spring (``axis_spring``)."""
+    axes = float_table(plan, floats, row, AXIS_AXES)
+    return axis_spring(rotation, jacobian, axes[0], axes[1],
+                       float_table(plan, floats, row, AXIS_STIFFNESS)[0, 0], grad)
 
 
 @kernel(f"void({FRAME}, {READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY}, {READ_ONLY},"
@@ -158,6 +228,27 @@ def task_damping(origin: Array, rotation: Array, jacobian: Array, offset: Array,
         force[k] = s
 
 
+TASK_DAMPING = 6  # its code; its tables: the point (1, 4), G (6, 6), ṗ_ff or [ṗ_ff ω_ff]
+TASK_POINT, TASK_GAIN, TASK_FEEDFORWARD = range(3)
+
+
+def pack_task_damping(point: Array, gain: Array, feedforward: Array, frame: int,
+                      moving: bool = False) -> Packed:
+    """The task damping's tables on ``frame`` (``moving``: the feed-forward read from
+    ``feedforward``)."""
+    return Packed(TASK_DAMPING, (point[None, :], gain, feedforward[None, :]), frame=frame,
+                  live=((TASK_FEEDFORWARD, feedforward),) if moving else ())
+
+
+@inner(f"void({ROW})")
+def task_damping_row(plan: Ints, floats: Array, row: int, dx: Array, origin: Array,
+                     rotation: Array, jacobian: Array, force: Array) -> None:
+    """A packed task damping (``task_damping``)."""
+    task_damping(origin, rotation, jacobian, float_table(plan, floats, row, TASK_POINT)[0],
+                 float_table(plan, floats, row, TASK_GAIN),
+                 float_table(plan, floats, row, TASK_FEEDFORWARD)[0], dx, force)
+
+
 @kernel(f"void({FRAME}, {READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY}, {READ_ONLY},"
         " float64[:])")
 def task_tanh_damping(origin: Array, rotation: Array, jacobian: Array, offset: Array,
@@ -176,3 +267,25 @@ def task_tanh_damping(origin: Array, rotation: Array, jacobian: Array, offset: A
         w[i] = gains[0, i] * np.tanh(gains[1, i] * (v - feedforward[i]))
     for k in range(n):
         force[k] = linear[0, k] * w[0] + linear[1, k] * w[1] + linear[2, k] * w[2]
+
+
+TASK_TANH_DAMPING = 10  # its code; its tables: the point (1, 4), [D_x; Γ_x] (2, 3), ṗ_ff
+TANH_POINT, TANH_GAINS, TANH_FEEDFORWARD = range(3)
+
+
+def pack_task_tanh_damping(point: Array, gains: Array, feedforward: Array, frame: int,
+                           moving: bool = False) -> Packed:
+    """The bounded task damping's tables on ``frame`` (``moving``: ṗ_ff read from
+    ``feedforward``)."""
+    return Packed(TASK_TANH_DAMPING, (point[None, :], gains, feedforward[None, :]),
+                  frame=frame, live=((TANH_FEEDFORWARD, feedforward),) if moving else ())
+
+
+@inner(f"void({ROW})")
+def task_tanh_damping_row(plan: Ints, floats: Array, row: int, dx: Array, origin: Array,
+                          rotation: Array, jacobian: Array, force: Array) -> None:
+    """A packed bounded task damping (``task_tanh_damping``)."""
+    task_tanh_damping(origin, rotation, jacobian,
+                      float_table(plan, floats, row, TANH_POINT)[0],
+                      float_table(plan, floats, row, TANH_GAINS),
+                      float_table(plan, floats, row, TANH_FEEDFORWARD)[0], dx, force)

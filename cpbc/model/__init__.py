@@ -1,6 +1,7 @@
 """Model layer: Pinocchio dynamics and kinematics, coordinates, model-derived bounds."""
 
 from cpbc.model.coordinates import LinearCoordinates
+from cpbc.model.input_bounds import InputBounds
 from cpbc.model.robot_model import ArmState, RobotModel
 
-__all__ = ["ArmState", "LinearCoordinates", "RobotModel"]
+__all__ = ["ArmState", "InputBounds", "LinearCoordinates", "RobotModel"]

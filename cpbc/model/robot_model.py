@@ -367,7 +367,7 @@ class RobotModel:
 
     def coordinate_supports(self) -> Array:
         """(n, n): row k is 1 on the coordinates of the joints that move coordinate k's link
-        (``joint_supports`` by coordinate), what cpbc.kernels.clearance.sphere_motion
+        (``joint_supports`` by coordinate), what cpbc.kernels.clearance_motion.sphere_motion
         reads as ``joint_supports``."""
         model, supports = self.model, self.joint_supports()
         out = np.zeros((self.n, self.n))

@@ -50,6 +50,7 @@ from cpbc.controllers.controller import Controller, Evaluation, SafetyFilter, po
 from cpbc.controllers.law_kind import LINEAR, LawInputs, LawKind
 from cpbc.controllers.law_specs import ConstrainedLawSpec, PostureGainsSpec, TaskGainsSpec
 from cpbc.errors import CpbcError, ParameterError, ScenarioError
+from cpbc.model.input_bounds import InputBounds
 from cpbc.model.robot_model import ArmState, RobotModel
 from cpbc.peers.cbf_rows import Rows, Tuning, barrier_rows
 from cpbc.peers.osc import OperationalSpace, OSCGains, TaskTarget
@@ -76,6 +77,9 @@ VARIANTS = ("braking", "exponential")
 SLACK_WEIGHT = 1e6  # per unit row (N·m) of slack, against the torque change
 
 
+DEFAULT_BOUNDS = InputBounds(1e-3)  # 1 kHz, no torque box
+
+
 def default_cushion(period: float) -> float:
     """c(h) = 2e-3 · (h / 1 ms)^1.7 [rad/s]: the module docstring's calibrated cushions."""
     return 2e-3 * (period / 1e-3) ** 1.7
@@ -92,8 +96,9 @@ class CBFQP(SafetyFilter):
         kp, kd: gains of the PD + gravity nominal.
         gain: k [1/s] (cpbc.peers.cbf_rows).
         rate_gain: γ of the first-order rows [1/s]; 1/(2·period) when omitted.
-        period: the control period h [s].
-        torque_limit: L per joint (joint coordinates), or None for no box.
+        bounds: the control period h and the torque box L per joint (joint coordinates;
+            none: no box) (cpbc.model.input_bounds); a torque-rate limit there is not
+            kept by the filter (its QP has no rate rows): the plant clips to it.
         variant: ``braking`` (default) or ``exponential``.
         braking_share: β, the share of the box's deceleration a braking row counts on.
         rate_cushion: c on rate rows; default_cushion(period) when omitted (braking only).
@@ -105,8 +110,8 @@ class CBFQP(SafetyFilter):
 
     def __init__(
         self, model: RobotModel, target: Array, constraints: ConstraintSet, kp: object,
-        kd: object, gain: float = 20.0, rate_gain: float | None = None, period: float = 1e-3,
-        torque_limit: Array | float | None = None, variant: str = "braking",
+        kd: object, gain: float = 20.0, rate_gain: float | None = None,
+        bounds: InputBounds = DEFAULT_BOUNDS, variant: str = "braking",
         braking_share: float = 0.5, rate_cushion: float | None = None,
         osc: OperationalSpace | None = None,
     ) -> None:
@@ -125,12 +130,11 @@ class CBFQP(SafetyFilter):
                                      f"limits only, not {type(v).__name__} {v.names}")
         self.variant = variant
         self._given = (rate_gain, rate_cushion)
-        limit = None if torque_limit is None else np.broadcast_to(
-            np.asarray(torque_limit, dtype=float), (model.n,))
+        limit = None if bounds.torque is None else np.broadcast_to(bounds.torque, (model.n,))
         self.torque_limit = limit
         self.tuning = Tuning(variant, float(positive_vector(gain, 1, "gain")[0]), 0.0,
                              float(braking_share), 0.0, limit)
-        self._set_period(period)
+        self._set_period(bounds.period)
         coords = model.coordinates
         self._box_rows = None if coords.is_identity else np.ascontiguousarray(coords.matrix.T)
         self._solve = _daqp()
@@ -347,8 +351,8 @@ def build_cbf_qp(spec: CBFQPSpec, given: LawInputs) -> Controller:
     cons = given.constraint_set(spec.constraints)
     try:
         return CBFQP(given.model, given.target, cons, given.gains["kp"], given.gains["kd"],
-                     spec.gain, spec.rate_gain, given.control_period, given.torque_limit,
-                     spec.variant, spec.braking_share, spec.rate_cushion, osc)
+                     spec.gain, spec.rate_gain, given.bounds, spec.variant,
+                     spec.braking_share, spec.rate_cushion, osc)
     except PeerUnavailable as exc:
         raise ScenarioError(f"{given.field}.type", str(exc)) from None
 

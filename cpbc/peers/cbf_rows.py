@@ -6,7 +6,7 @@ With ẍ = D⁻¹(τ − b), b = C ẋ + g + f (eq. 6.1), a configuration constr
 
 (φ, ∇φ and κ from ``ConfigurationConstraint.motion_terms`` at the per-step state; per
 sphere pair for a clearance, ``Clearance.sphere_pairs_at``: the compiled kernel
-cpbc.kernels.clearance.sphere_pair_rows, from the state's joint placements and Jacobians
+cpbc.kernels.clearance_motion.sphere_pair_rows, from the state's joint placements and Jacobians
 with the pair formulas the law's kernels use; for a point outside a sphere the kernel
 cpbc.kernels.barriers.point_sphere_motion, from the state's frame and joint Jacobians, which
 the peer's state carries (``Controller.reads_motion``) — no Pinocchio pass of the rows'

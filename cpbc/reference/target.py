@@ -34,7 +34,7 @@ from cpbc.controllers.potentials import (
 from cpbc.controllers.task_damping import TaskDamping, TaskTanhDamping
 from cpbc.controllers.terms import LinearDamping
 from cpbc.errors import CpbcError
-from cpbc.kernels.law_terms import JOINT_FEEDFORWARD, joint_feedforward
+from cpbc.kernels.law_terms import joint_feedforward, pack_joint_feedforward
 
 
 class MovingTarget:
@@ -196,9 +196,7 @@ class SteeredDamping:
         found = self.damping.packed(toward=self._feedforward)
         if found is None or self.joint is None:
             return found
-        return (*found, Packed(JOINT_FEEDFORWARD, (self.joint[None, :],
-                                                   self.target.posture_velocity[None, :]),
-                               live=((1, self.target.posture_velocity),)))
+        return (*found, pack_joint_feedforward(self.joint, self.target.posture_velocity))
 
 
 @runtime_checkable

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import mujoco
@@ -159,12 +159,11 @@ def guarded_run(
     """The entry's law in the loop, wrapped in ``safeguard`` (with the scenario's extra
     constraints) at the settings' period and torque limit when it is given; with a
     reference, inside its tracker, starting at path time ``phase``."""
-    law = sg.guarded(entry.controller, settings.control_period, safeguard,
-                     settings.torque_limit, setup.also_keep, settings.torque_rate_limit,
+    law = sg.guarded(entry.controller, settings.bounds, safeguard, setup.also_keep,
                      settings.model_error, settings.declared_error)
     if setup.reference is not None:
         law = setup.reference.tracker(entry.name, entry.controller, law,
-                                      settings.control_period, phase)
+                                      settings.bounds.period, phase)
     return run_mujoco(plant, law, setup.model.coordinates, x0, dx0, settings, progress)
 
 
@@ -174,8 +173,8 @@ def kept_constraints(setup: ScenarioSetup, entry: ControllerEntry, period: float
     wrapped in its safeguard, the scenario's monitored ones the safeguard keeps besides
     (``simulation.safeguard_monitored``): a run that crosses one of those is a violation
     too."""
-    law = sg.guarded(entry.controller, period, safeguard, setup.loop_settings.torque_limit,
-                     setup.also_keep)
+    law = sg.guarded(entry.controller, replace(setup.loop_settings.bounds, period=period),
+                     safeguard, setup.also_keep)
     return law.guarded if isinstance(law, sg.Safeguard) else law.constraints
 
 

@@ -149,13 +149,13 @@ def in_braking_set(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Arra
                    period: float) -> bool:
     """Whether the state is in the guard's braking set V (σ > 0 of the uniform brake, the
     first-order stopping test) and holdable for one period (safeguard.viable)."""
-    limit = setup.loop_settings.torque_limit
+    limit = setup.loop_settings.bounds.torque
     if limit is not None:
         full = np.broadcast_to(np.asarray(limit, dtype=float), (setup.model.n,))
         lost, _, _ = stopping_margins(setup.monitor, setup.model, x, dx, full)
         if lost.size and not np.all(lost > 0):
             return False
-        rate = setup.loop_settings.torque_rate_limit
+        rate = setup.loop_settings.bounds.rate
         sigma, _ = Braking.of(setup.model, full, rate=rate).margins(
             setup.monitor, setup.model, x, dx, setup.model.gravity(x), period)
         if sigma.size and not np.all(sigma > 0):
@@ -174,8 +174,8 @@ def stopping_brake(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Arra
     scenario's by default); ``disturbance``: the run's, which the brakes meet too (the same
     draws, period by period: a start is stoppable in the plant as it is disturbed), and
     which keeps the rates jittering by h ā: the arm rests below 10⁻³ + 2hā."""
-    limit = setup.loop_settings.torque_limit
-    rate = setup.loop_settings.torque_rate_limit
+    limit = setup.loop_settings.bounds.torque
+    rate = setup.loop_settings.bounds.rate
     box = TorqueBox.of(setup.model, math.inf if limit is None else limit)
     held = None if rate is None else box.joint(setup.model.gravity(x))
     step = None if rate is None else rate * period
@@ -299,7 +299,8 @@ def run_block(block: Block) -> list[Record]:
     for seed in block.seeds:
         s = draw_state(setup, seed)
         settings = replace(
-            setup.loop_settings, duration=plan.horizon, control_period=period, log_every=1,
+            setup.loop_settings, duration=plan.horizon,
+            bounds=replace(setup.loop_settings.bounds, period=period), log_every=1,
             noise=None if plan.noise is None else MeasurementNoise(*plan.noise, seed=seed),
             disturbance=_disturbance(setup, plan, seed),
         )
@@ -321,9 +322,9 @@ def run_block(block: Block) -> list[Record]:
             "control_steps": int(traj.control_steps), "acted": int(traj.safeguard_steps),
             "infeasible": int(traj.safeguard_infeasible),
             "rows_acted": int(traj.filter_row_steps), "rescues": int(traj.rescues),
-            "at_limit": _steps_at_limit(traj.joint_torque, settings.torque_limit),
+            "at_limit": _steps_at_limit(traj.joint_torque, settings.bounds.torque),
             "rate_clipped": int(traj.rate_limited_steps),
-            "peak_rate_share": _rate_share(traj.peak_torque_rate, settings.torque_rate_limit),
+            "peak_rate_share": _rate_share(traj.peak_torque_rate, settings.bounds.rate),
             "position": s.position.tolist(), "velocity": s.velocity.tolist(),
             **({} if setup.reference is None else {"phase": phase}),
         })

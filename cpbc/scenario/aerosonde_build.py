@@ -126,7 +126,7 @@ def build_aerosonde(scenario: SystemScenario, spec: AerosondeSpec, source: Path)
     names = [law.name for law in spec.laws]
     if len(set(names)) != len(names):
         raise ScenarioError("system.laws", f"law names repeat: {names}")
-    period = sim.control_period or sim.timestep
+    period = sim.period
     check_length(scenario, period)
     cases: list[SystemCase] = []
     commands: list[AltitudeCommand] = []

@@ -131,13 +131,12 @@ class ScenarioSetup:
         if case is not None:
             entry = self.for_case(case, entry)
         loop = self.loop_settings
-        run = guarded(entry.controller, loop.control_period, self.safeguard,
-                      loop.torque_limit, self.also_keep, loop.torque_rate_limit,
+        run = guarded(entry.controller, loop.bounds, self.safeguard, self.also_keep,
                       loop.model_error, loop.declared_error)
         if self.reference is None:
             return run
         turned = None if case is None else self.case_targets.get(case.name)
-        return self.reference.tracker(entry.name, entry.controller, run, loop.control_period,
+        return self.reference.tracker(entry.name, entry.controller, run, loop.bounds.period,
                                       turns=None if turned is None else turned - self.target)
 
     def make_plant(self) -> MujocoPlant:

@@ -136,13 +136,13 @@ def build(scenario: s.Scenario, scenario_file: Path, kinds: Kinds = KINDS) -> Sc
     case_targets = _case_targets(target, cases, periodic, monitor)
     gravity_on_path: dict[str, GravityLoad] = {}
     outside_v: dict[str, str] = {}
-    if loop.torque_limit is not None:
+    if loop.bounds.torque is not None:
         for case in cases:
             gravity_on_path.update(check_gravity(model, case_targets.get(case.name, target),
                                                  [(case.name, case.position)],
-                                                 loop.torque_limit))
-        outside_v = check_stoppable(cases, monitor, model, loop.torque_limit,
-                                    loop.control_period, loop.torque_rate_limit)
+                                                 loop.bounds.torque))
+        outside_v = check_stoppable(cases, monitor, model, loop.bounds.torque,
+                                    loop.bounds.period, loop.bounds.rate)
     # a declared inertia error e: the laws keep the model's energy below Ω/(1 + e)
     laws_keep = energy_under_declared_error(built, loop.declared_error)
     controllers = build_controllers(scenario, model, target, cases, laws_keep, names, loop, goal,
@@ -167,7 +167,7 @@ def build(scenario: s.Scenario, scenario_file: Path, kinds: Kinds = KINDS) -> Sc
         reference = reference_setup(scenario.reference, ref_path, goal,
                                     {c.name: (c.controller, spec) for c, spec in
                                      zip(controllers, scenario.controllers, strict=True)},
-                                    loop.control_period)
+                                    loop.bounds.period)
     setup = ScenarioSetup(
         scenario, path, model, monitor, controllers, cases, target,
         PlantSettings(sim.timestep, sim.integrator),

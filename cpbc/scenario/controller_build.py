@@ -60,7 +60,7 @@ def _unstable(gains: _Gains, model: RobotModel, states: list[Array], sim: s.Simu
     """The first state at which the held loop is unstable at the control period, described
     (cpbc.scenario.gain_check); None when it is stable at every one."""
     euler_step = 0.0 if sim.integrator == "RK4" else sim.timestep
-    period = sim.control_period or sim.timestep
+    period = sim.period
     for x in states:
         stiffness, damping = gains.linear(x)
         bad = unstable_loop(stiffness, damping, [model.inertia(x)], period, names, euler_step)
@@ -264,7 +264,7 @@ def build_controllers(
         kind = kinds.law(cspec.type)
         gains, terms = _entry_gains(cspec, kind, model, target, goal, kinds, field)
         given = LawInputs(model, target, terms or {"kp": gains.kp, "kd": gains.kd}, built,
-                          model_bounds, loop.control_period, loop.torque_limit, field,
+                          model_bounds, loop.bounds, field,
                           None if goal is None else goal.goal)
         law = _build_controller(cspec, kind, given)
         compensated = _compensated(cspec, kind, given, law, term)
@@ -287,14 +287,14 @@ def check_starts(controllers: list[ControllerEntry], specs: Sequence[s.LawSpec],
     """Refuse a law that says it cannot be run from a case's start (its kind's
     ``start_problem``: the recentred law's torque limit and, without the safeguard, its
     first held period)."""
-    period = None if guarded_loop else loop.control_period
+    period = None if guarded_loop else loop.bounds.period
     for i, (entry, spec) in enumerate(zip(controllers, specs, strict=True)):
         problem_of = kinds.law(spec.type).start_problem
         if problem_of is None:
             continue
         for case in cases:
             problem = problem_of(entry.controller, case.position, case.velocity, names,
-                                 loop.torque_limit, period)
+                                 loop.bounds.torque, period)
             if problem is not None:
                 raise ScenarioError(f"controllers[{i}]",
                                     f"'{entry.name}' ({spec.type}), case '{case.name}': "

@@ -9,6 +9,7 @@ from cpbc.arrays import Array
 from cpbc.controllers.safeguard.model_error import DeclaredError
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model import RobotModel
+from cpbc.model.input_bounds import InputBounds
 from cpbc.scenario import schema as s
 from cpbc.scenario.arm_setup import ScenarioSetup
 from cpbc.simulation import LoopSettings, substeps_per_control
@@ -52,7 +53,7 @@ def _declared_efforts(model: RobotModel) -> Array | None:
 def undeclared_efforts(setup: ScenarioSetup) -> tuple[str, ...]:
     """The joints that run without a torque limit beside joints that have one (the model
     declares effort limits for some joints only; ``simulation.torque_limit: auto``)."""
-    limit = setup.loop_settings.torque_limit
+    limit = setup.loop_settings.bounds.torque
     if limit is None:
         return ()
     return tuple(n for n, v in zip(setup.model.joint_names, limit, strict=True)
@@ -79,7 +80,7 @@ def _rate_limit(sim: s.SimulationSpec, model: RobotModel) -> Array | None:
 
 def loop_settings(sim: s.SimulationSpec, model: RobotModel) -> LoopSettings:
     n = model.n
-    control_period = sim.control_period or sim.timestep
+    control_period = sim.period
     _check_length(sim, control_period)
     limit = None
     if sim.torque_limit == "from_model":
@@ -103,11 +104,11 @@ def loop_settings(sim: s.SimulationSpec, model: RobotModel) -> LoopSettings:
             else sim.noise.velocity,
             sim.noise.seed,
         )
+    bounds = InputBounds(control_period, limit, _rate_limit(sim, model))  # built once here
     return LoopSettings(
-        sim.duration, control_period, limit, sim.log_every,
+        sim.duration, bounds, sim.log_every,
         noise=noise,
         max_log_samples=sim.max_log_samples,
-        torque_rate_limit=_rate_limit(sim, model),
         model_error=_model_error(sim, model),
         declared_error=_declared_error(sim, model),
     )

@@ -88,9 +88,9 @@ def run_one(
     margins = margin_history(setup.monitor, traj)
     summary = summarise(
         entry.name, case.name, entry.controller, setup.monitor, traj, setup.criteria,
-        setup.rate_bounds, margins, setup.loop_settings.torque_limit,
+        setup.rate_bounds, margins, setup.loop_settings.bounds.torque,
         setup.model.coordinates.matrix, setup.model.length_coordinates,
-        setup.loop_settings.torque_rate_limit,
+        setup.loop_settings.bounds.rate,
     )
     errors, logged = None, None
     if isinstance(law, ReferenceTracker) and setup.goal is not None:

@@ -210,7 +210,7 @@ def build_system(scenario: SystemScenario, source: Path) -> SystemSetup:
     names = [law.name for law in laws]
     if len(set(names)) != len(names):
         raise ScenarioError("system.laws", f"law names repeat: {names}")
-    period = sim.control_period or sim.timestep
+    period = sim.period
     check_length(scenario, period)
     cases: list[SystemCase] = []
     for i, c in enumerate(scenario.cases):

@@ -44,7 +44,7 @@ def run_reference(
     """
     n = plant.n
     coords = plant.coordinates
-    limit = settings.torque_limit
+    limit = settings.bounds.torque
     calls = 0
     violation: list[str] = []
     inside: list[Array] = []  # the last state at which the law was defined
@@ -71,8 +71,8 @@ def run_reference(
         inside[:] = [y]
         return np.concatenate([dx, plant.forward_dynamics(x, dx, coords.torque_from_joint(tau_q))])
 
-    steps = round(settings.duration / settings.control_period)
-    t_eval = np.arange(steps + 1) * settings.control_period
+    steps = round(settings.duration / settings.bounds.period)
+    t_eval = np.arange(steps + 1) * settings.bounds.period
     start = _time.perf_counter()
     from scipy.integrate import solve_ivp  # loaded when used: 0.15 s off every CLI start
 

@@ -25,6 +25,7 @@ from cpbc.controllers.controller import Controller, SafetyFilter
 from cpbc.controllers.safeguard.model_error import DeclaredError
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model.coordinates import LinearCoordinates
+from cpbc.model.input_bounds import InputBounds
 from cpbc.simulation.disturbances import AccelerationDisturbance, MeasurementNoise, rate_into_set
 from cpbc.simulation.plant import INSTABILITY_WARNINGS, MujocoPlant
 from cpbc.simulation.trajectory import SystemTrajectory, Trajectory, TrajectoryLog
@@ -45,12 +46,12 @@ class LoopSettings:
 
     Attributes:
         duration: simulated time [s], > 0.
-        control_period: controller period [s]; a whole multiple of the physics timestep.
-        torque_limit: symmetric joint torque limits |τ_q,i| ≤ limit_i [N·m], or None.
-        torque_rate_limit: joint torque-rate limits |Δτ_q,i| ≤ ρ_i h per control period
-            [N·m/s], or None. The plant applies it as a motor would (a command beyond it is
-            clipped and counted); the run's first command moves from the torque held before
-            it, the gravity torque at the start (an arm held at rest).
+        bounds: the control period (a whole multiple of the physics timestep) and the
+            actuators' torque and torque-rate limits (cpbc.model.input_bounds). The plant
+            applies them as motors would: a torque beyond the box is clipped, and a command
+            that moves faster than the rate limit is clipped and counted; the run's first
+            command moves from the torque held before it, the gravity torque at the start
+            (an arm held at rest).
         log_every: keep every k-th control sample (long runs).
         noise: Gaussian noise on the state the controller sees, or None.
         max_log_samples: the log never holds more samples than this: when full, it drops
@@ -68,12 +69,10 @@ class LoopSettings:
     """
 
     duration: float
-    control_period: float
-    torque_limit: Array | None = None
+    bounds: InputBounds
     log_every: int = 1
     noise: MeasurementNoise | None = None
     max_log_samples: int = 100_000
-    torque_rate_limit: Array | None = None
     model_error: Array | None = None
     declared_error: DeclaredError | None = None
     disturbance: AccelerationDisturbance | None = None
@@ -81,13 +80,8 @@ class LoopSettings:
     def __post_init__(self) -> None:
         if not self.duration > 0:
             raise CpbcError(f"duration must be > 0, got {self.duration}")
-        if not self.control_period > 0:
-            raise CpbcError(f"control_period must be > 0, got {self.control_period}")
         if self.max_log_samples < 2:
             raise CpbcError(f"max_log_samples must be ≥ 2, got {self.max_log_samples}")
-        rate = self.torque_rate_limit
-        if rate is not None and not np.all(np.asarray(rate, dtype=float) > 0):
-            raise CpbcError(f"torque_rate_limit must be > 0 [N·m/s], got {rate}")
 
 
 def substeps_per_control(control_period: float, timestep: float) -> int:
@@ -229,9 +223,9 @@ class ArmLoop:
         self.t_mat = coordinates.matrix
         self.t_mat_t = np.ascontiguousarray(self.t_mat.T)
         self.identity = coordinates.is_identity
-        self.limit = settings.torque_limit
+        self.limit = settings.bounds.torque
         self.log = TrajectoryLog(n, steps + 1, settings.log_every, settings.max_log_samples)
-        self.sample = _Sampler(controller, settings.noise, n, settings.control_period)
+        self.sample = _Sampler(controller, settings.noise, n, settings.bounds.period)
         self.qpos, self.qvel = plant.data.qpos, plant.data.qvel
         self.tau: Array | None = None
         self.v = math.nan
@@ -240,8 +234,8 @@ class ArmLoop:
         self.guard = controller if isinstance(controller, SafetyFilter) else None
         self.acted = self.guard.acted if self.guard else 0  # the guard's count before this step
         self.guarded_steps = np.zeros(steps + 1 if self.guard else 0, dtype=bool)
-        self.period = settings.control_period
-        rate = settings.torque_rate_limit
+        self.period = settings.bounds.period
+        rate = settings.bounds.rate
         self.rate_step = None if rate is None else np.broadcast_to(
             np.asarray(rate, dtype=float) * self.period, (n,))
         # a command that ends on the rate box's edge is within it: held ± ρh computed by the
@@ -353,17 +347,17 @@ def run_mujoco(
     know the true state, can do. If the true state is outside S
     too, the run ends as ``constraint_violated``.
     """
-    substeps = substeps_per_control(settings.control_period, plant.model.opt.timestep)
-    steps = round(settings.duration / settings.control_period)
+    substeps = substeps_per_control(settings.bounds.period, plant.model.opt.timestep)
+    steps = round(settings.duration / settings.bounds.period)
     plant.reset(coordinates.inverse @ x0, coordinates.inverse @ dx0)
     arm = ArmLoop(plant, controller, coordinates, settings, steps)
     arm.start(x0)
-    end = run_loop(arm, steps, substeps, settings.control_period, progress)
+    end = run_loop(arm, steps, substeps, settings.bounds.period, progress)
     k, guard = end.last_step, arm.guard
     tt, xs, dxs, taus, tau_qs, vs = arm.log.arrays()
     end_time = float(tt[-1]) if tt.size else 0.0
     if end.outcome == "diverged":
-        end_time = k * settings.control_period
+        end_time = k * settings.bounds.period
     return Trajectory(
         tt, xs, dxs, taus, tau_qs, vs, end.outcome, end_time, end.violated, end.wall_time,
         k + 1, arm.saturated, int(arm.contacts), "mujoco",
@@ -374,7 +368,7 @@ def run_mujoco(
         rejected_samples=arm.sample.rejected,
         guarded_steps=arm.guarded_steps[: k + 1] if guard else None,
         rate_limited_steps=arm.rate_limited,
-        peak_torque_rate=arm.peak_step / settings.control_period,
+        peak_torque_rate=arm.peak_step / settings.bounds.period,
         controller_time_max=arm.compute_max,
         controller_time_mean=arm.compute_total / max(k + 1, 1),
     )

@@ -23,6 +23,7 @@ from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings, viable
 from cpbc.controllers.safeguard.model_error import DeclaredError, measurement_losses
 from cpbc.errors import ConstraintViolation
+from cpbc.model.input_bounds import InputBounds
 from cpbc.reliability.campaign import (
     RecordingPlant,
     campaign_setup,
@@ -67,8 +68,9 @@ def sampled_data_campaign(
         for period in periods:
             for guarded in (False, True):
                 settings = replace(
-                    setup.loop_settings, duration=horizon, control_period=period,
-                    torque_limit=None, noise=None,
+                    setup.loop_settings, duration=horizon,
+                    bounds=replace(setup.loop_settings.bounds, period=period, torque=None),
+                    noise=None,
                 )
                 start = time.perf_counter()
                 bad = 0
@@ -122,8 +124,8 @@ def longest_safe_period(
         safe_so_far, longest = True, None
         for period in sorted(periods):
             settings = replace(
-                setup.loop_settings, control_period=period, torque_limit=None, noise=None,
-                log_every=1,
+                setup.loop_settings, noise=None, log_every=1,
+                bounds=replace(setup.loop_settings.bounds, period=period, torque=None),
             )
             case_bad = []
             for case in setup.cases:
@@ -392,7 +394,7 @@ def declarable(setup: ScenarioSetup, entry: ControllerEntry, settings: LoopSetti
         return True
     target = entry.controller.target
     state = cons.state(setup.model, target, np.zeros(setup.model.n))
-    end, _ = measurement_losses(cons, state, declared, settings.control_period)
+    end, _ = measurement_losses(cons, state, declared, settings.bounds.period)
     return bool(np.all(cons.margins(target, np.zeros(setup.model.n)) > end))
 
 
@@ -432,8 +434,8 @@ def saturation_campaign(
                 limit = np.maximum(frac * peak, 1e-6)
                 for guarded in (False, True):
                     settings = replace(
-                        setup.loop_settings, log_every=log_every, torque_limit=limit,
-                        noise=None,
+                        setup.loop_settings, log_every=log_every, noise=None,
+                        bounds=replace(setup.loop_settings.bounds, torque=limit),
                     )
                     out.append(_status_record(
                         plant, setup, entry, case.name, case.position, case.velocity,
@@ -475,7 +477,7 @@ def safeguard_cost(
     period: float, repeats: int = 5,
 ) -> Record:
     """Median µs per call of the bare law and of the guarded law over the same states."""
-    guard = Safeguard(entry.controller, period, also_keep=setup.also_keep)
+    guard = Safeguard(entry.controller, InputBounds(period), also_keep=setup.also_keep)
     law = entry.controller
 
     def timed(f: Callable[[Array, Array], object]) -> float:

@@ -215,12 +215,12 @@ def cost(config: Config, log: Log) -> dict[str, object]:
         for entry in cp.constrained(setup):
             # states along the scenario's own run: what the safeguard meets in operation
             case = setup.cases[0]
-            law = sg.guarded(entry.controller, setup.loop_settings.control_period,
-                             setup.safeguard, None, setup.also_keep)
+            unboxed = replace(setup.loop_settings.bounds, torque=None)
+            law = sg.guarded(entry.controller, unboxed, setup.safeguard, setup.also_keep)
             traj = run_mujoco(setup.make_plant(), law, setup.model.coordinates, case.position,
                               case.velocity, replace(setup.loop_settings, duration=min(
                                   5.0, setup.loop_settings.duration), log_every=25,
-                                  torque_limit=None))
+                                  bounds=unboxed))
             along = [SampledState(x, dx, "trajectory", 1.0)
                      for x, dx in zip(traj.position, traj.velocity, strict=True)][:200]
             for label, states in (("along the scenario's run", along),

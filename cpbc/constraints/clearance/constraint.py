@@ -25,8 +25,7 @@ from cpbc.constraints.geometry import Obstacle
 from cpbc.constraints.margins import CLEARANCE
 from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError, ParameterError
-from cpbc.kernels import barrier_set
-from cpbc.kernels.clearance import localised_terms
+from cpbc.kernels.clearance import localised_terms, pack_sphere_pairs
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -143,6 +142,7 @@ class Clearance(PairLayout, ConfigurationConstraint):
         self._pin = model.model
         self._data = self._pin.createData()  # its own, for evaluations away from the state
         self._n = model.n
+        self._at_rest = np.zeros(model.n)  # q̇ = 0: the pair rows without their curvature
         self._identity = model.coordinates.is_identity
         self._t_inv = model.coordinates.inverse
         self._setup_kinematics()
@@ -215,6 +215,24 @@ class Clearance(PairLayout, ConfigurationConstraint):
 
     def gradient(self, x: Array) -> Array:
         return self.evaluate(x)[1]
+
+    def gradient_at(self, state: ArmState) -> Array:
+        """∂φ/∂x at the per-step state, from its joint placements and Jacobians (no
+        Pinocchio pass; ``gradient`` at x for a state built without them): each sphere
+        constraint's closest pair's row (cpbc.kernels.clearance.sphere_pair_rows), each
+        capsule group's own."""
+        if state.regressor is None or state.joint_jacobians is None:
+            return self.gradient(state.x)
+        y, jac = state.regressor, state.joint_jacobians
+        grad = np.empty((len(self.names), self._n))
+        s = self._spheres
+        if s is not None:
+            phi, rows, _ = self._pair_rows(y, jac, self._at_rest)
+            grad[s.start:s.stop] = rows[self._closest(phi)]
+        jacobian_rows = partial(self._rows_times_jacobians, jac)
+        for g in self._groups:
+            grad[g.start:g.stop] = g.gradient(*g.narrow(y), jacobian_rows)
+        return grad if self._identity else grad @ self._t_inv
 
     def _reported(self, y: Array, jac: Array, dq: Array) -> tuple[Array, Array, Array]:
         """The reported clearances, their gradients (controller coordinates) and the sphere
@@ -354,10 +372,9 @@ class Clearance(PairLayout, ConfigurationConstraint):
         if (type(self).barrier_terms is not Clearance.barrier_terms or s is None
                 or self._groups or not self._identity):
             return None
-        tables = (s.sphere_local, s.obstacles, s.pair_table, s.sphere_supports,
-                  self._far_phi[:, None], np.array([[self.influence or 0.0]]), s.group_table)
-        return Packed(barrier_set.SPHERES, tables,
-                      (s.sphere_index[:, None], s.pair_index, s.group_index))
+        return pack_sphere_pairs(s.sphere_local, s.obstacles, s.pair_table, s.sphere_supports,
+                                 self._far_phi, self.influence, s.group_table, s.sphere_index,
+                                 s.pair_index, s.group_index)
 
     def _barrier(self, x: Array, y: Array, jac: Array, with_value: bool
                  ) -> tuple[Array, Array, Array | None]:

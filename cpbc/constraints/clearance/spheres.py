@@ -22,8 +22,8 @@ from cpbc.kernels.clearance import (
     sphere_barrier,
     sphere_clearances,
     sphere_geometry,
-    sphere_pair_rows,
 )
+from cpbc.kernels.clearance_motion import sphere_pair_rows
 
 ROUNDING = 1e-9  # [m] the broad phase's allowance for rounding, far above that of the
 # centres and distances (~1e-15 m at an arm's scale), far below any influence distance
@@ -160,7 +160,7 @@ class SpherePairs(Kinematics):
     def _pair_rows(self, y: Array, jac: Array, dq: Array) -> tuple[Array, Array, Array]:
         """Every sphere pair's clearance (P,), gradient (P, n) and curvature q̇ᵀ∇²φ_p q̇
         (P,), joint coordinates, at the joint placements y, joint Jacobians ``jac`` and rates
-        ``dq`` (cpbc.kernels.clearance.sphere_pair_rows)."""
+        ``dq`` (cpbc.kernels.clearance_motion.sphere_pair_rows)."""
         s = self._spheres
         assert s is not None
         n_pair = len(s.group)

@@ -16,8 +16,12 @@ from cpbc.arrays import Array
 from cpbc.constraints.packing import Packed
 from cpbc.controllers.potentials.potential import GradientBound, OnOneFrame, Placed, frame_at
 from cpbc.errors import ParameterError
-from cpbc.kernels.law_terms import AXIS_SPRING, ORIENTATION_SPRING
-from cpbc.kernels.task import axis_spring, orientation_spring
+from cpbc.kernels.task import (
+    axis_spring,
+    orientation_spring,
+    pack_axis_spring,
+    pack_orientation_spring,
+)
 from cpbc.model.frames import jacobian_bounds
 from cpbc.model.robot_model import RobotModel
 
@@ -108,8 +112,8 @@ class FrameOrientationSpring(OnOneFrame):
                 cls.evaluate_toward is not FrameOrientationSpring.evaluate_toward):
             return None
         goal = self.rotation if toward is None else toward
-        return (Packed(ORIENTATION_SPRING, (goal, np.array([[self.stiffness]])),
-                       frame=self.frame, live=() if toward is None else ((0, toward),)),)
+        return (pack_orientation_spring(goal, self.stiffness, self.frame,
+                                        moving=toward is not None),)
 
 
 @dataclass(frozen=True)
@@ -173,5 +177,4 @@ class FrameAxisSpring(OnOneFrame):
                 cls.evaluate_toward is not FrameAxisSpring.evaluate_toward):
             return None
         axes = np.vstack([self.tool, self.world]) if toward is None else toward
-        return (Packed(AXIS_SPRING, (axes, np.array([[self.stiffness]])), frame=self.frame,
-                       live=() if toward is None else ((0, toward),)),)
+        return (pack_axis_spring(axes, self.stiffness, self.frame, moving=toward is not None),)

@@ -13,8 +13,8 @@ from cpbc.controllers.controller import positive_vector, vector3
 from cpbc.controllers.potentials.log_cosh import LogCoshSum
 from cpbc.controllers.potentials.potential import GradientBound, OnOneFrame, Placed, frame_at
 from cpbc.errors import ParameterError
-from cpbc.kernels.law_terms import POSITION_LOG_COSH, POSITION_SPRING, position_log_cosh
-from cpbc.kernels.task import position_spring
+from cpbc.kernels.law_terms import pack_position_log_cosh, position_log_cosh
+from cpbc.kernels.task import pack_position_spring, position_spring
 from cpbc.model.frames import jacobian_bounds
 from cpbc.model.robot_model import RobotModel
 
@@ -96,9 +96,8 @@ class FramePositionSpring(OnOneFrame):
                 cls.evaluate_toward is not FramePositionSpring.evaluate_toward):
             return None
         goal = self.goal if toward is None else toward
-        return (Packed(POSITION_SPRING, (self._point[None, :], goal[None, :],
-                                         self.stiffness), frame=self.frame,
-                       live=() if toward is None else ((1, toward),)),)
+        return (pack_position_spring(self._point, goal, self.stiffness, self.frame,
+                                     moving=toward is not None),)
 
 
 @dataclass(frozen=True)
@@ -176,6 +175,5 @@ class FramePositionLogCosh(OnOneFrame):
                 cls.evaluate_toward is not FramePositionLogCosh.evaluate_toward):
             return None
         goal = self.goal if toward is None else toward
-        return (Packed(POSITION_LOG_COSH, (self._point[None, :], goal[None, :],
-                                           self._gains, np.array([[self._log_offset]])),
-                       frame=self.frame, live=() if toward is None else ((1, toward),)),)
+        return (pack_position_log_cosh(self._point, goal, self._gains, self._log_offset,
+                                       self.frame, moving=toward is not None),)

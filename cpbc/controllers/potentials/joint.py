@@ -12,7 +12,7 @@ from cpbc.constraints.packing import Packed
 from cpbc.controllers.controller import positive_vector
 from cpbc.controllers.potentials.log_cosh import LogCoshSum
 from cpbc.controllers.potentials.potential import GradientBound, OfTheJoints, Placed
-from cpbc.kernels.law_terms import JOINT_SPRING, LOG_COSH_SPRING, joint_spring
+from cpbc.kernels.law_terms import joint_spring, pack_joint_spring, pack_log_cosh_spring
 
 
 def _set_point(target: object) -> Array:
@@ -61,8 +61,7 @@ class JointSpring(OfTheJoints):
                 cls.evaluate_toward is not JointSpring.evaluate_toward):
             return None
         goal = self.target if toward is None else toward
-        return (Packed(JOINT_SPRING, (np.vstack([goal, self.stiffness]),),
-                       live=() if toward is None else ((0, toward),)),)
+        return (pack_joint_spring(goal, self.stiffness, moving=toward is not None),)
 
 
 @dataclass(frozen=True)
@@ -113,5 +112,4 @@ class JointLogCoshSpring(OfTheJoints):
             return None
         gains, offset = self._spring.tables()
         goal = self.target if toward is None else toward
-        return (Packed(LOG_COSH_SPRING, (np.vstack([goal, gains]), offset),
-                       live=() if toward is None else ((0, toward),)),)
+        return (pack_log_cosh_spring(goal, gains, offset, moving=toward is not None),)

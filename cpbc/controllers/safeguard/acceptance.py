@@ -10,19 +10,49 @@ from collections.abc import Callable
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.stopping import Braking
 from cpbc.controllers.hold import hold_corrected
-from cpbc.controllers.safeguard.members import GuardMembers
-from cpbc.controllers.safeguard.predicted_margins import BrakingTest
+from cpbc.controllers.safeguard.predicted_margins import BrakingTest, PredictedMargins, RampTest
 from cpbc.controllers.safeguard.prediction import Predictor
-from cpbc.model.robot_model import ArmState
+from cpbc.controllers.safeguard.step_box import StepBox
+from cpbc.model.robot_model import ArmState, RobotModel
+
+Slack = Callable[[Array], float]  # F(τ): ≥ 0 when τ passes
 
 
-class Acceptance(GuardMembers):
-    """(S1), (S2) and the blend: mixed into :class:`cpbc.controllers.safeguard.Safeguard`."""
+class Acceptance:
+    """(S1), (S2) and the blend: the safeguard's test of a torque.
 
-    def _check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None,
+    Args:
+        model: the controller's model.
+        along: the guarded margins along a prediction (compiled).
+        box: the step's input bounds (the law's torque is put in them).
+        braking: the uniform brake whose margins σ (S2) holds, or None.
+        sigma_floor: the floors of σ_i (their cushions δ_i).
+        period: h [s].
+        hold_share: s of the hold correction (0: none).
+        backoffs: Illinois steps of the blend.
+
+    Attributes:
+        ramp: this step's velocity lookahead under a torque-rate limit (set by the guard).
+        scaled: steps at which the law's torque was scaled into the torque box.
+        uncorrected: steps at which the law's own torque kept (S1) where its hold-corrected
+            one failed it.
+    """
+
+    def __init__(self, model: RobotModel, along: PredictedMargins, box: StepBox,
+                 braking: Braking | None, sigma_floor: Array, period: float,
+                 hold_share: float, backoffs: int) -> None:
+        self.model, self.along, self.box, self.braking = model, along, box, braking
+        self.sigma_floor, self.period, self.hold_share = sigma_floor, period, hold_share
+        self.backoffs = backoffs
+        self.ramp: RampTest | None = None
+        self.scaled = 0
+        self.uncorrected = 0
+
+    def check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None,
                stop: BrakingTest | None = None,
-               past: np.ndarray | None = None) -> Callable[[Array], float]:
+               past: np.ndarray | None = None) -> Slack:
         """F(τ) = min_i m_i/floor_i − 1 over the predicted end (and mid-period
         configuration) margins of every prediction, and with ``stop`` = (1/(2θA), floors)
         the braking margins σ_i at the predicted ends: ≥ 0 when τ keeps every margin above
@@ -31,9 +61,9 @@ class Acceptance(GuardMembers):
         turns within the period a rate can cross its bound and be back by the end (seen at
         100 Hz once the torque was corrected for the hold). ``past`` marks the margins
         already ≤ 0 (only the extra constraints can be): their floor is their present value,
-        compared by difference, and their braking margin is not held (:meth:`_guard`)."""
+        compared by difference, and their braking margin is not held (Safeguard._guard)."""
         along = self.along
-        ramp = self._ramp
+        ramp = self.ramp
         if ramp is None or not along.nv:
             def f(t: Array) -> float:
                 return along.slack(predict(t), end_floor, mid_floor, stop, past)
@@ -47,7 +77,7 @@ class Acceptance(GuardMembers):
 
         return ramped
 
-    def _braking_floor(self, state: ArmState, bias: Array,
+    def braking_floor(self, state: ArmState, bias: Array,
                        held: Array | None = None) -> BrakingTest | None:
         """(1/(2θA), the floors of the braking margins σ_i: their cushions δ_i, and under a
         torque-rate limit the brake's ramp time from the torque ``held``), or None without a
@@ -63,14 +93,14 @@ class Acceptance(GuardMembers):
         if per_speed == 0.0 or per_speed == math.inf:
             return None
         if braking.rate is None:
-            return BrakingTest(per_speed, self._sigma_floor)
+            return BrakingTest(per_speed, self.sigma_floor)
         ramp = braking.ramp(state.inertia, bias, state.dx,
                             state.gravity if held is None else held, per_speed)
-        return BrakingTest(per_speed, self._sigma_floor, ramp + self.period, state.dx,
+        return BrakingTest(per_speed, self.sigma_floor, ramp + self.period, state.dx,
                            self.period)
 
-    def _held(self, state: ArmState, bias: Array, law: Array,
-              slack: Callable[[Array], float]) -> tuple[Array, float]:
+    def held(self, state: ArmState, bias: Array, law: Array,
+             slack: Slack) -> tuple[Array, float]:
         """The law's torque as the guard would hold it, and F of (S1) there: corrected for
         the hold (:func:`hold_corrected`, by the plant's share ``hold_share``) and scaled
         into the torque box. If that fails (S1) while the law's own torque keeps it, the
@@ -82,26 +112,25 @@ class Acceptance(GuardMembers):
         (S1) allows, and braking there fought the law on every other step."""
         share = self.hold_share
         tau = hold_corrected(self.model, state, bias, law, self.period, share) if share else law
-        boxed = self._box(bias, tau)
+        boxed = self.box.fit(bias, tau)
         if boxed is not tau:
             self.scaled += 1
             tau = boxed
         f0 = slack(tau)
         if f0 >= 0.0 or not share:
             return tau, f0
-        plain = self._box(bias, law)
+        plain = self.box.fit(bias, law)
         f_plain = slack(plain)
         if f_plain < 0.0:
             return tau, f0
         self.uncorrected += 1
-        return self._blend(tau, plain, f0, f_plain, slack), 0.0
+        return self.blend(tau, plain, f0, f_plain, slack), 0.0
 
-    def _blend(self, tau: Array, brake: Array, f0: float, f1: float,
-               slack: Callable[[Array], float]) -> Array:
+    def blend(self, tau: Array, brake: Array, f0: float, f1: float, slack: Slack) -> Array:
         """Illinois steps for the smallest β with F(β) ≥ 0, bracketed by F(0) < 0 ≤ F(1)."""
         lo, f_lo, hi, f_hi = 0.0, f0, 1.0, f1
         side = 0
-        for _ in range(self.settings.backoffs):
+        for _ in range(self.backoffs):
             beta = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
             if not lo < beta < hi:
                 beta = 0.5 * (lo + hi)

@@ -6,33 +6,53 @@ calmest brake or the escape."""
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.controllers.linalg import solve_spd
-from cpbc.controllers.safeguard.members import GuardMembers
+from cpbc.controllers.rescue import Rescue
+from cpbc.controllers.safeguard.acceptance import Acceptance, Slack
 from cpbc.controllers.safeguard.predicted_margins import BrakingTest
 from cpbc.controllers.safeguard.prediction import Predictor
+from cpbc.controllers.safeguard.settings import SafeguardSettings
+from cpbc.controllers.safeguard.step_box import StepBox
 from cpbc.model.robot_model import ArmState
 
 
-class Brakes(GuardMembers):
-    """The replacement torques: mixed into :class:`cpbc.controllers.safeguard.Safeguard`."""
+class Brakes:
+    """The replacement torques, tested by the guard's acceptance.
 
-    def _check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None,
-               stop: BrakingTest | None = None,
-               past: np.ndarray | None = None) -> Callable[[Array], float]:
-        raise NotImplementedError
+    Args:
+        guarded: the constraints the guard keeps (configuration ones first).
+        settings: λ₀, the search's steps.
+        acceptance: the test a replacement must pass.
+        box: the step's input bounds (every replacement is put in them).
+        rescue: the rescue's brakes, or None (no torque box).
+        cushion: δ_i per guarded margin.
+        keep: e^{−κh}, the share of a margin (S1) keeps over a period (keep_half: at mid-period).
+        travel: c of the predicted end x + hẋ + c h² a.
 
-    def _brake(self, bias: Array, stop: Array, lam: float) -> Array:
-        """The braking torque b − λ D ẋ/h, scaled into the torque box (:meth:`_box`)."""
-        return self._box(bias, bias - lam * stop, brake=True)
+    Attributes:
+        rescues: steps at which a rescue brake was held.
+    """
 
-    def _search_braking(
-        self, bias: Array, stop: Array, slack: Callable[[Array], float], f_stop: float,
-        f_reverse: float,
+    def __init__(self, guarded: ConstraintSet, settings: SafeguardSettings,
+                 acceptance: Acceptance, box: StepBox, rescue: Rescue | None, cushion: Array,
+                 keep: float, keep_half: float, travel: float, period: float) -> None:
+        self.guarded, self.settings, self.acceptance = guarded, settings, acceptance
+        self.box, self.rescue, self.cushion = box, rescue, cushion
+        self.keep, self.keep_half, self.travel, self.period = keep, keep_half, travel, period
+        self.n_config = guarded.n_configuration
+        self.rescues = 0
+
+    def brake(self, bias: Array, stop: Array, lam: float) -> Array:
+        """The braking torque b − λ D ẋ/h, put in the step's box (StepBox.fit)."""
+        return self.box.fit(bias, bias - lam * stop, brake=True)
+
+    def search_braking(
+        self, bias: Array, stop: Array, slack: Slack, f_stop: float, f_reverse: float,
     ) -> tuple[float, float]:
         """Golden-section search of λ ∈ (λ₀, 2) for the braking torque bias − λ D ẋ / h with
         the largest F, stopping at the first λ with F ≥ 0. Between stopping (excursion ½hẋ)
@@ -56,7 +76,7 @@ class Brakes(GuardMembers):
                     a, c, fc = c, d, fd
                     d = a + ratio * (b - a)
                 lam = d
-            f = slack(self._brake(bias, stop, lam))
+            f = slack(self.brake(bias, stop, lam))
             if at_c:
                 fc = f
             else:
@@ -66,60 +86,58 @@ class Brakes(GuardMembers):
                 break
         return best[1], best[0]
 
-    def _rescued(self, state: ArmState, bias: Array, predict: Predictor,
-                 now: Array) -> Array | None:
+    def rescued(self, state: ArmState, bias: Array, predict: Predictor, now: Array,
+                step: int, error: Array | None = None) -> Array | None:
         """The rescue's brake (rescue.py) when it finds one that stops the arm inside S in
         the model; a committed one is held again, in the period right after the one it was
-        held in, while its one-period prediction keeps every margin above the floor it was
-        found with."""
+        held in (``step``: the guard's count of control steps), while its one-period
+        prediction keeps every margin above the floor it was found with. ``error``: the bound
+        on the model's acceleration error at this step, which the search's checks hold over
+        each brake's rollout (rescue.py)."""
         if self.rescue is None:
             return None
-        nc = self._n_config
+        nc, check = self.n_config, self.acceptance.check
 
         def holds(t: Array, floor: Array) -> bool:
-            return self._check(predict, np.maximum(floor, 1e-300),
-                               np.maximum(floor[:nc], 1e-300) if nc else None)(t) >= 0.0
+            return check(predict, np.maximum(floor, 1e-300),
+                         np.maximum(floor[:nc], 1e-300) if nc else None)(t) >= 0.0
 
-        tau = self.rescue.torque(state, bias, now, holds, self.calls, self._holding)
+        tau = self.rescue.torque(state, bias, now, holds, step, self.box.holding, error)
         if tau is None:
             return None
         self.rescues += 1
         # under a rate limit the brake is reached as the rescue's search held it
-        # (brakes.ramped, _box): a brake clipped joint by joint kicked the Panda's light
-        # wrist through its rate bound
-        return tau if self._rate_step is None else self._box(bias, tau, brake=True)
+        # (brakes.ramped, StepBox.fit): a brake clipped joint by joint kicked the Panda's
+        # light wrist through its rate bound
+        return self.box.fit(bias, tau, brake=True) if self.box.rate_limited else tau
 
-    def _infeasible(self, state: ArmState, bias: Array, stop: Array, predict: Predictor,
+    def infeasible(self, state: ArmState, bias: Array, stop: Array, predict: Predictor,
                     now: Array, floor: Array, floor_mid: Array | None) -> Array:
         """When no brake satisfies (S1): the fallback, with the escape where there are
         configuration constraints, judged on the first (frozen) prediction alone: asking
         the fallback to satisfy both predictions left it choosing among torques that all
         fail, and worse ones (a Panda joint limit broken at 100 Hz)."""
-        delta, nc = self.cushion, self._n_config
+        delta, nc, check = self.cushion, self.n_config, self.acceptance.check
 
         def frozen(t: Array) -> tuple[Array, Array, Array, Array, Array]:
             mids, ends, speeds, inner_x, inner_v = predict(t)
             inner = len(inner_x) // len(ends)  # rows per prediction
             return mids[:1], ends[:1], speeds[:1], inner_x[:inner], inner_v[:inner]
 
-        positivity = self._check(frozen, delta, delta[:nc] if nc else None)  # (S0) m ≥ δ
+        positivity = check(frozen, delta, delta[:nc] if nc else None)  # (S0) m ≥ δ
         if floor_mid is None:
-            return self._fallback(bias, stop, positivity)
+            return self.fallback(bias, stop, positivity)
         # (S−), for the escape: configuration margins recover as (S1) asks at the end but,
         # below their cushion, may shrink at mid-period by the decay share; velocity
         # margins may be spent down to their cushion.
         hold_end = np.minimum(delta, self.keep * now)
         hold_end[:nc] = floor[:nc]
         hold_mid = np.minimum(floor_mid, self.keep_half * now[:nc])
-        escape = self._escape(state.x, state.dx, state.inertia, now, hold_end, hold_mid)
-        return self._fallback(bias, stop, positivity, escape,
-                              self._check(frozen, hold_end, hold_mid))
+        escape = self._escape(state, now, hold_end, hold_mid)
+        return self.fallback(bias, stop, positivity, escape, check(frozen, hold_end, hold_mid))
 
-    def _fallback(
-        self, bias: Array, stop: Array, positivity: Callable[[Array], float],
-        escape: Array | None = None,
-        holding: Callable[[Array], float] | None = None,
-    ) -> Array:
+    def fallback(self, bias: Array, stop: Array, positivity: Slack,
+                 escape: Array | None = None, holding: Slack | None = None) -> Array:
         """When no torque satisfies (S1): the calmest braking torque that keeps every margin
         above its cushion (S0) — the smallest λ ≥ λ₀, so that the arm is not bounced off
         the boundary period after period; else the first escape torque
@@ -127,32 +145,30 @@ class Brakes(GuardMembers):
         the curvature of φ that the first-order escape misses); else the λ that comes
         closest to (S0)."""
         lam0 = self.settings.braking
-        calmest = self._brake(bias, stop, lam0)
+        calmest = self.brake(bias, stop, lam0)
         f_stop = positivity(calmest)
         if f_stop >= 0.0:
             return calmest
-        lam, f_lam = self._search_braking(bias, stop, positivity, f_stop,
-                                          positivity(self._brake(bias, stop, 2.0)))
+        lam, f_lam = self.search_braking(bias, stop, positivity, f_stop,
+                                         positivity(self.brake(bias, stop, 2.0)))
         if f_lam >= 0.0:  # bisect down towards the smallest λ that keeps (S0)
             lo = lam0
             for _ in range(self.settings.brake_search):
                 mid = 0.5 * (lo + lam)
-                if positivity(self._brake(bias, stop, mid)) >= 0.0:
+                if positivity(self.brake(bias, stop, mid)) >= 0.0:
                     lam = mid
                 else:
                     lo = mid
         elif escape is not None and holding is not None:
             start = bias - stop  # ends the period at rest ...
             for s in (1.0, 1.5, 2.0):  # ... plus the push to the end velocity s·v
-                push = self._box(bias, start + s * escape, brake=True)
+                push = self.box.fit(bias, start + s * escape, brake=True)
                 if holding(push) >= 0.0:
                     return push
-        return self._brake(bias, stop, lam)
+        return self.brake(bias, stop, lam)
 
-    def _escape(
-        self, x: Array, dx: Array, inertia: Array, now: Array, end_floor: Array,
-        mid_floor: Array,
-    ) -> Array:
+    def _escape(self, state: ArmState, now: Array, end_floor: Array, mid_floor: Array
+                ) -> Array:
         """The push D v/h of a braking torque that ends the period at a velocity v pushing
         off the nearby configuration boundaries — for when one factor λ for every joint
         cannot both keep one joint off its limit and let another move away from its own.
@@ -172,20 +188,16 @@ class Brakes(GuardMembers):
         torque C ẋ + g + f − D ẋ/h and checks the sum with the full prediction.
         """
         h = self.period
-        nc = self._n_config
-        grads = self._gradients(x)
-        rate = grads @ dx
+        nc = self.n_config
+        grads = self.guarded.configuration_gradients(state)
+        rate = grads @ state.dx
         c = self.travel
         need = np.maximum(((end_floor[:nc] - now[:nc]) / h - (1.0 - c) * rate) / c,
                           8.0 * (mid_floor - now[:nc]) / h - 3.0 * rate)
-        return inertia @ _project(grads, need, np.zeros_like(dx)) / h
+        return state.inertia @ _project(grads, need, np.zeros_like(state.dx)) / h
 
-    def _gradients(self, x: Array) -> Array:
-        """∇φ_i of every guarded configuration constraint, shape (number of φ_i, n)."""
-        return np.concatenate([c.gradient(x) for c in self.guarded.configuration])
-
-    def _slide(self, state: ArmState, bias: Array, tau: Array, now: Array, end_floor: Array,
-               mid_floor: Array, stop: BrakingTest | None) -> Array:
+    def slide(self, state: ArmState, bias: Array, tau: Array, now: Array, end_floor: Array,
+              mid_floor: Array, stop: BrakingTest | None) -> Array:
         """The law's torque less what drives the arm into the configuration boundaries:
         its acceleration a = D⁻¹(τ − b) projected onto the half-spaces that (S1) asks of
         each configuration margin to first order,
@@ -202,8 +214,8 @@ class Brakes(GuardMembers):
         that boundary by the end of the period, ∇φ_i · (ẋ + h a) ≥ 0, and a is projected
         again with that half-space added."""
         h = self.period
-        nc = self._n_config
-        grads = self._gradients(state.x)
+        nc = self.n_config
+        grads = self.guarded.configuration_gradients(state)
         rate = grads @ state.dx
         phi = now[:nc]
         # aimed a little past each floor (a twentieth of the step, and 10⁻⁴ of the floor for
@@ -223,7 +235,7 @@ class Brakes(GuardMembers):
             if short.any():
                 need = np.where(short, np.maximum(need, -rate / h), need)
                 acc = _project(grads, need, law)
-        return self._box(bias, bias + state.inertia.dot(acc))
+        return self.box.fit(bias, bias + state.inertia.dot(acc))
 
 
 def _project(grads: Array, need: Array, start: Array) -> Array:

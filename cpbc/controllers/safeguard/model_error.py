@@ -47,6 +47,7 @@ import pinocchio as pin
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.error_reach import ErrorReach
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -67,21 +68,9 @@ def margin_losses(constraints: ConstraintSet, state: ArmState, bound: Array, per
     """What an acceleration error |d_j| ≤ ``bound``_j can take off each margin of
     ``constraints`` over one period (the module docstring): (at the period's end, every
     margin in the order of ``names``; at mid-period, the configuration ones)."""
+    reach = ErrorReach.at(constraints, state, bound)
     h = period
-    x, dx = state.x, state.dx
-    parts, mid = [], np.zeros(constraints.n_configuration)
-    if constraints.configuration:
-        grads = np.concatenate([c.gradient(x) for c in constraints.configuration])
-        reach = np.abs(grads) @ bound
-        parts.append(travel * h * h * reach)
-        mid = 0.125 * h * h * reach
-    for c in constraints.velocity:
-        weights = c.weights(x, state)  # (k, n, n)
-        push = np.abs(weights @ dx) @ bound
-        drift = 0.5 * h * h * np.einsum("kij,i,j->k", np.abs(weights), bound, bound)
-        parts.append(h * push + drift)
-    end = np.concatenate(parts) if parts else np.zeros(0)
-    return end, mid
+    return reach.losses(h, travel), 0.125 * h * h * reach.configuration
 
 
 @dataclass(frozen=True)
@@ -163,7 +152,7 @@ def measurement_losses(constraints: ConstraintSet, state: ArmState, declared: De
     v = np.zeros(n) if declared.velocity is None else np.broadcast_to(declared.velocity, (n,))
     parts, mid = [], np.zeros(constraints.n_configuration)
     if constraints.configuration:
-        slopes = np.abs(np.concatenate([c.gradient(state.x) for c in constraints.configuration]))
+        slopes = np.abs(constraints.configuration_gradients(state))
         parts.append(slopes @ (p + h * v))
         mid = slopes @ (p + 0.5 * h * v)
     for c in constraints.velocity:

@@ -300,6 +300,11 @@ class SimulationSpec(Strict):
             "refuse gains whose zero-order-hold loop is unstable at the control period (false"
             " runs them anyway)"))
 
+    @property
+    def period(self) -> float:
+        """The control period h [s]: ``control_period``, or one timestep when omitted."""
+        return self.control_period or self.timestep
+
 
 class CaseSpec(Strict):
     name: CaseName = Field(description="the case's name (a folder name of the output)")

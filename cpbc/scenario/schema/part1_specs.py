@@ -241,6 +241,11 @@ class SystemSimulationSpec(Strict):
         default=10_000_000, description=(
             "steps per run above which the scenario is refused"))
 
+    @property
+    def period(self) -> float:
+        """The control period h [s]: ``control_period``, or one timestep when omitted."""
+        return self.control_period or self.timestep
+
 
 class AltitudeCommandSpec(Strict):
     """A step of the altitude command: h_d = ``altitude`` [m] from ``time`` [s] on."""
