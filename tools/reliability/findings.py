@@ -125,7 +125,7 @@ def _declared_mismatch(d: Data) -> str:
     """The declared runs: what broke on the plant, what converged, what the guard held still,
     and how close the bound came to the drawn plants' true error."""
     every = [r for k, recs in d.items() if "/" not in k for r in cast(list[Data], recs)
-             if r["enforces"] and r["safeguard"]]
+             if r["enforces"] and r["safeguard"] and r["type"] not in PEERS]
     runs = [r for r in every if r.get("declared")]
     if not runs:
         return "not run."
@@ -156,7 +156,26 @@ def _declared_mismatch(d: Data) -> str:
                 f"{worst:.2f}; the median ratio per scenario and family {low:.2f}–{high:.2f}: "
                 "a worst case over independent links' errors, which random draws rarely "
                 "line up).")
-    return "; ".join(parts) + "." + tail
+    return "; ".join(parts) + "." + tail + _peers_declared(d)
+
+
+# laws that are safety filters of their own: the safeguard does not wrap them
+# (cpbc.controllers.safeguard.guarded), so a declared error is not held for them
+PEERS = ("cbf_qp",)
+
+
+def _peers_declared(d: Data) -> str:
+    """The peers' runs under a declared error, apart: no safeguard holds it for them."""
+    runs = [r for k, recs in d.items() if "/" not in k for r in cast(list[Data], recs)
+            if r.get("declared") and r["type"] in PEERS]
+    if not runs:
+        return ""
+    broke = [r for r in runs if r["enforced_violation"]]
+    names = ", ".join(sorted({f"{r['scenario']}/{r['controller']}" for r in runs}))
+    return (f" The peers ({names}) are safety filters of their own, which the safeguard does "
+            "not wrap, and nothing in them holds a declared error: "
+            f"{len(broke)} of {len(runs)} of their runs broke an enforced constraint "
+            f"({_counts(runs)}).")
 
 
 def _final_errors(declared: list[Data], exact: list[Data]) -> str:
@@ -287,8 +306,11 @@ def _noise(d: Data) -> list[str]:
 
 
 def _declared_noise(d: Data) -> str:
-    """The constrained laws' runs with the measurement error declared at k σ."""
-    runs = [r for recs in d.values() for r in cast(list[Data], recs) if r.get("declared")]
+    """The constrained laws' runs with the measurement error declared at k σ (the peers',
+    which no safeguard wraps, apart)."""
+    every = [r for recs in d.values() for r in cast(list[Data], recs) if r.get("declared")]
+    runs = [r for r in every if r["type"] not in PEERS]
+    peers = [r for r in every if r["type"] in PEERS]
     if not runs:
         return "- **Noise, the error declared**: not run."
     k = runs[0].get("bound_sigmas")
@@ -308,9 +330,14 @@ def _declared_noise(d: Data) -> str:
                              f"keep; {beyond_bad} noise draws beyond {k:g} σ in them)"
                              if bad else "")
             + f"; {_counts(rs)}; {beyond} draws beyond {k:g} σ in all")
+    bad_peers = [r for r in peers
+                 if r["status"] in ("constraint_violated", "diverged", "crashed")]
+    tail = (f" The peers, which the safeguard does not wrap: {len(bad_peers)} of {len(peers)} "
+            "of their runs ended `constraint_violated` or `diverged`." if peers else "")
     return (f"- **Noise, the error declared** ({k:g} σ of each level as "
             "`simulation.model_error.position/velocity`, which the guard keeps every margin "
-            "above: `model_error.measurement_losses`; safeguard on): " + "; ".join(parts) + ".")
+            "above: `model_error.measurement_losses`; safeguard on): " + "; ".join(parts) + "."
+            + tail)
 
 
 def _saturation(d: Data) -> list[str]:
