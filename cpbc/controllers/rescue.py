@@ -20,13 +20,7 @@ moved the arm on, the same brake may lead into a boundary while its next period 
 safe (on the Panda figure-8 a brake committed 300 periods earlier was held again and carried
 the hand 4 mm through the table's clearance, where the uniform brake would have stopped it).
 That is the whole promise: from a state where the model says one of these brakes stops the
-arm inside S, the guard holds that brake. Where the model's acceleration may be off by ā (a
-declared model error, and its smooth friction's own: cpbc.controllers.safeguard.model_error),
-each check asks that much more of every margin after t seconds of braking as such an error can
-take in t (cpbc.constraints.error_reach, ∇φ and Π ẋ read at the check's start): a brake that the
-exact model stops a hair above the floor is not one the plant will (on the UR5 of the rate
-campaign the plant's friction took a wrist through the floor's clearance under a brake whose
-rollout in the model ended above it). The search runs only on the guard's infeasible path;
+arm inside S, the guard holds that brake. The search runs only on the guard's infeasible path;
 the accept path does not change.
 
 **A bounded step.** Holding a brake until rest in the model costs a period of model
@@ -60,7 +54,6 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.brakes import Rollout, TorqueBox, brakes, model_advance
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.constraints.error_reach import ErrorReach
 from cpbc.model.robot_model import ArmState, RobotModel
 
 # tried in this order (the uniform brake last: the guard's own chain has tried it already)
@@ -109,7 +102,7 @@ class Rescue:
 
     def torque(self, state: ArmState, bias: Array, now: Array,
                holds: Callable[[Array, Array], bool], step: int,
-               held: Array | None = None, error: Array | None = None) -> Array | None:
+               held: Array | None = None) -> Array | None:
         """The committed brake's torque if it was held at the step before ``step`` (the
         guard's count of control steps), ``holds(τ, floor)`` accepts it (its one-period
         prediction keeps every margin above the floor of the search that committed it) and
@@ -117,9 +110,7 @@ class Rescue:
         margin above its floor until rest — or, under a budget, whose check has not failed
         when the budget runs out — (the module docstring; then committed), else None.
         ``now``: the margins m_i at the sample; ``held``: the torque the actuators hold
-        (under a torque-rate limit); ``error``: the bound ā on the model's acceleration error
-        at this state, which each check holds over the time it brakes (the module
-        docstring), or None."""
+        (under a torque-rate limit)."""
         budget = self.budget
         if (self.committed is not None and self.floor is not None
                 and self.held_at == step - 1):
@@ -133,12 +124,11 @@ class Rescue:
                     return tau
                 # its check failed ahead of the arm: the next candidate, from here
                 return self._search(state, bias, now, step, held, self._candidate + 1,
-                                    budget, error)
-        return self._search(state, bias, now, step, held, 0, budget, error)
+                                    budget)
+        return self._search(state, bias, now, step, held, 0, budget)
 
     def _search(self, state: ArmState, bias: Array, now: Array, step: int,
-                held: Array | None, first: int, budget: int | None,
-                error: Array | None) -> Array | None:
+                held: Array | None, first: int, budget: int | None) -> Array | None:
         """The first candidate from ``first`` on (ORDER with the cushioned floor, then with
         none) whose check passes, or under a budget has not failed when it runs out."""
         self.committed, self._check = None, None
@@ -149,10 +139,9 @@ class Rescue:
             cushioned = np.minimum(self.cushion, 0.5 * np.maximum(now, 0.0))
             self._floors = (cushioned, np.zeros_like(cushioned))
         left = budget
-        reach = None if error is None else ErrorReach.at(self.guarded, state, error)
         for k in range(first, 2 * len(ORDER)):
             name, floor = ORDER[k % len(ORDER)], self._floors[k // len(ORDER)]
-            check = self._rollout(state, name, floor, held, reach)
+            check = self._rollout(state, name, floor, held)
             stop = check.run(left)
             if stop is None or stop.stopped:
                 self.committed, self.floor, self.held_at = name, floor, step
@@ -163,16 +152,12 @@ class Rescue:
         return None
 
     def _rollout(self, state: ArmState, name: str, floor: Array,
-                 held: Array | None, error: ErrorReach | None) -> Rollout:
+                 held: Array | None) -> Rollout:
         """The check of brake ``name`` from the state: held in the model until rest (ramped
-        from ``held`` under a torque-rate limit), every margin above ``floor`` — and above
-        what the model's ``error`` can take by the end of each period held."""
-        periods = [0]  # held so far: each call is one period's rows
+        from ``held`` under a torque-rate limit), every margin above ``floor``."""
 
         def margins(xs: Array, dxs: Array) -> Array:
-            periods[0] += 1
-            m = self.guarded.margins_along(xs, dxs) - floor
-            return m if error is None else m - error.losses(periods[0] * self.period)
+            return self.guarded.margins_along(xs, dxs) - floor
 
         advance = model_advance(self.model, self.box, state.x, state.dx, self.period,
                                 self.steps, self.rate_step,

@@ -87,13 +87,11 @@ class Brakes:
         return best[1], best[0]
 
     def rescued(self, state: ArmState, bias: Array, predict: Predictor, now: Array,
-                step: int, error: Array | None = None) -> Array | None:
+                step: int) -> Array | None:
         """The rescue's brake (rescue.py) when it finds one that stops the arm inside S in
         the model; a committed one is held again, in the period right after the one it was
         held in (``step``: the guard's count of control steps), while its one-period
-        prediction keeps every margin above the floor it was found with. ``error``: the bound
-        on the model's acceleration error at this step, which the search's checks hold over
-        each brake's rollout (rescue.py)."""
+        prediction keeps every margin above the floor it was found with."""
         if self.rescue is None:
             return None
         nc, check = self.n_config, self.acceptance.check
@@ -102,7 +100,7 @@ class Brakes:
             return check(predict, np.maximum(floor, 1e-300),
                          np.maximum(floor[:nc], 1e-300) if nc else None)(t) >= 0.0
 
-        tau = self.rescue.torque(state, bias, now, holds, step, self.box.holding, error)
+        tau = self.rescue.torque(state, bias, now, holds, step, self.box.holding)
         if tau is None:
             return None
         self.rescues += 1

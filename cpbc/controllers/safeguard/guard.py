@@ -251,7 +251,7 @@ class Safeguard(SafetyFilter):
         delta, nc = self.cushion, self._n_config
         floor, mid = np.empty(len(now)), np.empty(nc)
         floors(now, delta, self.keep, self.keep_half, floor, mid)  # (S1)
-        error = self._raise_floors(state, bias, tau, floor, mid)
+        self._raise_floors(state, bias, tau, floor, mid)
         floor_mid = None
         past = None
         if nc:
@@ -291,7 +291,7 @@ class Safeguard(SafetyFilter):
                 lam, f_lam = brakes.search_braking(bias, stop, slack, f1, f_rev)
                 if f_lam < 0.0:
                     self.infeasible += 1
-                    rescued = brakes.rescued(state, bias, predict, now, self.calls, error)
+                    rescued = brakes.rescued(state, bias, predict, now, self.calls)
                     if rescued is not None:
                         return rescued
                     return brakes.infeasible(state, bias, stop, predict, now, floor,
@@ -301,12 +301,11 @@ class Safeguard(SafetyFilter):
         return accept.blend(tau, brake, f0, f1, slack)
 
     def _raise_floors(self, state: ArmState, bias: Array, tau: Array, floor: Array,
-                      mid: Array) -> Array | None:
+                      mid: Array) -> None:
         """The floors of (S1) raised, in place, by whatever the model's error can take off
         each margin in one period (model_error.margin_losses), and to at least what a
         measurement error can hide above the cushion (measurement_losses): the true margin
-        then ends above its cushion too. Returns the bound on the acceleration error (the
-        rescue holds it too), or None."""
+        then ends above its cushion too."""
         error = self._error_bound(state, bias, tau)
         if error is not None:
             end_loss, mid_loss = margin_losses(self.guarded, state, error, self.period,
@@ -318,7 +317,6 @@ class Safeguard(SafetyFilter):
                                                     self.period)
             np.maximum(floor, end_loss + self.cushion, out=floor)
             np.maximum(mid, mid_loss + self.cushion[: len(mid)], out=mid)
-        return error
 
     def _error_bound(self, state: ArmState, bias: Array, tau: Array) -> Array | None:
         """The bound on the model's acceleration error at this state: the declared one plus

@@ -47,7 +47,6 @@ import pinocchio as pin
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.constraints.error_reach import ErrorReach
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -68,9 +67,21 @@ def margin_losses(constraints: ConstraintSet, state: ArmState, bound: Array, per
     """What an acceleration error |d_j| ≤ ``bound``_j can take off each margin of
     ``constraints`` over one period (the module docstring): (at the period's end, every
     margin in the order of ``names``; at mid-period, the configuration ones)."""
-    reach = ErrorReach.at(constraints, state, bound)
     h = period
-    return reach.losses(h, travel), 0.125 * h * h * reach.configuration
+    x, dx = state.x, state.dx
+    parts, mid = [], np.zeros(constraints.n_configuration)
+    if constraints.configuration:
+        grads = constraints.configuration_gradients(state)
+        reach = np.abs(grads) @ bound
+        parts.append(travel * h * h * reach)
+        mid = 0.125 * h * h * reach
+    for c in constraints.velocity:
+        weights = c.weights(x, state)  # (k, n, n)
+        push = np.abs(weights @ dx) @ bound
+        drift = 0.5 * h * h * np.einsum("kij,i,j->k", np.abs(weights), bound, bound)
+        parts.append(h * push + drift)
+    end = np.concatenate(parts) if parts else np.zeros(0)
+    return end, mid
 
 
 @dataclass(frozen=True)
