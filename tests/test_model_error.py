@@ -9,21 +9,35 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
+import yaml
 
 from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.constraints.linear_limit import joint_position_limit
 from cpbc.constraints.rate_limit import joint_rate_limit
 from cpbc.constraints.stopping import Braking
 from cpbc.controllers.safeguard import guard as guard_module
-from cpbc.controllers.safeguard.model_error import friction_error, margin_losses
+from cpbc.controllers.safeguard.model_error import (
+    DeclaredError,
+    friction_error,
+    margin_losses,
+    measurement_losses,
+)
 from cpbc.model.robot_model import RobotModel
-from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
+from cpbc.reliability.campaign import (
+    RecordingPlant,
+    campaign_setup,
+    checked_run,
+    kept_constraints,
+)
 from cpbc.reliability.verification import draw_state
-from cpbc.resources import models_dir
+from cpbc.resources import models_dir, scenarios_dir
+from cpbc.run import main as run_main
 from cpbc.scenario import build, load_scenario
-from cpbc.simulation.disturbances import AccelerationDisturbance
+from cpbc.simulation.disturbances import AccelerationDisturbance, PlantMismatch
 from cpbc.verify import main as verify_main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -165,3 +179,157 @@ def test_the_fr3s_friction_error_held_keeps_a_rate_the_smooth_model_alone_lets_c
     monkeypatch.setattr(guard_module, "friction_error", lambda model, state: None)
     exact = run()
     assert exact.violated and exact.constraint.startswith("rate[")
+
+
+# -- a declared inertia, joint and measurement error (model_error.DeclaredError) --------------
+def _drawn_errors(model: RobotModel, bound, level: dict, plants: int, states: int,
+                  seed: int, target: np.ndarray, make_plant) -> tuple[np.ndarray, np.ndarray]:
+    """|a − â| on plants drawn inside ``level`` (PlantMismatch.random) and the bound ā at the
+    same states and model accelerations, row by row."""
+    rng = np.random.default_rng(seed)
+    errors, bounds = [], []
+    for _ in range(plants):
+        plant = make_plant()
+        PlantMismatch.random(rng, plant.nbody - 1, plant.nv, **level).apply(plant)
+        data = mujoco.MjData(plant)
+        for _ in range(states):
+            x = target + rng.uniform(-0.5, 0.5, model.n)
+            dx = rng.uniform(-1.0, 1.0, model.n)
+            state = model.state(x, dx)
+            bias = state.coriolis_force + state.gravity + state.dissipation
+            accel = rng.uniform(-20.0, 20.0, model.n)
+            data.qpos[:], data.qvel[:] = x, dx
+            data.qfrc_applied[:] = bias + state.inertia @ accel
+            mujoco.mj_forward(plant, data)
+            assert data.nefc == 0  # no contact, no joint stop: the dynamics alone
+            errors.append(np.abs(data.qacc - accel))
+            bounds.append(bound.bound(state, accel))
+    return np.array(errors), np.array(bounds)
+
+
+def _planar_plant() -> mujoco.MjModel:
+    model = mujoco.MjModel.from_xml_path(str(models_dir() / "planar_2link.xml"))
+    model.jnt_limited[:] = 0  # the dynamics only
+    return model
+
+
+@pytest.mark.parametrize("level", [
+    {"mass": 0.2, "inertia": 0.2},
+    {"mass": 0.2, "inertia": 0.2, "damping": 0.05, "armature": 0.02},
+])
+def test_plants_drawn_inside_a_declared_inertia_error_stay_inside_its_bound(
+        planar_model, level) -> None:
+    """Masses and inertias ±20 % per link (and up to the added damping and rotor inertia):
+    MuJoCo's acceleration under the same torque never leaves the model's by more than ā;
+    a bound for a quarter of the error is exceeded by the same plants (the test can fail)."""
+    declared = DeclaredError(
+        inertia=0.2, armature=None if "armature" not in level else np.full(2, 0.02),
+        damping=None if "damping" not in level else np.full(2, 0.05))
+    bound = declared.acceleration_bound(planar_model)
+    target = np.array([0.3, -0.4])
+    errors, bounds = _drawn_errors(planar_model, bound, level, 8, 40, 7, target, _planar_plant)
+    assert np.all(errors <= bounds)
+    assert np.max(errors / bounds) > 0.2  # the bound is not loose beyond use
+    quarter = DeclaredError(inertia=0.05).acceleration_bound(planar_model)
+    errors, too_small = _drawn_errors(planar_model, quarter, {"mass": 0.2, "inertia": 0.2},
+                                      8, 40, 7, target, _planar_plant)
+    assert np.any(errors > too_small)
+
+
+def test_the_pandas_links_drawn_inside_the_declared_error_stay_inside_its_bound() -> None:
+    setup = campaign_setup("panda_cpbc_sphere")  # no friction, no rotor inertia
+    model = setup.model
+    bound = DeclaredError(inertia=0.2).acceleration_bound(model)
+
+    def plant() -> mujoco.MjModel:
+        m = setup.make_plant().model
+        m.jnt_limited[:] = 0
+        m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+        return m
+
+    errors, bounds = _drawn_errors(model, bound, {"mass": 0.2, "inertia": 0.2}, 4, 25, 3,
+                                   setup.target, plant)
+    assert np.all(errors <= bounds)
+
+
+def test_the_arms_energy_stays_within_1_plus_e_of_the_models_and_the_laws_keep_less(
+        tmp_path) -> None:
+    """½ẋᵀDẋ ≤ (1 + e) ½ẋᵀD̂ẋ on plants drawn inside ±e, so a scenario that declares e builds
+    its laws with Ω/(1 + e) and keeps Ω in its monitor."""
+    model = RobotModel.from_mjcf(models_dir() / "planar_2link.xml")
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        plant = _planar_plant()
+        PlantMismatch.random(rng, plant.nbody - 1, plant.nv, 0.2, 0.2).apply(plant)
+        data = mujoco.MjData(plant)
+        x, dx = rng.uniform(-2, 2, 2), rng.uniform(-2, 2, 2)
+        data.qpos[:] = x
+        mujoco.mj_forward(plant, data)
+        full = np.zeros((2, 2))
+        mujoco.mj_fullM(plant, data, full)
+        assert dx @ full @ dx <= 1.2 * dx @ model.inertia(x) @ dx
+    setup = campaign_setup("planar_cpbc_ke", model_error={"inertia": 0.25})
+    (ke,) = setup.monitor.velocity
+    law = next(e for e in setup.controllers if e.name == "CPBC-KE").controller
+    (kept,) = law.constraints.velocity
+    assert isinstance(ke, KineticEnergyLimit) and isinstance(kept, KineticEnergyLimit)
+    assert kept.names == ke.names and kept.limit == pytest.approx(ke.limit / 1.25)
+
+
+def test_a_measurement_error_can_hide_the_first_order_reach_of_each_margin(planar_model) -> None:
+    names = ["a", "b"]
+    cons = ConstraintSet(2, (joint_position_limit([-1.0, -1.0], [1.0, 1.0], names),),
+                         (joint_rate_limit([2.0, 2.0], names),))
+    x, dx = np.array([0.1, -0.2]), np.array([0.5, -1.5])
+    state = planar_model.state(x, dx)
+    p, v, h = np.array([0.01, 0.02]), np.array([0.1, 0.3]), 0.002
+    end, mid = measurement_losses(cons, state, DeclaredError(position=p, velocity=v), h)
+    slope = np.abs(np.diag(cons.configuration[0].gradient(x)))
+    assert end[:2] == pytest.approx(slope * (p + h * v))
+    assert mid == pytest.approx(slope * (p + 0.5 * h * v))
+    assert end[2:] == pytest.approx(np.abs(dx) * v + 0.5 * v**2)
+    # ... and a true rate that far from the measured one is off by at most that much
+    true_dx = dx - np.sign(dx) * v
+    measured = cons.margins(x, dx)[2:]
+    assert np.all(cons.margins(x, true_dx)[2:] >= measured - end[2:] - 1e-12)
+
+
+def test_a_plant_inside_the_declared_inertia_error_is_kept_only_when_declared() -> None:
+    """The Panda past a ball, its links' masses and inertias drawn within ±20 % (the
+    robustness campaign's first plant): the guard that takes the model as exact lets a wrist
+    rate cross (the law cancels the model's acceleration at the bound, the error pushes);
+    the scenario that declares inertia: 0.2 keeps every margin on MuJoCo's state."""
+    checks = {}
+    declarations: tuple[dict[str, object] | None, ...] = (None, {"inertia": 0.2})
+    for declared in declarations:
+        setup = campaign_setup("panda_cpbc_sphere", integrator=None, model_error=declared)
+        entry = next(e for e in setup.controllers if e.name == "CPBC")
+        plant = setup.make_plant().model
+        PlantMismatch.random(np.random.default_rng(2007), plant.nbody - 1, plant.nv, 0.2,
+                             0.2).apply(plant)
+        case = setup.cases[0]
+        settings = replace(setup.loop_settings, duration=2.0, log_every=10)
+        checks[declared is not None] = checked_run(
+            RecordingPlant(plant, setup.plant_settings), setup, entry, case.position,
+            case.velocity, settings, safeguard=setup.safeguard)
+    assert checks[False].violated and str(checks[False].constraint).startswith("rate[")
+    assert not checks[True].violated and checks[True].min_margin > 0.0
+
+
+@pytest.mark.parametrize("error, field", [
+    ({"inertia": 1.0}, "simulation.model_error.inertia"),
+    ({"inertia": -0.1}, "simulation.model_error.inertia"),
+    ({"velocity": [0.1, 0.2, 0.3]}, "simulation.model_error.velocity"),
+    ({"damping": "lots"}, "simulation.model_error.damping"),
+    ({}, "simulation.model_error"),
+])
+def test_a_bad_declared_error_exits_2_naming_its_field(tmp_path, capsys, error, field) -> None:
+    data = yaml.safe_load((scenarios_dir() / "thesis_ch7.yaml").read_text())
+    data["simulation"]["model_error"] = error
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(data))
+    out = tmp_path / "out"
+    assert run_main([str(path), "--out", str(out), "--quiet", "--no-plots"]) == 2
+    err = capsys.readouterr().err
+    assert field in err and "Traceback" not in err
+    assert not out.exists()

@@ -27,6 +27,7 @@ from tools.reliability.bad_input import BASE
 from tools.reliability.robustness import (
     MismatchLevel,
     mismatch_campaign,
+    noise_beyond,
     noise_campaign,
     saturation_campaign,
     true_kinetic_energy,
@@ -190,3 +191,44 @@ def test_noise_and_saturation_campaigns_report_status_not_crashes() -> None:
         assert r["status"] in STATUSES, r
         assert r["finite"]
     assert any(r["saturated_steps"] > 0 for r in limited)
+
+
+def test_the_mismatch_campaign_runs_each_constrained_law_also_with_the_error_declared() -> None:
+    setup = campaign_setup("planar_bpbc_ke")
+    setup.loop_settings = replace(setup.loop_settings, duration=1.0)
+    level = MismatchLevel("inertia", 0.2, 0.2, damping=0.05)
+    assert level.declared() == {"inertia": 0.2, "damping": 0.05}
+    built = []
+
+    def declared(at: MismatchLevel):
+        built.append(at)
+        knows = campaign_setup("planar_bpbc_ke", model_error=at.declared())
+        knows.loop_settings = replace(knows.loop_settings, duration=1.0)
+        return knows
+
+    records = mismatch_campaign(setup, "planar_bpbc_ke", [level], draws=1, seed=0,
+                                declared=declared)
+    assert built == [level]
+    marked = {(r["controller"], r["safeguard"], r["declared"]) for r in records}
+    assert ("BPBC-KE", True, True) in marked and ("BPBC-KE", True, False) in marked
+    assert not any(r["declared"] for r in records if r["controller"] == "PD")
+
+
+def test_the_noise_draws_beyond_the_declared_bound_are_those_of_the_loops_generator() -> None:
+    assert noise_beyond(3, 2, 50, 0.0, (0.1, 0.2)) == 200  # every draw is beyond 0 σ
+    assert noise_beyond(3, 2, 50, 0.0, (0.1, 0.0)) == 100  # a noiseless rate draws none
+    rng = np.random.default_rng(3)
+    draws = rng.standard_normal((50, 2, 2))  # n positions then n rates, each instant
+    assert noise_beyond(3, 2, 50, 1.0, (0.1, 0.2)) == int(np.sum(np.abs(draws) > 1.0))
+
+
+def test_a_declared_rate_error_as_large_as_the_rate_bound_leaves_no_room() -> None:
+    setup = campaign_setup("thesis_ch7")
+    setup.loop_settings = replace(setup.loop_settings, duration=0.3)
+    runs = noise_campaign(setup, "thesis_ch7", [("high", 1e-2, 5e-2), ("low", 1e-4, 1e-3)],
+                          seed=0, declared_sigmas=4.0)
+    declared = [r for r in runs if r["declared"]]
+    assert {r["controller"] for r in declared} == {"BPBC"}  # the constrained law only
+    room = {r["level"]: r["declarable"] for r in declared}
+    assert room == {"high": False, "low": True}  # 4 × 0.05 rad/s is thesis_ch7's rate bound
+    assert all(isinstance(r["beyond"], int) for r in declared)

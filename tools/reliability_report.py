@@ -104,10 +104,17 @@ def _methods(config: suite.Config) -> dict[str, str]:
             f"({c.arm_mismatch_draws} for the arms); every controller on every case of the "
             "scenario for its full duration, with the scenario's integrator, control period "
             "and torque limits, safeguard on (the default); the kinetic-energy laws also "
-            "without it. Violations are judged on the plant: a kinetic-energy limit with "
-            "MuJoCo's perturbed mass matrix (the energy the arm really has), the other "
-            "constraints by kinematics. Status as `judge_status` gives it (1 cm/0.005 rad/s "
-            "bands)."),
+            "without it; and every constrained law once more as the scenario that declares "
+            "the family's error builds it (*error declared*: `simulation.model_error` with "
+            "`inertia: 0.2`, and in the second family `armature`, `damping` and `friction` at "
+            "the tops of their ranges): its guard holds, at each step, the acceleration error "
+            "such a plant can have at the law's acceleration (`model_error.InertiaError`), "
+            "and its kinetic-energy laws keep Ω/(1 + e) of the model's energy. The rows "
+            "without it take the model as exact. Violations are judged on the plant: a "
+            "kinetic-energy limit with MuJoCo's perturbed mass matrix (the energy the arm "
+            "really has) against the scenario's Ω, the other constraints by kinematics. "
+            "Status as `judge_status` gives it (1 cm/0.005 rad/s bands; *held*: at rest short "
+            "of the target while the safeguard acted on most of the last steps)."),
         "noise_method": (
             "Gaussian noise on the position and rate the controller sees "
             "(`simulation.noise`, seeded), every controller, every case, full duration, "
@@ -116,7 +123,16 @@ def _methods(config: suite.Config) -> dict[str, str]:
             "answers with the law at the measured rate scaled back just inside S (or the held "
             "torque when a position was measured outside); if the arm itself has left S the "
             "run ends `constraint_violated` with its time. The status column is what the CLI "
-            "prints; the table of the CLI adds the number of refused samples to the status."),
+            "prints; the table of the CLI adds the number of refused samples to the status. "
+            f"Each constrained law also runs with the measurement error declared at "
+            f"{c.noise_bound_sigmas:g} σ (`simulation.model_error.position/velocity`): its guard "
+            "keeps every measured margin above what such an error can hide "
+            "(`model_error.measurement_losses`), so the true margins stay positive while the "
+            "noise stays inside the bound; Gaussian noise does not always, and the draws "
+            "beyond it are counted (the loop's generator replayed). *No room*: the declared "
+            "rate error is as large as a rate bound of the law, which leaves no state the "
+            "guard can keep. Margins are read on the logged samples (every 10th control "
+            "instant)."),
         "saturation_method": (
             "Symmetric joint torque limits at a fraction of the largest joint torque each "
             "controller asked for in its unlimited run (`simulation.torque_limit`), every "
@@ -149,7 +165,10 @@ def _store(path: Path, section: str, result: dict[str, object], wall: int,
         wall_s = data.setdefault("wall_s", {})
         key = section if not config.scenarios else f"{section}:{','.join(config.scenarios)}"
         wall_s[key] = wall  # type: ignore[index]
-        data["environment"] = suite.environment()
+        # the report's environment is its first run's; each section run since is noted
+        environment = suite.environment()
+        data.setdefault("environment", environment)
+        data.setdefault("section_environment", {})[section] = environment  # type: ignore[index]
         data["config"] = {k: v for k, v in asdict(config).items()
                           if k not in ("safeguard", "scenarios")} | {
             "safeguard": asdict(config.safeguard)}

@@ -24,6 +24,7 @@ from cpbc.controllers.safeguard import SafeguardSettings
 from cpbc.reliability.sampling import SampledState, StateSampler
 from cpbc.scenario import ScenarioSetup, build, load_scenario
 from cpbc.scenario.build import ControllerEntry
+from cpbc.scenario.schema.arm_specs import ModelErrorSpec
 from cpbc.simulation import LoopSettings, MujocoPlant, PlantSettings, run_mujoco
 from cpbc.simulation.trajectory import Trajectory
 
@@ -33,11 +34,18 @@ Log = Callable[[str], None]
 
 # -- set-up --------------------------------------------------------------------------------
 def campaign_setup(
-    scenario: str | Path, integrator: str | None = "Euler", timestep: float = 0.001
+    scenario: str | Path, integrator: str | None = "Euler", timestep: float = 0.001,
+    model_error: dict[str, object] | None = None,
 ) -> ScenarioSetup:
     """A shipped or given scenario, with MuJoCo's default integrator (semi-implicit Euler)
-    at ``timestep`` unless told otherwise; ``integrator=None`` keeps the scenario's own."""
+    at ``timestep`` unless told otherwise; ``integrator=None`` keeps the scenario's own.
+    ``model_error``: the scenario's ``simulation.model_error`` replaced by this one (its
+    fields), as a scenario that declares it would be built."""
     spec, file = load_scenario(scenario)
+    if model_error is not None:
+        sim = spec.simulation.model_copy(
+            update={"model_error": ModelErrorSpec.model_validate(model_error)})
+        spec = spec.model_copy(update={"simulation": sim})
     setup = build(spec, file)
     setup.plant_settings = PlantSettings(timestep, integrator or spec.simulation.integrator)
     return setup
@@ -152,7 +160,7 @@ def guarded_run(
     constraints) at the settings' period and torque limit when it is given; with a
     reference, inside its tracker, starting at path time ``phase``."""
     law = sg.guarded(entry.controller, settings.bounds, safeguard, setup.also_keep,
-                     settings.model_error)
+                     settings.model_error, settings.declared_error)
     if setup.reference is not None:
         law = setup.reference.tracker(entry.name, entry.controller, law,
                                       settings.bounds.period, phase)

@@ -132,7 +132,7 @@ class ScenarioSetup:
             entry = self.for_case(case, entry)
         loop = self.loop_settings
         run = guarded(entry.controller, loop.bounds, self.safeguard, self.also_keep,
-                      loop.model_error)
+                      loop.model_error, loop.declared_error)
         if self.reference is None:
             return run
         turned = None if case is None else self.case_targets.get(case.name)

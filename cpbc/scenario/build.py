@@ -33,7 +33,12 @@ from cpbc.scenario.arm_setup import (
     coordinate_names,
     load_robot,
 )
-from cpbc.scenario.constraint_build import check_distinct, scenario_constraints, scene_obstacles
+from cpbc.scenario.constraint_build import (
+    check_distinct,
+    energy_under_declared_error,
+    scenario_constraints,
+    scene_obstacles,
+)
 from cpbc.scenario.controller_build import build_controllers, check_starts
 from cpbc.scenario.goal_build import GoalPlan, goal_of, plan
 from cpbc.scenario.loop_setup import loop_settings, undeclared_efforts
@@ -138,10 +143,12 @@ def build(scenario: s.Scenario, scenario_file: Path, kinds: Kinds = KINDS) -> Sc
                                                  loop.bounds.torque))
         outside_v = check_stoppable(cases, monitor, model, loop.bounds.torque,
                                     loop.bounds.period, loop.bounds.rate)
-    controllers = build_controllers(scenario, model, target, cases, built, names, loop, goal,
+    # a declared inertia error e: the laws keep the model's energy below Ω/(1 + e)
+    laws_keep = energy_under_declared_error(built, loop.declared_error)
+    controllers = build_controllers(scenario, model, target, cases, laws_keep, names, loop, goal,
                                     kinds)
     case_controllers = {
-        c.name: build_controllers(scenario, model, case_targets[c.name], [c], built, names,
+        c.name: build_controllers(scenario, model, case_targets[c.name], [c], laws_keep, names,
                                   loop, None if goal is None else replace(
                                       goal, posture=case_targets[c.name]), kinds)
         for c in cases if c.name in case_targets}

@@ -11,7 +11,9 @@ from cpbc.arrays import Array
 from cpbc.constraints import ConfigurationConstraint, RateLimit, VelocityConstraint
 from cpbc.constraints.constraint_kind import ConstraintEntrySpec, ConstraintInputs
 from cpbc.constraints.geometry import Obstacle
+from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.constraints.linear_limit import JointPositionLimitSpec
+from cpbc.controllers.safeguard.model_error import DeclaredError
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model import RobotModel
 from cpbc.model.collision_geoms import CollisionGeom
@@ -113,3 +115,19 @@ def check_distinct(built: dict[str, ConfigurationConstraint | VelocityConstraint
                     f"make the constraint '{row}'; merge them into one entry or give them "
                     "different joints")
             owner[row] = (i, entry)
+
+
+def energy_under_declared_error(
+    built: dict[str, ConfigurationConstraint | VelocityConstraint],
+    declared: DeclaredError | None,
+) -> dict[str, ConfigurationConstraint | VelocityConstraint]:
+    """The constraints the laws keep under a declared relative inertia error e: each
+    kinetic-energy limit Ω lowered to Ω/(1 + e) (same name), since the arm's energy
+    ½ẋᵀDẋ ≤ (1 + e) ½ẋᵀD̂ẋ when every link's mass and inertia is within ±e of the model's
+    (D − D̂ is a sum of the links' pieces of D̂, each scaled by at most e); the scenario's
+    monitor keeps Ω. ``built`` itself without a declared inertia error."""
+    if declared is None or not declared.inertia:
+        return built
+    scale = 1.0 / (1.0 + declared.inertia)
+    return {name: KineticEnergyLimit(c.model, c.limit * scale, c.names[0])
+            if type(c) is KineticEnergyLimit else c for name, c in built.items()}

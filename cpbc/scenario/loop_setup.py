@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.controllers.safeguard.model_error import DeclaredError
 from cpbc.errors import CpbcError, ScenarioError
 from cpbc.model import RobotModel
 from cpbc.model.input_bounds import InputBounds
@@ -109,16 +110,35 @@ def loop_settings(sim: s.SimulationSpec, model: RobotModel) -> LoopSettings:
         noise=noise,
         max_log_samples=sim.max_log_samples,
         model_error=_model_error(sim, model),
+        declared_error=_declared_error(sim, model),
     )
 
 
 def _model_error(sim: s.SimulationSpec, model: RobotModel) -> Array | None:
     """The declared acceleration error ā in controller coordinates (|T| ā_q: x = T q), or
     None."""
-    if sim.model_error is None:
+    if sim.model_error is None or sim.model_error.acceleration is None:
         return None
     given = sim.model_error.acceleration
     bound = vector(given if isinstance(given, list) else [given] * model.n, model.n,
                    "simulation.model_error.acceleration")
     coords = model.coordinates
     return bound if coords.is_identity else np.abs(coords.matrix) @ bound
+
+
+def _declared_error(sim: s.SimulationSpec, model: RobotModel) -> DeclaredError | None:
+    """The declared inertia and measurement errors (controller coordinates), or None."""
+    spec = sim.model_error
+    if spec is None or all(getattr(spec, k) is None for k in s.DECLARED[1:]):
+        return None
+
+    def per_coordinate(given: float | list[float] | None, name: str) -> Array | None:
+        if given is None:
+            return None
+        return vector(given if isinstance(given, list) else [given] * model.n, model.n,
+                      f"simulation.model_error.{name}")
+
+    return DeclaredError(
+        spec.inertia or 0.0, per_coordinate(spec.armature, "armature"),
+        per_coordinate(spec.damping, "damping"), per_coordinate(spec.friction, "friction"),
+        per_coordinate(spec.position, "position"), per_coordinate(spec.velocity, "velocity"))

@@ -22,6 +22,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.controllers.controller import Controller, SafetyFilter
+from cpbc.controllers.safeguard.model_error import DeclaredError
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.model.coordinates import LinearCoordinates
 from cpbc.model.input_bounds import InputBounds
@@ -59,6 +60,9 @@ class LoopSettings:
             coordinate (controller coordinates), which the safeguard holds as a
             disturbance (cpbc.controllers.safeguard.model_error), or None. The plant does
             not read it.
+        declared_error: the declared relative inertia error and measurement errors the
+            safeguard holds (cpbc.controllers.safeguard.model_error.DeclaredError), or None.
+            The plant does not read it.
         disturbance: an acceleration disturbance the plant adds to its own dynamics (a
             plant drawn inside a declared model error, cpbc.simulation.disturbances), or
             None.
@@ -70,6 +74,7 @@ class LoopSettings:
     noise: MeasurementNoise | None = None
     max_log_samples: int = 100_000
     model_error: Array | None = None
+    declared_error: DeclaredError | None = None
     disturbance: AccelerationDisturbance | None = None
 
     def __post_init__(self) -> None:

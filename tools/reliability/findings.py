@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import statistics
 from collections import Counter, defaultdict
+from typing import cast
 
 Data = dict[str, object]
 
@@ -78,10 +79,11 @@ def _periods(d: Data) -> list[str]:
 def _mismatch(d: Data) -> list[str]:
     by: dict[str, list[Data]] = defaultdict(list)
     for scenario, recs in d.items():
-        if scenario.endswith("/levels"):
+        if "/" in scenario:
             continue
         for r in recs:
-            if r["safeguard"] or r["type"] not in ("cpbc_ke", "bpbc_ke"):
+            if (r["safeguard"] or r["type"] not in ("cpbc_ke", "bpbc_ke")) and not r.get(
+                    "declared"):
                 by[f"{scenario}/{r['controller']}"].append(r)
     items = []
     for key, rs in by.items():
@@ -91,10 +93,10 @@ def _mismatch(d: Data) -> list[str]:
                      + (f", {enf} broke an enforced constraint" if rs[0]["enforces"] else ""))
     kinds: dict[str, int] = defaultdict(int)
     for scenario, recs in d.items():
-        if scenario.endswith("/levels"):
+        if "/" in scenario:
             continue
         for r in recs:
-            if r["enforced_violation"]:
+            if r["enforced_violation"] and not r.get("declared"):
                 name = str(r["violated"] or r["true_min_constraint"]).split("[")[0]
                 kinds[name] += 1
     broken = ", ".join(f"{k} {v}" for k, v in sorted(kinds.items())) or "none"
@@ -109,18 +111,109 @@ def _mismatch(d: Data) -> list[str]:
            "bounded error. The safeguard predicts with the same wrong model and does not see "
            "it coming; the KE laws keep the model's energy, not the arm's (below)."
            if velocity_only and kinds else "")
-    return ["- **Model mismatch** (±20 % masses and inertias, with or without unmodelled "
-            "friction, damping and armature; safeguard on): " + "; ".join(items) + ". "
+    return ["- **Model mismatch, the error declared** (`simulation.model_error` as the plant's "
+            "family: `inertia: 0.2`, and in the second family the added `armature`, `damping`, "
+            "`friction` up to their drawn ranges; safeguard on): " + _declared_mismatch(d),
+            "- **Model mismatch, the model taken as exact** (±20 % masses and inertias, with or "
+            "without unmodelled friction, damping and armature; safeguard on): "
+            + "; ".join(items) + ". "
             f"Enforced constraints broken, by kind (all runs, safeguard on and off): {broken}."
             + why]
+
+
+def _declared_mismatch(d: Data) -> str:
+    """The declared runs: what broke on the plant, what converged, what the guard held still,
+    and how close the bound came to the drawn plants' true error."""
+    every = [r for k, recs in d.items() if "/" not in k for r in cast(list[Data], recs)
+             if r["enforces"] and r["safeguard"] and r["type"] not in PEERS]
+    runs = [r for r in every if r.get("declared")]
+    if not runs:
+        return "not run."
+    by_level: dict[str, list[Data]] = defaultdict(list)
+    for r in runs:
+        by_level[str(r["level"])].append(r)
+    parts = []
+    for level, rs in by_level.items():
+        broke = [r for r in rs if r["enforced_violation"]]
+        what = Counter(str(r["violated"] or r["true_min_constraint"]).split("[")[0]
+                       for r in broke)
+        where = Counter(f"{r['scenario']}/{r['controller']}" for r in broke)
+        parts.append(
+            f"{level}: **{len(broke)}** of {len(rs)} runs broke an enforced constraint on the "
+            "plant" + (f" ({', '.join(f'{k} {v}' for k, v in sorted(what.items()))}: "
+                       f"{', '.join(f'{k} {v}' for k, v in sorted(where.items()))})"
+                       if broke else "")
+            + f"; {_counts(rs)}" + _final_errors(rs, [
+                r for r in every if r["level"] == level and not r.get("declared")]))
+    tight = [t for k, recs in d.items() if k.endswith("/tightness")
+             for t in cast(list[Data], recs)]
+    tail = ""
+    if tight:
+        worst = max(_number(t["max_ratio"]) for t in tight)
+        low = min(_number(t["median_ratio"]) for t in tight)
+        high = max(_number(t["median_ratio"]) for t in tight)
+        tail = (f" The bound held on every drawn plant (largest true error / bound "
+                f"{worst:.2f}; the median ratio per scenario and family {low:.2f}–{high:.2f}: "
+                "a worst case over independent links' errors, which random draws rarely "
+                "line up).")
+    return "; ".join(parts) + "." + tail + _peers_declared(d)
+
+
+# laws that are safety filters of their own: the safeguard does not wrap them
+# (cpbc.controllers.safeguard.guarded), so a declared error is not held for them
+PEERS = ("cbf_qp",)
+
+
+def _peers_declared(d: Data) -> str:
+    """The peers' runs under a declared error, apart: no safeguard holds it for them."""
+    runs = [r for k, recs in d.items() if "/" not in k for r in cast(list[Data], recs)
+            if r.get("declared") and r["type"] in PEERS]
+    if not runs:
+        return ""
+    broke = [r for r in runs if r["enforced_violation"]]
+    names = ", ".join(sorted({f"{r['scenario']}/{r['controller']}" for r in runs}))
+    return (f" The peers ({names}) are safety filters of their own, which the safeguard does "
+            "not wrap, and nothing in them holds a declared error: "
+            f"{len(broke)} of {len(runs)} of their runs broke an enforced constraint "
+            f"({_counts(runs)}).")
+
+
+def _final_errors(declared: list[Data], exact: list[Data]) -> str:
+    """The median final joint error of the declared runs against the same laws taking the
+    model as exact, on the planar arm and on the URDF arms apart."""
+    def median(rs: list[Data]) -> str:
+        return f"{statistics.median(_number(r['final_error']) for r in rs):.3g}" if rs else "–"
+
+    def planar(r: Data) -> bool:
+        return str(r["scenario"]).startswith(("thesis_", "planar_"))
+
+    parts = []
+    for name, keep in (("planar", planar), ("arms", lambda r: not planar(r))):
+        mine = [r for r in declared if keep(r)]
+        if mine:
+            parts.append(f"{name} {median(mine)} rad "
+                         f"(taken as exact: {median([r for r in exact if keep(r)])})")
+    return "; median final error " + ", ".join(parts) if parts else ""
+
+
+def _number(value: object) -> float:
+    """A number of the stored data (JSON: int or float)."""
+    return float(cast(float, value))
+
+
+def _counts(rs: list[Data]) -> str:
+    c = Counter(str(r["status"]) for r in rs)
+    return ", ".join(f"{v} {k}" for k, v in sorted(c.items()))
 
 
 def ke_verdict(data: Data) -> str:
     d = data.get("mismatch")
     if not d:
         return ""
-    ke = [r for k, recs in d.items() if not k.endswith("/levels") for r in recs
-          if r["type"] in ("cpbc_ke", "bpbc_ke")]
+    every = [r for k, recs in d.items() if "/" not in k for r in recs
+             if r["type"] in ("cpbc_ke", "bpbc_ke")]
+    ke = [r for r in every if not r.get("declared")]
+    declared = [r for r in every if r.get("declared")]
     if not ke:
         return ""
     bare = [r for r in ke if not r["safeguard"]]
@@ -148,8 +241,21 @@ def ke_verdict(data: Data) -> str:
         f"Without it, {sum(r['status'] == 'constraint_violated' for r in bare)} of "
         f"{len(bare)} runs ended when the model's energy reached Ω (the law's own barrier "
         "crossed: under mismatch its invariance argument no longer holds). "
-        + _ke_verdict_tail(ke) +
-        " To keep the arm's energy below a real limit E under a ±e error in D, set Ω = (1 − e)·E.")
+        + _ke_verdict_tail(ke) + _ke_declared(declared))
+
+
+def _ke_declared(declared: list[Data]) -> str:
+    """What the laws did when the scenario declared the inertia error."""
+    text = (" The arm's energy is at most (1 + e) times the model's when every link's mass and "
+            "inertia is within ±e (ΔD is the links' pieces of D̂ scaled by at most e), so a "
+            "scenario that declares `simulation.model_error: {inertia: e}` has its laws keep "
+            "Ω/(1 + e) of the model's energy")
+    if not declared:
+        return text + "."
+    energy = [float(cast(float, r["ke_peak_over_limit"])) for r in declared]
+    over, peak = sum(e > 1.0 for e in energy), max(energy)
+    return (text + f": declared so, {over} of {len(declared)} perturbed runs took the plant's "
+            f"true energy over Ω (peak {peak:.3g} × Ω), {_counts(declared)}.")
 
 
 def _ke_verdict_tail(ke: list[Data]) -> str:
@@ -177,6 +283,8 @@ def _noise(d: Data) -> list[str]:
     refused = 0
     for scenario, recs in d.items():
         for r in recs:
+            if r.get("declared"):
+                continue
             refused += int(r.get("rejected_samples", 0))
             if r["status"] in ("constraint_violated", "diverged", "crashed") and r["type"] not in (
                     "pd", "pd_gravity"):
@@ -185,7 +293,8 @@ def _noise(d: Data) -> list[str]:
     crashed = sum(r["status"] == "crashed" for recs in d.values() for r in recs)
     items = [f"{level}: {len(v)} runs ({', '.join(sorted(set(v)))})"
              for level, v in broke.items()]
-    return ["- **Noise.** Runs of constrained laws that ended `constraint_violated` or "
+    return [_declared_noise(d), "- **Noise, taken as exact.** Runs of constrained laws that "
+            "ended `constraint_violated` or "
             "`diverged`: " + ("; ".join(items) if items else "none") + f". {refused} noisy "
             f"samples outside S were refused and answered without ending a run; {crashed} "
             "runs crashed. What broke, by constraint: "
@@ -194,6 +303,41 @@ def _noise(d: Data) -> list[str]:
                "σ-sized error away from the true one, and the barrier cannot see the "
                "difference: with a noisy rate estimate, tighten the bound by a few σ (or "
                "filter the rate)." if kinds.keys() & {"rate", "kinetic_energy"} else "")]
+
+
+def _declared_noise(d: Data) -> str:
+    """The constrained laws' runs with the measurement error declared at k σ (the peers',
+    which no safeguard wraps, apart)."""
+    every = [r for recs in d.values() for r in cast(list[Data], recs) if r.get("declared")]
+    runs = [r for r in every if r["type"] not in PEERS]
+    peers = [r for r in every if r["type"] in PEERS]
+    if not runs:
+        return "- **Noise, the error declared**: not run."
+    k = runs[0].get("bound_sigmas")
+    parts = []
+    for level in dict.fromkeys(str(r["level"]) for r in runs):
+        rs = [r for r in runs if r["level"] == level]
+        bad = [r for r in rs if r["status"] in ("constraint_violated", "diverged", "crashed")]
+        room = [r for r in bad if r.get("declarable", True)]
+        beyond = sum(int(_number(r.get("beyond", 0))) for r in rs)
+        beyond_bad = sum(int(_number(r.get("beyond", 0))) for r in bad)
+        names = ", ".join(sorted({f"{r['scenario']}/{r['controller']}/{r['case']}"
+                                  for r in bad}))
+        parts.append(
+            f"{level}: **{len(bad)}** of {len(rs)} runs ended `constraint_violated` or "
+            f"`diverged`" + (f" ({names}; {len(bad) - len(room)} of them where the declared "
+                             "rate error is as large as a rate bound, which leaves no state to "
+                             f"keep; {beyond_bad} noise draws beyond {k:g} σ in them)"
+                             if bad else "")
+            + f"; {_counts(rs)}; {beyond} draws beyond {k:g} σ in all")
+    bad_peers = [r for r in peers
+                 if r["status"] in ("constraint_violated", "diverged", "crashed")]
+    tail = (f" The peers, which the safeguard does not wrap: {len(bad_peers)} of {len(peers)} "
+            "of their runs ended `constraint_violated` or `diverged`." if peers else "")
+    return (f"- **Noise, the error declared** ({k:g} σ of each level as "
+            "`simulation.model_error.position/velocity`, which the guard keeps every margin "
+            "above: `model_error.measurement_losses`; safeguard on): " + "; ".join(parts) + "."
+            + tail)
 
 
 def _saturation(d: Data) -> list[str]:

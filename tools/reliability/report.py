@@ -5,6 +5,7 @@ from __future__ import annotations
 import statistics
 from collections import Counter, defaultdict
 from collections.abc import Callable, Iterable, Sequence
+from typing import cast
 
 Data = dict[str, object]
 
@@ -126,8 +127,9 @@ def _periods(data: Data) -> str:
 
 def _status_counts(rs: Sequence[Data]) -> str:
     c = Counter(str(r["status"]) for r in rs)
-    order = ["converged", "stalled", "not_settled", "constraint_violated", "diverged",
+    order = ["converged", "stalled", "held", "not_settled", "constraint_violated", "diverged",
              "crashed"]
+    order += sorted(set(c) - set(order))
     return ", ".join(f"{c[k]} {k}" for k in order if c[k])
 
 
@@ -135,12 +137,12 @@ def _mismatch(data: Data) -> tuple[str, list[str]]:
     rows = []
     ke_notes = []
     for scenario, recs in data.items():
-        if scenario.endswith("/levels"):
+        if "/" in scenario:
             continue
         groups: dict[tuple, list[Data]] = defaultdict(list)
         for r in recs:
-            groups[r["controller"], r["level"], r["safeguard"]].append(r)
-        for (ctrl, level, guarded), rs in groups.items():
+            groups[r["controller"], r["level"], r["safeguard"], bool(r.get("declared"))].append(r)
+        for (ctrl, level, guarded, declared), rs in groups.items():
             true_v = sum(r["true_violation"] for r in rs)
             enf_v = sum(r["enforced_violation"] for r in rs)
             err = statistics.median(float(r["final_error"]) for r in rs)
@@ -148,19 +150,39 @@ def _mismatch(data: Data) -> tuple[str, list[str]]:
                   if r["ke_peak_over_limit"] == r["ke_peak_over_limit"]]
             acted = sum(int(r["acted"]) for r in rs)
             rows.append([
-                scenario, ctrl, level, "on" if guarded else "off", len(rs),
+                scenario, ctrl, level, "on" if guarded else "off",
+                "yes" if declared else "no", len(rs),
                 enf_v if rs[0]["enforces"] else "–", true_v, _status_counts(rs), _g(err),
                 _g(max(ke)) if ke else "–", acted if guarded and rs[0]["enforces"] else "–",
             ])
             if rs[0]["type"] in ("cpbc_ke", "bpbc_ke"):
                 ke_notes.append(
-                    f"{scenario} {ctrl} ({level}, safeguard {'on' if guarded else 'off'}): "
+                    f"{scenario} {ctrl} ({level}, safeguard {'on' if guarded else 'off'}"
+                    f"{', error declared' if declared else ''}): "
                     f"true energy peak {max(ke):.4g} × Ω, {enf_v}/{len(rs)} runs over the "
                     f"bound, {_status_counts(rs)}")
-    return _table(["scenario", "law", "plant perturbation", "safeguard", "runs",
+    return _table(["scenario", "law", "plant perturbation", "safeguard", "error declared", "runs",
                    "enforced constraints violated", "any constraint violated (plant)",
                    "status", "median final error [rad]", "peak KE / Ω (plant)",
                    "safeguard steps"], rows), ke_notes
+
+
+def _tightness(data: Data) -> str:
+    """The declared error's acceleration bound against the drawn plants' true error."""
+    rows = []
+    for key, recs in data.items():
+        if not key.endswith("/tightness"):
+            continue
+        for r in cast(list[Data], recs):
+            rows.append([key.split("/")[0], r["level"], r["states"], _g(r["max_ratio"]),
+                         _g(r["median_ratio"]),
+                         ", ".join(_g(v) for v in cast(list[float], r["max_error"])),
+                         ", ".join(_g(v) for v in cast(list[float], r["median_bound"]))])
+    if not rows:
+        return ""
+    return _table(["scenario", "plants drawn inside", "states", "largest true error / bound",
+                   "median true error / bound", "largest true error per joint [rad/s²]",
+                   "median bound per joint [rad/s²]"], rows)
 
 
 def _noise(data: Data) -> str:
@@ -168,17 +190,22 @@ def _noise(data: Data) -> str:
     for scenario, recs in data.items():
         groups: dict[tuple, list[Data]] = defaultdict(list)
         for r in recs:
-            groups[r["controller"], r["level"]].append(r)
-        for (ctrl, level), rs in groups.items():
+            groups[r["controller"], r["level"], r.get("bound_sigmas")].append(r)
+        for (ctrl, level, sigmas), rs in groups.items():
             rows.append([
                 scenario, ctrl, f"{level} (σ {rs[0]['sigma_position']:g} rad, "
-                f"{rs[0]['sigma_velocity']:g} rad/s)", len(rs), _status_counts(rs),
+                f"{rs[0]['sigma_velocity']:g} rad/s)",
+                "–" if sigmas is None else f"{sigmas:g} σ"
+                + ("" if all(r.get("declarable", True) for r in rs) else " (no room)"),
+                "–" if sigmas is None else sum(int(cast(int, r.get("beyond", 0))) for r in rs),
+                len(rs), _status_counts(rs),
                 sum(int(r.get("rejected_samples", 0)) for r in rs),
                 _g(min((float(r["min_enforced_margin"]) for r in rs
                         if r.get("min_enforced_margin") == r.get("min_enforced_margin")),
                        default=None)),
             ])
-    return _table(["scenario", "law", "noise", "runs", "status", "refused samples",
+    return _table(["scenario", "law", "noise", "error declared", "draws beyond it", "runs",
+                   "status", "refused samples",
                    "smallest enforced margin"], rows)
 
 
@@ -224,6 +251,16 @@ def _cost(data: Data) -> str:
 
 
 # -- the document --------------------------------------------------------------------------
+def _rerun(data: Data) -> str:
+    """The sections run since the report's environment was recorded: when and where."""
+    since = cast(dict[str, dict[str, object]], data.get("section_environment", {}))
+    if not since:
+        return ""
+    return "; since re-run: " + ", ".join(
+        f"{name} on {env.get('date', '?')} at commit {env.get('commit', '?')}"
+        for name, env in since.items())
+
+
 def render(data: Data, command: str) -> str:
     env = data.get("environment", {})
     cfg = data.get("config", {})
@@ -233,15 +270,21 @@ def render(data: Data, command: str) -> str:
         f"*Generated by `{command}` on {env.get('date', '?')}"
         + (f" at commit {env['commit']}" if env.get("commit") else "")
         + f" (Python {env.get('python')}, "
-        f"MuJoCo {env.get('mujoco')}, Pinocchio {env.get('pinocchio')}); the figures are in "
-        "`docs/robustness_data.json`. Do not edit by hand.*",
+        f"MuJoCo {env.get('mujoco')}, Pinocchio {env.get('pinocchio')})"
+        + _rerun(data) + "; the figures are in `docs/robustness_data.json`. Do not edit by "
+        "hand.*",
         "",
         "*Its sampled-data and torque-limit sections (1 and 4) were measured before the "
         "safeguard worked inside the actuators' torque box and kept the braking set V "
         "(2026-11-24), without torque limits: [RELIABILITY.md](RELIABILITY.md), made by "
         "`python -m cpbc.verify`, has the campaigns with the URDF torque limits that replace "
-        "them. The model-mismatch, noise, long-run and cost sections were measured with the "
-        "guard of 2026-11-22 and have not been re-run since.*",
+        "them. The model-mismatch and noise sections (2 and 3) were re-run on 2026-11-28 with "
+        "the guard of that day (the torque box, the braking set, the rate limit where a "
+        "scenario has one), the URDF torque limits the scenarios take by default, and the "
+        "declared errors of `simulation.model_error` (inertia, armature, damping, friction, "
+        "position, velocity); the runs that take the model and the measurement as exact are "
+        "kept beside them. The long-run and cost sections were measured with the guard of "
+        "2026-11-22 and have not been re-run since.*",
         "",
         "The theorems of Chapters 6–7 hold in continuous time, with a perfect model, exact "
         "measurements and unlimited torque. This report measures what is left of them with a "
@@ -274,6 +317,11 @@ def render(data: Data, command: str) -> str:
                   str(data.get("periods_method", "")), "", _periods(data["periods"]), ""]
     if "mismatch" in data:
         table, ke = _mismatch(data["mismatch"])
+        tight = _tightness(cast(Data, data["mismatch"]))
+        if tight:
+            table += ("\n\n**The declared error's bound** (`model_error.InertiaError`) against "
+                      "the true error of plants drawn inside it (`robustness.bound_tightness`):"
+                      "\n\n" + tight)
         parts += ["## 2. Model mismatch", "", str(data.get("mismatch_method", "")), "", table,
                   "", "### The kinetic-energy laws (Corollaries 6.11, 7.8)", "",
                   str(data.get("ke_verdict", "")), "", *[f"- {k}" for k in ke], ""]

@@ -18,8 +18,10 @@ import mujoco
 import numpy as np
 
 from cpbc.arrays import Array
+from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.kinetic_energy_limit import KineticEnergyLimit
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings, viable
+from cpbc.controllers.safeguard.model_error import DeclaredError, measurement_losses
 from cpbc.errors import ConstraintViolation
 from cpbc.model.input_bounds import InputBounds
 from cpbc.reliability.campaign import (
@@ -179,6 +181,17 @@ class MismatchLevel:
     armature: float = 0.0
     frictionloss: float = 0.0
 
+    def declared(self) -> dict[str, object]:
+        """The ``simulation.model_error`` a scenario declares for plants of this family:
+        every link's mass and inertia within ±max(mass, inertia), and up to the rotor
+        inertia, damping and dry friction the family may add."""
+        out: dict[str, object] = {"inertia": max(self.mass, self.inertia)}
+        for name, value in (("armature", self.armature), ("damping", self.damping),
+                            ("friction", self.frictionloss)):
+            if value:
+                out[name] = value
+        return out
+
 
 def mismatch_campaign(
     setup: ScenarioSetup,
@@ -189,16 +202,21 @@ def mismatch_campaign(
     unguarded_types: Sequence[str] = ("cpbc_ke", "bpbc_ke"),
     log_every: int = 10,
     log: Log = _quiet,
+    declared: Callable[[MismatchLevel], ScenarioSetup] | None = None,
 ) -> list[Record]:
     """Every controller on every case of the scenario (full duration, the scenario's control
     period), on ``draws`` seeded perturbed plants per level, with the default safeguard; the
-    laws of ``unguarded_types`` also without it. Violations are judged on the true plant:
-    kinetic-energy limits with MuJoCo's (perturbed) mass matrix, the rest by kinematics."""
+    laws of ``unguarded_types`` also without it; with ``declared``, each constrained law
+    also as the scenario that declares the level's error builds it (``declared(level)``,
+    its ``simulation.model_error``: :meth:`MismatchLevel.declared`). Violations are judged
+    on the true plant: kinetic-energy limits with MuJoCo's (perturbed) mass matrix against
+    the scenario's Ω, the rest by kinematics."""
     rng = np.random.default_rng(seed)
     nominal = setup.make_plant()
     nbody, ndof = nominal.model.nbody - 1, nominal.model.nv
     out: list[Record] = []
     for level in levels:
+        knows = None if declared is None else declared(level)
         for d in range(draws):
             mismatch = PlantMismatch.random(
                 rng, nbody, ndof, level.mass, level.inertia, level.damping, level.armature,
@@ -207,30 +225,84 @@ def mismatch_campaign(
             plant = setup.make_plant()
             mismatch.apply(plant.model)
             for entry in setup.controllers:
-                variants = [True]
+                variants = [(setup, entry, True)]
                 if entry.controller.type_name in unguarded_types:
-                    variants.append(False)
-                for guarded in variants:
-                    settings = replace(setup.loop_settings, log_every=log_every, noise=None)
-                    for case in setup.cases:
+                    variants.append((setup, entry, False))
+                if knows is not None and not entry.controller.constraints.empty:
+                    variants.append((knows, next(
+                        e for e in knows.controllers if e.name == entry.name), True))
+                for run_setup, run_entry, guarded in variants:
+                    settings = replace(run_setup.loop_settings, log_every=log_every,
+                                       noise=None)
+                    for case in run_setup.cases:
                         out.append(_mismatch_run(
-                            plant, setup, entry, case.name, case.position, case.velocity,
-                            settings, scenario, level.name, d, guarded,
+                            plant, run_setup, run_entry, case.name, case.position,
+                            case.velocity, settings, scenario, level.name, d, guarded,
+                            setup.monitor,
                         ))
             log(f"{scenario} mismatch {level.name} draw {d + 1}/{draws} done")
     return out
 
 
+def bound_tightness(setup: ScenarioSetup, level: MismatchLevel, plants: int, states: int,
+                    seed: int) -> Record:
+    """How close the declared error's acceleration bound (model_error.InertiaError) comes to
+    the true error: plants drawn inside the level (its dry friction left out: MuJoCo's is a
+    constraint force, and the bound's friction term is F through |D̂⁻¹| alone), states
+    within ±0.5 rad of the target at rates within ±1 rad/s, torques giving the model an
+    acceleration within ±20 rad/s² per joint; the plant's acceleration from MuJoCo with the
+    same torque. States where MuJoCo adds a constraint force (a contact, a joint stop) are
+    skipped. The bound must hold at every one: ``max_ratio`` ≤ 1."""
+    rng = np.random.default_rng(seed)
+    model = setup.model
+    def joint(value: float) -> Array | None:
+        return np.full(model.n, value) if value else None
+
+    declared = DeclaredError(max(level.mass, level.inertia), joint(level.armature),
+                             joint(level.damping))
+    bound = declared.acceleration_bound(model)
+    assert bound is not None
+    t_mat, t_inv = model.coordinates.matrix, model.coordinates.inverse
+    ratios, errors, bounds = [], [], []
+    for _ in range(plants):
+        plant = setup.make_plant()
+        m = plant.model
+        PlantMismatch.random(rng, m.nbody - 1, m.nv, level.mass, level.inertia, level.damping,
+                             level.armature).apply(m)
+        data = mujoco.MjData(m)
+        for _ in range(states):
+            x = setup.target + rng.uniform(-0.5, 0.5, model.n)
+            dx = rng.uniform(-1.0, 1.0, model.n)
+            state = model.state(x, dx)
+            bias = state.coriolis_force + state.gravity + state.dissipation
+            accel = rng.uniform(-20.0, 20.0, model.n)
+            data.qpos[:], data.qvel[:] = t_inv @ x, t_inv @ dx
+            data.qfrc_applied[:] = t_mat.T @ (bias + state.inertia @ accel)
+            mujoco.mj_forward(m, data)
+            if data.nefc:
+                continue
+            error = np.abs(t_mat @ data.qacc - accel)
+            b = bound.bound(state, accel)
+            ratios.append(error / b)
+            errors.append(error)
+            bounds.append(b)
+    r = np.array(ratios)
+    return {"level": level.name, "states": len(r), "max_ratio": float(r.max()),
+            "median_ratio": float(np.median(r)), "max_error": np.max(errors, axis=0).tolist(),
+            "median_bound": np.median(bounds, axis=0).tolist()}
+
+
 def _mismatch_run(
     plant: MujocoPlant, setup: ScenarioSetup, entry: ControllerEntry, case: str,
     x0: Array, dx0: Array, settings: LoopSettings, scenario: str, level: str, draw: int,
-    guarded: bool,
+    guarded: bool, monitor: ConstraintSet,
 ) -> Record:
+    """One run on the perturbed plant, judged against ``monitor`` (the scenario's own
+    constraints, its Ω, whatever the law keeps)."""
     coords = setup.model.coordinates
     safeguard = (setup.safeguard or SafeguardSettings()) if guarded else None
     traj = guarded_run(plant, setup, entry, x0, dx0, settings, safeguard)
     status, settle = judge_status(traj, entry.controller.target, setup.criteria)
-    monitor = setup.monitor
     xs, dxs = traj.position, traj.velocity
     parts: list[tuple[tuple[str, ...], Array]] = [
         (c.names, c.values_along(xs)) for c in monitor.configuration
@@ -253,7 +325,8 @@ def _mismatch_run(
     return {
         "scenario": scenario, "controller": entry.name, "type": entry.controller.type_name,
         "case": case, "level": level, "draw": draw, "safeguard": guarded,
-        "status": status, "end_time": traj.end_time, "violated": traj.violated,
+        "declared": settings.declared_error is not None, "status": status,
+        "end_time": traj.end_time, "violated": traj.violated,
         "final_error": float(np.max(np.abs(traj.position[-1] - entry.controller.target))),
         "settle_time": settle, "true_min_margin": worst, "true_min_constraint": worst_name,
         "true_violation": bool(worst <= 0 or status == "constraint_violated"),
@@ -274,24 +347,69 @@ def noise_campaign(
     seed: int,
     log_every: int = 10,
     log: Log = _quiet,
+    declared_sigmas: float | None = None,
 ) -> list[Record]:
-    """Every controller on every case with Gaussian noise (name, σ_x, σ_ẋ) on what it sees."""
+    """Every controller on every case with Gaussian noise (name, σ_x, σ_ẋ) on what it sees;
+    with ``declared_sigmas`` k, each constrained law also with the measurement error
+    declared as k σ (``simulation.model_error.position/velocity``), and the noise samples
+    beyond it counted (``beyond``)."""
     plant = setup.make_plant()
+    n = setup.model.n
     out: list[Record] = []
     for name, sx, sv in levels:
         for entry in setup.controllers:
-            for case in setup.cases:
-                settings = replace(
-                    setup.loop_settings, log_every=log_every,
-                    noise=MeasurementNoise(sx, sv, seed),
-                )
-                out.append(_status_record(
-                    plant, setup, entry, case.name, case.position, case.velocity, settings,
-                    {"scenario": scenario, "level": name, "sigma_position": sx,
-                     "sigma_velocity": sv}, setup.safeguard or SafeguardSettings(),
-                ))
+            variants: list[float | None] = [None]
+            if declared_sigmas is not None and not entry.controller.constraints.empty:
+                variants.append(declared_sigmas)
+            for k in variants:
+                for case in setup.cases:
+                    settings = replace(
+                        setup.loop_settings, log_every=log_every,
+                        noise=MeasurementNoise(sx, sv, seed),
+                        declared_error=None if k is None else DeclaredError(
+                            position=np.full(n, k * sx), velocity=np.full(n, k * sv)),
+                    )
+                    record = _status_record(
+                        plant, setup, entry, case.name, case.position, case.velocity,
+                        settings, {"scenario": scenario, "level": name, "sigma_position": sx,
+                                   "sigma_velocity": sv, "declared": k is not None,
+                                   "bound_sigmas": k}, setup.safeguard or SafeguardSettings())
+                    if k is not None:
+                        record["declarable"] = declarable(setup, entry, settings)
+                    if k is not None and "control_steps" in record:
+                        record["beyond"] = noise_beyond(
+                            seed, n, int(str(record["control_steps"])), k, (sx, sv))
+                    out.append(record)
         log(f"{scenario} noise {name} done")
     return out
+
+
+def declarable(setup: ScenarioSetup, entry: ControllerEntry, settings: LoopSettings) -> bool:
+    """Whether the declared measurement error leaves room at the target at rest: every
+    margin of the law there above what the error can hide (model_error.measurement_losses).
+    A rate error as large as a rate bound leaves none: no guard can keep it."""
+    declared = settings.declared_error
+    cons = entry.controller.constraints
+    if declared is None or cons.empty:
+        return True
+    target = entry.controller.target
+    state = cons.state(setup.model, target, np.zeros(setup.model.n))
+    end, _ = measurement_losses(cons, state, declared, settings.bounds.period)
+    return bool(np.all(cons.margins(target, np.zeros(setup.model.n)) > end))
+
+
+def noise_beyond(seed: int, n: int, samples: int, k: float,
+                 sigmas: tuple[float, float]) -> int:
+    """How many of a run's noise draws fell beyond k σ: the loop's generator replayed (each
+    control instant draws n position then n rate deviates, cpbc.simulation.loop)."""
+    rng = np.random.default_rng(seed)
+    count = 0
+    for _ in range(samples):
+        for sigma in sigmas:
+            draw = rng.standard_normal(n)
+            if sigma > 0:
+                count += int(np.count_nonzero(np.abs(draw) > k))
+    return count
 
 
 def saturation_campaign(

@@ -62,6 +62,7 @@ class Config:
     arm_mismatch_draws: int = 2
     noise_levels: tuple[tuple[str, float, float], ...] = (
         ("low", 1e-4, 1e-3), ("medium", 1e-3, 1e-2), ("high", 1e-2, 5e-2))
+    noise_bound_sigmas: float = 4.0  # the measurement error declared: 4 σ
     saturation: tuple[float, ...] = (0.5, 0.1)
     long_duration: float = 600.0
     safeguard: SafeguardSettings = field(default_factory=SafeguardSettings)
@@ -174,9 +175,16 @@ def mismatch(config: Config, log: Log) -> dict[str, object]:
     for name in config.all_scenarios():
         arm = config.is_arm(name)
         setup = cp.campaign_setup(name, integrator=None)  # the scenario's own integrator
+
+        def declared(level: cp.MismatchLevel, name: str = name) -> cp.ScenarioSetup:
+            return cp.campaign_setup(name, integrator=None, model_error=level.declared())
+
         out[name] = cp.mismatch_campaign(
             setup, name, ARM_LEVELS if arm else PLANAR_LEVELS,
-            config.arm_mismatch_draws if arm else config.mismatch_draws, config.seed, log=log)
+            config.arm_mismatch_draws if arm else config.mismatch_draws, config.seed, log=log,
+            declared=declared)
+        out[name + "/tightness"] = [cp.bound_tightness(setup, level, 5, 20, config.seed)
+                                    for level in (ARM_LEVELS if arm else PLANAR_LEVELS)]
         out[name + "/levels"] = [asdict(v) for v in (ARM_LEVELS if arm else PLANAR_LEVELS)]
     return out
 
@@ -185,7 +193,8 @@ def noise(config: Config, log: Log) -> dict[str, object]:
     out: dict[str, object] = {}
     for name in config.all_scenarios():
         setup = cp.campaign_setup(name, integrator=None)  # the scenario's own integrator
-        out[name] = cp.noise_campaign(setup, name, config.noise_levels, config.seed, log=log)
+        out[name] = cp.noise_campaign(setup, name, config.noise_levels, config.seed, log=log,
+                                      declared_sigmas=config.noise_bound_sigmas)
     return out
 
 

@@ -18,7 +18,12 @@ from cpbc.controllers.hold import hold_share
 from cpbc.controllers.rescue import Rescue
 from cpbc.controllers.safeguard.acceptance import Acceptance
 from cpbc.controllers.safeguard.braking import Brakes
-from cpbc.controllers.safeguard.model_error import friction_error, margin_losses
+from cpbc.controllers.safeguard.model_error import (
+    DeclaredError,
+    friction_error,
+    margin_losses,
+    measurement_losses,
+)
 from cpbc.controllers.safeguard.predicted_margins import PredictedMargins, RampTest
 from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_share
 from cpbc.controllers.safeguard.settings import SafeguardSettings
@@ -34,6 +39,7 @@ def guarded(
     settings: SafeguardSettings | None,
     also_keep: Sequence[ConfigurationConstraint] = (),
     model_error: Array | float | None = None,
+    declared: DeclaredError | None = None,
 ) -> Controller:
     """The law as a sampled-data loop at the period of ``bounds`` should run it: wrapped in a
     Safeguard with ``settings`` when it enforces constraints, else the law itself (also with
@@ -41,14 +47,15 @@ def guarded(
 
     ``bounds`` are the control period and the plant's joint torque and torque-rate limits;
     ``model_error`` the declared bound on the model's acceleration error [per coordinate,
-    rad/s² or m/s²] (a number or one per joint)."""
+    rad/s² or m/s²] (a number or one per joint); ``declared`` the declared inertia, joint
+    and measurement errors (model_error.DeclaredError)."""
     if isinstance(law, SafetyFilter):  # a filter already (a peer): fresh counts, no wrap
         return law.restarted()
     if settings is None or law.constraints.empty:
         return law
     error = None if model_error is None else np.broadcast_to(
         np.asarray(model_error, dtype=float), (law.model.n,))
-    return Safeguard(law, bounds, settings, also_keep, error)
+    return Safeguard(law, bounds, settings, also_keep, error, declared)
 
 
 class Safeguard(SafetyFilter):
@@ -75,6 +82,10 @@ class Safeguard(SafetyFilter):
             per coordinate, shape (n,): every floor of (S1) is raised by what such an error
             can take off its margin in one period, and the braking set's deceleration is
             lowered by it (:mod:`cpbc.controllers.safeguard.model_error`).
+        declared: a declared relative inertia error, held at each step as the acceleration
+            error it makes at the law's acceleration (model_error.InertiaError), and
+            measurement errors, whose reach is added to the floors too
+            (model_error.measurement_losses); or None.
 
     The guard is three parts and the step that joins them (:meth:`_guard`): ``box``, the
     input bounds at this step (:class:`StepBox`); ``acceptance``, the test (S1), (S2) and
@@ -102,6 +113,7 @@ class Safeguard(SafetyFilter):
         settings: SafeguardSettings | None = None,
         also_keep: Sequence[ConfigurationConstraint] = (),
         model_error: Array | None = None,
+        declared: DeclaredError | None = None,
     ) -> None:
         super().__init__(law.model, law.target, law.constraints)
         self.law = law
@@ -140,6 +152,9 @@ class Safeguard(SafetyFilter):
         torque_limit = None if bounds.torque is None else np.broadcast_to(bounds.torque, (n,))
         self.rate_limit = None if bounds.rate is None else np.broadcast_to(bounds.rate, (n,))
         self.model_error = None if model_error is None else np.asarray(model_error, float)
+        self.declared = declared
+        self._inertia_error = None if declared is None else declared.acceleration_bound(
+            law.model)
         self._coulomb = bool(np.any(law.model.coulomb_friction))
         self.box = StepBox(law.model, torque_limit, self.rate_limit, self.period)
         self._velocity_floor = np.maximum(self.cushion[nc:], 1e-300)
@@ -236,12 +251,7 @@ class Safeguard(SafetyFilter):
         delta, nc = self.cushion, self._n_config
         floor, mid = np.empty(len(now)), np.empty(nc)
         floors(now, delta, self.keep, self.keep_half, floor, mid)  # (S1)
-        error = self._error_bound(state)
-        if error is not None:  # ... whatever the model's error does (model_error.py)
-            end_loss, mid_loss = margin_losses(self.guarded, state, error, self.period,
-                                               self.travel)
-            floor += end_loss
-            mid += mid_loss
+        self._raise_floors(state, bias, tau, floor, mid)
         floor_mid = None
         past = None
         if nc:
@@ -290,13 +300,35 @@ class Safeguard(SafetyFilter):
             brake, f1 = reverse, f_rev
         return accept.blend(tau, brake, f0, f1, slack)
 
-    def _error_bound(self, state: ArmState) -> Array | None:
+    def _raise_floors(self, state: ArmState, bias: Array, tau: Array, floor: Array,
+                      mid: Array) -> None:
+        """The floors of (S1) raised, in place, by whatever the model's error can take off
+        each margin in one period (model_error.margin_losses), and to at least what a
+        measurement error can hide above the cushion (measurement_losses): the true margin
+        then ends above its cushion too."""
+        error = self._error_bound(state, bias, tau)
+        if error is not None:
+            end_loss, mid_loss = margin_losses(self.guarded, state, error, self.period,
+                                               self.travel)
+            floor += end_loss
+            mid += mid_loss
+        if self.declared is not None and self.declared.measured:
+            end_loss, mid_loss = measurement_losses(self.guarded, state, self.declared,
+                                                    self.period)
+            np.maximum(floor, end_loss + self.cushion, out=floor)
+            np.maximum(mid, mid_loss + self.cushion[: len(mid)], out=mid)
+
+    def _error_bound(self, state: ArmState, bias: Array, tau: Array) -> Array | None:
         """The bound on the model's acceleration error at this state: the declared one plus
-        its smooth Coulomb friction's (model_error.friction_error), or None."""
-        friction = friction_error(self.model, state) if self._coulomb else None
-        if friction is None:
-            return self.model_error
-        return friction if self.model_error is None else friction + self.model_error
+        its smooth Coulomb friction's (model_error.friction_error) plus a declared inertia
+        error's at the law's acceleration D⁻¹(τ − b) (model_error.InertiaError), or None."""
+        parts = [p for p in (self.model_error,
+                             friction_error(self.model, state) if self._coulomb else None)
+                 if p is not None]
+        if self._inertia_error is not None:
+            accel = np.asarray(np.linalg.solve(state.inertia, tau - bias), dtype=float)
+            parts.append(self._inertia_error.bound(state, accel))
+        return sum(parts[1:], parts[0]) if parts else None
 
     @staticmethod
     def _no_nan(m: Array) -> Array:

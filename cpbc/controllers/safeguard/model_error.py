@@ -39,7 +39,11 @@ rate h ā_j (1 kHz, 10 rad/s²: 0.01 rad/s) inside its bound instead.
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+
 import numpy as np
+import pinocchio as pin
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
@@ -78,3 +82,200 @@ def margin_losses(constraints: ConstraintSet, state: ArmState, bound: Array, per
         parts.append(h * push + drift)
     end = np.concatenate(parts) if parts else np.zeros(0)
     return end, mid
+
+
+@dataclass(frozen=True)
+class DeclaredError:
+    """What the scenario declares its model and measurements may get wrong besides an
+    acceleration bound (``simulation.model_error``), held by the safeguard.
+
+    Attributes:
+        inertia: e ∈ [0, 1), the relative error of every link's mass and rotational inertia
+            (:class:`InertiaError`); the kinetic-energy limits the laws keep are lowered to
+            Ω/(1 + e) by the scenario (the arm's energy ½ẋᵀDẋ ≤ (1 + e) ½ẋᵀD̂ẋ).
+        armature, damping, friction: what the plant may add to each joint that the model
+            does not have: rotor inertia [0, A] [kg·m²], viscous damping [0, c]
+            [N·m·s/rad], dry friction [0, F] [N·m] (joint coordinates), or None.
+        position: p̄, a bound on the error of each measured coordinate [rad or m], or None.
+        velocity: v̄, a bound on the error of each measured rate [rad/s or m/s], or None
+            (:func:`measurement_losses`).
+    """
+
+    inertia: float = 0.0
+    armature: Array | None = None
+    damping: Array | None = None
+    friction: Array | None = None
+    position: Array | None = None
+    velocity: Array | None = None
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.inertia) and 0.0 <= self.inertia < 1.0):
+            raise ValueError(f"inertia error must be in [0, 1), got {self.inertia}")
+        for name in ("armature", "damping", "friction", "position", "velocity"):
+            value = getattr(self, name)
+            if value is not None and not (np.all(np.isfinite(value)) and np.all(
+                    np.asarray(value) >= 0.0)):
+                raise ValueError(f"{name} error must be finite and ≥ 0, got {value}")
+
+    @property
+    def dynamic(self) -> bool:
+        """Whether an error of the dynamics is declared (:class:`InertiaError`)."""
+        return bool(self.inertia) or any(
+            v is not None for v in (self.armature, self.damping, self.friction))
+
+    def acceleration_bound(self, model: RobotModel) -> InertiaError | None:
+        """The bound on the acceleration error it makes, or None when none is declared."""
+        if not self.dynamic:
+            return None
+        return InertiaError(model, self.inertia, self.armature, self.damping, self.friction)
+
+    @property
+    def measured(self) -> bool:
+        """Whether a measurement error is declared."""
+        return self.position is not None or self.velocity is not None
+
+
+def _contracts(g: Array) -> bool:
+    """Whether G ≥ 0 has spectral radius below 1: at once when a row or column sum bound
+    says so, else from its eigenvalues."""
+    if min(float(g.sum(axis=1).max()), float(g.sum(axis=0).max())) < 1.0:
+        return True
+    return float(np.max(np.abs(np.linalg.eigvals(g)))) < 1.0
+
+
+def measurement_losses(constraints: ConstraintSet, state: ArmState, declared: DeclaredError,
+                       period: float) -> tuple[Array, Array]:
+    """What a measured state off by |x̃ − x| ≤ p̄, |ẋ̃ − ẋ| ≤ v̄ can hide of each margin of
+    ``constraints`` at the period's end and mid-period (the order of ``margin_losses``).
+
+    The guard predicts from the measured state; the true state's prediction differs by
+    p̄ + t v̄ in position at time t into the period and by v̄ in rate. A configuration margin
+    φ_i loses Σ_j |∂φ_i/∂x_j| (p̄_j + t v̄_j) to first order; a velocity margin
+    ψ_k = ω_k − ½ẋᵀΠ_k ẋ, taken at the measured rate, exceeds the true one by at most
+    Σ_j |(Π_k ẋ)_j| v̄_j + ½ v̄ᵀ|Π_k| v̄ (exact for a constant Π_k; the change of ω_k and Π_k
+    with the position error is left out). Holding every measured margin at least that much
+    above its cushion δ_i (a floor of its own beside (S1)'s, which is taken from the
+    measured margin and so cannot carry (S1)'s induction to the true one) keeps the true
+    margins above δ_i while the measurement errors stay inside the declared bounds (a
+    Gaussian noise does not: declare a few σ and count the rest)."""
+    h, n = period, constraints.n
+    p = np.zeros(n) if declared.position is None else np.broadcast_to(declared.position, (n,))
+    v = np.zeros(n) if declared.velocity is None else np.broadcast_to(declared.velocity, (n,))
+    parts, mid = [], np.zeros(constraints.n_configuration)
+    if constraints.configuration:
+        slopes = np.abs(constraints.configuration_gradients(state))
+        parts.append(slopes @ (p + h * v))
+        mid = slopes @ (p + 0.5 * h * v)
+    for c in constraints.velocity:
+        weights = c.weights(state.x, state)
+        parts.append(np.abs(weights @ state.dx) @ v
+                     + 0.5 * np.einsum("kij,i,j->k", np.abs(weights), v, v))
+    end = np.concatenate(parts) if parts else np.zeros(0)
+    return end, mid
+
+
+class InertiaError:
+    """The acceleration error of a declared error in the links' inertial parameters and of
+    unmodelled joint terms (``simulation.model_error``: ``inertia``, ``armature``,
+    ``damping``, ``friction``), at a state and a model acceleration.
+
+    **The bound.** The dynamics are linear in each link's inertial parameters: link k's mass
+    m_k (its centre of mass fixed, so its first moment m_k c_k scales with it) and its
+    rotational inertia about the centre of mass I_k, each scaled by its own factor 1 + δ,
+    |δ| ≤ e. Split link k's parameters into those two pieces p (Pinocchio's joint torque
+    regressor Y(q, q̇, a) times the piece's ten parameters): w_p = Y(q, q̇, â) π_p = D_p â + b_p,
+    D_p = J_kᵀ I_p J_k ⪰ 0. The plant may add, per joint, rotor inertia α_j ∈ [0, A_j],
+    viscous damping up to c_j and dry friction up to F_j. Its D = D̂ + ΔD, b = b̂ + Δb with
+
+        u = ΔD â + Δb = Σ_p δ_p w_p + α ⊙ â + f,     |f_j| ≤ c_j |q̇_j| + F_j,
+
+    and with the same torque the accelerations differ by
+
+        y = a − â = −D⁻¹ u = r − D̂⁻¹ ΔD y,     r = −D̂⁻¹ u,
+
+    so |r| ≤ r̄ = e Σ_p |D̂⁻¹ w_p| + |D̂⁻¹| (A ⊙ |â| + c ⊙ |q̇| + F) and |y| ≤ r̄ + G|y| with
+    G = e Σ_p |D̂⁻¹ D_p| + |D̂⁻¹| diag(A) ≥ |D̂⁻¹ΔD| entry by entry (|·| of each entry). When
+    G's spectral radius is below 1, |y| ≤ (I − G)⁻¹ r̄ (the series Σ Gᵏ r̄, every term ≥ 0).
+    Always, since D ⪰ (1 − e) D̂ (ΔD is the pieces' ±e share of D̂ plus α ≥ 0),
+    |y_j| ≤ √(D⁻¹)_jj √(uᵀD⁻¹u) ≤ √(D̂⁻¹)_jj √(ūᵀ|D̂⁻¹|ū) / (1 − e) with ū ≥ |u| the same
+    bound in torque; without added rotor inertia also −eD̂ ⪯ ΔD ⪯ eD̂, so in the norm
+    ‖y‖ = √(yᵀD̂y): ‖y‖ ≤ ‖r‖/(1 − e) and |(D̂⁻¹ΔD y)_j| ≤ e √(D̂⁻¹)_jj ‖y‖, whence
+    |y_j| ≤ r̄_j + e/(1 − e) √(D̂⁻¹)_jj √(r̄ᵀ|D̂|r̄). The smallest of these is ā. Computed in
+    joint coordinates and carried to controller coordinates by |T|.
+
+    It holds for the given model acceleration â: the guard takes the law's (the torque it
+    keeps unless it must act); a brake's own inertia error only scales its deceleration
+    (within ±e in the D̂ norm), which the braking set's share θ absorbs. The model's own
+    smooth Coulomb friction is :func:`friction_error`'s; anything else the user bounds is
+    ``acceleration``.
+
+    Args:
+        model: the controller's model.
+        relative: e ∈ [0, 1).
+        armature, damping, friction: A [kg·m²], c [N·m·s/rad], F [N·m] per joint (joint
+            coordinates), or None.
+    """
+
+    def __init__(self, model: RobotModel, relative: float, armature: Array | None = None,
+                 damping: Array | None = None, friction: Array | None = None) -> None:
+        if not (math.isfinite(relative) and 0.0 <= relative < 1.0):
+            raise ValueError(f"inertia error must be in [0, 1), got {relative}")
+        self.model, self.relative = model, float(relative)
+        n = model.n
+        self._joint = [np.zeros(n) if v is None else np.broadcast_to(
+            np.asarray(v, dtype=float), (n,)) for v in (armature, damping, friction)]
+        pin_model = model.model
+        self._data = pin_model.createData()
+        bodies = len(pin_model.inertias) - 1
+        pieces = np.zeros((10 * bodies, 2 * bodies))  # each link's mass and rotation pieces
+        spatial = np.zeros((2 * bodies, 6, 6))  # each piece's spatial inertia, joint frame
+        for k in range(bodies):
+            link = pin_model.inertias[k + 1]
+            mass = pin.Inertia(link.mass, link.lever, np.zeros((3, 3)))
+            rotation = pin.Inertia(0.0, link.lever, link.inertia)
+            pieces[10 * k:10 * k + 10, 2 * k] = mass.toDynamicParameters()
+            pieces[10 * k:10 * k + 10, 2 * k + 1] = rotation.toDynamicParameters()
+            spatial[2 * k], spatial[2 * k + 1] = mass.matrix(), rotation.matrix()
+        self._pieces = pieces
+        self._spatial = spatial
+        self._jacobians = np.zeros((2 * bodies, 6, n))  # each piece's link's, joint frame
+
+    def bound(self, state: ArmState, accel: Array) -> Array:
+        """ā of the class docstring at ``state`` for the model acceleration ``accel``
+        (controller coordinates), per coordinate."""
+        e = self.relative
+        coords = self.model.coordinates
+        if coords.is_identity:
+            q, dq, ddq, inertia = state.x, state.dx, accel, state.inertia
+        else:
+            t, t_inv = coords.matrix, coords.inverse
+            q, dq, ddq = t_inv @ state.x, t_inv @ state.dx, t_inv @ accel
+            inertia = t.T @ state.inertia @ t
+        pin_model, data = self.model.model, self._data
+        inv = np.asarray(np.linalg.inv(inertia), dtype=float)
+        armature, damping, friction = self._joint
+        joint_force = armature * np.abs(ddq) + damping * np.abs(dq) + friction  # ≥ |α â + f|
+        first = np.abs(inv) @ joint_force
+        spread = np.abs(inv) * armature  # |D̂⁻¹| diag(A)
+        force = joint_force.copy()
+        if e > 0.0:
+            per_piece = pin.computeJointTorqueRegressor(pin_model, data, q, dq, ddq) @ (
+                self._pieces)
+            first += e * np.abs(inv @ per_piece).sum(axis=1)
+            force += e * np.abs(per_piece).sum(axis=1)
+            pin.computeJointJacobians(pin_model, data, q)
+            jac = self._jacobians
+            for k in range(len(jac) // 2):
+                jac[2 * k] = jac[2 * k + 1] = pin.getJointJacobian(
+                    pin_model, data, k + 1, pin.ReferenceFrame.LOCAL)
+            # e Σ_p |D̂⁻¹ D_p|, D_p = J_kᵀ I_p J_k
+            pieces = np.transpose(jac, (0, 2, 1)) @ (self._spatial @ jac)
+            spread += e * np.abs(np.matmul(inv, pieces)).sum(axis=0)
+        diag = np.sqrt(np.diag(inv))
+        out = diag * math.sqrt(float(force @ np.abs(inv) @ force)) / (1 - e)
+        if not np.any(armature):  # −eD̂ ⪯ ΔD ⪯ eD̂: |(D̂⁻¹ΔD y)_j| ≤ e √(D̂⁻¹)_jj ‖y‖_D̂
+            out = np.minimum(out, first + e / (1 - e) * diag * math.sqrt(
+                float(first @ np.abs(inertia) @ first)))
+        if _contracts(spread):
+            out = np.minimum(out, np.linalg.solve(np.eye(len(first)) - spread, first))
+        return out if coords.is_identity else np.abs(coords.matrix) @ out

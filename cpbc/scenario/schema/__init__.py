@@ -19,6 +19,7 @@ from cpbc.controllers.law_specs import (
     TaskGainsSpec,
 )
 from cpbc.scenario.schema.arm_specs import (
+    DECLARED,
     CaseSpec,
     ConstraintSpec,
     ControllerSpec,
@@ -91,6 +92,7 @@ from cpbc.scenario.schema.taskspace_specs import (
 
 __all__ = [
     "CASE_FILES",
+    "DECLARED",
     "MAX_CASES",
     "MAX_RUNS",
     "RUN_FILES",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Annotated, Literal
 
-from pydantic import Field, create_model
+from pydantic import Field, create_model, model_validator
 
 from cpbc.constraints.constraint_kind import ConstraintEntrySpec
 from cpbc.controllers.law_specs import LawSpec
@@ -152,14 +152,49 @@ class NoiseSpec(Strict):
             "seed of the noise generator"))
 
 
-class ModelErrorSpec(Strict):
-    """A bound on how far the arm's acceleration may differ from the controller model's, which
-    the safeguard holds as a disturbance (cpbc.controllers.safeguard.model_error)."""
+DECLARED = ("acceleration", "inertia", "armature", "damping", "friction", "position",
+            "velocity")
 
-    acceleration: NonNegative | list[NonNegative] = Field(
-        description=(
+
+class ModelErrorSpec(Strict):
+    """What the controller's model and its measurements may get wrong, which the safeguard
+    holds as a disturbance (cpbc.controllers.safeguard.model_error): at least one field."""
+
+    acceleration: NonNegative | list[NonNegative] | None = Field(
+        default=None, description=(
             "ā: |a − â| ≤ ā per joint [rad/s² or m/s²], one number or one per joint: what "
             "the model's error (masses, friction, payload) can do to the acceleration"))
+    inertia: Annotated[float, Field(ge=0, lt=1)] | None = Field(
+        default=None, description=(
+            "e: every link's mass and rotational inertia may be off by up to this share "
+            "(0.2: ±20 %); the safeguard holds the acceleration error it makes at each step "
+            "and the laws keep the kinetic energy below Ω/(1 + e) of the model's"))
+    armature: NonNegative | list[NonNegative] | None = Field(
+        default=None, description=(
+            "rotor inertia the plant may have beyond the model's, up to this per joint "
+            "[kg·m² or kg]: one number or one per joint"))
+    damping: NonNegative | list[NonNegative] | None = Field(
+        default=None, description=(
+            "viscous damping the plant may have beyond the model's, up to this per joint "
+            "[N·m·s/rad]: one number or one per joint"))
+    friction: NonNegative | list[NonNegative] | None = Field(
+        default=None, description=(
+            "dry friction the plant may have beyond the model's, up to this per joint "
+            "[N·m]: one number or one per joint"))
+    position: NonNegative | list[NonNegative] | None = Field(
+        default=None, description=(
+            "a bound on the error of each measured position [rad or m], one number or one "
+            "per coordinate: the safeguard keeps the margins it could hide"))
+    velocity: NonNegative | list[NonNegative] | None = Field(
+        default=None, description=(
+            "a bound on the error of each measured rate [rad/s or m/s], one number or one "
+            "per coordinate: the safeguard keeps the margins it could hide"))
+
+    @model_validator(mode="after")
+    def _something(self) -> ModelErrorSpec:
+        if all(getattr(self, k) is None for k in DECLARED):
+            raise ValueError(f"give at least one of {', '.join(DECLARED)}")
+        return self
 
 
 class SimulationSpec(Strict):
@@ -232,9 +267,10 @@ class SimulationSpec(Strict):
     # safeguard as a disturbance; None: the model is taken as exact
     model_error: ModelErrorSpec | None = Field(
         default=None, description=(
-            "a declared bound on the model's acceleration error, {acceleration: ā}, that the "
-            "safeguard holds as a disturbance (python -m cpbc.verify --disturb draws plants "
-            "inside it)"))
+            "a declared bound on the model's error (acceleration, inertia, armature, damping, "
+            "friction) and the measurement's (position, velocity), that the safeguard holds "
+            "as a disturbance (python -m cpbc.verify --disturb draws plants inside the "
+            "acceleration bound)"))
     # how many periods of the model the rescue may hold its brakes for in one control period
     # (cpbc.controllers.rescue): a bound on the guard's worst step, at a cost in runs kept;
     # null (the default): no bound
