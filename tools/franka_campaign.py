@@ -225,8 +225,19 @@ def _git_commit() -> str:
         return "unknown"
 
 
+def _budgeted(session: list[tuple[str, dict]], budget: int | None
+              ) -> list[tuple[str, dict]]:
+    """The session's scenarios with the safeguard's rescue budget (model periods per control
+    period, ``simulation.safeguard_rescue_budget``), or as they are."""
+    if budget is None:
+        return session
+    return [(kind, {**data, "simulation": {**data["simulation"],
+                                           "safeguard_rescue_budget": budget}})
+            for kind, data in session]
+
+
 def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
-             command: str) -> dict[str, Any]:
+             command: str, rescue_budget: int | None = None) -> dict[str, Any]:
     """Run the campaign; its JSON document."""
     runs: list[dict[str, Any]] = []
     compute: list[np.ndarray] = []
@@ -241,7 +252,7 @@ def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
         for session in sessions:
             if session[0][0] == "reach" and sum(r["kind"] == "reach" for r in runs) >= n_reaches:
                 continue
-            found = run_session(session, Path(folder), deadline)
+            found = run_session(_budgeted(session, rescue_budget), Path(folder), deadline)
             if found is None:
                 refused += 1
                 continue
@@ -252,6 +263,7 @@ def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
     return {
         "command": command, "date": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
         "commit": _git_commit(), "seed": seed, "deadline_ms": deadline * 1e3,
+        "rescue_budget": rescue_budget,
         "machine": {"cpus": os.cpu_count(), "load_before": [round(v, 2) for v in load_before],
                     "load_after": [round(v, 2) for v in os.getloadavg()]},
         "wall_s": round(time.perf_counter() - begun, 1),
@@ -346,6 +358,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=7)
     p.add_argument("--deadline-ms", type=float, default=1.0,
                    help="a cycle computing longer ends the motion (the FR3's 1 ms)")
+    p.add_argument("--rescue-budget", type=int, default=None,
+                   help="bound the safeguard's rescue to this many model periods a cycle "
+                        "(simulation.safeguard_rescue_budget; none by default)")
     p.add_argument("--out", type=Path, default=OUT)
     p.add_argument("--render-only", action="store_true",
                    help="write the fragment from the stored JSON, run nothing")
@@ -356,7 +371,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         command = "python -m tools.franka_campaign " + " ".join(
             argv if argv is not None else sys.argv[1:])
         doc = campaign(args.reaches, args.paths, args.seed, args.deadline_ms * 1e-3,
-                       command.strip())
+                       command.strip(), args.rescue_budget)
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / JSON_NAME).write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
     (args.out / TABLE_NAME).write_text(render(doc), encoding="utf-8")
