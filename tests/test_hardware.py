@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 import yaml
 
+from cpbc.controllers.safeguard import Safeguard
 from cpbc.errors import InadmissibleStateError, ParameterError, ScenarioError
 from cpbc.hardware import robot_run
 from cpbc.hardware.__main__ import main
@@ -553,3 +554,27 @@ def test_a_trackers_law_is_packed_before_the_first_cycle() -> None:
     assert packed is not None and packed.terms is not None
     guard.evaluate(setup.cases[0].position, np.zeros(7))
     assert law._packed_law is packed  # not packed again
+
+
+@pytest.mark.parametrize("given, budget", [(None, robot_run.ROBOT_RESCUE_BUDGET),
+                                           ("null", None), (3, 3)])
+def test_on_a_robot_the_rescue_is_bounded_unless_the_scenario_says(tmp_path: Path,
+                                                                   given: Any,
+                                                                   budget: int | None) -> None:
+    """cpbc.hardware bounds the safeguard's rescue (its time is the robot's) unless the
+    scenario sets simulation.safeguard_rescue_budget itself, a number or null; cpbc.run's
+    set-up keeps the scenario's (no bound by default)."""
+    data = yaml.safe_load(SCENARIO.read_text())
+    data["simulation"].pop("safeguard_rescue_budget", None)
+    if given is not None:
+        data["simulation"]["safeguard_rescue_budget"] = None if given == "null" else given
+    path = tmp_path / "budget.yaml"
+    path.write_text(yaml.safe_dump(data))
+    setup = build(*load_scenario(path))
+    assert setup.safeguard is not None
+    assert setup.safeguard.rescue_budget == (3 if given == 3 else None)
+    robot = robot_run.on_robot(setup)
+    assert robot.safeguard is not None and robot.safeguard.rescue_budget == budget
+    guard = robot.controller(choose_controller(robot, None))
+    assert isinstance(guard, Safeguard) and guard.brakes.rescue is not None
+    assert guard.brakes.rescue.budget == budget

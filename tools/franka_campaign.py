@@ -228,11 +228,13 @@ def _git_commit() -> str:
 def _budgeted(session: list[tuple[str, dict]], budget: int | None
               ) -> list[tuple[str, dict]]:
     """The session's scenarios with the safeguard's rescue budget (model periods per control
-    period, ``simulation.safeguard_rescue_budget``), or as they are."""
+    period, ``simulation.safeguard_rescue_budget``; 0: no bound), or as they are (a robot's
+    default, cpbc.hardware.robot_run.ROBOT_RESCUE_BUDGET)."""
     if budget is None:
         return session
+    given = None if budget == 0 else budget
     return [(kind, {**data, "simulation": {**data["simulation"],
-                                           "safeguard_rescue_budget": budget}})
+                                           "safeguard_rescue_budget": given}})
             for kind, data in session]
 
 
@@ -359,8 +361,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--deadline-ms", type=float, default=1.0,
                    help="a cycle computing longer ends the motion (the FR3's 1 ms)")
     p.add_argument("--rescue-budget", type=int, default=None,
-                   help="bound the safeguard's rescue to this many model periods a cycle "
-                        "(simulation.safeguard_rescue_budget; none by default)")
+                   help="the safeguard's rescue budget, model periods a cycle "
+                        "(simulation.safeguard_rescue_budget; 0: no bound; default: "
+                        "cpbc.hardware's on a robot, 8)")
     p.add_argument("--out", type=Path, default=OUT)
     p.add_argument("--render-only", action="store_true",
                    help="write the fragment from the stored JSON, run nothing")

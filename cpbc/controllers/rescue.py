@@ -42,7 +42,10 @@ from a worse state. Measured on the Panda rate campaign
 runs crossed a bound at B = 4, 2 at B = 25, 1 unbounded; on the UR5's, 4 and 0 of 282. The
 bound on the step is bought with the guarantee, so the default is the search that ends in
 the period it starts; a hard deadline needs a rescue that is decided before it is needed,
-which this is not.
+which this is not. On a robot the rescue's time is the robot's: there a search of 30–70 ms
+left franky-sim holding the last command and two runs crossed a bound, and the budget kept
+every run (docs/hardware.md), so ``python -m cpbc.hardware`` bounds it to 8 periods unless the
+scenario says otherwise (cpbc.hardware.robot_run.on_robot).
 """
 
 from __future__ import annotations

@@ -21,7 +21,13 @@ import numpy as np
 from cpbc.errors import CpbcError
 from cpbc.hardware.backend import RobotBackend, RobotFault
 from cpbc.hardware.motion import MotionSettings
-from cpbc.hardware.robot_run import HardwareRun, choose_controller, lockstep_for, run_on_robot
+from cpbc.hardware.robot_run import (
+    HardwareRun,
+    choose_controller,
+    lockstep_for,
+    on_robot,
+    run_on_robot,
+)
 from cpbc.hardware.robot_run import write_run as write_files
 from cpbc.scenario import build
 from cpbc.scenario.arm_setup import ScenarioSetup
@@ -100,7 +106,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if isinstance(loaded, SystemScenario):
             raise CpbcError("scenario: a Part I system runs in simulation only; give an arm's "
                             "scenario")
-        setup = build(loaded, file)
+        setup = on_robot(build(loaded, file))
         entry = choose_controller(setup, args.controller)
         if not args.deadline_ms > 0:
             raise CpbcError(f"--deadline-ms: give a time > 0 [ms], got {args.deadline_ms}")

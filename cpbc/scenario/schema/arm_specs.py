@@ -278,7 +278,8 @@ class SimulationSpec(Strict):
         default=RESCUE_BUDGET, description=(
             "periods of the model the safeguard's rescue may check its brakes for in one "
             "control period (a bound on the worst step; a check goes on in the next periods "
-            "while its brake is held, which keeps fewer runs); null for no bound"))
+            "while its brake is held, which keeps fewer runs); null for no bound, the default "
+            "in simulation (python -m cpbc.hardware bounds it to 8 on a robot unless given)"))
     noise: NoiseSpec | None = Field(
         default=None, description=(
             "Gaussian noise on the state the controller sees (MuJoCo backend)"))
