@@ -20,6 +20,7 @@ from cpbc.controllers.safeguard.acceptance import Acceptance
 from cpbc.controllers.safeguard.braking import Brakes
 from cpbc.controllers.safeguard.model_error import (
     DeclaredError,
+    MarginSlopes,
     friction_error,
     margin_losses,
     measurement_losses,
@@ -307,14 +308,19 @@ class Safeguard(SafetyFilter):
         measurement error can hide above the cushion (measurement_losses): the true margin
         then ends above its cushion too."""
         error = self._error_bound(state, bias, tau)
+        measured = self.declared if self.declared is not None and self.declared.measured \
+            else None
+        if error is None and measured is None:
+            return
+        slopes = MarginSlopes.at(self.guarded, state)  # once for both errors
         if error is not None:
             end_loss, mid_loss = margin_losses(self.guarded, state, error, self.period,
-                                               self.travel)
+                                               self.travel, slopes)
             floor += end_loss
             mid += mid_loss
-        if self.declared is not None and self.declared.measured:
-            end_loss, mid_loss = measurement_losses(self.guarded, state, self.declared,
-                                                    self.period)
+        if measured is not None:
+            end_loss, mid_loss = measurement_losses(self.guarded, state, measured,
+                                                    self.period, slopes)
             np.maximum(floor, end_loss + self.cushion, out=floor)
             np.maximum(mid, mid_loss + self.cushion[: len(mid)], out=mid)
 

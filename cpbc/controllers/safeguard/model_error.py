@@ -62,26 +62,57 @@ def friction_error(model: RobotModel, state: ArmState) -> Array | None:
     return np.abs(np.linalg.inv(state.inertia)) @ force
 
 
+@dataclass(frozen=True, eq=False)
+class MarginSlopes:
+    """How far each margin of a constraint set moves for a small error of the state, at the
+    per-step state, read once a step for every error the guard holds (the model's and the
+    measurement's): |∂φ_i/∂x| of each configuration margin, and of each velocity margin
+    ψ_k = ω_k − ½ẋᵀΠ_k ẋ, |Π_k ẋ| and |Π_k| (``VelocityConstraint.weights``: r rᵀ for a
+    rate, D for the kinetic energy).
+
+    Attributes:
+        configuration: |∇φ_i| rows, shape (number of φ_i, n).
+        push: |Π_k ẋ| rows, shape (number of ψ_k, n).
+        weights: |Π_k|, shape (number of ψ_k, n, n).
+    """
+
+    configuration: Array
+    push: Array
+    weights: Array
+
+    @classmethod
+    def at(cls, constraints: ConstraintSet, state: ArmState) -> MarginSlopes:
+        n = constraints.n
+        config = np.abs(constraints.configuration_gradients(state))
+        weights = [c.weights(state.x, state) for c in constraints.velocity]  # (k, n, n) each
+        if not weights:
+            return cls(config, np.zeros((0, n)), np.zeros((0, n, n)))
+        pi = np.concatenate(weights)
+        return cls(config, np.abs(pi @ state.dx), np.abs(pi))
+
+    def losses(self, end_shift: Array, mid_shift: Array, rate_shift: Array
+               ) -> tuple[Array, Array]:
+        """What each margin can lose to a position off by at most ``end_shift`` at the
+        period's end and ``mid_shift`` at mid-period, per coordinate, and a rate off by at
+        most ``rate_shift``: Σ_j |∂φ_i/∂x_j| s_j for a configuration margin, and
+        Σ_j |(Π_k ẋ)_j| w_j + ½ wᵀ|Π_k|w for a velocity margin (exact for a constant Π_k).
+        (At the period's end, every margin in the order of ``names``; at mid-period, the
+        configuration ones.)"""
+        velocity = self.push @ rate_shift + 0.5 * np.einsum(
+            "kij,i,j->k", self.weights, rate_shift, rate_shift)
+        return (np.concatenate((self.configuration @ end_shift, velocity)),
+                self.configuration @ mid_shift)
+
+
 def margin_losses(constraints: ConstraintSet, state: ArmState, bound: Array, period: float,
-                  travel: float) -> tuple[Array, Array]:
+                  travel: float, slopes: MarginSlopes | None = None) -> tuple[Array, Array]:
     """What an acceleration error |d_j| ≤ ``bound``_j can take off each margin of
-    ``constraints`` over one period (the module docstring): (at the period's end, every
-    margin in the order of ``names``; at mid-period, the configuration ones)."""
+    ``constraints`` over one period (the module docstring): the position off by c h² ā at
+    the end and ⅛h² ā at mid-period, the rate by h ā (:meth:`MarginSlopes.losses`;
+    ``slopes`` at the state when the caller has them)."""
     h = period
-    x, dx = state.x, state.dx
-    parts, mid = [], np.zeros(constraints.n_configuration)
-    if constraints.configuration:
-        grads = constraints.configuration_gradients(state)
-        reach = np.abs(grads) @ bound
-        parts.append(travel * h * h * reach)
-        mid = 0.125 * h * h * reach
-    for c in constraints.velocity:
-        weights = c.weights(x, state)  # (k, n, n)
-        push = np.abs(weights @ dx) @ bound
-        drift = 0.5 * h * h * np.einsum("kij,i,j->k", np.abs(weights), bound, bound)
-        parts.append(h * push + drift)
-    end = np.concatenate(parts) if parts else np.zeros(0)
-    return end, mid
+    reach = slopes if slopes is not None else MarginSlopes.at(constraints, state)
+    return reach.losses(travel * h * h * bound, 0.125 * h * h * bound, h * bound)
 
 
 @dataclass(frozen=True)
@@ -144,7 +175,8 @@ def _contracts(g: Array) -> bool:
 
 
 def measurement_losses(constraints: ConstraintSet, state: ArmState, declared: DeclaredError,
-                       period: float) -> tuple[Array, Array]:
+                       period: float, slopes: MarginSlopes | None = None
+                       ) -> tuple[Array, Array]:
     """What a measured state off by |x̃ − x| ≤ p̄, |ẋ̃ − ẋ| ≤ v̄ can hide of each margin of
     ``constraints`` at the period's end and mid-period (the order of ``margin_losses``).
 
@@ -157,21 +189,13 @@ def measurement_losses(constraints: ConstraintSet, state: ArmState, declared: De
     above its cushion δ_i (a floor of its own beside (S1)'s, which is taken from the
     measured margin and so cannot carry (S1)'s induction to the true one) keeps the true
     margins above δ_i while the measurement errors stay inside the declared bounds (a
-    Gaussian noise does not: declare a few σ and count the rest)."""
+    Gaussian noise does not: declare a few σ and count the rest). ``slopes``: at the state,
+    when the caller has them (:meth:`MarginSlopes.losses`)."""
     h, n = period, constraints.n
     p = np.zeros(n) if declared.position is None else np.broadcast_to(declared.position, (n,))
     v = np.zeros(n) if declared.velocity is None else np.broadcast_to(declared.velocity, (n,))
-    parts, mid = [], np.zeros(constraints.n_configuration)
-    if constraints.configuration:
-        slopes = np.abs(constraints.configuration_gradients(state))
-        parts.append(slopes @ (p + h * v))
-        mid = slopes @ (p + 0.5 * h * v)
-    for c in constraints.velocity:
-        weights = c.weights(state.x, state)
-        parts.append(np.abs(weights @ state.dx) @ v
-                     + 0.5 * np.einsum("kij,i,j->k", np.abs(weights), v, v))
-    end = np.concatenate(parts) if parts else np.zeros(0)
-    return end, mid
+    reach = slopes if slopes is not None else MarginSlopes.at(constraints, state)
+    return reach.losses(p + h * v, p + 0.5 * h * v, v)
 
 
 class InertiaError:
