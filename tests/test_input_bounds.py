@@ -26,16 +26,22 @@ def test_bounds_are_checked_naming_the_argument() -> None:
         InputBounds(0.001, np.array([87.0, -1.0]))
     with pytest.raises(ValueError, match="rate"):
         InputBounds(0.001, None, np.array([np.nan]))
-    with pytest.raises(ValueError, match="rate"):
-        InputBounds.of(7, 0.001, 87.0, [1000.0, 1000.0])
 
 
-def test_one_number_applies_to_every_joint() -> None:
-    bounds = InputBounds.of(3, 0.002, 10.0, [1000.0, 500.0, 250.0])
-    assert bounds.torque is not None and bounds.torque.tolist() == [10.0] * 3
-    assert bounds.step is not None
-    np.testing.assert_allclose(bounds.step, [2.0, 1.0, 0.5])
+def test_one_number_applies_to_every_joint_and_a_wrong_count_is_refused() -> None:
+    """A single number bounds every joint of the arm the guard keeps; a count that is
+    neither one nor one per joint is refused, naming the bound, when the guard is built."""
+    path = ROOT / "tools" / "campaigns" / "fr3_sphere_rate.yaml"
+    setup = build(*load_scenario(path))
+    law = next(e for e in setup.controllers if not e.controller.constraints.empty).controller
+    bounds = InputBounds(0.002, 10.0, np.array([1000.0]))
+    assert bounds.step is not None and bounds.step.tolist() == [2.0]
+    box = Safeguard(law, bounds).box
+    assert box.torque_limit is not None and box.torque_limit.tolist() == [10.0] * 7
+    assert box.rate_step is not None and box.rate_step.tolist() == [2.0] * 7
     assert InputBounds(0.001).step is None
+    with pytest.raises(ValueError, match="rate"):
+        Safeguard(law, InputBounds(0.001, 87.0, np.array([1000.0, 1000.0])))
 
 
 def test_a_scenario_builds_its_bounds_once_and_every_reader_reads_them() -> None:

@@ -23,8 +23,9 @@ class InputBounds:
 
     Attributes:
         period: the control period h [s] (zero-order hold), > 0.
-        torque: joint torque limits [N·m], shape (n,), or None (unbounded).
-        rate: joint torque-rate limits [N·m/s], shape (n,), or None (unbounded): a command
+        torque: joint torque limits [N·m], one per joint or one for every joint, or None
+            (unbounded).
+        rate: joint torque-rate limits [N·m/s], likewise, or None (unbounded): a command
             moves at most ρ_i h from the one before it.
     """
 
@@ -43,21 +44,6 @@ class InputBounds:
             if value.size == 0 or np.any(np.isnan(value)) or not np.all(value > 0):
                 raise ParameterError(name, f"{name} limits must be > 0 per joint, got {given}")
             object.__setattr__(self, name, value)
-
-    @classmethod
-    def of(cls, n: int, period: float, torque: Array | float | None = None,
-           rate: Array | float | None = None) -> InputBounds:
-        """The bounds of an n-joint arm, a single number applying to every joint."""
-
-        def per_joint(v: Array | float | None, name: str) -> Array | None:
-            if v is None:
-                return None
-            a = np.asarray(v, dtype=float)
-            if a.ndim > 1 or a.size not in (1, n):
-                raise ParameterError(name, f"{name}: one number or one per joint ({n}), got {v}")
-            return np.broadcast_to(a.reshape(-1), (n,)).copy()
-
-        return cls(period, per_joint(torque, "torque"), per_joint(rate, "rate"))
 
     @property
     def step(self) -> Array | None:

@@ -235,9 +235,8 @@ class ArmLoop:
         self.acted = self.guard.acted if self.guard else 0  # the guard's count before this step
         self.guarded_steps = np.zeros(steps + 1 if self.guard else 0, dtype=bool)
         self.period = settings.bounds.period
-        rate = settings.bounds.rate
-        self.rate_step = None if rate is None else np.broadcast_to(
-            np.asarray(rate, dtype=float) * self.period, (n,))
+        step = settings.bounds.step
+        self.rate_step = None if step is None else np.broadcast_to(step, (n,))
         # a command that ends on the rate box's edge is within it: held ± ρh computed by the
         # guard and the difference taken here may round apart by an ulp
         self.rate_tolerance = None if self.rate_step is None else self.rate_step * (1 + 1e-9)

@@ -149,15 +149,13 @@ class Safeguard(SafetyFilter):
             self.cushion[nc:] = (settings.velocity_cushion * self.period / 0.01
                                  * np.abs(at_target[nc:]))
         self._n_own_config = own.n_configuration
-        n = law.model.n
-        torque_limit = None if bounds.torque is None else np.broadcast_to(bounds.torque, (n,))
-        self.rate_limit = None if bounds.rate is None else np.broadcast_to(bounds.rate, (n,))
+        self.box = StepBox(law.model, bounds)
+        torque_limit, self.rate_limit = self.box.torque_limit, self.box.rate_limit
         self.model_error = None if model_error is None else np.asarray(model_error, float)
         self.declared = declared
         self._inertia_error = None if declared is None else declared.acceleration_bound(
             law.model)
         self._coulomb = bool(np.any(law.model.coulomb_friction))
-        self.box = StepBox(law.model, torque_limit, self.rate_limit, self.period)
         self._velocity_floor = np.maximum(self.cushion[nc:], 1e-300)
         # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)
         braking = None if torque_limit is None or not nc else Braking.of(

@@ -10,7 +10,19 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.brakes import TorqueBox
+from cpbc.errors import ParameterError
+from cpbc.model.input_bounds import InputBounds
 from cpbc.model.robot_model import ArmState, RobotModel
+
+
+def _per_joint(value: Array | None, n: int, name: str) -> Array | None:
+    """A bound of the input bounds, one per joint (a single number for every joint)."""
+    if value is None:
+        return None
+    if value.size not in (1, n):
+        raise ParameterError(name, f"{name} limits: one number or one per joint ({n}), got "
+                             f"{value.size}")
+    return np.broadcast_to(value, (n,))
 
 
 class StepBox:
@@ -18,22 +30,26 @@ class StepBox:
 
     Args:
         model: the controller's model (the box is in its coordinates).
-        torque_limit: |τ_q| ≤ limit per joint, or None.
-        rate_limit: |τ̇_q| ≤ ρ per joint [N·m/s], or None.
-        period: the control period h [s].
+        bounds: the control period h, |τ_q| ≤ L and |τ̇_q| ≤ ρ per joint (either may be
+            None); a ParameterError names a bound that is neither one number nor one per
+            joint.
 
     Attributes:
+        torque_limit, rate_limit: L and ρ per joint, or None.
         torque_box: the torque box as declared (None without a torque or rate limit).
         rate_step: ρh, how far one step can move each joint torque (None: as far as the box
             allows).
         holding: the torque the actuators hold (controller coordinates), under a rate limit.
     """
 
-    def __init__(self, model: RobotModel, torque_limit: Array | None,
-                 rate_limit: Array | None, period: float) -> None:
-        self.rate_step: Array | None = None if rate_limit is None else rate_limit * period
-        limit = torque_limit if torque_limit is not None else (
-            None if rate_limit is None else np.full(model.n, math.inf))
+    def __init__(self, model: RobotModel, bounds: InputBounds) -> None:
+        n = model.n
+        self.torque_limit = _per_joint(bounds.torque, n, "torque")
+        self.rate_limit = _per_joint(bounds.rate, n, "rate")
+        step = bounds.step
+        self.rate_step: Array | None = None if step is None else np.broadcast_to(step, (n,))
+        limit = self.torque_limit if self.torque_limit is not None else (
+            None if self.rate_limit is None else np.full(n, math.inf))
         self.torque_box = None if limit is None else TorqueBox.of(model, limit)
         self._static = self.torque_box  # this step's torque box (moved by ``added``)
         self._step = self.torque_box  # ... narrowed to what one step reaches
