@@ -218,27 +218,23 @@ class Clearance(PairLayout, ConfigurationConstraint):
 
     def gradient_at(self, state: ArmState) -> Array:
         """∂φ/∂x at the per-step state, from its joint placements and Jacobians (no
-        Pinocchio pass; ``gradient`` at x for a state built without them): each sphere
-        constraint's closest pair's row (cpbc.kernels.clearance.sphere_pair_rows), each
-        capsule group's own."""
+        Pinocchio pass; ``gradient`` at x for a state built without them)."""
         if state.regressor is None or state.joint_jacobians is None:
             return self.gradient(state.x)
-        y, jac = state.regressor, state.joint_jacobians
-        grad = np.empty((len(self.names), self._n))
-        s = self._spheres
-        if s is not None:
-            phi, rows, _ = self._pair_rows(y, jac, self._at_rest)
-            grad[s.start:s.stop] = rows[self._closest(phi)]
-        jacobian_rows = partial(self._rows_times_jacobians, jac)
-        for g in self._groups:
-            grad[g.start:g.stop] = g.gradient(*g.narrow(y), jacobian_rows)
-        return grad if self._identity else grad @ self._t_inv
+        return self._rows(state.regressor, state.joint_jacobians, self._at_rest)[0]
 
     def _reported(self, y: Array, jac: Array, dq: Array) -> tuple[Array, Array, Array]:
         """The reported clearances, their gradients (controller coordinates) and the sphere
         constraints' curvature along q̇ ``dq`` (the capsule entries 0) at the joint
-        placements y and joint Jacobians ``jac``. A sphere constraint's gradient and
-        curvature are its closest pair's."""
+        placements y and joint Jacobians ``jac``."""
+        grad, curv = self._rows(y, jac, dq)
+        return self._value(y), grad, curv
+
+    def _rows(self, y: Array, jac: Array, dq: Array) -> tuple[Array, Array]:
+        """The reported constraints' gradients (controller coordinates) and the sphere
+        constraints' curvature along q̇ ``dq`` (the capsule entries 0): a sphere constraint's
+        are its closest pair's (cpbc.kernels.clearance_motion.sphere_pair_rows), a capsule
+        group's its own."""
         k = len(self.names)
         grad, curv = np.empty((k, self._n)), np.zeros(k)
         s = self._spheres
@@ -249,9 +245,7 @@ class Clearance(PairLayout, ConfigurationConstraint):
         jacobian_rows = partial(self._rows_times_jacobians, jac)
         for g in self._groups:
             grad[g.start:g.stop] = g.gradient(*g.narrow(y), jacobian_rows)
-        if not self._identity:
-            grad = grad @ self._t_inv
-        return self._value(y), grad, curv
+        return (grad if self._identity else grad @ self._t_inv), curv
 
     def _closest(self, phi: Array) -> list[int]:
         """Each sphere constraint's closest pair, from every pair's clearance ``phi``."""
