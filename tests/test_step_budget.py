@@ -108,3 +108,30 @@ def test_a_small_campaign_keeps_every_constraint_on_a_budget() -> None:
     assert len(guarded) == 20
     assert sum(r["violated"] for r in guarded) == 0
     assert sum(r["out_of_tests"] for r in guarded) > 0
+
+
+def test_where_no_torque_passes_within_the_budget_the_rescue_answers() -> None:
+    """The FR3 rate campaign as a robot runs it (6 tests a step, 8 model periods of rescue
+    a cycle), seed 0 at 1 kHz, a state a rate-limited brake stops in the true plant: its
+    chain's brakes fail within the budget, and holding the untested uniform brake carried
+    a joint 2.8 mrad past its limit; the rescue, which answers such steps, keeps it."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
+    from cpbc.reliability.verification import draw_state
+    from cpbc.scenario import build, load_scenario
+
+    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
+    setup = build(*load_scenario(campaign / "fr3_sphere_rate_robot.yaml"))
+    assert setup.safeguard is not None
+    assert (setup.safeguard.test_budget, setup.safeguard.rescue_budget) == (6, 8)
+    entry = next(e for e in setup.controllers if e.name == "CPBC")
+    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
+    s = draw_state(setup, 0)
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    settings = replace(setup.loop_settings, duration=0.5, log_every=1)
+    check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
+                        safeguard=setup.safeguard)
+    assert not check.violated, (check.constraint, check.min_margin)
+    assert check.trajectory.out_of_tests > 0 and check.trajectory.rescues > 0

@@ -283,6 +283,11 @@ class Safeguard(SafetyFilter):
             self.acted = acted + 1  # the law's torque, as held, did not pass
             if self.budget.passed is not None:
                 return self.budget.passed
+            with self.budget.lifted():  # the rescue's own budget bounds it
+                rescued = self.brakes.rescued(state, step.bias, step.predict, step.now,
+                                              self.calls)
+            if rescued is not None:
+                return rescued
             return self.brakes.brake(step.bias, state.inertia.dot(state.dx) / self.period,
                                      self.settings.braking)
 
@@ -364,8 +369,7 @@ class Safeguard(SafetyFilter):
         assert out.margins is not None  # asked for
         if self.box.rate_limited:
             self._begin(state)
-        bounded, self.budget.tests = self.budget.tests, None  # every path, not the first K
-        try:
+        with self.budget.lifted():  # every path, not the first K tests
             step = self._tests(state, out.torque, out.margins)
             accept, brakes, slack = self.acceptance, self.brakes, step.slack
             tau, _ = accept.held(state, step.bias, out.torque, slack)
@@ -379,8 +383,6 @@ class Safeguard(SafetyFilter):
             brakes.rescued(state, step.bias, step.predict, step.now, self.calls)
             brakes.infeasible(state, step.bias, to_rest, step.predict, step.now, step.floor,
                               step.floor_mid)
-        finally:
-            self.budget.tests = bounded
         if self.box.rate_limited:
             self.box.end(tau)
 

@@ -7,17 +7,21 @@ on a 7-joint arm in Python, the unit the guard's time is made of. A step that ac
 9 of them at the median on the Panda and up to 19 (the infeasible path, before the rescue's
 rollouts, which ``rescue_budget`` bounds). With a budget of K tests a step, the K + 1st
 raises :class:`OutOfTests` and the guard holds the last torque that passed the test being
-run (the blend's β found so far, the search's λ), or, where none passed yet, the uniform
-brake within the step's box — the brake whose braking set (S2) keeps the arm in: from a
-state the guard kept in V it stops the arm before every configuration boundary, in the
-model (cpbc.constraints.stopping). What a budget gives up: a blend nearer the brake than
-the smallest β, and, on a step where no torque passed before the budget ran out, a brake
-that was not tested over the period ahead.
+run (the blend's β found so far, the search's λ); where none passed yet, the rescue's brake
+(cpbc.controllers.rescue, bounded by its own ``rescue_budget``: it is what answers a state
+no brake of the chain keeps, and the chain's own brakes have failed by then), and where the
+rescue finds none, the uniform brake within the step's box — the brake whose braking set
+(S2) keeps the arm in: from a state the guard kept in V it stops the arm before every
+configuration boundary, in the model (cpbc.constraints.stopping). What a budget gives up:
+a blend nearer the brake than the smallest β, the search of λ cut short (so the rescue
+answers earlier), and, where the rescue finds nothing, a brake that was not tested over the
+period ahead.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 from cpbc.arrays import Array
 
@@ -49,6 +53,16 @@ class StepBudget:
     def begin(self) -> None:
         """A new step: no test made yet."""
         self.used, self.passed = 0, None
+
+    @contextmanager
+    def lifted(self) -> Iterator[None]:
+        """No bound inside the block (for F made there): the rescue's own check, which its
+        own budget bounds, and the warm-up of every path."""
+        tests, self.tests = self.tests, None
+        try:
+            yield
+        finally:
+            self.tests = tests
 
     def counted(self, slack: Callable[[Array], float]) -> Callable[[Array], float]:
         """``slack`` that counts its calls against the budget and remembers the last torque
