@@ -12,7 +12,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.controllers.linalg import solve_spd
-from cpbc.controllers.rescue import Rescue
+from cpbc.controllers.rescue import ORDER, Rescue
 from cpbc.controllers.safeguard.acceptance import Acceptance, Slack
 from cpbc.controllers.safeguard.predicted_margins import BrakingTest
 from cpbc.controllers.safeguard.prediction import Predictor
@@ -108,6 +108,19 @@ class Brakes:
         # (brakes.ramped, StepBox.fit): a brake clipped joint by joint kicked the Panda's
         # light wrist through its rate bound
         return self.box.fit(bias, tau, brake=True) if self.box.rate_limited else tau
+
+    def first_passing(self, state: ArmState, bias: Array, slack: Slack) -> Array | None:
+        """The first of the rescue's brakes (rescue.ORDER, each put in the step's box) that
+        passes ``slack`` over the period, or None (or None without a rescue): a bounded set
+        of candidates, one test each, for a step whose budget of tests is spent."""
+        if self.rescue is None:
+            return None
+        for name in ORDER:
+            tau = self.box.fit(bias, self.rescue.table[name](state, bias, self.period),
+                               brake=True)
+            if slack(tau) >= 0.0:
+                return tau
+        return None
 
     def infeasible(self, state: ArmState, bias: Array, stop: Array, predict: Predictor,
                     now: Array, floor: Array, floor_mid: Array | None) -> Array:

@@ -7,15 +7,17 @@ on a 7-joint arm in Python, the unit the guard's time is made of. A step that ac
 9 of them at the median on the Panda and up to 19 (the infeasible path, before the rescue's
 rollouts, which ``rescue_budget`` bounds). With a budget of K tests a step, the K + 1st
 raises :class:`OutOfTests` and the guard holds the last torque that passed the test being
-run (the blend's β found so far, the search's λ); where none passed yet, the rescue's brake
-(cpbc.controllers.rescue, bounded by its own ``rescue_budget``: it is what answers a state
-no brake of the chain keeps, and the chain's own brakes have failed by then), and where the
-rescue finds none, the uniform brake within the step's box — the brake whose braking set
-(S2) keeps the arm in: from a state the guard kept in V it stops the arm before every
-configuration boundary, in the model (cpbc.constraints.stopping). What a budget gives up:
-a blend nearer the brake than the smallest β, the search of λ cut short (so the rescue
-answers earlier), and, where the rescue finds nothing, a brake that was not tested over the
-period ahead.
+run (the blend's β found so far, the search's λ). Where none passed yet it tests, once
+each, the rescue's brakes (cpbc.constraints.brakes: least squares, aimed, uniform) over the
+period — a bounded set of candidates — and holds the first that passes; where none does,
+the rescue's search if it has no budget of its own (it then runs until the arm rests in
+the model), else the uniform brake within the step's box, untested: the brake whose braking
+set (S2) keeps the arm in, which from a state the guard kept in V stops the arm before
+every configuration boundary, in the model (cpbc.constraints.stopping). A rescue with a
+budget is not asked: committing to a brake before its check has seen the arm to rest kept
+fewer runs than the uniform brake did (Safeguard._out_of_tests). What a budget gives up: a
+blend nearer the brake than the smallest β, the search of λ cut short, and, under a
+bounded rescue, the rescue itself.
 """
 
 from __future__ import annotations
