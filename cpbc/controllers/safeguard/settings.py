@@ -70,8 +70,9 @@ class SafeguardSettings:
             check is still going on (B model periods ahead of the arm per period held).
         test_budget: K, the most candidate torques one step tests (each a prediction of the
             period and every margin along it), None for no bound: with ``rescue_budget``, a
-            bound on the step's time. Past it the step holds the last torque that passed,
-            else the uniform brake (:mod:`cpbc.controllers.safeguard.step_budget`).
+            bound on the step's time (at most K + 3 tests). Past it the step holds the last
+            torque that passed, else the first of the rescue's three brakes that passes one
+            test, else the uniform brake (:mod:`cpbc.controllers.safeguard.step_budget`).
     """
 
     decay_rate: float = 50.0

@@ -11,7 +11,7 @@ run (the blend's β found so far, the search's λ). Where none passed yet it tes
 each, the rescue's brakes (cpbc.constraints.brakes: least squares, aimed, uniform) over the
 period — a bounded set of candidates — and holds the first that passes; where none does,
 the rescue's search if it has no budget of its own (it then runs until the arm rests in
-the model), else the uniform brake within the step's box, untested: the brake whose braking
+the model; with one, a step tests at most K + 3 torques), else the uniform brake within the step's box, untested: the brake whose braking
 set (S2) keeps the arm in, which from a state the guard kept in V stops the arm before
 every configuration boundary, in the model (cpbc.constraints.stopping). A rescue with a
 budget is not asked: committing to a brake before its check has seen the arm to rest kept
