@@ -12,13 +12,16 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.controllers.linalg import solve_spd
-from cpbc.controllers.rescue import ORDER, Rescue
+from cpbc.controllers.rescue import Rescue
 from cpbc.controllers.safeguard.acceptance import Acceptance, Slack
 from cpbc.controllers.safeguard.predicted_margins import BrakingTest
 from cpbc.controllers.safeguard.prediction import Predictor
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.controllers.safeguard.step_box import StepBox
 from cpbc.model.robot_model import ArmState
+
+# the rescue's brakes tried once each where a step's budget of tests is spent, cheapest first
+OWN_BRAKES = ("least_squares", "aimed")
 
 
 class Brakes:
@@ -110,12 +113,13 @@ class Brakes:
         return self.box.fit(bias, tau, brake=True) if self.box.rate_limited else tau
 
     def first_passing(self, state: ArmState, bias: Array, slack: Slack) -> Array | None:
-        """The first of the rescue's brakes (rescue.ORDER, each put in the step's box) that
-        passes ``slack`` over the period, or None (or None without a rescue): a bounded set
-        of candidates, one test each, for a step whose budget of tests is spent."""
+        """The first of the rescue's own brakes (the least-squares and the aimed one, each
+        put in the step's box; the uniform one is the chain's first brake) that passes
+        ``slack`` over the period, or None (or None without a rescue): a bounded set of
+        candidates, one test each, for a step whose budget of tests is spent."""
         if self.rescue is None:
             return None
-        for name in ORDER:
+        for name in OWN_BRAKES:
             tau = self.box.fit(bias, self.rescue.table[name](state, bias, self.period),
                                brake=True)
             if slack(tau) >= 0.0:

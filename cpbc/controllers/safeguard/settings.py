@@ -70,8 +70,8 @@ class SafeguardSettings:
             check is still going on (B model periods ahead of the arm per period held).
         test_budget: K, the most candidate torques one step tests (each a prediction of the
             period and every margin along it), None for no bound: with ``rescue_budget``, a
-            bound on the step's time (at most K + 3 tests). Past it the step holds the last
-            torque that passed, else the first of the rescue's three brakes that passes one
+            bound on the step's time (at most K + 2 tests). Past it the step holds the last
+            torque that passed, else the first of the rescue's own two brakes that passes one
             test, else the uniform brake (:mod:`cpbc.controllers.safeguard.step_budget`).
     """
 
