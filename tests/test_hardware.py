@@ -602,3 +602,17 @@ def test_on_a_robot_a_step_tests_a_bounded_number_of_torques_unless_the_scenario
                        _settings(robot))
     recorded = run.summary.extra["test_budget"]
     assert recorded == tests if tests is not None else np.isnan(recorded)
+
+
+def test_on_a_robot_the_tests_stop_at_half_the_deadline() -> None:
+    """Given the cycle's deadline, cpbc.hardware lets the safeguard test torques for half of
+    it (a cycle that would miss it holds what a step out of tests holds); cpbc.run's set-up
+    has no time budget."""
+    setup = build(*load_scenario(SCENARIO))
+    assert setup.safeguard is not None and setup.safeguard.time_budget is None
+    assert robot_run.on_robot(setup).safeguard.time_budget is None  # type: ignore[union-attr]
+    robot = robot_run.on_robot(setup, 0.001)
+    assert robot.safeguard is not None
+    assert robot.safeguard.time_budget == pytest.approx(robot_run.ROBOT_TIME_SHARE * 0.001)
+    guard = robot.controller(choose_controller(robot, None))
+    assert isinstance(guard, Safeguard) and guard.budget.seconds == robot.safeguard.time_budget

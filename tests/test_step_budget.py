@@ -149,3 +149,23 @@ def test_a_bounded_rescue_is_not_asked_when_the_tests_run_out() -> None:
     runs: Safeguard._out_of_tests; what seed 0 does then is counted in docs/reliability.md)."""
     check = _fr3_seed_0(8)
     assert check.trajectory.out_of_tests > 0 and check.trajectory.rescues == 0
+
+
+def test_a_budget_in_time_stops_the_tests_once_it_is_spent(
+        recentred: RecentredBarrier) -> None:
+    """A time budget of a nanosecond is spent before the law's torque is tested: even far
+    from every bound the step holds what a step out of tests holds, not the law's torque;
+    a budget of ten seconds leaves the step as it is without one."""
+    x, dx = np.array([0.3, -0.4]), np.array([0.01, 0.02])  # far from every bound
+    free = Safeguard(recentred, InputBounds(H))
+    tau = free.torque(x, dx)
+    spent = Safeguard(recentred, InputBounds(H), SafeguardSettings(time_budget=1e-9))
+    assert not np.allclose(spent.torque(x, dx), tau)
+    assert spent.out_of_tests == 1
+    ample = Safeguard(recentred, InputBounds(H), SafeguardSettings(time_budget=10.0))
+    np.testing.assert_array_equal(ample.torque(x, dx), tau)
+    assert ample.out_of_tests == 0
+    with pytest.raises(CpbcError, match="time_budget"):
+        SafeguardSettings(time_budget=0.0)
+    with pytest.raises(ValueError, match="seconds"):
+        StepBudget(None, -1.0)

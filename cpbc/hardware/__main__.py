@@ -106,10 +106,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         if isinstance(loaded, SystemScenario):
             raise CpbcError("scenario: a Part I system runs in simulation only; give an arm's "
                             "scenario")
-        setup = on_robot(build(loaded, file))
-        entry = choose_controller(setup, args.controller)
         if not args.deadline_ms > 0:
             raise CpbcError(f"--deadline-ms: give a time > 0 [ms], got {args.deadline_ms}")
+        setup = on_robot(build(loaded, file), args.deadline_ms * 1e-3)
+        entry = choose_controller(setup, args.controller)
         settings = MotionSettings(loaded.simulation.duration, args.deadline_ms * 1e-3)
         backend = _backend(args, setup)
         if args.dry_run:

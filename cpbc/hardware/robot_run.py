@@ -47,14 +47,19 @@ ROBOT_RESCUE_BUDGET = 8
 #: The candidate torques one safeguard step may test on a robot when the scenario sets none
 #: (cpbc.controllers.safeguard.step_budget): with the rescue's budget, a bound on the cycle.
 ROBOT_TEST_BUDGET = 6
+#: The share of a cycle's deadline the safeguard may spend testing torques on a robot: past it
+#: the cycle holds what a step out of tests holds (cpbc.controllers.safeguard.step_budget),
+#: leaving the rest of the deadline for that and for the command's way out.
+ROBOT_TIME_SHARE = 0.5
 
 
-def on_robot(setup: ScenarioSetup) -> ScenarioSetup:
+def on_robot(setup: ScenarioSetup, deadline: float | None = None) -> ScenarioSetup:
     """The set-up as a robot runs it: the safeguard's rescue bounded to ROBOT_RESCUE_BUDGET
     model periods a cycle and its step to ROBOT_TEST_BUDGET tests, each unless the scenario
     sets it itself (``simulation.safeguard_rescue_budget``, ``safeguard_test_budget``: a
-    number, or null for no bound). In simulation time costs nothing and the defaults are no
-    bound (cpbc.controllers.rescue: a rescue budget keeps fewer runs there)."""
+    number, or null for no bound), and, given the cycle's ``deadline`` [s], to testing for
+    ROBOT_TIME_SHARE of it. In simulation time costs nothing and the defaults are no bound
+    (cpbc.controllers.rescue: a rescue budget keeps fewer runs there)."""
     if setup.safeguard is None:
         return setup
     given = setup.scenario.simulation.model_fields_set
@@ -63,6 +68,8 @@ def on_robot(setup: ScenarioSetup) -> ScenarioSetup:
         guard = replace(guard, rescue_budget=ROBOT_RESCUE_BUDGET)
     if "safeguard_test_budget" not in given:
         guard = replace(guard, test_budget=ROBOT_TEST_BUDGET)
+    if deadline is not None:
+        guard = replace(guard, time_budget=ROBOT_TIME_SHARE * deadline)
     return replace(setup, safeguard=guard)
 
 
@@ -224,7 +231,7 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
                  settings: MotionSettings) -> HardwareRun:
     """Check, warm, drive and summarise one motion of ``entry`` on ``backend`` (its safeguard
     as :func:`on_robot` sets it)."""
-    setup = on_robot(setup)
+    setup = on_robot(setup, settings.deadline)
     limits = backend.limits()
     check_fits(setup, limits, backend.joint_names)
     state = backend.read()
@@ -247,7 +254,9 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
     extra = {**summary.extra, **_timing(motion), "steps_over_rate": float(rules.steps_over),
              "velocity_over_limit": float(rules.velocity_over),
              "rescue_budget": math.nan if budget is None else float(budget),
-             "test_budget": math.nan if tests is None else float(tests)}
+             "test_budget": math.nan if tests is None else float(tests),
+             "time_budget_us": math.nan if kept is None or kept.time_budget is None
+             else 1e6 * kept.time_budget}
     summary = replace(summary, extra=extra, cause=cause)
     errors = None
     if isinstance(guard, ReferenceTracker) and setup.goal is not None:

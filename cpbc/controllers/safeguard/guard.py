@@ -181,7 +181,7 @@ class Safeguard(SafetyFilter):
         # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)
         braking = None if torque_limit is None or not nc else Braking.of(
             law.model, torque_limit, rate=self.rate_limit, disturbance=self.model_error)
-        self.budget = StepBudget(settings.test_budget)
+        self.budget = StepBudget(settings.test_budget, settings.time_budget)
         self.acceptance = Acceptance(
             law.model, PredictedMargins(self.guarded, law.model), self.box, braking,
             np.maximum(self.cushion[:nc], 1e-300), self.period, hold, settings.backoffs,
@@ -225,6 +225,7 @@ class Safeguard(SafetyFilter):
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         """The guarded torque and the law's V at the per-step state; ConstraintViolation
         outside S."""
+        self.budget.start()
         out = self.law.evaluate_state(state, margins=True)  # raises outside S
         self.calls += 1
         if self.constraints.empty:

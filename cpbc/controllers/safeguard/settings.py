@@ -73,6 +73,9 @@ class SafeguardSettings:
             bound on the step's time (at most K + 2 tests). Past it the step holds the last
             torque that passed, else the first of the rescue's own two brakes that passes one
             test, else the uniform brake (:mod:`cpbc.controllers.safeguard.step_budget`).
+        time_budget: the longest one guarded call may test torques for [s], None for no
+            bound: past it the step stops testing as past ``test_budget``. It reads the
+            clock (a run under it is not reproducible): for a robot's deadline.
     """
 
     decay_rate: float = 50.0
@@ -88,6 +91,7 @@ class SafeguardSettings:
     plant_step: float | None = None
     rescue_budget: int | None = RESCUE_BUDGET
     test_budget: int | None = None
+    time_budget: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("decay_rate", "braking"):
@@ -107,6 +111,9 @@ class SafeguardSettings:
             raise CpbcError(f"safeguard brake_search must be ≥ 0, got {self.brake_search}")
         if self.rescue_budget is not None and self.rescue_budget < 1:
             raise CpbcError(f"safeguard rescue_budget must be ≥ 1, got {self.rescue_budget}")
+        if self.time_budget is not None and not (math.isfinite(self.time_budget)
+                                                 and self.time_budget > 0):
+            raise CpbcError(f"safeguard time_budget must be > 0 s, got {self.time_budget}")
         if self.test_budget is not None and self.test_budget < 1:
             raise CpbcError(f"safeguard test_budget must be ≥ 1, got {self.test_budget}")
         if not (math.isfinite(self.max_step) and self.max_step > 0):

@@ -18,10 +18,16 @@ in the model (cpbc.constraints.stopping). A rescue with a budget is not asked: c
 brake before its check has seen the arm to rest kept fewer runs than the uniform brake did
 (Safeguard._out_of_tests). What a budget gives up: a blend nearer the brake than the smallest
 β, the search of λ cut short, and, under a bounded rescue, the rescue itself.
+
+A budget in time does the same on a robot's clock: past ``seconds`` from the start of the
+guarded call no further torque is tested (a cycle that would miss its deadline holds what the
+out-of-tests path holds). It reads the clock, so a run under it is not reproducible; it is for a
+robot (cpbc.hardware sets it from the deadline), never simulation's default.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
@@ -37,6 +43,8 @@ class StepBudget:
 
     Args:
         tests: K ≥ 1, the most candidate torques one step tests, or None for no bound.
+        seconds: the longest one guarded call may test torques for, from :meth:`start`
+            [s], or None for no bound.
 
     Attributes:
         used: tests made at this step.
@@ -44,13 +52,22 @@ class StepBudget:
         spent: steps that ran out of tests.
     """
 
-    def __init__(self, tests: int | None) -> None:
+    def __init__(self, tests: int | None, seconds: float | None = None) -> None:
         if tests is not None and tests < 1:
             raise ValueError(f"tests: a step tests at least the law's torque (≥ 1), got {tests}")
+        if seconds is not None and not seconds > 0.0:
+            raise ValueError(f"seconds: give a time > 0 [s], got {seconds}")
         self.tests = tests
+        self.seconds = seconds
+        self._until = float("inf")
         self.used = 0
         self.passed: Array | None = None
         self.spent = 0
+
+    def start(self) -> None:
+        """The guarded call begins: its time is counted from now."""
+        if self.seconds is not None:
+            self._until = time.perf_counter() + self.seconds
 
     def begin(self) -> None:
         """A new step: no test made yet."""
@@ -61,21 +78,24 @@ class StepBudget:
         """No bound inside the block (for F made there): the rescue's own check, which its
         own budget bounds, and the warm-up of every path."""
         tests, self.tests = self.tests, None
+        until, self._until = self._until, float("inf")
         try:
             yield
         finally:
-            self.tests = tests
+            self.tests, self._until = tests, until
 
     def counted(self, slack: Callable[[Array], float]) -> Callable[[Array], float]:
         """``slack`` that counts its calls against the budget and remembers the last torque
         that passed (F ≥ 0); raises :class:`OutOfTests` past the budget. Without a bound,
         ``slack`` itself."""
         limit = self.tests
-        if limit is None:
+        until = self._until
+        if limit is None and until == float("inf"):
             return slack
+        most = limit if limit is not None else -1
 
         def counted(t: Array) -> float:
-            if self.used >= limit:
+            if self.used == most or (until < float("inf") and time.perf_counter() > until):
                 raise OutOfTests
             self.used += 1
             f = slack(t)
