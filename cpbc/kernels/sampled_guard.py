@@ -147,6 +147,44 @@ def ramp_speeds(speeds: Array, start: Array, h: float, inertia: Array, to_joint:
             out[r, i] = speeds[r, i] + (share * lead) * acc[i]
 
 
+@kernel("void(float64[:, :], float64[:], float64[:], float64[:])")
+def project_halfspaces(grads: Array, need: Array, start: Array, out: Array) -> None:
+    """``start`` moved onto the half-spaces {v : ∇φ_i · v ≥ r_i} (rows ``grads``, ``need``
+    r_i) into ``out``: one orthogonal projection at a time onto the most violated (relative
+    to |∇φ_i|), at most twice per constraint (cpbc.controllers.safeguard.braking's slide and
+    escape). Rows with no gradient are never chosen; a NaN shortfall ends it, as numpy's
+    argmax over the shortfalls would."""
+    m, n = grads.shape
+    norms = np.empty(m)
+    for i in range(m):
+        s = 0.0
+        for j in range(n):
+            s += grads[i, j] * grads[i, j]
+        norms[i] = s
+    for j in range(n):
+        out[j] = start[j]
+    for _ in range(2 * m):
+        best, best_val, best_short = -1, -math.inf, 0.0
+        for i in range(m):
+            short, val = -math.inf, -math.inf
+            if norms[i] > 1e-300:
+                t = 0.0
+                for j in range(n):
+                    t += grads[i, j] * out[j]
+                short = need[i] - t
+                val = short / math.sqrt(norms[i])
+            if val != val:  # argmax stops at the first NaN
+                best, best_short = i, short
+                break
+            if best < 0 or val > best_val:
+                best, best_val, best_short = i, val, short
+        if best < 0 or not best_short > 0.0:
+            break
+        f = best_short / norms[best]
+        for j in range(n):
+            out[j] += f * grads[best, j]
+
+
 # --- the braking margins' stopping points (cpbc.constraints.stopping.Braking) ---------------
 
 

@@ -18,6 +18,7 @@ from cpbc.controllers.safeguard.predicted_margins import BrakingTest
 from cpbc.controllers.safeguard.prediction import Predictor
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.controllers.safeguard.step_box import StepBox
+from cpbc.kernels.sampled_guard import project_halfspaces
 from cpbc.model.robot_model import ArmState
 
 # the rescue's brakes tried once each where a step's budget of tests is spent, cheapest first
@@ -257,15 +258,8 @@ def _project(grads: Array, need: Array, start: Array) -> Array:
     """``start`` moved onto the half-spaces {v : ∇φ_i · v ≥ r_i}: one orthogonal projection
     at a time onto the most violated, at most twice per constraint (joint limits are
     orthogonal to each other, so one projection meets each): a closed-form construction,
-    not an optimisation."""
-    norms = np.einsum("ij,ij->i", grads, grads)
-    movable = norms > 1e-300
-    scale = np.sqrt(np.where(movable, norms, 1.0))
-    v = start
-    for _ in range(2 * len(need)):
-        short = np.where(movable, need - grads @ v, -np.inf)
-        i = int(np.argmax(short / scale))
-        if not short[i] > 0.0:
-            break
-        v = v + (short[i] / norms[i]) * grads[i]
-    return v
+    not an optimisation (cpbc.kernels.sampled_guard.project_halfspaces)."""
+    out = np.empty(len(start))
+    project_halfspaces(np.ascontiguousarray(grads, dtype=float), np.asarray(need, dtype=float),
+                       np.asarray(start, dtype=float), out)
+    return out
