@@ -125,7 +125,8 @@ def record(kind: str, data: dict, setup: ScenarioSetup, run: HardwareRun, wall: 
         "velocity_over": rules.velocity_over,
         "compute_us": {k: x[f"compute_us_{k}"] for k in ("p50", "p99", "p999", "max")},
         "lost_states": int(x["lost_states"]), "brake_cycles": int(x["brake_cycles"]),
-        "rescues": run.summary.rescues, "wall_s": round(wall, 2),
+        "rescues": run.summary.rescues, "acted": run.summary.safeguard_steps,
+        "out_of_tests": run.summary.out_of_tests, "wall_s": round(wall, 2),
         "_compute": motion.compute_time[np.isfinite(motion.compute_time)] * 1e6,
     }
     if kind == "reach":
@@ -152,8 +153,9 @@ def refused_start(name: str, detail: str) -> dict[str, Any]:
             "outside_box": 0, "min_margin": nan, "min_margin_name": detail,
             "crossing_states": 0, "velocity_over": 0,
             "compute_us": {"p50": nan, "p99": nan, "p999": nan, "max": nan},
-            "lost_states": 0, "brake_cycles": 0, "rescues": 0, "wall_s": 0.0,
-            "joint_error": nan, "tip_error": nan, "reached": False, "_compute": []}
+            "lost_states": 0, "brake_cycles": 0, "rescues": 0, "acted": 0,
+            "out_of_tests": 0, "wall_s": 0.0, "joint_error": nan, "tip_error": nan,
+            "reached": False, "_compute": []}
 
 
 def run_session(motions: list[tuple[str, dict]], folder: Path, deadline: float
@@ -210,6 +212,9 @@ def totals(runs: list[dict[str, Any]], refused: int, compute: list[np.ndarray]
         "starts_refused": sum(r["ending"] == "start_refused" for r in runs),
         "velocity_over": sum(r["velocity_over"] for r in runs),
         "lost_states": sum(r["lost_states"] for r in runs),
+        "acted": sum(r.get("acted", 0) for r in runs),
+        "out_of_tests": sum(r.get("out_of_tests", 0) for r in runs),
+        "cycles": int(sum(len(c) for c in compute)),
         "runs_with_lost_states": sum(r["lost_states"] > 0 for r in runs),
         "endings": {e: sum(r["ending"] == e for r in runs)
                     for e in sorted({r["ending"] for r in runs})},
@@ -288,7 +293,27 @@ def _line(r: dict[str, Any]) -> str:
             f"step {r['max_step']:.3g} margin {r['min_margin']:.4f} reached "
             f"{r['reached']!s:5s} tip {1e3 * (r['tip_error'] or np.nan):.3g} mm  p50 "
             f"{c['p50']:.0f} p99.9 {c['p999']:.0f} max {c['max']:.0f} µs lost "
-            f"{r['lost_states']} rescues {r['rescues']} ({r['wall_s']} s)")
+            f"{r['lost_states']} acted {r['acted']} out of tests {r['out_of_tests']} rescues "
+            f"{r['rescues']} ({r['wall_s']} s)")
+
+
+def _budgets(doc: dict[str, Any]) -> str:
+    """The safeguard's budgets as the campaign ran them, and how often it acted (a campaign
+    stored before the budget of tests existed says so)."""
+    t = doc["totals"]
+    if "test_budget" not in doc:
+        return "(Run before the safeguard's budget of tests existed.)"
+    return (f"Budgets: {_budget(doc['test_budget'], 'tests')} a step, "
+            f"{_budget(doc.get('rescue_budget'), 'model periods')} of rescue a cycle. The "
+            f"safeguard replaced the law's torque in {t['acted']} of {t['cycles']} cycles; "
+            f"{t['out_of_tests']} of them spent the budget of tests.")
+
+
+def _budget(value: int | None, unit: str) -> str:
+    """A budget as the campaign ran it: given (0: none) or cpbc.hardware's default."""
+    if value is None:
+        return f"cpbc.hardware's default {unit}"
+    return f"no bound on {unit}" if value == 0 else f"{value} {unit}"
 
 
 def _cell(text: str) -> str:
@@ -331,7 +356,8 @@ def render(doc: dict[str, Any]) -> str:
         "(every cycle of every run) |",
         f"| lost states | {t['lost_states']} in {t['runs_with_lost_states']} runs |",
         "",
-        "Endings: " + ", ".join(f"{k} {v}" for k, v in t["endings"].items()) + ".",
+        "Endings: " + ", ".join(f"{k} {v}" for k, v in t["endings"].items()) + ". "
+        + _budgets(doc),
         "",
         "| run | ending | status | max \\|Δτ_d\\| [N·m] | min margin | error | cycle "
         "p50 / p99 / p99.9 / max [µs] | lost | rescues |",
