@@ -179,24 +179,55 @@ def test_setting_a_term_packs_the_law_again() -> None:
 
 
 @pytest.mark.parametrize("entry", list(_laws()), ids=lambda e: e[0])
-def test_the_step_from_the_pass_equals_the_state_path(entry) -> None:  # type: ignore[no-untyped-def]
-    """torque, evaluate and lyapunov at (x, ẋ) go from the model's pass straight to the
-    kernel (its terms finished there: the planar arm's absolute link angles, the Coriolis
-    matrix of an energy limit, a task frame): the same numbers as evaluate_state(state)."""
+def test_every_step_is_evaluate_state_on_the_one_state(entry) -> None:  # type: ignore[no-untyped-def]
+    """torque, evaluate and lyapunov at (x, ẋ) are evaluate_state on the law's state: the
+    same numbers, bit for bit, whether the law's kernel finishes the state's pass itself
+    (nothing read it before), the state was read first (finished by its own kernel), or it
+    was made by the model's state with the law's frames (packed into the law's layout)."""
     name, law, states = entry
-    assert law.packed_law().from_pass, name
+    packed = law.packed_law()
+    assert packed.produce is not None, name
     for x, dx in states:
-        slow = law.evaluate_state(law.state(x, dx))
         tau, value = law.evaluate(x, dx)
-        np.testing.assert_allclose(tau, slow.torque, rtol=1e-13, atol=1e-13, err_msg=name)
-        np.testing.assert_allclose(law.torque(x, dx), slow.torque, rtol=1e-13, atol=1e-13)
-        assert value == pytest.approx(slow.lyapunov, rel=1e-13, abs=1e-15)
+        np.testing.assert_array_equal(law.torque(x, dx), tau, err_msg=name)
         assert law.lyapunov(x, dx) == value
+        read = law.state(x, dx)
+        assert read.inertia.shape == (x.shape[0], x.shape[0])  # finished here
+        first = law.evaluate_state(read)
+        np.testing.assert_array_equal(first.torque, tau, err_msg=name)
+        assert first.lyapunov == value
+        produce = packed.produce
+        made = law.model.state(x, dx, produce.kinematics, produce.frames, produce.coriolis)
+        np.testing.assert_array_equal(law.evaluate_state(made).torque, tau, err_msg=name)
+        guarded = law.state(x, dx)  # as a guard asks: the margins, then it reads the state
+        with_margins = law.evaluate_state(guarded, margins=True)
+        np.testing.assert_array_equal(with_margins.torque, tau, err_msg=name)
+        np.testing.assert_array_equal(guarded.inertia, read.inertia)
+        np.testing.assert_array_equal(guarded.gravity, read.gravity)
+        for frame, kin in read.frames.items():
+            np.testing.assert_array_equal(guarded.frames[frame].jacobian, kin.jacobian)
 
 
-def test_the_step_from_the_pass_reads_friction() -> None:
-    """With viscous friction the kernel reads c = C ẋ + f, f = F_d ẋ, as the state does
-    (the planar arm: F_d in its absolute link angles)."""
+def test_a_state_read_after_another_pass_makes_its_pass_again() -> None:
+    """A state holds its pass unfinished until it is read; when the model made another pass
+    in between (the data no longer holds its pass), it makes its own again: its terms are
+    those of its own (x, ẋ), not of the later pass."""
+    setup = panda(states=2)
+    law = setup.controllers["cpbc"]
+    (x, dx), (y, dy) = setup.states
+    early = law.state(x, dx)
+    law.model.state(y, dy)  # another pass over the same data
+    expected = law.model.state(x, dx, kinematics=True)  # the law's pass (computeAllTerms)
+    np.testing.assert_array_equal(early.inertia, expected.inertia)
+    np.testing.assert_array_equal(early.coriolis_force, expected.coriolis_force)
+    later = law.state(x, dx)
+    law.model.gravity(y)
+    np.testing.assert_array_equal(law.evaluate_state(later).torque, law.torque(x, dx))
+
+
+def test_the_bare_step_reads_friction() -> None:
+    """With viscous friction the kernel reads c = C ẋ + f, f = F_d ẋ, finished in the law's
+    kernel as in the state's own (the planar arm: F_d in its absolute link angles)."""
     law = planar_2link().controllers["cpbc"]
     from cpbc.model import RobotModel
 
@@ -204,10 +235,10 @@ def test_the_step_from_the_pass_reads_friction() -> None:
     law.model = RobotModel(model.model, model.coordinates, np.array([0.4, 0.7]),
                            name=model.name)
     law.constraints = law.constraints  # pack again for the new model
-    assert law.packed_law().from_pass
     checked = 0
     for x, dx in planar_2link().states[:12]:
-        slow = law.evaluate_state(law.state(x, dx))
+        slow = law.evaluate_state(law.model.state(x, dx, frames=law.packed_law().produce.frames,
+                                                  kinematics=True))
         np.testing.assert_allclose(law.torque(x, dx), slow.torque, rtol=1e-13, atol=1e-13)
         assert not np.allclose(slow.torque, planar_2link().controllers["cpbc"].torque(x, dx),
                                rtol=1e-6, atol=1e-9)  # the friction reaches the torque
@@ -216,9 +247,9 @@ def test_the_step_from_the_pass_reads_friction() -> None:
 
 
 @pytest.mark.parametrize("robot", ["planar", "panda"])
-def test_the_step_from_the_pass_reads_coulomb_friction(robot: str) -> None:
-    """With Coulomb friction the kernel's f = F_d ẋ + T⁻ᵀ F_c tanh(T⁻¹ẋ/ε) (the pass's
-    joint_friction) equals the state's (RobotModel.dissipation) to rounding: the planar arm
+def test_the_bare_step_reads_coulomb_friction(robot: str) -> None:
+    """With Coulomb friction the kernel's f = F_d ẋ + T⁻ᵀ F_c tanh(T⁻¹ẋ/ε) (the finishing's
+    joint_friction) equals the model's (RobotModel.dissipation) to rounding: the planar arm
     in its absolute link angles, the Panda in its joints; and it reaches the torque."""
     from cpbc.model import RobotModel
 
@@ -233,10 +264,12 @@ def test_the_step_from_the_pass_reads_coulomb_friction(robot: str) -> None:
                            name=model.name, coulomb_friction=np.linspace(1.2, 0.3, n),
                            friction_smoothing=0.05)
     law.constraints = law.constraints  # pack again for the new model
-    assert law.packed_law().from_pass
     checked = 0
     for x, dx in setup.states[:12]:
-        slow = law.evaluate_state(law.state(x, dx))
+        state = law.state(x, dx)
+        np.testing.assert_allclose(state.dissipation, law.model.dissipation(dx), rtol=1e-14,
+                                   atol=1e-14)
+        slow = law.evaluate_state(state)
         np.testing.assert_allclose(law.torque(x, dx), slow.torque, rtol=1e-13, atol=1e-12)
         np.testing.assert_allclose(_general(law).torque(x, dx), slow.torque, rtol=1e-12,
                                    atol=1e-11)
@@ -246,9 +279,9 @@ def test_the_step_from_the_pass_reads_coulomb_friction(robot: str) -> None:
     assert checked == 12
 
 
-def test_an_overridden_state_path_leaves_the_step_from_the_pass() -> None:
-    """A law whose class overrides evaluate_state (here: adding a torque) is stepped through
-    its state path, so torque() honours the override."""
+def test_an_overridden_evaluate_state_is_the_step() -> None:
+    """A law whose class overrides evaluate_state (here: adding a torque) keeps its packed
+    kernel under the override, and torque() honours it (every step is evaluate_state)."""
     law = planar_2link().controllers["cpbc"]
 
     class Nudged(CPBC):
@@ -257,13 +290,13 @@ def test_an_overridden_state_path_leaves_the_step_from_the_pass() -> None:
             return out._replace(torque=out.torque + 1.0)
 
     nudged = Nudged(law.model, law.target, law.constraints, law.kp, law.kd, law.shaping)
-    assert not nudged.packed_law().from_pass and nudged.packed_law().terms is not None
+    assert nudged.packed_law().terms is not None
     x, dx = planar_2link().states[0]
     np.testing.assert_allclose(nudged.torque(x, dx), law.torque(x, dx) + 1.0, rtol=1e-12)
 
 
 @pytest.mark.parametrize("robot", ["planar", "panda"])
-def test_the_step_from_the_pass_takes_read_only_and_integer_states(robot: str) -> None:
+def test_a_step_takes_read_only_and_integer_states(robot: str) -> None:
     """numba refuses read-only arrays; the law steps again from copies: a read-only state
     (the planar arm's absolute link angles go through to_joint first, the Panda's joint
     coordinates straight to Pinocchio), and a state given as integers, give the torque of
@@ -289,8 +322,10 @@ def test_the_step_from_the_pass_takes_read_only_and_integer_states(robot: str) -
 
 @pytest.mark.parametrize("entry", list(_laws()), ids=lambda e: e[0])
 def test_a_law_that_has_stepped_pickles(entry) -> None:  # type: ignore[no-untyped-def]
-    """A law is sent to worker processes whole: after a step (its packed law made, with a
-    step bound to the model's Pinocchio data) it pickles, and the copy steps alike."""
+    """A law is sent to worker processes whole: after a step (its packed law made, its
+    state's pass bound to the model's Pinocchio data) it pickles, and the copy steps alike —
+    on another state too (its pass reads its own data, not arrays copied from the
+    original's)."""
     import pickle
 
     name, law, states = entry
@@ -298,4 +333,5 @@ def test_a_law_that_has_stepped_pickles(entry) -> None:  # type: ignore[no-untyp
     tau = law.torque(x, dx)
     copy = pickle.loads(pickle.dumps(law))
     np.testing.assert_array_equal(copy.torque(x, dx), tau, err_msg=name)
-    assert copy.packed_law().from_pass == law.packed_law().from_pass
+    y, dy = states[1]
+    np.testing.assert_array_equal(copy.torque(y, dy), law.torque(y, dy), err_msg=name)
