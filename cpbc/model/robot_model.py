@@ -253,8 +253,12 @@ class RobotModel:
         the last bit, 1e-15); with ``coriolis`` the matrix C (one more pass) — and one kernel
         that finishes it. Each frame of ``frames`` is read from the joint kinematics into
         ``ArmState.frames``, and — with ``kinematics`` — the joint Jacobians and placements
-        are in the state."""
+        are in the state. x and ẋ are copied when read-only."""
         producer = self.state_pass(bool(kinematics), tuple(frames), bool(coriolis))
+        if not (x.flags.writeable and dx.flags.writeable):
+            # the compiled kernels take writable float arrays, and a law's own target may be
+            # the state asked for
+            x, dx = np.array(x, dtype=float), np.array(dx, dtype=float)
         found = producer(x, dx)
         producer.finish(found)
         return found

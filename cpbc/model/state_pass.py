@@ -22,8 +22,9 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.errors import CpbcError
+from cpbc.kernels.coordinate_maps import to_joint
 from cpbc.kernels.state_terms import finish_state, layout, pack_state
-from cpbc.model.arm_state import ArmState
+from cpbc.model.arm_state import NO_FRAMES, ArmState
 from cpbc.model.frames import FrameKinematics
 
 if TYPE_CHECKING:
@@ -58,9 +59,20 @@ class StatePass:
                                  model.coordinates.inverse, model.viscous_friction,
                                  model.coulomb_friction, model.friction_smoothing,
                                  tuple(model.frame_place(f) for f in frames))
-        self._at = layout(model.n, coriolis, kinematics, columns, len(frames))
+        at = self._at = layout(model.n, coriolis, kinematics, columns, len(frames))
         self._columns = columns
-        self.size = self._at["size"]
+        self.size = at["size"]
+        # each field's place in the terms, made once (``_fill``)
+        n = model.n
+        self._square = (n, n)
+        self._views = (slice(0, n * n), *(slice(at[k], at[k] + n) for k in
+                                          ("coriolis_force", "gravity", "dissipation")))
+        self._coriolis = slice(at["coriolis_matrix"], at["coriolis_matrix"] + n * n)
+        self._joints = ((slice(at["joint_jacobians"], at["joint_jacobians"] + 6 * n), (6, n)),
+                        (slice(at["regressor"], at["regressor"] + 3 * columns), (3, columns)))
+        starts = [at["frames"] + f * (16 + 6 * n) for f in range(len(frames))]
+        self._frames = tuple((slice(s, s + 16), slice(s + 16, s + 16 + 6 * n), (6, n))
+                             for s in starts)
         self._identity, self._t_inv = model.coordinates.is_identity, model.coordinates.inverse
         self.run = model.pinocchio_pass(joint_pass, coriolis)
 
@@ -96,28 +108,32 @@ class StatePass:
 
     def _fill(self, state: ArmState, terms: Array) -> None:
         """The fields as views of the terms (the layout of cpbc.kernels.state_terms)."""
-        n, at, t_inv = self.model.n, self._at, self._t_inv
         if self._identity:
             state.q, state.dq = state.x, state.dx
         else:
-            state.q, state.dq = t_inv.dot(state.x), t_inv.dot(state.dx)
-        state.inertia = terms[:n * n].reshape(n, n)
-        state.coriolis_force = terms[at["coriolis_force"]:at["coriolis_force"] + n]
-        state.gravity = terms[at["gravity"]:at["gravity"] + n]
-        state.dissipation = terms[at["dissipation"]:at["dissipation"] + n]
-        c = at["coriolis_matrix"]
-        state.coriolis_matrix = terms[c:c + n * n].reshape(n, n) if self.coriolis else None
-        state.joint_jacobians = state.regressor = None
+            n = self.model.n
+            state.q, state.dq = np.empty(n), np.empty(n)
+            to_joint(self._t_inv, state.x, state.dx, state.q, state.dq)
+        inertia, bias, gravity, dissipation = self._views
+        square = self._square
+        state.inertia = terms[inertia].reshape(square)
+        state.coriolis_force, state.gravity = terms[bias], terms[gravity]
+        state.dissipation = terms[dissipation]
+        state.coriolis_matrix = state.joint_jacobians = state.regressor = None
+        if self.coriolis:
+            state.coriolis_matrix = terms[self._coriolis].reshape(square)
         if self.kinematics:
-            j, y = at["joint_jacobians"], at["regressor"]
-            state.joint_jacobians = terms[j:j + 6 * n].reshape(6, n)
-            state.regressor = terms[y:y + 3 * self._columns].reshape(3, self._columns)
+            (jacobians, rows), (placements, columns) = self._joints
+            state.joint_jacobians = terms[jacobians].reshape(rows)
+            state.regressor = terms[placements].reshape(columns)
+        if not self.frames:
+            state.frames = NO_FRAMES
+            return
         found = {}
-        start = at["frames"]
-        for frame in self.frames:
-            found[frame] = FrameKinematics(terms[start:start + 16].reshape(4, 4),
-                                           terms[start + 16:start + 16 + 6 * n].reshape(6, n))
-            start += 16 + 6 * n
+        for frame, (placement, jacobian, shape) in zip(self.frames, self._frames,
+                                                       strict=True):
+            found[frame] = FrameKinematics(terms[placement].reshape(4, 4),
+                                           terms[jacobian].reshape(shape))
         state.frames = MappingProxyType(found)
 
     def terms_of(self, state: ArmState) -> Array:
