@@ -4,6 +4,7 @@ path (method by method), and every override that must make a law leave the packe
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import numpy as np
 import pytest
@@ -11,8 +12,11 @@ from bounded_goal import bounded_goal_laws
 
 from cpbc.bench import planar_2link, taskspace_pair
 from cpbc.bench_arms import panda
+from cpbc.constraints import ConstraintSet
 from cpbc.controllers import CPBC, Power
+from cpbc.controllers.packed_law import PythonPathWarning
 from cpbc.controllers.potentials import FramePositionLogCosh, JointSpring, PotentialSum
+from cpbc.controllers.potentials.potential import OfTheJoints
 from cpbc.controllers.task_damping import TaskDamping, TaskTanhDamping
 from cpbc.controllers.terms import LinearDamping
 from cpbc.errors import ConstraintViolation
@@ -335,3 +339,63 @@ def test_a_law_that_has_stepped_pickles(entry) -> None:  # type: ignore[no-untyp
     np.testing.assert_array_equal(copy.torque(x, dx), tau, err_msg=name)
     y, dy = states[1]
     np.testing.assert_array_equal(copy.torque(y, dy), law.torque(y, dy), err_msg=name)
+
+
+class _Tilted(ConstraintSet):
+    """A user's constraint set with a formula of its own: every log-barrier gradient
+    tilted (a formula the set's kernel cannot stand in for)."""
+
+    def barrier(self, state, margins=False):  # type: ignore[no-untyped-def]
+        found = super().barrier(state, margins)
+        gradient = None if found.gradient is None else found.gradient + 0.5
+        return found._replace(gradient=gradient)
+
+
+class _Bowl(OfTheJoints):
+    """A user's potential with no kernel: U = 1.5 ‖x − x_d‖² (no ``packed``)."""
+
+    gradient_bound = None
+
+    def __init__(self, goal):  # type: ignore[no-untyped-def]
+        self.goal = np.asarray(goal, dtype=float)
+
+    def evaluate(self, at):  # type: ignore[no-untyped-def]
+        error = at.x - self.goal
+        return 1.5 * float(error @ error), 3.0 * error
+
+
+@pytest.mark.parametrize("part", ["constraint set", "potential"])
+def test_a_law_that_leaves_its_kernel_says_so_once(part: str) -> None:
+    """A user's ConstraintSet subclass overriding barrier, or a potential without a kernel,
+    sends the law down its general path: the law says so once, at build, naming what runs
+    in Python and what a step costs, and the user's formula reaches the torque."""
+    setup = planar_2link()
+    base = setup.controllers["cpbc"]
+    constraints = base.constraints
+    potential = None
+    if part == "constraint set":
+        constraints = _Tilted(constraints.n, constraints.configuration, constraints.velocity)
+    else:
+        potential = _Bowl(base.target)
+    law = CPBC(base.model, base.target, constraints, base.kp, base.kd, base.shaping,
+               potential=potential)  # type: ignore[arg-type]
+    with pytest.warns(PythonPathWarning) as said:
+        packed = law.packed_law()
+    (note,) = [str(w.message) for w in said]
+    named = "_Tilted overrides barrier" if part == "constraint set" else (
+        "its potential (_Bowl) has no kernel")
+    assert named in note and "general path" in note, note
+    assert "µs a step (measured at build)" in note
+    assert packed.terms is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PythonPathWarning)  # said once
+        law.constraints = law.constraints  # packs again at the next step
+        for x, dx in setup.states[:6]:
+            tau = law.torque(x, dx)
+            assert not np.allclose(tau, base.torque(x, dx), rtol=1e-9)
+            state = law.state(x, dx)
+            bar = law.constraints.barrier(state)
+            potential_value, grad = law.potential.evaluate(state)
+            lag = 0.5 * float(dx @ state.inertia @ dx) + potential_value
+            np.testing.assert_allclose(tau, law._law(state, bar, grad, lag), rtol=1e-12,
+                                       atol=1e-12)

@@ -20,6 +20,8 @@ law's tables (cpbc.constraints.python_terms), and the law says so once, when it 
 
 from __future__ import annotations
 
+import math
+import time
 import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -30,7 +32,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.packing import Ints, Packed, PackedSet
-from cpbc.constraints.python_terms import PythonTerms
+from cpbc.constraints.python_terms import TIMED_CALLS, PythonTerms
 from cpbc.controllers.controller import Controller
 from cpbc.errors import CpbcError
 from cpbc.kernels.law_terms import FRAME_KINDS, pack_shaping
@@ -44,8 +46,9 @@ Tables = tuple[Ints, Array]
 
 
 class PythonPathWarning(UserWarning):
-    """A law's constraint runs in Python at every step (it has no kernel): said once, when
-    the law packs, with what it costs."""
+    """A law's constraint runs in Python at every step (it has no kernel), or the whole law
+    does (a term without a kernel, a class or a constraint set overriding a formula the
+    kernel stands in for): said once, when the law packs, with what it costs."""
 
 
 def packed_terms(term: object) -> tuple[Packed, ...] | None:
@@ -68,18 +71,35 @@ def keeps(cls: type, base: type, methods: Iterable[str]) -> bool:
     return all(getattr(cls, m) is getattr(base, m) for m in methods)
 
 
-def law_terms(law: Any, base: type, formulas: Sequence[str]) -> list[tuple[Packed, ...] | None]:
+def law_terms(law: Any, base: type, formulas: Sequence[str]
+              ) -> tuple[list[tuple[Packed, ...] | None], tuple[str, ...]]:
     """A law's terms as its kernel packs them: potential, damping, task damping, shaping —
     and a None (the general path) when ``type(law)`` overrides one of ``base``'s
-    ``formulas`` or the frames it asks the state for."""
-    parts = [packed_terms(law.potential), packed_terms(law.damping),
-             () if law.task_damping is None else packed_terms(law.task_damping),
-             shaping_term(law.shaping)]
-    if not keeps(type(law), base, formulas):
-        parts.append(None)
+    ``formulas`` or the frames it asks the state for; and what runs in Python for each
+    None (said once, at build: :class:`PythonPathWarning`)."""
+    parts: list[tuple[Packed, ...] | None] = []
+    reasons = []
+    for what, term in (("potential", law.potential), ("damping", law.damping),
+                       ("task damping", law.task_damping), ("shaping", law.shaping)):
+        found = () if term is None else (
+            shaping_term(term) if what == "shaping" else packed_terms(term))
+        parts.append(found)
+        if found is None:
+            reasons.append(f"its {what} {_without_kernel(term)} has no kernel")
+    overridden = [m for m in formulas if getattr(type(law), m) is not getattr(base, m)]
     if not keeps(type(law), Controller, ("frames",)):
+        overridden.append("frames")
+    if overridden:
         parts.append(None)
-    return parts
+        reasons.append(f"its class {type(law).__name__} overrides {', '.join(overridden)}")
+    return parts, tuple(reasons)
+
+
+def _without_kernel(term: object) -> str:
+    """A term's class, with — for a sum (``parts``) — the classes of its parts that do not
+    pack."""
+    missing = [type(p).__name__ for p in getattr(term, "parts", ()) if packed_terms(p) is None]
+    return f"({type(term).__name__}{': ' + ', '.join(missing) if missing else ''})"
 
 
 def python_path_notes(law: object) -> list[str]:
@@ -132,24 +152,45 @@ class PacksItsLaw(Controller):
         if found is None or found.law is not type(self):
             found = self._pack()
             self._packed_law = found
-            if found.python:
+            if found.python or found.general:
                 self._say(found)
         return found
 
     def _say(self, packed: PackedLaw) -> None:
-        """Which constraints run in Python and what they cost, once (a warning per new
-        note), measured at the target at rest."""
+        """Which constraints run in Python, or what sends the whole law down its general
+        path, and what it costs, once (a warning per new note), measured at the target at
+        rest."""
         try:
-            state = packed.state(self.target, np.zeros_like(self.target))
+            state = self.state(self.target, np.zeros_like(self.target))
         except (CpbcError, ArithmeticError, ValueError):  # no state at the target
             state = None
         name = getattr(self, "type_name", type(self).__name__)
         notes = tuple(t.note(name, state) for t in packed.python)
+        if packed.general:
+            cost = self._general_cost(state)
+            notes += tuple(f"{name}: {reason}: the law takes its general path, every term "
+                           f"and constraint in Python at every step{cost}"
+                           for reason in packed.general)
         said = tuple(note.split(", about")[0] for note in notes)  # the cost varies
         if said != self._said:
             self._said = said
             for note in notes:
                 warnings.warn(note, PythonPathWarning, stacklevel=3)
+
+    def _general_cost(self, state: ArmState | None) -> str:
+        """What the general path's step costs at ``state`` (the fastest of
+        ``TIMED_CALLS``), as the note says it, or nothing where it cannot be measured."""
+        if state is None:
+            return ""
+        best = math.inf
+        try:
+            for _ in range(TIMED_CALLS):
+                start = time.perf_counter()
+                self.evaluate_state(state)
+                best = min(best, time.perf_counter() - start)
+        except (CpbcError, ArithmeticError, ValueError):  # not measurable there
+            return ""
+        return f", about {best * 1e6:.1f} µs a step (measured at build)"
 
     def _pack(self) -> PackedLaw:
         """:meth:`PackedLaw.build` for this law's terms, constraints and frames."""
@@ -176,6 +217,8 @@ class PackedLaw:
             (``Packed.live``), refreshed before each kernel call.
         python: the set's constraints without a kernel, asked before each call
             (cpbc.constraints.python_terms).
+        general: what sends the whole law down its general path (``terms`` None), said
+            once at build (:class:`PythonPathWarning`).
     """
 
     law: type
@@ -187,6 +230,7 @@ class PackedLaw:
     produce: StatePass | None = None
     live: tuple[tuple[Array, Array], ...] = ()
     python: tuple[PythonTerms, ...] = ()
+    general: tuple[str, ...] = ()
     # where the kernel writes φ̃ without the margins: one array, overwritten by every step
     # (read only to name the margin of a state outside S; one allocation fewer a step)
     _phi: Array = field(init=False, repr=False)
@@ -200,21 +244,28 @@ class PackedLaw:
         return self.produce(x, dx)
 
     @classmethod
-    def build(cls, law: type, parts: Sequence[tuple[Packed, ...] | None],
+    def build(cls, law: type, parts: tuple[list[tuple[Packed, ...] | None], tuple[str, ...]],
               constraints: ConstraintSet, frames: tuple[int, ...], model: RobotModel
               ) -> PackedLaw:
-        """From the terms' ``packed`` (None for one that does not pack), the set, the
-        frames the law reads besides the set's (``Controller.frames``) and the law's model."""
+        """From the terms' ``packed`` (None for one that does not pack) and what runs in
+        Python for those (``law_terms``), the set, the frames the law reads besides the
+        set's (``Controller.frames``) and the law's model."""
+        packs, general = parts
         tables = constraints.packed_tables
-        if tables is None or any(p is None for p in parts) or (
-                type(constraints).state is not ConstraintSet.state):
-            return cls(law)
-        terms = [t for p in parts for t in p or ()]
+        kind = type(constraints).__name__
+        if tables is None:
+            general += (f"its constraint set's class {kind} overrides barrier",)
+        if type(constraints).state is not ConstraintSet.state:
+            general += (f"its constraint set's class {kind} overrides state",)
+        if tables is None or general:
+            return cls(law, general=general)
+        terms = [t for p in packs for t in p or ()]
         read = {t.frame for t in terms if t.kind in FRAME_KINDS}
         if tables.frame >= 0:
             read.add(tables.frame)
         if len(read) > 1:
-            return cls(law)
+            return cls(law, general=(f"its terms and its point constraint read {len(read)} "
+                                     "frames, where its kernel reads one",))
         packed = PackedSet.build([(0, 0, t) for t in terms])
         margins = len(constraints.names)
         frame = read.pop() if read else -1
