@@ -122,10 +122,11 @@ def _as(cls: type, term: object) -> object:
 
 @pytest.mark.parametrize("term", ["position_log_cosh", "task_tanh_damping"])
 @pytest.mark.parametrize("name", ["bpbc", "bpbc_ke"])
-def test_an_overridden_bounded_task_term_leaves_the_packed_step(name: str, term: str) -> None:
+def test_an_overridden_bounded_task_term_runs_in_python(name: str, term: str) -> None:
     """A ln cosh position spring or a tanh task damping whose class overrides its formula
     (``evaluate_toward``, ``force_with``: the methods ``evaluate`` and ``force`` call) does
-    not pack: the bounded law takes its general path, and the override reaches the torque."""
+    not pack: the bounded law asks it in Python, as a row of its kernel call, and the
+    override reaches the torque."""
     (base, _), (changed, states) = bounded_goal_laws(states=0), bounded_goal_laws(states=6)
     if term == "position_log_cosh":
         position, *rest = changed[name].potential.parts  # type: ignore[attr-defined]
@@ -135,16 +136,21 @@ def test_an_overridden_bounded_task_term_leaves_the_packed_step(name: str, term:
         assert type(changed[name].task_damping) is TaskTanhDamping  # type: ignore[attr-defined]
         changed[name].task_damping = _as(_Braking, changed[name].task_damping)  # type: ignore[attr-defined]
     assert base[name].packed_law().terms is not None  # type: ignore[attr-defined]
-    assert changed[name].packed_law().terms is None  # type: ignore[attr-defined]
+    with pytest.warns(PythonPathWarning):  # its own row, asked in Python
+        packed = changed[name].packed_law()  # type: ignore[attr-defined]
+    assert packed.terms is not None
+    assert [type(t.term) for t in packed.python] == [
+        _Pulled if term == "position_log_cosh" else _Braking]
     for x, dx in states:
         assert not np.allclose(changed[name].torque(x, dx), base[name].torque(x, dx),
                                rtol=1e-9)
 
 
 @pytest.mark.parametrize("term", ["potential", "damping", "shaping", "task_damping"])
-def test_an_overridden_term_leaves_the_packed_step(term: str) -> None:
+def test_an_overridden_term_runs_in_python(term: str) -> None:
     """A potential, damping, shaping or task damping whose class overrides its formula does
-    not pack: the law takes its general path, and the override reaches the torque."""
+    not pack: the law asks it in Python, as a row of its kernel call (a shaping: the law
+    takes its general path), and the override reaches the torque."""
     laws, states = taskspace_pair(states=6)
     law = laws["taskspace_cpbc"]
     base = CPBC(law.model, law.target, law.constraints, law.kp, law.kd, law.shaping,
@@ -164,7 +170,12 @@ def test_an_overridden_term_leaves_the_packed_step(term: str) -> None:
         changed.task_damping = _Pushing(**{f.name: getattr(damping, f.name)
                                            for f in dataclasses.fields(damping) if f.init})
     assert base.packed_law().terms is not None
-    assert changed.packed_law().terms is None
+    with pytest.warns(PythonPathWarning):
+        packed = changed.packed_law()
+    if term == "shaping":  # r(ΦΨ) needs the kernel's log Φ: the general path
+        assert packed.terms is None
+    else:  # its own row, asked in Python before each call
+        assert packed.terms is not None and len(packed.python) == 1
     for x, dx in states:
         assert not np.allclose(changed.torque(x, dx), base.torque(x, dx), rtol=1e-9)
 
@@ -364,28 +375,30 @@ class _Bowl(OfTheJoints):
         return 1.5 * float(error @ error), 3.0 * error
 
 
-@pytest.mark.parametrize("part", ["constraint set", "potential"])
-def test_a_law_that_leaves_its_kernel_says_so_once(part: str) -> None:
-    """A user's ConstraintSet subclass overriding barrier, or a potential without a kernel,
-    sends the law down its general path: the law says so once, at build, naming what runs
-    in Python and what a step costs, and the user's formula reaches the torque."""
+class _Viscous:
+    """A user's joint damping with no kernel: F = 2 K ẋ (no ``packed``)."""
+
+    def __init__(self, gain):  # type: ignore[no-untyped-def]
+        self.gain = np.asarray(gain, dtype=float)
+
+    def force(self, dx):  # type: ignore[no-untyped-def]
+        return 2.0 * self.gain * dx
+
+
+def test_a_constraint_set_with_its_own_barrier_says_the_law_leaves_its_kernel() -> None:
+    """A user's ConstraintSet subclass overriding barrier sends the law down its general
+    path: the law says so once, at build, naming the class and what a step costs, and the
+    subclass's formula reaches the torque."""
     setup = planar_2link()
     base = setup.controllers["cpbc"]
-    constraints = base.constraints
-    potential = None
-    if part == "constraint set":
-        constraints = _Tilted(constraints.n, constraints.configuration, constraints.velocity)
-    else:
-        potential = _Bowl(base.target)
-    law = CPBC(base.model, base.target, constraints, base.kp, base.kd, base.shaping,
-               potential=potential)  # type: ignore[arg-type]
+    c = base.constraints
+    law = CPBC(base.model, base.target, _Tilted(c.n, c.configuration, c.velocity), base.kp,
+               base.kd, base.shaping)
     with pytest.warns(PythonPathWarning) as said:
         packed = law.packed_law()
     (note,) = [str(w.message) for w in said]
-    named = "_Tilted overrides barrier" if part == "constraint set" else (
-        "its potential (_Bowl) has no kernel")
-    assert named in note and "general path" in note, note
-    assert "µs a step (measured at build)" in note
+    assert "its constraint set's class _Tilted overrides barrier" in note, note
+    assert "general path" in note and "µs a step (measured at build)" in note
     assert packed.terms is None
     with warnings.catch_warnings():
         warnings.simplefilter("error", PythonPathWarning)  # said once
@@ -395,7 +408,43 @@ def test_a_law_that_leaves_its_kernel_says_so_once(part: str) -> None:
             assert not np.allclose(tau, base.torque(x, dx), rtol=1e-9)
             state = law.state(x, dx)
             bar = law.constraints.barrier(state)
-            potential_value, grad = law.potential.evaluate(state)
-            lag = 0.5 * float(dx @ state.inertia @ dx) + potential_value
+            value, grad = law.potential.evaluate(state)
+            lag = 0.5 * float(dx @ state.inertia @ dx) + value
             np.testing.assert_allclose(tau, law._law(state, bar, grad, lag), rtol=1e-12,
                                        atol=1e-12)
+
+
+@pytest.mark.parametrize("term", ["potential", "summed potential", "damping"])
+def test_a_term_without_a_kernel_costs_only_its_own_row(term: str) -> None:
+    """A user's potential or damping without a kernel (or one part of a sum) is asked in
+    Python before each call and read by the law's kernel as a row of its own: the law keeps
+    its one kernel call, says once which term runs in Python and what it costs, and its τ,
+    V and margins equal the general path's."""
+    setup = planar_2link()
+    base = setup.controllers["cpbc"]
+    law = CPBC(base.model, base.target, base.constraints, base.kp, base.kd, base.shaping)
+    if term == "potential":
+        law.potential = _Bowl(base.target)  # type: ignore[assignment]
+    elif term == "summed potential":
+        law.potential = PotentialSum((JointSpring(base.target, base.kp),
+                                      _Bowl(base.target)))  # type: ignore[arg-type]
+    else:
+        law.damping = _Viscous(base.kd)  # type: ignore[assignment]
+    with pytest.warns(PythonPathWarning) as said:
+        packed = law.packed_law()
+    (note,) = [str(w.message) for w in said]
+    named = "its damping (_Viscous)" if term == "damping" else "its potential (_Bowl)"
+    assert f"{named} has no kernel" in note and "one kernel call" in note, note
+    assert packed.terms is not None and len(packed.python) == 1
+    general = _general(law)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PythonPathWarning)
+        assert general.packed_law().terms is None
+    for x, dx in setup.states[:12]:
+        fast = law.evaluate_state(law.state(x, dx), margins=True)
+        slow = general.evaluate_state(general.state(x, dx), margins=True)
+        np.testing.assert_allclose(fast.torque, slow.torque, rtol=1e-12, atol=1e-12)
+        assert fast.lyapunov == pytest.approx(slow.lyapunov, rel=1e-12, abs=1e-14)
+        np.testing.assert_allclose(fast.margins, slow.margins, rtol=1e-12, atol=1e-14)
+        np.testing.assert_array_equal(law.torque(x, dx), fast.torque)
+        assert not np.allclose(fast.torque, base.torque(x, dx), rtol=1e-9)

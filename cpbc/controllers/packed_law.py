@@ -25,7 +25,7 @@ import time
 import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -34,6 +34,13 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.packing import Ints, Packed, PackedSet
 from cpbc.constraints.python_terms import TIMED_CALLS, PythonTerms
 from cpbc.controllers.controller import Controller
+from cpbc.controllers.potentials import PotentialSum
+from cpbc.controllers.python_law_terms import (
+    DAMPING,
+    POTENTIAL,
+    TASK_DAMPING,
+    PythonLawTerm,
+)
 from cpbc.errors import CpbcError
 from cpbc.kernels.law_terms import FRAME_KINDS, pack_shaping
 from cpbc.kernels.laws import pack_tables
@@ -71,35 +78,57 @@ def keeps(cls: type, base: type, methods: Iterable[str]) -> bool:
     return all(getattr(cls, m) is getattr(base, m) for m in methods)
 
 
-def law_terms(law: Any, base: type, formulas: Sequence[str]
-              ) -> tuple[list[tuple[Packed, ...] | None], tuple[str, ...]]:
-    """A law's terms as its kernel packs them: potential, damping, task damping, shaping —
-    and a None (the general path) when ``type(law)`` overrides one of ``base``'s
-    ``formulas`` or the frames it asks the state for; and what runs in Python for each
-    None (said once, at build: :class:`PythonPathWarning`)."""
+class LawParts(NamedTuple):
+    """A law's terms as its kernel packs them (``law_terms``).
+
+    Attributes:
+        parts: each term's packed rows (None: the law takes its general path).
+        general: what sends the law down its general path, said once at build.
+        python: the terms without a kernel asked in Python before each call (their rows in
+            ``parts``; cpbc.controllers.python_law_terms).
+    """
+
+    parts: list[tuple[Packed, ...] | None]
+    general: tuple[str, ...]
+    python: tuple[PythonLawTerm, ...]
+
+
+def law_terms(law: Any, base: type, formulas: Sequence[str]) -> LawParts:
+    """A law's terms as its kernel packs them: potential, damping, task damping, shaping. A
+    potential or damping without a kernel (a sum's part without one) is asked in Python
+    before each call and read by the kernel as a row of its own (``PythonLawTerm``); a
+    shaping without one, or a class overriding one of ``base``'s ``formulas`` or the frames
+    it asks the state for, sends the law down its general path (a None, and what runs in
+    Python, said once at build: :class:`PythonPathWarning`)."""
     parts: list[tuple[Packed, ...] | None] = []
-    reasons = []
-    for what, term in (("potential", law.potential), ("damping", law.damping),
-                       ("task damping", law.task_damping), ("shaping", law.shaping)):
-        found = () if term is None else (
-            shaping_term(term) if what == "shaping" else packed_terms(term))
-        parts.append(found)
-        if found is None:
-            reasons.append(f"its {what} {_without_kernel(term)} has no kernel")
+    reasons, python = [], []
+    n = law.model.n
+    for what, term in ((POTENTIAL, law.potential), (DAMPING, law.damping),
+                       (TASK_DAMPING, law.task_damping)):
+        if term is None:
+            parts.append(())
+            continue
+        rows: list[Packed] = []
+        summed = getattr(type(term), "evaluate", None) is PotentialSum.evaluate
+        pieces = term.parts if summed else (term,)
+        for piece in pieces:
+            found = packed_terms(piece)
+            if found is None:
+                python.append(PythonLawTerm(piece, what, n))
+                found = (python[-1].packed(),)
+            rows.extend(found)
+        parts.append(tuple(rows))
+    shaped = shaping_term(law.shaping)
+    parts.append(shaped)
+    if shaped is None:
+        reasons.append(f"its shaping ({type(law.shaping).__name__}) has no kernel")
     overridden = [m for m in formulas if getattr(type(law), m) is not getattr(base, m)]
     if not keeps(type(law), Controller, ("frames",)):
         overridden.append("frames")
     if overridden:
         parts.append(None)
         reasons.append(f"its class {type(law).__name__} overrides {', '.join(overridden)}")
-    return parts, tuple(reasons)
-
-
-def _without_kernel(term: object) -> str:
-    """A term's class, with — for a sum (``parts``) — the classes of its parts that do not
-    pack."""
-    missing = [type(p).__name__ for p in getattr(term, "parts", ()) if packed_terms(p) is None]
-    return f"({type(term).__name__}{': ' + ', '.join(missing) if missing else ''})"
+    return LawParts(parts, tuple(reasons), tuple(python))
 
 
 def python_path_notes(law: object) -> list[str]:
@@ -215,8 +244,9 @@ class PackedLaw:
         live: (its place in the packed floats, a view; source) of each row a term keeps in
             step with a moving goal, or a constraint without a kernel its terms
             (``Packed.live``), refreshed before each kernel call.
-        python: the set's constraints without a kernel, asked before each call
-            (cpbc.constraints.python_terms).
+        python: the set's constraints and the law's potentials and dampings without a
+            kernel, asked before each call (cpbc.constraints.python_terms,
+            cpbc.controllers.python_law_terms).
         general: what sends the whole law down its general path (``terms`` None), said
             once at build (:class:`PythonPathWarning`).
     """
@@ -229,7 +259,7 @@ class PackedLaw:
     n: int = 0
     produce: StatePass | None = None
     live: tuple[tuple[Array, Array], ...] = ()
-    python: tuple[PythonTerms, ...] = ()
+    python: tuple[PythonTerms | PythonLawTerm, ...] = ()
     general: tuple[str, ...] = ()
     # where the kernel writes φ̃ without the margins: one array, overwritten by every step
     # (read only to name the margin of a state outside S; one allocation fewer a step)
@@ -244,13 +274,12 @@ class PackedLaw:
         return self.produce(x, dx)
 
     @classmethod
-    def build(cls, law: type, parts: tuple[list[tuple[Packed, ...] | None], tuple[str, ...]],
-              constraints: ConstraintSet, frames: tuple[int, ...], model: RobotModel
-              ) -> PackedLaw:
+    def build(cls, law: type, parts: LawParts, constraints: ConstraintSet,
+              frames: tuple[int, ...], model: RobotModel) -> PackedLaw:
         """From the terms' ``packed`` (None for one that does not pack) and what runs in
-        Python for those (``law_terms``), the set, the frames the law reads besides the
-        set's (``Controller.frames``) and the law's model."""
-        packs, general = parts
+        Python (``law_terms``), the set, the frames the law reads besides the set's
+        (``Controller.frames``) and the law's model."""
+        packs, general, python = parts
         tables = constraints.packed_tables
         kind = type(constraints).__name__
         if tables is None:
@@ -284,7 +313,7 @@ class PackedLaw:
         live += tuple((flat[start + at:start + at + source.shape[0]], source)
                       for at, source in packed.live)
         return cls(law, packed, constants, frame, margins, constraints.n, produce, live,
-                   constraints.python_terms)
+                   (*constraints.python_terms, *python))
 
     def arguments(self, state: ArmState, margins: bool) -> tuple[Any, ...]:
         """The kernel's arguments: the tables (``constants``, the rows of a moving goal
