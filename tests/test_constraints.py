@@ -366,9 +366,14 @@ def test_kinetic_energy_limit_against_the_thesis_inertia(absolute_model, rng, ce
     for th, dth in states(rng):
         d = thesis_inertia(th)
         dyn = absolute_model.state(th, dth, coriolis=True)
-        # the state's C is the model's own, bit for bit: the limit makes no call of its own
+        # the state's C is the model's (T⁻ᵀ C_q T⁻¹ of the same pass, finished by the state's
+        # kernel: equal to rounding), and the limit makes no call of its own: its gradient at
+        # the state is −Cᵀẋ of the state's C, bit for bit
         assert dyn.coriolis_matrix is not None
-        np.testing.assert_array_equal(dyn.coriolis_matrix, absolute_model.coriolis(th, dth))
+        np.testing.assert_allclose(dyn.coriolis_matrix, absolute_model.coriolis(th, dth),
+                                   rtol=0, atol=1e-15)
+        np.testing.assert_array_equal(c.gradient(th, dth, dyn)[0],
+                                      -(dyn.coriolis_matrix.T @ dth))
         for given in (None, dyn):
             assert c.value(th, dth, given)[0] == pytest.approx(0.05 - 0.5 * dth @ d @ dth,
                                                                rel=1e-12)

@@ -4,6 +4,7 @@ path (method by method), and every override that must make a law leave the packe
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import numpy as np
 import pytest
@@ -11,8 +12,11 @@ from bounded_goal import bounded_goal_laws
 
 from cpbc.bench import planar_2link, taskspace_pair
 from cpbc.bench_arms import panda
+from cpbc.constraints import ConstraintSet
 from cpbc.controllers import CPBC, Power
+from cpbc.controllers.packed_law import PythonPathWarning
 from cpbc.controllers.potentials import FramePositionLogCosh, JointSpring, PotentialSum
+from cpbc.controllers.potentials.potential import OfTheJoints
 from cpbc.controllers.task_damping import TaskDamping, TaskTanhDamping
 from cpbc.controllers.terms import LinearDamping
 from cpbc.errors import ConstraintViolation
@@ -118,10 +122,11 @@ def _as(cls: type, term: object) -> object:
 
 @pytest.mark.parametrize("term", ["position_log_cosh", "task_tanh_damping"])
 @pytest.mark.parametrize("name", ["bpbc", "bpbc_ke"])
-def test_an_overridden_bounded_task_term_leaves_the_packed_step(name: str, term: str) -> None:
+def test_an_overridden_bounded_task_term_runs_in_python(name: str, term: str) -> None:
     """A ln cosh position spring or a tanh task damping whose class overrides its formula
     (``evaluate_toward``, ``force_with``: the methods ``evaluate`` and ``force`` call) does
-    not pack: the bounded law takes its general path, and the override reaches the torque."""
+    not pack: the bounded law asks it in Python, as a row of its kernel call, and the
+    override reaches the torque."""
     (base, _), (changed, states) = bounded_goal_laws(states=0), bounded_goal_laws(states=6)
     if term == "position_log_cosh":
         position, *rest = changed[name].potential.parts  # type: ignore[attr-defined]
@@ -131,16 +136,21 @@ def test_an_overridden_bounded_task_term_leaves_the_packed_step(name: str, term:
         assert type(changed[name].task_damping) is TaskTanhDamping  # type: ignore[attr-defined]
         changed[name].task_damping = _as(_Braking, changed[name].task_damping)  # type: ignore[attr-defined]
     assert base[name].packed_law().terms is not None  # type: ignore[attr-defined]
-    assert changed[name].packed_law().terms is None  # type: ignore[attr-defined]
+    with pytest.warns(PythonPathWarning):  # its own row, asked in Python
+        packed = changed[name].packed_law()  # type: ignore[attr-defined]
+    assert packed.terms is not None
+    assert [type(t.term) for t in packed.python] == [
+        _Pulled if term == "position_log_cosh" else _Braking]
     for x, dx in states:
         assert not np.allclose(changed[name].torque(x, dx), base[name].torque(x, dx),
                                rtol=1e-9)
 
 
 @pytest.mark.parametrize("term", ["potential", "damping", "shaping", "task_damping"])
-def test_an_overridden_term_leaves_the_packed_step(term: str) -> None:
+def test_an_overridden_term_runs_in_python(term: str) -> None:
     """A potential, damping, shaping or task damping whose class overrides its formula does
-    not pack: the law takes its general path, and the override reaches the torque."""
+    not pack: the law asks it in Python, as a row of its kernel call (a shaping: the law
+    takes its general path), and the override reaches the torque."""
     laws, states = taskspace_pair(states=6)
     law = laws["taskspace_cpbc"]
     base = CPBC(law.model, law.target, law.constraints, law.kp, law.kd, law.shaping,
@@ -160,7 +170,12 @@ def test_an_overridden_term_leaves_the_packed_step(term: str) -> None:
         changed.task_damping = _Pushing(**{f.name: getattr(damping, f.name)
                                            for f in dataclasses.fields(damping) if f.init})
     assert base.packed_law().terms is not None
-    assert changed.packed_law().terms is None
+    with pytest.warns(PythonPathWarning):
+        packed = changed.packed_law()
+    if term == "shaping":  # r(ΦΨ) needs the kernel's log Φ: the general path
+        assert packed.terms is None
+    else:  # its own row, asked in Python before each call
+        assert packed.terms is not None and len(packed.python) == 1
     for x, dx in states:
         assert not np.allclose(changed.torque(x, dx), base.torque(x, dx), rtol=1e-9)
 
@@ -179,24 +194,55 @@ def test_setting_a_term_packs_the_law_again() -> None:
 
 
 @pytest.mark.parametrize("entry", list(_laws()), ids=lambda e: e[0])
-def test_the_step_from_the_pass_equals_the_state_path(entry) -> None:  # type: ignore[no-untyped-def]
-    """torque, evaluate and lyapunov at (x, ẋ) go from the model's pass straight to the
-    kernel (its terms finished there: the planar arm's absolute link angles, the Coriolis
-    matrix of an energy limit, a task frame): the same numbers as evaluate_state(state)."""
+def test_every_step_is_evaluate_state_on_the_one_state(entry) -> None:  # type: ignore[no-untyped-def]
+    """torque, evaluate and lyapunov at (x, ẋ) are evaluate_state on the law's state: the
+    same numbers, bit for bit, whether the law's kernel finishes the state's pass itself
+    (nothing read it before), the state was read first (finished by its own kernel), or it
+    was made by the model's state with the law's frames (packed into the law's layout)."""
     name, law, states = entry
-    assert law.packed_law().from_pass, name
+    packed = law.packed_law()
+    assert packed.produce is not None, name
     for x, dx in states:
-        slow = law.evaluate_state(law.state(x, dx))
         tau, value = law.evaluate(x, dx)
-        np.testing.assert_allclose(tau, slow.torque, rtol=1e-13, atol=1e-13, err_msg=name)
-        np.testing.assert_allclose(law.torque(x, dx), slow.torque, rtol=1e-13, atol=1e-13)
-        assert value == pytest.approx(slow.lyapunov, rel=1e-13, abs=1e-15)
+        np.testing.assert_array_equal(law.torque(x, dx), tau, err_msg=name)
         assert law.lyapunov(x, dx) == value
+        read = law.state(x, dx)
+        assert read.inertia.shape == (x.shape[0], x.shape[0])  # finished here
+        first = law.evaluate_state(read)
+        np.testing.assert_array_equal(first.torque, tau, err_msg=name)
+        assert first.lyapunov == value
+        produce = packed.produce
+        made = law.model.state(x, dx, produce.kinematics, produce.frames, produce.coriolis)
+        np.testing.assert_array_equal(law.evaluate_state(made).torque, tau, err_msg=name)
+        guarded = law.state(x, dx)  # as a guard asks: the margins, then it reads the state
+        with_margins = law.evaluate_state(guarded, margins=True)
+        np.testing.assert_array_equal(with_margins.torque, tau, err_msg=name)
+        np.testing.assert_array_equal(guarded.inertia, read.inertia)
+        np.testing.assert_array_equal(guarded.gravity, read.gravity)
+        for frame, kin in read.frames.items():
+            np.testing.assert_array_equal(guarded.frames[frame].jacobian, kin.jacobian)
 
 
-def test_the_step_from_the_pass_reads_friction() -> None:
-    """With viscous friction the kernel reads c = C ẋ + f, f = F_d ẋ, as the state does
-    (the planar arm: F_d in its absolute link angles)."""
+def test_a_state_read_after_another_pass_makes_its_pass_again() -> None:
+    """A state holds its pass unfinished until it is read; when the model made another pass
+    in between (the data no longer holds its pass), it makes its own again: its terms are
+    those of its own (x, ẋ), not of the later pass."""
+    setup = panda(states=2)
+    law = setup.controllers["cpbc"]
+    (x, dx), (y, dy) = setup.states
+    early = law.state(x, dx)
+    law.model.state(y, dy)  # another pass over the same data
+    expected = law.model.state(x, dx, kinematics=True)  # the law's pass (computeAllTerms)
+    np.testing.assert_array_equal(early.inertia, expected.inertia)
+    np.testing.assert_array_equal(early.coriolis_force, expected.coriolis_force)
+    later = law.state(x, dx)
+    law.model.gravity(y)
+    np.testing.assert_array_equal(law.evaluate_state(later).torque, law.torque(x, dx))
+
+
+def test_the_bare_step_reads_friction() -> None:
+    """With viscous friction the kernel reads c = C ẋ + f, f = F_d ẋ, finished in the law's
+    kernel as in the state's own (the planar arm: F_d in its absolute link angles)."""
     law = planar_2link().controllers["cpbc"]
     from cpbc.model import RobotModel
 
@@ -204,10 +250,10 @@ def test_the_step_from_the_pass_reads_friction() -> None:
     law.model = RobotModel(model.model, model.coordinates, np.array([0.4, 0.7]),
                            name=model.name)
     law.constraints = law.constraints  # pack again for the new model
-    assert law.packed_law().from_pass
     checked = 0
     for x, dx in planar_2link().states[:12]:
-        slow = law.evaluate_state(law.state(x, dx))
+        slow = law.evaluate_state(law.model.state(x, dx, frames=law.packed_law().produce.frames,
+                                                  kinematics=True))
         np.testing.assert_allclose(law.torque(x, dx), slow.torque, rtol=1e-13, atol=1e-13)
         assert not np.allclose(slow.torque, planar_2link().controllers["cpbc"].torque(x, dx),
                                rtol=1e-6, atol=1e-9)  # the friction reaches the torque
@@ -216,9 +262,9 @@ def test_the_step_from_the_pass_reads_friction() -> None:
 
 
 @pytest.mark.parametrize("robot", ["planar", "panda"])
-def test_the_step_from_the_pass_reads_coulomb_friction(robot: str) -> None:
-    """With Coulomb friction the kernel's f = F_d ẋ + T⁻ᵀ F_c tanh(T⁻¹ẋ/ε) (the pass's
-    joint_friction) equals the state's (RobotModel.dissipation) to rounding: the planar arm
+def test_the_bare_step_reads_coulomb_friction(robot: str) -> None:
+    """With Coulomb friction the kernel's f = F_d ẋ + T⁻ᵀ F_c tanh(T⁻¹ẋ/ε) (the finishing's
+    joint_friction) equals the model's (RobotModel.dissipation) to rounding: the planar arm
     in its absolute link angles, the Panda in its joints; and it reaches the torque."""
     from cpbc.model import RobotModel
 
@@ -233,10 +279,12 @@ def test_the_step_from_the_pass_reads_coulomb_friction(robot: str) -> None:
                            name=model.name, coulomb_friction=np.linspace(1.2, 0.3, n),
                            friction_smoothing=0.05)
     law.constraints = law.constraints  # pack again for the new model
-    assert law.packed_law().from_pass
     checked = 0
     for x, dx in setup.states[:12]:
-        slow = law.evaluate_state(law.state(x, dx))
+        state = law.state(x, dx)
+        np.testing.assert_allclose(state.dissipation, law.model.dissipation(dx), rtol=1e-14,
+                                   atol=1e-14)
+        slow = law.evaluate_state(state)
         np.testing.assert_allclose(law.torque(x, dx), slow.torque, rtol=1e-13, atol=1e-12)
         np.testing.assert_allclose(_general(law).torque(x, dx), slow.torque, rtol=1e-12,
                                    atol=1e-11)
@@ -246,9 +294,9 @@ def test_the_step_from_the_pass_reads_coulomb_friction(robot: str) -> None:
     assert checked == 12
 
 
-def test_an_overridden_state_path_leaves_the_step_from_the_pass() -> None:
-    """A law whose class overrides evaluate_state (here: adding a torque) is stepped through
-    its state path, so torque() honours the override."""
+def test_an_overridden_evaluate_state_is_the_step() -> None:
+    """A law whose class overrides evaluate_state (here: adding a torque) keeps its packed
+    kernel under the override, and torque() honours it (every step is evaluate_state)."""
     law = planar_2link().controllers["cpbc"]
 
     class Nudged(CPBC):
@@ -257,13 +305,13 @@ def test_an_overridden_state_path_leaves_the_step_from_the_pass() -> None:
             return out._replace(torque=out.torque + 1.0)
 
     nudged = Nudged(law.model, law.target, law.constraints, law.kp, law.kd, law.shaping)
-    assert not nudged.packed_law().from_pass and nudged.packed_law().terms is not None
+    assert nudged.packed_law().terms is not None
     x, dx = planar_2link().states[0]
     np.testing.assert_allclose(nudged.torque(x, dx), law.torque(x, dx) + 1.0, rtol=1e-12)
 
 
 @pytest.mark.parametrize("robot", ["planar", "panda"])
-def test_the_step_from_the_pass_takes_read_only_and_integer_states(robot: str) -> None:
+def test_a_step_takes_read_only_and_integer_states(robot: str) -> None:
     """numba refuses read-only arrays; the law steps again from copies: a read-only state
     (the planar arm's absolute link angles go through to_joint first, the Panda's joint
     coordinates straight to Pinocchio), and a state given as integers, give the torque of
@@ -289,8 +337,10 @@ def test_the_step_from_the_pass_takes_read_only_and_integer_states(robot: str) -
 
 @pytest.mark.parametrize("entry", list(_laws()), ids=lambda e: e[0])
 def test_a_law_that_has_stepped_pickles(entry) -> None:  # type: ignore[no-untyped-def]
-    """A law is sent to worker processes whole: after a step (its packed law made, with a
-    step bound to the model's Pinocchio data) it pickles, and the copy steps alike."""
+    """A law is sent to worker processes whole: after a step (its packed law made, its
+    state's pass bound to the model's Pinocchio data) it pickles, and the copy steps alike —
+    on another state too (its pass reads its own data, not arrays copied from the
+    original's)."""
     import pickle
 
     name, law, states = entry
@@ -298,4 +348,103 @@ def test_a_law_that_has_stepped_pickles(entry) -> None:  # type: ignore[no-untyp
     tau = law.torque(x, dx)
     copy = pickle.loads(pickle.dumps(law))
     np.testing.assert_array_equal(copy.torque(x, dx), tau, err_msg=name)
-    assert copy.packed_law().from_pass == law.packed_law().from_pass
+    y, dy = states[1]
+    np.testing.assert_array_equal(copy.torque(y, dy), law.torque(y, dy), err_msg=name)
+
+
+class _Tilted(ConstraintSet):
+    """A user's constraint set with a formula of its own: every log-barrier gradient
+    tilted (a formula the set's kernel cannot stand in for)."""
+
+    def barrier(self, state, margins=False):  # type: ignore[no-untyped-def]
+        found = super().barrier(state, margins)
+        gradient = None if found.gradient is None else found.gradient + 0.5
+        return found._replace(gradient=gradient)
+
+
+class _Bowl(OfTheJoints):
+    """A user's potential with no kernel: U = 1.5 ‖x − x_d‖² (no ``packed``)."""
+
+    gradient_bound = None
+
+    def __init__(self, goal):  # type: ignore[no-untyped-def]
+        self.goal = np.asarray(goal, dtype=float)
+
+    def evaluate(self, at):  # type: ignore[no-untyped-def]
+        error = at.x - self.goal
+        return 1.5 * float(error @ error), 3.0 * error
+
+
+class _Viscous:
+    """A user's joint damping with no kernel: F = 2 K ẋ (no ``packed``)."""
+
+    def __init__(self, gain):  # type: ignore[no-untyped-def]
+        self.gain = np.asarray(gain, dtype=float)
+
+    def force(self, dx):  # type: ignore[no-untyped-def]
+        return 2.0 * self.gain * dx
+
+
+def test_a_constraint_set_with_its_own_barrier_says_the_law_leaves_its_kernel() -> None:
+    """A user's ConstraintSet subclass overriding barrier sends the law down its general
+    path: the law says so once, at build, naming the class and what a step costs, and the
+    subclass's formula reaches the torque."""
+    setup = planar_2link()
+    base = setup.controllers["cpbc"]
+    c = base.constraints
+    law = CPBC(base.model, base.target, _Tilted(c.n, c.configuration, c.velocity), base.kp,
+               base.kd, base.shaping)
+    with pytest.warns(PythonPathWarning) as said:
+        packed = law.packed_law()
+    (note,) = [str(w.message) for w in said]
+    assert "its constraint set's class _Tilted overrides barrier" in note, note
+    assert "general path" in note and "µs a step (measured at build)" in note
+    assert packed.terms is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PythonPathWarning)  # said once
+        law.constraints = law.constraints  # packs again at the next step
+        for x, dx in setup.states[:6]:
+            tau = law.torque(x, dx)
+            assert not np.allclose(tau, base.torque(x, dx), rtol=1e-9)
+            state = law.state(x, dx)
+            bar = law.constraints.barrier(state)
+            value, grad = law.potential.evaluate(state)
+            lag = 0.5 * float(dx @ state.inertia @ dx) + value
+            np.testing.assert_allclose(tau, law._law(state, bar, grad, lag), rtol=1e-12,
+                                       atol=1e-12)
+
+
+@pytest.mark.parametrize("term", ["potential", "summed potential", "damping"])
+def test_a_term_without_a_kernel_costs_only_its_own_row(term: str) -> None:
+    """A user's potential or damping without a kernel (or one part of a sum) is asked in
+    Python before each call and read by the law's kernel as a row of its own: the law keeps
+    its one kernel call, says once which term runs in Python and what it costs, and its τ,
+    V and margins equal the general path's."""
+    setup = planar_2link()
+    base = setup.controllers["cpbc"]
+    law = CPBC(base.model, base.target, base.constraints, base.kp, base.kd, base.shaping)
+    if term == "potential":
+        law.potential = _Bowl(base.target)  # type: ignore[assignment]
+    elif term == "summed potential":
+        law.potential = PotentialSum((JointSpring(base.target, base.kp),
+                                      _Bowl(base.target)))  # type: ignore[arg-type]
+    else:
+        law.damping = _Viscous(base.kd)  # type: ignore[assignment]
+    with pytest.warns(PythonPathWarning) as said:
+        packed = law.packed_law()
+    (note,) = [str(w.message) for w in said]
+    named = "its damping (_Viscous)" if term == "damping" else "its potential (_Bowl)"
+    assert f"{named} has no kernel" in note and "one kernel call" in note, note
+    assert packed.terms is not None and len(packed.python) == 1
+    general = _general(law)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PythonPathWarning)
+        assert general.packed_law().terms is None
+    for x, dx in setup.states[:12]:
+        fast = law.evaluate_state(law.state(x, dx), margins=True)
+        slow = general.evaluate_state(general.state(x, dx), margins=True)
+        np.testing.assert_allclose(fast.torque, slow.torque, rtol=1e-12, atol=1e-12)
+        assert fast.lyapunov == pytest.approx(slow.lyapunov, rel=1e-12, abs=1e-14)
+        np.testing.assert_allclose(fast.margins, slow.margins, rtol=1e-12, atol=1e-14)
+        np.testing.assert_array_equal(law.torque(x, dx), fast.torque)
+        assert not np.allclose(fast.torque, base.torque(x, dx), rtol=1e-9)

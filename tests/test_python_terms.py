@@ -107,7 +107,7 @@ def test_only_the_constraint_without_a_kernel_leaves_the_compiled_path(name: str
     assert [str(w.message).split("'")[1] for w in said] == expected
     assert all("µs a step (measured at build)" in str(w.message) for w in said)
     # the law keeps its one kernel call; the set's plan holds the others' kinds
-    assert packed.terms is not None and not packed.from_pass
+    assert packed.terms is not None
     tables = law.constraints.packed_tables if name == "cpbc" else law._config.packed_tables  # type: ignore[union-attr]
     assert tables is not None
     kinds = tables.plan[:, 0].tolist()

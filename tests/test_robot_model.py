@@ -401,10 +401,12 @@ def test_a_state_keeps_its_arrays_after_the_next_pass(joint_model, rng, kinemati
     state's arrays, and none shares memory with the model's Pinocchio data."""
     x, dx = rng.uniform(-2, 2, 2), rng.normal(size=2)
     first = joint_model.state(x, dx, kinematics=kinematics, coriolis=coriolis)
-    kept = [None if a is None else np.array(a) for a in first[:8] + first[9:]]
+    fields = list(first)
+    arrays = fields[:8] + fields[9:]  # all but the frames
+    kept = [None if a is None else np.array(a) for a in arrays]
     joint_model.state(x + 0.7, -dx, kinematics=kinematics, coriolis=coriolis)
     data = joint_model.data
-    for a, b in zip(first[:8] + first[9:], kept, strict=True):
+    for a, b in zip(arrays, kept, strict=True):
         if a is None:
             continue
         np.testing.assert_array_equal(a, b)

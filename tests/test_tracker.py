@@ -310,7 +310,7 @@ def test_a_pose_stream_keeps_the_compiled_step(setup: ScenarioSetup) -> None:
     law.set_pose(law.requested, _rotation_about_x(0.2) @ start, angular_velocity=[0.1, 0, 0])
     _run(law, plant, 50)
     packed = inner.packed_law()
-    assert packed.terms is not None and packed.pass_arguments is not None
+    assert packed.terms is not None and packed.produce is not None
     assert law.moving.axes is not None and law.moving.rotation is not None
     np.testing.assert_allclose(law.moving.axes[1], law.moving.rotation @ [0.0, 0.0, 1.0])
 

@@ -2,20 +2,17 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import BarrierTerms, ConstraintSet
 from cpbc.controllers.controller import Evaluation, positive_vector
-from cpbc.controllers.packed_law import PackedLaw, PacksItsLaw, law_terms
+from cpbc.controllers.packed_law import PackedLaw, PacksItsLaw, law_terms, writable
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
 from cpbc.kernels.energy import kinetic_energy
 from cpbc.kernels.laws import (
-    cpbc_pass_step,
     cpbc_step,
     cpbc_torque,
     shaped_value,
@@ -81,18 +78,23 @@ class CPBC(PacksItsLaw):
         self._no_barrier = zero_terms(model.n)
 
     def state(self, x: Array, dx: Array) -> ArmState:
-        packed = self.packed_law()
-        if packed.terms is None:
+        packed = self._packed_law
+        if packed is None or packed.law is not type(self):
+            packed = self.packed_law()
+        produce = packed.produce
+        if produce is None:
             return super().state(x, dx)
-        return packed.state(self.model, x, dx)
+        return produce(x, dx)
 
     def _pack(self) -> PackedLaw:
         parts = law_terms(self, CPBC, ("_law", "_shaped_value", "task_damping_force"))
         return PackedLaw.build(type(self), parts, self.constraints, self.frames,
-                               self.model, CPBC)
+                               self.model)
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
-        packed = self.packed_law()
+        packed = self._packed_law
+        if packed is None or packed.law is not type(self):
+            packed = self.packed_law()
         if packed.terms is not None:
             return self._packed_step(packed, state, margins)
         bar = self.constraints.barrier(state, margins)  # raises outside S
@@ -104,20 +106,15 @@ class CPBC(PacksItsLaw):
     def _packed_step(self, packed: PackedLaw, state: ArmState, margins: bool) -> Evaluation:
         """τ, V and the margins from one kernel call (cpbc.kernels.laws.cpbc_step)."""
         args = packed.arguments(state, margins)  # ends with [φ̃ | the margins] and τ
-        lyapunov = self._checked(cpbc_step(*args), args[-2][:packed.margins])
-        return Evaluation(args[-1], lyapunov, args[-2][packed.margins:] if margins else None)
-
-    def _pass_value(self, args: tuple[Any, ...]) -> float:
-        """V from cpbc.kernels.laws.cpbc_pass_step (the step from the model's pass)."""
-        return self._checked(cpbc_pass_step(*args), args[-2])
-
-    def _checked(self, found: tuple[float, float, float], phi: Array) -> float:
-        """V from a step kernel's (V, log Φ, log Ψ); raises, naming the margin from the
-        barrier values ``phi``, outside S (a NaN log)."""
+        try:
+            found = cpbc_step(*args)
+        except TypeError:  # a read-only or integer state (``writable``)
+            args = writable(args)
+            found = cpbc_step(*args)
         lyapunov, log_phi, log_psi = found
-        if log_phi != log_phi or log_psi != log_psi:
-            raise self.constraints.violation(log_phi, phi)
-        return lyapunov
+        if log_phi != log_phi or log_psi != log_psi:  # outside S: named from φ̃
+            raise self.constraints.violation(log_phi, args[-2][:packed.margins])
+        return Evaluation(args[-1], lyapunov, args[-2][packed.margins:] if margins else None)
 
     def _shaped_value(self, bar: BarrierTerms, lag: float) -> float:
         """V = L / s(ΦΨ), evaluated in logs."""

@@ -15,14 +15,13 @@ from cpbc.controllers.controller import Controller, Evaluation, positive_vector
 from cpbc.controllers.cpbc import CPBC
 from cpbc.controllers.law_kind import LINEAR, LawInputs, LawKind, shaping
 from cpbc.controllers.law_specs import ShapedLawSpec
-from cpbc.controllers.packed_law import PackedLaw, PacksItsLaw, law_terms
+from cpbc.controllers.packed_law import PackedLaw, PacksItsLaw, law_terms, writable
 from cpbc.controllers.potentials import JointSpring, Potential, require_posture
 from cpbc.controllers.shaping import Identity, Shaping
 from cpbc.controllers.terms import Damping, LinearDamping, StateDamping
 from cpbc.errors import ConstraintViolation, CpbcError
 from cpbc.kernels.energy import kinetic_energy
 from cpbc.kernels.laws import (
-    cpbc_ke_pass_step,
     cpbc_ke_step,
     cpbc_ke_torque,
     shaped_value,
@@ -87,18 +86,23 @@ class CPBCKineticEnergy(PacksItsLaw):
         """The per-step state of the configuration constraints and the potential: the law
         reads the energy limit through D alone (no C, which the limit's own barrier terms
         would need)."""
-        packed = self.packed_law()
-        if packed.terms is None:
+        packed = self._packed_law
+        if packed is None or packed.law is not type(self):
+            packed = self.packed_law()
+        produce = packed.produce
+        if produce is None:
             return self._config.state(self.model, x, dx, self.frames)
-        return packed.state(self.model, x, dx)
+        return produce(x, dx)
 
     def _pack(self) -> PackedLaw:
         parts = law_terms(self, CPBCKineticEnergy, ("_law", "task_damping_force"))
         return PackedLaw.build(type(self), parts, self._config, self.frames,
-                               self.model, CPBCKineticEnergy)
+                               self.model)
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
-        packed = self.packed_law()
+        packed = self._packed_law
+        if packed is None or packed.law is not type(self):
+            packed = self.packed_law()
         if packed.terms is not None:
             return self._packed_step(packed, state, margins)
         kinetic = kinetic_energy(state.inertia, state.dx)
@@ -116,14 +120,14 @@ class CPBCKineticEnergy(PacksItsLaw):
     def _packed_step(self, packed: PackedLaw, state: ArmState, margins: bool) -> Evaluation:
         """τ, V and the margins from one kernel call (cpbc.kernels.laws.cpbc_ke_step)."""
         args = packed.arguments(state, margins)  # ends with [φ̃ | the margins] and τ
-        found = cpbc_ke_step(self.energy.limit, *args)
+        try:
+            found = cpbc_ke_step(self.energy.limit, *args)
+        except TypeError:  # a read-only or integer state (``writable``)
+            args = writable(args)
+            found = cpbc_ke_step(self.energy.limit, *args)
         lyapunov = self._checked(found, args[-2][:packed.margins])
         shown = np.append(args[-2][packed.margins:], found[2]) if margins else None
         return Evaluation(args[-1], lyapunov, shown)
-
-    def _pass_value(self, args: tuple[Any, ...]) -> float:
-        """V from cpbc.kernels.laws.cpbc_ke_pass_step (the step from the model's pass)."""
-        return self._checked(cpbc_ke_pass_step(self.energy.limit, *args), args[-2])
 
     def _checked(self, found: tuple[float, float, float], phi: Array) -> float:
         """V from a step kernel's (V, log Φ, ψ); raises outside S (ψ ≤ 0, or a NaN log Φ:

@@ -6,11 +6,8 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, inner, kernel
-from cpbc.kernels.views import float_rows
 
 
 @kernel(f"void({READ_ONLY_MATRIX}, float64[:], float64[:], float64[:], float64[:])")
@@ -87,52 +84,3 @@ def joint_friction(joints: bool, t_inv: Array, friction_matrix: Array, coulomb: 
         else:
             for i in range(n):
                 dissipation[i] += t_inv[k, i] * force
-
-
-TERMS = ("Tuple((float64[:, :], float64[:], float64[:], float64[:, :], float64[:, :],"
-         " float64[:]))")
-
-
-@inner(f"{TERMS}(boolean, boolean, float64[:, :], float64[:, :], float64[:], float64,"
-        " float64[:], float64[:, :], float64[:], float64[:], float64[:, :], float64[:, :])")
-def controller_terms(joints: bool, friction: bool, t_inv: Array, friction_matrix: Array,
-                     coulomb: Array, smoothing: float, dx: Array, inertia_q: Array,
-                     nle: Array, gravity_q: Array, coriolis_q: Array,
-                     frame_jacobian_q: Array
-                     ) -> tuple[Array, Array, Array, Array, Array, Array]:
-    """The per-step state's terms from one Pinocchio pass in joint coordinates
-    (cpbc.model.robot_model.RobotModel.joint_pass), as ``RobotModel.state`` gives them: D,
-    C ẋ and g (``to_controller``), the matrix C = T⁻ᵀ C_q T⁻¹ (empty when not asked for),
-    the frame's Jacobian J_q T⁻¹ and f (``joint_friction``; zero without ``friction``).
-    With the joints as coordinates (``joints``) D, g, C and the Jacobian are the pass's own
-    arrays."""
-    n = dx.shape[0]
-    c_rows, (rows, columns) = coriolis_q.shape[0], frame_jacobian_q.shape
-    # one allocation for the terms this makes
-    work = np.empty(2 * n if joints else 3 * n + n * n + c_rows * c_rows + rows * columns)
-    dissipation, bias = work[:n], work[n:2 * n]
-    if friction:
-        joint_friction(joints, t_inv, friction_matrix, coulomb, smoothing, dx, dissipation)
-    else:
-        dissipation[:] = 0.0
-    if joints:
-        for i in range(n):
-            bias[i] = nle[i] - gravity_q[i]
-        return inertia_q, bias, gravity_q, coriolis_q, frame_jacobian_q, dissipation
-    gravity = work[2 * n:3 * n]
-    at = 3 * n
-    inertia = float_rows(work, at, n, n)
-    at += n * n
-    coriolis = float_rows(work, at, c_rows, c_rows)
-    at += c_rows * c_rows
-    frame_jacobian = float_rows(work, at, rows, columns)
-    to_controller(t_inv, inertia_q, nle, gravity_q, inertia, bias, gravity)
-    if c_rows > 0:
-        congruence(t_inv, coriolis_q, coriolis)
-    for r in range(rows):
-        for j in range(columns):
-            s = 0.0
-            for k in range(n):
-                s += frame_jacobian_q[r, k] * t_inv[k, j]
-            frame_jacobian[r, j] = s
-    return inertia, bias, gravity, coriolis, frame_jacobian, dissipation

@@ -21,6 +21,12 @@ from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, inner, kernel
 from cpbc.kernels.barrier_shaping import shaping_terms
 from cpbc.kernels.plan_tables import KIND, Ints, Packed, float_table
+from cpbc.kernels.python_rows import (
+    PYTHON_DAMPING,
+    PYTHON_POTENTIAL,
+    python_damping_row,
+    python_potential_row,
+)
 from cpbc.kernels.task import (
     AXIS_SPRING,
     FRAME,
@@ -246,9 +252,9 @@ def pack_shaping(kind: int, parameter: float) -> Packed:
 
 # -- the registry ---------------------------------------------------------------------------
 POTENTIAL_KINDS = (JOINT_SPRING, POSITION_SPRING, AXIS_SPRING, ORIENTATION_SPRING,
-                   LOG_COSH_SPRING, POSITION_LOG_COSH)
+                   LOG_COSH_SPRING, POSITION_LOG_COSH, PYTHON_POTENTIAL)
 DAMPING_KINDS = (JOINT_DAMPING, TANH_DAMPING, TASK_DAMPING, JOINT_FEEDFORWARD,
-                 TASK_TANH_DAMPING)
+                 TASK_TANH_DAMPING, PYTHON_DAMPING)
 FRAME_KINDS = (POSITION_SPRING, AXIS_SPRING, ORIENTATION_SPRING, TASK_DAMPING,
                POSITION_LOG_COSH, TASK_TANH_DAMPING)
 KINDS = (*POTENTIAL_KINDS, *DAMPING_KINDS, SHAPING)
@@ -278,6 +284,8 @@ def potential_terms(plan: Ints, floats: Array, x: Array, origin: Array, rotation
             u = orientation_spring_row(plan, floats, r, x, origin, rotation, jacobian, part)
         elif kind == POSITION_LOG_COSH:
             u = position_log_cosh_row(plan, floats, r, x, origin, rotation, jacobian, part)
+        elif kind == PYTHON_POTENTIAL:
+            u = python_potential_row(plan, floats, r, x, origin, rotation, jacobian, part)
         else:
             continue
         total += u
@@ -306,6 +314,8 @@ def damping_terms(plan: Ints, floats: Array, dx: Array, origin: Array, rotation:
             joint_feedforward_row(plan, floats, r, dx, origin, rotation, jacobian, part)
         elif kind == TASK_TANH_DAMPING:
             task_tanh_damping_row(plan, floats, r, dx, origin, rotation, jacobian, part)
+        elif kind == PYTHON_DAMPING:
+            python_damping_row(plan, floats, r, dx, origin, rotation, jacobian, part)
         else:
             continue
         for i in range(n):

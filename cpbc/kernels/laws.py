@@ -1,6 +1,7 @@
 """The laws' formulas, given the potential's force, the damping and the barrier sums; and
-each law's whole step in one call (``cpbc_step``, ``cpbc_ke_step``) from the packed
-constants of its constraint set and its terms (cpbc.controllers.packed_law)."""
+each law's whole step in one call (``cpbc_step``, ``cpbc_ke_step``) on the per-step state
+(cpbc.kernels.state_terms), from the packed constants of its constraint set and its terms
+(cpbc.controllers.packed_law)."""
 
 from __future__ import annotations
 
@@ -11,12 +12,11 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, inner, kernel
 from cpbc.kernels.barrier_set import VELOCITY_KINDS, set_barrier
-from cpbc.kernels.coordinate_maps import controller_terms
 from cpbc.kernels.energy import kinetic_energy
 from cpbc.kernels.law_terms import damping_terms, potential_terms, shaped
 from cpbc.kernels.plan_tables import KIND
 from cpbc.kernels.small_solves import solve_spd
-from cpbc.kernels.task import PLACE, frame_on_joints
+from cpbc.kernels.state_terms import finish_into, frame_views, state_views, terms_size
 from cpbc.kernels.views import Ints, float_rows, int_rows
 
 
@@ -92,40 +92,33 @@ def shaped_value(lag: float, log_s: float) -> float:
 
 # the law's constant tables, packed once (``pack_tables``): ``ints`` starts with HEADER
 # entries — the margins, then (rows, columns) of the set's plan, ints and floats and of the
-# terms' plan and floats, then whether the coordinates are the joints' and whether the arm
-# has friction (``COORDINATES``), then the column of the frame's joint in the static
-# regressor (−1: the pass reads the frame) — and holds the int tables after it, ``floats``
-# the float tables and last the model's T⁻¹, F_d, F_c, its ε and the frame's place on its
-# joint (``model_tables``); each table row-major, in that order. One array of each: a kernel
-# argument costs numba about 70 ns to pass, whatever its size.
+# terms' plan and floats, then where the state's tables start in the ints and in the floats
+# (cpbc.kernels.state_terms: the law's per-step state, packed after the law's own) and which
+# of the state's frames the law reads (−1: none) — and holds the int tables after it,
+# ``floats`` the float tables; each table row-major, in that order. One array of each: a
+# kernel argument costs numba about 45 ns to pass, whatever its size.
 # the header's entries: the margins; the (rows, columns) of each table from its column
 MARGINS, SET_PLAN, SET_INTS, SET_FLOATS, TERM_PLAN, TERM_FLOATS = 0, 1, 3, 5, 7, 9
-COORDINATES = TERM_FLOATS + 2  # then whether the arm has friction
-FRAME_COLUMN = COORDINATES + 2
-HEADER = FRAME_COLUMN + 1
+STATE_INTS, STATE_FLOATS, FRAME = 11, 12, 13
+HEADER = FRAME + 1
 
 
 def pack_tables(margins: int, plan: Ints, ints: Ints, floats: Array, term_plan: Ints,
-                term_floats: Array, t_inv: Array, friction: Array, coulomb: Array,
-                smoothing: float, frame: tuple[int, Array] | None = None
+                term_floats: Array, state: tuple[Ints, Array], frame: int
                 ) -> tuple[Ints, Array]:
-    """The law's constant tables in the two arrays ``law_tables`` and ``model_tables`` read;
-    ``t_inv`` T⁻¹ of the coordinates x = T q, ``friction`` F_d in x-coordinates,
-    ``coulomb`` F_c per joint and ``smoothing`` its ε (cpbc.kernels.coordinate_maps
-    .joint_friction) and ``frame`` the column and place of the frame the law reads, when
-    the kernel computes it from the joint kinematics (cpbc.kernels.task.frame_on_joints)."""
-    n = len(t_inv)
+    """The law's constant tables in the two arrays ``law_tables`` reads, with its per-step
+    state's (``state``: cpbc.kernels.state_terms.pack_state) after them; ``frame``: the
+    place of the frame the law reads among the state's frames (−1: none)."""
     header = [margins]
     for table in (plan, ints, floats, term_plan, term_floats):
         header += table.shape
-    column, local = (-1, np.zeros(PLACE + n)) if frame is None else frame
-    header += [int(np.array_equal(t_inv, np.eye(n))),
-               int(np.any(friction) or np.any(coulomb)), column]
+    state_ints, state_floats = state
+    header += [HEADER + plan.size + ints.size + term_plan.size, floats.size + term_floats.size,
+               frame]
     packed_ints = np.concatenate([np.array(header, dtype=np.int64), plan.ravel(),
-                                  ints.ravel(), term_plan.ravel()]).astype(np.int64)
-    return packed_ints, np.concatenate([floats.ravel(), term_floats.ravel(), t_inv.ravel(),
-                                        friction.ravel(), coulomb, [smoothing],
-                                        local]).astype(float)
+                                  ints.ravel(), term_plan.ravel(), state_ints]).astype(np.int64)
+    return packed_ints, np.concatenate([floats.ravel(), term_floats.ravel(),
+                                        state_floats]).astype(float)
 
 
 TABLES = ("Tuple((int64, int64[:, :], int64[:, :], float64[:, :], int64[:, :],"
@@ -149,66 +142,73 @@ def law_tables(ints: Ints, floats: Array) -> tuple[int, Ints, Ints, Array, Ints,
     return ints[MARGINS], plan, set_ints, set_floats, term_plan, term_floats
 
 
-MODEL = ("Tuple((boolean, boolean, float64[:, :], float64[:, :], float64[::1], float64,"
-         " float64[::1]))")
+@inner("float64[::1](int64[::1], float64[::1], float64[:], float64[:, :], float64[:],"
+       " float64[:], float64[:, :], float64[:, :], float64[:, :], float64[::1])")
+def finished(tables: Ints, table_floats: Array, dx: Array, inertia_q: Array, nle: Array,
+             gravity_q: Array, coriolis_q: Array, y: Array, jac: Array, terms: Array
+             ) -> Array:
+    """The state's terms: ``terms`` as they are when the pass comes finished (``inertia_q``
+    empty), else finished here (cpbc.kernels.state_terms.finish_into) — into ``terms``
+    when it is given (the state keeps them), else into an array of the step's own."""
+    if inertia_q.shape[0] == 0:
+        return terms
+    at = tables[STATE_INTS]
+    if terms.shape[0] == 0:
+        terms = np.empty(terms_size(tables, at))
+    finish_into(tables, table_floats, at, tables[STATE_FLOATS], dx, inertia_q, nle,
+                gravity_q, coriolis_q, y, jac, terms)
+    return terms
 
 
-@inner(f"{MODEL}(int64[::1], float64[::1], int64)")
-def model_tables(ints: Ints, floats: Array, n: int
-                 ) -> tuple[bool, bool, Array, Array, Array, float, Array]:
-    """Whether the coordinates are the joints' and whether the arm has friction, T⁻¹, F_d,
-    F_c, its ε and the frame's place on its joint (views), packed by ``pack_tables``."""
-    at = floats.shape[0] - 2 * n * n - n - 1 - PLACE - n
-    friction_at = at + 2 * n * n
-    return (ints[COORDINATES] == 1, ints[COORDINATES + 1] == 1,
-            float_rows(floats, at, n, n), float_rows(floats, at + n * n, n, n),
-            floats[friction_at:friction_at + n], floats[friction_at + n],
-            floats[friction_at + n + 1:])
-
-
-@inner("UniTuple(float64[:, :], 2)(int64[::1], float64[:], float64[:, :], float64[:, :],"
-        " float64[:, :], float64[:, :], float64[::1])")
-def pass_frame(ints: Ints, x: Array, placement: Array, frame_jacobian_q: Array, y: Array,
-               jac: Array, local: Array) -> tuple[Array, Array]:
-    """The frame's placement and Jacobian (joint coordinates): the pass's, or — when the
-    tables give its joint's column — from the pass's joint kinematics
-    (cpbc.kernels.task.frame_on_joints)."""
-    column = ints[FRAME_COLUMN]
-    if column < 0:
-        return placement, frame_jacobian_q
-    work = np.empty(16 + 6 * x.shape[0])
-    placement, frame_jacobian_q = float_rows(work, 0, 4, 4), float_rows(work, 16, 6, x.shape[0])
-    frame_on_joints(y, jac, column, local, placement, frame_jacobian_q)
-    return placement, frame_jacobian_q
-
-
-# the tables, x, ẋ, D, g, C ẋ, f, C, the frame's placement and Jacobian, the joint
-# placements and Jacobians, ``barriers`` [φ̃ (margins) | the margins (or nothing)] and τ
+# the tables, x, ẋ, the state's one Pinocchio pass in joint coordinates (cpbc.model
+# .state_pass: D_q, nle = C q̇ + g_q, g_q, C_q (or empty), the joint placements and
+# Jacobians (or empty); all empty when the state comes finished), the state's terms
+# (cpbc.kernels.state_terms; empty: finished in the step's own array), ``barriers``
+# [φ̃ (margins) | the margins (or nothing)] and τ
 STEP = ("int64[::1], float64[::1], float64[:], float64[:], float64[:, :], float64[:],"
-        f" float64[:], {READ_ONLY}, float64[:, :], float64[:, :], float64[:, :],"
-        " float64[:, :], float64[:, :], float64[::1], float64[:]")
+        " float64[:], float64[:, :], float64[:, :], float64[:, :], float64[::1], float64[:],"
+        " float64[:]")
+
+
+@inner("UniTuple(float64[:, :], 2)(int64[::1], float64[::1], float64[::1])")
+def law_frame(tables: Ints, terms: Array, work: Array) -> tuple[Array, Array]:
+    """The placement and Jacobian of the frame the law reads, views of the state's terms;
+    without one, the identity placement and an empty Jacobian in ``work`` (16 entries)."""
+    frame = tables[FRAME]
+    if frame >= 0:
+        return frame_views(tables, tables[STATE_INTS], terms, frame)
+    placement = float_rows(work, 0, 4, 4)
+    placement[:, :] = 0.0
+    for i in range(4):
+        placement[i, i] = 1.0
+    return placement, float_rows(work, 16, 6, 0)
 
 
 @kernel(f"UniTuple(float64, 3)({STEP})")
-def cpbc_step(tables: Ints, table_floats: Array, x: Array, dx: Array, inertia: Array,
-              gravity: Array, coriolis_force: Array, dissipation: Array, coriolis: Array,
-              placement: Array, frame_jacobian: Array, y: Array, jac: Array, barriers: Array,
-              tau: Array) -> tuple[float, float, float]:
-    """One CPBC step (cpbc.controllers.cpbc.CPBC): the set's barrier sums (``set_barrier``,
+def cpbc_step(tables: Ints, table_floats: Array, x: Array, dx: Array, inertia_q: Array,
+              nle: Array, gravity_q: Array, coriolis_q: Array, y_q: Array, jac_q: Array,
+              terms: Array, barriers: Array, tau: Array) -> tuple[float, float, float]:
+    """One CPBC step (cpbc.controllers.cpbc.CPBC) on the per-step state (``finished``; D,
+    C ẋ, g, f, C, the frame's placement [R p; 0 1] and Jacobian [J_v; J_ω], the joint
+    placements and Jacobians read from its terms): the set's barrier sums (``set_barrier``,
     its tables ``plan``, ``ints``, ``floats``), U and ∂U/∂x, the damping and the shaping of
     the packed terms (cpbc.kernels.law_terms), L = ½ẋᵀDẋ + U, ρ = r(ΦΨ)·L and τ
-    (``cpbc_torque``, c = C ẋ + f) into ``tau``. The tables (``law_tables``) are packed
-    by ``pack_tables``. The frame: its placement [R p; 0 1] and Jacobian [J_v; J_ω].
-    ``barriers``: the barrier values φ̃, then — when it is twice as long — the margins.
-    Returns V, log Φ and log Ψ; outside S (a NaN log) V is NaN and τ is not written (the
-    caller raises, naming the margin from φ̃)."""
+    (``cpbc_torque``, c = C ẋ + f) into ``tau``. The tables (``law_tables``) are packed by
+    ``pack_tables``. ``barriers``: the barrier values φ̃, then — when it is twice as long —
+    the margins. Returns V, log Φ and log Ψ; outside S (a NaN log) V is NaN and τ is not
+    written (the caller raises, naming the margin from φ̃)."""
     n = x.shape[0]
+    terms = finished(tables, table_floats, dx, inertia_q, nle, gravity_q, coriolis_q, y_q,
+                     jac_q, terms)
+    inertia, coriolis_force, gravity, dissipation, coriolis, y, jac = state_views(
+        tables, tables[STATE_INTS], terms)
     margins, plan, ints, floats, term_plan, term_floats = law_tables(tables, table_floats)
     phi, value = barriers[:margins], barriers[margins:]
-    origin, rotation = placement[:3, 3], placement[:3, :3]
-    work = np.empty(5 * n + n * n)  # one allocation for the step's arrays
+    work = np.empty(5 * n + n * n + 16)  # one allocation for the step's arrays
     gradient, grad, damping, bias = work[:n], work[n:2 * n], work[2 * n:3 * n], work[3 * n:4 * n]
     part, weight = work[4 * n:5 * n], float_rows(work, 5 * n, n, n)
+    placement, frame_jacobian = law_frame(tables, terms, work[5 * n + n * n:])
+    origin, rotation = placement[:3, 3], placement[:3, :3]
     log_phi, log_psi = set_barrier(plan, ints, floats, x, dx, inertia, coriolis, origin,
                                    rotation, frame_jacobian, y, jac, phi, gradient, weight,
                                    value)
@@ -232,25 +232,29 @@ def cpbc_step(tables: Ints, table_floats: Array, x: Array, dx: Array, inertia: A
 
 @kernel(f"UniTuple(float64, 3)(float64, {STEP})")
 def cpbc_ke_step(limit: float, tables: Ints, table_floats: Array, x: Array, dx: Array,
-                 inertia: Array, gravity: Array, coriolis_force: Array, dissipation: Array,
-                 coriolis: Array, placement: Array, frame_jacobian: Array, y: Array,
-                 jac: Array, barriers: Array, tau: Array) -> tuple[float, float, float]:
+                 inertia_q: Array, nle: Array, gravity_q: Array, coriolis_q: Array,
+                 y_q: Array, jac_q: Array, terms: Array, barriers: Array, tau: Array
+                 ) -> tuple[float, float, float]:
     """One CPBC-KE step (cpbc.controllers.cpbc_ke.CPBCKineticEnergy): ψ = Ω − ½ẋᵀDẋ
     (``limit`` Ω), the configuration constraints' barrier sums (``set_barrier``), U, ∂U/∂x,
     the damping and the shaping of the packed terms, ρ = r(Φψ)·L and τ (``cpbc_ke_torque``)
     into ``tau`` (``cpbc_step``'s arguments). Returns V, log Φ and ψ; when ψ ≤ 0 or
     log Φ is NaN, V is NaN and τ is not written (the caller raises)."""
     n = x.shape[0]
+    terms = finished(tables, table_floats, dx, inertia_q, nle, gravity_q, coriolis_q, y_q,
+                     jac_q, terms)
+    inertia, _, gravity, _, coriolis, y, jac = state_views(tables, tables[STATE_INTS], terms)
     kinetic = kinetic_energy(inertia, dx)
     psi = limit - kinetic
     if not psi > 0.0:
         return math.nan, 0.0, psi
     margins, plan, ints, floats, term_plan, term_floats = law_tables(tables, table_floats)
     phi, value = barriers[:margins], barriers[margins:]
-    origin, rotation = placement[:3, 3], placement[:3, :3]
-    work = np.empty(4 * n)  # one allocation for the step's arrays (Π is empty)
-    gradient, grad, damping, part = work[:n], work[n:2 * n], work[2 * n:3 * n], work[3 * n:]
+    work = np.empty(4 * n + 16)  # one allocation for the step's arrays (Π is empty)
+    gradient, grad, damping, part = work[:n], work[n:2 * n], work[2 * n:3 * n], work[3 * n:4 * n]
     weight = float_rows(work, 0, 0, 0)
+    placement, frame_jacobian = law_frame(tables, terms, work[4 * n:])
+    origin, rotation = placement[:3, 3], placement[:3, :3]
     log_phi, _ = set_barrier(plan, ints, floats, x, dx, inertia, coriolis, origin, rotation,
                              frame_jacobian, y, jac, phi, gradient, weight, value)
     if log_phi != log_phi:
@@ -261,62 +265,3 @@ def cpbc_ke_step(limit: float, tables: Ints, table_floats: Array, x: Array, dx: 
     damping_terms(term_plan, term_floats, dx, origin, rotation, frame_jacobian, damping, part)
     cpbc_ke_torque(gravity, grad, damping, gradient, ratio * lag, psi, tau)
     return shaped_value(lag, log_s), log_phi, psi
-
-
-# the tables, x, ẋ, and one Pinocchio pass in joint coordinates (RobotModel.joint_pass): D,
-# nle = C q̇ + g, g, C (or empty), the frame's placement and Jacobian, the joint placements
-# and Jacobians; then ``barriers`` and τ as in STEP
-PASS = ("int64[::1], float64[::1], float64[:], float64[:], float64[:, :], float64[:],"
-        " float64[:], float64[:, :], float64[:, :], float64[:, :], float64[:, :],"
-        " float64[:, :], float64[::1], float64[:]")
-
-
-FINISHED = ("Tuple((float64[:, :], float64[:, :], float64[:], float64[:], float64[:, :],"
-            " float64[:, :], float64[:]))")
-
-
-@inner(f"{FINISHED}(int64[::1], float64[::1], float64[:], float64[:], float64[:, :],"
-        " float64[:], float64[:], float64[:, :], float64[:, :], float64[:, :], float64[:, :],"
-        " float64[:, :])")
-def finished_state(tables: Ints, table_floats: Array, x: Array, dx: Array,
-                   inertia_q: Array, nle: Array, gravity_q: Array, coriolis_q: Array,
-                   placement: Array, frame_jacobian_q: Array, y: Array, jac: Array
-                   ) -> tuple[Array, Array, Array, Array, Array, Array, Array]:
-    """The step's state from the pass itself: the frame's placement (``pass_frame``), then D,
-    C ẋ, g, C, the frame's Jacobian and f in controller coordinates
-    (cpbc.kernels.coordinate_maps.controller_terms, with the model's tables)."""
-    joints, friction, t_inv, friction_matrix, coulomb, smoothing, local = model_tables(
-        tables, table_floats, x.shape[0])
-    placement, frame_jacobian_q = pass_frame(tables, x, placement, frame_jacobian_q, y, jac,
-                                             local)
-    inertia, bias, gravity, coriolis, frame_jacobian, dissipation = controller_terms(
-        joints, friction, t_inv, friction_matrix, coulomb, smoothing, dx, inertia_q, nle,
-        gravity_q, coriolis_q, frame_jacobian_q)
-    return placement, inertia, bias, gravity, coriolis, frame_jacobian, dissipation
-
-
-@kernel(f"UniTuple(float64, 3)({PASS})")
-def cpbc_pass_step(tables: Ints, table_floats: Array, x: Array, dx: Array,
-                   inertia_q: Array, nle: Array, gravity_q: Array, coriolis_q: Array,
-                   placement: Array, frame_jacobian_q: Array, y: Array, jac: Array,
-                   barriers: Array, tau: Array) -> tuple[float, float, float]:
-    """``cpbc_step`` from the pass itself (``finished_state``)."""
-    placement, inertia, bias, gravity, coriolis, frame_jacobian, dissipation = (
-        finished_state(tables, table_floats, x, dx, inertia_q, nle, gravity_q, coriolis_q,
-                       placement, frame_jacobian_q, y, jac))
-    return cpbc_step(tables, table_floats, x, dx, inertia, gravity, bias, dissipation,
-                     coriolis, placement, frame_jacobian, y, jac, barriers, tau)
-
-
-@kernel(f"UniTuple(float64, 3)(float64, {PASS})")
-def cpbc_ke_pass_step(limit: float, tables: Ints, table_floats: Array, x: Array, dx: Array,
-                      inertia_q: Array, nle: Array, gravity_q: Array, coriolis_q: Array,
-                      placement: Array, frame_jacobian_q: Array, y: Array, jac: Array,
-                      barriers: Array, tau: Array) -> tuple[float, float, float]:
-    """``cpbc_ke_step`` from the pass itself (``finished_state``)."""
-    placement, inertia, bias, gravity, coriolis, frame_jacobian, dissipation = (
-        finished_state(tables, table_floats, x, dx, inertia_q, nle, gravity_q, coriolis_q,
-                       placement, frame_jacobian_q, y, jac))
-    return cpbc_ke_step(limit, tables, table_floats, x, dx, inertia, gravity, bias,
-                        dissipation, coriolis, placement, frame_jacobian, y, jac, barriers,
-                        tau)

@@ -1,10 +1,13 @@
-"""A constraint without a kernel inside a set's plan: its log-barrier terms computed in
-Python before each kernel call (its ``barrier_terms``, cpbc.constraints.python_terms) and
-copied in, so that a law keeps its one kernel call for every other term
-(cpbc.kernels.barrier_set dispatches these rows like any kind's).
+"""A constraint, potential or damping without a kernel inside a plan: its terms computed in
+Python before each kernel call (a constraint's ``barrier_terms``,
+cpbc.constraints.python_terms; a potential's ``evaluate``, a damping's ``force``,
+cpbc.controllers.python_law_terms) and copied in, so that a law keeps its one kernel call for
+every other term (cpbc.kernels.barrier_set and cpbc.kernels.law_terms dispatch these rows like
+any kind's).
 
 The tables are rewritten before every call (``Packed.live``): the constraint's barrier
-values, its share of b, its margins (configuration) or Π (velocity).
+values, its share of b, its margins (configuration) or Π (velocity); the potential's U and
+∂U/∂x; the damping's force.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.kernels import inner
 from cpbc.kernels.plan_tables import Ints, Packed, float_table
+from cpbc.kernels.task import ROW
 
 PYTHON_CONFIGURATION, PYTHON_VELOCITY = 5, 6  # the kinds' codes in a set's plan
 VALUES, GRADIENT, MARGINS, WEIGHT = 0, 1, 2, 2  # its float tables: (1, k), (1, n), …
@@ -52,3 +56,33 @@ def python_velocity_row(plan: Ints, floats: Array, row: int, psi: Array, weight:
     weight[:, :] = float_table(plan, floats, row, WEIGHT)
     if shown.shape[0] > 0:
         shown[:] = psi
+
+
+PYTHON_POTENTIAL, PYTHON_DAMPING = 12, 13  # the kinds' codes in a law's plan
+TERM = 0  # its float table: [U, ∂U/∂x] (1, n + 1) of a potential, the force (1, n) of a damping
+
+
+def pack_python_term(values: Array, damping: bool) -> Packed:
+    """The table of one potential or damping asked in Python: ``values`` [U, ∂U/∂x] (n + 1,)
+    or the force (n,), the array its owner rewrites before each call (``Packed.live``)."""
+    return Packed(PYTHON_DAMPING if damping else PYTHON_POTENTIAL, (np.array(values[None, :]),),
+                  live=((TERM, values),))
+
+
+@inner(f"float64({ROW})")
+def python_potential_row(plan: Ints, floats: Array, row: int, x: Array, origin: Array,
+                         rotation: Array, jacobian: Array, grad: Array) -> float:
+    """A potential's U and ∂U/∂x (into ``grad``) as its ``evaluate`` gave them."""
+    table = float_table(plan, floats, row, TERM)[0]
+    for i in range(x.shape[0]):
+        grad[i] = table[1 + i]
+    return table[0]
+
+
+@inner(f"void({ROW})")
+def python_damping_row(plan: Ints, floats: Array, row: int, dx: Array, origin: Array,
+                       rotation: Array, jacobian: Array, force: Array) -> None:
+    """A damping's force (into ``force``) as its ``force`` gave it."""
+    table = float_table(plan, floats, row, TERM)[0]
+    for i in range(dx.shape[0]):
+        force[i] = table[i]

@@ -1,26 +1,36 @@
-"""The per-step state a law reads: :class:`ArmState`, made by ``RobotModel.state``."""
+"""The per-step state a law reads: :class:`ArmState`, made by one producer
+(cpbc.model.state_pass.StatePass: ``RobotModel.state``, a law's ``state``)."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from types import MappingProxyType
-from typing import NamedTuple
+from typing import TYPE_CHECKING, Any
 
 from cpbc.arrays import Array
 from cpbc.model.frames import FrameKinematics
 
+if TYPE_CHECKING:
+    from cpbc.model.state_pass import StatePass
+
 NO_FRAMES: Mapping[int, FrameKinematics] = MappingProxyType({})
+FIELDS = ("x", "dx", "q", "dq", "inertia", "coriolis_force", "gravity", "dissipation",
+          "frames", "coriolis_matrix", "joint_jacobians", "regressor")
 
 
-class ArmState(NamedTuple):
+class ArmState:
     """Everything a law and its constraints read at one control step, computed once by
     ``RobotModel.state``: the state and the terms of D(q) q̈ + C(q, q̇) q̇ + g(q) + f(q̇) = τ
     (eq. 6.1), in controller coordinates.
 
     It is the only place a law, its constraints and its potential read the arm from: none of
-    them reads the model's Pinocchio data behind it. What a reader needs beyond the dynamics
-    terms it asks for when the state is built (``RobotModel.state``: ``kinematics``,
-    ``frames``, ``coriolis``); the fields it did not ask for are None or empty.
+    them reads the model's Pinocchio data behind it. A state from a pass (``StatePass``) is
+    finished when it is first read: its fields are then views of one fresh array (its
+    ``terms``, cpbc.kernels.state_terms), which a law's kernel reads whole; a law's kernel
+    handed it unfinished finishes it itself (cpbc.kernels.laws.finished). What a reader
+    needs beyond the dynamics terms it asks for when the state is built
+    (``RobotModel.state``: ``kinematics``, ``frames``, ``coriolis``); the fields it did not
+    ask for are None or empty.
 
     Attributes:
         x, dx: the state, shape (n,).
@@ -41,6 +51,7 @@ class ArmState(NamedTuple):
             static regressor (M the total mass), with ``kinematics=True``, else None.
     """
 
+    __slots__ = (*FIELDS, "source", "raw", "terms")
     x: Array
     dx: Array
     q: Array
@@ -49,7 +60,34 @@ class ArmState(NamedTuple):
     coriolis_force: Array
     gravity: Array
     dissipation: Array
-    frames: Mapping[int, FrameKinematics] = NO_FRAMES
-    coriolis_matrix: Array | None = None
-    joint_jacobians: Array | None = None
-    regressor: Array | None = None
+    frames: Mapping[int, FrameKinematics]
+    coriolis_matrix: Array | None
+    joint_jacobians: Array | None
+    regressor: Array | None
+    source: StatePass | None  # the pass it comes from (None: its fields were given)
+    raw: tuple[Array, ...] | None  # the pass's arrays, until it is finished
+    terms: Array | None  # its finished terms (a state from a pass)
+
+    def __init__(self, x: Array, dx: Array, q: Array, dq: Array, inertia: Array,
+                 coriolis_force: Array, gravity: Array, dissipation: Array,
+                 frames: Mapping[int, FrameKinematics] = NO_FRAMES,
+                 coriolis_matrix: Array | None = None, joint_jacobians: Array | None = None,
+                 regressor: Array | None = None) -> None:
+        self.x, self.dx, self.q, self.dq = x, dx, q, dq
+        self.inertia, self.coriolis_force, self.gravity = inertia, coriolis_force, gravity
+        self.dissipation, self.frames, self.coriolis_matrix = dissipation, frames, coriolis_matrix
+        self.joint_jacobians, self.regressor = joint_jacobians, regressor
+        self.source = self.raw = self.terms = None
+
+    def __iter__(self) -> Iterator[Any]:
+        """Its fields in order (as the tuple it was)."""
+        return iter([getattr(self, name) for name in FIELDS])
+
+    def __getattr__(self, name: str) -> Any:
+        """A field of a state from a pass not read yet: the state is finished now (once)."""
+        if name in FIELDS:
+            source = object.__getattribute__(self, "source")
+            if source is not None:
+                source.finish(self)
+                return object.__getattribute__(self, name)
+        raise AttributeError(name)

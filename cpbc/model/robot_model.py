@@ -4,31 +4,27 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
-from numpy.typing import NDArray
 
 from cpbc.arrays import Array
 from cpbc.errors import ModelError
-from cpbc.kernels.coordinate_maps import joint_friction, to_controller, to_joint
-from cpbc.model.arm_state import NO_FRAMES as _NO_FRAMES
+from cpbc.kernels.coordinate_maps import joint_friction, to_joint
+from cpbc.kernels.state_terms import WORLD
 from cpbc.model.arm_state import ArmState
 from cpbc.model.coordinates import LinearCoordinates
 from cpbc.model.coulomb import coulomb_levels
-from cpbc.model.frames import FrameKinematics, offset_jacobian
+from cpbc.model.frames import offset_jacobian
+from cpbc.model.state_pass import StatePass
 
-_WORLD_ALIGNED = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-# the empty inputs of RobotModel.joint_pass: no Coriolis matrix, no frame, no joint kinematics
+# the arrays of one pass (RobotModel.pinocchio_pass): D_q, nle, g_q, C_q, the joint placements
+# and Jacobians; and its empty ones: no Coriolis matrix, no joint kinematics
+PassArrays = tuple[Array, Array, Array, Array, Array, Array]
 _NO_MATRIX = np.zeros((0, 0))
-_NO_FRAME = (np.eye(4), np.zeros((6, 0)))
 _NO_JOINTS = (np.zeros((3, 0)), np.zeros((6, 0)))
-# RobotModel.joint_pass's function of (x, ẋ): a compiled law's arguments — its tables, x, ẋ,
-# D, nle, g, C, the frame's placement and Jacobian, the joint placements and Jacobians, the
-# arrays it writes
-PassReader = Callable[[Array, Array], tuple[NDArray[Any], ...]]
+
 # ε of the model's Coulomb friction F_c tanh(q̇/ε) [rad/s or m/s]: the rate below which the
 # model's friction fades. A joint's smoothed friction is stiff in q̇ (slope F_c/ε), and the law
 # feeds part of it forward once per control period (τ's c = C ẋ + f): at 0.05 rad/s the
@@ -141,10 +137,31 @@ class RobotModel:
         # numpy views of the Pinocchio data's D, C q̇ + g, g, joint Jacobians and static
         # regressor, which each pass rewrites in place: ``state`` copies them out (a view
         # made once costs nothing per step; Pinocchio's accessors make a new one each call)
+        self._own_results = _returns_own_arrays(model, self.data)
+        self._views()
+
+    def _views(self) -> None:
+        """The numpy views of the data, and no pass made yet (``holder``, ``state_pass``)."""
         self._all_terms = (self.data.M, self.data.nle, self.data.g)
         self._joint_jacobians = self.data.J
         self._regressor = self.data.staticRegressor
-        self._own_results = _returns_own_arrays(model, self.data)
+        self._state_passes: dict[tuple[bool, tuple[int, ...], bool], StatePass] = {}
+        # the state whose unfinished pass the data holds (cpbc.model.state_pass); every other
+        # pass over the data sets it to None
+        self.holder: ArmState | None = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without the views of its Pinocchio data and the passes bound to them
+        (a copy's views would be arrays of their own, not its data's): made again."""
+        state = dict(self.__dict__)
+        for name in ("_all_terms", "_joint_jacobians", "_regressor", "_state_passes",
+                     "holder"):
+            state.pop(name, None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._views()
 
     @property
     def length_joints(self) -> Array:
@@ -198,6 +215,7 @@ class RobotModel:
     # -- dynamics ----------------------------------------------------------------------------
     def inertia(self, x: Array) -> Array:
         """D(x), shape (n, n)."""
+        self.holder = None
         m = pin.crba(self.model, self.data, self._q(x)).copy()
         if self._crba_upper_only:
             m[self._lower] = m.T[self._lower]
@@ -205,11 +223,13 @@ class RobotModel:
 
     def coriolis(self, x: Array, dx: Array) -> Array:
         """C(x, ẋ) in Christoffel form, shape (n, n)."""
+        self.holder = None
         c = pin.computeCoriolisMatrix(self.model, self.data, self._q(x), self._q(dx))
         return self._back(c.copy())
 
     def gravity(self, x: Array) -> Array:
         """g(x), shape (n,)."""
+        self.holder = None
         g = pin.computeGeneralizedGravity(self.model, self.data, self._q(x))
         return self._back_vec(g.copy())
 
@@ -226,104 +246,89 @@ class RobotModel:
 
     def state(self, x: Array, dx: Array, kinematics: bool = False,
               frames: Iterable[int] = (), coriolis: bool = False) -> ArmState:
-        """The per-step state at (x, ẋ): D, C ẋ, g and f from three Pinocchio passes (CRBA,
-        RNEA, gravity) — or, with ``kinematics`` or any ``frames``, from one pass that also
-        gives every joint placement and joint Jacobian (``computeAllTerms``; its D and g
-        differ from the separate passes' in the last bit, 1e-15); with ``coriolis`` the
-        matrix C (one more pass). Each frame of ``frames`` is read into ``ArmState.frames``
-        and — with ``kinematics`` — the joint Jacobians and placements (the static
-        regressor, one more call) are copied into the state (a result Pinocchio returns as
-        an array of its own is kept, not copied again). Fresh arrays every call:
-        nothing is kept between calls, and nothing in ``self.data`` is meant to be read
-        afterwards."""
-        model, data = self.model, self.data
-        x, dx, q, dq = self._joint_state(x, dx)
-        c_matrix = self._back(self._coriolis_pass(q, dq)) if coriolis else None
-        wanted = tuple(frames)
-        jac = placements = None
-        found = _NO_FRAMES
-        m, nle, g, owned = self._dynamics_pass(q, dq, bool(kinematics or wanted))
-        if kinematics or wanted:
-            if wanted:
-                read = {}
-                for i in wanted:  # a loop: a comprehension costs a function call per step
-                    read[i] = self._state_frame(i)
-                found = MappingProxyType(read)
-            if kinematics:
-                jac = self._joint_jacobians.copy()
-                placements = pin.computeStaticRegressor(model, data, q)
-                if not self._own_results:
-                    placements = self._regressor.copy()
-        f = self.dissipation(dx)
-        if self._identity:
-            return ArmState(x, dx, q, dq, m if owned else m.copy(), nle - g,
-                            g if owned else g.copy(), f, found, c_matrix, jac, placements)
-        inertia, bias, gravity = np.empty((self.n, self.n)), np.empty(self.n), np.empty(self.n)
-        to_controller(self._t_inv, m, nle, g, inertia, bias, gravity)
-        return ArmState(x, dx, q, dq, inertia, bias, gravity, f, found, c_matrix, jac,
-                        placements)
+        """The per-step state at (x, ẋ), finished (fresh arrays, nothing kept between
+        calls), from the one producer (``state_pass``): one Pinocchio pass — CRBA, RNEA and
+        gravity, or with ``kinematics`` or any ``frames`` ``computeAllTerms`` and the static
+        regressor (the joint placements; their D and g differ from the separate passes' in
+        the last bit, 1e-15); with ``coriolis`` the matrix C (one more pass) — and one kernel
+        that finishes it. Each frame of ``frames`` is read from the joint kinematics into
+        ``ArmState.frames``, and — with ``kinematics`` — the joint Jacobians and placements
+        are in the state. x and ẋ are copied when read-only."""
+        producer = self.state_pass(bool(kinematics), tuple(frames), bool(coriolis))
+        if not (x.flags.writeable and dx.flags.writeable):
+            # the compiled kernels take writable float arrays, and a law's own target may be
+            # the state asked for
+            x, dx = np.array(x, dtype=float), np.array(dx, dtype=float)
+        found = producer(x, dx)
+        producer.finish(found)
+        return found
 
-    def joint_pass(self, kinematics: bool, frame: int, coriolis: bool,
-                   tables: tuple[NDArray[np.int64], Array], work: Array) -> PassReader:
-        """The per-step state unfinished, for a compiled law that finishes and reads it at
-        once (cpbc.kernels.laws.cpbc_pass_step): a function of (x, ẋ) giving that kernel's
-        arguments — its two constant ``tables``, x, ẋ and ``state``'s one pass in joint
-        coordinates (D, nle = C q̇ + g, g, C (``coriolis``; else empty), the placement and
-        Jacobian of ``frame`` (≥ 0; else identity and empty), the joint placements and
-        Jacobians (``kinematics``; else empty)), then ``work`` and a new array of n
-        entries, where the kernel writes. D, nle, g and the joint Jacobians are views of
-        the model's data, which its next pass overwrites: ``state`` copies them out and
-        changes their coordinates; here the caller's kernel does, before anything else
-        runs. The whole tuple is made here at once: built from a tuple this returned, it
-        costs about 110 ns more a step.
+    def state_pass(self, kinematics: bool, frames: tuple[int, ...], coriolis: bool
+                   ) -> StatePass:
+        """The producer of the states that hold the joint kinematics, ``frames`` and C
+        (cpbc.model.state_pass), made once for each choice (its tables packed then)."""
+        key = (kinematics, tuple(dict.fromkeys(frames)), coriolis)
+        found = self._state_passes.get(key)
+        if found is None:
+            found = self._state_passes[key] = StatePass(self, *key)
+        return found
 
-        The choices are made here, once, not at every step, and the function reads only
+    @property
+    def regressor_columns(self) -> int:
+        """The columns of Pinocchio's static regressor (4 per joint)."""
+        return 4 * (self.model.njoints - 1)
+
+    def pinocchio_pass(self, all_terms: bool, coriolis: bool
+                       ) -> Callable[[Array, Array], PassArrays]:
+        """The per-step state's one Pinocchio pass (cpbc.model.state_pass), as a function of
+        (x, ẋ) giving, in joint coordinates, D_q, nle = C q̇ + g_q, g_q, C_q (``coriolis``;
+        else empty) and — with ``all_terms`` (``computeAllTerms``, else CRBA, RNEA and
+        gravity) — the joint placements (the static regressor) and Jacobians (else
+        empty). D, nle, g and the joint Jacobians are views of the model's data, which its
+        next pass overwrites. The choices are made here, once, and the function reads only
         names bound here (a global or attribute lookup costs 20–40 ns; a step would make a
-        dozen). Its q and q̇ (other coordinates than the joints') are two arrays of its
-        own, overwritten by each call, as Pinocchio's data is. x and ẋ are passed on as
-        given: the compiled kernels refuse read-only arrays with a TypeError, on which the
-        law steps again from copies (cpbc.controllers.packed_law)."""
-        model, data, n, t_inv = self.model, self.data, self.n, self._t_inv
-        first, second = tables
-        empty = np.empty
+        dozen); its q and q̇ (other coordinates than the joints') are two arrays of its own,
+        overwritten by each call, as Pinocchio's data is."""
+        model, data, t_inv = self.model, self.data, self._t_inv
         identity, mirror, lower = self._identity, self._crba_upper_only, self._lower
         m, nle, g = self._all_terms
-        joints_jac = self._joint_jacobians
-        all_terms = kinematics or frame >= 0
-        coriolis_pass, no_matrix = self._coriolis_pass, _NO_MATRIX
-        no_frame, no_joints, aligned = _NO_FRAME, _NO_JOINTS, _WORLD_ALIGNED
-        joint_q, joint_dq = np.empty(n), np.empty(n)
+        joints_jac, own = self._joint_jacobians, self._own_results
+        coriolis_pass, no_matrix, no_joints = self.coriolis_pass, _NO_MATRIX, _NO_JOINTS
+        joint_q, joint_dq = np.empty(self.n), np.empty(self.n)
         crba, rnea, gravity = pin.crba, pin.nonLinearEffects, pin.computeGeneralizedGravity
-        every_term, frame_placement = pin.computeAllTerms, pin.updateFramePlacement
-        frame_jacobian_of, regressor = pin.getFrameJacobian, pin.computeStaticRegressor
+        every_term, regressor = pin.computeAllTerms, pin.computeStaticRegressor
 
-        def read(x: Array, dx: Array) -> tuple[NDArray[Any], ...]:
+        def run(x: Array, dx: Array) -> PassArrays:
             if identity:
                 q, dq = x, dx
             else:
                 q, dq = joint_q, joint_dq
                 to_joint(t_inv, x, dx, q, dq)
             c_matrix = coriolis_pass(q, dq) if coriolis else no_matrix
-            # _dynamics_pass's choice, written out: its call costs about 0.1 us more a step
+            # dynamics_pass's choice, written out: its call costs about 0.1 us more a step
             if all_terms:
                 every_term(model, data, q, dq)
                 mass, bias, weight = m, nle, g
+                y = regressor(model, data, q)
+                placements, jac = (y if own else y.copy()), joints_jac
             else:
                 mass, bias, weight = crba(model, data, q), rnea(model, data, q, dq), gravity(
                     model, data, q)
+                placements, jac = no_joints
             if mirror:
                 mass[lower] = mass.T[lower]
-            placement, frame_jacobian = no_frame
-            if frame >= 0:
-                placement = frame_placement(model, data, frame).homogeneous
-                frame_jacobian = frame_jacobian_of(model, data, frame, aligned)
-            y, jac = no_joints
-            if kinematics:
-                y, jac = regressor(model, data, q), joints_jac
-            return (first, second, x, dx, mass, bias, weight, c_matrix, placement,
-                    frame_jacobian, y, jac, work, empty(n))
+            return mass, bias, weight, c_matrix, placements, jac
 
-        return read
+        return run
+
+    def frame_place(self, frame_id: int) -> tuple[int, Array]:
+        """How the finishing kernel reads a frame (cpbc.kernels.state_terms.pack_state): from
+        the joint kinematics (``frame_on_joints``), or (``WORLD``, its constant placement)
+        for a frame welded to the world."""
+        on_joints = self.frame_on_joints(frame_id)
+        if on_joints is not None:
+            return on_joints
+        return WORLD, np.asarray(self.model.frames[frame_id].placement.homogeneous, dtype=float)
 
     def frame_on_joints(self, frame_id: int) -> tuple[int, Array] | None:
         """How a compiled law reads a frame from a pass's joint kinematics
@@ -345,6 +350,7 @@ class RobotModel:
         placements of a pass of the model's own."""
         model, data = self.model, self.data
         q = pin.neutral(model) + 0.3
+        self.holder = None
         y = pin.computeStaticRegressor(model, data, q)
         pin.forwardKinematics(model, data, q)
         scale = float(np.sqrt(3.0) / np.linalg.norm(y[:, 1:4]))
@@ -376,29 +382,20 @@ class RobotModel:
             out[moved.idx_v:moved.idx_v + moved.nv] = supports[j]
         return out
 
-    def _joint_state(self, x: Array, dx: Array) -> tuple[Array, Array, Array, Array]:
-        """x, ẋ (copied when read-only: the compiled kernels take writable float arrays, and
-        a law's own target may be the state asked for) and q, q̇."""
-        if not (x.flags.writeable and dx.flags.writeable):
-            x, dx = np.array(x, dtype=float), np.array(dx, dtype=float)
-        if self._identity:
-            return x, dx, x, dx
-        q, dq = np.empty(self.n), np.empty(self.n)
-        to_joint(self._t_inv, x, dx, q, dq)
-        return x, dx, q, dq
-
-    def _coriolis_pass(self, q: Array, dq: Array) -> Array:
+    def coriolis_pass(self, q: Array, dq: Array) -> Array:
         """C(q, q̇) in Christoffel form, joint coordinates, an array of its own."""
+        self.holder = None
         c_matrix = pin.computeCoriolisMatrix(self.model, self.data, q, dq)
         return c_matrix if self._own_results else c_matrix.copy()
 
-    def _dynamics_pass(self, q: Array, dq: Array, all_terms: bool
-                       ) -> tuple[Array, Array, Array, bool]:
+    def dynamics_pass(self, q: Array, dq: Array, all_terms: bool
+                      ) -> tuple[Array, Array, Array, bool]:
         """D, nle = C q̇ + g and g in joint coordinates from one Pinocchio pass: with
         ``all_terms`` the one that also gives every joint placement and Jacobian
         (``computeAllTerms``), else CRBA, RNEA and gravity; and whether D and g are arrays
         of their own (else views of the data)."""
         model, data = self.model, self.data
+        self.holder = None
         if all_terms:
             pin.computeAllTerms(model, data, q, dq)
             m, nle, g = self._all_terms
@@ -419,6 +416,7 @@ class RobotModel:
     def kinetic_energy(self, x: Array, dx: Array) -> float:
         """½ ẋᵀ D(x) ẋ [J], computed in joint coordinates (the energy does not depend on
         them) by one Pinocchio pass, without forming D."""
+        self.holder = None
         return float(pin.computeKineticEnergy(self.model, self.data, self._q(x), self._q(dx)))
 
     def forward_dynamics(self, x: Array, dx: Array, tau: Array) -> Array:
@@ -427,6 +425,7 @@ class RobotModel:
         tau_q = tau if self._identity else self.coordinates.torque_to_joint(tau)
         if self._has_friction:
             tau_q = tau_q - self.coordinates.torque_to_joint(self.dissipation(dx))
+        self.holder = None
         ddq = pin.aba(self.model, self.data, q, dq, tau_q)
         return ddq if self._identity else self.coordinates.from_joint(ddq)
 
@@ -449,18 +448,11 @@ class RobotModel:
         self, frame_id: int, x: Array, offset: Array | None = None
     ) -> tuple[Array, Array]:
         """Position (3,) and Jacobian ∂p/∂x (3, n) of a point fixed in a frame, in one pass."""
+        self.holder = None
         j = pin.computeFrameJacobian(
             self.model, self.data, self._q(x), frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
         )  # also updates the frame's placement
         return self._point(frame_id, j, offset)
-
-    def _state_frame(self, frame_id: int) -> FrameKinematics:
-        """A frame's placement and Jacobian (controller coordinates) from the kinematics pass
-        of ``state``."""
-        # the frame's own placement only (one frame: cheaper than every frame's)
-        placement = pin.updateFramePlacement(self.model, self.data, frame_id).homogeneous
-        j = pin.getFrameJacobian(self.model, self.data, frame_id, _WORLD_ALIGNED)
-        return FrameKinematics(placement, j if self._identity else j.dot(self._t_inv))
 
     def _point(self, frame_id: int, j: Array, offset: Array | None) -> tuple[Array, Array]:
         """The point's position and Jacobian from its frame's placement and Jacobian j (6, n)."""
@@ -475,6 +467,7 @@ class RobotModel:
 
     def point_position(self, frame_id: int, x: Array, offset: Array | None = None) -> Array:
         """World position of a point fixed in a frame, shape (3,) [m]."""
+        self.holder = None
         pin.framesForwardKinematics(self.model, self.data, self._q(x))
         placement = self.data.oMf[frame_id]
         if offset is None:
@@ -483,6 +476,7 @@ class RobotModel:
 
     def frame_placement(self, frame_id: int, x: Array) -> tuple[Array, Array]:
         """A frame's origin (3,) [m] and axes R (3, 3) in the world, from one kinematics pass."""
+        self.holder = None
         pin.framesForwardKinematics(self.model, self.data, self._q(x))
         placement = self.data.oMf[frame_id]
         return placement.translation.copy(), placement.rotation.copy()
