@@ -57,6 +57,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.brakes import Rollout, TorqueBox, brakes, model_advance
 from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.friction_drift import FrictionDrift
 from cpbc.model.robot_model import ArmState, RobotModel
 
 # tried in this order (the uniform brake last: the guard's own chain has tried it already)
@@ -93,6 +94,7 @@ class Rescue:
         self.rate_step, self.budget = rate_step, budget
         self.cushion, self.period, self.steps, self.horizon = cushion, period, steps, horizon
         self.table = brakes(box, guarded, model)
+        self._coulomb = bool(np.any(model.coulomb_friction))
         self.committed: str | None = None
         self.floor: Array | None = None  # the floor of the search that committed the brake
         self.held_at: int | None = None  # the control step at which it was last held
@@ -157,10 +159,15 @@ class Rescue:
     def _rollout(self, state: ArmState, name: str, floor: Array,
                  held: Array | None) -> Rollout:
         """The check of brake ``name`` from the state: held in the model until rest (ramped
-        from ``held`` under a torque-rate limit), every margin above ``floor``."""
+        from ``held`` under a torque-rate limit), every margin above ``floor`` and above what
+        the plant's dry friction can have taken off it by then (cpbc.constraints.friction_drift,
+        for a model with Coulomb friction)."""
+        drift = FrictionDrift(self.model, self.guarded, state.x, state.dx, self.period) \
+            if self._coulomb else None
 
         def margins(xs: Array, dxs: Array) -> Array:
-            return self.guarded.margins_along(xs, dxs) - floor
+            m = self.guarded.margins_along(xs, dxs) - floor
+            return m if drift is None else m - drift.losses(xs, dxs)
 
         advance = model_advance(self.model, self.box, state.x, state.dx, self.period,
                                 self.steps, self.rate_step,
