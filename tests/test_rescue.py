@@ -79,6 +79,36 @@ def test_a_committed_brake_is_held_only_in_the_next_period(figure8):
     assert rescue.searches == 2
 
 
+def test_a_committed_brake_is_held_again_only_if_it_still_stops_the_arm_from_the_state_now(
+        figure8):
+    """Without a budget the committed brake is checked again from the state measured in the
+    next period: held when the model still stops the arm from there (no new search), refused
+    when it no longer does, though its one-period prediction passes (``holds``) — the plant
+    has left the rollout that committed it (the UR5 rate campaign's seed 49 held one for 40
+    periods while its friction took the wrist through the floor's clearance)."""
+    setup, _, kept = figure8
+    s = draw_state(setup, 19)
+    box = TorqueBox.of(setup.model, setup.loop_settings.bounds.torque)
+
+    def at(scale):
+        state = setup.model.state(s.position, scale * s.velocity)
+        bias = state.coriolis_force + state.gravity + state.dissipation
+        return state, bias, kept.margins(state.x, state.dx)
+
+    def holds(_tau, _floor):
+        return True
+
+    rescue = Rescue(setup.model, kept, box, np.full(len(kept.names), 1e-5), H, 1)
+    assert rescue.torque(*at(1.0), holds, 10) is not None
+    committed = rescue.committed
+    assert rescue.torque(*at(1.0), holds, 11) is not None  # still stops the arm: held
+    assert rescue.committed == committed and rescue.searches == 1
+    # 30 % faster no brake stops the arm inside S (a fresh search finds none)
+    assert Rescue(setup.model, kept, box, np.full(len(kept.names), 1e-5), H, 1).torque(
+        *at(1.3), holds, 12) is None
+    assert rescue.torque(*at(1.3), holds, 12) is None
+
+
 def test_the_guard_keeps_the_clearance_of_the_figure8_from_a_stoppable_state(figure8):
     """Seed 19 at 1 kHz: the uniform brake stops it in the true plant. The guard's rescue held
     a least-squares brake committed 300 periods earlier, which from there no longer stops the
