@@ -21,7 +21,7 @@ EPS = 0.05
 
 
 def test_levels_are_one_per_joint_finite_and_not_negative() -> None:
-    np.testing.assert_array_equal(coulomb_levels(0.5, 3), [0.5, 0.5, 0.5])
+    np.testing.assert_array_equal(coulomb_levels(np.array(0.5), 3), [0.5, 0.5, 0.5])
     with pytest.raises(ModelError, match="coulomb_friction"):
         coulomb_levels(np.array([1.0, -1.0]), 2)
 

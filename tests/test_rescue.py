@@ -99,15 +99,18 @@ def test_a_committed_brake_is_held_again_only_if_it_still_stops_the_arm_from_the
     def holds(_tau, _floor):
         return True
 
-    rescue = Rescue(setup.model, kept, box, np.full(len(kept.names), 1e-5), H, 1)
-    assert rescue.torque(*at(1.0), holds, 10) is not None
+    cushion = np.full(len(kept.names), 1e-5)
+    rescue = Rescue(setup.model, kept, box, cushion, H, 1)
+    state, bias, now = at(1.0)
+    assert rescue.torque(state, bias, now, holds, 10) is not None
     committed = rescue.committed
-    assert rescue.torque(*at(1.0), holds, 11) is not None  # still stops the arm: held
+    assert rescue.torque(state, bias, now, holds, 11) is not None  # still stops the arm: held
     assert rescue.committed == committed and rescue.searches == 1
     # 30 % faster no brake stops the arm inside S (a fresh search finds none)
-    assert Rescue(setup.model, kept, box, np.full(len(kept.names), 1e-5), H, 1).torque(
-        *at(1.3), holds, 12) is None
-    assert rescue.torque(*at(1.3), holds, 12) is None
+    state, bias, now = at(1.3)
+    assert Rescue(setup.model, kept, box, cushion, H, 1).torque(state, bias, now, holds,
+                                                                 12) is None
+    assert rescue.torque(state, bias, now, holds, 12) is None
 
 
 def test_the_guard_keeps_the_clearance_of_the_figure8_from_a_stoppable_state(figure8):
