@@ -76,20 +76,27 @@ def quantiles(times_ns: Sequence[int]) -> dict[str, float]:
 
 
 def guarded_tail(steps: int = 100_000, seconds: float = 0.5, seed: int = 0,
+                 scenario: str = "panda_cpbc_sphere", integrator: str | None = "Euler",
                  rate_limit: float | None = None,
-                 rescue_budget: int | None = None) -> dict[str, object]:
-    """The guarded CPBC of panda_cpbc_sphere timed over at least ``steps`` control steps of
+                 rescue_budget: int | None = None,
+                 test_budget: int | None = None) -> dict[str, object]:
+    """The guarded law of ``scenario`` (its first constrained one; ``integrator``: the
+    plant's, MuJoCo's default semi-implicit Euler unless given, None for the scenario's)
+    timed over at least ``steps`` control steps of
     ``seconds``-long runs from the campaign's seeded starts (``rate_limit``: a torque-rate
-    limit [N·m/s] for plant and guard, or the scenario's none)."""
+    limit [N·m/s] for plant and guard, or the scenario's none; ``rescue_budget`` and
+    ``test_budget``: the safeguard's bounds on a step, or the scenario's none)."""
     from cpbc.reliability.campaign import campaign_setup, sample_states
 
-    setup = campaign_setup("panda_cpbc_sphere")
+    setup = campaign_setup(scenario, integrator=integrator)
     if rate_limit is not None:
         limit = np.full(setup.model.n, float(rate_limit))
         bounds = replace(setup.loop_settings.bounds, rate=limit)
         setup = replace(setup, loop_settings=replace(setup.loop_settings, bounds=bounds))
-    if rescue_budget is not None and setup.safeguard is not None:
+    if setup.safeguard is not None and rescue_budget is not None:
         setup = replace(setup, safeguard=replace(setup.safeguard, rescue_budget=rescue_budget))
+    if setup.safeguard is not None and test_budget is not None:
+        setup = replace(setup, safeguard=replace(setup.safeguard, test_budget=test_budget))
     entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
     settings = replace(setup.loop_settings, duration=seconds)
     plant = setup.make_plant()
@@ -98,7 +105,7 @@ def guarded_tail(steps: int = 100_000, seconds: float = 0.5, seed: int = 0,
     times: list[int] = []
     cpu: list[int] = []
     acting: list[bool] = []
-    counts = {"runs": 0, "rescues": 0, "infeasible": 0}
+    counts = {"runs": 0, "rescues": 0, "infeasible": 0, "out_of_tests": 0}
     states = sample_states(setup, runs * 2, seed)  # some end early: draw spare starts
     for s in states:
         if len(times) >= steps:
@@ -117,6 +124,7 @@ def guarded_tail(steps: int = 100_000, seconds: float = 0.5, seed: int = 0,
         counts["runs"] += 1
         counts["rescues"] += guard.rescues
         counts["infeasible"] += guard.infeasible
+        counts["out_of_tests"] += guard.out_of_tests
     acted = [t for t, a in zip(times, acting, strict=True) if a]
     every = quantiles(times)
     return {**every, "steps": len(times), "acting_steps": len(acted),
@@ -124,5 +132,6 @@ def guarded_tail(steps: int = 100_000, seconds: float = 0.5, seed: int = 0,
             "acting_cpu": quantiles([t for t, a in zip(cpu, acting, strict=True) if a]),
             "max_over_p50": every["max"] / every["p50"],
             **counts, "rate_limit": rate_limit, "rescue_budget": rescue_budget,
-            "setup": f"panda_cpbc_sphere's guarded CPBC, {seconds:g} s runs from the "
+            "test_budget": test_budget,
+            "setup": f"{scenario}'s guarded law, {seconds:g} s runs from the "
                      f"campaign's starts (seed {seed}), 1 kHz, garbage collector off"}

@@ -578,3 +578,27 @@ def test_on_a_robot_the_rescue_is_bounded_unless_the_scenario_says(tmp_path: Pat
     guard = robot.controller(choose_controller(robot, None))
     assert isinstance(guard, Safeguard) and guard.brakes.rescue is not None
     assert guard.brakes.rescue.budget == budget
+
+
+@pytest.mark.parametrize("given, tests", [(None, robot_run.ROBOT_TEST_BUDGET), ("null", None),
+                                          (2, 2)])
+def test_on_a_robot_a_step_tests_a_bounded_number_of_torques_unless_the_scenario_says(
+        tmp_path: Path, given: Any, tests: int | None) -> None:
+    """cpbc.hardware bounds the torques one safeguard step tests unless the scenario sets
+    simulation.safeguard_test_budget itself, a number or null; the summary says which."""
+    data = yaml.safe_load(SCENARIO.read_text())
+    if given is not None:
+        data["simulation"]["safeguard_test_budget"] = None if given == "null" else given
+    path = tmp_path / "tests.yaml"
+    path.write_text(yaml.safe_dump(data))
+    setup = build(*load_scenario(path))
+    assert setup.safeguard is not None
+    assert setup.safeguard.test_budget == (2 if given == 2 else None)
+    robot = robot_run.on_robot(setup)
+    assert robot.safeguard is not None and robot.safeguard.test_budget == tests
+    guard = robot.controller(choose_controller(robot, None))
+    assert isinstance(guard, Safeguard) and guard.budget.tests == tests
+    run = run_on_robot(robot, choose_controller(robot, None), lockstep_for(robot),
+                       _settings(robot))
+    recorded = run.summary.extra["test_budget"]
+    assert recorded == tests if tests is not None else np.isnan(recorded)

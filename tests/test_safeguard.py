@@ -712,3 +712,23 @@ def test_lyapunov_runs_no_guard_and_moves_no_count(bpbc: BPBC) -> None:
     traj = run_mujoco(setup.make_plant(), law, setup.model.coordinates, case.position,
                       case.velocity, setup.loop_settings)
     assert traj.control_steps == 501 and law.calls == traj.control_steps
+
+
+def test_warm_takes_every_path_of_a_step_whatever_the_law_does() -> None:
+    """At the FR3's calm start (the law's torque passes) ``warm`` still takes the slide, the
+    brakes' search and the rescue's search, under a rate limit and a budget of one test a
+    step, and gives the budget back."""
+    from pathlib import Path
+    scenario = Path(__file__).resolve().parent / "scenarios" / "fr3_reach_ball.yaml"
+    setup = build(*load_scenario(scenario))
+    assert setup.safeguard is not None
+    setup = replace(setup, safeguard=replace(setup.safeguard, test_budget=1))
+    guard = setup.controller(setup.controllers[0])
+    assert isinstance(guard, Safeguard) and guard.brakes.rescue is not None
+    x, dx = setup.cases[0].position, setup.cases[0].velocity
+    guard.warm(x, dx + 0.3)
+    assert guard.brakes.rescue.searches == 1
+    assert guard.budget.tests == 1 and guard.box.holding is not None
+    fresh = setup.controller(setup.controllers[0])
+    fresh.torque(x, dx)
+    assert fresh.acted == 0  # the path warm forced is not the calm start's own

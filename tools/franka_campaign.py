@@ -225,21 +225,23 @@ def _git_commit() -> str:
         return "unknown"
 
 
-def _budgeted(session: list[tuple[str, dict]], budget: int | None
+def _budgeted(session: list[tuple[str, dict]], budgets: dict[str, int | None]
               ) -> list[tuple[str, dict]]:
-    """The session's scenarios with the safeguard's rescue budget (model periods per control
-    period, ``simulation.safeguard_rescue_budget``; 0: no bound), or as they are (a robot's
-    default, cpbc.hardware.robot_run.ROBOT_RESCUE_BUDGET)."""
-    if budget is None:
+    """The session's scenarios with the safeguard's budgets given in ``budgets``
+    (``{"rescue": B, "test": K}``: ``simulation.safeguard_rescue_budget`` in model periods
+    per control period, ``safeguard_test_budget`` in tests per step; 0: no bound), the
+    others as they are (a robot's defaults, cpbc.hardware.robot_run.ROBOT_*_BUDGET)."""
+    given = {f"safeguard_{kind}_budget": None if b == 0 else b
+             for kind, b in budgets.items() if b is not None}
+    if not given:
         return session
-    given = None if budget == 0 else budget
-    return [(kind, {**data, "simulation": {**data["simulation"],
-                                           "safeguard_rescue_budget": given}})
+    return [(kind, {**data, "simulation": {**data["simulation"], **given}})
             for kind, data in session]
 
 
 def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
-             command: str, rescue_budget: int | None = None) -> dict[str, Any]:
+             command: str, rescue_budget: int | None = None,
+             test_budget: int | None = None) -> dict[str, Any]:
     """Run the campaign; its JSON document."""
     runs: list[dict[str, Any]] = []
     compute: list[np.ndarray] = []
@@ -254,7 +256,8 @@ def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
         for session in sessions:
             if session[0][0] == "reach" and sum(r["kind"] == "reach" for r in runs) >= n_reaches:
                 continue
-            found = run_session(_budgeted(session, rescue_budget), Path(folder), deadline)
+            budgets = {"rescue": rescue_budget, "test": test_budget}
+            found = run_session(_budgeted(session, budgets), Path(folder), deadline)
             if found is None:
                 refused += 1
                 continue
@@ -265,7 +268,7 @@ def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
     return {
         "command": command, "date": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
         "commit": _git_commit(), "seed": seed, "deadline_ms": deadline * 1e3,
-        "rescue_budget": rescue_budget,
+        "rescue_budget": rescue_budget, "test_budget": test_budget,
         "machine": {"cpus": os.cpu_count(), "load_before": [round(v, 2) for v in load_before],
                     "load_after": [round(v, 2) for v in os.getloadavg()]},
         "wall_s": round(time.perf_counter() - begun, 1),
@@ -364,6 +367,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="the safeguard's rescue budget, model periods a cycle "
                         "(simulation.safeguard_rescue_budget; 0: no bound; default: "
                         "cpbc.hardware's on a robot, 8)")
+    p.add_argument("--test-budget", type=int, default=None,
+                   help="the candidate torques a safeguard step may test "
+                        "(simulation.safeguard_test_budget; 0: no bound; default: "
+                        "cpbc.hardware's on a robot, 6)")
     p.add_argument("--out", type=Path, default=OUT)
     p.add_argument("--render-only", action="store_true",
                    help="write the fragment from the stored JSON, run nothing")
@@ -374,7 +381,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         command = "python -m tools.franka_campaign " + " ".join(
             argv if argv is not None else sys.argv[1:])
         doc = campaign(args.reaches, args.paths, args.seed, args.deadline_ms * 1e-3,
-                       command.strip(), args.rescue_budget)
+                       command.strip(), args.rescue_budget, args.test_budget)
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / JSON_NAME).write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
     (args.out / TABLE_NAME).write_text(render(doc), encoding="utf-8")

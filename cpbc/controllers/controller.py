@@ -151,11 +151,14 @@ class SafetyFilter(Controller):
         infeasible: of those, steps at which it could not meet all its conditions.
         rescues: steps at which it held a rescue brake (the safeguard's rescue; 0 for a
             peer).
+        out_of_tests: steps that spent their budget of tests (the safeguard's
+            ``test_budget``; 0 for a peer).
     """
 
     acted: int = 0
     infeasible: int = 0
     rescues: int = 0
+    out_of_tests: int = 0
 
     @property
     def row_active_steps(self) -> int:

@@ -16,6 +16,7 @@ import pinocchio as pin
 
 from cpbc.arrays import Array
 from cpbc.controllers.controller import Controller, SafetyFilter
+from cpbc.controllers.safeguard import Safeguard
 from cpbc.errors import ConstraintViolation, InadmissibleStateError, ScenarioError
 from cpbc.hardware.backend import MeasuredState, RobotBackend, RobotLimits
 from cpbc.hardware.lockstep import LockstepBackend
@@ -43,17 +44,26 @@ WARM_CALLS = 64
 #: milliseconds while the robot holds the last command (docs/hardware.md's campaign: with it
 #: 0 crossings and 1 lost state, without it 2 crossings and 188 lost states).
 ROBOT_RESCUE_BUDGET = 8
+#: The candidate torques one safeguard step may test on a robot when the scenario sets none
+#: (cpbc.controllers.safeguard.step_budget): with the rescue's budget, a bound on the cycle.
+ROBOT_TEST_BUDGET = 6
 
 
 def on_robot(setup: ScenarioSetup) -> ScenarioSetup:
     """The set-up as a robot runs it: the safeguard's rescue bounded to ROBOT_RESCUE_BUDGET
-    model periods a cycle unless the scenario sets ``simulation.safeguard_rescue_budget``
-    itself (a number, or null for no bound). In simulation a rescue's time costs nothing
-    and the default is no bound (cpbc.controllers.rescue: a budget keeps fewer runs there)."""
-    chosen = "safeguard_rescue_budget" in setup.scenario.simulation.model_fields_set
-    if setup.safeguard is None or chosen:
+    model periods a cycle and its step to ROBOT_TEST_BUDGET tests, each unless the scenario
+    sets it itself (``simulation.safeguard_rescue_budget``, ``safeguard_test_budget``: a
+    number, or null for no bound). In simulation time costs nothing and the defaults are no
+    bound (cpbc.controllers.rescue: a rescue budget keeps fewer runs there)."""
+    if setup.safeguard is None:
         return setup
-    return replace(setup, safeguard=replace(setup.safeguard, rescue_budget=ROBOT_RESCUE_BUDGET))
+    given = setup.scenario.simulation.model_fields_set
+    guard = setup.safeguard
+    if "safeguard_rescue_budget" not in given:
+        guard = replace(guard, rescue_budget=ROBOT_RESCUE_BUDGET)
+    if "safeguard_test_budget" not in given:
+        guard = replace(guard, test_budget=ROBOT_TEST_BUDGET)
+    return replace(setup, safeguard=guard)
 
 
 def choose_controller(setup: ScenarioSetup, name: str | None) -> ControllerEntry:
@@ -125,9 +135,12 @@ def check_start(setup: ScenarioSetup, state: MeasuredState) -> str | None:
 
 def warm(setup: ScenarioSetup, entry: ControllerEntry, state: MeasuredState,
          backend: RobotBackend, calls: int = WARM_CALLS) -> None:
-    """Run every path a first cycle takes once before the motion, on a spare copy of the
+    """Run every path a cycle can take once before the motion, on a spare copy of the
     controller (the one that drives starts with fresh counts): its evaluation at the start
-    and at seeded velocities around it, and the robot's own torque."""
+    and at seeded velocities around it; each path of its safeguard's step — the slide, the
+    brakes, the search, the blend, the rescue, the fallback — at the start and moving
+    (Safeguard.warm), which the calm start never takes and whose first call costs
+    milliseconds; and the robot's own torque."""
     spare = setup.controller(entry)
     rng = np.random.default_rng(0)
     speeds = backend.limits().velocity
@@ -137,6 +150,13 @@ def warm(setup: ScenarioSetup, entry: ControllerEntry, state: MeasuredState,
             spare.evaluate(state.position, dq)
         except ConstraintViolation:
             continue
+    guard = spare.run if isinstance(spare, ReferenceTracker) else spare
+    if isinstance(guard, Safeguard):
+        for share in (0.0, 0.3):
+            try:
+                guard.warm(state.position, state.velocity + share * speeds)
+            except ConstraintViolation:
+                continue
     backend.added_torque(backend.read())
 
 
@@ -183,6 +203,7 @@ def _trajectory(motion: MotionLog, guard: Controller, period: float) -> Trajecto
         safeguard_infeasible=safe.infeasible if safe else 0,
         filter_row_steps=safe.row_active_steps if safe else 0,
         rescues=safe.rescues if safe else 0,
+        out_of_tests=safe.out_of_tests if safe else 0,
         peak_torque_rate=peak_rate,
     )
 
@@ -220,10 +241,13 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
     rules = check_rules(motion.commanded_torque, limits, margins, setup.monitor.names,
                         motion.position, motion.velocity)
     cause = None if motion.ending == "completed" else f"{motion.ending}: {motion.detail}"
-    budget = None if setup.safeguard is None else setup.safeguard.rescue_budget
+    kept = setup.safeguard
+    budget = None if kept is None else kept.rescue_budget
+    tests = None if kept is None else kept.test_budget
     extra = {**summary.extra, **_timing(motion), "steps_over_rate": float(rules.steps_over),
              "velocity_over_limit": float(rules.velocity_over),
-             "rescue_budget": math.nan if budget is None else float(budget)}
+             "rescue_budget": math.nan if budget is None else float(budget),
+             "test_budget": math.nan if tests is None else float(tests)}
     summary = replace(summary, extra=extra, cause=cause)
     errors = None
     if isinstance(guard, ReferenceTracker) and setup.goal is not None:

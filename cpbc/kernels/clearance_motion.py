@@ -142,3 +142,23 @@ def sphere_pair_rows(y: Array, jac: Array, dq: Array, sphere_index: Ints, sphere
         if o < 0:
             force_on_joints(centres, s2, n0, n1, n2, supports, jac, -1.0, grad[p])
         curv[p] = pair_curvature(u, outside, d, obstacles, pair_index, p, vel, acc)
+
+
+@kernel("void(float64[:], int64[:], int64[:])")
+def closest_pairs(phi: Array, starts: Ints, out: Ints) -> None:
+    """Each reported constraint's closest pair: the first smallest φ_p of its pairs, which
+    start at ``starts`` and run to the next start (numpy's argmin per group: a NaN is the
+    first NaN)."""
+    n_pair = phi.shape[0]
+    for g in range(starts.shape[0]):
+        lo = starts[g]
+        hi = starts[g + 1] if g + 1 < starts.shape[0] else n_pair
+        best = lo
+        for p in range(lo, hi):
+            v = phi[p]
+            if v != v:
+                best = p
+                break
+            if v < phi[best]:
+                best = p
+        out[g] = best

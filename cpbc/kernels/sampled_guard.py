@@ -116,6 +116,37 @@ def _times(a: Array, v: Array) -> Array:
     return out
 
 
+@kernel("void(float64[:, :], float64[:], float64, float64[:, :], float64[:, :], boolean,"
+        f" {READ_ONLY}, float64, float64[:, :])")
+def ramp_speeds(speeds: Array, start: Array, h: float, inertia: Array, to_joint: Array,
+                mapped: bool, rate: Array, share: float, out: Array) -> None:
+    """Where the rates peak while a held torque ramps back under a torque-rate limit
+    (cpbc.controllers.safeguard.predicted_margins.RampTest), one row per prediction: the
+    period's acceleration a = (ẋ₁ − ẋ₀)/h, its torque D a (Tᵀ D a in joints when
+    ``mapped``), the ramp time T = max_j |(D a)_j| / ρ_j, and ẋ₁ + s T a into ``out``."""
+    n = start.shape[0]
+    acc = np.empty(n)
+    push = np.empty(n)
+    for r in range(speeds.shape[0]):
+        for i in range(n):
+            acc[i] = (speeds[r, i] - start[i]) / h
+        for i in range(n):
+            t = 0.0
+            for j in range(n):
+                t += inertia[i, j] * acc[j]
+            push[i] = t
+        lead = 0.0
+        for i in range(n):
+            t = push[i]
+            if mapped:
+                t = 0.0
+                for j in range(n):
+                    t += to_joint[i, j] * push[j]
+            lead = max(lead, abs(t) / rate[i])
+        for i in range(n):
+            out[r, i] = speeds[r, i] + (share * lead) * acc[i]
+
+
 # --- the braking margins' stopping points (cpbc.constraints.stopping.Braking) ---------------
 
 

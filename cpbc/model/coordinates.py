@@ -35,6 +35,8 @@ class LinearCoordinates:
     matrix: Array
     name: str = "custom"
     inverse: Array = field(init=False, repr=False)
+    # T = I: joint coordinates (read on every guarded step; settled once, here)
+    is_identity: bool = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         t = np.asarray(self.matrix, dtype=float)
@@ -44,6 +46,7 @@ class LinearCoordinates:
             raise ModelError("coordinate matrix T must be invertible (condition number ≤ 1e12)")
         object.__setattr__(self, "matrix", _frozen(t))
         object.__setattr__(self, "inverse", _frozen(np.linalg.inv(t)))
+        object.__setattr__(self, "is_identity", bool(np.array_equal(t, np.eye(t.shape[0]))))
 
     @classmethod
     def identity(cls, n: int) -> LinearCoordinates:
@@ -53,10 +56,6 @@ class LinearCoordinates:
     def absolute_link_angles(cls, n: int) -> LinearCoordinates:
         """θ_k = q_1 + … + q_k: absolute angle of link k for a planar serial chain."""
         return cls(np.tril(np.ones((n, n))), name="absolute")
-
-    @property
-    def is_identity(self) -> bool:
-        return bool(np.array_equal(self.matrix, np.eye(self.matrix.shape[0])))
 
     def from_joint(self, q: Array) -> Array:
         """x = T q (also for velocities)."""

@@ -119,6 +119,8 @@ class RunSummary:
     safeguard_infeasible: int = 0
     # control steps at which the safeguard held its rescue's brake (cpbc.controllers.rescue)
     rescues: int = 0
+    # control steps that spent the safeguard's budget of tests (its test_budget)
+    out_of_tests: int = 0
     rejected_samples: int = 0
     # why a failed run likely failed, when something before the run foresaw it (gravity
     # beyond a motor on the way to the target: cpbc.scenario.preflight); None otherwise
@@ -316,6 +318,7 @@ def summarise(
         safeguard_steps=traj.safeguard_steps,
         safeguard_infeasible=traj.safeguard_infeasible,
         rescues=getattr(traj, "rescues", 0),
+        out_of_tests=getattr(traj, "out_of_tests", 0),
         rejected_samples=traj.rejected_samples,
         margin_units={n: BY_KEY[t].unit for n, t in types.items()},
         peak_torque_rate=None if traj.peak_torque_rate is None else [

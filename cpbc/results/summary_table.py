@@ -287,5 +287,6 @@ def safeguard_cell(s: RunSummary) -> str:
         return "-" if s.enforced_constraints else ""
     late = f", {s.safeguard_infeasible} infeasible" if s.safeguard_infeasible else ""
     late += f", {s.rescues} rescued" if s.rescues else ""
+    late += f", {s.out_of_tests} out of tests" if s.out_of_tests else ""
     share = f"{s.safeguard_share:.1%}" if s.safeguard_share >= 0.001 else "<0.1%"
     return f"{share} ({s.safeguard_steps} steps{late})"

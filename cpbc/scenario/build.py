@@ -176,6 +176,7 @@ def build(scenario: s.Scenario, scenario_file: Path, kinds: Kinds = KINDS) -> Sc
         safeguard=SafeguardSettings(velocity_cushion=sim.safeguard_velocity_cushion,
                                     hold_correction=sim.safeguard_hold_correction,
                                     rescue_budget=sim.safeguard_rescue_budget,
+                                    test_budget=sim.safeguard_test_budget,
                                     plant_step=sim.timestep if sim.integrator in ONE_STAGE
                                     else None)
         if sim.safeguard else None,

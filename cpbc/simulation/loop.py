@@ -364,6 +364,7 @@ def run_mujoco(
         safeguard_infeasible=guard.infeasible if guard else 0,
         filter_row_steps=guard.row_active_steps if guard else 0,
         rescues=guard.rescues if guard else 0,
+        out_of_tests=guard.out_of_tests if guard else 0,
         rejected_samples=arm.sample.rejected,
         guarded_steps=arm.guarded_steps[: k + 1] if guard else None,
         rate_limited_steps=arm.rate_limited,

@@ -38,6 +38,7 @@ class Trajectory:
             conditions, not the torque box alone, changed the torque (a peer's barrier rows;
             the guard's every step).
         rescues: control steps at which the safeguard held its rescue's brake.
+        out_of_tests: control steps that spent the safeguard's budget of tests.
         rejected_samples: noisy measurements outside S (true state inside) that the law
             refused; the law at a rate scaled into S, or a brake, was held instead.
         guarded_steps: per control step, whether the safeguard replaced the law's torque
@@ -72,6 +73,7 @@ class Trajectory:
     guarded_steps: Array | None = None
     filter_row_steps: int = 0
     rescues: int = 0
+    out_of_tests: int = 0
     rate_limited_steps: int = 0
     peak_torque_rate: Array | None = None
     controller_time_max: float | None = None

@@ -92,6 +92,7 @@ def sampled_data_campaign(
                         "end_time": traj.end_time, "constraint": check.constraint,
                         "min_margin": check.min_margin, "acted": traj.safeguard_steps,
                         "infeasible": traj.safeguard_infeasible,
+                        "out_of_tests": traj.out_of_tests,
                         "control_steps": traj.control_steps,
                         # touched something the law does not know of (a contact or a joint
                         # stop) before any violation

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from functools import partial
-from itertools import pairwise
 
 import numpy as np
 import pinocchio as pin
@@ -26,6 +25,7 @@ from cpbc.constraints.margins import CLEARANCE
 from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError, ParameterError
 from cpbc.kernels.clearance import localised_terms, pack_sphere_pairs
+from cpbc.kernels.clearance_motion import closest_pairs
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -247,12 +247,13 @@ class Clearance(PairLayout, ConfigurationConstraint):
             grad[g.start:g.stop] = g.gradient(*g.narrow(y), jacobian_rows)
         return (grad if self._identity else grad @ self._t_inv), curv
 
-    def _closest(self, phi: Array) -> list[int]:
+    def _closest(self, phi: Array) -> NDArray[np.int64]:
         """Each sphere constraint's closest pair, from every pair's clearance ``phi``."""
         s = self._spheres
         assert s is not None
-        bounds = [*s.starts.tolist(), len(phi)]
-        return [lo + int(np.argmin(phi[lo:hi])) for lo, hi in pairwise(bounds)]
+        out = np.empty(len(s.starts), dtype=np.int64)
+        closest_pairs(phi, s.starts, out)
+        return out
 
     # -- second order (cpbc.kernels.clearance, eqs. 1 and 2) -------------------------------
     @property

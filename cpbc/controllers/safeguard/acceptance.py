@@ -15,6 +15,7 @@ from cpbc.controllers.hold import hold_corrected
 from cpbc.controllers.safeguard.predicted_margins import BrakingTest, PredictedMargins, RampTest
 from cpbc.controllers.safeguard.prediction import Predictor
 from cpbc.controllers.safeguard.step_box import StepBox
+from cpbc.controllers.safeguard.step_budget import StepBudget
 from cpbc.model.robot_model import ArmState, RobotModel
 
 Slack = Callable[[Array], float]  # F(τ): ≥ 0 when τ passes
@@ -32,6 +33,8 @@ class Acceptance:
         period: h [s].
         hold_share: s of the hold correction (0: none).
         backoffs: Illinois steps of the blend.
+        budget: the tests a step may make (every F that :meth:`check` returns counts), or
+            None for no bound.
 
     Attributes:
         ramp: this step's velocity lookahead under a torque-rate limit (set by the guard).
@@ -42,10 +45,11 @@ class Acceptance:
 
     def __init__(self, model: RobotModel, along: PredictedMargins, box: StepBox,
                  braking: Braking | None, sigma_floor: Array, period: float,
-                 hold_share: float, backoffs: int) -> None:
+                 hold_share: float, backoffs: int, budget: StepBudget | None = None) -> None:
         self.model, self.along, self.box, self.braking = model, along, box, braking
         self.sigma_floor, self.period, self.hold_share = sigma_floor, period, hold_share
         self.backoffs = backoffs
+        self.budget = budget or StepBudget(None)
         self.ramp: RampTest | None = None
         self.scaled = 0
         self.uncorrected = 0
@@ -68,14 +72,14 @@ class Acceptance:
             def f(t: Array) -> float:
                 return along.slack(predict(t), end_floor, mid_floor, stop, past)
 
-            return f
+            return self.budget.counted(f)
 
         def ramped(t: Array) -> float:
             rows = predict(t)
             return min(along.slack(rows, end_floor, mid_floor, stop, past),
                        along.ramp_slack(rows, ramp))
 
-        return ramped
+        return self.budget.counted(ramped)
 
     def braking_floor(self, state: ArmState, bias: Array,
                        held: Array | None = None) -> BrakingTest | None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -16,7 +17,7 @@ from cpbc.constraints.stopping import Braking
 from cpbc.controllers.controller import Controller, Evaluation, SafetyFilter
 from cpbc.controllers.hold import hold_share
 from cpbc.controllers.rescue import Rescue
-from cpbc.controllers.safeguard.acceptance import Acceptance
+from cpbc.controllers.safeguard.acceptance import Acceptance, Slack
 from cpbc.controllers.safeguard.braking import Brakes
 from cpbc.controllers.safeguard.model_error import (
     DeclaredError,
@@ -26,13 +27,32 @@ from cpbc.controllers.safeguard.model_error import (
     measurement_losses,
     reachable_accelerations,
 )
-from cpbc.controllers.safeguard.predicted_margins import PredictedMargins, RampTest
+from cpbc.controllers.safeguard.predicted_margins import (
+    BrakingTest,
+    PredictedMargins,
+    RampTest,
+)
 from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_share
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.controllers.safeguard.step_box import StepBox
+from cpbc.controllers.safeguard.step_budget import OutOfTests, StepBudget
 from cpbc.kernels.sampled_guard import floors
 from cpbc.model.input_bounds import InputBounds
 from cpbc.model.robot_model import ArmState
+
+
+class StepTests(NamedTuple):
+    """What one step tests its candidate torques with (Safeguard._tests)."""
+
+    state: ArmState
+    bias: Array  # C ẋ + g (+ f)
+    predict: Predictor
+    now: Array  # every guarded margin at the sample
+    floor: Array  # (S1)'s floors at the period's end
+    floor_mid: Array | None  # and at mid-period (configuration margins), None without any
+    stop: BrakingTest | None  # (S2)
+    past: np.ndarray | None  # the margins broken already (only the extra constraints')
+    slack: Slack  # F(τ) ≥ 0 when τ passes
 
 
 def guarded(
@@ -89,10 +109,10 @@ class Safeguard(SafetyFilter):
             measurement errors, whose reach is added to the floors too
             (model_error.measurement_losses); or None.
 
-    The guard is three parts and the step that joins them (:meth:`_guard`): ``box``, the
+    The guard is four parts and the step that joins them (:meth:`_guard`): ``box``, the
     input bounds at this step (:class:`StepBox`); ``acceptance``, the test (S1), (S2) and
     the blend (:class:`Acceptance`); ``brakes``, the replacement torques and the rescue
-    (:class:`Brakes`).
+    (:class:`Brakes`); ``budget``, how many torques a step may test (:class:`StepBudget`).
 
     Attributes:
         calls: control instants seen.
@@ -104,6 +124,7 @@ class Safeguard(SafetyFilter):
             own torque kept it: the guard held a blend of the two, with as much of the
             correction as (S1) allows (not counted as acting: the torque is the law's).
         rescues: instants at which a rescue brake was held.
+        out_of_tests: instants that spent the budget of tests (``test_budget``).
     """
 
     type_name = "safeguard"
@@ -161,9 +182,11 @@ class Safeguard(SafetyFilter):
         # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)
         braking = None if torque_limit is None or not nc else Braking.of(
             law.model, torque_limit, rate=self.rate_limit, disturbance=self.model_error)
+        self.budget = StepBudget(settings.test_budget)
         self.acceptance = Acceptance(
             law.model, PredictedMargins(self.guarded, law.model), self.box, braking,
-            np.maximum(self.cushion[:nc], 1e-300), self.period, hold, settings.backoffs)
+            np.maximum(self.cushion[:nc], 1e-300), self.period, hold, settings.backoffs,
+            self.budget)
         # where no torque of its own will do: brakes better than the uniform one (rescue.py)
         torque_box = self.box.torque_box
         rescue = None if braking is None or torque_box is None else Rescue(
@@ -184,6 +207,11 @@ class Safeguard(SafetyFilter):
     def uncorrected(self) -> int:
         """Steps at which the law's own torque kept (S1) where its hold-corrected one failed."""
         return self.acceptance.uncorrected
+
+    @property
+    def out_of_tests(self) -> int:  # type: ignore[override]
+        """Steps that spent their budget of tests (step_budget.py)."""
+        return self.budget.spent
 
     @property
     def rescues(self) -> int:  # type: ignore[override]
@@ -226,12 +254,16 @@ class Safeguard(SafetyFilter):
         """The guard's step inside the box one step can reach from the held torque: every
         candidate is tested as clipped there (the predictor saturates into the step's box)
         and the torque returned lies in it."""
+        self._begin(state)
+        return self.box.end(self._guard(state, law, law_margins))
+
+    def _begin(self, state: ArmState) -> None:
+        """The step's box and velocity lookahead under a torque-rate limit."""
         assert self.rate_limit is not None
         self.box.begin(state)
         self.acceptance.ramp = RampTest(state.dx, self.period, state.inertia,
                                         self.box.to_joint, self.rate_limit,
                                         self._velocity_floor)
-        return self.box.end(self._guard(state, law, law_margins))
 
     def lyapunov(self, x: Array, dx: Array) -> float:
         """The law's V, which the guard leaves as it is: the law alone is asked, no guard runs
@@ -243,6 +275,41 @@ class Safeguard(SafetyFilter):
 
     def _guard(self, state: ArmState, tau: Array, law_margins: Array) -> Array:
         """τ if it satisfies (S1), else the smallest blend toward braking that does."""
+        step = self._tests(state, tau, law_margins)
+        self.budget.begin()
+        acted = self.acted
+        try:
+            return self._choose(step, tau)
+        except OutOfTests:  # the step's budget of tests is spent (step_budget.py)
+            self.budget.spent += 1
+            self.acted = acted + 1  # the law's torque, as held, did not pass
+            if self.budget.passed is not None:
+                return self.budget.passed
+            return self._out_of_tests(step)
+
+    def _out_of_tests(self, step: StepTests) -> Array:
+        """A step whose budget of tests is spent before any torque passed (step_budget.py):
+        the first of the rescue's brakes that passes one test over the period (a bounded
+        set), else — where the rescue has no budget, so that its search may run until rest —
+        the rescue's search, else the uniform brake. A rescue with a budget is not asked
+        here: on the FR3 rate campaign as a robot runs it (6 tests, 8 periods a cycle) its
+        brakes, committed before their check had seen the arm to rest, let 5 of 180
+        stoppable runs cross where the uniform brake let 2."""
+        state, bias, brakes = step.state, step.bias, self.brakes
+        with self.budget.lifted():
+            check = self.acceptance.check(step.predict, step.floor, step.floor_mid, step.stop,
+                                          step.past)
+            held = brakes.first_passing(state, bias, check)
+            if held is None and brakes.rescue is not None and brakes.rescue.budget is None:
+                held = brakes.rescued(state, bias, step.predict, step.now, self.calls)
+        if held is not None:
+            return held
+        return brakes.brake(bias, state.inertia.dot(state.dx) / self.period,
+                            self.settings.braking)
+
+    def _tests(self, state: ArmState, tau: Array, law_margins: Array) -> StepTests:
+        """What this step tests a torque with: the prediction, the margins now, the floors
+        of (S1) raised by the declared errors, (S2)'s floors, and F."""
         bias = state.coriolis_force + state.gravity
         if self.model.has_friction:
             bias = bias + state.dissipation
@@ -266,39 +333,74 @@ class Safeguard(SafetyFilter):
                 past = now <= 0.0
                 floor = np.where(past, now, floor)
                 floor_mid = np.where(past[:nc], now[:nc], floor_mid)
+        stop = self.acceptance.braking_floor(state, bias, self.box.holding)
+        slack = self.acceptance.check(predict, floor, floor_mid, stop, past)  # (S1)
+        return StepTests(state, bias, predict, now, floor, floor_mid, stop, past, slack)
+
+    def _choose(self, step: StepTests, tau: Array) -> Array:
+        """The chain of candidates (the package docstring, steps 3 and 4): the law's torque
+        as held, the slide, the brakes and their search, the rescue, the fallback."""
         accept, brakes = self.acceptance, self.brakes
-        stop = accept.braking_floor(state, bias, self.box.holding)
-        slack = accept.check(predict, floor, floor_mid, stop, past)  # (S1)
+        state, bias, slack = step.state, step.bias, step.slack
         tau, f0 = accept.held(state, bias, tau, slack)
         if f0 >= 0.0:
             return tau
         self.acted += 1
-        if floor_mid is not None:  # first the law less its push into the boundaries
-            slid = brakes.slide(state, bias, tau, now, floor, floor_mid, stop)
+        if step.floor_mid is not None:  # first the law less its push into the boundaries
+            slid = brakes.slide(state, bias, tau, step.now, step.floor, step.floor_mid,
+                                step.stop)
             f_slid = slack(slid)
             if f_slid >= 0.0:
                 return accept.blend(tau, slid, f0, f_slid, slack)
-        stop = state.inertia.dot(state.dx) / self.period
-        brake = brakes.brake(bias, stop, self.settings.braking)
+        to_rest = state.inertia.dot(state.dx) / self.period
+        brake = brakes.brake(bias, to_rest, self.settings.braking)
         f1 = slack(brake)
         if f1 < 0.0:
             # Reverse instead of stop: x⁺ = x, ẋ⁺ = −ẋ, the least excursion at this speed.
-            reverse = brakes.brake(bias, stop, 2.0)
+            reverse = brakes.brake(bias, to_rest, 2.0)
             f_rev = slack(reverse)
             if f_rev < 0.0:
                 # Stopping goes too far and reversing at full speed breaks a velocity
                 # margin: search the deceleration λ in between.
-                lam, f_lam = brakes.search_braking(bias, stop, slack, f1, f_rev)
+                lam, f_lam = brakes.search_braking(bias, to_rest, slack, f1, f_rev)
                 if f_lam < 0.0:
                     self.infeasible += 1
-                    rescued = brakes.rescued(state, bias, predict, now, self.calls)
+                    rescued = brakes.rescued(state, bias, step.predict, step.now, self.calls)
                     if rescued is not None:
                         return rescued
-                    return brakes.infeasible(state, bias, stop, predict, now, floor,
-                                             floor_mid)
-                reverse, f_rev = brakes.brake(bias, stop, lam), f_lam
+                    return brakes.infeasible(state, bias, to_rest, step.predict, step.now,
+                                             step.floor, step.floor_mid)
+                reverse, f_rev = brakes.brake(bias, to_rest, lam), f_lam
             brake, f1 = reverse, f_rev
         return accept.blend(tau, brake, f0, f1, slack)
+
+    def warm(self, x: Array, dx: Array) -> None:
+        """Take every path of a step once at (x, ẋ), whatever the law's torque does there:
+        the test, the slide, the brakes, the search of λ, the blend, the rescue's search and
+        the fallback — as a real-time loop must before its first cycle, where the first call
+        of a compiled kernel or a path costs milliseconds. The counts and the rescue's
+        commitment move: warm a spare guard, not the one that drives."""
+        state = self.law.state(x, dx)
+        out = self.law.evaluate_state(state, margins=True)
+        assert out.margins is not None  # asked for
+        if self.box.rate_limited:
+            self._begin(state)
+        with self.budget.lifted():  # every path, not the first K tests
+            step = self._tests(state, out.torque, out.margins)
+            accept, brakes, slack = self.acceptance, self.brakes, step.slack
+            tau, _ = accept.held(state, step.bias, out.torque, slack)
+            to_rest = state.inertia.dot(state.dx) / self.period
+            brake = brakes.brake(step.bias, to_rest, self.settings.braking)
+            if step.floor_mid is not None:
+                brakes.slide(state, step.bias, tau, step.now, step.floor, step.floor_mid,
+                             step.stop)
+            accept.blend(tau, brake, -1.0, 1.0, slack)
+            brakes.search_braking(step.bias, to_rest, slack, -1.0, -1.0)
+            brakes.rescued(state, step.bias, step.predict, step.now, self.calls)
+            brakes.infeasible(state, step.bias, to_rest, step.predict, step.now, step.floor,
+                              step.floor_mid)
+        if self.box.rate_limited:
+            self.box.end(tau)
 
     def _raise_floors(self, state: ArmState, bias: Array, tau: Array, floor: Array,
                       mid: Array) -> None:

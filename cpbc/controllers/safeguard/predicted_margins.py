@@ -23,7 +23,12 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.packing import Packed, PackedSet
 from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES
-from cpbc.kernels.sampled_guard import configuration_rows, margins_along, predicted_slack
+from cpbc.kernels.sampled_guard import (
+    configuration_rows,
+    margins_along,
+    predicted_slack,
+    ramp_speeds,
+)
 from cpbc.model.robot_model import RobotModel
 
 C = TypeVar("C", ConfigurationConstraint, VelocityConstraint)
@@ -157,12 +162,12 @@ class PredictedMargins:
         """min_j m_j/δ_j − 1 of the velocity margins where the rates peak while the torque
         ramps back from the period's acceleration (:class:`RampTest`)."""
         _, ends, speeds, _, _ = predicted
-        acc = (speeds - ramp.start) / ramp.period  # one row per prediction
-        push = acc @ ramp.inertia.T
-        if ramp.to_joint is not None:
-            push = push @ ramp.to_joint.T
-        lead = np.max(np.abs(push) / ramp.rate, axis=1)
-        m = self.velocity_margins(ends, speeds + (RAMP_SHARE * lead)[:, None] * acc)
+        peaks = np.empty_like(speeds)
+        to_joint = ramp.to_joint
+        ramp_speeds(speeds, ramp.start, ramp.period, ramp.inertia,
+                    ramp.inertia if to_joint is None else to_joint, to_joint is not None,
+                    ramp.rate, RAMP_SHARE, peaks)
+        m = self.velocity_margins(ends, peaks)
         m = np.where(np.isnan(m), -np.inf, m)
         return float(np.min(m / ramp.floor)) - 1.0
 

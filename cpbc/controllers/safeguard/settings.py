@@ -68,6 +68,11 @@ class SafeguardSettings:
             control period (cpbc.controllers.rescue.Rescue's ``budget``), None for no bound:
             a bound on the guard's worst step, at the price of committing to a brake whose
             check is still going on (B model periods ahead of the arm per period held).
+        test_budget: K, the most candidate torques one step tests (each a prediction of the
+            period and every margin along it), None for no bound: with ``rescue_budget``, a
+            bound on the step's time (at most K + 2 tests). Past it the step holds the last
+            torque that passed, else the first of the rescue's own two brakes that passes one
+            test, else the uniform brake (:mod:`cpbc.controllers.safeguard.step_budget`).
     """
 
     decay_rate: float = 50.0
@@ -82,6 +87,7 @@ class SafeguardSettings:
     hold_correction: bool = True
     plant_step: float | None = None
     rescue_budget: int | None = RESCUE_BUDGET
+    test_budget: int | None = None
 
     def __post_init__(self) -> None:
         for name in ("decay_rate", "braking"):
@@ -101,6 +107,8 @@ class SafeguardSettings:
             raise CpbcError(f"safeguard brake_search must be ≥ 0, got {self.brake_search}")
         if self.rescue_budget is not None and self.rescue_budget < 1:
             raise CpbcError(f"safeguard rescue_budget must be ≥ 1, got {self.rescue_budget}")
+        if self.test_budget is not None and self.test_budget < 1:
+            raise CpbcError(f"safeguard test_budget must be ≥ 1, got {self.test_budget}")
         if not (math.isfinite(self.max_step) and self.max_step > 0):
             raise CpbcError(f"safeguard max_step must be > 0, got {self.max_step}")
 

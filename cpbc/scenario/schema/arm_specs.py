@@ -280,6 +280,14 @@ class SimulationSpec(Strict):
             "control period (a bound on the worst step; a check goes on in the next periods "
             "while its brake is held, which keeps fewer runs); null for no bound, the default "
             "in simulation (python -m cpbc.hardware bounds it to 8 on a robot unless given)"))
+    # how many candidate torques one safeguard step may test (step_budget.py): with the
+    # rescue's budget, a bound on the step's time; null (the default): no bound
+    safeguard_test_budget: Annotated[int, Field(strict=True, ge=1)] | None = Field(
+        default=None, description=(
+            "candidate torques one safeguard step may test, each a prediction of the period "
+            "(a bound on the step's time: past it the step holds the last torque that passed, "
+            "else the uniform brake); null for no bound, the default in simulation "
+            "(python -m cpbc.hardware bounds it on a robot unless given)"))
     noise: NoiseSpec | None = Field(
         default=None, description=(
             "Gaussian noise on the state the controller sees (MuJoCo backend)"))

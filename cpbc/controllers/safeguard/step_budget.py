@@ -1,0 +1,86 @@
+"""How many torques one guarded step may test: the bound that makes the step's time bounded.
+
+Every test of a candidate torque — the law's, the slide's, each blend, each brake and λ of the
+search, the fallback's, the rescue's one-period check — is one prediction of the period and one
+evaluation of every guarded margin along it (acceptance.Acceptance.check): 15–40 µs on a
+7-joint arm in Python, the unit the guard's time is made of. A step that acts tests 9 of them
+at the median on the Panda and up to 19 (the infeasible path, before the rescue's rollouts,
+which ``rescue_budget`` bounds). With a budget of K tests a step, the K + 1st raises
+:class:`OutOfTests` and the guard holds the last torque that passed the test being run (the
+blend's β found so far, the search's λ). Where none passed yet it tests, once each, the
+rescue's own brakes (cpbc.constraints.brakes: the least-squares and the aimed one; the uniform
+one is the chain's first brake) over the period — a bounded set of candidates — and holds the
+first that passes; where none does, the rescue's search if it has no budget of its own (it then
+runs until the arm rests in the model; with one, a step tests at most K + 2 torques), else the
+uniform brake within the step's box, untested: the brake whose braking set (S2) keeps the arm
+in, which from a state the guard kept in V stops the arm before every configuration boundary,
+in the model (cpbc.constraints.stopping). A rescue with a budget is not asked: committing to a
+brake before its check has seen the arm to rest kept fewer runs than the uniform brake did
+(Safeguard._out_of_tests). What a budget gives up: a blend nearer the brake than the smallest
+β, the search of λ cut short, and, under a bounded rescue, the rescue itself.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+from cpbc.arrays import Array
+
+
+class OutOfTests(Exception):  # a signal of the budget, not an error
+    """The step has tested as many torques as its budget allows."""
+
+
+class StepBudget:
+    """The tests one step may make, and the last torque that passed one.
+
+    Args:
+        tests: K ≥ 1, the most candidate torques one step tests, or None for no bound.
+
+    Attributes:
+        used: tests made at this step.
+        passed: the last torque that passed its test at this step, or None.
+        spent: steps that ran out of tests.
+    """
+
+    def __init__(self, tests: int | None) -> None:
+        if tests is not None and tests < 1:
+            raise ValueError(f"tests: a step tests at least the law's torque (≥ 1), got {tests}")
+        self.tests = tests
+        self.used = 0
+        self.passed: Array | None = None
+        self.spent = 0
+
+    def begin(self) -> None:
+        """A new step: no test made yet."""
+        self.used, self.passed = 0, None
+
+    @contextmanager
+    def lifted(self) -> Iterator[None]:
+        """No bound inside the block (for F made there): the rescue's own check, which its
+        own budget bounds, and the warm-up of every path."""
+        tests, self.tests = self.tests, None
+        try:
+            yield
+        finally:
+            self.tests = tests
+
+    def counted(self, slack: Callable[[Array], float]) -> Callable[[Array], float]:
+        """``slack`` that counts its calls against the budget and remembers the last torque
+        that passed (F ≥ 0); raises :class:`OutOfTests` past the budget. Without a bound,
+        ``slack`` itself."""
+        limit = self.tests
+        if limit is None:
+            return slack
+
+        def counted(t: Array) -> float:
+            if self.used >= limit:
+                raise OutOfTests
+            self.used += 1
+            f = slack(t)
+            if f >= 0.0:
+                self.passed = t
+            return f
+
+        return counted
