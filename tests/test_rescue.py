@@ -3,6 +3,7 @@ bound (panda_figure8_ke): the table's clearance only the guard keeps, MuJoCo imp
 physics step per 1 ms control period."""
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -77,6 +78,39 @@ def test_a_committed_brake_is_held_only_in_the_next_period(figure8):
     assert rescue.searches == 1
     rescue.torque(state, bias, now, holds, 40)  # after periods of the guard's own torque
     assert rescue.searches == 2
+
+
+def test_a_committed_brake_is_held_again_only_if_it_still_stops_the_arm_from_the_state_now(
+        figure8):
+    """Without a budget the committed brake is checked again from the state measured in the
+    next period: held when the model still stops the arm from there (no new search), refused
+    when it no longer does, though its one-period prediction passes (``holds``) — the plant
+    has left the rollout that committed it (the UR5 rate campaign's seed 49 held one for 40
+    periods while its friction took the wrist through the floor's clearance)."""
+    setup, _, kept = figure8
+    s = draw_state(setup, 19)
+    box = TorqueBox.of(setup.model, setup.loop_settings.bounds.torque)
+
+    def at(scale):
+        state = setup.model.state(s.position, scale * s.velocity)
+        bias = state.coriolis_force + state.gravity + state.dissipation
+        return state, bias, kept.margins(state.x, state.dx)
+
+    def holds(_tau, _floor):
+        return True
+
+    cushion = np.full(len(kept.names), 1e-5)
+    rescue = Rescue(setup.model, kept, box, cushion, H, 1)
+    state, bias, now = at(1.0)
+    assert rescue.torque(state, bias, now, holds, 10) is not None
+    committed = rescue.committed
+    assert rescue.torque(state, bias, now, holds, 11) is not None  # still stops the arm: held
+    assert rescue.committed == committed and rescue.searches == 1
+    # 30 % faster no brake stops the arm inside S (a fresh search finds none)
+    state, bias, now = at(1.3)
+    assert Rescue(setup.model, kept, box, cushion, H, 1).torque(state, bias, now, holds,
+                                                                 12) is None
+    assert rescue.torque(state, bias, now, holds, 12) is None
 
 
 def test_the_guard_keeps_the_clearance_of_the_figure8_from_a_stoppable_state(figure8):
@@ -174,3 +208,29 @@ def test_a_budget_below_one_period_is_refused(figure8):
         _rescue_at(figure8, 19, budget=0)
     with pytest.raises(CpbcError, match="rescue_budget"):
         SafeguardSettings(rescue_budget=0)
+
+
+UR5_RATE = "tools/campaigns/ur5_bpbc_rate.yaml"
+
+
+@pytest.mark.parametrize("rate", [1000.0, 500.0])
+def test_the_ur5s_wrist_keeps_the_floor_from_seed_49_of_the_rate_campaign(rate):
+    """The UR5 with friction and a 1000 N·m/s rate limit from seed 49, which a brake stops in
+    the plant: the rescue held a brake whose first rollout stopped above the floor for 40
+    periods while the plant's friction took the wrist through the floor's clearance (by 0.15
+    mm at 1 kHz, 0.03 mm at 500 Hz); checked again from each measured state, it is left in
+    time and every margin stays positive."""
+    path = Path(__file__).resolve().parents[1] / UR5_RATE
+    setup = build(*load_scenario(str(path)))
+    entry = next(e for e in setup.controllers if e.name == "BPBC")
+    period = 1.0 / rate
+    kept = kept_constraints(setup, entry, period, setup.safeguard)
+    s = draw_state(setup, 49)
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    assert stopping_brake(setup, kept, s.position, s.velocity, period, plant) is not None
+    settings = replace(setup.loop_settings, duration=0.5, log_every=1,
+                       bounds=replace(setup.loop_settings.bounds, period=period))
+    check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
+                        safeguard=setup.safeguard)
+    assert not check.violated, (check.constraint, check.min_margin)
+    assert check.trajectory.rescues > 0

@@ -1,6 +1,10 @@
-"""The joints' Coulomb friction levels F_c of the controller's model, checked once."""
+"""The joints' Coulomb friction: the levels F_c of the controller's model, checked once, and
+how a plant's dry friction takes its sign (:class:`DryFriction`; the derivation is
+cpbc.controllers.safeguard.model_error's docstring)."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -18,3 +22,41 @@ def coulomb_levels(levels: Array | None, n: int) -> Array:
                          f"got {levels}", "coulomb_friction")
     fc.setflags(write=False)
     return fc
+
+
+# MuJoCo's default for a joint's frictionloss (solref 0.02, 1; solimp 0.9, 0.95): 1/b of
+# cpbc.controllers.safeguard.model_error's docstring [s]
+MUJOCO_BUILD_UP = 0.95 * 0.02 / 2.0
+# v_c = R_j F_j / b of the campaign's plants (R_j = (1 − d₀)/d₀ dof_invweight0): at most
+# 0.033 rad/s on the UR5, 0.060 on the Panda, 0.145 on the FR3's last joint [rad/s]
+MUJOCO_CREEP = 0.15
+
+
+@dataclass(frozen=True)
+class DryFriction:
+    """How the plant's dry friction takes its sign (cpbc.controllers.safeguard.model_error's
+    docstring): exactly F_j sign(q̇_j) while |q̇_j| ≥ T_f α_j + v_c, anywhere in [−F_j, F_j]
+    otherwise.
+
+    Attributes:
+        build_up: T_f [s] (MuJoCo: 1/b; an ideal Coulomb friction: 0).
+        creep: v_c [rad/s], the largest speed at which the friction may not have built up
+            to F_j at rest-free acceleration (MuJoCo: R_j F_j/b, from its constant diagonal
+            estimate dof_invweight0, which the controller's model does not have: a bound over
+            the campaign's plants).
+    """
+
+    build_up: float = MUJOCO_BUILD_UP
+    creep: float = MUJOCO_CREEP
+
+    def force_error(self, levels: Array, smoothing: float, low: Array, high: Array,
+                    deceleration: Array) -> Array:
+        """e_j of model_error's docstring per joint: ``low``, ``high`` the least and largest
+        |q̇_j| over the interval (s_j, S_j), ``deceleration`` α_j ≥ 0."""
+        slides = low >= self.build_up * deceleration + self.creep
+        return np.where(slides, levels * (1.0 - np.tanh(np.maximum(low, 0.0) / smoothing)),
+                        levels * (1.0 + np.tanh(high / smoothing)))
+
+
+# MuJoCo's frictionloss with its default solref and solimp (the plant of cpbc and franky-sim)
+MUJOCO_FRICTION = DryFriction()

@@ -25,6 +25,7 @@ from cpbc.controllers.safeguard.model_error import (
     friction_error,
     margin_losses,
     measurement_losses,
+    reachable_accelerations,
 )
 from cpbc.controllers.safeguard.predicted_margins import (
     BrakingTest,
@@ -430,12 +431,20 @@ class Safeguard(SafetyFilter):
         its smooth Coulomb friction's (model_error.friction_error) plus a declared inertia
         error's at the law's acceleration D⁻¹(τ − b) (model_error.InertiaError), or None."""
         parts = [p for p in (self.model_error,
-                             friction_error(self.model, state) if self._coulomb else None)
+                             self._friction_error(state, bias) if self._coulomb else None)
                  if p is not None]
         if self._inertia_error is not None:
             accel = np.asarray(np.linalg.solve(state.inertia, tau - bias), dtype=float)
             parts.append(self._inertia_error.bound(state, accel))
         return sum(parts[1:], parts[0]) if parts else None
+
+    def _friction_error(self, state: ArmState, bias: Array) -> Array | None:
+        """model_error.friction_error over this period, for the accelerations of the torques
+        this step may hold (the step's box; any without a torque box)."""
+        box = self.box.reachable
+        accel = None if box is None else reachable_accelerations(self.model, state, bias,
+                                                                 *box.bounds)
+        return friction_error(self.model, state, accel, self.period)
 
     @staticmethod
     def _no_nan(m: Array) -> Array:

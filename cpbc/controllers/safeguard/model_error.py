@@ -13,23 +13,53 @@ its mid-point by ⅛ h² d, and the rates by h d. To first order a margin loses 
 (Π_k: ``VelocityConstraint.weights``: r rᵀ for a rate, D for the kinetic energy; the second
 term is exact for a constant Π). Holding every predicted margin that much above the floor of
 (S1) makes the true margin keep (S1) whatever d within the bound does: by induction it never
-falls below its cushion δ_i > 0. The rescue's rollouts and the braking set are the model's;
-the braking set's deceleration is lowered by the error's share along the motion
+falls below its cushion δ_i > 0. The rescue's rollouts are the model's (checked again from
+each measured state while a brake is held: cpbc.controllers.rescue); the braking set's
+deceleration is lowered by the error's share along the motion
 (:class:`cpbc.constraints.stopping.Braking`, ``disturbance``). The curvature of φ and the
 change of Π_k over the period are left out (second order in h).
 
 **The Coulomb friction's own error.** The model's Coulomb friction is smooth, F_c tanh(q̇/ε);
-a real joint's is set-valued at rest and has its own shape at low speed (MuJoCo's
-``frictionloss`` is a soft constraint that builds up over a speed of its own; a real drive
-has stiction and a Stribeck dip). Both lie in [−F_c, F_c] and agree in sign once the joint
-moves, so they differ by at most F_c,j at joint j, and through D⁻¹ that force error moves
-every coordinate's acceleration (:func:`friction_error`, added to the declared bound whenever
-the model has Coulomb friction). Measured on the FR3 (franky-sim's friction, 1000 N·m/s,
-1 kHz): as a wrist joint's rate passed through zero, the arm's acceleration left the model's
-by 0.8–1.2 rad/s² on joints 2 and 4 and pushed joint 1 through its rate bound; 18 of 185 runs
-from stoppable starts crossed a rate bound before the guard held this error. A bound that
-credited the smooth model near F_c at speed (F_c (1 − tanh(|q̇|/ε))) left the UR5's shoulder
-0.7 rad/s² short where MuJoCo's friction was still building up at 0.1 rad/s.
+a real joint's is set-valued at rest and has its own shape at low speed. Both lie in
+[−F_c, F_c], and through D⁻¹ their difference moves every coordinate's acceleration
+(:func:`friction_error`, added to the declared bound whenever the model has Coulomb
+friction). How far they differ depends on whether the joint *slides*
+(cpbc.model.coulomb.DryFriction): the plant's dry friction on joint j is exactly
+F_j sign(q̇_j) while
+
+    |q̇_j| ≥ T_f α_j + v_c,j      (α_j ≥ 0: the joint's deceleration, −sign(q̇_j) q̈_j),
+
+and anywhere in [−F_j, F_j] otherwise. An ideal Coulomb friction has T_f = v_c = 0 (it
+opposes any nonzero rate). MuJoCo's ``frictionloss`` — the plant here, and franky-sim's — is
+a soft constraint: its force is −clamp((q̈_j + b q̇_j)/R_j, −F_j, F_j), with b = 2/(d_w t_c)
+and R_j = (1 − d₀)/d₀ A_j (solref's time constant t_c, solimp's d₀ and d_w; A_j MuJoCo's
+estimate of (D⁻¹)_jj), so it opposes the rate the joint would have 1/b later, not the rate
+it has: it is F_j sign(q̇_j) when b|q̇_j| − α_j ≥ R_j F_j, i.e. T_f = 1/b (9.5 ms with the
+default solref 0.02 and solimp 0.9, 0.95) and v_c,j = R_j F_j/b (MuJoCo's A_j is a constant
+taken at the model's reference pose: v_c ≤ 0.15 rad/s on the campaign's three arms). While
+a brake decelerates a joint harder than b|q̇_j| its friction pulls *with* the motion (on the
+UR5 of the rate campaign, seed 49: −2 N·m against the model's +1.35 N·m at 0.04 rad/s).
+Over a period on which the rate moves by at most h α'_j (α'_j bounding |q̈_j|: so
+s_j = |q̇_j(0)| − h α'_j ≤ |q̇_j| ≤ S_j = |q̇_j(0)| + h α'_j throughout), the force error is
+
+    e_j = F_j (1 − tanh(s_j/ε))   if s_j ≥ T_f α_j + v_c,j   (the joint slides: same sign),
+    e_j = F_j (1 + tanh(S_j/ε))   otherwise                  (opposite signs at worst),
+
+with the model's friction taken at the period's start, as the guard's prediction takes it.
+The acceleration error is |D⁻¹| |T⁻ᵀ| e. α_j and α'_j are bounded by what the torques the
+step may hold give in the model (under a torque-rate limit the box one step reaches; without
+one the whole torque box, which takes no joint to slide) plus the coarse error |D⁻¹|·2F of
+the plant's friction itself. Where every joint slides fast e vanishes; where joints rest or
+turn it does not, which is why holding it over a whole brake (½t²|D⁻¹|e, tried) rejects
+nearly every brake on light wrists. The earlier bound, F_j at every speed, assumed the two
+frictions agree in sign once the joint moves: under a hard brake it was too small. The guard
+holds max(e_j, F_j): e_j alone lowered its floors at speed so far (it acted on 11–18 % of
+the Panda's and FR3's steps at 1 kHz instead of 55 %) that both arms' joint 1 crossed its
+rate bound at 500 Hz from seed 34 of the rate campaign while the friction's error stayed
+inside e all along: the F_j at speed covers some other error of the one-period prediction
+there, not yet found. On the FR3 (franky-sim's friction, 1000 N·m/s, 1 kHz) the error reached
+0.8–1.2 rad/s² on joints 2 and 4 as a wrist joint's rate passed through zero, and pushed
+joint 1 through its rate bound before the guard held it.
 
 This is why the bare guard let velocity margins break under a ±20 % mass error (docs/
 ROBUSTNESS.md, "Model mismatch"): a law that rides a velocity bound cancels the *model's*
@@ -47,61 +77,68 @@ import pinocchio as pin
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.constraints.margin_slopes import MarginSlopes
+from cpbc.model.coulomb import MUJOCO_FRICTION, DryFriction
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
-def friction_error(model: RobotModel, state: ArmState) -> Array | None:
-    """The bound on the acceleration error of the model's smooth Coulomb friction (the module
-    docstring): |D⁻¹| |T⁻ᵀ| F_c per coordinate, or None for a model without Coulomb
-    friction."""
+def _joint_inverse(model: RobotModel, inertia: Array) -> tuple[Array, Array]:
+    """(D⁻¹ T⁻ᵀ in controller coordinates, T⁻¹ D⁻¹ T⁻ᵀ: the joint accelerations a joint
+    torque gives)."""
+    inv = np.asarray(np.linalg.inv(inertia), dtype=float)
+    coords = model.coordinates
+    if coords.is_identity:
+        return inv, inv
+    to_force = coords.inverse.T
+    return inv @ to_force, coords.inverse @ inv @ to_force
+
+
+def friction_error(model: RobotModel, state: ArmState,
+                   accel: tuple[Array, Array] | None = None, period: float = 0.0,
+                   plant: DryFriction = MUJOCO_FRICTION) -> Array | None:
+    """The bound on the acceleration error of the model's smooth Coulomb friction over one
+    period from ``state`` (the module docstring): |D⁻¹| |T⁻ᵀ| max(e, F) per coordinate, or
+    None for a model without Coulomb friction. ``accel``: (centre, radius), controller
+    coordinates, of the model accelerations the torques that may be held over the period
+    give; None for any (no joint is then taken to slide, and over a period ``period`` > 0 a
+    rate may reach any speed: e_j = 2F_j)."""
     levels = model.coulomb_friction
     if not np.any(levels):
         return None
-    coords = model.coordinates
-    force = levels if coords.is_identity else np.abs(coords.inverse.T) @ levels
-    return np.abs(np.linalg.inv(state.inertia)) @ force
+    to_accel, joint_inv = _joint_inverse(model, state.inertia)
+    coarse = np.abs(joint_inv) @ (2.0 * levels)  # |q̈_j − q̂̈_j| ≤ |D⁻¹|·2F, joint coordinates
+    speed = np.abs(model.joint_coordinates(state.dx))
+    if accel is None:
+        alpha = np.full(model.n, math.inf)
+        reach = alpha
+    else:
+        centre, radius = accel
+        coords = model.coordinates
+        if not coords.is_identity:
+            centre, radius = coords.inverse @ centre, np.abs(coords.inverse) @ radius
+        sign = np.sign(model.joint_coordinates(state.dx))
+        alpha = np.maximum(-sign * centre + radius, 0.0) + coarse
+        reach = np.abs(centre) + radius + coarse
+    spread = period * reach if period > 0.0 else np.zeros(model.n)
+    e = plant.force_error(levels, model.friction_smoothing, speed - spread, speed + spread,
+                          alpha)
+    # never below F_j: the shortfall alone at speed let the Panda's and FR3's joint 1 through
+    # its rate bound at 500 Hz (seed 34) with the friction's error inside it all along
+    return np.abs(to_accel) @ np.maximum(e, levels)
 
 
-@dataclass(frozen=True, eq=False)
-class MarginSlopes:
-    """How far each margin of a constraint set moves for a small error of the state, at the
-    per-step state, read once a step for every error the guard holds (the model's and the
-    measurement's): |∂φ_i/∂x| of each configuration margin, and of each velocity margin
-    ψ_k = ω_k − ½ẋᵀΠ_k ẋ, |Π_k ẋ| and |Π_k| (``VelocityConstraint.weights``: r rᵀ for a
-    rate, D for the kinetic energy).
-
-    Attributes:
-        configuration: |∇φ_i| rows, shape (number of φ_i, n).
-        push: |Π_k ẋ| rows, shape (number of ψ_k, n).
-        weights: |Π_k|, shape (number of ψ_k, n, n).
-    """
-
-    configuration: Array
-    push: Array
-    weights: Array
-
-    @classmethod
-    def at(cls, constraints: ConstraintSet, state: ArmState) -> MarginSlopes:
-        n = constraints.n
-        config = np.abs(constraints.configuration_gradients(state))
-        weights = [c.weights(state.x, state) for c in constraints.velocity]  # (k, n, n) each
-        if not weights:
-            return cls(config, np.zeros((0, n)), np.zeros((0, n, n)))
-        pi = np.concatenate(weights)
-        return cls(config, np.abs(pi @ state.dx), np.abs(pi))
-
-    def losses(self, end_shift: Array, mid_shift: Array, rate_shift: Array
-               ) -> tuple[Array, Array]:
-        """What each margin can lose to a position off by at most ``end_shift`` at the
-        period's end and ``mid_shift`` at mid-period, per coordinate, and a rate off by at
-        most ``rate_shift``: Σ_j |∂φ_i/∂x_j| s_j for a configuration margin, and
-        Σ_j |(Π_k ẋ)_j| w_j + ½ wᵀ|Π_k|w for a velocity margin (exact for a constant Π_k).
-        (At the period's end, every margin in the order of ``names``; at mid-period, the
-        configuration ones.)"""
-        velocity = self.push @ rate_shift + 0.5 * np.einsum(
-            "kij,i,j->k", self.weights, rate_shift, rate_shift)
-        return (np.concatenate((self.configuration @ end_shift, velocity)),
-                self.configuration @ mid_shift)
+def reachable_accelerations(model: RobotModel, state: ArmState, bias: Array, lower: Array,
+                            upper: Array) -> tuple[Array, Array]:
+    """(centre, radius) of the model accelerations D⁻¹(T⁻ᵀ τ_q − b) of the joint torques
+    lower ≤ τ_q ≤ upper, per controller coordinate (an infinite bound: an infinite radius)."""
+    to_accel, _ = _joint_inverse(model, state.inertia)
+    mid = 0.5 * (lower + upper)
+    half = 0.5 * (upper - lower)
+    centre = to_accel @ np.where(np.isfinite(mid), mid, 0.0) - np.linalg.solve(
+        state.inertia, bias)
+    with np.errstate(invalid="ignore"):
+        radius = np.abs(to_accel) @ half
+    return centre, np.where(np.isnan(radius), math.inf, radius)
 
 
 def margin_losses(constraints: ConstraintSet, state: ArmState, bound: Array, period: float,

@@ -58,6 +58,12 @@ class StepBox:
         self._inertia = np.zeros((0, 0))  # D at this step's state: what a brake is reached by
 
     @property
+    def reachable(self) -> TorqueBox | None:
+        """The torques this step may hold: the torque box, narrowed under a rate limit to
+        what one step reaches (None without either limit)."""
+        return self._step
+
+    @property
     def rate_limited(self) -> bool:
         return self.rate_step is not None
 
