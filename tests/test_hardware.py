@@ -604,10 +604,10 @@ def test_on_a_robot_a_step_tests_a_bounded_number_of_torques_unless_the_scenario
     assert recorded == tests if tests is not None else np.isnan(recorded)
 
 
-def test_on_a_robot_the_tests_stop_at_half_the_deadline() -> None:
-    """Given the cycle's deadline, cpbc.hardware lets the safeguard test torques for half of
-    it (a cycle that would miss it holds what a step out of tests holds); cpbc.run's set-up
-    has no time budget."""
+def test_on_a_robot_the_tests_stop_at_a_share_of_the_deadline() -> None:
+    """Given the cycle's deadline, cpbc.hardware lets the safeguard test torques for
+    ROBOT_TIME_SHARE of it (a cycle that would miss it holds what a step out of tests holds);
+    cpbc.run's set-up has no time budget."""
     setup = build(*load_scenario(SCENARIO))
     assert setup.safeguard is not None and setup.safeguard.time_budget is None
     assert robot_run.on_robot(setup).safeguard.time_budget is None  # type: ignore[union-attr]

@@ -23,6 +23,7 @@ from cpbc.controllers.safeguard.model_error import (
     DeclaredError,
     MarginSlopes,
     friction_error,
+    inverse_inertia,
     margin_losses,
     measurement_losses,
     reachable_accelerations,
@@ -442,9 +443,10 @@ class Safeguard(SafetyFilter):
         """model_error.friction_error over this period, for the accelerations of the torques
         this step may hold (the step's box; any without a torque box)."""
         box = self.box.reachable
-        accel = None if box is None else reachable_accelerations(self.model, state, bias,
-                                                                 *box.bounds)
-        return friction_error(self.model, state, accel, self.period)
+        inverse = inverse_inertia(state.inertia)  # once for both
+        accel = None if box is None else reachable_accelerations(
+            self.model, state, bias, *box.bounds, inverse=inverse)
+        return friction_error(self.model, state, accel, self.period, inverse=inverse)
 
     @staticmethod
     def _no_nan(m: Array) -> Array:

@@ -78,14 +78,23 @@ import pinocchio as pin
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.margin_slopes import MarginSlopes
+from cpbc.kernels.small_solves import inverse_spd
 from cpbc.model.coulomb import MUJOCO_FRICTION, DryFriction
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
-def _joint_inverse(model: RobotModel, inertia: Array) -> tuple[Array, Array]:
+def inverse_inertia(inertia: Array) -> Array:
+    """D⁻¹ (cpbc.kernels.small_solves.inverse_spd), once a step for every reader."""
+    inv = np.empty_like(inertia)
+    inverse_spd(np.ascontiguousarray(inertia, dtype=float), inv)
+    return inv
+
+
+def _joint_inverse(model: RobotModel, inertia: Array,
+                   inverse: Array | None = None) -> tuple[Array, Array]:
     """(D⁻¹ T⁻ᵀ in controller coordinates, T⁻¹ D⁻¹ T⁻ᵀ: the joint accelerations a joint
-    torque gives)."""
-    inv = np.asarray(np.linalg.inv(inertia), dtype=float)
+    torque gives); ``inverse``: D⁻¹ when the caller has it."""
+    inv = inverse_inertia(inertia) if inverse is None else inverse
     coords = model.coordinates
     if coords.is_identity:
         return inv, inv
@@ -95,17 +104,18 @@ def _joint_inverse(model: RobotModel, inertia: Array) -> tuple[Array, Array]:
 
 def friction_error(model: RobotModel, state: ArmState,
                    accel: tuple[Array, Array] | None = None, period: float = 0.0,
-                   plant: DryFriction = MUJOCO_FRICTION) -> Array | None:
+                   plant: DryFriction = MUJOCO_FRICTION,
+                   inverse: Array | None = None) -> Array | None:
     """The bound on the acceleration error of the model's smooth Coulomb friction over one
     period from ``state`` (the module docstring): |D⁻¹| |T⁻ᵀ| max(e, F) per coordinate, or
     None for a model without Coulomb friction. ``accel``: (centre, radius), controller
     coordinates, of the model accelerations the torques that may be held over the period
     give; None for any (no joint is then taken to slide, and over a period ``period`` > 0 a
-    rate may reach any speed: e_j = 2F_j)."""
+    rate may reach any speed: e_j = 2F_j). ``inverse``: D⁻¹ when the caller has it."""
     levels = model.coulomb_friction
     if not np.any(levels):
         return None
-    to_accel, joint_inv = _joint_inverse(model, state.inertia)
+    to_accel, joint_inv = _joint_inverse(model, state.inertia, inverse)
     coarse = np.abs(joint_inv) @ (2.0 * levels)  # |q̈_j − q̂̈_j| ≤ |D⁻¹|·2F, joint coordinates
     speed = np.abs(model.joint_coordinates(state.dx))
     if accel is None:
@@ -128,14 +138,16 @@ def friction_error(model: RobotModel, state: ArmState,
 
 
 def reachable_accelerations(model: RobotModel, state: ArmState, bias: Array, lower: Array,
-                            upper: Array) -> tuple[Array, Array]:
+                            upper: Array, inverse: Array | None = None
+                            ) -> tuple[Array, Array]:
     """(centre, radius) of the model accelerations D⁻¹(T⁻ᵀ τ_q − b) of the joint torques
-    lower ≤ τ_q ≤ upper, per controller coordinate (an infinite bound: an infinite radius)."""
-    to_accel, _ = _joint_inverse(model, state.inertia)
+    lower ≤ τ_q ≤ upper, per controller coordinate (an infinite bound: an infinite radius);
+    ``inverse``: D⁻¹ when the caller has it."""
+    inv = inverse_inertia(state.inertia) if inverse is None else inverse
+    to_accel, _ = _joint_inverse(model, state.inertia, inv)
     mid = 0.5 * (lower + upper)
     half = 0.5 * (upper - lower)
-    centre = to_accel @ np.where(np.isfinite(mid), mid, 0.0) - np.linalg.solve(
-        state.inertia, bias)
+    centre = to_accel @ np.where(np.isfinite(mid), mid, 0.0) - inv @ bias
     with np.errstate(invalid="ignore"):
         radius = np.abs(to_accel) @ half
     return centre, np.where(np.isnan(radius), math.inf, radius)
