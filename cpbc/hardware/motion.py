@@ -248,11 +248,14 @@ def _brake(backend: RobotBackend, model: RobotModel, limits: RobotLimits,
     return ignored
 
 
-def run_motion(backend: RobotBackend, controller: Controller,
-               settings: MotionSettings) -> MotionLog:
+def run_motion(backend: RobotBackend, controller: Controller, settings: MotionSettings,
+               warm: Callable[[], None] | None = None) -> MotionLog:
     """Drive ``controller`` on ``backend`` for ``settings.duration``, then brake and
     finish (or stop at a robot fault). Positions and torques are the robot's joints', in
-    its order; the controller must work in joint coordinates."""
+    its order; the controller must work in joint coordinates. ``warm`` runs after the last
+    garbage collection and before the motion starts: the collection walks every object and
+    leaves the caches cold (a first cycle took 0.7–0.8 ms against 0.15 when the warm-up came
+    before it)."""
     limits = backend.limits()
     n = len(backend.joint_names)
     steps = round(settings.duration / limits.period)
@@ -265,6 +268,8 @@ def run_motion(backend: RobotBackend, controller: Controller,
     gc.freeze()  # what exists now is never scanned again; nothing is collected in the loop
     gc.disable()
     try:
+        if warm is not None:
+            warm()
         first = backend.start()
         pending = _drive(backend, controller, first, steps, settings.deadline, rec, sent, end)
         if _brake(backend, controller.model, limits, settings, rec, sent, pending):

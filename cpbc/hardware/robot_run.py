@@ -239,10 +239,9 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
     check_fits(setup, limits, backend.joint_names)
     state = backend.read()
     note = check_start(setup, state)
-    warm(setup, entry, state, backend)
     guard = setup.controller(entry)
     pack(entry.controller)
-    motion = run_motion(backend, guard, settings)
+    motion = run_motion(backend, guard, settings, lambda: warm(setup, entry, state, backend))
     traj = _trajectory(motion, guard, limits.period)
     margins = margin_history(setup.monitor, traj)
     summary = summarise(entry.name, CASE, entry.controller, setup.monitor, traj,

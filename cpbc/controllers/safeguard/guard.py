@@ -378,10 +378,11 @@ class Safeguard(SafetyFilter):
 
     def warm(self, x: Array, dx: Array) -> None:
         """Take every path of a step once at (x, ẋ), whatever the law's torque does there:
-        the test, the slide, the brakes, the search of λ, the blend, the rescue's search and
-        the fallback — as a real-time loop must before its first cycle, where the first call
-        of a compiled kernel or a path costs milliseconds. The counts and the rescue's
-        commitment move: warm a spare guard, not the one that drives."""
+        the test, the slide, the brakes, the search of λ, the blend, the rescue's search, the
+        fallback and a spent step's rescue brakes — as a real-time loop must before its
+        first cycle, where the first call of a compiled kernel or a path costs
+        milliseconds. The counts and the rescue's commitment move: warm a spare guard, not
+        the one that drives."""
         state = self.law.state(x, dx)
         out = self.law.evaluate_state(state, margins=True)
         assert out.margins is not None  # asked for
@@ -401,6 +402,7 @@ class Safeguard(SafetyFilter):
             brakes.rescued(state, step.bias, step.predict, step.now, self.calls)
             brakes.infeasible(state, step.bias, to_rest, step.predict, step.now, step.floor,
                               step.floor_mid)
+            self._out_of_tests(step)  # the rescue's own brakes, tested once each
         if self.box.rate_limited:
             self.box.end(tau)
 
