@@ -164,9 +164,9 @@ def test_a_dropped_connection_ends_with_exit_1_and_the_files(franky: FrankySim,
     err = io.StringIO()
     drive = robot_run.run_motion
 
-    def drive_then_drop(*args: Any) -> MotionLog:
+    def drive_then_drop(*args: Any, **kwargs: Any) -> MotionLog:
         killer.start()
-        return drive(*args)
+        return drive(*args, **kwargs)
 
     with pytest.MonkeyPatch.context() as patch, contextlib.redirect_stderr(err), \
             contextlib.redirect_stdout(io.StringIO()):
@@ -195,9 +195,9 @@ def test_ctrl_c_brakes_finishes_and_writes(franky: FrankySim, tmp_path: Path) ->
     drive = robot_run.run_motion
     runs: list[MotionLog] = []
 
-    def drive_then_interrupt(*args: Any) -> MotionLog:
+    def drive_then_interrupt(*args: Any, **kwargs: Any) -> MotionLog:
         interrupt.start()
-        runs.append(drive(*args))
+        runs.append(drive(*args, **kwargs))
         return runs[-1]
 
     # interrupt_main does nothing where SIGINT is ignored (a pytest started in the background

@@ -17,7 +17,8 @@ from __future__ import annotations
 import gc
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -248,14 +249,33 @@ def _brake(backend: RobotBackend, model: RobotModel, limits: RobotLimits,
     return ignored
 
 
+@contextmanager
+def collected() -> Iterator[None]:
+    """A last garbage collection, then none until the block ends: what exists is frozen
+    (never scanned again) and the collector is off. The collection walks every object and
+    leaves the caches cold, so warm the controller inside the block, after it (a first cycle
+    took 0.7–0.8 ms on the lock-step FR3 warmed before it, 0.21 ms warmed after)."""
+    collecting = gc.isenabled()
+    gc.collect()
+    gc.freeze()
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+        if collecting:
+            gc.enable()
+
+
 def run_motion(backend: RobotBackend, controller: Controller, settings: MotionSettings,
-               warm: Callable[[], None] | None = None) -> MotionLog:
+               collect: bool = True) -> MotionLog:
     """Drive ``controller`` on ``backend`` for ``settings.duration``, then brake and
     finish (or stop at a robot fault). Positions and torques are the robot's joints', in
-    its order; the controller must work in joint coordinates. ``warm`` runs after the last
-    garbage collection and before the motion starts: the collection walks every object and
-    leaves the caches cold (a first cycle took 0.7–0.8 ms against 0.15 when the warm-up came
-    before it)."""
+    its order; the controller must work in joint coordinates. No garbage is collected in the
+    motion (:func:`collected`; ``collect`` False: the caller's block is one already)."""
+    if collect:
+        with collected():
+            return run_motion(backend, controller, settings, collect=False)
     limits = backend.limits()
     n = len(backend.joint_names)
     steps = round(settings.duration / limits.period)
@@ -263,21 +283,11 @@ def run_motion(backend: RobotBackend, controller: Controller, settings: MotionSe
     rec = _Recorder(steps + brake_rows, n)
     sent = np.zeros(n)
     end = _Ending()
-    collecting = gc.isenabled()
-    gc.collect()
-    gc.freeze()  # what exists now is never scanned again; nothing is collected in the loop
-    gc.disable()
     try:
-        if warm is not None:
-            warm()
         first = backend.start()
         pending = _drive(backend, controller, first, steps, settings.deadline, rec, sent, end)
         if _brake(backend, controller.model, limits, settings, rec, sent, pending):
             end.detail += "; Ctrl-C pressed again while braking: the brake ran to its end"
     except RobotFault as fault:
         return rec.log("robot_error", end.violated, f"{fault}", fault)
-    finally:
-        gc.unfreeze()
-        if collecting:
-            gc.enable()
     return rec.log(end.ending, end.violated, end.detail)

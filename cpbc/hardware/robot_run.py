@@ -20,7 +20,7 @@ from cpbc.controllers.safeguard import Safeguard
 from cpbc.errors import ConstraintViolation, InadmissibleStateError, ScenarioError
 from cpbc.hardware.backend import MeasuredState, RobotBackend, RobotLimits
 from cpbc.hardware.lockstep import LockstepBackend
-from cpbc.hardware.motion import MotionLog, MotionSettings, run_motion
+from cpbc.hardware.motion import MotionLog, MotionSettings, collected, run_motion
 from cpbc.hardware.rules import RuleReport, check_rules
 from cpbc.model import RobotModel
 from cpbc.reference.tracker import ReferenceTracker
@@ -239,9 +239,11 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
     check_fits(setup, limits, backend.joint_names)
     state = backend.read()
     note = check_start(setup, state)
-    guard = setup.controller(entry)
-    pack(entry.controller)
-    motion = run_motion(backend, guard, settings, lambda: warm(setup, entry, state, backend))
+    with collected():  # warmed after the last collection, which leaves the caches cold
+        warm(setup, entry, state, backend)
+        guard = setup.controller(entry)  # after the spare: a tracker steers the law when built
+        pack(entry.controller)
+        motion = run_motion(backend, guard, settings, collect=False)
     traj = _trajectory(motion, guard, limits.period)
     margins = margin_history(setup.monitor, traj)
     summary = summarise(entry.name, CASE, entry.controller, setup.monitor, traj,
