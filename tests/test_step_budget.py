@@ -153,17 +153,20 @@ def test_a_bounded_rescue_is_not_asked_when_the_tests_run_out() -> None:
 
 def test_a_budget_in_time_stops_the_tests_once_it_is_spent(
         recentred: RecentredBarrier) -> None:
-    """A time budget of a nanosecond is spent before the law's torque is tested: even far
-    from every bound the step holds what a step out of tests holds, not the law's torque;
-    a budget of ten seconds leaves the step as it is without one."""
-    x, dx = np.array([0.3, -0.4]), np.array([0.01, 0.02])  # far from every bound
+    """A time budget of a nanosecond is spent once the law's torque is tested (that test is
+    always made): near the target the law's torque passes and is held; where it fails
+    (S1) the step holds what a step out of tests holds, as with one test a step. A budget of
+    ten seconds leaves the step as it is without one."""
+    x, dx = np.array([1.1, -0.9]), np.array([0.01, -0.01])  # near the target: law passes
     free = Safeguard(recentred, InputBounds(H))
-    tau = free.torque(x, dx)
     spent = Safeguard(recentred, InputBounds(H), SafeguardSettings(time_budget=1e-9))
-    assert not np.allclose(spent.torque(x, dx), tau)
+    np.testing.assert_array_equal(spent.torque(x, dx), free.torque(x, dx))
+    assert spent.out_of_tests == 0
+    one = Safeguard(recentred, InputBounds(H), SafeguardSettings(test_budget=1))
+    np.testing.assert_array_equal(spent.torque(X, DX), one.torque(X, DX))
     assert spent.out_of_tests == 1
     ample = Safeguard(recentred, InputBounds(H), SafeguardSettings(time_budget=10.0))
-    np.testing.assert_array_equal(ample.torque(x, dx), tau)
+    np.testing.assert_array_equal(ample.torque(X, DX), free.torque(X, DX))
     assert ample.out_of_tests == 0
     with pytest.raises(CpbcError, match="time_budget"):
         SafeguardSettings(time_budget=0.0)

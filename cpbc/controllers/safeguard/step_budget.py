@@ -20,9 +20,10 @@ brake before its check has seen the arm to rest kept fewer runs than the uniform
 β, the search of λ cut short, and, under a bounded rescue, the rescue itself.
 
 A budget in time does the same on a robot's clock: past ``seconds`` from the start of the
-guarded call no further torque is tested (a cycle that would miss its deadline holds what the
-out-of-tests path holds). It reads the clock, so a run under it is not reproducible; it is for a
-robot (cpbc.hardware sets it from the deadline), never simulation's default.
+guarded call no torque is tested after the first (the law's, always tested), and a cycle that
+would miss its deadline holds what the out-of-tests path holds. It reads the clock, so a run
+under it is not reproducible; it is for a robot (cpbc.hardware sets it from the deadline),
+never simulation's default.
 """
 
 from __future__ import annotations
@@ -95,7 +96,9 @@ class StepBudget:
         most = limit if limit is not None else -1
 
         def counted(t: Array) -> float:
-            if self.used == most or (until < float("inf") and time.perf_counter() > until):
+            # the first test (the law's torque) is always made: the time bounds what follows
+            if self.used == most or (self.used and until < float("inf")
+                                     and time.perf_counter() > until):
                 raise OutOfTests
             self.used += 1
             f = slack(t)
