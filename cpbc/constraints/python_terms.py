@@ -11,6 +11,7 @@ take it (capsules; a second point frame): :class:`PythonTerms` holds it.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,6 +24,17 @@ from cpbc.kernels.python_rows import pack_python_terms
 from cpbc.model.robot_model import ArmState
 
 TIMED_CALLS = 20  # the calls timed at build (the fastest counts)
+
+
+def cost_clause(cost: Callable[[ArmState], float], state: ArmState | None) -> str:
+    """", about N µs a step (measured at build)" for a note, from ``cost`` [s] at ``state``;
+    nothing without a state or where it cannot be measured there."""
+    if state is None:
+        return ""
+    try:
+        return f", about {cost(state) * 1e6:.1f} µs a step (measured at build)"
+    except (CpbcError, ArithmeticError, ValueError):  # not measurable there
+        return ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,12 +96,7 @@ class PythonTerms:
         """The sentence a law says once, at build: which constraint runs in Python, and what
         it costs a step (measured at ``state``, when given and inside S)."""
         c = self.constraint
-        cost = ""
-        if state is not None:
-            try:
-                cost = f", about {self.cost(state) * 1e6:.1f} µs a step (measured at build)"
-            except (CpbcError, ArithmeticError, ValueError):  # not measurable there
-                pass
+        cost = cost_clause(self.cost, state)
         return (f"{law}: constraint '{c.names[0].split('[')[0]}' ({type(c).__name__}) has "
                 f"no kernel in its set's plan: its barrier terms run in Python at every "
                 f"step{cost}, and the law builds its per-step state in Python for them; the "

@@ -14,8 +14,7 @@ from typing import Any
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.constraints.python_terms import TIMED_CALLS
-from cpbc.errors import CpbcError
+from cpbc.constraints.python_terms import TIMED_CALLS, cost_clause
 from cpbc.kernels.plan_tables import Packed
 from cpbc.kernels.python_rows import pack_python_term
 from cpbc.model.robot_model import ArmState
@@ -71,12 +70,7 @@ class PythonLawTerm:
     def note(self, law: str, state: ArmState | None) -> str:
         """The sentence a law says once, at build: which term runs in Python, and what it
         costs a step (measured at ``state``, when given)."""
-        cost = ""
-        if state is not None:
-            try:
-                cost = f", about {self.cost(state) * 1e6:.1f} µs a step (measured at build)"
-            except (CpbcError, ArithmeticError, ValueError):  # not measurable there
-                pass
+        cost = cost_clause(self.cost, state)
         return (f"{law}: its {self.what} ({type(self.term).__name__}) has no kernel: it runs "
                 f"in Python at every step{cost}, and the law finishes its per-step state in "
                 f"Python for it; the law's other terms stay in its one kernel call")
