@@ -227,7 +227,6 @@ class Safeguard(SafetyFilter):
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         """The guarded torque and the law's V at the per-step state; ConstraintViolation
         outside S."""
-        self.budget.start()
         out = self.law.evaluate_state(state, margins=True)  # raises outside S
         self.calls += 1
         if self.constraints.empty:
@@ -238,7 +237,8 @@ class Safeguard(SafetyFilter):
 
     def filter(self, state: ArmState, law: Array, law_margins: Array) -> Array:
         """The guarded torque for the law's torque ``law`` and margins at the per-step state
-        (one control instant; the counts move)."""
+        (one control instant; the counts move). A time budget counts from here."""
+        self.budget.start()
         if not self.box.rate_limited:
             return self._guard(state, law, law_margins)
         return self._rate_limited(state, law, law_margins)

@@ -73,9 +73,9 @@ class SafeguardSettings:
             bound on the step's time (at most K + 2 tests). Past it the step holds the last
             torque that passed, else the first of the rescue's own two brakes that passes one
             test, else the uniform brake (:mod:`cpbc.controllers.safeguard.step_budget`).
-        time_budget: the longest one guarded call may test torques for [s], None for no
-            bound: past it the step stops testing as past ``test_budget``. It reads the
-            clock (a run under it is not reproducible): for a robot's deadline.
+        time_budget: the longest one guard step (its ``filter``) may test torques for [s],
+            None for no bound: past it the step stops testing as past ``test_budget``. It
+            reads the clock (a run under it is not reproducible): for a robot's deadline.
     """
 
     decay_rate: float = 50.0

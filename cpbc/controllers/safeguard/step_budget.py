@@ -20,10 +20,10 @@ brake before its check has seen the arm to rest kept fewer runs than the uniform
 β, the search of λ cut short, and, under a bounded rescue, the rescue itself.
 
 A budget in time does the same on a robot's clock: past ``seconds`` from the start of the
-guarded call no torque is tested after the first (the law's, always tested), and a cycle that
-would miss its deadline holds what the out-of-tests path holds. It reads the clock, so a run
-under it is not reproducible; it is for a robot (cpbc.hardware sets it from the deadline),
-never simulation's default.
+guard's step (Safeguard.filter) no torque is tested after the first (the law's, always
+tested), and a cycle that would miss its deadline holds what the out-of-tests path holds. It
+reads the clock, so a run under it is not reproducible; it is for a robot (cpbc.hardware sets
+it from the deadline), never simulation's default.
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ class StepBudget:
 
     Args:
         tests: K ≥ 1, the most candidate torques one step tests, or None for no bound.
-        seconds: the longest one guarded call may test torques for, from :meth:`start`
+        seconds: the longest one guard step may test torques for, from :meth:`start`
             [s], or None for no bound.
 
     Attributes:
