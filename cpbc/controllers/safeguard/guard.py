@@ -433,19 +433,21 @@ class Safeguard(SafetyFilter):
         """The bound on the model's acceleration error at this state: the declared one plus
         its smooth Coulomb friction's (model_error.friction_error) plus a declared inertia
         error's at the law's acceleration D⁻¹(τ − b) (model_error.InertiaError), or None."""
-        parts = [p for p in (self.model_error,
-                             self._friction_error(state, bias) if self._coulomb else None)
+        inertia_error = self._inertia_error
+        # D⁻¹ once a step for every bound that reads it
+        inverse = inverse_inertia(state.inertia) if (
+            self._coulomb or inertia_error is not None) else None
+        parts = [p for p in (self.model_error, self._friction_error(state, bias, inverse)
+                             if inverse is not None and self._coulomb else None)
                  if p is not None]
-        if self._inertia_error is not None:
-            accel = np.asarray(np.linalg.solve(state.inertia, tau - bias), dtype=float)
-            parts.append(self._inertia_error.bound(state, accel))
+        if inertia_error is not None and inverse is not None:
+            parts.append(inertia_error.bound(state, inverse @ (tau - bias), inverse))
         return sum(parts[1:], parts[0]) if parts else None
 
-    def _friction_error(self, state: ArmState, bias: Array) -> Array | None:
+    def _friction_error(self, state: ArmState, bias: Array, inverse: Array) -> Array | None:
         """model_error.friction_error over this period, for the accelerations of the torques
-        this step may hold (the step's box; any without a torque box)."""
+        this step may hold (the step's box; any without a torque box); ``inverse``: D⁻¹."""
         box = self.box.reachable
-        inverse = inverse_inertia(state.inertia)  # once for both
         accel = None if box is None else reachable_accelerations(
             self.model, state, bias, *box.bounds, inverse=inverse)
         return friction_error(self.model, state, accel, self.period, inverse=inverse)

@@ -313,9 +313,9 @@ class InertiaError:
         self._spatial = spatial
         self._jacobians = np.zeros((2 * bodies, 6, n))  # each piece's link's, joint frame
 
-    def bound(self, state: ArmState, accel: Array) -> Array:
+    def bound(self, state: ArmState, accel: Array, inverse: Array | None = None) -> Array:
         """ā of the class docstring at ``state`` for the model acceleration ``accel``
-        (controller coordinates), per coordinate."""
+        (controller coordinates), per coordinate; ``inverse``: D⁻¹ when the caller has it."""
         e = self.relative
         coords = self.model.coordinates
         if coords.is_identity:
@@ -325,7 +325,7 @@ class InertiaError:
             q, dq, ddq = t_inv @ state.x, t_inv @ state.dx, t_inv @ accel
             inertia = t.T @ state.inertia @ t
         pin_model, data = self.model.model, self._data
-        inv = np.asarray(np.linalg.inv(inertia), dtype=float)
+        inv = _joint_inverse(self.model, state.inertia, inverse)[1]  # (Tᵀ D T)⁻¹
         armature, damping, friction = self._joint
         joint_force = armature * np.abs(ddq) + damping * np.abs(dq) + friction  # ≥ |α â + f|
         first = np.abs(inv) @ joint_force
