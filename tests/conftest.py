@@ -11,6 +11,8 @@ import numpy as np
 import pytest
 import yaml
 
+from cpbc.constraints import ConstraintSet, joint_position_limit, joint_rate_limit
+from cpbc.controllers import RecentredBarrier
 from cpbc.model import ArmState, LinearCoordinates, RobotModel
 from cpbc.resources import models_dir
 from cpbc.scenario import ScenarioSetup, build, load_scenario
@@ -109,6 +111,19 @@ def planar_path() -> Path:
 def joint_model(planar_path: Path) -> RobotModel:
     """The arm in its own (relative) joint coordinates q."""
     return RobotModel.from_mjcf(planar_path)
+
+
+@pytest.fixture
+def recentred(joint_model: RobotModel) -> RecentredBarrier:
+    """The re-centred barrier law on the planar arm (joint coordinates) toward (1.2, −1.0),
+    inside joint limits [−1, 1.4] × [−1.3, 1] and rates ±0.6: the safeguard's test law."""
+    names = ["q1", "q2"]
+    cons = ConstraintSet(
+        2,
+        [joint_position_limit(np.array([-1.0, -1.3]), np.array([1.4, 1.0]), names)],
+        [joint_rate_limit([0.6, 0.6], names)],
+    )
+    return RecentredBarrier(joint_model, np.array([1.2, -1.0]), cons, 20, 4)
 
 
 @pytest.fixture

@@ -40,17 +40,6 @@ def bpbc(absolute_model: RobotModel) -> BPBC:
                 Power(0.2))
 
 
-@pytest.fixture
-def recentred(joint_model: RobotModel) -> RecentredBarrier:
-    names = ["q1", "q2"]
-    cons = ConstraintSet(
-        2,
-        [joint_position_limit(np.array([-1.0, -1.3]), np.array([1.4, 1.0]), names)],
-        [joint_rate_limit([0.6, 0.6], names)],
-    )
-    return RecentredBarrier(joint_model, np.array([1.2, -1.0]), cons, 20, 4)
-
-
 def predicted(law: Safeguard, x: np.ndarray, dx: np.ndarray, tau: np.ndarray, t: float):
     """The safeguard's own frozen prediction of (x, ẋ) at time t under the held τ."""
     dyn = law.model.dynamics(x, dx)

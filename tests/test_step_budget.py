@@ -6,12 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cpbc.constraints import ConstraintSet, joint_position_limit, joint_rate_limit
 from cpbc.controllers import RecentredBarrier
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings, viable
 from cpbc.controllers.safeguard.step_budget import OutOfTests, StepBudget
 from cpbc.errors import CpbcError
-from cpbc.model import RobotModel
 from cpbc.model.input_bounds import InputBounds
 from cpbc.reliability.campaign import campaign_setup, sample_states
 from tools.reliability.robustness import sampled_data_campaign
@@ -19,17 +17,6 @@ from tools.reliability.robustness import sampled_data_campaign
 H = 0.01
 # near joint 2's lower limit and moving towards it: the law's torque fails (S1)
 X, DX = np.array([0.7, -1.29]), np.array([0.09, -0.3])
-
-
-@pytest.fixture
-def recentred(joint_model: RobotModel) -> RecentredBarrier:
-    names = ["q1", "q2"]
-    cons = ConstraintSet(
-        2,
-        [joint_position_limit(np.array([-1.0, -1.3]), np.array([1.4, 1.0]), names)],
-        [joint_rate_limit([0.6, 0.6], names)],
-    )
-    return RecentredBarrier(joint_model, np.array([1.2, -1.0]), cons, 20, 4)
 
 
 def test_the_budget_counts_its_tests_and_keeps_the_last_that_passed() -> None:
