@@ -556,6 +556,18 @@ def test_a_trackers_law_is_packed_before_the_first_cycle() -> None:
     assert law._packed_law is packed  # not packed again
 
 
+def _given(tmp_path: Path, field: str, given: Any) -> ScenarioSetup:
+    """The test reach built with ``simulation.<field>`` left out (``given`` None), null
+    ("null") or the value given."""
+    data = yaml.safe_load(SCENARIO.read_text())
+    data["simulation"].pop(field, None)
+    if given is not None:
+        data["simulation"][field] = None if given == "null" else given
+    path = tmp_path / "given.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return build(*load_scenario(path))
+
+
 @pytest.mark.parametrize("given, budget", [(None, robot_run.ROBOT_RESCUE_BUDGET),
                                            ("null", None), (3, 3)])
 def test_on_a_robot_the_rescue_is_bounded_unless_the_scenario_says(tmp_path: Path,
@@ -564,13 +576,7 @@ def test_on_a_robot_the_rescue_is_bounded_unless_the_scenario_says(tmp_path: Pat
     """cpbc.hardware bounds the safeguard's rescue (its time is the robot's) unless the
     scenario sets simulation.safeguard_rescue_budget itself, a number or null; cpbc.run's
     set-up keeps the scenario's (no bound by default)."""
-    data = yaml.safe_load(SCENARIO.read_text())
-    data["simulation"].pop("safeguard_rescue_budget", None)
-    if given is not None:
-        data["simulation"]["safeguard_rescue_budget"] = None if given == "null" else given
-    path = tmp_path / "budget.yaml"
-    path.write_text(yaml.safe_dump(data))
-    setup = build(*load_scenario(path))
+    setup = _given(tmp_path, "safeguard_rescue_budget", given)
     assert setup.safeguard is not None
     assert setup.safeguard.rescue_budget == (3 if given == 3 else None)
     robot = robot_run.on_robot(setup)
@@ -586,12 +592,7 @@ def test_on_a_robot_a_step_tests_a_bounded_number_of_torques_unless_the_scenario
         tmp_path: Path, given: Any, tests: int | None) -> None:
     """cpbc.hardware bounds the torques one safeguard step tests unless the scenario sets
     simulation.safeguard_test_budget itself, a number or null; the summary says which."""
-    data = yaml.safe_load(SCENARIO.read_text())
-    if given is not None:
-        data["simulation"]["safeguard_test_budget"] = None if given == "null" else given
-    path = tmp_path / "tests.yaml"
-    path.write_text(yaml.safe_dump(data))
-    setup = build(*load_scenario(path))
+    setup = _given(tmp_path, "safeguard_test_budget", given)
     assert setup.safeguard is not None
     assert setup.safeguard.test_budget == (2 if given == 2 else None)
     robot = robot_run.on_robot(setup)
