@@ -605,15 +605,27 @@ def test_on_a_robot_a_step_tests_a_bounded_number_of_torques_unless_the_scenario
     assert recorded == tests if tests is not None else np.isnan(recorded)
 
 
-def test_on_a_robot_the_tests_stop_at_a_share_of_the_deadline() -> None:
+@pytest.mark.parametrize("given, seconds", [(None, robot_run.ROBOT_TIME_SHARE * 0.001),
+                                            ("null", None), (2e-4, 2e-4)])
+def test_on_a_robot_the_tests_stop_at_a_share_of_the_deadline_unless_the_scenario_says(
+        tmp_path: Path, given: Any, seconds: float | None) -> None:
     """Given the cycle's deadline, cpbc.hardware lets the safeguard test torques for
-    ROBOT_TIME_SHARE of it (a cycle that would miss it holds what a step out of tests holds);
-    cpbc.run's set-up has no time budget."""
-    setup = build(*load_scenario(SCENARIO))
-    assert setup.safeguard is not None and setup.safeguard.time_budget is None
-    assert robot_run.on_robot(setup).safeguard.time_budget is None  # type: ignore[union-attr]
+    ROBOT_TIME_SHARE of it (a cycle that would miss it holds what a step out of tests holds)
+    unless the scenario sets simulation.safeguard_time_budget itself, a number or null;
+    cpbc.run's set-up keeps the scenario's (no bound by default)."""
+    setup = _given(tmp_path, "safeguard_time_budget", given)
+    assert setup.safeguard is not None
+    assert setup.safeguard.time_budget == (2e-4 if given == 2e-4 else None)
+    assert robot_run.on_robot(setup).safeguard.time_budget == (  # type: ignore[union-attr]
+        setup.safeguard.time_budget)
     robot = robot_run.on_robot(setup, 0.001)
     assert robot.safeguard is not None
-    assert robot.safeguard.time_budget == pytest.approx(robot_run.ROBOT_TIME_SHARE * 0.001)
+    assert robot.safeguard.time_budget == pytest.approx(seconds)
     guard = robot.controller(choose_controller(robot, None))
     assert isinstance(guard, Safeguard) and guard.budget.seconds == robot.safeguard.time_budget
+
+
+def test_a_time_budget_of_no_time_is_refused(tmp_path: Path) -> None:
+    """simulation.safeguard_time_budget must be a time > 0; the error names the field."""
+    with pytest.raises(ScenarioError, match="safeguard_time_budget"):
+        _given(tmp_path, "safeguard_time_budget", 0.0)

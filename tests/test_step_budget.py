@@ -159,3 +159,40 @@ def test_a_budget_in_time_stops_the_tests_once_it_is_spent(
         SafeguardSettings(time_budget=0.0)
     with pytest.raises(ValueError, match="seconds"):
         StepBudget(None, -1.0)
+
+
+def test_past_its_time_a_step_holds_the_uniform_brake_without_a_further_test() -> None:
+    """On the FR3 as a robot runs it, seed 23's first state fails the law's test and the
+    rescue's own brakes are not all clipped to the uniform one by the first step's box: a
+    step out of tests (one test a step) holds a rescue brake it tested, a step out of time
+    holds the uniform brake b − D ẋ/h in the step's box at once, untested — a step that
+    ends within its time and the one test under way."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from cpbc.reliability.verification import draw_state
+    from cpbc.scenario import build, load_scenario
+
+    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
+    setup = build(*load_scenario(campaign / "fr3_sphere_rate_robot.yaml"))
+    assert setup.safeguard is not None
+    entry = next(e for e in setup.controllers if e.name == "CPBC")
+    s = draw_state(setup, 23)
+
+    def guard(**budgets: float | None) -> Safeguard:
+        made = replace(setup, safeguard=replace(setup.safeguard, **budgets)).controller(entry)
+        assert isinstance(made, Safeguard)
+        return made
+
+    timed, counted = guard(test_budget=None, time_budget=1e-9), guard(test_budget=1)
+    tau_timed = timed.torque(s.position, s.velocity)
+    tau_counted = counted.torque(s.position, s.velocity)
+    assert (timed.out_of_tests, counted.out_of_tests) == (1, 1)
+    assert not np.allclose(tau_timed, tau_counted)
+    twin = guard()
+    state = twin.state(s.position, s.velocity)
+    twin.box.begin(state)  # the first step's box, around the gravity torque of the state
+    bias = state.coriolis_force + state.gravity + state.dissipation
+    uniform = twin.brakes.brake(bias, state.inertia @ state.dx / twin.period,
+                                twin.settings.braking)
+    np.testing.assert_allclose(tau_timed, uniform, rtol=0, atol=1e-12)

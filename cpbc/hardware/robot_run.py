@@ -59,10 +59,11 @@ ROBOT_TIME_SHARE = 0.3
 def on_robot(setup: ScenarioSetup, deadline: float | None = None) -> ScenarioSetup:
     """The set-up as a robot runs it: the safeguard's rescue bounded to ROBOT_RESCUE_BUDGET
     model periods a cycle and its step to ROBOT_TEST_BUDGET tests, each unless the scenario
-    sets it itself (``simulation.safeguard_rescue_budget``, ``safeguard_test_budget``: a
-    number, or null for no bound), and, given the cycle's ``deadline`` [s], to testing for
-    ROBOT_TIME_SHARE of it. In simulation time costs nothing and the defaults are no bound
-    (cpbc.controllers.rescue: a rescue budget keeps fewer runs there)."""
+    sets it itself (``simulation.safeguard_rescue_budget``, ``safeguard_test_budget``,
+    ``safeguard_time_budget``: a number, or null for no bound), and, given the cycle's
+    ``deadline`` [s], to testing for ROBOT_TIME_SHARE of it. In simulation time costs
+    nothing and the defaults are no bound (cpbc.controllers.rescue: a rescue budget keeps
+    fewer runs there)."""
     if setup.safeguard is None:
         return setup
     given = setup.scenario.simulation.model_fields_set
@@ -71,7 +72,7 @@ def on_robot(setup: ScenarioSetup, deadline: float | None = None) -> ScenarioSet
         guard = replace(guard, rescue_budget=ROBOT_RESCUE_BUDGET)
     if "safeguard_test_budget" not in given:
         guard = replace(guard, test_budget=ROBOT_TEST_BUDGET)
-    if deadline is not None:
+    if deadline is not None and "safeguard_time_budget" not in given:
         guard = replace(guard, time_budget=ROBOT_TIME_SHARE * deadline)
     return replace(setup, safeguard=guard)
 

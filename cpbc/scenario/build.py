@@ -177,6 +177,7 @@ def build(scenario: s.Scenario, scenario_file: Path, kinds: Kinds = KINDS) -> Sc
                                     hold_correction=sim.safeguard_hold_correction,
                                     rescue_budget=sim.safeguard_rescue_budget,
                                     test_budget=sim.safeguard_test_budget,
+                                    time_budget=sim.safeguard_time_budget,
                                     plant_step=sim.timestep if sim.integrator in ONE_STAGE
                                     else None)
         if sim.safeguard else None,

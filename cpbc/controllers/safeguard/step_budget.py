@@ -70,6 +70,11 @@ class StepBudget:
         if self.seconds is not None:
             self._until = time.perf_counter() + self.seconds
 
+    @property
+    def out_of_time(self) -> bool:
+        """The step's time budget is spent (never without one, nor inside :meth:`lifted`)."""
+        return time.perf_counter() > self._until
+
     def begin(self) -> None:
         """A new step: no test made yet."""
         self.used, self.passed = 0, None

@@ -288,6 +288,16 @@ class SimulationSpec(Strict):
             "(a bound on the step's time: past it the step holds the last torque that passed, "
             "else the uniform brake); null for no bound, the default in simulation "
             "(python -m cpbc.hardware bounds it on a robot unless given)"))
+    # how long one safeguard step may test torques for [s] (step_budget.py): a robot's
+    # clock, so a run under it depends on the machine; null (the default): no bound
+    safeguard_time_budget: Positive | None = Field(
+        default=None, description=(
+            "seconds one safeguard step may test torques for, the law's torque always tested "
+            "(past it the step holds the last torque that passed, else the uniform brake); "
+            "it reads the clock, so a run under it depends on the machine: 1e-9 tests the "
+            "law's torque alone on every step, the tightest budget; null for no bound, the "
+            "default in simulation (python -m cpbc.hardware sets 30 % of --deadline-ms "
+            "unless given)"))
     noise: NoiseSpec | None = Field(
         default=None, description=(
             "Gaussian noise on the state the controller sees (MuJoCo backend)"))
