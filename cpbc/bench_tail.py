@@ -79,13 +79,15 @@ def guarded_tail(steps: int = 100_000, seconds: float = 0.5, seed: int = 0,
                  scenario: str = "panda_cpbc_sphere", integrator: str | None = "Euler",
                  rate_limit: float | None = None,
                  rescue_budget: int | None = None,
-                 test_budget: int | None = None) -> dict[str, object]:
+                 test_budget: int | None = None,
+                 time_budget: float | None = None) -> dict[str, object]:
     """The guarded law of ``scenario`` (its first constrained one; ``integrator``: the
     plant's, MuJoCo's default semi-implicit Euler unless given, None for the scenario's)
     timed over at least ``steps`` control steps of
     ``seconds``-long runs from the campaign's seeded starts (``rate_limit``: a torque-rate
-    limit [N·m/s] for plant and guard, or the scenario's none; ``rescue_budget`` and
-    ``test_budget``: the safeguard's bounds on a step, or the scenario's none)."""
+    limit [N·m/s] for plant and guard, or the scenario's none; ``rescue_budget``,
+    ``test_budget`` and ``time_budget`` [s]: the safeguard's bounds on a step, or the
+    scenario's none)."""
     from cpbc.reliability.campaign import campaign_setup, sample_states
 
     setup = campaign_setup(scenario, integrator=integrator)
@@ -97,6 +99,8 @@ def guarded_tail(steps: int = 100_000, seconds: float = 0.5, seed: int = 0,
         setup = replace(setup, safeguard=replace(setup.safeguard, rescue_budget=rescue_budget))
     if setup.safeguard is not None and test_budget is not None:
         setup = replace(setup, safeguard=replace(setup.safeguard, test_budget=test_budget))
+    if setup.safeguard is not None and time_budget is not None:
+        setup = replace(setup, safeguard=replace(setup.safeguard, time_budget=time_budget))
     entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
     settings = replace(setup.loop_settings, duration=seconds)
     plant = setup.make_plant()
@@ -132,6 +136,7 @@ def guarded_tail(steps: int = 100_000, seconds: float = 0.5, seed: int = 0,
             "acting_cpu": quantiles([t for t, a in zip(cpu, acting, strict=True) if a]),
             "max_over_p50": every["max"] / every["p50"],
             **counts, "rate_limit": rate_limit, "rescue_budget": rescue_budget,
-            "test_budget": test_budget,
+            "test_budget": test_budget, "time_budget_us":
+                None if time_budget is None else 1e6 * time_budget,
             "setup": f"{scenario}'s guarded law, {seconds:g} s runs from the "
                      f"campaign's starts (seed {seed}), 1 kHz, garbage collector off"}
