@@ -215,8 +215,9 @@ def run_campaign(plan: Plan, workers: int = 1, cluster: str | None = None, block
 
 def table(doc: Record) -> Table:
     t = Table(title=f"cpbc verify: {shown(doc['plan']['scenario'])}")  # type: ignore[index]
-    for col in ("controller", "rate", "stoppable runs", "violations", "deeper than 1e-6",
-                "worst depth", "worst margin", *(f"{k} (violated)" for k in CLASSES[1:]),
+    for col in ("controller", "rate", "stoppable runs", "violations", "in V (violated)",
+                "deeper than 1e-6", "worst depth", "worst margin",
+                *(f"{k} (violated)" for k in CLASSES[1:]),
                 "filter acted", "rows acted", "infeasible steps", "rescues",
                 "torque on a limit", "peak torque rate (clipped)", "failing seeds"):
         t.add_column(col)
@@ -225,6 +226,7 @@ def table(doc: Record) -> Table:
         seeds = [str(f["seed"]) for f in r["failures"]]
         t.add_row(r["controller"], f"{r['rate']:g} Hz", str(r["runs"]),
                   f"[red]{r['violations']}[/red]" if r["violations"] else "0",
+                  f"{r['in_v']['runs']} ({r['in_v']['violations']})",
                   str(r["deep_violations"]), f"{r['worst_depth']:.2g}", margin_text(r),
                   *(f"{nv[k]['runs']} ({nv[k]['violations']})" for k in CLASSES[1:]),
                   f"{r['filter_share']:.1%}", f"{row_share(r):.1%}", str(r["infeasible_steps"]),

@@ -64,7 +64,7 @@ def _verify_doc() -> dict:
 
     def record(seed, rate, margin, cls="stoppable"):
         return {"controller": "CPBC", "type": "cpbc", "rate": rate, "seed": seed,
-                "class": cls, "violated": margin <= 0, "min_margin": margin,
+                "class": cls, "in_v": seed == 0, "violated": margin <= 0, "min_margin": margin,
                 "constraint": "clearance[link|ball]", "end_time": 0.5, "outcome": "",
                 "position": [0.0], "velocity": [0.0], "control_steps": 10, "acted": 1,
                 "infeasible": 0, "at_limit": 0, "rescues": 2}
@@ -86,6 +86,8 @@ def test_a_verify_report_reads_back_as_the_tables_it_was_written_from() -> None:
     assert tables == [campaign_table(doc)]
     row = tables[0].cells()[0]
     assert row["worst margin"] == "0.1 (clearance[link\\|ball])"  # the bar stays in its cell
+    assert row["in V (violated)"] == "1 (0)"  # seed 0, stoppable, in V
+    assert tables[0].cells()[1]["in V (violated)"] == "1 (1)"  # 100 Hz: seed 0 breaks
 
 
 def test_the_campaign_fragment_in_rows_and_by_rate() -> None:

@@ -36,6 +36,9 @@ def test_campaign_counts_runs_and_failures_with_their_seeds(in_process):
         assert r["worst_margin"] <= 0
         for f in r["failures"]:
             assert f["min_margin"] <= 0 and f["constraint"]
+        # the starts in V are counted apart, their violations among the failures
+        assert 0 <= r["in_v"]["runs"] <= r["runs"]
+        assert r["in_v"]["violations"] == sum(bool(f["in_v"]) for f in r["failures"])
 
 
 def test_a_failure_is_reproduced_by_its_seed_alone(in_process, tmp_path):
@@ -150,7 +153,8 @@ def test_a_clearance_pairs_bar_does_not_split_a_report_cell():
 def test_one_rule_counts_runs_at_or_below_zero_and_deeper_than_the_tolerance():
     def record(seed, margin, acted, infeasible=0):
         return {"controller": "QP", "type": "cbf_qp", "rate": 1000.0, "seed": seed,
-                "class": "stoppable", "violated": margin <= 0, "min_margin": margin,
+                "class": "stoppable", "in_v": seed != 2, "violated": margin <= 0,
+                "min_margin": margin,
                 "constraint": "c", "end_time": 0.5, "outcome": "", "position": [0.0],
                 "velocity": [0.0], "control_steps": 10, "acted": acted,
                 "infeasible": infeasible, "at_limit": 0}
@@ -159,6 +163,7 @@ def test_one_rule_counts_runs_at_or_below_zero_and_deeper_than_the_tolerance():
     assert (row["runs"], row["violations"], row["deep_violations"]) == (3, 2, 1)
     assert row["worst_depth"] == pytest.approx(2e-3) and row["tolerance"] == 1e-6
     assert row["filter_share"] == pytest.approx(17 / 30) and row["infeasible_steps"] == 4
+    assert row["in_v"] == {"runs": 2, "violations": 1}  # seed 2 starts outside V
 
 
 def test_the_ur5_circle_keeps_the_floor_of_its_scene():

@@ -26,6 +26,7 @@ Record = dict[str, object]
 RATE = "rate"
 RUNS = "stoppable runs"
 VIOLATIONS = "violations"
+IN_V = "in V (violated)"  # stoppable starts in the uniform brake's braking set
 VIOLATED_OF_RUNS = "violations / runs"  # a fragment's column: violations of stoppable runs
 EXPLAINED = (
     "Each state is classed per rate before it runs: *stoppable* (some brake within "
@@ -148,6 +149,8 @@ def _row(r: Mapping) -> dict[str, str]:
              "deeper than 1e-6": str(r["deep_violations"]),
              "worst depth": f"{r['worst_depth']:.2g}",
              "worst margin": markdown_cell(margin_text(cast(Record, r)))}
+    in_v = r.get("in_v")  # documents written before it was counted have none
+    cells[IN_V] = "-" if in_v is None else f"{in_v['runs']} ({in_v['violations']})"
     for kind, counts in r["non_viable"].items():
         cells[f"{kind} (violated)"] = f"{counts['runs']} ({counts['violations']})"
     cells.update({
@@ -263,6 +266,8 @@ BY_RATE_COLUMNS = ("controller", RUNS, VIOLATIONS, "deeper than 1e-6", "filter a
                    "rescues", "not_stoppable (violated)")
 # a campaign under a torque-rate limit: the rows and the peak rate against its limit
 RATE_COLUMNS = (*ROWS_COLUMNS, "peak torque rate (clipped)")
+# a campaign of a step bounded as on a robot: the starts in V, which the bound keeps, apart
+BOUNDED_COLUMNS = (*ROWS_COLUMNS[:3], IN_V, *ROWS_COLUMNS[3:], "peak torque rate (clipped)")
 LAYOUTS = {"rows": ROWS_COLUMNS, "by-rate": BY_RATE_COLUMNS}
 
 

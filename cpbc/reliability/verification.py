@@ -348,17 +348,19 @@ def _worst(rows: Sequence[Record]) -> tuple[float, str | None]:
 def summarise(plan: Plan, records: Iterable[Record]) -> Record:
     """The campaign's document: per controller and rate the viable runs, their violations
     (runs with a margin ≤ 0) and of those the runs deeper than TOLERANCE, the worst margin and
-    depth, the seeds of each failure, the share of steps the filter changed (and of those
-    its own rows or conditions, not the torque box alone), its infeasible steps and the steps
-    the guard's rescue held a brake; not-stoppable runs, apart."""
+    depth, the seeds of each failure, the viable runs that start in V and their violations,
+    the share of steps the filter changed (and of those its own rows or conditions, not the
+    torque box alone), its infeasible steps and the steps the guard's rescue held a brake;
+    not-stoppable runs, apart."""
     rows = []
     order = sorted(_group(records).items(), key=lambda kv: (kv[0][0], -kv[0][1]))
     for (name, rate), group in order:
         group.sort(key=lambda r: int(r["seed"]))  # type: ignore[call-overload]
         ok = [r for r in group if r["class"] == CLASSES[0]]
         failures = [{k: r[k] for k in ("seed", "constraint", "end_time", "min_margin",
-                                       "outcome", "position", "velocity")}
+                                       "outcome", "position", "velocity", "in_v")}
                     for r in ok if r["violated"]]
+        in_v = [r for r in ok if r["in_v"]]
         low, where = _worst(ok)
         steps = sum(int(r["control_steps"]) for r in group)  # type: ignore[call-overload]
         rows.append({
@@ -368,6 +370,9 @@ def summarise(plan: Plan, records: Iterable[Record]) -> Record:
                                    for f in failures),
             "worst_depth": max(0.0, -low), "tolerance": TOLERANCE,
             "failures": failures,
+            # the stoppable starts in the uniform brake's braking set V, which every step
+            # bounded in time keeps (the guard's (S2)); the others need a rescue's search
+            "in_v": {"runs": len(in_v), "violations": sum(bool(r["violated"]) for r in in_v)},
             "non_viable": {k: {"runs": sum(r["class"] == k for r in group),
                                "violations": sum(r["class"] == k and bool(r["violated"])
                                                  for r in group)}
