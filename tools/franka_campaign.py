@@ -230,12 +230,13 @@ def _git_commit() -> str:
         return "unknown"
 
 
-def _budgeted(session: list[tuple[str, dict]], budgets: dict[str, int | None]
+def _budgeted(session: list[tuple[str, dict]], budgets: dict[str, float | None]
               ) -> list[tuple[str, dict]]:
     """The session's scenarios with the safeguard's budgets given in ``budgets``
-    (``{"rescue": B, "test": K}``: ``simulation.safeguard_rescue_budget`` in model periods
-    per control period, ``safeguard_test_budget`` in tests per step; 0: no bound), the
-    others as they are (a robot's defaults, cpbc.hardware.robot_run.ROBOT_*_BUDGET)."""
+    (``{"rescue": B, "test": K, "time": T}``: ``simulation.safeguard_rescue_budget`` in
+    model periods per control period, ``safeguard_test_budget`` in tests per step,
+    ``safeguard_time_budget`` in s; 0: no bound), the others as they are (a robot's
+    defaults, cpbc.hardware.robot_run.ROBOT_*)."""
     given = {f"safeguard_{kind}_budget": None if b == 0 else b
              for kind, b in budgets.items() if b is not None}
     if not given:
@@ -246,8 +247,9 @@ def _budgeted(session: list[tuple[str, dict]], budgets: dict[str, int | None]
 
 def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
              command: str, rescue_budget: int | None = None,
-             test_budget: int | None = None) -> dict[str, Any]:
-    """Run the campaign; its JSON document."""
+             test_budget: int | None = None,
+             time_budget: float | None = None) -> dict[str, Any]:
+    """Run the campaign; its JSON document (``time_budget`` [s])."""
     runs: list[dict[str, Any]] = []
     compute: list[np.ndarray] = []
     refused = 0
@@ -261,7 +263,7 @@ def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
         for session in sessions:
             if session[0][0] == "reach" and sum(r["kind"] == "reach" for r in runs) >= n_reaches:
                 continue
-            budgets = {"rescue": rescue_budget, "test": test_budget}
+            budgets = {"rescue": rescue_budget, "test": test_budget, "time": time_budget}
             found = run_session(_budgeted(session, budgets), Path(folder), deadline)
             if found is None:
                 refused += 1
@@ -274,6 +276,7 @@ def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
         "command": command, "date": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
         "commit": _git_commit(), "seed": seed, "deadline_ms": deadline * 1e3,
         "rescue_budget": rescue_budget, "test_budget": test_budget,
+        "time_budget_us": None if time_budget is None else 1e6 * time_budget,
         "machine": {"cpus": os.cpu_count(), "load_before": [round(v, 2) for v in load_before],
                     "load_after": [round(v, 2) for v in os.getloadavg()]},
         "wall_s": round(time.perf_counter() - begun, 1),
@@ -303,8 +306,12 @@ def _budgets(doc: dict[str, Any]) -> str:
     t = doc["totals"]
     if "test_budget" not in doc:
         return "(Run before the safeguard's budget of tests existed.)"
+    time = doc.get("time_budget_us")
+    timed = "cpbc.hardware's share of the deadline" if time is None else (
+        "no bound" if time == 0 else f"{time:.0f} µs")
     return (f"Budgets: {_budget(doc['test_budget'], 'tests')} a step, "
-            f"{_budget(doc.get('rescue_budget'), 'model periods')} of rescue a cycle. The "
+            f"{_budget(doc.get('rescue_budget'), 'model periods')} of rescue a cycle, "
+            f"{timed} of testing a step. The "
             f"safeguard replaced the law's torque in {t['acted']} of {t['cycles']} cycles; "
             f"{t['out_of_tests']} of them spent the budget of tests.")
 
@@ -397,6 +404,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="the candidate torques a safeguard step may test "
                         "(simulation.safeguard_test_budget; 0: no bound; default: "
                         "cpbc.hardware's on a robot, 6)")
+    p.add_argument("--time-budget-us", type=float, default=None,
+                   help="how long a safeguard step may test torques, µs "
+                        "(simulation.safeguard_time_budget; 0: no bound; default: "
+                        "cpbc.hardware's share of the deadline)")
     p.add_argument("--out", type=Path, default=OUT)
     p.add_argument("--render-only", action="store_true",
                    help="write the fragment from the stored JSON, run nothing")
@@ -407,7 +418,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         command = "python -m tools.franka_campaign " + " ".join(
             argv if argv is not None else sys.argv[1:])
         doc = campaign(args.reaches, args.paths, args.seed, args.deadline_ms * 1e-3,
-                       command.strip(), args.rescue_budget, args.test_budget)
+                       command.strip(), args.rescue_budget, args.test_budget,
+                       None if args.time_budget_us is None else args.time_budget_us * 1e-6)
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / JSON_NAME).write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
     (args.out / TABLE_NAME).write_text(render(doc), encoding="utf-8")
