@@ -125,7 +125,7 @@ def plans_from(a: argparse.Namespace) -> list[Plan]:
 
 def conditions(setup: ScenarioSetup) -> Record:
     """What a campaign's guarantee is conditional on: the physics, the actuators' limits and
-    whether the laws run with their safeguard."""
+    whether the laws run with their safeguard, and its step's budgets."""
     limit = setup.loop_settings.bounds.torque
     rate = setup.loop_settings.bounds.rate
     error = setup.loop_settings.model_error
@@ -140,6 +140,11 @@ def conditions(setup: ScenarioSetup) -> Record:
         # the monitored constraints the safeguard keeps besides each law's own (judged too)
         "also_kept": sorted({n.split("[")[0] for c in setup.also_keep for n in c.names})
         if setup.safeguard is not None else [],
+        # the bounds on the safeguard's step (step_budget.py, rescue.py), None: no bound
+        "budgets": None if setup.safeguard is None else {
+            "tests": setup.safeguard.test_budget, "rescue": setup.safeguard.rescue_budget,
+            "time_us": None if setup.safeguard.time_budget is None
+            else 1e6 * setup.safeguard.time_budget},
         "coordinates": list(setup.coordinate_names),
     }
 

@@ -90,6 +90,16 @@ def test_a_verify_report_reads_back_as_the_tables_it_was_written_from() -> None:
     assert tables[0].cells()[1]["in V (violated)"] == "1 (1)"  # 100 Hz: seed 0 breaks
 
 
+def test_the_conditions_name_the_safeguards_budgets_where_a_campaign_had_any() -> None:
+    doc = _verify_doc()
+    doc["conditions"]["budgets"] = {"tests": 6, "rescue": 8, "time_us": 300.0}
+    rows = fragment([campaign_table(doc)], ["head"], "rows")
+    assert "judged too), its step bounded to 6 tests, 8 model periods of rescue, 300 µs;" \
+        in rows
+    doc["conditions"]["budgets"] = {"tests": None, "rescue": None, "time_us": None}
+    assert "its step bounded" not in fragment([campaign_table(doc)], ["head"], "rows")
+
+
 def test_the_campaign_fragment_in_rows_and_by_rate() -> None:
     table = campaign_table(_verify_doc())
     rows = fragment([table], ["head"], "rows")

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import cast
 
 from cpbc.reliability.report import (
+    BOUNDED_COLUMNS,
     LAYOUTS,
     RATE_COLUMNS,
     CampaignTable,
@@ -49,9 +50,11 @@ FRAGMENTS: dict[str, tuple[tuple[str, ...], str]] = {
               for name in ("panda_cbf_qp", "panda_cbf_qp_exponential", "ur5_cbf_qp")), "rows"),
     "docs/tables/peer-ke-campaign.md": (("docs/tables/peer/panda_ke_cbf_qp.json",), "rows"),
     "docs/tables/rate-campaign.md": (("docs/tables/rate/campaign.json",), "rows"),
+    "docs/tables/rate-robot-campaign.md": (("docs/tables/rate/robot.json",), "rows"),
 }
 # fragments whose table has columns other than their layout's
-COLUMNS: dict[str, tuple[str, ...]] = {"docs/tables/rate-campaign.md": RATE_COLUMNS}
+COLUMNS: dict[str, tuple[str, ...]] = {"docs/tables/rate-campaign.md": RATE_COLUMNS,
+                                       "docs/tables/rate-robot-campaign.md": BOUNDED_COLUMNS}
 DOCS_COMMAND = "python -m tools.verify_table --docs"
 
 

@@ -105,6 +105,19 @@ def _also(where: Record) -> str:
             if kept else "")
 
 
+def _budgets(where: Record) -> str:
+    """The safeguard's bounds on its step, where a campaign had any."""
+    budgets = cast(Record | None, where.get("budgets"))
+    if not budgets or all(v is None for v in budgets.values()):
+        return ""
+    parts = [f"{budgets['tests']} tests" if budgets.get("tests") is not None else "",
+             f"{budgets['rescue']} model periods of rescue"
+             if budgets.get("rescue") is not None else "",
+             f"{float(cast(float, budgets['time_us'])):g} µs"
+             if budgets.get("time_us") is not None else ""]
+    return ", its step bounded to " + ", ".join(p for p in parts if p)
+
+
 def _limits(limit: object) -> str:
     if limit is None:
         return "none"
@@ -127,6 +140,7 @@ def _conditions(doc: Record) -> str:
             f"{where.get('timestep', '?')} s; torque limits {_limits(where.get('torque_limit'))}"
             f"{_rate_limits(where.get('torque_rate_limit'))}"
             f"; safeguard {'on' if where.get('safeguard', True) else 'off'}{_also(where)}"
+            f"{_budgets(where)}"
             f"{_model_error(where, plan)}; "
             f"mismatch {plan['mismatch'] or 'none'}, noise {plan['noise'] or 'none'}.")
 
