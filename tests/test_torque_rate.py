@@ -180,3 +180,30 @@ def test_a_robot_that_adds_gravity_bounds_the_command_not_the_torque(tmp_path) -
             outside = np.any(np.abs(sent) > limit * (1 + 1e-9))
             broken[told] += int(over_rate or outside)
     assert broken[True] == 0 < broken[False]
+
+
+def test_a_joint_riding_its_rate_bound_is_slowed_by_the_brake_along_the_line() -> None:
+    """panda_goal_pose under a 1000 N·m/s rate limit, seed 100 (a stoppable start inside V):
+    joint 4 rides its rate bound for 140 ms while the uniform brake, fitted into the ±1 N·m
+    box by its nearest acceleration, fails (S1) by far; when the law's torque failed too,
+    the step fell to the fallback, which took joint 4 through its bound by 5.6 mrad/s at
+    148 ms. The brake reached along the line from the held torque slows it, and the run
+    keeps every constraint."""
+    from dataclasses import replace
+
+    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
+    from cpbc.reliability.verification import draw_state, in_braking_set, stopping_brake
+
+    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
+    setup = build(*load_scenario(campaign / "panda_goal_pose_rate.yaml"))
+    entry = next(e for e in setup.controllers if e.name == "TS-CPBC")
+    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
+    s = draw_state(setup, 100)
+    assert in_braking_set(setup, kept, s.position, s.velocity, 0.001)
+    assert stopping_brake(setup, kept, s.position, s.velocity, 0.001) is not None
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    settings = replace(setup.loop_settings, duration=0.2, log_every=1)
+    check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
+                        safeguard=setup.safeguard)
+    assert not check.violated, (check.constraint, check.min_margin)
+    assert check.trajectory.end_time == pytest.approx(0.2)

@@ -55,6 +55,14 @@ class Brakes:
         """The braking torque b − λ D ẋ/h, put in the step's box (StepBox.fit)."""
         return self.box.fit(bias, bias - lam * stop, brake=True)
 
+    def brake_along_line(self, bias: Array, stop: Array, lam: float) -> Array:
+        """The braking torque b − λ D ẋ/h reached from the held torque along the straight
+        line, as far as the step's rate box allows (StepBox.fit of a law's torque): its
+        acceleration is a blend of the held torque's and the brake's, so a joint that both
+        slow is slowed, where the nearest acceleration (:meth:`brake`) may speed it up
+        through the coupling in D to give the others their share."""
+        return self.box.fit(bias, bias - lam * stop)
+
     def search_braking(
         self, bias: Array, stop: Array, slack: Slack, f_stop: float, f_reverse: float,
     ) -> tuple[float, float]:
