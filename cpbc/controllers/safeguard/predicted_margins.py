@@ -27,6 +27,7 @@ from cpbc.kernels.sampled_guard import (
     configuration_rows,
     margins_along,
     predicted_slack,
+    ramp_share,
     ramp_speeds,
 )
 from cpbc.model.robot_model import RobotModel
@@ -167,9 +168,9 @@ class PredictedMargins:
         ramp_speeds(speeds, ramp.start, ramp.period, ramp.inertia,
                     ramp.inertia if to_joint is None else to_joint, to_joint is not None,
                     ramp.rate, RAMP_SHARE, peaks)
-        m = self.velocity_margins(ends, peaks)
-        m = np.where(np.isnan(m), -np.inf, m)
-        return float(np.min(m / ramp.floor)) - 1.0
+        vp = self._velocity
+        return ramp_share(vp.plan, vp.ints, vp.floats, ends, peaks, self._no_placements,
+                          self._generic_velocity_margins(ends, peaks), ramp.floor)
 
     def slack(self, predicted: Rows, end_floor: Array, mid_floor: Array | None,
               stop: BrakingTest | None, past: np.ndarray | None) -> float:
