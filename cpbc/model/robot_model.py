@@ -424,7 +424,8 @@ class RobotModel:
         q, dq = self._q(x), self._q(dx)
         tau_q = tau if self._identity else self.coordinates.torque_to_joint(tau)
         if self._has_friction:
-            tau_q = tau_q - self.coordinates.torque_to_joint(self.dissipation(dx))
+            f = self.dissipation(dx)
+            tau_q = tau_q - (f if self._identity else self.coordinates.torque_to_joint(f))
         self.holder = None
         ddq = pin.aba(self.model, self.data, q, dq, tau_q)
         return ddq if self._identity else self.coordinates.from_joint(ddq)
