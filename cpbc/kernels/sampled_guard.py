@@ -34,7 +34,7 @@ from cpbc.kernels.clearance import (
     SPHERE_LOCAL,
     SPHERES,
     Ints,
-    sphere_clearances,
+    sphere_clearances_in,
 )
 from cpbc.kernels.plan_tables import COUNT, FIRST, KIND, float_table, int_table
 from cpbc.kernels.small_solves import solve_spd
@@ -393,9 +393,10 @@ def margins_along(plan: Ints, ints: Ints, floats: Array, xs: Array, dxs: Array, 
             local = float_table(plan, floats, r, SPHERE_LOCAL)
             obstacles = float_table(plan, floats, r, OBSTACLES)
             table = float_table(plan, floats, r, PAIR_TABLE)
+            work = np.empty(3 * index.shape[0] + 7 * pairs.shape[0])  # once for every row
             for i in range(xs.shape[0]):
-                sphere_clearances(ys[i], index, local, obstacles, pairs, table,
-                                  out[i, at:at + k])
+                sphere_clearances_in(ys[i], index, local, obstacles, pairs, table, work,
+                                     out[i, at:at + k])
 
 
 @kernel("float64(float64, float64)")
