@@ -96,7 +96,18 @@ class TorqueBox:
         lower, upper = self.bounds
         lo = np.minimum(np.maximum(lower, held_q - step), upper)
         hi = np.maximum(np.minimum(upper, held_q + step), lower)
-        return TorqueBox(self.limit, self.to_joint, self.from_joint, lo, hi)
+        return self._narrowed(lo, hi)
+
+    def _narrowed(self, lower: Array, upper: Array) -> TorqueBox:
+        """This box with the joint-torque bounds ``lower``, ``upper`` (fresh float arrays,
+        kept as given), its maps shared with this one's, not copied: a guard under a rate
+        limit narrows its box at every step."""
+        box = object.__new__(TorqueBox)
+        for name, value in (("limit", self.limit), ("to_joint", self.to_joint),
+                            ("from_joint", self.from_joint), ("lower", lower),
+                            ("upper", upper), ("_packed", (lower, upper, *self._packed[2:]))):
+            object.__setattr__(box, name, value)
+        return box
 
     def joint(self, tau: Array) -> Array:
         return tau if self.to_joint is None else self.to_joint.dot(tau)
