@@ -57,17 +57,12 @@ def _to_accel(inverse: Array, t_inv: Array, mapped: bool, out: Array) -> None:
             out[i, j] = s
 
 
-@kernel(f"void({READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}, boolean, {READ_ONLY}, {READ_ONLY},"
-        f" {READ_ONLY}, float64[:], float64[:])")
-def reachable_accelerations(inverse: Array, t_inv: Array, mapped: bool, bias: Array,
-                            lower: Array, upper: Array, centre: Array, radius: Array) -> None:
-    """(centre, radius) of the model accelerations D⁻¹(T⁻ᵀ τ_q − b) of the joint torques
-    lower ≤ τ_q ≤ upper, per controller coordinate: D⁻¹T⁻ᵀ m − D⁻¹ b and |D⁻¹T⁻ᵀ| r with m,
-    r the box's middle and half-width (an infinite middle taken as 0; an infinite half-width
-    gives an infinite radius)."""
+@inner(f"void({READ_ONLY_MATRIX}, float64[:, :], {READ_ONLY}, {READ_ONLY}, {READ_ONLY},"
+       " float64[:], float64[:])")
+def _reach(inverse: Array, to_accel: Array, bias: Array, lower: Array, upper: Array,
+           centre: Array, radius: Array) -> None:
+    """``reachable_accelerations`` with D⁻¹T⁻ᵀ given (``to_accel``)."""
     n = bias.shape[0]
-    to_accel = np.empty((n, n))
-    _to_accel(inverse, t_inv, mapped, to_accel)
     for i in range(n):
         c, b, r = 0.0, 0.0, 0.0
         for j in range(n):
@@ -79,6 +74,20 @@ def reachable_accelerations(inverse: Array, t_inv: Array, mapped: bool, bias: Ar
             r += abs(to_accel[i, j]) * (0.5 * (upper[j] - lower[j]))
         centre[i] = c - b
         radius[i] = math.inf if r != r else r
+
+
+@kernel(f"void({READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}, boolean, {READ_ONLY}, {READ_ONLY},"
+        f" {READ_ONLY}, float64[:], float64[:])")
+def reachable_accelerations(inverse: Array, t_inv: Array, mapped: bool, bias: Array,
+                            lower: Array, upper: Array, centre: Array, radius: Array) -> None:
+    """(centre, radius) of the model accelerations D⁻¹(T⁻ᵀ τ_q − b) of the joint torques
+    lower ≤ τ_q ≤ upper, per controller coordinate: D⁻¹T⁻ᵀ m − D⁻¹ b and |D⁻¹T⁻ᵀ| r with m,
+    r the box's middle and half-width (an infinite middle taken as 0; an infinite half-width
+    gives an infinite radius)."""
+    n = bias.shape[0]
+    to_accel = np.empty((n, n))
+    _to_accel(inverse, t_inv, mapped, to_accel)
+    _reach(inverse, to_accel, bias, lower, upper, centre, radius)
 
 
 @inner("float64(float64)")
@@ -110,26 +119,13 @@ def _joint_entry(t_inv: Array, mapped: bool, v: Array, j: int, absolute: bool) -
     return s
 
 
-@kernel(f"void({READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}, boolean, {READ_ONLY}, float64, float64,"
-        f" float64, {READ_ONLY}, {READ_ONLY}, {READ_ONLY}, boolean, float64, float64[:])")
-def friction_error(inverse: Array, t_inv: Array, mapped: bool, levels: Array,
-                   smoothing: float, build_up: float, creep: float, dx: Array, centre: Array,
-                   radius: Array, bounded: bool, period: float, out: Array) -> None:
-    """|D⁻¹| |T⁻ᵀ| max(e, F) per controller coordinate into ``out`` (model_error's
-    docstring), ``inverse`` D⁻¹, ``t_inv`` T⁻¹ (read when ``mapped``), ``levels`` F,
-    ``smoothing`` ε, ``build_up`` T_f and ``creep`` v_c of the plant's friction.
-
-    With ``bounded`` the torques that may be held give the model accelerations
-    ``centre`` ± ``radius`` (controller coordinates; ``reachable_accelerations``), carried to
-    joint coordinates as T⁻¹c ± |T⁻¹| r. To them the plant's friction adds at most
-    |T⁻¹D⁻¹T⁻ᵀ|·2F (joint coordinates, the coarse bound): joint j decelerates by at most
-    α_j = max(−sign(q̇_j) c_j + r_j, 0) + coarse_j and its rate moves by at most
-    h (|c_j| + r_j + coarse_j) over the period h = ``period`` (0: the rate at the start
-    only). Without ``bounded`` no joint is taken to slide (α_j = ∞), and over a period a
-    rate may reach any speed."""
+@inner(f"void(float64[:, :], {READ_ONLY_MATRIX}, boolean, {READ_ONLY}, float64, float64,"
+       f" float64, {READ_ONLY}, {READ_ONLY}, {READ_ONLY}, boolean, float64, float64[:])")
+def _bound(to_accel: Array, t_inv: Array, mapped: bool, levels: Array, smoothing: float,
+           build_up: float, creep: float, dx: Array, centre: Array, radius: Array,
+           bounded: bool, period: float, out: Array) -> None:
+    """``friction_error`` with D⁻¹T⁻ᵀ given (``to_accel``)."""
     n = dx.shape[0]
-    to_accel = np.empty((n, n))
-    _to_accel(inverse, t_inv, mapped, to_accel)
     held = np.empty(n)
     for j in range(n):
         coarse = 0.0
@@ -157,3 +153,45 @@ def friction_error(inverse: Array, t_inv: Array, mapped: bool, levels: Array,
         for j in range(n):
             s += abs(to_accel[i, j]) * held[j]
         out[i] = s
+
+
+@kernel(f"void({READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}, boolean, {READ_ONLY}, float64, float64,"
+        f" float64, {READ_ONLY}, {READ_ONLY}, {READ_ONLY}, boolean, float64, float64[:])")
+def friction_error(inverse: Array, t_inv: Array, mapped: bool, levels: Array,
+                   smoothing: float, build_up: float, creep: float, dx: Array, centre: Array,
+                   radius: Array, bounded: bool, period: float, out: Array) -> None:
+    """|D⁻¹| |T⁻ᵀ| max(e, F) per controller coordinate into ``out`` (model_error's
+    docstring), ``inverse`` D⁻¹, ``t_inv`` T⁻¹ (read when ``mapped``), ``levels`` F,
+    ``smoothing`` ε, ``build_up`` T_f and ``creep`` v_c of the plant's friction.
+
+    With ``bounded`` the torques that may be held give the model accelerations
+    ``centre`` ± ``radius`` (controller coordinates; ``reachable_accelerations``), carried to
+    joint coordinates as T⁻¹c ± |T⁻¹| r. To them the plant's friction adds at most
+    |T⁻¹D⁻¹T⁻ᵀ|·2F (joint coordinates, the coarse bound): joint j decelerates by at most
+    α_j = max(−sign(q̇_j) c_j + r_j, 0) + coarse_j and its rate moves by at most
+    h (|c_j| + r_j + coarse_j) over the period h = ``period`` (0: the rate at the start
+    only). Without ``bounded`` no joint is taken to slide (α_j = ∞), and over a period a
+    rate may reach any speed."""
+    n = dx.shape[0]
+    to_accel = np.empty((n, n))
+    _to_accel(inverse, t_inv, mapped, to_accel)
+    _bound(to_accel, t_inv, mapped, levels, smoothing, build_up, creep, dx, centre, radius,
+           bounded, period, out)
+
+
+@kernel(f"void({READ_ONLY_MATRIX}, {READ_ONLY_MATRIX}, boolean, {READ_ONLY}, float64, float64,"
+        f" float64, {READ_ONLY}, {READ_ONLY}, {READ_ONLY}, {READ_ONLY}, float64, float64[:])")
+def held_friction_error(inverse: Array, t_inv: Array, mapped: bool, levels: Array,
+                        smoothing: float, build_up: float, creep: float, dx: Array,
+                        bias: Array, lower: Array, upper: Array, period: float,
+                        out: Array) -> None:
+    """``friction_error`` for the accelerations of the joint torques lower ≤ τ_q ≤ upper
+    that may be held over the period (``reachable_accelerations`` at the bias b): what a
+    guarded step asks, in one call."""
+    n = dx.shape[0]
+    to_accel = np.empty((n, n))
+    _to_accel(inverse, t_inv, mapped, to_accel)
+    centre, radius = np.empty(n), np.empty(n)
+    _reach(inverse, to_accel, bias, lower, upper, centre, radius)
+    _bound(to_accel, t_inv, mapped, levels, smoothing, build_up, creep, dx, centre, radius,
+           True, period, out)

@@ -39,6 +39,23 @@ from cpbc.kernels.clearance import (
 from cpbc.kernels.plan_tables import COUNT, FIRST, KIND, float_table, int_table
 from cpbc.kernels.small_solves import solve_spd
 
+
+@kernel("float64(float64, float64)")
+def _lower(low: float, value: float) -> float:
+    """The smaller of two, NaN if either is (numpy's min over an array)."""
+    if value != value or low != low:
+        return math.nan
+    return value if value < low else low
+
+
+@kernel("float64(float64, float64)")
+def _higher(high: float, value: float) -> float:
+    """The larger of two, NaN if either is (numpy's maximum)."""
+    if value != value or high != high:
+        return math.nan
+    return value if value > high else high
+
+
 # --- step 2 of the package docstring: the prediction, dynamics frozen at the sample ---------
 
 
@@ -298,6 +315,20 @@ def brake_ramp(inertia: Array, bias: Array, dx: Array, held: Array, per_speed: f
 # --- the torque box (cpbc.constraints.brakes.TorqueBox) -------------------------------------
 
 
+@kernel(f"void(float64[:], float64[:], {READ_ONLY}, {READ_ONLY}, float64[:], float64[:])")
+def box_around(lower: Array, upper: Array, held: Array, step: Array, low: Array,
+               high: Array) -> None:
+    """The joint-torque interval one step reaches from the held joint torques ``held``
+    under a rate step ρh (``step``) within lower ≤ τ_q ≤ upper, into ``low`` and ``high``:
+    min(max(lower, held − ρh), upper) and max(min(upper, held + ρh), lower) — the one nearest
+    to the box where the held torque lies outside it; NaN where any term is (numpy's
+    minimum and maximum)."""
+    for j in range(held.shape[0]):
+        a, b = held[j] - step[j], held[j] + step[j]
+        low[j] = _lower(_higher(lower[j], a), upper[j])
+        high[j] = _higher(_lower(upper[j], b), lower[j])
+
+
 @kernel("void(float64[:], float64[:], float64[:, :], float64[:, :], boolean, float64[:],"
         " float64[:])")
 def box_clip(lower: Array, upper: Array, to_joint: Array, from_joint: Array, mapped: bool,
@@ -399,12 +430,6 @@ def margins_along(plan: Ints, ints: Ints, floats: Array, xs: Array, dxs: Array, 
                                      out[i, at:at + k])
 
 
-@kernel("float64(float64, float64)")
-def _lower(low: float, value: float) -> float:
-    """The smaller of two, NaN if either is (numpy's min over an array)."""
-    if value != value or low != low:
-        return math.nan
-    return value if value < low else low
 
 
 @kernel("float64(float64, float64)")

@@ -107,22 +107,30 @@ def _joint_inverse(model: RobotModel, inertia: Array,
 
 def friction_error(model: RobotModel, state: ArmState,
                    accel: tuple[Array, Array] | None = None, period: float = 0.0,
-                   plant: DryFriction = MUJOCO_FRICTION,
-                   inverse: Array | None = None) -> Array | None:
+                   plant: DryFriction = MUJOCO_FRICTION, inverse: Array | None = None,
+                   torques: tuple[Array, Array, Array] | None = None) -> Array | None:
     """The bound on the acceleration error of the model's smooth Coulomb friction over one
     period from ``state`` (the module docstring): |D⁻¹| |T⁻ᵀ| max(e, F) per coordinate, or
     None for a model without Coulomb friction. ``accel``: (centre, radius), controller
     coordinates, of the model accelerations the torques that may be held over the period
     give; None for any (no joint is then taken to slide, and over a period ``period`` > 0 a
-    rate may reach any speed: e_j = 2F_j). ``inverse``: D⁻¹ when the caller has it
-    (cpbc.kernels.friction_error: the accelerations' reach, e_j and the sum in one call)."""
+    rate may reach any speed: e_j = 2F_j). ``inverse``: D⁻¹ when the caller has it.
+    ``torques``: (b, lower, upper) in place of ``accel``: the accelerations are those of the
+    joint torques lower ≤ τ_q ≤ upper at the bias b (:func:`reachable_accelerations`), found
+    in the same call (cpbc.kernels.friction_error: the accelerations' reach, e_j and the sum
+    in one call)."""
     levels = model.coulomb_friction
     if not levels.any():
         return None
     inv = inverse_inertia(state.inertia) if inverse is None else inverse
     coords = model.coordinates
-    centre, radius = (_NONE, _NONE) if accel is None else accel
     out = np.empty(model.n)
+    if torques is not None:
+        kernels.held_friction_error(inv, coords.inverse, not coords.is_identity, levels,
+                                    model.friction_smoothing, plant.build_up, plant.creep,
+                                    state.dx, *torques, period, out)
+        return out
+    centre, radius = (_NONE, _NONE) if accel is None else accel
     kernels.friction_error(inv, coords.inverse, not coords.is_identity, levels,
                            model.friction_smoothing, plant.build_up, plant.creep, state.dx,
                            centre, radius, accel is not None, period, out)
