@@ -125,26 +125,6 @@ def closest_pair(phi: Array, starts: Ints, g: int) -> int:
     return best
 
 
-@inner("void(float64[:, :], float64[:, :], float64[:, :], float64[:], float64[:, :],"
-       " int64[:, :], float64[:, :], float64[:, :], int64, float64[:])")
-def pair_gradient(centres: Array, u: Array, outside: Array, d: Array, obstacles: Array,
-                  pair_index: Ints, supports: Array, jac: Array, p: int, grad: Array) -> None:
-    """Pair p's gradient ∇φ_p = n̂_pᵀ J(s_p) (minus J(s₂) for a self pair; envelope theorem,
-    ``force_on_joints``) into ``grad`` (n,), joint coordinates, d_p > 0 (zeros otherwise: a
-    centre inside a core has none)."""
-    grad[:] = 0.0
-    if not d[p] > 0.0:
-        return
-    o, s, s2 = pair_index[p, 0], pair_index[p, 1], pair_index[p, 2]
-    inv = 1.0 / d[p]
-    n0 = pair_direction(u, outside, obstacles, o, p, 0) * inv
-    n1 = pair_direction(u, outside, obstacles, o, p, 1) * inv
-    n2 = pair_direction(u, outside, obstacles, o, p, 2) * inv
-    force_on_joints(centres, s, n0, n1, n2, supports, jac, 1.0, grad)
-    if o < 0:
-        force_on_joints(centres, s2, n0, n1, n2, supports, jac, -1.0, grad)
-
-
 @kernel("void(float64[:, :], float64[:, :], float64[:], int64[:], float64[:, :],"
         " float64[:, :], int64[:, :], float64[:, :], float64[:, :], float64[:, :],"
         " float64[:], float64[:, :], float64[:])")
@@ -153,8 +133,9 @@ def sphere_pair_rows(y: Array, jac: Array, dq: Array, sphere_index: Ints, sphere
                      joint_supports: Array, phi: Array, grad: Array, curv: Array) -> None:
     """Every sphere pair on its own at the joint placements ``y``, joint Jacobians ``jac``
     (6, n) and rates ``dq``: its clearance φ_p = d_p − rsum_p into ``phi`` (P,), its gradient
-    (``pair_gradient``) into ``grad`` (P, n) and q̇ᵀ∇²φ_p q̇ (eq. 1, ``pair_curvature``) into
-    ``curv`` (P,), joint coordinates. A centre inside a core (d_p = 0) has neither: zeros."""
+    ∇φ_p = n̂_pᵀ J(s_p) (minus J(s₂) for a self pair; envelope theorem, ``force_on_joints``)
+    into ``grad`` (P, n) and q̇ᵀ∇²φ_p q̇ (eq. 1, ``pair_curvature``) into ``curv`` (P,),
+    joint coordinates. A centre inside a core (d_p = 0) has neither: zeros."""
     n_sph, n_pair = sphere_index.shape[0], pair_index.shape[0]
     centres = np.empty((3, n_sph))
     u, outside, d = np.empty((3, n_pair)), np.empty((3, n_pair)), np.empty(n_pair)
@@ -162,11 +143,21 @@ def sphere_pair_rows(y: Array, jac: Array, dq: Array, sphere_index: Ints, sphere
     sphere_offsets(centres, obstacles, pair_index, pair_table, u, outside, d)
     vel, acc = np.empty((3, n_sph)), np.empty((3, n_sph))
     sphere_motion(centres, jac, dq, supports, joint_supports, vel, acc)
+    grad[:, :] = 0.0
     for p in range(n_pair):
         phi[p] = d[p] - pair_table[p, 3]
-        pair_gradient(centres, u, outside, d, obstacles, pair_index, supports, jac, p, grad[p])
-        curv[p] = pair_curvature(u, outside, d, obstacles, pair_index, p, vel, acc) if (
-            d[p] > 0.0) else 0.0
+        curv[p] = 0.0
+        if not d[p] > 0.0:
+            continue
+        o, s, s2 = pair_index[p, 0], pair_index[p, 1], pair_index[p, 2]
+        inv = 1.0 / d[p]
+        n0 = pair_direction(u, outside, obstacles, o, p, 0) * inv
+        n1 = pair_direction(u, outside, obstacles, o, p, 1) * inv
+        n2 = pair_direction(u, outside, obstacles, o, p, 2) * inv
+        force_on_joints(centres, s, n0, n1, n2, supports, jac, 1.0, grad[p])
+        if o < 0:
+            force_on_joints(centres, s2, n0, n1, n2, supports, jac, -1.0, grad[p])
+        curv[p] = pair_curvature(u, outside, d, obstacles, pair_index, p, vel, acc)
 
 
 @kernel("void(float64[:, :], float64[:, :], int64[:], float64[:, :], float64[:, :],"
@@ -174,10 +165,11 @@ def sphere_pair_rows(y: Array, jac: Array, dq: Array, sphere_index: Ints, sphere
 def closest_pair_gradients(y: Array, jac: Array, sphere_index: Ints, sphere_local: Array,
                            obstacles: Array, pair_index: Ints, pair_table: Array,
                            supports: Array, starts: Ints, grad: Array) -> None:
-    """Each reported sphere constraint's gradient, its closest pair's (``closest_pairs``,
-    ``pair_gradient``), into the rows of ``grad`` (C, n), joint coordinates: what
-    ``sphere_pair_rows`` and ``closest_pairs`` give at rest, without every other pair's
-    gradient and curvature."""
+    """Each reported sphere constraint's gradient, its closest pair's (``closest_pair``), into
+    the rows of ``grad`` (C, n), joint coordinates: the rows of ``sphere_pair_rows`` that
+    ``closest_pairs`` picks (the same steps), without every other pair's gradient and the
+    curvature. (The pair's steps are written out here as there: a compiled helper taking
+    the ten arrays, inlined or called, made both kernels 2.5 times slower.)"""
     n_sph, n_pair = sphere_index.shape[0], pair_index.shape[0]
     centres = np.empty((3, n_sph))
     u, outside, d = np.empty((3, n_pair)), np.empty((3, n_pair)), np.empty(n_pair)
@@ -186,9 +178,19 @@ def closest_pair_gradients(y: Array, jac: Array, sphere_index: Ints, sphere_loca
     phi = np.empty(n_pair)
     for p in range(n_pair):
         phi[p] = d[p] - pair_table[p, 3]
+    grad[:, :] = 0.0
     for c in range(starts.shape[0]):
         p = closest_pair(phi, starts, c)
-        pair_gradient(centres, u, outside, d, obstacles, pair_index, supports, jac, p, grad[c])
+        if not d[p] > 0.0:
+            continue
+        o, s, s2 = pair_index[p, 0], pair_index[p, 1], pair_index[p, 2]
+        inv = 1.0 / d[p]
+        n0 = pair_direction(u, outside, obstacles, o, p, 0) * inv
+        n1 = pair_direction(u, outside, obstacles, o, p, 1) * inv
+        n2 = pair_direction(u, outside, obstacles, o, p, 2) * inv
+        force_on_joints(centres, s, n0, n1, n2, supports, jac, 1.0, grad[c])
+        if o < 0:
+            force_on_joints(centres, s2, n0, n1, n2, supports, jac, -1.0, grad[c])
 
 
 @kernel("void(float64[:], int64[:], int64[:])")
