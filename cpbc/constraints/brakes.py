@@ -97,12 +97,13 @@ class TorqueBox:
         lower, upper = self.bounds
         lo, hi = np.empty(len(lower)), np.empty(len(lower))
         box_around(lower, upper, held_q, step, lo, hi)
-        return self._narrowed(lo, hi)
+        return self.with_bounds(lo, hi)
 
-    def _narrowed(self, lower: Array, upper: Array) -> TorqueBox:
-        """This box with the joint-torque bounds ``lower``, ``upper`` (fresh float arrays,
-        kept as given), its maps shared with this one's, not copied: a guard under a rate
-        limit narrows its box at every step."""
+    def with_bounds(self, lower: Array, upper: Array) -> TorqueBox:
+        """This box with the joint-torque bounds ``lower``, ``upper`` (fresh writable float
+        arrays, kept as given), its maps shared with this one's, not copied: a guard under a
+        rate limit narrows its box, and on a robot moves it by the robot's own torque, at
+        every step."""
         box = object.__new__(TorqueBox)
         for name, value in (("limit", self.limit), ("to_joint", self.to_joint),
                             ("from_joint", self.from_joint), ("lower", lower),
