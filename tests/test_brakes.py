@@ -80,3 +80,22 @@ def test_the_guard_keeps_states_only_a_better_brake_can_stop(scenario, rate, see
                         safeguard=setup.safeguard)
     assert not check.violated, (check.constraint, check.min_margin)
     assert check.trajectory.rescues > 0  # the rescue held a brake, and the run counts it
+
+
+def test_a_step_reaches_the_interval_of_its_rate_within_the_box(rng) -> None:
+    """TorqueBox.around: |τ_q − τ_held| ≤ ρh inside the box, min(max(lower, τ_h − ρh), upper)
+    and max(min(upper, τ_h + ρh), lower) — the interval nearest to the box where the held
+    torque lies outside it (a limit lowered under it); the maps shared with the box."""
+    box = TorqueBox(np.array([87.0, 87.0, 12.0]))
+    step = np.full(3, 1.0)
+    for held in (np.zeros(3), np.array([86.5, -87.0, 11.2]), np.array([90.0, -95.0, 0.0]),
+                 rng.normal(scale=50.0, size=3)):
+        low, high = box.around(held, step).bounds
+        np.testing.assert_array_equal(low, np.minimum(np.maximum(-box.limit, held - step),
+                                                      box.limit))
+        np.testing.assert_array_equal(high, np.maximum(np.minimum(box.limit, held + step),
+                                                       -box.limit))
+        assert np.all(low <= high)
+    narrowed = box.around(np.array([90.0, 0.0, 0.0]), step)
+    assert narrowed.bounds[0][0] == narrowed.bounds[1][0] == 87.0  # the nearest: the limit
+    np.testing.assert_array_equal(narrowed.clip(np.array([0.0, 5.0, -5.0])), [87.0, 1.0, -1.0])

@@ -25,7 +25,9 @@ from cpbc.controllers.safeguard.model_error import (
     friction_error,
     margin_losses,
     measurement_losses,
+    reachable_accelerations,
 )
+from cpbc.model.coordinates import LinearCoordinates
 from cpbc.model.robot_model import RobotModel
 from cpbc.reliability.campaign import (
     RecordingPlant,
@@ -160,6 +162,74 @@ def test_the_smooth_coulomb_friction_error_exceeds_its_level_only_where_a_joint_
     assert friction_error(model, moving, gentle, h) == pytest.approx(inv @ levels)
     assert friction_error(model, moving, None, h) == pytest.approx(inv @ (2.0 * levels))
     assert friction_error(planar_model, rest) is None
+
+
+def _friction_error_reference(model: RobotModel, state, centre, radius, period: float
+                              ) -> np.ndarray:
+    """The friction's error bound of the module docstring in numpy, product by product."""
+    levels, eps = model.coulomb_friction, model.friction_smoothing
+    t_inv = model.coordinates.inverse
+    inv = np.linalg.inv(state.inertia)
+    to_accel, joint_inv = inv @ t_inv.T, t_inv @ inv @ t_inv.T
+    coarse = np.abs(joint_inv) @ (2.0 * levels)
+    dq = t_inv @ state.dx
+    c, r = t_inv @ centre, np.abs(t_inv) @ radius
+    alpha = np.maximum(-np.sign(dq) * c + r, 0.0) + coarse
+    low = np.abs(dq) - period * (np.abs(c) + r + coarse)
+    high = np.abs(dq) + period * (np.abs(c) + r + coarse)
+    slides = low >= 0.95 * 0.02 / 2.0 * alpha + 0.15  # MuJoCo's T_f and the creep v_c
+    e = np.where(slides, levels * (1.0 - np.tanh(np.maximum(low, 0.0) / eps)),
+                 levels * (1.0 + np.tanh(high / eps)))
+    return np.abs(to_accel) @ np.maximum(e, levels)
+
+
+@pytest.mark.parametrize("coordinates", [None, LinearCoordinates.absolute_link_angles(2)])
+def test_the_friction_error_is_its_formula_in_either_coordinates(coordinates, rng) -> None:
+    """The compiled bound (cpbc.kernels.friction_error) is the docstring's formula, worked in
+    numpy here: at rest, sliding and turning joints, bounded by a torque box and not; asked
+    with the box's torques it is the bound at the box's reachable accelerations."""
+    kwargs = {} if coordinates is None else {"coordinates": coordinates}
+    model = RobotModel.from_mjcf(models_dir() / "planar_2link.xml",
+                                 coulomb_friction=[0.5, 0.2], **kwargs)
+    for _ in range(200):
+        dx = rng.normal(size=2) * rng.choice([0.0, 0.05, 1.0, 4.0])
+        state = model.state(rng.uniform(-1.0, 1.0, 2), dx)
+        bias = state.coriolis_force + state.gravity + state.dissipation
+        lower = -rng.uniform(1.0, 20.0, 2)
+        upper = lower + rng.uniform(0.5, 30.0, 2)
+        h = float(rng.choice([0.0, 0.001, 0.002]))
+        accel = reachable_accelerations(model, state, bias, lower, upper)
+        inv = np.linalg.inv(state.inertia)
+        np.testing.assert_allclose(accel[0], inv @ (model.coordinates.inverse.T @ (
+            0.5 * (lower + upper))) - inv @ bias, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(accel[1], np.abs(inv @ model.coordinates.inverse.T) @ (
+            0.5 * (upper - lower)), rtol=1e-12)
+        bound = friction_error(model, state, accel, h)
+        assert bound is not None
+        np.testing.assert_allclose(bound, _friction_error_reference(model, state, *accel, h),
+                                   rtol=1e-12)
+        np.testing.assert_array_equal(
+            friction_error(model, state, None, h, torques=(bias, lower, upper)), bound)
+        # any torque: no joint slides; over a period any speed (2F), at an instant 1 + tanh
+        levels, t_inv = model.coulomb_friction, model.coordinates.inverse
+        e = 2.0 * levels if h else levels * (1.0 + np.tanh(
+            np.abs(t_inv @ dx) / model.friction_smoothing))
+        anything = friction_error(model, state, None, h)
+        assert anything is not None
+        np.testing.assert_allclose(anything, np.abs(inv @ t_inv.T) @ e, rtol=1e-12)
+
+
+def test_a_kinetic_energy_limit_loses_its_weighted_reach(planar_model) -> None:
+    """ψ = Ω − ½ẋᵀDẋ loses h |Dẋ|·ā + ½h² āᵀ|D|ā at the end of a period (Π = D)."""
+    cons = ConstraintSet(2, (), (KineticEnergyLimit(planar_model, 2.0),))
+    x, dx = np.array([0.3, -0.4]), np.array([0.8, -1.1])
+    state = planar_model.state(x, dx, coriolis=True)
+    bound, h = np.array([2.0, 5.0]), 0.001
+    end, mid = margin_losses(cons, state, bound, h, 0.5)
+    d = state.inertia
+    assert mid.shape == (0,)
+    assert end == pytest.approx([h * np.abs(d @ dx) @ bound + 0.5 * h * h * bound @ np.abs(d)
+                                 @ bound], rel=1e-12)
 
 
 FR3_CAMPAIGN = ROOT / "tools" / "campaigns" / "fr3_sphere_rate.yaml"

@@ -128,3 +128,16 @@ def test_the_set_builds_the_joint_kinematics_only_for_the_motion_terms() -> None
     assert with_point.state(c.model, x, dx, motion=True).joint_jacobians is not None
     limit = LinearLimit([[-1, 1]], [-3.0], [3.0], ["relative"])
     assert ConstraintSet(2, [limit]).state(c.model, x, dx, motion=True).joint_jacobians is None
+
+
+def test_values_along_are_value_row_by_row_bit_for_bit(rng) -> None:
+    """The margins along a prediction (one kinematics pass a row, the rest at once) are
+    ``value`` at each row, to the bit, in absolute link angles, with an offset and without."""
+    model = RobotModel.from_mjcf(models_dir() / "planar_2link.xml",
+                                 coordinates=LinearCoordinates.absolute_link_angles(2))
+    for offset in (None, [0.1, 0.0, 0.05]):
+        c = PointOutsideSphere(model, "end_point", [0.0, 2.0, 0.0], 0.5, offset=offset)
+        xs = rng.uniform(-1.0, 3.0, (9, 2))
+        along = c.values_along(xs)
+        assert along.shape == (9, 1)
+        np.testing.assert_array_equal(along, np.array([c.value(x) for x in xs]))

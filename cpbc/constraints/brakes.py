@@ -38,7 +38,7 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import stopping_terms
 from cpbc.kernels.bounded_lsq import bounded_least_squares
-from cpbc.kernels.sampled_guard import box_clip, box_toward
+from cpbc.kernels.sampled_guard import box_around, box_clip, box_toward
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -92,11 +92,24 @@ class TorqueBox:
         """The torques one control step can reach from the joint torques ``held_q`` that the
         actuators hold, under a rate limit of ``step`` = ρh per joint: |τ_q − held_q| ≤ ρh
         within the box. Where the held torque lies outside the box (a limit lowered under
-        it), the reachable interval is the one nearest to the box."""
+        it), the reachable interval is the one nearest to the box
+        (cpbc.kernels.sampled_guard.box_around)."""
         lower, upper = self.bounds
-        lo = np.minimum(np.maximum(lower, held_q - step), upper)
-        hi = np.maximum(np.minimum(upper, held_q + step), lower)
-        return TorqueBox(self.limit, self.to_joint, self.from_joint, lo, hi)
+        lo, hi = np.empty(len(lower)), np.empty(len(lower))
+        box_around(lower, upper, held_q, step, lo, hi)
+        return self.with_bounds(lo, hi)
+
+    def with_bounds(self, lower: Array, upper: Array) -> TorqueBox:
+        """This box with the joint-torque bounds ``lower``, ``upper`` (fresh writable float
+        arrays, kept as given), its maps shared with this one's, not copied: a guard under a
+        rate limit narrows its box, and on a robot moves it by the robot's own torque, at
+        every step."""
+        box = object.__new__(TorqueBox)
+        for name, value in (("limit", self.limit), ("to_joint", self.to_joint),
+                            ("from_joint", self.from_joint), ("lower", lower),
+                            ("upper", upper), ("_packed", (lower, upper, *self._packed[2:]))):
+            object.__setattr__(box, name, value)
+        return box
 
     def joint(self, tau: Array) -> Array:
         return tau if self.to_joint is None else self.to_joint.dot(tau)

@@ -10,6 +10,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
+from cpbc.kernels.margin_slopes import margin_losses
 from cpbc.model.robot_model import ArmState
 
 
@@ -17,39 +18,40 @@ from cpbc.model.robot_model import ArmState
 class MarginSlopes:
     """How far each margin of a constraint set moves for a small error of the state, at the
     per-step state, read once a step for every error the guard holds (the model's and the
-    measurement's): |∂φ_i/∂x| of each configuration margin, and of each velocity margin
-    ψ_k = ω_k − ½ẋᵀΠ_k ẋ, |Π_k ẋ| and |Π_k| (``VelocityConstraint.weights``: r rᵀ for a
-    rate, D for the kinetic energy).
+    measurement's): ∂φ_i/∂x of each configuration margin, and of each velocity margin
+    ψ_k = ω_k − ½ẋᵀΠ_k ẋ, Π_k and ẋ (``VelocityConstraint.weights``: r rᵀ for a rate, D for
+    the kinetic energy); :meth:`losses` takes their sizes |∇φ_i|, |Π_k ẋ| and |Π_k|.
 
     Attributes:
-        configuration: |∇φ_i| rows, shape (number of φ_i, n).
-        push: |Π_k ẋ| rows, shape (number of ψ_k, n).
-        weights: |Π_k|, shape (number of ψ_k, n, n).
+        configuration: ∇φ_i rows, shape (number of φ_i, n).
+        weights: Π_k, shape (number of ψ_k, n, n).
+        rates: ẋ, shape (n,).
     """
 
     configuration: Array
-    push: Array
     weights: Array
+    rates: Array
 
     @classmethod
     def at(cls, constraints: ConstraintSet, state: ArmState) -> MarginSlopes:
         n = constraints.n
-        config = np.abs(constraints.configuration_gradients(state))
+        config = constraints.configuration_gradients(state)
         weights = [c.weights(state.x, state) for c in constraints.velocity]  # (k, n, n) each
         if not weights:
-            return cls(config, np.zeros((0, n)), np.zeros((0, n, n)))
-        pi = np.concatenate(weights)
-        return cls(config, np.abs(pi @ state.dx), np.abs(pi))
+            return cls(config, np.zeros((0, n, n)), state.dx)
+        return cls(config, weights[0] if len(weights) == 1 else np.concatenate(weights),
+                   state.dx)
 
     def losses(self, end_shift: Array, mid_shift: Array, rate_shift: Array
                ) -> tuple[Array, Array]:
         """What each margin can lose to a position off by at most ``end_shift`` at the
         period's end and ``mid_shift`` at mid-period, per coordinate, and a rate off by at
         most ``rate_shift``: Σ_j |∂φ_i/∂x_j| s_j for a configuration margin, and
-        Σ_j |(Π_k ẋ)_j| w_j + ½ wᵀ|Π_k|w for a velocity margin (exact for a constant Π_k).
-        (At the period's end, every margin in the order of ``names``; at mid-period, the
-        configuration ones.)"""
-        velocity = self.push @ rate_shift + 0.5 * np.einsum(
-            "kij,i,j->k", self.weights, rate_shift, rate_shift)
-        return (np.concatenate((self.configuration @ end_shift, velocity)),
-                self.configuration @ mid_shift)
+        Σ_j |(Π_k ẋ)_j| w_j + ½ wᵀ|Π_k|w for a velocity margin (exact for a constant Π_k;
+        cpbc.kernels.margin_slopes.margin_losses). (At the period's end, every margin in
+        the order of ``names``; at mid-period, the configuration ones.)"""
+        m = len(self.configuration)
+        end, mid = np.empty(m + len(self.weights)), np.empty(m)
+        margin_losses(self.configuration, self.weights, self.rates, end_shift, mid_shift,
+                      rate_shift, end, mid)
+        return end, mid

@@ -84,8 +84,18 @@ class PointOutsideSphere(ConfigurationConstraint):
         self._constants = self._packed.floats[POINT_CONSTANTS][0]  # the kernel's
 
     def value(self, x: Array) -> Array:
-        d = self.model.point_position(self.frame_id, x, self.offset) - self.centre
-        return np.array([d @ d - self.radius**2])
+        return self._squared_clearance(self.model.point_position(self.frame_id, x, self.offset))
+
+    def values_along(self, xs: Array) -> Array:
+        """φ at each row of xs, shape (N, 1): one kinematics pass a row, the rest at once."""
+        model, frame, offset = self.model, self.frame_id, self.offset
+        points = np.array([model.point_position(frame, x, offset) for x in xs])
+        return self._squared_clearance(points.reshape(len(xs), 3))[:, None]
+
+    def _squared_clearance(self, points: Array) -> Array:
+        """‖p − c‖² − r² of each point (the last axis; the sum in order, as p·p sums it)."""
+        d = points - self.centre
+        return np.atleast_1d((d * d).sum(axis=-1) - self.radius**2)
 
     def gradient(self, x: Array) -> Array:
         return self.evaluate(x)[1]

@@ -63,7 +63,8 @@ class RateLimit(VelocityConstraint):
         self._joint_index = np.argmax(np.abs(rows), axis=1) if np.all(unit) else None
         if self._joint_index is not None and len(set(self._joint_index.tolist())) != len(bounds):
             raise CpbcError("rate limit: a joint is bounded twice in one constraint")
-        for a in (self.rows, self.bounds):
+        self._weights = np.einsum("ki,kj->kij", rows, rows)
+        for a in (self.rows, self.bounds, self._weights):
             a.setflags(write=False)
         self._packed = pack_rate_limit(rows, self._omega)  # the kernel's tables
         self._constants = self._packed.floats[RATE_CONSTANTS]
@@ -101,7 +102,8 @@ class RateLimit(VelocityConstraint):
         return self._omega - 0.5 * y * y
 
     def weights(self, x: Array, state: ArmState | None = None) -> Array:
-        return np.einsum("ki,kj->kij", self.rows, self.rows)
+        """Q_k = r_k r_kᵀ, constant (read-only, formed once)."""
+        return self._weights
 
     def gradient(self, x: Array, dx: Array, state: ArmState | None = None) -> Array:
         return np.zeros((self.rows.shape[0], x.shape[0]))

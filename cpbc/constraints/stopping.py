@@ -34,7 +34,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.kernels.sampled_guard import uniform_deceleration
+from cpbc.kernels.sampled_guard import brake_ramp, uniform_deceleration
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -164,14 +164,11 @@ class Braking:
              per_speed: float) -> float:
         """T: the time the uniform brake b − θA D ẋ/|ẋ| takes to build from the torque
         ``held`` (controller coordinates) at the rate limit, 0 without one (``per_speed`` =
-        1/(2θA), from :meth:`per_speed`)."""
+        1/(2θA), from :meth:`per_speed`; cpbc.kernels.sampled_guard.brake_ramp)."""
         if self.rate is None:
             return 0.0
-        speed = math.sqrt(float(dx.dot(dx)))
-        gap = bias - inertia.dot(dx) / (2.0 * per_speed * speed) - held
-        if self.to_joint is not None:
-            gap = self.to_joint.dot(gap)
-        return float(np.max(np.abs(gap) / self.rate))
+        return brake_ramp(inertia, bias, dx, held, per_speed, self._packed[1],
+                          self.to_joint is not None, self.rate)
 
     def deceleration(self, inertia: Array, bias: Array, dx: Array) -> float:
         """A: the largest deceleration along ẋ of the uniform brake (inf at rest;

@@ -366,6 +366,23 @@ def sphere_geometry(y: Array, sphere_index: Ints, sphere_local: Array, obstacles
     sphere_offsets(centres, obstacles, pair_index, pair_table, u, outside, d)
 
 
+@inner("void(float64[:, :], int64[:], float64[:, :], float64[:, :], int64[:, :],"
+       " float64[:, :], float64[:], float64[:])")
+def sphere_clearances_in(y: Array, sphere_index: Ints, sphere_local: Array, obstacles: Array,
+                         pair_index: Ints, pair_table: Array, work: Array, value: Array
+                         ) -> None:
+    """``sphere_clearances`` in the caller's ``work`` (3S + 7P floats: the centres, u,
+    max(|u| − h, 0) and d), which a caller over many rows allocates once."""
+    n_sph, n_pair = sphere_index.shape[0], pair_index.shape[0]
+    centres = float_rows(work, 0, 3, n_sph)
+    at = 3 * n_sph
+    u, outside = float_rows(work, at, 3, n_pair), float_rows(work, at + 3 * n_pair, 3, n_pair)
+    d = work[at + 6 * n_pair:at + 7 * n_pair]
+    sphere_centres(y, sphere_index, sphere_local, centres)
+    sphere_offsets(centres, obstacles, pair_index, pair_table, u, outside, d)
+    sphere_values(u, d, pair_index, pair_table, value)
+
+
 @kernel("void(float64[:, :], int64[:], float64[:, :], float64[:, :], int64[:, :],"
         " float64[:, :], float64[:])")
 def sphere_clearances(y: Array, sphere_index: Ints, sphere_local: Array, obstacles: Array,
@@ -373,11 +390,9 @@ def sphere_clearances(y: Array, sphere_index: Ints, sphere_local: Array, obstacl
     """The reported clearances of the sphere constraints at the joint placements ``y``
     (``sphere_values``), into ``value``."""
     n_sph, n_pair = sphere_index.shape[0], pair_index.shape[0]
-    centres = np.empty((3, n_sph))
-    u, outside, d = np.empty((3, n_pair)), np.empty((3, n_pair)), np.empty(n_pair)
-    sphere_centres(y, sphere_index, sphere_local, centres)
-    sphere_offsets(centres, obstacles, pair_index, pair_table, u, outside, d)
-    sphere_values(u, d, pair_index, pair_table, value)
+    work = np.empty(3 * n_sph + 7 * n_pair)
+    sphere_clearances_in(y, sphere_index, sphere_local, obstacles, pair_index, pair_table,
+                         work, value)
 
 
 def pack_sphere_pairs(sphere_local: Array, obstacles: Array, pair_table: Array,

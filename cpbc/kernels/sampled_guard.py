@@ -34,10 +34,27 @@ from cpbc.kernels.clearance import (
     SPHERE_LOCAL,
     SPHERES,
     Ints,
-    sphere_clearances,
+    sphere_clearances_in,
 )
 from cpbc.kernels.plan_tables import COUNT, FIRST, KIND, float_table, int_table
 from cpbc.kernels.small_solves import solve_spd
+
+
+@kernel("float64(float64, float64)")
+def _lower(low: float, value: float) -> float:
+    """The smaller of two, NaN if either is (numpy's min over an array)."""
+    if value != value or low != low:
+        return math.nan
+    return value if value < low else low
+
+
+@kernel("float64(float64, float64)")
+def _higher(high: float, value: float) -> float:
+    """The larger of two, NaN if either is (numpy's maximum)."""
+    if value != value or high != high:
+        return math.nan
+    return value if value > high else high
+
 
 # --- step 2 of the package docstring: the prediction, dynamics frozen at the sample ---------
 
@@ -266,7 +283,50 @@ def uniform_deceleration(inertia: Array, bias: Array, dx: Array, limit: Array,
     return (math.nan if nan else low) * speed
 
 
+@kernel(f"float64(float64[:, :], float64[:], float64[:], {READ_ONLY}, float64, float64[:, :],"
+        f" boolean, {READ_ONLY})")
+def brake_ramp(inertia: Array, bias: Array, dx: Array, held: Array, per_speed: float,
+               to_joint: Array, mapped: bool, rate: Array) -> float:
+    """T = max_j |τ_b,j − τ_h,j| / ρ_j: the time the uniform brake τ_b = b − D ẋ/(2θA|ẋ|)
+    (``per_speed`` = 1/(2θA)) takes to build from the held torque τ_h = ``held`` at the
+    rate limit ρ (Braking.ramp), joint by joint (Tᵀ of the gap when ``mapped``); NaN if any
+    is."""
+    n = dx.shape[0]
+    sq = 0.0
+    for i in range(n):
+        sq += dx[i] * dx[i]
+    scale = 2.0 * per_speed * math.sqrt(sq)
+    push = _times(inertia, dx)
+    gap = np.empty(n)
+    for i in range(n):
+        gap[i] = (bias[i] - push[i] / scale) - held[i]
+    if mapped:
+        gap = _times(to_joint, gap)
+    low = -math.inf
+    for j in range(n):
+        t = abs(gap[j]) / rate[j]
+        if t != t or low != low:
+            low = math.nan
+        elif t > low:
+            low = t
+    return low
+
+
 # --- the torque box (cpbc.constraints.brakes.TorqueBox) -------------------------------------
+
+
+@kernel(f"void(float64[:], float64[:], {READ_ONLY}, {READ_ONLY}, float64[:], float64[:])")
+def box_around(lower: Array, upper: Array, held: Array, step: Array, low: Array,
+               high: Array) -> None:
+    """The joint-torque interval one step reaches from the held joint torques ``held``
+    under a rate step ρh (``step``) within lower ≤ τ_q ≤ upper, into ``low`` and ``high``:
+    min(max(lower, held − ρh), upper) and max(min(upper, held + ρh), lower) — the one nearest
+    to the box where the held torque lies outside it; NaN where any term is (numpy's
+    minimum and maximum)."""
+    for j in range(held.shape[0]):
+        a, b = held[j] - step[j], held[j] + step[j]
+        low[j] = _lower(_higher(lower[j], a), upper[j])
+        high[j] = _higher(_lower(upper[j], b), lower[j])
 
 
 @kernel("void(float64[:], float64[:], float64[:, :], float64[:, :], boolean, float64[:],"
@@ -364,17 +424,12 @@ def margins_along(plan: Ints, ints: Ints, floats: Array, xs: Array, dxs: Array, 
             local = float_table(plan, floats, r, SPHERE_LOCAL)
             obstacles = float_table(plan, floats, r, OBSTACLES)
             table = float_table(plan, floats, r, PAIR_TABLE)
+            work = np.empty(3 * index.shape[0] + 7 * pairs.shape[0])  # once for every row
             for i in range(xs.shape[0]):
-                sphere_clearances(ys[i], index, local, obstacles, pairs, table,
-                                  out[i, at:at + k])
+                sphere_clearances_in(ys[i], index, local, obstacles, pairs, table, work,
+                                     out[i, at:at + k])
 
 
-@kernel("float64(float64, float64)")
-def _lower(low: float, value: float) -> float:
-    """The smaller of two, NaN if either is (numpy's min over an array)."""
-    if value != value or low != low:
-        return math.nan
-    return value if value < low else low
 
 
 @kernel("float64(float64, float64)")
@@ -463,3 +518,22 @@ def predicted_slack(config_plan: Ints, config_ints: Ints, config_floats: Array,
         margins_along(config_plan, config_ints, config_floats, rows, rows, placements, config)
     return slack(config, velocity, inner, ends.shape[0], end_floor, mid_floor, sigma_floor,
                  past, has_past, has_config, has_stop)
+
+
+@kernel("float64(int64[:, :], int64[:, :], float64[:, :], float64[:, :], float64[:, :],"
+        f" float64[:, :, :], float64[:, :], {READ_ONLY})")
+def ramp_share(plan: Ints, ints: Ints, floats: Array, ends: Array, peaks: Array,
+               placements: Array, margins: Array, floor: Array) -> float:
+    """min_j ψ_j/δ_j − 1 of the velocity margins at the rows (x₁, ẋ peak) of ``ramp_speeds``
+    (cpbc.controllers.safeguard.predicted_margins.RampTest): the packed ones into their
+    columns of ``margins`` (``margins_along``; the other columns filled already), NaN margins
+    counted as −∞, ``floor`` the cushions δ_j."""
+    margins_along(plan, ints, floats, ends, peaks, placements, margins)
+    low = math.inf
+    for r in range(margins.shape[0]):
+        for j in range(margins.shape[1]):
+            v = margins[r, j]
+            if v != v:
+                v = -math.inf
+            low = _lower(low, v / floor[j])
+    return low - 1.0

@@ -10,6 +10,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.errors import ModelError
+from cpbc.kernels.friction_error import dry_force_error
 
 
 def coulomb_levels(levels: Array | None, n: int) -> Array:
@@ -52,10 +53,15 @@ class DryFriction:
     def force_error(self, levels: Array, smoothing: float, low: Array, high: Array,
                     deceleration: Array) -> Array:
         """e_j of model_error's docstring per joint: ``low``, ``high`` the least and largest
-        |q̇_j| over the interval (s_j, S_j), ``deceleration`` α_j ≥ 0."""
-        slides = low >= self.build_up * deceleration + self.creep
-        return np.where(slides, levels * (1.0 - np.tanh(np.maximum(low, 0.0) / smoothing)),
-                        levels * (1.0 + np.tanh(high / smoothing)))
+        |q̇_j| over the interval (s_j, S_j), ``deceleration`` α_j ≥ 0
+        (cpbc.kernels.friction_error.slide_error)."""
+        levels = np.asarray(levels, dtype=float)
+        low, high, deceleration = (np.broadcast_to(np.asarray(v, dtype=float), levels.shape)
+                                   for v in (low, high, deceleration))
+        out = np.empty(levels.shape)
+        dry_force_error(levels, smoothing, self.build_up, self.creep, low, high, deceleration,
+                        out)
+        return out
 
 
 # MuJoCo's frictionloss with its default solref and solimp (the plant of cpbc and franky-sim)

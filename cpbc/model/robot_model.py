@@ -424,7 +424,8 @@ class RobotModel:
         q, dq = self._q(x), self._q(dx)
         tau_q = tau if self._identity else self.coordinates.torque_to_joint(tau)
         if self._has_friction:
-            tau_q = tau_q - self.coordinates.torque_to_joint(self.dissipation(dx))
+            f = self.dissipation(dx)
+            tau_q = tau_q - (f if self._identity else self.coordinates.torque_to_joint(f))
         self.holder = None
         ddq = pin.aba(self.model, self.data, q, dq, tau_q)
         return ddq if self._identity else self.coordinates.from_joint(ddq)
@@ -466,10 +467,11 @@ class RobotModel:
         return p, (jv if self._identity else jv.dot(self._t_inv))
 
     def point_position(self, frame_id: int, x: Array, offset: Array | None = None) -> Array:
-        """World position of a point fixed in a frame, shape (3,) [m]."""
+        """World position of a point fixed in a frame, shape (3,) [m] (the joints' placements
+        and that frame's only: the guard asks it at every predicted configuration)."""
         self.holder = None
-        pin.framesForwardKinematics(self.model, self.data, self._q(x))
-        placement = self.data.oMf[frame_id]
+        pin.forwardKinematics(self.model, self.data, self._q(x))
+        placement = pin.updateFramePlacement(self.model, self.data, frame_id)
         if offset is None:
             return placement.translation.copy()
         return placement.act(np.asarray(offset, dtype=float))

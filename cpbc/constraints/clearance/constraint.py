@@ -142,7 +142,6 @@ class Clearance(PairLayout, ConfigurationConstraint):
         self._pin = model.model
         self._data = self._pin.createData()  # its own, for evaluations away from the state
         self._n = model.n
-        self._at_rest = np.zeros(model.n)  # q̇ = 0: the pair rows without their curvature
         self._identity = model.coordinates.is_identity
         self._t_inv = model.coordinates.inverse
         self._setup_kinematics()
@@ -221,7 +220,7 @@ class Clearance(PairLayout, ConfigurationConstraint):
         Pinocchio pass; ``gradient`` at x for a state built without them)."""
         if state.regressor is None or state.joint_jacobians is None:
             return self.gradient(state.x)
-        return self._rows(state.regressor, state.joint_jacobians, self._at_rest)[0]
+        return self._gradients(state.regressor, state.joint_jacobians)
 
     def _reported(self, y: Array, jac: Array, dq: Array) -> tuple[Array, Array, Array]:
         """The reported clearances, their gradients (controller coordinates) and the sphere
@@ -235,17 +234,31 @@ class Clearance(PairLayout, ConfigurationConstraint):
         constraints' curvature along q̇ ``dq`` (the capsule entries 0): a sphere constraint's
         are its closest pair's (cpbc.kernels.clearance_motion.sphere_pair_rows), a capsule
         group's its own."""
-        k = len(self.names)
-        grad, curv = np.empty((k, self._n)), np.zeros(k)
+        curv = np.zeros(len(self.names))
+        s = self._spheres
+        if s is None:
+            return self._gradients(y, jac), curv
+        phi, g0, c0 = self._pair_rows(y, jac, dq)
+        closest = self._closest(phi)
+        curv[s.start:s.stop] = c0[closest]
+        return self._gradients(y, jac, g0[closest]), curv
+
+    def _gradients(self, y: Array, jac: Array, spheres: Array | None = None) -> Array:
+        """The reported constraints' gradients (controller coordinates) at the joint
+        placements y and joint Jacobians ``jac``: the sphere constraints' rows ``spheres``
+        (their closest pairs', joint coordinates; computed here when None), a capsule
+        group's its own."""
+        grad = np.empty((len(self.names), self._n))
         s = self._spheres
         if s is not None:
-            phi, g0, c0 = self._pair_rows(y, jac, dq)
-            closest = self._closest(phi)
-            grad[s.start:s.stop], curv[s.start:s.stop] = g0[closest], c0[closest]
+            if spheres is None:
+                self._closest_gradients(y, jac, grad[s.start:s.stop])
+            else:
+                grad[s.start:s.stop] = spheres
         jacobian_rows = partial(self._rows_times_jacobians, jac)
         for g in self._groups:
             grad[g.start:g.stop] = g.gradient(*g.narrow(y), jacobian_rows)
-        return (grad if self._identity else grad @ self._t_inv), curv
+        return grad if self._identity else grad @ self._t_inv
 
     def _closest(self, phi: Array) -> NDArray[np.int64]:
         """Each sphere constraint's closest pair, from every pair's clearance ``phi``."""

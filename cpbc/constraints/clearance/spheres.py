@@ -23,7 +23,7 @@ from cpbc.kernels.clearance import (
     sphere_clearances,
     sphere_geometry,
 )
-from cpbc.kernels.clearance_motion import sphere_pair_rows
+from cpbc.kernels.clearance_motion import closest_pair_gradients, sphere_pair_rows
 
 ROUNDING = 1e-9  # [m] the broad phase's allowance for rounding, far above that of the
 # centres and distances (~1e-15 m at an arm's scale), far below any influence distance
@@ -156,6 +156,15 @@ class SpherePairs(Kinematics):
                               s.pair_index, s.pair_table, s.group_index, s.group_table,
                               s.sphere_supports, self._far_phi, self.influence or 0.0,
                               phi_out, b, value)
+
+    def _closest_gradients(self, y: Array, jac: Array, out: Array) -> None:
+        """Each sphere constraint's gradient, its closest pair's, joint coordinates, into
+        the rows of ``out`` (cpbc.kernels.clearance_motion.closest_pair_gradients: the rows
+        ``_pair_rows`` and ``Clearance._closest`` pick, without the other pairs')."""
+        s = self._spheres
+        assert s is not None
+        closest_pair_gradients(y, jac, s.sphere_index, s.sphere_local, s.obstacles,
+                               s.pair_index, s.pair_table, s.sphere_supports, s.starts, out)
 
     def _pair_rows(self, y: Array, jac: Array, dq: Array) -> tuple[Array, Array, Array]:
         """Every sphere pair's clearance (P,), gradient (P, n) and curvature q̇ᵀ∇²φ_p q̇

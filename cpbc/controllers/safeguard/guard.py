@@ -26,7 +26,6 @@ from cpbc.controllers.safeguard.model_error import (
     inverse_inertia,
     margin_losses,
     measurement_losses,
-    reachable_accelerations,
 )
 from cpbc.controllers.safeguard.predicted_margins import (
     BrakingTest,
@@ -179,6 +178,9 @@ class Safeguard(SafetyFilter):
         self._inertia_error = None if declared is None else declared.acceleration_bound(
             law.model)
         self._coulomb = bool(np.any(law.model.coulomb_friction))
+        # no error is held (none declared, no Coulomb friction): the floors stay (S1)'s
+        self._exact = self.model_error is None and not self._coulomb and (
+            declared is None or not (declared.dynamic or declared.measured))
         self._velocity_floor = np.maximum(self.cushion[nc:], 1e-300)
         # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)
         braking = None if torque_limit is None or not nc else Braking.of(
@@ -430,6 +432,8 @@ class Safeguard(SafetyFilter):
         each margin in one period (model_error.margin_losses), and to at least what a
         measurement error can hide above the cushion (measurement_losses): the true margin
         then ends above its cushion too."""
+        if self._exact:
+            return
         error = self._error_bound(state, bias, tau)
         measured = self.declared if self.declared is not None and self.declared.measured \
             else None
@@ -466,9 +470,8 @@ class Safeguard(SafetyFilter):
         """model_error.friction_error over this period, for the accelerations of the torques
         this step may hold (the step's box; any without a torque box); ``inverse``: D⁻¹."""
         box = self.box.reachable
-        accel = None if box is None else reachable_accelerations(
-            self.model, state, bias, *box.bounds, inverse=inverse)
-        return friction_error(self.model, state, accel, self.period, inverse=inverse)
+        return friction_error(self.model, state, None, self.period, inverse=inverse,
+                              torques=None if box is None else (bias, *box.bounds))
 
     @staticmethod
     def _no_nan(m: Array) -> Array:

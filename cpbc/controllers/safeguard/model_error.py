@@ -78,9 +78,12 @@ import pinocchio as pin
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.margin_slopes import MarginSlopes
+from cpbc.kernels import friction_error as kernels
 from cpbc.kernels.small_solves import inverse_spd
 from cpbc.model.coulomb import MUJOCO_FRICTION, DryFriction
 from cpbc.model.robot_model import ArmState, RobotModel
+
+_NONE = np.zeros(0)  # no accelerations given (friction_error)
 
 
 def inverse_inertia(inertia: Array) -> Array:
@@ -104,53 +107,48 @@ def _joint_inverse(model: RobotModel, inertia: Array,
 
 def friction_error(model: RobotModel, state: ArmState,
                    accel: tuple[Array, Array] | None = None, period: float = 0.0,
-                   plant: DryFriction = MUJOCO_FRICTION,
-                   inverse: Array | None = None) -> Array | None:
+                   plant: DryFriction = MUJOCO_FRICTION, inverse: Array | None = None,
+                   torques: tuple[Array, Array, Array] | None = None) -> Array | None:
     """The bound on the acceleration error of the model's smooth Coulomb friction over one
     period from ``state`` (the module docstring): |D⁻¹| |T⁻ᵀ| max(e, F) per coordinate, or
     None for a model without Coulomb friction. ``accel``: (centre, radius), controller
     coordinates, of the model accelerations the torques that may be held over the period
     give; None for any (no joint is then taken to slide, and over a period ``period`` > 0 a
-    rate may reach any speed: e_j = 2F_j). ``inverse``: D⁻¹ when the caller has it."""
+    rate may reach any speed: e_j = 2F_j). ``inverse``: D⁻¹ when the caller has it.
+    ``torques``: (b, lower, upper) in place of ``accel``: the accelerations are those of the
+    joint torques lower ≤ τ_q ≤ upper at the bias b (:func:`reachable_accelerations`), found
+    in the same call (cpbc.kernels.friction_error: the accelerations' reach, e_j and the sum
+    in one call)."""
     levels = model.coulomb_friction
-    if not np.any(levels):
+    if not levels.any():
         return None
-    to_accel, joint_inv = _joint_inverse(model, state.inertia, inverse)
-    coarse = np.abs(joint_inv) @ (2.0 * levels)  # |q̈_j − q̂̈_j| ≤ |D⁻¹|·2F, joint coordinates
-    speed = np.abs(model.joint_coordinates(state.dx))
-    if accel is None:
-        alpha = np.full(model.n, math.inf)
-        reach = alpha
-    else:
-        centre, radius = accel
-        coords = model.coordinates
-        if not coords.is_identity:
-            centre, radius = coords.inverse @ centre, np.abs(coords.inverse) @ radius
-        sign = np.sign(model.joint_coordinates(state.dx))
-        alpha = np.maximum(-sign * centre + radius, 0.0) + coarse
-        reach = np.abs(centre) + radius + coarse
-    spread = period * reach if period > 0.0 else np.zeros(model.n)
-    e = plant.force_error(levels, model.friction_smoothing, speed - spread, speed + spread,
-                          alpha)
-    # never below F_j: the shortfall alone at speed let the Panda's and FR3's joint 1 through
-    # its rate bound at 500 Hz (seed 34) with the friction's error inside it all along
-    return np.abs(to_accel) @ np.maximum(e, levels)
+    inv = inverse_inertia(state.inertia) if inverse is None else inverse
+    coords = model.coordinates
+    out = np.empty(model.n)
+    if torques is not None:
+        kernels.held_friction_error(inv, coords.inverse, not coords.is_identity, levels,
+                                    model.friction_smoothing, plant.build_up, plant.creep,
+                                    state.dx, *torques, period, out)
+        return out
+    centre, radius = (_NONE, _NONE) if accel is None else accel
+    kernels.friction_error(inv, coords.inverse, not coords.is_identity, levels,
+                           model.friction_smoothing, plant.build_up, plant.creep, state.dx,
+                           centre, radius, accel is not None, period, out)
+    return out
 
 
 def reachable_accelerations(model: RobotModel, state: ArmState, bias: Array, lower: Array,
                             upper: Array, inverse: Array | None = None
                             ) -> tuple[Array, Array]:
     """(centre, radius) of the model accelerations D⁻¹(T⁻ᵀ τ_q − b) of the joint torques
-    lower ≤ τ_q ≤ upper, per controller coordinate (an infinite bound: an infinite radius);
-    ``inverse``: D⁻¹ when the caller has it."""
+    lower ≤ τ_q ≤ upper, per controller coordinate (an infinite bound: an infinite radius;
+    cpbc.kernels.friction_error); ``inverse``: D⁻¹ when the caller has it."""
     inv = inverse_inertia(state.inertia) if inverse is None else inverse
-    to_accel, _ = _joint_inverse(model, state.inertia, inv)
-    mid = 0.5 * (lower + upper)
-    half = 0.5 * (upper - lower)
-    centre = to_accel @ np.where(np.isfinite(mid), mid, 0.0) - inv @ bias
-    with np.errstate(invalid="ignore"):
-        radius = np.abs(to_accel) @ half
-    return centre, np.where(np.isnan(radius), math.inf, radius)
+    coords = model.coordinates
+    centre, radius = np.empty(model.n), np.empty(model.n)
+    kernels.reachable_accelerations(inv, coords.inverse, not coords.is_identity, bias, lower,
+                                    upper, centre, radius)
+    return centre, radius
 
 
 def margin_losses(constraints: ConstraintSet, state: ArmState, bound: Array, period: float,

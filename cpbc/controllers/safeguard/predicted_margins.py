@@ -27,6 +27,7 @@ from cpbc.kernels.sampled_guard import (
     configuration_rows,
     margins_along,
     predicted_slack,
+    ramp_share,
     ramp_speeds,
 )
 from cpbc.model.robot_model import RobotModel
@@ -125,8 +126,6 @@ class PredictedMargins:
         self._spheres = any(p.kind == SPHERES for _, _, p in config)
         self._pin = model.model
         self._data = self._pin.createData()  # its own: the joint placements of each row
-        self._placement_shape = pin.computeStaticRegressor(
-            self._pin, self._data, pin.neutral(self._pin)).shape
         self._no_placements = np.zeros((0, 1, 1))
         self._no_config = np.zeros((0, 0))
         self._no_floor = np.zeros(0)
@@ -135,13 +134,11 @@ class PredictedMargins:
     def _placements(self, rows: Array) -> Array:
         """Pinocchio's joint placements (the static regressor) at every row, joint
         coordinates (the sphere pairs pack only then)."""
-        if not self._spheres:
+        if not self._spheres or not len(rows):
             return self._no_placements
-        out = np.empty((len(rows), *self._placement_shape))
         data, model = self._data, self._pin
-        for i in range(len(rows)):
-            out[i] = pin.computeStaticRegressor(model, data, rows[i])
-        return out
+        # one array of the list: a copy into a row of an empty array costs as much as the call
+        return np.array([pin.computeStaticRegressor(model, data, x) for x in rows])
 
     def _generic_velocity_margins(self, xs: Array, dxs: Array) -> Array:
         """The velocity margins along rows, those of the constraints that do not pack filled
@@ -167,9 +164,9 @@ class PredictedMargins:
         ramp_speeds(speeds, ramp.start, ramp.period, ramp.inertia,
                     ramp.inertia if to_joint is None else to_joint, to_joint is not None,
                     ramp.rate, RAMP_SHARE, peaks)
-        m = self.velocity_margins(ends, peaks)
-        m = np.where(np.isnan(m), -np.inf, m)
-        return float(np.min(m / ramp.floor)) - 1.0
+        vp = self._velocity
+        return ramp_share(vp.plan, vp.ints, vp.floats, ends, peaks, self._no_placements,
+                          self._generic_velocity_margins(ends, peaks), ramp.floor)
 
     def slack(self, predicted: Rows, end_floor: Array, mid_floor: Array | None,
               stop: BrakingTest | None, past: np.ndarray | None) -> float:

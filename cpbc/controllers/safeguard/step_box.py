@@ -88,8 +88,7 @@ class StepBox:
         if self._added is not None:  # the robot's box bounds the command, τ − added
             lower, upper = box.bounds
             shift = box.joint(self._added)
-            box = TorqueBox(box.limit, box.to_joint, box.from_joint, lower + shift,
-                            upper + shift)
+            box = box.with_bounds(lower + shift, upper + shift)
         self._static = box
         held = state.gravity if self.holding is None else self.holding
         self.holding = held  # this step's anchor (fit)
