@@ -17,7 +17,7 @@ from cpbc.kernels.law_terms import damping_terms, potential_terms, shaped
 from cpbc.kernels.plan_tables import KIND
 from cpbc.kernels.small_solves import solve_spd
 from cpbc.kernels.state_terms import finish_into, frame_views, state_views
-from cpbc.kernels.views import Ints, float_rows, int_rows
+from cpbc.kernels.views import Ints, borrowed, float_rows, int_rows
 
 
 def zero_terms(n: int) -> tuple[Array, Array]:
@@ -193,6 +193,9 @@ def cpbc_step(tables: Ints, table_floats: Array, x: Array, dx: Array, inertia_q:
     the margins. Returns V, log Φ and log Ψ; outside S (a NaN log) V is NaN and τ is not
     written (the caller raises, naming the margin from φ̃)."""
     n = x.shape[0]
+    # the arguments uncounted (``borrowed``): the caller holds them for the call
+    tables, table_floats, terms = borrowed(tables), borrowed(table_floats), borrowed(terms)
+    x, dx, barriers, tau = borrowed(x), borrowed(dx), borrowed(barriers), borrowed(tau)
     finished(tables, table_floats, dx, inertia_q, nle, gravity_q, coriolis_q, y_q, jac_q,
              terms)
     inertia, coriolis_force, gravity, dissipation, coriolis, y, jac = state_views(
@@ -236,6 +239,9 @@ def cpbc_ke_step(limit: float, tables: Ints, table_floats: Array, x: Array, dx: 
     into ``tau`` (``cpbc_step``'s arguments). Returns V, log Φ and ψ; when ψ ≤ 0 or
     log Φ is NaN, V is NaN and τ is not written (the caller raises)."""
     n = x.shape[0]
+    # the arguments uncounted (``borrowed``): the caller holds them for the call
+    tables, table_floats, terms = borrowed(tables), borrowed(table_floats), borrowed(terms)
+    x, dx, barriers, tau = borrowed(x), borrowed(dx), borrowed(barriers), borrowed(tau)
     finished(tables, table_floats, dx, inertia_q, nle, gravity_q, coriolis_q, y_q, jac_q,
              terms)
     inertia, _, gravity, _, coriolis, y, jac = state_views(tables, tables[STATE_INTS], terms)

@@ -21,7 +21,7 @@ from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, inner, kernel
 from cpbc.kernels.coordinate_maps import congruence, joint_friction, to_controller
 from cpbc.kernels.task import PLACE, frame_on_joints
-from cpbc.kernels.views import Ints, float_rows
+from cpbc.kernels.views import Ints, borrowed, float_rows
 
 # the state's ints: n, c, whether it holds the joint kinematics, the static regressor's
 # columns, whether the coordinates are the joints', whether the arm has friction, the number
@@ -189,4 +189,5 @@ def finish_state(ints: Ints, floats: Array, dx: Array, inertia_q: Array, nle: Ar
                  gravity_q: Array, coriolis_q: Array, y: Array, jac: Array, terms: Array
                  ) -> None:
     """``finish_into`` on its own: the state's terms for a reader outside a law's kernel."""
+    ints, floats, terms = borrowed(ints), borrowed(floats), borrowed(terms)  # held by the caller
     finish_into(ints, floats, 0, 0, dx, inertia_q, nle, gravity_q, coriolis_q, y, jac, terms)
