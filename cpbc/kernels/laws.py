@@ -196,6 +196,8 @@ def cpbc_step(tables: Ints, table_floats: Array, x: Array, dx: Array, inertia_q:
     # the arguments uncounted (``borrowed``): the caller holds them for the call
     tables, table_floats, terms = borrowed(tables), borrowed(table_floats), borrowed(terms)
     x, dx, barriers, tau = borrowed(x), borrowed(dx), borrowed(barriers), borrowed(tau)
+    inertia_q, nle, gravity_q = borrowed(inertia_q), borrowed(nle), borrowed(gravity_q)
+    coriolis_q, y_q, jac_q = borrowed(coriolis_q), borrowed(y_q), borrowed(jac_q)
     finished(tables, table_floats, dx, inertia_q, nle, gravity_q, coriolis_q, y_q, jac_q,
              terms)
     inertia, coriolis_force, gravity, dissipation, coriolis, y, jac = state_views(
@@ -242,6 +244,8 @@ def cpbc_ke_step(limit: float, tables: Ints, table_floats: Array, x: Array, dx: 
     # the arguments uncounted (``borrowed``): the caller holds them for the call
     tables, table_floats, terms = borrowed(tables), borrowed(table_floats), borrowed(terms)
     x, dx, barriers, tau = borrowed(x), borrowed(dx), borrowed(barriers), borrowed(tau)
+    inertia_q, nle, gravity_q = borrowed(inertia_q), borrowed(nle), borrowed(gravity_q)
+    coriolis_q, y_q, jac_q = borrowed(coriolis_q), borrowed(y_q), borrowed(jac_q)
     finished(tables, table_floats, dx, inertia_q, nle, gravity_q, coriolis_q, y_q, jac_q,
              terms)
     inertia, _, gravity, _, coriolis, y, jac = state_views(tables, tables[STATE_INTS], terms)

@@ -294,12 +294,14 @@ class RobotModel:
         model's data, which its next pass overwrites. The choices are made here, once, and
         the function reads only names bound here (a global or attribute lookup costs 20–40
         ns; a step would make a dozen); its q and q̇ (other coordinates than the joints')
-        are two arrays of its own, overwritten by each call, as Pinocchio's data is."""
+        are the rows of one array of its own, overwritten by each call, as Pinocchio's data
+        is."""
         model, data, t_inv = self.model, self.data, self._t_inv
         identity, mirror, lower = self._identity, self._crba_upper_only, self._lower
         joints_jac, own = self._joint_jacobians, self._own_results
         coriolis_pass, no_matrix, no_joints = self.coriolis_pass, _NO_MATRIX, _NO_JOINTS
-        joint_q, joint_dq = np.empty(self.n), np.empty(self.n)
+        joint = np.empty((2, self.n))
+        joint_q, joint_dq = joint[0], joint[1]
         crba, rnea, gravity = pin.crba, pin.nonLinearEffects, pin.computeGeneralizedGravity
         world, regressor, no_gravity = pin.Convention.WORLD, pin.computeStaticRegressor, _NO_G
 
@@ -308,7 +310,7 @@ class RobotModel:
                 q, dq = x, dx
             else:
                 q, dq = joint_q, joint_dq
-                to_joint(t_inv, x, dx, q, dq)
+                to_joint(t_inv, x, dx, joint)
             c_matrix = coriolis_pass(q, dq) if coriolis else no_matrix
             if all_terms:  # the joint Jacobians (WORLD) with D; g from them
                 mass, bias, weight = crba(model, data, q, world), rnea(model, data, q, dq), (

@@ -113,9 +113,9 @@ class StatePass:
         if self._identity:
             state.q, state.dq = state.x, state.dx
         else:
-            n = self.model.n
-            state.q, state.dq = np.empty(n), np.empty(n)
-            to_joint(self._t_inv, state.x, state.dx, state.q, state.dq)
+            joint = np.empty((2, self.model.n))
+            to_joint(self._t_inv, state.x, state.dx, joint)
+            state.q, state.dq = joint[0], joint[1]
         inertia, bias, gravity, dissipation = self._views
         square = self._square
         state.inertia = terms[inertia].reshape(square)
