@@ -49,7 +49,8 @@ __all__ = ["ENERGY", "KINDS", "LINEAR", "POINT", "RATE", "SPHERES", "VELOCITY_KI
 
 @kernel("UniTuple(float64, 2)(int64[:, :], int64[:, :], float64[:, :], float64[:],"
         " float64[:], float64[:, :], float64[:, :], float64[:], float64[:, :], float64[:, :],"
-        " float64[:, :], float64[:, :], float64[:], float64[:], float64[:, :], float64[:])")
+        " float64[:, :], float64[:, :], float64[:], float64[:], float64[:, :], float64[:])",
+        inline=True)
 def set_barrier(plan: Ints, ints: Ints, floats: Array, x: Array, dx: Array, inertia: Array,
                 coriolis: Array, point: Array, rotation: Array, frame_jacobian: Array,
                 y: Array, jac: Array, phi: Array, gradient: Array, weight: Array,

@@ -16,8 +16,8 @@ from cpbc.kernels.energy import kinetic_energy
 from cpbc.kernels.law_terms import damping_terms, potential_terms, shaped
 from cpbc.kernels.plan_tables import KIND
 from cpbc.kernels.small_solves import solve_spd
-from cpbc.kernels.state_terms import finish_into, frame_views, state_views, terms_size
-from cpbc.kernels.views import Ints, float_rows, int_rows
+from cpbc.kernels.state_terms import finish_into, frame_views, state_views
+from cpbc.kernels.views import Ints, borrowed, float_rows, int_rows
 
 
 def zero_terms(n: int) -> tuple[Array, Array]:
@@ -142,28 +142,23 @@ def law_tables(ints: Ints, floats: Array) -> tuple[int, Ints, Ints, Array, Ints,
     return ints[MARGINS], plan, set_ints, set_floats, term_plan, term_floats
 
 
-@inner("float64[::1](int64[::1], float64[::1], float64[:], float64[:, :], float64[:],"
-       " float64[:], float64[:, :], float64[:, :], float64[:, :], float64[::1])")
+@inner("void(int64[::1], float64[::1], float64[:], float64[:, :], float64[:], float64[:],"
+       " float64[:, :], float64[:, :], float64[:, :], float64[::1])")
 def finished(tables: Ints, table_floats: Array, dx: Array, inertia_q: Array, nle: Array,
-             gravity_q: Array, coriolis_q: Array, y: Array, jac: Array, terms: Array
-             ) -> Array:
+             gravity_q: Array, coriolis_q: Array, y: Array, jac: Array, terms: Array) -> None:
     """The state's terms: ``terms`` as they are when the pass comes finished (``inertia_q``
-    empty), else finished here (cpbc.kernels.state_terms.finish_into) — into ``terms``
-    when it is given (the state keeps them), else into an array of the step's own."""
-    if inertia_q.shape[0] == 0:
-        return terms
-    at = tables[STATE_INTS]
-    if terms.shape[0] == 0:
-        terms = np.empty(terms_size(tables, at))
-    finish_into(tables, table_floats, at, tables[STATE_FLOATS], dx, inertia_q, nle,
-                gravity_q, coriolis_q, y, jac, terms)
-    return terms
+    empty), else finished here into ``terms`` (cpbc.kernels.state_terms.finish_into), which
+    the caller sizes (``terms_size``): the state's own when it keeps them, else the law's
+    one array for a step that keeps none (cpbc.controllers.packed_law)."""
+    if inertia_q.shape[0] > 0:
+        finish_into(tables, table_floats, tables[STATE_INTS], tables[STATE_FLOATS], dx,
+                    inertia_q, nle, gravity_q, coriolis_q, y, jac, terms)
 
 
 # the tables, x, ẋ, the state's one Pinocchio pass in joint coordinates (cpbc.model
 # .state_pass: D_q, nle = C q̇ + g_q, g_q, C_q (or empty), the joint placements and
 # Jacobians (or empty); all empty when the state comes finished), the state's terms
-# (cpbc.kernels.state_terms; empty: finished in the step's own array), ``barriers``
+# (cpbc.kernels.state_terms, ``terms_size`` long), ``barriers``
 # [φ̃ (margins) | the margins (or nothing)] and τ
 STEP = ("int64[::1], float64[::1], float64[:], float64[:], float64[:, :], float64[:],"
         " float64[:], float64[:, :], float64[:, :], float64[:, :], float64[::1], float64[:],"
@@ -198,8 +193,13 @@ def cpbc_step(tables: Ints, table_floats: Array, x: Array, dx: Array, inertia_q:
     the margins. Returns V, log Φ and log Ψ; outside S (a NaN log) V is NaN and τ is not
     written (the caller raises, naming the margin from φ̃)."""
     n = x.shape[0]
-    terms = finished(tables, table_floats, dx, inertia_q, nle, gravity_q, coriolis_q, y_q,
-                     jac_q, terms)
+    # the arguments uncounted (``borrowed``): the caller holds them for the call
+    tables, table_floats, terms = borrowed(tables), borrowed(table_floats), borrowed(terms)
+    x, dx, barriers, tau = borrowed(x), borrowed(dx), borrowed(barriers), borrowed(tau)
+    inertia_q, nle, gravity_q = borrowed(inertia_q), borrowed(nle), borrowed(gravity_q)
+    coriolis_q, y_q, jac_q = borrowed(coriolis_q), borrowed(y_q), borrowed(jac_q)
+    finished(tables, table_floats, dx, inertia_q, nle, gravity_q, coriolis_q, y_q, jac_q,
+             terms)
     inertia, coriolis_force, gravity, dissipation, coriolis, y, jac = state_views(
         tables, tables[STATE_INTS], terms)
     margins, plan, ints, floats, term_plan, term_floats = law_tables(tables, table_floats)
@@ -241,8 +241,13 @@ def cpbc_ke_step(limit: float, tables: Ints, table_floats: Array, x: Array, dx: 
     into ``tau`` (``cpbc_step``'s arguments). Returns V, log Φ and ψ; when ψ ≤ 0 or
     log Φ is NaN, V is NaN and τ is not written (the caller raises)."""
     n = x.shape[0]
-    terms = finished(tables, table_floats, dx, inertia_q, nle, gravity_q, coriolis_q, y_q,
-                     jac_q, terms)
+    # the arguments uncounted (``borrowed``): the caller holds them for the call
+    tables, table_floats, terms = borrowed(tables), borrowed(table_floats), borrowed(terms)
+    x, dx, barriers, tau = borrowed(x), borrowed(dx), borrowed(barriers), borrowed(tau)
+    inertia_q, nle, gravity_q = borrowed(inertia_q), borrowed(nle), borrowed(gravity_q)
+    coriolis_q, y_q, jac_q = borrowed(coriolis_q), borrowed(y_q), borrowed(jac_q)
+    finished(tables, table_floats, dx, inertia_q, nle, gravity_q, coriolis_q, y_q, jac_q,
+             terms)
     inertia, _, gravity, _, coriolis, y, jac = state_views(tables, tables[STATE_INTS], terms)
     kinetic = kinetic_energy(inertia, dx)
     psi = limit - kinetic

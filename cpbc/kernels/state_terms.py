@@ -4,8 +4,11 @@ written into one flat array (its ``terms``), which the laws' kernels and the sta
 (cpbc.model.arm_state.ArmState, views of it) read.
 
 The pass's choices and constants are packed once per pass (``pack_state``): the state's
-tables. ``finish_into`` is the one finishing: ``finish_state`` calls it alone, and a law's
-kernel (cpbc.kernels.laws) calls it first when it is handed the pass unfinished.
+tables. A pass that gives the joint kinematics leaves g to the finishing, which computes it
+from them (``joint_gravity``): Pinocchio's CRBA in world axes gives the joint Jacobians with
+D, and computeAllTerms' centroidal terms, centre of mass and energies are not computed.
+``finish_into`` is the one finishing: ``finish_state`` calls it alone, and a law's kernel
+(cpbc.kernels.laws) calls it first when it is handed the pass unfinished.
 
 The terms' layout (``terms_size``, ``state_views``): D (n²), C ẋ (n), g (n), f (n), C (c²;
 c = n when the state holds C, else 0), the joint Jacobians (6n) and placements (3 × the
@@ -21,30 +24,35 @@ from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, inner, kernel
 from cpbc.kernels.coordinate_maps import congruence, joint_friction, to_controller
 from cpbc.kernels.task import PLACE, frame_on_joints
-from cpbc.kernels.views import Ints, float_rows
+from cpbc.kernels.views import Ints, borrowed, float_rows
 
 # the state's ints: n, c, whether it holds the joint kinematics, the static regressor's
 # columns, whether the coordinates are the joints', whether the arm has friction, the number
-# of frames; then per frame its joint's column in the regressor (−1: welded to the world)
-# and where its constants start in the floats
-N, CORIOLIS, KINEMATICS, Y_COLUMNS, JOINTS, FRICTION, FRAMES = range(7)
-HEADER = 7
+# of frames, where the gravity's constants start in the floats (−1: the pass gives g); then
+# per frame its joint's column in the regressor (−1: welded to the world) and where its
+# constants start in the floats
+N, CORIOLIS, KINEMATICS, Y_COLUMNS, JOINTS, FRICTION, FRAMES, GRAVITY = range(8)
+HEADER = 8
 WORLD = -1  # a frame welded to the world: its placement is constant, its Jacobian zero
 
 
 def pack_state(n: int, coriolis: bool, kinematics: bool, y_columns: int, t_inv: Array,
                friction: Array, coulomb: Array, smoothing: float,
-               frames: tuple[tuple[int, Array], ...]) -> tuple[Ints, Array]:
-    """The state's tables: its ints and floats [T⁻¹, F_d, F_c, ε, each frame's constants].
-    ``frames``: per frame its joint's column in the static regressor and its place on the
-    joint [s, s p_l, R_l, the support mask] (cpbc.model.robot_model.RobotModel
-    .frame_on_joints), or (``WORLD``, its constant placement (4, 4))."""
+               frames: tuple[tuple[int, Array], ...], gravity: Array) -> tuple[Ints, Array]:
+    """The state's tables: its ints and floats [T⁻¹, F_d, F_c, ε, the gravity's constants,
+    each frame's constants]. ``frames``: per frame its joint's column in the static
+    regressor and its place on the joint [s, s p_l, R_l, the support mask]
+    (cpbc.model.robot_model.RobotModel.frame_on_joints), or (``WORLD``, its constant
+    placement (4, 4)). ``gravity``: what ``joint_gravity`` reads (RobotModel
+    .gravity_on_joints) when the pass leaves g to the finishing, else empty."""
+    at = 2 * n * n + n + 1
     ints = [n, n if coriolis else 0, int(kinematics), y_columns,
             int(np.array_equal(t_inv, np.eye(n))),
-            int(bool(np.any(friction) or np.any(coulomb))), len(frames)]
+            int(bool(np.any(friction) or np.any(coulomb))), len(frames),
+            at if gravity.size else -1]
     floats = [t_inv.ravel(), friction.ravel(), np.asarray(coulomb, dtype=float),
-              np.array([smoothing])]
-    at = 2 * n * n + n + 1
+              np.array([smoothing]), np.asarray(gravity, dtype=float).ravel()]
+    at += gravity.size
     for column, constants in frames:
         ints += [column, at]
         floats.append(np.asarray(constants, dtype=float).ravel())
@@ -109,13 +117,59 @@ def frame_views(ints: Ints, at: int, terms: Array, frame: int) -> tuple[Array, A
     return float_rows(terms, start, 4, 4), float_rows(terms, start + 16, 6, n)
 
 
+@inner("void(float64[::1], int64, float64[:, :], float64[:, :], float64[:])")
+def joint_gravity(floats: Array, start: int, y: Array, jac: Array, gravity: Array) -> None:
+    """g(q), the gradient of the potential energy, from a pass's joint placements ``y``
+    (Pinocchio's static regressor, Y[:, 4i:4i+4] = [t_i R_i]/s) and world joint Jacobians
+    ``jac`` = [v_k; ω_k] (6, n), into ``gravity`` (joint coordinates):
+
+        g_k = −[v_k; ω_k]ᵀ Σ_i [m_i g₀; p_i × m_i g₀],   p_i = t_i + R_i c_i,
+
+    over the links i that joint k moves (the wrench of their weights at the world's origin),
+    m_i and c_i each link's mass and centre of mass on its joint — what Pinocchio's
+    computeGeneralizedGravity gives (to 1e-14). ``floats`` from ``start``: [g₀ (3), s, then
+    per link m_i, c_i (3) and its support mask (n)] (RobotModel.gravity_on_joints)."""
+    n = jac.shape[1]
+    g0, g1, g2, scale = floats[start], floats[start + 1], floats[start + 2], floats[start + 3]
+    for k in range(n):
+        gravity[k] = 0.0
+    for i in range(y.shape[1] // 4):
+        at = start + 4 + i * (4 + n)
+        mass = floats[at]
+        if mass == 0.0:
+            continue
+        c, cx, cy, cz = 4 * i, floats[at + 1], floats[at + 2], floats[at + 3]
+        p0 = scale * (y[0, c] + y[0, c + 1] * cx + y[0, c + 2] * cy + y[0, c + 3] * cz)
+        p1 = scale * (y[1, c] + y[1, c + 1] * cx + y[1, c + 2] * cy + y[1, c + 3] * cz)
+        p2 = scale * (y[2, c] + y[2, c + 1] * cx + y[2, c + 2] * cy + y[2, c + 3] * cz)
+        f0, f1, f2 = mass * g0, mass * g1, mass * g2
+        n0, n1, n2 = p1 * f2 - p2 * f1, p2 * f0 - p0 * f2, p0 * f1 - p1 * f0
+        for k in range(n):
+            if floats[at + 4 + k] != 0.0:
+                gravity[k] -= (jac[0, k] * f0 + jac[1, k] * f1 + jac[2, k] * f2
+                               + jac[3, k] * n0 + jac[4, k] * n1 + jac[5, k] * n2)
+
+
+@inner("float64[:](int64[::1], float64[::1], int64, int64, float64[:], float64[:, :],"
+       " float64[:, :], float64[:])")
+def pass_gravity(ints: Ints, floats: Array, at: int, at_floats: int, gravity_q: Array,
+                 y: Array, jac: Array, scratch: Array) -> Array:
+    """g_q: the pass's, or — when it leaves g to the finishing — ``joint_gravity`` from its
+    joint kinematics, into ``scratch`` (the place of f, which the finishing writes after)."""
+    if ints[at + GRAVITY] < 0:
+        return gravity_q
+    joint_gravity(floats, at_floats + ints[at + GRAVITY], y, jac, scratch)
+    return scratch
+
+
 @inner("void(int64[::1], float64[::1], int64, int64, float64[:], float64[:, :], float64[:],"
        " float64[:], float64[:, :], float64[:, :], float64[:, :], float64[::1])")
 def finish_into(ints: Ints, floats: Array, at: int, at_floats: int, dx: Array,
                 inertia_q: Array, nle: Array, gravity_q: Array, coriolis_q: Array, y: Array,
                 jac: Array, terms: Array) -> None:
     """The state's terms from the pass in joint coordinates (D_q, nle = C q̇ + g_q, g_q, C_q,
-    the joint placements Y and Jacobians) into ``terms``: D = T⁻ᵀ D_q T⁻¹, C ẋ = T⁻ᵀ (nle − g_q),
+    the joint placements Y and Jacobians; g_q empty: ``joint_gravity`` from Y and the
+    Jacobians) into ``terms``: D = T⁻ᵀ D_q T⁻¹, C ẋ = T⁻ᵀ (nle − g_q),
     g = T⁻ᵀ g_q (cpbc.kernels.coordinate_maps.to_controller), f (``joint_friction``),
     C = T⁻ᵀ C_q T⁻¹, Y and the joint Jacobians copied, and each frame's placement and Jacobian
     J_q T⁻¹ from the joint kinematics (cpbc.kernels.task.frame_on_joints). The state's tables
@@ -125,6 +179,7 @@ def finish_into(ints: Ints, floats: Array, at: int, at_floats: int, dx: Array,
     t_inv = float_rows(floats, at_floats, n, n)
     inertia, bias, gravity, dissipation, coriolis, placements, joint_jacobians = state_views(
         ints, at, terms)
+    gravity_q = pass_gravity(ints, floats, at, at_floats, gravity_q, y, jac, dissipation)
     if joints:
         for i in range(n):
             bias[i] = nle[i] - gravity_q[i]
@@ -189,4 +244,5 @@ def finish_state(ints: Ints, floats: Array, dx: Array, inertia_q: Array, nle: Ar
                  gravity_q: Array, coriolis_q: Array, y: Array, jac: Array, terms: Array
                  ) -> None:
     """``finish_into`` on its own: the state's terms for a reader outside a law's kernel."""
+    ints, floats, terms = borrowed(ints), borrowed(floats), borrowed(terms)  # held by the caller
     finish_into(ints, floats, 0, 0, dx, inertia_q, nle, gravity_q, coriolis_q, y, jac, terms)

@@ -24,6 +24,7 @@ from cpbc.model.state_pass import StatePass
 PassArrays = tuple[Array, Array, Array, Array, Array, Array]
 _NO_MATRIX = np.zeros((0, 0))
 _NO_JOINTS = (np.zeros((3, 0)), np.zeros((6, 0)))
+_NO_G = np.zeros(0)  # g left to the finishing (cpbc.kernels.state_terms.joint_gravity)
 
 # ε of the model's Coulomb friction F_c tanh(q̇/ε) [rad/s or m/s]: the rate below which the
 # model's friction fades. A joint's smoothed friction is stiff in q̇ (slope F_c/ε), and the law
@@ -248,10 +249,11 @@ class RobotModel:
               frames: Iterable[int] = (), coriolis: bool = False) -> ArmState:
         """The per-step state at (x, ẋ), finished (fresh arrays, nothing kept between
         calls), from the one producer (``state_pass``): one Pinocchio pass — CRBA, RNEA and
-        gravity, or with ``kinematics`` or any ``frames`` ``computeAllTerms`` and the static
-        regressor (the joint placements; their D and g differ from the separate passes' in
-        the last bit, 1e-15); with ``coriolis`` the matrix C (one more pass) — and one kernel
-        that finishes it. Each frame of ``frames`` is read from the joint kinematics into
+        gravity, or with ``kinematics`` or any ``frames`` CRBA in world axes (with the joint
+        Jacobians), RNEA and the static regressor (the joint placements), g then computed
+        from the joint kinematics by the finishing (it differs from Pinocchio's gravity pass
+        in the last bits, 1e-14); with ``coriolis`` the matrix C (one more pass) — and one
+        kernel that finishes it. Each frame of ``frames`` is read from the joint kinematics into
         ``ArmState.frames``, and — with ``kinematics`` — the joint Jacobians and placements
         are in the state. x and ẋ are copied when read-only."""
         producer = self.state_pass(bool(kinematics), tuple(frames), bool(coriolis))
@@ -282,33 +284,37 @@ class RobotModel:
                        ) -> Callable[[Array, Array], PassArrays]:
         """The per-step state's one Pinocchio pass (cpbc.model.state_pass), as a function of
         (x, ẋ) giving, in joint coordinates, D_q, nle = C q̇ + g_q, g_q, C_q (``coriolis``;
-        else empty) and — with ``all_terms`` (``computeAllTerms``, else CRBA, RNEA and
-        gravity) — the joint placements (the static regressor) and Jacobians (else
-        empty). D, nle, g and the joint Jacobians are views of the model's data, which its
-        next pass overwrites. The choices are made here, once, and the function reads only
-        names bound here (a global or attribute lookup costs 20–40 ns; a step would make a
-        dozen); its q and q̇ (other coordinates than the joints') are two arrays of its own,
-        overwritten by each call, as Pinocchio's data is."""
+        else empty) and — with ``all_terms`` (CRBA in world axes, which also leaves the
+        joint Jacobians in the data, RNEA and the static regressor, else CRBA, RNEA and
+        gravity) — the joint placements (the static regressor) and Jacobians (else empty);
+        with ``all_terms`` g_q is empty: the finishing computes it from the joint
+        kinematics (cpbc.kernels.state_terms.joint_gravity, ``gravity_on_joints``), which
+        on the Panda costs about 0.4 µs less than computeAllTerms (its centroidal terms,
+        centre of mass and energies went unread). The joint Jacobians are a view of the
+        model's data, which its next pass overwrites. The choices are made here, once, and
+        the function reads only names bound here (a global or attribute lookup costs 20–40
+        ns; a step would make a dozen); its q and q̇ (other coordinates than the joints')
+        are the rows of one array of its own, overwritten by each call, as Pinocchio's data
+        is."""
         model, data, t_inv = self.model, self.data, self._t_inv
         identity, mirror, lower = self._identity, self._crba_upper_only, self._lower
-        m, nle, g = self._all_terms
         joints_jac, own = self._joint_jacobians, self._own_results
         coriolis_pass, no_matrix, no_joints = self.coriolis_pass, _NO_MATRIX, _NO_JOINTS
-        joint_q, joint_dq = np.empty(self.n), np.empty(self.n)
+        joint = np.empty((2, self.n))
+        joint_q, joint_dq = joint[0], joint[1]
         crba, rnea, gravity = pin.crba, pin.nonLinearEffects, pin.computeGeneralizedGravity
-        every_term, regressor = pin.computeAllTerms, pin.computeStaticRegressor
+        world, regressor, no_gravity = pin.Convention.WORLD, pin.computeStaticRegressor, _NO_G
 
         def run(x: Array, dx: Array) -> PassArrays:
             if identity:
                 q, dq = x, dx
             else:
                 q, dq = joint_q, joint_dq
-                to_joint(t_inv, x, dx, q, dq)
+                to_joint(t_inv, x, dx, joint)
             c_matrix = coriolis_pass(q, dq) if coriolis else no_matrix
-            # dynamics_pass's choice, written out: its call costs about 0.1 us more a step
-            if all_terms:
-                every_term(model, data, q, dq)
-                mass, bias, weight = m, nle, g
+            if all_terms:  # the joint Jacobians (WORLD) with D; g from them
+                mass, bias, weight = crba(model, data, q, world), rnea(model, data, q, dq), (
+                    no_gravity)
                 y = regressor(model, data, q)
                 placements, jac = (y if own else y.copy()), joints_jac
             else:
@@ -320,6 +326,20 @@ class RobotModel:
             return mass, bias, weight, c_matrix, placements, jac
 
         return run
+
+    def gravity_on_joints(self) -> Array:
+        """How the finishing kernel computes g(q) from a pass's joint kinematics
+        (cpbc.kernels.state_terms.joint_gravity): [g₀ (3), s (``regressor_scale``), then per
+        joint's link its mass m, its centre of mass c on the joint (3) and the coordinates
+        that move it (n, ``joint_supports``)], read from the Pinocchio model now."""
+        model, supports = self.model, self.joint_supports()
+        rows: list[Array] = [np.asarray(model.gravity.linear, dtype=float),
+                             np.array([self.regressor_scale()])]
+        for j in range(1, model.njoints):
+            inertia = model.inertias[j]
+            rows += [np.array([inertia.mass]), np.asarray(inertia.lever, dtype=float),
+                     supports[j]]
+        return np.concatenate(rows).astype(float)
 
     def frame_place(self, frame_id: int) -> tuple[int, Array]:
         """How the finishing kernel reads a frame (cpbc.kernels.state_terms.pack_state): from

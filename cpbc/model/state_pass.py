@@ -3,10 +3,11 @@
 Every :class:`~cpbc.model.arm_state.ArmState` comes from a :class:`StatePass`
 (``RobotModel.state``, a law's ``state``): the pass in joint coordinates — CRBA, the
 nonlinear effects and gravity, or, when the state holds the joint kinematics or a frame,
-``computeAllTerms`` and the static regressor (the joint placements); with ``coriolis`` the
-matrix C first — and its finishing (cpbc.kernels.state_terms.finish_into: the controller
-coordinates, the friction, and every frame from the joint kinematics, so that a frame has
-one source whoever reads it). The state is finished when it is first read, by
+CRBA in world axes (which leaves the joint Jacobians), RNEA and the static regressor (the
+joint placements); with ``coriolis`` the matrix C first — and its finishing
+(cpbc.kernels.state_terms.finish_into: the controller coordinates, the friction, g from the
+joint kinematics when the pass holds them, and every frame from the joint kinematics, so
+that a frame has one source whoever reads it). The state is finished when it is first read, by
 ``finish_state``, or by the law's kernel it is handed to.
 
 The pass's arrays are views of the model's Pinocchio data, which its next pass overwrites: a
@@ -58,7 +59,8 @@ class StatePass:
         self.tables = pack_state(model.n, coriolis, kinematics, columns,
                                  model.coordinates.inverse, model.viscous_friction,
                                  model.coulomb_friction, model.friction_smoothing,
-                                 tuple(model.frame_place(f) for f in frames))
+                                 tuple(model.frame_place(f) for f in frames),
+                                 model.gravity_on_joints() if joint_pass else NO_TERMS)
         at = self._at = layout(model.n, coriolis, kinematics, columns, len(frames))
         self._columns = columns
         self.size = at["size"]
@@ -111,9 +113,9 @@ class StatePass:
         if self._identity:
             state.q, state.dq = state.x, state.dx
         else:
-            n = self.model.n
-            state.q, state.dq = np.empty(n), np.empty(n)
-            to_joint(self._t_inv, state.x, state.dx, state.q, state.dq)
+            joint = np.empty((2, self.model.n))
+            to_joint(self._t_inv, state.x, state.dx, joint)
+            state.q, state.dq = joint[0], joint[1]
         inertia, bias, gravity, dissipation = self._views
         square = self._square
         state.inertia = terms[inertia].reshape(square)
