@@ -10,7 +10,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.kernels.margin_slopes import margin_losses
+from cpbc.kernels.margin_losses import margin_losses
 from cpbc.model.robot_model import ArmState
 
 
@@ -48,7 +48,7 @@ class MarginSlopes:
         period's end and ``mid_shift`` at mid-period, per coordinate, and a rate off by at
         most ``rate_shift``: Σ_j |∂φ_i/∂x_j| s_j for a configuration margin, and
         Σ_j |(Π_k ẋ)_j| w_j + ½ wᵀ|Π_k|w for a velocity margin (exact for a constant Π_k;
-        cpbc.kernels.margin_slopes.margin_losses). (At the period's end, every margin in
+        cpbc.kernels.margin_losses.margin_losses). (At the period's end, every margin in
         the order of ``names``; at mid-period, the configuration ones.)"""
         m = len(self.configuration)
         end, mid = np.empty(m + len(self.weights)), np.empty(m)

@@ -15,7 +15,7 @@ from numba.core.registry import CPUDispatcher
 # each after the kernel modules it imports, so that each step of --warm's progress compiles
 # its own kernels (importing a module compiles those it imports first)
 MODULES = tuple(f"cpbc.kernels.{m}" for m in (
-    "views", "small_solves", "friction_error", "margin_slopes", "bounded_lsq", "energy",
+    "views", "small_solves", "friction_error", "margin_losses", "bounded_lsq", "energy",
     "plan_tables", "task",
     "clearance", "clearance_motion", "coordinate_maps", "state_terms",
     "barrier_shaping", "barriers", "python_rows", "barrier_set", "law_terms", "laws",
