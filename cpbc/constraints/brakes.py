@@ -38,7 +38,7 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import stopping_terms
 from cpbc.kernels.bounded_lsq import bounded_least_squares
-from cpbc.kernels.sampled_guard import box_around, box_clip, box_toward
+from cpbc.kernels.torque_box import box_around, box_clip, box_toward
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -93,7 +93,7 @@ class TorqueBox:
         actuators hold, under a rate limit of ``step`` = ρh per joint: |τ_q − held_q| ≤ ρh
         within the box. Where the held torque lies outside the box (a limit lowered under
         it), the reachable interval is the one nearest to the box
-        (cpbc.kernels.sampled_guard.box_around)."""
+        (cpbc.kernels.torque_box.box_around)."""
         lower, upper = self.bounds
         lo, hi = np.empty(len(lower)), np.empty(len(lower))
         box_around(lower, upper, held_q, step, lo, hi)
@@ -139,7 +139,7 @@ class TorqueBox:
         return out if self.from_joint is None else self.from_joint.dot(out)
 
     def clip(self, tau: Array) -> Array:
-        """τ with each joint torque clipped to its limit (cpbc.kernels.sampled_guard.box_clip)."""
+        """τ with each joint torque clipped to its limit (cpbc.kernels.torque_box.box_clip)."""
         out = np.empty(len(tau))
         box_clip(*self._packed, tau, out)
         return out
@@ -148,7 +148,7 @@ class TorqueBox:
         """b + t (τ − b) with the largest t ∈ [0, 1] inside the box: the acceleration
         D⁻¹(τ − b) keeps its direction and only shrinks (τ itself when it fits). Where b alone
         exceeds a limit no scaling fits, and τ is clipped
-        (cpbc.kernels.sampled_guard.box_toward)."""
+        (cpbc.kernels.torque_box.box_toward)."""
         out = np.empty(len(tau))
         return tau if box_toward(*self._packed, bias, tau, out) == 0 else out
 

@@ -17,7 +17,7 @@ from numba.core.registry import CPUDispatcher
 MODULES = tuple(f"cpbc.kernels.{m}" for m in (
     "views", "small_solves", "friction_error", "margin_losses", "bounded_lsq", "energy",
     "plan_tables", "task",
-    "clearance", "clearance_motion", "coordinate_maps", "state_terms",
+    "torque_box", "clearance", "clearance_motion", "coordinate_maps", "state_terms",
     "barrier_shaping", "barriers", "python_rows", "barrier_set", "law_terms", "laws",
     "sampled_guard"))
 

@@ -1,6 +1,7 @@
 """The sampled-data safeguard's accept path (cpbc.controllers.safeguard): the frozen prediction
 of one period under a held torque, the margins at the predicted states of the constraints whose
-kinds have kernels, F of (S1) and (S2), the uniform brake's deceleration and the torque box.
+kinds have kernels, F of (S1) and (S2) and the uniform brake's deceleration (the torque
+box's kernels are cpbc.kernels.torque_box).
 
 Between these calls the guard makes its Pinocchio calls (the model's acceleration at the
 predicted end, the joint placements at every predicted configuration); the rare paths (the
@@ -37,24 +38,7 @@ from cpbc.kernels.clearance import (
     sphere_clearances_in,
 )
 from cpbc.kernels.plan_tables import COUNT, FIRST, KIND, float_table, int_table
-from cpbc.kernels.small_solves import solve_spd
-
-
-@kernel("float64(float64, float64)")
-def _lower(low: float, value: float) -> float:
-    """The smaller of two, NaN if either is (numpy's min over an array)."""
-    if value != value or low != low:
-        return math.nan
-    return value if value < low else low
-
-
-@kernel("float64(float64, float64)")
-def _higher(high: float, value: float) -> float:
-    """The larger of two, NaN if either is (numpy's maximum)."""
-    if value != value or high != high:
-        return math.nan
-    return value if value > high else high
-
+from cpbc.kernels.small_solves import nan_min, solve_spd, times
 
 # --- step 2 of the package docstring: the prediction, dynamics frozen at the sample ---------
 
@@ -119,18 +103,6 @@ def hold_torque(inertia: Array, tau: Array, acc: Array, after: Array, share: flo
         for j in range(n):
             t += inertia[i, j] * (after[j] - acc[j])
         out[i] = tau[i] - share * t
-
-
-@kernel("float64[:](float64[:, :], float64[:])")
-def _times(a: Array, v: Array) -> Array:
-    """a v, row by row (numba's dot would load SciPy's BLAS)."""
-    out = np.empty(a.shape[0])
-    for i in range(a.shape[0]):
-        t = 0.0
-        for j in range(v.shape[0]):
-            t += a[i, j] * v[j]
-        out[i] = t
-    return out
 
 
 @kernel("void(float64[:, :], float64[:], float64, float64[:, :], float64[:, :], boolean,"
@@ -266,10 +238,10 @@ def uniform_deceleration(inertia: Array, bias: Array, dx: Array, limit: Array,
     speed = math.sqrt(sq)
     if speed == 0.0:
         return math.inf
-    u = _times(inertia, dx)
+    u = times(inertia, dx)
     beta = bias
     if mapped:
-        u, beta = _times(to_joint, u), _times(to_joint, bias)
+        u, beta = times(to_joint, u), times(to_joint, bias)
     low = math.inf
     nan = False
     for j in range(n):
@@ -296,12 +268,12 @@ def brake_ramp(inertia: Array, bias: Array, dx: Array, held: Array, per_speed: f
     for i in range(n):
         sq += dx[i] * dx[i]
     scale = 2.0 * per_speed * math.sqrt(sq)
-    push = _times(inertia, dx)
+    push = times(inertia, dx)
     gap = np.empty(n)
     for i in range(n):
         gap[i] = (bias[i] - push[i] / scale) - held[i]
     if mapped:
-        gap = _times(to_joint, gap)
+        gap = times(to_joint, gap)
     low = -math.inf
     for j in range(n):
         t = abs(gap[j]) / rate[j]
@@ -313,72 +285,6 @@ def brake_ramp(inertia: Array, bias: Array, dx: Array, held: Array, per_speed: f
 
 
 # --- the torque box (cpbc.constraints.brakes.TorqueBox) -------------------------------------
-
-
-@kernel(f"void(float64[:], float64[:], {READ_ONLY}, {READ_ONLY}, float64[:], float64[:])")
-def box_around(lower: Array, upper: Array, held: Array, step: Array, low: Array,
-               high: Array) -> None:
-    """The joint-torque interval one step reaches from the held joint torques ``held``
-    under a rate step ρh (``step``) within lower ≤ τ_q ≤ upper, into ``low`` and ``high``:
-    min(max(lower, held − ρh), upper) and max(min(upper, held + ρh), lower) — the one nearest
-    to the box where the held torque lies outside it; NaN where any term is (numpy's
-    minimum and maximum)."""
-    for j in range(held.shape[0]):
-        a, b = held[j] - step[j], held[j] + step[j]
-        low[j] = _lower(_higher(lower[j], a), upper[j])
-        high[j] = _higher(_lower(upper[j], b), lower[j])
-
-
-@kernel("void(float64[:], float64[:], float64[:, :], float64[:, :], boolean, float64[:],"
-        " float64[:])")
-def box_clip(lower: Array, upper: Array, to_joint: Array, from_joint: Array, mapped: bool,
-             tau: Array, out: Array) -> None:
-    """τ with each joint torque clipped to its interval: T⁻ᵀ clip(Tᵀτ, lower, upper) (τ_q
-    itself for joint coordinates, ``mapped`` False)."""
-    tau_q = _times(to_joint, tau) if mapped else tau
-    clipped = np.empty(tau.shape[0])
-    for j in range(tau.shape[0]):
-        t = tau_q[j]
-        clipped[j] = lower[j] if t < lower[j] else (upper[j] if t > upper[j] else t)
-    if mapped:
-        clipped = _times(from_joint, clipped)
-    out[:] = clipped
-
-
-@kernel("int64(float64[:], float64[:], float64[:, :], float64[:, :], boolean, float64[:],"
-        " float64[:], float64[:])")
-def box_toward(lower: Array, upper: Array, to_joint: Array, from_joint: Array, mapped: bool,
-               bias: Array, tau: Array, out: Array) -> int:
-    """b + t (τ − b) with the largest t ∈ [0, 1] that fits the box lower ≤ Tᵀτ ≤ upper, into
-    ``out``; returns 0 when τ fits as it is (``out`` untouched), 1 when scaled, 2 when b alone
-    does not fit and τ is clipped instead (``box_clip``)."""
-    n = tau.shape[0]
-    tau_q = _times(to_joint, tau) if mapped else tau
-    fits = True
-    for j in range(n):
-        if not lower[j] <= tau_q[j] <= upper[j]:
-            fits = False
-    if fits:
-        return 0
-    b_q = _times(to_joint, bias) if mapped else bias
-    for j in range(n):
-        if b_q[j] < lower[j] or b_q[j] > upper[j]:  # (a NaN bias scales, as before)
-            box_clip(lower, upper, to_joint, from_joint, mapped, tau, out)
-            return 2
-    low = math.inf
-    nan = False
-    for j in range(n):
-        d = tau_q[j] - b_q[j]
-        room = (upper[j] - b_q[j]) / d if d > 0 else ((lower[j] - b_q[j]) / d if d < 0
-                                                        else math.inf)
-        if room != room:
-            nan = True
-        elif room < low:
-            low = room
-    t = 1.0 if nan or not low < 1.0 else low
-    for i in range(n):
-        out[i] = bias[i] + t * (tau[i] - bias[i])
-    return 1
 
 
 # --- step 3: the margins along the prediction, and F of (S1), (S2) --------------------------
@@ -455,7 +361,7 @@ def _least_share(m: Array, first: int, last: int, col: int, floor: Array, past: 
                 share = 1.0 + (v - f) / max(abs(f), 1e-12)
             else:
                 share = v / f
-            low = _lower(low, share)
+            low = nan_min(low, share)
     return low
 
 
@@ -479,7 +385,7 @@ def slack(config: Array, velocity: Array, inner: Array, ends: int, end_floor: Ar
     end = _least_share(velocity, 0, velocity.shape[0], nc, end_floor, past, has_past)
     if not has_config:
         return _least(low, end) - 1.0
-    end = _lower(end, _least_share(config, ends, 2 * ends, 0, end_floor, past, has_past))
+    end = nan_min(end, _least_share(config, ends, 2 * ends, 0, end_floor, past, has_past))
     low = _least(_least(low, end),
                  _least_share(config, 0, ends, 0, mid_floor, past, has_past))
     if has_stop:
@@ -489,7 +395,7 @@ def slack(config: Array, velocity: Array, inner: Array, ends: int, end_floor: Ar
                 v = config[i, j]
                 if v != v:
                     v = -math.inf
-                braking = _lower(braking, math.inf if has_past and past[j]
+                braking = nan_min(braking, math.inf if has_past and past[j]
                                  else v / sigma_floor[j])
         low = _least(low, braking)
     return low - 1.0
@@ -535,5 +441,5 @@ def ramp_share(plan: Ints, ints: Ints, floats: Array, ends: Array, peaks: Array,
             v = margins[r, j]
             if v != v:
                 v = -math.inf
-            low = _lower(low, v / floor[j])
+            low = nan_min(low, v / floor[j])
     return low - 1.0

@@ -1,6 +1,9 @@
-"""A small dense solve inside the kernels (the laws' (D + ρΠ) y = a − c)."""
+"""A small dense solve inside the kernels (the laws' (D + ρΠ) y = a − c), and the product
+and the NaN-keeping minimum and maximum the guard's kernels share."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -88,3 +91,31 @@ def inverse_spd(a: Array, out: Array) -> None:
         e[j] = 0.0
         for i in range(n):
             out[i, j] = col[i]
+
+
+@kernel("float64(float64, float64)")
+def nan_min(low: float, value: float) -> float:
+    """The smaller of two, NaN if either is (numpy's min over an array)."""
+    if value != value or low != low:
+        return math.nan
+    return value if value < low else low
+
+
+@kernel("float64(float64, float64)")
+def nan_max(high: float, value: float) -> float:
+    """The larger of two, NaN if either is (numpy's maximum)."""
+    if value != value or high != high:
+        return math.nan
+    return value if value > high else high
+
+
+@kernel("float64[:](float64[:, :], float64[:])")
+def times(a: Array, v: Array) -> Array:
+    """a v, row by row (numba's dot would load SciPy's BLAS)."""
+    out = np.empty(a.shape[0])
+    for i in range(a.shape[0]):
+        t = 0.0
+        for j in range(v.shape[0]):
+            t += a[i, j] * v[j]
+        out[i] = t
+    return out

@@ -15,7 +15,7 @@ from cpbc.kernels.coordinate_maps import joint_friction, to_joint
 from cpbc.kernels.state_terms import WORLD
 from cpbc.model.arm_state import ArmState
 from cpbc.model.coordinates import LinearCoordinates
-from cpbc.model.coulomb import coulomb_levels
+from cpbc.model.coulomb import FRICTION_SMOOTHING, coulomb_levels
 from cpbc.model.frames import offset_jacobian
 from cpbc.model.state_pass import StatePass
 
@@ -26,13 +26,6 @@ _NO_MATRIX = np.zeros((0, 0))
 _NO_JOINTS = (np.zeros((3, 0)), np.zeros((6, 0)))
 _NO_G = np.zeros(0)  # g left to the finishing (cpbc.kernels.state_terms.joint_gravity)
 
-# ε of the model's Coulomb friction F_c tanh(q̇/ε) [rad/s or m/s]: the rate below which the
-# model's friction fades. A joint's smoothed friction is stiff in q̇ (slope F_c/ε), and the law
-# feeds part of it forward once per control period (τ's c = C ẋ + f): at 0.05 rad/s the
-# FR3's largest level (1.137 N·m) has slope 23 N·m·s/rad, h·F_c/(ε D_ii) ≈ 0.1 at 1 kHz for
-# its lightest wrist (D_ii ≈ 0.2 kg·m² with armature) — no chatter of the feed-forward around
-# q̇ = 0 — while at the joints' working rates (≥ 0.2 rad/s) tanh is within 2 % of the sign.
-FRICTION_SMOOTHING = 0.05
 
 
 def _returns_own_arrays(model: pin.Model, data: pin.Data) -> bool:
@@ -47,12 +40,6 @@ def _returns_own_arrays(model: pin.Model, data: pin.Data) -> bool:
     views = (data.M, data.g, data.staticRegressor, data.C)
     return all(a.flags.owndata and not np.shares_memory(a, v)
                for a, v in zip(found, views, strict=True))
-
-
-def _is_prismatic(shortname: str) -> bool:
-    """Pinocchio's prismatic joints: JointModelPX/PY/PZ and JointModelPrismaticUnaligned."""
-    return shortname in ("JointModelPX", "JointModelPY", "JointModelPZ") or (
-        "Prismatic" in shortname)
 
 
 class RobotModel:
@@ -168,7 +155,9 @@ class RobotModel:
     def length_joints(self) -> Array:
         """Which joints are prismatic (their coordinate a length [m], their torque a force
         [N]), in the order of ``joint_names``."""
-        return np.array([_is_prismatic(j.shortname()) for j in self.model.joints[1:]],
+        # Pinocchio's prismatic joints: JointModelPX/PY/PZ and JointModelPrismaticUnaligned
+        return np.array([j.shortname() in ("JointModelPX", "JointModelPY", "JointModelPZ")
+                         or "Prismatic" in j.shortname() for j in self.model.joints[1:]],
                         dtype=bool)
 
     @property

@@ -10,7 +10,7 @@ from cpbc.constraints.constraint_kind import ConstraintEntrySpec
 from cpbc.controllers.law_specs import LawSpec
 from cpbc.controllers.potentials.friction import FRICTION_COMPENSATION_WIDTH
 from cpbc.controllers.safeguard.settings import RESCUE_BUDGET
-from cpbc.model.robot_model import FRICTION_SMOOTHING
+from cpbc.model.coulomb import FRICTION_SMOOTHING
 from cpbc.scenario.schema.common import (
     MAX_CASES,
     CaseName,
