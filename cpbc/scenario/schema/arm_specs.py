@@ -296,7 +296,7 @@ class SimulationSpec(Strict):
             "(past it the step holds the last torque that passed, else the uniform brake); "
             "it reads the clock, so a run under it depends on the machine: 1e-9 tests the "
             "law's torque alone on every step, the tightest budget; null for no bound, the "
-            "default in simulation (python -m cpbc.hardware sets 30 % of --deadline-ms "
+            "default in simulation (python -m cpbc.hardware sets 15 % of --deadline-ms "
             "unless given)"))
     noise: NoiseSpec | None = Field(
         default=None, description=(
