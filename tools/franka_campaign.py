@@ -158,8 +158,8 @@ def refused_start(name: str, detail: str) -> dict[str, Any]:
             "reached": False, "_compute": []}
 
 
-def run_session(motions: list[tuple[str, dict]], folder: Path, deadline: float
-                ) -> list[dict[str, Any]] | None:
+def run_session(motions: list[tuple[str, dict]], folder: Path, deadline: float,
+                sim_cpus: frozenset[int] | None = None) -> list[dict[str, Any]] | None:
     """Motions one after the other on one fresh franky-sim (a reach out and back); None when
     the builder refuses one of their targets."""
     setups = []
@@ -171,7 +171,7 @@ def run_session(motions: list[tuple[str, dict]], folder: Path, deadline: float
         except (CpbcError, InadmissibleStateError):  # a target inside a constraint's margin
             return None
     found = []
-    with FrankySim(loopback_address()) as sim:
+    with FrankySim(loopback_address(), cpus=sim_cpus) as sim:
         for (kind, data), setup in zip(motions, setups, strict=True):
             settings = MotionSettings(data["simulation"]["duration"], deadline)
             begun = time.perf_counter()
@@ -248,8 +248,15 @@ def _budgeted(session: list[tuple[str, dict]], budgets: dict[str, float | None]
 def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
              command: str, rescue_budget: int | None = None,
              test_budget: int | None = None,
-             time_budget: float | None = None) -> dict[str, Any]:
-    """Run the campaign; its JSON document (``time_budget`` [s])."""
+             time_budget: float | None = None, pinned: bool = False) -> dict[str, Any]:
+    """Run the campaign; its JSON document (``time_budget`` [s]; ``pinned``: the controller
+    on the last core alone, franky-sim on the others, as a real set-up isolates the loop's
+    core and runs the robot's side on the robot's own computer)."""
+    sim_cpus = None
+    if pinned:
+        cores = sorted(os.sched_getaffinity(0))
+        os.sched_setaffinity(0, {cores[-1]})
+        sim_cpus = frozenset(cores[:-1])
     runs: list[dict[str, Any]] = []
     compute: list[np.ndarray] = []
     refused = 0
@@ -264,7 +271,7 @@ def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
             if session[0][0] == "reach" and sum(r["kind"] == "reach" for r in runs) >= n_reaches:
                 continue
             budgets = {"rescue": rescue_budget, "test": test_budget, "time": time_budget}
-            found = run_session(_budgeted(session, budgets), Path(folder), deadline)
+            found = run_session(_budgeted(session, budgets), Path(folder), deadline, sim_cpus)
             if found is None:
                 refused += 1
                 continue
@@ -277,6 +284,7 @@ def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
         "commit": _git_commit(), "seed": seed, "deadline_ms": deadline * 1e3,
         "rescue_budget": rescue_budget, "test_budget": test_budget,
         "time_budget_us": None if time_budget is None else 1e6 * time_budget,
+        "pinned": pinned,
         "machine": {"cpus": os.cpu_count(), "load_before": [round(v, 2) for v in load_before],
                     "load_after": [round(v, 2) for v in os.getloadavg()]},
         "wall_s": round(time.perf_counter() - begun, 1),
@@ -342,7 +350,9 @@ def render(doc: dict[str, Any]) -> str:
         f"`{doc['command']}` — {doc['date']}, commit {doc['commit']}, seed {doc['seed']}, "
         f"deadline {doc['deadline_ms']:g} ms, {m['cpus']} cores, load average "
         f"{m['load_before'][0]:.2f} before and {m['load_after'][0]:.2f} after "
-        f"(a shared machine, not idle), {doc['wall_s']:.0f} s in all.",
+        f"(a shared machine, not idle), {doc['wall_s']:.0f} s in all"
+        + ("; the controller pinned to one core, franky-sim to the other."
+           if doc.get("pinned") else "."),
         "",
         "| target | measured |",
         "|---|---|",
@@ -408,6 +418,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="how long a safeguard step may test torques, µs "
                         "(simulation.safeguard_time_budget; 0: no bound; default: "
                         "cpbc.hardware's share of the deadline)")
+    p.add_argument("--pinned", action="store_true",
+                   help="the controller on the last core alone, franky-sim on the others")
     p.add_argument("--out", type=Path, default=OUT)
     p.add_argument("--render-only", action="store_true",
                    help="write the fragment from the stored JSON, run nothing")
@@ -419,7 +431,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             argv if argv is not None else sys.argv[1:])
         doc = campaign(args.reaches, args.paths, args.seed, args.deadline_ms * 1e-3,
                        command.strip(), args.rescue_budget, args.test_budget,
-                       None if args.time_budget_us is None else args.time_budget_us * 1e-6)
+                       None if args.time_budget_us is None else args.time_budget_us * 1e-6,
+                       args.pinned)
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / JSON_NAME).write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
     (args.out / TABLE_NAME).write_text(render(doc), encoding="utf-8")

@@ -24,22 +24,30 @@ def loopback_address(salt: int = 0) -> str:
 
 
 class FrankySim:
-    """A running franky-sim (MuJoCo) at ``host``, the FR3 at its start posture, at rest.
+    """A running franky-sim (MuJoCo) at ``host``, the FR3 at its start posture, at rest;
+    ``cpus``: the cores it may run on (all by default).
 
     Raises:
         CpbcError: franky-sim is not installed, or did not start within ``timeout`` [s]
             (its output is in the message).
     """
 
-    def __init__(self, host: str, timeout: float = 60.0) -> None:
+    def __init__(self, host: str, timeout: float = 60.0,
+                 cpus: frozenset[int] | None = None) -> None:
         self.host = host
         self.lines: list[str] = []
         env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+
+        def pinned() -> None:  # in the child: the server runs on ``cpus`` only
+            if cpus is not None:
+                os.sched_setaffinity(0, cpus)
+
         try:
             self.process = subprocess.Popen(
                 [sys.executable, "-m", "franky_sim.run_server", "--simulator", "mujoco",
                  "--hostname", host],
-                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+                preexec_fn=pinned)
         except OSError as exc:
             raise CpbcError(f"cannot start franky-sim: {exc} ({FRANKA_EXTRA})") from None
         ready = threading.Event()
