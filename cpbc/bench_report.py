@@ -147,8 +147,9 @@ def markdown(documents: Sequence[Document], command: str | None = None) -> str:
 
 def readme_table(documents: Sequence[Document]) -> str:
     """The README's short form: per arm PD + g, CPBC and every line the arm's own controller
-    set does not have (the peers and any added figure), with the ratio to PD + g; then every
-    mapping of numbers a document holds besides (a breakdown of a step, say) as on the page."""
+    set does not have (the peers and any added figure), with the ratio to PD + g — the one
+    table; the breakdowns and added figures (task space, streams, the guarded tail) are on
+    the speed page (:func:`markdown`)."""
     lines = ["| arm | controller | µs per call (median) | × PD + g |", "|---|---|---|---|"]
     for doc in documents:
         times = _numbers(doc.get(MAIN)) or {}
@@ -160,6 +161,4 @@ def readme_table(documents: Sequence[Document]) -> str:
             ratio = f"{us / base:.2f}×" if base else "–"
             lines.append(f"| {doc.get('robot', '?')} | {name} | {_number(us)} | {ratio} |")
     lines.append("")
-    for doc in documents:  # breakdowns and added figures, as on the speed page
-        lines += other_tables(doc)
     return "\n".join([README_START, "", *lines, README_END])
