@@ -36,7 +36,6 @@ def float_rows(flat: Array, start: int, rows: int, columns: int) -> Array:
                                            strides=(columns * flat.itemsize, flat.itemsize))
 
 
-
 @intrinsic
 def _uncounted(typingctx: Any, array: Any) -> Any:
     """``array`` without numba's owner record (its meminfo): ``borrowed``, compiled."""
