@@ -55,8 +55,11 @@ def test_the_readme_block_keeps_pd_g_cpbc_and_what_the_arm_set_has_not() -> None
     rows = [line for line in block.splitlines() if line.startswith("| two_link |")]
     assert rows == ["| two_link | pd_gravity | 2 | 1.00× |", "| two_link | cpbc | 5 | 2.50× |",
                     "| two_link | ts_cpbc | 9 | 4.50× |"]
-    assert "| prediction | 12 | 11–14 |" in block  # a breakdown shows there too
-    assert "reference governor" not in block  # single numbers stay on the speed page
+    # the README's Speed section is the one table (issue 39): breakdowns and single numbers
+    # stay on the speed page
+    assert "| prediction | 12 | 11–14 |" not in block
+    assert "| prediction | 12 | 11–14 |" in markdown([BENCH], "python -m tools.speed_table")
+    assert "reference governor" not in block
 
 
 def _verify_doc() -> dict:
