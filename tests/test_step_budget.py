@@ -35,6 +35,37 @@ def test_the_budget_counts_its_tests_and_keeps_the_last_that_passed() -> None:
     assert unbounded.counted(f) is f
 
 
+def test_under_a_time_budget_a_test_begins_only_where_one_as_long_still_fits() -> None:
+    """A test after the first begins only where the step's longest test so far, begun now,
+    ends within the budget: after a 0.6 s test, a 1 s budget with 0.4 s left refuses the
+    next; after a 0.1 s test it makes it. The first test is made whatever its time."""
+    import time
+
+    def slow(seconds: float):
+        def slack(t: np.ndarray) -> float:
+            time.sleep(seconds)
+            return float(t[0])
+        return slack
+
+    for first, allowed in ((0.6, False), (0.1, True)):
+        budget = StepBudget(None, 1.0)
+        budget.start()
+        budget.begin()
+        slack = budget.counted(slow(first))
+        assert slack(np.array([1.0])) == 1.0 and budget.longest >= first
+        quick = budget.counted(lambda t: float(t[0]))
+        if allowed:
+            assert quick(np.array([-1.0])) == -1.0 and budget.used == 2
+        else:
+            with pytest.raises(OutOfTests):
+                quick(np.array([-1.0]))
+            assert budget.used == 1 and budget.passed is not None
+    spent = StepBudget(None, 1e-9)
+    spent.start()
+    spent.begin()
+    assert spent.counted(lambda t: float(t[0]))(np.array([2.0])) == 2.0  # the first, always
+
+
 def test_a_budget_below_one_test_is_refused() -> None:
     with pytest.raises(ValueError, match="tests"):
         StepBudget(0)

@@ -47,10 +47,11 @@ ROBOT_RESCUE_BUDGET = 8
 #: The candidate torques one safeguard step may test on a robot when the scenario sets none
 #: (cpbc.controllers.safeguard.step_budget): with the rescue's budget, a bound on the cycle.
 ROBOT_TEST_BUDGET = 6
-#: The share of a cycle's deadline the safeguard may spend testing torques on a robot: past it
-#: the cycle tests nothing more and holds the last torque that passed, else the uniform brake
-#: at once (cpbc.controllers.safeguard.step_budget), leaving the rest of the deadline for the
-#: test under way (25-40 µs on the FR3) and the command's way out. The law's own torque is
+#: The share of a cycle's deadline the safeguard may spend testing torques on a robot: a test
+#: begins only where one as long as the cycle's longest so far ends within it, else the cycle
+#: holds the last torque that passed or the uniform brake at once
+#: (cpbc.controllers.safeguard.step_budget), leaving the rest of the deadline to the state,
+#: the law and the command's way out. The law's own torque is
 #: always tested, so calm cycles never feel it, and the tightest budget, the law's torque
 #: alone, kept every rate-campaign start inside the braking set (docs/reliability.md).
 ROBOT_TIME_SHARE = 0.15

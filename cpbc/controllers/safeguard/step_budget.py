@@ -19,11 +19,15 @@ brake before its check has seen the arm to rest kept fewer runs than the uniform
 (Safeguard._out_of_tests). What a budget gives up: a blend nearer the brake than the smallest
 β, the search of λ cut short, and, under a bounded rescue, the rescue itself.
 
-A budget in time does the same on a robot's clock: past ``seconds`` from the start of the
-guard's step (Safeguard.filter) no torque is tested after the first (the law's, always
-tested), and a cycle that would miss its deadline holds what the out-of-tests path holds. It
-reads the clock, so a run under it is not reproducible; it is for a robot (cpbc.hardware sets
-it from the deadline), never simulation's default.
+A budget in time does the same on a robot's clock: a test after the first (the law's, always
+tested) begins only where the longest test of the step so far, begun now, still ends within
+``seconds`` of the start of the guard's step (Safeguard.filter); else the step holds what a
+step out of tests holds under a time budget — the last torque that passed, or the uniform
+brake untested. So a step ends within its budget and what follows the tests (the held torque
+or the brake), not within its budget and a whole further test: stopping only once the budget
+was spent let the test under way run past it, and the Panda's worst bounded step was 6.4 × its
+median (docs/speed.md). It reads the clock, so a run under it is not reproducible; it is for
+a robot (cpbc.hardware sets it from the deadline), never simulation's default.
 """
 
 from __future__ import annotations
@@ -50,6 +54,7 @@ class StepBudget:
     Attributes:
         used: tests made at this step.
         passed: the last torque that passed its test at this step, or None.
+        longest: the longest test of this step [s] (timed under a time budget only).
         spent: steps that ran out of tests.
     """
 
@@ -63,6 +68,7 @@ class StepBudget:
         self._until = float("inf")
         self.used = 0
         self.passed: Array | None = None
+        self.longest = 0.0
         self.spent = 0
 
     def start(self) -> None:
@@ -71,13 +77,13 @@ class StepBudget:
             self._until = time.perf_counter() + self.seconds
 
     @property
-    def out_of_time(self) -> bool:
-        """The step's time budget is spent (never without one, nor inside :meth:`lifted`)."""
-        return time.perf_counter() > self._until
+    def timed(self) -> bool:
+        """The step has a budget in time."""
+        return self.seconds is not None
 
     def begin(self) -> None:
         """A new step: no test made yet."""
-        self.used, self.passed = 0, None
+        self.used, self.passed, self.longest = 0, None, 0.0
 
     @contextmanager
     def lifted(self) -> Iterator[None]:
@@ -94,21 +100,40 @@ class StepBudget:
         """``slack`` that counts its calls against the budget and remembers the last torque
         that passed (F ≥ 0); raises :class:`OutOfTests` past the budget. Without a bound,
         ``slack`` itself."""
-        limit = self.tests
         until = self._until
-        if limit is None and until == float("inf"):
+        if until < float("inf"):
+            return self._timed(slack, until)
+        if self.tests is None:
             return slack
-        most = limit if limit is not None else -1
+        most = self.tests
 
         def counted(t: Array) -> float:
-            # the first test (the law's torque) is always made: the time bounds what follows
-            if self.used == most or (self.used and until < float("inf")
-                                     and time.perf_counter() > until):
+            if self.used == most:
                 raise OutOfTests
-            self.used += 1
-            f = slack(t)
-            if f >= 0.0:
-                self.passed = t
-            return f
+            return self._test(slack, t)
 
         return counted
+
+    def _timed(self, slack: Callable[[Array], float], until: float) -> Callable[[Array], float]:
+        """``counted`` under a time budget ending at ``until`` (perf_counter) as well."""
+        most = self.tests if self.tests is not None else -1
+
+        def timed(t: Array) -> float:
+            begun = time.perf_counter()
+            # the first test (the law's torque) is always made; a later one only where a
+            # test as long as this step's longest still ends within the budget
+            if self.used == most or (self.used and begun + self.longest > until):
+                raise OutOfTests
+            f = self._test(slack, t)
+            self.longest = max(self.longest, time.perf_counter() - begun)
+            return f
+
+        return timed
+
+    def _test(self, slack: Callable[[Array], float], t: Array) -> float:
+        """One counted test of ``t``."""
+        self.used += 1
+        f = slack(t)
+        if f >= 0.0:
+            self.passed = t
+        return f
