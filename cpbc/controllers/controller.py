@@ -10,6 +10,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.errors import CpbcError, ParameterError
+from cpbc.model.measured_state import measured
 from cpbc.model.robot_model import ArmState, RobotModel
 
 if TYPE_CHECKING:
@@ -124,15 +125,22 @@ class Controller(ABC):
         ConstraintViolation outside the admissible set."""
 
     def torque(self, x: Array, dx: Array) -> Array:
-        """Generalised force τ, shape (n,), in controller coordinates."""
+        """Generalised force τ, shape (n,), in controller coordinates.
+
+        Raises:
+            ParameterError: ``x`` or ``dx`` is not n finite numbers (the law as it was).
+        """
+        x, dx = measured(x, dx, self.model.n)
         return self.evaluate_state(self.state(x, dx)).torque
 
     def lyapunov(self, x: Array, dx: Array) -> float:
         """The law's Lyapunov function V(x, ẋ) (non-increasing along the closed loop)."""
+        x, dx = measured(x, dx, self.model.n)
         return self.evaluate_state(self.state(x, dx)).lyapunov
 
     def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
-        """τ and V together."""
+        """τ and V together (x and ẋ as :meth:`torque` takes them)."""
+        x, dx = measured(x, dx, self.model.n)
         out = self.evaluate_state(self.state(x, dx))
         return out.torque, out.lyapunov
 

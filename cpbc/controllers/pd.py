@@ -12,6 +12,7 @@ from cpbc.controllers.law_kind import LINEAR, LawInputs, LawKind
 from cpbc.controllers.law_specs import LawSpec
 from cpbc.controllers.potentials import Configuration, JointSpring, Potential, require_posture
 from cpbc.controllers.terms import StateDamping
+from cpbc.model.measured_state import measured
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -37,6 +38,7 @@ class PD(Controller):
     # potential reads frames; evaluate_state reads it. Both ask the one feed-forward hook,
     # _bias, so a subclass changes both.
     def torque(self, x: Array, dx: Array) -> Array:
+        x, dx = measured(x, dx, self.model.n)
         if self.frames:
             return self.evaluate_state(self.state(x, dx)).torque
         _, grad = self.potential.evaluate(Configuration(x))
@@ -44,11 +46,13 @@ class PD(Controller):
 
     def lyapunov(self, x: Array, dx: Array) -> float:
         """L = ½ ẋᵀDẋ + U (eq. 6.7); non-increasing when gravity does no work."""
+        x, dx = measured(x, dx, self.model.n)
         if self.frames:
             return self.evaluate_state(self.state(x, dx)).lyapunov
         return self.model.kinetic_energy(x, dx) + self.potential.evaluate(Configuration(x))[0]
 
     def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
+        x, dx = measured(x, dx, self.model.n)
         if self.frames:
             out = self.evaluate_state(self.state(x, dx))
             return out.torque, out.lyapunov
