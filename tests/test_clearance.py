@@ -322,3 +322,40 @@ def test_values_along_inside_an_obstacle_core() -> None:
     assert along[0].min() < 0
     for x, row in zip(xs, along, strict=True):
         np.testing.assert_array_equal(row, c.value(x))
+
+
+@pytest.mark.parametrize("step", [0.01, 0.3])
+def test_a_clearance_moves_no_further_than_its_reach(step: float, rng) -> None:
+    """The sphere constraints' ``reach`` (Kinematics._reach) bounds how far each clearance
+    moves between two configurations, against its value computed at both, on random pairs
+    near each other and far apart; with room to spare of at most a few times the motion
+    (not a vacuous bound)."""
+    from cpbc.kernels.clearance import MOVED_ROUNDING
+
+    c = _clearance("spheres")
+    assert c._spheres is not None
+    reach = c._spheres.reach
+    assert reach.shape == (len(c.names), 7) and np.all(np.isfinite(reach))
+    worst = 0.0
+    for x in _states(rng, 40):
+        q = x + rng.uniform(-step, step, size=7)
+        moved = reach @ np.abs(q - x)
+        assert np.all(c.value(q) >= c.value(x) - moved - MOVED_ROUNDING)
+        worst = max(worst, float(np.max(np.abs(c.value(q) - c.value(x)) / moved)))
+    assert 0.2 < worst <= 1.0
+
+
+def test_reach_counts_each_joint_that_moves_a_sphere() -> None:
+    """A joint moves a link's spheres only when it supports the link: reach is zero on the
+    others, and the base joint's reach of the hand's spheres is at least their height above
+    its axis's origin."""
+    c = _clearance("spheres", self_pairs=())
+    s = c._spheres
+    assert s is not None
+    for row, name in enumerate(c.names):
+        link = name.split("[")[1].split("|")[0]
+        supports = c.model.joint_supports()[c.model.model.frames[
+            c.model.frame_id(link)].parentJoint]
+        assert np.all((s.reach[row] > 0) == (supports > 0)), name
+    hand = next(i for i, n in enumerate(c.names) if "panda_hand|" in n)
+    assert s.reach[hand, 0] >= 0.1

@@ -71,27 +71,34 @@ def linear_limit_row(plan: Ints, floats: Array, row: int, x: Array, phi: Array,
         shown[:] = phi
 
 
+@kernel("void(float64[:, :], float64[:], float64[:])", inline=True)
+def rate_limit_margins(constants: Array, dx: Array, psi: Array) -> None:
+    """Rate limits |a_jᵀẋ| < B_j as ψ_j = Ω_j − ½(a_jᵀẋ)², Ω_j = B_j²/2 (Remark 6.7,
+    eq. 7.9) into ``psi`` (k,); ``constants``: [a_jᵀ Ω_j] row by row, shape (k, n + 1)."""
+    k, n = constants.shape[0], constants.shape[1] - 1
+    for i in range(k):
+        y = 0.0
+        for j in range(n):
+            if constants[i, j] != 0.0:  # a row's zeros ignore the other rates, even NaN
+                y += constants[i, j] * dx[j]
+        psi[i] = constants[i, n] - 0.5 * y * y
+
+
 @kernel("void(float64[:, :], float64[:], float64[:], float64[:, :])",
         inline=True)
 def rate_limit_terms(constants: Array, dx: Array, psi: Array, weight: Array) -> None:
-    """Rate limits |a_jᵀẋ| < B_j as ψ_j = Ω_j − ½(a_jᵀẋ)², Ω_j = B_j²/2, Q_j = a_j a_jᵀ
+    """Rate limits |a_jᵀẋ| < B_j as ψ_j (``rate_limit_margins``), Q_j = a_j a_jᵀ
     (Remark 6.7, eq. 7.9): ψ into ``psi`` (k,) and Π = Σ a_j a_jᵀ/ψ_j into ``weight``
     (n, n), which is overwritten; ∂ψ/∂x = 0. ``constants``: [a_jᵀ Ω_j] row by row, shape
     (k, n + 1)."""
     k, n = constants.shape[0], constants.shape[1] - 1
     rows = constants[:, :n]
-    omega = constants[:, n]
+    rate_limit_margins(constants, dx, psi)
     for a in range(n):
         for b in range(n):
             weight[a, b] = 0.0
     for i in range(k):
-        y = 0.0
-        for j in range(n):
-            if rows[i, j] != 0.0:  # a row's zeros ignore the other rates, even NaN
-                y += rows[i, j] * dx[j]
-        p = omega[i] - 0.5 * y * y
-        psi[i] = p
-        inv = 1.0 / p
+        inv = 1.0 / psi[i]
         for a in range(n):
             ra = rows[i, a]
             if ra != 0.0:

@@ -20,7 +20,10 @@ The tables these read are packed once, when the ``Clearance`` is built
   (whose point it reads)] and [M·[1, l_c], r, reach]: l_c in the joint's frame within r of
   the group's sphere centres, reach = r + the largest rsum_law + an allowance for rounding.
   Every pair p of the group has d_p − rsum_law_p ≥ d(c) − reach (triangle inequality), d(c)
-  the core distance of the point c: when that is > ℓ, all are beyond ℓ (``near_groups``).
+  the core distance of the point c: when that is > ℓ, all are beyond ℓ (``near_groups``);
+- ``reach`` (C, n): how far each reported constraint's clearance can move per unit of each
+  joint (cpbc.constraints.clearance.kinematics), which bounds it near a configuration where
+  it is known (``travel``).
 
 In a constraint set's plan (cpbc.kernels.barrier_set) the pairs are the kind ``SPHERES``:
 ``pack_sphere_pairs`` packs these tables, ``sphere_pairs_row`` reads them back.
@@ -40,8 +43,11 @@ from cpbc.kernels.views import Ints, float_rows
 SPHERES = 4  # the kind's code in a set's plan (cpbc.kernels.barrier_set's registry)
 # its float tables, then its int tables (the module docstring's; ``far`` a column, ``ell``
 # ℓ (1, 1), 0 for none; ``sphere_index`` a column)
-SPHERE_LOCAL, OBSTACLES, PAIR_TABLE, SUPPORTS, FAR_PHI, ELL, GROUP_TABLE = range(7)
+SPHERE_LOCAL, OBSTACLES, PAIR_TABLE, SUPPORTS, FAR_PHI, ELL, GROUP_TABLE, REACH = range(8)
 SPHERE_INDEX, PAIR_INDEX, GROUP_INDEX = range(3)
+# [m] the allowance for rounding of a bound by ``travel``: far above that of a clearance
+# computed at two configurations (~1e-15 m at an arm's scale), far below any cushion
+MOVED_ROUNDING = 1e-9
 
 
 @inner("UniTuple(float64, 3)(float64[:, :], int64, float64[:, :], int64)")
@@ -395,16 +401,36 @@ def sphere_clearances(y: Array, sphere_index: Ints, sphere_local: Array, obstacl
                          work, value)
 
 
+@inner("float64(float64[:], float64[:], float64[:])")
+def travel(reach: Array, x: Array, q: Array) -> float:
+    """Σ_k reach_k |q_k − x_k|: how far a sphere constraint's clearance can move between the
+    configurations ``x`` and ``q``, with ``reach`` its row of the kind's ``reach`` table (or
+    a row ≥ it); NaN if either configuration is.
+
+    Each pair's clearance is the signed distance of its sphere's centre s to a rounded box
+    (less a constant): 1-Lipschitz in s (in s − s₂ for a self pair), and along the segment
+    from x to q every centre moves by at most Σ_k reach_sk |q_k − x_k|
+    (cpbc.constraints.clearance.kinematics, ``Kinematics._reach``): so does their minimum,
+    by at most its pairs' largest ``reach`` (both spheres' of a self pair). A clearance φ
+    known at x is therefore ≥ φ − travel − MOVED_ROUNDING at q."""
+    moved = 0.0
+    for k in range(x.shape[0]):
+        moved += reach[k] * abs(q[k] - x[k])
+    return moved
+
+
 def pack_sphere_pairs(sphere_local: Array, obstacles: Array, pair_table: Array,
                       supports: Array, far_phi: Array, ell: float | None, group_table: Array,
-                      sphere_index: Ints, pair_index: Ints, group_index: Ints) -> Packed:
+                      reach: Array, sphere_index: Ints, pair_index: Ints, group_index: Ints
+                      ) -> Packed:
     """The sphere pairs' tables for a set's plan (the names above; ``far_phi`` (C,), ℓ
     None for none)."""
-    floats = [np.zeros((0, 0))] * 7
+    floats = [np.zeros((0, 0))] * 8
     floats[SPHERE_LOCAL], floats[OBSTACLES], floats[PAIR_TABLE] = (
         sphere_local, obstacles, pair_table)
     floats[SUPPORTS], floats[FAR_PHI], floats[GROUP_TABLE] = (
         supports, far_phi[:, None], group_table)
+    floats[REACH] = reach
     floats[ELL] = np.array([[ell or 0.0]])
     ints = [np.zeros((0, 0), dtype=np.int64)] * 3
     ints[SPHERE_INDEX], ints[PAIR_INDEX], ints[GROUP_INDEX] = (

@@ -31,7 +31,7 @@ Ints = NDArray[np.int64]
 
 # the plan's columns: the kind, the item's first margin and its number of margins
 KIND, FIRST, COUNT = 0, 1, 2
-FLOAT_TABLES, INT_TABLES = 7, 3  # the most tables one item packs
+FLOAT_TABLES, INT_TABLES = 8, 3  # the most tables one item packs
 FLOAT_AT = COUNT + 1
 INT_AT = FLOAT_AT + 3 * FLOAT_TABLES
 PLAN_WIDTH = INT_AT + 3 * INT_TABLES

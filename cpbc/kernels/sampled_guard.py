@@ -7,7 +7,7 @@ Between these calls the guard makes its Pinocchio calls (the model's acceleratio
 predicted end, the joint placements at every predicted configuration); the rare paths (the
 slide, the brakes' search, the rescue) stay Python. The constraint formulas are not repeated
 here: the margins along a prediction are the set kernel's own (``linear_limit_terms``,
-``rate_limit_terms``, ``sphere_clearances``) over the tables the guard packs once
+``rate_limit_margins``, ``sphere_clearances``) over the tables the guard packs once
 (cpbc.constraints.packing, ``PackedSet``), row by row.
 """
 
@@ -18,24 +18,27 @@ import math
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.kernels import READ_ONLY, kernel
+from cpbc.kernels import READ_ONLY, inner, kernel
 from cpbc.kernels.barriers import (
     LINEAR,
     LINEAR_CONSTANTS,
     RATE,
     RATE_CONSTANTS,
     linear_limit_terms,
-    rate_limit_terms,
+    rate_limit_margins,
 )
 from cpbc.kernels.clearance import (
+    MOVED_ROUNDING,
     OBSTACLES,
     PAIR_INDEX,
     PAIR_TABLE,
+    REACH,
     SPHERE_INDEX,
     SPHERE_LOCAL,
     SPHERES,
     Ints,
     sphere_clearances_in,
+    travel,
 )
 from cpbc.kernels.plan_tables import COUNT, FIRST, KIND, float_table, int_table
 from cpbc.kernels.small_solves import nan_min, solve_spd, times
@@ -304,27 +307,27 @@ def floors(now: Array, cushion: Array, keep: float, keep_half: float, end_floor:
 
 
 @kernel("void(int64[:, :], int64[:, :], float64[:, :], float64[:, :], float64[:, :],"
-        " float64[:, :, :], float64[:, :])")
+        " float64[:, :, :], int64[:], float64[:, :])")
 def margins_along(plan: Ints, ints: Ints, floats: Array, xs: Array, dxs: Array, ys: Array,
-                  out: Array) -> None:
+                  slots: Ints, out: Array) -> None:
     """The margins of every packed constraint (``plan``, cpbc.kernels.barrier_set) at every
     row of ``xs`` (and ``dxs`` for the rates; ``ys`` the joint placements of each row, for
     the sphere pairs) into their columns of ``out``, the constraint kinds' own kernels row by
-    row. Columns of constraints that do not pack are left as they are."""
-    n = xs.shape[1]
-    part = np.empty(n)
-    weight = np.empty((n, n))
+    row. Columns of constraints that do not pack are left as they are. A non-empty
+    ``slots`` gives the entry of ``ys`` that holds each row's placements, −1 for a row whose
+    sphere pairs are not asked for (their columns are left as they are too)."""
     for r in range(plan.shape[0]):
         kind, at, k = plan[r, KIND], plan[r, FIRST], plan[r, COUNT]
         if kind == LINEAR:
             constants = float_table(plan, floats, r, LINEAR_CONSTANTS)
+            part = np.empty(xs.shape[1])
             for i in range(xs.shape[0]):
                 linear_limit_terms(constants, xs[i], out[i, at:at + k], part)
         elif kind == RATE:
             constants = float_table(plan, floats, r, RATE_CONSTANTS)
             for i in range(dxs.shape[0]):
-                rate_limit_terms(constants, dxs[i], out[i, at:at + k], weight)
-        elif kind == SPHERES:
+                rate_limit_margins(constants, dxs[i], out[i, at:at + k])
+        elif kind == SPHERES and (slots.shape[0] == 0 or slots.max() >= 0):
             index = int_table(plan, ints, r, SPHERE_INDEX)[:, 0]
             pairs = int_table(plan, ints, r, PAIR_INDEX)
             local = float_table(plan, floats, r, SPHERE_LOCAL)
@@ -332,8 +335,10 @@ def margins_along(plan: Ints, ints: Ints, floats: Array, xs: Array, dxs: Array, 
             table = float_table(plan, floats, r, PAIR_TABLE)
             work = np.empty(3 * index.shape[0] + 7 * pairs.shape[0])  # once for every row
             for i in range(xs.shape[0]):
-                sphere_clearances_in(ys[i], index, local, obstacles, pairs, table, work,
-                                     out[i, at:at + k])
+                y = i if slots.shape[0] == 0 else slots[i]
+                if y >= 0:
+                    sphere_clearances_in(ys[y], index, local, obstacles, pairs, table, work,
+                                         out[i, at:at + k])
 
 
 
@@ -402,28 +407,127 @@ def slack(config: Array, velocity: Array, inner: Array, ends: int, end_floor: Ar
 
 
 @kernel("float64(int64[:, :], int64[:, :], float64[:, :], int64[:, :], int64[:, :], float64[:, :],"
-        " float64[:, :], float64[:, :, :], float64[:, :], float64[:, :], float64[:, :],"
-        " float64[:, :], float64[:, :], float64[:, :], float64[:, :], float64[:], float64[:],"
-        " float64[:], boolean[:], boolean, boolean, boolean)")
+        " float64[:, :], float64[:, :, :], int64[:], float64[:, :], float64[:, :],"
+        " float64[:, :], float64[:, :], float64[:, :], float64[:, :], float64[:, :], float64[:],"
+        " float64[:], float64[:], boolean[:], boolean, boolean, boolean)")
 def predicted_slack(config_plan: Ints, config_ints: Ints, config_floats: Array,
                     velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array,
-                    rows: Array, placements: Array, ends: Array, speeds: Array,
+                    rows: Array, placements: Array, slots: Ints, ends: Array, speeds: Array,
                     inner_x: Array, inner_v: Array, config: Array, velocity: Array,
                     inner: Array, end_floor: Array, mid_floor: Array, sigma_floor: Array,
                     past: Array, has_past: bool, has_config: bool, has_stop: bool) -> float:
     """F of one prediction in one call: the packed velocity margins at the ends and inside
     the period, the packed configuration margins at ``rows`` (``configuration_rows``, with
-    their joint ``placements``) into their columns (``margins_along``; the other columns
-    filled already), then ``slack``."""
+    their joint ``placements``; the sphere pairs only at the rows ``slots`` gives, all with
+    none, ``margins_along``) into their columns (the other columns filled already), then
+    ``slack``."""
+    everywhere = slots[:0]
     margins_along(velocity_plan, velocity_ints, velocity_floats, ends, speeds, placements,
-                  velocity)
+                  everywhere, velocity)
     if inner.shape[1] > 0:
         margins_along(velocity_plan, velocity_ints, velocity_floats, inner_x, inner_v,
-                      placements, inner)
+                      placements, everywhere, inner)
     if has_config:
-        margins_along(config_plan, config_ints, config_floats, rows, rows, placements, config)
+        margins_along(config_plan, config_ints, config_floats, rows, rows, placements, slots,
+                      config)
     return slack(config, velocity, inner, ends.shape[0], end_floor, mid_floor, sigma_floor,
                  past, has_past, has_config, has_stop)
+
+
+@inner("int64(int64[:, :], float64[:, :], float64[:, :], int64, float64[:], float64[:],"
+       " float64[:], float64[:], float64[:], float64, int64[:], float64[:, :])")
+def _bound_spheres(plan: Ints, floats: Array, rows: Array, ends: int, end_floor: Array,
+                   mid_floor: Array, sigma_floor: Array, x: Array, now: Array,
+                   threshold: float, slots: Ints, config: Array) -> int:
+    """Each sphere constraint's bound from its margin ``now`` at ``x``, φ − ``travel`` −
+    MOVED_ROUNDING, into its column of ``config`` at each row where it is > 0 with a share
+    ≥ ``threshold`` of its floor (the mid-period rows', the ends', then the stopping points'
+    σ floor, as ``slack`` reads them); a row where one is not is marked in ``slots``
+    (numbered from 0, in order; −1 the others). The row's travel by the largest reach of
+    every constraint is tried first (one sum a row), the constraint's own where that is
+    not enough. Returns how many rows are marked."""
+    n = x.shape[0]
+    widest = np.empty(n)
+    for i in range(rows.shape[0]):
+        slots[i] = -1
+    for r in range(plan.shape[0]):
+        if plan[r, KIND] != SPHERES:
+            continue
+        at, k = plan[r, FIRST], plan[r, COUNT]
+        reach = float_table(plan, floats, r, REACH)
+        for j in range(n):
+            widest[j] = reach[:, j].max()
+        for i in range(rows.shape[0]):
+            floor = mid_floor if i < ends else end_floor if i < 2 * ends else sigma_floor
+            q = rows[i]
+            far = travel(widest, x, q)
+            for c in range(k):
+                f = floor[at + c]
+                bound = now[at + c] - far - MOVED_ROUNDING
+                if not (bound > 0.0 and bound / f >= threshold):
+                    bound = now[at + c] - travel(reach[c], x, q) - MOVED_ROUNDING
+                if f > 0.0 and bound > 0.0 and bound / f >= threshold:
+                    config[i, at + c] = bound
+                else:
+                    slots[i] = 0
+                    break
+    marked = 0
+    for i in range(rows.shape[0]):
+        if slots[i] == 0:
+            slots[i] = marked
+            marked += 1
+    return marked
+
+
+@kernel("UniTuple(float64, 2)(int64[:, :], int64[:, :], float64[:, :], int64[:, :],"
+        " int64[:, :], float64[:, :], float64[:, :], float64[:, :], float64[:, :],"
+        " float64[:, :], float64[:, :], float64[:, :], float64[:, :], float64[:, :],"
+        f" float64[:], float64[:], float64[:], boolean[:], boolean, {READ_ONLY}, {READ_ONLY},"
+        " float64, int64[:])")
+def bounded_slack(config_plan: Ints, config_ints: Ints, config_floats: Array,
+                  velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array,
+                  rows: Array, ends: Array, speeds: Array, inner_x: Array, inner_v: Array,
+                  config: Array, velocity: Array, inner: Array, end_floor: Array,
+                  mid_floor: Array, sigma_floor: Array, no_past: Array, has_stop: bool,
+                  x: Array, now: Array, enough: float, slots: Ints) -> tuple[float, float]:
+    """``predicted_slack`` (no margin broken already: ``no_past`` empty) that asks for the
+    sphere clearances only at the rows where a bound from the sample does not settle them,
+    and so for no joint placements there: every other margin first, and G, their least share m/floor
+    (F + 1 without the spheres); then ``_bound_spheres`` with the threshold min(G,
+    ``enough``), from the margins ``now`` at the sample ``x`` (NaN as −∞). Returns
+    (min(G, ``enough``) − 1, 0) when no row needs its clearances, else (NaN, the rows that
+    do), with ``slots`` numbering them for ``predicted_slack``, which finishes F with their
+    placements (the bounds stand in at the other rows).
+
+    A bound stands in only where the clearance is ≥ it, and only with a share ≥ the
+    threshold T; the groups of ``slack`` keep their NaN (only finite shares stand in for
+    finite ones), and F + 1 is their least value: with every sphere share ≥ T,
+    T ≤ F + 1 ≤ G. With ``enough`` = ∞ (T = G) F is exact. With ``enough`` = 1 it is exact
+    where it is < 0 (G < 1), else min(G, 1) − 1 = 0 ∈ [0, F]: its sign is F's. A NaN G
+    (a NaN rate inside the period, which ``slack`` keeps) is F's."""
+    everywhere = slots[:0]
+    none = np.zeros((0, 1, 1))
+    margins_along(velocity_plan, velocity_ints, velocity_floats, ends, speeds, none,
+                  everywhere, velocity)
+    if inner.shape[1] > 0:
+        margins_along(velocity_plan, velocity_ints, velocity_floats, inner_x, inner_v, none,
+                      everywhere, inner)
+    for i in range(rows.shape[0]):
+        slots[i] = -1  # every other kind's margins, no sphere pair's
+    margins_along(config_plan, config_ints, config_floats, rows, rows, none, slots, config)
+    for r in range(config_plan.shape[0]):
+        if config_plan[r, KIND] == SPHERES:
+            first = config_plan[r, FIRST]
+            config[:, first:first + config_plan[r, COUNT]] = math.inf
+    n = ends.shape[0]
+    rest = slack(config, velocity, inner, n, end_floor, mid_floor, sigma_floor, no_past,
+                 False, True, has_stop) + 1.0
+    threshold = enough if rest > enough else rest  # NaN stays
+    marked = _bound_spheres(config_plan, config_floats, rows, n, end_floor, mid_floor,
+                            sigma_floor, x, now, threshold, slots, config)
+    if marked:
+        return math.nan, float(marked)
+    return threshold - 1.0, 0.0
 
 
 @kernel("float64(int64[:, :], int64[:, :], float64[:, :], float64[:, :], float64[:, :],"
@@ -434,7 +538,8 @@ def ramp_share(plan: Ints, ints: Ints, floats: Array, ends: Array, peaks: Array,
     (cpbc.controllers.safeguard.predicted_margins.RampTest): the packed ones into their
     columns of ``margins`` (``margins_along``; the other columns filled already), NaN margins
     counted as −∞, ``floor`` the cushions δ_j."""
-    margins_along(plan, ints, floats, ends, peaks, placements, margins)
+    margins_along(plan, ints, floats, ends, peaks, placements, np.zeros(0, dtype=np.int64),
+                  margins)
     low = math.inf
     for r in range(margins.shape[0]):
         for j in range(margins.shape[1]):

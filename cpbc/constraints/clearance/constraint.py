@@ -381,8 +381,8 @@ class Clearance(PairLayout, ConfigurationConstraint):
                 or self._groups or not self._identity):
             return None
         return pack_sphere_pairs(s.sphere_local, s.obstacles, s.pair_table, s.sphere_supports,
-                                 self._far_phi, self.influence, s.group_table, s.sphere_index,
-                                 s.pair_index, s.group_index)
+                                 self._far_phi, self.influence, s.group_table, s.reach,
+                                 s.sphere_index, s.pair_index, s.group_index)
 
     def _barrier(self, x: Array, y: Array, jac: Array, with_value: bool
                  ) -> tuple[Array, Array, Array | None]:

@@ -20,6 +20,12 @@ from cpbc.constraints.geometry import Obstacle
 from cpbc.errors import CpbcError
 from cpbc.model.robot_model import RobotModel
 
+# the joints that turn (move) a link about (along) one axis, by Pinocchio's short names
+_REVOLUTE = frozenset({"JointModelRX", "JointModelRY", "JointModelRZ",
+                       "JointModelRevoluteUnaligned"})
+_PRISMATIC = frozenset({"JointModelPX", "JointModelPY", "JointModelPZ",
+                        "JointModelPrismaticUnaligned"})
+
 
 class Kinematics:
     """What the parts of ``Clearance`` share: its settings, the robot's Pinocchio model and
@@ -80,6 +86,37 @@ class Kinematics:
 
     def _columns(self, prims: Sequence[int], end: int | None) -> Array:
         return np.ascontiguousarray(np.column_stack([self._column(i, end) for i in prims]))
+
+    def _reach(self, prims: Sequence[int]) -> Array:
+        """(len(prims), n): for the first point p of each primitive (a sphere's centre) and
+        each coordinate k, a bound on |∂p/∂q_k| over every configuration, so that
+        ‖p(q') − p(q)‖ ≤ Σ_k reach_k |q'_k − q_k| along the segment from q to q'.
+
+        A revolute joint k turns p about its axis a_k through its origin o_k,
+        |∂p/∂q_k| ≤ |a_k| ‖p − o_k‖, and ‖p − o_k‖ is at most the chain of fixed offsets
+        from o_k to p (the origins of the joints in between, then p in its joint's frame)
+        whatever the configuration. A prismatic joint moves p by |a_k| per unit; the joints
+        above it (whose chain it stretches) and any other kind of joint get no bound (∞)."""
+        pm = self._pin
+        out = np.zeros((len(prims), self._n))
+        for row, i in enumerate(prims):
+            chain, j = float(np.linalg.norm(self._local[i][0])), self._joint[i]
+            while j > 0:
+                joint = pm.joints[j]
+                kind = joint.shortname()
+                size = float(np.linalg.norm(joint.extract().axis)) if kind.endswith(
+                    "Unaligned") else 1.0
+                if kind in _REVOLUTE:
+                    out[row, joint.idx_v] = size * chain
+                    chain += float(np.linalg.norm(pm.jointPlacements[j].translation))
+                elif kind in _PRISMATIC:
+                    out[row, joint.idx_v] = size
+                    chain = np.inf
+                else:
+                    out[row, joint.idx_v:joint.idx_v + joint.nv] = np.inf
+                    chain = np.inf
+                j = pm.parents[j]
+        return out
 
     def _masks(self, prims: Sequence[int]) -> Array:
         return self._supports[[self._joint[i] for i in prims]]

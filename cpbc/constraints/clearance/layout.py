@@ -242,6 +242,10 @@ class PairLayout(SpherePairs):
         local = np.ascontiguousarray(
             np.array([columns[j:j + 4, s] for s, j in enumerate(first)]).reshape(-1, 4))
         group_index, group_table = pair_groups(pair_index, first, local)
+        moved = self._reach(spheres)[pair_index[:, 1]]  # by the pair's sphere(s)
+        moved[n_obs * n_sph:] += self._reach(spheres)[pair_index[n_obs * n_sph:, 2]]
+        reach = np.zeros((int(grp[-1]) + 1, self._n))
+        np.maximum.at(reach, grp, moved)
         out = Spheres(
             start=0, stop=int(grp[-1]) + 1, n_obstacle=n_obs * n_sph,
             sphere_index=first, sphere_local=local,
@@ -250,7 +254,7 @@ class PairLayout(SpherePairs):
             pair_index=pair_index, pair_table=table,
             sphere_supports=self._masks(spheres),
             starts=np.flatnonzero(np.diff(grp, prepend=-1)).astype(np.intp),
-            group=grp, group_index=group_index, group_table=group_table,
+            group=grp, group_index=group_index, group_table=group_table, reach=reach,
         )
         out.bound_groups()
         return out

@@ -88,6 +88,8 @@ class Spheres:
     group: Index  # (P,) the constraint (index in ``names``) of each pair
     group_index: Ints  # (G, 5) the broad phase's groups (``pair_groups``)
     group_table: Array  # (G, 6): M·[1, l_c], r, reach
+    reach: Array  # (C, n) how far each constraint's clearance moves per unit of each joint
+    # at most (Kinematics._reach, over its pairs' spheres; both spheres' of a self pair)
 
     def bound_groups(self) -> None:
         """Each group's reach, r + the largest rsum_law of its pairs + ``ROUNDING`` (−∞ when

@@ -12,13 +12,38 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.stopping import Braking
 from cpbc.controllers.hold import hold_corrected
-from cpbc.controllers.safeguard.predicted_margins import BrakingTest, PredictedMargins, RampTest
+from cpbc.controllers.safeguard.predicted_margins import (
+    BrakingTest,
+    PredictedMargins,
+    RampTest,
+    Sample,
+)
 from cpbc.controllers.safeguard.prediction import Predictor
 from cpbc.controllers.safeguard.step_box import StepBox
 from cpbc.controllers.safeguard.step_budget import StepBudget
 from cpbc.model.robot_model import ArmState, RobotModel
 
 Slack = Callable[[Array], float]  # F(τ): ≥ 0 when τ passes
+
+
+class StepSlack:
+    """F(τ) of one step (:meth:`Acceptance.check`): a call gives F; :meth:`sign` gives F
+    where it is < 0 and a value in [0, F] where it is not — all the step's first test
+    needs (the torque is held where F ≥ 0, and F goes on to the blend only where it is
+    not), and with fewer joint placements asked of Pinocchio (PredictedMargins.slack's
+    ``enough``). Both count against the step's budget alike."""
+
+    __slots__ = ("_exact", "_sign")
+
+    def __init__(self, exact: Slack, sign: Slack) -> None:
+        self._exact, self._sign = exact, sign
+
+    def __call__(self, t: Array) -> float:
+        return self._exact(t)
+
+    def sign(self, t: Array) -> float:
+        """F(t) where it is < 0, else a value in [0, F(t)]."""
+        return self._sign(t)
 
 
 class Acceptance:
@@ -55,8 +80,8 @@ class Acceptance:
         self.uncorrected = 0
 
     def check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None,
-               stop: BrakingTest | None = None,
-               past: np.ndarray | None = None) -> Slack:
+               stop: BrakingTest | None = None, past: np.ndarray | None = None,
+               sample: Sample | None = None) -> StepSlack:
         """F(τ) = min_i m_i/floor_i − 1 over the predicted end (and mid-period
         configuration) margins of every prediction, and with ``stop`` = (1/(2θA), floors)
         the braking margins σ_i at the predicted ends: ≥ 0 when τ keeps every margin above
@@ -65,21 +90,22 @@ class Acceptance:
         turns within the period a rate can cross its bound and be back by the end (seen at
         100 Hz once the torque was corrected for the hold). ``past`` marks the margins
         already ≤ 0 (only the extra constraints can be): their floor is their present value,
-        compared by difference, and their braking margin is not held (Safeguard._guard)."""
+        compared by difference, and their braking margin is not held (Safeguard._guard).
+        ``sample``: where the step starts, whose margins bound the sphere clearances along
+        the prediction (PredictedMargins.slack), or None."""
         along = self.along
-        ramp = self.ramp
-        if ramp is None or not along.nv:
-            def f(t: Array) -> float:
-                return along.slack(predict(t), end_floor, mid_floor, stop, past)
+        ramp = self.ramp if along.nv else None
 
-            return self.budget.counted(f)
-
-        def ramped(t: Array) -> float:
+        def f(t: Array, given: Sample | None) -> float:
             rows = predict(t)
-            return min(along.slack(rows, end_floor, mid_floor, stop, past),
-                       along.ramp_slack(rows, ramp))
+            end = along.slack(rows, end_floor, mid_floor, stop, past, given, 1.0)
+            return end if ramp is None else min(end, along.ramp_slack(rows, ramp))
 
-        return self.budget.counted(ramped)
+        # the bounds from the sample spare the first test (its sign), not an exact F: near a
+        # boundary, where F's value counts, a clearance whose floor is within its bound of
+        # its value at the sample is at every predicted configuration
+        return StepSlack(self.budget.counted(lambda t: f(t, None)),
+                         self.budget.counted(lambda t: f(t, sample)))
 
     def braking_floor(self, state: ArmState, bias: Array,
                        held: Array | None = None) -> BrakingTest | None:
@@ -104,7 +130,7 @@ class Acceptance:
                            self.period)
 
     def held(self, state: ArmState, bias: Array, law: Array,
-             slack: Slack) -> tuple[Array, float]:
+             slack: StepSlack) -> tuple[Array, float]:
         """The law's torque as the guard would hold it, and F of (S1) there: corrected for
         the hold (:func:`hold_corrected`, by the plant's share ``hold_share``) and scaled
         into the torque box. If that fails (S1) while the law's own torque keeps it, the
@@ -120,7 +146,7 @@ class Acceptance:
         if boxed is not tau:
             self.scaled += 1
             tau = boxed
-        f0 = slack(tau)
+        f0 = slack.sign(tau)  # F only where < 0: the torque is held where it passes
         if f0 >= 0.0 or not share:
             return tau, f0
         plain = self.box.fit(bias, law)

@@ -17,7 +17,7 @@ from cpbc.constraints.stopping import Braking
 from cpbc.controllers.controller import Controller, Evaluation, SafetyFilter
 from cpbc.controllers.hold import hold_share
 from cpbc.controllers.rescue import Rescue
-from cpbc.controllers.safeguard.acceptance import Acceptance, Slack
+from cpbc.controllers.safeguard.acceptance import Acceptance, StepSlack
 from cpbc.controllers.safeguard.braking import Brakes
 from cpbc.controllers.safeguard.model_error import (
     DeclaredError,
@@ -31,6 +31,7 @@ from cpbc.controllers.safeguard.predicted_margins import (
     BrakingTest,
     PredictedMargins,
     RampTest,
+    Sample,
 )
 from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_share
 from cpbc.controllers.safeguard.settings import SafeguardSettings
@@ -52,7 +53,7 @@ class StepTests(NamedTuple):
     floor_mid: Array | None  # and at mid-period (configuration margins), None without any
     stop: BrakingTest | None  # (S2)
     past: np.ndarray | None  # the margins broken already (only the extra constraints')
-    slack: Slack  # F(τ) ≥ 0 when τ passes
+    slack: StepSlack  # F(τ) ≥ 0 when τ passes
 
 
 def guarded(
@@ -348,7 +349,8 @@ class Safeguard(SafetyFilter):
                 floor = np.where(past, now, floor)
                 floor_mid = np.where(past[:nc], now[:nc], floor_mid)
         stop = self.acceptance.braking_floor(state, bias, self.box.holding)
-        slack = self.acceptance.check(predict, floor, floor_mid, stop, past)  # (S1)
+        slack = self.acceptance.check(predict, floor, floor_mid, stop, past,
+                                      Sample(state.x, now))  # (S1)
         return StepTests(state, bias, predict, now, floor, floor_mid, stop, past, slack)
 
     def _choose(self, step: StepTests, tau: Array) -> Array:

@@ -12,6 +12,7 @@ subclass with its own ``value``) are asked through ``values_along``, column by c
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import NamedTuple, TypeVar
 
@@ -24,6 +25,7 @@ from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityC
 from cpbc.constraints.packing import Packed, PackedSet
 from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES
 from cpbc.kernels.sampled_guard import (
+    bounded_slack,
     configuration_rows,
     margins_along,
     predicted_slack,
@@ -59,6 +61,20 @@ class BrakingTest(NamedTuple):
     ramp: float = 0.0
     start: Array = _AT_REST
     period: float = 1.0
+
+
+class Sample(NamedTuple):
+    """Where the step's predictions start: the sample x and every guarded margin there (NaN
+    counted as −∞), which bound the sphere clearances at the predicted configurations
+    (cpbc.kernels.clearance.travel) where they need not be computed.
+
+    Attributes:
+        x: the configuration at the sample.
+        margins: every guarded margin there, the configuration ones first.
+    """
+
+    x: Array
+    margins: Array
 
 
 class RampTest(NamedTuple):
@@ -130,6 +146,7 @@ class PredictedMargins:
         self._no_config = np.zeros((0, 0))
         self._no_floor = np.zeros(0)
         self._no_past = np.zeros(0, dtype=bool)
+        self._everywhere = np.zeros(0, dtype=np.int64)  # the sphere pairs at every row
 
     def _placements(self, rows: Array) -> Array:
         """Pinocchio's joint placements (the static regressor) at every row, joint
@@ -152,7 +169,8 @@ class PredictedMargins:
         """Every velocity margin at the rows (x, ẋ), one row each."""
         out = self._generic_velocity_margins(xs, dxs)
         vp = self._velocity
-        margins_along(vp.plan, vp.ints, vp.floats, xs, dxs, self._no_placements, out)
+        margins_along(vp.plan, vp.ints, vp.floats, xs, dxs, self._no_placements,
+                      self._everywhere, out)
         return out
 
     def ramp_slack(self, predicted: Rows, ramp: RampTest) -> float:
@@ -169,28 +187,53 @@ class PredictedMargins:
                           self._generic_velocity_margins(ends, peaks), ramp.floor)
 
     def slack(self, predicted: Rows, end_floor: Array, mid_floor: Array | None,
-              stop: BrakingTest | None, past: np.ndarray | None) -> float:
+              stop: BrakingTest | None, past: np.ndarray | None, sample: Sample | None = None,
+              enough: float = math.inf) -> float:
         """F(τ) of (S1), with ``stop`` = (1/(2θA), floors) of (S2) too, over the predicted
-        ``(mids, ends, speeds, inner_x, inner_v)`` (Acceptance._check)."""
+        ``(mids, ends, speeds, inner_x, inner_v)`` (Acceptance._check). With the ``sample``
+        (and no margin broken already) a sphere clearance that its bound from the sample
+        settles is not computed, nor a row's joint placements where all are
+        (cpbc.kernels.sampled_guard.bounded_slack): F is the same, or with ``enough`` = 1
+        exact where it is < 0 and a value in [0, F] where it is not."""
         mids, ends, speeds, inner_x, inner_v = predicted
         velocity = self._generic_velocity_margins(ends, speeds)
         inner = self._generic_velocity_margins(inner_x, inner_v) if self.nv else velocity[:0]
         config, rows, placements = self._no_config, self._no_config, self._no_placements
+        slots, no_floor = self._everywhere, self._no_floor
+        sigma = no_floor if stop is None else stop.floor
+        cp, vp = self._config, self._velocity
         if mid_floor is not None:
-            rows = np.empty(((2 if stop is None else 3) * len(ends), self.n))
-            if stop is None:
-                configuration_rows(mids, ends, speeds, _AT_REST, 1.0, 0.0, 0.0, rows)
-            else:
-                configuration_rows(mids, ends, speeds, stop.start, stop.period, stop.per_speed,
-                                   stop.ramp, rows)
+            rows = self._configuration_rows(mids, ends, speeds, stop)
             config = np.empty((len(rows), self.nc))
             for at, k, c in self._generic_config:
                 config[:, at:at + k] = c.values_along(rows)
-            placements = self._placements(rows)
-        cp, vp, no_floor = self._config, self._velocity, self._no_floor
+            if sample is not None and past is None and self._spheres:
+                slots = np.empty(len(rows), dtype=np.int64)
+                f, marked = bounded_slack(
+                    cp.plan, cp.ints, cp.floats, vp.plan, vp.ints, vp.floats, rows, ends,
+                    speeds, inner_x, inner_v, config, velocity, inner, end_floor, mid_floor,
+                    sigma, self._no_past, stop is not None, sample.x, sample.margins, enough,
+                    slots)
+                if not marked:
+                    return f
+                placements = self._placements(rows[slots >= 0])
+            else:
+                placements = self._placements(rows)
         return predicted_slack(cp.plan, cp.ints, cp.floats, vp.plan, vp.ints, vp.floats, rows,
-                               placements, ends, speeds, inner_x, inner_v, config, velocity,
-                               inner, end_floor, no_floor if mid_floor is None else mid_floor,
-                               no_floor if stop is None else stop[1],
+                               placements, slots, ends, speeds, inner_x, inner_v, config,
+                               velocity, inner, end_floor,
+                               no_floor if mid_floor is None else mid_floor, sigma,
                                self._no_past if past is None else past, past is not None,
                                mid_floor is not None, stop is not None)
+
+    def _configuration_rows(self, mids: Array, ends: Array, speeds: Array,
+                            stop: BrakingTest | None) -> Array:
+        """The configurations whose margins are tested: the mid-period ones, the ends and,
+        with ``stop``, the uniform brake's stopping points (``configuration_rows``)."""
+        rows = np.empty(((2 if stop is None else 3) * len(ends), self.n))
+        if stop is None:
+            configuration_rows(mids, ends, speeds, _AT_REST, 1.0, 0.0, 0.0, rows)
+        else:
+            configuration_rows(mids, ends, speeds, stop.start, stop.period, stop.per_speed,
+                               stop.ramp, rows)
+        return rows

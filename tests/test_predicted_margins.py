@@ -1,0 +1,82 @@
+"""The guarded margins along a prediction (cpbc.controllers.safeguard.predicted_margins): F of
+(S1) and (S2), and the same F where the sphere clearances are bounded from the sample instead
+of computed (cpbc.kernels.sampled_guard.bounded_slack)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import numpy as np
+import pytest
+
+from cpbc.bench_arms import panda
+from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
+from cpbc.controllers.safeguard.predicted_margins import PredictedMargins, Sample
+from cpbc.model.input_bounds import InputBounds
+
+
+def _tests(rate: float | None = None):
+    """Each of the Panda benchmark's states (52 of 64 with a link within 10 cm of an
+    obstacle), at its rates and at three times them, with the law's torque and pushed off
+    it: the guard's margins along the prediction, its floors, and F without bounds."""
+    setup = panda()
+    law = setup.controllers["cpbc"]
+    rates = None if rate is None else np.full(7, rate)
+    guard = Safeguard(law, InputBounds(0.001, setup.torque_limit, rates), SafeguardSettings())
+    along, rng = guard.acceptance.along, np.random.default_rng(3)
+    for x, dx in setup.states:
+        for speed in (1.0, 3.0):
+            state = guard.state(x, speed * dx)
+            out = law.evaluate_state(state, margins=True)
+            assert out.margins is not None
+            if guard.box.rate_limited:
+                guard._begin(state)
+            bias = state.coriolis_force + state.gravity
+            now = guard.margins_now(x, out.margins)
+            delta, nc = guard.cushion, guard.guarded.n_configuration
+            floor = delta + guard.keep * (now - delta)
+            mid = delta[:nc] + guard.keep_half * (now[:nc] - delta[:nc])
+            stop = guard.acceptance.braking_floor(state, bias, guard.box.holding)
+            predict = guard.predictor(state, bias)
+            for push in (0.0, 10.0, 100.0):
+                rows = predict(out.torque + push * rng.standard_normal(7))
+                exact = along.slack(rows, floor, mid, stop, None)
+                yield along, rows, floor, mid, stop, Sample(state.x, now), exact
+
+
+@contextmanager
+def _counting(along: PredictedMargins, placed: list[int]) -> Iterator[None]:
+    """``along`` with the rows it asks Pinocchio's joint placements at counted into
+    ``placed`` (still asked: a count, not a stub)."""
+    asked = along._placements
+
+    def count(rows: np.ndarray) -> np.ndarray:
+        placed.append(len(rows))
+        return asked(rows)
+
+    along._placements = count  # type: ignore[method-assign]
+    try:
+        yield
+    finally:
+        del along._placements
+
+
+@pytest.mark.parametrize("rate", [None, 1000.0])
+def test_bounds_from_the_sample_leave_F_as_it_is(rate: float | None) -> None:
+    """With every F asked exactly (``enough`` ∞) the bounds change no bit of it; for the
+    first test (``enough`` 1) F is the same where it is < 0 and a value in [0, F] where it
+    is not. Both signs occur, and F with no joint placements at all as well as with some."""
+    signs, placed = set(), list[int]()
+    for along, rows, floor, mid, stop, sample, exact in _tests(rate):
+        with _counting(along, placed):
+            assert along.slack(rows, floor, mid, stop, None, sample, math.inf) == exact
+            first = along.slack(rows, floor, mid, stop, None, sample, 1.0)
+        if exact < 0:
+            assert first == exact
+        else:
+            assert 0.0 <= first <= exact
+        signs.add(exact >= 0)
+    assert signs == {True, False}
+    assert min(placed) < max(placed) and len(placed) < 2 * len(list(_tests(rate)))
