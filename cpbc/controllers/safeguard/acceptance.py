@@ -101,11 +101,14 @@ class Acceptance:
             end = along.slack(rows, end_floor, mid_floor, stop, past, given, 1.0)
             return end if ramp is None else min(end, along.ramp_slack(rows, ramp))
 
-        # the bounds from the sample spare the first test (its sign), not an exact F: near a
-        # boundary, where F's value counts, a clearance whose floor is within its bound of
-        # its value at the sample is at every predicted configuration
-        return StepSlack(self.budget.counted(lambda t: f(t, None)),
-                         self.budget.counted(lambda t: f(t, sample)))
+        exact = self.budget.counted(lambda t: f(t, None))
+        # The bounds from the sample serve the sign alone: where F's value counts (the
+        # blend's, the brakes') the guard acts, near a boundary, where a bound settles
+        # little and only costs its kernel. Under a time budget the first test stays exact
+        # too: its time is what the step's budget takes a later test's to be (StepBudget).
+        if sample is None or self.budget.seconds is not None:
+            return StepSlack(exact, exact)
+        return StepSlack(exact, self.budget.counted(lambda t: f(t, sample)))
 
     def braking_floor(self, state: ArmState, bias: Array,
                        held: Array | None = None) -> BrakingTest | None:

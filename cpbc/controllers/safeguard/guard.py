@@ -479,8 +479,9 @@ class Safeguard(SafetyFilter):
 
     @staticmethod
     def _no_nan(m: Array) -> Array:
-        """NaN margins (a prediction gone wild) count as −∞; one sum tells if there are any."""
-        total = m.sum()
+        """NaN margins (a prediction gone wild) count as −∞; one sum of squares tells if
+        there are any (NaN only from a NaN; a third of numpy's sum's time)."""
+        total = m.dot(m)
         return np.where(np.isnan(m), -np.inf, m) if total != total else m
 
     def margins_now(self, x: Array, law_margins: Array) -> Array:
