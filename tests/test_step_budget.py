@@ -38,7 +38,8 @@ def test_the_budget_counts_its_tests_and_keeps_the_last_that_passed() -> None:
 def test_under_a_time_budget_a_test_begins_only_where_one_as_long_still_fits() -> None:
     """A test after the first begins only where the step's longest test so far, begun now,
     ends within the budget: after a 0.6 s test, a 1 s budget with 0.4 s left refuses the
-    next; after a 0.1 s test it makes it. The first test is made whatever its time."""
+    next; after a 0.1 s test it makes it; after a 0.6 s test that is not exact (the first
+    test's sign) it makes it too. The first test is made whatever its time."""
     import time
 
     def slow(seconds: float):
@@ -60,6 +61,12 @@ def test_under_a_time_budget_a_test_begins_only_where_one_as_long_still_fits() -
             with pytest.raises(OutOfTests):
                 quick(np.array([-1.0]))
             assert budget.used == 1 and budget.passed is not None
+    sign = StepBudget(None, 1.0)  # a test that is not exact does not set the estimate
+    sign.start()
+    sign.begin()
+    assert sign.counted(slow(0.6), exact=False)(np.array([1.0])) == 1.0
+    assert sign.longest == 0.0
+    assert sign.counted(lambda t: float(t[0]))(np.array([-1.0])) == -1.0
     spent = StepBudget(None, 1e-9)
     spent.start()
     spent.begin()

@@ -104,11 +104,11 @@ class Acceptance:
         exact = self.budget.counted(lambda t: f(t, None))
         # The bounds from the sample serve the sign alone: where F's value counts (the
         # blend's, the brakes') the guard acts, near a boundary, where a bound settles
-        # little and only costs its kernel. Under a time budget the first test stays exact
-        # too: its time is what the step's budget takes a later test's to be (StepBudget).
-        if sample is None or self.budget.seconds is not None:
+        # little and only costs its kernel. A sign's test, shorter, is not what a time
+        # budget takes a later (exact) test's time to be (StepBudget.counted).
+        if sample is None:
             return StepSlack(exact, exact)
-        return StepSlack(exact, self.budget.counted(lambda t: f(t, sample)))
+        return StepSlack(exact, self.budget.counted(lambda t: f(t, sample), exact=False))
 
     def braking_floor(self, state: ArmState, bias: Array,
                        held: Array | None = None) -> BrakingTest | None:
