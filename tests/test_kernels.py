@@ -258,3 +258,62 @@ def test_warm_compiles_each_module_after_the_kernel_modules_it_imports() -> None
         imported = {node.module for node in ast.walk(tree)
                     if isinstance(node, ast.ImportFrom) and node.module in MODULES}
         assert imported <= set(MODULES[:i]), (name, imported - set(MODULES[:i]))
+
+
+def test_the_brake_path_under_a_ramp_is_the_frozen_dynamics_path() -> None:
+    """configuration_rows' stopping rows under a torque-rate limit: the ramp's points are
+    where x'' = a_∥⁺ ê + a_⊥ (1 − t/T) takes the arm at even times (integrated here step by
+    step, not by the kernel's closed form), the rest evenly along the brake from x(T) on
+    ẋ(T), the stopping point the last; with no acceleration across the motion that point is
+    the straight path's |ẋ₁|T + ½a⁺T² + (|ẋ₁| + ½a⁺T)²/(2θA) along ê; without a ramp the
+    points divide x₁ → x₁ + (|ẋ₁|/(2θA)) ẋ₁ evenly."""
+    from cpbc.kernels.sampled_guard import configuration_rows
+
+    rng = np.random.default_rng(7)
+    n, h, per_speed, ramp, points = 7, 0.001, 0.004, 0.09, 4
+    for across_too in (True, False):
+        ends, mids = rng.normal(size=(2, n)), rng.normal(size=(2, n))
+        speeds = rng.normal(size=(2, n))
+        push = 0.2 * rng.normal(size=n)
+        if not across_too:  # the period's acceleration along the first row's motion only
+            push = 0.3 * speeds[0]
+        start = speeds[0] - push
+        rows = np.empty(((2 + points) * 2, n))
+        configuration_rows(mids, ends, speeds, start, h, per_speed, ramp, rows)
+        np.testing.assert_array_equal(rows[:2], mids)
+        np.testing.assert_array_equal(rows[2:4], ends)
+        for j in range(2):
+            speed = np.linalg.norm(speeds[j])
+            e = speeds[j] / speed
+            a = (speeds[j] - start) / h
+            along = e @ a
+            across = a - along * e
+            x, v, dt, t = ends[j].copy(), speeds[j].copy(), ramp / 20000, 0.0
+            path = []
+            for k in range(1, points // 2 + 1):
+                while t < k * ramp / (points // 2) - 1e-12:  # midpoint steps of x'' (t)
+                    acc = max(along, 0.0) * e + across * (1.0 - (t + 0.5 * dt) / ramp)
+                    x, v, t = x + dt * v + 0.5 * dt * dt * acc, v + dt * acc, t + dt
+                path.append(x.copy())
+            # the ramp's speed along ê credits no deceleration and keeps only half of a⁺T
+            v = (speed + 0.5 * max(along, 0.0) * ramp) * e + 0.5 * ramp * across
+            stop = per_speed * np.linalg.norm(v) * v
+            path += [x + (k + 1) / (points - points // 2) * stop
+                     for k in range(points - points // 2)]
+            got = rows[[(2 + k) * 2 + j for k in range(points)]]
+            np.testing.assert_allclose(got[: points // 2], np.array(path[: points // 2]),
+                                       atol=1e-7)
+            np.testing.assert_allclose(got[points // 2:], np.array(path[points // 2:]),
+                                       atol=1e-6)
+            if not across_too and j == 0:
+                lead = max(along, 0.0)
+                travel = (speed * ramp + 0.5 * lead * ramp ** 2
+                          + (speed + 0.5 * lead * ramp) ** 2 * per_speed)
+                np.testing.assert_allclose(got[-1], ends[0] + travel * e, atol=1e-9)
+        straight = np.empty(((2 + points) * 2, n))
+        configuration_rows(mids, ends, speeds, start, h, per_speed, 0.0, straight)
+        for j in range(2):
+            stop = per_speed * np.linalg.norm(speeds[j]) * speeds[j]
+            for k in range(points):
+                np.testing.assert_allclose(straight[(2 + k) * 2 + j],
+                                           ends[j] + (k + 1) / points * stop, atol=1e-12)

@@ -207,3 +207,66 @@ def test_a_joint_riding_its_rate_bound_is_slowed_by_the_brake_along_the_line() -
                         safeguard=setup.safeguard)
     assert not check.violated, (check.constraint, check.min_margin)
     assert check.trajectory.end_time == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize("seed, horizon", [(58, 0.24), (89, 0.47)])
+def test_the_brake_path_that_turns_keeps_a_clearance_the_arm_skims(seed, horizon) -> None:
+    """panda_figure8_ke under a 1000 N·m/s rate limit, the first law, seeds 58 and 89
+    (stoppable starts inside V): the law drives the hand and link 6 along the table 0.3–4 mm
+    above it, accelerating at 200–300 rad/s² (100–130 across the motion) while the brake
+    would take ≈ 90 ms to build. (S2) tested only the end of a straight path 1.2–1.8 rad
+    long, 3–5 cm above the table, while the path the arm takes — on along the motion and
+    turning with the held acceleration as the torque ramps — went under it: the arm crossed
+    the clearance by 2.1 mm at 226 ms (seed 58) and 0.7 mm at 462 ms (seed 89). With the
+    path's margins held where it turns (kernels.sampled_guard.configuration_rows) the runs
+    keep every constraint."""
+    from dataclasses import replace
+
+    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
+    from cpbc.reliability.verification import draw_state, in_braking_set, stopping_brake
+
+    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
+    setup = build(*load_scenario(campaign / "panda_figure8_ke_rate.yaml"))
+    entry = next(e for e in setup.controllers if e.name == "TS-CPBC-KE-x1")
+    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
+    s = draw_state(setup, seed)
+    assert in_braking_set(setup, kept, s.position, s.velocity, 0.001)
+    assert stopping_brake(setup, kept, s.position, s.velocity, 0.001) is not None
+    assert setup.reference is not None
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    settings = replace(setup.loop_settings, duration=horizon, log_every=1)
+    check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
+                        safeguard=setup.safeguard,
+                        phase=setup.reference.phase(entry.name, seed))
+    assert not check.violated, (check.constraint, check.min_margin)
+    assert check.trajectory.end_time == pytest.approx(horizon)
+
+
+def test_a_refused_step_takes_back_the_held_acceleration_before_it_spins_a_riding_joint_up(
+) -> None:
+    """panda_goal_pose under a 1000 N·m/s rate limit, seed 35 (a stoppable start inside V on
+    two boundaries: joint 6 at its lower position limit, joint 2 at its rate bound): the law
+    pushes joint 6 off its limit at up to 74 rad/s² while joint 2 slows at 1 rad/s². At the
+    seventh step no torque in the ±1 N·m box keeps (S1) — joint 6's rate margin shrinks
+    faster than κ allows — and the fallback's brake, reached by its nearest acceleration,
+    took joint 2 to +4.3 rad/s² and through its bound by 5.4 mrad/s at 8 ms. Reached along
+    the line from the held torque, or as the held acceleration taken back, the fallback
+    keeps (S0), and the run keeps every constraint (Brakes.fallback)."""
+    from dataclasses import replace
+
+    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
+    from cpbc.reliability.verification import draw_state, in_braking_set, stopping_brake
+
+    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
+    setup = build(*load_scenario(campaign / "panda_goal_pose_rate.yaml"))
+    entry = next(e for e in setup.controllers if e.name == "TS-CPBC")
+    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
+    s = draw_state(setup, 35)
+    assert in_braking_set(setup, kept, s.position, s.velocity, 0.001)
+    assert stopping_brake(setup, kept, s.position, s.velocity, 0.001) is not None
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    settings = replace(setup.loop_settings, duration=0.1, log_every=1)
+    check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
+                        safeguard=setup.safeguard)
+    assert not check.violated, (check.constraint, check.min_margin)
+    assert check.trajectory.end_time == pytest.approx(0.1)

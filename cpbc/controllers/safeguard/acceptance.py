@@ -13,6 +13,7 @@ from cpbc.arrays import Array
 from cpbc.constraints.stopping import Braking
 from cpbc.controllers.hold import hold_corrected
 from cpbc.controllers.safeguard.predicted_margins import (
+    SEGMENT_POINTS,
     BrakingTest,
     PredictedMargins,
     RampTest,
@@ -130,7 +131,7 @@ class Acceptance:
         ramp = braking.ramp(state.inertia, bias, state.dx,
                             state.gravity if held is None else held, per_speed)
         return BrakingTest(per_speed, self.sigma_floor, ramp + self.period, state.dx,
-                           self.period)
+                           self.period, SEGMENT_POINTS)
 
     def held(self, state: ArmState, bias: Array, law: Array,
              slack: StepSlack) -> tuple[Array, float]:

@@ -164,15 +164,21 @@ class Brakes:
                  escape: Array | None = None, holding: Slack | None = None) -> Array:
         """When no torque satisfies (S1): the calmest braking torque that keeps every margin
         above its cushion (S0) — the smallest λ ≥ λ₀, so that the arm is not bounced off
-        the boundary period after period; else the first escape torque
-        C ẋ + g + f − D ẋ/h + s·D v/h, s = 1, 1.5, 2, that holds (S−) (the larger s for
-        the curvature of φ that the first-order escape misses); else the λ that comes
-        closest to (S0)."""
+        the boundary period after period; under a torque-rate limit, where that brake
+        fails (S0), the same brake reached along the line from the held torque, else the
+        torque that takes back the held acceleration (b reached along the line); else the
+        first escape torque C ẋ + g + f − D ẋ/h + s·D v/h, s = 1, 1.5, 2, that holds (S−)
+        (the larger s for the curvature of φ that the first-order escape misses); else the
+        λ that comes closest to (S0)."""
         lam0 = self.settings.braking
         calmest = self.brake(bias, stop, lam0)
         f_stop = positivity(calmest)
         if f_stop >= 0.0:
             return calmest
+        if self.box.rate_limited:
+            held = self._held_back(bias, stop, lam0, positivity)
+            if held is not None:
+                return held
         lam, f_lam = self.search_braking(bias, stop, positivity, f_stop,
                                          positivity(self.brake(bias, stop, 2.0)))
         if f_lam >= 0.0:  # bisect down towards the smallest λ that keeps (S0)
@@ -190,6 +196,24 @@ class Brakes:
                 if holding(push) >= 0.0:
                     return push
         return self.brake(bias, stop, lam)
+
+    def _held_back(self, bias: Array, stop: Array, lam: float,
+                   positivity: Slack) -> Array | None:
+        """Under a torque-rate limit, where the brake reached by its nearest acceleration
+        fails (S0): the brake reached along the line from the held torque, else b reached
+        along the line — the held acceleration a taken back as the ramp test (RampTest)
+        assumed it would be when it let the arm get here, every rate moving on along a, by
+        less than that test's peak — whichever first keeps (S0), or None. Reached by its
+        nearest acceleration within ±ρh, the brake can spin a joint riding its rate bound
+        up through the coupling in D: from panda_goal_pose_rate's seed 35 (joint 2 on its
+        bound at −1 rad/s², joint 6 pushed off its lower limit at 74 rad/s²) it took joint 2
+        to +4.3 rad/s² and through its bound the period after. With these two (the line
+        held 5 periods, the taken-back acceleration 1) the run keeps every constraint."""
+        line = self.brake_along_line(bias, stop, lam)
+        if positivity(line) >= 0.0:
+            return line
+        coast = self.box.fit(bias, bias)
+        return coast if positivity(coast) >= 0.0 else None
 
     def _escape(self, state: ArmState, now: Array, end_floor: Array, mid_floor: Array
                 ) -> Array:

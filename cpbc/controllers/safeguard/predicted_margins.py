@@ -42,6 +42,11 @@ _AT_REST = np.zeros(0)
 # for what coupling and the moving bias add (on the Panda at 1000 N·m/s the base joint's
 # rate went on past ½ T a by 0.08 rad/s while the shoulder's and elbow's torques ramped)
 RAMP_SHARE = 1.0
+# the points of the uniform brake's path under a torque-rate limit at which (S2) holds the
+# configuration margins (configuration_rows: half on the ramp, half on the brake, the stopping
+# point the last): there the path is long (1.2–1.8 rad on the Panda at 1000 N·m/s) and turns,
+# and a clearance can dip under its floor on the way to a stopping point above it
+SEGMENT_POINTS = 4
 
 
 class BrakingTest(NamedTuple):
@@ -54,6 +59,8 @@ class BrakingTest(NamedTuple):
         ramp: T, the time the brake takes to build under a torque-rate limit [s]; 0 without.
         start: ẋ at the sample (read when ``ramp`` > 0).
         period: h [s] (read when ``ramp`` > 0).
+        points: K, the points along the path to the stopping point at which the margins
+            are held, the stopping point the last (configuration_rows).
     """
 
     per_speed: float
@@ -61,6 +68,7 @@ class BrakingTest(NamedTuple):
     ramp: float = 0.0
     start: Array = _AT_REST
     period: float = 1.0
+    points: int = 1
 
 
 class Sample(NamedTuple):
@@ -229,8 +237,8 @@ class PredictedMargins:
     def _configuration_rows(self, mids: Array, ends: Array, speeds: Array,
                             stop: BrakingTest | None) -> Array:
         """The configurations whose margins are tested: the mid-period ones, the ends and,
-        with ``stop``, the uniform brake's stopping points (``configuration_rows``)."""
-        rows = np.empty(((2 if stop is None else 3) * len(ends), self.n))
+        with ``stop``, the points of the uniform brake's path (``configuration_rows``)."""
+        rows = np.empty(((2 if stop is None else 2 + stop.points) * len(ends), self.n))
         if stop is None:
             configuration_rows(mids, ends, speeds, _AT_REST, 1.0, 0.0, 0.0, rows)
         else:
