@@ -297,7 +297,13 @@ def _print_tail(tail: dict[str, object], how: str = "") -> None:
         f"{tail['time_budget_us']:.0f} µs)" if how else ""
     print(f"guarded step in closed loop{label} [µs]: {cells}; CPU {cpu_cells}; over "
           f"{tail['steps']:,} steps ({tail['acting_steps']:,} acting, {tail['rescues']} "
-          f"rescues, {tail['out_of_tests']} out of tests)")
+          f"rescues, {tail['out_of_tests']} out of tests); max / p50 "
+          f"{tail['max_over_p50']:.1f} (target ≤ 5)")
+    law = tail["bare_law"]
+    assert isinstance(law, dict)
+    print("  its law alone at the same states [µs]: "
+          + ", ".join(f"{k} {law[k]:.1f}" for k in ("p50", "p99", "p999", "p9999", "max"))
+          + f"; max / p50 {tail['bare_law_max_over_p50']:.1f}")
 
 
 def _print_peers(torque_us: dict[str, float]) -> None:

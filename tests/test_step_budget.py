@@ -39,7 +39,9 @@ def test_under_a_time_budget_a_test_begins_only_where_one_as_long_still_fits() -
     """A test after the first begins only where the step's longest test so far, begun now,
     ends within the budget: after a 0.6 s test, a 1 s budget with 0.4 s left refuses the
     next; after a 0.1 s test it makes it; after a 0.6 s test that is not exact (the first
-    test's sign) it makes it too. The first test is made whatever its time."""
+    test's sign) it makes it too. A refused torque after a 0.6 s test ends the step before the
+    next candidate's work; after a 0.1 s one it does not. The first test is made whatever its
+    time."""
     import time
 
     def slow(seconds: float):
@@ -67,6 +69,17 @@ def test_under_a_time_budget_a_test_begins_only_where_one_as_long_still_fits() -
     assert sign.counted(slow(0.6), exact=False)(np.array([1.0])) == 1.0
     assert sign.longest == 0.0
     assert sign.counted(lambda t: float(t[0]))(np.array([-1.0])) == -1.0
+    for first, stops in ((0.6, True), (0.1, False)):  # a refused torque, no room for another
+        refused = StepBudget(None, 1.0)
+        refused.start()
+        refused.begin()
+        fails = refused.counted(slow(first))
+        if stops:
+            with pytest.raises(OutOfTests):
+                fails(np.array([-1.0]))
+        else:
+            assert fails(np.array([-1.0])) == -1.0
+        assert refused.used == 1 and refused.passed is None
     spent = StepBudget(None, 1e-9)
     spent.start()
     spent.begin()

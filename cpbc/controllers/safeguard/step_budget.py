@@ -19,15 +19,19 @@ brake before its check has seen the arm to rest kept fewer runs than the uniform
 (Safeguard._out_of_tests). What a budget gives up: a blend nearer the brake than the smallest
 β, the search of λ cut short, and, under a bounded rescue, the rescue itself.
 
-A budget in time does the same on a robot's clock: a test after the first (the law's, always
-tested) begins only where the longest test of the step so far, begun now, still ends within
-``seconds`` of the start of the guard's step (Safeguard.filter); else the step holds what a
-step out of tests holds under a time budget — the last torque that passed, or the uniform
-brake untested. So a step ends within its budget and what follows the tests (the held torque
-or the brake), not within its budget and a whole further test: stopping only once the budget
-was spent let the test under way run past it, and the Panda's worst bounded step was 6.4 × its
-median (docs/speed.md). It reads the clock, so a run under it is not reproducible; it is for
-a robot (cpbc.hardware sets it from the deadline), never simulation's default.
+A budget in time does the same on a robot's clock, counting candidates, not tests: a
+candidate is the work that makes a torque (the slide's projection, a brake's fit, the blend's
+step) and its test, and its time runs from the end of the test before it. A test after the
+first (the law's, always tested) begins only where a candidate as long as the step's longest
+so far would still end within ``seconds`` of the start of the guard's step (Safeguard.filter);
+and a refused torque, which sends the guard to make another candidate, ends the step at once
+where one as long would not. The step then holds what a step out of tests holds under a time
+budget — the last torque that passed, or the uniform brake untested. So a step ends within its
+budget and what follows the tests (the held torque or the brake): stopping once the budget was
+spent let the test under way run past it (the Panda's worst bounded step was 6.4 × its
+median, docs/speed.md), and gating the tests alone let the work before the next test — the
+slide's 45 µs — run past it. It reads the clock, so a run under it is not reproducible; it is
+for a robot (cpbc.hardware sets it from the deadline), never simulation's default.
 """
 
 from __future__ import annotations
@@ -54,8 +58,8 @@ class StepBudget:
     Attributes:
         used: tests made at this step.
         passed: the last torque that passed its test at this step, or None.
-        longest: the longest exact test of this step [s] (timed under a time budget
-            only).
+        longest: the longest candidate of this step whose test was exact, its making and
+            its test [s] (timed under a time budget only).
         spent: steps that ran out of tests.
     """
 
@@ -70,6 +74,7 @@ class StepBudget:
         self.used = 0
         self.passed: Array | None = None
         self.longest = 0.0
+        self._mark = 0.0  # the end of the step's last test (or its beginning)
         self.spent = 0
 
     def start(self) -> None:
@@ -85,6 +90,8 @@ class StepBudget:
     def begin(self) -> None:
         """A new step: no test made yet."""
         self.used, self.passed, self.longest = 0, None, 0.0
+        if self.seconds is not None:
+            self._mark = time.perf_counter()
 
     @contextmanager
     def lifted(self) -> Iterator[None]:
@@ -102,8 +109,8 @@ class StepBudget:
         """``slack`` that counts its calls against the budget and remembers the last torque
         that passed (F ≥ 0); raises :class:`OutOfTests` past the budget. Without a bound,
         ``slack`` itself. A test that is not ``exact`` (the first test's sign from bounds,
-        Acceptance.check) is not the time a later test is taken to need: it comes first in
-        the step, so the exact test after it begins well inside the budget and sets it."""
+        Acceptance.check) is not the time a later candidate is taken to need: it comes first
+        in the step, so the exact test after it begins well inside the budget and sets it."""
         until = self._until
         if until < float("inf"):
             return self._timed(slack, until, exact)
@@ -126,12 +133,16 @@ class StepBudget:
         def timed(t: Array) -> float:
             begun = time.perf_counter()
             # the first test (the law's torque) is always made; a later one only where a
-            # test as long as this step's longest still ends within the budget
+            # candidate as long as this step's longest would still end within the budget
             if self.used == most or (self.used and begun + self.longest > until):
                 raise OutOfTests
             f = self._test(slack, t)
+            ended = time.perf_counter()
             if exact:
-                self.longest = max(self.longest, time.perf_counter() - begun)
+                self.longest = max(self.longest, ended - self._mark)
+            self._mark = ended
+            if f < 0.0 and ended + self.longest > until:  # before the next candidate's work
+                raise OutOfTests
             return f
 
         return timed
