@@ -1,15 +1,17 @@
 """A state handed to a law's public calls: lists, float32 and int vectors are taken as the
-float64 vectors the compiled kernels need; the wrong length or a NaN is a ParameterError
-naming x or dx, and the law, guarded or not, is as it was."""
+float64 vectors the compiled kernels need; the wrong length, or a NaN or an infinity where
+the call computes V, is a ParameterError naming x or dx, and the law, guarded or not, is as
+it was."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from cpbc.controllers.pd import PDGravity
 from cpbc.controllers.safeguard import Safeguard
 from cpbc.errors import ParameterError
-from cpbc.model.measured_state import measured
+from cpbc.model.measured_state import finite, measured
 from cpbc.reliability.verification import draw_state
 from cpbc.scenario import build, load_scenario
 
@@ -25,6 +27,9 @@ def test_the_usual_vectors_pass_as_they_are() -> None:
     x, dx = np.zeros(3), np.ones(3)
     got = measured(x, dx, 3)
     assert got[0] is x and got[1] is dx
+    finite(x, dx)  # no error
+    with pytest.raises(ParameterError, match="dx: every coordinate must be finite"):
+        finite(x, np.array([0.0, np.inf, 0.0]))
 
 
 @pytest.mark.parametrize("kind", [list, np.float32, np.float64])
@@ -62,7 +67,10 @@ def test_a_bad_state_names_its_argument_and_leaves_the_law_as_it_was(
     x, dx = part(s.position, x_at), part(s.velocity, dx_at)
     for entry in setup.controllers:
         law = setup.controller(entry)
-        for call in (law.torque, law.evaluate, law.lyapunov):
+        calls = [law.evaluate, law.lyapunov]
+        if says != "finite" or not isinstance(law, PDGravity):  # PD + g's torque has no V
+            calls.append(law.torque)
+        for call in calls:
             with pytest.raises(ParameterError, match=says) as caught:
                 call(x, dx)
             assert caught.value.parameter == named and str(caught.value).startswith(named)

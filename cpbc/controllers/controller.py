@@ -9,8 +9,8 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.errors import CpbcError, ParameterError
-from cpbc.model.measured_state import measured
+from cpbc.errors import ConstraintViolation, CpbcError, ParameterError
+from cpbc.model.measured_state import finite, measured
 from cpbc.model.robot_model import ArmState, RobotModel
 
 if TYPE_CHECKING:
@@ -128,21 +128,32 @@ class Controller(ABC):
         """Generalised force τ, shape (n,), in controller coordinates.
 
         Raises:
-            ParameterError: ``x`` or ``dx`` is not n finite numbers (the law as it was).
+            ParameterError: ``x`` or ``dx`` is not n numbers, or — for a law that keeps
+                constraints — not finite (the law as it was).
         """
-        x, dx = measured(x, dx, self.model.n)
-        return self.evaluate_state(self.state(x, dx)).torque
+        return self._evaluation(x, dx).torque
 
     def lyapunov(self, x: Array, dx: Array) -> float:
         """The law's Lyapunov function V(x, ẋ) (non-increasing along the closed loop)."""
-        x, dx = measured(x, dx, self.model.n)
-        return self.evaluate_state(self.state(x, dx)).lyapunov
+        return self._evaluation(x, dx).lyapunov
 
     def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
         """τ and V together (x and ẋ as :meth:`torque` takes them)."""
-        x, dx = measured(x, dx, self.model.n)
-        out = self.evaluate_state(self.state(x, dx))
+        out = self._evaluation(x, dx)
         return out.torque, out.lyapunov
+
+    def _evaluation(self, x: Array, dx: Array) -> Evaluation:
+        """The step at (x, ẋ) as a caller gives them (cpbc.model.measured_state)."""
+        x, dx = measured(x, dx, self.model.n)
+        try:
+            out = self.evaluate_state(self.state(x, dx))
+        except ConstraintViolation as refused:
+            if refused.margin != refused.margin:  # NaN: a NaN or an infinity in the state?
+                finite(x, dx)
+            raise
+        if out.lyapunov - out.lyapunov != 0.0:  # V is NaN or ∞, as a NaN or ∞ state makes it
+            finite(x, dx)
+        return out
 
     def check_admissible(self, x: Array, dx: Array, what: str) -> None:
         """Raise InadmissibleStateError if (x, ẋ) is outside this law's admissible set."""
