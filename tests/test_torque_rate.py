@@ -182,13 +182,9 @@ def test_a_robot_that_adds_gravity_bounds_the_command_not_the_torque(tmp_path) -
     assert broken[True] == 0 < broken[False]
 
 
-def test_a_joint_riding_its_rate_bound_is_slowed_by_the_brake_along_the_line() -> None:
-    """panda_goal_pose under a 1000 N·m/s rate limit, seed 100 (a stoppable start inside V):
-    joint 4 rides its rate bound for 140 ms while the uniform brake, fitted into the ±1 N·m
-    box by its nearest acceleration, fails (S1) by far; when the law's torque failed too,
-    the step fell to the fallback, which took joint 4 through its bound by 5.6 mrad/s at
-    148 ms. The brake reached along the line from the held torque slows it, and the run
-    keeps every constraint."""
+def _kept_from_inside_v(seed: int, horizon: float) -> None:
+    """panda_goal_pose_rate's TS-CPBC from the campaign's state ``seed`` — a start inside V
+    that a rate-limited brake stops — keeps every constraint for ``horizon`` seconds."""
     from dataclasses import replace
 
     from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
@@ -198,15 +194,25 @@ def test_a_joint_riding_its_rate_bound_is_slowed_by_the_brake_along_the_line() -
     setup = build(*load_scenario(campaign / "panda_goal_pose_rate.yaml"))
     entry = next(e for e in setup.controllers if e.name == "TS-CPBC")
     kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
-    s = draw_state(setup, 100)
+    s = draw_state(setup, seed)
     assert in_braking_set(setup, kept, s.position, s.velocity, 0.001)
     assert stopping_brake(setup, kept, s.position, s.velocity, 0.001) is not None
     plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
-    settings = replace(setup.loop_settings, duration=0.2, log_every=1)
+    settings = replace(setup.loop_settings, duration=horizon, log_every=1)
     check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
                         safeguard=setup.safeguard)
     assert not check.violated, (check.constraint, check.min_margin)
-    assert check.trajectory.end_time == pytest.approx(0.2)
+    assert check.trajectory.end_time == pytest.approx(horizon)
+
+
+def test_a_joint_riding_its_rate_bound_is_slowed_by_the_brake_along_the_line() -> None:
+    """panda_goal_pose under a 1000 N·m/s rate limit, seed 100 (a stoppable start inside V):
+    joint 4 rides its rate bound for 140 ms while the uniform brake, fitted into the ±1 N·m
+    box by its nearest acceleration, fails (S1) by far; when the law's torque failed too,
+    the step fell to the fallback, which took joint 4 through its bound by 5.6 mrad/s at
+    148 ms. The brake reached along the line from the held torque slows it, and the run
+    keeps every constraint."""
+    _kept_from_inside_v(100, 0.2)
 
 
 @pytest.mark.parametrize("seed, horizon", [(58, 0.24), (89, 0.47)])
@@ -252,21 +258,4 @@ def test_a_refused_step_takes_back_the_held_acceleration_before_it_spins_a_ridin
     took joint 2 to +4.3 rad/s² and through its bound by 5.4 mrad/s at 8 ms. Reached along
     the line from the held torque, or as the held acceleration taken back, the fallback
     keeps (S0), and the run keeps every constraint (Brakes.fallback)."""
-    from dataclasses import replace
-
-    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
-    from cpbc.reliability.verification import draw_state, in_braking_set, stopping_brake
-
-    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
-    setup = build(*load_scenario(campaign / "panda_goal_pose_rate.yaml"))
-    entry = next(e for e in setup.controllers if e.name == "TS-CPBC")
-    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
-    s = draw_state(setup, 35)
-    assert in_braking_set(setup, kept, s.position, s.velocity, 0.001)
-    assert stopping_brake(setup, kept, s.position, s.velocity, 0.001) is not None
-    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
-    settings = replace(setup.loop_settings, duration=0.1, log_every=1)
-    check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
-                        safeguard=setup.safeguard)
-    assert not check.violated, (check.constraint, check.min_margin)
-    assert check.trajectory.end_time == pytest.approx(0.1)
+    _kept_from_inside_v(35, 0.1)
