@@ -48,12 +48,12 @@ ROBOT_RESCUE_BUDGET = 8
 #: (cpbc.controllers.safeguard.step_budget): with the rescue's budget, a bound on the cycle.
 ROBOT_TEST_BUDGET = 6
 #: The share of a cycle's deadline the safeguard may spend testing torques on a robot: a test
-#: begins only where one as long as the cycle's longest so far ends within it, else the cycle
-#: holds the last torque that passed or the uniform brake at once
+#: begins only where a candidate as long as the cycle's longest so far ends within it, else the
+#: cycle holds the last torque that passed or the uniform brake at once
 #: (cpbc.controllers.safeguard.step_budget), leaving the rest of the deadline to the state,
-#: the law and the command's way out. The law's own torque is
-#: always tested, so calm cycles never feel it, and the tightest budget, the law's torque
-#: alone, kept every rate-campaign start inside the braking set (docs/reliability.md).
+#: the law and the command's way out. The law's own torque is always tested, so calm cycles
+#: never feel it, and the tightest budget, the law's torque alone, kept every rate-campaign
+#: start inside the braking set (docs/reliability.md).
 ROBOT_TIME_SHARE = 0.15
 
 
