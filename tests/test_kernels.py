@@ -267,7 +267,7 @@ def test_the_brake_path_under_a_ramp_is_the_frozen_dynamics_path() -> None:
     ẋ(T), the stopping point the last; with no acceleration across the motion that point is
     the straight path's |ẋ₁|T + ½a⁺T² + (|ẋ₁| + ½a⁺T)²/(2θA) along ê; without a ramp the
     points divide x₁ → x₁ + (|ẋ₁|/(2θA)) ẋ₁ evenly."""
-    from cpbc.kernels.sampled_guard import configuration_rows
+    from cpbc.kernels.braking_path import configuration_rows
 
     rng = np.random.default_rng(7)
     n, h, per_speed, ramp, points = 7, 0.001, 0.004, 0.09, 4

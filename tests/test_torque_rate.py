@@ -224,7 +224,7 @@ def test_the_brake_path_that_turns_keeps_a_clearance_the_arm_skims(seed, horizon
     long, 3–5 cm above the table, while the path the arm takes — on along the motion and
     turning with the held acceleration as the torque ramps — went under it: the arm crossed
     the clearance by 2.1 mm at 226 ms (seed 58) and 0.7 mm at 462 ms (seed 89). With the
-    path's margins held where it turns (kernels.sampled_guard.configuration_rows) the runs
+    path's margins held where it turns (kernels.braking_path.configuration_rows) the runs
     keep every constraint."""
     from dataclasses import replace
 

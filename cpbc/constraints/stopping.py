@@ -34,7 +34,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.kernels.sampled_guard import brake_ramp, uniform_deceleration
+from cpbc.kernels.braking_path import brake_ramp, uniform_deceleration
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -120,7 +120,7 @@ class Braking:
     Under a torque-rate limit |τ̇_q| ≤ ρ the brake is not there at once: from the torque τ_h
     the actuators hold it takes T = max_j |τ_b,j − τ_h,j| / ρ_j to build (:meth:`ramp`; 87 ms
     for 87 N·m at 1000 N·m/s), and the stopping point moves ahead by what the arm travels
-    meanwhile (cpbc.kernels.sampled_guard.configuration_rows), so V shrinks with τ_max/ρ.
+    meanwhile (cpbc.kernels.braking_path.configuration_rows), so V shrinks with τ_max/ρ.
 
     Attributes:
         limit: L, the joint torque limits, shape (n,) [N·m].
@@ -164,7 +164,7 @@ class Braking:
              per_speed: float) -> float:
         """T: the time the uniform brake b − θA D ẋ/|ẋ| takes to build from the torque
         ``held`` (controller coordinates) at the rate limit, 0 without one (``per_speed`` =
-        1/(2θA), from :meth:`per_speed`; cpbc.kernels.sampled_guard.brake_ramp)."""
+        1/(2θA), from :meth:`per_speed`; cpbc.kernels.braking_path.brake_ramp)."""
         if self.rate is None:
             return 0.0
         return brake_ramp(inertia, bias, dx, held, per_speed, self._packed[1],
@@ -172,7 +172,7 @@ class Braking:
 
     def deceleration(self, inertia: Array, bias: Array, dx: Array) -> float:
         """A: the largest deceleration along ẋ of the uniform brake (inf at rest;
-        cpbc.kernels.sampled_guard.uniform_deceleration), less a model error's share along
+        cpbc.kernels.braking_path.uniform_deceleration), less a model error's share along
         the motion (``disturbance``)."""
         a = uniform_deceleration(inertia, bias, dx, *self._packed, self.to_joint is not None)
         if self.disturbance is None or a == math.inf:

@@ -17,6 +17,9 @@ from cpbc.arrays import Array
 from cpbc.errors import ParameterError
 
 FLOAT = np.dtype(float)
+# what x and dx are, in the messages (the words of cpbc.reference.stream_checks)
+_MEANING = {"x": "the configuration, one per coordinate",
+            "dx": "the velocity, one per coordinate"}
 
 
 def measured(x: Array, dx: Array, n: int) -> tuple[Array, Array]:
@@ -36,19 +39,18 @@ def finite(x: Array, dx: Array) -> None:
     """Raises ParameterError naming ``x`` or ``dx`` where one holds a NaN or an infinity."""
     for name, v in (("x", x), ("dx", dx)):
         if not np.isfinite(v).all():
-            raise ParameterError(name, f"{name}: every coordinate must be finite, got "
-                                       f"{np.array2string(np.asarray(v), precision=4)}")
+            raise ParameterError(name, f"{name} must be {len(v)} finite numbers "
+                                       f"({_MEANING[name]}), got {np.asarray(v).tolist()}")
 
 
 def _vector(v: object, name: str, n: int) -> Array:
     """``v`` as a float64 vector of ``n`` numbers."""
-    what = "the configuration" if name == "x" else "the velocity"
     try:
         found = np.asarray(v, dtype=float)
     except (TypeError, ValueError):
-        raise ParameterError(name, f"{name}: give {what} as {n} numbers, got "
-                                   f"{type(v).__name__} {v!r:.60}") from None
+        raise ParameterError(name, f"{name} must be {n} finite numbers ({_MEANING[name]}), "
+                                   f"got {type(v).__name__} {v!r:.60}") from None
     if found.shape != (n,):
-        raise ParameterError(name, f"{name}: give {what} as {n} numbers (one per "
-                                   f"coordinate), got shape {found.shape}")
+        raise ParameterError(name, f"{name} must be {n} finite numbers ({_MEANING[name]}), "
+                                   f"got shape {found.shape}")
     return found

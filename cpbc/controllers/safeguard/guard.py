@@ -302,12 +302,10 @@ class Safeguard(SafetyFilter):
         the rescue's search, else the uniform brake. A rescue with a budget is not asked
         here: on the FR3 rate campaign as a robot runs it (6 tests, 8 periods a cycle) its
         brakes, committed before their check had seen the arm to rest, let 5 of 180
-        stoppable runs cross where the uniform brake let 2. Under a time budget no brake is
-        tested: the uniform one, which the accepted torque of the step before was tested
-        with ((S2): it stops the arm from here), is held at once, so that a step ends within
-        its time budget. The rescue's own brakes are not tried even with time left: the
-        aimed one reads every constraint's stopping point before its test (up to ~200 µs on
-        the Panda), which no test's time foretells."""
+        stoppable runs cross where the uniform brake let 2. Under a time budget the uniform
+        brake, which the step before's torque was tested with ((S2): it stops the arm from
+        here), is held at once, untested: the rescue's aimed brake reads every stopping
+        point before its test (up to ~200 µs on the Panda), which no test's time foretells."""
         state, bias, brakes = step.state, step.bias, self.brakes
         if self.budget.timed:
             return self._uniform_brake(step)

@@ -24,9 +24,9 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.packing import Packed, PackedSet
 from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES
+from cpbc.kernels.braking_path import configuration_rows
 from cpbc.kernels.sampled_guard import (
     bounded_slack,
-    configuration_rows,
     margins_along,
     predicted_slack,
     ramp_share,
@@ -51,7 +51,7 @@ SEGMENT_POINTS = 4
 
 class BrakingTest(NamedTuple):
     """What (S2) asks at the predicted ends: the uniform brake's stopping points x_s
-    (cpbc.kernels.sampled_guard.configuration_rows) and the floors of σ_i there.
+    (cpbc.kernels.braking_path.configuration_rows) and the floors of σ_i there.
 
     Attributes:
         per_speed: 1/(2θA) of the uniform brake (stopping.Braking.per_speed).
