@@ -9,8 +9,8 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.errors import ConstraintViolation, CpbcError, ParameterError
-from cpbc.model.measured_state import finite, measured
+from cpbc.errors import CpbcError, ParameterError
+from cpbc.model.measured_state import measured
 from cpbc.model.robot_model import ArmState, RobotModel
 
 if TYPE_CHECKING:
@@ -128,8 +128,7 @@ class Controller(ABC):
         """Generalised force τ, shape (n,), in controller coordinates.
 
         Raises:
-            ParameterError: ``x`` or ``dx`` is not n numbers, or — for a law that keeps
-                constraints — not finite (the law as it was).
+            ParameterError: ``x`` or ``dx`` is not n numbers (the law as it was).
         """
         return self._evaluation(x, dx).torque
 
@@ -145,15 +144,7 @@ class Controller(ABC):
     def _evaluation(self, x: Array, dx: Array) -> Evaluation:
         """The step at (x, ẋ) as a caller gives them (cpbc.model.measured_state)."""
         x, dx = measured(x, dx, self.model.n)
-        try:
-            out = self.evaluate_state(self.state(x, dx))
-        except ConstraintViolation as refused:
-            if refused.margin != refused.margin:  # NaN: a NaN or an infinity in the state?
-                finite(x, dx)
-            raise
-        if out.lyapunov - out.lyapunov != 0.0:  # V is NaN or ∞, as a NaN or ∞ state makes it
-            finite(x, dx)
-        return out
+        return self.evaluate_state(self.state(x, dx))
 
     def check_admissible(self, x: Array, dx: Array, what: str) -> None:
         """Raise InadmissibleStateError if (x, ẋ) is outside this law's admissible set."""

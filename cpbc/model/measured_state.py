@@ -3,10 +3,10 @@
 A law's step runs compiled kernels that take float64 vectors only: a list, a float32 array
 from a policy or an int array stopped them with numba's own TypeError, and a vector of the
 wrong length with Pinocchio's. The usual call — float64 vectors of the arm's length — passes
-one type check (about 0.17 µs). A NaN or an infinity is not looked for in the state on every
-call (two dot products cost 0.57 µs, a tenth of a bare Panda step): it makes the law's V (or
-a margin) NaN or infinite, which the law's caller reads anyway, and then asks :func:`finite`
-which argument it was. (PD + g's ``torque``, which computes no V, returns NaN for it.)
+one type check (about 0.17 µs). A NaN or an infinity is not looked for (two dot products cost
+0.57 µs, a tenth of a bare Panda step): a constrained law refuses such a state as it refuses
+one outside S, with the NaN margin named, and the simulation loops end a run whose state is
+not finite as diverged before they ask the law.
 """
 
 from __future__ import annotations
@@ -33,14 +33,6 @@ def measured(x: Array, dx: Array, n: int) -> tuple[Array, Array]:
             and dx.dtype is FLOAT and x.shape == (n,) and dx.shape == (n,)):
         x, dx = _vector(x, "x", n), _vector(dx, "dx", n)
     return x, dx
-
-
-def finite(x: Array, dx: Array) -> None:
-    """Raises ParameterError naming ``x`` or ``dx`` where one holds a NaN or an infinity."""
-    for name, v in (("x", x), ("dx", dx)):
-        if not np.isfinite(v).all():
-            raise ParameterError(name, f"{name} must be {len(v)} finite numbers "
-                                       f"({_MEANING[name]}), got {np.asarray(v).tolist()}")
 
 
 def _vector(v: object, name: str, n: int) -> Array:

@@ -39,7 +39,6 @@ from cpbc.controllers.safeguard.step_box import StepBox
 from cpbc.controllers.safeguard.step_budget import OutOfTests, StepBudget
 from cpbc.kernels.sampled_guard import floors
 from cpbc.model.input_bounds import InputBounds
-from cpbc.model.measured_state import finite
 from cpbc.model.robot_model import ArmState
 
 
@@ -232,8 +231,6 @@ class Safeguard(SafetyFilter):
         """The guarded torque and the law's V at the per-step state; ConstraintViolation
         outside S."""
         out = self.law.evaluate_state(state, margins=True)  # raises outside S
-        if out.lyapunov - out.lyapunov != 0.0:  # V is NaN or ∞: so is the state, not yet held
-            finite(state.x, state.dx)
         self.calls += 1
         if self.constraints.empty:
             return out
