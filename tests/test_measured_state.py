@@ -68,5 +68,5 @@ def test_a_bad_state_names_its_argument_and_leaves_the_law_as_it_was(
 
 
 def test_a_non_number_is_named() -> None:
-    with pytest.raises(ParameterError, match=r"x must be 2 finite numbers .* got list"):
+    with pytest.raises(ParameterError, match=r"x must be 2 finite numbers .* got \['a', 'b'\]"):
         measured(["a", "b"], [0.0, 0.0], 2)  # type: ignore[arg-type]

@@ -31,18 +31,20 @@ def measured(x: Array, dx: Array, n: int) -> tuple[Array, Array]:
     """
     if not (type(x) is np.ndarray and type(dx) is np.ndarray and x.dtype is FLOAT
             and dx.dtype is FLOAT and x.shape == (n,) and dx.shape == (n,)):
-        x, dx = _vector(x, "x", n), _vector(dx, "dx", n)
+        x, dx = numbers(x, n, "x", _MEANING["x"]), numbers(dx, n, "dx", _MEANING["dx"])
     return x, dx
 
 
-def _vector(v: object, name: str, n: int) -> Array:
-    """``v`` as a float64 vector of ``n`` numbers."""
+def numbers(value: object, size: int, name: str, meaning: str, copy: bool = False) -> Array:
+    """``value`` as a float64 vector of ``size`` numbers (a new array with ``copy``, else
+    ``value`` itself when it is one); ``meaning`` says what they are in the message when it
+    is not (cpbc.reference.stream_checks adds that they be finite)."""
     try:
-        found = np.asarray(v, dtype=float)
+        found = np.array(value, dtype=float) if copy else np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise ParameterError(name, f"{name} must be {n} finite numbers ({_MEANING[name]}), "
-                                   f"got {type(v).__name__} {v!r:.60}") from None
-    if found.shape != (n,):
-        raise ParameterError(name, f"{name} must be {n} finite numbers ({_MEANING[name]}), "
-                                   f"got shape {found.shape}")
+        raise ParameterError(name, f"{name} must be {size} finite numbers ({meaning}), got "
+                                   f"{value!r}") from None
+    if found.shape != (size,):
+        raise ParameterError(name, f"{name} must be {size} finite numbers ({meaning}), got "
+                                   f"shape {found.shape}")
     return found

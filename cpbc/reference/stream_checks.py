@@ -11,19 +11,13 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.errors import ParameterError
+from cpbc.model.measured_state import numbers
 
 
 def finite_vector(value: object, size: int, name: str, meaning: str) -> Array:
     """``value`` as a new float array of ``size`` finite numbers; ``meaning`` says what they
     are (units, frame) in the message when it is not."""
-    try:
-        a = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ParameterError(name, f"{name} must be {size} finite numbers ({meaning}), got "
-                                   f"{value!r}") from None
-    if a.shape != (size,):
-        raise ParameterError(name, f"{name} must be {size} finite numbers ({meaning}), got "
-                                   f"shape {a.shape}")
+    a = numbers(value, size, name, meaning, copy=True)
     if not np.all(np.isfinite(a)):
         raise ParameterError(name, f"{name} must be {size} finite numbers ({meaning}), got "
                                    f"{a.tolist()}")
