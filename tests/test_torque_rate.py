@@ -182,25 +182,29 @@ def test_a_robot_that_adds_gravity_bounds_the_command_not_the_torque(tmp_path) -
     assert broken[True] == 0 < broken[False]
 
 
-def _kept_from_inside_v(seed: int, horizon: float) -> None:
-    """panda_goal_pose_rate's TS-CPBC from the campaign's state ``seed`` — a start inside V
-    that a rate-limited brake stops — keeps every constraint for ``horizon`` seconds."""
+def _kept_from_inside_v(seed: int, horizon: float, campaign: str = "panda_goal_pose_rate",
+                        controller: str = "TS-CPBC", on_path: bool = False) -> None:
+    """``controller`` of tools/campaigns/``campaign``.yaml from the campaign's state ``seed``
+    (``on_path``: the scenario tracks a path, from the seed's phase of it) — a start inside
+    V that a rate-limited brake stops — keeps every constraint for ``horizon`` seconds."""
     from dataclasses import replace
 
     from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
     from cpbc.reliability.verification import draw_state, in_braking_set, stopping_brake
 
-    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
-    setup = build(*load_scenario(campaign / "panda_goal_pose_rate.yaml"))
-    entry = next(e for e in setup.controllers if e.name == "TS-CPBC")
+    folder = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
+    setup = build(*load_scenario(folder / f"{campaign}.yaml"))
+    entry = next(e for e in setup.controllers if e.name == controller)
     kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
     s = draw_state(setup, seed)
     assert in_braking_set(setup, kept, s.position, s.velocity, 0.001)
     assert stopping_brake(setup, kept, s.position, s.velocity, 0.001) is not None
     plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
     settings = replace(setup.loop_settings, duration=horizon, log_every=1)
+    assert (setup.reference is not None) == on_path
+    phase = 0.0 if setup.reference is None else setup.reference.phase(entry.name, seed)
     check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
-                        safeguard=setup.safeguard)
+                        safeguard=setup.safeguard, phase=phase)
     assert not check.violated, (check.constraint, check.min_margin)
     assert check.trajectory.end_time == pytest.approx(horizon)
 
@@ -226,26 +230,7 @@ def test_the_brake_path_that_turns_keeps_a_clearance_the_arm_skims(seed, horizon
     the clearance by 2.1 mm at 226 ms (seed 58) and 0.7 mm at 462 ms (seed 89). With the
     path's margins held where it turns (kernels.braking_path.configuration_rows) the runs
     keep every constraint."""
-    from dataclasses import replace
-
-    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
-    from cpbc.reliability.verification import draw_state, in_braking_set, stopping_brake
-
-    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
-    setup = build(*load_scenario(campaign / "panda_figure8_ke_rate.yaml"))
-    entry = next(e for e in setup.controllers if e.name == "TS-CPBC-KE-x1")
-    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
-    s = draw_state(setup, seed)
-    assert in_braking_set(setup, kept, s.position, s.velocity, 0.001)
-    assert stopping_brake(setup, kept, s.position, s.velocity, 0.001) is not None
-    assert setup.reference is not None
-    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
-    settings = replace(setup.loop_settings, duration=horizon, log_every=1)
-    check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
-                        safeguard=setup.safeguard,
-                        phase=setup.reference.phase(entry.name, seed))
-    assert not check.violated, (check.constraint, check.min_margin)
-    assert check.trajectory.end_time == pytest.approx(horizon)
+    _kept_from_inside_v(seed, horizon, "panda_figure8_ke_rate", "TS-CPBC-KE-x1", on_path=True)
 
 
 def test_a_refused_step_takes_back_the_held_acceleration_before_it_spins_a_riding_joint_up(
