@@ -176,6 +176,24 @@ class ConstraintSet:
             return np.zeros((0, self.n))
         return np.concatenate([c.gradient_at(state) for c in self._config])
 
+    @property
+    def gradients_bounded(self) -> bool:
+        """Whether a configuration constraint bounds its gradient without the state's
+        kinematics (``gradient_bound``)."""
+        return any(c.gradient_bound() is not None for c in self._config)
+
+    def configuration_gradient_bounds(self, state: ArmState) -> Array:
+        """B ≥ |∇φ_i| entry by entry, shape (number of φ_i, n), in the order of ``names``:
+        each constraint's ``gradient_bound`` where it has one, else its gradient at the
+        per-step state."""
+        if not self._config:
+            return np.zeros((0, self.n))
+        parts = []
+        for c in self._config:
+            bound = c.gradient_bound()
+            parts.append(c.gradient_at(state) if bound is None else bound)
+        return np.concatenate(parts)
+
     def velocity_margins(self, x: Array, dx: Array, state: ArmState | None = None) -> Array:
         """Every ψ_j at (x, ẋ), in the order of ``names``."""
         parts = [c.value(x, dx, state) for c in self._velocity]

@@ -82,6 +82,14 @@ class ConfigurationConstraint(HasMargins, ABC):
         whose gradient takes kinematics reads them from the state instead (Clearance)."""
         return self.gradient(state.x)
 
+    def gradient_bound(self) -> Array | None:
+        """B with |∂φ_i/∂x_j| ≤ B_ij at every configuration where φ_i > 0, shape (k, n),
+        where the kind knows one that costs less than its gradient at a state (Clearance:
+        its sphere pairs' reach; LinearLimit), else None. The safeguard's first test raises
+        its floors for the model's error by it (MarginSlopes.bounding), and by the gradient
+        only where that fails."""
+        return None
+
     def motion_terms(self, state: ArmState) -> tuple[Array, Array, Array]:
         """φ, ∇φ and ẋᵀ∇²φ ẋ at the per-step state (what a filter on φ̈ reads, e.g. the
         CBF-QP peer's rows). Here from ``evaluate`` and ``curvature`` at (x, ẋ); a kind whose

@@ -75,6 +75,9 @@ class LinearLimit(ConfigurationConstraint):
         self._sum = lower + upper
         for a in (self.rows, self.lower, self.upper, self.centre, self.half_width, self._sum):
             a.setflags(write=False)
+        # |∇φ_i| = |l_i + u_i − 2a_iᵀx| |a_i| ≤ 2w_i |a_i| where φ_i > 0 (gradient_bound)
+        self._slope_bound = 2.0 * self.half_width[:, None] * np.abs(rows)
+        self._slope_bound.setflags(write=False)
         self._packed = pack_linear_limit(rows, lower, upper)  # the kernel's tables
         self._constants = self._packed.floats[LINEAR_CONSTANTS]
 
@@ -113,6 +116,10 @@ class LinearLimit(ConfigurationConstraint):
     def gradient(self, x: Array) -> Array:
         y = self.rows.dot(x)
         return (self._sum - 2.0 * y)[:, None] * self.rows
+
+    def gradient_bound(self) -> Array | None:
+        """2w_i |a_i|: |∇φ_i| = |l_i + u_i − 2a_iᵀx| |a_i| inside the limits."""
+        return self._slope_bound
 
     def curvature(self, x: Array, dx: Array) -> Array:
         """ẋᵀ∇²φ ẋ = −2 (aᵀẋ)²: the product form loses margin faster than it approaches."""

@@ -34,8 +34,19 @@ class MarginSlopes:
 
     @classmethod
     def at(cls, constraints: ConstraintSet, state: ArmState) -> MarginSlopes:
+        """The slopes at the per-step state."""
+        return cls._of(constraints, state, constraints.configuration_gradients(state))
+
+    @classmethod
+    def bounding(cls, constraints: ConstraintSet, state: ArmState) -> MarginSlopes:
+        """The slopes with each configuration gradient's bound where its kind knows one
+        (ConstraintSet.configuration_gradient_bounds): :meth:`losses` then bounds every
+        margin's loss from above, without the state's kinematics for those kinds."""
+        return cls._of(constraints, state, constraints.configuration_gradient_bounds(state))
+
+    @classmethod
+    def _of(cls, constraints: ConstraintSet, state: ArmState, config: Array) -> MarginSlopes:
         n = constraints.n
-        config = constraints.configuration_gradients(state)
         weights = [c.weights(state.x, state) for c in constraints.velocity]  # (k, n, n) each
         if not weights:
             return cls(config, np.zeros((0, n, n)), state.dx)

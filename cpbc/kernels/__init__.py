@@ -12,8 +12,9 @@ compiles nothing; ``--check`` fails when any kernel is not compiled in nopython 
 With ``NUMBA_DISABLE_JIT=1`` the same functions run as plain Python (the tests compare both).
 numba keys a cached kernel on its own file only, so a kernel that calls into another module
 (``laws`` into ``barrier_set``, ``law_terms``, ``coordinate_maps``, ``task``; ``barrier_set``
-into ``barriers``, ``clearance``; ``sampled_guard`` into several) would be loaded stale after
-that module changed — and compute with the old formula. Importing this package therefore
+into ``barriers``, ``clearance``; ``sampled_guard`` into several; ``margin_losses`` into
+``friction_error``, ``small_solves``) would be loaded stale after that module changed — and
+compute with the old formula. Importing this package therefore
 drops the cached kernels whenever any kernel source differs from the one they were compiled
 from (``drop_stale_cache``).
 """

@@ -8,8 +8,12 @@ an order of their own, so the losses agree to rounding (a few units in the last 
 
 from __future__ import annotations
 
+import numpy as np
+
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
+from cpbc.kernels.friction_error import held_friction_error
+from cpbc.kernels.small_solves import inverse_spd
 
 READ_ONLY_STACK = "Array(float64, 3, 'A', readonly=True)"
 
@@ -41,3 +45,36 @@ def margin_losses(gradients: Array, weights: Array, rates: Array, end_shift: Arr
                 spread += abs(weights[k, i, j]) * rate_shift[i] * rate_shift[j]
             push += abs(p) * rate_shift[i]
         end_out[m + k] = push + 0.5 * spread
+
+
+@kernel(f"void(float64[:, :], {READ_ONLY_MATRIX}, boolean, {READ_ONLY}, float64, float64,"
+        f" float64, {READ_ONLY}, {READ_ONLY}, {READ_ONLY}, {READ_ONLY}, float64, float64,"
+        f" {READ_ONLY_MATRIX}, {READ_ONLY_STACK}, float64[:], float64[:], float64[:])")
+def friction_floors(inertia: Array, t_inv: Array, mapped: bool, levels: Array,
+                    smoothing: float, build_up: float, creep: float, dx: Array, bias: Array,
+                    lower: Array, upper: Array, period: float, travel: float,
+                    gradients: Array, weights: Array, floor: Array, mid: Array,
+                    error: Array) -> None:
+    """A guarded step's floors raised, in place, by what the model's smooth Coulomb friction
+    alone can take off each margin in one period, in one call: D⁻¹ (``inverse_spd``), the
+    bound ā on the acceleration error of the torques lower ≤ τ_q ≤ upper at the bias b
+    (``held_friction_error``, into ``error``), and ``margin_losses`` of the position off by
+    c h² ā at the end (c = ``travel``), ⅛h² ā at mid-period and the rate by h ā
+    (cpbc.controllers.safeguard.error_floors), added to ``floor`` and ``mid``."""
+    n = dx.shape[0]
+    inverse = np.empty((n, n))
+    inverse_spd(inertia, inverse)
+    held_friction_error(inverse, t_inv, mapped, levels, smoothing, build_up, creep, dx, bias,
+                        lower, upper, period, error)
+    h = period
+    shifts = np.empty((3, n))
+    for j in range(n):
+        shifts[0, j] = travel * h * h * error[j]
+        shifts[1, j] = 0.125 * h * h * error[j]
+        shifts[2, j] = h * error[j]
+    end, mid_loss = np.empty(floor.shape[0]), np.empty(mid.shape[0])
+    margin_losses(gradients, weights, dx, shifts[0], shifts[1], shifts[2], end, mid_loss)
+    for i in range(floor.shape[0]):
+        floor[i] += end[i]
+    for i in range(mid.shape[0]):
+        mid[i] += mid_loss[i]

@@ -149,6 +149,8 @@ class Clearance(PairLayout, ConfigurationConstraint):
         self._far_phi = np.full(len(self.names), self.influence or 1.0)
         self._split_static()
         self._far_phi.setflags(write=False)
+        self._finite_reach = self._spheres is not None and bool(
+            np.all(np.isfinite(self._spheres.reach)))
         self._zero = np.zeros(self._n)
         self._zero.setflags(write=False)
         self._no_value = np.empty(0)
@@ -221,6 +223,16 @@ class Clearance(PairLayout, ConfigurationConstraint):
         if state.regressor is None or state.joint_jacobians is None:
             return self.gradient(state.x)
         return self._gradients(state.regressor, state.joint_jacobians)
+
+    def gradient_bound(self) -> Array | None:
+        """Each sphere constraint's reach (Spheres.reach; Kinematics._reach: |∂φ/∂q_k| of
+        any of its pairs is at most how far their spheres move per unit of q_k), when every
+        reported constraint is a sphere constraint's, the coordinates are the joints' and
+        every reach is finite; else None."""
+        s = self._spheres
+        if s is None or self._groups or not self._identity or not self._finite_reach:
+            return None
+        return s.reach
 
     def _reported(self, y: Array, jac: Array, dq: Array) -> tuple[Array, Array, Array]:
         """The reported clearances, their gradients (controller coordinates) and the sphere

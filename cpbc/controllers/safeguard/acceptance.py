@@ -12,6 +12,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.stopping import Braking
 from cpbc.controllers.hold import hold_corrected
+from cpbc.controllers.safeguard.error_floors import Refine
 from cpbc.controllers.safeguard.predicted_margins import (
     SEGMENT_POINTS,
     BrakingTest,
@@ -82,7 +83,7 @@ class Acceptance:
 
     def check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None,
                stop: BrakingTest | None = None, past: np.ndarray | None = None,
-               sample: Sample | None = None) -> StepSlack:
+               sample: Sample | None = None, refine: Refine | None = None) -> StepSlack:
         """F(τ) = min_i m_i/floor_i − 1 over the predicted end (and mid-period
         configuration) margins of every prediction, and with ``stop`` = (1/(2θA), floors)
         the braking margins σ_i at the predicted ends: ≥ 0 when τ keeps every margin above
@@ -93,7 +94,10 @@ class Acceptance:
         already ≤ 0 (only the extra constraints can be): their floor is their present value,
         compared by difference, and their braking margin is not held (Safeguard._guard).
         ``sample``: where the step starts, whose margins bound the sphere clearances along
-        the prediction (PredictedMargins.slack), or None."""
+        the prediction (PredictedMargins.slack), or None. ``refine``: the floors are raised
+        by bounds of the errors' losses (cpbc.controllers.safeguard.error_floors), and this
+        makes them exact in place: before any F but a sign ≥ 0, which the exact floors only
+        raise (F falls as a floor rises), or None."""
         along = self.along
         ramp = self.ramp if along.nv else None
 
@@ -102,14 +106,33 @@ class Acceptance:
             end = along.slack(rows, end_floor, mid_floor, stop, past, given, 1.0)
             return end if ramp is None else min(end, along.ramp_slack(rows, ramp))
 
-        exact = self.budget.counted(lambda t: f(t, None))
-        # The bounds from the sample serve the sign alone: where F's value counts (the
-        # blend's, the brakes') the guard acts, near a boundary, where a bound settles
-        # little and only costs its kernel. A sign's test, shorter, is not what a time
-        # budget takes a later (exact) test's time to be (StepBudget.counted).
-        if sample is None:
-            return StepSlack(exact, exact)
-        return StepSlack(exact, self.budget.counted(lambda t: f(t, sample), exact=False))
+        if refine is None:
+            exact = self.budget.counted(lambda t: f(t, None))
+            # The bounds from the sample serve the sign alone: where F's value counts (the
+            # blend's, the brakes') the guard acts, near a boundary, where a bound settles
+            # little and only costs its kernel. A sign's test, shorter, is not what a time
+            # budget takes a later (exact) test's time to be (StepBudget.counted).
+            if sample is None:
+                return StepSlack(exact, exact)
+            return StepSlack(exact, self.budget.counted(lambda t: f(t, sample), exact=False))
+        pending = [refine]  # emptied once the floors are exact
+
+        def exact_floors() -> None:
+            if pending:
+                pending.pop()()
+
+        def value(t: Array) -> float:
+            exact_floors()
+            return f(t, None)
+
+        def sign(t: Array) -> float:  # one test, taken again under the exact floors if < 0
+            found = f(t, sample)
+            if found < 0.0 and pending:
+                exact_floors()
+                found = f(t, sample)
+            return found
+
+        return StepSlack(self.budget.counted(value), self.budget.counted(sign, exact=False))
 
     def braking_floor(self, state: ArmState, bias: Array,
                        held: Array | None = None) -> BrakingTest | None:

@@ -19,14 +19,8 @@ from cpbc.controllers.hold import hold_share
 from cpbc.controllers.rescue import Rescue
 from cpbc.controllers.safeguard.acceptance import Acceptance, StepSlack
 from cpbc.controllers.safeguard.braking import Brakes
-from cpbc.controllers.safeguard.model_error import (
-    DeclaredError,
-    MarginSlopes,
-    friction_error,
-    inverse_inertia,
-    margin_losses,
-    measurement_losses,
-)
+from cpbc.controllers.safeguard.error_floors import ErrorFloors
+from cpbc.controllers.safeguard.model_error import DeclaredError
 from cpbc.controllers.safeguard.predicted_margins import (
     BrakingTest,
     PredictedMargins,
@@ -110,9 +104,10 @@ class Safeguard(SafetyFilter):
             measurement errors, whose reach is added to the floors too
             (model_error.measurement_losses); or None.
 
-    The guard is four parts and the step that joins them (:meth:`_guard`): ``box``, the
-    input bounds at this step (:class:`StepBox`); ``acceptance``, the test (S1), (S2) and
-    the blend (:class:`Acceptance`); ``brakes``, the replacement torques and the rescue
+    The guard is five parts and the step that joins them (:meth:`_guard`): ``box``, the
+    input bounds at this step (:class:`StepBox`); ``errors``, the floors the errors it holds
+    raise (:class:`ErrorFloors`); ``acceptance``, the test (S1), (S2) and the blend
+    (:class:`Acceptance`); ``brakes``, the replacement torques and the rescue
     (:class:`Brakes`); ``budget``, how many torques a step may test (:class:`StepBudget`).
 
     Attributes:
@@ -176,12 +171,8 @@ class Safeguard(SafetyFilter):
         torque_limit, self.rate_limit = self.box.torque_limit, self.box.rate_limit
         self.model_error = None if model_error is None else np.asarray(model_error, float)
         self.declared = declared
-        self._inertia_error = None if declared is None else declared.acceleration_bound(
-            law.model)
-        self._coulomb = bool(np.any(law.model.coulomb_friction))
-        # no error is held (none declared, no Coulomb friction): the floors stay (S1)'s
-        self._exact = self.model_error is None and not self._coulomb and (
-            declared is None or not (declared.dynamic or declared.measured))
+        self.errors = ErrorFloors(self.guarded, law.model, self.box, self.model_error,
+                                  declared, self.period, self.travel, self.cushion)
         self._velocity_floor = np.maximum(self.cushion[nc:], 1e-300)
         # under bounded torque the guard also keeps the braking margins σ (stopping.Braking)
         braking = None if torque_limit is None or not nc else Braking.of(
@@ -331,7 +322,7 @@ class Safeguard(SafetyFilter):
         delta, nc = self.cushion, self._n_config
         floor, mid = np.empty(len(now)), np.empty(nc)
         floors(now, delta, self.keep, self.keep_half, floor, mid)  # (S1)
-        self._raise_floors(state, bias, tau, floor, mid)
+        refine = self.errors.raise_floors(state, bias, tau, floor, mid)
         floor_mid = None
         past = None
         if nc:
@@ -344,11 +335,14 @@ class Safeguard(SafetyFilter):
                 # never holds the arm at rest beyond the limit (it did, for good, once
                 # asking for a positive margin at the period's end made every step fail).
                 past = now <= 0.0
+                if refine is not None:  # the floors copied below: exact before
+                    refine()
+                    refine = None
                 floor = np.where(past, now, floor)
                 floor_mid = np.where(past[:nc], now[:nc], floor_mid)
         stop = self.acceptance.braking_floor(state, bias, self.box.holding)
         slack = self.acceptance.check(predict, floor, floor_mid, stop, past,
-                                      Sample(state.x, now))  # (S1)
+                                      Sample(state.x, now), refine)  # (S1)
         return StepTests(state, bias, predict, now, floor, floor_mid, stop, past, slack)
 
     def _choose(self, step: StepTests, tau: Array) -> Array:
@@ -427,53 +421,6 @@ class Safeguard(SafetyFilter):
             self._out_of_tests(step)  # the rescue's own brakes, tested once each
         if self.box.rate_limited:
             self.box.end(tau)
-
-    def _raise_floors(self, state: ArmState, bias: Array, tau: Array, floor: Array,
-                      mid: Array) -> None:
-        """The floors of (S1) raised, in place, by whatever the model's error can take off
-        each margin in one period (model_error.margin_losses), and to at least what a
-        measurement error can hide above the cushion (measurement_losses): the true margin
-        then ends above its cushion too."""
-        if self._exact:
-            return
-        error = self._error_bound(state, bias, tau)
-        measured = self.declared if self.declared is not None and self.declared.measured \
-            else None
-        if error is None and measured is None:
-            return
-        slopes = MarginSlopes.at(self.guarded, state)  # once for both errors
-        if error is not None:
-            end_loss, mid_loss = margin_losses(self.guarded, state, error, self.period,
-                                               self.travel, slopes)
-            floor += end_loss
-            mid += mid_loss
-        if measured is not None:
-            end_loss, mid_loss = measurement_losses(self.guarded, state, measured,
-                                                    self.period, slopes)
-            np.maximum(floor, end_loss + self.cushion, out=floor)
-            np.maximum(mid, mid_loss + self.cushion[: len(mid)], out=mid)
-
-    def _error_bound(self, state: ArmState, bias: Array, tau: Array) -> Array | None:
-        """The bound on the model's acceleration error at this state: the declared one plus
-        its smooth Coulomb friction's (model_error.friction_error) plus a declared inertia
-        error's at the law's acceleration D⁻¹(τ − b) (model_error.InertiaError), or None."""
-        inertia_error = self._inertia_error
-        # D⁻¹ once a step for every bound that reads it
-        inverse = inverse_inertia(state.inertia) if (
-            self._coulomb or inertia_error is not None) else None
-        parts = [p for p in (self.model_error, self._friction_error(state, bias, inverse)
-                             if inverse is not None and self._coulomb else None)
-                 if p is not None]
-        if inertia_error is not None and inverse is not None:
-            parts.append(inertia_error.bound(state, inverse @ (tau - bias), inverse))
-        return sum(parts[1:], parts[0]) if parts else None
-
-    def _friction_error(self, state: ArmState, bias: Array, inverse: Array) -> Array | None:
-        """model_error.friction_error over this period, for the accelerations of the torques
-        this step may hold (the step's box; any without a torque box); ``inverse``: D⁻¹."""
-        box = self.box.reachable
-        return friction_error(self.model, state, None, self.period, inverse=inverse,
-                              torques=None if box is None else (bias, *box.bounds))
 
     @staticmethod
     def _no_nan(m: Array) -> Array:
