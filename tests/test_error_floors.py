@@ -12,13 +12,20 @@ import numpy as np
 import pytest
 
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.controllers.safeguard import Safeguard
+from cpbc.constraints.linear_limit import LinearLimit, joint_position_limit
+from cpbc.constraints.rate_limit import joint_rate_limit
+from cpbc.controllers.cpbc import CPBC
+from cpbc.controllers.safeguard import Safeguard, SafeguardSettings, guarded
 from cpbc.controllers.safeguard.error_floors import ErrorFloors
 from cpbc.controllers.safeguard.model_error import friction_error, margin_losses
 from cpbc.hardware.motion import MotionSettings
 from cpbc.hardware.robot_run import choose_controller, lockstep_for, on_robot, run_on_robot
 from cpbc.kernels.sampled_guard import floors
+from cpbc.model.coordinates import LinearCoordinates
+from cpbc.model.input_bounds import InputBounds
+from cpbc.model.robot_model import RobotModel
 from cpbc.reliability.verification import draw_state
+from cpbc.resources import models_dir
 from cpbc.scenario import ScenarioSetup, build, load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -128,3 +135,38 @@ def test_a_guard_on_the_fr3_holds_the_same_torques_with_the_bounded_first_test(
     monkeypatch.setattr(ConstraintSet, "gradients_bounded", property(lambda self: False))
     exact = motion()
     np.testing.assert_array_equal(bounded, exact)
+
+
+def test_in_absolute_link_angles_the_bounds_and_the_one_call_hold_too() -> None:
+    """The thesis's planar arm in absolute link angles (a mapped torque, T ≠ I) with Coulomb
+    friction, its relative-angle limit a = (−1, 1) and joint limits, a torque box and a rate
+    limit: the limits' 2w|a| bound their slopes, the one call's floors lie above the exact
+    ones, and ``refine`` gives the exact ones — no scenario ships an arm like this."""
+    coords = LinearCoordinates.absolute_link_angles(2)
+    model = RobotModel.from_mjcf(models_dir() / "planar_2link.xml", coordinates=coords,
+                                 coulomb_friction=[0.5, 0.2])
+    names = ["theta1", "theta2"]
+    relative = LinearLimit([[-1, 1]], [-17 * np.pi / 18], [17 * np.pi / 18], ["relative"])
+    limits = joint_position_limit([-0.5, -0.5], [3.5, 3.5], names)
+    kept = ConstraintSet(2, [limits, relative], [joint_rate_limit([0.3, 0.2], names)])
+    law = CPBC(model, np.array([np.pi, 2 * np.pi / 3]), kept, 4.0, 20.0)
+    guard = guarded(law, InputBounds(0.001, np.array([20.0, 10.0]), 1000.0),
+                    SafeguardSettings())
+    assert isinstance(guard, Safeguard) and guard.guarded.gradients_bounded
+    rng = np.random.default_rng(3)
+    checked = 0
+    while checked < 40:
+        x, dx = rng.uniform(-0.4, 3.4, 2), rng.uniform(-0.25, 0.25, 2) * [0.3, 0.2]
+        if not np.all(kept.margins(x, dx) > 0):
+            continue
+        state, bias, tau, floor, mid = _step(guard, x, dx)
+        exact_slope = np.abs(kept.configuration_gradients(state))
+        assert np.all(exact_slope <= kept.configuration_gradient_bounds(state) + 1e-12)
+        exact, exact_mid = _exact_floors(guard, state, bias, floor, mid)
+        refine = guard.errors.raise_floors(state, bias, tau, floor, mid)
+        assert refine is not None
+        assert np.all(floor >= exact) and np.all(mid >= exact_mid)
+        refine()
+        np.testing.assert_allclose(floor, exact, rtol=1e-13, atol=0.0)
+        np.testing.assert_allclose(mid, exact_mid, rtol=1e-13, atol=0.0)
+        checked += 1
