@@ -170,3 +170,26 @@ def test_in_absolute_link_angles_the_bounds_and_the_one_call_hold_too() -> None:
         np.testing.assert_allclose(floor, exact, rtol=1e-13, atol=0.0)
         np.testing.assert_allclose(mid, exact_mid, rtol=1e-13, atol=0.0)
         checked += 1
+
+
+def test_past_a_limit_only_the_guard_keeps_the_floors_are_the_exact_ones(fr3,
+                                                                        monkeypatch) -> None:
+    """At states beyond an extra limit (one only the guard keeps: its floor is its present
+    margin, Safeguard._tests) the floors are made exact before they are copied: the guard
+    holds the torques it holds when its first test's floors come from the gradients."""
+    law = choose_controller(fr3, "CPBC").controller
+    bounds = on_robot(fr3).loop_settings.bounds
+    drawn = [draw_state(fr3, seed) for seed in range(60)]
+    centre = float(np.mean([d.position[0] for d in drawn]))
+    extra = LinearLimit(np.eye(7)[:1], [centre - 0.02], [centre + 0.02], ["extra_joint1"])
+    states = [(d.position, d.velocity) for d in drawn if abs(d.position[0] - centre) > 0.02]
+    assert len(states) > 50
+
+    def torques() -> list[np.ndarray]:
+        guard = Safeguard(law, bounds, SafeguardSettings(), also_keep=[extra])
+        return [guard.torque(x, dx) for x, dx in states]
+
+    bounded = torques()
+    monkeypatch.setattr(ConstraintSet, "gradients_bounded", property(lambda self: False))
+    for a, b in zip(bounded, torques(), strict=True):
+        np.testing.assert_array_equal(a, b)
