@@ -106,33 +106,28 @@ class Acceptance:
             end = along.slack(rows, end_floor, mid_floor, stop, past, given, 1.0)
             return end if ramp is None else min(end, along.ramp_slack(rows, ramp))
 
-        if refine is None:
-            exact = self.budget.counted(lambda t: f(t, None))
-            # The bounds from the sample serve the sign alone: where F's value counts (the
-            # blend's, the brakes') the guard acts, near a boundary, where a bound settles
-            # little and only costs its kernel. A sign's test, shorter, is not what a time
-            # budget takes a later (exact) test's time to be (StepBudget.counted).
-            if sample is None:
-                return StepSlack(exact, exact)
-            return StepSlack(exact, self.budget.counted(lambda t: f(t, sample), exact=False))
-        pending = [refine]  # emptied once the floors are exact
-
-        def exact_floors() -> None:
-            if pending:
-                pending.pop()()
+        pending = [] if refine is None else [refine]  # emptied once the floors are exact
 
         def value(t: Array) -> float:
-            exact_floors()
+            if pending:
+                pending.pop()()
             return f(t, None)
 
         def sign(t: Array) -> float:  # one test, taken again under the exact floors if < 0
             found = f(t, sample)
             if found < 0.0 and pending:
-                exact_floors()
+                pending.pop()()
                 found = f(t, sample)
             return found
 
-        return StepSlack(self.budget.counted(value), self.budget.counted(sign, exact=False))
+        exact = self.budget.counted(value)
+        if sample is None and refine is None:
+            return StepSlack(exact, exact)
+        # The bounds serve the sign alone: where F's value counts (the blend's, the brakes')
+        # the guard acts, near a boundary, where a bound settles little and only costs its
+        # kernel. A sign's test, shorter, is not what a time budget takes a later (exact)
+        # test's time to be (StepBudget.counted).
+        return StepSlack(exact, self.budget.counted(sign, exact=False))
 
     def braking_floor(self, state: ArmState, bias: Array,
                        held: Array | None = None) -> BrakingTest | None:

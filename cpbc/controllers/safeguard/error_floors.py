@@ -81,46 +81,40 @@ class ErrorFloors:
         if self.exact:
             return None
         box = self.box.reachable
-        if self._friction_only and box is not None:
-            return self._raise_by_friction(state, bias, box.bounds, floor, mid)
-        error = self._error_bound(state, bias, tau)
-        if error is None and self._measured is None:
+        fused = self._friction_only and box is not None
+        error = None if fused else self._error_bound(state, bias, tau)
+        if not fused and error is None and self._measured is None:
             return None
-        if error is not None and self._bounded:
-            base, base_mid = floor.copy(), mid.copy()
-            self._raise(state, error, MarginSlopes.bounding(self.guarded, state), floor, mid)
+        bounded = self._bounded  # then no measurement error, and an error bound to hold
+        base = (floor.copy(), mid.copy()) if bounded else None
+        slopes = (MarginSlopes.bounding if bounded else MarginSlopes.at)(self.guarded, state)
+        if fused:
+            assert box is not None
+            error = self._raise_by_friction(state, bias, box.bounds, slopes, floor, mid)
+        else:
+            self._raise(state, error, slopes, floor, mid)
+        if base is None:
+            return None
 
-            def refine() -> None:
-                floor[:], mid[:] = base, base_mid
-                self._raise(state, error, MarginSlopes.at(self.guarded, state), floor, mid)
+        def refine() -> None:
+            floor[:], mid[:] = base
+            self._raise(state, error, MarginSlopes.at(self.guarded, state), floor, mid)
 
-            return refine
-        self._raise(state, error, MarginSlopes.at(self.guarded, state), floor, mid)
-        return None
+        return refine
 
     def _raise_by_friction(self, state: ArmState, bias: Array, bounds: tuple[Array, Array],
-                           floor: Array, mid: Array) -> Refine | None:
-        """:meth:`raise_floors` where the smooth Coulomb friction is the only error held and
-        the step has a torque box: the bound and the losses in one call
-        (cpbc.kernels.margin_losses.friction_floors: _error_bound's friction_error and
-        :meth:`_raise`'s margin_losses, the same sums)."""
-        model, bounded = self.model, self._bounded
-        coords, plant = model.coordinates, MUJOCO_FRICTION
-        slopes = (MarginSlopes.bounding if bounded else MarginSlopes.at)(self.guarded, state)
-        base, base_mid = (floor.copy(), mid.copy()) if bounded else (floor, mid)
+                           slopes: MarginSlopes, floor: Array, mid: Array) -> Array:
+        """The floors raised, in place, where the smooth Coulomb friction is the only error
+        held and the step has a torque box: the bound and the losses at ``slopes`` in one
+        call (cpbc.kernels.margin_losses.friction_floors: _error_bound's friction_error and
+        :meth:`_raise`'s margin_losses, the same sums). Returns the bound ā."""
+        model, coords, plant = self.model, self.model.coordinates, MUJOCO_FRICTION
         error = np.empty(model.n)
         friction_floors(state.inertia, coords.inverse, not coords.is_identity,
                         model.coulomb_friction, model.friction_smoothing, plant.build_up,
                         plant.creep, state.dx, bias, *bounds, self.period, self.travel,
                         slopes.configuration, slopes.weights, floor, mid, error)
-        if not bounded:
-            return None
-
-        def refine() -> None:
-            floor[:], mid[:] = base, base_mid
-            self._raise(state, error, MarginSlopes.at(self.guarded, state), floor, mid)
-
-        return refine
+        return error
 
     def _raise(self, state: ArmState, error: Array | None, slopes: MarginSlopes,
                floor: Array, mid: Array) -> None:
