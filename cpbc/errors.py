@@ -72,6 +72,24 @@ class ConstraintViolation(CpbcError):
         super().__init__(f"constraint '{constraint}' crossed its boundary (margin {margin:.3g})")
 
 
+class NonFiniteState(ConstraintViolation, ParameterError):
+    """A state handed to a law is not finite (a NaN or an infinity in ``x`` or ``dx``): a
+    ``ValueError`` naming the argument (``parameter``), as a bad argument is, and a
+    ConstraintViolation too, so that a loop that refuses a state outside S (the reference
+    integrator's trial stages, computed from NaN) refuses this one alike.
+
+    Attributes:
+        parameter: ``x`` or ``dx``.
+        constraint: the same name (what a loop reports as crossed).
+        margin: NaN.
+    """
+
+    def __init__(self, parameter: str, message: str) -> None:
+        self.parameter = self.constraint = parameter
+        self.margin = float("nan")
+        Exception.__init__(self, message)
+
+
 class ScenarioError(CpbcError):
     """A scenario file is invalid. ``field`` is the dotted path of the offending entry."""
 

@@ -70,3 +70,54 @@ def test_a_bad_state_names_its_argument_and_leaves_the_law_as_it_was(
 def test_a_non_number_is_named() -> None:
     with pytest.raises(ParameterError, match=r"x must be 2 finite numbers .* got \['a', 'b'\]"):
         measured(["a", "b"], [0.0, 0.0], 2)  # type: ignore[arg-type]
+
+
+def _no_rate_limits(setup):
+    """The scenario's CPBC with its configuration constraints only (no velocity margin to
+    refuse a NaN rate), guarded with and without a torque-rate limit of 1000 N·m/s."""
+    from cpbc.constraints.constraint_set import ConstraintSet
+    from cpbc.controllers.cpbc import CPBC
+    from cpbc.controllers.safeguard import SafeguardSettings, guarded
+    from cpbc.model.input_bounds import InputBounds
+
+    base = next(setup.controller(e) for e in setup.controllers
+                if setup.controller(e).type_name == "safeguard").law
+    law = CPBC(base.model, base.target,
+               ConstraintSet(base.model.n, base.constraints.configuration, []),
+               base.kp, base.kd, base.shaping)
+    limit = np.full(base.model.n, 80.0)
+    return [law] + [guarded(law, InputBounds(0.001, limit, rate), SafeguardSettings())
+                    for rate in (None, 1000.0)]
+
+
+@pytest.mark.parametrize("value", [np.nan, np.inf])
+@pytest.mark.parametrize("named", ["x", "dx"])
+def test_a_state_not_finite_is_named_and_leaves_the_law_as_it_was(panda, value, named):
+    """A NaN or ∞ in x or ẋ: NonFiniteState, a ValueError naming the argument and the
+    index, and a ConstraintViolation; no count moves and the next torque is the one the
+    law would have given without the bad call (a rate-limited guard's held torque kept).
+    Before, a law without velocity constraints returned NaN for a NaN rate, and its guard
+    under a rate limit a finite ramp, counted as acting."""
+    from cpbc.errors import ConstraintViolation, NonFiniteState
+
+    setup, s = panda
+    laws = [setup.controller(e) for e in setup.controllers] + _no_rate_limits(setup)
+    twins = [setup.controller(e) for e in setup.controllers] + _no_rate_limits(setup)
+    x, dx = s.position.copy(), s.velocity.copy()
+    (x if named == "x" else dx)[3] = value
+    for law, twin in zip(laws, twins, strict=True):
+        first, _ = law.torque(s.position, s.velocity), twin.torque(s.position, s.velocity)
+        np.testing.assert_array_equal(first, _)
+        for call in (law.torque, law.evaluate):
+            with pytest.raises(NonFiniteState, match=rf"^{named} must be 7 finite numbers "
+                               rf".* got {value} at index 3") as caught:
+                call(x, dx)
+            assert isinstance(caught.value, ValueError)
+            assert isinstance(caught.value, ConstraintViolation)
+            assert caught.value.parameter == named
+        if isinstance(law, Safeguard):
+            assert (law.calls, law.acted, law.infeasible) == (twin.calls, twin.acted,
+                                                              twin.infeasible)
+        after = s.position + 0.001 * s.velocity
+        np.testing.assert_array_equal(law.torque(after, s.velocity),
+                                      twin.torque(after, s.velocity))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING, ClassVar, NamedTuple
 
@@ -9,8 +10,8 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.errors import CpbcError, ParameterError
-from cpbc.model.measured_state import measured
+from cpbc.errors import ConstraintViolation, CpbcError, ParameterError
+from cpbc.model.measured_state import measured, not_finite, refuse_non_finite
 from cpbc.model.robot_model import ArmState, RobotModel
 
 if TYPE_CHECKING:
@@ -128,7 +129,8 @@ class Controller(ABC):
         """Generalised force τ, shape (n,), in controller coordinates.
 
         Raises:
-            ParameterError: ``x`` or ``dx`` is not n numbers (the law as it was).
+            ParameterError: ``x`` or ``dx`` is not n numbers, or not finite
+                (NonFiniteState); the law as it was.
         """
         return self._evaluation(x, dx).torque
 
@@ -144,7 +146,15 @@ class Controller(ABC):
     def _evaluation(self, x: Array, dx: Array) -> Evaluation:
         """The step at (x, ẋ) as a caller gives them (cpbc.model.measured_state)."""
         x, dx = measured(x, dx, self.model.n)
-        return self.evaluate_state(self.state(x, dx))
+        try:
+            out = self.evaluate_state(self.state(x, dx))
+        except ConstraintViolation as exc:  # a margin not finite: from a state not finite?
+            found = None if math.isfinite(exc.margin) else not_finite(x, dx)
+            if found is None:
+                raise
+            raise found from None
+        refuse_non_finite(out.torque, x, dx)
+        return out
 
     def check_admissible(self, x: Array, dx: Array, what: str) -> None:
         """Raise InadmissibleStateError if (x, ẋ) is outside this law's admissible set."""

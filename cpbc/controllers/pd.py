@@ -12,7 +12,7 @@ from cpbc.controllers.law_kind import LINEAR, LawInputs, LawKind
 from cpbc.controllers.law_specs import LawSpec
 from cpbc.controllers.potentials import Configuration, JointSpring, Potential, require_posture
 from cpbc.controllers.terms import StateDamping
-from cpbc.model.measured_state import measured
+from cpbc.model.measured_state import measured, refuse_non_finite
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -40,9 +40,12 @@ class PD(Controller):
     def torque(self, x: Array, dx: Array) -> Array:
         x, dx = measured(x, dx, self.model.n)
         if self.frames:
-            return self.evaluate_state(self.state(x, dx)).torque
-        _, grad = self.potential.evaluate(Configuration(x))
-        return self._law(grad, dx, self._bias(x, None))
+            tau = self.evaluate_state(self.state(x, dx)).torque
+        else:
+            _, grad = self.potential.evaluate(Configuration(x))
+            tau = self._law(grad, dx, self._bias(x, None))
+        refuse_non_finite(tau, x, dx)
+        return tau
 
     def lyapunov(self, x: Array, dx: Array) -> float:
         """L = ½ ẋᵀDẋ + U (eq. 6.7); non-increasing when gravity does no work."""
@@ -55,10 +58,13 @@ class PD(Controller):
         x, dx = measured(x, dx, self.model.n)
         if self.frames:
             out = self.evaluate_state(self.state(x, dx))
-            return out.torque, out.lyapunov
-        value, grad = self.potential.evaluate(Configuration(x))
-        tau = self._law(grad, dx, self._bias(x, None))
-        return tau, self.model.kinetic_energy(x, dx) + value
+            tau, value = out.torque, out.lyapunov
+        else:
+            value, grad = self.potential.evaluate(Configuration(x))
+            tau = self._law(grad, dx, self._bias(x, None))
+            value += self.model.kinetic_energy(x, dx)
+        refuse_non_finite(tau, x, dx)
+        return tau, value
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         dx = state.dx

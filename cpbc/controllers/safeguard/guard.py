@@ -33,6 +33,7 @@ from cpbc.controllers.safeguard.step_box import StepBox
 from cpbc.controllers.safeguard.step_budget import OutOfTests, StepBudget
 from cpbc.kernels.sampled_guard import floors
 from cpbc.model.input_bounds import InputBounds
+from cpbc.model.measured_state import refuse_non_finite
 from cpbc.model.robot_model import ArmState
 
 
@@ -220,8 +221,9 @@ class Safeguard(SafetyFilter):
 
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         """The guarded torque and the law's V at the per-step state; ConstraintViolation
-        outside S."""
+        outside S (NonFiniteState at a state that is not finite), the guard as it was."""
         out = self.law.evaluate_state(state, margins=True)  # raises outside S
+        refuse_non_finite(out.torque, state.x, state.dx)  # before the guard moves
         self.calls += 1
         if self.constraints.empty:
             return out
