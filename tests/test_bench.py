@@ -25,6 +25,12 @@ def test_bench_peers_times_guarded_law_and_cbf_qp_on_the_same_states(capsys) -> 
     out = json.loads(capsys.readouterr().out)
     assert {"cpbc", "cpbc_guarded", "cbf_qp"} <= set(out["torque_us"])
     assert all(out["torque_us"][k] > 0 for k in ("cpbc_guarded", "cbf_qp"))
+    # the guarded step against its bare law, timed in the same blocks (its own entry: the
+    # table's cpbc is the one timed beside PD + g)
+    beside = out["guarded_over_bare"]
+    assert "cpbc_bare" not in out["torque_us"]
+    assert beside["ratio_min"] <= beside["ratio"] <= beside["ratio_max"]
+    assert beside["guarded_us"] > beside["bare_us"] > 0  # the guard runs the law, and more
 
 
 def test_bench_check_fails_when_the_kernels_are_not_compiled() -> None:
