@@ -31,7 +31,7 @@ from cpbc.controllers import (
 )
 from cpbc.controllers.potentials import Configuration
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
-from cpbc.errors import ConstraintViolation, CpbcError
+from cpbc.errors import ConstraintViolation, CpbcError, ParameterError
 from cpbc.model import LinearCoordinates, RobotModel
 from cpbc.model.input_bounds import InputBounds
 from cpbc.resources import models_dir
@@ -292,6 +292,25 @@ def test_gain_validation(absolute_model: RobotModel, kwargs: dict, match: str) -
     gains = {"kp": 1.0, "kd": 1.0} | kwargs
     with pytest.raises(CpbcError, match=match):
         PD(absolute_model, np.zeros(2), **gains)
+
+
+@pytest.mark.parametrize(("target", "says"), [
+    ([0.1, float("nan")], "got nan at index 1"), ([0.1], r"got shape \(1,\)"),
+    ([0.0, float("-inf")], "got -inf at index 1")])
+def test_target_validation(absolute_model: RobotModel, target, says) -> None:
+    """A target that is not n finite numbers: a ValueError naming ``target`` (a NaN one was
+    taken, and every torque of the law was NaN)."""
+    with pytest.raises(ParameterError, match=rf"^target must be 2 finite numbers .*{says}"):
+        PD(absolute_model, np.array(target), 1.0, 1.0)
+
+
+def test_the_callers_target_is_not_frozen(absolute_model: RobotModel) -> None:
+    """The law keeps its own read-only copy: the caller's array stays writable (it was
+    made read-only in place)."""
+    mine = np.array([0.1, 0.2])
+    law = PD(absolute_model, mine, 1.0, 1.0)
+    mine[0] = 0.5
+    assert law.target[0] == 0.1 and not law.target.flags.writeable
 
 
 def test_law_specific_constraint_checks(absolute_model: RobotModel) -> None:

@@ -17,7 +17,7 @@ from cpbc.controllers import BPBC, Power, RecentredBarrier
 from cpbc.controllers.hold import hold_corrected
 from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings, guarded, viable
-from cpbc.errors import CpbcError
+from cpbc.errors import CpbcError, ParameterError
 from cpbc.model import RobotModel
 from cpbc.model.input_bounds import InputBounds
 from cpbc.reliability.campaign import (
@@ -211,11 +211,48 @@ def test_escape_pushes_off_one_limit_and_stops_the_joint_leaving_another(
 
 @pytest.mark.parametrize(
     "kwargs", [{"decay_rate": 0}, {"braking": -1}, {"cushion": 1.0}, {"substeps": 0},
-               {"backoffs": 0}, {"decay_rate": float("nan")}, {"brake_search": -1}],
+               {"backoffs": 0}, {"decay_rate": float("nan")}, {"brake_search": -1},
+               {"time_budget": -1e-4}, {"test_budget": 0}, {"rescue_budget": 0},
+               {"plant_step": float("inf")}, {"velocity_cushion": -0.1}],
 )
 def test_settings_are_checked(kwargs: dict) -> None:
-    with pytest.raises(CpbcError):
+    """A ValueError naming the setting (ParameterError), as a Python caller expects."""
+    with pytest.raises(ParameterError) as caught:
         SafeguardSettings(**kwargs)
+    (name,) = kwargs
+    assert isinstance(caught.value, ValueError) and caught.value.parameter == name
+    assert str(caught.value).startswith(f"safeguard {name} must be")
+
+
+@pytest.mark.parametrize("error", [-1.0, float("nan"), [1.0, 2.0, 3.0], [0.5, float("inf")]])
+def test_a_declared_model_error_is_checked(bpbc: BPBC, error: object) -> None:
+    """ā: one number or one per coordinate, finite and ≥ 0 — else a ValueError naming
+    model_error (a short vector stopped numpy's broadcast; a negative or NaN one passed)."""
+    with pytest.raises(ParameterError, match=r"^model_error must be one number or one per "
+                       r"coordinate \(2\)") as caught:
+        guarded(bpbc, InputBounds(0.002, 50.0), SafeguardSettings(), model_error=error)
+    assert caught.value.parameter == "model_error"
+
+
+@pytest.mark.parametrize(("tau", "added", "named"), [
+    ([float("nan"), 0.0], None, "tau"), ([1.0], None, "tau"), ([0.0, 0.0], [0.0, float("inf")],
+                                                                "added"),
+    ([0.0, 0.0], [0.0, 0.0, 0.0], "added")])
+def test_a_bad_held_torque_is_named_and_the_guard_is_as_it_was(bpbc: BPBC, tau, added,
+                                                               named) -> None:
+    """Safeguard.holding (a robot's loop tells the guard its torque every cycle): a torque
+    that is not n finite numbers is refused by name and the next step is the one the guard
+    would have made. Before, a short one was taken, and the step's box was read past its
+    end (uninitialised bounds)."""
+    bounds = InputBounds(0.002, 50.0, 2000.0)
+    x, dx = np.array([0.3, 0.4]), np.array([0.29, 0.1])
+    law, twin = Safeguard(bpbc, bounds), Safeguard(bpbc, bounds)
+    np.testing.assert_array_equal(law.torque(x, dx), twin.torque(x, dx))
+    with pytest.raises(ParameterError, match=rf"^{named} must be 2 finite numbers") as caught:
+        law.holding(np.array(tau), None if added is None else np.array(added))
+    assert caught.value.parameter == named
+    later = x + 0.002 * dx
+    np.testing.assert_array_equal(law.torque(later, dx), twin.torque(later, dx))
 
 
 def test_period_is_checked(bpbc: BPBC) -> None:

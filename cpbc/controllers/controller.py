@@ -10,8 +10,13 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.errors import ConstraintViolation, CpbcError, ParameterError
-from cpbc.model.measured_state import measured, not_finite, refuse_non_finite
+from cpbc.errors import ConstraintViolation, ParameterError
+from cpbc.model.measured_state import (
+    finite_numbers,
+    measured,
+    not_finite,
+    refuse_non_finite,
+)
 from cpbc.model.robot_model import ArmState, RobotModel
 
 if TYPE_CHECKING:
@@ -86,9 +91,8 @@ class Controller(ABC):
     def __init__(
         self, model: RobotModel, target: Array, constraints: ConstraintSet | None = None
     ) -> None:
-        target = np.asarray(target, dtype=float)
-        if target.shape != (model.n,):
-            raise CpbcError(f"target must have {model.n} entries, got shape {target.shape}")
+        # a copy: the caller's array is not made read-only with it
+        target = finite_numbers(target, model.n, "target", "the set-point, one per coordinate")
         self.model = model
         self.target = target
         self.target.setflags(write=False)

@@ -57,6 +57,18 @@ def numbers(value: object, size: int, name: str, meaning: str, copy: bool = Fals
 
 
 
+def finite_numbers(value: object, size: int, name: str, meaning: str) -> Array:
+    """``value`` as a new float64 vector of ``size`` finite numbers, or a ParameterError
+    naming ``name`` (``meaning`` says what they are)."""
+    found = numbers(value, size, name, meaning, copy=True)
+    total = found.dot(found)  # NaN or ∞ only from a NaN or ∞ (or a sum past 1e308)
+    bad = np.flatnonzero(~np.isfinite(found)) if not total - total == 0.0 else found[:0]
+    if bad.size:
+        raise ParameterError(name, f"{name} must be {size} finite numbers ({meaning}), got "
+                                   f"{found[bad[0]]} at index {bad[0]}")
+    return found
+
+
 def refuse_non_finite(tau: Array, x: Array, dx: Array) -> None:
     """Raise NonFiniteState naming ``x`` or ``dx`` when the torque ``tau`` is not finite
     because the state is not (a torque that is not finite at a finite state is the law's to

@@ -31,9 +31,10 @@ from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_s
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.controllers.safeguard.step_box import StepBox
 from cpbc.controllers.safeguard.step_budget import OutOfTests, StepBudget
+from cpbc.errors import ParameterError
 from cpbc.kernels.sampled_guard import floors
 from cpbc.model.input_bounds import InputBounds
-from cpbc.model.measured_state import refuse_non_finite
+from cpbc.model.measured_state import finite_numbers, refuse_non_finite
 from cpbc.model.robot_model import ArmState
 
 
@@ -71,9 +72,20 @@ def guarded(
         return law.restarted()
     if settings is None or law.constraints.empty:
         return law
-    error = None if model_error is None else np.broadcast_to(
-        np.asarray(model_error, dtype=float), (law.model.n,))
-    return Safeguard(law, bounds, settings, also_keep, error, declared)
+    return Safeguard(law, bounds, settings, also_keep, model_error, declared)
+
+
+def _acceleration_bound(value: Array | float, n: int) -> Array:
+    """ā as n finite numbers ≥ 0 (one number for every coordinate), or a ParameterError
+    naming ``model_error``."""
+    found = np.asarray(value, dtype=float)
+    if found.ndim == 0:
+        found = np.full(n, float(found))
+    if found.shape != (n,) or not np.all(np.isfinite(found)) or np.any(found < 0):
+        raise ParameterError("model_error", "model_error must be one number or one per "
+                             f"coordinate ({n}), finite and ≥ 0 [rad/s² or m/s²], got "
+                             f"{np.asarray(value).tolist()}")
+    return found
 
 
 class Safeguard(SafetyFilter):
@@ -132,7 +144,7 @@ class Safeguard(SafetyFilter):
         bounds: InputBounds,
         settings: SafeguardSettings | None = None,
         also_keep: Sequence[ConfigurationConstraint] = (),
-        model_error: Array | None = None,
+        model_error: Array | float | None = None,
         declared: DeclaredError | None = None,
     ) -> None:
         super().__init__(law.model, law.target, law.constraints)
@@ -170,7 +182,8 @@ class Safeguard(SafetyFilter):
         self._n_own_config = own.n_configuration
         self.box = StepBox(law.model, bounds)
         torque_limit, self.rate_limit = self.box.torque_limit, self.box.rate_limit
-        self.model_error = None if model_error is None else np.asarray(model_error, float)
+        self.model_error = None if model_error is None else _acceleration_bound(
+            model_error, law.model.n)
         self.declared = declared
         self.errors = ErrorFloors(self.guarded, law.model, self.box, self.model_error,
                                   declared, self.period, self.travel, self.cushion)
@@ -245,8 +258,12 @@ class Safeguard(SafetyFilter):
         otherwise, and at its first step the gravity torque of its first state (an arm held
         at rest; a Franka's own gravity compensation). ``added``: the torque the robot adds
         to every command itself at this state (a Franka's gravity compensation), whose box
-        then bounds the command, τ − added, not τ: the guard's box moves by it."""
-        self.box.hold(tau, added)
+        then bounds the command, τ − added, not τ: the guard's box moves by it. A ParameterError
+        names either when it is not n finite numbers (the guard as it was)."""
+        n = self.model.n
+        held = finite_numbers(tau, n, "tau", "the torque held, one per coordinate")
+        self.box.hold(held, None if added is None else finite_numbers(
+            added, n, "added", "the torque the robot adds, one per coordinate"))
 
     def _rate_limited(self, state: ArmState, law: Array, law_margins: Array) -> Array:
         """The guard's step inside the box one step can reach from the held torque: every

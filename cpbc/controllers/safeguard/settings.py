@@ -10,7 +10,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.errors import CpbcError
+from cpbc.errors import ParameterError
 
 # the rescue's default budget [model periods per control period]: none. A budget bounds the
 # guard's worst step, but commits to brakes whose checks are still going on, and that broke
@@ -97,27 +97,21 @@ class SafeguardSettings:
         for name in ("decay_rate", "braking"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
-                raise CpbcError(f"safeguard {name} must be > 0, got {v}")
+                _refuse(name, "> 0", v)
         for name in ("cushion", "velocity_cushion"):
             v = getattr(self, name)
             if v is not None and not (math.isfinite(v) and 0 <= v < 1):
-                raise CpbcError(f"safeguard {name} must be in [0, 1), got {v}")
-        if self.plant_step is not None and not (math.isfinite(self.plant_step)
-                                                and self.plant_step > 0):
-            raise CpbcError(f"safeguard plant_step must be > 0, got {self.plant_step}")
-        if self.substeps < 1 or self.backoffs < 1:
-            raise CpbcError("safeguard substeps and backoffs must be ≥ 1")
+                _refuse(name, "in [0, 1)", v)
+        for name in ("plant_step", "time_budget", "max_step"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and v > 0):
+                _refuse(name, "> 0 [s]", v)
+        for name in ("substeps", "backoffs", "rescue_budget", "test_budget"):
+            v = getattr(self, name)
+            if v is not None and v < 1:
+                _refuse(name, "≥ 1", v)
         if self.brake_search < 0:
-            raise CpbcError(f"safeguard brake_search must be ≥ 0, got {self.brake_search}")
-        if self.rescue_budget is not None and self.rescue_budget < 1:
-            raise CpbcError(f"safeguard rescue_budget must be ≥ 1, got {self.rescue_budget}")
-        if self.time_budget is not None and not (math.isfinite(self.time_budget)
-                                                 and self.time_budget > 0):
-            raise CpbcError(f"safeguard time_budget must be > 0 s, got {self.time_budget}")
-        if self.test_budget is not None and self.test_budget < 1:
-            raise CpbcError(f"safeguard test_budget must be ≥ 1, got {self.test_budget}")
-        if not (math.isfinite(self.max_step) and self.max_step > 0):
-            raise CpbcError(f"safeguard max_step must be > 0, got {self.max_step}")
+            _refuse("brake_search", "≥ 0", self.brake_search)
 
     def steps_for(self, period: float) -> int:
         """Prediction sub-steps for a control period."""
@@ -140,3 +134,8 @@ def viable(constraints: ConstraintSet, x: Array, dx: Array, period: float) -> bo
         return True
     probe = x + 0.25 * period * dx
     return bool(np.all(constraints.configuration_margins(probe) > 0))
+
+
+def _refuse(name: str, rule: str, value: object) -> None:
+    """A ParameterError (a ValueError) naming the setting."""
+    raise ParameterError(name, f"safeguard {name} must be {rule}, got {value}")

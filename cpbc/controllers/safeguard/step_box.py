@@ -75,9 +75,10 @@ class StepBox:
 
     def hold(self, tau: Array, added: Array | None = None) -> None:
         """The torque the actuators hold now, and the torque the robot adds to every command
-        itself (its box then bounds τ − added): :meth:`Safeguard.holding`."""
-        self.holding = np.array(tau, dtype=float)
-        self._added = None if added is None else np.array(added, dtype=float)
+        itself (its box then bounds τ − added): :meth:`Safeguard.holding`, which hands in
+        fresh float vectors, kept as they are."""
+        self.holding = tau
+        self._added = added
 
     def begin(self, state: ArmState) -> None:
         """This step's box under a rate limit: the torque box (moved by what the robot adds)
