@@ -22,7 +22,13 @@ from cpbc.constraints import (
     joint_position_limit,
     joint_rate_limit,
 )
-from cpbc.errors import ConstraintViolation, CpbcError, InadmissibleStateError, ModelError
+from cpbc.errors import (
+    ConstraintViolation,
+    CpbcError,
+    InadmissibleStateError,
+    ModelError,
+    ParameterError,
+)
 from cpbc.model import RobotModel
 
 REL = 17 * math.pi / 18  # the relative-joint limit of Section 6.4
@@ -184,24 +190,45 @@ def test_linear_limit_arrays_are_read_only():
 
 
 @pytest.mark.parametrize(
-    ("lower", "upper", "match"),
+    ("lower", "upper", "match", "named"),
     [
-        ([1.0], [1.0], "lower < upper"),
-        ([2.0], [1.0], "lower < upper"),
-        ([np.nan], [1.0], "finite"),
-        ([-np.inf], [1.0], "finite"),
-        ([0.0, 0.0], [1.0, 1.0], "agree"),
-        ([0.0], [1.0, 2.0], "agree"),
+        ([1.0], [1.0], "lower < upper", "upper"),
+        ([2.0], [1.0], "lower < upper", "upper"),
+        ([np.nan], [1.0], "finite", "lower"),
+        ([-np.inf], [1.0], "finite", "lower"),
+        ([0.0], [np.inf], "finite", "upper"),
+        ([0.0, 0.0], [1.0, 1.0], "agree", "lower"),
+        ([0.0], [1.0, 2.0], "agree", "upper"),
     ],
 )
-def test_linear_limit_rejects_bad_bounds(lower, upper, match):
-    with pytest.raises(CpbcError, match=match):
+def test_linear_limit_rejects_bad_bounds(lower, upper, match, named):
+    """A ValueError naming the argument at fault (ParameterError)."""
+    with pytest.raises(ParameterError, match=match) as caught:
         LinearLimit([[1.0, 0.0]], lower, upper, ["a"])
+    assert isinstance(caught.value, ValueError) and caught.value.parameter == named
 
 
 def test_linear_limit_rejects_wrong_number_of_names():
-    with pytest.raises(CpbcError, match="agree"):
+    with pytest.raises(ParameterError, match="agree") as caught:
         LinearLimit([[1.0, 0.0], [0.0, 1.0]], [0, 0], [1, 1], ["only_one"])
+    assert caught.value.parameter == "names"
+
+
+@pytest.mark.parametrize("bounds", [[-1.0, 1.0], [np.nan, 1.0], [0.0, 1.0], [np.inf, 1.0], [1.0]])
+def test_rate_limit_rejects_bad_bounds(bounds):
+    with pytest.raises(ParameterError, match="rate limit") as caught:
+        joint_rate_limit(bounds, ["a", "b"]) if len(bounds) == 2 else RateLimit(
+            np.eye(2), bounds, ["a", "b"])
+    assert caught.value.parameter == "bounds"
+
+
+def test_a_set_refuses_a_limit_of_another_arm():
+    """A limit with rows of 2 coordinates in a set of 3 (it was taken, and its margins and
+    gradients were of the wrong width for the law that read them)."""
+    with pytest.raises(ParameterError, match="rows of 2 coordinates; the set's arm has 3"):
+        ConstraintSet(3, [joint_position_limit([0.0, 0.0], [1.0, 1.0], ["a", "b"])])
+    with pytest.raises(ParameterError, match="rows of 2 coordinates; the set's arm has 3"):
+        ConstraintSet(3, velocity=[joint_rate_limit([1.0, 1.0], ["a", "b"])])
 
 
 # == PointOutsideSphere ==========================================================================

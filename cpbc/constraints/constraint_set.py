@@ -12,7 +12,7 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.packing import Packed, PackedSet
 from cpbc.constraints.python_terms import PythonTerms
-from cpbc.errors import ConstraintViolation, CpbcError, InadmissibleStateError
+from cpbc.errors import ConstraintViolation, CpbcError, InadmissibleStateError, ParameterError
 from cpbc.kernels.barrier_set import RATE, set_barrier
 from cpbc.kernels.barriers import log_sum
 from cpbc.model.robot_model import ArmState, RobotModel
@@ -77,6 +77,12 @@ class ConstraintSet:
         self.n = n
         self.configuration = tuple(configuration)
         self.velocity = tuple(velocity)
+        for field, group in (("configuration", self.configuration), ("velocity", self.velocity)):
+            for c in group:
+                rows = getattr(c, "rows", None)  # a linear or rate limit's a (k × n)
+                if rows is not None and rows.shape[1] != n:
+                    raise ParameterError(field, f"constraint '{c.names[0]}' has rows of "
+                                         f"{rows.shape[1]} coordinates; the set's arm has {n}")
         self.names: tuple[str, ...] = tuple(
             [name for c in self.configuration for name in c.names]
             + [name for v in self.velocity for name in v.names])

@@ -12,7 +12,7 @@ from cpbc.constraints.constraint_kind import ConstraintEntrySpec, ConstraintInpu
 from cpbc.constraints.constraint_types import VelocityConstraint
 from cpbc.constraints.margins import ENERGY
 from cpbc.constraints.packing import Packed
-from cpbc.errors import CpbcError
+from cpbc.errors import CpbcError, ParameterError
 from cpbc.kernels.barriers import kinetic_energy_terms, pack_kinetic_energy_limit
 from cpbc.model.robot_model import ArmState, RobotModel
 from cpbc.spec.fields import Positive
@@ -33,7 +33,8 @@ class KineticEnergyLimit(VelocityConstraint):
 
     def __init__(self, model: RobotModel, limit: float, name: str = "kinetic_energy") -> None:
         if not (np.isfinite(limit) and limit > 0):
-            raise CpbcError(f"kinetic energy limit must be finite and > 0, got {limit}")
+            raise ParameterError("limit", f"kinetic energy limit must be finite and > 0, got "
+                                          f"{limit}")
         self.model = model
         self.limit = float(limit)
         self.names = (name,)

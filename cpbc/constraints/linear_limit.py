@@ -19,7 +19,7 @@ from cpbc.constraints.constraint_kind import (
 from cpbc.constraints.constraint_types import ConfigurationConstraint
 from cpbc.constraints.margins import POSITION, MarginType, headroom, row_types
 from cpbc.constraints.packing import Packed
-from cpbc.errors import CpbcError
+from cpbc.errors import ParameterError
 from cpbc.kernels.barriers import LINEAR_CONSTANTS, linear_limit_terms, pack_linear_limit
 from cpbc.model.robot_model import ArmState
 from cpbc.spec.fields import Vector
@@ -58,14 +58,20 @@ class LinearLimit(ConfigurationConstraint):
         upper = np.atleast_1d(np.asarray(upper, dtype=float))
         k = rows.shape[0]
         if lower.shape != (k,) or upper.shape != (k,) or len(names) != k:
-            raise CpbcError(
-                f"linear limit: rows {rows.shape}, lower {lower.shape}, upper {upper.shape} "
+            wrong = "lower" if lower.shape != (k,) else "upper" if upper.shape != (k,) else "names"
+            raise ParameterError(
+                wrong, f"linear limit: rows {rows.shape}, lower {lower.shape}, upper {upper.shape} "
                 f"and {len(names)} names do not agree"
             )
-        if not np.all(np.isfinite(lower)) or not np.all(np.isfinite(upper)):
-            raise CpbcError("linear limit bounds must be finite")
+        for name, bound in (("lower", lower), ("upper", upper)):
+            if not np.all(np.isfinite(bound)) or not np.all(np.isfinite(rows)):
+                raise ParameterError(name if np.all(np.isfinite(rows)) else "rows",
+                                     f"linear limit bounds and rows must be finite, got "
+                                     f"{name} {bound.tolist()}")
         if np.any(lower >= upper):
-            raise CpbcError("linear limit needs lower < upper on every row")
+            i = int(np.argmax(lower >= upper))
+            raise ParameterError("upper", f"linear limit needs lower < upper on every row: "
+                                          f"{names[i]} has lower {lower[i]}, upper {upper[i]}")
         self.rows = rows
         self.lower = lower
         self.upper = upper

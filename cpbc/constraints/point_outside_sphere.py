@@ -18,7 +18,7 @@ from cpbc.constraints.constraint_kind import (
 from cpbc.constraints.constraint_types import ConfigurationConstraint
 from cpbc.constraints.margins import CLEARANCE
 from cpbc.constraints.packing import Packed
-from cpbc.errors import CpbcError, ScenarioError
+from cpbc.errors import CpbcError, ParameterError, ScenarioError
 from cpbc.kernels.barriers import (
     POINT_CONSTANTS,
     pack_point_sphere,
@@ -62,10 +62,11 @@ class PointOutsideSphere(ConfigurationConstraint):
         name: str | None = None,
     ) -> None:
         if not (np.isfinite(radius) and radius > 0):
-            raise CpbcError(f"obstacle radius must be finite and > 0, got {radius}")
+            raise ParameterError("radius", f"obstacle radius must be finite and > 0, got {radius}")
         centre = np.asarray(centre, dtype=float)
         if centre.shape != (3,) or not np.all(np.isfinite(centre)):
-            raise CpbcError(f"obstacle centre must be 3 finite numbers, got {centre.tolist()}")
+            raise ParameterError("centre", f"obstacle centre must be 3 finite numbers, got "
+                                           f"{centre.tolist()}")
         self.model = model
         self.frame_id = model.frame_id(frame)
         self.frames = (self.frame_id,)

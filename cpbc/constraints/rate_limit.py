@@ -19,7 +19,7 @@ from cpbc.constraints.constraint_kind import (
 from cpbc.constraints.constraint_types import VelocityConstraint
 from cpbc.constraints.margins import RATE, MarginType, headroom, row_types
 from cpbc.constraints.packing import Packed
-from cpbc.errors import CpbcError
+from cpbc.errors import ParameterError
 from cpbc.kernels.barriers import RATE_CONSTANTS, pack_rate_limit, rate_limit_terms
 from cpbc.model.robot_model import ArmState
 from cpbc.spec.fields import Positive, Vector
@@ -51,9 +51,13 @@ class RateLimit(VelocityConstraint):
         rows = np.atleast_2d(np.asarray(rows, dtype=float))
         bounds = np.atleast_1d(np.asarray(bounds, dtype=float))
         if bounds.shape != (rows.shape[0],) or len(names) != rows.shape[0]:
-            raise CpbcError(f"rate limit: {rows.shape[0]} rows but bounds of shape {bounds.shape}")
+            raise ParameterError(
+                "bounds" if len(names) == rows.shape[0] else "names",
+                f"rate limit: {rows.shape[0]} rows, bounds of shape {bounds.shape} and "
+                f"{len(names)} names do not agree")
         if not np.all(np.isfinite(bounds)) or np.any(bounds <= 0):
-            raise CpbcError("rate limit bounds must be finite and > 0")
+            raise ParameterError("bounds", f"rate limit bounds must be finite and > 0, got "
+                                           f"{bounds.tolist()}")
         self.rows = rows
         self.bounds = bounds
         self.names = tuple(names)
@@ -62,7 +66,7 @@ class RateLimit(VelocityConstraint):
         unit = (np.count_nonzero(rows, axis=1) == 1) & np.isclose(np.abs(rows).sum(axis=1), 1.0)
         self._joint_index = np.argmax(np.abs(rows), axis=1) if np.all(unit) else None
         if self._joint_index is not None and len(set(self._joint_index.tolist())) != len(bounds):
-            raise CpbcError("rate limit: a joint is bounded twice in one constraint")
+            raise ParameterError("rows", "rate limit: a joint is bounded twice in one constraint")
         self._weights = np.einsum("ki,kj->kij", rows, rows)
         for a in (self.rows, self.bounds, self._weights):
             a.setflags(write=False)

@@ -93,6 +93,9 @@ class Controller(ABC):
     ) -> None:
         # a copy: the caller's array is not made read-only with it
         target = finite_numbers(target, model.n, "target", "the set-point, one per coordinate")
+        if constraints is not None and constraints.n != model.n:
+            raise ParameterError("constraints", f"constraints are of an arm of {constraints.n} "
+                                 f"coordinates; the model has {model.n}")
         self.model = model
         self.target = target
         self.target.setflags(write=False)
