@@ -245,7 +245,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("scenario", nargs="+",
                    help="scenario files or names of shipped ones (each is its own campaign)")
     p.add_argument("--states", type=int, default=100, help="initial states (default 100)")
-    p.add_argument("--rates", default="1000,500,100", help="control rates [Hz]")
+    p.add_argument("--rates", default="1000,500,100",
+                   help="control rates [Hz], separated by commas (default 1000,500,100)")
     p.add_argument("--horizon", type=float, default=0.5, help="seconds per run (default 0.5)")
     p.add_argument("--seed", type=int, default=0, help="state i is drawn with seed + i")
     p.add_argument("--seeds", help="run only these state seeds (to reproduce failures)")

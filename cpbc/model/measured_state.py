@@ -56,16 +56,14 @@ def numbers(value: object, size: int, name: str, meaning: str, copy: bool = Fals
     return found
 
 
-
 def finite_numbers(value: object, size: int, name: str, meaning: str) -> Array:
     """``value`` as a new float64 vector of ``size`` finite numbers, or a ParameterError
     naming ``name`` (``meaning`` says what they are)."""
     found = numbers(value, size, name, meaning, copy=True)
     total = found.dot(found)  # NaN or ∞ only from a NaN or ∞ (or a sum past 1e308)
-    bad = np.flatnonzero(~np.isfinite(found)) if not total - total == 0.0 else found[:0]
-    if bad.size:
-        raise ParameterError(name, f"{name} must be {size} finite numbers ({meaning}), got "
-                                   f"{found[bad[0]]} at index {bad[0]}")
+    said = None if total - total == 0.0 else _not_finite(found, name, meaning)
+    if said is not None:
+        raise ParameterError(name, said)
     return found
 
 
@@ -84,9 +82,16 @@ def refuse_non_finite(tau: Array, x: Array, dx: Array) -> None:
 def not_finite(x: Array, dx: Array) -> NonFiniteState | None:
     """The error that names the first of ``x``, ``dx`` that is not finite, or None."""
     for name, value in (("x", x), ("dx", dx)):
-        bad = np.flatnonzero(~np.isfinite(value))
-        if bad.size:
-            return NonFiniteState(name, f"{name} must be {len(value)} finite numbers "
-                                        f"({_MEANING[name]}), got {value[bad[0]]} at index "
-                                        f"{bad[0]}")
+        said = _not_finite(value, name, _MEANING[name])
+        if said is not None:
+            return NonFiniteState(name, said)
     return None
+
+
+def _not_finite(value: Array, name: str, meaning: str) -> str | None:
+    """What is wrong with ``value`` when an entry is not finite (the first), else None."""
+    bad = np.flatnonzero(~np.isfinite(value))
+    if not bad.size:
+        return None
+    return (f"{name} must be {len(value)} finite numbers ({meaning}), got {value[bad[0]]} at "
+            f"index {bad[0]}")
