@@ -63,11 +63,10 @@ class LinearLimit(ConfigurationConstraint):
                 wrong, f"linear limit: rows {rows.shape}, lower {lower.shape}, upper {upper.shape} "
                 f"and {len(names)} names do not agree"
             )
-        for name, bound in (("lower", lower), ("upper", upper)):
-            if not np.all(np.isfinite(bound)) or not np.all(np.isfinite(rows)):
-                raise ParameterError(name if np.all(np.isfinite(rows)) else "rows",
-                                     f"linear limit bounds and rows must be finite, got "
-                                     f"{name} {bound.tolist()}")
+        for name, given in (("rows", rows), ("lower", lower), ("upper", upper)):
+            if not np.all(np.isfinite(given)):
+                raise ParameterError(name, f"linear limit {name} must be finite, got "
+                                           f"{given.tolist()}")
         if np.any(lower >= upper):
             i = int(np.argmax(lower >= upper))
             raise ParameterError("upper", f"linear limit needs lower < upper on every row: "
