@@ -12,7 +12,7 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.errors import ConstraintViolation, ParameterError
 from cpbc.model.measured_state import (
-    finite_numbers,
+    finite_vector,
     measured,
     not_finite,
     refuse_non_finite,
@@ -92,7 +92,7 @@ class Controller(ABC):
         self, model: RobotModel, target: Array, constraints: ConstraintSet | None = None
     ) -> None:
         # a copy: the caller's array is not made read-only with it
-        target = finite_numbers(target, model.n, "target", "the set-point, one per coordinate")
+        target = finite_vector(target, model.n, "target", "the set-point, one per coordinate")
         if constraints is not None and constraints.n != model.n:
             raise ParameterError("constraints", f"constraints are of an arm of {constraints.n} "
                                  f"coordinates; the model has {model.n}")

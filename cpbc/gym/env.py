@@ -34,9 +34,9 @@ from cpbc.gym.actions import (
     PoseDelta,
     PositionDelta,
 )
+from cpbc.model.measured_state import finite_vector
 from cpbc.model.robot_model import RobotModel
 from cpbc.reference.governor import GovernorSettings
-from cpbc.reference.stream_checks import finite_vector
 from cpbc.reference.tracker import ReferenceTracker, tracking
 from cpbc.scenario import ScenarioSetup, build, load_scenario
 from cpbc.scenario.arm_setup import ControllerEntry

@@ -54,11 +54,12 @@ def numbers(value: object, size: int, name: str, meaning: str, copy: bool = Fals
     return found
 
 
-def finite_numbers(value: object, size: int, name: str, meaning: str) -> Array:
+def finite_vector(value: object, size: int, name: str, meaning: str) -> Array:
     """``value`` as a new float64 vector of ``size`` finite numbers, or a ParameterError
-    naming ``name`` (``meaning`` says what they are)."""
+    naming ``name`` (``meaning`` says what they are: units, frame): what builds or steers a
+    law takes (a target, a held torque, a streamed target, a policy's action)."""
     found = numbers(value, size, name, meaning, copy=True)
-    total = found.dot(found)  # NaN or ∞ only from a NaN or ∞ (or a sum past 1e308)
+    total = sum(found.tolist())  # NaN or ±∞ only from a NaN or ∞ (or a sum past 1e308)
     said = None if total - total == 0.0 else _not_finite(found, name, meaning)
     if said is not None:
         raise ParameterError(name, said)

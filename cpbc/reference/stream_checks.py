@@ -7,21 +7,9 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from cpbc.arrays import Array
 from cpbc.errors import ParameterError
-from cpbc.model.measured_state import numbers
-
-
-def finite_vector(value: object, size: int, name: str, meaning: str) -> Array:
-    """``value`` as a new float array of ``size`` finite numbers; ``meaning`` says what they
-    are (units, frame) in the message when it is not."""
-    a = numbers(value, size, name, meaning, copy=True)
-    if not np.all(np.isfinite(a)):
-        raise ParameterError(name, f"{name} must be {size} finite numbers ({meaning}), got "
-                                   f"{a.tolist()}")
-    return a
+from cpbc.model.measured_state import finite_vector
 
 
 def positive_period(period: object) -> float:

@@ -25,12 +25,13 @@ from cpbc.arrays import Array
 from cpbc.controllers.controller import Controller, Evaluation, SafetyFilter
 from cpbc.controllers.potentials import FrameAxisSpring, FrameOrientationSpring
 from cpbc.errors import ParameterError
+from cpbc.model.measured_state import finite_vector
 from cpbc.model.robot_model import ArmState, RobotModel
 from cpbc.reference.governor import GovernorSettings, PathGovernor
 from cpbc.reference.holding import holding_constraint
 from cpbc.reference.plan import ReferencePlan, log_norm
 from cpbc.reference.rotations import angle_between, rotation_matrix, turned_toward
-from cpbc.reference.stream_checks import finite_vector, positive_period, state_vector
+from cpbc.reference.stream_checks import positive_period, state_vector
 from cpbc.reference.target import Follower, MovingTarget, Steered, steer
 
 REACHED = 0.01  # [m]: a frame this close to its streamed point has reached it

@@ -34,7 +34,7 @@ from cpbc.controllers.safeguard.step_budget import OutOfTests, StepBudget
 from cpbc.errors import ParameterError
 from cpbc.kernels.sampled_guard import floors
 from cpbc.model.input_bounds import InputBounds
-from cpbc.model.measured_state import finite_numbers, refuse_non_finite
+from cpbc.model.measured_state import finite_vector, refuse_non_finite
 from cpbc.model.robot_model import ArmState
 
 
@@ -261,8 +261,8 @@ class Safeguard(SafetyFilter):
         then bounds the command, τ − added, not τ: the guard's box moves by it. A ParameterError
         names either when it is not n finite numbers (the guard as it was)."""
         n = self.model.n
-        held = finite_numbers(tau, n, "tau", "the torque held, one per coordinate")
-        self.box.hold(held, None if added is None else finite_numbers(
+        held = finite_vector(tau, n, "tau", "the torque held, one per coordinate")
+        self.box.hold(held, None if added is None else finite_vector(
             added, n, "added", "the torque the robot adds, one per coordinate"))
 
     def _rate_limited(self, state: ArmState, law: Array, law_margins: Array) -> Array:
