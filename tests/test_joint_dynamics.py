@@ -47,6 +47,30 @@ def test_pinocchio_inertia_with_armature_equals_mujoco_full_m() -> None:
         np.testing.assert_allclose(model.forward_dynamics(q, dq, tau), data.qacc, atol=1e-8)
 
 
+def test_a_light_wrist_meets_its_whole_dry_friction_while_it_slides() -> None:
+    """The xArm7's last joint (a link of 1.4e-4 kg·m²) with 0.01 kg·m² of rotor inertia and
+    2 N·m of Coulomb friction, sliding at 1.5 rad/s and pushed along by its friction's level
+    (as a brake that cancels the model's friction pushes it): MuJoCo's frictionloss opposes
+    it with its whole level, as it does where the MJCF declares the armature. With the
+    constants MuJoCo derived at compile time (no armature) it gave 0.39 N·m."""
+    arm = load_arm("xarm7")
+    joints = JointDynamics(np.array([0.05, 0.05, 0.03, 0.03, 0.01, 0.01, 0.01]),
+                           np.zeros(7), np.array([0.5, 0.5, 0.4, 0.4, 2.0, 2.0, 2.0]))
+    plant = arm.mujoco_model()
+    joints.on_mujoco(plant)
+    spec = arm.mujoco_spec()
+    for joint, armature in zip(spec.joints, joints.armature, strict=True):
+        joint.armature = armature
+    declared = spec.compile()
+    np.testing.assert_allclose(plant.dof_invweight0, declared.dof_invweight0, rtol=1e-9)
+    data = mujoco.MjData(plant)
+    data.qpos[:] = [0.0, -0.5, 0.0, 0.8, 0.0, 1.0, 0.0]
+    data.qvel[6] = 1.5
+    data.qfrc_applied[6] = 2.0
+    mujoco.mj_forward(plant, data)
+    assert data.qfrc_constraint[6] == pytest.approx(-2.0, abs=1e-3)
+
+
 def test_armature_is_copied_not_set_on_the_given_model() -> None:
     arm = load_arm("panda")
     JointDynamics(FR3_ARMATURE, np.zeros(7), np.zeros(7)).on_pinocchio(arm.model)

@@ -98,6 +98,11 @@ class JointDynamics:
         plant.dof_armature[:] = self.armature
         plant.dof_damping[:] = self.viscous
         plant.dof_frictionloss[:] = self.coulomb
+        # the constants MuJoCo derives from the inertia at compile time, dof_invweight0 among
+        # them: it sets how soon a joint's frictionloss builds up (its constraint's
+        # regulariser). Left at the compiled value, the xArm7's last joint (0.01 kg·m² of
+        # armature added to a link of 1.4e-4) slid at 1.5 rad/s under 0.26 of its 2 N·m.
+        mujoco.mj_setConst(plant, mujoco.MjData(plant))
 
     def summary(self) -> dict[str, list[float]]:
         """The values as a summary reports them: ``armature``, ``coulomb``, ``viscous``."""
