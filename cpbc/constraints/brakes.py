@@ -4,7 +4,8 @@ Under bounded torque |τ_q| ≤ L a state of S is worth promising only if some t
 can bring the arm to rest before every boundary. No closed form says which states can; a
 *brake* — a feedback torque held for one control period at a time — held until the arm rests
 says it for one state by construction. Three brakes, each computed from the model at the sample
-(D, b = C ẋ + g + f, controller coordinates, τ = T⁻ᵀ τ_q) and held over the period h:
+(D, b = C ẋ + g + F_d ẋ: not the dry friction, :func:`holding_bias`; controller coordinates,
+τ = T⁻ᵀ τ_q) and held over the period h:
 
 * the **uniform** brake, b − D ẋ/h scaled toward b until it fits the box
   (:meth:`TorqueBox.toward`): ẍ = −t ẋ/h, every coordinate slowed in proportion to its speed
@@ -157,6 +158,19 @@ class TorqueBox:
 Brake = Callable[[ArmState, Array, float], Array]
 
 
+def holding_bias(model: RobotModel, state: ArmState) -> Array:
+    """The b a brake holds against: C ẋ + g + F_d ẋ, without the model's dry friction.
+    Dry friction only opposes the motion, so it only helps a brake; cancelling the model's
+    smooth F_c tanh(q̇/ε) pushes a joint along its motion wherever the plant's friction is
+    less than the model's — at low speed MuJoCo's frictionloss is (it opposes the rate
+    1/b ahead): every brake held the xArm7's wrist, 2 N·m of friction on 0.01 kg·m² of
+    rotor, creeping at 0.1 rad/s for good, and no state was stoppable."""
+    bias = state.coriolis_force + state.gravity
+    if model.has_friction:
+        bias = bias + model.viscous_friction.dot(state.dx)
+    return bias
+
+
 def uniform_brake(box: TorqueBox) -> Brake:
     """b − D ẋ/h scaled into the box."""
 
@@ -278,8 +292,7 @@ class Rollout:
             if float(np.max(np.abs(self.dx))) <= self.rest:
                 return self._decided(Stop(self.low > 0.0, self.held, self.low))
             state = self.model.state(self.x, self.dx)
-            bias = state.coriolis_force + state.gravity + state.dissipation
-            rows = self.advance(self.brake(state, bias, self.h))
+            rows = self.advance(self.brake(state, holding_bias(self.model, state), self.h))
             self.held += 1
             if rows is None:
                 return self._decided(Stop(False, self.held, -math.inf))
