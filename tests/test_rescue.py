@@ -66,16 +66,17 @@ def test_a_committed_brake_is_held_only_in_the_next_period(figure8):
     box = TorqueBox.of(setup.model, setup.loop_settings.bounds.torque)
     rescue = Rescue(setup.model, kept, box, np.full(len(kept.names), 1e-5), H, 1)
     state = setup.model.state(s.position, s.velocity)
+    bias = state.coriolis_force + state.gravity + state.dissipation
     now = kept.margins(s.position, s.velocity)
 
     def holds(_tau, _floor):
         return True
 
-    assert rescue.torque(state, now, holds, 10) is not None
+    assert rescue.torque(state, bias, now, holds, 10) is not None
     assert rescue.committed is not None and rescue.searches == 1
-    rescue.torque(state, now, holds, 11)  # the next period: held again
+    rescue.torque(state, bias, now, holds, 11)  # the next period: held again
     assert rescue.searches == 1
-    rescue.torque(state, now, holds, 40)  # after periods of the guard's own torque
+    rescue.torque(state, bias, now, holds, 40)  # after periods of the guard's own torque
     assert rescue.searches == 2
 
 
@@ -92,23 +93,24 @@ def test_a_committed_brake_is_held_again_only_if_it_still_stops_the_arm_from_the
 
     def at(scale):
         state = setup.model.state(s.position, scale * s.velocity)
-        return state, kept.margins(state.x, state.dx)
+        bias = state.coriolis_force + state.gravity + state.dissipation
+        return state, bias, kept.margins(state.x, state.dx)
 
     def holds(_tau, _floor):
         return True
 
     cushion = np.full(len(kept.names), 1e-5)
     rescue = Rescue(setup.model, kept, box, cushion, H, 1)
-    state, now = at(1.0)
-    assert rescue.torque(state, now, holds, 10) is not None
+    state, bias, now = at(1.0)
+    assert rescue.torque(state, bias, now, holds, 10) is not None
     committed = rescue.committed
-    assert rescue.torque(state, now, holds, 11) is not None  # still stops the arm: held
+    assert rescue.torque(state, bias, now, holds, 11) is not None  # still stops the arm: held
     assert rescue.committed == committed and rescue.searches == 1
     # 30 % faster no brake stops the arm inside S (a fresh search finds none)
-    state, now = at(1.3)
-    assert Rescue(setup.model, kept, box, cushion, H, 1).torque(state, now, holds,
+    state, bias, now = at(1.3)
+    assert Rescue(setup.model, kept, box, cushion, H, 1).torque(state, bias, now, holds,
                                                                  12) is None
-    assert rescue.torque(state, now, holds, 12) is None
+    assert rescue.torque(state, bias, now, holds, 12) is None
 
 
 def test_the_guard_keeps_the_clearance_of_the_figure8_from_a_stoppable_state(figure8):
@@ -134,7 +136,8 @@ def _rescue_at(figure8, seed, budget):
     box = TorqueBox.of(setup.model, setup.loop_settings.bounds.torque)
     rescue = Rescue(setup.model, kept, box, np.full(len(kept.names), 1e-5), H, 1, budget=budget)
     state = setup.model.state(s.position, s.velocity)
-    return rescue, state, kept.margins(s.position, s.velocity)
+    bias = state.coriolis_force + state.gravity + state.dissipation
+    return rescue, state, bias, kept.margins(s.position, s.velocity)
 
 
 def test_a_rollout_run_in_pieces_ends_as_one_run_to_its_end(figure8):
@@ -163,19 +166,19 @@ def test_under_a_budget_the_rescue_holds_the_brake_under_check_and_goes_on_check
     """With a budget of 2 model periods a period the first brake is committed before its
     check ends, held while the check runs on ahead, and the check ends with the brake the
     unbounded search chose."""
-    rescue, state, now = _rescue_at(figure8, 19, budget=2)
+    rescue, state, bias, now = _rescue_at(figure8, 19, budget=2)
     unbounded, *_ = _rescue_at(figure8, 19, budget=None)
 
     def holds(_tau, _floor):
         return True
 
-    assert unbounded.torque(state, now, holds, 10) is not None
-    assert rescue.torque(state, now, holds, 10) is not None
+    assert unbounded.torque(state, bias, now, holds, 10) is not None
+    assert rescue.torque(state, bias, now, holds, 10) is not None
     assert rescue.committed == "least_squares" and rescue._check is not None
     assert rescue._check.held == 2
     step = 11
     while rescue._check is not None:  # held period after period, checked 2 periods ahead
-        assert rescue.torque(state, now, holds, step) is not None
+        assert rescue.torque(state, bias, now, holds, step) is not None
         step += 1
     assert rescue.searches == 1 and rescue.committed == unbounded.committed
     assert step - 10 > 5  # the check took several periods
@@ -184,18 +187,18 @@ def test_under_a_budget_the_rescue_holds_the_brake_under_check_and_goes_on_check
 def test_a_check_that_fails_ahead_of_the_arm_moves_to_the_next_brake(figure8):
     """A committed brake whose check sees a margin fall below its floor is left for the next
     candidate, checked from the arm's state then (here: a floor no brake keeps)."""
-    rescue, state, now = _rescue_at(figure8, 19, budget=1)
+    rescue, state, bias, now = _rescue_at(figure8, 19, budget=1)
 
     def holds(_tau, _floor):
         return True
 
-    assert rescue.torque(state, now, holds, 10) is not None
+    assert rescue.torque(state, bias, now, holds, 10) is not None
     first = rescue._candidate
     check = rescue._check
     assert check is not None
     # from here on the check finds every margin below its floor
     check.margins = lambda xs, dxs: np.full((len(xs), len(now)), -1.0)
-    rescue.torque(state, now, holds, 11)
+    rescue.torque(state, bias, now, holds, 11)
     assert rescue._candidate == first + 1 and rescue.committed == "aimed"
     assert rescue.searches == 1  # moved on, not searched afresh
 

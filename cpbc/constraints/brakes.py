@@ -4,8 +4,8 @@ Under bounded torque |τ_q| ≤ L a state of S is worth promising only if some t
 can bring the arm to rest before every boundary. No closed form says which states can; a
 *brake* — a feedback torque held for one control period at a time — held until the arm rests
 says it for one state by construction. Three brakes, each computed from the model at the sample
-(D, b = C ẋ + g + F_d ẋ: not the dry friction, :func:`holding_bias`; controller coordinates,
-τ = T⁻ᵀ τ_q) and held over the period h:
+(D, b = C ẋ + g + f: :func:`model_bias`, or without the dry friction: :func:`holding_bias`;
+controller coordinates, τ = T⁻ᵀ τ_q) and held over the period h:
 
 * the **uniform** brake, b − D ẋ/h scaled toward b until it fits the box
   (:meth:`TorqueBox.toward`): ẍ = −t ẋ/h, every coordinate slowed in proportion to its speed
@@ -158,13 +158,25 @@ class TorqueBox:
 Brake = Callable[[ArmState, Array, float], Array]
 
 
+# what a brake holds against at a state: (model, state) -> b
+Bias = Callable[[RobotModel, ArmState], Array]
+
+
+def model_bias(model: RobotModel, state: ArmState) -> Array:
+    """b = C ẋ + g + f: a brake on it decelerates as the model says, its friction cancelled
+    (what the safeguard's rescue holds and checks in the model)."""
+    return state.coriolis_force + state.gravity + state.dissipation
+
+
 def holding_bias(model: RobotModel, state: ArmState) -> Array:
-    """The b a brake holds against: C ẋ + g + F_d ẋ, without the model's dry friction.
-    Dry friction only opposes the motion, so it only helps a brake; cancelling the model's
-    smooth F_c tanh(q̇/ε) pushes a joint along its motion wherever the plant's friction is
-    less than the model's — at low speed MuJoCo's frictionloss is (it opposes the rate
-    1/b ahead): every brake held the xArm7's wrist, 2 N·m of friction on 0.01 kg·m² of
-    rotor, creeping at 0.1 rad/s for good, and no state was stoppable."""
+    """C ẋ + g + F_d ẋ, without the model's dry friction: a brake on it leaves the plant's
+    dry friction, which only opposes the motion, to help it. Cancelling the model's smooth
+    F_c tanh(q̇/ε) pushes a joint along its motion wherever the plant's friction is less than
+    the model's, as MuJoCo's frictionloss is at low speed (it opposes the rate 1/b ahead):
+    on the xArm7 with 2 N·m of friction on 0.01 kg·m² of wrist rotor every brake on
+    :func:`model_bias` held joint 7 creeping at 0.1 rad/s for good. In the model it is no
+    better: its smooth friction then helps the brake more than MuJoCo's did under a hard
+    brake (the rescue on it let the FR3 rate campaign's seed 60 cross)."""
     bias = state.coriolis_force + state.gravity
     if model.has_friction:
         bias = bias + model.viscous_friction.dot(state.dx)
@@ -270,12 +282,15 @@ class Rollout:
         h: the control period [s].
         rest: max|ẋ| under which the arm rests.
         horizon: the longest braking held [s].
+        bias: what the brake holds against (:func:`model_bias` or :func:`holding_bias`).
     """
 
     def __init__(self, brake: Brake, model: RobotModel,
                  margins: Callable[[Array, Array], Array], advance: Advance, x: Array,
-                 dx: Array, h: float, rest: float = 1e-3, horizon: float = 3.0) -> None:
+                 dx: Array, h: float, rest: float = 1e-3, horizon: float = 3.0,
+                 bias: Bias = model_bias) -> None:
         self.brake, self.model, self.margins, self.advance = brake, model, margins, advance
+        self.bias = bias
         self.x, self.dx, self.h, self.rest = x, dx, h, rest
         self.periods = max(math.ceil(horizon / h), 1)
         self.held = 0  # periods held so far
@@ -292,7 +307,7 @@ class Rollout:
             if float(np.max(np.abs(self.dx))) <= self.rest:
                 return self._decided(Stop(self.low > 0.0, self.held, self.low))
             state = self.model.state(self.x, self.dx)
-            rows = self.advance(self.brake(state, holding_bias(self.model, state), self.h))
+            rows = self.advance(self.brake(state, self.bias(self.model, state), self.h))
             self.held += 1
             if rows is None:
                 return self._decided(Stop(False, self.held, -math.inf))
@@ -314,11 +329,12 @@ class Rollout:
 
 def brings_to_rest(brake: Brake, model: RobotModel, margins: Callable[[Array, Array], Array],
                    advance: Advance, x: Array, dx: Array, h: float, rest: float = 1e-3,
-                   horizon: float = 3.0) -> Stop:
-    """Hold ``brake`` (recomputed at every sample from ``model``) in the plant ``advance``
-    from (x, ẋ) until max|ẋ| ≤ ``rest``; ``margins`` gives each reported step's margins less
-    their floors (rows). At most ``horizon`` seconds (:class:`Rollout`, run to its end)."""
-    stop = Rollout(brake, model, margins, advance, x, dx, h, rest, horizon).run()
+                   horizon: float = 3.0, bias: Bias = model_bias) -> Stop:
+    """Hold ``brake`` (recomputed at every sample from ``model``, against ``bias``) in the
+    plant ``advance`` from (x, ẋ) until max|ẋ| ≤ ``rest``; ``margins`` gives each reported
+    step's margins less their floors (rows). At most ``horizon`` seconds (:class:`Rollout`,
+    run to its end)."""
+    stop = Rollout(brake, model, margins, advance, x, dx, h, rest, horizon, bias).run()
     assert stop is not None  # decided: no budget
     return stop
 

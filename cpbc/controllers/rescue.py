@@ -63,7 +63,7 @@ from collections.abc import Callable
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.constraints.brakes import Rollout, TorqueBox, brakes, holding_bias, model_advance
+from cpbc.constraints.brakes import Rollout, TorqueBox, brakes, model_advance
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -111,7 +111,7 @@ class Rescue:
         self._candidate = 0
         self._floors: tuple[Array, Array] = (cushion, np.zeros_like(cushion))
 
-    def torque(self, state: ArmState, now: Array,
+    def torque(self, state: ArmState, bias: Array, now: Array,
                holds: Callable[[Array, Array], bool], step: int,
                held: Array | None = None) -> Array | None:
         """The committed brake's torque if it was held at the step before ``step`` (the
@@ -125,15 +125,14 @@ class Rescue:
         budget = self.budget
         if (self.committed is not None and self.floor is not None
                 and self.held_at == step - 1):
-            tau = self.table[self.committed](state, holding_bias(self.model, state),
-                                             self.period)
+            tau = self.table[self.committed](state, bias, self.period)
             if holds(tau, self.floor):
                 if budget is None:  # checked again from here (the module docstring)
                     again = self._rollout(state, self.committed, self.floor, held).run()
                     if again is not None and again.stopped:
                         self.held_at = step
                         return tau
-                    return self._search(state, now, step, held, self._candidate + 1,
+                    return self._search(state, bias, now, step, held, self._candidate + 1,
                                         budget)
                 stop = None if self._check is None else self._check.run(budget)
                 if self._check is None or stop is None or stop.stopped:
@@ -142,11 +141,11 @@ class Rescue:
                     self.held_at = step
                     return tau
                 # its check failed ahead of the arm: the next candidate, from here
-                return self._search(state, now, step, held, self._candidate + 1,
+                return self._search(state, bias, now, step, held, self._candidate + 1,
                                     budget)
-        return self._search(state, now, step, held, 0, budget)
+        return self._search(state, bias, now, step, held, 0, budget)
 
-    def _search(self, state: ArmState, now: Array, step: int,
+    def _search(self, state: ArmState, bias: Array, now: Array, step: int,
                 held: Array | None, first: int, budget: int | None) -> Array | None:
         """The first candidate from ``first`` on (ORDER with the cushioned floor, then with
         none) whose check passes, or under a budget has not failed when it runs out."""
@@ -165,8 +164,7 @@ class Rescue:
             if stop is None or stop.stopped:
                 self.committed, self.floor, self.held_at = name, floor, step
                 self._candidate, self._check = k, (check if stop is None else None)
-                return self.box.clip(self.table[name](state, holding_bias(self.model, state),
-                                                      self.period))
+                return self.box.clip(self.table[name](state, bias, self.period))
             if left is not None:
                 left = max(left - check.held, 1)  # every candidate gets at least a period
         return None

@@ -112,7 +112,7 @@ class Brakes:
             return check(predict, np.maximum(floor, 1e-300),
                          np.maximum(floor[:nc], 1e-300) if nc else None)(t) >= 0.0
 
-        tau = self.rescue.torque(state, now, holds, step, self.box.holding)
+        tau = self.rescue.torque(state, bias, now, holds, step, self.box.holding)
         if tau is None:
             return None
         self.rescues += 1
