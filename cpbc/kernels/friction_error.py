@@ -128,21 +128,29 @@ def _bound(to_accel: Array, t_inv: Array, mapped: bool, levels: Array, smoothing
     n = dx.shape[0]
     held = np.empty(n)
     for j in range(n):
-        coarse = 0.0
+        coarse = own = 0.0
         for k in range(n):
             joint_inv = to_accel[j, k] if not mapped else 0.0  # (T⁻¹ D⁻¹ T⁻ᵀ)_jk
             for m in range(n if mapped else 0):
                 joint_inv += t_inv[j, m] * to_accel[m, k]
             coarse += abs(joint_inv) * (2.0 * levels[k])
+            if k == j:
+                own = abs(joint_inv)
         dq = _joint_entry(t_inv, mapped, dx, j, False)
         speed = abs(dq)
         alpha = reach = math.inf
         if bounded:
             c = _joint_entry(t_inv, mapped, centre, j, False)
             r = _joint_entry(t_inv, mapped, radius, j, True)
-            alpha = _larger(-_sign(dq) * c + r, 0.0) + coarse
             reach = abs(c) + r + coarse
         spread = period * reach if period > 0.0 else 0.0
+        if bounded:
+            # sliding, the joint's own friction is the plant's F_j sign(q̇_j) and the
+            # model's at least F_j tanh(s_j/ε): its own share of α_j is at most
+            # (T⁻¹D⁻¹T⁻ᵀ)_jj F_j (1 − tanh(s_j/ε)), not the coarse 2 F_j
+            low = _larger(speed - spread, 0.0)
+            alpha = (_larger(-_sign(dq) * c + r, 0.0) + coarse
+                     - own * levels[j] * (1.0 + math.tanh(low / smoothing)))
         e = slide_error(levels[j], smoothing, build_up, creep, speed - spread, speed + spread,
                         alpha)
         # never below F_j (model_error's docstring: the shortfall alone at speed let a rate
@@ -167,11 +175,14 @@ def friction_error(inverse: Array, t_inv: Array, mapped: bool, levels: Array,
     With ``bounded`` the torques that may be held give the model accelerations
     ``centre`` ± ``radius`` (controller coordinates; ``reachable_accelerations``), carried to
     joint coordinates as T⁻¹c ± |T⁻¹| r. To them the plant's friction adds at most
-    |T⁻¹D⁻¹T⁻ᵀ|·2F (joint coordinates, the coarse bound): joint j decelerates by at most
-    α_j = max(−sign(q̇_j) c_j + r_j, 0) + coarse_j and its rate moves by at most
+    |T⁻¹D⁻¹T⁻ᵀ|·2F (joint coordinates, the coarse bound): joint j's rate moves by at most
     h (|c_j| + r_j + coarse_j) over the period h = ``period`` (0: the rate at the start
-    only). Without ``bounded`` no joint is taken to slide (α_j = ∞), and over a period a
-    rate may reach any speed."""
+    only), so its speed stays at least s_j. Whether it slides is asked of the deceleration
+    it would have if it slid (model_error's docstring: were its friction short of F_j, it
+    would decelerate less, and the rule then says it slides), where its own friction differs
+    from the model's by F_j (1 − tanh(s_j/ε)) at most: α_j = max(−sign(q̇_j) c_j + r_j, 0)
+    + coarse_j − (T⁻¹D⁻¹T⁻ᵀ)_jj F_j (1 + tanh(s_j/ε)). Without ``bounded`` no joint is
+    taken to slide (α_j = ∞), and over a period a rate may reach any speed."""
     n = dx.shape[0]
     to_accel = np.empty((n, n))
     _to_accel(inverse, t_inv, mapped, to_accel)

@@ -29,10 +29,10 @@ from cpbc.controllers.safeguard.model_error import (
     inverse_inertia,
     margin_losses,
     measurement_losses,
+    mujoco_friction,
 )
 from cpbc.controllers.safeguard.step_box import StepBox
 from cpbc.kernels.margin_losses import friction_floors
-from cpbc.model.coulomb import MUJOCO_FRICTION
 from cpbc.model.robot_model import ArmState, RobotModel
 
 Refine = Callable[[], None]  # makes a step's floors, raised by bounds, exact in place
@@ -62,6 +62,7 @@ class ErrorFloors:
         self.period, self.travel, self.cushion = period, travel, cushion
         self._inertia_error = None if declared is None else declared.acceleration_bound(model)
         self._coulomb = bool(np.any(model.coulomb_friction))
+        self._dry = mujoco_friction(model)  # how the plant's dry friction takes its sign
         self.exact = model_error is None and not self._coulomb and (
             declared is None or not (declared.dynamic or declared.measured))
         self._measured = declared if declared is not None and declared.measured else None
@@ -108,7 +109,7 @@ class ErrorFloors:
         held and the step has a torque box: the bound and the losses at ``slopes`` in one
         call (cpbc.kernels.margin_losses.friction_floors: _error_bound's friction_error and
         :meth:`_raise`'s margin_losses, the same sums). Returns the bound ā."""
-        model, coords, plant = self.model, self.model.coordinates, MUJOCO_FRICTION
+        model, coords, plant = self.model, self.model.coordinates, self._dry
         error = np.empty(model.n)
         friction_floors(state.inertia, coords.inverse, not coords.is_identity,
                         model.coulomb_friction, model.friction_smoothing, plant.build_up,
@@ -151,5 +152,5 @@ class ErrorFloors:
         """model_error.friction_error over this period, for the accelerations of the torques
         this step may hold (the step's box; any without a torque box); ``inverse``: D⁻¹."""
         box = self.box.reachable
-        return friction_error(self.model, state, None, self.period, inverse=inverse,
+        return friction_error(self.model, state, None, self.period, self._dry, inverse,
                               torques=None if box is None else (bias, *box.bounds))

@@ -36,7 +36,9 @@ and R_j = (1 − d₀)/d₀ A_j (solref's time constant t_c, solimp's d₀ and d
 estimate of (D⁻¹)_jj), so it opposes the rate the joint would have 1/b later, not the rate
 it has: it is F_j sign(q̇_j) when b|q̇_j| − α_j ≥ R_j F_j, i.e. T_f = 1/b (9.5 ms with the
 default solref 0.02 and solimp 0.9, 0.95) and v_c,j = R_j F_j/b (MuJoCo's A_j is a constant
-taken at the model's reference pose: v_c ≤ 0.15 rad/s on the campaign's three arms). While
+taken at the model's reference pose, the rotor inertia included: v_c ≤ 0.008 rad/s on the
+campaign's three arms, 0.21 rad/s on the xArm7's wrist with 2 N·m on 0.01 kg·m² of rotor;
+:func:`mujoco_friction` takes it from the model, never below 0.15). While
 a brake decelerates a joint harder than b|q̇_j| its friction pulls *with* the motion (on the
 UR5 of the rate campaign, seed 49: −2 N·m against the model's +1.35 N·m at 0.04 rad/s).
 Over a period on which the rate moves by at most h α'_j (α'_j bounding |q̈_j|: so
@@ -49,7 +51,12 @@ with the model's friction taken at the period's start, as the guard's prediction
 The acceleration error is |D⁻¹| |T⁻ᵀ| e. α_j and α'_j are bounded by what the torques the
 step may hold give in the model (under a torque-rate limit the box one step reaches; without
 one the whole torque box, which takes no joint to slide) plus the coarse error |D⁻¹|·2F of
-the plant's friction itself. Where every joint slides fast e vanishes; where joints rest or
+the plant's friction itself — except, in α_j, the joint's own: whether a joint slides is
+decided by the deceleration it would have if it slid (short of F_j its friction would
+decelerate it less, and b|q̇_j| ≥ R_j F_j + α_j would hold the more), so its own friction
+differs from the model's by at most F_j (1 − tanh(s_j/ε)) there. The coarse 2F_j of its own
+took the xArm7's light wrist (2 N·m on about 0.01 kg·m²: 400 rad/s²) never to slide below
+4 rad/s. Where every joint slides fast e vanishes; where joints rest or
 turn it does not, which is why holding it over a whole brake (½t²|D⁻¹|e, tried) rejects
 nearly every brake on light wrists. The earlier bound, F_j at every speed, assumed the two
 frictions agree in sign once the joint moves: under a hard brake it was too small. The guard
@@ -103,6 +110,25 @@ def _joint_inverse(model: RobotModel, inertia: Array,
         return inv, inv
     to_force = coords.inverse.T
     return inv @ to_force, coords.inverse @ inv @ to_force
+
+
+def mujoco_friction(model: RobotModel) -> DryFriction:
+    """MuJoCo's frictionloss on the model's joints (the module docstring): its T_f, and the
+    creep v_c = max_j R_j F_j / b with A_j = (T⁻¹D⁻¹T⁻ᵀ)_jj at the reference pose x = 0 (how
+    MuJoCo takes its dof_invweight0, the rotor inertia included), but never below
+    :data:`cpbc.model.coulomb.MUJOCO_CREEP`. A plant whose links are lighter than the
+    model's has a larger A_j, which the constant's margin covers on the campaign's arms
+    (their v_c ≤ 0.008 rad/s) and not on a light wrist with heavy friction (the xArm7 with
+    0.01 kg·m² of rotor and 2 N·m: 0.21 rad/s from the model)."""
+    levels = model.coulomb_friction
+    if not levels.any():
+        return MUJOCO_FRICTION
+    d0 = 0.9  # MuJoCo's default solimp[0]
+    joint_inv = _joint_inverse(model, model.inertia(np.zeros(model.n)))[1]
+    # v_c = R_j F_j / b, 1/b = T_f
+    creep = float(np.max((1.0 - d0) / d0 * np.diag(joint_inv) * levels)) * (
+        MUJOCO_FRICTION.build_up)
+    return DryFriction(MUJOCO_FRICTION.build_up, max(creep, MUJOCO_FRICTION.creep))
 
 
 def friction_error(model: RobotModel, state: ArmState,
