@@ -160,6 +160,8 @@ Brake = Callable[[ArmState, Array, float], Array]
 
 # what a brake holds against at a state: (model, state) -> b
 Bias = Callable[[RobotModel, ArmState], Array]
+# the end of a brake's name where it is held against holding_bias
+FRICTION_LEFT = ", friction left"
 
 
 def model_bias(model: RobotModel, state: ArmState) -> Array:

@@ -4,7 +4,8 @@ The safeguard keeps the braking set V of the uniform brake (cpbc.constraints.sto
 invariant. That brake slows every coordinate in proportion to its speed, so the joint with
 the least torque to spare sets the deceleration of all of them; a state it cannot stop may
 still be stopped by a brake that lets each joint decelerate as hard as the box allows
-(cpbc.constraints.brakes: the least-squares and the aimed brake). When no torque of the
+(cpbc.constraints.brakes: the least-squares and the aimed brake; where the model has dry
+friction, also each brake held against b without it, after the others). When no torque of the
 guard's own satisfies its conditions — the state is outside V, or about to leave it — the
 rescue holds each brake in turn in the controller's model, period after period at the control
 rate (prediction sub-steps of at most ``max_step``), until the arm rests, and takes the first
@@ -63,7 +64,16 @@ from collections.abc import Callable
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.constraints.brakes import Rollout, TorqueBox, brakes, model_advance
+from cpbc.constraints.brakes import (
+    FRICTION_LEFT,
+    Bias,
+    Rollout,
+    TorqueBox,
+    brakes,
+    holding_bias,
+    model_advance,
+    model_bias,
+)
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -100,13 +110,20 @@ class Rescue:
         self.model, self.guarded, self.box = model, guarded, box
         self.rate_step, self.budget = rate_step, budget
         self.cushion, self.period, self.steps, self.horizon = cushion, period, steps, horizon
-        self.table = brakes(box, guarded, model)
+        table = brakes(box, guarded, model)
+        # then, where the model has dry friction, the same brakes held against b without it
+        # (brakes.holding_bias): the brakes cpbc.verify's classification tries too
+        self.order: tuple[str, ...] = ORDER
+        if model.coulomb_friction.any():
+            self.order += tuple(name + FRICTION_LEFT for name in ORDER)
+            table.update({name + FRICTION_LEFT: table[name] for name in ORDER})
+        self.table = table
         self.committed: str | None = None
         self.floor: Array | None = None  # the floor of the search that committed the brake
         self.held_at: int | None = None  # the control step at which it was last held
         self.searches = 0
         # the check of the committed brake while it goes on (a budget), and where in the
-        # order of candidates (two rounds of ORDER: cushioned floor, then none) it stands
+        # order of candidates (two rounds of the order: cushioned floor, then none) it stands
         self._check: Rollout | None = None
         self._candidate = 0
         self._floors: tuple[Array, Array] = (cushion, np.zeros_like(cushion))
@@ -125,7 +142,7 @@ class Rescue:
         budget = self.budget
         if (self.committed is not None and self.floor is not None
                 and self.held_at == step - 1):
-            tau = self.table[self.committed](state, bias, self.period)
+            tau = self._brake(self.committed, state, bias)
             if holds(tau, self.floor):
                 if budget is None:  # checked again from here (the module docstring)
                     again = self._rollout(state, self.committed, self.floor, held).run()
@@ -147,7 +164,7 @@ class Rescue:
 
     def _search(self, state: ArmState, bias: Array, now: Array, step: int,
                 held: Array | None, first: int, budget: int | None) -> Array | None:
-        """The first candidate from ``first`` on (ORDER with the cushioned floor, then with
+        """The first candidate from ``first`` on (the order with the cushioned floor, then with
         none) whose check passes, or under a budget has not failed when it runs out."""
         self.committed, self._check = None, None
         if first == 0:
@@ -157,14 +174,15 @@ class Rescue:
             cushioned = np.minimum(self.cushion, 0.5 * np.maximum(now, 0.0))
             self._floors = (cushioned, np.zeros_like(cushioned))
         left = budget
-        for k in range(first, 2 * len(ORDER)):
-            name, floor = ORDER[k % len(ORDER)], self._floors[k // len(ORDER)]
+        order = self.order
+        for k in range(first, 2 * len(order)):
+            name, floor = order[k % len(order)], self._floors[k // len(order)]
             check = self._rollout(state, name, floor, held)
             stop = check.run(left)
             if stop is None or stop.stopped:
                 self.committed, self.floor, self.held_at = name, floor, step
                 self._candidate, self._check = k, (check if stop is None else None)
-                return self.box.clip(self.table[name](state, bias, self.period))
+                return self.box.clip(self._brake(name, state, bias))
             if left is not None:
                 left = max(left - check.held, 1)  # every candidate gets at least a period
         return None
@@ -181,8 +199,19 @@ class Rescue:
                                 self.steps, self.rate_step,
                                 state.gravity if held is None else held)
         return Rollout(self.table[name], self.model, margins, advance, state.x, state.dx,
-                       self.period, horizon=self.horizon)
+                       self.period, horizon=self.horizon, bias=_against(name))
+
+    def _brake(self, name: str, state: ArmState, bias: Array) -> Array:
+        """Brake ``name``'s torque at the state (``bias``: the model's b there)."""
+        against = _against(name)
+        return self.table[name](state, bias if against is model_bias
+                                else against(self.model, state), self.period)
 
     def forget(self) -> None:
         self.committed = self.floor = self.held_at = None
         self._check = None
+
+
+def _against(name: str) -> Bias:
+    """What brake ``name`` is held against: b, or b without the dry friction."""
+    return holding_bias if name.endswith(FRICTION_LEFT) else model_bias

@@ -11,7 +11,8 @@ the same blocks and give the same records. State i is drawn by its own sampler s
 Each state is classed, per rate, before it runs, by what was shown of it:
 
 ``stoppable``      some brake within the torque box (cpbc.constraints.brakes: the uniform
-                   brake, the least-squares brake, the brake aimed at the nearest constraint),
+                   brake, the least-squares brake, the brake aimed at the nearest constraint;
+                   for a model with dry friction each also held against b without it),
                    recomputed from the model at every sample and held over the control period
                    in the true plant (MuJoCo, the run's own physics), brings the arm to rest
                    with every margin the controller keeps positive at every physics step,
@@ -35,6 +36,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.brakes import (
+    FRICTION_LEFT,
     Advance,
     Bias,
     Brake,
@@ -203,7 +205,7 @@ def stopping_brake(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Arra
     found = first_stop(tuple(table), table, lambda brake: run(brake, model_bias))[0]
     if found is None and setup.model.coulomb_friction.any():
         found = first_stop(tuple(table), table, lambda brake: run(brake, holding_bias))[0]
-        return None if found is None else f"{found}, friction left"
+        return None if found is None else found + FRICTION_LEFT
     return found
 
 
