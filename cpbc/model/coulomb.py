@@ -36,8 +36,10 @@ def coulomb_levels(levels: Array | None, n: int) -> Array:
 # MuJoCo's default for a joint's frictionloss (solref 0.02, 1; solimp 0.9, 0.95): 1/b of
 # cpbc.controllers.safeguard.model_error's docstring [s]
 MUJOCO_BUILD_UP = 0.95 * 0.02 / 2.0
-# v_c = R_j F_j / b of the campaign's plants (R_j = (1 − d₀)/d₀ dof_invweight0): at most
-# 0.033 rad/s on the UR5, 0.060 on the Panda, 0.145 on the FR3's last joint [rad/s]
+# v_c = R_j F_j / b (R_j = (1 − d₀)/d₀ dof_invweight0): at most 0.033 rad/s on the UR5,
+# 0.060 on the Panda, 0.145 on the FR3's last joint while the campaign plants' MuJoCo constants
+# left out the rotor inertia; ≤ 0.008 on all three since (cpbc.model.joint_dynamics.on_mujoco).
+# Kept as the least creep the guard assumes (model_error.mujoco_friction) [rad/s]
 MUJOCO_CREEP = 0.15
 
 
@@ -51,8 +53,8 @@ class DryFriction:
         build_up: T_f [s] (MuJoCo: 1/b; an ideal Coulomb friction: 0).
         creep: v_c [rad/s], the largest speed at which the friction may not have built up
             to F_j at rest-free acceleration (MuJoCo: R_j F_j/b, from its constant diagonal
-            estimate dof_invweight0, which the controller's model does not have: a bound over
-            the campaign's plants).
+            estimate dof_invweight0; cpbc.controllers.safeguard.model_error.mujoco_friction
+            takes it from the controller's model).
     """
 
     build_up: float = MUJOCO_BUILD_UP
