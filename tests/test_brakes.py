@@ -1,11 +1,12 @@
 """Brakes within the torque box, the stricter classification, and the safeguard's rescue."""
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from cpbc.constraints.brakes import TorqueBox, least_squares_brake
+from cpbc.constraints.brakes import FRICTION_LEFT, TorqueBox, brakes, least_squares_brake
 from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
 from cpbc.reliability.verification import draw_state, in_braking_set, stopping_brake
 from cpbc.scenario import build, load_scenario
@@ -99,3 +100,18 @@ def test_a_step_reaches_the_interval_of_its_rate_within_the_box(rng) -> None:
     narrowed = box.around(np.array([90.0, 0.0, 0.0]), step)
     assert narrowed.bounds[0][0] == narrowed.bounds[1][0] == 87.0  # the nearest: the limit
     np.testing.assert_array_equal(narrowed.clip(np.array([0.0, 5.0, -5.0])), [87.0, 1.0, -1.0])
+
+
+def test_a_heavy_wrist_is_stopped_only_by_a_brake_that_leaves_its_friction() -> None:
+    """The xArm7 with 2 N·m of dry friction on a 0.01 kg·m² wrist rotor, seed 0 at 1 kHz: the
+    three brakes that cancel the model's friction keep joint 7 creeping (the plant's soft
+    friction answers their push along the motion), and the same uniform brake held against
+    b without the dry friction (brakes.holding_bias) brings the arm to rest in the plant."""
+    path = Path(__file__).resolve().parents[1] / "tools" / "campaigns" / "xarm7_wrist_friction.yaml"
+    setup = build(*load_scenario(str(path)))
+    entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
+    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
+    names = tuple(brakes(TorqueBox.of(setup.model, 20.0), kept, setup.model))
+    assert names[3:] == tuple(name + FRICTION_LEFT for name in names[:3])
+    s = draw_state(setup, 0)
+    assert stopping_brake(setup, kept, s.position, s.velocity, 0.001) == "uniform" + FRICTION_LEFT

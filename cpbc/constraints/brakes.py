@@ -4,8 +4,9 @@ Under bounded torque |τ_q| ≤ L a state of S is worth promising only if some t
 can bring the arm to rest before every boundary. No closed form says which states can; a
 *brake* — a feedback torque held for one control period at a time — held until the arm rests
 says it for one state by construction. Three brakes, each computed from the model at the sample
-(D, b = C ẋ + g + f: :func:`model_bias`, or without the dry friction: :func:`holding_bias`;
-controller coordinates, τ = T⁻ᵀ τ_q) and held over the period h:
+(D, b = C ẋ + g + f, controller coordinates, τ = T⁻ᵀ τ_q) and held over the period h, and,
+where the model has dry friction, each of them held against b without it as well
+(:func:`holding_bias`, "…, friction left"):
 
 * the **uniform** brake, b − D ẋ/h scaled toward b until it fits the box
   (:meth:`TorqueBox.toward`): ẍ = −t ẋ/h, every coordinate slowed in proportion to its speed
@@ -158,16 +159,8 @@ class TorqueBox:
 Brake = Callable[[ArmState, Array, float], Array]
 
 
-# what a brake holds against at a state: (model, state) -> b
-Bias = Callable[[RobotModel, ArmState], Array]
 # the end of a brake's name where it is held against holding_bias
 FRICTION_LEFT = ", friction left"
-
-
-def model_bias(model: RobotModel, state: ArmState) -> Array:
-    """b = C ẋ + g + f: a brake on it decelerates as the model says, its friction cancelled
-    (what the safeguard's rescue holds and checks in the model)."""
-    return state.coriolis_force + state.gravity + state.dissipation
 
 
 def holding_bias(model: RobotModel, state: ArmState) -> Array:
@@ -175,8 +168,8 @@ def holding_bias(model: RobotModel, state: ArmState) -> Array:
     dry friction, which only opposes the motion, to help it. Cancelling the model's smooth
     F_c tanh(q̇/ε) pushes a joint along its motion wherever the plant's friction is less than
     the model's, as MuJoCo's frictionloss is at low speed (it opposes the rate 1/b ahead):
-    on the xArm7 with 2 N·m of friction on 0.01 kg·m² of wrist rotor every brake on
-    :func:`model_bias` held joint 7 creeping at 0.1 rad/s for good. In the model it is no
+    on the xArm7 with 2 N·m of friction on 0.01 kg·m² of wrist rotor every brake on the
+    model's b held joint 7 creeping at 0.1 rad/s for good. In the model it is no
     better: its smooth friction then helps the brake more than MuJoCo's did under a hard
     brake (the rescue on it let the FR3 rate campaign's seed 60 cross)."""
     bias = state.coriolis_force + state.gravity
@@ -242,11 +235,26 @@ def aimed_brake(box: TorqueBox, constraints: ConstraintSet, model: RobotModel,
     return brake
 
 
+def friction_left(brake: Brake, model: RobotModel) -> Brake:
+    """``brake`` held against :func:`holding_bias` in place of the b it is given."""
+
+    def left(state: ArmState, bias: Array, h: float) -> Array:
+        return brake(state, holding_bias(model, state), h)
+
+    return left
+
+
 def brakes(box: TorqueBox, constraints: ConstraintSet,
            model: RobotModel) -> dict[str, Brake]:
-    """The brakes of the module docstring, by name, in the order they are tried."""
-    return {"uniform": uniform_brake(box), "least_squares": least_squares_brake(box),
-            "aimed": aimed_brake(box, constraints, model)}
+    """The brakes of the module docstring, by name, in the order they are tried: the three
+    on the model's b, then, where the model has dry friction, the same three on b without
+    it (:data:`FRICTION_LEFT` ends their names)."""
+    table = {"uniform": uniform_brake(box), "least_squares": least_squares_brake(box),
+             "aimed": aimed_brake(box, constraints, model)}
+    if model.coulomb_friction.any():
+        table.update({name + FRICTION_LEFT: friction_left(brake, model)
+                      for name, brake in list(table.items())})
+    return table
 
 
 # a plant to brake in: holds τ (controller coordinates) for one period from its present state,
@@ -284,15 +292,12 @@ class Rollout:
         h: the control period [s].
         rest: max|ẋ| under which the arm rests.
         horizon: the longest braking held [s].
-        bias: what the brake holds against (:func:`model_bias` or :func:`holding_bias`).
     """
 
     def __init__(self, brake: Brake, model: RobotModel,
                  margins: Callable[[Array, Array], Array], advance: Advance, x: Array,
-                 dx: Array, h: float, rest: float = 1e-3, horizon: float = 3.0,
-                 bias: Bias = model_bias) -> None:
+                 dx: Array, h: float, rest: float = 1e-3, horizon: float = 3.0) -> None:
         self.brake, self.model, self.margins, self.advance = brake, model, margins, advance
-        self.bias = bias
         self.x, self.dx, self.h, self.rest = x, dx, h, rest
         self.periods = max(math.ceil(horizon / h), 1)
         self.held = 0  # periods held so far
@@ -309,7 +314,8 @@ class Rollout:
             if float(np.max(np.abs(self.dx))) <= self.rest:
                 return self._decided(Stop(self.low > 0.0, self.held, self.low))
             state = self.model.state(self.x, self.dx)
-            rows = self.advance(self.brake(state, self.bias(self.model, state), self.h))
+            bias = state.coriolis_force + state.gravity + state.dissipation
+            rows = self.advance(self.brake(state, bias, self.h))
             self.held += 1
             if rows is None:
                 return self._decided(Stop(False, self.held, -math.inf))
@@ -331,12 +337,11 @@ class Rollout:
 
 def brings_to_rest(brake: Brake, model: RobotModel, margins: Callable[[Array, Array], Array],
                    advance: Advance, x: Array, dx: Array, h: float, rest: float = 1e-3,
-                   horizon: float = 3.0, bias: Bias = model_bias) -> Stop:
-    """Hold ``brake`` (recomputed at every sample from ``model``, against ``bias``) in the
-    plant ``advance`` from (x, ẋ) until max|ẋ| ≤ ``rest``; ``margins`` gives each reported
-    step's margins less their floors (rows). At most ``horizon`` seconds (:class:`Rollout`,
-    run to its end)."""
-    stop = Rollout(brake, model, margins, advance, x, dx, h, rest, horizon, bias).run()
+                   horizon: float = 3.0) -> Stop:
+    """Hold ``brake`` (recomputed at every sample from ``model``) in the plant ``advance``
+    from (x, ẋ) until max|ẋ| ≤ ``rest``; ``margins`` gives each reported step's margins less
+    their floors (rows). At most ``horizon`` seconds (:class:`Rollout`, run to its end)."""
+    stop = Rollout(brake, model, margins, advance, x, dx, h, rest, horizon).run()
     assert stop is not None  # decided: no budget
     return stop
 

@@ -64,16 +64,7 @@ from collections.abc import Callable
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.constraints.brakes import (
-    FRICTION_LEFT,
-    Bias,
-    Rollout,
-    TorqueBox,
-    brakes,
-    holding_bias,
-    model_advance,
-    model_bias,
-)
+from cpbc.constraints.brakes import FRICTION_LEFT, Rollout, TorqueBox, brakes, model_advance
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -110,14 +101,11 @@ class Rescue:
         self.model, self.guarded, self.box = model, guarded, box
         self.rate_step, self.budget = rate_step, budget
         self.cushion, self.period, self.steps, self.horizon = cushion, period, steps, horizon
-        table = brakes(box, guarded, model)
+        self.table = brakes(box, guarded, model)
         # then, where the model has dry friction, the same brakes held against b without it
         # (brakes.holding_bias): the brakes cpbc.verify's classification tries too
-        self.order: tuple[str, ...] = ORDER
-        if model.coulomb_friction.any():
-            self.order += tuple(name + FRICTION_LEFT for name in ORDER)
-            table.update({name + FRICTION_LEFT: table[name] for name in ORDER})
-        self.table = table
+        self.order = ORDER + tuple(name + FRICTION_LEFT for name in ORDER
+                                   if name + FRICTION_LEFT in self.table)
         self.committed: str | None = None
         self.floor: Array | None = None  # the floor of the search that committed the brake
         self.held_at: int | None = None  # the control step at which it was last held
@@ -142,7 +130,7 @@ class Rescue:
         budget = self.budget
         if (self.committed is not None and self.floor is not None
                 and self.held_at == step - 1):
-            tau = self._brake(self.committed, state, bias)
+            tau = self.table[self.committed](state, bias, self.period)
             if holds(tau, self.floor):
                 if budget is None:  # checked again from here (the module docstring)
                     again = self._rollout(state, self.committed, self.floor, held).run()
@@ -182,7 +170,7 @@ class Rescue:
             if stop is None or stop.stopped:
                 self.committed, self.floor, self.held_at = name, floor, step
                 self._candidate, self._check = k, (check if stop is None else None)
-                return self.box.clip(self._brake(name, state, bias))
+                return self.box.clip(self.table[name](state, bias, self.period))
             if left is not None:
                 left = max(left - check.held, 1)  # every candidate gets at least a period
         return None
@@ -199,19 +187,8 @@ class Rescue:
                                 self.steps, self.rate_step,
                                 state.gravity if held is None else held)
         return Rollout(self.table[name], self.model, margins, advance, state.x, state.dx,
-                       self.period, horizon=self.horizon, bias=_against(name))
-
-    def _brake(self, name: str, state: ArmState, bias: Array) -> Array:
-        """Brake ``name``'s torque at the state (``bias``: the model's b there)."""
-        against = _against(name)
-        return self.table[name](state, bias if against is model_bias
-                                else against(self.model, state), self.period)
+                       self.period, horizon=self.horizon)
 
     def forget(self) -> None:
         self.committed = self.floor = self.held_at = None
         self._check = None
-
-
-def _against(name: str) -> Bias:
-    """What brake ``name`` is held against: b, or b without the dry friction."""
-    return holding_bias if name.endswith(FRICTION_LEFT) else model_bias

@@ -36,17 +36,13 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.brakes import (
-    FRICTION_LEFT,
     Advance,
-    Bias,
     Brake,
     Stop,
     TorqueBox,
     brakes,
     brings_to_rest,
     first_stop,
-    holding_bias,
-    model_bias,
     ramped,
 )
 from cpbc.constraints.constraint_set import ConstraintSet
@@ -173,9 +169,9 @@ def stopping_brake(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Arra
                    disturbance: AccelerationDisturbance | None = None) -> str | None:
     """The first brake (cpbc.constraints.brakes) that, held at ``period`` in the true plant
     within the torque box, brings the arm to rest with every margin of ``kept`` positive at
-    every physics step; None if none does. Each brake is held against the model's b
-    (``model_bias``, the rescue's), and where the model has dry friction and none of them
-    stops the arm, against b without it (``holding_bias``: "…, friction left"). Under a
+    every physics step; None if none does. Each brake is held against the model's b (the
+    rescue's), and where the model has dry friction and none of them stops the arm,
+    against b without it (``brakes.holding_bias``: "…, friction left"). Under a
     torque-rate limit each brake ramps from the gravity torque at the start (what the run's
     own first command starts from) at the rate the motors allow. ``plant``: the true plant
     to brake in (a fresh one of the scenario's by default); ``disturbance``: the run's,
@@ -194,19 +190,15 @@ def stopping_brake(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Arra
     rest = 1e-3 if disturbance is None else 1e-3 + 2.0 * period * float(
         np.max(disturbance.bound))
 
-    def run(brake: Brake, bias: Bias) -> Stop:
+    def run(brake: Brake) -> Stop:
         plant.reset(coords.to_joint(x), coords.to_joint(dx))
         return brings_to_rest(brake, setup.model, kept.margins_along,
                               _true_advance(plant, box, coords.matrix, substeps, step, held,
                                             None if disturbance is None
                                             else disturbance.drawn(), setup.model),
-                              x, dx, period, rest=rest, bias=bias)
+                              x, dx, period, rest=rest)
 
-    found = first_stop(tuple(table), table, lambda brake: run(brake, model_bias))[0]
-    if found is None and setup.model.coulomb_friction.any():
-        found = first_stop(tuple(table), table, lambda brake: run(brake, holding_bias))[0]
-        return None if found is None else found + FRICTION_LEFT
-    return found
+    return first_stop(tuple(table), table, run)[0]
 
 
 def _true_advance(plant: MujocoPlant, box: TorqueBox, t_mat: Array, substeps: int,
