@@ -397,6 +397,31 @@ def test_state_is_computed_afresh_and_keeps_nothing(absolute_model, rng):
     np.testing.assert_allclose(again.inertia, absolute_model.inertia(x), atol=1e-12)
 
 
+@pytest.mark.parametrize("convert", [lambda a: a.astype(np.float32), list,
+                                     lambda a: np.round(a).astype(int)],
+                         ids=["float32", "list", "int"])
+def test_a_state_from_other_numbers_equals_the_float64_state(joint_model, absolute_model, rng,
+                                                             convert):
+    """A float32 log, a list or ints give the state of their float64 values (float32 once
+    stopped the finishing kernel of a model with friction with numba's TypeError)."""
+    rubbing = RobotModel(joint_model.model,
+                         viscous_friction=np.array([0.1, 0.2]),
+                         coulomb_friction=np.array([0.3, 0.4]))
+    x, dx = rng.uniform(-2, 2, 2), rng.normal(size=2)
+    same = np.asarray(convert(x), dtype=float), np.asarray(convert(dx), dtype=float)
+    for model, kinematics in ((joint_model, False), (absolute_model, True),
+                              (rubbing, False), (rubbing, True)):
+        given = model.state(convert(x), convert(dx), kinematics=kinematics)
+        for a, b in zip(given, model.state(*same, kinematics=kinematics), strict=True):
+            if isinstance(a, np.ndarray):
+                np.testing.assert_array_equal(a, b)
+
+
+def test_a_state_of_the_wrong_length_names_the_argument(absolute_model):
+    with pytest.raises(ValueError, match=r"^dx must be 2 finite numbers"):
+        absolute_model.state(np.zeros(2), np.zeros(3))
+
+
 @pytest.mark.parametrize("offset", [None, np.array([0.1, -0.2, 0.05])])
 def test_state_kinematics_give_the_point_of_one_pass(absolute_model, rng, offset):
     """A point read from the state's kinematics is the one-pass point kinematics."""

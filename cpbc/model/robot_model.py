@@ -17,6 +17,7 @@ from cpbc.model.arm_state import ArmState
 from cpbc.model.coordinates import LinearCoordinates
 from cpbc.model.coulomb import FRICTION_SMOOTHING, coulomb_levels
 from cpbc.model.frames import offset_jacobian
+from cpbc.model.measured_state import measured
 from cpbc.model.state_pass import StatePass
 
 # the arrays of one pass (RobotModel.pinocchio_pass): D_q, nle, g_q, C_q, the joint placements
@@ -244,8 +245,11 @@ class RobotModel:
         in the last bits, 1e-14); with ``coriolis`` the matrix C (one more pass) — and one
         kernel that finishes it. Each frame of ``frames`` is read from the joint kinematics into
         ``ArmState.frames``, and — with ``kinematics`` — the joint Jacobians and placements
-        are in the state. x and ẋ are copied when read-only."""
+        are in the state. x and ẋ are copied when read-only or not float64 vectors (a list,
+        a float32 array from a log); a ParameterError (a ValueError) names either when it
+        is not n numbers."""
         producer = self.state_pass(bool(kinematics), tuple(frames), bool(coriolis))
+        x, dx = measured(x, dx, self.n)
         if not (x.flags.writeable and dx.flags.writeable):
             # the compiled kernels take writable float arrays, and a law's own target may be
             # the state asked for
