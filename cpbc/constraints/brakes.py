@@ -107,10 +107,10 @@ class TorqueBox:
         rate limit narrows its box, and on a robot moves it by the robot's own torque, at
         every step."""
         box = object.__new__(TorqueBox)
-        for name, value in (("limit", self.limit), ("to_joint", self.to_joint),
-                            ("from_joint", self.from_joint), ("lower", lower),
-                            ("upper", upper), ("_packed", (lower, upper, *self._packed[2:]))):
-            object.__setattr__(box, name, value)
+        # the frozen fields set at once (a third of six object.__setattr__ calls' time)
+        box.__dict__.update(limit=self.limit, to_joint=self.to_joint,
+                            from_joint=self.from_joint, lower=lower, upper=upper,
+                            _packed=(lower, upper, *self._packed[2:]))
         return box
 
     def joint(self, tau: Array) -> Array:
