@@ -246,8 +246,7 @@ class RobotModel:
         kernel that finishes it. Each frame of ``frames`` is read from the joint kinematics into
         ``ArmState.frames``, and — with ``kinematics`` — the joint Jacobians and placements
         are in the state. x and ẋ are copied when read-only or not float64 vectors (a list,
-        a float32 array from a log); a ParameterError (a ValueError) names either when it
-        is not n numbers."""
+        a float32 log); a ParameterError (ValueError) names either if not n numbers."""
         producer = self.state_pass(bool(kinematics), tuple(frames), bool(coriolis))
         x, dx = measured(x, dx, self.n)
         if not (x.flags.writeable and dx.flags.writeable):
