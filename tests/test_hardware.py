@@ -275,12 +275,6 @@ def test_bad_settings_and_limits_name_the_argument() -> None:
     with pytest.raises(ParameterError) as found:
         RobotLimits(np.ones(2), np.ones(2), np.ones(2), 0.0)
     assert found.value.parameter == "period"
-    from cpbc.hardware.franka import FrankaBackend
-
-    for lead in (-1e-4, 1e-3):  # refused before any connection is tried
-        with pytest.raises(ParameterError) as found:
-            FrankaBackend("127.0.0.1", busy_wait=lead)
-        assert found.value.parameter == "busy_wait"
 
 
 def _cli(*args: str) -> tuple[int, str]:
@@ -295,10 +289,6 @@ def test_cli_bad_input_is_one_line_and_exit_2(tmp_path: Path) -> None:
     assert code == 2 and err.startswith("error: --robot-ip:") and err.count("\n") == 1
     code, err = _cli(str(SCENARIO), "--backend", "lockstep", "--deadline-ms", "-1")
     assert code == 2 and err.startswith("error: --deadline-ms:") and err.count("\n") == 1
-    code, err = _cli(str(SCENARIO), "--backend", "lockstep", "--busy-wait-ms", "0.1")
-    assert code == 2 and err.startswith("error: --busy-wait-ms: the lock-step backend")
-    code, err = _cli(str(SCENARIO), "--robot-ip", "127.0.0.1", "--busy-wait-ms", "1")
-    assert code == 2 and err.startswith("error: --busy-wait-ms: give a time in [0, 1) ms")
     code, err = _cli(str(SCENARIO), "--backend", "lockstep", "--controller", "PD")
     assert code == 2 and "--controller: no controller 'PD'" in err
     data = yaml.safe_load(SCENARIO.read_text())
@@ -471,7 +461,7 @@ def test_the_fr3_carries_franky_sims_joints_and_its_reach_arrives(franky: Franky
     with contextlib.redirect_stdout(io.StringIO()) as out:
         assert main([str(setup.source), "--robot-ip", franky.host, "--dry-run"]) == 0, (
             out.getvalue())
-    backend = FrankaBackend(franky.host, busy_wait=1e-4)  # each state polled for
+    backend = FrankaBackend(franky.host)
     try:
         run = run_on_robot(setup, choose_controller(setup, None), backend,
                            MotionSettings(3.0, DEADLINE))

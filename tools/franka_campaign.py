@@ -159,10 +159,9 @@ def refused_start(name: str, detail: str) -> dict[str, Any]:
 
 
 def run_session(motions: list[tuple[str, dict]], folder: Path, deadline: float,
-                sim_cpus: frozenset[int] | None = None, busy_wait: float | None = None
-                ) -> list[dict[str, Any]] | None:
+                sim_cpus: frozenset[int] | None = None) -> list[dict[str, Any]] | None:
     """Motions one after the other on one fresh franky-sim (a reach out and back); None when
-    the builder refuses one of their targets. ``busy_wait`` [s]: FrankaBackend's."""
+    the builder refuses one of their targets."""
     setups = []
     for _, data in motions:
         path = folder / f"{data['name']}.yaml"
@@ -176,7 +175,7 @@ def run_session(motions: list[tuple[str, dict]], folder: Path, deadline: float,
         for (kind, data), setup in zip(motions, setups, strict=True):
             settings = MotionSettings(data["simulation"]["duration"], deadline)
             begun = time.perf_counter()
-            backend = FrankaBackend(sim.host, busy_wait=busy_wait)
+            backend = FrankaBackend(sim.host)
             try:
                 run = run_on_robot(setup, choose_controller(setup, None), backend, settings)
             except CpbcError as exc:  # the start is refused: nothing moved
@@ -249,13 +248,10 @@ def _budgeted(session: list[tuple[str, dict]], budgets: dict[str, float | None]
 def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
              command: str, rescue_budget: int | None = None,
              test_budget: int | None = None,
-             time_budget: float | None = None, pinned: bool = False,
-             busy_wait: float | None = None) -> dict[str, Any]:
+             time_budget: float | None = None, pinned: bool = False) -> dict[str, Any]:
     """Run the campaign; its JSON document (``time_budget`` [s]; ``pinned``: the controller
     on the last core alone, franky-sim on the others, as a real set-up isolates the loop's
-    core and runs the robot's side on the robot's own computer; ``busy_wait`` [s]: each
-    state waited for by polling the clock until that long before it is due,
-    cpbc.hardware.franka.FrankaBackend)."""
+    core and runs the robot's side on the robot's own computer)."""
     sim_cpus = None
     if pinned:
         cores = sorted(os.sched_getaffinity(0))
@@ -275,8 +271,7 @@ def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
             if session[0][0] == "reach" and sum(r["kind"] == "reach" for r in runs) >= n_reaches:
                 continue
             budgets = {"rescue": rescue_budget, "test": test_budget, "time": time_budget}
-            found = run_session(_budgeted(session, budgets), Path(folder), deadline, sim_cpus,
-                                busy_wait)
+            found = run_session(_budgeted(session, budgets), Path(folder), deadline, sim_cpus)
             if found is None:
                 refused += 1
                 continue
@@ -289,7 +284,7 @@ def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
         "commit": _git_commit(), "seed": seed, "deadline_ms": deadline * 1e3,
         "rescue_budget": rescue_budget, "test_budget": test_budget,
         "time_budget_us": None if time_budget is None else 1e6 * time_budget,
-        "pinned": pinned, "busy_wait_us": None if busy_wait is None else 1e6 * busy_wait,
+        "pinned": pinned,
         "machine": {"cpus": os.cpu_count(), "load_before": [round(v, 2) for v in load_before],
                     "load_after": [round(v, 2) for v in os.getloadavg()]},
         "wall_s": round(time.perf_counter() - begun, 1),
@@ -356,10 +351,8 @@ def render(doc: dict[str, Any]) -> str:
         f"deadline {doc['deadline_ms']:g} ms, {m['cpus']} cores, load average "
         f"{m['load_before'][0]:.2f} before and {m['load_after'][0]:.2f} after "
         f"(a shared machine, not idle), {doc['wall_s']:.0f} s in all"
-        + ("; the controller pinned to one core, franky-sim to the other"
-           if doc.get("pinned") else "")
-        + (f"; each state waited for by polling the clock until {doc['busy_wait_us']:.0f} µs "
-           "before it was due." if doc.get("busy_wait_us") is not None else "."),
+        + ("; the controller pinned to one core, franky-sim to the other."
+           if doc.get("pinned") else "."),
         "",
         "| target | measured |",
         "|---|---|",
@@ -427,9 +420,6 @@ def main(argv: Sequence[str] | None = None) -> int:
                         "cpbc.hardware's share of the deadline)")
     p.add_argument("--pinned", action="store_true",
                    help="the controller on the last core alone, franky-sim on the others")
-    p.add_argument("--busy-wait-ms", type=float, default=None,
-                   help="wait for each state by polling the clock until this long before "
-                        "it is due (python -m cpbc.hardware's --busy-wait-ms)")
     p.add_argument("--out", type=Path, default=OUT)
     p.add_argument("--render-only", action="store_true",
                    help="write the fragment from the stored JSON, run nothing")
@@ -442,8 +432,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         doc = campaign(args.reaches, args.paths, args.seed, args.deadline_ms * 1e-3,
                        command.strip(), args.rescue_budget, args.test_budget,
                        None if args.time_budget_us is None else args.time_budget_us * 1e-6,
-                       args.pinned,
-                       None if args.busy_wait_ms is None else args.busy_wait_ms * 1e-3)
+                       args.pinned)
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / JSON_NAME).write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
     (args.out / TABLE_NAME).write_text(render(doc), encoding="utf-8")

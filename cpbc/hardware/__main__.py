@@ -1,6 +1,5 @@
 """``python -m cpbc.hardware SCENARIO --robot-ip IP [--dry-run] [--out DIR]
-[--controller NAME] [--backend franka|lockstep] [--busy-wait-ms MS]``: a scenario's
-controller on a robot.
+[--controller NAME] [--backend franka|lockstep]``: a scenario's controller on a robot.
 
 Exit codes: 0 when the motion ran (whatever the controller did) or the dry run passed, 1 when
 the robot ended the motion (its error named, with the last state; the files so far are
@@ -21,7 +20,6 @@ import numpy as np
 
 from cpbc.errors import CpbcError
 from cpbc.hardware.backend import RobotBackend, RobotFault
-from cpbc.hardware.franka import FR3_LIMITS
 from cpbc.hardware.motion import MotionSettings
 from cpbc.hardware.robot_run import (
     HardwareRun,
@@ -59,30 +57,19 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, help="output folder (default: runs/<scenario>-robot)")
     p.add_argument("--realtime", action="store_true", help="franka: insist on a real-time "
                    "kernel (libfranka's kEnforce; for a real robot)")
-    p.add_argument("--busy-wait-ms", type=float, help="franka: wait for each state by "
-                   "polling the clock until this long before it is due, then block (keeps "
-                   "the loop's core out of its idle states; for a core of its own)")
     p.add_argument("--deadline-ms", type=float, default=1.0, help="the longest computation "
                    "of a cycle [ms]; a longer one brakes and ends the motion (default 1)")
     return p
 
 
 def _backend(args: argparse.Namespace, setup: ScenarioSetup) -> RobotBackend:
-    wait = args.busy_wait_ms
     if args.backend == "lockstep":
-        if wait is not None:
-            raise CpbcError("--busy-wait-ms: the lock-step backend has no clock to wait for; "
-                            "leave it out, or use --backend franka")
         return lockstep_for(setup)
-    if wait is not None and not 0.0 <= wait < 1e3 * FR3_LIMITS.period:
-        raise CpbcError(f"--busy-wait-ms: give a time in [0, {1e3 * FR3_LIMITS.period:g}) ms "
-                        f"before the next state, got {wait:g}")
     if not args.robot_ip:
         raise CpbcError("--robot-ip: give the robot's address (or --backend lockstep)")
     from cpbc.hardware.franka import FrankaBackend  # pylibfranka only for a Franka
 
-    lead = None if args.busy_wait_ms is None else args.busy_wait_ms * 1e-3
-    return FrankaBackend(args.robot_ip, realtime=args.realtime, busy_wait=lead)
+    return FrankaBackend(args.robot_ip, realtime=args.realtime)
 
 
 def _report(run: HardwareRun, out: Path) -> None:

@@ -12,7 +12,6 @@ torque the robot checks.
 from __future__ import annotations
 
 import re
-import time
 from typing import Any
 
 import numpy as np
@@ -57,41 +56,17 @@ def fault_name(exc: BaseException) -> str:
     return "network" if kind == "NetworkException" else kind
 
 
-def poll_until(moment: float) -> None:
-    """Wait until ``moment`` (``time.perf_counter``'s clock) by reading the clock: the core
-    stays busy, out of the idle states a blocking wait sends it to."""
-    clock = time.perf_counter
-    while clock() < moment:
-        pass
-
-
 class FrankaBackend:
     """A :class:`~cpbc.hardware.backend.RobotBackend` for a Franka at ``address``; with
     ``realtime``, libfranka insists on a real-time kernel (``RealtimeConfig.kEnforce``, what
     a real robot wants), else it runs on any (``kIgnore``: a simulator, a test).
 
-    ``busy_wait`` [s]: during a motion, wait for each state by polling the clock until that
-    long before it is due (one period after the last arrived), and only then block in
-    ``readOnce``; None blocks at once. A blocking wait of most of a period lets an idle
-    core sleep, and the cycle after it runs on a cold core: on this project's virtual
-    machine the lock-step FR3 reach's median cycle took 108–130 µs after a sleep of 0.8 ms
-    against 80 µs after polling as long (docs/hardware.md). It costs a core: for a loop
-    that has one of its own. The poll never runs past the nominal period less
-    ``busy_wait``, so a state that comes early is still read at once.
-
     Raises:
         RobotFault: the robot cannot be reached (``network``) or refuses the connection.
-        ParameterError: ``busy_wait`` is not a time in [0, the period).
     """
 
     def __init__(self, address: str, limits: RobotLimits = FR3_LIMITS,
-                 joint_names: tuple[str, ...] = FR3_JOINTS, realtime: bool = False,
-                 busy_wait: float | None = None) -> None:
-        if busy_wait is not None and not 0.0 <= busy_wait < limits.period:
-            raise ParameterError("busy_wait", f"give a time in [0, {limits.period:g}) s "
-                                 f"before the next state, got {busy_wait!r}")
-        self._busy_wait = busy_wait
-        self._arrived = 0.0  # when the last state was read (perf_counter)
+                 joint_names: tuple[str, ...] = FR3_JOINTS, realtime: bool = False) -> None:
         franka = _bindings()
         self._franka = franka
         self._limits, self._names = limits, joint_names
@@ -126,10 +101,7 @@ class FrankaBackend:
         try:
             if self._control is None:
                 return self._measured(self._robot.read_once())
-            if self._busy_wait is not None:
-                poll_until(self._arrived + self._limits.period - self._busy_wait)
             raw, period = self._control.readOnce()
-            self._arrived = time.perf_counter()
         except self._errors as exc:
             raise self._fault(exc) from None
         # the robot's clock advanced by ``period``: whole cycles beyond one were lost
