@@ -36,6 +36,8 @@ def coulomb_levels(levels: Array | None, n: int) -> Array:
 # MuJoCo's default for a joint's frictionloss (solref 0.02, 1; solimp 0.9, 0.95): 1/b of
 # cpbc.controllers.safeguard.model_error's docstring [s]
 MUJOCO_BUILD_UP = 0.95 * 0.02 / 2.0
+# d₀ of that default solimp: a frictionloss row's regulariser is R_j = (1 − d₀)/d₀ A_j
+MUJOCO_IMPEDANCE = 0.9
 # v_c = R_j F_j / b (R_j = (1 − d₀)/d₀ dof_invweight0): at most 0.033 rad/s on the UR5,
 # 0.060 on the Panda, 0.145 on the FR3's last joint while the campaign plants' MuJoCo constants
 # left out the rotor inertia; ≤ 0.008 on all three since (cpbc.model.joint_dynamics.on_mujoco).

@@ -87,7 +87,7 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.margin_slopes import MarginSlopes
 from cpbc.kernels import friction_error as kernels
 from cpbc.kernels.small_solves import inverse_spd
-from cpbc.model.coulomb import MUJOCO_FRICTION, DryFriction
+from cpbc.model.coulomb import MUJOCO_FRICTION, MUJOCO_IMPEDANCE, DryFriction
 from cpbc.model.robot_model import ArmState, RobotModel
 
 _NONE = np.zeros(0)  # no accelerations given (friction_error)
@@ -123,7 +123,7 @@ def mujoco_friction(model: RobotModel) -> DryFriction:
     levels = model.coulomb_friction
     if not levels.any():
         return MUJOCO_FRICTION
-    d0 = 0.9  # MuJoCo's default solimp[0]
+    d0 = MUJOCO_IMPEDANCE
     joint_inv = _joint_inverse(model, model.inertia(np.zeros(model.n)))[1]
     # v_c = R_j F_j / b, 1/b = T_f
     creep = float(np.max((1.0 - d0) / d0 * np.diag(joint_inv) * levels)) * (
