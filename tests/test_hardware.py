@@ -12,9 +12,11 @@ import _thread
 import contextlib
 import importlib.util
 import io
+import math
 import signal
 import threading
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree
@@ -129,9 +131,10 @@ def test_reach_on_franky_sim_keeps_every_constraint(franky: FrankySim,
           f"lost {motion.lost.sum():.0f}")
 
 
-def _lockstep_run(setup: ScenarioSetup) -> HardwareRun:
+def _lockstep_run(setup: ScenarioSetup, cpu_latency: int | None = 0) -> HardwareRun:
     backend = lockstep_for(setup)
-    run = run_on_robot(setup, choose_controller(setup, "CPBC"), backend, _settings(setup))
+    settings = replace(_settings(setup), cpu_latency=cpu_latency)
+    run = run_on_robot(setup, choose_controller(setup, "CPBC"), backend, settings)
     held = backend.read().held  # what the robot holds after the motion: its last command
     assert held is not None
     np.testing.assert_array_equal(held, run.motion.commanded_torque[-1])
@@ -140,10 +143,15 @@ def _lockstep_run(setup: ScenarioSetup) -> HardwareRun:
 
 def test_lockstep_reach_is_deterministic_and_keeps_every_constraint(
         setup: ScenarioSetup) -> None:
-    first, second = _lockstep_run(setup), _lockstep_run(setup)
+    # the second without the CPU latency request, which changes the time a cycle takes only
+    first, second = _lockstep_run(setup), _lockstep_run(setup, cpu_latency=None)
     for name in ("position", "velocity", "commanded_torque", "torque", "braking"):
         np.testing.assert_array_equal(getattr(first.motion, name),
                                       getattr(second.motion, name), err_msg=name)
+    assert first.latency is not None and second.latency is None
+    held = first.summary.extra["cpu_latency_us"]
+    assert held == 0.0 if first.latency.held else math.isnan(held), first.latency
+    assert math.isnan(second.summary.extra["cpu_latency_us"])
     assert first.motion.ending == "completed"
     _margins_hold(first)
     assert first.rules.kept, first.rules.describe()
@@ -289,6 +297,8 @@ def test_cli_bad_input_is_one_line_and_exit_2(tmp_path: Path) -> None:
     assert code == 2 and err.startswith("error: --robot-ip:") and err.count("\n") == 1
     code, err = _cli(str(SCENARIO), "--backend", "lockstep", "--deadline-ms", "-1")
     assert code == 2 and err.startswith("error: --deadline-ms:") and err.count("\n") == 1
+    code, err = _cli(str(SCENARIO), "--backend", "lockstep", "--cpu-latency-us", "-1")
+    assert code == 2 and err.startswith("error: --cpu-latency-us:") and err.count("\n") == 1
     code, err = _cli(str(SCENARIO), "--backend", "lockstep", "--controller", "PD")
     assert code == 2 and "--controller: no controller 'PD'" in err
     data = yaml.safe_load(SCENARIO.read_text())

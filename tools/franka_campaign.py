@@ -127,6 +127,7 @@ def record(kind: str, data: dict, setup: ScenarioSetup, run: HardwareRun, wall: 
         "lost_states": int(x["lost_states"]), "brake_cycles": int(x["brake_cycles"]),
         "rescues": run.summary.rescues, "acted": run.summary.safeguard_steps,
         "out_of_tests": run.summary.out_of_tests, "wall_s": round(wall, 2),
+        "cpu_latency_held": run.latency is not None and run.latency.held,
         "_compute": motion.compute_time[np.isfinite(motion.compute_time)] * 1e6,
     }
     if kind == "reach":
@@ -159,9 +160,11 @@ def refused_start(name: str, detail: str) -> dict[str, Any]:
 
 
 def run_session(motions: list[tuple[str, dict]], folder: Path, deadline: float,
-                sim_cpus: frozenset[int] | None = None) -> list[dict[str, Any]] | None:
-    """Motions one after the other on one fresh franky-sim (a reach out and back); None when
-    the builder refuses one of their targets."""
+                sim_cpus: frozenset[int] | None = None, cpu_latency: int | None = 0
+                ) -> list[dict[str, Any]] | None:
+    """Motions one after the other on one fresh franky-sim (a reach out and back), each
+    holding the CPU latency request ``cpu_latency`` [µs] (None: none); None when the builder
+    refuses one of their targets."""
     setups = []
     for _, data in motions:
         path = folder / f"{data['name']}.yaml"
@@ -173,7 +176,8 @@ def run_session(motions: list[tuple[str, dict]], folder: Path, deadline: float,
     found = []
     with FrankySim(loopback_address(), cpus=sim_cpus) as sim:
         for (kind, data), setup in zip(motions, setups, strict=True):
-            settings = MotionSettings(data["simulation"]["duration"], deadline)
+            settings = MotionSettings(data["simulation"]["duration"], deadline,
+                                      cpu_latency=cpu_latency)
             begun = time.perf_counter()
             backend = FrankaBackend(sim.host)
             try:
@@ -216,6 +220,7 @@ def totals(runs: list[dict[str, Any]], refused: int, compute: list[np.ndarray]
         "out_of_tests": sum(r.get("out_of_tests", 0) for r in runs),
         "cycles": int(sum(len(c) for c in compute)),
         "runs_with_lost_states": sum(r["lost_states"] > 0 for r in runs),
+        "cpu_latency_held": sum(bool(r.get("cpu_latency_held")) for r in runs),
         "endings": {e: sum(r["ending"] == e for r in runs)
                     for e in sorted({r["ending"] for r in runs})},
         "compute_us": _pooled(compute),
@@ -248,10 +253,12 @@ def _budgeted(session: list[tuple[str, dict]], budgets: dict[str, float | None]
 def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
              command: str, rescue_budget: int | None = None,
              test_budget: int | None = None,
-             time_budget: float | None = None, pinned: bool = False) -> dict[str, Any]:
+             time_budget: float | None = None, pinned: bool = False,
+             cpu_latency: int | None = 0) -> dict[str, Any]:
     """Run the campaign; its JSON document (``time_budget`` [s]; ``pinned``: the controller
     on the last core alone, franky-sim on the others, as a real set-up isolates the loop's
-    core and runs the robot's side on the robot's own computer)."""
+    core and runs the robot's side on the robot's own computer; ``cpu_latency``: the CPU
+    latency request each motion holds [µs], as ``cpbc.hardware`` does, or None)."""
     sim_cpus = None
     if pinned:
         cores = sorted(os.sched_getaffinity(0))
@@ -271,7 +278,8 @@ def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
             if session[0][0] == "reach" and sum(r["kind"] == "reach" for r in runs) >= n_reaches:
                 continue
             budgets = {"rescue": rescue_budget, "test": test_budget, "time": time_budget}
-            found = run_session(_budgeted(session, budgets), Path(folder), deadline, sim_cpus)
+            found = run_session(_budgeted(session, budgets), Path(folder), deadline, sim_cpus,
+                                cpu_latency)
             if found is None:
                 refused += 1
                 continue
@@ -284,7 +292,7 @@ def campaign(n_reaches: int, n_paths: int, seed: int, deadline: float,
         "commit": _git_commit(), "seed": seed, "deadline_ms": deadline * 1e3,
         "rescue_budget": rescue_budget, "test_budget": test_budget,
         "time_budget_us": None if time_budget is None else 1e6 * time_budget,
-        "pinned": pinned,
+        "pinned": pinned, "cpu_latency_us": cpu_latency,
         "machine": {"cpus": os.cpu_count(), "load_before": [round(v, 2) for v in load_before],
                     "load_after": [round(v, 2) for v in os.getloadavg()]},
         "wall_s": round(time.perf_counter() - begun, 1),
@@ -306,6 +314,16 @@ def _line(r: dict[str, Any]) -> str:
             f"{c['p50']:.0f} p99.9 {c['p999']:.0f} max {c['max']:.0f} µs lost "
             f"{r['lost_states']} acted {r['acted']} out of tests {r['out_of_tests']} rescues "
             f"{r['rescues']} ({r['wall_s']} s)")
+
+
+def _latency(doc: dict[str, Any]) -> str:
+    """The CPU latency request as the motions held it (a campaign stored before
+    cpbc.hardware held one held none)."""
+    target = doc.get("cpu_latency_us")
+    if target is None:
+        return "; no CPU latency request"
+    held, runs = doc["totals"].get("cpu_latency_held", 0), len(doc["runs"])
+    return f"; a CPU latency request of {target} µs held in {held} of {runs} runs"
 
 
 def _budgets(doc: dict[str, Any]) -> str:
@@ -351,8 +369,8 @@ def render(doc: dict[str, Any]) -> str:
         f"deadline {doc['deadline_ms']:g} ms, {m['cpus']} cores, load average "
         f"{m['load_before'][0]:.2f} before and {m['load_after'][0]:.2f} after "
         f"(a shared machine, not idle), {doc['wall_s']:.0f} s in all"
-        + ("; the controller pinned to one core, franky-sim to the other."
-           if doc.get("pinned") else "."),
+        + ("; the controller pinned to one core, franky-sim to the other"
+           if doc.get("pinned") else "") + _latency(doc) + ".",
         "",
         "| target | measured |",
         "|---|---|",
@@ -420,6 +438,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         "cpbc.hardware's share of the deadline)")
     p.add_argument("--pinned", action="store_true",
                    help="the controller on the last core alone, franky-sim on the others")
+    p.add_argument("--no-cpu-latency", action="store_true",
+                   help="hold no CPU latency request in the motions (cpbc.hardware "
+                        "--no-cpu-latency); by default each holds 0 µs, as cpbc.hardware does")
     p.add_argument("--out", type=Path, default=OUT)
     p.add_argument("--render-only", action="store_true",
                    help="write the fragment from the stored JSON, run nothing")
@@ -432,7 +453,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         doc = campaign(args.reaches, args.paths, args.seed, args.deadline_ms * 1e-3,
                        command.strip(), args.rescue_budget, args.test_budget,
                        None if args.time_budget_us is None else args.time_budget_us * 1e-6,
-                       args.pinned)
+                       args.pinned, None if args.no_cpu_latency else 0)
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / JSON_NAME).write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
     (args.out / TABLE_NAME).write_text(render(doc), encoding="utf-8")

@@ -1,5 +1,6 @@
 """``python -m cpbc.hardware SCENARIO --robot-ip IP [--dry-run] [--out DIR]
-[--controller NAME] [--backend franka|lockstep]``: a scenario's controller on a robot.
+[--controller NAME] [--backend franka|lockstep] [--cpu-latency-us N | --no-cpu-latency]``:
+a scenario's controller on a robot.
 
 Exit codes: 0 when the motion ran (whatever the controller did) or the dry run passed, 1 when
 the robot ended the motion (its error named, with the last state; the files so far are
@@ -59,6 +60,11 @@ def _parser() -> argparse.ArgumentParser:
                    "kernel (libfranka's kEnforce; for a real robot)")
     p.add_argument("--deadline-ms", type=float, default=1.0, help="the longest computation "
                    "of a cycle [ms]; a longer one brakes and ends the motion (default 1)")
+    p.add_argument("--cpu-latency-us", type=int, default=0, help="the CPU latency request "
+                   "held while the motion runs (/dev/cpu_dma_latency, as cyclictest holds "
+                   "it; default 0: every core stays awake between the robot's states)")
+    p.add_argument("--no-cpu-latency", action="store_true", help="hold no CPU latency "
+                   "request: idle cores may sleep between the robot's states")
     return p
 
 
@@ -77,11 +83,16 @@ def _report(run: HardwareRun, out: Path) -> None:
     x = s.extra
     if run.start_note:
         print(f"note: {run.start_note}")
+    if run.latency is not None and not run.latency.held:
+        print(f"note: no CPU latency request held, idle cores may sleep between states: "
+              f"{run.latency.reason}")
     print(f"{run.controller}: {motion.ending} after {s.end_time:.3f} s; status {s.status}, "
           f"final error {s.final_error:.4g}")
     print(f"cycle computation: p50 {x['compute_us_p50']:.0f} µs, p99 "
           f"{x['compute_us_p99']:.0f} µs, p99.9 {x['compute_us_p999']:.0f} µs, max "
-          f"{x['compute_us_max']:.0f} µs; lost states {x['lost_states']:.0f}")
+          f"{x['compute_us_max']:.0f} µs; lost states {x['lost_states']:.0f}"
+          + (f"; CPU latency request {run.latency.target_us} µs held"
+             if run.latency is not None and run.latency.held else ""))
     print(f"robot's rules on the log: {run.rules.describe()}")
     print(f"results written to {out}/")
 
@@ -108,9 +119,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                             "scenario")
         if not args.deadline_ms > 0:
             raise CpbcError(f"--deadline-ms: give a time > 0 [ms], got {args.deadline_ms}")
+        if args.cpu_latency_us < 0:
+            raise CpbcError(f"--cpu-latency-us: give a time ≥ 0 [µs], got {args.cpu_latency_us}")
         setup = on_robot(build(loaded, file), args.deadline_ms * 1e-3)
         entry = choose_controller(setup, args.controller)
-        settings = MotionSettings(loaded.simulation.duration, args.deadline_ms * 1e-3)
+        settings = MotionSettings(loaded.simulation.duration, args.deadline_ms * 1e-3,
+                                  cpu_latency=None if args.no_cpu_latency
+                                  else args.cpu_latency_us)
         backend = _backend(args, setup)
         if args.dry_run:
             from cpbc.hardware.dry_run import dry_run

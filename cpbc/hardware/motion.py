@@ -28,6 +28,7 @@ from cpbc.constraints.brakes import TorqueBox, ramped
 from cpbc.controllers.controller import Controller, SafetyFilter
 from cpbc.errors import ConstraintViolation, ParameterError
 from cpbc.hardware.backend import MeasuredState, RobotBackend, RobotFault, RobotLimits
+from cpbc.hardware.cpu_latency import latency_target
 from cpbc.model.robot_model import RobotModel
 
 #: How a motion ended.
@@ -45,18 +46,24 @@ class MotionSettings:
             ends the motion (its late command is not sent).
         brake_time: the longest brake [s]; the motion is finished then, at rest or not.
         rest_speed: the joint speed below which the arm counts as at rest [rad/s].
+        cpu_latency: the CPU latency request held while the motion runs [µs]
+            (cpbc.hardware.cpu_latency: 0 keeps every core awake between the robot's
+            states), or None for none.
     """
 
     duration: float
     deadline: float = 0.001
     brake_time: float = 1.0
     rest_speed: float = 0.01
+    cpu_latency: int | None = 0
 
     def __post_init__(self) -> None:
         for name in ("duration", "deadline", "brake_time", "rest_speed"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ParameterError(name, f"{name} must be a finite number > 0, got {value}")
+        if self.cpu_latency is not None:
+            latency_target(self.cpu_latency, "cpu_latency")
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,8 @@ The scenario's ``cases`` are not used: the motion starts from the state the robo
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -19,6 +21,7 @@ from cpbc.controllers.controller import Controller, SafetyFilter
 from cpbc.controllers.safeguard import Safeguard
 from cpbc.errors import ConstraintViolation, InadmissibleStateError, ScenarioError
 from cpbc.hardware.backend import MeasuredState, RobotBackend, RobotLimits
+from cpbc.hardware.cpu_latency import LatencyRequest, cpu_latency
 from cpbc.hardware.lockstep import LockstepBackend
 from cpbc.hardware.motion import MotionLog, MotionSettings, collected, run_motion
 from cpbc.hardware.rules import RuleReport, check_rules
@@ -193,6 +196,7 @@ class HardwareRun:
     rules: RuleReport
     task_error: Array | None = None
     start_note: str | None = None  # a start outside the braking set that a rescue stops
+    latency: LatencyRequest | None = None  # the CPU latency request, if one was asked for
 
 
 def _trajectory(motion: MotionLog, guard: Controller, period: float) -> Trajectory:
@@ -241,7 +245,8 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
     check_fits(setup, limits, backend.joint_names)
     state = backend.read()
     note = check_start(setup, state)
-    with collected():  # warmed after the last collection, which leaves the caches cold
+    with _latency(settings) as latency, collected():
+        # warmed after the last collection, which leaves the caches cold
         warm(setup, entry, state, backend)
         guard = setup.controller(entry)  # after the spare: a tracker steers the law when built
         pack(entry.controller)
@@ -262,7 +267,9 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
              "rescue_budget": math.nan if budget is None else float(budget),
              "test_budget": math.nan if tests is None else float(tests),
              "time_budget_us": math.nan if kept is None or kept.time_budget is None
-             else 1e6 * kept.time_budget}
+             else 1e6 * kept.time_budget,
+             "cpu_latency_us": float(latency.target_us) if latency is not None
+             and latency.held else math.nan}
     summary = replace(summary, extra=extra, cause=cause)
     errors = None
     if isinstance(guard, ReferenceTracker) and setup.goal is not None:
@@ -272,7 +279,19 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
         errors = log.task_error
     elif setup.goal is not None:
         errors = task_errors(setup.model, setup.goal.goal, traj.position)
-    return HardwareRun(entry.name, motion, traj, margins, summary, rules, errors, note)
+    return HardwareRun(entry.name, motion, traj, margins, summary, rules, errors, note,
+                       latency)
+
+
+@contextmanager
+def _latency(settings: MotionSettings) -> Iterator[LatencyRequest | None]:
+    """The motion's CPU latency request held for the block (cpbc.hardware.cpu_latency), or
+    None where the settings ask for none."""
+    if settings.cpu_latency is None:
+        yield None
+        return
+    with cpu_latency(settings.cpu_latency) as request:
+        yield request
 
 
 def write_run(out: Path, setup: ScenarioSetup, run: HardwareRun) -> None:
