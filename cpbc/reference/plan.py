@@ -6,7 +6,7 @@ table look-up."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -35,6 +35,8 @@ class ReferencePlan:
         log_norm: ln s(ΦΨ(x_n(s_k), 0)) of the law, as a list (V̄ = V·exp(log_norm)).
         postures_path: the coarse continuation and its stretches.
         blend_times: per stretch, |p(end) − p(start)| over the nominal speed at its end.
+        rows, row_tangents: [p | x_n](s_k) and their tangents side by side, (m, 3 + n):
+            what the tracker interpolates each step, once for both (made from the above).
     """
 
     goal: FrameGoal
@@ -48,6 +50,13 @@ class ReferencePlan:
     log_norm: list[float]
     postures_path: PosturePath
     blend_times: tuple[float, ...]
+    rows: Array = field(init=False, repr=False)
+    row_tangents: Array = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "rows", np.hstack((self.points, self.postures)))
+        object.__setattr__(self, "row_tangents",
+                           np.hstack((self.tangents, self.posture_tangents)))
 
     def index(self, s: float) -> int:
         return min(int(s / self.period + 0.5), len(self.speeds) - 1)

@@ -140,9 +140,8 @@ class ReferenceTracker(Controller):
         assert self.plan is not None and self.governor is not None
         self.governor.start_at(phase)
         self.k = round(phase / self.h)
-        h = self.plan.period
-        self.moving.set(_between(self.plan.points, phase, h), None,
-                        _between(self.plan.postures, phase, h))
+        row = _between(self.plan.rows, phase, self.plan.period)
+        self.moving.set(row[:3], None, row[3:])
 
     def set_target(self, position: ArrayLike, velocity: ArrayLike | None = None) -> None:
         """Stream a target point for the law's frame: ``position`` p_r [m] in the world
@@ -330,8 +329,8 @@ class ReferenceTracker(Controller):
         k = min(int(gov.s / plan.period), len(plan.speeds) - 1)
         s = gov.advance(self.k * self.h, vbar, max(plan.speeds[k:k + 3]))
         j = plan.index(s)
-        point, posture = _between(plan.points, s, plan.period), _between(plan.postures, s,
-                                                                          plan.period)
+        row = _between(plan.rows, s, plan.period)  # the point and the posture at once
+        point, posture = row[:3], row[3:]
         if gov.blend is not None:  # a rejoin carries the reference over a stretch
             end = plan.index(gov.blocked[1]) if gov.blocked else j
             w = gov.blend
@@ -339,8 +338,8 @@ class ReferenceTracker(Controller):
                             (1 - w) * posture + w * plan.postures[end])
         else:
             rate = gov.rate if self.feedforward else 0.0
-            self.moving.set(point, rate * plan.tangents[j], posture,
-                            rate * plan.posture_tangents[j])
+            ahead = rate * plan.row_tangents[j]
+            self.moving.set(point, ahead[:3], posture, ahead[3:])
         self.log_s.append(s)
         self.log_blocked.append(gov.blocked_now)
         self.log_applied.append(self.moving.position.copy())
