@@ -49,6 +49,7 @@ from cpbc.controllers import (
     Power,
     RecentredBarrier,
 )
+from cpbc.controllers.hold import plant_step
 from cpbc.controllers.safeguard import SafeguardSettings, guarded
 from cpbc.errors import CpbcError
 from cpbc.model import LinearCoordinates, RobotModel
@@ -69,13 +70,21 @@ class BenchSetup:
     coordinates: LinearCoordinates
     start: tuple[Array, Array]
     notes: str
+    plant: PlantSettings  # what make_plant steps with (the safeguard reads its step)
     torque_limit: Array | None = None  # the actuators' box for the peer comparison (--peers)
+
+    def safeguard(self) -> SafeguardSettings:
+        """The safeguard's settings as the scenario builder sets them for this plant (its
+        step where the integrator is one-stage: cpbc.controllers.hold.plant_step)."""
+        return SafeguardSettings(plant_step=plant_step(self.plant.integrator,
+                                                       self.plant.timestep))
 
 
 def planar_2link() -> BenchSetup:
     """The thesis's arm in absolute link angles, with the thesis's constraints (Section 6.4)."""
     path = models_dir() / "planar_2link.xml"
     coords = LinearCoordinates.absolute_link_angles(2)
+    rk4 = PlantSettings(0.001, "RK4")
     model = RobotModel.from_mjcf(path, coordinates=coords)
     names = ["theta1", "theta2"]
     rates = joint_rate_limit([0.3, 0.2], names)
@@ -103,9 +112,10 @@ def planar_2link() -> BenchSetup:
     states = [(rng.uniform(-0.4, 0.4, 2), rng.uniform(-0.1, 0.1, 2)) for _ in range(64)]
     return BenchSetup(
         "planar_2link", controllers, states,
-        lambda: MujocoPlant.from_file(path, PlantSettings(0.001, "RK4")),
+        lambda: MujocoPlant.from_file(path, rk4),
         coords, (np.zeros(2), np.zeros(2)),
         "thesis constraints (obstacle, relative angle, 2 rate limits); RK4, 1 kHz control",
+        rk4,
     )
 
 
@@ -166,7 +176,7 @@ def time_loop(
     law."""
     plant = setup.make_plant()
     settings = LoopSettings(seconds, InputBounds(0.001))
-    law = guarded(ctrl, settings.bounds, SafeguardSettings() if safeguard else None)
+    law = guarded(ctrl, settings.bounds, setup.safeguard() if safeguard else None)
     rates = []
     for _ in range(repeats):
         traj = run_mujoco(plant, law, setup.coordinates, *setup.start, settings)
@@ -190,7 +200,7 @@ def peer_times(setup: BenchSetup, repeats: int) -> dict[str, list[float]]:
     period = 0.001
     contenders: dict[str, Controller] = {
         "cpbc_guarded": guarded(law, InputBounds(period, setup.torque_limit),
-                                SafeguardSettings()),
+                                setup.safeguard()),
         "cbf_qp": CBFQP(law.model, law.target, law.constraints, law.kp, law.kd,  # type: ignore[attr-defined]
                         gain=20.0, bounds=InputBounds(period, setup.torque_limit)),
         BESIDE: law,

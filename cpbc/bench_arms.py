@@ -70,18 +70,20 @@ def panda(states: int = 64, seed: int = 0) -> BenchSetup:
         if np.all(check.margins(x, dx, model.dynamics(x, dx)) > 0):
             picked.append((x, dx))
 
+    plant = PlantSettings(0.001, "implicitfast")
+
     def make_plant() -> MujocoPlant:
         spec = arm.mujoco_spec()
         for ob in OBSTACLES:
             add_scene_geom(spec, ob.name, ob.scene_geom(), True, [0.85, 0.25, 0.2, 0.5])
         mj = spec.compile()
         finish_mujoco_model(mj, arm.joint_names)
-        return MujocoPlant(mj, PlantSettings(0.001, "implicitfast"))
+        return MujocoPlant(mj, plant)
 
     return BenchSetup(
         "panda", controllers, picked, make_plant, LinearCoordinates.identity(7),
         (START.copy(), np.zeros(7)),
         "14 URDF joint limits, 7 rate limits, table + ball + crate against 10 links "
         "(33 spheres, 99 pairs); implicitfast, 1 kHz control",
-        torque_limit=arm.effort_limit,
+        plant, torque_limit=arm.effort_limit,
     )

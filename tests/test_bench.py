@@ -48,3 +48,18 @@ def test_bench_check_fails_when_the_kernels_are_not_compiled() -> None:
         text=True, timeout=600)
     assert done.returncode == 1
     assert "kernel: no compiled kernels" in done.stderr
+
+
+def test_the_benchs_safeguard_is_set_for_its_plant_as_a_scenario_sets_it() -> None:
+    """The Panda's bench plant steps implicitfast at 1 ms, as panda_cpbc_sphere does: its
+    guard predicts that plant's step and holds no hold correction, as cpbc.scenario.build
+    sets it for the scenario (it assumed a continuous-time plant before, and paid a model
+    pass a step for the correction); the planar arm's RK4 plant is continuous time."""
+    from cpbc.bench import ROBOTS
+    from cpbc.scenario import build, load_scenario
+
+    panda, planar = ROBOTS["panda"](), ROBOTS["planar_2link"]()
+    scenario = build(*load_scenario("panda_cpbc_sphere"))
+    assert scenario.safeguard is not None
+    assert panda.safeguard().plant_step == scenario.safeguard.plant_step == 0.001
+    assert planar.safeguard().plant_step is None

@@ -50,6 +50,13 @@ def hold_corrected(model: RobotModel, state: ArmState, bias: Array, tau: Array,
 ONE_STAGE = frozenset({"Euler", "implicit", "implicitfast"})
 
 
+def plant_step(integrator: str, timestep: float) -> float | None:
+    """The plant's step as the safeguard takes it (``SafeguardSettings.plant_step``): the
+    timestep of a plant whose integrator is one-stage (ONE_STAGE), else None — a plant
+    integrated with RK4, or an arm, in continuous time."""
+    return timestep if integrator in ONE_STAGE else None
+
+
 def hold_share(period: float, plant_step: float | None) -> float:
     """s: the share of the drift Δa of one period that the plant's acceleration has on
     average under a held torque, to first order.

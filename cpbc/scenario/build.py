@@ -15,7 +15,7 @@ from cpbc.constraints import (
     VelocityConstraint,
 )
 from cpbc.constraints.geometry import Obstacle
-from cpbc.controllers.hold import ONE_STAGE
+from cpbc.controllers.hold import plant_step
 from cpbc.controllers.safeguard import SafeguardSettings
 from cpbc.errors import ScenarioError
 from cpbc.model import RobotModel
@@ -178,8 +178,7 @@ def build(scenario: s.Scenario, scenario_file: Path, kinds: Kinds = KINDS) -> Sc
                                     rescue_budget=sim.safeguard_rescue_budget,
                                     test_budget=sim.safeguard_test_budget,
                                     time_budget=sim.safeguard_time_budget,
-                                    plant_step=sim.timestep if sim.integrator in ONE_STAGE
-                                    else None)
+                                    plant_step=plant_step(sim.integrator, sim.timestep))
         if sim.safeguard else None,
         also_keep=monitor.configuration if sim.safeguard and sim.safeguard_monitored else (),
         gravity_on_path=gravity_on_path, outside_braking_set=outside_v, goal=goal,
