@@ -55,7 +55,9 @@ def predictor(model: RobotModel, state: ArmState, bias: Array, h: float, substep
             frozen_start(inertia, bias, t, x, dx, h, work, acc, smooth, speed)
             # continuous time: the model's acceleration at the predicted end
             after = model.forward_dynamics(smooth, speed, t) if corrector else acc
-            mids, ends, speeds, mid_speeds = np.empty((4, rows, n))
+            shape = (rows, n)  # four arrays: cheaper than the rows of one (4, rows, n)
+            mids, ends, speeds, mid_speeds = (np.empty(shape), np.empty(shape),
+                                              np.empty(shape), np.empty(shape))
             frozen_rows(x, dx, acc, after, h, travel, mids, ends, speeds, mid_speeds)
             return mids, ends, speeds, mids, mid_speeds
 
