@@ -368,8 +368,10 @@ def test_a_missed_deadline_brakes_exits_1_and_writes(tmp_path: Path) -> None:
     with h5py.File(out / "trajectories.h5") as f:
         run = f["robot/CPBC"]
         sent, braking = run["commanded_torque"][()], run["braking"][()].astype(bool)
-        computed = run["compute_time"][()]
+        computed, waited = run["compute_time"][()], run["read_wait"][()]
     assert computed[1] > 1e-6 and np.all(np.isnan(computed[2:]))
+    # the read before the cycle that overran was timed; the first state's and the brake's not
+    assert np.isnan(waited[0]) and waited[1] >= 0.0 and np.all(np.isnan(waited[2:]))
     assert np.all(sent[0] == 0) and braking[2:].all()
     assert np.all(np.abs(np.diff(sent, axis=0)) <= FR3_LIMITS.torque_step + 1e-12)
     summary = yaml.safe_load((out / "summary.json").read_text())[0]

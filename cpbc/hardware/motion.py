@@ -77,6 +77,9 @@ class MotionLog:
         commanded_torque: τ_d as sent (gravity excluded); NaN where nothing was sent.
         lyapunov: the controller's V (NaN where undefined).
         compute_time: this computer's time from reading the state to sending [s].
+        read_wait: how long the read of the state blocked, from the call to the state in
+            hand [s] (NaN on the brake's rows and the first): the rest of the robot's cycle
+            as this computer saw it.
         lost: cycles the robot ran since the previous state beyond the one expected.
         braking: whether the row is the brake's.
         ending: one of ENDINGS.
@@ -93,6 +96,7 @@ class MotionLog:
     lyapunov: Array
     compute_time: Array
     lost: Array
+    read_wait: Array
     braking: Array
     ending: str
     violated: str | None = None
@@ -113,6 +117,7 @@ class _Recorder:
         self.position, self.velocity = np.full((rows, n), np.nan), np.full((rows, n), np.nan)
         self.torque, self.command = np.full((rows, n), np.nan), np.full((rows, n), np.nan)
         self.lyapunov, self.compute = np.full(rows, np.nan), np.full(rows, np.nan)
+        self.wait = np.full(rows, np.nan)
         self.lost = np.zeros(rows)  # whole numbers
         self.braking = np.zeros(rows, dtype=bool)
         self.k = 0
@@ -134,8 +139,8 @@ class _Recorder:
         k = self.k
         return MotionLog(self.time[:k], self.position[:k], self.velocity[:k],
                          self.torque[:k], self.command[:k], self.lyapunov[:k],
-                         self.compute[:k], self.lost[:k], self.braking[:k], ending,
-                         violated, detail, fault)
+                         self.compute[:k], self.lost[:k], self.wait[:k], self.braking[:k],
+                         ending, violated, detail, fault)
 
 
 @dataclass
@@ -161,8 +166,11 @@ def _drive(backend: RobotBackend, controller: Controller, state: MeasuredState, 
         backend.write(sent)  # 0
         rec.command[row] = sent
         for k in range(1, steps):
+            called = clock()
             state = backend.read()
+            read = clock()
             row = rec.state(state)
+            rec.wait[row] = read - called
             pending = state, row
             began = clock()
             added = backend.added_torque(state)

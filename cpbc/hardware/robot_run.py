@@ -313,6 +313,7 @@ def write_run(out: Path, setup: ScenarioSetup, run: HardwareRun) -> None:
                 "commanded_torque": (motion.commanded_torque, "N m", model.joint_names),
                 "compute_time": (motion.compute_time, "s", ()),
                 "lost": (motion.lost, "", ()),
+                "read_wait": (motion.read_wait, "s", ()),
                 "braking": (motion.braking.astype(np.uint8), "", ()),
             })
         write_summaries(scratch, [run.summary])
