@@ -13,6 +13,7 @@ import contextlib
 import importlib.util
 import io
 import math
+import os
 import signal
 import threading
 from collections.abc import Iterator
@@ -31,6 +32,7 @@ from cpbc.errors import InadmissibleStateError, ParameterError, ScenarioError
 from cpbc.hardware import robot_run
 from cpbc.hardware.__main__ import main
 from cpbc.hardware.backend import RobotDynamics, RobotLimits
+from cpbc.hardware.cpu_latency import DEVICE
 from cpbc.hardware.dry_run import ModelTolerance, compare_models
 from cpbc.hardware.franka import FR3_LIMITS, fault_name
 from cpbc.hardware.motion import MotionLog, MotionSettings
@@ -101,6 +103,10 @@ def test_dry_run_against_franky_sim(franky: FrankySim) -> None:
     # cpbc's FR3 (franky-sim's URDF) against the robot's own Model (fr3_clean.urdf and a
     # 0.73 kg end effector): gravity within the stated tolerance, the worst joint named
     assert "worst fr3_joint" in text
+    # the motion's CPU latency request tried: held where this user may write the device
+    held = os.access(DEVICE, os.W_OK)
+    assert ("CPU latency request: 0 µs can be held" if held
+            else "CPU latency request: cannot be held") in text, text
 
 
 @needs_franky

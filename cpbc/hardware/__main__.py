@@ -130,7 +130,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.dry_run:
             from cpbc.hardware.dry_run import dry_run
 
-            report = dry_run(setup, entry, backend)
+            report = dry_run(setup, entry, backend, cpu_latency_us=settings.cpu_latency)
             for line in report.describe(backend.joint_names):
                 print(line)
             print("dry run passed: nothing moved")

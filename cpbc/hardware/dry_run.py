@@ -1,7 +1,7 @@
 """``--dry-run``: everything before a motion, without moving. Connect, read the state, check
 it lies inside the admissible set and the braking set, compare cpbc's model with the
-robot's own (mass matrix and gravity at the measured state), and time the controller on
-states recorded from the robot."""
+robot's own (mass matrix and gravity at the measured state), time the controller on
+states recorded from the robot, and try the CPU latency request the motion would hold."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ from cpbc.arrays import Array
 from cpbc.controllers.controller import Controller
 from cpbc.errors import ConstraintViolation, ScenarioError
 from cpbc.hardware.backend import MeasuredState, RobotBackend, RobotDynamics
+from cpbc.hardware.cpu_latency import LatencyRequest, cpu_latency
 from cpbc.hardware.robot_run import check_fits, check_start, warm
 from cpbc.scenario.arm_setup import ControllerEntry, ScenarioSetup
 
@@ -46,6 +47,7 @@ class DryRunReport:
     law_us: dict[str, float]
     samples: int
     start_note: str | None = None
+    latency: LatencyRequest | None = None  # the request tried, or None when none is asked
 
     def describe(self, joints: tuple[str, ...]) -> list[str]:
         worst_m, worst_g = int(np.argmax(self.mass_error)), int(np.argmax(self.gravity_error))
@@ -60,7 +62,17 @@ class DryRunReport:
             f"on {self.samples} recorded states: the law p50 {law['p50']:.0f} µs, p99 "
             f"{law['p99']:.0f} µs, max {law['max']:.0f} µs; with its safeguard p50 "
             f"{t['p50']:.0f} µs, p99 {t['p99']:.0f} µs, max {t['max']:.0f} µs",
+            self._latency(),
         ]
+
+    def _latency(self) -> str:
+        request = self.latency
+        if request is None:
+            return "CPU latency request: none asked for (--no-cpu-latency)"
+        if request.held:
+            return f"CPU latency request: {request.target_us} µs can be held during a motion"
+        return (f"CPU latency request: cannot be held, {request.reason}; a motion runs "
+                "without it")
 
 
 def compare_models(setup: ScenarioSetup, robot: RobotDynamics, q: Array,
@@ -91,9 +103,11 @@ def compare_models(setup: ScenarioSetup, robot: RobotDynamics, q: Array,
 
 
 def dry_run(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBackend,
-            tolerance: ModelTolerance | None = None, samples: int = 200) -> DryRunReport:
-    """Every check before a motion, and the controller timed on ``samples`` states read
-    from the robot (the robot is not moved)."""
+            tolerance: ModelTolerance | None = None, samples: int = 200,
+            cpu_latency_us: int | None = 0) -> DryRunReport:
+    """Every check before a motion, the controller timed on ``samples`` states read from
+    the robot (the robot is not moved), and the motion's CPU latency request
+    (``cpu_latency_us``, None for none) held once and let go: whether it can be."""
     check_fits(setup, backend.limits(), backend.joint_names)
     state = backend.read()
     note = check_start(setup, state)
@@ -103,7 +117,12 @@ def dry_run(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBackend,
     warm(setup, entry, state, backend)
     law = _timed(entry.controller, recorded)
     guarded = _timed(setup.controller(entry), recorded)
-    return DryRunReport(state, mass_error, gravity_error, guarded, law, samples, note)
+    latency = None
+    if cpu_latency_us is not None:
+        with cpu_latency(cpu_latency_us) as latency:
+            pass
+    return DryRunReport(state, mass_error, gravity_error, guarded, law, samples, note,
+                        latency)
 
 
 def _timed(controller: Controller, states: list[MeasuredState]) -> dict[str, float]:
