@@ -303,8 +303,9 @@ def test_cli_bad_input_is_one_line_and_exit_2(tmp_path: Path) -> None:
     assert code == 2 and err.startswith("error: --robot-ip:") and err.count("\n") == 1
     code, err = _cli(str(SCENARIO), "--backend", "lockstep", "--deadline-ms", "-1")
     assert code == 2 and err.startswith("error: --deadline-ms:") and err.count("\n") == 1
-    code, err = _cli(str(SCENARIO), "--backend", "lockstep", "--cpu-latency-us", "-1")
-    assert code == 2 and err.startswith("error: --cpu-latency-us:") and err.count("\n") == 1
+    for latency in ("-1", str(2**31)):
+        code, err = _cli(str(SCENARIO), "--backend", "lockstep", "--cpu-latency-us", latency)
+        assert code == 2 and err.startswith("error: --cpu-latency-us:") and err.count("\n") == 1
     code, err = _cli(str(SCENARIO), "--backend", "lockstep", "--controller", "PD")
     assert code == 2 and "--controller: no controller 'PD'" in err
     data = yaml.safe_load(SCENARIO.read_text())

@@ -119,8 +119,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                             "scenario")
         if not args.deadline_ms > 0:
             raise CpbcError(f"--deadline-ms: give a time > 0 [ms], got {args.deadline_ms}")
-        if args.cpu_latency_us < 0:
-            raise CpbcError(f"--cpu-latency-us: give a time ≥ 0 [µs], got {args.cpu_latency_us}")
+        if not 0 <= args.cpu_latency_us < 2**31:
+            raise CpbcError("--cpu-latency-us: give a whole number of µs from 0 to 2³¹ − 1, "
+                            f"got {args.cpu_latency_us}")
         setup = on_robot(build(loaded, file), args.deadline_ms * 1e-3)
         entry = choose_controller(setup, args.controller)
         settings = MotionSettings(loaded.simulation.duration, args.deadline_ms * 1e-3,

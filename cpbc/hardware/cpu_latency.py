@@ -7,8 +7,9 @@ there costs the next cycle tens of microseconds before the controller runs, and 
 itself runs slower on caches gone cold. A request of 0 µs keeps every core in its shallowest
 idle state (polling) for as long as the request is held. On this project's 2-core virtual
 machine it took the lock-step reach past the ball, sleeping 0.8 ms before each read as a
-blocking read does, from a p99.9 of 259–266 µs to 181–211 µs, and franky-sim's cycles from
-p99.9 278–343 µs to 199–251 µs (docs/hardware.md, "The campaign on franky-sim"). The price
+blocking read does, from a p99.9 of 259–266 µs to 181–211 µs, and the franky-sim
+campaign's cycles from a p99.9 of 303–361 µs to 243–278 µs (docs/hardware.md, "The campaign
+on franky-sim"). The price
 there: a host sometimes deschedules a virtual CPU that polls, for a few milliseconds, and
 franky-sim's states queue meanwhile (2–3 lost, in a few motions of a campaign; none without
 the request). On the robot's own computer, with no hypervisor, 0 µs is the usual real-time
