@@ -57,3 +57,10 @@ def test_a_target_that_is_no_whole_number_of_us_is_refused(target: float) -> Non
     assert found.value.parameter == "target_us"
     with pytest.raises(ParameterError, match="cpu_latency"):
         MotionSettings(1.0, cpu_latency=target)  # type: ignore[arg-type]
+
+
+def test_none_asks_for_no_request() -> None:
+    before = _open_here(DEVICE) if os.path.exists(DEVICE) else 0
+    with cpu_latency(None) as request:
+        assert request is None
+        assert (_open_here(DEVICE) if os.path.exists(DEVICE) else 0) == before

@@ -21,6 +21,7 @@ import numpy as np
 
 from cpbc.errors import CpbcError
 from cpbc.hardware.backend import RobotBackend, RobotFault
+from cpbc.hardware.cpu_latency import latency_target
 from cpbc.hardware.motion import MotionSettings
 from cpbc.hardware.robot_run import (
     HardwareRun,
@@ -119,9 +120,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                             "scenario")
         if not args.deadline_ms > 0:
             raise CpbcError(f"--deadline-ms: give a time > 0 [ms], got {args.deadline_ms}")
-        if not 0 <= args.cpu_latency_us < 2**31:
-            raise CpbcError("--cpu-latency-us: give a whole number of µs from 0 to 2³¹ − 1, "
-                            f"got {args.cpu_latency_us}")
+        latency_target(args.cpu_latency_us, "--cpu-latency-us")  # names the flag
         setup = on_robot(build(loaded, file), args.deadline_ms * 1e-3)
         entry = choose_controller(setup, args.controller)
         settings = MotionSettings(loaded.simulation.duration, args.deadline_ms * 1e-3,

@@ -45,12 +45,17 @@ class LatencyRequest:
 
 
 @contextmanager
-def cpu_latency(target_us: float, device: str = DEVICE) -> Iterator[LatencyRequest]:
+def cpu_latency(target_us: float | None,
+                device: str = DEVICE) -> Iterator[LatencyRequest | None]:
     """Hold a CPU latency request of ``target_us`` microseconds for the block: the device
     stays open, the kernel keeps every core within that wake-up latency, and the request ends
     when the block does. A device that cannot be opened leaves the request not held, its
-    reason given; nothing else fails. A ParameterError names a target that is not a whole
-    number of µs ≥ 0 that fits the kernel's 32 bits (:func:`latency_target`)."""
+    reason given; nothing else fails. None asks for no request (the block gets None). A
+    ParameterError names a target that is not a whole number of µs ≥ 0 that fits the
+    kernel's 32 bits (:func:`latency_target`)."""
+    if target_us is None:
+        yield None
+        return
     target = latency_target(target_us, "target_us")
     fd, reason = _request(device, target)
     try:

@@ -117,10 +117,8 @@ def dry_run(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBackend,
     warm(setup, entry, state, backend)
     law = _timed(entry.controller, recorded)
     guarded = _timed(setup.controller(entry), recorded)
-    latency = None
-    if cpu_latency_us is not None:
-        with cpu_latency(cpu_latency_us) as latency:
-            pass
+    with cpu_latency(cpu_latency_us) as latency:
+        pass  # held and let go: whether it can be
     return DryRunReport(state, mass_error, gravity_error, guarded, law, samples, note,
                         latency)
 

@@ -8,8 +8,6 @@ The scenario's ``cases`` are not used: the motion starts from the state the robo
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -245,7 +243,7 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
     check_fits(setup, limits, backend.joint_names)
     state = backend.read()
     note = check_start(setup, state)
-    with _latency(settings) as latency, collected():
+    with cpu_latency(settings.cpu_latency) as latency, collected():
         # warmed after the last collection, which leaves the caches cold
         warm(setup, entry, state, backend)
         guard = setup.controller(entry)  # after the spare: a tracker steers the law when built
@@ -281,17 +279,6 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
         errors = task_errors(setup.model, setup.goal.goal, traj.position)
     return HardwareRun(entry.name, motion, traj, margins, summary, rules, errors, note,
                        latency)
-
-
-@contextmanager
-def _latency(settings: MotionSettings) -> Iterator[LatencyRequest | None]:
-    """The motion's CPU latency request held for the block (cpbc.hardware.cpu_latency), or
-    None where the settings ask for none."""
-    if settings.cpu_latency is None:
-        yield None
-        return
-    with cpu_latency(settings.cpu_latency) as request:
-        yield request
 
 
 def write_run(out: Path, setup: ScenarioSetup, run: HardwareRun) -> None:
