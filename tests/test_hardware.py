@@ -318,6 +318,31 @@ def test_cli_bad_input_is_one_line_and_exit_2(tmp_path: Path) -> None:
     assert "Traceback" not in err and not out.exists()
 
 
+def test_a_controller_without_the_safeguard_is_refused_before_anything_moves(
+        tmp_path: Path) -> None:
+    """A bare law steps its torque as far as it likes (PD + g stepped 59.6 N·m in one cycle
+    on the lock-step Panda): on a robot only a guarded one runs, the others refused naming
+    the controller, for a motion and a dry run alike, nothing written."""
+    data = yaml.safe_load(SCENARIO.read_text())
+    data["controllers"].append({"type": "pd_gravity", "name": "PD+g", "kp": 60.0, "kd": 12.0})
+    path = tmp_path / "two.yaml"
+    path.write_text(yaml.safe_dump(data))
+    out = tmp_path / "run"
+    for extra in ((), ("--dry-run",)):
+        code, err = _cli(str(path), "--backend", "lockstep", "--controller", "PD+g",
+                         "--out", str(out), *extra)
+        assert code == 2 and err.startswith("error: --controller: 'PD+g' would drive the "
+                                            "robot without the safeguard (it keeps no "
+                                            "constraint)"), err
+        assert err.count("\n") == 1 and not out.exists()
+    data["simulation"]["safeguard"] = False  # the constrained law, its guard turned off
+    path.write_text(yaml.safe_dump(data))
+    code, err = _cli(str(path), "--backend", "lockstep", "--controller", "CPBC",
+                     "--out", str(out))
+    assert code == 2 and "the scenario turns the safeguard off" in err, err
+    assert not out.exists()
+
+
 #: The FR3's joint ranges in Franka's FCI documentation (q_min, q_max) [rad].
 FCI_RANGES = np.array([[-2.7437, 2.7437], [-1.7837, 1.7837], [-2.9007, 2.9007],
                        [-3.0421, -0.1518], [-2.8065, 2.8065], [0.5445, 4.5169],

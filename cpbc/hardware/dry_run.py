@@ -15,7 +15,7 @@ from cpbc.controllers.controller import Controller
 from cpbc.errors import ConstraintViolation, ScenarioError
 from cpbc.hardware.backend import MeasuredState, RobotBackend, RobotDynamics
 from cpbc.hardware.cpu_latency import LatencyRequest, cpu_latency
-from cpbc.hardware.robot_run import check_fits, check_start, warm
+from cpbc.hardware.robot_run import check_fits, check_guarded, check_start, warm
 from cpbc.scenario.arm_setup import ControllerEntry, ScenarioSetup
 
 
@@ -109,6 +109,7 @@ def dry_run(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBackend,
     the robot (the robot is not moved), and the motion's CPU latency request
     (``cpu_latency_us``, None for none) held once and let go: whether it can be."""
     check_fits(setup, backend.limits(), backend.joint_names)
+    check_guarded(setup, entry)
     state = backend.read()
     note = check_start(setup, state)
     mass_error, gravity_error = compare_models(

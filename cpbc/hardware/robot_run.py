@@ -125,6 +125,22 @@ def check_fits(setup: ScenarioSetup, limits: RobotLimits, joints: tuple[str, ...
                                 f"{limits.velocity[i]:g} rad/s")
 
 
+def check_guarded(setup: ScenarioSetup, entry: ControllerEntry) -> None:
+    """Refuse a controller that would drive the robot without a safety filter, naming it:
+    only a filter (the safeguard around a constrained law, or a peer's) chooses each torque
+    within the robot's rate box around what it holds; a bare law steps as far as it likes
+    (PD + g stepped 59.6 N·m in one cycle on the lock-step Panda, where the FR3 allows 1)."""
+    law = entry.controller
+    if isinstance(law, SafetyFilter) or (setup.safeguard is not None
+                                         and not law.constraints.empty):
+        return
+    why = ("it keeps no constraint" if law.constraints.empty
+           else "the scenario turns the safeguard off")
+    raise ScenarioError("--controller", f"'{entry.name}' would drive the robot without the "
+                        f"safeguard ({why}), and nothing else keeps its torque within the "
+                        "robot's torque rate: choose a constrained controller of the scenario")
+
+
 def check_start(setup: ScenarioSetup, state: MeasuredState) -> str | None:
     """Refuse a measured state outside the admissible set, or that no brake within the
     torque (and torque-rate) limits stops; a state outside the braking set that the
@@ -241,6 +257,7 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
     setup = on_robot(setup, settings.deadline)
     limits = backend.limits()
     check_fits(setup, limits, backend.joint_names)
+    check_guarded(setup, entry)
     state = backend.read()
     note = check_start(setup, state)
     with cpu_latency(settings.cpu_latency) as latency, collected():
