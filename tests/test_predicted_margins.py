@@ -1,6 +1,7 @@
 """The guarded margins along a prediction (cpbc.controllers.safeguard.predicted_margins): F of
-(S1) and (S2), and the same F where the sphere clearances are bounded from the sample instead
-of computed (cpbc.kernels.sampled_guard.bounded_slack)."""
+(S1) and (S2), the same F where the sphere clearances are bounded from the sample instead of
+computed (cpbc.kernels.sampled_guard.bounded_slack), and the same F again from the frozen
+prediction's compiled test (cpbc.kernels.frozen_test)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import pytest
 from cpbc.bench_arms import panda
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
 from cpbc.controllers.safeguard.predicted_margins import PredictedMargins, Sample
+from cpbc.controllers.safeguard.prediction import Frozen
 from cpbc.model.input_bounds import InputBounds
 
 
@@ -41,9 +43,10 @@ def _tests(rate: float | None = None):
             stop = guard.acceptance.braking_floor(state, bias, guard.box.holding)
             predict = guard.predictor(state, bias)
             for push in (0.0, 10.0, 100.0):
-                rows = predict(out.torque + push * rng.standard_normal(7))
+                tau = out.torque + push * rng.standard_normal(7)
+                rows = predict(tau)
                 exact = along.slack(rows, floor, mid, stop, None)
-                yield along, rows, floor, mid, stop, Sample(state.x, now), exact
+                yield along, rows, floor, mid, stop, Sample(state.x, now), exact, predict, tau
 
 
 @contextmanager
@@ -69,7 +72,7 @@ def test_bounds_from_the_sample_leave_F_as_it_is(rate: float | None) -> None:
     first test (``enough`` 1) F is the same where it is < 0 and a value in [0, F] where it
     is not. Both signs occur, and F with no joint placements at all as well as with some."""
     signs, placed = set(), list[int]()
-    for along, rows, floor, mid, stop, sample, exact in _tests(rate):
+    for along, rows, floor, mid, stop, sample, exact, _, _ in _tests(rate):
         with _counting(along, placed):
             assert along.slack(rows, floor, mid, stop, None, sample, math.inf) == exact
             first = along.slack(rows, floor, mid, stop, None, sample, 1.0)
@@ -80,3 +83,51 @@ def test_bounds_from_the_sample_leave_F_as_it_is(rate: float | None) -> None:
         signs.add(exact >= 0)
     assert signs == {True, False}
     assert min(placed) < max(placed) and len(placed) < 2 * len(list(_tests(rate)))
+
+
+def test_the_frozen_test_is_the_same_F_bit_for_bit() -> None:
+    """The frozen prediction's test in compiled calls (PredictedMargins.frozen_slack) gives F
+    as the rows and ``slack`` give it, to the bit: exact, from the sample's bounds with
+    ``enough`` ∞ and 1, with and without (S2)'s stopping points; and it asks Pinocchio for
+    joint placements at no more rows. Both signs occur, and tests with no placements."""
+    signs, placed, fused, tests = set(), list[int](), list[int](), 0
+    for along, rows, floor, mid, stop, sample, exact, predict, tau in _tests():
+        assert isinstance(predict, Frozen) and along.fuses
+        acc, after = predict.start(tau)
+        for s in (stop, None):
+            for given, enough in ((None, math.inf), (sample, math.inf), (sample, 1.0)):
+                with _counting(along, placed):
+                    expected = along.slack(rows, floor, mid, s, None, given, enough)
+                with _counting(along, fused):
+                    found = along.frozen_slack(predict, acc, after, floor, mid, s, given,
+                                               enough)
+                assert found == expected or (math.isnan(found) and math.isnan(expected))
+                assert sum(fused) == sum(placed)
+                tests += 1
+        signs.add(exact >= 0)
+    assert signs == {True, False}
+    assert len(fused) < tests and min(fused) < max(fused)  # some ask none, some a few
+
+
+def test_the_frozen_test_without_configuration_margins() -> None:
+    """A guard with rate limits alone (no configuration margin, so no (S1) configuration
+    floors and no (S2)): the compiled test's F is the rows' to the bit."""
+    from cpbc.constraints.constraint_set import ConstraintSet
+
+    setup = panda()
+    law = setup.controllers["cpbc"]
+    rates = ConstraintSet(law.model.n, (), law.constraints.velocity)
+    along = PredictedMargins(rates, law.model)
+    guard = Safeguard(law, InputBounds(0.001, setup.torque_limit), SafeguardSettings())
+    x, dx = setup.states[3]
+    state = guard.state(x, 3.0 * dx)
+    bias = state.coriolis_force + state.gravity
+    predict = guard.predictor(state, bias)
+    assert isinstance(predict, Frozen)
+    now = rates.margins(state.x, state.dx)
+    floor = 0.5 * now
+    for push in (0.0, 30.0, 300.0):
+        tau = law.torque(x, dx) + push
+        acc, after = predict.start(tau)
+        expected = along.slack(predict(tau), floor, None, None, None)
+        assert along.frozen_slack(predict, acc, after, floor, None, None) == expected

@@ -52,7 +52,7 @@ def test_the_prediction_ends_where_a_one_step_plant_lands(figure8):
     landed = coords.matrix @ plant.data.qpos
     ends = {}
     for c in (travel_share(H, setup.plant_settings.timestep), 0.5):
-        predict = predictor(setup.model, state, bias, H, 1, box.clip, True, c)
+        predict = predictor(setup.model, state, bias, H, 1, box, True, c)
         ends[c] = predict(tau)[1][0]
     assert np.max(np.abs(ends[1.0] - landed)) < 1e-10
     assert np.max(np.abs(ends[0.5] - landed)) > 1e-6

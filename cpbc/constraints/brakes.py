@@ -86,6 +86,12 @@ class TorqueBox:
             self.to_joint is not None))
 
     @property
+    def packed(self) -> tuple[Array, Array, Array, Array, bool]:
+        """(lower, upper, Tᵀ, T⁻ᵀ, whether there is a map), as the kernels read the box
+        (cpbc.kernels.torque_box)."""
+        return self._packed
+
+    @property
     def bounds(self) -> tuple[Array, Array]:
         """(lower, upper) of the joint torques [N·m]."""
         return self._packed[0], self._packed[1]
@@ -321,7 +327,9 @@ class Rollout:
                 return self._decided(Stop(False, self.held, -math.inf))
             xs, dxs = rows
             m = self.margins(xs, dxs)
-            least = float(np.min(np.where(np.isnan(m), -np.inf, m))) if m.size else math.inf
+            least = float(m.min()) if m.size else math.inf
+            if least != least:  # a NaN margin counts as −∞
+                least = -math.inf
             self.low = min(self.low, least)
             if not self.low > 0.0:
                 return self._decided(Stop(False, self.held, self.low))

@@ -42,6 +42,7 @@ from cpbc.kernels.clearance import (
 )
 from cpbc.kernels.plan_tables import COUNT, FIRST, KIND, float_table, int_table
 from cpbc.kernels.small_solves import nan_min, solve_spd
+from cpbc.kernels.views import Bools
 
 # --- step 2 of the package docstring: the prediction, dynamics frozen at the sample ---------
 
@@ -237,7 +238,7 @@ def _least(low: float, value: float) -> float:
 
 
 @kernel("float64(float64[:, :], int64, int64, int64, float64[:], boolean[:], boolean)")
-def _least_share(m: Array, first: int, last: int, col: int, floor: Array, past: Array,
+def _least_share(m: Array, first: int, last: int, col: int, floor: Array, past: Bools,
                  has_past: bool) -> float:
     """min over rows [first, last) of m/floor per margin (≥ 1: the margin keeps its floor),
     NaN margins counted as −∞; where ``past`` (the margin broken already) 1 + (m −
@@ -260,7 +261,7 @@ def _least_share(m: Array, first: int, last: int, col: int, floor: Array, past: 
 @kernel("float64(float64[:, :], float64[:, :], float64[:, :], int64, float64[:], float64[:],"
         " float64[:], boolean[:], boolean, boolean, boolean)")
 def slack(config: Array, velocity: Array, inner: Array, ends: int, end_floor: Array,
-          mid_floor: Array, sigma_floor: Array, past: Array, has_past: bool, has_config: bool,
+          mid_floor: Array, sigma_floor: Array, past: Bools, has_past: bool, has_config: bool,
           has_stop: bool) -> float:
     """F = min_i m_i/floor_i − 1 (≥ 0: every margin keeps its floor; the package docstring,
     (S1) and (S2)) over the margins along one prediction of ``ends`` rows: ``config`` the
@@ -302,7 +303,7 @@ def predicted_slack(config_plan: Ints, config_ints: Ints, config_floats: Array,
                     rows: Array, placements: Array, slots: Ints, ends: Array, speeds: Array,
                     inner_x: Array, inner_v: Array, config: Array, velocity: Array,
                     inner: Array, end_floor: Array, mid_floor: Array, sigma_floor: Array,
-                    past: Array, has_past: bool, has_config: bool, has_stop: bool) -> float:
+                    past: Bools, has_past: bool, has_config: bool, has_stop: bool) -> float:
     """F of one prediction in one call: the packed velocity margins at the ends and inside
     the period, the packed configuration margins at ``rows`` (``configuration_rows``, with
     their joint ``placements``; the sphere pairs only at the rows ``slots`` gives, all with
@@ -375,7 +376,7 @@ def bounded_slack(config_plan: Ints, config_ints: Ints, config_floats: Array,
                   velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array,
                   rows: Array, ends: Array, speeds: Array, inner_x: Array, inner_v: Array,
                   config: Array, velocity: Array, inner: Array, end_floor: Array,
-                  mid_floor: Array, sigma_floor: Array, no_past: Array, has_stop: bool,
+                  mid_floor: Array, sigma_floor: Array, no_past: Bools, has_stop: bool,
                   x: Array, now: Array, enough: float, slots: Ints) -> tuple[float, float]:
     """``predicted_slack`` (no margin broken already: ``no_past`` empty) that asks for the
     sphere clearances only at the rows where a bound from the sample does not settle them,

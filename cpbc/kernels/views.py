@@ -18,6 +18,7 @@ from cpbc.arrays import Array
 from cpbc.kernels import inner
 
 Ints = NDArray[np.int64]  # the index tables
+Bools = NDArray[np.bool_]  # marks, one per margin
 F = TypeVar("F")
 
 

@@ -20,7 +20,7 @@ from cpbc.controllers.safeguard.predicted_margins import (
     RampTest,
     Sample,
 )
-from cpbc.controllers.safeguard.prediction import Predictor
+from cpbc.controllers.safeguard.prediction import Frozen, Predictor
 from cpbc.controllers.safeguard.step_box import StepBox
 from cpbc.controllers.safeguard.step_budget import StepBudget
 from cpbc.model.robot_model import ArmState, RobotModel
@@ -100,8 +100,14 @@ class Acceptance:
         raise (F falls as a floor rises), or None."""
         along = self.along
         ramp = self.ramp if along.nv else None
+        frozen = predict if (isinstance(predict, Frozen) and along.fuses and ramp is None
+                             and past is None) else None
 
         def f(t: Array, given: Sample | None) -> float:
+            if frozen is not None:  # the same F in compiled calls (PredictedMargins.frozen_slack)
+                acc, after = frozen.start(t)
+                return along.frozen_slack(frozen, acc, after, end_floor, mid_floor, stop,
+                                          given, 1.0)
             rows = predict(t)
             end = along.slack(rows, end_floor, mid_floor, stop, past, given, 1.0)
             return end if ramp is None else min(end, along.ramp_slack(rows, ramp))

@@ -459,5 +459,5 @@ class Safeguard(SafetyFilter):
 
     def predictor(self, state: ArmState, bias: Array) -> Predictor:
         """The period's prediction under a held τ (:func:`prediction.predictor`)."""
-        return predictor(self.model, state, bias, self.period, self.substeps, self.box.saturate,
+        return predictor(self.model, state, bias, self.period, self.substeps, self.box.reachable,
                          self.settings.corrector, self.travel)

@@ -23,8 +23,10 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.packing import Packed, PackedSet
+from cpbc.controllers.safeguard.prediction import Frozen
 from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES
 from cpbc.kernels.braking_path import configuration_rows
+from cpbc.kernels.frozen_test import frozen_finish, frozen_size, frozen_test
 from cpbc.kernels.sampled_guard import (
     bounded_slack,
     margins_along,
@@ -155,6 +157,8 @@ class PredictedMargins:
         self._no_floor = np.zeros(0)
         self._no_past = np.zeros(0, dtype=bool)
         self._everywhere = np.zeros(0, dtype=np.int64)  # the sphere pairs at every row
+        # every constraint packs: a frozen prediction's test is two kernel calls (frozen_slack)
+        self.fuses = not self._generic_config and not self._generic_velocity
 
     def _placements(self, rows: Array) -> Array:
         """Pinocchio's joint placements (the static regressor) at every row, joint
@@ -233,6 +237,42 @@ class PredictedMargins:
                                no_floor if mid_floor is None else mid_floor, sigma,
                                self._no_past if past is None else past, past is not None,
                                mid_floor is not None, stop is not None)
+
+    def frozen_slack(self, frozen: Frozen, acc: Array, after: Array, end_floor: Array,
+                     mid_floor: Array | None, stop: BrakingTest | None,
+                     sample: Sample | None = None, enough: float = math.inf) -> float:
+        """:meth:`slack` over the prediction ``frozen`` makes from its accelerations ``acc``
+        and ``after`` (Frozen.start), where every constraint packs (``fuses``) and no margin
+        is broken already: the same F, bit for bit, in one kernel call and, where a row
+        needs its joint placements, Pinocchio's and a second (cpbc.kernels.frozen_test)."""
+        r, n, nc = frozen.rows, self.n, self.nc
+        has_config = mid_floor is not None
+        points = stop.points if stop is not None and has_config else 0
+        work = np.empty(frozen_size(r, n, points, nc, self.nv))
+        slots = np.empty((2 + points) * r, dtype=np.int64)
+        start, period, per_speed, ramp = ((_AT_REST, 1.0, 0.0, 0.0) if stop is None else
+                                          (stop.start, stop.period, stop.per_speed, stop.ramp))
+        no_floor = self._no_floor
+        mid = no_floor if mid_floor is None else mid_floor
+        sigma = no_floor if stop is None else stop.floor
+        cp, vp = self._config, self._velocity
+        bounded = sample is not None
+        at, margins = (sample.x, sample.margins) if sample is not None else (no_floor, no_floor)
+        f, marked = frozen_test(frozen.x, frozen.dx, acc, after, frozen.h, frozen.travel, r,
+                                start, period, per_speed, ramp, points, cp.plan, cp.ints,
+                                cp.floats, vp.plan, vp.ints, vp.floats, end_floor, mid, sigma,
+                                has_config, stop is not None, self._spheres, bounded, at,
+                                margins, enough, nc, work, slots)
+        if not marked:
+            return f
+        rows = work[:len(slots) * n].reshape(len(slots), n)
+        if not bounded:  # every row: their placements in order
+            slots, rows = self._everywhere, rows
+        else:
+            rows = rows[slots >= 0]
+        return frozen_finish(cp.plan, cp.ints, cp.floats, vp.plan, vp.ints, vp.floats, work, r,
+                             n, points, nc, self._placements(rows), slots, end_floor, mid,
+                             sigma, has_config, stop is not None)
 
     def _configuration_rows(self, mids: Array, ends: Array, speeds: Array,
                             stop: BrakingTest | None) -> Array:

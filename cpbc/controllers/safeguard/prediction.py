@@ -10,12 +10,16 @@ from collections.abc import Callable
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.kernels.sampled_guard import frozen_rows, frozen_start
+from cpbc.constraints.brakes import TorqueBox
+from cpbc.kernels.frozen_test import clipped_start
+from cpbc.kernels.sampled_guard import frozen_rows
 from cpbc.model.robot_model import ArmState, RobotModel
 
 # (mid-period positions, end positions, end rates, then positions and rates inside the
 # period), one row per prediction (per prediction and sub-step for the inner ones)
 Predictor = Callable[[Array], "tuple[Array, Array, Array, Array, Array]"]
+# no box: (lower, upper, Tᵀ, T⁻ᵀ, mapped, clip) as clipped_start reads them
+_NO_BOX = (np.zeros(0), np.zeros(0), np.zeros((0, 0)), np.zeros((0, 0)), False, False)
 
 
 def travel_share(period: float, plant_step: float | None) -> float:
@@ -33,36 +37,56 @@ def travel_share(period: float, plant_step: float | None) -> float:
     return 0.5 * (1.0 + 1.0 / k)
 
 
+class Frozen:
+    """The frozen closed form under a held τ, its end at x + hẋ + c h² a with c = ``travel``
+    (:func:`travel_share`: where the plant's own steps land), and with ``corrector`` the
+    second-order prediction in continuous time beside it (a second row): a Predictor, and
+    its :meth:`start`, the accelerations the compiled test reads (PredictedMargins.
+    frozen_slack), which makes the rows itself. ``box``: the step's box each torque is
+    clipped to, as the actuators would apply it (StepBox.reachable), or None."""
+
+    __slots__ = ("_box", "bias", "corrector", "dx", "h", "inertia", "model", "rows", "travel", "x")
+
+    def __init__(self, model: RobotModel, state: ArmState, bias: Array, h: float,
+                 box: TorqueBox | None, corrector: bool, travel: float) -> None:
+        self.model, self.x, self.dx, self.inertia = model, state.x, state.dx, state.inertia
+        self.bias, self.h, self.corrector, self.travel = bias, h, corrector, travel
+        self.rows = 2 if corrector else 1  # predictions
+        self._box = _NO_BOX if box is None else (*box.packed, True)
+
+    def start(self, t: Array) -> tuple[Array, Array]:
+        """(a, the model's acceleration at the continuous-time end — a itself without the
+        corrector) under τ = ``t`` clipped to the box."""
+        x = self.x
+        n = len(x)
+        held, acc, smooth, speed = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+        clipped_start(*self._box, self.inertia, self.bias, t, x, self.dx, self.h, held, acc,
+                      smooth, speed)
+        # continuous time: the model's acceleration at the predicted end
+        after = self.model.forward_dynamics(smooth, speed, held) if self.corrector else acc
+        return acc, after
+
+    def __call__(self, t: Array) -> tuple[Array, Array, Array, Array, Array]:
+        acc, after = self.start(t)
+        shape = (self.rows, len(self.x))  # four arrays: cheaper than one (4, rows, n)
+        mids, ends, speeds, mid_speeds = (np.empty(shape), np.empty(shape), np.empty(shape),
+                                          np.empty(shape))
+        frozen_rows(self.x, self.dx, acc, after, self.h, self.travel, mids, ends, speeds,
+                    mid_speeds)
+        return mids, ends, speeds, mids, mid_speeds
+
+
 def predictor(model: RobotModel, state: ArmState, bias: Array, h: float, substeps: int,
-              saturate: Callable[[Array], Array], corrector: bool,
-              travel: float = 0.5) -> Predictor:
+              box: TorqueBox | None, corrector: bool, travel: float = 0.5) -> Predictor:
     """(mid-period x, end x, end ẋ, then x and ẋ inside the period) under a held τ, one
     row per prediction (per prediction and inner instant for the last two; the Predictor
-    alias): the frozen closed form with the dynamics of the sample, its end at
-    x + hẋ + c h² a with c = ``travel`` (:func:`travel_share`: where the plant's own steps
-    land), and, with ``corrector``, the second-order one in continuous time beside it; or
-    ``substeps`` semi-implicit Euler steps of the model. ``saturate`` clips a torque to the
-    box."""
-    x, dx = state.x, state.dx
+    alias): the frozen closed form with the dynamics of the sample (:class:`Frozen`), or
+    ``substeps`` semi-implicit Euler steps of the model. ``box``: the step's box a torque
+    is clipped to (StepBox.reachable), or None."""
     if substeps == 1:
-        inertia, n = state.inertia, len(x)
-        work = np.empty((n, n))  # the Cholesky factor of D
-        rows = 2 if corrector else 1
-
-        def frozen(t: Array) -> tuple[Array, Array, Array, Array, Array]:
-            t = saturate(t)
-            acc, smooth, speed = np.empty(n), np.empty(n), np.empty(n)
-            frozen_start(inertia, bias, t, x, dx, h, work, acc, smooth, speed)
-            # continuous time: the model's acceleration at the predicted end
-            after = model.forward_dynamics(smooth, speed, t) if corrector else acc
-            shape = (rows, n)  # four arrays: cheaper than the rows of one (4, rows, n)
-            mids, ends, speeds, mid_speeds = (np.empty(shape), np.empty(shape),
-                                              np.empty(shape), np.empty(shape))
-            frozen_rows(x, dx, acc, after, h, travel, mids, ends, speeds, mid_speeds)
-            return mids, ends, speeds, mids, mid_speeds
-
-        return frozen
-    return substepped(model, x, dx, h, substeps, saturate, corrector)
+        return Frozen(model, state, bias, h, box, corrector, travel)
+    saturate = (lambda t: t) if box is None else box.clip
+    return substepped(model, state.x, state.dx, h, substeps, saturate, corrector)
 
 
 def substepped(model: RobotModel, x: Array, dx: Array, h: float, k: int,

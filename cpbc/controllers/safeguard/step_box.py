@@ -127,8 +127,3 @@ class StepBox:
         if self.rate_step is None or step is None or held is None:
             return boxed
         return step.nearest(self._inertia, boxed) if brake else step.toward(held, boxed)
-
-    def saturate(self, tau: Array) -> Array:
-        """τ clipped joint by joint to the step's box: what the actuators would apply (the
-        predictor's saturation)."""
-        return tau if self._step is None else self._step.clip(tau)

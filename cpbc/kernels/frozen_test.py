@@ -1,0 +1,148 @@
+"""The safeguard's test of one torque under the frozen prediction, in two calls around the one
+Pinocchio call between them (cpbc.controllers.safeguard.predicted_margins.PredictedMargins.
+frozen_slack): ``frozen_test`` makes the prediction's rows (``frozen_rows``), the configurations
+(S1) and (S2) test (``configuration_rows``) and F over them (``bounded_slack`` from the
+sample's bounds, or ``predicted_slack`` where no joint placements are read); where some row
+needs its placements it marks the rows, the caller asks Pinocchio for them, and
+``frozen_finish`` ends F there (``predicted_slack``). No formula is written here: these are the
+accept path's kernels called in one go (``clipped_start`` is the prediction's start, the
+saturation into the step's box with it), over one buffer whose layout (``frozen_size``,
+``frozen_parts``) is written once, below. What it saves is the Python between them: a calm
+Panda step's first test made 2 kernel calls, 9 arrays and 2 Python calls more.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.kernels import READ_ONLY, inner, kernel
+from cpbc.kernels.braking_path import configuration_rows
+from cpbc.kernels.clearance import Ints
+from cpbc.kernels.sampled_guard import (
+    bounded_slack,
+    frozen_rows,
+    frozen_start,
+    predicted_slack,
+)
+from cpbc.kernels.torque_box import box_clip
+
+
+@kernel("void(float64[:], float64[:], float64[:, :], float64[:, :], boolean, boolean,"
+        " float64[:, :], float64[:], float64[:], float64[:], float64[:], float64, float64[:],"
+        " float64[:], float64[:], float64[:])")
+def clipped_start(lower: Array, upper: Array, to_joint: Array, from_joint: Array, mapped: bool,
+                  clip: bool, inertia: Array, bias: Array, tau: Array, x: Array, dx: Array,
+                  h: float, held: Array, acc: Array, smooth: Array, speed: Array) -> None:
+    """``frozen_start`` under the torque the actuators would hold: τ clipped to the step's
+    box (``box_clip``; τ itself without ``clip``), into ``held``."""
+    n = x.shape[0]
+    if clip:
+        box_clip(lower, upper, to_joint, from_joint, mapped, tau, held)
+    else:
+        for i in range(n):
+            held[i] = tau[i]
+    frozen_start(inertia, bias, held, x, dx, h, np.empty((n, n)), acc, smooth, speed)
+
+
+def frozen_size(r: int, n: int, points: int, nc: int, nv: int) -> int:
+    """The floats of the buffer ``frozen_parts`` reads: r predictions of n coordinates,
+    ``points`` points of the uniform brake's path after each (0 without (S2)), nc
+    configuration and nv velocity margins."""
+    return (2 + points) * r * (n + nc) + r * (4 * n + 2 * nv)
+
+
+@inner("UniTuple(float64[:, ::1], 8)(float64[::1], int64, int64, int64, int64, int64)")
+def frozen_parts(work: Array, r: int, n: int, points: int, nc: int,
+                 nv: int) -> tuple[Array, Array, Array, Array, Array, Array, Array, Array]:
+    """The test's arrays as views of ``work`` (``frozen_size`` floats): the configurations
+    tested ((2 + points) r × n, ``configuration_rows``), the predicted ends, end rates,
+    mid-period positions and rates (r × n each, ``frozen_rows``), the configuration margins
+    at the configurations ((2 + points) r × nc), the velocity margins at the ends and at
+    mid-period (r × nv each)."""
+    tested = (2 + points) * r
+    at = 0
+    rows = work[at:at + tested * n].reshape((tested, n))
+    at += tested * n
+    ends = work[at:at + r * n].reshape((r, n))
+    at += r * n
+    speeds = work[at:at + r * n].reshape((r, n))
+    at += r * n
+    mids = work[at:at + r * n].reshape((r, n))
+    at += r * n
+    mid_speeds = work[at:at + r * n].reshape((r, n))
+    at += r * n
+    config = work[at:at + tested * nc].reshape((tested, nc))
+    at += tested * nc
+    velocity = work[at:at + r * nv].reshape((r, nv))
+    at += r * nv
+    inside = work[at:at + r * nv].reshape((r, nv))
+    return rows, ends, speeds, mids, mid_speeds, config, velocity, inside
+
+
+@kernel("UniTuple(float64, 2)(float64[:], float64[:], float64[:], float64[:], float64, float64,"
+        " int64, float64[:], float64, float64, float64, int64, int64[:, :], int64[:, :],"
+        " float64[:, :], int64[:, :], int64[:, :], float64[:, :], float64[:], float64[:],"
+        f" float64[:], boolean, boolean, boolean, boolean, {READ_ONLY}, {READ_ONLY}, float64,"
+        " int64, float64[::1], int64[:])")
+def frozen_test(x: Array, dx: Array, acc: Array, after: Array, h: float, travel: float, r: int,
+                start: Array, period: float, per_speed: float, ramp: float, points: int,
+                config_plan: Ints, config_ints: Ints, config_floats: Array,
+                velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array,
+                end_floor: Array, mid_floor: Array, sigma_floor: Array, has_config: bool,
+                has_stop: bool, spheres: bool, bounded: bool, sample_x: Array,
+                sample_margins: Array, enough: float, nc: int, work: Array,
+                slots: Ints) -> tuple[float, float]:
+    """F of one torque under the frozen prediction (the acceleration ``acc`` at the sample,
+    ``after`` the model's at the continuous-time end, r = 2 predictions with the corrector,
+    else 1), its rows into ``work``: (F, 0), or (NaN, k) where k rows need their joint
+    placements (``slots`` numbers them, −1 the others; ``frozen_finish`` ends F). With
+    ``bounded`` (and sphere pairs among the margins) the sphere clearances are bounded from
+    the ``sample_x`` and its margins where that settles them (``bounded_slack``, ``enough``
+    as there); without, every row is marked. The brake's path has ``points`` points (0
+    without (S2): ``start``, ``period``, ``per_speed`` and ``ramp`` then unread)."""
+    n = x.shape[0]
+    nv = end_floor.shape[0] - nc
+    rows, ends, speeds, mids, mid_speeds, config, velocity, inside = frozen_parts(
+        work, r, n, points, nc, nv)
+    frozen_rows(x, dx, acc, after, h, travel, mids, ends, speeds, mid_speeds)
+    no_past = np.zeros(0, dtype=np.bool_)
+    if has_config:
+        configuration_rows(mids, ends, speeds, start, period, per_speed, ramp, rows)
+        if spheres and bounded:
+            return bounded_slack(config_plan, config_ints, config_floats, velocity_plan,
+                                 velocity_ints, velocity_floats, rows, ends, speeds, mids,
+                                 mid_speeds, config, velocity, inside, end_floor, mid_floor,
+                                 sigma_floor, no_past, has_stop, sample_x, sample_margins,
+                                 enough, slots)
+        if spheres:
+            for i in range(rows.shape[0]):
+                slots[i] = i
+            return math.nan, float(rows.shape[0])
+    f = predicted_slack(config_plan, config_ints, config_floats, velocity_plan, velocity_ints,
+                        velocity_floats, rows, np.zeros((0, 1, 1)), slots[:0], ends, speeds,
+                        mids, mid_speeds, config, velocity, inside, end_floor, mid_floor,
+                        sigma_floor, no_past, False, has_config, has_stop)
+    return f, 0.0
+
+
+@kernel("float64(int64[:, :], int64[:, :], float64[:, :], int64[:, :], int64[:, :],"
+        " float64[:, :], float64[::1], int64, int64, int64, int64, float64[:, :, :], int64[:],"
+        " float64[:], float64[:], float64[:], boolean, boolean)")
+def frozen_finish(config_plan: Ints, config_ints: Ints, config_floats: Array,
+                  velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array,
+                  work: Array, r: int, n: int, points: int, nc: int, placements: Array,
+                  slots: Ints, end_floor: Array, mid_floor: Array, sigma_floor: Array,
+                  has_config: bool, has_stop: bool) -> float:
+    """F where ``frozen_test`` marked rows: ``predicted_slack`` over its buffer ``work``,
+    with the joint ``placements`` of the marked rows (numbered by ``slots``)."""
+    nv = end_floor.shape[0] - nc
+    rows, ends, speeds, mids, mid_speeds, config, velocity, inside = frozen_parts(
+        work, r, n, points, nc, nv)
+    return predicted_slack(config_plan, config_ints, config_floats, velocity_plan,
+                           velocity_ints, velocity_floats, rows, placements, slots, ends,
+                           speeds, mids, mid_speeds, config, velocity, inside, end_floor,
+                           mid_floor, sigma_floor, np.zeros(0, dtype=np.bool_), False,
+                           has_config, has_stop)
