@@ -312,6 +312,39 @@ def test_values_along_and_barrier_with_value_are_value_bit_for_bit(kind, rng) ->
         np.testing.assert_array_equal(b, b_b)
 
 
+def test_the_clearances_of_some_constraints_are_theirs_bit_for_bit(rng) -> None:
+    """``sphere_clearances_of`` (the safeguard's test, where a bound settles the rest)
+    writes the marked constraints' clearances exactly as ``value`` gives them and leaves the
+    others' entries as they were: at random states and masks, and with the hand inside an
+    obstacle's core."""
+    from cpbc.kernels.clearance import sphere_clearances_of
+
+    _, model = _panda()
+    core = Clearance(model, _cover("spheres"),
+                     [BoxObstacle("box", _hand_at_home(), [0.05, 0.05, 0.05])])
+    data = model.model.createData()
+    for c, states in ((_clearance("spheres", 0.3), _states(rng, 6)), (core, [HOME])):
+        s = c._spheres
+        assert s is not None
+        k = int(s.pair_index[:, 3].max()) + 1
+        work = np.empty(3 * len(s.sphere_index) + 7 * len(s.pair_index))
+        for x in states:
+            y = pin.computeStaticRegressor(model.model, data, x)
+            full = np.empty(k)
+            sphere_clearances_of(y, s.sphere_index, s.sphere_local, s.obstacles,
+                                 s.pair_index, s.pair_table, work, np.ones(k, dtype=bool),
+                                 full)
+            np.testing.assert_array_equal(full, c.value(x)[:k])
+            for _ in range(4):
+                need = rng.random(k) < 0.3
+                out = np.full(k, 7.0)
+                sphere_clearances_of(y, s.sphere_index, s.sphere_local, s.obstacles,
+                                     s.pair_index, s.pair_table, work, need, out)
+                np.testing.assert_array_equal(out[need], full[need])
+                assert np.all(out[~need] == 7.0)
+    assert core.value(HOME).min() < 0.0
+
+
 def test_values_along_inside_an_obstacle_core() -> None:
     """A sphere centre inside a box: the signed depth there, as ``value`` gives it."""
     _, model = _panda()

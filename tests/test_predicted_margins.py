@@ -87,9 +87,11 @@ def test_bounds_from_the_sample_leave_F_as_it_is(rate: float | None) -> None:
 
 def test_the_frozen_test_is_the_same_F_bit_for_bit() -> None:
     """The frozen prediction's test in compiled calls (PredictedMargins.frozen_slack) gives F
-    as the rows and ``slack`` give it, to the bit: exact, from the sample's bounds with
-    ``enough`` ∞ and 1, with and without (S2)'s stopping points; and it asks Pinocchio for
-    joint placements at no more rows. Both signs occur, and tests with no placements."""
+    as the rows and ``slack`` give it, to the bit, exact and from the sample's bounds with
+    ``enough`` ∞, with and without (S2)'s stopping points; with ``enough`` 1 the same where
+    F < 0, else a value in [0, F] (it computes only the clearances a bound leaves open, where
+    the rows' path computes a marked row whole); and it asks Pinocchio for joint placements
+    at the same rows. Both signs occur, and tests with no placements."""
     signs, placed, fused, tests = set(), list[int](), list[int](), 0
     for along, rows, floor, mid, stop, sample, exact, predict, tau in _tests():
         assert isinstance(predict, Frozen) and along.fuses
@@ -101,7 +103,10 @@ def test_the_frozen_test_is_the_same_F_bit_for_bit() -> None:
                 with _counting(along, fused):
                     found = along.frozen_slack(predict, acc, after, floor, mid, s, given,
                                                enough)
-                assert found == expected or (math.isnan(found) and math.isnan(expected))
+                if enough == math.inf or expected < 0.0:
+                    assert found == expected or (math.isnan(found) and math.isnan(expected))
+                else:  # a sign: in [0, F] as the rows' is (bounds may stand in for more)
+                    assert 0.0 <= found <= exact
                 assert sum(fused) == sum(placed)
                 tests += 1
         signs.add(exact >= 0)

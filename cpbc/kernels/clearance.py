@@ -38,7 +38,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, inner, kernel
 from cpbc.kernels.plan_tables import Packed, float_table, int_table
-from cpbc.kernels.views import Ints, float_rows
+from cpbc.kernels.views import Bools, Ints, float_rows
 
 SPHERES = 4  # the kind's code in a set's plan (cpbc.kernels.barrier_set's registry)
 # its float tables, then its int tables (the module docstring's; ``far`` a column, ``ell``
@@ -142,24 +142,30 @@ def near_groups(y: Array, group_index: Ints, group_table: Array, obstacles: Arra
             near[g] = 0.0
 
 
+@inner("float64(float64[:, :], float64[:], float64[:, :], int64)")
+def pair_clearance(u: Array, d: Array, pair_table: Array, p: int) -> float:
+    """Pair p's reported clearance φ_p = d_p − rsum_p (a centre inside a core box: its
+    signed depth max_k(|u_k| − h_k) − rsum_p), from its ``pair_offset``."""
+    if d[p] > 0.0:
+        return d[p] - pair_table[p, 3]
+    depth = abs(u[0, p]) - pair_table[p, 0]
+    for k in range(1, 3):
+        e = abs(u[k, p]) - pair_table[p, k]
+        if e > depth or e != e:
+            depth = e
+    return depth - pair_table[p, 3]
+
+
 @kernel("void(float64[:, :], float64[:], int64[:, :], float64[:, :], float64[:])")
 def sphere_values(u: Array, d: Array, pair_index: Ints, pair_table: Array, value: Array
                   ) -> None:
-    """The reported clearance of each sphere constraint, the smallest of its pairs' φ_p =
-    d_p − rsum_p (a centre inside a core box: its signed depth max_k(|u_k| − h_k) − rsum_p),
-    NaN if any is, into ``value`` (its first entries, one per constraint)."""
+    """The reported clearance of each sphere constraint, the smallest of its pairs' φ_p
+    (``pair_clearance``), NaN if any is, into ``value`` (its first entries, one per
+    constraint)."""
     filled = -1
     for p in range(pair_index.shape[0]):
         c = pair_index[p, 3]
-        if d[p] > 0.0:
-            phi = d[p] - pair_table[p, 3]
-        else:
-            depth = abs(u[0, p]) - pair_table[p, 0]
-            for k in range(1, 3):
-                e = abs(u[k, p]) - pair_table[p, k]
-                if e > depth or e != e:
-                    depth = e
-            phi = depth - pair_table[p, 3]
+        phi = pair_clearance(u, d, pair_table, p)
         if c > filled:  # the pairs of a constraint are neighbours
             value[c] = phi
             filled = c
@@ -387,6 +393,32 @@ def sphere_clearances_in(y: Array, sphere_index: Ints, sphere_local: Array, obst
     sphere_centres(y, sphere_index, sphere_local, centres)
     sphere_offsets(centres, obstacles, pair_index, pair_table, u, outside, d)
     sphere_values(u, d, pair_index, pair_table, value)
+
+
+@inner("void(float64[:, :], int64[:], float64[:, :], float64[:, :], int64[:, :],"
+       " float64[:, :], float64[:], boolean[:], float64[:])")
+def sphere_clearances_of(y: Array, sphere_index: Ints, sphere_local: Array, obstacles: Array,
+                         pair_index: Ints, pair_table: Array, work: Array, need: Bools,
+                         value: Array) -> None:
+    """``sphere_clearances_in`` for the constraints ``need`` marks only: their pairs alone
+    are computed, in the same order, and the other entries of ``value`` are left as they
+    are (the guard's test where a bound from its sample settles the rest)."""
+    n_sph, n_pair = sphere_index.shape[0], pair_index.shape[0]
+    centres, at = float_rows(work, 0, 3, n_sph), 3 * n_sph
+    u, outside = float_rows(work, at, 3, n_pair), float_rows(work, at + 3 * n_pair, 3, n_pair)
+    d, filled = work[at + 6 * n_pair:at + 7 * n_pair], -1
+    sphere_centres(y, sphere_index, sphere_local, centres)
+    for p in range(n_pair):
+        c = pair_index[p, 3]
+        if not need[c]:
+            continue
+        pair_offset(centres, obstacles, pair_index, pair_table, u, outside, d, p)
+        phi = pair_clearance(u, d, pair_table, p)
+        if c > filled:  # as sphere_values
+            value[c] = phi
+            filled = c
+        elif phi < value[c] or phi != phi:
+            value[c] = phi
 
 
 @kernel("void(float64[:, :], int64[:], float64[:, :], float64[:, :], int64[:, :],"

@@ -1,14 +1,16 @@
 """The safeguard's test of one torque under the frozen prediction, in two calls around the one
 Pinocchio call between them (cpbc.controllers.safeguard.predicted_margins.PredictedMargins.
 frozen_slack): ``frozen_test`` makes the prediction's rows (``frozen_rows``), the configurations
-(S1) and (S2) test (``configuration_rows``) and F over them (``bounded_slack`` from the
-sample's bounds, or ``predicted_slack`` where no joint placements are read); where some row
-needs its placements it marks the rows, the caller asks Pinocchio for them, and
-``frozen_finish`` ends F there (``predicted_slack``). No formula is written here: these are the
-accept path's kernels called in one go (``clipped_start`` is the prediction's start, the
-saturation into the step's box with it), over one buffer whose layout (``frozen_size``,
-``frozen_parts``) is written once, below. What it saves is the Python between them: a calm
-Panda step's first test made 2 kernel calls, 9 arrays and 2 Python calls more.
+(S1) and (S2) test (``configuration_rows``) and F over them (``bounded_slack``: the sphere
+clearances bounded from the sample where that settles them; ``predicted_slack`` where there are
+none); where some clearance is left to compute it marks its row, the caller asks Pinocchio for
+the marked rows' joint placements, and ``frozen_finish`` computes those clearances alone
+(``spheres_at``) and ends F (``slack``). No formula is written here: these are the accept
+path's kernels called in one go (``clipped_start`` is the prediction's start, with the
+saturation into the step's box), over one buffer whose layout (``frozen_size``,
+``frozen_parts``) is written once, below. What it saves is the Python between them (a calm
+Panda step's first test made 2 kernel calls, 9 arrays and 2 Python calls more) and, where
+rows need their clearances, the pairs a bound settles.
 """
 
 from __future__ import annotations
@@ -22,10 +24,14 @@ from cpbc.kernels import READ_ONLY, inner, kernel
 from cpbc.kernels.braking_path import configuration_rows
 from cpbc.kernels.clearance import Ints
 from cpbc.kernels.sampled_guard import (
+    all_but_spheres,
     bounded_slack,
     frozen_rows,
     frozen_start,
     predicted_slack,
+    slack,
+    sphere_columns,
+    spheres_at,
 )
 from cpbc.kernels.torque_box import box_clip
 
@@ -117,7 +123,12 @@ def frozen_test(x: Array, dx: Array, acc: Array, after: Array, h: float, travel:
                                  mid_speeds, config, velocity, inside, end_floor, mid_floor,
                                  sigma_floor, no_past, has_stop, sample_x, sample_margins,
                                  enough, slots)
-        if spheres:
+        if spheres:  # every clearance at every row
+            all_but_spheres(config_plan, config_ints, config_floats, velocity_plan,
+                             velocity_ints, velocity_floats, rows, ends, speeds, mids,
+                             mid_speeds, config, velocity, inside, end_floor, mid_floor,
+                             sigma_floor, no_past, has_stop)
+            sphere_columns(config_plan, config, math.nan)
             for i in range(rows.shape[0]):
                 slots[i] = i
             return math.nan, float(rows.shape[0])
@@ -128,21 +139,18 @@ def frozen_test(x: Array, dx: Array, acc: Array, after: Array, h: float, travel:
     return f, 0.0
 
 
-@kernel("float64(int64[:, :], int64[:, :], float64[:, :], int64[:, :], int64[:, :],"
-        " float64[:, :], float64[::1], int64, int64, int64, int64, float64[:, :, :], int64[:],"
-        " float64[:], float64[:], float64[:], boolean, boolean)")
-def frozen_finish(config_plan: Ints, config_ints: Ints, config_floats: Array,
-                  velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array,
-                  work: Array, r: int, n: int, points: int, nc: int, placements: Array,
-                  slots: Ints, end_floor: Array, mid_floor: Array, sigma_floor: Array,
-                  has_config: bool, has_stop: bool) -> float:
-    """F where ``frozen_test`` marked rows: ``predicted_slack`` over its buffer ``work``,
-    with the joint ``placements`` of the marked rows (numbered by ``slots``)."""
+@kernel("float64(int64[:, :], int64[:, :], float64[:, :], float64[::1], int64, int64, int64,"
+        " int64, float64[:, :, :], int64[:], float64[:], float64[:], float64[:], boolean,"
+        " boolean)")
+def frozen_finish(config_plan: Ints, config_ints: Ints, config_floats: Array, work: Array,
+                  r: int, n: int, points: int, nc: int, placements: Array, slots: Ints,
+                  end_floor: Array, mid_floor: Array, sigma_floor: Array, has_config: bool,
+                  has_stop: bool) -> float:
+    """F where ``frozen_test`` marked rows: the clearances it left NaN at them, from their
+    joint ``placements`` (numbered by ``slots``; ``spheres_at``), then ``slack`` over its
+    buffer ``work``."""
     nv = end_floor.shape[0] - nc
-    rows, ends, speeds, mids, mid_speeds, config, velocity, inside = frozen_parts(
-        work, r, n, points, nc, nv)
-    return predicted_slack(config_plan, config_ints, config_floats, velocity_plan,
-                           velocity_ints, velocity_floats, rows, placements, slots, ends,
-                           speeds, mids, mid_speeds, config, velocity, inside, end_floor,
-                           mid_floor, sigma_floor, np.zeros(0, dtype=np.bool_), False,
-                           has_config, has_stop)
+    config, velocity, inside = frozen_parts(work, r, n, points, nc, nv)[5:]
+    spheres_at(config_plan, config_ints, config_floats, placements, slots, config)
+    return slack(config, velocity, inside, r, end_floor, mid_floor, sigma_floor,
+                 np.zeros(0, dtype=np.bool_), False, has_config, has_stop)

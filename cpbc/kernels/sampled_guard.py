@@ -38,6 +38,7 @@ from cpbc.kernels.clearance import (
     SPHERES,
     Ints,
     sphere_clearances_in,
+    sphere_clearances_of,
     travel,
 )
 from cpbc.kernels.plan_tables import COUNT, FIRST, KIND, float_table, int_table
@@ -330,10 +331,11 @@ def _bound_spheres(plan: Ints, floats: Array, rows: Array, ends: int, end_floor:
     """Each sphere constraint's bound from its margin ``now`` at ``x``, φ − ``travel`` −
     MOVED_ROUNDING, into its column of ``config`` at each row where it is > 0 with a share
     ≥ ``threshold`` of its floor (the mid-period rows', the ends', then the stopping points'
-    σ floor, as ``slack`` reads them); a row where one is not is marked in ``slots``
-    (numbered from 0, in order; −1 the others). The row's travel by the largest reach of
-    every constraint is tried first (one sum a row), the constraint's own where that is
-    not enough. Returns how many rows are marked."""
+    σ floor, as ``slack`` reads them); where one is not, NaN there (its clearance is to be
+    computed: ``spheres_at``) and the row is marked in ``slots`` (numbered from 0, in order;
+    −1 the others). The row's travel by the largest reach of every constraint is tried
+    first (one sum a row), the constraint's own where that is not enough. Returns how many
+    rows are marked."""
     n = x.shape[0]
     widest = np.empty(n)
     for i in range(rows.shape[0]):
@@ -357,14 +359,49 @@ def _bound_spheres(plan: Ints, floats: Array, rows: Array, ends: int, end_floor:
                 if f > 0.0 and bound > 0.0 and bound / f >= threshold:
                     config[i, at + c] = bound
                 else:
+                    config[i, at + c] = math.nan
                     slots[i] = 0
-                    break
     marked = 0
     for i in range(rows.shape[0]):
         if slots[i] == 0:
             slots[i] = marked
             marked += 1
     return marked
+
+
+@inner("void(int64[:, :], float64[:, :], float64)")
+def sphere_columns(plan: Ints, config: Array, value: float) -> None:
+    """The sphere constraints' columns of ``config`` set to ``value`` at every row."""
+    for r in range(plan.shape[0]):
+        if plan[r, KIND] == SPHERES:
+            first = plan[r, FIRST]
+            config[:, first:first + plan[r, COUNT]] = value
+
+
+@inner("float64(int64[:, :], int64[:, :], float64[:, :], int64[:, :], int64[:, :],"
+       " float64[:, :], float64[:, :], float64[:, :], float64[:, :], float64[:, :],"
+       " float64[:, :], float64[:, :], float64[:, :], float64[:, :], float64[:], float64[:],"
+       " float64[:], boolean[:], boolean)")
+def all_but_spheres(config_plan: Ints, config_ints: Ints, config_floats: Array,
+                     velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array,
+                     rows: Array, ends: Array, speeds: Array, inner_x: Array, inner_v: Array,
+                     config: Array, velocity: Array, inner: Array, end_floor: Array,
+                     mid_floor: Array, sigma_floor: Array, no_past: Bools,
+                     has_stop: bool) -> float:
+    """Every packed margin but the sphere clearances (their columns ∞), and G, the least
+    share m/floor over them (``slack`` + 1)."""
+    everywhere = np.zeros(0, dtype=np.int64)
+    none = np.zeros((0, 1, 1))
+    margins_along(velocity_plan, velocity_ints, velocity_floats, ends, speeds, none,
+                  everywhere, velocity)
+    if inner.shape[1] > 0:
+        margins_along(velocity_plan, velocity_ints, velocity_floats, inner_x, inner_v, none,
+                      everywhere, inner)
+    skip = np.full(rows.shape[0], -1, dtype=np.int64)  # no sphere pair's
+    margins_along(config_plan, config_ints, config_floats, rows, rows, none, skip, config)
+    sphere_columns(config_plan, config, math.inf)
+    return slack(config, velocity, inner, ends.shape[0], end_floor, mid_floor, sigma_floor,
+                 no_past, False, True, has_stop) + 1.0
 
 
 @kernel("UniTuple(float64, 2)(int64[:, :], int64[:, :], float64[:, :], int64[:, :],"
@@ -379,43 +416,59 @@ def bounded_slack(config_plan: Ints, config_ints: Ints, config_floats: Array,
                   mid_floor: Array, sigma_floor: Array, no_past: Bools, has_stop: bool,
                   x: Array, now: Array, enough: float, slots: Ints) -> tuple[float, float]:
     """``predicted_slack`` (no margin broken already: ``no_past`` empty) that asks for the
-    sphere clearances only at the rows where a bound from the sample does not settle them,
-    and so for no joint placements there: every other margin first, and G, their least share m/floor
-    (F + 1 without the spheres); then ``_bound_spheres`` with the threshold min(G,
-    ``enough``), from the margins ``now`` at the sample ``x`` (NaN as −∞). Returns
-    (min(G, ``enough``) − 1, 0) when no row needs its clearances, else (NaN, the rows that
-    do), with ``slots`` numbering them for ``predicted_slack``, which finishes F with their
-    placements (the bounds stand in at the other rows).
+    sphere clearances only where a bound from the sample does not settle them, and so for
+    no joint placements at the rows where all are: every other margin first, and G, their
+    least share m/floor (F + 1 without the spheres; ``all_but_spheres``); then
+    ``_bound_spheres`` with the threshold min(G, ``enough``), from the margins ``now`` at
+    the sample ``x`` (NaN as −∞). Returns (min(G, ``enough``) − 1, 0) when no row needs
+    its clearances, else (NaN, the rows that do), with ``slots`` numbering them and the
+    clearances to compute NaN in ``config``: ``predicted_slack`` finishes F with those rows'
+    placements, or ``spheres_at`` and ``slack`` with those clearances alone (the bounds
+    stand in at the others).
 
     A bound stands in only where the clearance is ≥ it, and only with a share ≥ the
     threshold T; the groups of ``slack`` keep their NaN (only finite shares stand in for
     finite ones), and F + 1 is their least value: with every sphere share ≥ T,
     T ≤ F + 1 ≤ G. With ``enough`` = ∞ (T = G) F is exact. With ``enough`` = 1 it is exact
-    where it is < 0 (G < 1), else min(G, 1) − 1 = 0 ∈ [0, F]: its sign is F's. A NaN G
-    (a NaN rate inside the period, which ``slack`` keeps) is F's."""
-    everywhere = slots[:0]
-    none = np.zeros((0, 1, 1))
-    margins_along(velocity_plan, velocity_ints, velocity_floats, ends, speeds, none,
-                  everywhere, velocity)
-    if inner.shape[1] > 0:
-        margins_along(velocity_plan, velocity_ints, velocity_floats, inner_x, inner_v, none,
-                      everywhere, inner)
-    for i in range(rows.shape[0]):
-        slots[i] = -1  # every other kind's margins, no sphere pair's
-    margins_along(config_plan, config_ints, config_floats, rows, rows, none, slots, config)
-    for r in range(config_plan.shape[0]):
-        if config_plan[r, KIND] == SPHERES:
-            first = config_plan[r, FIRST]
-            config[:, first:first + config_plan[r, COUNT]] = math.inf
-    n = ends.shape[0]
-    rest = slack(config, velocity, inner, n, end_floor, mid_floor, sigma_floor, no_past,
-                 False, True, has_stop) + 1.0
+    where it is < 0 (G < 1), else a value in [0, F]: its sign is F's. A NaN G (a NaN rate
+    inside the period, which ``slack`` keeps) is F's."""
+    rest = all_but_spheres(config_plan, config_ints, config_floats, velocity_plan,
+                            velocity_ints, velocity_floats, rows, ends, speeds, inner_x,
+                            inner_v, config, velocity, inner, end_floor, mid_floor,
+                            sigma_floor, no_past, has_stop)
     threshold = enough if rest > enough else rest  # NaN stays
-    marked = _bound_spheres(config_plan, config_floats, rows, n, end_floor, mid_floor,
-                            sigma_floor, x, now, threshold, slots, config)
+    marked = _bound_spheres(config_plan, config_floats, rows, ends.shape[0], end_floor,
+                            mid_floor, sigma_floor, x, now, threshold, slots, config)
     if marked:
         return math.nan, float(marked)
     return threshold - 1.0, 0.0
+
+
+@inner("void(int64[:, :], int64[:, :], float64[:, :], float64[:, :, :], int64[:],"
+       " float64[:, :])")
+def spheres_at(plan: Ints, ints: Ints, floats: Array, placements: Array, slots: Ints,
+               config: Array) -> None:
+    """The sphere clearances left NaN in ``config`` (``_bound_spheres``: those their bound
+    does not settle), at each row ``slots`` marks, from its joint ``placements``
+    (``sphere_clearances_of``: only their pairs)."""
+    for r in range(plan.shape[0]):
+        if plan[r, KIND] != SPHERES:
+            continue
+        at, k = plan[r, FIRST], plan[r, COUNT]
+        index = int_table(plan, ints, r, SPHERE_INDEX)[:, 0]
+        pairs = int_table(plan, ints, r, PAIR_INDEX)
+        local = float_table(plan, floats, r, SPHERE_LOCAL)
+        obstacles = float_table(plan, floats, r, OBSTACLES)
+        table = float_table(plan, floats, r, PAIR_TABLE)
+        work = np.empty(3 * index.shape[0] + 7 * pairs.shape[0])
+        need = np.empty(k, dtype=np.bool_)
+        for i in range(config.shape[0]):
+            if slots[i] < 0:
+                continue
+            for c in range(k):
+                need[c] = config[i, at + c] != config[i, at + c]
+            sphere_clearances_of(placements[slots[i]], index, local, obstacles, pairs, table,
+                                 work, need, config[i, at:at + k])
 
 
 @kernel("float64(int64[:, :], int64[:, :], float64[:, :], float64[:, :], float64[:, :],"

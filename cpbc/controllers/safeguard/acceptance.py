@@ -103,21 +103,24 @@ class Acceptance:
         frozen = predict if (isinstance(predict, Frozen) and along.fuses and ramp is None
                              and past is None) else None
 
-        def f(t: Array, given: Sample | None) -> float:
+        def f(t: Array, given: Sample | None, enough: float = 1.0) -> float:
             if frozen is not None:  # the same F in compiled calls (PredictedMargins.frozen_slack)
                 acc, after = frozen.start(t)
                 return along.frozen_slack(frozen, acc, after, end_floor, mid_floor, stop,
-                                          given, 1.0)
+                                          given, enough)
             rows = predict(t)
-            end = along.slack(rows, end_floor, mid_floor, stop, past, given, 1.0)
+            end = along.slack(rows, end_floor, mid_floor, stop, past, given, enough)
             return end if ramp is None else min(end, along.ramp_slack(rows, ramp))
 
         pending = [] if refine is None else [refine]  # emptied once the floors are exact
+        # F's value: exact from the sample's bounds too (``enough`` ∞) where they settle
+        # clearances one by one (the compiled test); the rows' path computes a row whole
+        exact_from = sample if frozen is not None else None
 
         def value(t: Array) -> float:
             if pending:
                 pending.pop()()
-            return f(t, None)
+            return f(t, exact_from, math.inf)
 
         def sign(t: Array) -> float:  # one test, taken again under the exact floors if < 0
             found = f(t, sample)
@@ -129,10 +132,11 @@ class Acceptance:
         exact = self.budget.counted(value)
         if sample is None and refine is None:
             return StepSlack(exact, exact)
-        # The bounds serve the sign alone: where F's value counts (the blend's, the brakes')
-        # the guard acts, near a boundary, where a bound settles little and only costs its
-        # kernel. A sign's test, shorter, is not what a time budget takes a later (exact)
-        # test's time to be (StepBudget.counted).
+        # Where F's value counts (the blend's, the brakes') the guard acts, near a boundary,
+        # where a bound settles no row whole: the rows' path then only pays for the bounds,
+        # while the compiled test still skips the clearances they settle. A sign's test,
+        # shorter, is not what a time budget takes a later (exact) test's time to be
+        # (StepBudget.counted).
         return StepSlack(exact, self.budget.counted(sign, exact=False))
 
     def braking_floor(self, state: ArmState, bias: Array,

@@ -266,13 +266,9 @@ class PredictedMargins:
         if not marked:
             return f
         rows = work[:len(slots) * n].reshape(len(slots), n)
-        if not bounded:  # every row: their placements in order
-            slots, rows = self._everywhere, rows
-        else:
-            rows = rows[slots >= 0]
-        return frozen_finish(cp.plan, cp.ints, cp.floats, vp.plan, vp.ints, vp.floats, work, r,
-                             n, points, nc, self._placements(rows), slots, end_floor, mid,
-                             sigma, has_config, stop is not None)
+        placements = self._placements(rows[slots >= 0] if bounded else rows)  # all, unbounded
+        return frozen_finish(cp.plan, cp.ints, cp.floats, work, r, n, points, nc, placements,
+                             slots, end_floor, mid, sigma, has_config, stop is not None)
 
     def _configuration_rows(self, mids: Array, ends: Array, speeds: Array,
                             stop: BrakingTest | None) -> Array:
