@@ -136,3 +136,21 @@ def test_the_frozen_test_without_configuration_margins() -> None:
         acc, after = predict.start(tau)
         expected = along.slack(predict(tau), floor, None, None, None)
         assert along.frozen_slack(predict, acc, after, floor, None, None) == expected
+
+
+def test_the_compiled_margins_along_rows_are_the_sets() -> None:
+    """The rescue's margins along its rollout (PredictedMargins.margins_along: the packed
+    kernels with Pinocchio's joint placements) are the constraint set's own
+    (ConstraintSet.margins_along) at the bench's states, to the bit, and NaN rows where a
+    state is not finite."""
+    setup = panda()
+    law = setup.controllers["cpbc"]
+    guard = Safeguard(law, InputBounds(0.001, setup.torque_limit), SafeguardSettings())
+    along, guarded = guard.acceptance.along, guard.guarded
+    xs = np.array([x for x, _ in setup.states])
+    dxs = np.array([3.0 * dx for _, dx in setup.states])
+    np.testing.assert_array_equal(along.margins_along(xs, dxs), guarded.margins_along(xs, dxs))
+    xs[5, 2], dxs[9, 0] = np.nan, np.inf
+    found = along.margins_along(xs, dxs)
+    assert np.isnan(found[[5, 9]]).all() and not np.isnan(found[[4, 6, 8, 10]]).any()
+    np.testing.assert_array_equal(found, guarded.margins_along(xs, dxs))

@@ -91,16 +91,20 @@ class Rescue:
             the period it starts). With a budget a check that has not ended when the budget
             runs out goes on in the next periods, B model periods ahead per period held,
             while the guard holds the brake under check (the module docstring).
+        margins: every margin of ``guarded`` at rows (x, ẋ) (the guard's compiled
+            PredictedMargins.margins_along), or None for ``guarded.margins_along``.
     """
 
     def __init__(self, model: RobotModel, guarded: ConstraintSet, box: TorqueBox,
                  cushion: Array, period: float, steps: int, horizon: float = 2.0,
-                 rate_step: Array | None = None, budget: int | None = None) -> None:
+                 rate_step: Array | None = None, budget: int | None = None,
+                 margins: Callable[[Array, Array], Array] | None = None) -> None:
         if budget is not None and budget < 1:
             raise ValueError(f"rescue budget must be ≥ 1 period, got {budget}")
         self.model, self.guarded, self.box = model, guarded, box
         self.rate_step, self.budget = rate_step, budget
         self.cushion, self.period, self.steps, self.horizon = cushion, period, steps, horizon
+        self.margins = guarded.margins_along if margins is None else margins
         self.table = brakes(box, guarded, model)
         # then, where the model has dry friction, the same brakes held against b without it
         # (brakes.holding_bias): the brakes cpbc.verify's classification tries too
@@ -181,7 +185,7 @@ class Rescue:
         from ``held`` under a torque-rate limit), every margin above ``floor``."""
 
         def margins(xs: Array, dxs: Array) -> Array:
-            return self.guarded.margins_along(xs, dxs) - floor
+            return self.margins(xs, dxs) - floor
 
         advance = model_advance(self.model, self.box, state.x, state.dx, self.period,
                                 self.steps, self.rate_step,

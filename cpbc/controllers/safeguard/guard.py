@@ -200,7 +200,8 @@ class Safeguard(SafetyFilter):
         torque_box = self.box.torque_box
         rescue = None if braking is None or torque_box is None else Rescue(
             law.model, self.guarded, torque_box, self.cushion, self.period, self.substeps,
-            rate_step=self.box.rate_step, budget=settings.rescue_budget)
+            rate_step=self.box.rate_step, budget=settings.rescue_budget,
+            margins=self.acceptance.along.margins_along)
         self.brakes = Brakes(self.guarded, settings, self.acceptance, self.box, rescue,
                              self.cushion, self.keep, self.keep_half, self.travel, self.period)
         self.calls = 0

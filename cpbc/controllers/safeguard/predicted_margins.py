@@ -177,6 +177,29 @@ class PredictedMargins:
             out[:, at:at + k] = v.values_along(xs, dxs)
         return out
 
+    def margins_along(self, xs: Array, dxs: Array) -> Array:
+        """Every guarded margin at the rows (x, ẋ), one row each, in the order of the set's
+        names, NaN rows where the state is not finite (ConstraintSet.margins_along): the
+        packed ones by their kernels, from Pinocchio's joint placements at each row (the
+        rescue's rollout, a period at a time)."""
+        nc = self.nc
+        out = np.empty((len(xs), nc + self.nv))
+        config, velocity = out[:, :nc], out[:, nc:]
+        for at, k, c in self._generic_config:
+            config[:, at:at + k] = c.values_along(xs)
+        for at, k, v in self._generic_velocity:
+            velocity[:, at:at + k] = v.values_along(xs, dxs)
+        cp, vp = self._config, self._velocity
+        if nc:
+            margins_along(cp.plan, cp.ints, cp.floats, xs, xs, self._placements(xs),
+                          self._everywhere, config)
+        margins_along(vp.plan, vp.ints, vp.floats, xs, dxs, self._no_placements,
+                      self._everywhere, velocity)
+        total = float(xs.sum()) + float(dxs.sum())
+        if total - total != 0.0:  # a state not finite somewhere: its rows NaN
+            out[~(np.isfinite(xs).all(axis=1) & np.isfinite(dxs).all(axis=1))] = np.nan
+        return out
+
     def velocity_margins(self, xs: Array, dxs: Array) -> Array:
         """Every velocity margin at the rows (x, ẋ), one row each."""
         out = self._generic_velocity_margins(xs, dxs)
