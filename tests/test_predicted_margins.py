@@ -142,7 +142,8 @@ def test_the_compiled_margins_along_rows_are_the_sets() -> None:
     """The rescue's margins along its rollout (PredictedMargins.margins_along: the packed
     kernels with Pinocchio's joint placements) are the constraint set's own
     (ConstraintSet.margins_along) at the bench's states, to the bit, and NaN rows where a
-    state is not finite."""
+    state is not finite; so are its configuration margins alone (the slide's stopping
+    point)."""
     setup = panda()
     law = setup.controllers["cpbc"]
     guard = Safeguard(law, InputBounds(0.001, setup.torque_limit), SafeguardSettings())
@@ -154,3 +155,8 @@ def test_the_compiled_margins_along_rows_are_the_sets() -> None:
     found = along.margins_along(xs, dxs)
     assert np.isnan(found[[5, 9]]).all() and not np.isnan(found[[4, 6, 8, 10]]).any()
     np.testing.assert_array_equal(found, guarded.margins_along(xs, dxs))
+    config = along.configuration_margins(xs)
+    for i, x in enumerate(xs):
+        if i != 5:
+            np.testing.assert_array_equal(config[i], guarded.configuration_margins(x))
+    assert np.isnan(config[5]).all() and not np.isnan(config[9]).any()

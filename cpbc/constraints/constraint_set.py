@@ -207,7 +207,7 @@ class ConstraintSet:
 
     def margins_along(self, xs: Array, dxs: Array) -> Array:
         """Every margin at every sample, shape (N, m); NaN rows where the state is not finite."""
-        total = float(xs.sum()) + float(dxs.sum())  # finite where every entry is (or past)
+        total = float(xs.sum()) + float(dxs.sum())  # NaN or ±inf where an entry is
         if total - total == 0.0:  # the usual case, without masks (a third of a rescue period)
             parts = [c.values_along(xs) for c in self._config]
             parts += [c.values_along(xs, dxs) for c in self._velocity]

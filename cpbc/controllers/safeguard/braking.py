@@ -279,7 +279,7 @@ class Brakes:
             v1 = state.dx + h * acc
             x_stop = state.x + h * state.dx + (self.travel * h * h) * acc + (
                 stop[0] * math.sqrt(float(v1.dot(v1)))) * v1
-            short = self.guarded.configuration_margins(x_stop) < stop[1]
+            short = self.acceptance.along.configuration_margins(x_stop[None])[0] < stop[1]
             if short.any():
                 need = np.where(short, np.maximum(need, -rate / h), need)
                 acc = _project(grads, need, law)

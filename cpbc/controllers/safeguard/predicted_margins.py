@@ -138,6 +138,14 @@ def _split(constraints: Sequence[C], kinds: tuple[int, ...]
     return packed, generic
 
 
+def _not_finite(out: Array, xs: Array, dxs: Array) -> None:
+    """NaN into the rows of ``out`` where (x, ẋ) is not finite (a kernel's linear limit
+    would read a finite joint's margin there)."""
+    total = float(xs.sum()) + float(dxs.sum())
+    if total - total != 0.0:  # a NaN or an infinity somewhere (or a sum past the largest)
+        out[~(np.isfinite(xs).all(axis=1) & np.isfinite(dxs).all(axis=1))] = np.nan
+
+
 class PredictedMargins:
     """The guarded margins along a prediction, and F = min_i m_i/floor_i − 1."""
 
@@ -184,21 +192,34 @@ class PredictedMargins:
         rescue's rollout, a period at a time)."""
         nc = self.nc
         out = np.empty((len(xs), nc + self.nv))
-        config, velocity = out[:, :nc], out[:, nc:]
-        for at, k, c in self._generic_config:
-            config[:, at:at + k] = c.values_along(xs)
+        velocity = out[:, nc:]
+        self._configuration_margins(xs, out[:, :nc])
         for at, k, v in self._generic_velocity:
             velocity[:, at:at + k] = v.values_along(xs, dxs)
-        cp, vp = self._config, self._velocity
-        if nc:
-            margins_along(cp.plan, cp.ints, cp.floats, xs, xs, self._placements(xs),
-                          self._everywhere, config)
+        vp = self._velocity
         margins_along(vp.plan, vp.ints, vp.floats, xs, dxs, self._no_placements,
                       self._everywhere, velocity)
-        total = float(xs.sum()) + float(dxs.sum())
-        if total - total != 0.0:  # a state not finite somewhere: its rows NaN
-            out[~(np.isfinite(xs).all(axis=1) & np.isfinite(dxs).all(axis=1))] = np.nan
+        _not_finite(out, xs, dxs)
         return out
+
+    def configuration_margins(self, rows: Array) -> Array:
+        """Every configuration margin at the rows, one row each, NaN rows where they are not
+        finite (ConstraintSet.configuration_margins row by row; the slide's stopping
+        point)."""
+        out = np.empty((len(rows), self.nc))
+        self._configuration_margins(rows, out)
+        _not_finite(out, rows, rows)
+        return out
+
+    def _configuration_margins(self, rows: Array, out: Array) -> None:
+        """The configuration margins at the rows into ``out``: the others' values, then the
+        packed kernels' with Pinocchio's joint placements at each row."""
+        for at, k, c in self._generic_config:
+            out[:, at:at + k] = c.values_along(rows)
+        if self.nc:
+            cp = self._config
+            margins_along(cp.plan, cp.ints, cp.floats, rows, rows, self._placements(rows),
+                          self._everywhere, out)
 
     def velocity_margins(self, xs: Array, dxs: Array) -> Array:
         """Every velocity margin at the rows (x, ẋ), one row each."""
