@@ -46,7 +46,8 @@ def _tests(rate: float | None = None):
                 tau = out.torque + push * rng.standard_normal(7)
                 rows = predict(tau)
                 exact = along.slack(rows, floor, mid, stop, None)
-                yield along, rows, floor, mid, stop, Sample(state.x, now), exact, predict, tau
+                yield (along, rows, floor, mid, stop, Sample(state.x, now), exact, predict, tau,
+                       guard.acceptance.ramp)
 
 
 @contextmanager
@@ -72,7 +73,7 @@ def test_bounds_from_the_sample_leave_F_as_it_is(rate: float | None) -> None:
     first test (``enough`` 1) F is the same where it is < 0 and a value in [0, F] where it
     is not. Both signs occur, and F with no joint placements at all as well as with some."""
     signs, placed = set(), list[int]()
-    for along, rows, floor, mid, stop, sample, exact, _, _ in _tests(rate):
+    for along, rows, floor, mid, stop, sample, exact, _, _, _ in _tests(rate):
         with _counting(along, placed):
             assert along.slack(rows, floor, mid, stop, None, sample, math.inf) == exact
             first = along.slack(rows, floor, mid, stop, None, sample, 1.0)
@@ -85,24 +86,30 @@ def test_bounds_from_the_sample_leave_F_as_it_is(rate: float | None) -> None:
     assert min(placed) < max(placed) and len(placed) < 2 * len(list(_tests(rate)))
 
 
-def test_the_frozen_test_is_the_same_F_bit_for_bit() -> None:
+@pytest.mark.parametrize("rate", [None, 1000.0])
+def test_the_frozen_test_is_the_same_F_bit_for_bit(rate: float | None) -> None:
     """The frozen prediction's test in compiled calls (PredictedMargins.frozen_slack) gives F
-    as the rows and ``slack`` give it, to the bit, exact and from the sample's bounds with
-    ``enough`` ∞, with and without (S2)'s stopping points; with ``enough`` 1 the same where
+    as the rows and ``slack`` give it (under a torque-rate limit with ``ramp_slack``), to
+    the bit, exact and from the sample's bounds with ``enough`` ∞, with and without (S2)'s
+    stopping points; with ``enough`` 1 the same where
     F < 0, else a value in [0, F] (it computes only the clearances a bound leaves open, where
     the rows' path computes a marked row whole); and it asks Pinocchio for joint placements
     at the same rows. Both signs occur, and tests with no placements."""
     signs, placed, fused, tests = set(), list[int](), list[int](), 0
-    for along, rows, floor, mid, stop, sample, exact, predict, tau in _tests():
-        assert isinstance(predict, Frozen) and along.fuses
+    for along, rows, floor, mid, stop, sample, exact, predict, tau, ramp in _tests(rate):
+        assert isinstance(predict, Frozen) and along.fuses and (ramp is None) == (rate is None)
         acc, after = predict.start(tau)
         for s in (stop, None):
             for given, enough in ((None, math.inf), (sample, math.inf), (sample, 1.0)):
                 with _counting(along, placed):
                     expected = along.slack(rows, floor, mid, s, None, given, enough)
+                exact = along.slack(rows, floor, mid, s, None)
+                if ramp is not None:  # as Acceptance.check takes it on the rows
+                    expected = min(expected, along.ramp_slack(rows, ramp))
+                    exact = min(exact, along.ramp_slack(rows, ramp))
                 with _counting(along, fused):
                     found = along.frozen_slack(predict, acc, after, floor, mid, s, given,
-                                               enough)
+                                               enough, ramp)
                 if enough == math.inf or expected < 0.0:
                     assert found == expected or (math.isnan(found) and math.isnan(expected))
                 else:  # a sign: in [0, F] as the rows' is (bounds may stand in for more)

@@ -29,6 +29,8 @@ from cpbc.kernels.sampled_guard import (
     frozen_rows,
     frozen_start,
     predicted_slack,
+    ramp_share,
+    ramp_speeds,
     slack,
     sphere_columns,
     spheres_at,
@@ -154,3 +156,21 @@ def frozen_finish(config_plan: Ints, config_ints: Ints, config_floats: Array, wo
     spheres_at(config_plan, config_ints, config_floats, placements, slots, config)
     return slack(config, velocity, inside, r, end_floor, mid_floor, sigma_floor,
                  np.zeros(0, dtype=np.bool_), False, has_config, has_stop)
+
+
+@kernel("float64(int64[:, :], int64[:, :], float64[:, :], float64[::1], int64, int64, int64,"
+        f" int64, float64[:], float64, float64[:, :], float64[:, :], boolean, {READ_ONLY},"
+        " float64, float64[:])")
+def frozen_ramp(velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array, work: Array,
+                r: int, n: int, points: int, nc: int, start: Array, h: float, inertia: Array,
+                to_joint: Array, mapped: bool, rate: Array, share: float,
+                floor: Array) -> float:
+    """Under a torque-rate limit, the velocity margins where the rates peak while the torque
+    ramps back (``ramp_speeds``, ``ramp_share``; PredictedMargins.ramp_slack) at the ends
+    ``frozen_test`` left in ``work``: min_j ψ_j/δ_j − 1."""
+    nv = floor.shape[0]  # the velocity margins' cushions
+    ends, speeds = frozen_parts(work, r, n, points, nc, nv)[1:3]
+    peaks = np.empty((r, n))
+    ramp_speeds(speeds, start, h, inertia, to_joint, mapped, rate, share, peaks)
+    return ramp_share(velocity_plan, velocity_ints, velocity_floats, ends, peaks,
+                      np.zeros((0, 1, 1)), np.empty((r, nv)), floor)

@@ -100,14 +100,14 @@ class Acceptance:
         raise (F falls as a floor rises), or None."""
         along = self.along
         ramp = self.ramp if along.nv else None
-        frozen = predict if (isinstance(predict, Frozen) and along.fuses and ramp is None
+        frozen = predict if (isinstance(predict, Frozen) and along.fuses
                              and past is None) else None
 
         def f(t: Array, given: Sample | None, enough: float = 1.0) -> float:
             if frozen is not None:  # the same F in compiled calls (PredictedMargins.frozen_slack)
                 acc, after = frozen.start(t)
                 return along.frozen_slack(frozen, acc, after, end_floor, mid_floor, stop,
-                                          given, enough)
+                                          given, enough, ramp)
             rows = predict(t)
             end = along.slack(rows, end_floor, mid_floor, stop, past, given, enough)
             return end if ramp is None else min(end, along.ramp_slack(rows, ramp))

@@ -26,7 +26,7 @@ from cpbc.constraints.packing import Packed, PackedSet
 from cpbc.controllers.safeguard.prediction import Frozen
 from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES
 from cpbc.kernels.braking_path import configuration_rows
-from cpbc.kernels.frozen_test import frozen_finish, frozen_size, frozen_test
+from cpbc.kernels.frozen_test import frozen_finish, frozen_ramp, frozen_size, frozen_test
 from cpbc.kernels.sampled_guard import (
     bounded_slack,
     margins_along,
@@ -284,11 +284,28 @@ class PredictedMargins:
 
     def frozen_slack(self, frozen: Frozen, acc: Array, after: Array, end_floor: Array,
                      mid_floor: Array | None, stop: BrakingTest | None,
-                     sample: Sample | None = None, enough: float = math.inf) -> float:
+                     sample: Sample | None = None, enough: float = math.inf,
+                     ramp: RampTest | None = None) -> float:
         """:meth:`slack` over the prediction ``frozen`` makes from its accelerations ``acc``
         and ``after`` (Frozen.start), where every constraint packs (``fuses``) and no margin
-        is broken already: the same F, bit for bit, in one kernel call and, where a row
-        needs its joint placements, Pinocchio's and a second (cpbc.kernels.frozen_test)."""
+        is broken already — and with ``ramp`` the lesser of it and :meth:`ramp_slack` —
+        in one kernel call and, where a row needs its joint placements, Pinocchio's and a
+        second (cpbc.kernels.frozen_test): the same F, bit for bit, where it is exact."""
+        f, work, points = self._frozen(frozen, acc, after, end_floor, mid_floor, stop, sample,
+                                       enough)
+        if ramp is None:
+            return f
+        vp, to_joint = self._velocity, ramp.to_joint
+        return min(f, frozen_ramp(vp.plan, vp.ints, vp.floats, work, frozen.rows, self.n,
+                                  points, self.nc, ramp.start, ramp.period, ramp.inertia,
+                                  ramp.inertia if to_joint is None else to_joint,
+                                  to_joint is not None, ramp.rate, RAMP_SHARE, ramp.floor))
+
+    def _frozen(self, frozen: Frozen, acc: Array, after: Array, end_floor: Array,
+                mid_floor: Array | None, stop: BrakingTest | None, sample: Sample | None,
+                enough: float) -> tuple[float, Array, int]:
+        """F of :meth:`frozen_slack` without the ramp, the buffer its rows are in, and the
+        points of the brake's path it holds."""
         r, n, nc = frozen.rows, self.n, self.nc
         has_config = mid_floor is not None
         points = stop.points if stop is not None and has_config else 0
@@ -308,11 +325,12 @@ class PredictedMargins:
                                 has_config, stop is not None, self._spheres, bounded, at,
                                 margins, enough, nc, work, slots)
         if not marked:
-            return f
+            return f, work, points
         rows = work[:len(slots) * n].reshape(len(slots), n)
         placements = self._placements(rows[slots >= 0] if bounded else rows)  # all, unbounded
         return frozen_finish(cp.plan, cp.ints, cp.floats, work, r, n, points, nc, placements,
-                             slots, end_floor, mid, sigma, has_config, stop is not None)
+                             slots, end_floor, mid, sigma, has_config,
+                             stop is not None), work, points
 
     def _configuration_rows(self, mids: Array, ends: Array, speeds: Array,
                             stop: BrakingTest | None) -> Array:
