@@ -62,6 +62,13 @@ def frozen_size(r: int, n: int, points: int, nc: int, nv: int) -> int:
     return (2 + points) * r * (n + nc) + r * (4 * n + 2 * nv)
 
 
+@inner("Tuple((float64[:, ::1], int64))(float64[::1], int64, int64, int64)")
+def _block(work: Array, at: int, rows: int, cols: int) -> tuple[Array, int]:
+    """The rows × cols block of ``work`` from ``at`` on, and where the next one starts."""
+    end = at + rows * cols
+    return work[at:end].reshape((rows, cols)), end
+
+
 @inner("UniTuple(float64[:, ::1], 8)(float64[::1], int64, int64, int64, int64, int64)")
 def frozen_parts(work: Array, r: int, n: int, points: int, nc: int,
                  nv: int) -> tuple[Array, Array, Array, Array, Array, Array, Array, Array]:
@@ -71,22 +78,14 @@ def frozen_parts(work: Array, r: int, n: int, points: int, nc: int,
     at the configurations ((2 + points) r × nc), the velocity margins at the ends and at
     mid-period (r × nv each)."""
     tested = (2 + points) * r
-    at = 0
-    rows = work[at:at + tested * n].reshape((tested, n))
-    at += tested * n
-    ends = work[at:at + r * n].reshape((r, n))
-    at += r * n
-    speeds = work[at:at + r * n].reshape((r, n))
-    at += r * n
-    mids = work[at:at + r * n].reshape((r, n))
-    at += r * n
-    mid_speeds = work[at:at + r * n].reshape((r, n))
-    at += r * n
-    config = work[at:at + tested * nc].reshape((tested, nc))
-    at += tested * nc
-    velocity = work[at:at + r * nv].reshape((r, nv))
-    at += r * nv
-    inside = work[at:at + r * nv].reshape((r, nv))
+    rows, at = _block(work, 0, tested, n)
+    ends, at = _block(work, at, r, n)
+    speeds, at = _block(work, at, r, n)
+    mids, at = _block(work, at, r, n)
+    mid_speeds, at = _block(work, at, r, n)
+    config, at = _block(work, at, tested, nc)
+    velocity, at = _block(work, at, r, nv)
+    inside, _ = _block(work, at, r, nv)
     return rows, ends, speeds, mids, mid_speeds, config, velocity, inside
 
 
