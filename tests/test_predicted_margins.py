@@ -1,7 +1,7 @@
 """The guarded margins along a prediction (cpbc.controllers.safeguard.predicted_margins): F of
 (S1) and (S2), the same F where the sphere clearances are bounded from the sample instead of
 computed (cpbc.kernels.sampled_guard.bounded_slack), and the same F again from the frozen
-prediction's compiled test (cpbc.kernels.frozen_test)."""
+prediction's compiled test (cpbc.kernels.frozen_slack)."""
 
 from __future__ import annotations
 

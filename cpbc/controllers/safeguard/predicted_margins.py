@@ -26,7 +26,7 @@ from cpbc.constraints.packing import Packed, PackedSet
 from cpbc.controllers.safeguard.prediction import Frozen
 from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES
 from cpbc.kernels.braking_path import configuration_rows
-from cpbc.kernels.frozen_test import frozen_finish, frozen_ramp, frozen_size, frozen_test
+from cpbc.kernels.frozen_slack import frozen_finish, frozen_ramp, frozen_size, frozen_test
 from cpbc.kernels.sampled_guard import (
     bounded_slack,
     margins_along,
@@ -290,7 +290,7 @@ class PredictedMargins:
         and ``after`` (Frozen.start), where every constraint packs (``fuses``) and no margin
         is broken already — and with ``ramp`` the lesser of it and :meth:`ramp_slack` —
         in one kernel call and, where a row needs its joint placements, Pinocchio's and a
-        second (cpbc.kernels.frozen_test): the same F, bit for bit, where it is exact."""
+        second (cpbc.kernels.frozen_slack): the same F, bit for bit, where it is exact."""
         f, work, points = self._frozen(frozen, acc, after, end_floor, mid_floor, stop, sample,
                                        enough)
         if ramp is None:

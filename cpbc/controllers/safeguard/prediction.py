@@ -11,7 +11,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.brakes import TorqueBox
-from cpbc.kernels.frozen_test import clipped_start
+from cpbc.kernels.frozen_slack import clipped_start
 from cpbc.kernels.sampled_guard import frozen_rows
 from cpbc.model.robot_model import ArmState, RobotModel
 
