@@ -167,3 +167,51 @@ def test_the_compiled_margins_along_rows_are_the_sets() -> None:
         if i != 5:
             np.testing.assert_array_equal(config[i], guarded.configuration_margins(x))
     assert np.isnan(config[5]).all() and not np.isnan(config[9]).any()
+
+
+@pytest.mark.parametrize("rate", [None, 5000.0])
+def test_the_frozen_test_in_other_coordinates_with_a_box(rate: float | None) -> None:
+    """The thesis's arm in absolute link angles (a map to the joints), its joint and
+    relative limits and rate limits (every one packed), a torque box the torques are pushed
+    far out of (the clip through the map) and, with ``rate``, a torque-rate limit: the
+    compiled test's F is the rows' to the bit, on both sides of 0."""
+    from cpbc.bench import planar_2link
+    from cpbc.constraints.constraint_set import ConstraintSet
+    from cpbc.constraints.linear_limit import LinearLimit, joint_position_limit
+    from cpbc.constraints.rate_limit import joint_rate_limit
+    from cpbc.controllers.cpbc import CPBC
+    from cpbc.controllers.shaping import Power
+
+    setup = planar_2link()
+    model = setup.controllers["cpbc"].model
+    names = ["theta1", "theta2"]
+    constraints = ConstraintSet(2, [joint_position_limit([-0.5, -0.5], [3.5, 3.5], names),
+                                    LinearLimit([[-1, 1]], [-3.0], [3.0], ["relative"])],
+                                [joint_rate_limit([0.3, 0.2], names)])
+    law = CPBC(model, np.array([np.pi, 2.0]), constraints, 4.0, 20.0, Power(0.2))
+    bounds = InputBounds(0.001, np.array([30.0, 20.0]),
+                         None if rate is None else np.full(2, rate))
+    guard = Safeguard(law, bounds, SafeguardSettings())
+    along, rng, signs = guard.acceptance.along, np.random.default_rng(11), set()
+    assert along.fuses and not model.coordinates.is_identity
+    for x, dx in setup.states[:24]:
+        state = guard.state(x, 1.5 * dx)
+        out = law.evaluate_state(state, margins=True)
+        assert out.margins is not None
+        if guard.box.rate_limited:
+            guard._begin(state)
+        step = guard._tests(state, out.torque, out.margins)
+        predict, ramp = step.predict, guard.acceptance.ramp
+        assert isinstance(predict, Frozen)
+        for push in (0.0, 20.0, 200.0):
+            tau = out.torque + push * rng.standard_normal(2)
+            rows = predict(tau)
+            expected = along.slack(rows, step.floor, step.floor_mid, step.stop, None)
+            if ramp is not None:
+                expected = min(expected, along.ramp_slack(rows, ramp))
+            acc, after = predict.start(tau)
+            found = along.frozen_slack(predict, acc, after, step.floor, step.floor_mid,
+                                       step.stop, None, math.inf, ramp)
+            assert found == expected
+            signs.add(found >= 0.0)
+    assert signs == {True, False}
