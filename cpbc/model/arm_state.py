@@ -16,6 +16,8 @@ if TYPE_CHECKING:
 NO_FRAMES: Mapping[int, FrameKinematics] = MappingProxyType({})
 FIELDS = ("x", "dx", "q", "dq", "inertia", "coriolis_force", "gravity", "dissipation",
           "frames", "coriolis_matrix", "joint_jacobians", "regressor")
+# the fields a state from a pass takes from its terms only when each is read (StatePass.fill)
+LATER = ("frames", "coriolis_matrix", "joint_jacobians", "regressor")
 
 
 class ArmState:
@@ -84,10 +86,11 @@ class ArmState:
         return iter([getattr(self, name) for name in FIELDS])
 
     def __getattr__(self, name: str) -> Any:
-        """A field of a state from a pass not read yet: the state is finished now (once)."""
+        """A field of a state from a pass not read yet: taken from its terms now, the state
+        finished first where it is not (StatePass.fill)."""
         if name in FIELDS:
             source = object.__getattribute__(self, "source")
             if source is not None:
-                source.finish(self)
+                source.fill(self, name)
                 return object.__getattribute__(self, name)
         raise AttributeError(name)

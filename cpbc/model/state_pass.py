@@ -16,6 +16,7 @@ state finished after another pass ran (``RobotModel.holds``) makes its own pass 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from types import MappingProxyType
 from typing import TYPE_CHECKING
 
@@ -25,7 +26,7 @@ from cpbc.arrays import Array
 from cpbc.errors import CpbcError
 from cpbc.kernels.coordinate_maps import to_joint
 from cpbc.kernels.state_terms import finish_state, layout, pack_state
-from cpbc.model.arm_state import NO_FRAMES, ArmState
+from cpbc.model.arm_state import LATER, NO_FRAMES, ArmState
 from cpbc.model.frames import FrameKinematics
 
 if TYPE_CHECKING:
@@ -93,9 +94,10 @@ class StatePass:
         return state
 
     def finish(self, state: ArmState) -> None:
-        """The state's fields from its terms, made first when it has none
+        """The state's dynamics fields from its terms, made first when it has none
         (cpbc.kernels.state_terms.finish_state): from its own pass again when the model's
-        data no longer holds it."""
+        data no longer holds it. The kinematics, C and the frames are taken from the terms
+        when each is first read (:meth:`fill`)."""
         if state.terms is None:
             raw = state.raw if self.model.holder is state else None
             if raw is None:
@@ -108,8 +110,33 @@ class StatePass:
         state.raw = None
         self._fill(state, state.terms)
 
+    def fill(self, state: ArmState, name: str) -> None:
+        """The field ``name`` of a state from this pass, read for the first time: with the
+        dynamics (:meth:`finish`), or alone where it is the matrix C, the joint kinematics or
+        the frames, which a guard's calm step does not read (each a view or two of the
+        terms, made when it is asked for)."""
+        if name not in LATER:
+            self.finish(state)
+            return
+        if state.terms is None:
+            self.finish(state)
+        terms = state.terms
+        assert terms is not None  # finished
+        if name == "coriolis_matrix":
+            state.coriolis_matrix = (terms[self._coriolis].reshape(self._square)
+                                     if self.coriolis else None)
+        elif name == "frames":
+            state.frames = self._frames_of(terms)
+        elif self.kinematics:
+            (jacobians, rows), (placements, columns) = self._joints
+            state.joint_jacobians = terms[jacobians].reshape(rows)
+            state.regressor = terms[placements].reshape(columns)
+        else:
+            state.joint_jacobians = state.regressor = None
+
     def _fill(self, state: ArmState, terms: Array) -> None:
-        """The fields as views of the terms (the layout of cpbc.kernels.state_terms)."""
+        """The dynamics fields as views of the terms (the layout of
+        cpbc.kernels.state_terms)."""
         if self._identity:
             state.q, state.dq = state.x, state.dx
         else:
@@ -117,26 +144,20 @@ class StatePass:
             to_joint(self._t_inv, state.x, state.dx, joint)
             state.q, state.dq = joint[0], joint[1]
         inertia, bias, gravity, dissipation = self._views
-        square = self._square
-        state.inertia = terms[inertia].reshape(square)
+        state.inertia = terms[inertia].reshape(self._square)
         state.coriolis_force, state.gravity = terms[bias], terms[gravity]
         state.dissipation = terms[dissipation]
-        state.coriolis_matrix = state.joint_jacobians = state.regressor = None
-        if self.coriolis:
-            state.coriolis_matrix = terms[self._coriolis].reshape(square)
-        if self.kinematics:
-            (jacobians, rows), (placements, columns) = self._joints
-            state.joint_jacobians = terms[jacobians].reshape(rows)
-            state.regressor = terms[placements].reshape(columns)
+
+    def _frames_of(self, terms: Array) -> Mapping[int, FrameKinematics]:
+        """Every frame's placement and Jacobian, views of the terms."""
         if not self.frames:
-            state.frames = NO_FRAMES
-            return
+            return NO_FRAMES
         found = {}
         for frame, (placement, jacobian, shape) in zip(self.frames, self._frames,
                                                        strict=True):
             found[frame] = FrameKinematics(terms[placement].reshape(4, 4),
                                            terms[jacobian].reshape(shape))
-        state.frames = MappingProxyType(found)
+        return MappingProxyType(found)
 
     def terms_of(self, state: ArmState) -> Array:
         """A state's terms in this pass's layout: its own when it comes from this pass
