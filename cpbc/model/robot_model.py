@@ -433,7 +433,7 @@ class RobotModel:
 
     def forward_dynamics(self, x: Array, dx: Array, tau: Array) -> Array:
         """ẍ from D ẍ = τ − C ẋ − g − f (generalised forces τ in x-coordinates)."""
-        q, dq = self._q(x), self._q(dx)
+        q, dq = (x, dx) if self._identity else (self._q(x), self._q(dx))
         tau_q = tau if self._identity else self.coordinates.torque_to_joint(tau)
         if self._has_friction:
             f = self.dissipation(dx)

@@ -291,28 +291,14 @@ class PredictedMargins:
         is broken already — and with ``ramp`` the lesser of it and :meth:`ramp_slack` —
         in one kernel call and, where a row needs its joint placements, Pinocchio's and a
         second (cpbc.kernels.frozen_slack): the same F, bit for bit, where it is exact."""
-        f, work, points = self._frozen(frozen, acc, after, end_floor, mid_floor, stop, sample,
-                                       enough)
-        if ramp is None:
-            return f
-        vp, to_joint = self._velocity, ramp.to_joint
-        return min(f, frozen_ramp(vp.plan, vp.ints, vp.floats, work, frozen.rows, self.n,
-                                  points, self.nc, ramp.start, ramp.period, ramp.inertia,
-                                  ramp.inertia if to_joint is None else to_joint,
-                                  to_joint is not None, ramp.rate, RAMP_SHARE, ramp.floor))
-
-    def _frozen(self, frozen: Frozen, acc: Array, after: Array, end_floor: Array,
-                mid_floor: Array | None, stop: BrakingTest | None, sample: Sample | None,
-                enough: float) -> tuple[float, Array, int]:
-        """F of :meth:`frozen_slack` without the ramp, the buffer its rows are in, and the
-        points of the brake's path it holds."""
         r, n, nc = frozen.rows, self.n, self.nc
         has_config = mid_floor is not None
         points = stop.points if stop is not None and has_config else 0
         work = np.empty(frozen_size(r, n, points, nc, self.nv))
         slots = np.empty((2 + points) * r, dtype=np.int64)
-        start, period, per_speed, ramp = ((_AT_REST, 1.0, 0.0, 0.0) if stop is None else
-                                          (stop.start, stop.period, stop.per_speed, stop.ramp))
+        start, period, per_speed, ramp_time = ((_AT_REST, 1.0, 0.0, 0.0) if stop is None else
+                                               (stop.start, stop.period, stop.per_speed,
+                                                stop.ramp))
         no_floor = self._no_floor
         mid = no_floor if mid_floor is None else mid_floor
         sigma = no_floor if stop is None else stop.floor
@@ -320,17 +306,22 @@ class PredictedMargins:
         bounded = sample is not None
         at, margins = (sample.x, sample.margins) if sample is not None else (no_floor, no_floor)
         f, marked = frozen_test(frozen.x, frozen.dx, acc, after, frozen.h, frozen.travel, r,
-                                start, period, per_speed, ramp, points, cp.plan, cp.ints,
+                                start, period, per_speed, ramp_time, points, cp.plan, cp.ints,
                                 cp.floats, vp.plan, vp.ints, vp.floats, end_floor, mid, sigma,
                                 has_config, stop is not None, self._spheres, bounded, at,
                                 margins, enough, nc, work, slots)
-        if not marked:
-            return f, work, points
-        rows = work[:len(slots) * n].reshape(len(slots), n)
-        placements = self._placements(rows[slots >= 0] if bounded else rows)  # all, unbounded
-        return frozen_finish(cp.plan, cp.ints, cp.floats, work, r, n, points, nc, placements,
-                             slots, end_floor, mid, sigma, has_config,
-                             stop is not None), work, points
+        if marked:
+            rows = work[:len(slots) * n].reshape(len(slots), n)
+            placements = self._placements(rows[slots >= 0] if bounded else rows)  # all: exact
+            f = frozen_finish(cp.plan, cp.ints, cp.floats, work, r, n, points, nc, placements,
+                              slots, end_floor, mid, sigma, has_config, stop is not None)
+        if ramp is None:
+            return f
+        to_joint = ramp.to_joint
+        return min(f, frozen_ramp(vp.plan, vp.ints, vp.floats, work, r, n, points, nc,
+                                  ramp.start, ramp.period, ramp.inertia,
+                                  ramp.inertia if to_joint is None else to_joint,
+                                  to_joint is not None, ramp.rate, RAMP_SHARE, ramp.floor))
 
     def _configuration_rows(self, mids: Array, ends: Array, speeds: Array,
                             stop: BrakingTest | None) -> Array:
