@@ -5,7 +5,8 @@ frozen_slack): ``frozen_test`` makes the prediction's rows (``frozen_rows``), th
 clearances bounded from the sample where that settles them; ``predicted_slack`` where there are
 none); where some clearance is left to compute it marks its row, the caller asks Pinocchio for
 the marked rows' joint placements, and ``frozen_finish`` computes those clearances alone
-(``spheres_at``) and ends F (``slack``). No formula is written here: these are the accept
+(``spheres_at``) and ends F (``slack``); under a torque-rate limit ``frozen_ramp`` adds the
+velocity margins while the torque ramps back. No formula is written here: these are the accept
 path's kernels called in one go (``clipped_start`` is the prediction's start, with the
 saturation into the step's box), over one buffer whose layout (``frozen_size``,
 ``frozen_parts``) is written once, below. What it saves is the Python between them (a calm
