@@ -32,10 +32,10 @@ from cpbc.kernels.sampled_guard import (
     predicted_slack,
     ramp_share,
     ramp_speeds,
-    slack,
     sphere_columns,
     spheres_at,
 )
+from cpbc.kernels.shares import slack
 from cpbc.kernels.torque_box import box_clip
 
 
@@ -129,7 +129,7 @@ def frozen_test(x: Array, dx: Array, acc: Array, after: Array, h: float, travel:
             all_but_spheres(config_plan, config_ints, config_floats, velocity_plan,
                              velocity_ints, velocity_floats, rows, ends, speeds, mids,
                              mid_speeds, config, velocity, inside, end_floor, mid_floor,
-                             sigma_floor, no_past, has_stop)
+                             sigma_floor, no_past, has_stop, math.inf)
             sphere_columns(config_plan, config, math.nan)
             for i in range(rows.shape[0]):
                 slots[i] = i

@@ -42,6 +42,7 @@ from cpbc.kernels.clearance import (
     travel,
 )
 from cpbc.kernels.plan_tables import COUNT, FIRST, KIND, float_table, int_table
+from cpbc.kernels.shares import keeps_floors, slack
 from cpbc.kernels.small_solves import nan_min, solve_spd
 from cpbc.kernels.views import Bools
 
@@ -232,69 +233,6 @@ def margins_along(plan: Ints, ints: Ints, floats: Array, xs: Array, dxs: Array, 
 
 
 
-@kernel("float64(float64, float64)")
-def _least(low: float, value: float) -> float:
-    """Python's min(low, value): a NaN value is passed over, a NaN low kept."""
-    return value if value < low else low
-
-
-@kernel("float64(float64[:, :], int64, int64, int64, float64[:], boolean[:], boolean)")
-def _least_share(m: Array, first: int, last: int, col: int, floor: Array, past: Bools,
-                 has_past: bool) -> float:
-    """min over rows [first, last) of m/floor per margin (≥ 1: the margin keeps its floor),
-    NaN margins counted as −∞; where ``past`` (the margin broken already) 1 + (m −
-    floor)/|floor| instead. ``col``: the column of m's first margin in ``floor``/``past``."""
-    low = math.inf
-    for i in range(first, last):
-        for j in range(m.shape[1]):
-            v = m[i, j]
-            if v != v:
-                v = -math.inf
-            f = floor[col + j]
-            if has_past and past[col + j]:
-                share = 1.0 + (v - f) / max(abs(f), 1e-12)
-            else:
-                share = v / f
-            low = nan_min(low, share)
-    return low
-
-
-@kernel("float64(float64[:, :], float64[:, :], float64[:, :], int64, float64[:], float64[:],"
-        " float64[:], boolean[:], boolean, boolean, boolean)")
-def slack(config: Array, velocity: Array, inner: Array, ends: int, end_floor: Array,
-          mid_floor: Array, sigma_floor: Array, past: Bools, has_past: bool, has_config: bool,
-          has_stop: bool) -> float:
-    """F = min_i m_i/floor_i − 1 (≥ 0: every margin keeps its floor; the package docstring,
-    (S1) and (S2)) over the margins along one prediction of ``ends`` rows: ``config`` the
-    configuration margins at the mid-period rows, the ends and (``has_stop``) the uniform
-    brake's stopping points, ``velocity`` the velocity margins at the ends, ``inner`` those
-    inside the period (held to their end floor). ``end_floor`` covers every margin, the
-    configuration ones first; ``mid_floor`` and ``sigma_floor`` the configuration ones.
-    ``past`` marks margins broken already: compared by difference, their braking margin not
-    held. Groups combine as the Python they replace did (a NaN group is passed over)."""
-    nc = config.shape[1] if has_config else 0
-    low = math.inf
-    if inner.shape[1] > 0:
-        low = _least_share(inner, 0, inner.shape[0], nc, end_floor, past, has_past)
-    end = _least_share(velocity, 0, velocity.shape[0], nc, end_floor, past, has_past)
-    if not has_config:
-        return _least(low, end) - 1.0
-    end = nan_min(end, _least_share(config, ends, 2 * ends, 0, end_floor, past, has_past))
-    low = _least(_least(low, end),
-                 _least_share(config, 0, ends, 0, mid_floor, past, has_past))
-    if has_stop:
-        braking = math.inf
-        for i in range(2 * ends, config.shape[0]):  # every stopping row (configuration_rows)
-            for j in range(nc):
-                v = config[i, j]
-                if v != v:
-                    v = -math.inf
-                braking = nan_min(braking, math.inf if has_past and past[j]
-                                 else v / sigma_floor[j])
-        low = _least(low, braking)
-    return low - 1.0
-
-
 @kernel("float64(int64[:, :], int64[:, :], float64[:, :], int64[:, :], int64[:, :], float64[:, :],"
         " float64[:, :], float64[:, :, :], int64[:], float64[:, :], float64[:, :],"
         " float64[:, :], float64[:, :], float64[:, :], float64[:, :], float64[:, :], float64[:],"
@@ -338,6 +276,7 @@ def _bound_spheres(plan: Ints, floats: Array, rows: Array, ends: int, end_floor:
     rows are marked."""
     n = x.shape[0]
     widest = np.empty(n)
+    unit = threshold == 1.0  # bound/f ≥ 1 is bound ≥ f for f > 0: no division
     for i in range(rows.shape[0]):
         slots[i] = -1
     for r in range(plan.shape[0]):
@@ -354,9 +293,9 @@ def _bound_spheres(plan: Ints, floats: Array, rows: Array, ends: int, end_floor:
             for c in range(k):
                 f = floor[at + c]
                 bound = now[at + c] - far - MOVED_ROUNDING
-                if not (bound > 0.0 and bound / f >= threshold):
+                if not (bound > 0.0 and (bound >= f if unit else bound / f >= threshold)):
                     bound = now[at + c] - travel(reach[c], x, q) - MOVED_ROUNDING
-                if f > 0.0 and bound > 0.0 and bound / f >= threshold:
+                if f > 0.0 and bound > 0.0 and (bound >= f if unit else bound / f >= threshold):
                     config[i, at + c] = bound
                 else:
                     config[i, at + c] = math.nan
@@ -381,15 +320,17 @@ def sphere_columns(plan: Ints, config: Array, value: float) -> None:
 @inner("float64(int64[:, :], int64[:, :], float64[:, :], int64[:, :], int64[:, :],"
        " float64[:, :], float64[:, :], float64[:, :], float64[:, :], float64[:, :],"
        " float64[:, :], float64[:, :], float64[:, :], float64[:, :], float64[:], float64[:],"
-       " float64[:], boolean[:], boolean)")
+       " float64[:], boolean[:], boolean, float64)")
 def all_but_spheres(config_plan: Ints, config_ints: Ints, config_floats: Array,
                      velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array,
                      rows: Array, ends: Array, speeds: Array, inner_x: Array, inner_v: Array,
                      config: Array, velocity: Array, inner: Array, end_floor: Array,
-                     mid_floor: Array, sigma_floor: Array, no_past: Bools,
-                     has_stop: bool) -> float:
+                     mid_floor: Array, sigma_floor: Array, no_past: Bools, has_stop: bool,
+                     enough: float) -> float:
     """Every packed margin but the sphere clearances (their columns ∞), and G, the least
-    share m/floor over them (``slack`` + 1)."""
+    share m/floor over them (``slack`` + 1) — or ``enough`` itself where it is ≤ 1 and every
+    margin keeps its floor (``keeps_floors``: G ≥ 1, and min(G, ``enough``) is all the
+    caller reads), without a division."""
     everywhere = np.zeros(0, dtype=np.int64)
     none = np.zeros((0, 1, 1))
     margins_along(velocity_plan, velocity_ints, velocity_floats, ends, speeds, none,
@@ -400,8 +341,12 @@ def all_but_spheres(config_plan: Ints, config_ints: Ints, config_floats: Array,
     skip = np.full(rows.shape[0], -1, dtype=np.int64)  # no sphere pair's
     margins_along(config_plan, config_ints, config_floats, rows, rows, none, skip, config)
     sphere_columns(config_plan, config, math.inf)
-    return slack(config, velocity, inner, ends.shape[0], end_floor, mid_floor, sigma_floor,
-                 no_past, False, True, has_stop) + 1.0
+    n = ends.shape[0]
+    if enough <= 1.0 and keeps_floors(config, velocity, inner, n, end_floor, mid_floor,
+                                      sigma_floor, True, has_stop):
+        return enough
+    return slack(config, velocity, inner, n, end_floor, mid_floor, sigma_floor, no_past,
+                 False, True, has_stop) + 1.0
 
 
 @kernel("UniTuple(float64, 2)(int64[:, :], int64[:, :], float64[:, :], int64[:, :],"
@@ -435,7 +380,7 @@ def bounded_slack(config_plan: Ints, config_ints: Ints, config_floats: Array,
     rest = all_but_spheres(config_plan, config_ints, config_floats, velocity_plan,
                             velocity_ints, velocity_floats, rows, ends, speeds, inner_x,
                             inner_v, config, velocity, inner, end_floor, mid_floor,
-                            sigma_floor, no_past, has_stop)
+                            sigma_floor, no_past, has_stop, enough)
     threshold = enough if rest > enough else rest  # NaN stays
     marked = _bound_spheres(config_plan, config_floats, rows, ends.shape[0], end_floor,
                             mid_floor, sigma_floor, x, now, threshold, slots, config)
