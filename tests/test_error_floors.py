@@ -20,7 +20,6 @@ from cpbc.controllers.safeguard.error_floors import ErrorFloors
 from cpbc.controllers.safeguard.model_error import friction_error, margin_losses
 from cpbc.hardware.motion import MotionSettings
 from cpbc.hardware.robot_run import choose_controller, lockstep_for, on_robot, run_on_robot
-from cpbc.kernels.sampled_guard import floors
 from cpbc.model.coordinates import LinearCoordinates
 from cpbc.model.input_bounds import InputBounds
 from cpbc.model.robot_model import RobotModel
@@ -68,10 +67,7 @@ def _step(guard: Safeguard, x: np.ndarray, dx: np.ndarray):
     out = guard.law.evaluate_state(state, margins=True)
     guard.box.begin(state)
     bias = state.coriolis_force + state.gravity + state.dissipation
-    now = guard.margins_now(state.x, out.margins)
-    nc = guard.guarded.n_configuration
-    floor, mid = np.empty(len(now)), np.empty(nc)
-    floors(now, guard.cushion, guard.keep, guard.keep_half, floor, mid)
+    _, floor, mid = guard.sample_floors(state.x, out.margins)
     return state, bias, out.torque, floor, mid
 
 

@@ -36,10 +36,7 @@ def _tests(rate: float | None = None):
             if guard.box.rate_limited:
                 guard._begin(state)
             bias = state.coriolis_force + state.gravity
-            now = guard.margins_now(x, out.margins)
-            delta, nc = guard.cushion, guard.guarded.n_configuration
-            floor = delta + guard.keep * (now - delta)
-            mid = delta[:nc] + guard.keep_half * (now[:nc] - delta[:nc])
+            now, floor, mid = guard.sample_floors(x, out.margins)
             stop = guard.acceptance.braking_floor(state, bias, guard.box.holding)
             predict = guard.predictor(state, bias)
             for push in (0.0, 10.0, 100.0):

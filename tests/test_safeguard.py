@@ -562,10 +562,8 @@ def test_the_slide_removes_only_the_push_into_the_boundary(bpbc: BPBC) -> None:
     bias = state.coriolis_force + state.gravity
     law_acc = solve_spd(state.inertia, out.torque - bias)
     assert law_acc[0] > 0  # into the wall (θ₁ ≤ 0.3)
-    now = guard.margins_now(x, out.margins)
-    delta, nc = guard.cushion, guard.guarded.n_configuration
-    floor = np.maximum(delta + guard.keep * (now - delta), 1e-300)
-    floor_mid = np.maximum(delta[:nc] + guard.keep_half * (now[:nc] - delta[:nc]), 1e-300)
+    now, floor, floor_mid = guard.sample_floors(x, out.margins)
+    floor, floor_mid = np.maximum(floor, 1e-300), np.maximum(floor_mid, 1e-300)
     slack = guard.acceptance.check(guard.predictor(state, bias), floor, floor_mid)
     assert slack(out.torque) < 0
     slid = guard.brakes.slide(state, bias, out.torque, now, floor, floor_mid, None)

@@ -99,10 +99,7 @@ def _slack_at(guard: Safeguard, tau: np.ndarray) -> float:
     state = free.state(X, DX)
     out = free.law.evaluate_state(state, margins=True)
     bias = state.coriolis_force + state.gravity + state.dissipation
-    now = free.margins_now(state.x, out.margins)
-    floor = free.cushion + free.keep * (now - free.cushion)
-    nc = free.guarded.n_configuration
-    mid = free.cushion[:nc] + free.keep_half * (now[:nc] - free.cushion[:nc])
+    _, floor, mid = free.sample_floors(state.x, out.margins)
     return free.acceptance.check(free.predictor(state, bias), floor, mid)(tau)
 
 

@@ -183,12 +183,17 @@ def project_halfspaces(grads: Array, need: Array, start: Array, out: Array) -> N
 # --- step 3: the margins along the prediction, and F of (S1), (S2) --------------------------
 
 
-@kernel(f"void({READ_ONLY}, {READ_ONLY}, float64, float64, float64[:], float64[:])")
-def floors(now: Array, cushion: Array, keep: float, keep_half: float, end_floor: Array,
-           mid_floor: Array) -> None:
-    """The floors of (S1): δ_i + e^{−κh}(m_i − δ_i) for every margin at the period's end,
-    δ_i + e^{−κh/2}(φ_i − δ_i) for the configuration ones at mid-period (as many as
-    ``mid_floor`` holds), from the margins ``now`` at the sample and the cushions δ."""
+@kernel(f"void({READ_ONLY}, {READ_ONLY}, float64, float64, float64[:], float64[:],"
+        " float64[:])")
+def floors(margins: Array, cushion: Array, keep: float, keep_half: float, now: Array,
+           end_floor: Array, mid_floor: Array) -> None:
+    """The margins at the sample into ``now``, NaN counted as −∞ (a prediction gone wild),
+    and the floors of (S1) from them and the cushions δ: δ_i + e^{−κh}(m_i − δ_i) for every
+    margin at the period's end, δ_i + e^{−κh/2}(φ_i − δ_i) for the configuration ones at
+    mid-period (as many as ``mid_floor`` holds)."""
+    for i in range(margins.shape[0]):
+        m = margins[i]
+        now[i] = m if m == m else -math.inf
     for i in range(now.shape[0]):
         end_floor[i] = cushion[i] + keep * (now[i] - cushion[i])
     for i in range(mid_floor.shape[0]):

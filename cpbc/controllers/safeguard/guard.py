@@ -338,10 +338,8 @@ class Safeguard(SafetyFilter):
         if self.model.has_friction:
             bias = bias + state.dissipation
         predict = self.predictor(state, bias)
-        now = self.margins_now(state.x, law_margins)
-        delta, nc = self.cushion, self._n_config
-        floor, mid = np.empty(len(now)), np.empty(nc)
-        floors(now, delta, self.keep, self.keep_half, floor, mid)  # (S1)
+        now, floor, mid = self.sample_floors(state.x, law_margins)  # (S1)
+        nc = self._n_config
         refine = self.errors.raise_floors(state, bias, tau, floor, mid)
         floor_mid = None
         past = None
@@ -442,21 +440,21 @@ class Safeguard(SafetyFilter):
         if self.box.rate_limited:
             self.box.end(tau)
 
-    @staticmethod
-    def _no_nan(m: Array) -> Array:
-        """NaN margins (a prediction gone wild) count as −∞; one sum of squares tells if
-        there are any (NaN only from a NaN; a third of numpy's sum's time)."""
-        total = m.dot(m)
-        return np.where(np.isnan(m), -np.inf, m) if total != total else m
-
-    def margins_now(self, x: Array, law_margins: Array) -> Array:
-        """Every guarded margin at the sample: the law's, with the extra configuration
-        constraints' after its own configuration margins."""
-        if self._extra is None:
-            return self._no_nan(law_margins)
-        k = self._n_own_config
-        return self._no_nan(np.concatenate(
-            (law_margins[:k], self._extra.configuration_margins(x), law_margins[k:])))
+    def sample_floors(self, x: Array, law_margins: Array) -> tuple[Array, Array, Array]:
+        """Every guarded margin at the sample — the law's, with the extra configuration
+        constraints' after its own configuration margins; NaN counted as −∞ — and the
+        floors of (S1) from them: at the period's end, and for the configuration margins at
+        mid-period (cpbc.kernels.sampled_guard.floors), before the declared errors raise
+        them (ErrorFloors.raise_floors)."""
+        margins = law_margins
+        if self._extra is not None:
+            k = self._n_own_config
+            margins = np.concatenate(
+                (law_margins[:k], self._extra.configuration_margins(x), law_margins[k:]))
+        n = len(margins)
+        now, floor, mid = np.empty(n), np.empty(n), np.empty(self._n_config)
+        floors(margins, self.cushion, self.keep, self.keep_half, now, floor, mid)
+        return now, floor, mid
 
     def predictor(self, state: ArmState, bias: Array) -> Predictor:
         """The period's prediction under a held τ (:func:`prediction.predictor`)."""
