@@ -8,7 +8,7 @@ from typing import NamedTuple, TypeVar
 
 import numpy as np
 
-from cpbc.arrays import Array
+from cpbc.arrays import Array, unfinite_rows
 from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.packing import Packed, PackedSet
 from cpbc.constraints.python_terms import PythonTerms
@@ -207,13 +207,13 @@ class ConstraintSet:
 
     def margins_along(self, xs: Array, dxs: Array) -> Array:
         """Every margin at every sample, shape (N, m); NaN rows where the state is not finite."""
-        total = float(xs.sum()) + float(dxs.sum())  # NaN or ±inf where an entry is
-        if total - total == 0.0:  # the usual case, without masks (a third of a rescue period)
+        bad = unfinite_rows(xs, dxs)
+        if bad is None:  # the usual case, without masks (a third of a rescue period)
             parts = [c.values_along(xs) for c in self._config]
             parts += [c.values_along(xs, dxs) for c in self._velocity]
             return np.concatenate(parts, axis=1) if parts else np.zeros((len(xs), 0))
         out = np.full((len(xs), len(self.names)), np.nan)
-        ok = np.all(np.isfinite(xs), axis=1) & np.all(np.isfinite(dxs), axis=1)
+        ok = ~bad
         parts = [c.values_along(xs[ok]) for c in self._config]
         parts += [c.values_along(xs[ok], dxs[ok]) for c in self._velocity]
         if parts:

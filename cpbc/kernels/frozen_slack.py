@@ -32,7 +32,6 @@ from cpbc.kernels.sampled_guard import (
     predicted_slack,
     ramp_share,
     ramp_speeds,
-    sphere_columns,
     spheres_at,
 )
 from cpbc.kernels.shares import slack
@@ -127,10 +126,8 @@ def frozen_test(x: Array, dx: Array, acc: Array, after: Array, h: float, travel:
                                  enough, slots)
         if spheres:  # every clearance at every row
             all_but_spheres(config_plan, config_ints, config_floats, velocity_plan,
-                             velocity_ints, velocity_floats, rows, ends, speeds, mids,
-                             mid_speeds, config, velocity, inside, end_floor, mid_floor,
-                             sigma_floor, no_past, has_stop, math.inf)
-            sphere_columns(config_plan, config, math.nan)
+                            velocity_ints, velocity_floats, rows, ends, speeds, mids,
+                            mid_speeds, config, velocity, inside, math.nan)
             for i in range(rows.shape[0]):
                 slots[i] = i
             return math.nan, float(rows.shape[0])

@@ -322,20 +322,15 @@ def sphere_columns(plan: Ints, config: Array, value: float) -> None:
             config[:, first:first + plan[r, COUNT]] = value
 
 
-@inner("float64(int64[:, :], int64[:, :], float64[:, :], int64[:, :], int64[:, :],"
+@inner("void(int64[:, :], int64[:, :], float64[:, :], int64[:, :], int64[:, :],"
        " float64[:, :], float64[:, :], float64[:, :], float64[:, :], float64[:, :],"
-       " float64[:, :], float64[:, :], float64[:, :], float64[:, :], float64[:], float64[:],"
-       " float64[:], boolean[:], boolean, float64)")
+       " float64[:, :], float64[:, :], float64[:, :], float64[:, :], float64)")
 def all_but_spheres(config_plan: Ints, config_ints: Ints, config_floats: Array,
                      velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array,
                      rows: Array, ends: Array, speeds: Array, inner_x: Array, inner_v: Array,
-                     config: Array, velocity: Array, inner: Array, end_floor: Array,
-                     mid_floor: Array, sigma_floor: Array, no_past: Bools, has_stop: bool,
-                     enough: float) -> float:
-    """Every packed margin but the sphere clearances (their columns ∞), and G, the least
-    share m/floor over them (``slack`` + 1) — or ``enough`` itself where it is ≤ 1 and every
-    margin keeps its floor (``keeps_floors``: G ≥ 1, and min(G, ``enough``) is all the
-    caller reads), without a division."""
+                     config: Array, velocity: Array, inner: Array, spheres: float) -> None:
+    """Every packed margin but the sphere clearances, whose columns are set to ``spheres``
+    (∞: left out of F; NaN: every one to compute, ``spheres_at``)."""
     everywhere = np.zeros(0, dtype=np.int64)
     none = np.zeros((0, 1, 1))
     margins_along(velocity_plan, velocity_ints, velocity_floats, ends, speeds, none,
@@ -345,13 +340,7 @@ def all_but_spheres(config_plan: Ints, config_ints: Ints, config_floats: Array,
                       everywhere, inner)
     skip = np.full(rows.shape[0], -1, dtype=np.int64)  # no sphere pair's
     margins_along(config_plan, config_ints, config_floats, rows, rows, none, skip, config)
-    sphere_columns(config_plan, config, math.inf)
-    n = ends.shape[0]
-    if enough <= 1.0 and keeps_floors(config, velocity, inner, n, end_floor, mid_floor,
-                                      sigma_floor, True, has_stop):
-        return enough
-    return slack(config, velocity, inner, n, end_floor, mid_floor, sigma_floor, no_past,
-                 False, True, has_stop) + 1.0
+    sphere_columns(config_plan, config, spheres)
 
 
 @kernel("UniTuple(float64, 2)(int64[:, :], int64[:, :], float64[:, :], int64[:, :],"
@@ -382,13 +371,19 @@ def bounded_slack(config_plan: Ints, config_ints: Ints, config_floats: Array,
     T ≤ F + 1 ≤ G. With ``enough`` = ∞ (T = G) F is exact. With ``enough`` = 1 it is exact
     where it is < 0 (G < 1), else a value in [0, F]: its sign is F's. A NaN G (a NaN rate
     inside the period, which ``slack`` keeps) is F's."""
-    rest = all_but_spheres(config_plan, config_ints, config_floats, velocity_plan,
-                            velocity_ints, velocity_floats, rows, ends, speeds, inner_x,
-                            inner_v, config, velocity, inner, end_floor, mid_floor,
-                            sigma_floor, no_past, has_stop, enough)
+    all_but_spheres(config_plan, config_ints, config_floats, velocity_plan, velocity_ints,
+                    velocity_floats, rows, ends, speeds, inner_x, inner_v, config, velocity,
+                    inner, math.inf)
+    n = ends.shape[0]
+    if enough <= 1.0 and keeps_floors(config, velocity, inner, n, end_floor, mid_floor,
+                                      sigma_floor, True, has_stop):
+        rest = enough  # G ≥ 1 ≥ enough, told without a division: min(G, enough) is enough
+    else:
+        rest = slack(config, velocity, inner, n, end_floor, mid_floor, sigma_floor, no_past,
+                     False, True, has_stop) + 1.0
     threshold = enough if rest > enough else rest  # NaN stays
-    marked = _bound_spheres(config_plan, config_floats, rows, ends.shape[0], end_floor,
-                            mid_floor, sigma_floor, x, now, threshold, slots, config)
+    marked = _bound_spheres(config_plan, config_floats, rows, n, end_floor, mid_floor,
+                            sigma_floor, x, now, threshold, slots, config)
     if marked:
         return math.nan, float(marked)
     return threshold - 1.0, 0.0

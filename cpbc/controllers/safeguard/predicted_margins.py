@@ -19,7 +19,7 @@ from typing import NamedTuple, TypeVar
 import numpy as np
 import pinocchio as pin
 
-from cpbc.arrays import Array
+from cpbc.arrays import Array, unfinite_rows
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.constraint_types import ConfigurationConstraint, VelocityConstraint
 from cpbc.constraints.packing import Packed, PackedSet
@@ -140,10 +140,10 @@ def _split(constraints: Sequence[C], kinds: tuple[int, ...]
 
 def _not_finite(out: Array, xs: Array, dxs: Array) -> None:
     """NaN into the rows of ``out`` where (x, ẋ) is not finite (a kernel's linear limit
-    would read a finite joint's margin there)."""
-    total = float(xs.sum()) + float(dxs.sum())
-    if total - total != 0.0:  # a NaN or an infinity somewhere (or a sum past the largest)
-        out[~(np.isfinite(xs).all(axis=1) & np.isfinite(dxs).all(axis=1))] = np.nan
+    would read a finite joint's margin there), as ConstraintSet.margins_along has them."""
+    bad = unfinite_rows(xs, dxs)
+    if bad is not None:
+        out[bad] = np.nan
 
 
 class PredictedMargins:
@@ -177,10 +177,11 @@ class PredictedMargins:
         # one array of the list: a copy into a row of an empty array costs as much as the call
         return np.array([pin.computeStaticRegressor(model, data, x) for x in rows])
 
-    def _generic_velocity_margins(self, xs: Array, dxs: Array) -> Array:
-        """The velocity margins along rows, those of the constraints that do not pack filled
-        in (the kernel fills the others)."""
-        out = np.empty((len(xs), self.nv))
+    def _generic_velocity_margins(self, xs: Array, dxs: Array,
+                                  out: Array | None = None) -> Array:
+        """The velocity margins along rows (into ``out`` where given), those of the
+        constraints that do not pack filled in (the kernel fills the others)."""
+        out = np.empty((len(xs), self.nv)) if out is None else out
         for at, k, v in self._generic_velocity:
             out[:, at:at + k] = v.values_along(xs, dxs)
         return out
@@ -192,10 +193,8 @@ class PredictedMargins:
         rescue's rollout, a period at a time)."""
         nc = self.nc
         out = np.empty((len(xs), nc + self.nv))
-        velocity = out[:, nc:]
         self._configuration_margins(xs, out[:, :nc])
-        for at, k, v in self._generic_velocity:
-            velocity[:, at:at + k] = v.values_along(xs, dxs)
+        velocity = self._generic_velocity_margins(xs, dxs, out[:, nc:])
         vp = self._velocity
         margins_along(vp.plan, vp.ints, vp.floats, xs, dxs, self._no_placements,
                       self._everywhere, velocity)
@@ -220,14 +219,6 @@ class PredictedMargins:
             cp = self._config
             margins_along(cp.plan, cp.ints, cp.floats, rows, rows, self._placements(rows),
                           self._everywhere, out)
-
-    def velocity_margins(self, xs: Array, dxs: Array) -> Array:
-        """Every velocity margin at the rows (x, ẋ), one row each."""
-        out = self._generic_velocity_margins(xs, dxs)
-        vp = self._velocity
-        margins_along(vp.plan, vp.ints, vp.floats, xs, dxs, self._no_placements,
-                      self._everywhere, out)
-        return out
 
     def ramp_slack(self, predicted: Rows, ramp: RampTest) -> float:
         """min_j m_j/δ_j − 1 of the velocity margins where the rates peak while the torque
