@@ -610,10 +610,8 @@ def test_a_law_riding_a_rate_bound_slows_down_as_in_continuous_time(tmp_path) ->
     continuous time the law rides the rate bound (headroom 8e-5 rad/s) and settles at 8.0 s.
     Near the bound its authority (D + ρΠ with ρ/ψ huge) is below the hold error: holding the
     law's torque, the margin was worn down to the cushion, the guard trimmed 69 % of the
-    steps and the arm coasted 1.5 rad past its target at the bound (28 % once the blend
-    stopped at a bracket 10⁻³ wide, its torques a hair further from the law's). Holding its
-    acceleration (the hold correction) it settles as in continuous time, the guard never
-    acting."""
+    steps and the arm coasted 1.5 rad past its target at the bound. Holding its acceleration
+    (the hold correction) it settles as in continuous time, the guard never acting."""
     spec = {
         "name": "jaco_reach", "robot": {"model": "kinova"},
         "simulation": {"duration": 12.0, "timestep": 0.001},
@@ -641,7 +639,7 @@ def test_a_law_riding_a_rate_bound_slows_down_as_in_continuous_time(tmp_path) ->
     spec["simulation"]["safeguard_hold_correction"] = False
     (held_torque,) = run_all(build(Scenario.model_validate(spec), tmp_path / "s.yaml"))
     assert held_torque.summary.status == "not_settled"
-    assert held_torque.summary.safeguard_share > max(0.2, 4 * s.safeguard_share)
+    assert held_torque.summary.safeguard_share > 0.5
 
 
 def test_the_hold_correction_keeps_the_acceleration_of_the_sample() -> None:

@@ -27,13 +27,6 @@ from cpbc.model.robot_model import ArmState, RobotModel
 
 Slack = Callable[[Array], float]  # F(τ): ≥ 0 when τ passes
 
-# The blend stops once its bracket on β is this narrow: the torque held then brakes at most
-# a thousandth of the way to the brake more than the smallest passing β would. Every test
-# costs 13 µs on the Panda, and an acting step tested 8 at the median, 6 of them the
-# blend's; on the tail bench's acting steps half the brackets were this narrow after 3
-# steps of 6 (docs/speed.md, "Fewer blend steps").
-BLEND_TOLERANCE = 1e-3
-
 
 class StepSlack:
     """F(τ) of one step (:meth:`Acceptance.check`): a call gives F; :meth:`sign` gives F
@@ -196,14 +189,10 @@ class Acceptance:
         return self.blend(tau, plain, f0, f_plain, slack), 0.0
 
     def blend(self, tau: Array, brake: Array, f0: float, f1: float, slack: Slack) -> Array:
-        """Illinois steps for the smallest β with F(β) ≥ 0, bracketed by F(0) < 0 ≤ F(1),
-        until the bracket is narrower than BLEND_TOLERANCE or ``backoffs`` steps are spent;
-        the torque held is the bracket's passing end."""
+        """Illinois steps for the smallest β with F(β) ≥ 0, bracketed by F(0) < 0 ≤ F(1)."""
         lo, f_lo, hi, f_hi = 0.0, f0, 1.0, f1
         side = 0
         for _ in range(self.backoffs):
-            if hi - lo <= BLEND_TOLERANCE:
-                break
             beta = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
             if not lo < beta < hi:
                 beta = 0.5 * (lo + hi)
