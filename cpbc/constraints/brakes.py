@@ -334,6 +334,8 @@ class Rollout:
             if not self.low > 0.0:
                 return self._decided(Stop(False, self.held, self.low))
             self.x, self.dx = xs[-1], dxs[-1]
+            if float(np.max(np.abs(self.dx))) <= self.rest:  # decided within this call
+                return self._decided(Stop(self.low > 0.0, self.held, self.low))
         if self.held >= self.periods:
             return self._decided(Stop(False, self.periods, self.low))
         return None
