@@ -162,45 +162,43 @@ def test_a_rollout_run_in_pieces_ends_as_one_run_to_its_end(figure8):
     assert whole == pieces
 
 
-def test_under_a_budget_the_rescue_holds_the_brake_under_check_and_goes_on_checking(figure8):
-    """With a budget of 2 model periods a period the first brake is committed before its
-    check ends, held while the check runs on ahead, and the check ends with the brake the
-    unbounded search chose."""
-    rescue, state, bias, now = _rescue_at(figure8, 19, budget=2)
+def _holds(_tau, _floor):
+    return True
+
+
+def test_under_a_budget_a_search_commits_only_to_a_check_that_ended_at_rest(figure8):
+    """Under a budget of B model periods a search commits to a brake only where its check
+    brought the arm to rest within them: never before (a brake held before its check had
+    seen the arm to rest kept fewer runs, cpbc.controllers.rescue). Too small a budget
+    commits to nothing; one as long as the unbounded search's check commits to its brake,
+    at rest by the same step."""
+    unbounded, state, bias, now = _rescue_at(figure8, 19, budget=None)
+    assert unbounded.torque(state, bias, now, _holds, 10) is not None
+    assert unbounded.rest_at is not None
+    periods = unbounded.rest_at - 10
+    assert periods > 3
+    short, *_ = _rescue_at(figure8, 19, budget=periods - 1)
+    assert short.torque(state, bias, now, _holds, 10) is None and short.committed is None
+    enough, *_ = _rescue_at(figure8, 19, budget=periods)
+    assert enough.torque(state, bias, now, _holds, 10) is not None
+    assert (enough.committed, enough.rest_at) == (unbounded.committed, unbounded.rest_at)
+
+
+def test_under_a_budget_the_search_from_a_motions_first_state_runs_to_rest(figure8):
+    """At the motion's first step (the guard's step 1) the search runs until rest whatever
+    the budget, and commits to the unbounded search's brake; the committed brake is then
+    live — held without a search — until the step its check came to rest at."""
+    first, state, bias, now = _rescue_at(figure8, 19, budget=1)
     unbounded, *_ = _rescue_at(figure8, 19, budget=None)
-
-    def holds(_tau, _floor):
-        return True
-
-    assert unbounded.torque(state, bias, now, holds, 10) is not None
-    assert rescue.torque(state, bias, now, holds, 10) is not None
-    assert rescue.committed == "least_squares" and rescue._check is not None
-    assert rescue._check.held == 2
-    step = 11
-    while rescue._check is not None:  # held period after period, checked 2 periods ahead
-        assert rescue.torque(state, bias, now, holds, step) is not None
-        step += 1
-    assert rescue.searches == 1 and rescue.committed == unbounded.committed
-    assert step - 10 > 5  # the check took several periods
-
-
-def test_a_check_that_fails_ahead_of_the_arm_moves_to_the_next_brake(figure8):
-    """A committed brake whose check sees a margin fall below its floor is left for the next
-    candidate, checked from the arm's state then (here: a floor no brake keeps)."""
-    rescue, state, bias, now = _rescue_at(figure8, 19, budget=1)
-
-    def holds(_tau, _floor):
-        return True
-
-    assert rescue.torque(state, bias, now, holds, 10) is not None
-    first = rescue._candidate
-    check = rescue._check
-    assert check is not None
-    # from here on the check finds every margin below its floor
-    check.margins = lambda xs, dxs: np.full((len(xs), len(now)), -1.0)
-    rescue.torque(state, bias, now, holds, 11)
-    assert rescue._candidate == first + 1 and rescue.committed == "aimed"
-    assert rescue.searches == 1  # moved on, not searched afresh
+    assert unbounded.torque(state, bias, now, _holds, 1) is not None
+    assert first.torque(state, bias, now, _holds, 1) is not None
+    assert (first.committed, first.rest_at) == (unbounded.committed, unbounded.rest_at)
+    assert first.rest_at is not None
+    for step in range(2, first.rest_at + 1):
+        assert first.live(step)
+        assert first.held_brake(state, bias, _holds, step) is not None
+    assert not first.live(first.rest_at + 1)
+    assert first.searches == 1
 
 
 def test_a_budget_below_one_period_is_refused(figure8):

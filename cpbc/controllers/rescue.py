@@ -35,26 +35,38 @@ the accept path does not change.
 **A bounded step.** Holding a brake until rest in the model costs a period of model
 (Pinocchio's passes, the brake, the margins: 30–100 µs on the Panda) per period of braking,
 and a brake under a torque-rate limit takes 0.1–0.3 s to stop the arm: a search could take
-tens of milliseconds, and a 1 kHz loop on a robot must answer within its period. With a
-*budget* of B model periods per control period (``SafeguardSettings.rescue_budget``; none by
-default, for the reason below) each check is a :class:`cpbc.constraints.brakes.Rollout` run
-B periods at a time: a candidate whose check has not ended when the budget runs out is
-committed and held, and its check goes on in the next periods, B model periods ahead of the
-arm per period held (the brake the arm holds is the one the check holds, from the same
-state). Should the check see a margin fall below its floor, the next candidate is checked
-from the arm's state then, with the remaining candidates of the same order; when none is
-left the guard's own fallback answers. What this gives up: a brake is held before its check
-has seen the arm to rest, so a brake that fails late is left later than the unbounded search
-would have left it (after 1/B of the time to the failure), and the next candidate starts
-from a worse state. Measured on the Panda rate campaign
-(tools/campaigns/panda_sphere_rate.yaml, 300 states, 1 kHz, 1000 N·m/s): 4 of 166 stoppable
-runs crossed a bound at B = 4, 2 at B = 25, 1 unbounded; on the UR5's, 4 and 0 of 282. The
-bound on the step is bought with the guarantee, so the default is the search that ends in
-the period it starts; a hard deadline needs a rescue that is decided before it is needed,
-which this is not. On a robot the rescue's time is the robot's: there a search of 30–70 ms
-left franky-sim holding the last command and two runs crossed a bound, and the budget kept
-every run (docs/hardware.md), so ``python -m cpbc.hardware`` bounds it to 8 periods unless the
-scenario says otherwise (cpbc.hardware.robot_run.on_robot).
+tens of milliseconds, and a 1 kHz loop must answer within its period. With a *budget* of B
+model periods per control period (``SafeguardSettings.rescue_budget``; none by default in
+simulation, 8 on a robot) the rescue is decided before it is needed where it can be, and
+bounded after that:
+
+- the search from a motion's first state (the guard's first step) runs until rest whatever
+  B: it is made before the arm has moved under the guard. On a robot it is not asked there —
+  a motion starts at rest, inside V (the scenario builder checks it) — and in simulation its
+  time is the first step's;
+- a brake committed to is held, at the steps after, as soon as the law's own torque fails
+  its test — before the guard's other candidates: one brake and one test a step — while its
+  one-period prediction keeps every margin above its floor, until the step its check came
+  to rest at (:meth:`Rescue.held_brake`);
+- a later search spends at most B model periods over all its candidates and commits only
+  to a brake whose check brought the arm to rest within them; where none did, the guard's
+  fallback answers.
+
+No brake is held before its check has seen the arm to rest. Until 2026-11-29 a budgeted
+check that had not ended was committed to and went on B periods ahead of the arm while its
+brake was held: on the Panda rate campaign (tools/campaigns/panda_sphere_rate.yaml, 300
+states, 1 kHz, 1000 N·m/s) 4 of 166 stoppable runs crossed a bound at B = 4, 2 at B = 25, 1
+unbounded, and on the rate campaigns as a robot runs them (6 tests a step, B = 8) the starts
+outside V that the first steps decide crossed 28 times in 2 530 runs (docs/reliability.md has
+what crosses now). What a budget still gives up: a state mid-run from which a brake needs
+longer than B periods to stop the arm gets the fallback, not the brake — the UR10 held under
+a ball (tests/test_reference_stall.py), which the unbounded rescue holds at rest, rides the
+clearance in stick-slip at 0.05 rad/s under B = 8. So simulation keeps no bound, where every
+search runs until rest and a committed brake's check runs again from each state measured
+(the UR5 above) in the period it is asked; on a robot the rescue's time is the robot's
+(there a search of 30–70 ms left franky-sim holding the last command and two runs crossed a
+bound, and the budget kept every run, docs/hardware.md), so ``python -m cpbc.hardware``
+bounds it to 8 periods unless the scenario says otherwise (cpbc.hardware.robot_run.on_robot).
 """
 
 from __future__ import annotations
@@ -86,11 +98,11 @@ class Rescue:
         rate_step: ρh, how far the joint torques can move in one period under a torque-rate
             limit, or None: each brake is then held as the motors would let it ramp from
             the torque held at the sample (model_advance).
-        budget: the periods of the model the search may hold brakes for in one control
-            period, all candidates together, or None for no bound (the search then ends in
-            the period it starts). With a budget a check that has not ended when the budget
-            runs out goes on in the next periods, B model periods ahead per period held,
-            while the guard holds the brake under check (the module docstring).
+        budget: the periods of the model a search may hold brakes for, all candidates
+            together, or None for no bound. With a budget only a brake whose check ended
+            at rest within it is committed to, the search from the motion's first state
+            (step 1) has no bound, and a committed brake is held without a check again
+            until the step its check came to rest at (the module docstring).
         margins: every margin of ``guarded`` at rows (x, ẋ) (the guard's compiled
             PredictedMargins.margins_along), or None for ``guarded.margins_along``.
     """
@@ -113,52 +125,75 @@ class Rescue:
         self.committed: str | None = None
         self.floor: Array | None = None  # the floor of the search that committed the brake
         self.held_at: int | None = None  # the control step at which it was last held
+        # the step by which its check had the arm at rest in the model (None: not yet known)
+        self.rest_at: int | None = None
         self.searches = 0
-        # the check of the committed brake while it goes on (a budget), and where in the
-        # order of candidates (two rounds of the order: cushioned floor, then none) it stands
-        self._check: Rollout | None = None
+        # where the committed brake stands in the order of candidates (two rounds of the
+        # order: cushioned floor, then none)
         self._candidate = 0
         self._floors: tuple[Array, Array] = (cushion, np.zeros_like(cushion))
 
     def torque(self, state: ArmState, bias: Array, now: Array,
                holds: Callable[[Array, Array], bool], step: int,
                held: Array | None = None) -> Array | None:
-        """The committed brake's torque if it was held at the step before ``step`` (the
-        guard's count of control steps), ``holds(τ, floor)`` accepts it (its one-period
-        prediction keeps every margin above the floor of the search that committed it) and
-        its check has not failed, else the first brake whose model braking keeps every
-        margin above its floor until rest — or, under a budget, whose check has not failed
-        when the budget runs out — (the module docstring; then committed), else None.
-        ``now``: the margins m_i at the sample; ``held``: the torque the actuators hold
+        """The committed brake's torque if it is :meth:`live` at ``step`` (the guard's count
+        of control steps) and ``holds(τ, floor)`` accepts it (its one-period prediction keeps
+        every margin above the floor of the search that committed it) — without a budget,
+        also its check run again from here —, else the first brake whose model braking keeps
+        every margin above its floor until rest (:meth:`_search`; then committed), else
+        None. ``now``: the margins m_i at the sample; ``held``: the torque the actuators hold
         (under a torque-rate limit)."""
-        budget = self.budget
-        if (self.committed is not None and self.floor is not None
-                and self.held_at == step - 1):
+        # the motion's first state: its search runs until rest, whatever the budget
+        budget = self.budget if step > 1 else None
+        if self.live(step):
+            assert self.committed is not None and self.floor is not None
             tau = self.table[self.committed](state, bias, self.period)
             if holds(tau, self.floor):
-                if budget is None:  # checked again from here (the module docstring)
-                    again = self._rollout(state, self.committed, self.floor, held).run()
-                    if again is not None and again.stopped:
-                        self.held_at = step
-                        return tau
-                    return self._search(state, bias, now, step, held, self._candidate + 1,
-                                        budget)
-                stop = None if self._check is None else self._check.run(budget)
-                if self._check is None or stop is None or stop.stopped:
-                    if stop is not None:
-                        self._check = None  # passed: nothing left to check
+                if self.budget is not None:  # its check saw the arm to rest
                     self.held_at = step
                     return tau
-                # its check failed ahead of the arm: the next candidate, from here
+                # without a budget, checked again from here (the module docstring)
+                again = self._rollout(state, self.committed, self.floor, held).run()
+                if again is not None and again.stopped:
+                    self.held_at, self.rest_at = step, step + again.periods
+                    return tau
+                # its check failed from here: the next candidate
                 return self._search(state, bias, now, step, held, self._candidate + 1,
                                     budget)
         return self._search(state, bias, now, step, held, 0, budget)
 
+    def live(self, step: int) -> bool:
+        """A brake is committed to and was held at the step before ``step``; under a budget,
+        also the arm is not yet at rest by its check (``step`` is not past the step its
+        check came to rest at): a brake held on past it held the Panda of the tail bench at
+        rest 0.13 mrad from a joint limit for good, every step failing (S2) there. Without a
+        budget its check runs again from each state instead (:meth:`torque`)."""
+        if self.committed is None or self.floor is None or self.held_at != step - 1:
+            return False
+        return self.budget is None or (self.rest_at is not None and step <= self.rest_at)
+
+    def held_brake(self, state: ArmState, bias: Array,
+                   holds: Callable[[Array, Array], bool], step: int) -> Array | None:
+        """While :meth:`live`, the committed brake's torque where ``holds(τ, floor)`` accepts
+        it (held then), else None, searching nothing: under a budget the guard holds it as
+        soon as the law's own torque fails its test, before its other candidates."""
+        if not self.live(step):
+            return None
+        assert self.committed is not None and self.floor is not None
+        tau = self.table[self.committed](state, bias, self.period)
+        if not holds(tau, self.floor):
+            return None
+        self.held_at = step
+        return self.box.clip(tau)
+
     def _search(self, state: ArmState, bias: Array, now: Array, step: int,
                 held: Array | None, first: int, budget: int | None) -> Array | None:
         """The first candidate from ``first`` on (the order with the cushioned floor, then with
-        none) whose check passes, or under a budget has not failed when it runs out."""
-        self.committed, self._check = None, None
+        none) whose check brings the arm to rest in the model with every margin above its
+        floor — under a budget, within ``budget`` model periods for all candidates together:
+        a check the budget ends before it decides is not committed to, and no candidate
+        follows it."""
+        self.committed = None
         if first == 0:
             self.searches += 1
             # first with a cushion: a margin keeps δ_i, or half of itself where it is below
@@ -168,15 +203,17 @@ class Rescue:
         left = budget
         order = self.order
         for k in range(first, 2 * len(order)):
+            if left is not None and left <= 0:
+                break
             name, floor = order[k % len(order)], self._floors[k // len(order)]
             check = self._rollout(state, name, floor, held)
             stop = check.run(left)
-            if stop is None or stop.stopped:
+            if stop is not None and stop.stopped:
                 self.committed, self.floor, self.held_at = name, floor, step
-                self._candidate, self._check = k, (check if stop is None else None)
+                self.rest_at, self._candidate = step + stop.periods, k
                 return self.box.clip(self.table[name](state, bias, self.period))
             if left is not None:
-                left = max(left - check.held, 1)  # every candidate gets at least a period
+                left -= check.held
         return None
 
     def _rollout(self, state: ArmState, name: str, floor: Array,
@@ -194,5 +231,4 @@ class Rescue:
                        self.period, horizon=self.horizon)
 
     def forget(self) -> None:
-        self.committed = self.floor = self.held_at = None
-        self._check = None
+        self.committed = self.floor = self.held_at = self.rest_at = None

@@ -6,6 +6,7 @@ calmest brake or the escape."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -106,13 +107,8 @@ class Brakes:
         prediction keeps every margin above the floor it was found with."""
         if self.rescue is None:
             return None
-        nc, check = self.n_config, self.acceptance.check
-
-        def holds(t: Array, floor: Array) -> bool:
-            return check(predict, np.maximum(floor, 1e-300),
-                         np.maximum(floor[:nc], 1e-300) if nc else None)(t) >= 0.0
-
-        tau = self.rescue.torque(state, bias, now, holds, step, self.box.holding)
+        tau = self.rescue.torque(state, bias, now, self._holds(predict), step,
+                                 self.box.holding)
         if tau is None:
             return None
         self.rescues += 1
@@ -120,6 +116,32 @@ class Brakes:
         # (brakes.ramped, StepBox.fit): a brake clipped joint by joint kicked the Panda's
         # light wrist through its rate bound
         return self.box.fit(bias, tau, brake=True) if self.box.rate_limited else tau
+
+    def committed(self, state: ArmState, bias: Array, predict: Predictor,
+                  step: int) -> Array | None:
+        """Under a rescue budget, the rescue's committed brake while it is live
+        (Rescue.held_brake) and its one-period prediction keeps every margin above the floor
+        it was found with, else None; nothing is searched. Without a budget, None: the
+        committed brake is checked again from each state (Rescue.torque), after the guard's
+        own candidates."""
+        rescue = self.rescue
+        if rescue is None or rescue.budget is None or not rescue.live(step):
+            return None
+        tau = rescue.held_brake(state, bias, self._holds(predict), step)
+        if tau is None:
+            return None
+        self.rescues += 1
+        return self.box.fit(bias, tau, brake=True) if self.box.rate_limited else tau
+
+    def _holds(self, predict: Predictor) -> Callable[[Array, Array], bool]:
+        """holds(τ, floor): τ's one-period prediction keeps every margin above ``floor``."""
+        nc, check = self.n_config, self.acceptance.check
+
+        def holds(t: Array, floor: Array) -> bool:
+            return check(predict, np.maximum(floor, 1e-300),
+                         np.maximum(floor[:nc], 1e-300) if nc else None)(t) >= 0.0
+
+        return holds
 
     def first_passing(self, state: ArmState, bias: Array, slack: Slack) -> Array | None:
         """The first of the rescue's own brakes (the least-squares and the aimed one, each

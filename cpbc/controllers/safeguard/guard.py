@@ -305,23 +305,28 @@ class Safeguard(SafetyFilter):
 
     def _out_of_tests(self, step: StepTests) -> Array:
         """A step whose budget of tests is spent before any torque passed (step_budget.py):
-        the first of the rescue's brakes that passes one test over the period (a bounded
-        set), else — where the rescue has no budget, so that its search may run until rest —
-        the rescue's search, else the uniform brake. A rescue with a budget is not asked
-        here: on the FR3 rate campaign as a robot runs it (6 tests, 8 periods a cycle) its
-        brakes, committed before their check had seen the arm to rest, let 5 of 180
-        stoppable runs cross where the uniform brake let 2. Under a time budget the uniform
-        brake, which the step before's torque was tested with ((S2): it stops the arm from
-        here), is held at once, untested: the rescue's aimed brake reads every stopping
-        point before its test (up to ~200 µs on the Panda), which no test's time foretells."""
+        the rescue's committed brake while it holds it (Rescue.held_brake: one brake, one
+        test), or at the motion's first step its search, which runs until rest; then, under
+        a time budget, the uniform brake, which the step before's torque was tested with
+        ((S2): it stops the arm from here), at once, untested — a search reads every
+        stopping point before its test (up to ~200 µs for the aimed brake on the Panda),
+        which no test's time foretells —; else the first of the rescue's brakes that passes
+        one test over the period (a bounded set), else the rescue's search (within its
+        budget of model periods, if it has one), else the uniform brake."""
         state, bias, brakes = step.state, step.bias, self.brakes
+        with self.budget.lifted():
+            held = brakes.committed(state, bias, step.predict, self.calls)
+            if held is None and self.calls <= 1:
+                held = brakes.rescued(state, bias, step.predict, step.now, self.calls)
+        if held is not None:
+            return held
         if self.budget.timed:
             return self._uniform_brake(step)
         with self.budget.lifted():
             check = self.acceptance.check(step.predict, step.floor, step.floor_mid, step.stop,
                                           step.past)
             held = brakes.first_passing(state, bias, check)
-            if held is None and brakes.rescue is not None and brakes.rescue.budget is None:
+            if held is None and self.calls > 1:
                 held = brakes.rescued(state, bias, step.predict, step.now, self.calls)
         return held if held is not None else self._uniform_brake(step)
 
@@ -372,6 +377,9 @@ class Safeguard(SafetyFilter):
         if f0 >= 0.0:
             return tau
         self.acted += 1
+        held = brakes.committed(state, bias, step.predict, self.calls)
+        if held is not None:  # a brake whose check saw the arm to rest (Rescue.held_brake)
+            return held
         if step.floor_mid is not None:  # first the law less its push into the boundaries
             slid = brakes.slide(state, bias, tau, step.now, step.floor, step.floor_mid,
                                 step.stop)
@@ -436,7 +444,10 @@ class Safeguard(SafetyFilter):
             brakes.rescued(state, step.bias, step.predict, step.now, self.calls)
             brakes.infeasible(state, step.bias, to_rest, step.predict, step.now, step.floor,
                               step.floor_mid)
-            self._out_of_tests(step)  # the rescue's own brakes, tested once each
+            check = accept.check(step.predict, step.floor, step.floor_mid, step.stop,
+                                 step.past)
+            brakes.first_passing(state, step.bias, check)  # its own brakes, a test each
+            self._out_of_tests(step)  # a spent first step: the rescue's search again
         if self.box.rate_limited:
             self.box.end(tau)
 

@@ -13,9 +13,9 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.errors import ParameterError
 
 # the rescue's default budget [model periods per control period]: none. A budget bounds the
-# guard's worst step, but commits to brakes whose checks are still going on, and that broke
-# more runs than it saved: on the Panda rate campaign at 1 kHz (300 states) 4 of 166 stoppable
-# runs crossed a bound at a budget of 4, 2 at 25, 1 with none (cpbc.controllers.rescue)
+# guard's worst step, but a state mid-run whose brake needs longer than it to stop the arm
+# gets the fallback instead (the UR10 held under a ball rides its clearance in stick-slip
+# under a budget of 8, held at rest without one: cpbc.controllers.rescue)
 RESCUE_BUDGET: int | None = None
 
 
@@ -66,8 +66,9 @@ class SafeguardSettings:
             misses a rate margin by more than its cushion.
         rescue_budget: the periods of the model the rescue may hold its brakes for in one
             control period (cpbc.controllers.rescue.Rescue's ``budget``), None for no bound:
-            a bound on the guard's worst step, at the price of committing to a brake whose
-            check is still going on (B model periods ahead of the arm per period held).
+            a bound on the guard's worst step, save the search from the motion's first
+            state, which runs until rest; a later search commits only to a brake whose
+            check ended within it, so a brake that needs longer gives way to the fallback.
         test_budget: K, the most candidate torques one step tests (each a prediction of the
             period and every margin along it), None for no bound: with ``rescue_budget``, a
             bound on the step's time (at most K + 2 tests). Past it the step holds the last

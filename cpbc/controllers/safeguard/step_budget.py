@@ -7,17 +7,18 @@ evaluation of every guarded margin along it (acceptance.Acceptance.check): 15–
 at the median on the Panda and up to 19 (the infeasible path, before the rescue's rollouts,
 which ``rescue_budget`` bounds). With a budget of K tests a step, the K + 1st raises
 :class:`OutOfTests` and the guard holds the last torque that passed the test being run (the
-blend's β found so far, the search's λ). Where none passed yet it tests, once each, the
-rescue's own brakes (cpbc.constraints.brakes: the least-squares and the aimed one; the uniform
-one is the chain's first brake) over the period — a bounded set of candidates — and holds the
-first that passes; where none does, the rescue's search if it has no budget of its own (it then
-runs until the arm rests in the model; with one, a step tests at most K + 2 torques), else the
+blend's β found so far, the search's λ). Where none passed yet, the rescue answers first if it
+holds a committed brake (one brake, one test), or at the motion's first step, where its search
+runs until rest (Safeguard._out_of_tests); else the step tests, once each, the rescue's own
+brakes (cpbc.constraints.brakes: the least-squares and the aimed one; the uniform one is the
+chain's first brake) over the period — a bounded set of candidates — and holds the first that
+passes; where none does, the rescue's search (until the arm rests in the model, or within its
+budget of model periods if it has one, holding only a brake whose check ended in it), else the
 uniform brake within the step's box, untested: the brake whose braking set (S2) keeps the arm
 in, which from a state the guard kept in V stops the arm before every configuration boundary,
-in the model (cpbc.constraints.stopping). A rescue with a budget is not asked: committing to a
-brake before its check has seen the arm to rest kept fewer runs than the uniform brake did
-(Safeguard._out_of_tests). What a budget gives up: a blend nearer the brake than the smallest
-β, the search of λ cut short, and, under a bounded rescue, the rescue itself.
+in the model (cpbc.constraints.stopping). What a budget gives up: a blend nearer the brake
+than the smallest β, the search of λ cut short, and the rescue's brakes that need longer than
+the rescue's budget to stop the arm.
 
 A budget in time does the same on a robot's clock, counting candidates, not tests: a
 candidate is the work that makes a torque (the slide's projection, a brake's fit, the blend's

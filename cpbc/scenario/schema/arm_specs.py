@@ -272,14 +272,15 @@ class SimulationSpec(Strict):
             "as a disturbance (python -m cpbc.verify --disturb draws plants inside the "
             "acceleration bound)"))
     # how many periods of the model the rescue may hold its brakes for in one control period
-    # (cpbc.controllers.rescue): a bound on the guard's worst step, at a cost in runs kept;
-    # null (the default): no bound
+    # (cpbc.controllers.rescue): a bound on the guard's worst step, at a cost where a brake
+    # needs longer to stop the arm; null (the default): no bound
     safeguard_rescue_budget: Annotated[int, Field(strict=True, ge=1)] | None = Field(
         default=RESCUE_BUDGET, description=(
             "periods of the model the safeguard's rescue may check its brakes for in one "
-            "control period (a bound on the worst step; a check goes on in the next periods "
-            "while its brake is held, which keeps fewer runs); null for no bound, the default "
-            "in simulation (python -m cpbc.hardware bounds it to 8 on a robot unless given)"))
+            "control period (a bound on the worst step; the search from the motion's first "
+            "state still runs until rest, and a later one holds only a brake whose check "
+            "ended within it, else the fallback); null for no bound, the default in "
+            "simulation (python -m cpbc.hardware bounds it to 8 on a robot unless given)"))
     # how many candidate torques one safeguard step may test (step_budget.py): with the
     # rescue's budget, a bound on the step's time; null (the default): no bound
     safeguard_test_budget: Annotated[int, Field(strict=True, ge=1)] | None = Field(
