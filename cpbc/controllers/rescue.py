@@ -175,13 +175,15 @@ class Rescue:
     def held_brake(self, state: ArmState, bias: Array,
                    holds: Callable[[Array, Array], bool], step: int) -> Array | None:
         """While :meth:`live`, the committed brake's torque where ``holds(τ, floor)`` accepts
-        it (held then), else None, searching nothing: under a budget the guard holds it as
+        it (held then), else None — the commitment then ends, so that the step does not make
+        and test the brake twice —, searching nothing: under a budget the guard holds it as
         soon as the law's own torque fails its test, before its other candidates."""
         if not self.live(step):
             return None
         assert self.committed is not None and self.floor is not None
         tau = self.table[self.committed](state, bias, self.period)
         if not holds(tau, self.floor):
+            self.forget()
             return None
         self.held_at = step
         return self.box.clip(tau)
