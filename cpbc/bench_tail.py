@@ -34,7 +34,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.controllers.controller import Evaluation, SafetyFilter
-from cpbc.controllers.safeguard import Safeguard
+from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
 from cpbc.errors import ConstraintViolation
 from cpbc.model.robot_model import ArmState
 from cpbc.simulation import run_mujoco
@@ -118,6 +118,7 @@ def guarded_tail(steps: int = 100_000, seconds: float = 0.5, seed: int = 0,
         setup = replace(setup, safeguard=replace(setup.safeguard, test_budget=test_budget))
     if setup.safeguard is not None and time_budget is not None:
         setup = replace(setup, safeguard=replace(setup.safeguard, time_budget=time_budget))
+    guard_settings = setup.safeguard or SafeguardSettings()
     entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
     settings = replace(setup.loop_settings, duration=seconds)
     plant = setup.make_plant()
@@ -160,8 +161,8 @@ def guarded_tail(steps: int = 100_000, seconds: float = 0.5, seed: int = 0,
             "acting": quantiles(acted), "cpu": quantiles(cpu),
             "acting_cpu": quantiles([t for t, a in zip(cpu, acting, strict=True) if a]),
             "max_over_p50": every["max"] / every["p50"],
-            **counts, "rate_limit": rate_limit, "rescue_budget": rescue_budget,
-            "test_budget": test_budget, "time_budget_us":
+            **counts, "rate_limit": rate_limit, "rescue_budget": guard_settings.rescue_budget,
+            "test_budget": guard_settings.test_budget, "time_budget_us":
                 None if time_budget is None else 1e6 * time_budget,
             "setup": f"{scenario}'s guarded law, {seconds:g} s runs from the "
                      f"campaign's starts (seed {seed}), 1 kHz, garbage collector off"}
