@@ -57,7 +57,7 @@ check that had not ended was committed to and went on B periods ahead of the arm
 brake was held: on the Panda rate campaign (tools/campaigns/panda_sphere_rate.yaml, 300
 states, 1 kHz, 1000 N·m/s) 4 of 166 stoppable runs crossed a bound at B = 4, 2 at B = 25, 1
 unbounded, and on the rate campaigns as a robot runs them (6 tests a step, B = 8) the starts
-outside V that the first steps decide crossed 28 times in 2 530 runs (docs/reliability.md has
+outside V that the first steps decide crossed 28 times in 168 runs (docs/reliability.md has
 what crosses now). What a budget still gives up: a state mid-run from which a brake needs
 longer than B periods to stop the arm gets the fallback, not the brake — the UR10 held under
 a ball (tests/test_reference_stall.py), which the unbounded rescue holds at rest, rides the
