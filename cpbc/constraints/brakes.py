@@ -315,10 +315,10 @@ class Rollout:
         outcome once it is decided, else None (the check goes on at the next call)."""
         if self.outcome is not None:
             return self.outcome
+        if float(np.max(np.abs(self.dx))) <= self.rest:  # at rest already
+            return self._decided(Stop(self.low > 0.0, self.held, self.low))
         end = self.periods if budget is None else min(self.periods, self.held + budget)
         while self.held < end:
-            if float(np.max(np.abs(self.dx))) <= self.rest:
-                return self._decided(Stop(self.low > 0.0, self.held, self.low))
             state = self.model.state(self.x, self.dx)
             bias = state.coriolis_force + state.gravity + state.dissipation
             rows = self.advance(self.brake(state, bias, self.h))
@@ -334,7 +334,7 @@ class Rollout:
             if not self.low > 0.0:
                 return self._decided(Stop(False, self.held, self.low))
             self.x, self.dx = xs[-1], dxs[-1]
-            if float(np.max(np.abs(self.dx))) <= self.rest:  # decided within this call
+            if float(np.max(np.abs(self.dx))) <= self.rest:
                 return self._decided(Stop(self.low > 0.0, self.held, self.low))
         if self.held >= self.periods:
             return self._decided(Stop(False, self.periods, self.low))

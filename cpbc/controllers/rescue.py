@@ -84,6 +84,12 @@ from cpbc.model.robot_model import ArmState, RobotModel
 ORDER = ("least_squares", "aimed", "uniform")
 
 
+def first_step(step: int) -> bool:
+    """Whether the guard's count of control steps ``step`` is the motion's first (1; 0 for
+    a warm-up): the rescue's search from there runs until rest, whatever its budget."""
+    return step <= 1
+
+
 class Rescue:
     """The brakes of the rescue, and the one committed to.
 
@@ -144,14 +150,15 @@ class Rescue:
         None. ``now``: the margins m_i at the sample; ``held``: the torque the actuators hold
         (under a torque-rate limit)."""
         # the motion's first state: its search runs until rest, whatever the budget
-        budget = self.budget if step > 1 else None
-        if self.live(step):
+        budget = None if first_step(step) else self.budget
+        if self.live(step) and self.budget is not None:  # its check saw the arm to rest
+            tau = self._hold(state, bias, holds, step)
+            if tau is not None:
+                return tau
+        elif self.live(step):
             assert self.committed is not None and self.floor is not None
             tau = self.table[self.committed](state, bias, self.period)
             if holds(tau, self.floor):
-                if self.budget is not None:  # its check saw the arm to rest
-                    self.held_at = step
-                    return tau
                 # without a budget, checked again from here (the module docstring)
                 again = self._rollout(state, self.committed, self.floor, held).run()
                 if again is not None and again.stopped:
@@ -180,13 +187,20 @@ class Rescue:
         soon as the law's own torque fails its test, before its other candidates."""
         if not self.live(step):
             return None
+        tau = self._hold(state, bias, holds, step)
+        return None if tau is None else self.box.clip(tau)
+
+    def _hold(self, state: ArmState, bias: Array, holds: Callable[[Array, Array], bool],
+              step: int) -> Array | None:
+        """The committed brake's torque at this state, held at ``step`` where
+        ``holds(τ, floor)`` accepts it; else None, and the commitment ends."""
         assert self.committed is not None and self.floor is not None
         tau = self.table[self.committed](state, bias, self.period)
         if not holds(tau, self.floor):
             self.forget()
             return None
         self.held_at = step
-        return self.box.clip(tau)
+        return tau
 
     def _search(self, state: ArmState, bias: Array, now: Array, step: int,
                 held: Array | None, first: int, budget: int | None) -> Array | None:

@@ -107,15 +107,8 @@ class Brakes:
         prediction keeps every margin above the floor it was found with."""
         if self.rescue is None:
             return None
-        tau = self.rescue.torque(state, bias, now, self._holds(predict), step,
-                                 self.box.holding)
-        if tau is None:
-            return None
-        self.rescues += 1
-        # under a rate limit the brake is reached as the rescue's search held it
-        # (brakes.ramped, StepBox.fit): a brake clipped joint by joint kicked the Panda's
-        # light wrist through its rate bound
-        return self.box.fit(bias, tau, brake=True) if self.box.rate_limited else tau
+        return self._held(bias, self.rescue.torque(state, bias, now, self._holds(predict),
+                                                   step, self.box.holding))
 
     def committed(self, state: ArmState, bias: Array, predict: Predictor,
                   step: int) -> Array | None:
@@ -125,9 +118,14 @@ class Brakes:
         committed brake is checked again from each state (Rescue.torque), after the guard's
         own candidates."""
         rescue = self.rescue
-        if rescue is None or rescue.budget is None or not rescue.live(step):
+        if rescue is None or rescue.budget is None:
             return None
-        tau = rescue.held_brake(state, bias, self._holds(predict), step)
+        return self._held(bias, rescue.held_brake(state, bias, self._holds(predict), step))
+
+    def _held(self, bias: Array, tau: Array | None) -> Array | None:
+        """A rescue brake as the step holds it, counted (None: none held). Under a rate limit
+        it is reached as the rescue's search held it (brakes.ramped, StepBox.fit): a brake
+        clipped joint by joint kicked the Panda's light wrist through its rate bound."""
         if tau is None:
             return None
         self.rescues += 1

@@ -16,7 +16,7 @@ from cpbc.constraints.constraint_types import ConfigurationConstraint
 from cpbc.constraints.stopping import Braking
 from cpbc.controllers.controller import Controller, Evaluation, SafetyFilter
 from cpbc.controllers.hold import hold_share
-from cpbc.controllers.rescue import Rescue
+from cpbc.controllers.rescue import Rescue, first_step
 from cpbc.controllers.safeguard.acceptance import Acceptance, StepSlack
 from cpbc.controllers.safeguard.braking import Brakes
 from cpbc.controllers.safeguard.error_floors import ErrorFloors
@@ -316,7 +316,7 @@ class Safeguard(SafetyFilter):
         state, bias, brakes = step.state, step.bias, self.brakes
         with self.budget.lifted():
             held = brakes.committed(state, bias, step.predict, self.calls)
-            if held is None and self.calls <= 1:
+            if held is None and first_step(self.calls):
                 held = brakes.rescued(state, bias, step.predict, step.now, self.calls)
         if held is not None:
             return held
@@ -326,7 +326,7 @@ class Safeguard(SafetyFilter):
             check = self.acceptance.check(step.predict, step.floor, step.floor_mid, step.stop,
                                           step.past)
             held = brakes.first_passing(state, bias, check)
-            if held is None and self.calls > 1:
+            if held is None and not first_step(self.calls):
                 held = brakes.rescued(state, bias, step.predict, step.now, self.calls)
         return held if held is not None else self._uniform_brake(step)
 
