@@ -251,3 +251,77 @@ def test_past_its_time_a_step_holds_the_uniform_brake_without_a_further_test() -
     uniform = twin.brakes.brake(bias, state.inertia @ state.dx / twin.period,
                                 twin.settings.braking)
     np.testing.assert_allclose(tau_timed, uniform, rtol=0, atol=1e-12)
+
+
+def test_tests_in_an_uncut_block_count_and_none_is_cut() -> None:
+    """Inside ``uncut`` a test counts and keeps what passed, past the budget of tests or of
+    time alike; a refused one ends the step at the block's end where a candidate as long as
+    the step's longest no longer fits the time left (after a 0.6 s test, 0.4 s left of 1 s),
+    and not where one does (after 0.1 s) or where the torque passed."""
+    import time
+
+    counted = StepBudget(1)
+    counted.counted(lambda t: float(t[0]))(np.array([-1.0]))
+    with counted.uncut():
+        assert counted.counted(lambda t: float(t[0]))(np.array([2.0])) == 2.0
+    assert counted.used == 2 and counted.passed is not None
+    with pytest.raises(OutOfTests):  # the count is spent outside the block as before
+        counted.counted(lambda t: float(t[0]))(np.array([3.0]))
+
+    def slow(t: np.ndarray) -> float:
+        time.sleep(0.6)
+        return float(t[0])
+
+    for first, outcome, ends in ((0.6, -1.0, True), (0.6, 1.0, False), (0.1, -1.0, False)):
+        budget = StepBudget(None, 1.0)
+        budget.start()
+        budget.begin()
+        budget.counted(slow if first == 0.6 else (lambda t: (time.sleep(0.1), 1.0)[1]))(
+            np.array([1.0]))  # a torque passed, a test as long as ``first`` made
+        if ends:
+            with pytest.raises(OutOfTests), budget.uncut():
+                budget.counted(slow)(np.array([outcome]))
+        else:
+            with budget.uncut():
+                budget.counted(lambda t: float(t[0]))(np.array([outcome]))
+        assert budget.used == 2
+
+
+def test_a_committed_brake_is_made_once_a_step_whatever_the_time_left() -> None:
+    """On the FR3 as a robot runs it (seed 0, outside V), the first step's search commits to
+    a brake that the next step holds as soon as the law's torque fails its test: one brake
+    and one test, under a time budget that the brake's making spends (the brake slowed to
+    5 ms, the budget 2 ms) as under none. Cut off by the budget there, the brake was made,
+    dropped and made again by the step out of tests — the bounded tail's worst steps on the
+    Panda (docs/speed.md)."""
+    import time
+    from dataclasses import replace
+    from pathlib import Path
+
+    from cpbc.reliability.verification import draw_state
+    from cpbc.scenario import build, load_scenario
+
+    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
+    setup = build(*load_scenario(campaign / "fr3_sphere_rate_robot.yaml"))
+    assert setup.safeguard is not None
+    entry = next(e for e in setup.controllers if e.name == "CPBC")
+    s = draw_state(setup, 0)
+    held = []
+    for seconds in (None, 0.002):
+        made = replace(setup, safeguard=replace(setup.safeguard, rescue_budget=8,
+                                                time_budget=seconds)).controller(entry)
+        assert isinstance(made, Safeguard) and made.brakes.rescue is not None
+        rescue = made.brakes.rescue
+        made.torque(s.position, s.velocity)  # the motion's first step: searched, committed
+        assert rescue.committed is not None and made.rescues == 1
+        name, brake, calls = rescue.committed, rescue.table[rescue.committed], []
+
+        def slowed(*args, brake=brake, calls=calls):
+            calls.append(1)
+            time.sleep(0.005)
+            return brake(*args)
+
+        rescue.table[name] = slowed
+        held.append(made.torque(s.position, s.velocity))
+        assert made.rescues == 2 and len(calls) == 1, (seconds, len(calls))
+    np.testing.assert_array_equal(*held)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from cpbc.constraints import ConstraintSet, joint_position_limit
-from cpbc.constraints.stopping import Braking, stopping_margins
+from cpbc.constraints.stopping import Braking, stopping_margins, stopping_terms
 from cpbc.model import RobotModel
 
 LIMIT = np.array([4.0, 2.0])
@@ -33,6 +33,48 @@ def _lowest_margin(model: RobotModel, cons: ConstraintSet, x: np.ndarray, dx: np
         if dx[1] <= 0.0:
             break
     return low
+
+
+def _formula(cons: ConstraintSet, model: RobotModel, x: np.ndarray, dx: np.ndarray,
+             limit: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """s, v, a of the module docstring, written out with numpy, constraint by constraint."""
+    state = model.state(x, dx)
+    bias = state.coriolis_force + state.gravity + state.dissipation
+    s, v, a = [], [], []
+    for c in cons.configuration:
+        phi, grads, curvature = c.motion_terms(cons.state(model, x, dx, motion=True))
+        for i in range(len(phi)):
+            y = np.linalg.solve(state.inertia, grads[i])
+            w = model.coordinates.inverse @ y
+            reach = sum(abs(wj) * lj for wj, lj in zip(w, limit, strict=True) if wj != 0.0)
+            a.append(reach - y @ bias + curvature[i])
+            v.append(-grads[i] @ dx)
+            lost = v[-1] ** 2 / (2 * a[-1]) if a[-1] > 0 else np.inf
+            s.append(phi[i] - lost if v[-1] > 0 else phi[i])
+    return np.array(s), np.array(v), np.array(a)
+
+
+@pytest.mark.parametrize("coordinates", ["joint_model", "absolute_model"])
+def test_the_compiled_test_is_the_formula(coordinates: str, request: pytest.FixtureRequest,
+                                          rng: np.random.Generator) -> None:
+    """stopping_terms (one compiled call, cpbc.kernels.stopping_test) against the module
+    docstring's formula at random states, in joint and in absolute coordinates (T ≠ I), with
+    one joint unlimited (L = ∞ adds only where it moves φ), and a box too weak to stop a
+    joint against gravity (a ≤ 0: lost, s = −∞)."""
+    model: RobotModel = request.getfixturevalue(coordinates)
+    cons = _limits(model)
+    lost = 0
+    for limit in (LIMIT, np.array([np.inf, 2.0]), np.array([4.0, 1e-3])):
+        for _ in range(20):
+            x, dx = rng.uniform(-0.9, 0.9, 2), rng.uniform(-3.0, 3.0, 2)
+            state = model.state(x, dx)
+            bias = state.coriolis_force + state.gravity + state.dissipation
+            s, v, a, _ = stopping_terms(cons, model, state, bias, limit)
+            want = _formula(cons, model, x, dx, limit)
+            for got, expected in zip((s, v, a), want, strict=True):
+                np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-12)
+            lost += int(np.isneginf(s).sum())
+    assert lost > 0  # the weak box met a ≤ 0 on an approach
 
 
 def test_margins_and_curvature_of_a_joint_limit(joint_model: RobotModel) -> None:

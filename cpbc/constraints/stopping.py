@@ -35,6 +35,7 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.kernels.braking_path import brake_ramp, uniform_deceleration
+from cpbc.kernels.stopping_test import stopping_rows
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -59,29 +60,31 @@ def stopping_margins(
     return margins, speed, decel
 
 
+_NO_MAP = np.zeros((0, 0))  # T⁻¹ as the kernel reads it in joint coordinates (unread)
+
+
 def stopping_terms(constraints: ConstraintSet, model: RobotModel, state: ArmState,
                    bias: Array, torque_limit: Array) -> tuple[Array, Array, Array, Array]:
     """:func:`stopping_margins` at a per-step state whose bias b is known, with the
     gradients ∇φ_i as well (rows): φ, ∇φ and ẋᵀ∇²φ ẋ from each constraint's
     ``motion_terms`` (the state's kinematics, no Pinocchio pass of their own; a state
-    built without what they read is built again, by ``ConstraintSet.state``)."""
+    built without what they read is built again, by ``ConstraintSet.state``); the rest in
+    one compiled call (cpbc.kernels.stopping_test.stopping_rows)."""
     lacks_frames = any(f not in state.frames for f in constraints.frames)
     if lacks_frames or (constraints.motion_kinematics and state.joint_jacobians is None):
         state = constraints.state(model, state.x, state.dx, motion=True)
     terms = [c.motion_terms(state) for c in constraints.configuration]
     phi = np.concatenate([t[0] for t in terms])
-    grads = np.concatenate([t[1] for t in terms])
+    grads = np.ascontiguousarray(np.concatenate([t[1] for t in terms]), dtype=float)
     curvature = np.concatenate([t[2] for t in terms])
-    inv_d_grads = np.linalg.solve(state.inertia, grads.T)  # D⁻¹ ∇φᵀ, (n, k)
-    w = model.coordinates.inverse @ inv_d_grads  # T⁻¹ D⁻¹ ∇φᵀ: a torque in joint units
-    # Σ_j |w_jk| L_j, where a joint without a limit (L_j = ∞) adds ∞ only if it moves φ_k
-    reach = np.where(w != 0.0, np.abs(w) * np.broadcast_to(torque_limit, (model.n,))[:, None],
-                     0.0).sum(axis=0)
-    decel = reach - inv_d_grads.T @ bias + curvature
-    speed = -(grads @ state.dx)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        lost = np.where(decel > 0, speed * speed / (2.0 * decel), np.inf)
-    margins = np.where(speed > 0, phi - lost, phi)
+    margins, speed, decel = np.empty(len(phi)), np.empty(len(phi)), np.empty(len(phi))
+    coords = model.coordinates
+    inverse = _NO_MAP if coords.is_identity else coords.inverse
+    limit = np.asarray(torque_limit, dtype=float)
+    if limit.shape != (model.n,):  # one limit for every joint
+        limit = np.full(model.n, float(torque_limit))
+    stopping_rows(phi, grads, curvature, state.inertia, bias, state.dx, inverse,
+                  not coords.is_identity, limit, margins, speed, decel)
     return margins, speed, decel, grads
 
 

@@ -37,6 +37,7 @@ for a robot (cpbc.hardware sets it from the deadline), never simulation's defaul
 
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -77,6 +78,7 @@ class StepBudget:
         self.longest = 0.0
         self._mark = 0.0  # the end of the step's last test (or its beginning)
         self.spent = 0
+        self._uncut = False  # inside uncut(): tests count, none is cut off
 
     def start(self) -> None:
         """The guarded call begins: its time is counted from now."""
@@ -105,6 +107,25 @@ class StepBudget:
         finally:
             self.tests, self._until = tests, until
 
+    @contextmanager
+    def uncut(self) -> Iterator[None]:
+        """Tests inside the block count, but none is cut off: the rescue's committed brake,
+        the one candidate a step out of tests would still make (Safeguard._out_of_tests).
+        Under a time budget, a refused torque then ends the step where a candidate as long
+        as the step's longest would not end within it (:meth:`counted`), and the next
+        candidate's time runs from the block's end."""
+        before = self.passed
+        self._uncut = True
+        try:
+            yield
+        finally:
+            self._uncut = False
+        if self._until < float("inf"):
+            now = time.perf_counter()
+            self._mark = now
+            if self.passed is before and self.used and now + self.longest > self._until:
+                raise OutOfTests
+
     def counted(self, slack: Callable[[Array], float],
                 exact: bool = True) -> Callable[[Array], float]:
         """``slack`` that counts its calls against the budget and remembers the last torque
@@ -112,6 +133,8 @@ class StepBudget:
         ``slack`` itself. A test that is not ``exact`` (the first test's sign from bounds,
         Acceptance.check) is not the time a later candidate is taken to need: it comes first
         in the step, so the exact test after it begins well inside the budget and sets it."""
+        if self._uncut:
+            return lambda t: self._test(slack, t)
         until = self._until
         if until < float("inf"):
             return self._timed(slack, until, exact)
@@ -120,7 +143,7 @@ class StepBudget:
         most = self.tests
 
         def counted(t: Array) -> float:
-            if self.used == most:
+            if self.used >= most:  # past it too: an uncut block's tests count
                 raise OutOfTests
             return self._test(slack, t)
 
@@ -129,13 +152,13 @@ class StepBudget:
     def _timed(self, slack: Callable[[Array], float], until: float,
                exact: bool) -> Callable[[Array], float]:
         """``counted`` under a time budget ending at ``until`` (perf_counter) as well."""
-        most = self.tests if self.tests is not None else -1
+        most = self.tests if self.tests is not None else sys.maxsize
 
         def timed(t: Array) -> float:
             begun = time.perf_counter()
             # the first test (the law's torque) is always made; a later one only where a
             # candidate as long as this step's longest would still end within the budget
-            if self.used == most or (self.used and begun + self.longest > until):
+            if self.used >= most or (self.used and begun + self.longest > until):
                 raise OutOfTests
             f = self._test(slack, t)
             ended = time.perf_counter()

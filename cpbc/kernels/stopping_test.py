@@ -1,0 +1,56 @@
+"""The first-order stopping test in compiled code (cpbc.constraints.stopping.stopping_terms):
+for each configuration margin φ_i with gradient ∇φ_i and curvature κ_i = ẋᵀ∇²φ_i ẋ at a
+state, its approach speed, the largest deceleration the torque box gives it, and its stopping
+margin. The aimed brake reads them at every period it is held (the rescue's checks, a held
+brake), where numpy's solve and the masks around it cost ~30 µs a call on the Panda."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cpbc.arrays import Array
+from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
+from cpbc.kernels.small_solves import solve_spd
+
+
+@kernel(f"void(float64[:], float64[:, :], float64[:], float64[:, :], {READ_ONLY}, "
+        f"{READ_ONLY}, {READ_ONLY_MATRIX}, boolean, {READ_ONLY}, float64[:], float64[:], "
+        f"float64[:])")
+def stopping_rows(phi: Array, grads: Array, curvature: Array, inertia: Array, bias: Array,
+                  dx: Array, inverse: Array, mapped: bool, limit: Array, margins: Array,
+                  speed: Array, decel: Array) -> None:
+    """Per margin i (stopping.py's docstring): w = T⁻¹ D⁻¹ ∇φ_iᵀ (``inverse`` T⁻¹ read only
+    when ``mapped``), the largest deceleration a_i = Σ_j |w_j| L_j − ∇φ_i · D⁻¹ b + κ_i — a
+    joint without a limit (L_j = ∞) adds ∞ only where it moves φ_i —, the approach
+    v_i = −∇φ_i · ẋ and the margin s_i = φ_i − v_i²/(2a_i) where v_i > 0 (−∞ where
+    a_i ≤ 0, NaN a_i included), else φ_i; into ``margins``, ``speed``, ``decel``."""
+    n = inertia.shape[0]
+    work = np.empty((n, n))
+    y = np.empty(n)
+    for i in range(phi.shape[0]):
+        solve_spd(inertia, grads[i], work, y)  # D⁻¹ ∇φ_iᵀ
+        w = y
+        if mapped:
+            w = np.empty(n)
+            for j in range(n):
+                t = 0.0
+                for k in range(n):
+                    t += inverse[j, k] * y[k]
+                w[j] = t
+        reach = 0.0
+        down = 0.0
+        for j in range(n):
+            if w[j] != 0.0:
+                reach += abs(w[j]) * limit[j]
+            down += y[j] * bias[j]
+        a = reach - down + curvature[i]
+        v = 0.0
+        for j in range(n):
+            v -= grads[i, j] * dx[j]
+        speed[i], decel[i] = v, a
+        if v > 0.0:
+            margins[i] = phi[i] - (v * v / (2.0 * a) if a > 0.0 else math.inf)
+        else:
+            margins[i] = phi[i]
