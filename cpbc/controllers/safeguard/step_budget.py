@@ -7,9 +7,12 @@ evaluation of every guarded margin along it (acceptance.Acceptance.check): 15–
 at the median on the Panda and up to 19 (the infeasible path, before the rescue's rollouts,
 which ``rescue_budget`` bounds). With a budget of K tests a step, the K + 1st raises
 :class:`OutOfTests` and the guard holds the last torque that passed the test being run (the
-blend's β found so far, the search's λ). Where none passed yet, the rescue answers first if it
-holds a committed brake (one brake, one test), or at the motion's first step, where its search
-runs until rest (Safeguard._out_of_tests); else the step tests, once each, the rescue's own
+blend's β found so far, the search's λ). The rescue's committed brake, tried as soon as the
+law's torque fails (one brake, one test), is tested whatever the budget
+(:meth:`StepBudget.uncut`; cut off, it was made, dropped and made again by the step out of
+tests). Where none passed yet, the rescue answers first if it holds a committed brake, or at
+the motion's first step, where its search runs until rest (Safeguard._out_of_tests); else the
+step tests, once each, the rescue's own
 brakes (cpbc.constraints.brakes: the least-squares and the aimed one; the uniform one is the
 chain's first brake) over the period — a bounded set of candidates — and holds the first that
 passes; where none does, the rescue's search (until the arm rests in the model, or within its
