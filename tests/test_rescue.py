@@ -232,3 +232,33 @@ def test_the_ur5s_wrist_keeps_the_floor_from_seed_49_of_the_rate_campaign(rate):
                         safeguard=setup.safeguard)
     assert not check.violated, (check.constraint, check.min_margin)
     assert check.trajectory.rescues > 0
+
+
+def test_a_committed_brake_under_a_rate_limit_is_held_without_the_velocity_lookahead(
+        load_dict):
+    """The xArm7 on its table (tools/campaigns/xarm7_cpbc_table.yaml) at 250 Hz under the
+    robot's budgets (6 tests, B = 8) and a 500 N·m/s torque-rate limit, from seed 57, a start
+    inside V heading for the pole: the first step's search commits to the aimed brake. Its
+    one-period test at the second step passes on every margin (F = 3.2) but fails the
+    guard's velocity lookahead (F = −996: the rates while the torque ramps back), which its
+    check's ramped braking answers; held on without it, the clearance keeps 0.6 mm, as
+    unbounded. With the lookahead the commitment ended there, no brake stopped the arm within
+    8 periods and the uniform brake, untested, let link 7 cross the clearance by 2.9 µm."""
+    import yaml
+
+    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
+    data = yaml.safe_load((campaign / "xarm7_cpbc_table.yaml").read_text())
+    data["simulation"].update(torque_rate_limit=500, safeguard_test_budget=6,
+                              safeguard_rescue_budget=8)
+    setup = load_dict(data)
+    period = 1 / 250
+    entry = next(e for e in setup.controllers if e.name == "CPBC")
+    kept = kept_constraints(setup, entry, period, setup.safeguard)
+    s = draw_state(setup, 57)
+    settings = replace(setup.loop_settings, duration=0.1, log_every=1,
+                       bounds=replace(setup.loop_settings.bounds, period=period))
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
+                        safeguard=setup.safeguard)
+    assert not check.violated, (check.constraint, check.min_margin)
+    assert check.min_margin > 5e-4 and check.trajectory.rescues >= 4

@@ -46,7 +46,9 @@ bounded after that:
   time is the first step's;
 - a brake committed to is held, at the steps after, as soon as the law's own torque fails
   its test — before the guard's other candidates: one brake and one test a step — while its
-  one-period prediction keeps every margin above its floor, until the step its check came
+  one-period prediction keeps every margin above its floor (under a torque-rate limit
+  without the guard's velocity lookahead, which its check's ramped braking answers:
+  cpbc.controllers.safeguard.braking.Brakes.committed), until the step its check came
   to rest at (:meth:`Rescue.held_brake`);
 - a later search spends at most B model periods over all its candidates and commits only
   to a brake whose check brought the arm to rest within them; where none did, the guard's

@@ -83,7 +83,8 @@ class Acceptance:
 
     def check(self, predict: Predictor, end_floor: Array, mid_floor: Array | None,
                stop: BrakingTest | None = None, past: np.ndarray | None = None,
-               sample: Sample | None = None, refine: Refine | None = None) -> StepSlack:
+               sample: Sample | None = None, refine: Refine | None = None,
+               lookahead: bool = True) -> StepSlack:
         """F(τ) = min_i m_i/floor_i − 1 over the predicted end (and mid-period
         configuration) margins of every prediction, and with ``stop`` = (1/(2θA), floors)
         the braking margins σ_i at the predicted ends: ≥ 0 when τ keeps every margin above
@@ -97,9 +98,12 @@ class Acceptance:
         the prediction (PredictedMargins.slack), or None. ``refine``: the floors are raised
         by bounds of the errors' losses (cpbc.controllers.safeguard.error_floors), and this
         makes them exact in place: before any F but a sign ≥ 0, which the exact floors only
-        raise (F falls as a floor rises), or None."""
+        raise (F falls as a floor rises), or None. ``lookahead``: under a torque-rate limit,
+        also the velocity margins where the rates peak while the torque ramps back from the
+        period's acceleration (:attr:`ramp`); False for a brake whose check held it, ramped
+        as the motors allow, until rest (Brakes.committed)."""
         along = self.along
-        ramp = self.ramp if along.nv else None
+        ramp = self.ramp if along.nv and lookahead else None
         frozen = predict if (isinstance(predict, Frozen) and along.fuses
                              and past is None) else None
 
