@@ -112,6 +112,12 @@ class Brakes:
         return self._held(bias, self.rescue.torque(state, bias, now, holds, step,
                                                    self.box.holding))
 
+    def holding(self, step: int) -> bool:
+        """Under a rescue budget, whether a committed brake is live at ``step``
+        (Rescue.live): :meth:`committed` would make and test it."""
+        rescue = self.rescue
+        return rescue is not None and rescue.budget is not None and rescue.live(step)
+
     def committed(self, state: ArmState, bias: Array, predict: Predictor,
                   step: int) -> Array | None:
         """Under a rescue budget, the rescue's committed brake while it is live

@@ -381,10 +381,11 @@ class Safeguard(SafetyFilter):
         # whatever the step's budget, as a step out of tests would make it (_out_of_tests;
         # cut off here, the brake was made twice: the bounded tail's worst steps, 300 µs on
         # the Panda); refused, the step goes on only where its time allows
-        with self.budget.uncut():
-            held = brakes.committed(state, bias, step.predict, self.calls)
-        if held is not None:
-            return held
+        if brakes.holding(self.calls):
+            with self.budget.uncut():
+                held = brakes.committed(state, bias, step.predict, self.calls)
+            if held is not None:
+                return held
         if step.floor_mid is not None:  # first the law less its push into the boundaries
             slid = brakes.slide(state, bias, tau, step.now, step.floor, step.floor_mid,
                                 step.stop)
