@@ -79,7 +79,7 @@ def stopping_terms(constraints: ConstraintSet, model: RobotModel, state: ArmStat
     curvature = np.concatenate([t[2] for t in terms])
     margins, speed, decel = np.empty(len(phi)), np.empty(len(phi)), np.empty(len(phi))
     coords = model.coordinates
-    inverse = _NO_MAP if coords.is_identity else coords.inverse
+    inverse = _NO_MAP if coords.is_identity else np.array(coords.inverse)  # writable
     limit = np.asarray(torque_limit, dtype=float)
     if limit.shape != (model.n,):  # one limit for every joint
         limit = np.full(model.n, float(torque_limit))
