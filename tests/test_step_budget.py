@@ -325,3 +325,47 @@ def test_a_committed_brake_is_made_once_a_step_whatever_the_time_left() -> None:
         held.append(made.torque(s.position, s.velocity))
         assert made.rescues == 2 and len(calls) == 1, (seconds, len(calls))
     np.testing.assert_array_equal(*held)
+
+
+def test_under_a_rate_limit_the_committed_brake_held_is_the_torque_tested() -> None:
+    """On the FR3 as a robot runs it (seed 0, 1000 N·m/s) the second step holds the brake its
+    first step's search committed to, reached into the step's rate box nearest in
+    acceleration (StepBox.fit): the torque its one-period test saw, bit for bit. The
+    prediction clips a torque to the rate box joint by joint; tested as given, the brake was
+    tested clipped and held fitted, a torque no test had seen: 2 N·m away on a joint (the
+    whole width of the ±1 N·m box) at this state."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from cpbc.reliability.verification import draw_state
+    from cpbc.scenario import build, load_scenario
+
+    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
+    setup = build(*load_scenario(campaign / "fr3_sphere_rate_robot.yaml"))
+    assert setup.safeguard is not None and setup.loop_settings.bounds.rate is not None
+    entry = next(e for e in setup.controllers if e.name == "CPBC")
+    guard = replace(setup, safeguard=replace(setup.safeguard, rescue_budget=8)
+                    ).controller(entry)
+    assert isinstance(guard, Safeguard) and guard.box.rate_limited
+    s = draw_state(setup, 0)
+    guard.torque(s.position, s.velocity)  # the motion's first step: searched, committed
+    tested = []
+    check = guard.acceptance.check
+
+    class Recording:  # every torque a test is asked of, in order
+        def __init__(self, slack) -> None:
+            self.slack = slack
+
+        def __call__(self, t: np.ndarray) -> float:
+            tested.append(np.array(t))
+            return self.slack(t)
+
+        def sign(self, t: np.ndarray) -> float:
+            tested.append(np.array(t))
+            return self.slack.sign(t)
+
+    guard.acceptance.check = (  # type: ignore[method-assign]
+        lambda *args, **kwargs: Recording(check(*args, **kwargs)))
+    held = guard.torque(s.position, s.velocity)
+    assert guard.rescues == 2
+    np.testing.assert_array_equal(held, tested[-1])

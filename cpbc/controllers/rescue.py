@@ -156,7 +156,7 @@ class Rescue:
         if self.live(step) and self.budget is not None:  # its check saw the arm to rest
             tau = self._hold(state, bias, holds, step)
             if tau is not None:
-                return tau
+                return self.box.clip(tau)  # as held_brake holds it
         elif self.live(step):
             assert self.committed is not None and self.floor is not None
             tau = self.table[self.committed](state, bias, self.period)

@@ -108,7 +108,8 @@ class Brakes:
         if self.rescue is None:
             return None
         # under a budget a committed brake is tested as Brakes.committed tests it
-        holds = self._holds(predict, lookahead=self.rescue.budget is None)
+        budget = self.rescue.budget is not None
+        holds = self._holds(predict, lookahead=not budget, applied=bias if budget else None)
         return self._held(bias, self.rescue.torque(state, bias, now, holds, step,
                                                    self.box.holding))
 
@@ -138,8 +139,8 @@ class Brakes:
         rescue = self.rescue
         if rescue is None or rescue.budget is None:
             return None
-        return self._held(bias, rescue.held_brake(state, bias,
-                                                  self._holds(predict, lookahead=False), step))
+        return self._held(bias, rescue.held_brake(
+            state, bias, self._holds(predict, lookahead=False, applied=bias), step))
 
     def _held(self, bias: Array, tau: Array | None) -> Array | None:
         """A rescue brake as the step holds it, counted (None: none held). Under a rate limit
@@ -150,14 +151,22 @@ class Brakes:
         self.rescues += 1
         return self.box.fit(bias, tau, brake=True) if self.box.rate_limited else tau
 
-    def _holds(self, predict: Predictor,
-               lookahead: bool = True) -> Callable[[Array, Array], bool]:
+    def _holds(self, predict: Predictor, lookahead: bool = True,
+               applied: Array | None = None) -> Callable[[Array, Array], bool]:
         """holds(τ, floor): τ's one-period prediction keeps every margin above ``floor``
         (``lookahead``: and under a torque-rate limit the velocity margins while the torque
-        ramps back, Acceptance.check)."""
+        ramps back, Acceptance.check). ``applied``: the bias b with which the step will hold
+        the rescue's τ (clipped to the torque box, :meth:`_held`), so that under a
+        torque-rate limit the torque tested is the one held: the prediction clips a torque
+        to the step's rate box joint by joint, while the step holds the brake reached
+        nearest in acceleration (StepBox.fit), another torque."""
         nc, check = self.n_config, self.acceptance.check
+        rescue = self.rescue
+        fit = self.box.fit if applied is not None and self.box.rate_limited else None
 
         def holds(t: Array, floor: Array) -> bool:
+            if fit is not None and rescue is not None and applied is not None:
+                t = fit(applied, rescue.box.clip(t), brake=True)
             return check(predict, np.maximum(floor, 1e-300),
                          np.maximum(floor[:nc], 1e-300) if nc else None,
                          lookahead=lookahead)(t) >= 0.0
