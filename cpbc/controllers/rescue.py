@@ -144,24 +144,21 @@ class Rescue:
     def torque(self, state: ArmState, bias: Array, now: Array,
                holds: Callable[[Array, Array], bool], step: int,
                held: Array | None = None) -> Array | None:
-        """The committed brake's torque if it is :meth:`live` at ``step`` (the guard's count
-        of control steps) and ``holds(τ, floor)`` accepts it (its one-period prediction keeps
-        every margin above the floor of the search that committed it) — without a budget,
-        also its check run again from here —, else the first brake whose model braking keeps
-        every margin above its floor until rest (:meth:`_search`; then committed), else
-        None. ``now``: the margins m_i at the sample; ``held``: the torque the actuators hold
-        (under a torque-rate limit)."""
+        """Without a budget, the committed brake's torque if it is :meth:`live` at ``step``
+        (the guard's count of control steps), ``holds(τ, floor)`` accepts it (its one-period
+        prediction keeps every margin above the floor of the search that committed it) and
+        its check, run again from here, still brings the arm to rest; else the first brake
+        whose model braking keeps every margin above its floor until rest (:meth:`_search`;
+        then committed), else None. Under a budget the guard asks :meth:`held_brake` for a
+        committed brake before it asks this, which then searches. ``now``: the margins m_i at
+        the sample; ``held``: the torque the actuators hold (under a torque-rate limit)."""
         # the motion's first state: its search runs until rest, whatever the budget
         budget = None if first_step(step) else self.budget
-        if self.live(step) and self.budget is not None:  # its check saw the arm to rest
-            tau = self._hold(state, bias, holds, step)
-            if tau is not None:
-                return self.box.clip(tau)  # as held_brake holds it
-        elif self.live(step):
+        if self.budget is None and self.live(step):
             assert self.committed is not None and self.floor is not None
             tau = self.table[self.committed](state, bias, self.period)
             if holds(tau, self.floor):
-                # without a budget, checked again from here (the module docstring)
+                # checked again from here (the module docstring)
                 again = self._rollout(state, self.committed, self.floor, held).run()
                 if again is not None and again.stopped:
                     self.held_at, self.rest_at = step, step + again.periods
@@ -181,23 +178,18 @@ class Rescue:
             return False
         return self.budget is None or (self.rest_at is not None and step <= self.rest_at)
 
-    def held_brake(self, state: ArmState, bias: Array,
+    def held_brake(self, state: ArmState, bias: Array, reach: Callable[[Array], Array],
                    holds: Callable[[Array, Array], bool], step: int) -> Array | None:
-        """While :meth:`live`, the committed brake's torque where ``holds(τ, floor)`` accepts
-        it (held then), else None — the commitment then ends, so that the step does not make
-        and test the brake twice —, searching nothing: under a budget the guard holds it as
-        soon as the law's own torque fails its test, before its other candidates."""
+        """While :meth:`live`, the committed brake's torque as the step holds it —
+        ``reach`` of the brake clipped to the box (the step's own fit into its rate box) —
+        where ``holds(τ, floor)`` accepts that torque (held then), else None — the
+        commitment then ends, so that the step does not make and test the brake twice —,
+        searching nothing: under a budget the guard holds it as soon as the law's own torque
+        fails its test, before its other candidates."""
         if not self.live(step):
             return None
-        tau = self._hold(state, bias, holds, step)
-        return None if tau is None else self.box.clip(tau)
-
-    def _hold(self, state: ArmState, bias: Array, holds: Callable[[Array, Array], bool],
-              step: int) -> Array | None:
-        """The committed brake's torque at this state, held at ``step`` where
-        ``holds(τ, floor)`` accepts it; else None, and the commitment ends."""
         assert self.committed is not None and self.floor is not None
-        tau = self.table[self.committed](state, bias, self.period)
+        tau = reach(self.box.clip(self.table[self.committed](state, bias, self.period)))
         if not holds(tau, self.floor):
             self.forget()
             return None

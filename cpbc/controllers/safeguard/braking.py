@@ -107,11 +107,9 @@ class Brakes:
         prediction keeps every margin above the floor it was found with."""
         if self.rescue is None:
             return None
-        # under a budget a committed brake is tested as Brakes.committed tests it
-        budget = self.rescue.budget is not None
-        holds = self._holds(predict, lookahead=not budget, applied=bias if budget else None)
-        return self._held(bias, self.rescue.torque(state, bias, now, holds, step,
-                                                   self.box.holding))
+        tau = self.rescue.torque(state, bias, now, self._holds(predict), step,
+                                 self.box.holding)
+        return self._counted(None if tau is None else self._reach(bias)(tau))
 
     def holding(self, step: int) -> bool:
         """Under a rescue budget, whether a committed brake is live at ``step``
@@ -135,38 +133,39 @@ class Brakes:
         it fails and commits to the same brake. With it, on the xArm7 at 250 Hz (500 N·m/s,
         6 tests, B = 8) the aimed brake found at a start inside V failed its second period's
         lookahead (F = −996, 3.2 without), no brake stopped the arm within 8 periods, and the
-        uniform brake, untested, let link 7 cross the pole's clearance by 2.9 µm."""
+        uniform brake, untested, let link 7 cross the pole's clearance by 2.9 µm.
+
+        The test sees the brake as the step holds it (:meth:`_reach`): the prediction clips
+        a torque to the step's rate box joint by joint, and a brake tested so was held
+        reached nearest in acceleration, another torque (2 N·m away on a joint of the FR3)."""
         rescue = self.rescue
         if rescue is None or rescue.budget is None:
             return None
-        return self._held(bias, rescue.held_brake(
-            state, bias, self._holds(predict, lookahead=False, applied=bias), step))
+        return self._counted(rescue.held_brake(state, bias, self._reach(bias),
+                                               self._holds(predict, lookahead=False), step))
 
-    def _held(self, bias: Array, tau: Array | None) -> Array | None:
-        """A rescue brake as the step holds it, counted (None: none held). Under a rate limit
-        it is reached as the rescue's search held it (brakes.ramped, StepBox.fit): a brake
-        clipped joint by joint kicked the Panda's light wrist through its rate bound."""
-        if tau is None:
-            return None
-        self.rescues += 1
-        return self.box.fit(bias, tau, brake=True) if self.box.rate_limited else tau
+    def _reach(self, bias: Array) -> Callable[[Array], Array]:
+        """τ ↦ the torque the step holds for a rescue brake τ: under a rate limit reached as
+        the rescue's search held it (brakes.ramped, StepBox.fit) — a brake clipped joint by
+        joint kicked the Panda's light wrist through its rate bound —, else τ."""
+        if not self.box.rate_limited:
+            return lambda tau: tau
+        return lambda tau: self.box.fit(bias, tau, brake=True)
 
-    def _holds(self, predict: Predictor, lookahead: bool = True,
-               applied: Array | None = None) -> Callable[[Array, Array], bool]:
+    def _counted(self, tau: Array | None) -> Array | None:
+        """A rescue brake the step holds, counted (None: none held)."""
+        if tau is not None:
+            self.rescues += 1
+        return tau
+
+    def _holds(self, predict: Predictor,
+               lookahead: bool = True) -> Callable[[Array, Array], bool]:
         """holds(τ, floor): τ's one-period prediction keeps every margin above ``floor``
         (``lookahead``: and under a torque-rate limit the velocity margins while the torque
-        ramps back, Acceptance.check). ``applied``: the bias b with which the step will hold
-        the rescue's τ (clipped to the torque box, :meth:`_held`), so that under a
-        torque-rate limit the torque tested is the one held: the prediction clips a torque
-        to the step's rate box joint by joint, while the step holds the brake reached
-        nearest in acceleration (StepBox.fit), another torque."""
+        ramps back, Acceptance.check)."""
         nc, check = self.n_config, self.acceptance.check
-        rescue = self.rescue
-        fit = self.box.fit if applied is not None and self.box.rate_limited else None
 
         def holds(t: Array, floor: Array) -> bool:
-            if fit is not None and rescue is not None and applied is not None:
-                t = fit(applied, rescue.box.clip(t), brake=True)
             return check(predict, np.maximum(floor, 1e-300),
                          np.maximum(floor[:nc], 1e-300) if nc else None,
                          lookahead=lookahead)(t) >= 0.0
