@@ -171,7 +171,7 @@ def test_in_absolute_link_angles_the_bounds_and_the_one_call_hold_too() -> None:
 def test_past_a_limit_only_the_guard_keeps_the_floors_are_the_exact_ones(fr3,
                                                                         monkeypatch) -> None:
     """At states beyond an extra limit (one only the guard keeps: its floor is its present
-    margin, Safeguard._tests) the floors are made exact before they are copied: the guard
+    margin, Safeguard.step_tests) the floors are made exact before they are copied: the guard
     holds the torques it holds when its first test's floors come from the gradients."""
     law = choose_controller(fr3, "CPBC").controller
     bounds = on_robot(fr3).loop_settings.bounds

@@ -39,7 +39,7 @@ from cpbc.model.robot_model import ArmState
 
 
 class StepTests(NamedTuple):
-    """What one step tests its candidate torques with (Safeguard._tests)."""
+    """What one step tests its candidate torques with (Safeguard.step_tests)."""
 
     state: ArmState
     bias: Array  # C ẋ + g (+ f)
@@ -335,6 +335,17 @@ class Safeguard(SafetyFilter):
         state = step.state
         return self.brakes.brake(step.bias, state.inertia.dot(state.dx) / self.period,
                                  self.settings.braking)
+
+    def step_tests(self, state: ArmState, law: Array, law_margins: Array) -> StepTests:
+        """What a step at ``state`` tests a torque with, as :meth:`filter` makes it for the
+        law's torque ``law`` and margins ``law_margins``: the prediction, the margins now, the
+        floors and F (``slack``: F(τ) ≥ 0 when τ passes). Under a torque-rate limit the step's
+        box is set around the held torque first, as a step begins. No count moves and no
+        budget applies: for reading F of any torque at a state."""
+        if self.box.rate_limited:
+            self._begin(state)
+        with self.budget.lifted():  # F made here is not counted against a step's tests
+            return self._tests(state, law, law_margins)
 
     def _tests(self, state: ArmState, tau: Array, law_margins: Array) -> StepTests:
         """What this step tests a torque with: the prediction, the margins now, the floors
