@@ -105,7 +105,7 @@ def guarded_tail(steps: int = 100_000, seconds: float = 0.5, seed: int = 0,
     limit [N·m/s] for plant and guard, or the scenario's none; ``rescue_budget``,
     ``test_budget`` and ``time_budget`` [s]: the safeguard's bounds on a step, or the
     scenario's none)."""
-    from cpbc.reliability.campaign import campaign_setup, sample_states
+    from cpbc.reliability.campaign import campaign_setup, state_sampler
 
     setup = campaign_setup(scenario, integrator=integrator)
     if rate_limit is not None:
@@ -122,17 +122,16 @@ def guarded_tail(steps: int = 100_000, seconds: float = 0.5, seed: int = 0,
     entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
     settings = replace(setup.loop_settings, duration=seconds)
     plant = setup.make_plant()
-    per_run = round(seconds / settings.bounds.period) + 1
-    runs = max(1, -(-steps // per_run))
     times: list[int] = []
     cpu: list[int] = []
     acting: list[bool] = []
     bare: list[int] = []
     counts = {"runs": 0, "rescues": 0, "infeasible": 0, "out_of_tests": 0}
-    states = sample_states(setup, runs * 2, seed)  # some end early: draw spare starts
-    for s in states:
+    starts = state_sampler(setup, seed)  # drawn until the steps are timed: some runs end early
+    for _ in range(2 * steps):  # a bound on the starts, for runs that all end at once
         if len(times) >= steps:
             break
+        s = starts.draw()
         spare = setup.controller(entry)  # every path of a step, as before a robot's motion
         if isinstance(spare, Safeguard):
             with contextlib.suppress(ConstraintViolation):
