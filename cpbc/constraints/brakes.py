@@ -40,6 +40,7 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import stopping_terms
 from cpbc.kernels.bounded_lsq import bounded_least_squares
+from cpbc.kernels.small_solves import inverse_inertia
 from cpbc.kernels.torque_box import box_around, box_clip, box_toward
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -124,7 +125,7 @@ class TorqueBox:
 
     def acceleration_map(self, inertia: Array) -> Array:
         """A = D⁻¹T⁻ᵀ: the acceleration a joint torque τ_q gives."""
-        inv_d = np.linalg.inv(inertia)
+        inv_d = inverse_inertia(inertia)
         return np.ascontiguousarray(inv_d if self.from_joint is None else inv_d @ self.from_joint)
 
     def nearest(self, inertia: Array, tau: Array) -> Array:

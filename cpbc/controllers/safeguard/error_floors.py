@@ -26,13 +26,13 @@ from cpbc.constraints.margin_slopes import MarginSlopes
 from cpbc.controllers.safeguard.model_error import (
     DeclaredError,
     friction_error,
-    inverse_inertia,
     margin_losses,
     measurement_losses,
     mujoco_friction,
 )
 from cpbc.controllers.safeguard.step_box import StepBox
 from cpbc.kernels.margin_losses import friction_floors
+from cpbc.kernels.small_solves import inverse_inertia
 from cpbc.model.robot_model import ArmState, RobotModel
 
 Refine = Callable[[], None]  # makes a step's floors, raised by bounds, exact in place

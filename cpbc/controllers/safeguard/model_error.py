@@ -86,18 +86,11 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.margin_slopes import MarginSlopes
 from cpbc.kernels import friction_error as kernels
-from cpbc.kernels.small_solves import inverse_spd
+from cpbc.kernels.small_solves import inverse_inertia
 from cpbc.model.coulomb import MUJOCO_FRICTION, MUJOCO_IMPEDANCE, DryFriction
 from cpbc.model.robot_model import ArmState, RobotModel
 
 _NONE = np.zeros(0)  # no accelerations given (friction_error)
-
-
-def inverse_inertia(inertia: Array) -> Array:
-    """D⁻¹ (cpbc.kernels.small_solves.inverse_spd), once a step for every reader."""
-    inv = np.empty_like(inertia)
-    inverse_spd(np.ascontiguousarray(inertia, dtype=float), inv)
-    return inv
 
 
 def _joint_inverse(model: RobotModel, inertia: Array,
