@@ -103,6 +103,26 @@ def _slack_at(guard: Safeguard, tau: np.ndarray) -> float:
     return free.acceptance.check(free.predictor(state, bias), floor, mid)(tau)
 
 
+def test_step_tests_give_F_at_a_state_without_counting_against_the_step(
+        recentred: RecentredBarrier) -> None:
+    """Safeguard.step_tests: F of any torque at a state, as a step makes it — the law's
+    torque fails where the guarded step acts, the unbounded guard's torque passes, and F is
+    the one a guard without a budget computes — with no test counted against a budget of
+    one (four tests, none refused) and no count of the guard moved."""
+    guard = Safeguard(recentred, InputBounds(H), SafeguardSettings(test_budget=1))
+    state = guard.state(X, DX)
+    out = recentred.evaluate_state(state, margins=True)
+    assert out.margins is not None
+    step = guard.step_tests(state, out.torque, out.margins)
+    best = Safeguard(recentred, InputBounds(H)).torque(X, DX)
+    f_law = step.slack(out.torque)
+    assert f_law < 0.0 <= step.slack(best)
+    assert f_law == _slack_at(guard, out.torque) == step.slack(out.torque)
+    assert (guard.calls, guard.acted, guard.out_of_tests) == (0, 0, 0)
+    guard.torque(X, DX)  # the guarded step after it: its own budget, untouched
+    assert (guard.calls, guard.acted, guard.out_of_tests) == (1, 1, 1)
+
+
 def test_one_test_a_step_holds_the_uniform_brake_where_the_law_fails(
         recentred: RecentredBarrier) -> None:
     """With one test a step the law's torque is the only one tested: where it fails, the
