@@ -3,6 +3,9 @@ it the step holds the last torque that passed, else the uniform brake."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -389,3 +392,32 @@ def test_under_a_rate_limit_the_committed_brake_held_is_the_torque_tested() -> N
     held = guard.torque(s.position, s.velocity)
     assert guard.rescues == 2
     np.testing.assert_array_equal(held, tested[-1])
+
+
+def test_a_spent_step_under_a_rate_limit_holds_no_brake_that_fails_S0(load_dict) -> None:
+    """panda_goal_pose_rate (the task-space law toward a hand pose under a 1000 N·m/s
+    torque-rate limit) under the robot's budgets, 6 tests and B = 8, from seed 35: a start
+    inside V with joint 2 on its rate bound and joint 6 at its position limit. From the
+    seventh step no candidate passes within the budget and no rescue brake stops the arm
+    within 8 periods; the uniform brake, reached into the ±1 N·m box by its nearest
+    acceleration and held untested, drove joint 2 through its rate bound by 5.2 mrad/s at
+    8 ms. Tested against (S0) and replaced by the brake along the line where it fails, as the
+    unbounded guard's fallback does (Brakes.spent), the run keeps every constraint."""
+    import yaml
+
+    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
+    from cpbc.reliability.verification import draw_state
+
+    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
+    data = yaml.safe_load((campaign / "panda_goal_pose_rate.yaml").read_text())
+    data["simulation"].update(safeguard_test_budget=6, safeguard_rescue_budget=8)
+    setup = load_dict(data)
+    entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
+    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
+    s = draw_state(setup, 35)
+    settings = replace(setup.loop_settings, duration=0.2, log_every=1)
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
+                        safeguard=setup.safeguard)
+    assert not check.violated, (check.constraint, check.min_margin)
+    assert check.trajectory.out_of_tests >= 2

@@ -193,13 +193,8 @@ class Brakes:
         the fallback to satisfy both predictions left it choosing among torques that all
         fail, and worse ones (a Panda joint limit broken at 100 Hz)."""
         delta, nc, check = self.cushion, self.n_config, self.acceptance.check
-
-        def frozen(t: Array) -> tuple[Array, Array, Array, Array, Array]:
-            mids, ends, speeds, inner_x, inner_v = predict(t)
-            inner = len(inner_x) // len(ends)  # rows per prediction
-            return mids[:1], ends[:1], speeds[:1], inner_x[:inner], inner_v[:inner]
-
-        positivity = check(frozen, delta, delta[:nc] if nc else None)  # (S0) m ≥ δ
+        frozen = _first_prediction(predict)
+        positivity = self.positivity(predict)
         if floor_mid is None:
             return self.fallback(bias, stop, positivity)
         # (S−), for the escape: configuration margins recover as (S1) asks at the end but,
@@ -210,6 +205,34 @@ class Brakes:
         hold_mid = np.minimum(floor_mid, self.keep_half * now[:nc])
         escape = self._escape(state, now, hold_end, hold_mid)
         return self.fallback(bias, stop, positivity, escape, check(frozen, hold_end, hold_mid))
+
+    def positivity(self, predict: Predictor) -> Slack:
+        """(S0), every margin above its cushion, m ≥ δ, over the first (frozen) prediction
+        alone: the fallback's test (:meth:`infeasible`)."""
+        nc = self.n_config
+        return self.acceptance.check(_first_prediction(predict), self.cushion,
+                                     self.cushion[:nc] if nc else None)
+
+    def spent(self, bias: Array, stop: Array, predict: Predictor) -> Array:
+        """What a step whose budget of tests is spent holds where no candidate passed
+        (Safeguard._out_of_tests): the calmest brake b − λ₀ D ẋ/h in the step's box,
+        untested; under a torque-rate limit tested against (S0) and, where it fails, the
+        brake along the line or the taken-back acceleration that keeps (S0)
+        (:meth:`_held_back`), as the fallback orders them — at most three tests. Reached by
+        its nearest acceleration within ±ρh the brake can spin a joint riding its rate
+        bound up through the coupling in D: held untested, it let joint 2 of
+        panda_goal_pose_rate's seed 35, a start inside V, through its rate bound by 5.2
+        mrad/s at 8 ms under the robot's budgets (6 tests, 8 model periods; 2.6 mrad/s with
+        the 150 µs time budget too), where the unbounded guard's fallback kept it."""
+        lam0 = self.settings.braking
+        calmest = self.brake(bias, stop, lam0)
+        if not self.box.rate_limited:
+            return calmest
+        positivity = self.positivity(predict)
+        if positivity(calmest) >= 0.0:
+            return calmest
+        held = self._held_back(bias, stop, lam0, positivity)
+        return calmest if held is None else held
 
     def fallback(self, bias: Array, stop: Array, positivity: Slack,
                  escape: Array | None = None, holding: Slack | None = None) -> Array:
@@ -335,6 +358,17 @@ class Brakes:
                 need = np.where(short, np.maximum(need, -rate / h), need)
                 acc = _project(grads, need, law)
         return self.box.fit(bias, bias + state.inertia.dot(acc))
+
+
+def _first_prediction(predict: Predictor) -> Predictor:
+    """``predict`` cut to its first (frozen) prediction: the fallback judges on it alone."""
+
+    def frozen(t: Array) -> tuple[Array, Array, Array, Array, Array]:
+        mids, ends, speeds, inner_x, inner_v = predict(t)
+        inner = len(inner_x) // len(ends)  # rows per prediction
+        return mids[:1], ends[:1], speeds[:1], inner_x[:inner], inner_v[:inner]
+
+    return frozen
 
 
 def _project(grads: Array, need: Array, start: Array) -> Array:

@@ -308,11 +308,13 @@ class Safeguard(SafetyFilter):
         the rescue's committed brake while it holds it (Rescue.held_brake: one brake, one
         test), or at the motion's first step its search, which runs until rest; then, under
         a time budget, the uniform brake, which the step before's torque was tested with
-        ((S2): it stops the arm from here), at once, untested — a search reads every
-        stopping point before its test (up to ~200 µs for the aimed brake on the Panda),
-        which no test's time foretells —; else the first of the rescue's brakes that passes
-        one test over the period (a bounded set), else the rescue's search (within its
-        budget of model periods, if it has one), else the uniform brake."""
+        ((S2): it stops the arm from here), at once — a search reads every stopping point
+        before its test (up to ~200 µs for the aimed brake on the Panda), which no test's
+        time foretells —; else the first of the rescue's brakes that passes one test over
+        the period (a bounded set), else the rescue's search (within its budget of model
+        periods, if it has one), else the uniform brake. The uniform brake is held
+        untested, but under a torque-rate limit where it fails (S0) the fallback's brakes
+        reached along the line come first (:meth:`_spent`)."""
         state, bias, brakes = step.state, step.bias, self.brakes
         with self.budget.lifted():
             held = brakes.committed(state, bias, step.predict, self.calls)
@@ -321,20 +323,23 @@ class Safeguard(SafetyFilter):
         if held is not None:
             return held
         if self.budget.timed:
-            return self._uniform_brake(step)
+            return self._spent(step)
         with self.budget.lifted():
             check = self.acceptance.check(step.predict, step.floor, step.floor_mid, step.stop,
                                           step.past)
             held = brakes.first_passing(state, bias, check)
             if held is None and not first_step(self.calls):
                 held = brakes.rescued(state, bias, step.predict, step.now, self.calls)
-        return held if held is not None else self._uniform_brake(step)
+        return held if held is not None else self._spent(step)
 
-    def _uniform_brake(self, step: StepTests) -> Array:
-        """The uniform brake b − D ẋ/h in the step's box, untested."""
+    def _spent(self, step: StepTests) -> Array:
+        """The uniform brake b − λ₀ D ẋ/h in the step's box, untested — under a torque-rate
+        limit tested against (S0) first, with the fallback's brakes reached along the line
+        where it fails (Brakes.spent)."""
         state = step.state
-        return self.brakes.brake(step.bias, state.inertia.dot(state.dx) / self.period,
-                                 self.settings.braking)
+        with self.budget.lifted():
+            return self.brakes.spent(step.bias, state.inertia.dot(state.dx) / self.period,
+                                     step.predict)
 
     def step_tests(self, state: ArmState, law: Array, law_margins: Array) -> StepTests:
         """What a step at ``state`` tests a torque with, as :meth:`filter` makes it for the

@@ -19,9 +19,12 @@ passes; where none does, the rescue's search (until the arm rests in the model, 
 budget of model periods if it has one, holding only a brake whose check ended in it), else the
 uniform brake within the step's box, untested: the brake whose braking set (S2) keeps the arm
 in, which from a state the guard kept in V stops the arm before every configuration boundary,
-in the model (cpbc.constraints.stopping). What a budget gives up: a blend nearer the brake
-than the smallest β, the search of λ cut short, and the rescue's brakes that need longer than
-the rescue's budget to stop the arm.
+in the model (cpbc.constraints.stopping). Under a torque-rate limit that brake is reached
+into the step's ±ρh box by its nearest acceleration, which can spin a joint riding its rate
+bound up through the coupling in D: it is tested against (S0) there, and where it fails the
+fallback's brakes reached along the line are held instead (Brakes.spent, up to three tests).
+What a budget gives up: a blend nearer the brake than the smallest β, the search of λ cut
+short, and the rescue's brakes that need longer than the rescue's budget to stop the arm.
 
 A budget in time does the same on a robot's clock, counting candidates, not tests: a
 candidate is the work that makes a torque (the slide's projection, a brake's fit, the blend's
