@@ -211,3 +211,27 @@ def test_the_frozen_test_in_other_coordinates_with_a_box(rate: float | None) -> 
             assert found == expected
             signs.add(found >= 0.0)
     assert signs == {True, False}
+
+
+@pytest.mark.parametrize("rate", [None, 1000.0])
+def test_the_first_prediction_alone_is_the_corrected_ones_first_row(rate: float | None) -> None:
+    """Frozen.first (what the fallback's (S0) judges on, Brakes.positivity): the closed form
+    without the corrector's row is that row of the corrected prediction to the bit, and the
+    compiled test on it gives the F its rows give (both signs occur)."""
+    signs = set()
+    for along, _, floor, mid, stop, _, _, predict, tau, ramp in _tests(rate):
+        assert isinstance(predict, Frozen) and predict.corrector
+        first = predict.first()
+        assert isinstance(first, Frozen) and first.rows == 1 and first.first() is first
+        both, alone = predict(tau), first(tau)
+        for whole, one in zip(both[:3], alone[:3], strict=True):
+            np.testing.assert_array_equal(whole[:1], one)
+        rows = alone
+        expected = along.slack(rows, floor, mid, stop, None)
+        if ramp is not None:
+            expected = min(expected, along.ramp_slack(rows, ramp))
+        acc, after = first.start(tau)
+        found = along.frozen_slack(first, acc, after, floor, mid, stop, None, math.inf, ramp)
+        assert found == expected
+        signs.add(found >= 0.0)
+    assert signs == {True, False}

@@ -16,7 +16,7 @@ from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.rescue import Rescue
 from cpbc.controllers.safeguard.acceptance import Acceptance, Slack
 from cpbc.controllers.safeguard.predicted_margins import BrakingTest
-from cpbc.controllers.safeguard.prediction import Predictor
+from cpbc.controllers.safeguard.prediction import Frozen, Predictor
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.controllers.safeguard.step_box import StepBox
 from cpbc.kernels.sampled_guard import project_halfspaces
@@ -361,7 +361,10 @@ class Brakes:
 
 
 def _first_prediction(predict: Predictor) -> Predictor:
-    """``predict`` cut to its first (frozen) prediction: the fallback judges on it alone."""
+    """``predict`` cut to its first (frozen) prediction: the fallback judges on it alone
+    (a closed-form one stays a Frozen, whose test is compiled: Frozen.first)."""
+    if isinstance(predict, Frozen):
+        return predict.first()
 
     def frozen(t: Array) -> tuple[Array, Array, Array, Array, Array]:
         mids, ends, speeds, inner_x, inner_v = predict(t)

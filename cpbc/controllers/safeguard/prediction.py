@@ -66,6 +66,17 @@ class Frozen:
         after = self.model.forward_dynamics(smooth, speed, held) if self.corrector else acc
         return acc, after
 
+    def first(self) -> Frozen:
+        """This prediction's first row alone, the frozen closed form (without the
+        corrector's): still a Frozen, so its test is the compiled one."""
+        if not self.corrector:
+            return self
+        first = object.__new__(Frozen)
+        for name in Frozen.__slots__:
+            object.__setattr__(first, name, getattr(self, name))
+        first.corrector, first.rows = False, 1
+        return first
+
     def __call__(self, t: Array) -> tuple[Array, Array, Array, Array, Array]:
         acc, after = self.start(t)
         shape = (self.rows, len(self.x))  # four arrays: cheaper than one (4, rows, n)
