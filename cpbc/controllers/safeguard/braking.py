@@ -14,8 +14,8 @@ from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.rescue import Rescue
-from cpbc.controllers.safeguard.acceptance import Acceptance, Slack
-from cpbc.controllers.safeguard.predicted_margins import BrakingTest
+from cpbc.controllers.safeguard.acceptance import Acceptance, Slack, StepSlack
+from cpbc.controllers.safeguard.predicted_margins import BrakingTest, Sample
 from cpbc.controllers.safeguard.prediction import Frozen, Predictor
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.controllers.safeguard.step_box import StepBox
@@ -206,14 +206,16 @@ class Brakes:
         escape = self._escape(state, now, hold_end, hold_mid)
         return self.fallback(bias, stop, positivity, escape, check(frozen, hold_end, hold_mid))
 
-    def positivity(self, predict: Predictor) -> Slack:
+    def positivity(self, predict: Predictor, sample: Sample | None = None) -> StepSlack:
         """(S0), every margin above its cushion, m ≥ δ, over the first (frozen) prediction
-        alone: the fallback's test (:meth:`infeasible`)."""
+        alone: the fallback's test (:meth:`infeasible`). With ``sample`` (where the step
+        starts) its ``sign`` leaves the sphere clearances that the sample's margins bound
+        uncomputed (PredictedMargins.slack)."""
         nc = self.n_config
         return self.acceptance.check(_first_prediction(predict), self.cushion,
-                                     self.cushion[:nc] if nc else None)
+                                     self.cushion[:nc] if nc else None, sample=sample)
 
-    def spent(self, bias: Array, stop: Array, predict: Predictor) -> Array:
+    def spent(self, bias: Array, stop: Array, predict: Predictor, sample: Sample) -> Array:
         """What a step whose budget of tests is spent holds where no candidate passed
         (Safeguard._out_of_tests): the calmest brake b − λ₀ D ẋ/h in the step's box,
         untested; under a torque-rate limit tested against (S0) and, where it fails, the
@@ -228,10 +230,10 @@ class Brakes:
         calmest = self.brake(bias, stop, lam0)
         if not self.box.rate_limited:
             return calmest
-        positivity = self.positivity(predict)
-        if positivity(calmest) >= 0.0:
+        passes = self.positivity(predict, sample).sign  # a sign is all it asks
+        if passes(calmest) >= 0.0:
             return calmest
-        held = self._held_back(bias, stop, lam0, positivity)
+        held = self._held_back(bias, stop, lam0, passes)
         return calmest if held is None else held
 
     def fallback(self, bias: Array, stop: Array, positivity: Slack,

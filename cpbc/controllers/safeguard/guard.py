@@ -339,7 +339,7 @@ class Safeguard(SafetyFilter):
         state = step.state
         with self.budget.lifted():
             return self.brakes.spent(step.bias, state.inertia.dot(state.dx) / self.period,
-                                     step.predict)
+                                     step.predict, Sample(state.x, step.now))
 
     def step_tests(self, state: ArmState, law: Array, law_margins: Array) -> StepTests:
         """What a step at ``state`` tests a torque with, as :meth:`filter` makes it for the
