@@ -470,6 +470,7 @@ class Safeguard(SafetyFilter):
                                  step.past)
             brakes.first_passing(state, step.bias, check)  # its own brakes, a test each
             self._out_of_tests(step)  # a spent first step: the rescue's search again
+            self._spent(step)  # a spent later step's brake (and its (S0) test, rate-limited)
         if self.box.rate_limited:
             self.box.end(tau)
 
