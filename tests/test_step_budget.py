@@ -236,12 +236,12 @@ def test_a_budget_in_time_stops_the_tests_once_it_is_spent(
 
 
 def test_past_its_time_a_step_holds_the_uniform_brake_without_a_further_test() -> None:
-    """On the FR3 as a robot runs it, seed 23's state fails the law's test and the rescue's
-    own brakes are not all clipped to the uniform one by the step's box: a step out of tests
-    (one test a step) holds a rescue brake it tested, a step out of time holds the uniform
-    brake b − D ẋ/h in the step's box at once, untested — a step that ends within its time
-    and the one test under way. Each guard's first step is the arm at rest there (the law's
-    torque passes): at a motion's first step the rescue's search would answer instead."""
+    """On the FR3 as a robot runs it, seed 23's state fails the law's test: a step out of
+    tests (one test a step) asks the rescue's bounded search, a step out of time does not and
+    holds the uniform brake b − D ẋ/h in the step's box at once (its (S0) passing there) — a
+    step that ends within its time and the one test under way. Each guard's first step is the
+    arm at rest there (the law's torque passes): at a motion's first step the rescue's search
+    would answer instead."""
     from dataclasses import replace
     from pathlib import Path
 
@@ -266,7 +266,10 @@ def test_past_its_time_a_step_holds_the_uniform_brake_without_a_further_test() -
     tau_timed = timed.torque(s.position, s.velocity)
     tau_counted = counted.torque(s.position, s.velocity)
     assert (timed.out_of_tests, counted.out_of_tests) == (1, 1)
-    assert not np.allclose(tau_timed, tau_counted)
+    rescue_timed, rescue_counted = timed.brakes.rescue, counted.brakes.rescue
+    assert rescue_timed is not None and rescue_counted is not None
+    assert (rescue_timed.searches, rescue_counted.searches) == (0, 1)
+    assert np.all(np.isfinite(tau_counted))
     twin = guard()
     state = twin.state(s.position, s.velocity)
     twin.box.begin(state)  # the second step's box, around the torque the first one held
@@ -421,3 +424,32 @@ def test_a_spent_step_under_a_rate_limit_holds_no_brake_that_fails_S0(load_dict)
                         safeguard=setup.safeguard)
     assert not check.violated, (check.constraint, check.min_margin)
     assert check.trajectory.out_of_tests >= 2
+
+
+def test_a_spent_step_holds_the_brake_S2_promised_not_one_tested_for_a_period(
+        load_dict) -> None:
+    """The figure eight under a 1000 N·m/s torque-rate limit
+    (tools/campaigns/panda_figure8_ke_rate.yaml) with the robot's budgets, 6 tests and B = 8,
+    from seed 58, a start inside V: the law's torque fails at two steps of three and 6 tests
+    reach no further than the slide and the brakes along the line. A spent step that held the
+    first of the rescue's least-squares and aimed brakes to pass one period's test took the
+    hand through the table's clearance from 176 ms on; holding the uniform brake, the one the
+    step before's (S2) was tested with (as a step out of time does), the run keeps it."""
+    import yaml
+
+    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
+    from cpbc.reliability.verification import draw_state
+
+    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
+    data = yaml.safe_load((campaign / "panda_figure8_ke_rate.yaml").read_text())
+    data["simulation"].update(safeguard_test_budget=6, safeguard_rescue_budget=8)
+    setup = load_dict(data)
+    entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
+    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
+    s = draw_state(setup, 58)
+    settings = replace(setup.loop_settings, duration=0.25, log_every=1)
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
+                        safeguard=setup.safeguard)
+    assert not check.violated, (check.constraint, check.min_margin)
+    assert check.min_margin > 1e-3  # the table's clearance keeps its cushion

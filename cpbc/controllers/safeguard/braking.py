@@ -22,9 +22,6 @@ from cpbc.controllers.safeguard.step_box import StepBox
 from cpbc.kernels.sampled_guard import project_halfspaces
 from cpbc.model.robot_model import ArmState
 
-# the rescue's brakes tried once each where a step's budget of tests is spent, cheapest first
-OWN_BRAKES = ("least_squares", "aimed")
-
 
 class Brakes:
     """The replacement torques, tested by the guard's acceptance.
@@ -171,20 +168,6 @@ class Brakes:
                          lookahead=lookahead)(t) >= 0.0
 
         return holds
-
-    def first_passing(self, state: ArmState, bias: Array, slack: Slack) -> Array | None:
-        """The first of the rescue's own brakes (the least-squares and the aimed one, each
-        put in the step's box; the uniform one is the chain's first brake) that passes
-        ``slack`` over the period, or None (or None without a rescue): a bounded set of
-        candidates, one test each, for a step whose budget of tests is spent."""
-        if self.rescue is None:
-            return None
-        for name in OWN_BRAKES:
-            tau = self.box.fit(bias, self.rescue.table[name](state, bias, self.period),
-                               brake=True)
-            if slack(tau) >= 0.0:
-                return tau
-        return None
 
     def infeasible(self, state: ArmState, bias: Array, stop: Array, predict: Predictor,
                     now: Array, floor: Array, floor_mid: Array | None) -> Array:

@@ -71,9 +71,10 @@ class SafeguardSettings:
             check ended within it, so a brake that needs longer gives way to the fallback.
         test_budget: K, the most candidate torques one step tests (each a prediction of the
             period and every margin along it), None for no bound: with ``rescue_budget``, a
-            bound on the step's time (at most K + 2 tests). Past it the step holds the last
-            torque that passed, else the first of the rescue's own two brakes that passes one
-            test, else the uniform brake (:mod:`cpbc.controllers.safeguard.step_budget`).
+            bound on the step's time (at most K + 3 tests). Past it the step holds the last
+            torque that passed, else a rescue brake whose check came to rest within
+            ``rescue_budget``, else the uniform brake
+            (:mod:`cpbc.controllers.safeguard.step_budget`).
         time_budget: the longest one guard step (its ``filter``) may test torques for [s],
             None for no bound: past it the step stops testing as past ``test_budget``. It
             reads the clock (a run under it is not reproducible): for a robot's deadline.

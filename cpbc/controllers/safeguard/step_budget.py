@@ -12,12 +12,9 @@ law's torque fails (one brake, one test), is tested whatever the budget
 (:meth:`StepBudget.uncut`; cut off, it was made, dropped and made again by the step out of
 tests). Where none passed yet, the rescue answers first if it holds a committed brake, or at
 the motion's first step, where its search runs until rest (Safeguard._out_of_tests); else the
-step tests, once each, the rescue's own
-brakes (cpbc.constraints.brakes: the least-squares and the aimed one; the uniform one is the
-chain's first brake) over the period — a bounded set of candidates — and holds the first that
-passes; where none does, the rescue's search (until the arm rests in the model, or within its
-budget of model periods if it has one, holding only a brake whose check ended in it), else the
-uniform brake within the step's box, untested: the brake whose braking set (S2) keeps the arm
+rescue's search (until the arm rests in the model, or within its budget of model periods if it
+has one, holding only a brake whose check ended in it), else the uniform brake within the
+step's box, untested: the brake whose braking set (S2) keeps the arm
 in, which from a state the guard kept in V stops the arm before every configuration boundary,
 in the model (cpbc.constraints.stopping). Under a torque-rate limit that brake is reached
 into the step's ±ρh box by its nearest acceleration, which can spin a joint riding its rate
