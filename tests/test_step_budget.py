@@ -397,6 +397,28 @@ def test_under_a_rate_limit_the_committed_brake_held_is_the_torque_tested() -> N
     np.testing.assert_array_equal(held, tested[-1])
 
 
+def _as_a_robot_runs_it(load_dict, campaign_file: str, seed: int, seconds: float):
+    """The run of ``campaign_file``'s first constrained law from seed ``seed`` for
+    ``seconds``, with the robot's budgets of 6 tests a step and 8 model periods of rescue
+    (cpbc.reliability.campaign.checked_run, as cpbc.verify runs it)."""
+    import yaml
+
+    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
+    from cpbc.reliability.verification import draw_state
+
+    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
+    data = yaml.safe_load((campaign / campaign_file).read_text())
+    data["simulation"].update(safeguard_test_budget=6, safeguard_rescue_budget=8)
+    setup = load_dict(data)
+    entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
+    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
+    s = draw_state(setup, seed)
+    settings = replace(setup.loop_settings, duration=seconds, log_every=1)
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    return checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
+                       safeguard=setup.safeguard)
+
+
 def test_a_spent_step_under_a_rate_limit_holds_no_brake_that_fails_S0(load_dict) -> None:
     """panda_goal_pose_rate (the task-space law toward a hand pose under a 1000 N·m/s
     torque-rate limit) under the robot's budgets, 6 tests and B = 8, from seed 35: a start
@@ -406,22 +428,7 @@ def test_a_spent_step_under_a_rate_limit_holds_no_brake_that_fails_S0(load_dict)
     acceleration and held untested, drove joint 2 through its rate bound by 5.2 mrad/s at
     8 ms. Tested against (S0) and replaced by the brake along the line where it fails, as the
     unbounded guard's fallback does (Brakes.spent), the run keeps every constraint."""
-    import yaml
-
-    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
-    from cpbc.reliability.verification import draw_state
-
-    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
-    data = yaml.safe_load((campaign / "panda_goal_pose_rate.yaml").read_text())
-    data["simulation"].update(safeguard_test_budget=6, safeguard_rescue_budget=8)
-    setup = load_dict(data)
-    entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
-    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
-    s = draw_state(setup, 35)
-    settings = replace(setup.loop_settings, duration=0.2, log_every=1)
-    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
-    check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
-                        safeguard=setup.safeguard)
+    check = _as_a_robot_runs_it(load_dict, "panda_goal_pose_rate.yaml", 35, 0.2)
     assert not check.violated, (check.constraint, check.min_margin)
     assert check.trajectory.out_of_tests >= 2
 
@@ -435,21 +442,6 @@ def test_a_spent_step_holds_the_brake_S2_promised_not_one_tested_for_a_period(
     first of the rescue's least-squares and aimed brakes to pass one period's test took the
     hand through the table's clearance from 176 ms on; holding the uniform brake, the one the
     step before's (S2) was tested with (as a step out of time does), the run keeps it."""
-    import yaml
-
-    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
-    from cpbc.reliability.verification import draw_state
-
-    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
-    data = yaml.safe_load((campaign / "panda_figure8_ke_rate.yaml").read_text())
-    data["simulation"].update(safeguard_test_budget=6, safeguard_rescue_budget=8)
-    setup = load_dict(data)
-    entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
-    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
-    s = draw_state(setup, 58)
-    settings = replace(setup.loop_settings, duration=0.25, log_every=1)
-    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
-    check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
-                        safeguard=setup.safeguard)
+    check = _as_a_robot_runs_it(load_dict, "panda_figure8_ke_rate.yaml", 58, 0.25)
     assert not check.violated, (check.constraint, check.min_margin)
     assert check.min_margin > 1e-3  # the table's clearance keeps its cushion
