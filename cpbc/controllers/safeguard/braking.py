@@ -209,15 +209,25 @@ class Brakes:
         panda_goal_pose_rate's seed 35, a start inside V, through its rate bound by 5.2
         mrad/s at 8 ms under the robot's budgets (6 tests, 8 model periods; 2.6 mrad/s with
         the 150 µs time budget too), where the unbounded guard's fallback kept it."""
+        if not self.box.rate_limited:
+            return self.brake(bias, stop, self.settings.braking)
+        # a sign is all it asks
+        kept, calmest, _ = self._first_kept(bias, stop, self.positivity(predict, sample).sign)
+        return calmest if kept is None else kept
+
+    def _first_kept(self, bias: Array, stop: Array, positivity: Slack
+                    ) -> tuple[Array | None, Array, float]:
+        """The fallback's first answers, in its order: the calmest brake b − λ₀ D ẋ/h where
+        it keeps (S0) (``positivity`` ≥ 0), else under a torque-rate limit the brake along the
+        line or the taken-back acceleration that keeps it (:meth:`_held_back`), else None;
+        with the calmest brake and its F."""
         lam0 = self.settings.braking
         calmest = self.brake(bias, stop, lam0)
-        if not self.box.rate_limited:
-            return calmest
-        passes = self.positivity(predict, sample).sign  # a sign is all it asks
-        if passes(calmest) >= 0.0:
-            return calmest
-        held = self._held_back(bias, stop, lam0, passes)
-        return calmest if held is None else held
+        f_stop = positivity(calmest)
+        if f_stop >= 0.0:
+            return calmest, calmest, f_stop
+        held = self._held_back(bias, stop, lam0, positivity) if self.box.rate_limited else None
+        return held, calmest, f_stop
 
     def fallback(self, bias: Array, stop: Array, positivity: Slack,
                  escape: Array | None = None, holding: Slack | None = None) -> Array:
@@ -230,14 +240,9 @@ class Brakes:
         (the larger s for the curvature of φ that the first-order escape misses); else the
         λ that comes closest to (S0)."""
         lam0 = self.settings.braking
-        calmest = self.brake(bias, stop, lam0)
-        f_stop = positivity(calmest)
-        if f_stop >= 0.0:
-            return calmest
-        if self.box.rate_limited:
-            held = self._held_back(bias, stop, lam0, positivity)
-            if held is not None:
-                return held
+        kept, _, f_stop = self._first_kept(bias, stop, positivity)
+        if kept is not None:
+            return kept
         lam, f_lam = self.search_braking(bias, stop, positivity, f_stop,
                                          positivity(self.brake(bias, stop, 2.0)))
         if f_lam >= 0.0:  # bisect down towards the smallest λ that keeps (S0)
