@@ -89,6 +89,82 @@ def test_under_a_time_budget_a_test_begins_only_where_one_as_long_still_fits() -
     assert spent.counted(lambda t: float(t[0]))(np.array([2.0])) == 2.0  # the first, always
 
 
+def test_a_making_begins_only_where_one_as_long_as_its_kind_s_last_still_fits() -> None:
+    """Under a 0.5 s budget a slide made in 0.6 s is made (no slide made before: taken to be
+    made as fast as the step's longest test, none yet); at the next step none begins, since
+    one as long would not end within the budget, and the block is not entered; after
+    MADE_KEPT steps that asked for one (refused, or made quickly) the slow slide is
+    forgotten. Under a 1 s budget, a kind not made yet
+    after a 0.4 s test is taken to take as long as that test: 0.4 s gone and 0.8 s more do
+    not fit. Without a time budget nothing is gated."""
+    import time
+
+    from cpbc.controllers.safeguard.step_budget import MADE_KEPT
+
+    budget = StepBudget(None, 0.5)
+    entered = []
+
+    def step() -> None:
+        budget.start()
+        budget.begin()
+
+    step()
+    with budget.making("slide"):
+        time.sleep(0.6)
+    step()
+    with pytest.raises(OutOfTests), budget.making("slide"):
+        entered.append("slide")
+    assert entered == []
+    for _ in range(MADE_KEPT - 1):  # refused: one as long still does not fit
+        step()
+        with pytest.raises(OutOfTests), budget.making("slide"):
+            entered.append("slide")
+    step()
+    with budget.making("slide"):  # the slow one forgotten: taken as fast as the longest test
+        entered.append("quick")
+    step()
+    with budget.making("slide"):  # foretold by the quick one
+        entered.append("slide")
+    assert entered == ["quick", "slide"]
+    unseen = StepBudget(None, 1.0)
+    unseen.start()
+    unseen.begin()
+    unseen.counted(lambda t: (time.sleep(0.4), 1.0)[1])(np.array([1.0]))
+    with pytest.raises(OutOfTests), unseen.making("escape"):
+        entered.append("escape")
+    free = StepBudget(6)
+    with free.making("slide"):
+        time.sleep(0.01)
+    with free.making("slide"):
+        entered.append("free")
+    assert entered[-1] == "free"
+
+
+def test_what_is_made_ahead_is_untested_by_the_budget_and_ends_the_step_where_time_is_out(
+        ) -> None:
+    """Inside ``ahead`` no bound applies (a tenth test of a budget of one is made); after it
+    the step ends where a candidate as long as the step's longest would not end within the
+    budget (0.4 s test, 0.3 s ahead, 1 s), and goes on where one would (0.1 s, 0.1 s)."""
+    import time
+
+    one = StepBudget(1)
+    one.counted(lambda t: -1.0)(np.array([1.0]))
+    with one.ahead():
+        for _ in range(10):
+            one.counted(lambda t: 1.0)(np.array([1.0]))
+    for test, made, ends in ((0.4, 0.3, True), (0.1, 0.1, False)):
+        budget = StepBudget(None, 1.0)
+        budget.start()
+        budget.begin()
+        budget.counted(lambda t, s=test: (time.sleep(s), -1.0)[1])(np.array([1.0]))
+        if ends:
+            with pytest.raises(OutOfTests), budget.ahead():
+                time.sleep(made)
+        else:
+            with budget.ahead():
+                time.sleep(made)
+
+
 def test_a_budget_below_one_test_is_refused() -> None:
     with pytest.raises(ValueError, match="tests"):
         StepBudget(0)
@@ -277,6 +353,51 @@ def test_past_its_time_a_step_holds_the_uniform_brake_without_a_further_test() -
     uniform = twin.brakes.brake(bias, state.inertia @ state.dx / twin.period,
                                 twin.settings.braking)
     np.testing.assert_allclose(tau_timed, uniform, rtol=0, atol=1e-12)
+
+
+def test_out_of_time_under_a_rate_limit_a_step_holds_what_it_made_ahead() -> None:
+    """On the FR3 as a robot runs it (1000 N·m/s), seed 23's state fails the law's test. Under
+    a 50 ms budget, with the slide slowed to 60 ms, the step makes what a spent step holds
+    before its candidates (the uniform brake tested against (S0), Brakes.spent), then the
+    slide, which runs the budget out, and holds the torque made ahead. At the next step, one
+    slide as long would not fit: none is begun, and the step holds what it made ahead again.
+    Made after the budget ran out, that brake's tests ran up to 95 µs past it on the
+    Panda."""
+    import time
+
+    from cpbc.reliability.verification import draw_state
+    from cpbc.scenario import build, load_scenario
+
+    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
+    setup = build(*load_scenario(campaign / "fr3_sphere_rate_robot.yaml"))
+    assert setup.safeguard is not None
+    entry = next(e for e in setup.controllers if e.name == "CPBC")
+    s = draw_state(setup, 23)
+    guard = replace(setup, safeguard=replace(setup.safeguard, test_budget=None,
+                                             time_budget=0.05)).controller(entry)
+    assert isinstance(guard, Safeguard) and guard.box.rate_limited
+    guard.torque(s.position, np.zeros_like(s.velocity))  # at rest: the law's torque passes
+    assert guard.acted == 0
+    brakes = guard.brakes
+    slide, spent = brakes.slide, brakes.spent
+    slides, made = [], []
+
+    def slowed(*args):
+        slides.append(1)
+        time.sleep(0.06)
+        return slide(*args)
+
+    def recorded(*args):
+        made.append(spent(*args))
+        return made[-1]
+
+    brakes.slide = slowed  # type: ignore[method-assign]
+    brakes.spent = recorded  # type: ignore[method-assign]
+    held = [guard.torque(s.position, s.velocity) for _ in range(2)]
+    assert len(slides) == 1 and len(made) == 2
+    assert guard.out_of_tests == 2 and guard.acted == 2
+    for tau, ahead in zip(held, made, strict=True):
+        np.testing.assert_array_equal(tau, ahead)
 
 
 def test_tests_in_an_uncut_block_count_and_none_is_cut() -> None:

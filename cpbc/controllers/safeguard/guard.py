@@ -308,7 +308,8 @@ class Safeguard(SafetyFilter):
         the rescue's committed brake while it holds it (Rescue.held_brake: one brake, one
         test), or at the motion's first step its search, which runs until rest; then, under
         a time budget, the uniform brake, which the step before's torque was tested with
-        ((S2): it stops the arm from here), at once — a search reads every stopping point
+        ((S2): it stops the arm from here), at once (under a rate limit as made ahead of the
+        candidates, StepBudget.ready) — a search reads every stopping point
         before its test (up to ~200 µs for the aimed brake on the Panda), which no test's
         time foretells —; else the rescue's search (within its budget of model periods, if
         it has one), else the uniform brake. The uniform brake is held untested, but under a
@@ -327,7 +328,8 @@ class Safeguard(SafetyFilter):
         if held is not None:
             return held
         if self.budget.timed:
-            return self._spent(step)
+            ready = self.budget.ready
+            return ready if ready is not None else self._spent(step)
         if not first_step(self.calls):
             with self.budget.lifted():
                 held = brakes.rescued(state, bias, step.predict, step.now, self.calls)
@@ -385,6 +387,28 @@ class Safeguard(SafetyFilter):
                                       Sample(state.x, now), refine)  # (S1)
         return StepTests(state, bias, predict, now, floor, floor_mid, stop, past, slack)
 
+    def _before_candidates(self, step: StepTests) -> Array | None:
+        """Once the law's torque fails: the rescue's committed brake where it holds one that
+        passes, else None, having made, under a time budget and a rate limit, what a step
+        out of time would hold (StepBudget.ready)."""
+        # a brake whose check saw the arm to rest (Rescue.held_brake): its one test is made
+        # whatever the step's budget, as a step out of tests would make it (_out_of_tests;
+        # cut off here, the brake was made twice: the bounded tail's worst steps, 300 µs on
+        # the Panda); refused, the step goes on only where its time allows
+        if self.brakes.holding(self.calls):
+            with self.budget.uncut():
+                held = self.brakes.committed(step.state, step.bias, step.predict, self.calls)
+            if held is not None:
+                return held
+        if self.budget.timed and self.box.rate_limited and not first_step(self.calls):
+            # What a step out of time holds, made before the candidates and inside the
+            # budget: under a rate limit it is tested against (S0) (up to three tests,
+            # Brakes.spent), and made after the budget ran out those tests ran past it (the
+            # robot's bounded step under 1000 N·m/s: 150 µs of tests, then up to 95 µs more)
+            with self.budget.ahead():
+                self.budget.ready = self._spent(step)
+        return None
+
     def _choose(self, step: StepTests, tau: Array) -> Array:
         """The chain of candidates (the package docstring, steps 3 and 4): the law's torque
         as held, the slide, the brakes and their search, the rescue, the fallback."""
@@ -394,18 +418,13 @@ class Safeguard(SafetyFilter):
         if f0 >= 0.0:
             return tau
         self.acted += 1
-        # a brake whose check saw the arm to rest (Rescue.held_brake): its one test is made
-        # whatever the step's budget, as a step out of tests would make it (_out_of_tests;
-        # cut off here, the brake was made twice: the bounded tail's worst steps, 300 µs on
-        # the Panda); refused, the step goes on only where its time allows
-        if brakes.holding(self.calls):
-            with self.budget.uncut():
-                held = brakes.committed(state, bias, step.predict, self.calls)
-            if held is not None:
-                return held
+        held = self._before_candidates(step)
+        if held is not None:
+            return held
         if step.floor_mid is not None:  # first the law less its push into the boundaries
-            slid = brakes.slide(state, bias, tau, step.now, step.floor, step.floor_mid,
-                                step.stop)
+            with self.budget.making("slide"):
+                slid = brakes.slide(state, bias, tau, step.now, step.floor, step.floor_mid,
+                                    step.stop)
             f_slid = slack(slid)
             if f_slid >= 0.0:
                 return accept.blend(tau, slid, f0, f_slid, slack)

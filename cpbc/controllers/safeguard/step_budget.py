@@ -30,22 +30,38 @@ first (the law's, always tested) begins only where a candidate as long as the st
 so far would still end within ``seconds`` of the start of the guard's step (Safeguard.filter);
 and a refused torque, which sends the guard to make another candidate, ends the step at once
 where one as long would not. The step then holds what a step out of tests holds under a time
-budget — the last torque that passed, or the uniform brake untested. So a step ends within its
-budget and what follows the tests (the held torque or the brake): stopping once the budget was
-spent let the test under way run past it (the Panda's worst bounded step was 6.4 × its
+budget — the last torque that passed, or the uniform brake untested. Stopping once the budget
+was spent let the test under way run past it (the Panda's worst bounded step was 6.4 × its
 median, docs/speed.md), and gating the tests alone let the work before the next test — the
-slide's 45 µs — run past it. It reads the clock, so a run under it is not reproducible; it is
-for a robot (cpbc.hardware sets it from the deadline), never simulation's default.
+slide's 45 µs — run past it. Two things more make what follows the tests part of the budget:
+- the slide, whose making (the constraints' gradients, a projection, the margins where the
+  arm would stop: 45–125 µs on the Panda) costs more than a test, begins only where one made
+  as long as the longest of its last few (:data:`MADE_KEPT`), and a test as long as the
+  step's longest, end within the budget (:meth:`StepBudget.making`);
+- under a torque-rate limit what a step out of time holds — the uniform brake tested against
+  (S0), up to three tests (Brakes.spent) — is made before the candidates once the law's
+  torque fails (:meth:`StepBudget.ahead`, :attr:`StepBudget.ready`), not after the budget
+  ran out, where it ran up to 95 µs past it.
+So a step ends within its budget but for the law's own test and a committed brake's (each
+always made), and a making or test longer than the ones that foretold it. It reads the clock,
+so a run under it is not reproducible; it is for a robot (cpbc.hardware sets it from the
+deadline), never simulation's default.
 """
 
 from __future__ import annotations
 
 import sys
 import time
+from collections import deque
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 from cpbc.arrays import Array
+
+#: The makings of one kind whose longest foretells the next (StepBudget.making): the slide's
+#: making varies 45–125 µs on the Panda from one step to the next, so the last one alone
+#: foretells it poorly; a making a stall of the machine slowed is forgotten after these.
+MADE_KEPT = 8
 
 
 class OutOfTests(Exception):  # a signal of the budget, not an error
@@ -63,6 +79,9 @@ class StepBudget:
     Attributes:
         used: tests made at this step.
         passed: the last torque that passed its test at this step, or None.
+        ready: the torque this step holds if its tests run out before one passes, made
+            ahead of its need (Safeguard._choose, under a time budget and a torque-rate
+            limit), or None.
         longest: the longest candidate of this step whose test was exact, its making and
             its test [s] (timed under a time budget only).
         spent: steps that ran out of tests.
@@ -78,10 +97,12 @@ class StepBudget:
         self._until = float("inf")
         self.used = 0
         self.passed: Array | None = None
+        self.ready: Array | None = None
         self.longest = 0.0
         self._mark = 0.0  # the end of the step's last test (or its beginning)
         self.spent = 0
         self._uncut = False  # inside uncut(): tests count, none is cut off
+        self._made: dict[str, deque[float | None]] = {}  # each kind's last makings [s]
 
     def start(self) -> None:
         """The guarded call begins: its time is counted from now."""
@@ -95,7 +116,7 @@ class StepBudget:
 
     def begin(self) -> None:
         """A new step: no test made yet."""
-        self.used, self.passed, self.longest = 0, None, 0.0
+        self.used, self.passed, self.ready, self.longest = 0, None, None, 0.0
         if self.seconds is not None:
             self._mark = time.perf_counter()
 
@@ -127,6 +148,39 @@ class StepBudget:
             now = time.perf_counter()
             self._mark = now
             if self.passed is before and self.used and now + self.longest > self._until:
+                raise OutOfTests
+
+    @contextmanager
+    def making(self, kind: str) -> Iterator[None]:
+        """The block makes a candidate of ``kind`` whose making costs more than a test (the
+        slide): under a time budget the step ends before it where making one as long as the
+        last of its kind, and a test as long as the step's longest, would not end within the
+        budget; the block's time is then that kind's."""
+        if self._until == float("inf"):
+            yield
+            return
+        made = self._made.setdefault(kind, deque(maxlen=MADE_KEPT))
+        begun = time.perf_counter()
+        # a kind not made of late is taken to be made as fast as the step's longest test
+        known = [t for t in made if t is not None]
+        if begun + max(known, default=self.longest) + self.longest > self._until:
+            made.append(None)  # refused, it ages the record as a making does: a making a
+            raise OutOfTests   # stall slowed past the budget does not bar its kind for good
+        yield
+        made.append(time.perf_counter() - begun)
+
+    @contextmanager
+    def ahead(self) -> Iterator[None]:
+        """What a spent step would hold, made inside the block before the step's next
+        candidate (:attr:`ready`): no bound inside it, and under a time budget the step ends
+        after it where a candidate as long as the step's longest would not end within the
+        budget, the next candidate's time running from the block's end."""
+        with self.lifted():
+            yield
+        if self._until < float("inf"):
+            now = time.perf_counter()
+            self._mark = now
+            if now + self.longest > self._until:
                 raise OutOfTests
 
     def counted(self, slack: Callable[[Array], float],
