@@ -233,6 +233,18 @@ def test_the_brake_path_that_turns_keeps_a_clearance_the_arm_skims(seed, horizon
     _kept_from_inside_v(seed, horizon, "panda_figure8_ke_rate", "TS-CPBC-KE-x1", on_path=True)
 
 
+def test_eight_points_of_the_brake_path_keep_a_clearance_four_let_through() -> None:
+    """panda_figure8_ke under a 1000 N·m/s rate limit, the first law, seed 19 (a stoppable
+    start inside V): the guard rescues the arm off the table and lets the law on again, over
+    and over, the hand 0.5–2 mm above the table. With (S2) holding the clearance at 4 points
+    of the uniform brake's turning path, from 453 ms the law's torque passed while the
+    clearance between those points dipped under its floor; from 470 ms no torque kept (S1),
+    no rescue brake stopped the arm, and the hand crossed the table by 0.79 mm at 500 ms
+    (after 811dfc8's round-off; before it the same run kept 0.5 mm). 8 points of the path
+    (predicted_margins.SEGMENT_POINTS) keep 0.58 mm; 16 keep the same."""
+    _kept_from_inside_v(19, 0.5, "panda_figure8_ke_rate", "TS-CPBC-KE-x1", on_path=True)
+
+
 def test_a_refused_step_takes_back_the_held_acceleration_before_it_spins_a_riding_joint_up(
 ) -> None:
     """panda_goal_pose under a 1000 N·m/s rate limit, seed 35 (a stoppable start inside V on
