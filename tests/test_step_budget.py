@@ -558,7 +558,8 @@ def test_a_spent_step_holds_the_brake_S2_promised_not_one_tested_for_a_period(
         load_dict) -> None:
     """The figure eight under a 1000 N·m/s torque-rate limit
     (tools/campaigns/panda_figure8_ke_rate.yaml) with the robot's budgets, 6 tests and B = 8,
-    from seed 58, a start inside V: the law's torque fails at two steps of three and 6 tests
+    from seed 58, a start inside V, the path from its beginning (cpbc.verify starts it at the
+    seed's own phase): the law's torque fails at two steps of three and 6 tests
     reach no further than the slide and the brakes along the line. A spent step that held the
     first of the rescue's least-squares and aimed brakes to pass one period's test took the
     hand through the table's clearance from 176 ms on; holding the uniform brake, the one the
