@@ -54,7 +54,7 @@ import sys
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager, nullcontext
 
 from cpbc.arrays import Array
 
@@ -62,6 +62,7 @@ from cpbc.arrays import Array
 #: making varies 45–125 µs on the Panda from one step to the next, so the last one alone
 #: foretells it poorly; a making a stall of the machine slowed is forgotten after these.
 MADE_KEPT = 8
+_NOTHING = nullcontext()  # making() without a time budget: no bound, nothing timed
 
 
 class OutOfTests(Exception):  # a signal of the budget, not an error
@@ -150,15 +151,18 @@ class StepBudget:
             if self.passed is before and self.used and now + self.longest > self._until:
                 raise OutOfTests
 
-    @contextmanager
-    def making(self, kind: str) -> Iterator[None]:
+    def making(self, kind: str) -> AbstractContextManager[None]:
         """The block makes a candidate of ``kind`` whose making costs more than a test (the
         slide): under a time budget the step ends before it where making one as long as the
         last of its kind, and a test as long as the step's longest, would not end within the
-        budget; the block's time is then that kind's."""
+        budget; the block's time is then that kind's. Without one, nothing is done."""
         if self._until == float("inf"):
-            yield
-            return
+            return _NOTHING
+        return self._timed_making(kind)
+
+    @contextmanager
+    def _timed_making(self, kind: str) -> Iterator[None]:
+        """:meth:`making` under a time budget."""
         made = self._made.setdefault(kind, deque(maxlen=MADE_KEPT))
         begun = time.perf_counter()
         # a kind not made of late is taken to be made as fast as the step's longest test
