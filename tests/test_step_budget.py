@@ -518,10 +518,13 @@ def test_under_a_rate_limit_the_committed_brake_held_is_the_torque_tested() -> N
     np.testing.assert_array_equal(held, tested[-1])
 
 
-def _as_a_robot_runs_it(load_dict, campaign_file: str, seed: int, seconds: float):
+def _as_a_robot_runs_it(load_dict, campaign_file: str, seed: int, seconds: float,
+                        on_path: bool = False, **simulation: float):
     """The run of ``campaign_file``'s first constrained law from seed ``seed`` for
     ``seconds``, with the robot's budgets of 6 tests a step and 8 model periods of rescue
-    (cpbc.reliability.campaign.checked_run, as cpbc.verify runs it)."""
+    and the ``simulation`` fields given (cpbc.reliability.campaign.checked_run, as
+    cpbc.verify runs it; ``on_path``: from the seed's own phase of the path, as it does,
+    else from the path's beginning)."""
     import yaml
 
     from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
@@ -529,15 +532,19 @@ def _as_a_robot_runs_it(load_dict, campaign_file: str, seed: int, seconds: float
 
     campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
     data = yaml.safe_load((campaign / campaign_file).read_text())
-    data["simulation"].update(safeguard_test_budget=6, safeguard_rescue_budget=8)
+    data["simulation"].update(safeguard_test_budget=6, safeguard_rescue_budget=8, **simulation)
     setup = load_dict(data)
     entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
     kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
     s = draw_state(setup, seed)
     settings = replace(setup.loop_settings, duration=seconds, log_every=1)
     plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    phase = 0.0
+    if on_path:
+        assert setup.reference is not None
+        phase = setup.reference.phase(entry.name, seed)
     return checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
-                       safeguard=setup.safeguard)
+                       safeguard=setup.safeguard, phase=phase)
 
 
 def test_a_spent_step_under_a_rate_limit_holds_no_brake_that_fails_S0(load_dict) -> None:
@@ -567,3 +574,15 @@ def test_a_spent_step_holds_the_brake_S2_promised_not_one_tested_for_a_period(
     check = _as_a_robot_runs_it(load_dict, "panda_figure8_ke_rate.yaml", 58, 0.25)
     assert not check.violated, (check.constraint, check.min_margin)
     assert check.min_margin > 1e-3  # the table's clearance keeps its cushion
+
+
+
+def test_a_tracker_reports_its_guards_spent_steps(load_dict) -> None:
+    """The figure eight (a path, its law a reference tracker around the safeguard) under
+    the tightest time budget, seed 19 from its phase of the path: the run's trajectory
+    counts the steps that spent the budget, as it counts the guard's acting steps. The
+    tracker passed on the guard's acting, infeasible and rescue counts and left this one
+    at 0."""
+    traj = _as_a_robot_runs_it(load_dict, "panda_figure8_ke_rate.yaml", 19, 0.05,
+                               on_path=True, safeguard_time_budget=1e-9).trajectory
+    assert 0 < traj.out_of_tests <= traj.safeguard_steps

@@ -412,7 +412,7 @@ class GuardedReferenceTracker(ReferenceTracker, SafetyFilter):
         run = self.run
         assert isinstance(run, SafetyFilter)
         self.acted, self.infeasible = run.acted, run.infeasible
-        self.rescues = run.rescues
+        self.rescues, self.out_of_tests = run.rescues, run.out_of_tests
         return out
 
     @property

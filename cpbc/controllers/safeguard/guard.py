@@ -282,9 +282,8 @@ class Safeguard(SafetyFilter):
                                         self._velocity_floor)
 
     def lyapunov(self, x: Array, dx: Array) -> float:
-        """The law's V, which the guard leaves as it is: the law alone is asked, no guard runs
-        and no count moves (the loop asks for the true state's V beside every guarded call
-        when the measurement is noisy)."""
+        """The law's V: the law alone is asked, no count moves (the loop asks for the true
+        state's V beside every guarded call when the measurement is noisy)."""
         return self.law.lyapunov(x, dx)
 
     # -- the guard ---------------------------------------------------------------------------
@@ -314,12 +313,8 @@ class Safeguard(SafetyFilter):
         time foretells —; else the rescue's search (within its budget of model periods, if
         it has one), else the uniform brake. The uniform brake is held untested, but under a
         torque-rate limit where it fails (S0) the fallback's brakes reached along the line
-        come first (:meth:`_spent`). (A spent step under a count budget also held the first
-        of the rescue's least-squares and aimed brakes that passed one test over the period,
-        until 2026-11-29: a brake that (S2) did not promise, which took the figure eight's
-        seed 58 (panda_figure8_ke_rate under the robot's budgets), a start inside V, through
-        the table's clearance by 3.4 mm, and the UR5 rate campaign's seed 101, outside V,
-        through the elbow's limit; docs/reliability.md.)"""
+        come first (:meth:`_spent`). Not the first of the rescue's brakes to pass one
+        period's test: (S2) did not promise it (figure eight, seed 58, docs/reliability.md)."""
         state, bias, brakes = step.state, step.bias, self.brakes
         with self.budget.lifted():
             held = brakes.committed(state, bias, step.predict, self.calls)
@@ -370,12 +365,10 @@ class Safeguard(SafetyFilter):
         if nc:
             floor_mid = mid
             if self._extra is not None and not now[now.argmin()] > 0.0:
-                # An extra constraint (one only the guard keeps) is broken already: the arm
-                # went past a limit the law does not know of, from a state nothing could stop
-                # it from. No torque brings its margin back within one period, so it must
-                # merely not shrink: a law that leads back is let through, and the guard
-                # never holds the arm at rest beyond the limit (it did, for good, once
-                # asking for a positive margin at the period's end made every step fail).
+                # An extra constraint (one only the guard keeps) is broken already, from a
+                # state nothing could stop the arm from: its margin must merely not shrink,
+                # so a law that leads back is let through (asking for a positive margin at
+                # the period's end made every step fail and held the arm there for good).
                 past = now <= 0.0
                 if refine is not None:  # the floors copied below: exact before
                     refine()
@@ -392,19 +385,16 @@ class Safeguard(SafetyFilter):
         passes, else None, having made, under a time budget and a rate limit, what a step
         out of time would hold (StepBudget.ready)."""
         # a brake whose check saw the arm to rest (Rescue.held_brake): its one test is made
-        # whatever the step's budget, as a step out of tests would make it (_out_of_tests;
-        # cut off here, the brake was made twice: the bounded tail's worst steps, 300 µs on
-        # the Panda); refused, the step goes on only where its time allows
+        # whatever the budget, as a step out of tests would make it (cut off, it was made
+        # twice: 300 µs on the Panda); refused, the step goes on where its time allows
         if self.brakes.holding(self.calls):
             with self.budget.uncut():
                 held = self.brakes.committed(step.state, step.bias, step.predict, self.calls)
             if held is not None:
                 return held
         if self.budget.timed and self.box.rate_limited and not first_step(self.calls):
-            # What a step out of time holds, made before the candidates and inside the
-            # budget: under a rate limit it is tested against (S0) (up to three tests,
-            # Brakes.spent), and made after the budget ran out those tests ran past it (the
-            # robot's bounded step under 1000 N·m/s: 150 µs of tests, then up to 95 µs more)
+            # what a step out of time holds, made inside the budget: its (S0) tests
+            # (Brakes.spent), made after the budget ran out, ran up to 95 µs past it
             with self.budget.ahead():
                 self.budget.ready = self._spent(step)
         return None
@@ -432,10 +422,8 @@ class Safeguard(SafetyFilter):
         brake = brakes.brake(bias, to_rest, self.settings.braking)
         f1 = slack(brake)
         if f1 < 0.0 and self.box.rate_limited:
-            # A joint riding its rate bound while a ±ρh box cannot give every joint its share
-            # of the brake: the nearest acceleration sped it up through the coupling, and the
-            # step fell to the fallback, which broke the bound (panda_goal_pose_rate, seed
-            # 100, docs/reliability.md); the brake reached along the line slows it.
+            # a joint riding its rate bound, sped up through D by the nearest acceleration
+            # (panda_goal_pose_rate seed 100, docs/reliability.md): the line slows it
             line = brakes.brake_along_line(bias, to_rest, self.settings.braking)
             f_line = slack(line)
             if f_line >= 0.0:
@@ -460,12 +448,11 @@ class Safeguard(SafetyFilter):
         return accept.blend(tau, brake, f0, f1, slack)
 
     def warm(self, x: Array, dx: Array) -> None:
-        """Take every path of a step once at (x, ẋ), whatever the law's torque does there:
-        the test, the slide, the brakes, the search of λ, the blend, the rescue's search, the
-        fallback and a spent step's rescue brakes — as a real-time loop must before its
-        first cycle, where the first call of a compiled kernel or a path costs
-        milliseconds. The counts and the rescue's commitment move: warm a spare guard, not
-        the one that drives."""
+        """Take every path of a step once at (x, ẋ), whatever the law's torque does there
+        (the test, the slide, the brakes, the search of λ, the blend, the rescue's search,
+        the fallback, a spent step's brake), as a real-time loop must before its first
+        cycle, where a first call costs milliseconds. The counts and the rescue's
+        commitment move: warm a spare guard, not the one that drives."""
         state = self.law.state(x, dx)
         out = self.law.evaluate_state(state, margins=True)
         assert out.margins is not None  # asked for
