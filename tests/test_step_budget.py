@@ -96,7 +96,9 @@ def test_a_making_begins_only_where_one_as_long_as_its_kind_s_last_still_fits() 
     MADE_KEPT steps that asked for one (refused, or made quickly) the slow slide is
     forgotten. Under a 1 s budget, a kind not made yet
     after a 0.4 s test is taken to take as long as that test: 0.4 s gone and 0.8 s more do
-    not fit. Without a time budget nothing is gated."""
+    not fit. A making's time is its kind's, not the next candidate's: the test after a 0.3 s
+    slide does not set the step's longest to 0.3 s. Without a time budget nothing is
+    gated."""
     import time
 
     from cpbc.controllers.safeguard.step_budget import MADE_KEPT
@@ -126,6 +128,13 @@ def test_a_making_begins_only_where_one_as_long_as_its_kind_s_last_still_fits() 
     with budget.making("slide"):  # foretold by the quick one
         entered.append("slide")
     assert entered == ["quick", "slide"]
+    apart = StepBudget(None, 10.0)  # a making is its kind's record, not the next test's
+    apart.start()
+    apart.begin()
+    with apart.making("slide"):
+        time.sleep(0.3)
+    apart.counted(lambda t: 1.0)(np.array([1.0]))
+    assert apart.longest < 0.3
     unseen = StepBudget(None, 1.0)
     unseen.start()
     unseen.begin()

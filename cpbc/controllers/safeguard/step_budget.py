@@ -171,7 +171,8 @@ class StepBudget:
             made.append(None)  # refused, it ages the record as a making does: a making a
             raise OutOfTests   # stall slowed past the budget does not bar its kind for good
         yield
-        made.append(time.perf_counter() - begun)
+        self._mark = ended = time.perf_counter()  # the next test's candidate is its test
+        made.append(ended - begun)
 
     @contextmanager
     def ahead(self) -> Iterator[None]:
