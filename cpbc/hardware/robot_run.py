@@ -55,7 +55,7 @@ ROBOT_TEST_BUDGET = 6
 #: the law and the command's way out. The law's own torque is always tested, so calm cycles
 #: never feel it, and the tightest budget, the law's torque alone, kept every rate-campaign
 #: start inside the braking set (docs/reliability.md) — not yet every start of the figure
-#: eight's task-space law, whose own test leaves no time for another at 15 %.
+#: eight's task-space law, which needs the rescue's search that no spent step asks.
 ROBOT_TIME_SHARE = 0.15
 
 
