@@ -177,7 +177,7 @@ class Brakes:
         fail, and worse ones (a Panda joint limit broken at 100 Hz)."""
         delta, nc, check = self.cushion, self.n_config, self.acceptance.check
         frozen = _first_prediction(predict)
-        positivity = self.positivity(predict)
+        positivity = self.positivity(frozen)
         if floor_mid is None:
             return self.fallback(bias, stop, positivity)
         # (S−), for the escape: configuration margins recover as (S1) asks at the end but,
@@ -189,14 +189,14 @@ class Brakes:
         escape = self._escape(state, now, hold_end, hold_mid)
         return self.fallback(bias, stop, positivity, escape, check(frozen, hold_end, hold_mid))
 
-    def positivity(self, predict: Predictor, sample: Sample | None = None) -> StepSlack:
-        """(S0), every margin above its cushion, m ≥ δ, over the first (frozen) prediction
-        alone: the fallback's test (:meth:`infeasible`). With ``sample`` (where the step
-        starts) its ``sign`` leaves the sphere clearances that the sample's margins bound
-        uncomputed (PredictedMargins.slack)."""
+    def positivity(self, frozen: Predictor, sample: Sample | None = None) -> StepSlack:
+        """(S0), every margin above its cushion, m ≥ δ, over ``frozen``, the first (frozen)
+        prediction alone (:func:`_first_prediction`): the fallback's test (:meth:`infeasible`).
+        With ``sample`` (where the step starts) its ``sign`` leaves the sphere clearances that
+        the sample's margins bound uncomputed (PredictedMargins.slack)."""
         nc = self.n_config
-        return self.acceptance.check(_first_prediction(predict), self.cushion,
-                                     self.cushion[:nc] if nc else None, sample=sample)
+        return self.acceptance.check(frozen, self.cushion, self.cushion[:nc] if nc else None,
+                                     sample=sample)
 
     def spent(self, bias: Array, stop: Array, predict: Predictor, sample: Sample) -> Array:
         """What a step whose budget of tests is spent holds where no candidate passed
@@ -212,7 +212,8 @@ class Brakes:
         if not self.box.rate_limited:
             return self.brake(bias, stop, self.settings.braking)
         # a sign is all it asks
-        kept, calmest, _ = self._first_kept(bias, stop, self.positivity(predict, sample).sign)
+        kept, calmest, _ = self._first_kept(
+            bias, stop, self.positivity(_first_prediction(predict), sample).sign)
         return calmest if kept is None else kept
 
     def _first_kept(self, bias: Array, stop: Array, positivity: Slack

@@ -84,7 +84,8 @@ class StepBudget:
             ahead of its need (Safeguard._choose, under a time budget and a torque-rate
             limit), or None.
         longest: the longest candidate of this step whose test was exact, its making and
-            its test [s] (timed under a time budget only).
+            its test [s] (timed under a time budget only; a slide's making is kept apart,
+            :meth:`making`).
         spent: steps that ran out of tests.
     """
 
@@ -145,11 +146,7 @@ class StepBudget:
             yield
         finally:
             self._uncut = False
-        if self._until < float("inf"):
-            now = time.perf_counter()
-            self._mark = now
-            if self.passed is before and self.used and now + self.longest > self._until:
-                raise OutOfTests
+        self._block_ended(self.passed is before and self.used > 0)
 
     def making(self, kind: str) -> AbstractContextManager[None]:
         """The block makes a candidate of ``kind`` whose making costs more than a test (the
@@ -182,10 +179,16 @@ class StepBudget:
         budget, the next candidate's time running from the block's end."""
         with self.lifted():
             yield
+        self._block_ended(True)
+
+    def _block_ended(self, goes_on: bool) -> None:
+        """After :meth:`uncut`'s or :meth:`ahead`'s block, under a time budget: the next
+        candidate's time runs from now, and where the step ``goes_on`` to another candidate
+        it ends here (OutOfTests) unless one as long as its longest would end within the
+        budget."""
         if self._until < float("inf"):
-            now = time.perf_counter()
-            self._mark = now
-            if now + self.longest > self._until:
+            now = self._mark = time.perf_counter()
+            if goes_on and now + self.longest > self._until:
                 raise OutOfTests
 
     def counted(self, slack: Callable[[Array], float],
