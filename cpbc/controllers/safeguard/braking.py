@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 
@@ -21,6 +22,38 @@ from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.controllers.safeguard.step_box import StepBox
 from cpbc.kernels.sampled_guard import project_halfspaces
 from cpbc.model.robot_model import ArmState
+
+
+class Reaches(NamedTuple):
+    """The calmest brake b − λ₀ D ẋ/h of one step reached into its box, with F of (S1) and
+    (S2) of each (or its sign, exact where < 0: StepSlack.sign): by its nearest
+    acceleration, and under a torque-rate limit along the line from the held torque (None
+    where it was not made).
+
+    Attributes:
+        nearest, f_nearest: the brake reached by its nearest acceleration (Brakes.brake), F.
+        line, f_line: reached along the line (Brakes.brake_along_line), F; or None, −∞.
+    """
+
+    nearest: Array
+    f_nearest: float
+    line: Array | None = None
+    f_line: float = -math.inf
+
+    def first_passing(self) -> tuple[Array, float]:
+        """The nearest reach where it passes, else the line where it passes, else the
+        nearest: the guard's brake among its candidates (Safeguard._choose)."""
+        if self.f_nearest < 0.0 and self.line is not None and self.f_line >= 0.0:
+            return self.line, self.f_line
+        return self.nearest, self.f_nearest
+
+    def by_f(self) -> tuple[Array, ...]:
+        """The reaches made, the one whose F comes nearer to passing first."""
+        if self.line is None:
+            return (self.nearest,)
+        if self.f_line > self.f_nearest:
+            return self.line, self.nearest
+        return self.nearest, self.line
 
 
 class Brakes:
@@ -52,6 +85,19 @@ class Brakes:
     def brake(self, bias: Array, stop: Array, lam: float) -> Array:
         """The braking torque b − λ D ẋ/h, put in the step's box (StepBox.fit)."""
         return self.box.fit(bias, bias - lam * stop, brake=True)
+
+    def calmest(self, bias: Array, stop: Array, slack: Slack, both: bool = False) -> Reaches:
+        """The calmest brake b − λ₀ D ẋ/h reached by its nearest acceleration and F there;
+        under a torque-rate limit, where it fails (or ``both``), reached along the line too:
+        a joint riding its rate bound, sped up through D by the nearest acceleration
+        (panda_goal_pose_rate seed 100, docs/reliability.md), the line slows."""
+        lam0 = self.settings.braking
+        nearest = self.brake(bias, stop, lam0)
+        f = slack(nearest)
+        if not self.box.rate_limited or (f >= 0.0 and not both):
+            return Reaches(nearest, f)
+        line = self.brake_along_line(bias, stop, lam0)
+        return Reaches(nearest, f, line, slack(line))
 
     def brake_along_line(self, bias: Array, stop: Array, lam: float) -> Array:
         """The braking torque b − λ D ẋ/h reached from the held torque along the straight
@@ -198,23 +244,35 @@ class Brakes:
         return self.acceptance.check(frozen, self.cushion, self.cushion[:nc] if nc else None,
                                      sample=sample)
 
-    def spent(self, bias: Array, stop: Array, predict: Predictor, sample: Sample) -> Array:
+    def spent(self, bias: Array, stop: Array, predict: Predictor, sample: Sample,
+              reaches: Reaches | None) -> Array:
         """What a step whose budget of tests is spent holds where no candidate passed
         (Safeguard._out_of_tests): the calmest brake b − λ₀ D ẋ/h in the step's box,
-        untested; under a torque-rate limit tested against (S0) and, where it fails, the
-        brake along the line or the taken-back acceleration that keeps (S0)
-        (:meth:`_held_back`), as the fallback orders them — at most three tests. Reached by
-        its nearest acceleration within ±ρh the brake can spin a joint riding its rate
+        untested; under a torque-rate limit its ``reaches`` — by its nearest acceleration
+        within ±ρh and along the line from the held torque, F of (S1) and (S2) made for
+        each — the one nearer to passing first, then the other, then b reached along the
+        line (the held acceleration taken back, as :meth:`_held_back`): the first that keeps
+        (S0), else the nearest.
+
+        Reached by its nearest acceleration the brake can spin a joint riding its rate
         bound up through the coupling in D: held untested, it let joint 2 of
         panda_goal_pose_rate's seed 35, a start inside V, through its rate bound by 5.2
-        mrad/s at 8 ms under the robot's budgets (6 tests, 8 model periods; 2.6 mrad/s with
-        the 150 µs time budget too), where the unbounded guard's fallback kept it."""
-        if not self.box.rate_limited:
+        mrad/s at 8 ms under the robot's budgets (6 tests, 8 model periods), where the
+        unbounded guard's fallback kept it — hence (S0). And it bends the path (S2) tested:
+        on the figure eight (seed 19, inside V) it stopped the wrist within 15–30 ms while
+        the shoulder and elbow ran on and carried the hand 0.15–0.75 mm through the table,
+        where the line, whose path is (S2)'s (the held acceleration fading as the brake
+        builds), passed F at the chain's first step. The line alone is no answer either: it
+        takes the held acceleration back at the pace of the joint with the most to change,
+        and held from every spent step it let the figure eight's seed 53 through its
+        kinetic-energy bound by 0.12 J at 500 Hz (docs/reliability.md)."""
+        if reaches is None:
             return self.brake(bias, stop, self.settings.braking)
-        # a sign is all it asks
-        kept, calmest, _ = self._first_kept(
-            bias, stop, self.positivity(_first_prediction(predict), sample).sign)
-        return calmest if kept is None else kept
+        keeps = self.positivity(_first_prediction(predict), sample).sign  # a sign: all it asks
+        for tau in (*reaches.by_f(), self.box.fit(bias, bias)):
+            if keeps(tau) >= 0.0:
+                return tau
+        return reaches.nearest
 
     def _first_kept(self, bias: Array, stop: Array, positivity: Slack
                     ) -> tuple[Array | None, Array, float]:

@@ -18,7 +18,7 @@ from cpbc.controllers.controller import Controller, Evaluation, SafetyFilter
 from cpbc.controllers.hold import hold_share
 from cpbc.controllers.rescue import Rescue, first_step
 from cpbc.controllers.safeguard.acceptance import Acceptance, StepSlack
-from cpbc.controllers.safeguard.braking import Brakes
+from cpbc.controllers.safeguard.braking import Brakes, Reaches
 from cpbc.controllers.safeguard.error_floors import ErrorFloors
 from cpbc.controllers.safeguard.model_error import DeclaredError
 from cpbc.controllers.safeguard.predicted_margins import (
@@ -303,18 +303,14 @@ class Safeguard(SafetyFilter):
             return self._out_of_tests(step)
 
     def _out_of_tests(self, step: StepTests) -> Array:
-        """A step whose budget of tests is spent before any torque passed (step_budget.py):
-        the rescue's committed brake while it holds it (Rescue.held_brake: one brake, one
-        test), or at the motion's first step its search, which runs until rest; then, under
-        a time budget, the uniform brake, which the step before's torque was tested with
-        ((S2): it stops the arm from here), at once (under a rate limit as made ahead of the
-        candidates, StepBudget.ready) — a search reads every stopping point
-        before its test (up to ~200 µs for the aimed brake on the Panda), which no test's
-        time foretells —; else the rescue's search (within its budget of model periods, if
-        it has one), else the uniform brake. The uniform brake is held untested, but under a
-        torque-rate limit where it fails (S0) the fallback's brakes reached along the line
-        come first (:meth:`_spent`). Not the first of the rescue's brakes to pass one
-        period's test: (S2) did not promise it (figure eight, seed 58, docs/reliability.md)."""
+        """A step whose budget of tests is spent before any torque passed: the rescue's
+        committed brake while it holds it (one brake, one test), or at the motion's first
+        step its search, until rest; then under a time budget the uniform brake, which the
+        step before's torque was tested with ((S2)), at once (under a rate limit made ahead,
+        StepBudget.ready: a search's stopping points, ~200 µs for the aimed brake on the
+        Panda, no test's time foretells); else the rescue's bounded search, else the
+        uniform brake (:meth:`_spent`) — not the first of the rescue's brakes to pass one
+        period's test, which (S2) did not promise (figure eight, seed 58, reliability.md)."""
         state, bias, brakes = step.state, step.bias, self.brakes
         with self.budget.lifted():
             held = brakes.committed(state, bias, step.predict, self.calls)
@@ -330,14 +326,23 @@ class Safeguard(SafetyFilter):
                 held = brakes.rescued(state, bias, step.predict, step.now, self.calls)
         return held if held is not None else self._spent(step)
 
-    def _spent(self, step: StepTests) -> Array:
-        """The uniform brake b − λ₀ D ẋ/h in the step's box, untested — under a torque-rate
-        limit tested against (S0) first, with the fallback's brakes reached along the line
-        where it fails (Brakes.spent)."""
-        state = step.state
+    def _spent(self, step: StepTests, reaches: Reaches | None = None) -> Array:
+        """The uniform brake, untested; under a torque-rate limit its reach nearer to
+        passing that keeps (S0) (Brakes.spent)."""
+        if reaches is None and self.box.rate_limited:
+            reaches = self._reaches(step)
         with self.budget.lifted():
-            return self.brakes.spent(step.bias, state.inertia.dot(state.dx) / self.period,
-                                     step.predict, Sample(state.x, step.now))
+            return self.brakes.spent(step.bias, step.state.inertia.dot(step.state.dx) /
+                                     self.period, step.predict, Sample(step.state.x, step.now),
+                                     reaches)
+
+    def _reaches(self, step: StepTests) -> Reaches:
+        """The calmest brake's two reaches and F's sign (exact where < 0), unbudgeted."""
+        with self.budget.lifted():
+            slack = self.acceptance.check(step.predict, step.floor, step.floor_mid, step.stop,
+                                          step.past, Sample(step.state.x, step.now)).sign
+            return self.brakes.calmest(step.bias, step.state.inertia.dot(step.state.dx) /
+                                       self.period, slack, both=True)
 
     def step_tests(self, state: ArmState, law: Array, law_margins: Array) -> StepTests:
         """What a step at ``state`` tests a torque with, as :meth:`filter` makes it for the
@@ -380,10 +385,10 @@ class Safeguard(SafetyFilter):
                                       Sample(state.x, now), refine)  # (S1)
         return StepTests(state, bias, predict, now, floor, floor_mid, stop, past, slack)
 
-    def _before_candidates(self, step: StepTests) -> Array | None:
+    def _before_candidates(self, step: StepTests) -> tuple[Array | None, Reaches | None]:
         """Once the law's torque fails: the rescue's committed brake where it holds one that
-        passes, else None, having made, under a time budget and a rate limit, what a step
-        out of time would hold (StepBudget.ready)."""
+        passes, else None — having made, under a time budget and a rate limit, the brake's
+        reaches, tested, which the candidates take up, and what a step out of time holds."""
         # a brake whose check saw the arm to rest (Rescue.held_brake): its one test is made
         # whatever the budget, as a step out of tests would make it (cut off, it was made
         # twice: 300 µs on the Panda); refused, the step goes on where its time allows
@@ -391,13 +396,14 @@ class Safeguard(SafetyFilter):
             with self.budget.uncut():
                 held = self.brakes.committed(step.state, step.bias, step.predict, self.calls)
             if held is not None:
-                return held
+                return held, None
         if self.budget.timed and self.box.rate_limited and not first_step(self.calls):
-            # what a step out of time holds, made inside the budget: its (S0) tests
-            # (Brakes.spent), made after the budget ran out, ran up to 95 µs past it
+            # made after the budget ran out, its tests ran up to 95 µs past it
             with self.budget.ahead():
-                self.budget.ready = self._spent(step)
-        return None
+                reaches = self._reaches(step)
+                self.budget.ready = self._spent(step, reaches)
+            return None, reaches
+        return None, None
 
     def _choose(self, step: StepTests, tau: Array) -> Array:
         """The chain of candidates (the package docstring, steps 3 and 4): the law's torque
@@ -408,7 +414,7 @@ class Safeguard(SafetyFilter):
         if f0 >= 0.0:
             return tau
         self.acted += 1
-        held = self._before_candidates(step)
+        held, reaches = self._before_candidates(step)
         if held is not None:
             return held
         if step.floor_mid is not None:  # first the law less its push into the boundaries
@@ -419,15 +425,10 @@ class Safeguard(SafetyFilter):
             if f_slid >= 0.0:
                 return accept.blend(tau, slid, f0, f_slid, slack)
         to_rest = state.inertia.dot(state.dx) / self.period
-        brake = brakes.brake(bias, to_rest, self.settings.braking)
-        f1 = slack(brake)
-        if f1 < 0.0 and self.box.rate_limited:
-            # a joint riding its rate bound, sped up through D by the nearest acceleration
-            # (panda_goal_pose_rate seed 100, docs/reliability.md): the line slows it
-            line = brakes.brake_along_line(bias, to_rest, self.settings.braking)
-            f_line = slack(line)
-            if f_line >= 0.0:
-                brake, f1 = line, f_line
+        brake, f1 = (brakes.calmest(bias, to_rest, slack) if reaches is None
+                     else reaches).first_passing()
+        if f1 >= 0.0 and reaches is not None:  # tested ahead: the step's, as if tested now
+            self.budget.passed = brake
         if f1 < 0.0:
             # Reverse instead of stop: x⁺ = x, ẋ⁺ = −ẋ, the least excursion at this speed.
             reverse = brakes.brake(bias, to_rest, 2.0)
@@ -463,8 +464,7 @@ class Safeguard(SafetyFilter):
             accept, brakes, slack = self.acceptance, self.brakes, step.slack
             tau, _ = accept.held(state, step.bias, out.torque, slack)
             to_rest = state.inertia.dot(state.dx) / self.period
-            brake = brakes.brake(step.bias, to_rest, self.settings.braking)
-            slack(brakes.brake_along_line(step.bias, to_rest, self.settings.braking))
+            brake = brakes.calmest(step.bias, to_rest, slack, both=True).nearest
             if step.floor_mid is not None:
                 brakes.slide(state, step.bias, tau, step.now, step.floor, step.floor_mid,
                              step.stop)
