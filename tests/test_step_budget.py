@@ -589,6 +589,28 @@ def test_a_spent_step_holds_the_brake_S2_promised_not_one_tested_for_a_period(
 
 
 
+def test_the_brake_s_reaches_are_ordered_by_F_and_the_candidates_take_the_first_passing(
+        ) -> None:
+    """The two reaches of the calmest brake as the figure eight's seed 19 made them at its
+    first spent steps (F of the nearest acceleration's, of the line's): a spent step tries
+    the one nearer to passing first (Brakes.spent), while the chain of candidates, which
+    takes them up, keeps its order — the nearest where it passes, else the line where it
+    passes, else the nearest, whose λ the search then moves."""
+    from cpbc.controllers.safeguard.braking import Reaches
+
+    nearest, line = np.array([1.0]), np.array([2.0])
+    first = Reaches(nearest, -61.0, line, 0.024)
+    assert first.by_f() == (line, nearest)
+    assert first.first_passing() == (line, 0.024)
+    later = Reaches(nearest, -980.0, line, -590.0)
+    assert later.by_f() == (line, nearest)
+    assert later.first_passing() == (nearest, -980.0)
+    both_pass = Reaches(nearest, 0.5, line, 0.9)
+    assert both_pass.by_f() == (line, nearest)
+    assert both_pass.first_passing() == (nearest, 0.5)
+    assert Reaches(nearest, -1.0).by_f() == (nearest,)  # no rate limit: one reach
+
+
 def test_a_spent_step_holds_the_reach_of_the_brake_nearer_to_passing(load_dict) -> None:
     """The figure eight under a 1000 N·m/s torque-rate limit with the robot's budgets and
     the tightest time budget, seed 19 from its phase of the path (a start inside V): from
