@@ -367,7 +367,8 @@ def test_past_its_time_a_step_holds_the_uniform_brake_without_a_further_test() -
 def test_out_of_time_under_a_rate_limit_a_step_holds_what_it_made_ahead() -> None:
     """On the FR3 as a robot runs it (1000 N·m/s), seed 23's state fails the law's test. Under
     a 50 ms budget, with the slide slowed to 60 ms, the step makes what a spent step holds
-    before its candidates (the uniform brake tested against (S0), Brakes.spent), then the
+    before its candidates (the uniform brake's reach nearer to passing F that keeps (S0),
+    Brakes.spent), then the
     slide, which runs the budget out, and holds the torque made ahead. At the next step, one
     slide as long would not fit: none is begun, and the step holds what it made ahead again.
     Made after the budget ran out, that brake's tests ran up to 95 µs past it on the
@@ -407,6 +408,49 @@ def test_out_of_time_under_a_rate_limit_a_step_holds_what_it_made_ahead() -> Non
     assert guard.out_of_tests == 2 and guard.acted == 2
     for tau, ahead in zip(held, made, strict=True):
         np.testing.assert_array_equal(tau, ahead)
+
+
+def test_under_a_time_budget_the_candidates_take_up_the_brake_s_reaches_made_ahead(
+        monkeypatch) -> None:
+    """On the FR3 as a robot runs it (1000 N·m/s), from seed 23's state, whose law's torque
+    fails and whose chain of candidates gets to the brakes: under a time budget (10 s, never
+    reached) the step makes the calmest brake's two reaches and their F once, ahead of its
+    candidates, and the chain takes them up; without one the chain makes the brake itself,
+    the line only where the nearest fails. Made twice, they were ~90 µs more on the Panda's
+    acting steps."""
+    from cpbc.controllers.safeguard.braking import Reaches
+    from cpbc.reliability.verification import draw_state
+    from cpbc.scenario import build, load_scenario
+
+    campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
+    setup = build(*load_scenario(campaign / "fr3_sphere_rate_robot.yaml"))
+    assert setup.safeguard is not None
+    entry = next(e for e in setup.controllers if e.name == "CPBC")
+    s = draw_state(setup, 23)
+    taken: list[Reaches] = []
+    first_passing = Reaches.first_passing
+
+    def taken_up(self: Reaches) -> tuple[np.ndarray, float]:
+        taken.append(self)
+        return first_passing(self)
+
+    monkeypatch.setattr(Reaches, "first_passing", taken_up)
+    for seconds, made_both in ((10.0, [True]), (None, [False])):
+        guard = replace(setup, safeguard=replace(setup.safeguard, test_budget=None,
+                                                 time_budget=seconds)).controller(entry)
+        assert isinstance(guard, Safeguard)
+        guard.torque(s.position, np.zeros_like(s.velocity))  # at rest: the law's passes
+        calmest, made = guard.brakes.calmest, list[bool]()
+
+        def counted(*args, _c=calmest, _m=made, **kwargs):
+            _m.append(kwargs.get("both", False))
+            return _c(*args, **kwargs)
+
+        guard.brakes.calmest = counted  # type: ignore[method-assign]
+        taken.clear()
+        guard.torque(s.position, s.velocity)
+        assert guard.acted == 1 and guard.out_of_tests == 0
+        assert made == made_both and len(taken) == 1
 
 
 def test_tests_in_an_uncut_block_count_and_none_is_cut() -> None:
