@@ -196,7 +196,7 @@ def test_under_a_budget_the_search_from_a_motions_first_state_runs_to_rest(figur
     assert first.rest_at is not None
     for step in range(2, first.rest_at + 1):
         assert first.live(step)
-        assert first.held_brake(state, bias, lambda tau: tau, _holds, step) is not None
+        assert first.held_brake(state, bias, (lambda tau: tau,), _holds, step) is not None
     assert not first.live(first.rest_at + 1)
     assert first.searches == 1
 

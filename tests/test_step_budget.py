@@ -669,6 +669,21 @@ def test_a_spent_step_holds_the_reach_of_the_brake_nearer_to_passing(load_dict) 
     assert check.trajectory.out_of_tests > 50  # the brake was the spent steps' to choose
 
 
+def test_a_committed_brake_whose_nearest_reach_fails_is_held_clipped_where_that_passes(
+        load_dict) -> None:
+    """The figure eight's seed 127 from its phase of the path, under the robot's budgets
+    and the tightest time budget: a start outside V with joint 7 1.3 mrad from its limit at
+    0.82 rad/s. The first step's search commits to a brake; at the next, reached into the
+    ±1 N·m box by its nearest acceleration the brake fails its one-period test, and the
+    uniform brake held instead took joint 7 0.33 mrad past its limit at 2 ms. Clipped into
+    the box joint by joint — as the unbounded rescue holds it, and as the test predicts it —
+    it passes, and held so the run keeps the limit (Brakes.committed)."""
+    check = _as_a_robot_runs_it(load_dict, "panda_figure8_ke_rate.yaml", 127, 0.02,
+                                on_path=True, safeguard_time_budget=1e-9)
+    assert not check.violated, (check.constraint, check.min_margin)
+    assert check.trajectory.rescues >= 2
+
+
 def test_a_tracker_reports_its_guards_spent_steps(load_dict) -> None:
     """The figure eight (a path, its law a reference tracker around the safeguard) under
     the tightest time budget, seed 19 from its phase of the path: the run's trajectory

@@ -73,7 +73,7 @@ bounds it to 8 periods unless the scenario says otherwise (cpbc.hardware.robot_r
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -178,23 +178,26 @@ class Rescue:
             return False
         return self.budget is None or (self.rest_at is not None and step <= self.rest_at)
 
-    def held_brake(self, state: ArmState, bias: Array, reach: Callable[[Array], Array],
+    def held_brake(self, state: ArmState, bias: Array,
+                   reaches: Sequence[Callable[[Array], Array]],
                    holds: Callable[[Array, Array], bool], step: int) -> Array | None:
-        """While :meth:`live`, the committed brake's torque as the step holds it —
-        ``reach`` of the brake clipped to the box (the step's own fit into its rate box) —
-        where ``holds(τ, floor)`` accepts that torque (held then), else None — the
-        commitment then ends, so that the step does not make and test the brake twice —,
-        searching nothing: under a budget the guard holds it as soon as the law's own torque
-        fails its test, before its other candidates."""
+        """While :meth:`live`, the committed brake's torque as the step holds it — the first
+        of ``reaches`` of the brake clipped to the box (the step's own fits into its rate
+        box) that ``holds(τ, floor)`` accepts (held then) —, else None — the commitment then
+        ends, so that the step does not make and test the brake twice —, searching nothing:
+        under a budget the guard holds it as soon as the law's own torque fails its test,
+        before its other candidates."""
         if not self.live(step):
             return None
         assert self.committed is not None and self.floor is not None
-        tau = reach(self.box.clip(self.table[self.committed](state, bias, self.period)))
-        if not holds(tau, self.floor):
-            self.forget()
-            return None
-        self.held_at = step
-        return tau
+        brake = self.box.clip(self.table[self.committed](state, bias, self.period))
+        for reach in reaches:
+            tau = reach(brake)
+            if holds(tau, self.floor):
+                self.held_at = step
+                return tau
+        self.forget()
+        return None
 
     def _search(self, state: ArmState, bias: Array, now: Array, step: int,
                 held: Array | None, first: int, budget: int | None) -> Array | None:

@@ -98,10 +98,15 @@ class StepBox:
 
     def end(self, tau: Array) -> Array:
         """The step's torque clipped to the step's box, now the torque held."""
-        assert self._step is not None
-        tau = self._step.clip(tau)
+        tau = self.end_clip(tau)
         self.holding = tau
         return tau
+
+    def end_clip(self, tau: Array) -> Array:
+        """τ clipped to the step's box joint by joint, as :meth:`end` holds it (and as a
+        prediction holds a torque outside the box)."""
+        assert self._step is not None
+        return self._step.clip(tau)
 
     def fit(self, bias: Array, tau: Array, brake: bool = False) -> Array:
         """τ scaled toward the bias b = C ẋ + g + f until it fits the torque box
