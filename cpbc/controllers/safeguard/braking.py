@@ -276,7 +276,7 @@ class Brakes:
         if reaches is None:
             return self.brake(bias, stop, self.settings.braking)
         keeps = self.positivity(_first_prediction(predict), sample).sign  # a sign: all it asks
-        for tau in (*reaches.by_f(), self.box.fit(bias, bias)):
+        for tau in (*reaches.by_f(), self._taken_back(bias)):
             if keeps(tau) >= 0.0:
                 return tau
         return reaches.nearest
@@ -342,8 +342,13 @@ class Brakes:
         line = self.brake_along_line(bias, stop, lam)
         if positivity(line) >= 0.0:
             return line
-        coast = self.box.fit(bias, bias)
+        coast = self._taken_back(bias)
         return coast if positivity(coast) >= 0.0 else None
+
+    def _taken_back(self, bias: Array) -> Array:
+        """b reached along the line from the held torque: the held acceleration taken back
+        as far as one step allows (:meth:`_held_back`, :meth:`spent`)."""
+        return self.box.fit(bias, bias)
 
     def _escape(self, state: ArmState, now: Array, end_floor: Array, mid_floor: Array
                 ) -> Array:

@@ -38,12 +38,14 @@ slide's 45 µs — run past it. Two things more make what follows the tests part
   arm would stop: 45–125 µs on the Panda) costs more than a test, begins only where one made
   as long as the longest of its last few (:data:`MADE_KEPT`), and a test as long as the
   step's longest, end within the budget (:meth:`StepBudget.making`);
-- under a torque-rate limit what a step out of time holds — the uniform brake tested against
-  (S0), up to three tests (Brakes.spent) — is made before the candidates once the law's
-  torque fails (:meth:`StepBudget.ahead`, :attr:`StepBudget.ready`), not after the budget
-  ran out, where it ran up to 95 µs past it.
-So a step ends within its budget but for the law's own test and a committed brake's (each
-always made), and a making or test longer than the ones that foretold it. It reads the clock,
+- under a torque-rate limit what a step out of time holds — the uniform brake's two reaches
+  with their F, the one nearer to passing kept to (S0) (Brakes.spent) — is made before the
+  candidates once the law's torque fails (:meth:`StepBudget.ahead`,
+  :attr:`StepBudget.ready`), not after the budget ran out, where its (S0) tests alone ran up
+  to 95 µs past it.
+So a step ends within its budget but for the law's own test, a committed brake's (each always
+made), the work made ahead (two tests of F: ~90 µs on the Panda, unbounded inside the block),
+and a making or test longer than the ones that foretold it. It reads the clock,
 so a run under it is not reproducible; it is for a robot (cpbc.hardware sets it from the
 deadline), never simulation's default.
 """
@@ -81,8 +83,8 @@ class StepBudget:
         used: tests made at this step.
         passed: the last torque that passed its test at this step, or None.
         ready: the torque this step holds if its tests run out before one passes, made
-            ahead of its need (Safeguard._choose, under a time budget and a torque-rate
-            limit), or None.
+            ahead of its need (Safeguard._before_candidates, under a time budget and a
+            torque-rate limit), or None.
         longest: the longest candidate of this step whose test was exact, its making and
             its test [s] (timed under a time budget only; a slide's making is kept apart,
             :meth:`making`).
