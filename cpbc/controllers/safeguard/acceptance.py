@@ -32,7 +32,7 @@ class StepSlack:
     """F(τ) of one step (:meth:`Acceptance.check`): a call gives F; :meth:`sign` gives F
     where it is < 0 and a value in [0, F] where it is not — all the step's first test
     needs (the torque is held where F ≥ 0, and F goes on to the blend only where it is
-    not), and with fewer joint placements asked of Pinocchio (PredictedMargins.slack's
+    not), and with fewer joint placements computed (PredictedMargins.slack's
     ``enough``). Both count against the step's budget alike."""
 
     __slots__ = ("_exact", "_sign")

@@ -44,8 +44,8 @@ slide's 45 µs — run past it. Two things more make what follows the tests part
   :attr:`StepBudget.ready`), not after the budget ran out, where its (S0) tests alone ran up
   to 95 µs past it.
 So a step ends within its budget but for the law's own test, a committed brake's (each always
-made), the work made ahead (two tests of F: ~90 µs on the Panda, unbounded inside the block),
-and a making or test longer than the ones that foretold it. It reads the clock,
+made), the work made ahead (the two reaches and their F: ~75 µs on the Panda, unbounded
+inside the block), and a making or test longer than the ones that foretold it. It reads the clock,
 so a run under it is not reproducible; it is for a robot (cpbc.hardware sets it from the
 deadline), never simulation's default.
 """
