@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pytest
@@ -171,6 +172,41 @@ def state_at(x: np.ndarray, dx: np.ndarray | None = None, model: RobotModel | No
     nothing = np.full(0, np.nan)
     return ArmState(x, dx, x, dx, nothing, nothing, nothing, nothing)
 
+
+
+class CampaignRun(NamedTuple):
+    """One run of a campaign as cpbc.verify makes it (:func:`campaign_run`)."""
+
+    check: object  # cpbc.reliability.campaign's checked run: violated, constraint, …
+    position: np.ndarray  # the drawn start
+    velocity: np.ndarray
+    kept: object  # the constraints judged (kept_constraints)
+
+
+def campaign_run(setup: ScenarioSetup, seed: int, seconds: float, controller: str | None = None,
+                 on_path: bool = False) -> CampaignRun:
+    """The run cpbc.verify makes of ``setup``'s law ``controller`` (its first constrained one
+    where None) from the campaign's state ``seed`` for ``seconds`` at 1 kHz
+    (cpbc.reliability.campaign.checked_run, every step logged): from the seed's own phase of
+    the path where ``on_path`` (as cpbc.verify does), else from its beginning."""
+    from dataclasses import replace
+
+    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
+    from cpbc.reliability.verification import draw_state
+
+    entry = next(e for e in setup.controllers if (e.name == controller if controller
+                                                  else not e.controller.constraints.empty))
+    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
+    s = draw_state(setup, seed)
+    settings = replace(setup.loop_settings, duration=seconds, log_every=1)
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    phase = 0.0
+    if on_path:
+        assert setup.reference is not None
+        phase = setup.reference.phase(entry.name, seed)
+    check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
+                        safeguard=setup.safeguard, phase=phase)
+    return CampaignRun(check, s.position, s.velocity, kept)
 
 TILTED = """
 <mujoco model="tilted_2link">

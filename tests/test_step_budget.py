@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import campaign_run
 
 from cpbc.controllers import RecentredBarrier
 from cpbc.controllers.safeguard import Safeguard, SafeguardSettings, viable
@@ -575,29 +576,13 @@ def _as_a_robot_runs_it(load_dict, campaign_file: str, seed: int, seconds: float
                         on_path: bool = False, **simulation: float):
     """The run of ``campaign_file``'s first constrained law from seed ``seed`` for
     ``seconds``, with the robot's budgets of 6 tests a step and 8 model periods of rescue
-    and the ``simulation`` fields given (cpbc.reliability.campaign.checked_run, as
-    cpbc.verify runs it; ``on_path``: from the seed's own phase of the path, as it does,
-    else from the path's beginning)."""
+    and the ``simulation`` fields given, as cpbc.verify runs it (conftest.campaign_run)."""
     import yaml
-
-    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
-    from cpbc.reliability.verification import draw_state
 
     campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
     data = yaml.safe_load((campaign / campaign_file).read_text())
     data["simulation"].update(safeguard_test_budget=6, safeguard_rescue_budget=8, **simulation)
-    setup = load_dict(data)
-    entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
-    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
-    s = draw_state(setup, seed)
-    settings = replace(setup.loop_settings, duration=seconds, log_every=1)
-    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
-    phase = 0.0
-    if on_path:
-        assert setup.reference is not None
-        phase = setup.reference.phase(entry.name, seed)
-    return checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
-                       safeguard=setup.safeguard, phase=phase)
+    return campaign_run(load_dict(data), seed, seconds, on_path=on_path).check
 
 
 def test_a_spent_step_under_a_rate_limit_holds_no_brake_that_fails_S0(load_dict) -> None:

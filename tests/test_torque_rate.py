@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import campaign_run
 
 from cpbc.constraints.brakes import TorqueBox
 from cpbc.constraints.stopping import Braking
@@ -187,26 +188,16 @@ def _kept_from_inside_v(seed: int, horizon: float, campaign: str = "panda_goal_p
     """``controller`` of tools/campaigns/``campaign``.yaml from the campaign's state ``seed``
     (``on_path``: the scenario tracks a path, from the seed's phase of it) — a start inside
     V that a rate-limited brake stops — keeps every constraint for ``horizon`` seconds."""
-    from dataclasses import replace
-
-    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
-    from cpbc.reliability.verification import draw_state, in_braking_set, stopping_brake
+    from cpbc.reliability.verification import in_braking_set, stopping_brake
 
     folder = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
     setup = build(*load_scenario(folder / f"{campaign}.yaml"))
-    entry = next(e for e in setup.controllers if e.name == controller)
-    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
-    s = draw_state(setup, seed)
-    assert in_braking_set(setup, kept, s.position, s.velocity, 0.001)
-    assert stopping_brake(setup, kept, s.position, s.velocity, 0.001) is not None
-    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
-    settings = replace(setup.loop_settings, duration=horizon, log_every=1)
     assert (setup.reference is not None) == on_path
-    phase = 0.0 if setup.reference is None else setup.reference.phase(entry.name, seed)
-    check = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
-                        safeguard=setup.safeguard, phase=phase)
-    assert not check.violated, (check.constraint, check.min_margin)
-    assert check.trajectory.end_time == pytest.approx(horizon)
+    run = campaign_run(setup, seed, horizon, controller, on_path)
+    assert in_braking_set(setup, run.kept, run.position, run.velocity, 0.001)
+    assert stopping_brake(setup, run.kept, run.position, run.velocity, 0.001) is not None
+    assert not run.check.violated, (run.check.constraint, run.check.min_margin)
+    assert run.check.trajectory.end_time == pytest.approx(horizon)
 
 
 def test_a_joint_riding_its_rate_bound_is_slowed_by_the_brake_along_the_line() -> None:
