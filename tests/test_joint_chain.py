@@ -1,9 +1,12 @@
 """The arm's chain as the compiled joint placements' tables (cpbc.model.joint_chain): the
 placements at many configurations in one call are Pinocchio's static regressor at each, on real
-arms with joints about x, y, z and an unaligned axis, and on a chain of prismatic joints; a
-joint of another kind leaves the placements to Pinocchio."""
+URDF arms with joints about x, y, z and an unaligned axis, on MJCF arms (one with a slide), and
+on a branched chain of prismatic joints; a joint of another kind leaves the placements to
+Pinocchio."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -12,6 +15,7 @@ import pytest
 from cpbc.model.joint_chain import JointChain
 from cpbc.model.loading import load_arm
 from cpbc.model.robot_model import RobotModel
+from cpbc.resources import models_dir
 
 
 def _pinocchio(model: pin.Model, rows: np.ndarray) -> np.ndarray:
@@ -34,6 +38,19 @@ def test_the_placements_are_pinocchio_s_on_real_arms(arm: str) -> None:
     np.testing.assert_allclose(found, expected, rtol=0.0, atol=1e-14)
     np.testing.assert_allclose(chain.placements(rows[3:4]), expected[3:4], rtol=0.0, atol=1e-14)
     assert chain.placements(rows[:0]).shape == (0, *expected.shape[1:])
+
+
+@pytest.mark.parametrize("path", [models_dir() / "planar_2link.xml",
+                                  Path(__file__).parent / "models" / "shapes_arm.xml"])
+def test_the_placements_are_pinocchio_s_on_mjcf_arms(path: Path) -> None:
+    """MJCF arms as Pinocchio reads them: the thesis's planar arm (two hinges about z) and
+    tests/models/shapes_arm.xml (hinges about z and y, then a slide along x)."""
+    robot = RobotModel.from_mjcf(path)
+    chain = JointChain.of(robot.model, robot.regressor_scale())
+    assert chain is not None
+    rows = np.random.default_rng(2).uniform(-3.0, 3.0, (20, robot.n))
+    np.testing.assert_allclose(chain.placements(rows), _pinocchio(robot.model, rows), rtol=0.0,
+                               atol=1e-14)
 
 
 def _branched_chain() -> pin.Model:
