@@ -257,25 +257,14 @@ def test_a_small_campaign_keeps_every_constraint_on_a_budget() -> None:
 def _fr3_seed_0(rescue_budget: int | None):
     """The FR3 rate campaign as a robot runs it (6 tests a step), with the rescue's budget
     ``rescue_budget``, run from seed 0 at 1 kHz: a state a rate-limited brake stops in the
-    true plant."""
-    from dataclasses import replace
-    from pathlib import Path
-
-    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
-    from cpbc.reliability.verification import draw_state
+    true plant (conftest.campaign_run)."""
     from cpbc.scenario import build, load_scenario
 
     campaign = Path(__file__).resolve().parents[1] / "tools" / "campaigns"
     setup = build(*load_scenario(campaign / "fr3_sphere_rate_robot.yaml"))
     assert setup.safeguard is not None and setup.safeguard.test_budget == 6
     guard = replace(setup.safeguard, rescue_budget=rescue_budget)
-    entry = next(e for e in setup.controllers if e.name == "CPBC")
-    kept = kept_constraints(setup, entry, 0.001, guard)
-    s = draw_state(setup, 0)
-    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
-    settings = replace(setup.loop_settings, duration=0.5, log_every=1)
-    return checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
-                       safeguard=guard)
+    return campaign_run(replace(setup, safeguard=guard), 0, 0.5, "CPBC").check
 
 
 def test_where_no_torque_passes_within_the_budget_an_unbounded_rescue_answers() -> None:
