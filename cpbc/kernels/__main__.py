@@ -20,7 +20,7 @@ MODULES = tuple(f"cpbc.kernels.{m}" for m in (
     "torque_box", "clearance", "clearance_motion", "coordinate_maps", "state_terms",
     "barrier_shaping", "barriers", "python_rows", "barrier_set", "law_terms", "laws",
     "braking_path", "stopping_test", "shares", "sampled_guard", "frozen_slack",
-    "joint_placements"))
+    "joint_placements", "slide"))
 
 
 def module_kernels(name: str) -> list[tuple[str, CPUDispatcher]]:

@@ -13,7 +13,6 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.controllers.linalg import solve_spd
 from cpbc.controllers.rescue import Rescue
 from cpbc.controllers.safeguard.acceptance import Acceptance, Slack, StepSlack
 from cpbc.controllers.safeguard.predicted_margins import BrakingTest, Sample
@@ -21,6 +20,7 @@ from cpbc.controllers.safeguard.prediction import Frozen, Predictor
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.controllers.safeguard.step_box import StepBox
 from cpbc.kernels.sampled_guard import project_halfspaces
+from cpbc.kernels.slide import slide_acceleration
 from cpbc.model.robot_model import ArmState
 
 
@@ -388,28 +388,20 @@ class Brakes:
             ∇φ_i · a ≥ r_i = max((φ̲_i − φ_i − h∇φ_i·ẋ)/(c h²),  8(φ̲ᵐ_i − φ_i − ½h∇φ_i·ẋ)/h²),
 
         (φ(h) ≈ φ + h∇φ·ẋ + c h²∇φ·a, c of the prediction's end (``travel``: ½ in continuous
-        time), and at mid-period ⅛h²∇φ·a), as :func:`_project`
-        builds it, then b + D a scaled into the torque box. Blending toward it, not toward a
-        brake, lets the law go on along a boundary it presses against: a law that does not
-        know of a joint limit and whose acceleration, through D, pushes that joint into it
-        would otherwise be braked to rest there for good. Where the result would leave a
-        braking margin σ_i below its floor (``stop``), the arm must also stop approaching
-        that boundary by the end of the period, ∇φ_i · (ẋ + h a) ≥ 0, and a is projected
-        again with that half-space added."""
-        h = self.period
-        nc = self.n_config
-        grads = self.guarded.configuration_gradients(state)
-        rate = grads @ state.dx
-        phi = now[:nc]
-        # aimed a little past each floor (a twentieth of the step, and 10⁻⁴ of the floor for
-        # a margin resting on it): the projection lands on the first-order boundary, which
-        # the curvature of φ may put a hair short of the floor
-        end = end_floor[:nc] + 0.05 * np.abs(end_floor[:nc] - phi) + 1e-4 * np.abs(end_floor[:nc])
-        mid = mid_floor + 0.05 * np.abs(mid_floor - phi) + 1e-4 * np.abs(mid_floor)
-        need = np.maximum((end - phi - h * rate) / (self.travel * h * h),
-                          8.0 * (mid - phi - 0.5 * h * rate) / (h * h))
-        law = solve_spd(state.inertia, tau - bias)
-        acc = _project(grads, need, law)
+        time), and at mid-period ⅛h²∇φ·a), in one compiled call
+        (cpbc.kernels.slide.slide_acceleration), then b + D a scaled into the torque box.
+        Blending toward it, not toward a brake, lets the law go on along a boundary it
+        presses against: a law that does not know of a joint limit and whose acceleration,
+        through D, pushes that joint into it would otherwise be braked to rest there for
+        good. Where the result would leave a braking margin σ_i below its floor (``stop``),
+        the arm must also stop approaching that boundary by the end of the period,
+        ∇φ_i · (ẋ + h a) ≥ 0, and a is projected again with that half-space added."""
+        h, nc, n = self.period, self.n_config, len(state.dx)
+        grads = np.ascontiguousarray(self.guarded.configuration_gradients(state), dtype=float)
+        rate, need, law, acc = np.empty(nc), np.empty(nc), np.empty(n), np.empty(n)
+        slide_acceleration(grads, state.dx, now[:nc], end_floor[:nc], mid_floor, h,
+                           self.travel, state.inertia, tau - bias, np.empty((n, n)), rate,
+                           need, law, acc)
         if stop is not None:
             v1 = state.dx + h * acc
             x_stop = state.x + h * state.dx + (self.travel * h * h) * acc + (
