@@ -175,6 +175,32 @@ def test_what_is_made_ahead_is_untested_by_the_budget_and_ends_the_step_where_ti
                 time.sleep(made)
 
 
+def test_the_brakes_made_ahead_set_the_step_s_longest_candidate() -> None:
+    """Under a 1 s budget: the law's test a sign (0.05 s, not exact: the step's longest stays
+    0), then ahead a brake tested in 0.4 s and 0.2 s more of making. The ahead test's time is
+    the step's longest, so at 0.65 s a candidate as long would end past the budget and the
+    step ends after the block (with the longest left at 0, it went on to its next candidate
+    with 0.35 s left, and a slide begun so ran past a robot's budget). Its test is not
+    counted and passes nothing on. Without a time budget, nothing is timed."""
+    import time
+
+    budget = StepBudget(None, 1.0)
+    budget.start()
+    budget.begin()
+    budget.counted(lambda t: (time.sleep(0.05), -1.0)[1], exact=False)(np.array([1.0]))
+    assert budget.longest == 0.0
+    with pytest.raises(OutOfTests), budget.ahead():
+        brake = budget.counted(lambda t: (time.sleep(0.4), 1.0)[1], exact=False)
+        assert brake(np.array([2.0])) == 1.0
+        time.sleep(0.2)
+    assert 0.4 <= budget.longest < 0.6
+    assert budget.used == 1 and budget.passed is None
+    free = StepBudget(None)
+    with free.ahead():
+        assert free.counted(lambda t: 1.0)(np.array([1.0])) == 1.0
+    assert free.longest == 0.0 and free.used == 0
+
+
 def test_a_budget_below_one_test_is_refused() -> None:
     with pytest.raises(ValueError, match="tests"):
         StepBudget(0)

@@ -106,6 +106,7 @@ class StepBudget:
         self._mark = 0.0  # the end of the step's last test (or its beginning)
         self.spent = 0
         self._uncut = False  # inside uncut(): tests count, none is cut off
+        self._ahead = False  # inside ahead(): no bound, each test's time sets ``longest``
         self._made: dict[str, deque[float | None]] = {}  # each kind's last makings [s]
 
     def start(self) -> None:
@@ -178,9 +179,19 @@ class StepBudget:
         """What a spent step would hold, made inside the block before the step's next
         candidate (:attr:`ready`): no bound inside it, and under a time budget the step ends
         after it where a candidate as long as the step's longest would not end within the
-        budget, the next candidate's time running from the block's end."""
+        budget, the next candidate's time running from the block's end. The brakes made
+        inside are candidates as a later one would be: each one's making and test sets the
+        step's longest (:meth:`counted`), a sign's test too (it can only raise it). Without
+        them the step's longest after the block was 0 where the law's test was a sign (on the
+        Panda, most steps that act under a rate limit), and the next candidate began however
+        little time was left: a slide begun 120–144 µs into a 150 µs budget ended at 260–300.
+        """
         with self.lifted():
-            yield
+            self._ahead = True
+            try:
+                yield
+            finally:
+                self._ahead = False
         self._block_ended(True)
 
     def _block_ended(self, goes_on: bool) -> None:
@@ -202,6 +213,8 @@ class StepBudget:
         in the step, so the exact test after it begins well inside the budget and sets it."""
         if self._uncut:
             return lambda t: self._test(slack, t)
+        if self._ahead and self.seconds is not None:
+            return self._timed_ahead(slack)
         until = self._until
         if until < float("inf"):
             return self._timed(slack, until, exact)
@@ -234,6 +247,20 @@ class StepBudget:
             self._mark = ended
             if f < 0.0 and ended + self.longest > until:  # before the next candidate's work
                 raise OutOfTests
+            return f
+
+        return timed
+
+    def _timed_ahead(self, slack: Callable[[Array], float]) -> Callable[[Array], float]:
+        """``slack`` inside :meth:`ahead` under a time budget: uncounted and never cut off,
+        its time since the test before it (the candidate's making and test) sets
+        :attr:`longest`."""
+
+        def timed(t: Array) -> float:
+            f = slack(t)
+            ended = time.perf_counter()
+            self.longest = max(self.longest, ended - self._mark)
+            self._mark = ended
             return f
 
         return timed
