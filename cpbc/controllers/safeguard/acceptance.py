@@ -33,12 +33,14 @@ class StepSlack:
     where it is < 0 and a value in [0, F] where it is not — all the step's first test
     needs (the torque is held where F ≥ 0, and F goes on to the blend only where it is
     not), and with fewer joint placements computed (PredictedMargins.slack's
-    ``enough``). Both count against the step's budget alike."""
+    ``enough``). Both count against the step's budget alike; :attr:`plain_sign` is the
+    sign uncounted, for what the guard makes outside the budget (its brakes made ahead,
+    Safeguard._reaches), which the budget wraps there as it needs."""
 
-    __slots__ = ("_exact", "_sign")
+    __slots__ = ("_exact", "_sign", "plain_sign")
 
-    def __init__(self, exact: Slack, sign: Slack) -> None:
-        self._exact, self._sign = exact, sign
+    def __init__(self, exact: Slack, sign: Slack, plain_sign: Slack) -> None:
+        self._exact, self._sign, self.plain_sign = exact, sign, plain_sign
 
     def __call__(self, t: Array) -> float:
         return self._exact(t)
@@ -135,13 +137,13 @@ class Acceptance:
 
         exact = self.budget.counted(value)
         if sample is None and refine is None:
-            return StepSlack(exact, exact)
+            return StepSlack(exact, exact, value)
         # Where F's value counts (the blend's, the brakes') the guard acts, near a boundary,
         # where a bound settles no row whole: the rows' path then only pays for the bounds,
         # while the compiled test still skips the clearances they settle. A sign's test,
         # shorter, is not what a time budget takes a later (exact) test's time to be
         # (StepBudget.counted).
-        return StepSlack(exact, self.budget.counted(sign, exact=False))
+        return StepSlack(exact, self.budget.counted(sign, exact=False), sign)
 
     def braking_floor(self, state: ArmState, bias: Array,
                        held: Array | None = None) -> BrakingTest | None:

@@ -337,10 +337,10 @@ class Safeguard(SafetyFilter):
                                      reaches)
 
     def _reaches(self, step: StepTests) -> Reaches:
-        """The calmest brake's two reaches and F's sign (exact where < 0), unbudgeted."""
+        """The calmest brake's two reaches and F's sign (exact where < 0), unbudgeted: the
+        step's own test uncounted (StepSlack.plain_sign), timed where made ahead."""
         with self.budget.lifted():
-            slack = self.acceptance.check(step.predict, step.floor, step.floor_mid, step.stop,
-                                          step.past, Sample(step.state.x, step.now)).sign
+            slack = self.budget.counted(step.slack.plain_sign, exact=False)
             return self.brakes.calmest(step.bias, step.state.inertia.dot(step.state.dx) /
                                        self.period, slack, both=True)
 
