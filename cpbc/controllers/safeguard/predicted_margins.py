@@ -164,9 +164,11 @@ class PredictedMargins:
         self.nv = len(constraints.names) - self.nc
         self._spheres = any(p.kind == SPHERES for _, _, p in config)
         self._pin = model.model
-        self._data = self._pin.createData()  # its own: the joint placements of each row
         # the placements compiled where every joint is revolute or prismatic, else Pinocchio's
+        # with data of its own (made only then)
         self._chain = JointChain.of(self._pin, model.regressor_scale()) if self._spheres else None
+        self._data = (self._pin.createData() if self._spheres and self._chain is None
+                      else None)
         self._no_placements = np.zeros((0, 1, 1))
         self._no_config = np.zeros((0, 0))
         self._no_floor = np.zeros(0)
@@ -185,6 +187,7 @@ class PredictedMargins:
         if self._chain is not None:  # compiled, all rows in one call (JointChain)
             return self._chain.placements(rows)
         data, model = self._data, self._pin
+        assert data is not None  # made where there is no chain
         # one array of the list: a copy into a row of an empty array costs as much as the call
         return np.array([pin.computeStaticRegressor(model, data, x) for x in rows])
 
