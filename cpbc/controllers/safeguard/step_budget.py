@@ -35,14 +35,16 @@ was spent let the test under way run past it (the Panda's worst bounded step was
 median, docs/speed.md), and gating the tests alone let the work before the next test — the
 slide's 45 µs — run past it. Two things more make what follows the tests part of the budget:
 - the slide, whose making (the constraints' gradients, a projection, the margins where the
-  arm would stop: 45–125 µs on the Panda) costs more than a test, begins only where one made
-  as long as the longest of its last few (:data:`MADE_KEPT`), and a test as long as the
-  step's longest, end within the budget (:meth:`StepBudget.making`);
+  arm would stop: 55–125 µs on the Panda, its code cold in the steps that act) costs more
+  than a test, begins only where one made as long as the longest of its last few
+  (:data:`MADE_KEPT`), and a test as long as the step's longest, end within the budget
+  (:meth:`StepBudget.making`);
 - under a torque-rate limit what a step out of time holds — the uniform brake's two reaches
   with their F, the one nearer to passing kept to (S0) (Brakes.spent) — is made before the
   candidates once the law's torque fails (:meth:`StepBudget.ahead`,
   :attr:`StepBudget.ready`), not after the budget ran out, where its (S0) tests alone ran up
-  to 95 µs past it.
+  to 95 µs past it; each brake made so sets the step's longest candidate, and the step ends
+  after them where one as long would not fit.
 So a step ends within its budget but for the law's own test, a committed brake's (each always
 made), the work made ahead (the two reaches and their F: ~75 µs on the Panda, unbounded
 inside the block), and a making or test longer than the ones that foretold it. It reads the clock,
@@ -61,7 +63,7 @@ from contextlib import AbstractContextManager, contextmanager, nullcontext
 from cpbc.arrays import Array
 
 #: The makings of one kind whose longest foretells the next (StepBudget.making): the slide's
-#: making varies 45–125 µs on the Panda from one step to the next, so the last one alone
+#: making varies 55–125 µs on the Panda from one step to the next, so the last one alone
 #: foretells it poorly; a making a stall of the machine slowed is forgotten after these.
 MADE_KEPT = 8
 _NOTHING = nullcontext()  # making() without a time budget: no bound, nothing timed
