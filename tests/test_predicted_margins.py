@@ -63,6 +63,27 @@ def _counting(placed: list[int]) -> Iterator[None]:
         placed.append(rows[0])
 
 
+@contextmanager
+def _counting_in_one_call(placed: list[int]) -> Iterator[None]:
+    """The rows the frozen test's one call (frozen_chain_test, for an arm whose chain is
+    compiled) makes the joint placements at, appended to ``placed``: it says how many."""
+    import cpbc.controllers.safeguard.predicted_margins as module
+
+    tested, rows = module.frozen_chain_test, [0]
+
+    def count(*args: object) -> tuple[float, float]:
+        f, marked = tested(*args)
+        rows[0] += int(marked)
+        return f, marked
+
+    module.frozen_chain_test = count  # type: ignore[assignment]
+    try:
+        yield
+    finally:
+        module.frozen_chain_test = tested
+        placed.append(rows[0])
+
+
 @pytest.mark.parametrize("rate", [None, 1000.0])
 def test_bounds_from_the_sample_leave_F_as_it_is(rate: float | None) -> None:
     """With every F asked exactly (``enough`` ∞) the bounds change no bit of it; for the
@@ -91,8 +112,9 @@ def test_the_frozen_test_is_the_same_F_bit_for_bit(rate: float | None) -> None:
     the bit, exact and from the sample's bounds with ``enough`` ∞, with and without (S2)'s
     stopping points; with ``enough`` 1 the same where
     F < 0, else a value in [0, F] (it computes only the clearances a bound leaves open, where
-    the rows' path computes a marked row whole); and it asks Pinocchio for joint placements
-    at the same rows. Both signs occur, and tests with no placements."""
+    the rows' path computes a marked row whole); and it makes the joint placements at the
+    same rows (inside its one call: frozen_chain_test). Both signs occur, and tests with no
+    placements."""
     signs, placed, fused, tests = set(), list[int](), list[int](), 0
     for along, rows, floor, mid, stop, sample, exact, predict, tau, ramp in _tests(rate):
         assert isinstance(predict, Frozen) and along.fuses and (ramp is None) == (rate is None)
@@ -105,7 +127,7 @@ def test_the_frozen_test_is_the_same_F_bit_for_bit(rate: float | None) -> None:
                 if ramp is not None:  # as Acceptance.check takes it on the rows
                     expected = min(expected, along.ramp_slack(rows, ramp))
                     exact = min(exact, along.ramp_slack(rows, ramp))
-                with _counting(fused):
+                with _counting_in_one_call(fused):
                     found = along.frozen_slack(predict, acc, after, floor, mid, s, given,
                                                enough, ramp)
                 if enough == math.inf or expected < 0.0:

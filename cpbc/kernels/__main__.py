@@ -19,8 +19,8 @@ MODULES = tuple(f"cpbc.kernels.{m}" for m in (
     "plan_tables", "task",
     "torque_box", "clearance", "clearance_motion", "coordinate_maps", "state_terms",
     "barrier_shaping", "barriers", "python_rows", "barrier_set", "law_terms", "laws",
-    "braking_path", "stopping_test", "shares", "sampled_guard", "frozen_slack",
-    "joint_placements", "slide"))
+    "braking_path", "stopping_test", "shares", "sampled_guard", "joint_placements",
+    "frozen_slack", "slide"))
 
 
 def module_kernels(name: str) -> list[tuple[str, CPUDispatcher]]:

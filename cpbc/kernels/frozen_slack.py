@@ -24,6 +24,7 @@ from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, inner, kernel
 from cpbc.kernels.braking_path import configuration_rows
 from cpbc.kernels.clearance import Ints
+from cpbc.kernels.joint_placements import joint_placements
 from cpbc.kernels.sampled_guard import (
     all_but_spheres,
     bounded_slack,
@@ -171,3 +172,56 @@ def frozen_ramp(velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array
     ramp_speeds(speeds, start, h, inertia, to_joint, mapped, rate, share, peaks)
     return ramp_share(velocity_plan, velocity_ints, velocity_floats, ends, peaks,
                       np.zeros((0, 1, 1)), np.empty((r, nv)), floor)
+
+
+@kernel("UniTuple(float64, 2)(float64[:], float64[:], float64[:], float64[:], float64, float64,"
+        " int64, float64[:], float64, float64, float64, int64, int64[:, :], int64[:, :],"
+        " float64[:, :], int64[:, :], int64[:, :], float64[:, :], float64[:], float64[:],"
+        f" float64[:], boolean, boolean, boolean, {READ_ONLY}, {READ_ONLY}, float64, int64,"
+        " float64[::1], int64[:], int64[:], int64[:], float64[:, :], float64[:, :, :],"
+        " float64[:, :], int64[:], float64, boolean, float64[:], float64, float64[:, :],"
+        f" float64[:, :], boolean, {READ_ONLY}, float64, float64[:])")
+def frozen_chain_test(x: Array, dx: Array, acc: Array, after: Array, h: float, travel: float,
+                      r: int, start: Array, period: float, per_speed: float, ramp: float,
+                      points: int, config_plan: Ints, config_ints: Ints, config_floats: Array,
+                      velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array,
+                      end_floor: Array, mid_floor: Array, sigma_floor: Array,
+                      has_config: bool, has_stop: bool, bounded: bool, sample_x: Array,
+                      sample_margins: Array, enough: float, nc: int, work: Array,
+                      slots: Ints, parents: Ints, kinds: Ints, axes: Array,
+                      rotations: Array, translations: Array, coordinates: Ints,
+                      scale: float, has_ramp: bool, ramp_start: Array, ramp_period: float,
+                      ramp_inertia: Array, to_joint: Array, mapped: bool, rate: Array,
+                      share: float, ramp_floor: Array) -> tuple[float, float]:
+    """``frozen_test``, the marked rows' joint placements (``joint_placements``, the arm's
+    chain: cpbc.model.joint_chain), ``frozen_finish`` and, with ``has_ramp``,
+    ``frozen_ramp`` (the lesser) in one call, for an arm whose sphere pairs pack and whose
+    chain is compiled: (F, the rows whose placements it made), F the same as the four calls
+    and the placements between them give, bit for bit; what it saves is three calls from
+    Python, the rows picked out and the placements' wrapper."""
+    f, marked = frozen_test(x, dx, acc, after, h, travel, r, start, period, per_speed, ramp,
+                            points, config_plan, config_ints, config_floats, velocity_plan,
+                            velocity_ints, velocity_floats, end_floor, mid_floor,
+                            sigma_floor, has_config, has_stop, True, bounded, sample_x,
+                            sample_margins, enough, nc, work, slots)
+    n = x.shape[0]
+    if marked:
+        k = int(marked)
+        picked = np.empty((k, n))
+        for i in range(slots.shape[0]):  # numbered from 0 in row order (_bound_spheres)
+            if slots[i] >= 0:
+                for j in range(n):
+                    picked[slots[i], j] = work[i * n + j]
+        placements = np.empty((k, 3, 4 * parents.shape[0]))
+        joint_placements(parents, kinds, axes, rotations, translations, coordinates, scale,
+                         picked, placements)
+        f = frozen_finish(config_plan, config_ints, config_floats, work, r, n, points, nc,
+                          placements, slots, end_floor, mid_floor, sigma_floor, has_config,
+                          has_stop)
+    if not has_ramp:
+        return f, marked
+    found = frozen_ramp(velocity_plan, velocity_ints, velocity_floats, work, r, n, points,
+                        nc, ramp_start, ramp_period, ramp_inertia, to_joint, mapped, rate,
+                        share, ramp_floor)
+    return (found if found < f else f), marked  # min(f, found), as Python's
+

@@ -27,7 +27,13 @@ from cpbc.constraints.packing import Packed, PackedSet
 from cpbc.controllers.safeguard.prediction import Frozen
 from cpbc.kernels.barrier_set import LINEAR, RATE, SPHERES
 from cpbc.kernels.braking_path import configuration_rows
-from cpbc.kernels.frozen_slack import frozen_finish, frozen_ramp, frozen_size, frozen_test
+from cpbc.kernels.frozen_slack import (
+    frozen_chain_test,
+    frozen_finish,
+    frozen_ramp,
+    frozen_size,
+    frozen_test,
+)
 from cpbc.kernels.sampled_guard import (
     bounded_slack,
     margins_along,
@@ -295,7 +301,9 @@ class PredictedMargins:
         and ``after`` (Frozen.start), where every constraint packs (``fuses``) and no margin
         is broken already — and with ``ramp`` the lesser of it and :meth:`ramp_slack` —
         in one kernel call and, where a row needs its joint placements, those and a
-        second (cpbc.kernels.frozen_slack): the same F, bit for bit, where it is exact."""
+        second (cpbc.kernels.frozen_slack): the same F, bit for bit, where it is exact. For
+        an arm whose chain is compiled (JointChain) all of it is one call
+        (frozen_chain_test), the placements of the marked rows made inside."""
         r, n, nc = frozen.rows, self.n, self.nc
         has_config = mid_floor is not None
         points = stop.points if stop is not None and has_config else 0
@@ -310,6 +318,20 @@ class PredictedMargins:
         cp, vp = self._config, self._velocity
         bounded = sample is not None
         at, margins = (sample.x, sample.margins) if sample is not None else (no_floor, no_floor)
+        chain = self._chain
+        if chain is not None:  # the whole test in one call (frozen_chain_test)
+            ramped = (_AT_REST, 1.0, self._no_config, self._no_config, False, no_floor,
+                      RAMP_SHARE, no_floor) if ramp is None else (
+                ramp.start, ramp.period, ramp.inertia,
+                ramp.inertia if ramp.to_joint is None else ramp.to_joint,
+                ramp.to_joint is not None, ramp.rate, RAMP_SHARE, ramp.floor)
+            return frozen_chain_test(
+                frozen.x, frozen.dx, acc, after, frozen.h, frozen.travel, r, start, period,
+                per_speed, ramp_time, points, cp.plan, cp.ints, cp.floats, vp.plan, vp.ints,
+                vp.floats, end_floor, mid, sigma, has_config, stop is not None, bounded, at,
+                margins, enough, nc, work, slots, chain.parents, chain.kinds, chain.axes,
+                chain.rotations, chain.translations, chain.coordinates, chain.scale,
+                ramp is not None, *ramped)[0]
         f, marked = frozen_test(frozen.x, frozen.dx, acc, after, frozen.h, frozen.travel, r,
                                 start, period, per_speed, ramp_time, points, cp.plan, cp.ints,
                                 cp.floats, vp.plan, vp.ints, vp.floats, end_floor, mid, sigma,
