@@ -65,11 +65,12 @@ def _counting(placed: list[int]) -> Iterator[None]:
 
 @contextmanager
 def _counting_in_one_call(placed: list[int]) -> Iterator[None]:
-    """The rows the frozen test's one call (frozen_chain_test, for an arm whose chain is
-    compiled) makes the joint placements at, appended to ``placed``: it says how many."""
+    """As :func:`_counting`, and the rows the frozen test's one call (frozen_chain_test,
+    under a rate limit for an arm whose chain is compiled) makes the joint placements at,
+    which it says: their sum appended to ``placed``."""
     import cpbc.controllers.safeguard.predicted_margins as module
 
-    tested, rows = module.frozen_chain_test, [0]
+    tested, rows, apart = module.frozen_chain_test, [0], list[int]()
 
     def count(*args: object) -> tuple[float, float]:
         f, marked = tested(*args)
@@ -78,10 +79,11 @@ def _counting_in_one_call(placed: list[int]) -> Iterator[None]:
 
     module.frozen_chain_test = count  # type: ignore[assignment]
     try:
-        yield
+        with _counting(apart):
+            yield
     finally:
         module.frozen_chain_test = tested
-        placed.append(rows[0])
+        placed.append(rows[0] + sum(apart))
 
 
 @pytest.mark.parametrize("rate", [None, 1000.0])

@@ -302,8 +302,11 @@ class PredictedMargins:
         is broken already — and with ``ramp`` the lesser of it and :meth:`ramp_slack` —
         in one kernel call and, where a row needs its joint placements, those and a
         second (cpbc.kernels.frozen_slack): the same F, bit for bit, where it is exact. For
-        an arm whose chain is compiled (JointChain) all of it is one call
-        (frozen_chain_test), the placements of the marked rows made inside."""
+        an arm whose chain is compiled (JointChain), with a ``ramp`` to test, all of it is one
+        call (frozen_chain_test: the placements of the marked rows made inside): 21.0
+        against 23.9 µs at the median on the Panda bench's states under 1000 N·m/s. Without
+        a ramp the calls stay apart: the one call's 50 arguments cost more to pass than it
+        saves where no row needs its placements (7.1 against 5.9 µs at the median)."""
         r, n, nc = frozen.rows, self.n, self.nc
         has_config = mid_floor is not None
         points = stop.points if stop is not None and has_config else 0
@@ -319,19 +322,16 @@ class PredictedMargins:
         bounded = sample is not None
         at, margins = (sample.x, sample.margins) if sample is not None else (no_floor, no_floor)
         chain = self._chain
-        if chain is not None:  # the whole test in one call (frozen_chain_test)
-            ramped = (_AT_REST, 1.0, self._no_config, self._no_config, False, no_floor,
-                      RAMP_SHARE, no_floor) if ramp is None else (
-                ramp.start, ramp.period, ramp.inertia,
-                ramp.inertia if ramp.to_joint is None else ramp.to_joint,
-                ramp.to_joint is not None, ramp.rate, RAMP_SHARE, ramp.floor)
+        if chain is not None and ramp is not None:  # all of it in one call
             return frozen_chain_test(
                 frozen.x, frozen.dx, acc, after, frozen.h, frozen.travel, r, start, period,
                 per_speed, ramp_time, points, cp.plan, cp.ints, cp.floats, vp.plan, vp.ints,
                 vp.floats, end_floor, mid, sigma, has_config, stop is not None, bounded, at,
                 margins, enough, nc, work, slots, chain.parents, chain.kinds, chain.axes,
-                chain.rotations, chain.translations, chain.coordinates, chain.scale,
-                ramp is not None, *ramped)[0]
+                chain.rotations, chain.translations, chain.coordinates, chain.scale, True,
+                ramp.start, ramp.period, ramp.inertia,
+                ramp.inertia if ramp.to_joint is None else ramp.to_joint,
+                ramp.to_joint is not None, ramp.rate, RAMP_SHARE, ramp.floor)[0]
         f, marked = frozen_test(frozen.x, frozen.dx, acc, after, frozen.h, frozen.travel, r,
                                 start, period, per_speed, ramp_time, points, cp.plan, cp.ints,
                                 cp.floats, vp.plan, vp.ints, vp.floats, end_floor, mid, sigma,
