@@ -8,15 +8,9 @@ against a few µs warm."""
 from __future__ import annotations
 
 from cpbc.arrays import Array
-from cpbc.kernels import inner, kernel
+from cpbc.kernels import kernel
 from cpbc.kernels.sampled_guard import project_halfspaces
-from cpbc.kernels.small_solves import solve_spd
-
-
-@inner("float64(float64, float64)")
-def _larger(a: float, b: float) -> float:
-    """numpy's maximum of two floats: NaN where either is."""
-    return a if a >= b or a != a else b
+from cpbc.kernels.small_solves import nan_max, solve_spd
 
 
 @kernel("void(float64[:, :], float64[:], float64[:], float64[:], float64[:], float64, float64,"
@@ -44,7 +38,7 @@ def slide_acceleration(grads: Array, dx: Array, phi: Array, end_floor: Array,
         e, mf, p = end_floor[i], mid_floor[i], phi[i]
         end = e + 0.05 * abs(e - p) + 1e-4 * abs(e)
         mid = mf + 0.05 * abs(mf - p) + 1e-4 * abs(mf)
-        need[i] = _larger((end - p - h * r) / (travel * h * h),
+        need[i] = nan_max((end - p - h * r) / (travel * h * h),
                           8.0 * (mid - p - 0.5 * h * r) / (h * h))
     solve_spd(inertia, push, work, law)
     project_halfspaces(grads, need, law, acc)
