@@ -41,7 +41,7 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import stopping_terms
 from cpbc.kernels.bounded_lsq import bounded_least_squares
 from cpbc.kernels.small_solves import inverse_inertia
-from cpbc.kernels.torque_box import box_around, box_clip, box_toward
+from cpbc.kernels.torque_box import box_around, box_clip, box_nearest, box_toward
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -138,8 +138,11 @@ class TorqueBox:
         change into the box — :meth:`toward` — lets the joint with the least room set every
         joint's share: under a torque-rate limit the FR3's light last joint got 0.14 N·m of
         its 1 N·m a period while its torque had to turn, and ran through its rate bound.)"""
-        tau_q = self.joint(tau)
         lower, upper = self.bounds
+        if self.to_joint is None:  # joint coordinates: one compiled call (box_nearest)
+            out = np.empty(len(tau))
+            return out if box_nearest(lower, upper, inertia, tau, out) else tau
+        tau_q = self.joint(tau)
         if np.all(tau_q >= lower) and np.all(tau_q <= upper):
             return tau
         accel = self.acceleration_map(inertia)

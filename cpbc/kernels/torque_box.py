@@ -10,7 +10,8 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, kernel
-from cpbc.kernels.small_solves import nan_max, nan_min, times
+from cpbc.kernels.bounded_lsq import bounded_least_squares
+from cpbc.kernels.small_solves import inverse_spd, nan_max, nan_min, times
 
 
 @kernel(f"void(float64[:], float64[:], {READ_ONLY}, {READ_ONLY}, float64[:], float64[:])")
@@ -77,3 +78,22 @@ def box_toward(lower: Array, upper: Array, to_joint: Array, from_joint: Array, m
     for i in range(n):
         out[i] = bias[i] + t * (tau[i] - bias[i])
     return 1
+
+
+@kernel(f"boolean(float64[:], float64[:], float64[:, :], {READ_ONLY}, float64[:])")
+def box_nearest(lower: Array, upper: Array, inertia: Array, tau: Array, out: Array) -> bool:
+    """In joint coordinates: False where τ fits lower ≤ τ ≤ upper (``out`` untouched), else
+    True with the torque in the box whose acceleration is nearest to τ's, min ‖A(τ' − τ)‖
+    with A = D⁻¹ (``inverse_spd``, ``bounded_least_squares``), into ``out``
+    (cpbc.constraints.brakes.TorqueBox.nearest, one call where it was seven)."""
+    n = tau.shape[0]
+    for j in range(n):
+        if not (tau[j] >= lower[j] and tau[j] <= upper[j]):
+            break
+    else:
+        return False
+    accel = np.empty((n, n))
+    inverse_spd(inertia, accel)
+    bounded_least_squares(accel, np.dot(accel, tau), lower, upper, out)
+    return True
+
