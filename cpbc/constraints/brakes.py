@@ -130,24 +130,19 @@ class TorqueBox:
 
     def nearest(self, inertia: Array, tau: Array) -> Array:
         """τ itself when it fits the box, else the torque in the box whose acceleration is
-        nearest to τ's, min ‖A(τ_q' − τ_q)‖ over lower ≤ τ_q' ≤ upper (A =
-        :meth:`acceleration_map` of the inertia D, formed only then;
-        cpbc.kernels.bounded_lsq): each joint uses as much of
+        nearest to τ's, min ‖A(τ_q' − τ_q)‖ over lower ≤ τ_q' ≤ upper (A = D⁻¹T⁻ᵀ, as
+        :meth:`acceleration_map`, formed only then; one compiled call,
+        cpbc.kernels.torque_box.box_nearest): each joint uses as much of
         its own interval as the acceleration asks, and the joints that cannot follow cost
         the acceleration as little as the coupling through D allows. (Scaling the whole
         change into the box — :meth:`toward` — lets the joint with the least room set every
         joint's share: under a torque-rate limit the FR3's light last joint got 0.14 N·m of
         its 1 N·m a period while its torque had to turn, and ran through its rate bound.)"""
-        lower, upper = self.bounds
-        if self.to_joint is None:  # joint coordinates: one compiled call (box_nearest)
-            out = np.empty(len(tau))
-            return out if box_nearest(lower, upper, inertia, tau, out) else tau
+        lower, upper, _, from_joint, mapped = self._packed
         tau_q = self.joint(tau)
-        if np.all(tau_q >= lower) and np.all(tau_q <= upper):
-            return tau
-        accel = self.acceleration_map(inertia)
         out = np.empty(len(tau_q))
-        bounded_least_squares(accel, accel.dot(tau_q), lower, upper, out)
+        if not box_nearest(lower, upper, inertia, from_joint, mapped, tau_q, out):
+            return tau
         return out if self.from_joint is None else self.from_joint.dot(out)
 
     def clip(self, tau: Array) -> Array:

@@ -80,20 +80,24 @@ def box_toward(lower: Array, upper: Array, to_joint: Array, from_joint: Array, m
     return 1
 
 
-@kernel(f"boolean(float64[:], float64[:], float64[:, :], {READ_ONLY}, float64[:])")
-def box_nearest(lower: Array, upper: Array, inertia: Array, tau: Array, out: Array) -> bool:
-    """In joint coordinates: False where τ fits lower ≤ τ ≤ upper (``out`` untouched), else
-    True with the torque in the box whose acceleration is nearest to τ's, min ‖A(τ' − τ)‖
-    with A = D⁻¹ (``inverse_spd``, ``bounded_least_squares``), into ``out``
-    (cpbc.constraints.brakes.TorqueBox.nearest, one call where it was seven)."""
-    n = tau.shape[0]
+@kernel(f"boolean(float64[:], float64[:], float64[:, :], float64[:, :], boolean, {READ_ONLY},"
+        " float64[:])")
+def box_nearest(lower: Array, upper: Array, inertia: Array, from_joint: Array, mapped: bool,
+                tau_q: Array, out: Array) -> bool:
+    """False where the joint torques τ_q fit lower ≤ τ_q ≤ upper (``out`` untouched), else
+    True with the joint torques in the box whose acceleration is nearest to τ_q's,
+    min ‖A(τ_q' − τ_q)‖ with A = D⁻¹T⁻ᵀ (``from_joint``; D⁻¹ in joint coordinates,
+    ``mapped`` False), into ``out`` (``inverse_spd``, ``bounded_least_squares``;
+    cpbc.constraints.brakes.TorqueBox.nearest)."""
+    n = tau_q.shape[0]
     for j in range(n):
-        if not (tau[j] >= lower[j] and tau[j] <= upper[j]):
+        if not (tau_q[j] >= lower[j] and tau_q[j] <= upper[j]):
             break
     else:
         return False
     accel = np.empty((n, n))
     inverse_spd(inertia, accel)
-    bounded_least_squares(accel, np.dot(accel, tau), lower, upper, out)
+    if mapped:
+        accel = np.dot(accel, from_joint)
+    bounded_least_squares(accel, np.dot(accel, tau_q), lower, upper, out)
     return True
-
