@@ -669,6 +669,45 @@ def test_a_spent_step_holds_the_reach_of_the_brake_nearer_to_passing(load_dict) 
     assert check.trajectory.out_of_tests > 50  # the brake was the spent steps' to choose
 
 
+def test_a_reach_that_passes_over_floors_above_the_cushions_is_held_untested(
+        load_dict, monkeypatch) -> None:
+    """The figure eight's seed 19 run as above (the robot's budgets, the tightest time
+    budget, 0.45 s): at each of its 270 steps whose reaches were made ahead, Brakes.spent
+    given (S1)'s floors holds what it holds without them — where they are at or above the
+    cushions and a reach passes F, that reach, with no (S0) test (154 steps); tested, (S0)
+    holds it, as F ≥ 0 over those floors implies. Elsewhere it tests as before (116)."""
+    from cpbc.controllers.safeguard.braking import Brakes, _first_prediction
+
+    spent, positivity = Brakes.spent, Brakes.positivity
+    tests, untested, tested = [0], [0], [0]
+
+    def counted(self, *args, **kwargs):
+        tests[0] += 1
+        return positivity(self, *args, **kwargs)
+
+    def both_ways(self, bias, stop, predict, sample, reaches, floors=None):
+        before = tests[0]
+        held = spent(self, bias, stop, predict, sample, reaches, floors)
+        if reaches is None:
+            return held
+        made_none = tests[0] == before
+        np.testing.assert_array_equal(held, spent(self, bias, stop, predict, sample,
+                                                  reaches, None))
+        if made_none:
+            untested[0] += 1
+            assert positivity(self, _first_prediction(predict), sample)(held) >= 0.0
+        else:
+            tested[0] += 1
+        return held
+
+    monkeypatch.setattr(Brakes, "positivity", counted)
+    monkeypatch.setattr(Brakes, "spent", both_ways)
+    check = _as_a_robot_runs_it(load_dict, "panda_figure8_ke_rate.yaml", 19, 0.45,
+                                on_path=True, safeguard_time_budget=1e-9)
+    assert not check.violated, (check.constraint, check.min_margin)
+    assert untested[0] > 0 and tested[0] > 0, (untested, tested)
+
+
 def test_a_committed_brake_whose_nearest_reach_fails_is_held_clipped_where_that_passes(
         load_dict) -> None:
     """The figure eight's seed 127 from its phase of the path, under the robot's budgets

@@ -252,7 +252,8 @@ class Brakes:
                                      sample=sample)
 
     def spent(self, bias: Array, stop: Array, predict: Predictor, sample: Sample,
-              reaches: Reaches | None) -> Array:
+              reaches: Reaches | None,
+              floors: tuple[Array, Array | None] | None = None) -> Array:
         """What a step whose budget of tests is spent holds where no candidate passed
         (Safeguard._out_of_tests): the calmest brake b − λ₀ D ẋ/h in the step's box,
         untested; under a torque-rate limit its ``reaches`` — by its nearest acceleration
@@ -272,14 +273,31 @@ class Brakes:
         builds), passed F at the chain's first step. The line alone is no answer either: it
         takes the held acceleration back at the pace of the joint with the most to change,
         and held from every spent step it let the figure eight's seed 53 through its
-        kinetic-energy bound by 0.12 J at 500 Hz (docs/reliability.md)."""
+        kinetic-energy bound by 0.12 J at 500 Hz (docs/reliability.md).
+
+        ``floors``: (S1)'s floors at the end and mid-period the reaches' F held them to
+        (None where some margin is broken already). Where each is at or above its cushion,
+        F ≥ 0 says (S0) holds already (its rows are the first prediction's of F's, its
+        floors no higher), and the reach nearer to passing is held without a test."""
         if reaches is None:
             return self.brake(bias, stop, self.settings.braking)
+        if max(reaches.f_nearest, reaches.f_line) >= 0.0 and self._covered(floors):
+            return reaches.by_f()[0]
         keeps = self.positivity(_first_prediction(predict), sample).sign  # a sign: all it asks
         for tau in (*reaches.by_f(), self._taken_back(bias)):
             if keeps(tau) >= 0.0:
                 return tau
         return reaches.nearest
+
+    def _covered(self, floors: tuple[Array, Array | None] | None) -> bool:
+        """Whether ``floors`` (end, mid-period) are at or above the cushions δ at every
+        margin, as (S0) holds them."""
+        if floors is None:
+            return False
+        end, mid = floors
+        cushion = self.cushion
+        return bool(np.all(end >= cushion)) and (
+            mid is None or bool(np.all(mid >= cushion[:self.n_config])))
 
     def _first_kept(self, bias: Array, stop: Array, positivity: Slack
                     ) -> tuple[Array | None, Array, float]:

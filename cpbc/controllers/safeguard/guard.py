@@ -327,14 +327,14 @@ class Safeguard(SafetyFilter):
         return held if held is not None else self._spent(step)
 
     def _spent(self, step: StepTests, reaches: Reaches | None = None) -> Array:
-        """The uniform brake, untested; under a torque-rate limit its reach nearer to
-        passing that keeps (S0) (Brakes.spent)."""
+        """The uniform brake, untested; rate-limited its reach that keeps (S0) (Brakes.spent)."""
         if reaches is None and self.box.rate_limited:
             reaches = self._reaches(step)
+        floors = None if step.past is not None else (step.floor, step.floor_mid)
         with self.budget.lifted():
             return self.brakes.spent(step.bias, step.state.inertia.dot(step.state.dx) /
                                      self.period, step.predict, Sample(step.state.x, step.now),
-                                     reaches)
+                                     reaches, floors)
 
     def _reaches(self, step: StepTests) -> Reaches:
         """The calmest brake's two reaches and F's sign (exact where < 0), unbudgeted: the
