@@ -317,6 +317,12 @@ def _print_tail(tail: dict[str, object], how: str = "") -> None:
           f"{tail['steps']:,} steps ({tail['acting_steps']:,} acting, {tail['rescues']} "
           f"rescues, {tail['out_of_tests']} out of tests); max / p50 "
           f"{tail['max_over_p50']:.1f} (target ≤ 5)")
+    own = tail.get("own")
+    if isinstance(own, dict):
+        print(f"  each step's least of {tail['repeats']} repeats [µs]: "
+              + ", ".join(f"{k} {own[k]:.0f}" for k in ("p50", "p99", "p999", "p9999", "max"))
+              + f" over {tail['own_steps']:,} steps made alike; max / p50 "
+              f"{tail['own_max_over_p50']:.1f}")
     law = tail["bare_law"]
     assert isinstance(law, dict)
     print("  its law alone at the same states [µs]: "
@@ -386,6 +392,30 @@ def _print_text(setup: BenchSetup, document: dict[str, object], torque_us: dict[
                 _print_tail(robot, how)  # type: ignore[arg-type]
 
 
+def _tails(steps: int, repeats: int) -> dict[str, dict[str, object]]:
+    """The guarded step's tail in closed loop (cpbc.bench_tail), unbounded, then bounded as
+    cpbc.hardware bounds the guard on a robot at 1 kHz (the tail's runs are the Panda's at
+    1 kHz: a deadline of one period), and the same under a Franka's own torque-rate limit
+    (libfranka's, 1000 N·m/s a joint): every candidate reached into the step's rate box, as
+    cpbc.hardware runs the arm."""
+    from cpbc.bench_tail import guarded_tail
+    from cpbc.hardware.franka import FR3_LIMITS
+    from cpbc.hardware.robot_run import (
+        ROBOT_RESCUE_BUDGET,
+        ROBOT_TEST_BUDGET,
+        ROBOT_TIME_SHARE,
+    )
+
+    found = {"guarded_tail_us": guarded_tail(steps, repeats=repeats)}
+    for key, rate in (("guarded_tail_robot_us", None),
+                      ("guarded_tail_robot_rate_us", float(FR3_LIMITS.torque_rate.max()))):
+        found[key] = guarded_tail(
+            steps, rate_limit=rate, rescue_budget=ROBOT_RESCUE_BUDGET,
+            test_budget=ROBOT_TEST_BUDGET, time_budget=ROBOT_TIME_SHARE * 1e-3,
+            repeats=repeats)
+    return found
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m cpbc.bench", description=__doc__)
     p.add_argument("--robot", choices=sorted(ROBOTS), default="planar_2link")
@@ -400,9 +430,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--tail-steps", type=int, default=100_000,
                    help="with --peers on the panda: guarded closed-loop steps to time for "
                    "the tail (guarded_tail_us; cpbc.bench_tail)")
+    p.add_argument("--tail-repeats", type=int, default=1,
+                   help="with --peers on the panda: make the tail's runs this many times and "
+                   "report each step's least time over them too (own: the host's "
+                   "interruptions taken out)")
     p.add_argument("--markdown", metavar="PATH",
                    help="also write the figures as a Markdown fragment (cpbc.bench_report)")
     args = p.parse_args(argv)
+    if args.tail_repeats < 1:
+        print(f"error: --tail-repeats {args.tail_repeats}: give 1 or more", file=sys.stderr)
+        return 2
     if args.markdown and not Path(args.markdown).resolve().parent.is_dir():
         print(f"error: --markdown {args.markdown}: its folder does not exist", file=sys.stderr)
         return 2
@@ -440,32 +477,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         from cpbc.bench_stream import stream_times
 
         document["stream"] = stream_times(taskspace_pair()[1], args.repeats)
-    tail = None
-    if peers and setup.robot == "panda":  # the closed loop's worst steps, for a deadline
-        from cpbc.bench_tail import guarded_tail
-        from cpbc.hardware.franka import FR3_LIMITS
-        from cpbc.hardware.robot_run import (
-            ROBOT_RESCUE_BUDGET,
-            ROBOT_TEST_BUDGET,
-            ROBOT_TIME_SHARE,
-        )
-
-        tail = document["guarded_tail_us"] = guarded_tail(args.tail_steps)
-        # the same, bounded as cpbc.hardware bounds the guard on a robot at 1 kHz (the
-        # tail's runs are the Panda's at 1 kHz: a deadline of one period)
-        # ... and under a Franka's own torque-rate limit (libfranka's, 1000 N·m/s a joint):
-        # every candidate reached into the step's rate box, as cpbc.hardware runs the arm
-        for key, rate in (("guarded_tail_robot_us", None),
-                          ("guarded_tail_robot_rate_us", float(FR3_LIMITS.torque_rate.max()))):
-            document[key] = guarded_tail(
-                args.tail_steps, rate_limit=rate, rescue_budget=ROBOT_RESCUE_BUDGET,
-                test_budget=ROBOT_TEST_BUDGET, time_budget=ROBOT_TIME_SHARE * 1e-3)
+    tails = _tails(args.tail_steps, args.tail_repeats) if peers and setup.robot == "panda" \
+        else {}  # the closed loop's worst steps, for a deadline
+    document.update(tails)
     if args.markdown:
         Path(args.markdown).write_text(bench_markdown([document]), encoding="utf-8")
     if args.json:
         print(json.dumps(document))
     else:
-        _print_text(setup, document, torque_us, loop, bare, tail)
+        _print_text(setup, document, torque_us, loop, bare, tails.get("guarded_tail_us"))
     if args.check:
         from cpbc.kernels.__main__ import problems
 

@@ -33,6 +33,15 @@ def test_bench_peers_times_guarded_law_and_cbf_qp_on_the_same_states(capsys) -> 
     assert beside["guarded_us"] > beside["bare_us"] > 0  # the guard runs the law, and more
 
 
+def test_bench_refuses_a_tail_repeated_fewer_than_once(capsys, tmp_path) -> None:
+    """--tail-repeats 0 is refused before anything is timed or written: exit 2, the flag
+    named."""
+    out = tmp_path / "speed.md"
+    assert main(["--robot", "panda", "--peers", "--tail-repeats", "0", "--markdown",
+                 str(out)]) == 2
+    assert "--tail-repeats 0" in capsys.readouterr().err and not out.exists()
+
+
 def test_bench_check_fails_when_the_kernels_are_not_compiled() -> None:
     """--check fails when a kernel is not compiled in nopython mode: here none is (the
     kernels run as plain Python under NUMBA_DISABLE_JIT=1), however fast CPBC may be."""

@@ -8,7 +8,8 @@ import math
 
 import pytest
 
-from cpbc.bench_tail import QUANTILES, guarded_tail, quantiles
+from cpbc.bench_tail import QUANTILES, TimedPass, guarded_tail, least_of_repeats, quantiles
+from cpbc.errors import ParameterError
 
 
 def test_quantiles_of_nothing_are_nan_and_of_a_list_ordered() -> None:
@@ -35,3 +36,39 @@ def test_the_tail_times_every_step_of_runs_where_the_guard_acts(rate: float | No
     assert tail["max_over_p50"] == pytest.approx(tail["max"] / tail["p50"])  # type: ignore[operator]
     assert (tail["rate_limit"], tail["rescue_budget"], tail["test_budget"]) == (rate, 8, 2)
     assert tail["time_budget_us"] is None
+
+
+def _pass(times: list[list[int]], torques: list[list[bytes]]) -> TimedPass:
+    made = TimedPass()
+    made.times, made.torques = times, torques
+    return made
+
+
+def test_a_step_s_own_time_is_its_least_over_the_repeats_that_made_it_the_same_way() -> None:
+    """Two runs, three passes: each step's least time over the passes whose torques agree
+    with the first's up to it; a pass that changed a run's torque at its third step leaves
+    the run's steps from there out (not the same computation), and so does a pass whose run
+    ended sooner."""
+    a, b, c, d = b"a", b"b", b"c", b"d"
+    first = _pass([[10, 20, 30, 40], [5, 6]], [[a, b, c, d], [a, b]])
+    second = _pass([[12, 15, 31, 39], [4, 9]], [[a, b, c, d], [a, b]])
+    third = _pass([[11, 25, 1, 1], [7]], [[a, b, d, d], [a]])
+    assert least_of_repeats([first]) == [10, 20, 30, 40, 5, 6]
+    assert least_of_repeats([first, second]) == [10, 15, 30, 39, 4, 6]
+    assert least_of_repeats([first, second, third]) == [10, 15, 4]
+
+
+def test_repeated_runs_time_each_step_again_and_keep_its_least() -> None:
+    """Without a time budget the loop is deterministic: a second pass makes every step the
+    same way, and each step's own time is at most its first pass's, so every quantile of
+    ``own`` is too. No repeat is refused by name."""
+    tail = guarded_tail(300, seconds=0.1, rate_limit=1000.0, rescue_budget=8, test_budget=2,
+                        repeats=2)
+    assert tail["repeats"] == 2 and tail["own_steps"] == tail["steps"]
+    own = tail["own"]
+    assert isinstance(own, dict)
+    for key in (*QUANTILES, "max"):
+        assert 0.0 < own[key] <= tail[key]  # type: ignore[operator]
+    assert tail["own_max_over_p50"] == pytest.approx(own["max"] / own["p50"])
+    with pytest.raises(ParameterError, match="repeats"):
+        guarded_tail(10, repeats=0)
