@@ -334,8 +334,10 @@ class Clearance(PairLayout, ConfigurationConstraint):
 
     def _capsule_curvature(self, x: Array, dx: Array, out: Array) -> None:
         """The capsule primitives' entries of ``curvature`` into ``out``."""
+        if not self._groups:
+            return
         speed = float(np.linalg.norm(dx))
-        if self._groups and speed > 0.0:
+        if speed > 0.0:
             t = 1e-6 / speed
             diff = self.gradient(x + t * dx) - self.gradient(x - t * dx)
             rest = slice(self.sphere_count, len(self.names))
