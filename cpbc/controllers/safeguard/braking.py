@@ -284,10 +284,11 @@ class Brakes:
         if max(reaches.f_nearest, reaches.f_line) >= 0.0 and self._covered(floors):
             return reaches.by_f()[0]
         keeps = self.positivity(_first_prediction(predict), sample).sign  # a sign: all it asks
-        for tau in (*reaches.by_f(), self._taken_back(bias)):
+        for tau in reaches.by_f():
             if keeps(tau) >= 0.0:
                 return tau
-        return reaches.nearest
+        back = self._taken_back(bias)  # made only here: five spent steps in six need not
+        return back if keeps(back) >= 0.0 else reaches.nearest
 
     def _covered(self, floors: tuple[Array, Array | None] | None) -> bool:
         """Whether ``floors`` (end, mid-period) are at or above the cushions δ at every
