@@ -26,7 +26,6 @@ docs and for a deadline budget.
 from __future__ import annotations
 
 import contextlib
-import math
 import time
 from collections.abc import Sequence
 from dataclasses import replace
@@ -236,6 +235,7 @@ def guarded_tail(steps: int = 100_000, seconds: float = 0.5, seed: int = 0,
         passes = [first, *(_run_all(setup, steps, seconds, seed, runs=first.counts["runs"])
                            for _ in range(repeats - 1))]
         own = least_of_repeats(passes)
-        found.update(repeats=repeats, own=quantiles(own), own_steps=len(own),
-                     own_max_over_p50=max(own) / float(np.median(own)) if own else math.nan)
+        mine = quantiles(own)
+        found.update(repeats=repeats, own=mine, own_steps=len(own),
+                     own_max_over_p50=mine["max"] / mine["p50"])
     return found
