@@ -11,7 +11,9 @@ path's kernels called in one go (``clipped_start`` is the prediction's start, wi
 saturation into the step's box), over one buffer whose layout (``frozen_size``,
 ``frozen_parts``) is written once, below. What it saves is the Python between them (a calm
 Panda step's first test made 2 kernel calls, 9 arrays and 2 Python calls more) and, where
-rows need their clearances, the pairs a bound settles.
+rows need their clearances, the pairs a bound settles. For an arm whose chain is compiled
+(cpbc.model.joint_chain) and under a torque-rate limit, ``frozen_chain_test`` makes all of it
+in one call, the marked rows' placements inside (``joint_placements``).
 """
 
 from __future__ import annotations
@@ -224,4 +226,3 @@ def frozen_chain_test(x: Array, dx: Array, acc: Array, after: Array, h: float, t
                         nc, ramp_start, ramp_period, ramp_inertia, to_joint, mapped, rate,
                         share, ramp_floor)
     return (found if found < f else f), marked  # min(f, found), as Python's
-
