@@ -58,6 +58,15 @@ class TimedFilter(SafetyFilter):
         self.acting: list[bool] = []
         self.bare: list[int] = []  # the guard's law alone at the same state, just before
         self.torques: list[bytes] = []  # what each call returned, to tell repeats apart
+        self._prime = False  # the next call is a loop's first (restart)
+
+    def restart(self) -> None:
+        """A loop begins: the records emptied, and its first call primes the guard at its
+        state before it is timed (SafetyFilter.prime), as cpbc.hardware does in a motion's
+        first cycle (the loop's set-up leaves the caches cold)."""
+        for record in (self.times, self.cpu, self.acting, self.bare, self.torques):
+            record.clear()
+        self._prime = True
 
     def state(self, x: Array, dx: Array) -> ArmState:
         return self.guard.state(x, dx)
@@ -67,6 +76,9 @@ class TimedFilter(SafetyFilter):
 
     def evaluate(self, x: Array, dx: Array) -> tuple[Array, float]:
         guard = self.guard
+        if self._prime:
+            self._prime = False
+            guard.prime(x, dx)
         law = getattr(guard, "law", None)
         if law is not None:  # the machine's own tail: the bare law's, in the same runs
             start = time.perf_counter_ns()
@@ -141,11 +153,7 @@ def _run_all(setup: ScenarioSetup, steps: int, seconds: float, seed: int,
         assert isinstance(guard, SafetyFilter)
         timed = TimedFilter(guard)
         timed.evaluate(s.position, s.velocity)  # warm this run's paths, not timed
-        timed.times.clear()
-        timed.cpu.clear()
-        timed.acting.clear()
-        timed.bare.clear()
-        timed.torques.clear()
+        timed.restart()
         run_mujoco(plant, timed, setup.model.coordinates, s.position, s.velocity, settings)
         out.times.append(timed.times)
         out.torques.append(timed.torques)

@@ -72,3 +72,31 @@ def test_repeated_runs_time_each_step_again_and_keep_its_least() -> None:
     assert tail["own_max_over_p50"] == pytest.approx(own["max"] / own["p50"])
     with pytest.raises(ParameterError, match="repeats"):
         guarded_tail(10, repeats=0)
+
+
+def test_a_restarted_timer_primes_its_guard_once_before_its_first_timed_step(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """After ``restart`` the records are empty and the next call primes the guard at its
+    state before timing it (Safeguard.prime, as a robot's first cycle does); later calls do
+    not, and priming moves no count."""
+    import numpy as np
+
+    from cpbc.bench_tail import TimedFilter
+    from cpbc.reliability.campaign import campaign_setup
+    setup = campaign_setup("panda_cpbc_sphere", integrator="Euler")
+    entry = next(e for e in setup.controllers if not e.controller.constraints.empty)
+    guard = setup.controller(entry)
+    primed: list[np.ndarray] = []
+    real = guard.prime
+    monkeypatch.setattr(guard, "prime", lambda x, dx: (primed.append(x), real(x, dx)))
+    timed = TimedFilter(guard)
+    case = setup.cases[0]
+    x, dx = np.asarray(case.position, dtype=float), np.asarray(case.velocity, dtype=float)
+    timed.evaluate(x, dx)
+    assert primed == [] and len(timed.times) == len(timed.torques) == 1
+    timed.restart()
+    assert timed.times == timed.cpu == timed.acting == timed.bare == timed.torques == []
+    timed.evaluate(x, dx)
+    timed.evaluate(x, dx)
+    assert len(primed) == 1 and np.array_equal(primed[0], x)
+    assert guard.calls == 3 and len(timed.times) == 2

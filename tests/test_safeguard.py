@@ -756,3 +756,29 @@ def test_warm_takes_every_path_of_a_step_whatever_the_law_does() -> None:
     fresh = setup.controller(setup.controllers[0])
     fresh.torque(x, dx)
     assert fresh.acted == 0  # the path warm forced is not the calm start's own
+
+
+def test_prime_touches_a_step_and_moves_nothing() -> None:
+    """``prime`` at a state the arm is not at (under the FR3's rate limit) leaves the guard
+    as it was — no count, no held torque —, so a run after it holds the torques of an
+    unprimed guard's to the bit, acting at 78 steps; outside S it raises, still moving
+    nothing."""
+    from pathlib import Path
+
+    from cpbc.errors import ConstraintViolation
+    scenario = Path(__file__).resolve().parent / "scenarios" / "fr3_reach_ball.yaml"
+    setup = build(*load_scenario(scenario))
+    x = np.array(setup.cases[0].position, dtype=float)
+    dx = np.zeros(7)
+    x[3], dx[3] = -0.6, 1.1  # toward joint 4's upper limit, fast: the guard brakes
+    plain, primed = (setup.controller(setup.controllers[0]) for _ in range(2))
+    assert isinstance(primed, Safeguard) and isinstance(plain, Safeguard)
+    primed.prime(x - 0.05, dx + 0.2)
+    with pytest.raises(ConstraintViolation):
+        primed.prime(x, dx + 0.5)  # past joint 4's rate bound
+    assert primed.calls == 0 and primed.box.holding is None
+    settings = replace(setup.loop_settings, duration=0.3)
+    runs = [run_mujoco(setup.make_plant(), guard, setup.model.coordinates, x, dx, settings)
+            for guard in (plain, primed)]
+    assert np.array_equal(runs[0].torque, runs[1].torque)
+    assert plain.acted == primed.acted == 78 and plain.calls == primed.calls

@@ -198,6 +198,11 @@ class SafetyFilter(Controller):
         """The same filter with its counts at zero, for a new run."""
         return self
 
+    def prime(self, x: Array, dx: Array) -> None:
+        """Touch what a step at (x, ẋ) reads, moving nothing: a real-time loop's last act
+        before its first cycle, after the set-up that left the caches cold. Nothing here;
+        the safeguard touches its own data (Safeguard.prime)."""
+
     def holding(self, tau: Array, added: Array | None = None) -> None:
         """The torque the actuators hold now (controller coordinates), and the torque the
         robot adds to every command itself (``added``), for a filter that limits the

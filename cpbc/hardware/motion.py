@@ -18,7 +18,7 @@ import gc
 import math
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 
 import numpy as np
@@ -165,6 +165,7 @@ def _drive(backend: RobotBackend, controller: Controller, state: MeasuredState, 
         row = rec.state(state)
         backend.write(sent)  # 0
         rec.command[row] = sent
+        _prime(controller, state)
         for k in range(1, steps):
             called = clock()
             state = backend.read()
@@ -212,6 +213,15 @@ def _holder(controller: Controller) -> Callable[[Array, Array], None] | None:
     if isinstance(controller, SafetyFilter):  # a guarded reference tracker too
         return controller.holding
     return None
+
+
+def _prime(controller: Controller, state: MeasuredState) -> None:
+    """Prime the controller's safeguard at the first state (SafetyFilter.prime) in the
+    first cycle, answered already: the set-up before it left the caches cold. A state it
+    refuses is the first evaluation's to report."""
+    if isinstance(controller, SafetyFilter):
+        with suppress(ConstraintViolation):
+            controller.prime(state.position, state.velocity)
 
 
 def _brake(backend: RobotBackend, model: RobotModel, limits: RobotLimits,

@@ -426,6 +426,11 @@ class GuardedReferenceTracker(ReferenceTracker, SafetyFilter):
         assert isinstance(run, SafetyFilter)
         run.holding(tau, added)
 
+    def prime(self, x: Array, dx: Array) -> None:
+        run = self.run
+        assert isinstance(run, SafetyFilter)
+        run.prime(x, dx)
+
 
 def tracking(law: Controller, period: float, plan: ReferencePlan | None = None,
              settings: GovernorSettings | None = None, feedforward: bool = True,

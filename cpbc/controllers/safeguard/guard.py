@@ -20,7 +20,7 @@ from cpbc.controllers.rescue import Rescue, first_step
 from cpbc.controllers.safeguard.acceptance import Acceptance, StepSlack
 from cpbc.controllers.safeguard.braking import Brakes, Reaches
 from cpbc.controllers.safeguard.error_floors import ErrorFloors
-from cpbc.controllers.safeguard.model_error import DeclaredError
+from cpbc.controllers.safeguard.model_error import DeclaredError, acceleration_bound
 from cpbc.controllers.safeguard.predicted_margins import (
     BrakingTest,
     PredictedMargins,
@@ -31,7 +31,6 @@ from cpbc.controllers.safeguard.prediction import Predictor, predictor, travel_s
 from cpbc.controllers.safeguard.settings import SafeguardSettings
 from cpbc.controllers.safeguard.step_box import StepBox
 from cpbc.controllers.safeguard.step_budget import OutOfTests, StepBudget
-from cpbc.errors import ParameterError
 from cpbc.kernels.sampled_guard import floors
 from cpbc.model.input_bounds import InputBounds
 from cpbc.model.measured_state import finite_vector, refuse_non_finite
@@ -73,19 +72,6 @@ def guarded(
     if settings is None or law.constraints.empty:
         return law
     return Safeguard(law, bounds, settings, also_keep, model_error, declared)
-
-
-def _acceleration_bound(value: Array | float, n: int) -> Array:
-    """ā as n finite numbers ≥ 0 (one number for every coordinate), or a ParameterError
-    naming ``model_error``."""
-    found = np.asarray(value, dtype=float)
-    if found.ndim == 0:
-        found = np.full(n, float(found))
-    if found.shape != (n,) or not np.all(np.isfinite(found)) or np.any(found < 0):
-        raise ParameterError("model_error", "model_error must be one number or one per "
-                             f"coordinate ({n}), finite and ≥ 0 [rad/s² or m/s²], got "
-                             f"{np.asarray(value).tolist()}")
-    return found
 
 
 class Safeguard(SafetyFilter):
@@ -182,7 +168,7 @@ class Safeguard(SafetyFilter):
         self._n_own_config = own.n_configuration
         self.box = StepBox(law.model, bounds)
         torque_limit, self.rate_limit = self.box.torque_limit, self.box.rate_limit
-        self.model_error = None if model_error is None else _acceleration_bound(
+        self.model_error = None if model_error is None else acceleration_bound(
             model_error, law.model.n)
         self.declared = declared
         self.errors = ErrorFloors(self.guarded, law.model, self.box, self.model_error,
@@ -477,6 +463,20 @@ class Safeguard(SafetyFilter):
             self._spent(step)  # a spent later step's brake (and its (S0) test, rate-limited)
         if self.box.rate_limited:
             self.box.end(tau)
+
+    def prime(self, x: Array, dx: Array) -> None:
+        """What a step at (x, ẋ) reads — the law, the step's box, prediction, floors and the
+        law's test — touched with no count moved and the held torque kept: the driving
+        guard's own data before its first cycle (:meth:`warm` takes the paths on a spare)."""
+        state = self.law.state(x, dx)
+        out = self.law.evaluate_state(state, margins=True)  # raises outside S
+        if self.constraints.empty or out.margins is None:  # (margins: asked for)
+            return
+        held = self.box.holding
+        try:
+            self.step_tests(state, out.torque, out.margins).slack.plain_sign(out.torque)
+        finally:
+            self.box.holding = held
 
     def sample_floors(self, x: Array, law_margins: Array) -> tuple[Array, Array, Array]:
         """Every guarded margin at the sample — the law's, with the extra configuration

@@ -85,12 +85,26 @@ import pinocchio as pin
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.margin_slopes import MarginSlopes
+from cpbc.errors import ParameterError
 from cpbc.kernels import friction_error as kernels
 from cpbc.kernels.small_solves import inverse_inertia
 from cpbc.model.coulomb import MUJOCO_FRICTION, MUJOCO_IMPEDANCE, DryFriction
 from cpbc.model.robot_model import ArmState, RobotModel
 
 _NONE = np.zeros(0)  # no accelerations given (friction_error)
+
+
+def acceleration_bound(value: Array | float, n: int) -> Array:
+    """ā as n finite numbers ≥ 0 (one number for every coordinate), or a ParameterError
+    naming ``model_error``."""
+    found = np.asarray(value, dtype=float)
+    if found.ndim == 0:
+        found = np.full(n, float(found))
+    if found.shape != (n,) or not np.all(np.isfinite(found)) or np.any(found < 0):
+        raise ParameterError("model_error", "model_error must be one number or one per "
+                             f"coordinate ({n}), finite and ≥ 0 [rad/s² or m/s²], got "
+                             f"{np.asarray(value).tolist()}")
+    return found
 
 
 def _joint_inverse(model: RobotModel, inertia: Array,
