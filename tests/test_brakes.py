@@ -1,5 +1,6 @@
 """Brakes within the torque box, the stricter classification, and the safeguard's rescue."""
 
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -151,3 +152,39 @@ def test_a_heavy_wrist_is_stopped_only_by_a_brake_that_leaves_its_friction() -> 
     assert names[3:] == tuple(name + FRICTION_LEFT for name in names[:3])
     s = draw_state(setup, 0)
     assert stopping_brake(setup, kept, s.position, s.velocity, 0.001) == "uniform" + FRICTION_LEFT
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_aimed_row_is_numpy_s_argmin_and_dot_to_the_bit(seed: int) -> None:
+    """``aim_row`` (the aimed brake's row, compiled) against the numpy it replaced: the
+    approached margin of least stopping margin — ties to the first, a NaN before any number
+    —, its gradient scaled to length 30 and the rate asked, equal to the bit; none approached
+    or a zero gradient: no row, nothing written."""
+    from cpbc.kernels.stopping_test import aim_row
+    rng = np.random.default_rng(seed)
+    n, h, weight = 7, 1e-3, 30.0
+    aimed_rows = 0
+    for _ in range(300):
+        k = int(rng.integers(1, 25))
+        s, speed = rng.normal(size=k), rng.normal(size=k)
+        s[rng.random(k) < 0.3] = s[0]  # ties
+        for special in (np.nan, -np.inf):
+            if rng.random() < 0.2:
+                s[rng.integers(k)] = special
+        grads = rng.normal(size=(k, n)) * 10.0 ** rng.uniform(-3, 3, (k, 1))
+        if rng.random() < 0.1:
+            grads[:] = 0.0
+        dx = rng.normal(size=n)
+        row, wanted = np.full(n, 7.0), np.full(1, 7.0)
+        aimed = aim_row(s, speed, grads, dx, h, weight, row, wanted)
+        approaching = np.flatnonzero(speed > 0)
+        g = grads[approaching[np.argmin(s[approaching])]] if approaching.size else None
+        norm = 0.0 if g is None else math.sqrt(float(g.dot(g)))
+        if norm == 0.0:
+            assert not aimed and np.all(row == 7.0) and wanted[0] == 7.0
+            continue
+        expected = (weight / norm) * g
+        assert aimed and np.array_equal(row, expected)
+        assert wanted[0] == expected.dot(-dx) / h
+        aimed_rows += 1
+    assert aimed_rows > 200

@@ -41,6 +41,7 @@ from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import stopping_terms
 from cpbc.kernels.bounded_lsq import bounded_least_squares
 from cpbc.kernels.small_solves import inverse_inertia
+from cpbc.kernels.stopping_test import aim_row
 from cpbc.kernels.torque_box import box_around, box_clip, box_nearest, box_toward
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -226,16 +227,10 @@ def aimed_brake(box: TorqueBox, constraints: ConstraintSet, model: RobotModel,
         if not constraints.configuration:
             return _nearest_stop(box, state, bias, h, None, None)
         s, speed, _, grads = stopping_terms(constraints, model, state, bias, box.limit)
-        approaching = np.flatnonzero(speed > 0)
-        if not approaching.size:
+        row, wanted = np.empty((1, len(state.dx))), np.empty(1)
+        if not aim_row(s, speed, grads, state.dx, h, aim_weight, row[0], wanted):
             return _nearest_stop(box, state, bias, h, None, None)
-        i = int(approaching[np.argmin(s[approaching])])
-        g = grads[i]
-        norm = math.sqrt(float(g.dot(g)))
-        if norm == 0.0:
-            return _nearest_stop(box, state, bias, h, None, None)
-        row = (aim_weight / norm) * g
-        return _nearest_stop(box, state, bias, h, row[None], np.array([row.dot(-state.dx) / h]))
+        return _nearest_stop(box, state, bias, h, row, wanted)
 
     return brake
 

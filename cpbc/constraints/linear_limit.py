@@ -87,7 +87,10 @@ class LinearLimit(ConfigurationConstraint):
         self._constants = self._packed.floats[LINEAR_CONSTANTS]
 
     def value(self, x: Array) -> Array:
-        y = self.rows.dot(x)
+        return self._value_at(self.rows.dot(x))
+
+    def _value_at(self, y: Array) -> Array:
+        """φ = (y − l)(u − y) at the rows' values y = a x."""
         return (y - self.lower) * (self.upper - y)
 
     def barrier_terms(self, state: ArmState, margins: bool = False
@@ -119,8 +122,17 @@ class LinearLimit(ConfigurationConstraint):
         return (y - self.lower) * (self.upper - y)
 
     def gradient(self, x: Array) -> Array:
-        y = self.rows.dot(x)
+        return self._gradient_at(self.rows.dot(x))
+
+    def _gradient_at(self, y: Array) -> Array:
+        """∇φ = (l + u − 2y) a at the rows' values y = a x."""
         return (self._sum - 2.0 * y)[:, None] * self.rows
+
+    def motion_terms(self, state: ArmState) -> tuple[Array, Array, Array]:
+        """φ, ∇φ and ẋᵀ∇²φ ẋ from one product a x (the stopping test's rows, read by the
+        aimed brake at every period it is held)."""
+        y = self.rows.dot(state.x)
+        return self._value_at(y), self._gradient_at(y), self.curvature(state.x, state.dx)
 
     def gradient_bound(self) -> Array | None:
         """2w_i |a_i|: |∇φ_i| = |l_i + u_i − 2a_iᵀx| |a_i| inside the limits."""

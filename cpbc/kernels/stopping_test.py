@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.kernels import READ_ONLY, kernel
+from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
 from cpbc.kernels.small_solves import solve_spd, times
 
 
@@ -48,3 +48,37 @@ def stopping_rows(phi: Array, grads: Array, curvature: Array, inertia: Array, bi
             margins[i] = phi[i] - (v * v / (2.0 * a) if a > 0.0 else math.inf)
         else:
             margins[i] = phi[i]
+
+
+@kernel(f"boolean({READ_ONLY}, {READ_ONLY}, {READ_ONLY_MATRIX}, {READ_ONLY}, float64, float64, "
+        "float64[:], float64[:])")
+def aim_row(margins: Array, speed: Array, grads: Array, dx: Array, h: float, weight: float,
+            row: Array, wanted: Array) -> bool:
+    """The aimed brake's extra row (cpbc.constraints.brakes.aimed_brake): of the margins
+    approached (v_i > 0), the one of least stopping margin s_i — the first of equals, a NaN
+    before any number, as numpy's argmin —, its gradient scaled to length ``weight`` into
+    ``row`` and the rate it asks the approach for, row · (−ẋ)/h, into ``wanted[0]``; False
+    (both untouched) where none is approached or its gradient is 0. The sums run in order,
+    as numpy's dot of two n-vectors does here: the brake is the same to the bit."""
+    best = -1
+    for i in range(margins.shape[0]):
+        if speed[i] > 0.0:
+            if best < 0 or margins[i] < margins[best] or (
+                    margins[i] != margins[i] and margins[best] == margins[best]):
+                best = i
+    if best < 0:
+        return False
+    n = grads.shape[1]
+    square = 0.0
+    for j in range(n):
+        square += grads[best, j] * grads[best, j]
+    norm = math.sqrt(square)
+    if norm == 0.0:
+        return False
+    scale = weight / norm
+    rate = 0.0
+    for j in range(n):
+        row[j] = scale * grads[best, j]
+        rate += row[j] * -dx[j]
+    wanted[0] = rate / h
+    return True
