@@ -392,3 +392,18 @@ def test_reach_counts_each_joint_that_moves_a_sphere() -> None:
         assert np.all((s.reach[row] > 0) == (supports > 0)), name
     hand = next(i for i, n in enumerate(c.names) if "panda_hand|" in n)
     assert s.reach[hand, 0] >= 0.1
+
+
+def test_motion_terms_of_sphere_primitives_are_the_calls_apart_bit_for_bit(rng) -> None:
+    """Sphere primitives in joint coordinates take φ, ∇φ and ẋᵀ∇²φ ẋ from one compiled call
+    (sphere_motion_terms): the clearances ``value`` gives at x, the gradients ``gradient_at``
+    gives at the state and the curvature ``curvature`` gives at (x, ẋ), to the bit."""
+    c = _clearance("spheres")
+    _, model = _panda()
+    for x in _states(rng, 8):
+        dx = rng.normal(size=7)
+        state = model.state(x, dx, kinematics=True)
+        phi, grad, curv = c.motion_terms(state)
+        np.testing.assert_array_equal(phi, c.value(x))
+        np.testing.assert_array_equal(grad, c.gradient_at(state))
+        np.testing.assert_array_equal(curv, c.curvature(x, dx))

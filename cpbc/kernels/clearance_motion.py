@@ -14,6 +14,7 @@ from cpbc.kernels.clearance import (
     force_on_joints,
     pair_direction,
     sphere_centres,
+    sphere_clearances,
     sphere_offsets,
 )
 from cpbc.kernels.views import Ints
@@ -158,6 +159,31 @@ def sphere_pair_rows(y: Array, jac: Array, dq: Array, sphere_index: Ints, sphere
         if o < 0:
             force_on_joints(centres, s2, n0, n1, n2, supports, jac, -1.0, grad[p])
         curv[p] = pair_curvature(u, outside, d, obstacles, pair_index, p, vel, acc)
+
+
+@kernel("void(float64[:, :], float64[:, :], float64[:], int64[:], float64[:, :],"
+        " float64[:, :], int64[:, :], float64[:, :], float64[:, :], float64[:, :], int64[:],"
+        " float64[:], float64[:, :], float64[:])")
+def sphere_motion_terms(y: Array, jac: Array, dq: Array, sphere_index: Ints,
+                        sphere_local: Array, obstacles: Array, pair_index: Ints,
+                        pair_table: Array, supports: Array, joint_supports: Array,
+                        starts: Ints, value: Array, grad: Array, curv: Array) -> None:
+    """The sphere constraints' φ, ∇φ and q̇ᵀ∇²φ q̇ in one call (Clearance.motion_terms
+    without capsule groups, joint coordinates): their reported clearances
+    (``sphere_clearances``) into ``value``, and each one's closest pair's gradient and
+    curvature (``sphere_pair_rows``, ``closest_pair``) into its row of ``grad`` and ``curv``
+    — the steps of the calls apart, to the bit, without their ~5 µs of passing arrays
+    (the aimed brake reads them at every period it is held)."""
+    n_pair, n = pair_index.shape[0], dq.shape[0]
+    phi, rows, bend = np.empty(n_pair), np.empty((n_pair, n)), np.empty(n_pair)
+    sphere_pair_rows(y, jac, dq, sphere_index, sphere_local, obstacles, pair_index,
+                     pair_table, supports, joint_supports, phi, rows, bend)
+    for g in range(starts.shape[0]):
+        p = closest_pair(phi, starts, g)
+        curv[g] = bend[p]
+        for j in range(n):
+            grad[g, j] = rows[p, j]
+    sphere_clearances(y, sphere_index, sphere_local, obstacles, pair_index, pair_table, value)
 
 
 @kernel("void(float64[:, :], float64[:, :], int64[:], float64[:, :], float64[:, :],"

@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.kernels import kernel
+from cpbc.kernels import inner, kernel
 
 
 @kernel("void(float64[:, :], float64[:], float64[:, :], float64[:])")
@@ -40,20 +40,17 @@ def solve_lu(a: Array, b: Array, work: Array, y: Array) -> None:
         y[i] = t / work[i, i]
 
 
-@kernel("void(float64[:, :], float64[:], float64[:, :], float64[:])", inline=True)
-def solve_spd(a: Array, b: Array, work: Array, y: Array) -> None:
-    """y = a⁻¹ b for a symmetric positive definite a, by Cholesky a = L Lᵀ (L in ``work``,
-    shape (n, n)); by Gaussian elimination with partial pivoting when a is not numerically
-    positive definite. ``a`` and ``b`` are left as they are."""
-    n = b.shape[0]
-    spd = True
+@inner("boolean(float64[:, :], float64[:, :])")
+def cholesky(a: Array, work: Array) -> bool:
+    """a = L Lᵀ, L into ``work`` (n, n) for a symmetric positive definite a; False (``work``
+    partly written) where a is not numerically positive definite."""
+    n = a.shape[0]
     for j in range(n):
         s = a[j, j]
         for k in range(j):
             s -= work[j, k] * work[j, k]
         if not s > 0.0:
-            spd = False
-            break
+            return False
         d = np.sqrt(s)
         work[j, j] = d
         for i in range(j + 1, n):
@@ -61,19 +58,34 @@ def solve_spd(a: Array, b: Array, work: Array, y: Array) -> None:
             for k in range(j):
                 t -= work[i, k] * work[j, k]
             work[i, j] = t / d
-    if spd:
-        for i in range(n):  # L z = b
-            t = b[i]
-            for k in range(i):
-                t -= work[i, k] * y[k]
-            y[i] = t / work[i, i]
-        for i in range(n - 1, -1, -1):  # Lᵀ y = z
-            t = y[i]
-            for k in range(i + 1, n):
-                t -= work[k, i] * y[k]
-            y[i] = t / work[i, i]
-        return
-    solve_lu(a, b, work, y)
+    return True
+
+
+@inner("void(float64[:, :], float64[:], float64[:])")
+def cholesky_solve(factor: Array, b: Array, y: Array) -> None:
+    """y = (L Lᵀ)⁻¹ b from the factor L that :func:`cholesky` left in ``factor``."""
+    n = b.shape[0]
+    for i in range(n):  # L z = b
+        t = b[i]
+        for k in range(i):
+            t -= factor[i, k] * y[k]
+        y[i] = t / factor[i, i]
+    for i in range(n - 1, -1, -1):  # Lᵀ y = z
+        t = y[i]
+        for k in range(i + 1, n):
+            t -= factor[k, i] * y[k]
+        y[i] = t / factor[i, i]
+
+
+@kernel("void(float64[:, :], float64[:], float64[:, :], float64[:])", inline=True)
+def solve_spd(a: Array, b: Array, work: Array, y: Array) -> None:
+    """y = a⁻¹ b for a symmetric positive definite a, by Cholesky a = L Lᵀ (L in ``work``,
+    shape (n, n)); by Gaussian elimination with partial pivoting when a is not numerically
+    positive definite. ``a`` and ``b`` are left as they are."""
+    if cholesky(a, work):
+        cholesky_solve(work, b, y)
+    else:
+        solve_lu(a, b, work, y)
 
 
 @kernel("void(float64[:, :], float64[:, :])")

@@ -13,7 +13,7 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
-from cpbc.kernels.small_solves import solve_spd, times
+from cpbc.kernels.small_solves import cholesky, cholesky_solve, solve_lu, times
 
 
 @kernel(f"void(float64[:], float64[:, :], float64[:], float64[:, :], {READ_ONLY}, "
@@ -30,8 +30,13 @@ def stopping_rows(phi: Array, grads: Array, curvature: Array, inertia: Array, bi
     n = inertia.shape[0]
     work = np.empty((n, n))
     y = np.empty(n)
+    spd = cholesky(inertia, work)  # D = L Lᵀ once for every row (solve_spd's steps)
+    lu = np.empty((n, n))
     for i in range(phi.shape[0]):
-        solve_spd(inertia, grads[i], work, y)  # D⁻¹ ∇φ_iᵀ
+        if spd:  # D⁻¹ ∇φ_iᵀ
+            cholesky_solve(work, grads[i], y)
+        else:
+            solve_lu(inertia, grads[i], lu, y)
         w = times(inverse, y) if mapped else y
         reach = 0.0
         down = 0.0

@@ -25,7 +25,7 @@ from cpbc.constraints.margins import CLEARANCE
 from cpbc.constraints.packing import Packed
 from cpbc.errors import CpbcError, ParameterError
 from cpbc.kernels.clearance import localised_terms, pack_sphere_pairs
-from cpbc.kernels.clearance_motion import closest_pairs
+from cpbc.kernels.clearance_motion import closest_pairs, sphere_motion_terms
 from cpbc.model.robot_model import ArmState, RobotModel
 
 
@@ -327,8 +327,19 @@ class Clearance(PairLayout, ConfigurationConstraint):
     def motion_terms(self, state: ArmState) -> tuple[Array, Array, Array]:
         """φ, ∇φ and ẋᵀ∇²φ ẋ of the reported constraints (``evaluate``, ``curvature``) from
         the state's joint placements and Jacobians; only the capsule primitives' curvature,
-        a difference of gradients away from the state, takes Pinocchio passes of its own."""
-        phi, grad, curv = self._reported(*self._state_kinematics(state), state.dq)
+        a difference of gradients away from the state, takes Pinocchio passes of its own.
+        Sphere primitives alone, in joint coordinates: one compiled call
+        (cpbc.kernels.clearance_motion.sphere_motion_terms)."""
+        y, jac = self._state_kinematics(state)
+        s = self._spheres
+        if s is not None and not self._groups and self._identity:
+            k = len(self.names)
+            phi, grad, curv = np.empty(k), np.empty((k, self._n)), np.empty(k)
+            sphere_motion_terms(y, jac, state.dq, s.sphere_index, s.sphere_local, s.obstacles,
+                                s.pair_index, s.pair_table, s.sphere_supports,
+                                self._joint_supports, s.starts, phi, grad, curv)
+            return phi, grad, curv
+        phi, grad, curv = self._reported(y, jac, state.dq)
         self._capsule_curvature(state.x, state.dx, curv)
         return phi, grad, curv
 
