@@ -47,6 +47,8 @@ from cpbc.model.robot_model import RobotModel
 C = TypeVar("C", ConfigurationConstraint, VelocityConstraint)
 Rows = tuple[Array, Array, Array, Array, Array]  # as a Predictor returns them
 _AT_REST = np.zeros(0)
+# frozen_chain_test's ramp arguments where there is no ramp to test (unread)
+_NO_RAMP = (np.zeros(0), 1.0, np.zeros((0, 0)), np.zeros((0, 0)), False, np.zeros(0), np.zeros(0))
 # the share of the ramp time T over which the rates are taken to go on at the period's
 # acceleration: ½ for a torque that ramps straight back to b with the dynamics frozen; 1
 # for what coupling and the moving bias add (on the Panda at 1000 N·m/s the base joint's
@@ -322,16 +324,18 @@ class PredictedMargins:
         bounded = sample is not None
         at, margins = (sample.x, sample.margins) if sample is not None else (no_floor, no_floor)
         chain = self._chain
-        if chain is not None and ramp is not None:  # all of it in one call
+        if chain is not None:  # all of it in one call
+            rs, rp, ri, rt, rm, rr, rf = _NO_RAMP if ramp is None else (
+                ramp.start, ramp.period, ramp.inertia,
+                ramp.inertia if ramp.to_joint is None else ramp.to_joint,
+                ramp.to_joint is not None, ramp.rate, ramp.floor)
             return frozen_chain_test(
                 frozen.x, frozen.dx, acc, after, frozen.h, frozen.travel, r, start, period,
                 per_speed, ramp_time, points, cp.plan, cp.ints, cp.floats, vp.plan, vp.ints,
                 vp.floats, end_floor, mid, sigma, has_config, stop is not None, bounded, at,
                 margins, enough, nc, work, slots, chain.parents, chain.kinds, chain.axes,
-                chain.rotations, chain.translations, chain.coordinates, chain.scale, True,
-                ramp.start, ramp.period, ramp.inertia,
-                ramp.inertia if ramp.to_joint is None else ramp.to_joint,
-                ramp.to_joint is not None, ramp.rate, RAMP_SHARE, ramp.floor)[0]
+                chain.rotations, chain.translations, chain.coordinates, chain.scale,
+                ramp is not None, rs, rp, ri, rt, rm, rr, RAMP_SHARE, rf)[0]
         f, marked = frozen_test(frozen.x, frozen.dx, acc, after, frozen.h, frozen.travel, r,
                                 start, period, per_speed, ramp_time, points, cp.plan, cp.ints,
                                 cp.floats, vp.plan, vp.ints, vp.floats, end_floor, mid, sigma,
