@@ -163,6 +163,12 @@ class Controller(ABC):
         refuse_non_finite(out.torque, x, dx)
         return out
 
+    def prime(self, x: Array, dx: Array) -> None:
+        """Touch what a step at (x, ẋ) reads, moving nothing: a real-time loop's last act
+        before its first cycle, after the set-up that left the caches cold. Nothing for a
+        law; the safeguard touches its own data (Safeguard.prime), a tracker its run's."""
+        return None  # nothing evaluated: a peer filter counts its evaluations
+
     def check_admissible(self, x: Array, dx: Array, what: str) -> None:
         """Raise InadmissibleStateError if (x, ẋ) is outside this law's admissible set."""
         self.constraints.check_admissible(x, dx, what)
@@ -197,11 +203,6 @@ class SafetyFilter(Controller):
     def restarted(self) -> SafetyFilter:
         """The same filter with its counts at zero, for a new run."""
         return self
-
-    def prime(self, x: Array, dx: Array) -> None:
-        """Touch what a step at (x, ẋ) reads, moving nothing: a real-time loop's last act
-        before its first cycle, after the set-up that left the caches cold. Nothing here;
-        the safeguard touches its own data (Safeguard.prime)."""
 
     def holding(self, tau: Array, added: Array | None = None) -> None:
         """The torque the actuators hold now (controller coordinates), and the torque the

@@ -216,12 +216,11 @@ def _holder(controller: Controller) -> Callable[[Array, Array], None] | None:
 
 
 def _prime(controller: Controller, state: MeasuredState) -> None:
-    """Prime the controller's safeguard at the first state (SafetyFilter.prime) in the
-    first cycle, answered already: the set-up before it left the caches cold. A state it
-    refuses is the first evaluation's to report."""
-    if isinstance(controller, SafetyFilter):
-        with suppress(ConstraintViolation):
-            controller.prime(state.position, state.velocity)
+    """Prime the controller at the first state (Controller.prime) in the first cycle,
+    answered already: the set-up before it left the caches cold. A state it refuses is the
+    first evaluation's to report."""
+    with suppress(ConstraintViolation):
+        controller.prime(state.position, state.velocity)
 
 
 def _brake(backend: RobotBackend, model: RobotModel, limits: RobotLimits,

@@ -310,6 +310,9 @@ class ReferenceTracker(Controller):
             return None
         return holding_constraint(self.constraints, x, pull)
 
+    def prime(self, x: Array, dx: Array) -> None:
+        self.run.prime(x, dx)
+
     def evaluate_state(self, state: ArmState, margins: bool = False) -> Evaluation:
         out = self.run.evaluate_state(state, margins)
         if self.plan is not None:
@@ -425,11 +428,6 @@ class GuardedReferenceTracker(ReferenceTracker, SafetyFilter):
         run = self.run
         assert isinstance(run, SafetyFilter)
         run.holding(tau, added)
-
-    def prime(self, x: Array, dx: Array) -> None:
-        run = self.run
-        assert isinstance(run, SafetyFilter)
-        run.prime(x, dx)
 
 
 def tracking(law: Controller, period: float, plan: ReferencePlan | None = None,
