@@ -62,7 +62,7 @@ class TimedFilter(SafetyFilter):
 
     def restart(self) -> None:
         """A loop begins: the records emptied, and its first call primes the guard at its
-        state before it is timed (SafetyFilter.prime), as cpbc.hardware does in a motion's
+        state before it is timed (Controller.prime), as cpbc.hardware does in a motion's
         first cycle (the loop's set-up leaves the caches cold)."""
         for record in (self.times, self.cpu, self.acting, self.bare, self.torques):
             record.clear()

@@ -673,3 +673,22 @@ def test_a_time_budget_of_no_time_is_refused(tmp_path: Path) -> None:
     """simulation.safeguard_time_budget must be a time > 0; the error names the field."""
     with pytest.raises(ScenarioError, match="safeguard_time_budget"):
         _given(tmp_path, "safeguard_time_budget", 0.0)
+
+
+def test_a_motion_primes_its_safeguard_once_and_a_failing_prime_does_not_end_it(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The runner primes the driving safeguard once, in the first cycle, at the first state;
+    a prime that raises is left to the first evaluation (which runs the same code) and the
+    motion runs on: it cannot end one without its brake."""
+    setup = build(*load_scenario(SCENARIO))
+    primed: list[np.ndarray] = []
+
+    def failing(guard: Safeguard, x: np.ndarray, dx: np.ndarray) -> None:
+        primed.append(np.array(x))
+        raise RuntimeError("a prime that fails")
+
+    monkeypatch.setattr(Safeguard, "prime", failing)
+    run = run_on_robot(setup, choose_controller(setup, None), lockstep_for(setup),
+                       MotionSettings(0.2, DEADLINE, brake_time=0.1))
+    assert run.motion.ending == "completed"
+    assert len(primed) == 1 and np.allclose(primed[0], setup.cases[0].position, atol=1e-6)

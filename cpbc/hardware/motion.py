@@ -217,9 +217,10 @@ def _holder(controller: Controller) -> Callable[[Array, Array], None] | None:
 
 def _prime(controller: Controller, state: MeasuredState) -> None:
     """Prime the controller at the first state (Controller.prime) in the first cycle,
-    answered already: the set-up before it left the caches cold. A state it refuses is the
-    first evaluation's to report."""
-    with suppress(ConstraintViolation):
+    answered already: the set-up before it left the caches cold. Whatever it raises (a
+    refused state, a fault) is the first evaluation's to report, which runs the same code
+    and ends the motion with the brake; raised here, it would end it without one."""
+    with suppress(Exception):
         controller.prime(state.position, state.velocity)
 
 
