@@ -118,8 +118,7 @@ class LinearLimit(ConfigurationConstraint):
                            [name for p in limits for name in p.names])
 
     def values_along(self, xs: Array) -> Array:
-        y = xs @ self.rows.T
-        return (y - self.lower) * (self.upper - y)
+        return self._value_at(xs @ self.rows.T)
 
     def gradient(self, x: Array) -> Array:
         return self._gradient_at(self.rows.dot(x))
