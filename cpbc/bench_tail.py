@@ -5,23 +5,23 @@ A median says what a step usually costs; a 1 kHz loop on a robot fails on its wo
 This runs ``panda_cpbc_sphere`` (the Panda, URDF torque limits, joint and rate limits, a
 ball and a table) from the verification campaign's seeded starts — most of them near a
 boundary, so the safeguard intervenes, searches its brakes and rescues — and times every
-guarded call, ``evaluate(x, ẋ)`` (the state's Pinocchio pass, the law and the guard), in
-the MuJoCo loop, with Python's garbage collector off as the loop runs it. Before each run
-every path of a step is taken once on a spare guard (Safeguard.warm), as cpbc.hardware does
-before a motion: without it the worst steps of 10⁵ were runs' first acting steps, which took
-the untaken paths' first calls (455 and 483 µs, each the second step of its run). It reports
-the
-median, the 99th, 99.9th and 99.99th percentiles and the maximum over all steps, the same
-for the steps at which the guard replaced the law's torque, and how many steps of each
-kind there were; and the same quantiles of the thread's CPU time per call (``cpu``,
-``acting_cpu``), which other processes' preemption does not inflate: on a loaded machine
-the wall-clock tail is the scheduler's, the CPU tail the guard's own work. Beside them, the
-guard's law alone at every same state, timed just before the guarded call (``bare_law``):
-the machine's own tail for a call that does a fixed small amount of work, against which a
-worst step read as a multiple of the median is to be judged (on the project's VM, idle, the
-bare law's max was 16–58 × its median over 10⁵ calls). Nothing is asserted: figures for the
-docs and for a deadline budget.
-"""
+guarded call, ``evaluate(x, ẋ)`` (the state's Pinocchio pass, the law and the guard), in the
+MuJoCo loop, with Python's garbage collector off as the loop runs it. Before each run every
+path of a step is taken once on a spare guard (Safeguard.warm), as cpbc.hardware does before
+a motion: without it the worst steps of 10⁵ were runs' first acting steps, which took the
+untaken paths' first calls (455 and 483 µs, each the second step of its run). Right before a
+run's first timed step the driving guard is primed at its state (Controller.prime), as
+cpbc.hardware does in a motion's first cycle: the loop's set-up left its data cold, and
+runs' first steps were 8 of the 10 slowest. It reports the median, the 99th, 99.9th and
+99.99th percentiles and the maximum over all steps, the same for the steps at which the
+guard replaced the law's torque, and how many steps of each kind there were; and the same
+quantiles of the thread's CPU time per call (``cpu``, ``acting_cpu``), which other
+processes' preemption does not inflate: on a loaded machine the wall-clock tail is the
+scheduler's, the CPU tail the guard's own work. Beside them, the guard's law alone at every
+same state, timed just before the guarded call (``bare_law``): the machine's own tail for a
+call that does a fixed small amount of work, against which a worst step read as a multiple
+of the median is to be judged (on the project's VM, idle, the bare law's max was 16–58 × its
+median over 10⁵ calls). Nothing is asserted: figures for the docs and for a deadline budget."""
 
 from __future__ import annotations
 

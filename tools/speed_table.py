@@ -1,6 +1,6 @@
 """Write the speed page's table and the README's speed table from one benchmark session.
 
-    python -m tools.speed_table                       # about 4 min; rewrites the three files
+    python -m tools.speed_table                       # 2-4 min; rewrites the three files
     python -m tools.speed_table --repeats 5 --loop-seconds 1
     python -m tools.speed_table --render-only         # re-render from docs/tables/speed.json
 

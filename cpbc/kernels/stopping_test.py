@@ -31,12 +31,11 @@ def stopping_rows(phi: Array, grads: Array, curvature: Array, inertia: Array, bi
     work = np.empty((n, n))
     y = np.empty(n)
     spd = cholesky(inertia, work)  # D = L Lᵀ once for every row (solve_spd's steps)
-    lu = np.empty((n, n))
     for i in range(phi.shape[0]):
         if spd:  # D⁻¹ ∇φ_iᵀ
             cholesky_solve(work, grads[i], y)
-        else:
-            solve_lu(inertia, grads[i], lu, y)
+        else:  # the factor is not read again: its buffer holds the elimination's, as there
+            solve_lu(inertia, grads[i], work, y)
         w = times(inverse, y) if mapped else y
         reach = 0.0
         down = 0.0
