@@ -5,6 +5,7 @@ prediction's compiled test (cpbc.kernels.frozen_slack)."""
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -20,16 +21,23 @@ from cpbc.model.input_bounds import InputBounds
 from cpbc.model.joint_chain import JointChain
 
 
+def _guard(rate: float | None = None) -> tuple[Safeguard, list[tuple[np.ndarray, np.ndarray]]]:
+    """The Panda benchmark's guard at 1 kHz (with ``rate`` N·m/s a torque-rate limit) and its
+    states."""
+    setup = panda()
+    rates = None if rate is None else np.full(7, rate)
+    return Safeguard(setup.controllers["cpbc"], InputBounds(0.001, setup.torque_limit, rates),
+                     SafeguardSettings()), setup.states
+
+
 def _tests(rate: float | None = None):
     """Each of the Panda benchmark's states (52 of 64 with a link within 10 cm of an
     obstacle), at its rates and at three times them, with the law's torque and pushed off
     it: the guard's margins along the prediction, its floors, and F without bounds."""
-    setup = panda()
-    law = setup.controllers["cpbc"]
-    rates = None if rate is None else np.full(7, rate)
-    guard = Safeguard(law, InputBounds(0.001, setup.torque_limit, rates), SafeguardSettings())
+    guard, states = _guard(rate)
+    law = guard.law
     along, rng = guard.acceptance.along, np.random.default_rng(3)
-    for x, dx in setup.states:
+    for x, dx in states:
         for speed in (1.0, 3.0):
             state = guard.state(x, speed * dx)
             out = law.evaluate_state(state, margins=True)
@@ -72,10 +80,10 @@ def _counting_in_one_call(placed: list[int]) -> Iterator[None]:
 
     tested, rows, apart = module.frozen_chain_test, [0], list[int]()
 
-    def count(*args: object) -> tuple[float, float]:
-        f, marked = tested(*args)
+    def count(*args: object) -> tuple[float, float, float]:
+        f, marked, kept = tested(*args)
         rows[0] += int(marked)
-        return f, marked
+        return f, marked, kept
 
     module.frozen_chain_test = count  # type: ignore[assignment]
     try:
@@ -195,6 +203,46 @@ def test_the_compiled_margins_along_rows_are_the_sets() -> None:
         if i != 5:
             same(config[i], guarded.configuration_margins(x))
     assert np.isnan(config[5]).all() and not np.isnan(config[9]).any()
+
+
+@pytest.mark.parametrize("rate", [None, 1000.0])
+def test_positivity_read_from_F_has_the_sign_of_its_own_test(rate: float | None) -> None:
+    """(S0) over the first prediction read from F's compiled test of the same torque
+    (PredictedMargins.frozen_positivity, what a spent step's reaches ask: Brakes.spent) has
+    the sign of (S0)'s own test (Brakes.positivity's: the first prediction alone, the
+    cushions its floors) wherever it is told, with and without the sample's bounds and
+    (S2)'s points; F itself is unchanged. It is told in most tests, on both sides of 0,
+    and left NaN where a bound below its cushion stood in for a clearance (the cushions
+    are 0.007–0.8 mm here: a few tests, with F's floors below them)."""
+    guard, _ = _guard(rate)
+    cushion, nc = guard.brakes.cushion, guard.guarded.n_configuration
+    told, untold, signs = 0, 0, set()
+    for along, _, floor, mid, stop, sample, _, predict, tau, ramp in _tests(rate):
+        first = predict.first()
+        acc, after = predict.start(tau)
+        acc1, after1 = first.start(tau)
+        own = along.frozen_slack(first, acc1, after1, cushion, cushion[:nc], None, sample, 1.0,
+                                 ramp)
+        assert own == along.frozen_slack(first, acc1, after1, cushion, cushion[:nc], None,
+                                         None, math.inf, ramp) or own >= 0.0
+        # F's floors as a step whose margins are below their cushions has them (S1 keeps a
+        # share of each): bounds below the cushions then stand in for clearances
+        low = (0.05 * floor, 0.05 * mid)
+        for s, (end, middle) in itertools.product((stop, None), ((floor, mid), low)):
+            for given, enough in ((None, math.inf), (sample, 1.0)):
+                f, kept = along.frozen_positivity(predict, acc, after, end, middle, s, given,
+                                                  enough, ramp, cushion)
+                assert f == along.frozen_slack(predict, acc, after, end, middle, s, given,
+                                               enough, ramp)
+                if math.isnan(kept):
+                    untold += 1
+                    continue
+                assert (kept >= 0.0) == (own >= 0.0)
+                told += 1
+                signs.add(kept >= 0.0)
+    assert signs == {True, False}
+    assert told > 3 * untold
+    assert untold > 0 or rate is not None  # 8 of 3 072 untold without the rate limit
 
 
 @pytest.mark.parametrize("rate", [None, 5000.0])

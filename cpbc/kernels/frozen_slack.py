@@ -25,8 +25,9 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, inner, kernel
 from cpbc.kernels.braking_path import configuration_rows
-from cpbc.kernels.clearance import Ints
+from cpbc.kernels.clearance import SPHERES, Ints
 from cpbc.kernels.joint_placements import joint_placements
+from cpbc.kernels.plan_tables import COUNT, FIRST, KIND
 from cpbc.kernels.sampled_guard import (
     all_but_spheres,
     bounded_slack,
@@ -158,6 +159,19 @@ def frozen_finish(config_plan: Ints, config_ints: Ints, config_floats: Array, wo
                  np.zeros(0, dtype=np.bool_), False, has_config, has_stop)
 
 
+@inner("float64(int64[:, :], int64[:, :], float64[:, :], float64[:, :], float64[:, :],"
+       f" float64[:], float64, float64[:, :], float64[:, :], boolean, {READ_ONLY}, float64,"
+       " float64[:])")
+def _ramp_rows(velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array, ends: Array,
+               speeds: Array, start: Array, h: float, inertia: Array, to_joint: Array,
+               mapped: bool, rate: Array, share: float, floor: Array) -> float:
+    """``frozen_ramp``'s share over the predictions' ``ends`` and end rates ``speeds``."""
+    peaks = np.empty(speeds.shape)
+    ramp_speeds(speeds, start, h, inertia, to_joint, mapped, rate, share, peaks)
+    return ramp_share(velocity_plan, velocity_ints, velocity_floats, ends, peaks,
+                      np.zeros((0, 1, 1)), np.empty((ends.shape[0], floor.shape[0])), floor)
+
+
 @kernel("float64(int64[:, :], int64[:, :], float64[:, :], float64[::1], int64, int64, int64,"
         f" int64, float64[:], float64, float64[:, :], float64[:, :], boolean, {READ_ONLY},"
         " float64, float64[:])")
@@ -170,19 +184,50 @@ def frozen_ramp(velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array
     ``frozen_test`` left in ``work``: min_j ψ_j/δ_j − 1."""
     nv = floor.shape[0]  # the velocity margins' cushions
     ends, speeds = frozen_parts(work, r, n, points, nc, nv)[1:3]
-    peaks = np.empty((r, n))
-    ramp_speeds(speeds, start, h, inertia, to_joint, mapped, rate, share, peaks)
-    return ramp_share(velocity_plan, velocity_ints, velocity_floats, ends, peaks,
-                      np.zeros((0, 1, 1)), np.empty((r, nv)), floor)
+    return _ramp_rows(velocity_plan, velocity_ints, velocity_floats, ends, speeds, start, h,
+                      inertia, to_joint, mapped, rate, share, floor)
 
 
-@kernel("UniTuple(float64, 2)(float64[:], float64[:], float64[:], float64[:], float64, float64,"
+@inner("float64(int64[:, :], float64[::1], float64[:, :], int64, int64, int64, int64, boolean,"
+       " float64[:])")
+def first_positivity(config_plan: Ints, work: Array, before: Array, r: int, n: int,
+                     points: int, nc: int, has_config: bool, cushion: Array) -> float:
+    """(S0) — every margin above its cushion δ, ``slack`` with the cushions as floors —
+    over the first of the r predictions whose margins F's test left in ``work``
+    (``frozen_parts``): its sign is the sign (S0)'s own test of the torque gives
+    (Brakes.positivity), which makes the same margins over that prediction alone. Where the
+    sample's bound stood in for a sphere clearance there (``before``: the configuration
+    margins of its mid-period and end rows before the marked clearances were made, NaN
+    where one was to be made) and is below its cushion, the clearance itself is unknown:
+    NaN, the test is to be made. A bound at or above its cushion leaves the sign as it is
+    (the clearance is at least the bound). The ramp's share is not here (frozen_chain_test
+    takes the lesser)."""
+    nv = cushion.shape[0] - nc
+    config, velocity, inside = frozen_parts(work, r, n, points, nc, nv)[5:]
+    first = np.empty((2, nc if has_config else 0))
+    if has_config:
+        for j in range(nc):
+            first[0, j], first[1, j] = config[0, j], config[r, j]
+        for p in range(config_plan.shape[0]):
+            if config_plan[p, KIND] != SPHERES:
+                continue
+            at = config_plan[p, FIRST]
+            for i in range(2):
+                for c in range(at, at + config_plan[p, COUNT]):
+                    bound = before[i, c]
+                    if bound == bound and not bound >= cushion[c]:
+                        return math.nan
+    return slack(first, velocity[:1], inside[:1], 1, cushion, cushion[:first.shape[1]],
+                 cushion, np.zeros(0, dtype=np.bool_), False, has_config, False)
+
+
+@kernel("UniTuple(float64, 3)(float64[:], float64[:], float64[:], float64[:], float64, float64,"
         " int64, float64[:], float64, float64, float64, int64, int64[:, :], int64[:, :],"
         " float64[:, :], int64[:, :], int64[:, :], float64[:, :], float64[:], float64[:],"
         f" float64[:], boolean, boolean, boolean, {READ_ONLY}, {READ_ONLY}, float64, int64,"
         " float64[::1], int64[:], int64[:], int64[:], float64[:, :], float64[:, :, :],"
         " float64[:, :], int64[:], float64, boolean, float64[:], float64, float64[:, :],"
-        f" float64[:, :], boolean, {READ_ONLY}, float64, float64[:])")
+        f" float64[:, :], boolean, {READ_ONLY}, float64, float64[:], boolean, float64[:])")
 def frozen_chain_test(x: Array, dx: Array, acc: Array, after: Array, h: float, travel: float,
                       r: int, start: Array, period: float, per_speed: float, ramp: float,
                       points: int, config_plan: Ints, config_ints: Ints, config_floats: Array,
@@ -194,19 +239,31 @@ def frozen_chain_test(x: Array, dx: Array, acc: Array, after: Array, h: float, t
                       rotations: Array, translations: Array, coordinates: Ints,
                       scale: float, has_ramp: bool, ramp_start: Array, ramp_period: float,
                       ramp_inertia: Array, to_joint: Array, mapped: bool, rate: Array,
-                      share: float, ramp_floor: Array) -> tuple[float, float]:
+                      share: float, ramp_floor: Array, has_cushion: bool,
+                      cushion: Array) -> tuple[float, float, float]:
     """``frozen_test``, the marked rows' joint placements (``joint_placements``, the arm's
     chain: cpbc.model.joint_chain), ``frozen_finish`` and, with ``has_ramp``,
     ``frozen_ramp`` (the lesser) in one call, for an arm whose sphere pairs pack and whose
-    chain is compiled: (F, the rows whose placements it made), F the same as the four calls
-    and the placements between them give, bit for bit; what it saves is three calls from
-    Python, the rows picked out and the placements' wrapper."""
+    chain is compiled: (F, the rows whose placements it made, P), F the same as the four
+    calls and the placements between them give, bit for bit; what it saves is three calls
+    from Python, the rows picked out and the placements' wrapper. With ``has_cushion``, P is
+    (S0) of the same torque over the first prediction (``first_positivity``, the cushions
+    ``cushion`` its floors), read from the margins F's test made, or NaN where they do not
+    tell it; without, NaN."""
     f, marked = frozen_test(x, dx, acc, after, h, travel, r, start, period, per_speed, ramp,
                             points, config_plan, config_ints, config_floats, velocity_plan,
                             velocity_ints, velocity_floats, end_floor, mid_floor,
                             sigma_floor, has_config, has_stop, True, bounded, sample_x,
                             sample_margins, enough, nc, work, slots)
     n = x.shape[0]
+    nv = end_floor.shape[0] - nc
+    # the first prediction's configuration margins before the marked clearances are made:
+    # where a sphere clearance is not NaN here, the sample's bound stands in for it
+    before = np.empty((2, nc if has_config and has_cushion else 0))
+    if before.shape[1]:
+        config = frozen_parts(work, r, n, points, nc, nv)[5]
+        for j in range(nc):
+            before[0, j], before[1, j] = config[0, j], config[r, j]
     if marked:
         k = int(marked)
         picked = np.empty((k, n))
@@ -220,9 +277,19 @@ def frozen_chain_test(x: Array, dx: Array, acc: Array, after: Array, h: float, t
         f = frozen_finish(config_plan, config_ints, config_floats, work, r, n, points, nc,
                           placements, slots, end_floor, mid_floor, sigma_floor, has_config,
                           has_stop)
+    kept = math.nan
+    if has_cushion:
+        kept = first_positivity(config_plan, work, before, r, n, points, nc, has_config,
+                                cushion)
     if not has_ramp:
-        return f, marked
+        return f, marked, kept
     found = frozen_ramp(velocity_plan, velocity_ints, velocity_floats, work, r, n, points,
                         nc, ramp_start, ramp_period, ramp_inertia, to_joint, mapped, rate,
                         share, ramp_floor)
-    return (found if found < f else f), marked  # min(f, found), as Python's
+    if kept == kept:  # the ramp's share of the first prediction alone, as (S0)'s test asks
+        ends, speeds = frozen_parts(work, r, n, points, nc, nv)[1:3]
+        first = _ramp_rows(velocity_plan, velocity_ints, velocity_floats, ends[:1],
+                           speeds[:1], ramp_start, ramp_period, ramp_inertia, to_joint,
+                           mapped, rate, share, ramp_floor)
+        kept = first if first < kept else kept
+    return (found if found < f else f), marked, kept  # min(f, found), as Python's

@@ -35,12 +35,15 @@ class StepSlack:
     not), and with fewer joint placements computed (PredictedMargins.slack's
     ``enough``). Both count against the step's budget alike; :attr:`plain_sign` is the
     sign uncounted, for what the guard makes outside the budget (its brakes made ahead,
-    Safeguard._reaches), which the budget wraps there as it needs."""
+    Safeguard._reaches), which the budget wraps there as it needs; :meth:`with_positivity`
+    is that sign with (S0) read from the same test."""
 
-    __slots__ = ("_exact", "_sign", "plain_sign")
+    __slots__ = ("_exact", "_sign", "_signs", "plain_sign")
 
-    def __init__(self, exact: Slack, sign: Slack, plain_sign: Slack) -> None:
+    def __init__(self, exact: Slack, sign: Slack, plain_sign: Slack,
+                 signs: Callable[[Array, Array | None], tuple[float, float]]) -> None:
         self._exact, self._sign, self.plain_sign = exact, sign, plain_sign
+        self._signs = signs
 
     def __call__(self, t: Array) -> float:
         return self._exact(t)
@@ -48,6 +51,14 @@ class StepSlack:
     def sign(self, t: Array) -> float:
         """F(t) where it is < 0, else a value in [0, F(t)]."""
         return self._sign(t)
+
+    def with_positivity(self, cushion: Array) -> Callable[[Array], tuple[float, float]]:
+        """t ↦ (:attr:`plain_sign` of t, P): P (S0) of t over the first prediction, the
+        margins above their cushions ``cushion`` — with the sign (S0)'s own test gives
+        (Brakes.positivity) — where F's compiled test tells it, else NaN
+        (PredictedMargins.frozen_positivity). Uncounted, as :attr:`plain_sign`."""
+        signs = self._signs
+        return lambda t: signs(t, cushion)
 
 
 class Acceptance:
@@ -109,14 +120,15 @@ class Acceptance:
         frozen = predict if (isinstance(predict, Frozen) and along.fuses
                              and past is None) else None
 
-        def f(t: Array, given: Sample | None, enough: float = 1.0) -> float:
+        def f(t: Array, given: Sample | None, enough: float = 1.0,
+              cushion: Array | None = None) -> tuple[float, float]:
             if frozen is not None:  # the same F in compiled calls (PredictedMargins.frozen_slack)
                 acc, after = frozen.start(t)
-                return along.frozen_slack(frozen, acc, after, end_floor, mid_floor, stop,
-                                          given, enough, ramp)
+                return along.frozen_positivity(frozen, acc, after, end_floor, mid_floor, stop,
+                                               given, enough, ramp, cushion)
             rows = predict(t)
             end = along.slack(rows, end_floor, mid_floor, stop, past, given, enough)
-            return end if ramp is None else min(end, along.ramp_slack(rows, ramp))
+            return (end if ramp is None else min(end, along.ramp_slack(rows, ramp))), math.nan
 
         pending = [] if refine is None else [refine]  # emptied once the floors are exact
         # F's value: exact from the sample's bounds too (``enough`` ∞) where they settle
@@ -126,24 +138,28 @@ class Acceptance:
         def value(t: Array) -> float:
             if pending:
                 pending.pop()()
-            return f(t, exact_from, math.inf)
+            return f(t, exact_from, math.inf)[0]
 
-        def sign(t: Array) -> float:  # one test, taken again under the exact floors if < 0
-            found = f(t, sample)
-            if found < 0.0 and pending:
+        def signs(t: Array, cushion: Array | None = None) -> tuple[float, float]:
+            # one test, taken again under the exact floors if < 0
+            found = f(t, sample, 1.0, cushion)
+            if found[0] < 0.0 and pending:
                 pending.pop()()
-                found = f(t, sample)
+                found = f(t, sample, 1.0, cushion)
             return found
+
+        def sign(t: Array) -> float:
+            return signs(t)[0]
 
         exact = self.budget.counted(value)
         if sample is None and refine is None:
-            return StepSlack(exact, exact, value)
+            return StepSlack(exact, exact, value, signs)
         # Where F's value counts (the blend's, the brakes') the guard acts, near a boundary,
         # where a bound settles no row whole: the rows' path then only pays for the bounds,
         # while the compiled test still skips the clearances they settle. A sign's test,
         # shorter, is not what a time budget takes a later (exact) test's time to be
         # (StepBudget.counted).
-        return StepSlack(exact, self.budget.counted(sign, exact=False), sign)
+        return StepSlack(exact, self.budget.counted(sign, exact=False), sign, signs)
 
     def braking_floor(self, state: ArmState, bias: Array,
                        held: Array | None = None) -> BrakingTest | None:

@@ -33,12 +33,17 @@ class Reaches(NamedTuple):
     Attributes:
         nearest, f_nearest: the brake reached by its nearest acceleration (Brakes.brake), F.
         line, f_line: reached along the line (Brakes.brake_along_line), F; or None, −∞.
+        kept_nearest, kept_line: (S0) of each over the first prediction as F's test told
+            it (StepSlack.with_positivity: its sign is the sign of (S0)'s own test), or NaN
+            where it did not.
     """
 
     nearest: Array
     f_nearest: float
     line: Array | None = None
     f_line: float = -math.inf
+    kept_nearest: float = math.nan
+    kept_line: float = math.nan
 
     def first_passing(self) -> tuple[Array, float]:
         """The nearest reach where it passes, else the line where it passes, else the
@@ -49,11 +54,15 @@ class Reaches(NamedTuple):
 
     def by_f(self) -> tuple[Array, ...]:
         """The reaches made, the one whose F comes nearer to passing first."""
+        return tuple(tau for tau, _ in self.told())
+
+    def told(self) -> tuple[tuple[Array, float], ...]:
+        """:meth:`by_f`, each reach with its (S0) as F's test told it (NaN: not told)."""
+        nearest = self.nearest, self.kept_nearest
         if self.line is None:
-            return (self.nearest,)
-        if self.f_line > self.f_nearest:
-            return self.line, self.nearest
-        return self.nearest, self.line
+            return (nearest,)
+        line = self.line, self.kept_line
+        return (line, nearest) if self.f_line > self.f_nearest else (nearest, line)
 
 
 class Brakes:
@@ -98,6 +107,17 @@ class Brakes:
             return Reaches(nearest, f)
         line = self.brake_along_line(bias, stop, lam0)
         return Reaches(nearest, f, line, slack(line))
+
+    def reaches(self, bias: Array, stop: Array,
+                test: Callable[[Array], tuple[float, float]]) -> Reaches:
+        """Under a torque-rate limit, the calmest brake's two reaches (:meth:`calmest` with
+        ``both``), ``test`` telling F and (S0) of each (StepSlack.with_positivity)."""
+        lam0 = self.settings.braking
+        nearest = self.brake(bias, stop, lam0)
+        f, kept = test(nearest)
+        line = self.brake_along_line(bias, stop, lam0)
+        f_line, kept_line = test(line)
+        return Reaches(nearest, f, line, f_line, kept, kept_line)
 
     def brake_along_line(self, bias: Array, stop: Array, lam: float) -> Array:
         """The braking torque b − λ D ẋ/h reached from the held torque along the straight
@@ -275,18 +295,27 @@ class Brakes:
         and held from every spent step it let the figure eight's seed 53 through its
         kinetic-energy bound by 0.12 J at 500 Hz (docs/reliability.md).
 
-        ``floors``: (S1)'s floors at the end and mid-period the reaches' F held them to
-        (None where some margin is broken already). Where each is at or above its cushion,
+        (S0) of a reach is read from its F's test where that tells it (Reaches.told), else
+        tested. ``floors``: (S1)'s floors at the end and mid-period the reaches' F held them
+        to (None where some margin is broken already). Where each is at or above its cushion,
         F ≥ 0 says (S0) holds already (its rows are the first prediction's of F's, its
-        floors no higher), and the reach nearer to passing is held without a test."""
+        floors no higher), and the reach nearer to passing is held without a test where F's
+        did not tell its (S0)."""
         if reaches is None:
             return self.brake(bias, stop, self.settings.braking)
-        if max(reaches.f_nearest, reaches.f_line) >= 0.0 and self._covered(floors):
-            return reaches.by_f()[0]
-        keeps = self.positivity(_first_prediction(predict), sample).sign  # a sign: all it asks
-        for tau in reaches.by_f():
-            if keeps(tau) >= 0.0:
+        told = reaches.told()
+        first, kept = told[0]
+        if kept != kept and max(reaches.f_nearest, reaches.f_line) >= 0.0 and self._covered(
+                floors):
+            return first
+        keeps: Slack | None = None  # (S0)'s own test, made where F's did not tell it
+        for tau, kept in told:
+            if kept != kept:
+                keeps = keeps or self.positivity(_first_prediction(predict), sample).sign
+                kept = keeps(tau)  # a sign: all it asks
+            if kept >= 0.0:
                 return tau
+        keeps = keeps or self.positivity(_first_prediction(predict), sample).sign
         back = self._taken_back(bias)  # made only here: five spent steps in six need not
         return back if keeps(back) >= 0.0 else reaches.nearest
 
@@ -297,8 +326,8 @@ class Brakes:
             return False
         end, mid = floors
         cushion = self.cushion
-        return bool(np.all(end >= cushion)) and (
-            mid is None or bool(np.all(mid >= cushion[:self.n_config])))
+        return bool((end >= cushion).all()) and (
+            mid is None or bool((mid >= cushion[:self.n_config]).all()))
 
     def _first_kept(self, bias: Array, stop: Array, positivity: Slack
                     ) -> tuple[Array | None, Array, float]:

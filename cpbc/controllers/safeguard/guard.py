@@ -323,12 +323,12 @@ class Safeguard(SafetyFilter):
                                      reaches, floors)
 
     def _reaches(self, step: StepTests) -> Reaches:
-        """The calmest brake's two reaches and F's sign (exact where < 0), unbudgeted: the
-        step's own test uncounted (StepSlack.plain_sign), timed where made ahead."""
+        """The calmest brake's two reaches, F's sign (exact where < 0) and (S0) where F's test
+        tells it: the step's own test uncounted (StepSlack.with_positivity), timed ahead."""
         with self.budget.lifted():
-            slack = self.budget.counted(step.slack.plain_sign, exact=False)
-            return self.brakes.calmest(step.bias, step.state.inertia.dot(step.state.dx) /
-                                       self.period, slack, both=True)
+            test = self.budget.uncounted(step.slack.with_positivity(self.brakes.cushion))
+            return self.brakes.reaches(step.bias, step.state.inertia.dot(step.state.dx) /
+                                       self.period, test)
 
     def step_tests(self, state: ArmState, law: Array, law_margins: Array) -> StepTests:
         """What a step at ``state`` tests a torque with, as :meth:`filter` makes it for the

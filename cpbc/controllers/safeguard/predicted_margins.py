@@ -299,6 +299,15 @@ class PredictedMargins:
                      mid_floor: Array | None, stop: BrakingTest | None,
                      sample: Sample | None = None, enough: float = math.inf,
                      ramp: RampTest | None = None) -> float:
+        """F of :meth:`frozen_positivity` alone."""
+        return self.frozen_positivity(frozen, acc, after, end_floor, mid_floor, stop, sample,
+                                      enough, ramp)[0]
+
+    def frozen_positivity(self, frozen: Frozen, acc: Array, after: Array, end_floor: Array,
+                          mid_floor: Array | None, stop: BrakingTest | None,
+                          sample: Sample | None = None, enough: float = math.inf,
+                          ramp: RampTest | None = None,
+                          cushion: Array | None = None) -> tuple[float, float]:
         """:meth:`slack` over the prediction ``frozen`` makes from its accelerations ``acc``
         and ``after`` (Frozen.start), where every constraint packs (``fuses``) and no margin
         is broken already — and with ``ramp`` the lesser of it and :meth:`ramp_slack` —
@@ -310,7 +319,14 @@ class PredictedMargins:
         Without one (a committed brake's test) the one call's 50 arguments cost 1.2 µs more
         where no row needs its placements (7.1 against 5.9 µs at the median), but the
         rescue's held steps need them: in the bench's tail a step holding the committed
-        aimed brake took 150 µs against 179 with the calls apart."""
+        aimed brake took 150 µs against 179 with the calls apart.
+
+        Returns (F, P). With the ``cushion`` δ of every margin and the chain compiled, P is
+        (S0) of the same torque over the first prediction read from the margins F's test
+        made, with its sign (Brakes.positivity's test: m ≥ δ, the ramp's share too), or NaN
+        where a sphere clearance there was only bounded from the sample, below its cushion
+        (cpbc.kernels.frozen_slack.first_positivity); else NaN. What it saves is the test:
+        a spent step's reaches ask it of both (Brakes.spent)."""
         r, n, nc = frozen.rows, self.n, self.nc
         has_config = mid_floor is not None
         points = stop.points if stop is not None and has_config else 0
@@ -331,13 +347,15 @@ class PredictedMargins:
                 ramp.start, ramp.period, ramp.inertia,
                 ramp.inertia if ramp.to_joint is None else ramp.to_joint,
                 ramp.to_joint is not None, ramp.rate, ramp.floor)
-            return frozen_chain_test(
+            f, _, kept = frozen_chain_test(
                 frozen.x, frozen.dx, acc, after, frozen.h, frozen.travel, r, start, period,
                 per_speed, ramp_time, points, cp.plan, cp.ints, cp.floats, vp.plan, vp.ints,
                 vp.floats, end_floor, mid, sigma, has_config, stop is not None, bounded, at,
                 margins, enough, nc, work, slots, chain.parents, chain.kinds, chain.axes,
                 chain.rotations, chain.translations, chain.coordinates, chain.scale,
-                ramp is not None, rs, rp, ri, rt, rm, rr, RAMP_SHARE, rf)[0]
+                ramp is not None, rs, rp, ri, rt, rm, rr, RAMP_SHARE, rf, cushion is not None,
+                no_floor if cushion is None else cushion)
+            return f, kept
         f, marked = frozen_test(frozen.x, frozen.dx, acc, after, frozen.h, frozen.travel, r,
                                 start, period, per_speed, ramp_time, points, cp.plan, cp.ints,
                                 cp.floats, vp.plan, vp.ints, vp.floats, end_floor, mid, sigma,
@@ -349,12 +367,13 @@ class PredictedMargins:
             f = frozen_finish(cp.plan, cp.ints, cp.floats, work, r, n, points, nc, placements,
                               slots, end_floor, mid, sigma, has_config, stop is not None)
         if ramp is None:
-            return f
+            return f, math.nan
         to_joint = ramp.to_joint
         return min(f, frozen_ramp(vp.plan, vp.ints, vp.floats, work, r, n, points, nc,
                                   ramp.start, ramp.period, ramp.inertia,
                                   ramp.inertia if to_joint is None else to_joint,
-                                  to_joint is not None, ramp.rate, RAMP_SHARE, ramp.floor))
+                                  to_joint is not None, ramp.rate, RAMP_SHARE,
+                                  ramp.floor)), math.nan
 
     def _configuration_rows(self, mids: Array, ends: Array, speeds: Array,
                             stop: BrakingTest | None) -> Array:

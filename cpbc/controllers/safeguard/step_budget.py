@@ -59,6 +59,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager, nullcontext
+from typing import TypeVar
 
 from cpbc.arrays import Array
 
@@ -67,6 +68,7 @@ from cpbc.arrays import Array
 #: foretells it poorly; a making a stall of the machine slowed is forgotten after these.
 MADE_KEPT = 8
 _NOTHING = nullcontext()  # making() without a time budget: no bound, nothing timed
+T = TypeVar("T")
 
 
 class OutOfTests(Exception):  # a signal of the budget, not an error
@@ -253,12 +255,19 @@ class StepBudget:
 
         return timed
 
-    def _timed_ahead(self, slack: Callable[[Array], float]) -> Callable[[Array], float]:
+    def uncounted(self, test: Callable[[Array], T]) -> Callable[[Array], T]:
+        """``test`` made where no bound applies (:meth:`lifted`): inside :meth:`ahead`
+        under a time budget timed as :meth:`counted` times it there, else itself."""
+        if self._ahead and self.seconds is not None:
+            return self._timed_ahead(test)
+        return test
+
+    def _timed_ahead(self, slack: Callable[[Array], T]) -> Callable[[Array], T]:
         """``slack`` inside :meth:`ahead` under a time budget: uncounted and never cut off,
         its time since the test before it (the candidate's making and test) sets
         :attr:`longest`."""
 
-        def timed(t: Array) -> float:
+        def timed(t: Array) -> T:
             f = slack(t)
             ended = time.perf_counter()
             self.longest = max(self.longest, ended - self._mark)
