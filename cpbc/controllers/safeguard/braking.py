@@ -170,8 +170,8 @@ class Brakes:
         prediction keeps every margin above the floor it was found with."""
         if self.rescue is None:
             return None
-        tau = self.rescue.torque(state, bias, now, self._holds(predict), step,
-                                 self.box.holding)
+        tau = self.rescue.torque(state, bias, now, self._holds(predict, Sample(state.x, now)),
+                                 step, self.box.holding)
         return self._counted(None if tau is None else self._reach(bias)(tau))
 
     def holding(self, step: int) -> bool:
@@ -180,11 +180,12 @@ class Brakes:
         rescue = self.rescue
         return rescue is not None and rescue.budget is not None and rescue.live(step)
 
-    def committed(self, state: ArmState, bias: Array, predict: Predictor,
+    def committed(self, state: ArmState, bias: Array, predict: Predictor, now: Array,
                   step: int) -> Array | None:
         """Under a rescue budget, the rescue's committed brake while it is live
         (Rescue.held_brake) and its one-period prediction keeps every margin above the floor
-        it was found with, else None; nothing is searched. Without a budget, None: the
+        it was found with (``now``: the margins at the sample), else None; nothing is
+        searched. Without a budget, None: the
         committed brake is checked again from each state (Rescue.torque), after the guard's
         own candidates.
 
@@ -211,8 +212,8 @@ class Brakes:
             return None
         reach = self._reach(bias)
         reaches = (reach,) if not self.box.rate_limited else (reach, self.box.end_clip)
-        return self._counted(rescue.held_brake(state, bias, reaches,
-                                               self._holds(predict, lookahead=False), step))
+        holds = self._holds(predict, Sample(state.x, now), lookahead=False)
+        return self._counted(rescue.held_brake(state, bias, reaches, holds, step))
 
     def _reach(self, bias: Array) -> Callable[[Array], Array]:
         """τ ↦ the torque the step holds for a rescue brake τ: under a rate limit reached as
@@ -228,17 +229,22 @@ class Brakes:
             self.rescues += 1
         return tau
 
-    def _holds(self, predict: Predictor,
+    def _holds(self, predict: Predictor, sample: Sample,
                lookahead: bool = True) -> Callable[[Array, Array], bool]:
         """holds(τ, floor): τ's one-period prediction keeps every margin above ``floor``
         (``lookahead``: and under a torque-rate limit the velocity margins while the torque
-        ramps back, Acceptance.check)."""
+        ramps back, Acceptance.check). F's sign is all it asks: from the ``sample``'s bounds
+        where they settle a clearance (StepSlack.sign; fewer joint placements), the check
+        made once for the floor asked last (a committed brake's two reaches share it)."""
         nc, check = self.n_config, self.acceptance.check
+        made: list[tuple[Array, Slack]] = []
 
         def holds(t: Array, floor: Array) -> bool:
-            return check(predict, np.maximum(floor, 1e-300),
-                         np.maximum(floor[:nc], 1e-300) if nc else None,
-                         lookahead=lookahead)(t) >= 0.0
+            if not made or made[0][0] is not floor:
+                made[:] = [(floor, check(predict, np.maximum(floor, 1e-300),
+                                         np.maximum(floor[:nc], 1e-300) if nc else None,
+                                         sample=sample, lookahead=lookahead).sign)]
+            return made[0][1](t) >= 0.0
 
         return holds
 

@@ -299,7 +299,7 @@ class Safeguard(SafetyFilter):
         period's test, which (S2) did not promise (figure eight, seed 58, reliability.md)."""
         state, bias, brakes = step.state, step.bias, self.brakes
         with self.budget.lifted():
-            held = brakes.committed(state, bias, step.predict, self.calls)
+            held = brakes.committed(state, bias, step.predict, step.now, self.calls)
             if held is None and first_step(self.calls):
                 held = brakes.rescued(state, bias, step.predict, step.now, self.calls)
         if held is not None:
@@ -375,12 +375,12 @@ class Safeguard(SafetyFilter):
         """Once the law's torque fails: the rescue's committed brake where it holds one that
         passes, else None — having made, under a time budget and a rate limit, the brake's
         reaches, tested, which the candidates take up, and what a step out of time holds."""
-        # a brake whose check saw the arm to rest (Rescue.held_brake): its one test is made
-        # whatever the budget, as a step out of tests would make it (cut off, it was made
-        # twice: 300 µs on the Panda); refused, the step goes on where its time allows
-        if self.brakes.holding(self.calls):
+        # a brake whose check saw the arm to rest (Rescue.held_brake): tested whatever the
+        # budget, as a step out of tests would (cut off, made twice: 300 µs on the Panda)
+        brakes = self.brakes
+        if brakes.holding(self.calls):
             with self.budget.uncut():
-                held = self.brakes.committed(step.state, step.bias, step.predict, self.calls)
+                held = brakes.committed(step.state, step.bias, step.predict, step.now, self.calls)
             if held is not None:
                 return held, None
         if self.budget.timed and self.box.rate_limited and not first_step(self.calls):

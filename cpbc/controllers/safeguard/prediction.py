@@ -71,9 +71,9 @@ class Frozen:
         corrector's): still a Frozen, so its test is the compiled one."""
         if not self.corrector:
             return self
-        first = object.__new__(Frozen)
-        for name in Frozen.__slots__:
-            object.__setattr__(first, name, getattr(self, name))
+        first = object.__new__(Frozen)  # every slot, as __init__ sets them
+        first.model, first.x, first.dx, first.inertia = self.model, self.x, self.dx, self.inertia
+        first.bias, first.h, first.travel, first._box = self.bias, self.h, self.travel, self._box
         first.corrector, first.rows = False, 1
         return first
 
