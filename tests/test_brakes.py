@@ -188,3 +188,62 @@ def test_the_aimed_row_is_numpy_s_argmin_and_dot_to_the_bit(seed: int) -> None:
         assert wanted[0] == expected.dot(-dx) / h
         aimed_rows += 1
     assert aimed_rows > 200
+
+
+def _aimed_in_steps(box: TorqueBox, kept, model, state, bias: np.ndarray,
+                    h: float) -> tuple[np.ndarray, bool]:
+    """The aimed brake as the steps it was made of from Python gave it: the stopping terms,
+    the aimed row (compiled), the least-squares stop in the box with numpy's products."""
+    from cpbc.constraints.brakes import _nearest_stop
+    from cpbc.constraints.stopping import stopping_terms
+    from cpbc.kernels.stopping_test import aim_row
+    s, speed, _, grads = stopping_terms(kept, model, state, bias, box.limit)
+    row, wanted = np.empty((1, len(state.dx))), np.empty(1)
+    if not aim_row(s, speed, grads, state.dx, h, 30.0, row[0], wanted):
+        return _nearest_stop(box, state, bias, h, None, None), False
+    return _nearest_stop(box, state, bias, h, row, wanted), True
+
+
+def test_the_aimed_brake_in_one_call_is_its_steps_to_the_bit(panda):
+    """The aimed brake's one compiled call (cpbc.kernels.stopping_test.aimed_stop) gives the
+    torque its steps gave from Python, to the bit: on the Panda among its spheres and joint
+    limits, from drawn states at their rates and three times them, in the whole box and in
+    a step's box under a rate limit; and on the thesis's arm in absolute link angles (a map
+    to the joints, its products through T⁻ᵀ), where the aim is asked and where it is not."""
+    from cpbc.bench import planar_2link
+    from cpbc.constraints.brakes import aimed_brake
+    from cpbc.constraints.constraint_set import ConstraintSet
+    from cpbc.constraints.linear_limit import LinearLimit, joint_position_limit
+
+    setup, entry = panda
+    kept = kept_constraints(setup, entry, 0.001, setup.safeguard)
+    model, rng, aimed = setup.model, np.random.default_rng(5), 0
+    whole = TorqueBox.of(model, setup.loop_settings.bounds.torque)
+    for seed in range(12):
+        s = draw_state(setup, seed)
+        for speed in (1.0, 3.0):
+            state = kept.state(model, s.position, speed * s.velocity, motion=True)
+            bias = state.coriolis_force + state.gravity + state.dissipation
+            held = rng.uniform(-0.3, 0.3, 7) * whole.limit
+            for box in (whole, whole.around(held, np.full(7, 1.0))):
+                expected, with_row = _aimed_in_steps(box, kept, model, state, bias, 0.001)
+                np.testing.assert_array_equal(aimed_brake(box, kept, model)(state, bias, 0.001),
+                                              expected)
+                aimed += with_row
+    assert aimed >= 20
+
+    arm = planar_2link()
+    model = arm.controllers["cpbc"].model
+    assert not model.coordinates.is_identity
+    names = ["theta1", "theta2"]
+    limits = ConstraintSet(2, [joint_position_limit([-0.5, -0.5], [3.5, 3.5], names),
+                               LinearLimit([[-1, 1]], [-3.0], [3.0], ["relative"])], [])
+    box, rows = TorqueBox.of(model, np.array([30.0, 20.0])), set()
+    for x, dx in arm.states[:24]:
+        state = limits.state(model, x, 4.0 * dx, motion=True)
+        bias = state.coriolis_force + state.gravity
+        expected, with_row = _aimed_in_steps(box, limits, model, state, bias, 0.001)
+        np.testing.assert_array_equal(aimed_brake(box, limits, model)(state, bias, 0.001),
+                                      expected)
+        rows.add(with_row)
+    assert rows == {True, False}

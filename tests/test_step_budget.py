@@ -460,8 +460,8 @@ def test_under_a_time_budget_the_candidates_take_up_the_brake_s_reaches_made_ahe
         for name in ("calmest", "reaches"):  # both reaches at once, or the nearest first
             method = getattr(guard.brakes, name)
 
-            def counted(*args, _c=method, _n=name, **kwargs):
-                made.append(_n)
+            def counted(*args, _c=method, _n=name, _m=made, **kwargs):
+                _m.append(_n)
                 return _c(*args, **kwargs)
 
             setattr(guard.brakes, name, counted)

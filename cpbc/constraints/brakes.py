@@ -38,10 +38,10 @@ import numpy as np
 
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
-from cpbc.constraints.stopping import stopping_terms
+from cpbc.constraints.stopping import motion_rows, stopping_map
 from cpbc.kernels.bounded_lsq import bounded_least_squares
 from cpbc.kernels.small_solves import inverse_inertia
-from cpbc.kernels.stopping_test import aim_row
+from cpbc.kernels.stopping_test import aimed_stop
 from cpbc.kernels.torque_box import box_around, box_clip, box_nearest, box_toward
 from cpbc.model.robot_model import ArmState, RobotModel
 
@@ -223,14 +223,16 @@ def aimed_brake(box: TorqueBox, constraints: ConstraintSet, model: RobotModel,
     """The least-squares brake with the approach to the constraint of least stopping margin
     asked to stop within the period (its row weighted ``aim_weight``, gradient normalised)."""
 
+    inverse, mapped, limit = stopping_map(model, box.limit)
+
     def brake(state: ArmState, bias: Array, h: float) -> Array:
         if not constraints.configuration:
             return _nearest_stop(box, state, bias, h, None, None)
-        s, speed, _, grads = stopping_terms(constraints, model, state, bias, box.limit)
-        row, wanted = np.empty((1, len(state.dx))), np.empty(1)
-        if not aim_row(s, speed, grads, state.dx, h, aim_weight, row[0], wanted):
-            return _nearest_stop(box, state, bias, h, None, None)
-        return _nearest_stop(box, state, bias, h, row, wanted)
+        phi, grads, curvature, moving = motion_rows(constraints, model, state)
+        out = np.empty(len(state.dx))  # stopping_terms, aim_row, _nearest_stop in one call
+        aimed_stop(phi, grads, curvature, moving.inertia, bias, moving.dx, inverse, mapped,
+                   limit, h, aim_weight, *box.packed, out)
+        return out
 
     return brake
 

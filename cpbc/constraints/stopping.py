@@ -67,9 +67,21 @@ def stopping_terms(constraints: ConstraintSet, model: RobotModel, state: ArmStat
                    bias: Array, torque_limit: Array) -> tuple[Array, Array, Array, Array]:
     """:func:`stopping_margins` at a per-step state whose bias b is known, with the
     gradients ∇φ_i as well (rows): φ, ∇φ and ẋᵀ∇²φ ẋ from each constraint's
+    ``motion_terms`` (:func:`motion_rows`); the rest in one compiled call
+    (cpbc.kernels.stopping_test.stopping_rows)."""
+    phi, grads, curvature, state = motion_rows(constraints, model, state)
+    margins, speed, decel = np.empty(len(phi)), np.empty(len(phi)), np.empty(len(phi))
+    stopping_rows(phi, grads, curvature, state.inertia, bias, state.dx,
+                  *stopping_map(model, torque_limit), margins, speed, decel)
+    return margins, speed, decel, grads
+
+
+def motion_rows(constraints: ConstraintSet, model: RobotModel, state: ArmState
+                ) -> tuple[Array, Array, Array, ArmState]:
+    """φ, ∇φ (rows) and ẋᵀ∇²φ ẋ of every configuration constraint from its
     ``motion_terms`` (the state's kinematics, no Pinocchio pass of their own; a state
-    built without what they read is built again, by ``ConstraintSet.state``); the rest in
-    one compiled call (cpbc.kernels.stopping_test.stopping_rows)."""
+    built without what they read is built again, by ``ConstraintSet.state``, and
+    returned): what cpbc.kernels.stopping_test reads at a state."""
     lacks_frames = any(f not in state.frames for f in constraints.frames)
     if lacks_frames or (constraints.motion_kinematics and state.joint_jacobians is None):
         state = constraints.state(model, state.x, state.dx, motion=True)
@@ -77,16 +89,19 @@ def stopping_terms(constraints: ConstraintSet, model: RobotModel, state: ArmStat
     phi = np.concatenate([t[0] for t in terms])
     grads = np.ascontiguousarray(np.concatenate([t[1] for t in terms]), dtype=float)
     curvature = np.concatenate([t[2] for t in terms])
-    margins, speed, decel = np.empty(len(phi)), np.empty(len(phi)), np.empty(len(phi))
+    return phi, grads, curvature, state
+
+
+def stopping_map(model: RobotModel, torque_limit: Array | float) -> tuple[Array, bool, Array]:
+    """T⁻¹ (writable; unread in joint coordinates), whether the coordinates map, and the
+    joints' torque limits L, one per joint: what cpbc.kernels.stopping_test reads of the
+    model and the box."""
     coords = model.coordinates
-    inverse = _NO_MAP if coords.is_identity else np.array(coords.inverse)  # writable
+    inverse = _NO_MAP if coords.is_identity else np.array(coords.inverse)
     limit = np.asarray(torque_limit, dtype=float)
     if limit.shape != (model.n,):  # one limit for every joint
         limit = np.full(model.n, float(torque_limit))
-    stopping_rows(phi, grads, curvature, state.inertia, bias, state.dx, inverse,
-                  not coords.is_identity, limit, margins, speed, decel)
-    return margins, speed, decel, grads
-
+    return inverse, not coords.is_identity, limit
 
 
 # -- the braking set: what the safeguard keeps invariant under bounded torque ----------------

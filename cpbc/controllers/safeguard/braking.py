@@ -207,9 +207,10 @@ class Brakes:
         start outside V, joint 7 1.3 mrad from its limit at 0.82 rad/s) the nearest reach
         failed at the second step where the clipped one passed, and the uniform brake held
         instead took joint 7 0.33 mrad past its limit under the robot's budgets."""
-        rescue = self.rescue
-        if rescue is None or rescue.budget is None:
+        if not self.holding(step):  # none, or refused already at this step
             return None
+        rescue = self.rescue
+        assert rescue is not None
         reach = self._reach(bias)
         reaches = (reach,) if not self.box.rate_limited else (reach, self.box.end_clip)
         holds = self._holds(predict, Sample(state.x, now), lookahead=False)

@@ -290,13 +290,13 @@ class Safeguard(SafetyFilter):
 
     def _out_of_tests(self, step: StepTests) -> Array:
         """A step whose budget of tests is spent before any torque passed: the rescue's
-        committed brake while it holds it (one brake, one test), or at the motion's first
-        step its search, until rest; then under a time budget the uniform brake, which the
-        step before's torque was tested with ((S2)), at once (under a rate limit made ahead,
+        committed brake while it holds it (one test), or at the motion's first step its
+        search, until rest; then under a time budget the uniform brake, which the step
+        before's torque was tested with ((S2)), at once (under a rate limit made ahead,
         StepBudget.ready: a search's stopping points, ~200 µs for the aimed brake on the
-        Panda, no test's time foretells); else the rescue's bounded search, else the
-        uniform brake (:meth:`_spent`) — not the first of the rescue's brakes to pass one
-        period's test, which (S2) did not promise (figure eight, seed 58, reliability.md)."""
+        Panda, no test's time foretells); else the rescue's bounded search, else the uniform
+        brake (:meth:`_spent`) — not the first of the rescue's brakes to pass one period's
+        test, which (S2) did not promise (figure eight, seed 58, reliability.md)."""
         state, bias, brakes = step.state, step.bias, self.brakes
         with self.budget.lifted():
             held = brakes.committed(state, bias, step.predict, step.now, self.calls)
