@@ -57,8 +57,8 @@ from __future__ import annotations
 import sys
 import time
 from collections import deque
-from collections.abc import Callable, Iterator
-from contextlib import AbstractContextManager, contextmanager, nullcontext
+from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from typing import TypeVar
 
 from cpbc.arrays import Array
@@ -114,8 +114,8 @@ class StepBudget:
         self._made: dict[str, deque[float | None]] = {}  # each kind's last makings [s]
         # the blocks, made once: a generator's context costs 5-12 µs in a step that acts
         # after calm ones (its code cold), four of them a step there
-        self._lifted, self._uncut_block, self._ahead_block = (
-            _Lifted(self), _Uncut(self), _Ahead(self))
+        self._lifted, self._uncut_block, self._ahead_block, self._making = (
+            _Lifted(self), _Uncut(self), _Ahead(self), _TimedMaking(self))
 
     def start(self) -> None:
         """The guarded call begins: its time is counted from now."""
@@ -153,21 +153,9 @@ class StepBudget:
         budget; the block's time is then that kind's. Without one, nothing is done."""
         if self._until == float("inf"):
             return _NOTHING
-        return self._timed_making(kind)
-
-    @contextmanager
-    def _timed_making(self, kind: str) -> Iterator[None]:
-        """:meth:`making` under a time budget."""
-        made = self._made.setdefault(kind, deque(maxlen=MADE_KEPT))
-        begun = time.perf_counter()
-        # a kind not made of late is taken to be made as fast as the step's longest test
-        known = [t for t in made if t is not None]
-        if begun + max(known, default=self.longest) + self.longest > self._until:
-            made.append(None)  # refused, it ages the record as a making does: a making a
-            raise OutOfTests   # stall slowed past the budget does not bar its kind for good
-        yield
-        self._mark = ended = time.perf_counter()  # the next test's candidate is its test
-        made.append(ended - begun)
+        making = self._making
+        making.kind = kind
+        return making
 
     def ahead(self) -> AbstractContextManager[None]:
         """What a spent step would hold, made inside the block before the step's next
@@ -326,3 +314,29 @@ class _Ahead:
         budget._lifted.__exit__()
         if raised is None:
             budget._block_ended(True)
+
+
+class _TimedMaking:
+    """StepBudget.making's block under a time budget, for the ``kind`` set before it (one
+    block at a time: makings do not nest)."""
+
+    __slots__ = ("_begun", "_budget", "kind")
+
+    def __init__(self, budget: StepBudget) -> None:
+        self._budget, self.kind, self._begun = budget, "", 0.0
+
+    def __enter__(self) -> None:
+        budget = self._budget
+        made = budget._made.setdefault(self.kind, deque(maxlen=MADE_KEPT))
+        self._begun = begun = time.perf_counter()
+        # a kind not made of late is taken to be made as fast as the step's longest test
+        known = [t for t in made if t is not None]
+        if begun + max(known, default=budget.longest) + budget.longest > budget._until:
+            made.append(None)  # refused, it ages the record as a making does: a making a
+            raise OutOfTests   # stall slowed past the budget does not bar its kind for good
+
+    def __exit__(self, raised: type[BaseException] | None, *rest: object) -> None:
+        if raised is None:
+            budget = self._budget
+            budget._mark = ended = time.perf_counter()  # the next test's candidate: its test
+            budget._made[self.kind].append(ended - self._begun)
