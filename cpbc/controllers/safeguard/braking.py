@@ -112,10 +112,10 @@ class Brakes:
                 test: Callable[[Array], tuple[float, float]]) -> Reaches:
         """Under a torque-rate limit, the calmest brake's two reaches (:meth:`calmest` with
         ``both``), ``test`` telling F and (S0) of each (StepSlack.with_positivity)."""
-        lam0 = self.settings.braking
-        nearest = self.brake(bias, stop, lam0)
+        box, brake = self.box, bias - self.settings.braking * stop
+        nearest = box.fit(bias, brake, brake=True)  # as self.brake, self.brake_along_line
         f, kept = test(nearest)
-        line = self.brake_along_line(bias, stop, lam0)
+        line = box.fit(bias, brake)
         f_line, kept_line = test(line)
         return Reaches(nearest, f, line, f_line, kept, kept_line)
 
@@ -278,7 +278,7 @@ class Brakes:
         return self.acceptance.check(frozen, self.cushion, self.cushion[:nc] if nc else None,
                                      sample=sample)
 
-    def spent(self, bias: Array, stop: Array, predict: Predictor, sample: Sample,
+    def spent(self, bias: Array, stop: Array | None, predict: Predictor, sample: Sample,
               reaches: Reaches | None,
               floors: tuple[Array, Array | None] | None = None) -> Array:
         """What a step whose budget of tests is spent holds where no candidate passed
@@ -309,6 +309,7 @@ class Brakes:
         floors no higher), and the reach nearer to passing is held without a test where F's
         did not tell its (S0)."""
         if reaches is None:
+            assert stop is not None  # D ẋ/h, read only here
             return self.brake(bias, stop, self.settings.braking)
         told = reaches.told()
         first, kept = told[0]

@@ -317,10 +317,10 @@ class Safeguard(SafetyFilter):
         if reaches is None and self.box.rate_limited:
             reaches = self._reaches(step)
         floors = None if step.past is not None else (step.floor, step.floor_mid)
+        stop = None if reaches is not None else step.state.inertia.dot(step.state.dx) / self.period
         with self.budget.lifted():
-            return self.brakes.spent(step.bias, step.state.inertia.dot(step.state.dx) /
-                                     self.period, step.predict, Sample(step.state.x, step.now),
-                                     reaches, floors)
+            return self.brakes.spent(step.bias, stop, step.predict,
+                                     Sample(step.state.x, step.now), reaches, floors)
 
     def _reaches(self, step: StepTests) -> Reaches:
         """The calmest brake's two reaches, F's sign (exact where < 0) and (S0) where F's test
