@@ -190,23 +190,43 @@ def test_the_aimed_row_is_numpy_s_argmin_and_dot_to_the_bit(seed: int) -> None:
     assert aimed_rows > 200
 
 
+def _nearest_stop_in_numpy(box: TorqueBox, state, bias: np.ndarray, h: float,
+                           rows: np.ndarray | None, wanted: np.ndarray | None) -> np.ndarray:
+    """The least-squares stop in the box as it was made from Python before its kernel
+    (cpbc.kernels.stopping_test.nearest_stop): A = D⁻¹T⁻ᵀ and the targets with numpy's
+    products, ``rows`` · ẍ = ``wanted`` on top, the compiled bounded least squares."""
+    from cpbc.kernels.bounded_lsq import bounded_least_squares
+    from cpbc.kernels.small_solves import inverse_inertia
+    inv_d = inverse_inertia(state.inertia)
+    a = np.ascontiguousarray(inv_d if box.from_joint is None else inv_d @ box.from_joint)
+    free = a.dot(box.joint(bias))
+    target = free - state.dx / h
+    if rows is not None and wanted is not None:
+        a = np.vstack((a, rows @ a))
+        target = np.concatenate((target, wanted + rows @ free))
+    tau_q = np.empty(a.shape[1])
+    lower, upper = box.bounds
+    bounded_least_squares(a, target, lower, upper, tau_q)
+    return tau_q if box.from_joint is None else box.from_joint.dot(tau_q)
+
+
 def _aimed_in_steps(box: TorqueBox, kept, model, state, bias: np.ndarray,
                     h: float) -> tuple[np.ndarray, bool]:
     """The aimed brake as the steps it was made of from Python gave it: the stopping terms,
     the aimed row (compiled), the least-squares stop in the box with numpy's products."""
-    from cpbc.constraints.brakes import _nearest_stop
     from cpbc.constraints.stopping import stopping_terms
     from cpbc.kernels.stopping_test import aim_row
     s, speed, _, grads = stopping_terms(kept, model, state, bias, box.limit)
     row, wanted = np.empty((1, len(state.dx))), np.empty(1)
     if not aim_row(s, speed, grads, state.dx, h, 30.0, row[0], wanted):
-        return _nearest_stop(box, state, bias, h, None, None), False
-    return _nearest_stop(box, state, bias, h, row, wanted), True
+        return _nearest_stop_in_numpy(box, state, bias, h, None, None), False
+    return _nearest_stop_in_numpy(box, state, bias, h, row, wanted), True
 
 
 def test_the_aimed_brake_in_one_call_is_its_steps_to_the_bit(panda):
-    """The aimed brake's one compiled call (cpbc.kernels.stopping_test.aimed_stop) gives the
-    torque its steps gave from Python, to the bit: on the Panda among its spheres and joint
+    """The aimed brake's one compiled call (cpbc.kernels.stopping_test.aimed_stop), and the
+    least-squares brake's (nearest_stop), give the torques their steps gave from Python, to
+    the bit: on the Panda among its spheres and joint
     limits, from drawn states at their rates and three times them, in the whole box and in
     a step's box under a rate limit; and on the thesis's arm in absolute link angles (a map
     to the joints, its products through T⁻ᵀ), where the aim is asked and where it is not."""
@@ -229,6 +249,9 @@ def test_the_aimed_brake_in_one_call_is_its_steps_to_the_bit(panda):
                 expected, with_row = _aimed_in_steps(box, kept, model, state, bias, 0.001)
                 np.testing.assert_array_equal(aimed_brake(box, kept, model)(state, bias, 0.001),
                                               expected)
+                np.testing.assert_array_equal(  # the least-squares brake: no row
+                    least_squares_brake(box)(state, bias, 0.001),
+                    _nearest_stop_in_numpy(box, state, bias, 0.001, None, None))
                 aimed += with_row
     assert aimed >= 20
 
@@ -245,5 +268,8 @@ def test_the_aimed_brake_in_one_call_is_its_steps_to_the_bit(panda):
         expected, with_row = _aimed_in_steps(box, limits, model, state, bias, 0.001)
         np.testing.assert_array_equal(aimed_brake(box, limits, model)(state, bias, 0.001),
                                       expected)
+        np.testing.assert_array_equal(least_squares_brake(box)(state, bias, 0.001),
+                                      _nearest_stop_in_numpy(box, state, bias, 0.001, None,
+                                                             None))
         rows.add(with_row)
     assert rows == {True, False}

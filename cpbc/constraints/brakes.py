@@ -39,11 +39,11 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.constraints.constraint_set import ConstraintSet
 from cpbc.constraints.stopping import motion_rows, stopping_map
-from cpbc.kernels.bounded_lsq import bounded_least_squares
-from cpbc.kernels.small_solves import inverse_inertia
-from cpbc.kernels.stopping_test import aimed_stop
+from cpbc.kernels.stopping_test import aimed_stop, nearest_stop
 from cpbc.kernels.torque_box import box_around, box_clip, box_nearest, box_toward
 from cpbc.model.robot_model import ArmState, RobotModel
+
+_NO_ROW = np.zeros((1, 0))  # nearest_stop's aimed row where there is none (unread)
 
 
 @dataclass(frozen=True, eq=False)
@@ -124,15 +124,10 @@ class TorqueBox:
     def joint(self, tau: Array) -> Array:
         return tau if self.to_joint is None else self.to_joint.dot(tau)
 
-    def acceleration_map(self, inertia: Array) -> Array:
-        """A = D⁻¹T⁻ᵀ: the acceleration a joint torque τ_q gives."""
-        inv_d = inverse_inertia(inertia)
-        return np.ascontiguousarray(inv_d if self.from_joint is None else inv_d @ self.from_joint)
-
     def nearest(self, inertia: Array, tau: Array) -> Array:
         """τ itself when it fits the box, else the torque in the box whose acceleration is
-        nearest to τ's, min ‖A(τ_q' − τ_q)‖ over lower ≤ τ_q' ≤ upper (A = D⁻¹T⁻ᵀ, as
-        :meth:`acceleration_map`, formed only then; one compiled call,
+        nearest to τ's, min ‖A(τ_q' − τ_q)‖ over lower ≤ τ_q' ≤ upper (A = D⁻¹T⁻ᵀ, the
+        acceleration a joint torque τ_q gives, formed only then; one compiled call,
         cpbc.kernels.torque_box.box_nearest): each joint uses as much of
         its own interval as the acceleration asks, and the joints that cannot follow cost
         the acceleration as little as the coupling through D allows. (Scaling the whole
@@ -193,27 +188,20 @@ def uniform_brake(box: TorqueBox) -> Brake:
     return brake
 
 
-def _nearest_stop(box: TorqueBox, state: ArmState, bias: Array, h: float,
-                  rows: Array | None, wanted: Array | None) -> Array:
-    """The torque in the box nearest (least squares) to ẍ = −ẋ/h, with extra weighted rows
-    ``rows`` · ẍ = ``wanted`` on top."""
-    a = box.acceleration_map(state.inertia)  # ẍ = A τ_q − D⁻¹b
-    free = a.dot(box.joint(bias))  # D⁻¹T⁻ᵀ Tᵀ b
-    target = free - state.dx / h
-    if rows is not None and wanted is not None:
-        a = np.vstack((a, rows @ a))
-        target = np.concatenate((target, wanted + rows @ free))
-    tau_q = np.empty(a.shape[1])
-    lower, upper = box.bounds
-    bounded_least_squares(a, target, lower, upper, tau_q)
-    return tau_q if box.from_joint is None else box.from_joint.dot(tau_q)
+def _nearest_stop(box: TorqueBox, state: ArmState, bias: Array, h: float) -> Array:
+    """The torque in the box nearest (least squares) to ẍ = −ẋ/h
+    (cpbc.kernels.stopping_test.nearest_stop)."""
+    out = np.empty(len(state.dx))
+    nearest_stop(state.inertia, bias, state.dx, h, _NO_ROW, _NO_ROW[0], False, *box.packed,
+                 out)
+    return out
 
 
 def least_squares_brake(box: TorqueBox) -> Brake:
     """The torque in the box nearest to stopping every coordinate in one period."""
 
     def brake(state: ArmState, bias: Array, h: float) -> Array:
-        return _nearest_stop(box, state, bias, h, None, None)
+        return _nearest_stop(box, state, bias, h)
 
     return brake
 
@@ -227,9 +215,9 @@ def aimed_brake(box: TorqueBox, constraints: ConstraintSet, model: RobotModel,
 
     def brake(state: ArmState, bias: Array, h: float) -> Array:
         if not constraints.configuration:
-            return _nearest_stop(box, state, bias, h, None, None)
+            return _nearest_stop(box, state, bias, h)
         phi, grads, curvature, moving = motion_rows(constraints, model, state)
-        out = np.empty(len(state.dx))  # stopping_terms, aim_row, _nearest_stop in one call
+        out = np.empty(len(state.dx))  # stopping_terms, aim_row, nearest_stop in one call
         aimed_stop(phi, grads, curvature, moving.inertia, bias, moving.dx, inverse, mapped,
                    limit, h, aim_weight, *box.packed, out)
         return out

@@ -90,6 +90,44 @@ def aim_row(margins: Array, speed: Array, grads: Array, dx: Array, h: float, wei
     return True
 
 
+@kernel(f"void(float64[:, :], {READ_ONLY}, {READ_ONLY}, float64, float64[:, :], float64[:], "
+        "boolean, float64[:], float64[:], float64[:, :], float64[:, :], boolean, float64[:])")
+def nearest_stop(inertia: Array, bias: Array, dx: Array, h: float, row: Array, wanted: Array,
+                 aimed: bool, lower: Array, upper: Array, to_joint: Array, from_joint: Array,
+                 mapped: bool, out: Array) -> None:
+    """The torque in the box ``lower`` ≤ τ_q ≤ ``upper`` (Tᵀ ``to_joint``, T⁻ᵀ ``from_joint``
+    where ``mapped``) nearest in acceleration to ẍ = −ẋ/h (least squares,
+    ``bounded_least_squares``, with A = D⁻¹T⁻ᵀ: ẍ = A τ_q − D⁻¹b), with ``aimed`` the
+    1 × n ``row`` · ẍ = ``wanted[0]`` on top, into ``out`` (cpbc.constraints.brakes: the
+    least-squares brake, the aimed one). Its products are BLAS's, as numpy's are (numba's
+    np.dot on contiguous arrays calls dgemv and dgemm: the same bits as numpy's on 20 000
+    random 7-joint cases here), and the row's rate on the free acceleration is the sum in
+    order numpy's 1 × n product makes (a 1-row dgemv is not: 10 625 of 20 000 differ)."""
+    n = inertia.shape[0]
+    inv = np.empty((n, n))
+    inverse_spd(np.ascontiguousarray(inertia), inv)
+    a = np.dot(inv, np.ascontiguousarray(from_joint)) if mapped else inv  # D⁻¹T⁻ᵀ
+    b = np.ascontiguousarray(bias)
+    free = np.dot(a, np.dot(np.ascontiguousarray(to_joint), b) if mapped else b)
+    k = n + 1 if aimed else n
+    stacked, target = np.empty((k, n)), np.empty(k)
+    stacked[:n] = a
+    for i in range(n):
+        target[i] = free[i] - dx[i] / h
+    if aimed:
+        stacked[n] = np.dot(np.ascontiguousarray(row), a)[0]
+        rate = 0.0
+        for j in range(n):
+            rate += row[0, j] * free[j]
+        target[n] = wanted[0] + rate
+    tau_q = np.empty(n)
+    bounded_least_squares(stacked, target, lower, upper, tau_q)
+    if mapped:
+        out[:] = np.dot(np.ascontiguousarray(from_joint), tau_q)
+    else:
+        out[:] = tau_q
+
+
 @kernel(f"void(float64[:], float64[:, :], float64[:], float64[:, :], {READ_ONLY}, {READ_ONLY}, "
         f"float64[:, :], boolean, {READ_ONLY}, float64, float64, float64[:], float64[:], "
         "float64[:, :], float64[:, :], boolean, float64[:])")
@@ -98,39 +136,13 @@ def aimed_stop(phi: Array, grads: Array, curvature: Array, inertia: Array, bias:
                lower: Array, upper: Array, to_joint: Array, from_joint: Array,
                mapped_box: bool, out: Array) -> None:
     """The aimed brake (cpbc.constraints.brakes.aimed_brake) in one call: ``stopping_rows``,
-    ``aim_row``, then the torque in the box (``lower``, ``upper``; Tᵀ ``to_joint`` and T⁻ᵀ
-    ``from_joint`` where ``mapped_box``) nearest in acceleration to ẍ = −ẋ/h with the
-    aimed row on top (brakes._nearest_stop: A = D⁻¹T⁻ᵀ, ``bounded_least_squares``), into
-    ``out``. The same torque to the bit as those steps from Python
-    (tests/test_brakes.py): the matrix products are BLAS's, as numpy's are (numba's np.dot
-    on contiguous arrays calls dgemv and dgemm; the same bits as numpy's on 20 000 random
-    7-joint cases here), and the row's rate on the free acceleration is the sum in order
-    that numpy's 1 × n product makes (a 1-row dgemv is not: 10 625 of 20 000 differ)."""
+    ``aim_row``, then ``nearest_stop`` with the aimed row on top where there is one, into
+    ``out``."""
     n, m = inertia.shape[0], phi.shape[0]
     margins, speed, decel = np.empty(m), np.empty(m), np.empty(m)
     stopping_rows(phi, grads, curvature, inertia, bias, dx, inverse, mapped, limit, margins,
                   speed, decel)
     row, wanted = np.empty((1, n)), np.empty(1)
     aimed = aim_row(margins, speed, grads, dx, h, weight, row[0], wanted)
-    inv = np.empty((n, n))
-    inverse_spd(np.ascontiguousarray(inertia), inv)
-    a = np.dot(inv, np.ascontiguousarray(from_joint)) if mapped_box else inv  # D⁻¹T⁻ᵀ
-    b = np.ascontiguousarray(bias)
-    free = np.dot(a, np.dot(np.ascontiguousarray(to_joint), b) if mapped_box else b)
-    k = n + 1 if aimed else n
-    stacked, target = np.empty((k, n)), np.empty(k)
-    stacked[:n] = a
-    for i in range(n):
-        target[i] = free[i] - dx[i] / h
-    if aimed:
-        stacked[n] = np.dot(row, a)[0]
-        rate = 0.0
-        for j in range(n):
-            rate += row[0, j] * free[j]
-        target[n] = wanted[0] + rate
-    tau_q = np.empty(n)
-    bounded_least_squares(stacked, target, lower, upper, tau_q)
-    if mapped_box:
-        out[:] = np.dot(np.ascontiguousarray(from_joint), tau_q)
-    else:
-        out[:] = tau_q
+    nearest_stop(inertia, bias, dx, h, row, wanted, aimed, lower, upper, to_joint, from_joint,
+                 mapped_box, out)
