@@ -91,3 +91,45 @@ def test_an_indefinite_inertia_is_solved_by_elimination() -> None:
             0.5, inertia, np.array([1.0, -1.0]))
     np.testing.assert_allclose(_kernel_slide(*case)[2], np.linalg.solve(inertia, case[-1]),
                                rtol=1e-12)
+
+
+def test_the_stopping_point_and_its_margins_are_the_numpy_they_replaced() -> None:
+    """The slide's stopping point (``stopping_point``: x + hẋ + c h² a + r|v₁|v₁) is
+    Brakes.slide's numpy expression before the kernel to the bit, on 2, 6 and 7 joints; and
+    on the Panda among its spheres and joint limits (PredictedMargins.stopping_point_margins,
+    one compiled call with the chain's placements) its margins are configuration_margins
+    at that point to the bit, at the bench's states and accelerations pushed 10 and 1000
+    rad/s² off the law's, with a NaN row where the point is not finite."""
+    import math
+
+    from cpbc.bench_arms import panda
+    from cpbc.controllers.safeguard import Safeguard, SafeguardSettings
+    from cpbc.kernels.slide import stopping_point
+    from cpbc.model.input_bounds import InputBounds
+
+    rng = np.random.default_rng(11)
+    for n in (2, 6, 7):
+        for _ in range(300):
+            x, dx, acc = rng.normal(size=n), rng.normal(size=n), 100.0 * rng.normal(size=n)
+            h, c, r = float(rng.choice([1e-3, 4e-3])), float(rng.choice([0.5, 1.0])), 0.02
+            v1 = dx + h * acc
+            expected = x + h * dx + (c * h * h) * acc + (r * math.sqrt(float(v1.dot(v1)))) * v1
+            out = np.empty(n)
+            stopping_point(x, dx, acc, h, c, r, out)
+            np.testing.assert_array_equal(out, expected)
+
+    setup = panda()
+    guard = Safeguard(setup.controllers["cpbc"], InputBounds(0.001, setup.torque_limit, None),
+                      SafeguardSettings())
+    along, nc = guard.acceptance.along, guard.guarded.n_configuration
+    for x, dx in setup.states[:32]:
+        for push in (10.0, 1000.0):
+            acc = push * rng.normal(size=7)
+            point = np.empty(7)
+            stopping_point(x, dx, acc, 1e-3, 1.0, 0.05, point)
+            found = along.stopping_point_margins(x, dx, acc, 1e-3, 1.0, 0.05)
+            assert found.shape == (nc,)
+            np.testing.assert_array_equal(found, along.configuration_margins(point[None])[0])
+    bad = np.array([np.nan] + [0.0] * 6)
+    assert np.isnan(along.stopping_point_margins(bad, np.zeros(7), np.zeros(7), 1e-3, 1.0,
+                                                 0.05)).all()

@@ -458,11 +458,9 @@ class Brakes:
         slide_acceleration(grads, state.dx, now[:nc], end_floor[:nc], mid_floor, h,
                            self.travel, state.inertia, tau - bias, np.empty((n, n)), rate,
                            need, law, acc)
-        if stop is not None:
-            v1 = state.dx + h * acc
-            x_stop = state.x + h * state.dx + (self.travel * h * h) * acc + (
-                stop[0] * math.sqrt(float(v1.dot(v1)))) * v1
-            short = self.acceptance.along.configuration_margins(x_stop[None])[0] < stop[1]
+        if stop is not None:  # the braking margins where the uniform brake would stop
+            short = self.acceptance.along.stopping_point_margins(
+                state.x, state.dx, acc, h, self.travel, stop[0]) < stop[1]
             if short.any():
                 need = np.where(short, np.maximum(need, -rate / h), need)
                 acc = _project(grads, need, law)

@@ -41,6 +41,7 @@ from cpbc.kernels.sampled_guard import (
     ramp_share,
     ramp_speeds,
 )
+from cpbc.kernels.slide import stopping_point, stopping_point_margins
 from cpbc.model.joint_chain import JointChain
 from cpbc.model.robot_model import RobotModel
 
@@ -231,6 +232,27 @@ class PredictedMargins:
         self._configuration_margins(rows, out)
         _not_finite(out, rows, rows)
         return out
+
+    def stopping_point_margins(self, x: Array, dx: Array, acc: Array, h: float,
+                               travel: float, reach: float) -> Array:
+        """Every configuration margin where the uniform brake stops the arm after a period
+        at the acceleration ``acc`` (cpbc.kernels.slide.stopping_point; ``reach`` 1/(2θA)),
+        NaN where that point is not finite: the slide's test of its braking margins
+        (Brakes.slide). One compiled call where every configuration constraint packs and
+        the chain is compiled (``stopping_point_margins``), the same numbers as the point
+        and :meth:`configuration_margins` give apart."""
+        chain = self._chain
+        if chain is None or self._generic_config:
+            point = np.empty(len(x))
+            stopping_point(x, dx, acc, h, travel, reach, point)
+            return self.configuration_margins(point[None])[0]
+        out = np.empty((1, self.nc))
+        cp = self._config
+        stopping_point_margins(x, dx, acc, h, travel, reach, cp.plan, cp.ints, cp.floats,
+                               self._everywhere, self._spheres, chain.parents, chain.kinds,
+                               chain.axes, chain.rotations, chain.translations,
+                               chain.coordinates, chain.scale, out)
+        return out[0]
 
     def _configuration_margins(self, rows: Array, out: Array) -> None:
         """The configuration margins at the rows into ``out``: the others' values, then the
