@@ -15,7 +15,8 @@ import numpy as np
 from cpbc.arrays import Array
 from cpbc.kernels import READ_ONLY, READ_ONLY_MATRIX, kernel
 from cpbc.kernels.bounded_lsq import bounded_least_squares
-from cpbc.kernels.small_solves import cholesky, cholesky_solve, inverse_spd, solve_lu, times
+from cpbc.kernels.small_solves import cholesky, cholesky_solve, solve_lu, times
+from cpbc.kernels.torque_box import acceleration_map
 
 
 @kernel(f"void(float64[:], float64[:, :], float64[:], float64[:, :], {READ_ONLY}, "
@@ -97,16 +98,14 @@ def nearest_stop(inertia: Array, bias: Array, dx: Array, h: float, row: Array, w
                  mapped: bool, out: Array) -> None:
     """The torque in the box ``lower`` ≤ τ_q ≤ ``upper`` (Tᵀ ``to_joint``, T⁻ᵀ ``from_joint``
     where ``mapped``) nearest in acceleration to ẍ = −ẋ/h (least squares,
-    ``bounded_least_squares``, with A = D⁻¹T⁻ᵀ: ẍ = A τ_q − D⁻¹b), with ``aimed`` the
+    ``bounded_least_squares``, with A = D⁻¹T⁻ᵀ, ``acceleration_map``), with ``aimed`` the
     1 × n ``row`` · ẍ = ``wanted[0]`` on top, into ``out`` (cpbc.constraints.brakes: the
     least-squares brake, the aimed one). Its products are BLAS's, as numpy's are (numba's
     np.dot on contiguous arrays calls dgemv and dgemm: the same bits as numpy's on 20 000
     random 7-joint cases here), and the row's rate on the free acceleration is the sum in
     order numpy's 1 × n product makes (a 1-row dgemv is not: 10 625 of 20 000 differ)."""
     n = inertia.shape[0]
-    inv = np.empty((n, n))
-    inverse_spd(np.ascontiguousarray(inertia), inv)
-    a = np.dot(inv, np.ascontiguousarray(from_joint)) if mapped else inv  # D⁻¹T⁻ᵀ
+    a = acceleration_map(inertia, from_joint, mapped)
     b = np.ascontiguousarray(bias)
     free = np.dot(a, np.dot(np.ascontiguousarray(to_joint), b) if mapped else b)
     k = n + 1 if aimed else n

@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from cpbc.arrays import Array
-from cpbc.kernels import READ_ONLY, kernel
+from cpbc.kernels import READ_ONLY, inner, kernel
 from cpbc.kernels.bounded_lsq import bounded_least_squares
 from cpbc.kernels.small_solves import inverse_spd, nan_max, nan_min, times
 
@@ -80,6 +80,19 @@ def box_toward(lower: Array, upper: Array, to_joint: Array, from_joint: Array, m
     return 1
 
 
+@inner("float64[:, ::1](float64[:, :], float64[:, :], boolean)")
+def acceleration_map(inertia: Array, from_joint: Array, mapped: bool) -> Array:
+    """A = D⁻¹T⁻ᵀ (``from_joint``; D⁻¹ in joint coordinates, ``mapped`` False): the
+    acceleration a joint torque τ_q gives, ẍ = A τ_q − D⁻¹b (``inverse_spd``; the product
+    BLAS's, on contiguous arrays, as numpy's is)."""
+    n = inertia.shape[0]
+    inv = np.empty((n, n))
+    inverse_spd(np.ascontiguousarray(inertia), inv)
+    if mapped:
+        return np.dot(inv, np.ascontiguousarray(from_joint))
+    return inv
+
+
 @kernel(f"boolean(float64[:], float64[:], float64[:, :], float64[:, :], boolean, {READ_ONLY},"
         " float64[:])")
 def box_nearest(lower: Array, upper: Array, inertia: Array, from_joint: Array, mapped: bool,
@@ -87,7 +100,7 @@ def box_nearest(lower: Array, upper: Array, inertia: Array, from_joint: Array, m
     """False where the joint torques τ_q fit lower ≤ τ_q ≤ upper (``out`` untouched), else
     True with the joint torques in the box whose acceleration is nearest to τ_q's,
     min ‖A(τ_q' − τ_q)‖ with A = D⁻¹T⁻ᵀ (``from_joint``; D⁻¹ in joint coordinates,
-    ``mapped`` False), into ``out`` (``inverse_spd``, ``bounded_least_squares``;
+    ``mapped`` False), into ``out`` (``acceleration_map``, ``bounded_least_squares``;
     cpbc.constraints.brakes.TorqueBox.nearest)."""
     n = tau_q.shape[0]
     for j in range(n):
@@ -95,9 +108,6 @@ def box_nearest(lower: Array, upper: Array, inertia: Array, from_joint: Array, m
             break
     else:
         return False
-    accel = np.empty((n, n))
-    inverse_spd(inertia, accel)
-    if mapped:
-        accel = np.dot(accel, from_joint)
+    accel = acceleration_map(inertia, from_joint, mapped)
     bounded_least_squares(accel, np.dot(accel, tau_q), lower, upper, out)
     return True
