@@ -106,9 +106,10 @@ def inverse_spd(a: Array, out: Array) -> None:
 
 
 def inverse_inertia(inertia: Array) -> Array:
-    """D⁻¹ (:func:`inverse_spd`) as a fresh array: once a step for every reader that needs
-    the whole inverse (the reach of a torque into a box by its acceleration, the error
-    bounds), where numpy's inv costs 10 µs a call on a 7-joint arm and this 2."""
+    """D⁻¹ (:func:`inverse_spd`) as a fresh array: once a step for every reader in Python
+    that needs the whole inverse (the error bounds; the kernels that reach a torque into a
+    box by its acceleration make theirs, cpbc.kernels.torque_box.acceleration_map), where
+    numpy's inv costs 10 µs a call on a 7-joint arm and this 2."""
     inv = np.empty_like(inertia, dtype=float)
     inverse_spd(np.ascontiguousarray(inertia, dtype=float), inv)
     return inv
