@@ -90,16 +90,22 @@ def solve_spd(a: Array, b: Array, work: Array, y: Array) -> None:
 
 @kernel("void(float64[:, :], float64[:, :])")
 def inverse_spd(a: Array, out: Array) -> None:
-    """a⁻¹ into ``out``, column by column (``solve_spd``: Cholesky, else Gaussian
-    elimination): for the few places that need the whole inverse of D (the friction's error
-    bound reads |D⁻¹|), where numpy's inv costs 10 µs a call on a 7-joint arm."""
+    """a⁻¹ into ``out``, column by column (``solve_spd``'s steps: a factored once by
+    Cholesky for every column, else Gaussian elimination for each): for the places that
+    need the whole inverse of D (the friction's error bound reads |D⁻¹|, the reach of a
+    torque into a box by its acceleration), where numpy's inv costs 10 µs a call on a
+    7-joint arm."""
     n = a.shape[0]
     work = np.empty((n, n))
     e = np.zeros(n)
     col = np.empty(n)
+    spd = cholesky(a, work)
     for j in range(n):
         e[j] = 1.0
-        solve_spd(a, e, work, col)
+        if spd:
+            cholesky_solve(work, e, col)
+        else:  # the factor is not read again: its buffer holds the elimination's
+            solve_lu(a, e, work, col)
         e[j] = 0.0
         for i in range(n):
             out[i, j] = col[i]
