@@ -188,6 +188,14 @@ def frozen_ramp(velocity_plan: Ints, velocity_ints: Ints, velocity_floats: Array
                       inertia, to_joint, mapped, rate, share, floor)
 
 
+@inner("void(float64[:, ::1], int64, float64[:, :])")
+def _first_rows(config: Array, r: int, out: Array) -> None:
+    """The configuration margins of the first prediction — its mid-period row, 0, and its
+    end row, r (``frozen_parts``) — into the rows of ``out`` (2 × nc)."""
+    for j in range(out.shape[1]):
+        out[0, j], out[1, j] = config[0, j], config[r, j]
+
+
 @inner("float64(int64[:, :], float64[::1], float64[:, :], int64, int64, int64, int64, boolean,"
        " float64[:])")
 def first_positivity(config_plan: Ints, work: Array, before: Array, r: int, n: int,
@@ -206,8 +214,7 @@ def first_positivity(config_plan: Ints, work: Array, before: Array, r: int, n: i
     config, velocity, inside = frozen_parts(work, r, n, points, nc, nv)[5:]
     first = np.empty((2, nc if has_config else 0))
     if has_config:
-        for j in range(nc):
-            first[0, j], first[1, j] = config[0, j], config[r, j]
+        _first_rows(config, r, first)
         for p in range(config_plan.shape[0]):
             if config_plan[p, KIND] != SPHERES:
                 continue
@@ -261,9 +268,7 @@ def frozen_chain_test(x: Array, dx: Array, acc: Array, after: Array, h: float, t
     # where a sphere clearance is not NaN here, the sample's bound stands in for it
     before = np.empty((2, nc if has_config and has_cushion else 0))
     if before.shape[1]:
-        config = frozen_parts(work, r, n, points, nc, nv)[5]
-        for j in range(nc):
-            before[0, j], before[1, j] = config[0, j], config[r, j]
+        _first_rows(frozen_parts(work, r, n, points, nc, nv)[5], r, before)
     if marked:
         k = int(marked)
         picked = np.empty((k, n))

@@ -33,17 +33,17 @@ class StepSlack:
     where it is < 0 and a value in [0, F] where it is not — all the step's first test
     needs (the torque is held where F ≥ 0, and F goes on to the blend only where it is
     not), and with fewer joint placements computed (PredictedMargins.slack's
-    ``enough``). Both count against the step's budget alike; :attr:`plain_sign` is the
+    ``enough``). Both count against the step's budget alike; :meth:`plain_sign` is the
     sign uncounted, for what the guard makes outside the budget (its brakes made ahead,
-    Safeguard._reaches), which the budget wraps there as it needs; :meth:`with_positivity`
-    is that sign with (S0) read from the same test."""
+    Safeguard._reaches; Safeguard.prime), which the budget wraps there as it needs;
+    :meth:`with_positivity` is that sign with (S0) read from the same test. ``signs``:
+    (t, cushions or None) ↦ (the sign, (S0) or NaN), uncounted."""
 
-    __slots__ = ("_exact", "_sign", "_signs", "plain_sign")
+    __slots__ = ("_exact", "_sign", "_signs")
 
-    def __init__(self, exact: Slack, sign: Slack, plain_sign: Slack,
+    def __init__(self, exact: Slack, sign: Slack,
                  signs: Callable[[Array, Array | None], tuple[float, float]]) -> None:
-        self._exact, self._sign, self.plain_sign = exact, sign, plain_sign
-        self._signs = signs
+        self._exact, self._sign, self._signs = exact, sign, signs
 
     def __call__(self, t: Array) -> float:
         return self._exact(t)
@@ -52,11 +52,15 @@ class StepSlack:
         """F(t) where it is < 0, else a value in [0, F(t)]."""
         return self._sign(t)
 
+    def plain_sign(self, t: Array) -> float:
+        """:meth:`sign` uncounted."""
+        return self._signs(t, None)[0]
+
     def with_positivity(self, cushion: Array) -> Callable[[Array], tuple[float, float]]:
-        """t ↦ (:attr:`plain_sign` of t, P): P (S0) of t over the first prediction, the
+        """t ↦ (:meth:`plain_sign` of t, P): P (S0) of t over the first prediction, the
         margins above their cushions ``cushion`` — with the sign (S0)'s own test gives
         (Brakes.positivity) — where F's compiled test tells it, else NaN
-        (PredictedMargins.frozen_positivity). Uncounted, as :attr:`plain_sign`."""
+        (PredictedMargins.frozen_positivity). Uncounted, as :meth:`plain_sign`."""
         signs = self._signs
         return lambda t: signs(t, cushion)
 
@@ -152,14 +156,14 @@ class Acceptance:
             return signs(t)[0]
 
         exact = self.budget.counted(value)
-        if sample is None and refine is None:
-            return StepSlack(exact, exact, value, signs)
+        if sample is None and refine is None:  # the sign is F: no bound, no floor to refine
+            return StepSlack(exact, exact, signs)
         # Where F's value counts (the blend's, the brakes') the guard acts, near a boundary,
         # where a bound settles no row whole: the rows' path then only pays for the bounds,
         # while the compiled test still skips the clearances they settle. A sign's test,
         # shorter, is not what a time budget takes a later (exact) test's time to be
         # (StepBudget.counted).
-        return StepSlack(exact, self.budget.counted(sign, exact=False), sign, signs)
+        return StepSlack(exact, self.budget.counted(sign, exact=False), signs)
 
     def braking_floor(self, state: ArmState, bias: Array,
                        held: Array | None = None) -> BrakingTest | None:

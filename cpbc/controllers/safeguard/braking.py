@@ -95,25 +95,26 @@ class Brakes:
         """The braking torque b − λ D ẋ/h, put in the step's box (StepBox.fit)."""
         return self.box.fit(bias, bias - lam * stop, brake=True)
 
-    def calmest(self, bias: Array, stop: Array, slack: Slack, both: bool = False) -> Reaches:
+    def calmest(self, bias: Array, stop: Array, slack: Slack) -> Reaches:
         """The calmest brake b − λ₀ D ẋ/h reached by its nearest acceleration and F there;
-        under a torque-rate limit, where it fails (or ``both``), reached along the line too:
-        a joint riding its rate bound, sped up through D by the nearest acceleration
+        under a torque-rate limit, where it fails, reached along the line too: a joint
+        riding its rate bound, sped up through D by the nearest acceleration
         (panda_goal_pose_rate seed 100, docs/reliability.md), the line slows."""
-        lam0 = self.settings.braking
-        nearest = self.brake(bias, stop, lam0)
+        box, brake = self.box, bias - self.settings.braking * stop
+        nearest = box.fit(bias, brake, brake=True)  # as self.brake, self.brake_along_line
         f = slack(nearest)
-        if not self.box.rate_limited or (f >= 0.0 and not both):
+        if not box.rate_limited or f >= 0.0:
             return Reaches(nearest, f)
-        line = self.brake_along_line(bias, stop, lam0)
+        line = box.fit(bias, brake)
         return Reaches(nearest, f, line, slack(line))
 
     def reaches(self, bias: Array, stop: Array,
                 test: Callable[[Array], tuple[float, float]]) -> Reaches:
-        """Under a torque-rate limit, the calmest brake's two reaches (:meth:`calmest` with
-        ``both``), ``test`` telling F and (S0) of each (StepSlack.with_positivity)."""
+        """Under a torque-rate limit, both of :meth:`calmest`'s reaches whatever the first's
+        F (what a spent step holds, made ahead: Safeguard._reaches), ``test`` telling F and
+        (S0) of each (StepSlack.with_positivity)."""
         box, brake = self.box, bias - self.settings.braking * stop
-        nearest = box.fit(bias, brake, brake=True)  # as self.brake, self.brake_along_line
+        nearest = box.fit(bias, brake, brake=True)
         f, kept = test(nearest)
         line = box.fit(bias, brake)
         f_line, kept_line = test(line)

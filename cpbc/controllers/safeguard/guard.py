@@ -450,7 +450,7 @@ class Safeguard(SafetyFilter):
             accept, brakes, slack = self.acceptance, self.brakes, step.slack
             tau, _ = accept.held(state, step.bias, out.torque, slack)
             to_rest = state.inertia.dot(state.dx) / self.period
-            brake = brakes.calmest(step.bias, to_rest, slack, both=True).nearest
+            brake = brakes.calmest(step.bias, to_rest, slack).nearest
             if step.floor_mid is not None:
                 brakes.slide(state, step.bias, tau, step.now, step.floor, step.floor_mid,
                              step.stop)
@@ -460,7 +460,7 @@ class Safeguard(SafetyFilter):
             brakes.infeasible(state, step.bias, to_rest, step.predict, step.now, step.floor,
                               step.floor_mid)
             self._out_of_tests(step)  # a spent first step: the rescue's search again
-            self._spent(step)  # a spent later step's brake (and its (S0) test, rate-limited)
+            self._spent(step)  # a spent later step's (rate-limited: its reaches, their (S0))
         if self.box.rate_limited:
             self.box.end(tau)
 
