@@ -20,7 +20,12 @@ from cpbc.constraints.constraint_types import ConfigurationConstraint
 from cpbc.constraints.margins import POSITION, MarginType, headroom, row_types
 from cpbc.constraints.packing import Packed
 from cpbc.errors import ParameterError
-from cpbc.kernels.barriers import LINEAR_CONSTANTS, linear_limit_terms, pack_linear_limit
+from cpbc.kernels.barriers import (
+    LINEAR_CONSTANTS,
+    linear_limit_motion,
+    linear_limit_terms,
+    pack_linear_limit,
+)
 from cpbc.model.robot_model import ArmState
 from cpbc.spec.fields import Vector
 
@@ -77,8 +82,7 @@ class LinearLimit(ConfigurationConstraint):
         self.names = tuple(names)
         self.centre = 0.5 * (lower + upper)
         self.half_width = 0.5 * (upper - lower)
-        self._sum = lower + upper
-        for a in (self.rows, self.lower, self.upper, self.centre, self.half_width, self._sum):
+        for a in (self.rows, self.lower, self.upper, self.centre, self.half_width):
             a.setflags(write=False)
         # |∇φ_i| = |l_i + u_i − 2a_iᵀx| |a_i| ≤ 2w_i |a_i| where φ_i > 0 (gradient_bound)
         self._slope_bound = 2.0 * self.half_width[:, None] * np.abs(rows)
@@ -121,17 +125,24 @@ class LinearLimit(ConfigurationConstraint):
         return self._value_at(xs @ self.rows.T)
 
     def gradient(self, x: Array) -> Array:
-        return self._gradient_at(self.rows.dot(x))
+        """∇φ = (l + u − 2aᵀx) a, row by row."""
+        x = np.asarray(x, dtype=float)
+        return self._rows_at(x, x)[1]  # (its curvature, along x, unread)
 
-    def _gradient_at(self, y: Array) -> Array:
-        """∇φ = (l + u − 2y) a at the rows' values y = a x."""
-        return (self._sum - 2.0 * y)[:, None] * self.rows
+    def gradient_at(self, state: ArmState) -> Array:
+        return self._rows_at(state.x, state.dx)[1]
 
     def motion_terms(self, state: ArmState) -> tuple[Array, Array, Array]:
-        """φ, ∇φ and ẋᵀ∇²φ ẋ from one product a x (the stopping test's rows, read by the
+        """φ, ∇φ and ẋᵀ∇²φ ẋ in one compiled call (the stopping test's rows, read by the
         aimed brake at every period it is held)."""
-        y = self.rows.dot(state.x)
-        return self._value_at(y), self._gradient_at(y), self.curvature(state.x, state.dx)
+        return self._rows_at(state.x, state.dx)
+
+    def _rows_at(self, x: Array, dx: Array) -> tuple[Array, Array, Array]:
+        """φ, ∇φ and ẋᵀ∇²φ ẋ at (x, ẋ) (cpbc.kernels.barriers.linear_limit_motion)."""
+        k, n = self.rows.shape
+        phi, grad, curvature = np.empty(k), np.empty((k, n)), np.empty(k)
+        linear_limit_motion(self._constants, x, dx, phi, grad, curvature)
+        return phi, grad, curvature
 
     def gradient_bound(self) -> Array | None:
         """2w_i |a_i|: |∇φ_i| = |l_i + u_i − 2a_iᵀx| |a_i| inside the limits."""
@@ -139,8 +150,7 @@ class LinearLimit(ConfigurationConstraint):
 
     def curvature(self, x: Array, dx: Array) -> Array:
         """ẋᵀ∇²φ ẋ = −2 (aᵀẋ)²: the product form loses margin faster than it approaches."""
-        rate = self.rows.dot(dx)
-        return -2.0 * rate * rate
+        return self._rows_at(np.asarray(x, dtype=float), np.asarray(dx, dtype=float))[2]
 
 
 def joint_position_limit(

@@ -55,6 +55,31 @@ def linear_limit_terms(constants: Array, x: Array, phi: Array, gradient: Array) 
                 gradient[j] += w * rows[i, j]
 
 
+@kernel(f"void(float64[:, :], {READ_ONLY}, {READ_ONLY}, float64[:], float64[:, :],"
+        " float64[:])")
+def linear_limit_motion(constants: Array, x: Array, dx: Array, phi: Array, grad: Array,
+                        curvature: Array) -> None:
+    """The limits' rows one by one, from the same ``constants`` as ``linear_limit_terms``: φ_i
+    into ``phi`` (k,), ∇φ_i = (l_i + u_i − 2a_iᵀx) a_i into the rows of ``grad`` (k, n) and
+    ẋᵀ∇²φ_i ẋ = −2(a_iᵀẋ)² into ``curvature`` (k,): what the slide, the aimed brake and the
+    stopping test read. Every product a_ij x_j is summed, zeros too, in the order of j, and
+    each row of ∇φ is the factor times every a_ij (−0 where the factor is negative), as
+    numpy's ``rows.dot(x)`` and ``factor[:, None] * rows`` make them for rows of ±1."""
+    k, n = constants.shape[0], constants.shape[1] - 2
+    for i in range(k):
+        y = 0.0
+        rate = 0.0
+        for j in range(n):
+            y += constants[i, j] * x[j]
+            rate += constants[i, j] * dx[j]
+        lower, upper = constants[i, n], constants[i, n + 1]
+        phi[i] = (y - lower) * (upper - y)
+        factor = (lower + upper) - 2.0 * y
+        for j in range(n):
+            grad[i, j] = factor * constants[i, j]
+        curvature[i] = -2.0 * rate * rate
+
+
 def pack_linear_limit(rows: Array, lower: Array, upper: Array) -> Packed:
     """The linear limit's tables: ``LINEAR_CONSTANTS`` [a_iᵀ l_i u_i] (writable: numba's
     typed signature)."""

@@ -267,9 +267,10 @@ class Clearance(PairLayout, ConfigurationConstraint):
                 self._closest_gradients(y, jac, grad[s.start:s.stop])
             else:
                 grad[s.start:s.stop] = spheres
-        jacobian_rows = partial(self._rows_times_jacobians, jac)
-        for g in self._groups:
-            grad[g.start:g.stop] = g.gradient(*g.narrow(y), jacobian_rows)
+        if self._groups:  # (no partial made in a step of sphere constraints alone)
+            jacobian_rows = partial(self._rows_times_jacobians, jac)
+            for g in self._groups:
+                grad[g.start:g.stop] = g.gradient(*g.narrow(y), jacobian_rows)
         return grad if self._identity else grad @ self._t_inv
 
     def _closest(self, phi: Array) -> NDArray[np.int64]:
