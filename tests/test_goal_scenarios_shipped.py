@@ -39,3 +39,23 @@ def test_planar_ch6_taskspace_flags_its_singular_start() -> None:
     assert setup.goal.preflight.singular_start
     assert np.allclose(setup.goal.posture, [math.pi, 2 * math.pi / 3], atol=1e-4)
     assert [c.controller.shaping.alpha for c in setup.controllers] == [0.2, 0.05]  # type: ignore[attr-defined]
+
+
+def test_a_singular_start_s_branch_is_the_rule_s_not_the_roundoff_s() -> None:
+    """From the outstretched pose the descent's first step along the elbow is roundoff alone:
+    starts a few ulps to either side of it, which any host's products could make, all reach
+    the same elbow (cpbc.taskspace.ik._off_singular), and a start already bent the other
+    way keeps its own branch."""
+    from cpbc.constraints.constraint_set import ConstraintSet
+    from cpbc.taskspace.ik import preflight
+
+    setup = build(*load_scenario(scenarios_dir() / "planar_ch6_taskspace.yaml"))
+    assert setup.goal is not None
+    config = ConstraintSet(setup.model.n, setup.monitor.configuration)
+    for tiny in ([0.0, 0.0], [1e-13, 0.0], [0.0, 1e-13], [-1e-13, 0.0], [0.0, -1e-13]):
+        found = preflight(setup.model, config, setup.goal.goal, np.array(tiny))
+        assert found.singular_start and found.verdict == "reachable"
+        assert np.allclose(found.posture, [math.pi, 2 * math.pi / 3], atol=1e-4), tiny
+    bent = preflight(setup.model, config, setup.goal.goal, np.array([0.3, 0.6]))
+    assert not bent.singular_start
+    assert np.allclose(bent.posture, [2 * math.pi / 3, math.pi], atol=1e-4)

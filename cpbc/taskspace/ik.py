@@ -165,12 +165,27 @@ class _Flow:
         return point
 
 
-def _singular(model: RobotModel, goal: FrameGoal, x: Array) -> bool:
+#: How far a singular start is moved off its singularity before the descent [rad or m].
+OFF_SINGULAR = 1e-3
+
+
+def _off_singular(model: RobotModel, goal: FrameGoal, x: Array) -> tuple[bool, Array]:
+    """Whether ``x`` is singular for the goal (σ_min(J_v) < ``SINGULAR``), and where the
+    descent starts: at x, or at a singular x ``OFF_SINGULAR`` along the joint direction J_v
+    moves least (its right singular vector), signed so that its first largest entry is
+    positive. At the singularity the descent's step along that direction is roundoff alone,
+    so the branch taken was the host's BLAS's: the outstretched thesis arm went to the
+    elbow (π, 2π/3) on an AVX2 host and to (2π/3, π) on an AVX-512 one."""
     state = model.state(x, np.zeros(model.n), frames=[goal.frame])
     jv = state.frames[goal.frame].point(goal.offset)[1]
-    sigma = np.linalg.svd(jv, compute_uv=False)
+    _, sigma, vt = np.linalg.svd(jv)
     rank = min(jv.shape[0], jv.shape[1])
-    return bool(sigma[: min(rank, 2) if model.n < 3 else rank][-1] < SINGULAR)
+    least = (min(rank, 2) if model.n < 3 else rank) - 1
+    if not sigma[least] < SINGULAR:
+        return False, x
+    away = vt[least]
+    first = int(np.argmax(np.abs(away) >= (1.0 - 1e-9) * np.abs(away).max()))
+    return True, x + OFF_SINGULAR * np.sign(away[first]) * away
 
 
 def preflight(model: RobotModel, constraints: ConstraintSet, goal: FrameGoal, start: Array,
@@ -178,8 +193,10 @@ def preflight(model: RobotModel, constraints: ConstraintSet, goal: FrameGoal, st
     """The verdict of the module docstring; ``constraints`` are the configuration
     constraints (velocity ones are slack at rest)."""
     flow = _Flow(model, constraints, goal)
+    start = np.asarray(start, dtype=float)
     seed_point = flow.at(start)
-    best = flow.descend(np.asarray(start, dtype=float), iterations)
+    singular, begin = _off_singular(model, goal, start)
+    best = flow.descend(begin if flow.at(begin) is not None else start, iterations)
     if best is None or not goal.reached(goal.error(best.kin)):
         for seed in seeds:  # another branch may reach the goal; a miss there is no better
             found = flow.descend(np.asarray(seed, dtype=float), iterations)
@@ -207,5 +224,5 @@ def preflight(model: RobotModel, constraints: ConstraintSet, goal: FrameGoal, st
         verdict, blocked = "unreachable", None
     else:
         verdict = "blocked" if blocked is not None else "unreachable"
-    return Preflight(verdict, best.x, error, blocked, nearest, _singular(model, goal, start),
+    return Preflight(verdict, best.x, error, blocked, nearest, singular,
                      beyond if beyond > 0 else None)
