@@ -154,12 +154,23 @@ def test_a_heavy_wrist_is_stopped_only_by_a_brake_that_leaves_its_friction() -> 
     assert stopping_brake(setup, kept, s.position, s.velocity, 0.001) == "uniform" + FRICTION_LEFT
 
 
+def _in_order(a: np.ndarray, b: np.ndarray) -> float:
+    """Σ a_j b_j summed in the order of j: what a kernel's loop makes. numpy's ``a.dot(b)``
+    is BLAS's ddot, whose order is its CPU kernel's: on an AVX-512 host it differed from
+    the loop's in the last bit where an AVX2 one had not."""
+    total = 0.0
+    for x, y in zip(a.tolist(), b.tolist(), strict=True):
+        total += x * y
+    return total
+
+
 @pytest.mark.parametrize("seed", range(3))
-def test_the_aimed_row_is_numpy_s_argmin_and_dot_to_the_bit(seed: int) -> None:
+def test_the_aimed_row_is_numpy_s_argmin_and_a_sum_in_order_to_the_bit(seed: int) -> None:
     """``aim_row`` (the aimed brake's row, compiled) against the numpy it replaced: the
     approached margin of least stopping margin — ties to the first, a NaN before any number
-    —, its gradient scaled to length 30 and the rate asked, equal to the bit; none approached
-    or a zero gradient: no row, nothing written."""
+    —, its gradient scaled to length 30 and the rate asked, equal to the bit (its products
+    summed in order, :func:`_in_order`); none approached or a zero gradient: no row,
+    nothing written."""
     from cpbc.kernels.stopping_test import aim_row
     rng = np.random.default_rng(seed)
     n, h, weight = 7, 1e-3, 30.0
@@ -179,13 +190,13 @@ def test_the_aimed_row_is_numpy_s_argmin_and_dot_to_the_bit(seed: int) -> None:
         aimed = aim_row(s, speed, grads, dx, h, weight, row, wanted)
         approaching = np.flatnonzero(speed > 0)
         g = grads[approaching[np.argmin(s[approaching])]] if approaching.size else None
-        norm = 0.0 if g is None else math.sqrt(float(g.dot(g)))
+        norm = 0.0 if g is None else math.sqrt(_in_order(g, g))
         if norm == 0.0:
             assert not aimed and np.all(row == 7.0) and wanted[0] == 7.0
             continue
         expected = (weight / norm) * g
         assert aimed and np.array_equal(row, expected)
-        assert wanted[0] == expected.dot(-dx) / h
+        assert wanted[0] == _in_order(expected, -dx) / h
         aimed_rows += 1
     assert aimed_rows > 200
 
