@@ -247,3 +247,36 @@ def guarded_tail(steps: int = 100_000, seconds: float = 0.5, seed: int = 0,
         found.update(repeats=repeats, own=mine, own_steps=len(own),
                      own_max_over_p50=mine["max"] / mine["p50"])
     return found
+
+
+#: The guarded step's tails in closed loop (cpbc.bench_tail), by key: the first is the step
+#: with a deadline that the targets (max ≤ 5 × p50, p99.99 ≤ 250 µs) are read on.
+TAILS = (("guarded_tail_us", "as on a Franka"),
+         ("guarded_tail_no_rate_us", "the same bounds without a torque-rate limit"),
+         ("guarded_tail_unbounded_us", "simulation's guard: no time budget"))
+
+
+def bench_tails(steps: int, repeats: int) -> dict[str, dict[str, object]]:
+    """The tails ``python -m cpbc.bench --robot panda --peers`` reports, keyed as :data:`TAILS`:
+    bounded as cpbc.hardware bounds the guard on a robot at 1 kHz (the tail's runs are the
+    Panda's at 1 kHz: a deadline of one period) under the Franka's own torque-rate limit
+    (libfranka's 1000 N·m/s a joint, every candidate reached into the step's rate box, as
+    cpbc.hardware runs the arm) — the step the deadline is about —, then the same bounds
+    without the rate limit, then simulation's guard, which has no time budget (its tail is
+    the rescue's search: milliseconds, by design)."""
+    from cpbc.hardware.franka import FR3_LIMITS
+    from cpbc.hardware.robot_run import (
+        ROBOT_RESCUE_BUDGET,
+        ROBOT_TEST_BUDGET,
+        ROBOT_TIME_SHARE,
+    )
+
+    found = {}
+    for key, rate in (("guarded_tail_us", float(FR3_LIMITS.torque_rate.max())),
+                      ("guarded_tail_no_rate_us", None)):
+        found[key] = guarded_tail(
+            steps, rate_limit=rate, rescue_budget=ROBOT_RESCUE_BUDGET,
+            test_budget=ROBOT_TEST_BUDGET, time_budget=ROBOT_TIME_SHARE * 1e-3,
+            repeats=repeats)
+    found["guarded_tail_unbounded_us"] = guarded_tail(steps, repeats=repeats)
+    return found

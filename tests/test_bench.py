@@ -72,3 +72,29 @@ def test_the_benchs_safeguard_is_set_for_its_plant_as_a_scenario_sets_it() -> No
     assert scenario.safeguard is not None
     assert panda.safeguard().plant_step == scenario.safeguard.plant_step == 0.001
     assert planar.safeguard().plant_step is None
+
+
+def test_the_tails_are_the_robot_s_step_first_then_without_its_rate_limit_then_unbounded(
+        capsys) -> None:
+    """``guarded_tail_us`` — the key the deadline's targets are read on — is the guard as
+    cpbc.hardware bounds it on a Franka: the robot's budgets and libfranka's 1000 N·m/s;
+    beside it the same bounds without the rate limit and simulation's guard, unbounded.
+    Each prints, the targets beside the first alone."""
+    from cpbc.bench import _print_tail
+    from cpbc.bench_tail import TAILS, bench_tails
+    from cpbc.hardware.robot_run import ROBOT_TEST_BUDGET, ROBOT_TIME_SHARE
+
+    tails = bench_tails(200, 1)
+    assert list(tails) == [key for key, _ in TAILS]
+    robot, no_rate, unbounded = (tails[key] for key, _ in TAILS)
+    assert robot["rate_limit"] == 1000.0 and no_rate["rate_limit"] is None
+    for bounded in (robot, no_rate):
+        assert bounded["time_budget_us"] == 1e6 * ROBOT_TIME_SHARE * 1e-3
+        assert bounded["test_budget"] == ROBOT_TEST_BUDGET
+    assert unbounded["time_budget_us"] is None and unbounded["rate_limit"] is None
+    for key, how in TAILS:
+        _print_tail(tails[key], how, key == TAILS[0][0])
+    lines = capsys.readouterr().out.splitlines()
+    steps = [line for line in lines if line.startswith("guarded step")]
+    assert len(steps) == 3 and "1000 N·m/s" in steps[0]
+    assert ["target ≤ 5" in line for line in steps] == [True, False, False]
