@@ -188,7 +188,7 @@ def test_a_dropped_connection_ends_with_exit_1_and_the_files(franky: FrankySim,
         code = main([str(SCENARIO), "--robot-ip", franky.host, "--out", str(out),
                      "--deadline-ms", str(DEADLINE * 1e3)])
     killer.cancel()
-    assert code == 1
+    assert code == 1, err.getvalue()
     assert "the robot stopped the motion: network" in err.getvalue()
     assert "last state q = [" in err.getvalue()
     with h5py.File(out / "trajectories.h5") as f:
@@ -401,13 +401,19 @@ def test_a_missed_deadline_brakes_exits_1_and_writes(tmp_path: Path) -> None:
         run = f["robot/CPBC"]
         sent, braking = run["commanded_torque"][()], run["braking"][()].astype(bool)
         computed, waited = run["compute_time"][()], run["read_wait"][()]
+        worked = run["compute_cpu_time"][()]
     assert computed[1] > 1e-6 and np.all(np.isnan(computed[2:]))
+    # the same cycle's CPU time beside it, never more than its wall time (within the clocks'
+    # resolutions), so a late cycle says whether it worked or waited
+    assert 0.0 < worked[1] <= computed[1] + 1e-5 and np.all(np.isnan(worked[2:]))
     # the read before the cycle that overran was timed; the first state's and the brake's not
     assert np.isnan(waited[0]) and waited[1] >= 0.0 and np.all(np.isnan(waited[2:]))
     assert np.all(sent[0] == 0) and braking[2:].all()
     assert np.all(np.abs(np.diff(sent, axis=0)) <= FR3_LIMITS.torque_step + 1e-12)
     summary = yaml.safe_load((out / "summary.json").read_text())[0]
     assert summary["cause"].startswith("deadline_missed: cycle 1 computed for")
+    assert "of it on a CPU" in summary["cause"]
+    assert 0.0 < summary["extra"]["compute_cpu_us_max"] <= summary["extra"]["compute_us_max"] + 10
 
 
 def _seeded_targets(count: int, seed: int) -> list[list[float]]:

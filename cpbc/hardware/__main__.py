@@ -91,7 +91,8 @@ def _report(run: HardwareRun, out: Path) -> None:
           f"final error {s.final_error:.4g}")
     print(f"cycle computation: p50 {x['compute_us_p50']:.0f} µs, p99 "
           f"{x['compute_us_p99']:.0f} µs, p99.9 {x['compute_us_p999']:.0f} µs, max "
-          f"{x['compute_us_max']:.0f} µs; lost states {x['lost_states']:.0f}"
+          f"{x['compute_us_max']:.0f} µs (CPU p50 {x['compute_cpu_us_p50']:.0f}, max "
+          f"{x['compute_cpu_us_max']:.0f} µs); lost states {x['lost_states']:.0f}"
           + (f"; CPU latency request {run.latency.target_us} µs held"
              if run.latency is not None and run.latency.held else ""))
     print(f"robot's rules on the log: {run.rules.describe()}")

@@ -77,6 +77,9 @@ class MotionLog:
         commanded_torque: τ_d as sent (gravity excluded); NaN where nothing was sent.
         lyapunov: the controller's V (NaN where undefined).
         compute_time: this computer's time from reading the state to sending [s].
+        compute_cpu_time: the controlling thread's CPU time over the same span [s]: where it
+            is well below ``compute_time`` the cycle waited for a CPU (other processes, the
+            host), not for its own work.
         read_wait: how long the read of the state blocked, from the call to the state in
             hand [s] (NaN on the brake's rows and the first): the rest of the robot's cycle
             as this computer saw it.
@@ -95,6 +98,7 @@ class MotionLog:
     commanded_torque: Array
     lyapunov: Array
     compute_time: Array
+    compute_cpu_time: Array
     lost: Array
     read_wait: Array
     braking: Array
@@ -117,7 +121,7 @@ class _Recorder:
         self.position, self.velocity = np.full((rows, n), np.nan), np.full((rows, n), np.nan)
         self.torque, self.command = np.full((rows, n), np.nan), np.full((rows, n), np.nan)
         self.lyapunov, self.compute = np.full(rows, np.nan), np.full(rows, np.nan)
-        self.wait = np.full(rows, np.nan)
+        self.wait, self.cpu = np.full(rows, np.nan), np.full(rows, np.nan)
         self.lost = np.zeros(rows)  # whole numbers
         self.braking = np.zeros(rows, dtype=bool)
         self.k = 0
@@ -139,7 +143,8 @@ class _Recorder:
         k = self.k
         return MotionLog(self.time[:k], self.position[:k], self.velocity[:k],
                          self.torque[:k], self.command[:k], self.lyapunov[:k],
-                         self.compute[:k], self.lost[:k], self.wait[:k], self.braking[:k],
+                         self.compute[:k], self.cpu[:k], self.lost[:k], self.wait[:k],
+                         self.braking[:k],
                          ending, violated, detail, fault)
 
 
@@ -158,7 +163,7 @@ def _drive(backend: RobotBackend, controller: Controller, state: MeasuredState, 
     the controller, told first what the robot holds (:func:`_holder`). Returns the state
     (and its row) that an early end left unanswered, or None. ``sent`` holds the last
     command sent (updated in place)."""
-    clock = time.perf_counter
+    clock, cpu = time.perf_counter, time.thread_time
     hold = _holder(controller)
     pending = None
     try:
@@ -173,7 +178,7 @@ def _drive(backend: RobotBackend, controller: Controller, state: MeasuredState, 
             row = rec.state(state)
             rec.wait[row] = read - called
             pending = state, row
-            began = clock()
+            began, began_cpu = clock(), cpu()
             added = backend.added_torque(state)
             if hold is not None:
                 hold(sent + added, added)
@@ -188,11 +193,13 @@ def _drive(backend: RobotBackend, controller: Controller, state: MeasuredState, 
                 return pending
             command = tau - added
             spent = clock() - began
+            rec.cpu[row] = worked = cpu() - began_cpu
             rec.torque[row], rec.lyapunov[row], rec.compute[row] = tau, v, spent
             if spent > deadline:
                 end.ending = "deadline_missed"
-                end.detail = (f"cycle {k} computed for {spent * 1e3:.3g} ms, beyond the "
-                              f"deadline of {deadline * 1e3:.3g} ms")
+                end.detail = (f"cycle {k} computed for {spent * 1e3:.3g} ms ({worked * 1e3:.3g}"
+                              f" ms of it on a CPU), beyond the deadline of "
+                              f"{deadline * 1e3:.3g} ms")
                 return pending
             backend.write(command)
             pending = None  # answered (Python checks for Ctrl-C between the two lines only)

@@ -240,12 +240,15 @@ def _trajectory(motion: MotionLog, guard: Controller, period: float) -> Trajecto
 
 
 def _timing(motion: MotionLog) -> dict[str, float]:
-    """The cycle's computation in µs (p50, p99, p99.9, max), the lost states and the brake's
-    cycles, for the summary."""
-    spent = motion.compute_time[np.isfinite(motion.compute_time)] * 1e6
-    out = {f"compute_us_{k}": float(np.percentile(spent, p)) if spent.size else math.nan
-           for k, p in (("p50", 50), ("p99", 99), ("p999", 99.9))}
-    out["compute_us_max"] = float(spent.max()) if spent.size else math.nan
+    """The cycle's computation in µs (p50, p99, p99.9, max), on the wall clock and in the
+    thread's CPU time, the lost states and the brake's cycles, for the summary."""
+    out: dict[str, float] = {}
+    for key, times in (("compute_us", motion.compute_time),
+                       ("compute_cpu_us", motion.compute_cpu_time)):
+        spent = times[np.isfinite(times)] * 1e6
+        out.update({f"{key}_{k}": float(np.percentile(spent, p)) if spent.size else math.nan
+                    for k, p in (("p50", 50), ("p99", 99), ("p999", 99.9))})
+        out[f"{key}_max"] = float(spent.max()) if spent.size else math.nan
     out["lost_states"] = float(motion.lost.sum())
     out["brake_cycles"] = float(motion.braking.sum())
     return out
@@ -302,7 +305,7 @@ def run_on_robot(setup: ScenarioSetup, entry: ControllerEntry, backend: RobotBac
 def write_run(out: Path, setup: ScenarioSetup, run: HardwareRun) -> None:
     """summary.json, summary.csv, trajectories.h5 and the page (view.html, no figures) into
     ``out`` (staged: all or nothing), the log with ``commanded_torque``, ``compute_time``,
-    ``lost`` and ``braking`` too."""
+    ``compute_cpu_time``, ``lost`` and ``braking`` too."""
     model = setup.model
     labels = ArmLabels(
         setup.coordinate_names, tuple(bool(v) for v in model.length_coordinates),
@@ -317,6 +320,7 @@ def write_run(out: Path, setup: ScenarioSetup, run: HardwareRun) -> None:
             write_signals(log, CASE, run.controller, {
                 "commanded_torque": (motion.commanded_torque, "N m", model.joint_names),
                 "compute_time": (motion.compute_time, "s", ()),
+                "compute_cpu_time": (motion.compute_cpu_time, "s", ()),
                 "lost": (motion.lost, "", ()),
                 "read_wait": (motion.read_wait, "s", ()),
                 "braking": (motion.braking.astype(np.uint8), "", ()),
