@@ -175,7 +175,7 @@ def _off_singular(model: RobotModel, goal: FrameGoal, x: Array) -> tuple[bool, A
     moves least (its right singular vector), signed so that its first largest entry is
     positive. At the singularity the descent's step along that direction is roundoff alone,
     so the branch taken was the host's BLAS's: the outstretched thesis arm went to the
-    elbow (π, 2π/3) on an AVX2 host and to (2π/3, π) on an AVX-512 one."""
+    elbow (π, 2π/3) on the project's earlier hosts and to (2π/3, π) on an AVX-512 one."""
     state = model.state(x, np.zeros(model.n), frames=[goal.frame])
     jv = state.frames[goal.frame].point(goal.offset)[1]
     _, sigma, vt = np.linalg.svd(jv)
