@@ -200,7 +200,7 @@ def _pooled(values: list[np.ndarray]) -> dict[str, float]:
 
 
 def totals(runs: list[dict[str, Any]], refused: int, compute: list[np.ndarray],
-           compute_cpu: list[np.ndarray] | None = None) -> dict[str, Any]:
+           compute_cpu: list[np.ndarray]) -> dict[str, Any]:
     """The campaign against issue 37's targets."""
     reaches = [r for r in runs if r["kind"] == "reach"]
     paths = [r for r in runs if r["kind"] == "path"]
@@ -226,7 +226,7 @@ def totals(runs: list[dict[str, Any]], refused: int, compute: list[np.ndarray],
         "endings": {e: sum(r["ending"] == e for r in runs)
                     for e in sorted({r["ending"] for r in runs})},
         "compute_us": _pooled(compute),
-        "compute_cpu_us": _pooled(compute_cpu or []),  # the thread's CPU time, same cycles
+        "compute_cpu_us": _pooled(compute_cpu),  # the thread's CPU time, same cycles
     }
 
 

@@ -196,7 +196,9 @@ def preflight(model: RobotModel, constraints: ConstraintSet, goal: FrameGoal, st
     start = np.asarray(start, dtype=float)
     seed_point = flow.at(start)
     singular, begin = _off_singular(model, goal, start)
-    best = flow.descend(begin if flow.at(begin) is not None else start, iterations)
+    best = flow.descend(begin, iterations)
+    if best is None and singular:  # moved off it, the start left S: from the start itself
+        best = flow.descend(start, iterations)
     if best is None or not goal.reached(goal.error(best.kin)):
         for seed in seeds:  # another branch may reach the goal; a miss there is no better
             found = flow.descend(np.asarray(seed, dtype=float), iterations)
