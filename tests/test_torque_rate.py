@@ -247,3 +247,41 @@ def test_a_refused_step_takes_back_the_held_acceleration_before_it_spins_a_ridin
     the line from the held torque, or as the held acceleration taken back, the fallback
     keeps (S0), and the run keeps every constraint (Brakes.fallback)."""
     _kept_from_inside_v(35, 0.1)
+
+
+def test_a_start_whose_gravity_exceeds_a_motor_s_limit_is_held_at_the_limit() -> None:
+    """Baxter's left arm (tools/campaigns/baxter_cpbc_rate.yaml: 50 N·m at the shoulder,
+    500 N·m/s) from seed 52 of its campaign, where gravity pulls the shoulder 4 % past its
+    motor's limit. The motors hold at most their limit at the start: no command of the
+    guarded run is clipped by the plant and no applied torque leaves the box. (Held at the
+    gravity torque itself, the plant clipped 8 of the guard's commands, each within the
+    box, and applied up to 1 N·m beyond the limit.) A guard told nothing starts from the
+    same held torque: its first torque lies within ρh of gravity clipped into the box."""
+    from dataclasses import replace
+
+    from cpbc.controllers.safeguard import Safeguard
+    from cpbc.reliability.campaign import RecordingPlant, checked_run, kept_constraints
+    from cpbc.reliability.verification import draw_state
+
+    path = Path(__file__).resolve().parents[1] / "tools/campaigns/baxter_cpbc_rate.yaml"
+    setup = build(*load_scenario(path))
+    entry = setup.controllers[0]
+    limit = np.asarray(setup.loop_settings.bounds.torque)
+    s = draw_state(setup, 52)
+    gravity = setup.model.gravity(s.position)
+    assert np.max(np.abs(gravity) / limit) > 1.03
+    settings = replace(setup.loop_settings, duration=0.1, log_every=1)
+    period = settings.bounds.period
+    kept = kept_constraints(setup, entry, period, setup.safeguard)
+    plant = RecordingPlant(setup.make_plant().model, setup.plant_settings)
+    traj = checked_run(plant, setup, entry, s.position, s.velocity, settings, kept,
+                       safeguard=setup.safeguard).trajectory
+    assert traj.rate_limited_steps == 0
+    assert np.all(np.abs(traj.joint_torque) <= limit * (1 + 1e-12))
+    guard = setup.controller(entry)
+    assert isinstance(guard, Safeguard) and guard.box.rate_limited
+    first = guard.torque(s.position, s.velocity)
+    held = np.clip(gravity, -limit, limit)
+    step = np.asarray(setup.loop_settings.bounds.step)
+    assert np.all(np.abs(first - held) <= step * (1 + 1e-9))
+    assert np.all(np.abs(first) <= limit)

@@ -172,8 +172,9 @@ def stopping_brake(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Arra
     every physics step; None if none does. Each brake is held against the model's b (the
     rescue's), and where the model has dry friction and none of them stops the arm,
     against b without it (``brakes.holding_bias``: "…, friction left"). Under a
-    torque-rate limit each brake ramps from the gravity torque at the start (what the run's
-    own first command starts from) at the rate the motors allow. ``plant``: the true plant
+    torque-rate limit each brake ramps from the gravity torque at the start, at most the
+    torque limit (what the run's own first command starts from), at the rate the motors
+    allow. ``plant``: the true plant
     to brake in (a fresh one of the scenario's by default); ``disturbance``: the run's,
     which the brakes meet too (the same draws, period by period: a start is stoppable in
     the plant as it is disturbed), and which keeps the rates jittering by h ā: the arm
@@ -181,7 +182,8 @@ def stopping_brake(setup: ScenarioSetup, kept: ConstraintSet, x: Array, dx: Arra
     limit = setup.loop_settings.bounds.torque
     rate = setup.loop_settings.bounds.rate
     box = TorqueBox.of(setup.model, math.inf if limit is None else limit)
-    held = None if rate is None else box.joint(setup.model.gravity(x))
+    # the gravity torque the motors hold at the start, at most their limit (the loop's own)
+    held = None if rate is None else np.clip(box.joint(setup.model.gravity(x)), *box.bounds)
     step = None if rate is None else rate * period
     plant = plant or setup.make_plant()
     coords = setup.model.coordinates

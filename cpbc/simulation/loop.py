@@ -51,7 +51,7 @@ class LoopSettings:
             applies them as motors would: a torque beyond the box is clipped, and a command
             that moves faster than the rate limit is clipped and counted; the run's first
             command moves from the torque held before it, the gravity torque at the start
-            (an arm held at rest).
+            (an arm held at rest), at most the torque limit.
         log_every: keep every k-th control sample (long runs).
         noise: Gaussian noise on the state the controller sees, or None.
         max_log_samples: the log never holds more samples than this: when full, it drops
@@ -249,9 +249,17 @@ class ArmLoop:
 
     def start(self, x0: Array) -> None:
         """Before the first control instant: the motors hold the gravity torque of the
-        controller's model at the start, and a guard that knows the rate limit is told so."""
+        controller's model at the start — at most their torque limit: where gravity pulls
+        harder the arm cannot be held, and a motor held beyond its limit took Baxter's
+        shoulder 1 N·m past it for the first steps, the plant clipping every command the
+        guard made within the box — and a guard that knows the rate limit is told so."""
         gravity = self.sample.controller.model.gravity(x0)
-        self.held_q = gravity if self.identity else self.t_mat_t.dot(gravity)
+        held_q = gravity if self.identity else self.t_mat_t.dot(gravity)
+        limit = self.limit
+        if limit is not None and not (abs(held_q) <= limit).all():
+            held_q = held_q.clip(-limit, limit)
+            gravity = held_q if self.identity else np.linalg.solve(self.t_mat_t, held_q)
+        self.held_q = held_q
         if self.guard is not None and self.rate_step is not None:
             self.guard.holding(gravity)
 

@@ -83,7 +83,7 @@ class StepBox:
     def begin(self, state: ArmState) -> None:
         """This step's box under a rate limit: the torque box (moved by what the robot adds)
         around the held torque — or, at the first step, the gravity torque of the state (an
-        arm held at rest) — by ρh."""
+        arm held at rest), clipped into the box (a motor holds at most its limit) — by ρh."""
         box, step = self.torque_box, self.rate_step
         assert box is not None and step is not None
         if self._added is not None:  # the robot's box bounds the command, τ − added
@@ -91,7 +91,7 @@ class StepBox:
             shift = box.joint(self._added)
             box = box.with_bounds(lower + shift, upper + shift)
         self._static = box
-        held = state.gravity if self.holding is None else self.holding
+        held = box.clip(state.gravity) if self.holding is None else self.holding
         self.holding = held  # this step's anchor (fit)
         self._step = box.around(box.joint(held), step)
         self._inertia = state.inertia

@@ -231,7 +231,7 @@ class SimulationSpec(Strict):
             "joint torque-rate limits |dτ/dt| ≤ ρ [N·m/s]: one number, one per joint, "
             "from_model (a built-in arm that declares one), or none. The plant applies it "
             "and the safeguard chooses only within it; the first command ramps from the "
-            "gravity torque at the start"))
+            "gravity torque at the start (at most the torque limit)"))
     log_every: Annotated[int, Field(ge=1)] = Field(
         default=1, description=(
             "keep every k-th control sample in the log"))
