@@ -91,7 +91,13 @@ class StepBox:
             shift = box.joint(self._added)
             box = box.with_bounds(lower + shift, upper + shift)
         self._static = box
-        held = box.clip(state.gravity) if self.holding is None else self.holding
+        held = self.holding
+        if held is None:  # the first step: an arm held at rest, at most at the box's edge
+            held = state.gravity
+            lower, upper = box.bounds
+            joint = box.joint(held)
+            if not ((joint >= lower) & (joint <= upper)).all():
+                held = box.clip(held)
         self.holding = held  # this step's anchor (fit)
         self._step = box.around(box.joint(held), step)
         self._inertia = state.inertia
