@@ -251,8 +251,8 @@ class ArmLoop:
         """Before the first control instant: the motors hold the gravity torque of the
         controller's model at the start — at most their torque limit: where gravity pulls
         harder the arm cannot be held, and a motor held beyond its limit took Baxter's
-        shoulder 1 N·m past it for the first steps, the plant clipping every command the
-        guard made within the box — and a guard that knows the rate limit is told so."""
+        shoulder up to 1.6 N·m past it for the first 2-4 steps, the plant clipping the
+        commands the guard made within the box — and a guard that knows the rate limit is told so."""
         gravity = self.sample.controller.model.gravity(x0)
         held_q = gravity if self.identity else self.t_mat_t.dot(gravity)
         limit = self.limit
