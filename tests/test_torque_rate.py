@@ -255,8 +255,9 @@ def test_a_start_whose_gravity_exceeds_a_motor_s_limit_is_held_at_the_limit() ->
     motor's limit. The motors hold at most their limit at the start: no command of the
     guarded run is clipped by the plant and no applied torque leaves the box. (Held at the
     gravity torque itself, the plant clipped 8 of the guard's commands, each within the
-    box, and applied up to 1.49 N·m beyond the limit over 3 steps.) A guard told nothing starts from the
-    same held torque: its first torque lies within ρh of gravity clipped into the box."""
+    box, and applied up to 1.49 N·m beyond the limit over 3 steps.) A guard told nothing
+    starts from the same held torque: its first torque lies within ρh of gravity clipped
+    into the box."""
     from dataclasses import replace
 
     from cpbc.controllers.safeguard import Safeguard

@@ -252,7 +252,8 @@ class ArmLoop:
         controller's model at the start — at most their torque limit: where gravity pulls
         harder the arm cannot be held, and a motor held beyond its limit took Baxter's
         shoulder up to 1.6 N·m past it for the first 2-4 steps, the plant clipping the
-        commands the guard made within the box — and a guard that knows the rate limit is told so."""
+        commands the guard made within the box — and a guard that knows the rate limit is
+        told so."""
         gravity = self.sample.controller.model.gravity(x0)
         held_q = gravity if self.identity else self.t_mat_t.dot(gravity)
         limit = self.limit
