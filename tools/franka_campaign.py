@@ -156,6 +156,7 @@ def refused_start(name: str, detail: str) -> dict[str, Any]:
             "outside_box": 0, "min_margin": nan, "min_margin_name": detail,
             "crossing_states": 0, "velocity_over": 0,
             "compute_us": {"p50": nan, "p99": nan, "p999": nan, "max": nan},
+            "compute_cpu_us": {"p50": nan, "p99": nan, "p999": nan, "max": nan},
             "lost_states": 0, "brake_cycles": 0, "rescues": 0, "acted": 0,
             "out_of_tests": 0, "wall_s": 0.0, "joint_error": nan, "tip_error": nan,
             "reached": False, "_compute": [], "_compute_cpu": []}
